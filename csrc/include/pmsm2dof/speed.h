@@ -1,0 +1,170 @@
+/*
+ * pmsm2dof: the 2DOF PI speed controller with anti-windup (paper Fig. 5 and 6).
+ *
+ * Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet
+ * Synchronous Motor Speed Controller". Equation numbers below are the paper's.
+ *
+ *   e      = w_ref - w_m                                  speed error [rad/s]
+ *   T_fb   = F(z) e,  F(s) = Kp + Ki/s                    PI feedback (eq 14)
+ *   T_ff   = Fr(z) w_ref                                  2DOF feedforward (eq 11-13, 15)
+ *   u      = T_fb + T_ff                                  torque before the limit [Nm]
+ *   u_sat  = torque of the current vector limited to ||i_dq|| <= i_max_A
+ *   u*     = u_sat - u                                    anti-windup signal [Nm]
+ *   dx_i/dt = Ki (e + Ka u*)                              back calculation (Fig. 5)
+ *
+ * Gains (eq 9): Kp = J alpha, Ki = J (alpha / (2 zeta))^2.
+ *
+ * Feedforward forms:
+ *   NONE     Fr = 0 (1DOF PI).
+ *   LOWPASS  Fr = -Ki / (s + alpha)                                  eq 13 (m = 1, tau_i neglected)
+ *   NO_TAU   Fr = J alpha ((m - 1) s - alpha/(4 zeta^2)) / (s + m alpha)   eq 11 with tau_i = 0
+ *   FULL     Fr = J alpha (m tau_i s^2 + (m - 1) s - alpha/(4 zeta^2)) / (s + m alpha)   eq 11
+ *            FULL is improper. It is split by polynomial division into
+ *            Kd s + D + c / (s + m alpha); the proper part is discretized by the
+ *            chosen method and the derivative Kd s always by the backward
+ *            difference (r[k] - r[k-1]) / Ts, the only causal choice that has no
+ *            pole on the unit circle (Tustin's s has one at z = -1).
+ *
+ * Discrete PI, the same for all methods (only b_e0 differs):
+ *   u[k]   = b_e0 e[k] + x[k-1] + T_ff[k]
+ *   x[k]   = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k]          (back_calculation)
+ *   b_e0   = Kp (forward Euler), Kp + Ki Ts (backward Euler), Kp + Ki Ts / 2 (Tustin, eq 14)
+ * The error path is exactly F(z) of the chosen method. The applied command is
+ * only known after the output is computed, so the u* path enters the state one
+ * sample later for every method (the usual embedded realization).
+ *
+ * Torque to current: surface PMSM (Ld == Lq): id = 0, iq = T / (1.5 p psi_f).
+ * Salient PMSM: maximum torque per ampere. The current-vector limit
+ * ||i_dq|| <= i_max_A is applied as the equivalent torque limit T_max on the
+ * MTPA trajectory. Torque uses the amplitude-invariant Park transform:
+ * Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) (the paper's eq 1 omits the 1.5).
+ *
+ * Non-finite policy: if the computed torque is not finite (NaN or inf speed,
+ * reference, or an overflow), the output is zero torque and zero current, the
+ * state is left untouched by the update, `fault` is set in the output and the
+ * latched fault counter of the controller is incremented.
+ *
+ * Parameter updates: p2d_speed_set_config validates the new configuration and
+ * computes its coefficients into the inactive of two coefficient sets, then
+ * makes it active with one aligned 32-bit store. On an invalid configuration
+ * nothing changes. Call it from a context that the step cannot preempt
+ * mid-update in reverse (on a single-core MCU: from the background loop,
+ * with step in the interrupt).
+ *
+ * Portable C99, float32, no allocation, no global state.
+ */
+#ifndef PMSM2DOF_SPEED_H
+#define PMSM2DOF_SPEED_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "pmsm2dof/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    P2D_FF_NONE = 0,    /* 1DOF PI */
+    P2D_FF_LOWPASS = 1, /* eq 13 / 15 */
+    P2D_FF_NO_TAU = 2,  /* eq 11 with tau_i = 0 */
+    P2D_FF_FULL = 3     /* eq 11 */
+} p2d_feedforward_t;
+
+/* Design inputs of the speed controller. */
+typedef struct {
+    float J_kgm2;                  /* design inertia [kg m^2], > 0 */
+    float alpha_radps;             /* bandwidth of the P loop [rad/s], > 0 (eq 9) */
+    float zeta;                    /* relative damping of the PI loop [-], > 0 (eq 9) */
+    float m;                       /* tracking pole factor: Gx = m alpha / (s + m alpha) [-], > 0 (eq 10) */
+    float tau_i_s;                 /* current-loop time constant [s], >= 0 (eq 3); used by FULL only */
+    float Ka;                      /* back-calculation gain [(rad/s)/Nm], >= 0; paper default 1/Kp */
+    float Ts_s;                    /* sampling period [s], > 0 */
+    float i_max_A;                 /* current-vector limit ||i_dq|| <= i_max_A [A], > 0 */
+    float psi_f_Wb;                /* permanent-magnet flux linkage [Wb], > 0 */
+    float Ld_H;                    /* d-axis inductance [H], > 0 */
+    float Lq_H;                    /* q-axis inductance [H], > 0 */
+    uint32_t pole_pairs;           /* pole pairs p [-], >= 1 */
+    p2d_method_t method;           /* discretization (Table 1) */
+    p2d_feedforward_t feedforward; /* 2DOF feedforward form */
+    p2d_anti_windup_t anti_windup; /* anti-windup mode */
+} p2d_speed_config_t;
+
+/* Precomputed coefficients: everything the step needs for one Ts. */
+typedef struct {
+    float Kp;             /* proportional gain [Nm/(rad/s)] (eq 9) */
+    float Ki;             /* integral gain [Nm/rad] (eq 9) */
+    float b_e0;           /* PI output gain on e[k] [Nm/(rad/s)] */
+    float Ki_Ts;          /* integrator increment per unit error [Nm/(rad/s)] */
+    float Ki_Ka_Ts;       /* integrator increment per Nm of u* [-]; 0 unless back calculation */
+    float ff_b0;          /* feedforward section, weight of r[k] [Nm/(rad/s)] */
+    float ff_b1;          /* feedforward section, weight of r[k-1] [Nm/(rad/s)] */
+    float ff_a1;          /* feedforward section, weight of -y[k-1] [-] */
+    float ff_Kd_per_Ts;   /* FULL derivative term J alpha m tau_i / Ts [Nm/(rad/s)] */
+    float T_max_Nm;       /* torque at ||i_dq|| = i_max_A on the MTPA trajectory [Nm] */
+    float i_max_A;        /* current-vector limit [A] */
+    float kt_NmpA;        /* 1.5 p psi_f [Nm/A] */
+    float c_T_Nm_per_A2;  /* 1.5 p (Ld - Lq) [Nm/A^2]; 0 for a surface PMSM */
+    float psi_f_Wb;       /* flux linkage [Wb], MTPA */
+    float dL_H;           /* Ld - Lq [H], MTPA */
+    bool salient;         /* Ld != Lq: MTPA current split */
+    bool clamping;        /* conditional integration */
+} p2d_speed_coef_t;
+
+typedef struct {
+    p2d_speed_coef_t coef[2];  /* active and shadow coefficient sets */
+    uint32_t active;           /* index of the active set, 0 or 1 */
+    p2d_speed_config_t config; /* configuration of the active set */
+    float x_i_Nm;              /* integrator state x[k-1] [Nm] */
+    float r_prev_radps;        /* reference of the previous sample r[k-1] [rad/s] */
+    float y_ff_prev_Nm;        /* feedforward section output y[k-1] [Nm] */
+    uint32_t fault_count;      /* samples rejected by the non-finite policy [-] */
+} p2d_speed_t;
+
+/* Result of p2d_speed_compute: the command and what the update needs. */
+typedef struct {
+    float w_ref_radps;  /* reference used this sample [rad/s] */
+    float e_radps;      /* speed error w_ref - w_m [rad/s] */
+    float T_ff_Nm;      /* feedforward torque Fr(z) w_ref [Nm] */
+    float y_ff_Nm;      /* output of the feedforward section (T_ff without the derivative) [Nm] */
+    float T_unsat_Nm;   /* u: feedback plus feedforward before the limit [Nm] */
+    float T_ref_Nm;     /* u_sat: torque of the limited current vector [Nm] */
+    float id_ref_A;     /* d-axis current command [A] */
+    float iq_ref_A;     /* q-axis current command [A] */
+    bool saturated;     /* the current-vector limit is active */
+    bool fault;         /* non-finite policy engaged: outputs are zero */
+} p2d_speed_output_t;
+
+/* Validate cfg and precompute; on error ctl is left unchanged. Resets state. */
+p2d_status_t p2d_speed_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg);
+
+/* Validate cfg into the shadow set and swap it in; state is kept. On error nothing changes. */
+p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg);
+
+/*
+ * Bumpless reset: the feedforward section at its steady state for a constant
+ * reference w_ref_radps, and the integrator such that the output equals
+ * T_init_Nm at zero error. p2d_speed_reset(ctl, 0, 0) clears everything.
+ */
+void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm);
+
+/* Compute the command for this sample; does not change the state. */
+void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps,
+                       p2d_speed_output_t *out);
+
+/* Update the state with the torque actually applied (after every limit). */
+void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm);
+
+/* compute + update with the controller's own limited torque. */
+void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps,
+                    p2d_speed_output_t *out);
+
+/* The paper's default back-calculation gain Ka = 1/Kp = 1/(J alpha) (section 3.3). */
+float p2d_speed_Ka_default(float J_kgm2, float alpha_radps);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* PMSM2DOF_SPEED_H */

@@ -1,0 +1,64 @@
+/*
+ * pmsm2dof: status codes shared by every controller init and parameter update.
+ *
+ * Each error code names exactly one configuration field, so that callers
+ * (the Python bindings, firmware diagnostics) can report which parameter was
+ * rejected and what its valid range is, without parsing text.
+ */
+#ifndef PMSM2DOF_STATUS_H
+#define PMSM2DOF_STATUS_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    P2D_OK = 0,
+    P2D_ERR_NULL,          /* a pointer argument is NULL */
+    P2D_ERR_J,             /* J_kgm2 */
+    P2D_ERR_ALPHA,         /* alpha_radps */
+    P2D_ERR_ZETA,          /* zeta */
+    P2D_ERR_M,             /* m */
+    P2D_ERR_M_LOWPASS,     /* m must be 1 with the lowpass feedforward (eq 13) */
+    P2D_ERR_TAU_I,         /* tau_i_s */
+    P2D_ERR_KA,            /* Ka */
+    P2D_ERR_TS,            /* Ts_s */
+    P2D_ERR_TS_UNSTABLE,   /* Ts_s too large: forward-Euler filter pole leaves the unit circle */
+    P2D_ERR_I_MAX,         /* i_max_A */
+    P2D_ERR_POLE_PAIRS,    /* pole_pairs */
+    P2D_ERR_PSI_F,         /* psi_f_Wb */
+    P2D_ERR_LD,            /* Ld_H */
+    P2D_ERR_LQ,            /* Lq_H */
+    P2D_ERR_RS,            /* Rs_ohm */
+    P2D_ERR_METHOD,        /* method */
+    P2D_ERR_FEEDFORWARD,   /* feedforward */
+    P2D_ERR_ANTI_WINDUP,   /* anti_windup */
+    P2D_STATUS_COUNT       /* number of codes, not a code */
+} p2d_status_t;
+
+/* Name of the configuration field that a status code rejects ("" for P2D_OK). */
+const char *p2d_status_param(p2d_status_t status);
+
+/* Human-readable valid range of that field, e.g. "finite and > 0". */
+const char *p2d_status_range(p2d_status_t status);
+
+/* Discretization of every dynamic part (paper Table 1). */
+typedef enum {
+    P2D_FORWARD_EULER = 0,  /* s = (z - 1) / Ts */
+    P2D_BACKWARD_EULER = 1, /* s = (z - 1) / (z Ts) */
+    P2D_TUSTIN = 2          /* s = 2 (z - 1) / (Ts (z + 1)), eq 14 and 15 */
+} p2d_method_t;
+
+/* Integrator anti-windup (paper section 3.2, Fig. 5). */
+typedef enum {
+    P2D_AW_NONE = 0,             /* plain integrator: winds up */
+    P2D_AW_BACK_CALCULATION = 1, /* dx_i/dt = Ki (e + Ka u*), u* = u_sat - u */
+    P2D_AW_CLAMPING = 2          /* conditional integration: hold while the limit is active
+                                    and the error would drive further into it */
+} p2d_anti_windup_t;
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* PMSM2DOF_STATUS_H */

@@ -1,0 +1,150 @@
+/*
+ * dq current controllers: see pmsm2dof/current.h for the equations.
+ */
+#include "pmsm2dof/current.h"
+
+#include <math.h>
+
+#define P2D_INV_SQRT3 0.57735026918962576f /* 1/sqrt(3) */
+
+static bool is_positive(float x) { return isfinite(x) && x > 0.0f; }
+static bool is_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
+
+/* PI coefficients of one axis with inductance L_H (eq 3: Kp = L/tau_i, Ki = Rs/tau_i). */
+static p2d_pi_coef_t axis_coefficients(const p2d_current_config_t *cfg, float L_H)
+{
+    p2d_pi_coef_t a;
+    a.Kp = L_H / cfg->tau_i_s;
+    a.Ki = cfg->Rs_ohm / cfg->tau_i_s;
+    a.Ki_Ts = a.Ki * cfg->Ts_s;
+    /* back calculation with Ka = 1/Kp: Ki Ka Ts = Rs Ts / L */
+    a.Ki_Ka_Ts = cfg->anti_windup == P2D_AW_BACK_CALCULATION ? a.Ki_Ts / a.Kp : 0.0f;
+    if (cfg->method == P2D_FORWARD_EULER) {
+        a.b_e0 = a.Kp;
+    } else if (cfg->method == P2D_BACKWARD_EULER) {
+        a.b_e0 = a.Kp + a.Ki_Ts;
+    } else {
+        a.b_e0 = a.Kp + 0.5f * a.Ki_Ts;
+    }
+    return a;
+}
+
+static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_current_coef_t *c)
+{
+    p2d_current_coef_t k;
+    if (!is_positive(cfg->Rs_ohm)) return P2D_ERR_RS;
+    if (!is_positive(cfg->Ld_H)) return P2D_ERR_LD;
+    if (!is_positive(cfg->Lq_H)) return P2D_ERR_LQ;
+    if (!is_nonnegative(cfg->psi_f_Wb)) return P2D_ERR_PSI_F;
+    if (!is_positive(cfg->Ts_s)) return P2D_ERR_TS;
+    if (!isfinite(cfg->tau_i_s) || !(cfg->tau_i_s >= cfg->Ts_s)) return P2D_ERR_TAU_I;
+    if ((unsigned)cfg->method > (unsigned)P2D_TUSTIN) return P2D_ERR_METHOD;
+    if ((unsigned)cfg->anti_windup > (unsigned)P2D_AW_CLAMPING) return P2D_ERR_ANTI_WINDUP;
+    /* the discrete back-calculation loop x[k] = (1 - Rs Ts / L) x[k-1] + ... must be stable */
+    if (!(cfg->Rs_ohm * cfg->Ts_s < 2.0f * fminf(cfg->Ld_H, cfg->Lq_H))) return P2D_ERR_TS_UNSTABLE;
+
+    k.d = axis_coefficients(cfg, cfg->Ld_H);
+    k.q = axis_coefficients(cfg, cfg->Lq_H);
+    k.Ld_H = cfg->decouple ? cfg->Ld_H : 0.0f;
+    k.Lq_H = cfg->decouple ? cfg->Lq_H : 0.0f;
+    k.psi_f_Wb = cfg->decouple ? cfg->psi_f_Wb : 0.0f;
+    k.clamping = cfg->anti_windup == P2D_AW_CLAMPING;
+    *c = k;
+    return P2D_OK;
+}
+
+p2d_status_t p2d_current_init(p2d_current_t *ctl, const p2d_current_config_t *cfg)
+{
+    p2d_status_t status;
+    if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
+    status = current_coefficients(cfg, &ctl->coef[0]);
+    if (status != P2D_OK) return status;
+    ctl->coef[1] = ctl->coef[0];
+    ctl->active = 0u;
+    ctl->config = *cfg;
+    ctl->fault_count = 0u;
+    p2d_current_reset(ctl);
+    return P2D_OK;
+}
+
+p2d_status_t p2d_current_set_config(p2d_current_t *ctl, const p2d_current_config_t *cfg)
+{
+    p2d_status_t status;
+    uint32_t shadow;
+    if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
+    shadow = 1u - ctl->active;
+    status = current_coefficients(cfg, &ctl->coef[shadow]);
+    if (status != P2D_OK) return status;
+    ctl->config = *cfg;
+    ctl->active = shadow;
+    return P2D_OK;
+}
+
+void p2d_current_reset(p2d_current_t *ctl)
+{
+    ctl->x_d_V = 0.0f;
+    ctl->x_q_V = 0.0f;
+}
+
+void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
+                         float id_A, float iq_A, float w_e_radps, float u_dc_V,
+                         p2d_current_output_t *out)
+{
+    const p2d_current_coef_t *c = &ctl->coef[ctl->active];
+    float ud, uq, u_max, norm2, k;
+
+    out->ed_A = id_ref_A - id_A;
+    out->eq_A = iq_ref_A - iq_A;
+    /* ud[k] = b_e0 ed[k] + xd[k-1] - w_e Lq iq (decoupling, eq 1) */
+    ud = c->d.b_e0 * out->ed_A + ctl->x_d_V - w_e_radps * c->Lq_H * iq_A;
+    /* uq[k] = b_e0 eq[k] + xq[k-1] + w_e (Ld id + psi_f) */
+    uq = c->q.b_e0 * out->eq_A + ctl->x_q_V + w_e_radps * (c->Ld_H * id_A + c->psi_f_Wb);
+    /* linear range of space-vector modulation: ||u_dq|| <= u_dc / sqrt(3) */
+    u_max = fmaxf(u_dc_V, 0.0f) * P2D_INV_SQRT3;
+    out->ud_unsat_V = ud;
+    out->uq_unsat_V = uq;
+    if (!isfinite(ud) || !isfinite(uq) || !isfinite(u_max)) {
+        /* non-finite policy: zero voltage, no state update, fault raised */
+        out->ud_ref_V = 0.0f;
+        out->uq_ref_V = 0.0f;
+        out->saturated = false;
+        out->fault = true;
+        return;
+    }
+    out->fault = false;
+    norm2 = ud * ud + uq * uq;
+    out->saturated = norm2 > u_max * u_max;
+    /* scale the vector back onto the limit circle, keeping its direction */
+    k = out->saturated ? u_max / sqrtf(norm2) : 1.0f;
+    out->ud_ref_V = k * ud;
+    out->uq_ref_V = k * uq;
+}
+
+/* One axis: x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k], held under clamping. */
+static float axis_update(const p2d_pi_coef_t *a, bool clamping, float x_V, float e_A, float u_star_V)
+{
+    float dx = a->Ki_Ts * e_A + a->Ki_Ka_Ts * u_star_V;
+    if (clamping && u_star_V * e_A < 0.0f) dx = 0.0f;
+    return x_V + dx;
+}
+
+void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
+                        float ud_applied_V, float uq_applied_V)
+{
+    const p2d_current_coef_t *c = &ctl->coef[ctl->active];
+    if (out->fault || !isfinite(ud_applied_V) || !isfinite(uq_applied_V)) {
+        ctl->fault_count++;
+        return;
+    }
+    /* u* = u_sat - u per axis */
+    ctl->x_d_V = axis_update(&c->d, c->clamping, ctl->x_d_V, out->ed_A, ud_applied_V - out->ud_unsat_V);
+    ctl->x_q_V = axis_update(&c->q, c->clamping, ctl->x_q_V, out->eq_A, uq_applied_V - out->uq_unsat_V);
+}
+
+void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
+                      float id_A, float iq_A, float w_e_radps, float u_dc_V,
+                      p2d_current_output_t *out)
+{
+    p2d_current_compute(ctl, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out);
+    p2d_current_update(ctl, out, out->ud_ref_V, out->uq_ref_V);
+}

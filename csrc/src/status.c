@@ -1,0 +1,45 @@
+#include "pmsm2dof/status.h"
+
+typedef struct {
+    const char *param; /* configuration field */
+    const char *range; /* valid range */
+} p2d_status_text_t;
+
+static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
+    [P2D_OK] = {"", ""},
+    [P2D_ERR_NULL] = {"pointer", "non-NULL"},
+    [P2D_ERR_J] = {"J_kgm2", "finite and > 0"},
+    [P2D_ERR_ALPHA] = {"alpha_radps", "finite and > 0"},
+    [P2D_ERR_ZETA] = {"zeta", "finite and > 0"},
+    [P2D_ERR_M] = {"m", "finite and > 0"},
+    [P2D_ERR_M_LOWPASS] = {"m", "exactly 1 with feedforward lowpass (eq 13); use no_tau or full for m != 1"},
+    [P2D_ERR_TAU_I] = {"tau_i_s", "finite and >= 0 (speed controller); finite and >= Ts_s (current controller)"},
+    [P2D_ERR_KA] = {"Ka", "finite and >= 0"},
+    [P2D_ERR_TS] = {"Ts_s", "finite and > 0"},
+    [P2D_ERR_TS_UNSTABLE] = {"Ts_s", "small enough that every forward-Euler pole stays inside the unit circle (m*alpha*Ts_s < 2, Rs*Ts_s/L < 2)"},
+    [P2D_ERR_I_MAX] = {"i_max_A", "finite and > 0"},
+    [P2D_ERR_POLE_PAIRS] = {"pole_pairs", "an integer >= 1"},
+    [P2D_ERR_PSI_F] = {"psi_f_Wb", "finite and > 0 (speed controller), >= 0 (current controller)"},
+    [P2D_ERR_LD] = {"Ld_H", "finite and > 0"},
+    [P2D_ERR_LQ] = {"Lq_H", "finite and > 0"},
+    [P2D_ERR_RS] = {"Rs_ohm", "finite and > 0"},
+    [P2D_ERR_METHOD] = {"method", "forward_euler (0), backward_euler (1) or tustin (2)"},
+    [P2D_ERR_FEEDFORWARD] = {"feedforward", "none (0), lowpass (1), no_tau (2) or full (3)"},
+    [P2D_ERR_ANTI_WINDUP] = {"anti_windup", "none (0), back_calculation (1) or clamping (2)"},
+};
+
+const char *p2d_status_param(p2d_status_t status)
+{
+    if ((unsigned)status >= (unsigned)P2D_STATUS_COUNT) {
+        return "unknown";
+    }
+    return P2D_STATUS_TEXT[status].param;
+}
+
+const char *p2d_status_range(p2d_status_t status)
+{
+    if ((unsigned)status >= (unsigned)P2D_STATUS_COUNT) {
+        return "unknown status code";
+    }
+    return P2D_STATUS_TEXT[status].range;
+}

@@ -1,0 +1,9 @@
+"""pmsm2dof: anti-windup and 2DOF PI speed control of a PMSM, from design to the MCU.
+
+Implements Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet
+Synchronous Motor Speed Controller" (equation numbers in docstrings are the paper's).
+"""
+
+from .errors import ConfigError, Pmsm2dofError, SimulationError
+
+__all__ = ["ConfigError", "Pmsm2dofError", "SimulationError"]

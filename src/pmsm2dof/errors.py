@@ -1,0 +1,56 @@
+"""Exceptions of pmsm2dof.
+
+Every public entry point raises :class:`ConfigError` (a ``ValueError``) for bad input,
+with a message that names the parameter, its value and the valid range, and
+:class:`SimulationError` when the numbers go wrong (non-finite or physically absurd state).
+The CLI turns both into one line on stderr and exit status 2.
+"""
+
+import math
+
+
+class Pmsm2dofError(Exception):
+    """Base class of the errors pmsm2dof raises on purpose."""
+
+
+class ConfigError(Pmsm2dofError, ValueError):
+    """An input parameter is missing, of the wrong type or out of its valid range."""
+
+    def __init__(self, param, value, valid):
+        self.param = param
+        self.value = value
+        self.valid = valid
+        super().__init__(f"{param} = {value!r} is invalid: valid range is {valid}")
+
+
+class SimulationError(Pmsm2dofError, RuntimeError):
+    """The simulation or a numerical computation produced non-finite or absurd values."""
+
+
+def require_positive(param, value):
+    """Return ``float(value)`` if it is a finite number > 0, else raise ConfigError."""
+    return _require(param, value, lambda v: v > 0, "finite and > 0")
+
+
+def require_nonnegative(param, value):
+    """Return ``float(value)`` if it is a finite number >= 0, else raise ConfigError."""
+    return _require(param, value, lambda v: v >= 0, "finite and >= 0")
+
+
+def require_choice(param, value, choices):
+    """Return ``value`` if it is one of ``choices``, else raise ConfigError."""
+    if value not in choices:
+        raise ConfigError(param, value, "one of " + ", ".join(repr(c) for c in choices))
+    return value
+
+
+def _require(param, value, ok, valid):
+    if isinstance(value, bool):
+        raise ConfigError(param, value, valid)
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ConfigError(param, value, valid) from None
+    if not math.isfinite(v) or not ok(v):
+        raise ConfigError(param, value, valid)
+    return v

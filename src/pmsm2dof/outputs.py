@@ -1,0 +1,59 @@
+"""Writing outputs all at once or not at all.
+
+A command that fails half-way must not leave a half-written file or folder behind:
+everything is written into a temporary sibling and moved into place at the end.
+"""
+
+import contextlib
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from .errors import ConfigError
+
+
+@contextlib.contextmanager
+def staged_dir(out):
+    """Yield a temporary folder whose files replace those in ``out`` on success.
+
+    On an exception the temporary folder is removed and ``out`` is untouched.
+    """
+    out = Path(out)
+    parent = out.resolve().parent
+    if out.exists() and not out.is_dir():
+        raise ConfigError("out", str(out), "a folder path (it is an existing file)")
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+    except OSError as exc:
+        raise ConfigError("out", str(out), f"a writable folder ({exc.strerror})") from None
+    try:
+        yield tmp
+        out.mkdir(exist_ok=True)
+        for item in tmp.iterdir():
+            target = out / item.name
+            if target.is_dir() and not target.is_symlink():
+                shutil.rmtree(target)
+            os.replace(item, target)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def atomic_write(path, data):
+    """Write ``data`` (bytes or str) to ``path`` through a temporary file and a rename."""
+    path = Path(path)
+    mode = "wb" if isinstance(data, bytes) else "w"
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    except OSError as exc:
+        raise ConfigError("path", str(path), f"a writable location ({exc.strerror})") from None
+    try:
+        with os.fdopen(fd, mode) as f:
+            f.write(data)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
