@@ -4,6 +4,8 @@ Implements Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Mag
 Synchronous Motor Speed Controller" (equation numbers in docstrings are the paper's).
 """
 
+from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
 from .errors import ConfigError, Pmsm2dofError, SimulationError
 
 __all__ = ["ConfigError", "Pmsm2dofError", "SimulationError"]
+__all__ += ["ANTI_WINDUPS", "FEEDFORWARDS", "METHODS", "CurrentController", "SpeedController"]

@@ -1,0 +1,597 @@
+"""Python objects over the deployable C controllers (no controller logic here).
+
+:class:`SpeedController` wraps ``p2d_speed_t`` (paper Fig. 5 and 6: the 2DOF PI
+speed controller with anti-windup, eq 9-15) and :class:`CurrentController` wraps
+``p2d_current_t`` (the dq current regulators of Fig. 1 with the loop of eq 3).
+Every number is computed by the C code in ``csrc/src``, the same code that is
+cross-compiled for the MCU; ``run`` methods drive it over whole arrays in one C
+call (``csrc/sim/batch.c``).
+
+The controllers compute in float32 (C ``float``): Python floats given to them
+are rounded to the nearest float32, and the values read back (outputs,
+coefficients, configuration, state) are those float32 numbers.
+
+Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for
+Permanent-Magnet Synchronous Motor Speed Controller".
+"""
+
+import dataclasses
+import math
+import numbers
+
+import numpy as np
+
+from ._core import ffi, lib
+from .errors import ConfigError
+
+#: Discretization methods (paper Table 1); the index is the C ``p2d_method_t`` value.
+METHODS = ("forward_euler", "backward_euler", "tustin")
+#: 2DOF feedforward forms; the index is the C ``p2d_feedforward_t`` value.
+FEEDFORWARDS = ("none", "lowpass", "no_tau", "full")
+#: Anti-windup modes (paper section 3.2); the index is the C ``p2d_anti_windup_t`` value.
+ANTI_WINDUPS = ("none", "back_calculation", "clamping")
+
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _float_param(name, value):
+    """``value`` as a Python float, for a float32 field of a C configuration.
+
+    Range checks are left to the C init (which knows the valid ranges); here
+    only the type is checked, and values that float32 cannot hold (overflow to
+    inf, or a non-zero value that rounds to 0) are rejected, naming ``name``.
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ConfigError(name, value, "a real number")
+    v = float(value)
+    if math.isfinite(v) and (abs(v) > _FLOAT32_MAX or (v != 0.0 and np.float32(v) == 0.0)):
+        raise ConfigError(name, value, "a number representable in float32 (|x| <= 3.4e38, not rounding to 0)")
+    return v
+
+
+def _choice_param(name, value, choices):
+    """Index of the string ``value`` in ``choices`` (the C enum value)."""
+    if not isinstance(value, str) or value not in choices:
+        raise ConfigError(name, value, "one of " + ", ".join(repr(c) for c in choices))
+    return choices.index(value)
+
+
+def _raise_status(status, given):
+    """Raise the ConfigError of a non-zero C status, with the value the user gave."""
+    param = ffi.string(lib.p2d_status_param(status)).decode()
+    valid = ffi.string(lib.p2d_status_range(status)).decode()
+    raise ConfigError(param, given.get(param), valid)
+
+
+def _structured_dtype(ctype, fields):
+    """A numpy dtype with the memory layout of the C struct ``ctype``."""
+    return np.dtype(
+        {
+            "names": list(fields),
+            "formats": [np.bool_ if kind == "bool" else np.float32 for kind in fields.values()],
+            "offsets": [ffi.offsetof(ctype, name) for name in fields],
+            "itemsize": ffi.sizeof(ctype),
+        }
+    )
+
+
+def _as_inputs(names, values):
+    """Broadcast the inputs of a ``run`` to contiguous 1-D float32 arrays of one length."""
+    arrays = []
+    for name, value in zip(names, values):
+        a = np.asarray(value, dtype=np.float64)
+        if a.ndim > 1:
+            raise ConfigError(name, f"array of shape {a.shape}", "a scalar or a 1-D array")
+        arrays.append(a)
+    try:
+        arrays = np.broadcast_arrays(*arrays)
+    except ValueError:
+        shapes = ", ".join(f"{n}: {a.shape}" for n, a in zip(names, arrays))
+        raise ConfigError(names[1], shapes, "arrays of equal length (or scalars)") from None
+    return [np.ascontiguousarray(np.atleast_1d(a), dtype=np.float32) for a in arrays]
+
+
+def _float_ptr(array):
+    return ffi.cast("float *", ffi.from_buffer(array))
+
+
+# ---------------------------------------------------------------------------------------------
+# Speed controller
+# ---------------------------------------------------------------------------------------------
+
+_SPEED_OUTPUT_FIELDS = {
+    "w_ref_radps": "float",
+    "e_radps": "float",
+    "T_ff_Nm": "float",
+    "y_ff_Nm": "float",
+    "T_unsat_Nm": "float",
+    "T_ref_Nm": "float",
+    "id_ref_A": "float",
+    "iq_ref_A": "float",
+    "saturated": "bool",
+    "fault": "bool",
+}
+_SPEED_OUTPUT_DTYPE = _structured_dtype("p2d_speed_output_t", _SPEED_OUTPUT_FIELDS)
+_SPEED_FLOATS = ("J_kgm2", "alpha_radps", "zeta", "m", "tau_i_s", "Ts_s", "i_max_A", "psi_f_Wb", "Ld_H", "Lq_H")
+_SPEED_PARAMS = _SPEED_FLOATS + ("Ka", "pole_pairs", "method", "feedforward", "anti_windup")
+
+
+@dataclasses.dataclass(frozen=True)
+class SpeedOutput:
+    """One sample of the speed controller (the C ``p2d_speed_output_t``), float32 values.
+
+    Attributes
+    ----------
+    w_ref_radps : reference used this sample [rad/s]
+    e_radps : speed error w_ref - w_m [rad/s]
+    T_ff_Nm : feedforward torque Fr(z) w_ref [Nm] (eq 11-13, 15)
+    y_ff_Nm : output of the feedforward section, T_ff without the derivative part [Nm]
+    T_unsat_Nm : u, feedback plus feedforward before the limit [Nm]
+    T_ref_Nm : u_sat, torque of the limited current vector [Nm]
+    id_ref_A, iq_ref_A : current command [A], ||i_dq|| <= i_max_A
+    saturated : the current-vector limit is active
+    fault : the non-finite policy engaged (outputs are zero, state untouched)
+    """
+
+    w_ref_radps: float
+    e_radps: float
+    T_ff_Nm: float
+    y_ff_Nm: float
+    T_unsat_Nm: float
+    T_ref_Nm: float
+    id_ref_A: float
+    iq_ref_A: float
+    saturated: bool
+    fault: bool
+
+
+class SpeedController:
+    """The 2DOF PI speed controller with anti-windup of the paper (Fig. 5 and 6), in C.
+
+    Gains from eq 9: ``Kp = J alpha``, ``Ki = J (alpha / (2 zeta))**2``. The PI
+    feedback is discretized as in eq 14 and the reference feedforward as in
+    eq 11, 13 and 15 (``feedforward``: ``"none"`` 1DOF, ``"lowpass"`` eq 13 with
+    m = 1, ``"no_tau"`` eq 11 with tau_i = 0, ``"full"`` eq 11 with the derivative
+    part realized by a backward difference of the reference). The torque
+    reference is turned into a current vector (id = 0 for Ld == Lq, MTPA
+    otherwise) limited to ``||i_dq|| <= i_max_A``; the torque the limit removes,
+    ``u* = u_sat - u``, drives the anti-windup (``dx_i/dt = Ki (e + Ka u*)`` for
+    back calculation, Fig. 5).
+
+    Parameters
+    ----------
+    J_kgm2 : float
+        Design inertia [kg m^2], > 0.
+    alpha_radps : float
+        Bandwidth of the P loop [rad/s], > 0 (eq 9).
+    zeta : float
+        Relative damping of the PI loop, > 0 (eq 9).
+    m : float, default 1.0
+        Tracking pole factor, Gx = m alpha / (s + m alpha) (eq 10), > 0; must be 1
+        with ``feedforward="lowpass"``.
+    tau_i_s : float, default 0.0
+        Current-loop time constant [s], >= 0 (eq 3); used by ``feedforward="full"``.
+    Ka : float or None, default None
+        Back-calculation gain [(rad/s)/Nm], >= 0. None selects the paper's
+        ``Ka = 1/Kp`` (section 3.3), which then follows J and alpha in
+        :meth:`set_config`.
+    Ts_s : float
+        Sampling period [s], > 0.
+    i_max_A : float
+        Current-vector limit [A], > 0.
+    psi_f_Wb, Ld_H, Lq_H : float
+        Flux linkage [Wb] and dq inductances [H] of the motor, > 0.
+    pole_pairs : int
+        Pole pairs, >= 1. The torque is ``Te = 1.5 p (psi_f iq + (Ld - Lq) id iq)``
+        (amplitude-invariant Park; the paper's eq 1 omits the 1.5 and calls p0
+        the number of poles while using it as pole pairs).
+    method : {"forward_euler", "backward_euler", "tustin"}
+        Discretization of every dynamic part (Table 1).
+    feedforward : {"none", "lowpass", "no_tau", "full"}
+    anti_windup : {"none", "back_calculation", "clamping"}
+
+    Raises
+    ------
+    ConfigError
+        A parameter has the wrong type or is out of range (the message names the
+        parameter, the value given and the valid range).
+
+    Notes
+    -----
+    Computation is float32 (C ``float``); Python floats are rounded to float32.
+    """
+
+    def __init__(
+        self,
+        *,
+        J_kgm2,
+        alpha_radps,
+        zeta,
+        m=1.0,
+        tau_i_s=0.0,
+        Ka=None,
+        Ts_s,
+        i_max_A,
+        psi_f_Wb,
+        Ld_H,
+        Lq_H,
+        pole_pairs,
+        method="tustin",
+        feedforward="none",
+        anti_windup="back_calculation",
+    ):
+        self._ctl = ffi.new("p2d_speed_t *")
+        params = dict(
+            J_kgm2=J_kgm2, alpha_radps=alpha_radps, zeta=zeta, m=m, tau_i_s=tau_i_s, Ka=Ka, Ts_s=Ts_s,
+            i_max_A=i_max_A, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, pole_pairs=pole_pairs,
+            method=method, feedforward=feedforward, anti_windup=anti_windup,
+        )  # fmt: skip
+        cfg = self._c_config(params)
+        status = lib.p2d_speed_init(self._ctl, cfg)
+        if status != lib.P2D_OK:
+            _raise_status(status, params)
+        self._params = params
+
+    @staticmethod
+    def _c_config(params):
+        """The C configuration of ``params``; type errors raise ConfigError."""
+        cfg = ffi.new("p2d_speed_config_t *")
+        for name in _SPEED_FLOATS:
+            setattr(cfg, name, _float_param(name, params[name]))
+        p = params["pole_pairs"]
+        if isinstance(p, bool) or not isinstance(p, numbers.Integral) or not 1 <= p <= 0xFFFFFFFF:
+            raise ConfigError("pole_pairs", p, "an integer >= 1")
+        cfg.pole_pairs = int(p)
+        cfg.method = _choice_param("method", params["method"], METHODS)
+        cfg.feedforward = _choice_param("feedforward", params["feedforward"], FEEDFORWARDS)
+        cfg.anti_windup = _choice_param("anti_windup", params["anti_windup"], ANTI_WINDUPS)
+        if params["Ka"] is None:
+            # section 3.3: Ka = 1/Kp, computed in float32 by the C library
+            cfg.Ka = lib.p2d_speed_Ka_default(cfg.J_kgm2, cfg.alpha_radps)
+        else:
+            cfg.Ka = _float_param("Ka", params["Ka"])
+        return cfg
+
+    def set_config(self, **changes):
+        """Change parameters atomically, keeping the controller state.
+
+        The new configuration is validated and its coefficients computed into the
+        C controller's shadow set, which is then made active; if any parameter is
+        invalid, :class:`ConfigError` is raised and the old configuration stays.
+        """
+        unknown = sorted(set(changes) - set(_SPEED_PARAMS))
+        if unknown:
+            raise ConfigError(unknown[0], changes[unknown[0]], "a parameter of SpeedController: " + ", ".join(_SPEED_PARAMS))
+        params = {**self._params, **changes}
+        cfg = self._c_config(params)
+        status = lib.p2d_speed_set_config(self._ctl, cfg)
+        if status != lib.P2D_OK:
+            _raise_status(status, params)
+        self._params = params
+
+    def reset(self, w_ref_radps=0.0, T_init_Nm=0.0):
+        """Bumpless reset: feedforward at steady state for a constant ``w_ref_radps``,
+        integrator such that the output is ``T_init_Nm`` at zero error."""
+        lib.p2d_speed_reset(self._ctl, float(w_ref_radps), float(T_init_Nm))
+
+    def compute(self, w_ref_radps, w_m_radps):
+        """The command for this sample [rad/s in]; the state is not changed."""
+        out = ffi.new("p2d_speed_output_t *")
+        lib.p2d_speed_compute(self._ctl, float(w_ref_radps), float(w_m_radps), out)
+        return _speed_output(out)
+
+    def update(self, output, T_applied_Nm):
+        """Update the state with the torque actually applied after every limit [Nm]."""
+        out = ffi.new("p2d_speed_output_t *", dataclasses.asdict(output))
+        lib.p2d_speed_update(self._ctl, out, float(T_applied_Nm))
+
+    def step(self, w_ref_radps, w_m_radps):
+        """:meth:`compute` and :meth:`update` with the controller's own limited torque."""
+        out = ffi.new("p2d_speed_output_t *")
+        lib.p2d_speed_step(self._ctl, float(w_ref_radps), float(w_m_radps), out)
+        return _speed_output(out)
+
+    def run(self, w_ref_radps, w_m_radps):
+        """Run :meth:`step` over whole arrays in one C call (``p2d_speed_run``).
+
+        Parameters
+        ----------
+        w_ref_radps, w_m_radps : array_like
+            Reference and measured mechanical speed [rad/s], 1-D of one length
+            (or scalars, broadcast).
+
+        Returns
+        -------
+        dict of numpy.ndarray
+            One array per field of :class:`SpeedOutput` (float32, bool for
+            ``saturated`` and ``fault``) plus ``x_i_Nm``, the integrator state
+            after each sample. The state carries over to the next call. Samples
+            with non-finite input are flagged in ``fault``.
+        """
+        w_ref, w_m = _as_inputs(("w_ref_radps", "w_m_radps"), (w_ref_radps, w_m_radps))
+        n = w_ref.size
+        out = np.zeros(n, dtype=_SPEED_OUTPUT_DTYPE)
+        x_i = np.zeros(n, dtype=np.float32)
+        lib.p2d_speed_run(
+            self._ctl, n, _float_ptr(w_ref), _float_ptr(w_m),
+            ffi.cast("p2d_speed_output_t *", ffi.from_buffer(out)), _float_ptr(x_i),
+        )  # fmt: skip
+        result = {name: np.ascontiguousarray(out[name]) for name in _SPEED_OUTPUT_FIELDS}
+        result["x_i_Nm"] = x_i
+        return result
+
+    @property
+    def Kp(self):
+        """Proportional gain J alpha [Nm/(rad/s)] (eq 9)."""
+        return self._coef.Kp
+
+    @property
+    def Ki(self):
+        """Integral gain J (alpha / (2 zeta))**2 [Nm/rad] (eq 9)."""
+        return self._coef.Ki
+
+    @property
+    def Ka(self):
+        """Back-calculation gain in use [(rad/s)/Nm] (1/Kp unless given)."""
+        return self._ctl.config.Ka
+
+    @property
+    def coefficients(self):
+        """The active precomputed coefficients (the C ``p2d_speed_coef_t``) as a dict."""
+        return _struct_dict(self._coef, "p2d_speed_coef_t")
+
+    @property
+    def config(self):
+        """The active configuration as float32 values; ``Ka`` is None when it is the default 1/Kp.
+
+        ``SpeedController(**ctl.config)`` builds an equal controller.
+        """
+        c = self._ctl.config
+        cfg = {name: getattr(c, name) for name in _SPEED_FLOATS}
+        cfg["Ka"] = None if self._params["Ka"] is None else c.Ka
+        cfg["pole_pairs"] = c.pole_pairs
+        cfg["method"] = METHODS[c.method]
+        cfg["feedforward"] = FEEDFORWARDS[c.feedforward]
+        cfg["anti_windup"] = ANTI_WINDUPS[c.anti_windup]
+        return cfg
+
+    @property
+    def state(self):
+        """Controller state: integrator ``x_i_Nm``, ``r_prev_radps`` and ``y_ff_prev_Nm``."""
+        c = self._ctl
+        return {"x_i_Nm": c.x_i_Nm, "r_prev_radps": c.r_prev_radps, "y_ff_prev_Nm": c.y_ff_prev_Nm}
+
+    @property
+    def fault_count(self):
+        """Samples rejected so far by the non-finite policy (not cleared by :meth:`reset`)."""
+        return self._ctl.fault_count
+
+    @property
+    def _coef(self):
+        return self._ctl.coef[self._ctl.active]
+
+    def __repr__(self):
+        return "SpeedController(" + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
+
+
+def _speed_output(out):
+    return SpeedOutput(**{name: getattr(out, name) for name in _SPEED_OUTPUT_FIELDS})
+
+
+def _struct_dict(cdata, ctype):
+    """The fields of a flat C struct of numbers and bools as a dict."""
+    return {name: getattr(cdata, name) for name, _ in ffi.typeof(ctype).fields}
+
+
+# ---------------------------------------------------------------------------------------------
+# Current controller
+# ---------------------------------------------------------------------------------------------
+
+_CURRENT_OUTPUT_FIELDS = {
+    "ed_A": "float",
+    "eq_A": "float",
+    "ud_unsat_V": "float",
+    "uq_unsat_V": "float",
+    "ud_ref_V": "float",
+    "uq_ref_V": "float",
+    "saturated": "bool",
+    "fault": "bool",
+}
+_CURRENT_OUTPUT_DTYPE = _structured_dtype("p2d_current_output_t", _CURRENT_OUTPUT_FIELDS)
+_CURRENT_FLOATS = ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb", "tau_i_s", "Ts_s")
+_CURRENT_PARAMS = _CURRENT_FLOATS + ("method", "anti_windup", "decouple")
+_CURRENT_INPUTS = ("id_ref_A", "iq_ref_A", "id_A", "iq_A", "w_e_radps", "u_dc_V")
+
+
+@dataclasses.dataclass(frozen=True)
+class CurrentOutput:
+    """One sample of the current controllers (the C ``p2d_current_output_t``), float32 values.
+
+    Attributes
+    ----------
+    ed_A, eq_A : current errors [A]
+    ud_unsat_V, uq_unsat_V : voltage before the limit [V]
+    ud_ref_V, uq_ref_V : voltage command, ||u_dq|| <= u_dc / sqrt(3) [V]
+    saturated : the voltage-vector limit is active
+    fault : the non-finite policy engaged (outputs are zero, state untouched)
+    """
+
+    ed_A: float
+    eq_A: float
+    ud_unsat_V: float
+    uq_unsat_V: float
+    ud_ref_V: float
+    uq_ref_V: float
+    saturated: bool
+    fault: bool
+
+
+class CurrentController:
+    """The d- and q-axis PI current regulators (paper Fig. 1), in C.
+
+    Gains from the desired loop time constant (eq 3): ``Kp = L / tau_i``,
+    ``Ki = Rs / tau_i``, so that the decoupled, unsaturated loop is
+    ``1 / (tau_i s + 1)``. With ``decouple`` the back-EMF and cross-coupling
+    terms of the dq model (eq 1) are fed forward. The voltage vector is limited
+    to the linear range of space-vector modulation, ``||u_dq|| <= u_dc / sqrt(3)``,
+    with per-axis anti-windup (``Ka = 1/Kp`` for back calculation).
+
+    Parameters
+    ----------
+    Rs_ohm : float
+        Stator resistance [ohm], > 0.
+    Ld_H, Lq_H : float
+        dq inductances [H], > 0.
+    psi_f_Wb : float
+        Flux linkage [Wb], >= 0.
+    tau_i_s : float
+        Desired current-loop time constant [s], >= Ts_s (eq 3).
+    Ts_s : float
+        Sampling period [s], > 0.
+    method : {"forward_euler", "backward_euler", "tustin"}
+    anti_windup : {"none", "back_calculation", "clamping"}
+    decouple : bool, default True
+
+    Raises
+    ------
+    ConfigError
+        A parameter has the wrong type or is out of range.
+
+    Notes
+    -----
+    Computation is float32 (C ``float``); Python floats are rounded to float32.
+    """
+
+    def __init__(
+        self,
+        *,
+        Rs_ohm,
+        Ld_H,
+        Lq_H,
+        psi_f_Wb,
+        tau_i_s,
+        Ts_s,
+        method="tustin",
+        anti_windup="back_calculation",
+        decouple=True,
+    ):
+        self._ctl = ffi.new("p2d_current_t *")
+        params = dict(
+            Rs_ohm=Rs_ohm, Ld_H=Ld_H, Lq_H=Lq_H, psi_f_Wb=psi_f_Wb, tau_i_s=tau_i_s, Ts_s=Ts_s,
+            method=method, anti_windup=anti_windup, decouple=decouple,
+        )  # fmt: skip
+        status = lib.p2d_current_init(self._ctl, self._c_config(params))
+        if status != lib.P2D_OK:
+            _raise_status(status, params)
+        self._params = params
+
+    @staticmethod
+    def _c_config(params):
+        cfg = ffi.new("p2d_current_config_t *")
+        for name in _CURRENT_FLOATS:
+            setattr(cfg, name, _float_param(name, params[name]))
+        cfg.method = _choice_param("method", params["method"], METHODS)
+        cfg.anti_windup = _choice_param("anti_windup", params["anti_windup"], ANTI_WINDUPS)
+        if not isinstance(params["decouple"], (bool, np.bool_)):
+            raise ConfigError("decouple", params["decouple"], "True or False")
+        cfg.decouple = bool(params["decouple"])
+        return cfg
+
+    def set_config(self, **changes):
+        """Change parameters atomically, keeping the integrator states.
+
+        Invalid parameters raise :class:`ConfigError` and leave the old configuration active.
+        """
+        unknown = sorted(set(changes) - set(_CURRENT_PARAMS))
+        if unknown:
+            raise ConfigError(unknown[0], changes[unknown[0]], "a parameter of CurrentController: " + ", ".join(_CURRENT_PARAMS))
+        params = {**self._params, **changes}
+        status = lib.p2d_current_set_config(self._ctl, self._c_config(params))
+        if status != lib.P2D_OK:
+            _raise_status(status, params)
+        self._params = params
+
+    def reset(self):
+        """Clear both integrators."""
+        lib.p2d_current_reset(self._ctl)
+
+    def compute(self, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V):
+        """The voltage command for this sample; the state is not changed.
+
+        ``w_e_radps`` is the electrical speed, ``u_dc_V`` the measured DC-link voltage.
+        """
+        out = ffi.new("p2d_current_output_t *")
+        lib.p2d_current_compute(
+            self._ctl, float(id_ref_A), float(iq_ref_A), float(id_A), float(iq_A), float(w_e_radps), float(u_dc_V), out
+        )
+        return _current_output(out)
+
+    def update(self, output, ud_applied_V, uq_applied_V):
+        """Update the integrators with the voltage actually applied [V]."""
+        out = ffi.new("p2d_current_output_t *", dataclasses.asdict(output))
+        lib.p2d_current_update(self._ctl, out, float(ud_applied_V), float(uq_applied_V))
+
+    def step(self, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V):
+        """:meth:`compute` and :meth:`update` with the controller's own limited voltage."""
+        out = ffi.new("p2d_current_output_t *")
+        lib.p2d_current_step(
+            self._ctl, float(id_ref_A), float(iq_ref_A), float(id_A), float(iq_A), float(w_e_radps), float(u_dc_V), out
+        )
+        return _current_output(out)
+
+    def run(self, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V):
+        """Run :meth:`step` over whole arrays in one C call (``p2d_current_run``).
+
+        All inputs are 1-D arrays of one length or scalars (broadcast). Returns a
+        dict of numpy arrays: one per field of :class:`CurrentOutput` plus
+        ``x_d_V`` and ``x_q_V``, the integrator states after each sample.
+        """
+        inputs = _as_inputs(_CURRENT_INPUTS, (id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V))
+        n = inputs[0].size
+        out = np.zeros(n, dtype=_CURRENT_OUTPUT_DTYPE)
+        x_d = np.zeros(n, dtype=np.float32)
+        x_q = np.zeros(n, dtype=np.float32)
+        lib.p2d_current_run(
+            self._ctl, n, *(_float_ptr(a) for a in inputs),
+            ffi.cast("p2d_current_output_t *", ffi.from_buffer(out)), _float_ptr(x_d), _float_ptr(x_q),
+        )  # fmt: skip
+        result = {name: np.ascontiguousarray(out[name]) for name in _CURRENT_OUTPUT_FIELDS}
+        result["x_d_V"] = x_d
+        result["x_q_V"] = x_q
+        return result
+
+    @property
+    def coefficients(self):
+        """The active coefficients: ``d`` and ``q`` PI dicts, decoupling terms, ``clamping``."""
+        c = self._ctl.coef[self._ctl.active]
+        coef = _struct_dict(c, "p2d_current_coef_t")
+        coef["d"] = _struct_dict(c.d, "p2d_pi_coef_t")
+        coef["q"] = _struct_dict(c.q, "p2d_pi_coef_t")
+        return coef
+
+    @property
+    def config(self):
+        """The active configuration (float32 values); ``CurrentController(**ctl.config)`` rebuilds it."""
+        c = self._ctl.config
+        cfg = {name: getattr(c, name) for name in _CURRENT_FLOATS}
+        cfg["method"] = METHODS[c.method]
+        cfg["anti_windup"] = ANTI_WINDUPS[c.anti_windup]
+        cfg["decouple"] = bool(c.decouple)
+        return cfg
+
+    @property
+    def state(self):
+        """Integrator states ``x_d_V`` and ``x_q_V`` [V]."""
+        return {"x_d_V": self._ctl.x_d_V, "x_q_V": self._ctl.x_q_V}
+
+    @property
+    def fault_count(self):
+        """Samples rejected so far by the non-finite policy."""
+        return self._ctl.fault_count
+
+    def __repr__(self):
+        return "CurrentController(" + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
+
+
+def _current_output(out):
+    return CurrentOutput(**{name: getattr(out, name) for name in _CURRENT_OUTPUT_FIELDS})
