@@ -41,7 +41,10 @@ static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_cu
     if ((unsigned)cfg->method > (unsigned)P2D_TUSTIN) return P2D_ERR_METHOD;
     if ((unsigned)cfg->anti_windup > (unsigned)P2D_AW_CLAMPING) return P2D_ERR_ANTI_WINDUP;
     /* the discrete back-calculation loop x[k] = (1 - Rs Ts / L) x[k-1] + ... must be stable */
-    if (!(cfg->Rs_ohm * cfg->Ts_s < 2.0f * fminf(cfg->Ld_H, cfg->Lq_H))) return P2D_ERR_TS_UNSTABLE;
+    if (cfg->anti_windup == P2D_AW_BACK_CALCULATION &&
+        !(cfg->Rs_ohm * cfg->Ts_s < 2.0f * fminf(cfg->Ld_H, cfg->Lq_H))) {
+        return P2D_ERR_TS_UNSTABLE;
+    }
 
     k.d = axis_coefficients(cfg, cfg->Ld_H);
     k.q = axis_coefficients(cfg, cfg->Lq_H);
@@ -103,7 +106,8 @@ void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_
     u_max = fmaxf(u_dc_V, 0.0f) * P2D_INV_SQRT3;
     out->ud_unsat_V = ud;
     out->uq_unsat_V = uq;
-    if (!isfinite(ud) || !isfinite(uq) || !isfinite(u_max)) {
+    /* u_dc_V is tested itself: fmaxf(NaN, 0) is 0, which would hide a NaN measurement */
+    if (!isfinite(ud) || !isfinite(uq) || !isfinite(u_dc_V)) {
         /* non-finite policy: zero voltage, no state update, fault raised */
         out->ud_ref_V = 0.0f;
         out->uq_ref_V = 0.0f;

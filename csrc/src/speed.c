@@ -84,8 +84,8 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
 
     /* c_ff / (s + p) -> (b0 + b1 z^-1) / (1 + a1 z^-1) */
     if (cfg->method == P2D_FORWARD_EULER) {
-        /* s = (z - 1)/Ts: c Ts z^-1 / (1 - (1 - p Ts) z^-1) */
-        if (!(p_radps * cfg->Ts_s < 2.0f)) return P2D_ERR_TS_UNSTABLE;
+        /* s = (z - 1)/Ts: c Ts z^-1 / (1 - (1 - p Ts) z^-1); pole 1 - p Ts inside the unit circle */
+        if (cfg->feedforward != P2D_FF_NONE && !(p_radps * cfg->Ts_s < 2.0f)) return P2D_ERR_TS_UNSTABLE;
         b0 = 0.0f;
         b1 = c_ff * cfg->Ts_s;
         a1 = p_radps * cfg->Ts_s - 1.0f;
@@ -167,8 +167,15 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    float y_ss;
+    if (!isfinite(w_ref_radps) || !isfinite(T_init_Nm)) {
+        /* non-finite policy: clear the state instead, count the fault */
+        ctl->fault_count++;
+        w_ref_radps = 0.0f;
+        T_init_Nm = 0.0f;
+    }
     /* steady state of y[k] = b0 r + b1 r - a1 y: y = (b0 + b1) r / (1 + a1) */
-    float y_ss = (c->ff_b0 + c->ff_b1) * w_ref_radps / (1.0f + c->ff_a1);
+    y_ss = (c->ff_b0 + c->ff_b1) * w_ref_radps / (1.0f + c->ff_a1);
     ctl->r_prev_radps = w_ref_radps;
     ctl->y_ff_prev_Nm = y_ss;
     ctl->x_i_Nm = T_init_Nm - y_ss;
@@ -178,7 +185,7 @@ void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radp
                        p2d_speed_output_t *out)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    float e, y_ff, T_ff, u, T_sat, iq;
+    float e, y_ff, T_ff, u, T_sat, T_abs, iq;
 
     e = w_ref_radps - w_m_radps;
     /* feedforward section: y[k] = b0 r[k] + b1 r[k-1] - a1 y[k-1] */
@@ -214,8 +221,21 @@ void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radp
         out->iq_ref_A = fminf(fmaxf(T_sat / c->kt_NmpA, -c->i_max_A), c->i_max_A);
         return;
     }
-    /* salient PMSM: solve Te(iq, id_mtpa(iq)) = T_sat by Newton from iq = T / kt */
-    iq = T_sat / c->kt_NmpA;
+    /*
+     * salient PMSM: solve Te(iq, id_mtpa(iq)) = T_sat by Newton. For iq > 0 the
+     * MTPA torque is increasing and convex, so Newton started above the root
+     * descends monotonically onto it. Two upper bounds of |iq| are known:
+     *   Te >= kt |iq|                       =>  |iq| <= |T| / kt
+     *   Te >= |c_T| iq^2 + kt |iq| / 2      =>  |iq| <= 2 |T| / (kt/2 + sqrt(kt^2/4 + 4 |c_T| |T|))
+     * (the second from |id| >= |iq| - psi_f / (2 |dL|) on the MTPA curve); the
+     * smaller one is a start close to the root for magnet- and for
+     * reluctance-dominated machines alike.
+     */
+    T_abs = fabsf(T_sat);
+    iq = fminf(T_abs / c->kt_NmpA,
+               2.0f * T_abs / (0.5f * c->kt_NmpA +
+                               sqrtf(0.25f * c->kt_NmpA * c->kt_NmpA + 4.0f * fabsf(c->c_T_Nm_per_A2) * T_abs)));
+    iq = copysignf(iq, T_sat);
     for (int n = 0; n < P2D_MTPA_NEWTON_ITERATIONS; ++n) {
         float id = p2d_mtpa_id_A(iq, c->psi_f_Wb, c->dL_H);
         /* MTPA: dL id^2 + psi_f id - dL iq^2 = 0 => did/diq = 2 dL iq / (2 dL id + psi_f) */

@@ -49,6 +49,14 @@ def _float_param(name, value):
     return v
 
 
+def _finite(name, value):
+    """``value`` as a finite Python float, else ConfigError naming ``name``."""
+    v = _float_param(name, value)
+    if not math.isfinite(v):
+        raise ConfigError(name, value, "a finite number")
+    return v
+
+
 def _choice_param(name, value, choices):
     """Index of the string ``value`` in ``choices`` (the C enum value)."""
     if not isinstance(value, str) or value not in choices:
@@ -229,7 +237,7 @@ class SpeedController:
         cfg = self._c_config(params)
         status = lib.p2d_speed_init(self._ctl, cfg)
         if status != lib.P2D_OK:
-            _raise_status(status, params)
+            _raise_status(status, _given_speed(params, cfg))
         self._params = params
 
     @staticmethod
@@ -266,13 +274,13 @@ class SpeedController:
         cfg = self._c_config(params)
         status = lib.p2d_speed_set_config(self._ctl, cfg)
         if status != lib.P2D_OK:
-            _raise_status(status, params)
+            _raise_status(status, _given_speed(params, cfg))
         self._params = params
 
     def reset(self, w_ref_radps=0.0, T_init_Nm=0.0):
         """Bumpless reset: feedforward at steady state for a constant ``w_ref_radps``,
         integrator such that the output is ``T_init_Nm`` at zero error."""
-        lib.p2d_speed_reset(self._ctl, float(w_ref_radps), float(T_init_Nm))
+        lib.p2d_speed_reset(self._ctl, _finite("w_ref_radps", w_ref_radps), _finite("T_init_Nm", T_init_Nm))
 
     def compute(self, w_ref_radps, w_m_radps):
         """The command for this sample [rad/s in]; the state is not changed."""
@@ -372,6 +380,13 @@ class SpeedController:
 
     def __repr__(self):
         return "SpeedController(" + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
+
+
+def _given_speed(params, cfg):
+    """The parameters as the user gave them, for error messages; a default Ka shows its value."""
+    if params["Ka"] is None:
+        return {**params, "Ka": f"None (default 1/Kp = {cfg.Ka:.6g})"}
+    return params
 
 
 def _speed_output(out):

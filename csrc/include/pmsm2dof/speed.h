@@ -146,6 +146,7 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
  * Bumpless reset: the feedforward section at its steady state for a constant
  * reference w_ref_radps, and the integrator such that the output equals
  * T_init_Nm at zero error. p2d_speed_reset(ctl, 0, 0) clears everything.
+ * A non-finite argument clears the state as (0, 0) and counts a fault.
  */
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm);
 
