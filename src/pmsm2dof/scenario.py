@@ -1,0 +1,555 @@
+"""Scenarios: the drive, the controller and the test sequence of one simulation, as TOML.
+
+A scenario file describes the motor (paper eq 1), the limits, the current loop (eq 3 or the
+dq current controllers of Fig. 1), the speed controller (eq 9-15, Fig. 5 and 6), and the speed
+reference and load torque schedules of a run (section 4.1)::
+
+    name = "paper condition 2"
+    [motor]
+    pole_pairs = 4
+    Rs_ohm = 0.5
+    ...
+    [[reference]]
+    t_s = 0.0
+    speed_rpm = 500.0
+
+Every key, its type, valid range, default and meaning is declared once, in :data:`SCHEMA`; that
+table drives validation, the defaults filled into :attr:`Scenario.data`, :meth:`Scenario.to_toml`
+and :func:`schema_reference`. A bad file raises :class:`~pmsm2dof.errors.ConfigError` naming the
+dotted key (``motor.J_kgm2``, ``reference.1.t_s``) and its valid range.
+
+The paper's eq (1) writes ``Te = p0 (psi_f iq + ...)`` and calls p0 the number of poles while
+using it as pole pairs; here ``motor.pole_pairs`` is the number of pole pairs and the torque is
+amplitude invariant, ``Te = 1.5 p (psi_f iq + (Ld - Lq) id iq)``.
+"""
+
+import copy
+import dataclasses
+import difflib
+import importlib.resources
+import json
+import math
+import os
+import tomllib
+from pathlib import Path
+
+from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
+from .errors import ConfigError
+
+#: Current-loop models: the C dq current controllers driving the electrical model, or eq (3).
+CURRENT_LOOP_MODELS = ("dq_pi", "first_order")
+
+#: Longest simulated time of one scenario [s] (ten hours).
+T_END_MAX_S = 36000.0
+
+#: Relative tolerance of "speed_controller.Ts_s is an integer multiple of current_loop.Ts_s".
+TS_MULTIPLE_RTOL = 1e-9
+
+
+class _Required:
+    """Marks a key without a default."""
+
+    def __repr__(self):
+        return "<missing>"
+
+
+REQUIRED = _Required()
+
+
+@dataclasses.dataclass(frozen=True)
+class SameAs:
+    """A default taken from another key of the same scenario: ``factor * data[key]``."""
+
+    key: str
+    factor: float = 1.0
+
+    def describe(self):
+        return self.key if self.factor == 1.0 else f"{self.key} * {self.factor:g}"
+
+
+@dataclasses.dataclass(frozen=True)
+class Field:
+    """One key of the scenario schema.
+
+    ``key`` is the dotted path; keys of the entries of an array of tables are written
+    ``"reference[].t_s"``. ``kind`` is ``float``, ``int``, ``bool`` or ``str``. ``default`` is
+    :data:`REQUIRED`, a value, ``None`` (optional, no value: see ``doc``) or a :class:`SameAs`.
+    Numbers are bounded by ``gt``/``ge``/``lt``/``le`` and must be finite; strings may be
+    restricted to ``choices``.
+    """
+
+    key: str
+    kind: type
+    doc: str
+    default: object = REQUIRED
+    gt: float | None = None
+    ge: float | None = None
+    lt: float | None = None
+    le: float | None = None
+    choices: tuple = ()
+
+    @property
+    def leaf(self):
+        return self.key.rsplit(".", 1)[-1]
+
+    @property
+    def parent(self):
+        return self.key.rsplit(".", 1)[0] if "." in self.key else ""
+
+    def valid_range(self):
+        """The valid range in words, as shown in error messages."""
+        if self.choices:
+            return "one of " + ", ".join(repr(c) for c in self.choices)
+        if self.kind is bool:
+            return "true or false"
+        if self.kind is str:
+            return "a string"
+        bounds = [f"{op} {v:g}" if isinstance(v, float) else f"{op} {v}" for op, v in ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le))
+                  if v is not None]
+        noun = "an integer" if self.kind is int else "a finite number"
+        return " ".join([noun, " and ".join(bounds)]) if bounds else noun
+
+    def check(self, dotted, value):
+        """Return ``value`` converted to the field's type, or raise ConfigError naming ``dotted``."""
+        if self.kind is float:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise ConfigError(dotted, value, self.valid_range())
+            value = float(value)
+            if not math.isfinite(value):
+                raise ConfigError(dotted, value, self.valid_range())
+        elif self.kind is int:
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ConfigError(dotted, value, self.valid_range())
+        elif not isinstance(value, self.kind):
+            raise ConfigError(dotted, value, self.valid_range())
+        if self.choices and value not in self.choices:
+            raise ConfigError(dotted, value, self.valid_range())
+        if ((self.gt is not None and not value > self.gt) or (self.ge is not None and not value >= self.ge)
+                or (self.lt is not None and not value < self.lt) or (self.le is not None and not value <= self.le)):
+            raise ConfigError(dotted, value, self.valid_range())
+        return value
+
+
+#: The scenario schema: every key, in file order. Units are in the key names.
+SCHEMA = (
+    Field("name", str, "name of the scenario, shown in summaries and plots"),
+    Field("description", str, "one line on what the scenario shows, listed by `pmsm2dof presets`", default=""),
+
+    Field("motor.pole_pairs", int, "pole pairs p (the paper's p0 of eq 1, which it calls the number of poles)",
+          ge=1, le=1000),
+    Field("motor.Rs_ohm", float, "stator resistance Rs [ohm] (eq 1)", gt=0),
+    Field("motor.Ld_H", float, "d-axis inductance Ld [H] (eq 1)", gt=0),
+    Field("motor.Lq_H", float, "q-axis inductance Lq [H] (eq 1); Lq != Ld makes a salient motor (MTPA)", gt=0),
+    Field("motor.psi_f_Wb", float, "permanent-magnet flux linkage psi_f [Wb] (eq 1)", gt=0),
+    Field("motor.J_kgm2", float, "true inertia of motor and load J [kg m^2] (eq 1, 2)", gt=0),
+    Field("motor.B_Nms", float, "viscous friction B [Nm s/rad]", default=0.0, ge=0),
+    Field("motor.T_coulomb_Nm", float, "Coulomb friction torque [Nm]", default=0.0, ge=0),
+
+    Field("limits.i_max_A", float, "current-vector limit ||i_dq|| <= i_max_A [A] (Sat of Fig. 1 and 2)", gt=0),
+    Field("limits.u_dc_V", float, "DC-link voltage [V]; the voltage vector is limited to u_dc/sqrt(3)", gt=0),
+
+    Field("inverter.computation_delay", bool,
+          "true: the voltage command is applied one current-controller sample later", default=False),
+
+    Field("current_loop.model", str, "dq_pi: the C dq current controllers and the electrical model of eq 1; "
+          "first_order: the closed current loop as eq 3", choices=CURRENT_LOOP_MODELS),
+    Field("current_loop.tau_i_s", float, "time constant of the closed current loop tau_i [s] (eq 3)", gt=0),
+    Field("current_loop.Ts_s", float, "sampling period of the current controller [s]", gt=0),
+    Field("current_loop.decouple", bool, "add the back-EMF and cross-coupling feedforward (dq_pi)", default=True),
+    Field("current_loop.anti_windup", str, "anti-windup of the current PIs (dq_pi)", default="back_calculation",
+          choices=ANTI_WINDUPS),
+    Field("current_loop.discretization", str, "discretization of the current PIs (Table 1)", default="tustin",
+          choices=METHODS),
+
+    Field("speed_controller.alpha", float, "bandwidth alpha [rad/s] of the P loop (eq 9)", gt=0),
+    Field("speed_controller.zeta", float, "relative damping zeta of the PI loop (eq 9)", gt=0),
+    Field("speed_controller.m", float, "tracking pole factor, Gx = m alpha / (s + m alpha) (eq 10)",
+          default=1.0, gt=0),
+    Field("speed_controller.feedforward", str, "2DOF feedforward Fr: none (1DOF PI), lowpass (eq 13, 15), "
+          "no_tau (eq 11 with tau_i = 0), full (eq 11)", default="lowpass", choices=FEEDFORWARDS),
+    Field("speed_controller.anti_windup", str, "anti-windup of the speed PI (section 3.2, Fig. 5)",
+          default="back_calculation", choices=ANTI_WINDUPS),
+    Field("speed_controller.Ka", float, "back-calculation gain Ka [(rad/s)/Nm] (Fig. 5); absent: 1/Kp "
+          "(section 3.3)", default=None, ge=0),
+    Field("speed_controller.discretization", str, "discretization of the PI and Fr (Table 1, eq 14, 15)",
+          default="tustin", choices=METHODS),
+    Field("speed_controller.Ts_s", float, "sampling period of the speed controller [s], an integer multiple "
+          "of current_loop.Ts_s", gt=0),
+    Field("speed_controller.J_design_kgm2", float, "inertia the gains are designed for [kg m^2] (eq 9, 11)",
+          default=SameAs("motor.J_kgm2"), gt=0),
+    Field("speed_controller.tau_i_design_s", float, "current-loop time constant the full feedforward is "
+          "designed for [s] (eq 11)", default=SameAs("current_loop.tau_i_s"), ge=0),
+
+    Field("simulation.t_end_s", float, "simulated time [s]", gt=0, le=T_END_MAX_S),
+    Field("simulation.dt_s", float, "plant integration step [s]", default=SameAs("current_loop.Ts_s", 0.1),
+          gt=0),
+    Field("simulation.log_every", int, "log every n-th speed-controller sample", default=1, ge=1, le=10**9),
+    Field("simulation.speed0_rpm", float, "initial speed [rpm]", default=0.0),
+
+    Field("reference[].t_s", float, "time of the reference change [s], 0 <= t_s < simulation.t_end_s", ge=0),
+    Field("reference[].speed_rpm", float, "new speed reference [rpm]"),
+    Field("reference[].ramp_s", float, "0: a step; > 0: a linear ramp from the previous value over ramp_s [s]",
+          default=0.0, ge=0),
+
+    Field("load[].t_s", float, "time of the load change [s], 0 <= t_s < simulation.t_end_s", ge=0),
+    Field("load[].torque_Nm", float, "new load torque [Nm]"),
+    Field("load[].ramp_s", float, "0: a step; > 0: a linear ramp from the previous value over ramp_s [s]",
+          default=0.0, ge=0),
+)
+
+#: Arrays of tables: name -> (required, what its entries are).
+ARRAYS = {
+    "reference": (True, "speed reference schedule; the reference is 0 before the first entry"),
+    "load": (False, "load torque schedule; the load is 0 before the first entry"),
+}
+
+_FIELDS = {f.key: f for f in SCHEMA}
+_TABLES = tuple(dict.fromkeys(f.parent for f in SCHEMA if f.parent and not f.parent.endswith("[]")))
+
+
+def _fields_of(parent):
+    return [f for f in SCHEMA if f.parent == parent]
+
+
+def _short(value):
+    """The value as shown in an error message (tables and arrays are not spelled out)."""
+    if isinstance(value, dict):
+        return "<table>"
+    if isinstance(value, list):
+        return "<array>"
+    return value
+
+
+def _unknown_key(dotted, value, parent, valid):
+    """ConfigError for an unknown key, suggesting the closest valid one."""
+    leaf = dotted.rsplit(".", 1)[-1]
+    where = f"[{parent}]" if parent else "the top level"
+    prefix = f"{parent}." if parent else ""
+    same_case = [v for v in valid if v.lower() == leaf.lower()]
+    elsewhere = [f.key.replace("[]", ".0") for f in SCHEMA if f.leaf.lower() == leaf.lower()]
+    close = difflib.get_close_matches(leaf, valid, n=1, cutoff=0.6)
+    if same_case:
+        hint = f"did you mean '{prefix}{same_case[0]}'?"
+    elif elsewhere:
+        hint = f"did you mean '{elsewhere[0]}'?"
+    elif close:
+        hint = f"did you mean '{prefix}{close[0]}'?"
+    else:
+        hint = "valid keys: " + ", ".join(valid)
+    raise ConfigError(dotted, _short(value), f"not a key of {where} ({hint})")
+
+
+def _validate_table(table, parent, prefix):
+    """Check the keys of one table against the schema; return {leaf: value} of the keys given.
+
+    ``parent`` is the schema parent (``"motor"``, ``"reference[]"``), ``prefix`` the dotted
+    name used in messages (``"motor"``, ``"reference.2"``).
+    """
+    fields = _fields_of(parent)
+    sub = [t for t in _TABLES if "." not in t] + list(ARRAYS) if parent == "" else []
+    valid = [f.leaf for f in fields] + sub
+    given = {}
+    for key, value in table.items():
+        dotted = f"{prefix}.{key}" if prefix else key
+        if key not in valid:
+            _unknown_key(dotted, value, prefix, valid)
+        if key in sub:
+            continue
+        if value is not None:
+            given[key] = _FIELDS[f"{parent}.{key}" if parent else key].check(dotted, value)
+    for f in fields:
+        if f.default is REQUIRED and f.leaf not in given:
+            raise ConfigError(f"{prefix}.{f.leaf}" if prefix else f.leaf, REQUIRED,
+                              f"required: {f.valid_range()} ({f.doc})")
+    return given
+
+
+def _as_table(value, dotted):
+    if value is None:
+        return {}
+    if not isinstance(value, dict):
+        raise ConfigError(dotted, _short(value), "a table of keys")
+    return value
+
+
+def _validate(tree):
+    """Validate a scenario tree; return (given, data): the keys given and all keys resolved."""
+    tree = _as_table(tree, "scenario")
+    given = _validate_table(tree, "", "")
+    for table in _TABLES:
+        values = _validate_table(_as_table(tree.get(table), table), table, table)
+        if values:
+            given[table] = values
+    for name, (required, what) in ARRAYS.items():
+        entries = tree.get(name)
+        if entries is None and not required:
+            continue
+        valid = f"an array of tables [[{name}]]{' with at least one entry' if required else ''} ({what})"
+        if not isinstance(entries, list) or (required and not entries):
+            raise ConfigError(name, REQUIRED if entries is None else _short(entries), valid)
+        for i, e in enumerate(entries):
+            if not isinstance(e, dict):
+                raise ConfigError(f"{name}.{i}", e, f"a table, one entry of {valid}")
+        given[name] = [_validate_table(e, f"{name}[]", f"{name}.{i}") for i, e in enumerate(entries)]
+
+    data = {}
+    for f in SCHEMA:
+        if "[]" in f.key:
+            continue
+        node = data
+        for part in f.key.split(".")[:-1]:
+            node = node.setdefault(part, {})
+        source = given.get(f.parent, {}) if f.parent else given
+        node[f.leaf] = source.get(f.leaf, f.default)
+    for f in SCHEMA:
+        if isinstance(f.default, SameAs) and f.leaf not in given.get(f.parent, {}):
+            table, leaf = f.default.key.split(".")
+            data[f.parent][f.leaf] = f.default.factor * data[table][leaf]
+    for name in ARRAYS:
+        data[name] = [{f.leaf: e.get(f.leaf, f.default) for f in _fields_of(f"{name}[]")}
+                      for e in given.get(name, [])]
+    _check_relations(data)
+    return given, data
+
+
+def _check_relations(data):
+    """The checks that involve more than one key."""
+    sc, cl, sim = data["speed_controller"], data["current_loop"], data["simulation"]
+    ratio = sc["Ts_s"] / cl["Ts_s"]
+    n = round(ratio)
+    if n < 1 or abs(sc["Ts_s"] - n * cl["Ts_s"]) > TS_MULTIPLE_RTOL * sc["Ts_s"]:
+        raise ConfigError("speed_controller.Ts_s", sc["Ts_s"],
+                          f"an integer multiple (1, 2, 3, ...) of current_loop.Ts_s = {cl['Ts_s']!r}")
+    if sc["feedforward"] == "lowpass" and sc["m"] != 1.0:
+        raise ConfigError("speed_controller.m", sc["m"],
+                          "exactly 1 with feedforward 'lowpass' (eq 13 is eq 11 at m = 1); "
+                          "for m != 1 use feedforward 'no_tau' (eq 11 with tau_i = 0) or 'full'")
+    if cl["model"] == "dq_pi" and cl["tau_i_s"] < cl["Ts_s"]:
+        raise ConfigError("current_loop.tau_i_s", cl["tau_i_s"],
+                          f">= current_loop.Ts_s = {cl['Ts_s']!r} (the dq current PIs cannot be faster "
+                          "than their sampling)")
+    for name, value_key in (("reference", "speed_rpm"), ("load", "torque_Nm")):
+        entries = data[name]
+        for i, e in enumerate(entries):
+            if e["t_s"] >= sim["t_end_s"]:
+                raise ConfigError(f"{name}.{i}.t_s", e["t_s"],
+                                  f">= 0 and < simulation.t_end_s = {sim['t_end_s']!r}")
+            if i > 0:
+                prev = entries[i - 1]
+                earliest = prev["t_s"] + prev["ramp_s"]
+                if not (e["t_s"] > prev["t_s"] and e["t_s"] >= earliest):
+                    raise ConfigError(
+                        f"{name}.{i}.t_s", e["t_s"],
+                        f"> {name}.{i - 1}.t_s = {prev['t_s']!r} and >= the end of its ramp "
+                        f"({earliest!r}): entries sorted by time, ramps not overlapping")
+
+
+class Scenario:
+    """One validated, immutable scenario.
+
+    Build it with :func:`load_scenario` (a preset or a TOML file) or :meth:`from_dict`.
+    :attr:`data` is a plain nested dict holding every key of :data:`SCHEMA` (defaults filled;
+    ``speed_controller.Ka`` is ``None`` when absent, meaning 1/Kp).
+    """
+
+    __slots__ = ("_given", "_data")
+
+    def __init__(self, given, data):
+        object.__setattr__(self, "_given", given)
+        object.__setattr__(self, "_data", data)
+
+    def __setattr__(self, name, value):
+        raise AttributeError("a Scenario is immutable: use with_overrides()")
+
+    @classmethod
+    def from_dict(cls, tree):
+        """Validate a nested dict (as read from TOML; ``None`` means absent) into a Scenario."""
+        given, data = _validate(copy.deepcopy(tree))
+        return cls(given, data)
+
+    @property
+    def data(self):
+        """All keys, validated and with defaults filled (a copy: the scenario never changes)."""
+        return copy.deepcopy(self._data)
+
+    @property
+    def name(self):
+        return self._data["name"]
+
+    @property
+    def description(self):
+        return self._data["description"]
+
+    def with_overrides(self, overrides):
+        """A new scenario with ``{"dotted.key": value}`` changes applied, validated again.
+
+        Keys address tables by name and arrays by index: ``"speed_controller.anti_windup"``,
+        ``"reference.0.speed_rpm"``; the index one past the end appends an entry. A whole table or
+        array may be replaced (``{"load": [{"t_s": 1.0, "torque_Nm": 2.0}]}``). ``None`` removes a
+        key, so that its default applies again.
+        """
+        tree = copy.deepcopy(self._given)
+        for key, value in overrides.items():
+            _set_dotted(tree, key, copy.deepcopy(value))
+        return Scenario.from_dict(tree)
+
+    def to_toml(self):
+        """The scenario as TOML text: the keys given, then the defaults as comments.
+
+        ``load_scenario`` of the text gives back an equal scenario.
+        """
+        lines = []
+        top = [f for f in _fields_of("")]
+        lines += _toml_fields(top, self._given, self._data)
+        for table in _TABLES:
+            lines += ["", f"[{table}]"] + _toml_fields(_fields_of(table), self._given.get(table, {}),
+                                                      self._data[table])
+        for name, (_, what) in ARRAYS.items():
+            fields = _fields_of(f"{name}[]")
+            entries = self._given.get(name, [])
+            if not entries:
+                lines += ["", f"# [[{name}]]: none ({what})"]
+            for given, data in zip(entries, self._data[name]):
+                lines += ["", f"[[{name}]]"] + _toml_fields(fields, given, data)
+        return "\n".join(lines) + "\n"
+
+    def __eq__(self, other):
+        if not isinstance(other, Scenario):
+            return NotImplemented
+        return self._data == other._data
+
+    __hash__ = None
+
+    def __repr__(self):
+        return f"Scenario({self.name!r})"
+
+
+def _toml_value(value):
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    return json.dumps(value, ensure_ascii=False)
+
+
+def _toml_fields(fields, given, data):
+    lines = []
+    for f in fields:
+        if f.leaf in given:
+            lines.append(f"{f.leaf} = {_toml_value(given[f.leaf])}")
+        elif isinstance(f.default, SameAs):
+            lines.append(f"# {f.leaf} = {_toml_value(data[f.leaf])}  (default: {f.default.describe()})")
+        elif f.default is None:
+            lines.append(f"# {f.leaf} =  (optional: {f.doc})")
+        else:
+            lines.append(f"# {f.leaf} = {_toml_value(f.default)}  (default)")
+    return lines
+
+
+def _set_dotted(tree, key, value):
+    """Set ``tree[a][b]...`` for the dotted ``key``, creating tables and appending array entries."""
+    parts = key.split(".") if isinstance(key, str) else []
+    if not parts or any(not p.strip() for p in parts):
+        raise ConfigError("override key", key, "a dotted key such as 'motor.J_kgm2' or 'reference.0.speed_rpm'")
+    node = tree
+    for depth, part in enumerate(parts):
+        last = depth == len(parts) - 1
+        here = ".".join(parts[:depth + 1])
+        if isinstance(node, list):
+            if not part.isdigit() or int(part) > len(node):
+                raise ConfigError(here, value, f"an index 0..{len(node)} of {'.'.join(parts[:depth])} "
+                                               f"({len(node)} appends an entry)")
+            index = int(part)
+            if index == len(node):
+                node.append({})
+            if last:
+                node[index] = value
+            else:
+                node = node[index]
+            continue
+        if not isinstance(node, dict):
+            raise ConfigError(here, value, f"a key inside a table, but {'.'.join(parts[:depth])} is a value")
+        if last:
+            if value is None:
+                node.pop(part, None)
+            else:
+                node[part] = value
+        else:
+            child = node.get(part)
+            if child is None:
+                child = [] if part in ARRAYS and depth == 0 else {}
+                node[part] = child
+            node = child
+
+
+def parse_override(text):
+    """Parse one ``--set key=value`` into ``(key, value)``.
+
+    The value is read as a TOML literal (``0.5``, ``true``, ``"x"``, ``[{t_s = 1.0, torque_Nm = 2.0}]``)
+    and, when it is not one, taken as a plain string (``feedforward=none``).
+    """
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise ConfigError("--set", text, "key=value, e.g. speed_controller.alpha=0.5")
+    raw = raw.strip()
+    try:
+        parsed = tomllib.loads(f"v = {raw}")
+    except tomllib.TOMLDecodeError:
+        return key, raw
+    return (key, parsed["v"]) if list(parsed) == ["v"] else (key, raw)
+
+
+def _presets_dir():
+    return importlib.resources.files("pmsm2dof") / "presets"
+
+
+def list_presets():
+    """Names of the scenarios shipped with the package (``pmsm2dof/presets/*.toml``), sorted."""
+    return sorted(p.name[:-len(".toml")] for p in _presets_dir().iterdir() if p.name.endswith(".toml"))
+
+
+def load_scenario(name_or_path):
+    """Load and validate a scenario from a preset name or a TOML file path.
+
+    An existing file is read as TOML; any other name must be one of :func:`list_presets`.
+    Raises ConfigError for an unknown name, unreadable or invalid TOML, or a schema violation.
+    """
+    path = Path(os.fspath(name_or_path))
+    if path.is_file():
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError("scenario", str(path), f"a readable UTF-8 TOML file ({exc})") from None
+        return _from_toml(text, str(path))
+    name = str(name_or_path)
+    if name in list_presets():
+        return _from_toml((_presets_dir() / f"{name}.toml").read_text(encoding="utf-8"), name)
+    raise ConfigError("scenario", name, "an existing TOML file or a preset: " + ", ".join(list_presets()))
+
+
+def _from_toml(text, source):
+    try:
+        tree = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("scenario", source, f"valid TOML ({exc})") from None
+    return Scenario.from_dict(tree)
+
+
+def schema_reference():
+    """Every scenario key with its type, valid range, default and meaning, as plain text."""
+    lines = []
+    for f in SCHEMA:
+        if f.default is REQUIRED:
+            default = "required"
+        elif isinstance(f.default, SameAs):
+            default = f"default {f.default.describe()}"
+        elif f.default is None:
+            default = "optional"
+        else:
+            default = f"default {_toml_value(f.default)}"
+        lines.append(f"{f.key:36s} {f.valid_range()}; {default}. {f.doc}")
+    for name, (required, what) in ARRAYS.items():
+        lines.append(f"{name + '[]':36s} {'required, at least one entry' if required else 'optional'}: {what}; "
+                     "entries sorted by t_s, ramps not overlapping")
+    return "\n".join(lines)
