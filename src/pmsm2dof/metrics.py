@@ -1,0 +1,242 @@
+"""Figures of merit of a simulated run: each reference step and each load step.
+
+For every entry of the scenario's ``reference`` and ``load`` schedules, the response is measured
+in its *window*: from the entry's time ``t_s`` to the next entry of either schedule (or the end of
+the trace). The figures are those used to compare the controllers in the paper's section 4
+(overshoot of Fig. 8, 12, tracking of Fig. 10, 13, load rejection of Fig. 14):
+
+Reference step, from the speed ``w0`` at ``t_s`` to the new reference ``r`` (step ``D = r - w0``):
+
+- ``overshoot_pct``: ``100 max(0, max((w - r) / D))``;
+- ``rise_time_s``: from 10 % to 90 % of ``D`` (first crossings, linear interpolation);
+- ``settling_time_s``: from ``t_s`` until ``|w - r|`` stays within 2 % of ``|D|``;
+- ``steady_state_error_rpm``: ``r`` minus the mean speed over the last 10 % of the window, when
+  the speed spreads by at most 2 % of ``|D|`` there;
+- ``iae_rpm_s``: integral of ``|speed_ref - speed|`` over the window;
+- ``saturation_time_s``: time with the current limit active (the logged flag holds until the next
+  sample).
+
+Load step, from the load torque before to the new one (change ``dT``), with the speed error
+``e = speed_ref - speed`` taken in the direction the load pushes (``sign(dT) e``):
+
+- ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
+- ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the dip;
+- ``steady_state_error_rpm``, ``iae_rpm_s``, ``saturation_time_s`` as above (the spread test uses
+  2 % of the dip).
+
+A figure that cannot be computed (no change at the step, the speed did not reach or did not
+settle before the window ends) is ``{"value": None, "reason": "..."}``, never NaN; a computed one
+is ``{"value": x}``. Speeds are in rpm, as in the scenario and the trace.
+"""
+
+import math
+
+import numpy as np
+
+from .errors import SimulationError
+
+#: Settling band, relative to the step (reference) or to the dip (load).
+BAND = 0.02
+#: Final part of a window over which the steady state is measured.
+STEADY_FRACTION = 0.1
+
+
+def _value(x):
+    return {"value": float(x)}
+
+
+def _missing(reason):
+    return {"value": None, "reason": reason}
+
+
+def _trace(result, name):
+    values = np.asarray(getattr(result, name), dtype=float)
+    if values.shape != np.shape(result.t_s) or not np.all(np.isfinite(values)):
+        raise SimulationError(f"result.{name} must be finite and as long as result.t_s")
+    return values
+
+
+def _schedule(entries, key):
+    """(t_s, value before, value after) of each entry; the value is 0 before the first entry."""
+    before = 0.0
+    events = []
+    for e in entries:
+        events.append((e["t_s"], before, e[key]))
+        before = e[key]
+    return events
+
+
+def _first_crossing(t, z, level):
+    """First time z rises to ``level`` (z[0] < level), linearly interpolated, or None."""
+    above = np.nonzero(z >= level)[0]
+    if above.size == 0:
+        return None
+    k = above[0]
+    if k == 0:
+        return t[0]
+    return t[k - 1] + (level - z[k - 1]) / (z[k] - z[k - 1]) * (t[k] - t[k - 1])
+
+
+def _entry_into_band(t, dev, band):
+    """Time after which ``|dev| <= band`` for good (interpolated), or None if it ends outside."""
+    outside = np.nonzero(np.abs(dev) > band)[0]
+    if outside.size == 0:
+        return t[0]
+    k = outside[-1]
+    if k == len(t) - 1:
+        return None
+    level = band if dev[k] > band else -band
+    return t[k] + (level - dev[k]) / (dev[k + 1] - dev[k]) * (t[k + 1] - t[k])
+
+
+def _saturation_time(t, saturated, t0, t1):
+    """Time in [t0, t1] with the flag set; the flag of sample k holds over [t[k], t[k+1])."""
+    starts = np.clip(t[:-1], t0, t1)
+    ends = np.clip(t[1:], t0, t1)
+    return float(np.sum((ends - starts)[saturated[:-1]]))
+
+
+def _window(t, t0, t1, *signals):
+    """Sample times in [t0, t1] with both ends included, and the signals interpolated on them."""
+    tw = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
+    return tw, [np.interp(tw, t, s) for s in signals]
+
+
+def _reference_step(t, speed, ref, saturated, t0, t1, before, after):
+    out = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": t1}
+    names = ("overshoot_pct", "rise_time_s", "settling_time_s", "steady_state_error_rpm", "iae_rpm_s",
+             "saturation_time_s")
+    if t1 <= t0:
+        return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
+    tw, (w, r) = _window(t, t0, t1, speed, ref)
+    step = after - w[0]
+    result = {}
+    if after == before or abs(step) <= 1e-3 * abs(after - before):
+        reason = ("the reference does not change" if after == before
+                  else f"the speed is already at the new reference ({w[0]:g} rpm)")
+        result.update({n: _missing(reason) for n in names[:4]})
+    else:
+        z = (w - w[0]) / step
+        t10, t90 = _first_crossing(tw, z, 0.1), _first_crossing(tw, z, 0.9)
+        t_settle = _entry_into_band(tw, z - 1.0, BAND)
+        if np.max(z) >= 1.0 or t_settle is not None:
+            result["overshoot_pct"] = _value(100.0 * max(0.0, np.max(z) - 1.0))
+        else:
+            result["overshoot_pct"] = _missing(f"the speed did not reach the reference before {t1:g} s")
+        result["rise_time_s"] = (_value(t90 - t10) if t90 is not None else
+                                 _missing(f"the speed did not reach 90 % of the step before {t1:g} s"))
+        result["settling_time_s"] = (
+            _value(t_settle - t0) if t_settle is not None else
+            _missing(f"the speed did not settle within 2 % of the step before {t1:g} s"))
+        result["steady_state_error_rpm"] = _steady_state_error(tw, w, after, BAND * abs(step))
+    result["iae_rpm_s"] = _value(np.trapezoid(np.abs(r - w), tw))
+    result["saturation_time_s"] = _value(_saturation_time(t, saturated, t0, t1))
+    return out | {"speed_at_step_rpm": float(w[0])} | {n: result[n] for n in names}
+
+
+def _load_step(t, speed, ref, saturated, t0, t1, before, after):
+    out = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": t1}
+    names = ("speed_dip_rpm", "dip_time_s", "recovery_time_s", "steady_state_error_rpm", "iae_rpm_s",
+             "saturation_time_s")
+    if t1 <= t0:
+        return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
+    tw, (w, r) = _window(t, t0, t1, speed, ref)
+    e = r - w
+    result = {}
+    if after == before:
+        result.update({n: _missing("the load torque does not change") for n in names[:4]})
+    else:
+        d = math.copysign(1.0, after - before) * e
+        k = int(np.argmax(d))
+        dip = float(d[k])
+        if dip <= 0.0:
+            result.update({n: _missing("the speed did not give way to the load") for n in names[:4]})
+        else:
+            result["speed_dip_rpm"] = _value(dip)
+            result["dip_time_s"] = _value(tw[k] - t0)
+            t_rec = _entry_into_band(tw, e, BAND * dip)
+            result["recovery_time_s"] = (
+                _value(t_rec - t0) if t_rec is not None else
+                _missing(f"the speed did not recover to within 2 % of the dip before {t1:g} s"))
+            result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], BAND * dip)
+    result["iae_rpm_s"] = _value(np.trapezoid(np.abs(e), tw))
+    result["saturation_time_s"] = _value(_saturation_time(t, saturated, t0, t1))
+    return out | {n: result[n] for n in names}
+
+
+def _steady_state_error(tw, w, target, spread_max):
+    """``target`` minus the mean of ``w`` over the last part of the window, if ``w`` is steady there."""
+    tf, (final,) = _window(tw, tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0]), tw[-1], w)
+    spread = float(np.ptp(final))
+    if spread > spread_max:
+        return _missing(f"the speed is still changing at {tw[-1]:g} s (spread {spread:.3g} rpm over the last "
+                        f"{100 * STEADY_FRACTION:g} % of the window, more than {spread_max:.3g} rpm)")
+    return _value(target - np.trapezoid(final, tf) / (tf[-1] - tf[0]))
+
+
+def compute_metrics(result):
+    """Figures of merit of every reference step and load step of a simulated run.
+
+    Parameters
+    ----------
+    result : Result
+        A run of :func:`pmsm2dof.simulate`: arrays ``t_s``, ``speed_rpm``, ``speed_ref_rpm``,
+        ``saturated`` and the ``scenario`` whose ``reference`` and ``load`` schedules are measured.
+
+    Returns
+    -------
+    dict
+        JSON-serialisable: ``{"scenario", "reference_steps": [...], "load_steps": [...], "run"}``;
+        each figure is ``{"value": x}`` or ``{"value": None, "reason": "..."}`` (see the module
+        docstring for the definitions).
+    """
+    t = np.asarray(result.t_s, dtype=float)
+    if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
+        raise SimulationError("result.t_s must hold at least two finite, increasing times")
+    speed = _trace(result, "speed_rpm")
+    ref = _trace(result, "speed_ref_rpm")
+    saturated = np.asarray(result.saturated, dtype=bool)
+    if saturated.shape != t.shape:
+        raise SimulationError("result.saturated must be as long as result.t_s")
+    data = result.scenario.data
+    ref_events = _schedule(data["reference"], "speed_rpm")
+    load_events = _schedule(data["load"], "torque_Nm")
+    times = sorted({e[0] for e in ref_events + load_events})
+
+    def window_end(t0):
+        later = [x for x in times if x > t0]
+        return min(later[0], t[-1]) if later else t[-1]
+
+    return {
+        "scenario": data["name"],
+        "reference_steps": [_reference_step(t, speed, ref, saturated, t0, window_end(t0), b, a)
+                            for t0, b, a in ref_events],
+        "load_steps": [_load_step(t, speed, ref, saturated, t0, window_end(t0), b, a) for t0, b, a in load_events],
+        "run": {
+            "t_end_s": float(t[-1]),
+            "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
+            "saturation_time_s": _value(_saturation_time(t, saturated, t[0], t[-1])),
+        },
+    }
+
+
+def _fmt(figure, unit):
+    return "n/a" if figure["value"] is None else f"{figure['value']:.4g} {unit}".rstrip()
+
+
+def summary_lines(metrics):
+    """A few lines of text summarising :func:`compute_metrics` (missing figures shown as n/a)."""
+    lines = []
+    for s in metrics["reference_steps"]:
+        lines.append(
+            f"reference step at {s['t_s']:g} s to {s['to_rpm']:g} rpm: overshoot {_fmt(s['overshoot_pct'], '%')}, "
+            f"rise {_fmt(s['rise_time_s'], 's')}, settling {_fmt(s['settling_time_s'], 's')}, "
+            f"steady-state error {_fmt(s['steady_state_error_rpm'], 'rpm')}, "
+            f"saturated {_fmt(s['saturation_time_s'], 's')}")
+    for s in metrics["load_steps"]:
+        lines.append(
+            f"load step at {s['t_s']:g} s, {s['from_Nm']:g} -> {s['to_Nm']:g} Nm: dip "
+            f"{_fmt(s['speed_dip_rpm'], 'rpm')} after {_fmt(s['dip_time_s'], 's')}, "
+            f"recovery {_fmt(s['recovery_time_s'], 's')}, "
+            f"steady-state error {_fmt(s['steady_state_error_rpm'], 'rpm')}")
+    return lines

@@ -1,0 +1,192 @@
+"""Metrics on synthetic traces whose figures are known analytically.
+
+Truth: closed-form step responses (first order, second order, difference of exponentials)
+and root finding (scipy.optimize.brentq) on the closed forms, never the sampled algorithm.
+"""
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from pmsm2dof.errors import SimulationError
+from pmsm2dof.metrics import compute_metrics, summary_lines
+from pmsm2dof.scenario import load_scenario
+
+DT = 1e-3
+
+
+def fake_result(t, speed, ref, reference, load=(), saturated=None):
+    """A Result honouring the contract, with the given traces and schedules."""
+    scenario = load_scenario("paper-condition-2").with_overrides({
+        "simulation.t_end_s": float(t[-1] + DT),
+        "reference": [{"t_s": float(a), "speed_rpm": float(b)} for a, b in reference],
+        "load": [{"t_s": float(a), "torque_Nm": float(b)} for a, b in load],
+    })
+    if saturated is None:
+        saturated = np.zeros(t.shape, dtype=bool)
+    return SimpleNamespace(t_s=t, speed_rpm=speed, speed_ref_rpm=ref, saturated=saturated, scenario=scenario)
+
+
+def step_ref(t, steps):
+    """The reference of a list of (t_s, speed_rpm) steps, 0 before the first."""
+    r = np.zeros_like(t)
+    for t0, value in steps:
+        r[t >= t0] = value
+    return r
+
+
+def first_order(t, t0, y0, y1, tau):
+    return np.where(t < t0, y0, y1 + (y0 - y1) * np.exp(-np.clip(t - t0, 0, None) / tau))
+
+
+def second_order_unit(t, zeta, wn):
+    wd = wn * math.sqrt(1 - zeta**2)
+    return 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * t))
+
+
+@pytest.mark.parametrize("y0, y1", [(0.0, 500.0), (500.0, 200.0)])
+def test_first_order_step(y0, y1):
+    """Rise time ln(9) tau, 2 % settling ln(50) tau, no overshoot, IAE |D| tau (1 - exp(-T/tau))."""
+    tau, t0, T = 0.8, 1.0, 9.0
+    t = np.arange(0.0, t0 + T + DT / 2, DT)
+    steps = [(0.0, y0), (t0, y1)]
+    speed = first_order(t, t0, y0, y1, tau)
+    m = compute_metrics(fake_result(t, speed, step_ref(t, steps), steps))
+    s = m["reference_steps"][1]
+    assert s["t_s"] == t0 and s["from_rpm"] == y0 and s["to_rpm"] == y1
+    assert s["rise_time_s"]["value"] == pytest.approx(math.log(9) * tau, abs=1e-5)
+    assert s["settling_time_s"]["value"] == pytest.approx(math.log(50) * tau, abs=1e-5)
+    assert s["overshoot_pct"]["value"] == 0.0
+    D = abs(y1 - y0)
+    assert s["iae_rpm_s"]["value"] == pytest.approx(D * tau * (1 - math.exp(-T / tau)), rel=1e-5)
+    # mean of the error over the last 10 % of the window, in closed form
+    a, b = 0.9 * T, T
+    mean_err = (y1 - y0) * tau / (b - a) * (math.exp(-a / tau) - math.exp(-b / tau))
+    assert s["steady_state_error_rpm"]["value"] == pytest.approx(mean_err, rel=1e-4)
+    # the first entry (0 -> y0 at t = 0) is a step only if y0 != 0 and the speed starts elsewhere
+    first = m["reference_steps"][0]
+    assert first["window_end_s"] == t0
+    if y0 == 0.0:
+        assert first["rise_time_s"] == {"value": None, "reason": "the reference does not change"}
+    else:
+        assert "already at the new reference" in first["rise_time_s"]["reason"]
+
+
+@pytest.mark.parametrize("zeta", [0.2, 0.5, 0.7])
+def test_second_order_step(zeta):
+    """Overshoot exp(-pi zeta / sqrt(1 - zeta^2)); rise and settling from the closed form by brentq."""
+    wn, A, t0 = 3.0, 300.0, 0.5
+    t = np.arange(0.0, 12.0, DT)
+    steps = [(t0, A)]
+    speed = A * np.where(t < t0, 0.0, second_order_unit(np.clip(t - t0, 0, None), zeta, wn))
+    s = compute_metrics(fake_result(t, speed, step_ref(t, steps), steps))["reference_steps"][0]
+
+    overshoot = 100 * math.exp(-math.pi * zeta / math.sqrt(1 - zeta**2))
+    assert s["overshoot_pct"]["value"] == pytest.approx(overshoot, rel=1e-5)
+
+    wd = wn * math.sqrt(1 - zeta**2)
+    y = lambda x: second_order_unit(x, zeta, wn)  # noqa: E731
+    t_peak = math.pi / wd
+    rise = brentq(lambda x: y(x) - 0.9, 0, t_peak) - brentq(lambda x: y(x) - 0.1, 0, t_peak)
+    assert s["rise_time_s"]["value"] == pytest.approx(rise, abs=1e-5)
+
+    # |y - 1| has its extrema exp(-zeta wn k pi / wd) at k pi / wd: the last one above 2 % bounds
+    # the final band crossing, found by brentq on the closed form.
+    k = math.floor(math.log(1 / 0.02) * wd / (zeta * wn * math.pi))
+    lo, hi = k * math.pi / wd, (k + 1) * math.pi / wd
+    settle = brentq(lambda x: abs(y(x) - 1) - 0.02, lo, hi)
+    assert s["settling_time_s"]["value"] == pytest.approx(settle, abs=1e-5)
+
+
+def test_load_step_difference_of_exponentials():
+    """Speed error D (exp(-t/t1) - exp(-t/t2)): peak at ln(t1/t2) t1 t2 / (t1 - t2), recovery by brentq."""
+    r, D, t1, t2, t0 = 500.0, 40.0, 1.5, 0.3, 2.0
+    t = np.arange(0.0, 14.0, DT)
+    x = np.clip(t - t0, 0, None)
+    err = D * (np.exp(-x / t1) - np.exp(-x / t2))
+    res = fake_result(t, r - err, np.full_like(t, r), [(0.0, r)], load=[(t0, 8.0)])
+    s = compute_metrics(res)["load_steps"][0]
+    assert s["from_Nm"] == 0.0 and s["to_Nm"] == 8.0
+
+    t_peak = math.log(t1 / t2) * t1 * t2 / (t1 - t2)
+    e = lambda x: D * (math.exp(-x / t1) - math.exp(-x / t2))  # noqa: E731
+    assert s["dip_time_s"]["value"] == pytest.approx(t_peak, abs=DT)
+    assert s["speed_dip_rpm"]["value"] == pytest.approx(e(t_peak), rel=1e-6)
+    recovery = brentq(lambda x: e(x) - 0.02 * e(t_peak), t_peak, 100.0)
+    assert s["recovery_time_s"]["value"] == pytest.approx(recovery, abs=1e-4)
+    T = t[-1] - t0
+    iae = D * (t1 * (1 - math.exp(-T / t1)) - t2 * (1 - math.exp(-T / t2)))
+    assert s["iae_rpm_s"]["value"] == pytest.approx(iae, rel=1e-5)
+
+
+def test_load_decrease_counts_the_speed_rise_as_the_dip():
+    """A load removed pushes the speed up: the dip is measured in that direction."""
+    r, D, tau, t0 = 300.0, 25.0, 0.5, 1.0
+    t = np.arange(0.0, 8.0, DT)
+    x = np.clip(t - t0, 0, None)
+    rise = D * x / tau * np.exp(1 - x / tau)  # peak D at x = tau
+    res = fake_result(t, r + rise, np.full_like(t, r), [(0.0, r)], load=[(0.2, 5.0), (t0, 1.0)])
+    s = compute_metrics(res)["load_steps"][1]
+    assert s["speed_dip_rpm"]["value"] == pytest.approx(D, rel=1e-6)
+    assert s["dip_time_s"]["value"] == pytest.approx(tau, abs=DT)
+
+
+def test_saturation_time_split_by_windows():
+    """The flag holds from its sample to the next: 1.0 s before the load step at 2 s, 0.5 s after."""
+    t = np.arange(0.0, 5.0, DT)
+    sat = (t >= 1.0 - DT / 2) & (t < 2.5 - DT / 2)
+    res = fake_result(t, np.full_like(t, 100.0), np.full_like(t, 100.0), [(0.0, 100.0)],
+                      load=[(2.0, 1.0)], saturated=sat)
+    m = compute_metrics(res)
+    assert m["reference_steps"][0]["saturation_time_s"]["value"] == pytest.approx(1.0, abs=1e-9)
+    assert m["load_steps"][0]["saturation_time_s"]["value"] == pytest.approx(0.5, abs=1e-9)
+    assert m["run"]["saturation_time_s"]["value"] == pytest.approx(1.5, abs=1e-9)
+
+
+def test_figures_that_cannot_be_computed_are_missing_with_a_reason():
+    t = np.arange(0.0, 10.0, DT)
+    # a sustained oscillation around the reference never settles
+    steps = [(0.0, 100.0)]
+    ringing = 100.0 * (1 - np.cos(3.0 * t))
+    m = compute_metrics(fake_result(t, ringing, step_ref(t, steps), steps))
+    s = m["reference_steps"][0]
+    assert s["settling_time_s"]["value"] is None and "did not settle" in s["settling_time_s"]["reason"]
+    assert s["steady_state_error_rpm"]["value"] is None and "still changing" in s["steady_state_error_rpm"]["reason"]
+    assert s["overshoot_pct"]["value"] == pytest.approx(100.0, rel=1e-4)
+
+    # a slow response cut short by the next step never reaches 90 % nor the reference
+    steps = [(0.0, 100.0), (1.0, 50.0)]
+    slow = first_order(t, 0.0, 0.0, 100.0, 5.0)
+    s = compute_metrics(fake_result(t, slow, step_ref(t, steps), steps))["reference_steps"][0]
+    assert s["window_end_s"] == 1.0
+    for name in ("rise_time_s", "settling_time_s", "overshoot_pct"):
+        assert s[name]["value"] is None and "before 1 s" in s[name]["reason"]
+
+    # a load entry that does not change the torque
+    res = fake_result(t, np.full_like(t, 10.0), np.full_like(t, 10.0), [(0.0, 10.0)], load=[(1.0, 0.0)])
+    s = compute_metrics(res)["load_steps"][0]
+    assert s["speed_dip_rpm"] == {"value": None, "reason": "the load torque does not change"}
+    assert s["iae_rpm_s"]["value"] == 0.0
+
+
+def test_json_serialisable_without_nan():
+    t = np.arange(0.0, 6.0, DT)
+    steps = [(0.0, 100.0), (3.0, 100.0)]
+    speed = first_order(t, 0.0, 0.0, 100.0, 2.0)
+    m = compute_metrics(fake_result(t, speed, step_ref(t, steps), steps, load=[(2.0, 3.0)]))
+    text = json.dumps(m, allow_nan=False)
+    assert json.loads(text) == m
+    assert len(summary_lines(m)) == 3
+    assert "n/a" in summary_lines(m)[1]
+
+
+def test_non_finite_trace_is_an_error():
+    t = np.arange(0.0, 1.0, DT)
+    speed = np.zeros_like(t)
+    speed[10] = np.nan
+    with pytest.raises(SimulationError, match="speed_rpm"):
+        compute_metrics(fake_result(t, speed, np.zeros_like(t), [(0.0, 1.0)]))
