@@ -1,0 +1,192 @@
+/*
+ * Unit tests of the dq current controllers (pmsm2dof/current.h). Expected
+ * values come from the dq model (paper eq 1), the loop design of eq 3 and an
+ * exactly discretized RL circuit, all in double.
+ */
+#include <string.h>
+
+#include "check.h"
+#include "pmsm2dof/current.h"
+
+/* Rs = 0.5 ohm, Ld = 2 mH, Lq = 3 mH, psi_f = 0.05 Wb, tau_i = 1 ms, Ts = 10 us */
+static p2d_current_config_t base_config(void)
+{
+    p2d_current_config_t cfg;
+    cfg.Rs_ohm = 0.5f;
+    cfg.Ld_H = 2e-3f;
+    cfg.Lq_H = 3e-3f;
+    cfg.psi_f_Wb = 0.05f;
+    cfg.tau_i_s = 1e-3f;
+    cfg.Ts_s = 1e-5f;
+    cfg.method = P2D_TUSTIN;
+    cfg.anti_windup = P2D_AW_BACK_CALCULATION;
+    cfg.decouple = true;
+    return cfg;
+}
+
+static p2d_status_t init_with(p2d_current_config_t cfg)
+{
+    p2d_current_t ctl;
+    return p2d_current_init(&ctl, &cfg);
+}
+
+static void test_validation(void)
+{
+    p2d_current_config_t cfg;
+    CHECK(init_with(base_config()) == P2D_OK);
+    cfg = base_config(); cfg.Rs_ohm = 0.0f; CHECK(init_with(cfg) == P2D_ERR_RS);
+    cfg = base_config(); cfg.Ld_H = NAN; CHECK(init_with(cfg) == P2D_ERR_LD);
+    cfg = base_config(); cfg.Lq_H = -1.0f; CHECK(init_with(cfg) == P2D_ERR_LQ);
+    cfg = base_config(); cfg.psi_f_Wb = -0.1f; CHECK(init_with(cfg) == P2D_ERR_PSI_F);
+    cfg = base_config(); cfg.psi_f_Wb = 0.0f; CHECK(init_with(cfg) == P2D_OK);
+    cfg = base_config(); cfg.Ts_s = 0.0f; CHECK(init_with(cfg) == P2D_ERR_TS);
+    cfg = base_config(); cfg.tau_i_s = 0.5e-5f; CHECK(init_with(cfg) == P2D_ERR_TAU_I);
+    cfg = base_config(); cfg.tau_i_s = INFINITY; CHECK(init_with(cfg) == P2D_ERR_TAU_I);
+    cfg = base_config(); cfg.method = (p2d_method_t)9; CHECK(init_with(cfg) == P2D_ERR_METHOD);
+    cfg = base_config(); cfg.anti_windup = (p2d_anti_windup_t)9; CHECK(init_with(cfg) == P2D_ERR_ANTI_WINDUP);
+    /* back calculation loop 1 - Rs Ts / L: Rs Ts / Ld = 2.5 is unstable; without back calculation it is no pole */
+    cfg = base_config(); cfg.Rs_ohm = 500.0f; CHECK(init_with(cfg) == P2D_ERR_TS_UNSTABLE);
+    cfg.anti_windup = P2D_AW_CLAMPING; CHECK(init_with(cfg) == P2D_OK);
+    cfg = base_config(); CHECK(p2d_current_init(0, &cfg) == P2D_ERR_NULL);
+}
+
+static void test_gains(void)
+{
+    p2d_current_config_t cfg = base_config();
+    p2d_current_t ctl;
+    const p2d_current_coef_t *c;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    c = &ctl.coef[ctl.active];
+    /* eq 3 design: Kp = L / tau_i, Ki = Rs / tau_i */
+    CHECK_CLOSE(c->d.Kp, 2.0, 1e-6);
+    CHECK_CLOSE(c->q.Kp, 3.0, 1e-6);
+    CHECK_CLOSE(c->d.Ki, 500.0, 1e-3);
+    CHECK_CLOSE(c->q.Ki, 500.0, 1e-3);
+    /* Ka = 1/Kp: Ki Ka Ts = Rs Ts / L */
+    CHECK_CLOSE(c->d.Ki_Ka_Ts, 0.5 * 1e-5 / 2e-3, 1e-9);
+    CHECK_CLOSE(c->q.Ki_Ka_Ts, 0.5 * 1e-5 / 3e-3, 1e-9);
+}
+
+/* At zero current error the output is the decoupling voltage of eq 1 */
+static void test_decoupling(void)
+{
+    p2d_current_config_t cfg = base_config();
+    p2d_current_t ctl;
+    p2d_current_output_t out;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    p2d_current_compute(&ctl, -2.0f, 4.0f, -2.0f, 4.0f, 1000.0f, 600.0f, &out);
+    /* ud = -w_e Lq iq = -12 V, uq = w_e (Ld id + psi_f) = 46 V */
+    CHECK_CLOSE(out.ud_ref_V, -1000.0 * 3e-3 * 4.0, 1e-4);
+    CHECK_CLOSE(out.uq_ref_V, 1000.0 * (2e-3 * -2.0 + 0.05), 1e-4);
+    CHECK(!out.saturated && !out.fault);
+    cfg.decouple = false;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    p2d_current_compute(&ctl, -2.0f, 4.0f, -2.0f, 4.0f, 1000.0f, 600.0f, &out);
+    CHECK(out.ud_ref_V == 0.0f && out.uq_ref_V == 0.0f);
+}
+
+/* ||u_dq|| <= u_dc / sqrt(3), direction kept; integrators bounded with back calculation */
+static void test_voltage_limit(void)
+{
+    p2d_current_config_t cfg = base_config();
+    p2d_current_t ctl;
+    p2d_current_output_t out;
+    const double u_max = 48.0 / sqrt(3.0);
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    for (int k = 0; k < 100000; ++k) p2d_current_step(&ctl, 30.0f, 40.0f, 0.0f, 0.0f, 0.0f, 48.0f, &out);
+    CHECK(out.saturated);
+    CHECK_CLOSE(sqrt((double)out.ud_ref_V * out.ud_ref_V + (double)out.uq_ref_V * out.uq_ref_V), u_max, 1e-4);
+    CHECK_CLOSE(out.ud_ref_V * out.uq_unsat_V, out.uq_ref_V * out.ud_unsat_V, 1e-3 * fabs(out.ud_unsat_V));
+    /* per-axis fixed point x* = u_sat - b_e0 e + e / Ka with Ka = 1/Kp: x* = u_sat - (b_e0 - Kp) e */
+    CHECK_CLOSE(ctl.x_d_V, out.ud_ref_V - 0.5 * 500.0 * 1e-5 * 30.0, 1e-3);
+    CHECK_CLOSE(ctl.x_q_V, out.uq_ref_V - 0.5 * 500.0 * 1e-5 * 40.0, 1e-3);
+
+    cfg.anti_windup = P2D_AW_CLAMPING;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    for (int k = 0; k < 1000; ++k) p2d_current_step(&ctl, 30.0f, 40.0f, 0.0f, 0.0f, 0.0f, 48.0f, &out);
+    CHECK(ctl.x_d_V == 0.0f && ctl.x_q_V == 0.0f);
+
+    cfg.anti_windup = P2D_AW_NONE;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    for (int k = 0; k < 1000; ++k) p2d_current_step(&ctl, 30.0f, 40.0f, 0.0f, 0.0f, 0.0f, 48.0f, &out);
+    CHECK_CLOSE(ctl.x_q_V, 1000 * 500.0 * 1e-5 * 40.0, 0.05);
+
+    /* zero or negative DC link: zero voltage */
+    p2d_current_compute(&ctl, 1.0f, 1.0f, 0.0f, 0.0f, 0.0f, -5.0f, &out);
+    CHECK(out.ud_ref_V == 0.0f && out.uq_ref_V == 0.0f && out.saturated && !out.fault);
+}
+
+static void test_non_finite_policy(void)
+{
+    p2d_current_config_t cfg = base_config();
+    p2d_current_t ctl;
+    p2d_current_output_t out;
+    float xd, xq;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    p2d_current_step(&ctl, 1.0f, 2.0f, 0.0f, 0.0f, 100.0f, 300.0f, &out);
+    xd = ctl.x_d_V;
+    xq = ctl.x_q_V;
+    p2d_current_step(&ctl, 1.0f, 2.0f, NAN, 0.0f, 100.0f, 300.0f, &out);
+    CHECK(out.fault && out.ud_ref_V == 0.0f && out.uq_ref_V == 0.0f);
+    CHECK(ctl.x_d_V == xd && ctl.x_q_V == xq && ctl.fault_count == 1u);
+    /* a NaN DC-link measurement is a fault, not a zero voltage limit */
+    p2d_current_step(&ctl, 1.0f, 2.0f, 0.0f, 0.0f, 100.0f, NAN, &out);
+    CHECK(out.fault && ctl.x_d_V == xd && ctl.x_q_V == xq && ctl.fault_count == 2u);
+    p2d_current_step(&ctl, 1.0f, 2.0f, 0.0f, 0.0f, INFINITY, 300.0f, &out);
+    CHECK(out.fault && ctl.fault_count == 3u);
+}
+
+/*
+ * Closed loop on the q-axis RL circuit at standstill, discretized exactly (ZOH):
+ * i[k+1] = a i[k] + (1 - a) u[k] / Rs, a = exp(-Rs Ts / Lq).
+ * Eq 3: the loop follows 1 / (tau_i s + 1); at t = tau_i the current is 1 - 1/e.
+ */
+static void test_first_order_loop(void)
+{
+    p2d_current_config_t cfg = base_config();
+    p2d_current_t ctl;
+    p2d_current_output_t out;
+    const double Rs = 0.5, Lq = 3e-3, Ts = 1e-5, tau = 1e-3;
+    const double a = exp(-Rs * Ts / Lq);
+    double iq = 0.0;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    for (int k = 0; k < 500; ++k) {
+        if (k == 100) CHECK_CLOSE(iq, 1.0 - exp(-1.0), 0.01);
+        p2d_current_step(&ctl, 0.0f, 1.0f, 0.0f, (float)iq, 0.0f, 1000.0f, &out);
+        iq = a * iq + (1.0 - a) * out.uq_ref_V / Rs;
+    }
+    CHECK_CLOSE(iq, 1.0 - exp(-500 * Ts / tau), 0.01);
+}
+
+/* Parameter update: invalid changes nothing; valid keeps the integrators */
+static void test_set_config(void)
+{
+    p2d_current_config_t cfg = base_config();
+    p2d_current_t ctl;
+    p2d_current_output_t out;
+    p2d_current_t before;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    p2d_current_step(&ctl, 1.0f, 2.0f, 0.0f, 0.0f, 0.0f, 300.0f, &out);
+    before = ctl;
+    cfg.Rs_ohm = -1.0f;
+    CHECK(p2d_current_set_config(&ctl, &cfg) == P2D_ERR_RS);
+    CHECK(ctl.active == before.active && ctl.config.Rs_ohm == 0.5f);
+    cfg.Rs_ohm = 1.0f;
+    CHECK(p2d_current_set_config(&ctl, &cfg) == P2D_OK);
+    CHECK(ctl.active != before.active && ctl.x_q_V == before.x_q_V);
+    CHECK_CLOSE(ctl.coef[ctl.active].q.Ki, 1000.0, 1e-3);
+    p2d_current_reset(&ctl);
+    CHECK(ctl.x_d_V == 0.0f && ctl.x_q_V == 0.0f);
+}
+
+int main(void)
+{
+    test_validation();
+    test_gains();
+    test_decoupling();
+    test_voltage_limit();
+    test_non_finite_policy();
+    test_first_order_loop();
+    test_set_config();
+    return check_summary();
+}
