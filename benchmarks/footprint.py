@@ -1,0 +1,326 @@
+"""Flash, RAM and instructions per step of the controllers on a Cortex-M4F.
+
+Cross-builds ``csrc/`` with ``csrc/cmake/arm-none-eabi-cortex-m4f.cmake`` (the
+flags users ship with: ``-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16
+-mfloat-abi=hard -O2 -ffp-contract=off``, plus ``-g``, which changes no code),
+then measures:
+
+flash
+    ``arm-none-eabi-size`` of each module of the static library, and
+    ``arm-none-eabi-nm --size-sort`` of every function. The flash a
+    function needs is the sum of the sizes of the functions it can reach: the
+    static call graph (``bl``/``b`` targets in the disassembly of the linked
+    probe program, newlib's libm included) closed from that function.
+RAM
+    ``sizeof`` of the structs, as the target compiler lays them out (printed by
+    the probe program on the emulator), and the stack one step uses, measured
+    on the emulator by painting the free stack before the call and finding the
+    lowest word the call overwrote.
+instructions per step
+    Counted on QEMU (``-M mps2-an386``, a Cortex-M4F) by tracing every executed
+    instruction (``-singlestep -d exec,nochain``: one translation block per
+    instruction, each logged when it runs). The probe program calls a marker
+    before each measured step; the count runs from the step's entry to the
+    return address of its call, callees (libm included) counted. These are
+    executed instructions, not cycles: on the M4, ``vdiv.f32`` and
+    ``vsqrt.f32`` take 14 cycles, loads 2, taken branches 2-4 (Cortex-M4
+    Technical Reference Manual, 3.3 and FPU 7.2.3).
+    The count is checked on ``p2d_speed_Ka_default``, which has no branch: the
+    trace must give the number of instructions of its disassembly.
+
+Writes the section "Footprint and cost on the Cortex-M4F" of
+``benchmarks/results.md`` (other sections are kept) and prints it.
+Usage: ``python3 benchmarks/footprint.py [--build-dir DIR]``.
+"""
+
+import argparse
+import datetime
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+from collections import Counter
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CSRC = ROOT / "csrc"
+TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
+RESULTS = ROOT / "benchmarks" / "results.md"
+SECTION = "## Footprint and cost on the Cortex-M4F"
+QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
+QEMU_TIMEOUT_S = 120
+# the configuration with the issue's target: <= 60 instructions per step, <= 1 KiB flash
+TARGET = ("speed", "tustin", "back_calculation", "lowpass", "surface")
+TARGET_INSTRUCTIONS = 60
+TARGET_FLASH_BYTES = 1024
+
+
+def run(cmd, **kwargs):
+    """Run a command, return its stdout; raise with its stderr on failure."""
+    done = subprocess.run(cmd, capture_output=True, text=True, **kwargs)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(map(str, cmd))} failed ({done.returncode}):\n{done.stderr}")
+    return done.stdout
+
+
+def cross_build(build_dir):
+    """Configure and build the library and the probe program for the Cortex-M4F."""
+    env = dict(os.environ, CFLAGS="-g")
+    run(["cmake", "-S", CSRC, "-B", build_dir, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}"], env=env)
+    run(["cmake", "--build", build_dir, "-j2", "--target", "pmsm2dof_controller", "p2d_target_cost"])
+    return build_dir / "target" / "p2d_target_cost"
+
+
+def module_sizes(build_dir):
+    """{module: (text, data, bss)} of the objects of the static library."""
+    objects = sorted((build_dir / "CMakeFiles" / "pmsm2dof_controller.dir" / "src").glob("*.obj"))
+    sizes = {}
+    for line in run(["arm-none-eabi-size", *objects]).splitlines()[1:]:
+        text, data, bss, _, _, path = line.split()
+        sizes[Path(path).name.removesuffix(".c.obj")] = (int(text), int(data), int(bss))
+    return sizes
+
+
+def symbols(elf):
+    """{function: (address, size)} of the functions in the ELF (thumb bit cleared)."""
+    funcs = {}
+    for line in run(["arm-none-eabi-nm", "-S", "--defined-only", elf]).splitlines():
+        parts = line.split()
+        if len(parts) == 4 and parts[2] in "TtWw":
+            funcs[parts[3]] = (int(parts[0], 16) & ~1, int(parts[1], 16))
+    return funcs
+
+
+def disassembly(elf):
+    """({address: mnemonic}, {function: set of called functions}) of the ELF."""
+    mnemonic, calls, current = {}, {}, None
+    insn = re.compile(r"^\s*([0-9a-f]+):\s+(\S+)(.*)$")
+    for line in run(["arm-none-eabi-objdump", "-d", "--no-show-raw-insn", elf]).splitlines():
+        head = re.match(r"^[0-9a-f]+ <(.+)>:$", line)
+        if head:
+            current = head.group(1)
+            calls[current] = set()
+            continue
+        m = insn.match(line)
+        if m and current is not None:
+            mnemonic[int(m.group(1), 16)] = m.group(2)
+            # a branch to the start of another function is a call or a tail call
+            target = re.search(r"<([^>+]+)>", m.group(3))
+            if target and m.group(2).startswith(("b", "cb")) and target.group(1) != current:
+                calls[current].add(target.group(1))
+    return mnemonic, calls
+
+
+def reachable(calls, root):
+    """Functions reachable from root in the static call graph, root included."""
+    seen, todo = set(), [root]
+    while todo:
+        f = todo.pop()
+        if f not in seen:
+            seen.add(f)
+            todo.extend(calls.get(f, ()))
+    return seen
+
+
+def trace(elf, workdir):
+    """(program output lines, executed PCs in order) of one run of the ELF on QEMU."""
+    log = workdir / "exec.log"
+    done = subprocess.run(
+        [*QEMU, "-singlestep", "-d", "exec,nochain", "-D", log, "-kernel", elf],
+        capture_output=True, text=True, timeout=QEMU_TIMEOUT_S, stdin=subprocess.DEVNULL,
+    )
+    # semihosting output arrives on stderr
+    if done.returncode != 0:
+        raise RuntimeError(f"probe program failed on QEMU ({done.returncode}):\n{done.stderr[-2000:]}")
+    pc = re.compile(r"^Trace \d+: \S+ \[[0-9a-f]+/([0-9a-f]+)/")
+    with open(log) as f:
+        pcs = [int(m.group(1), 16) for m in map(pc.match, f) if m]
+    return done.stderr.splitlines(), pcs
+
+
+def call_in_trace(pcs, entry, start, mnemonic):
+    """(first, end) indices of the first executed call of the function at ``entry`` from index start.
+
+    The call starts at the entry and ends where execution comes back to the
+    instruction after its ``bl``.
+    """
+    first = pcs.index(entry, start)
+    call_site = pcs[first - 1]
+    if mnemonic.get(call_site) != "bl":
+        raise RuntimeError(f"call at {call_site:#x} into {entry:#x} is not a bl")
+    return first, pcs.index(call_site + 4, first)
+
+
+def line_costs(elf, path_pcs):
+    """[("file:line", count)] of the executed instructions, most first."""
+    out = run(["arm-none-eabi-addr2line", "-e", elf, *(f"{a:#x}" for a in path_pcs)]).splitlines()
+    counts = Counter(f"{Path(loc.split(':')[0]).name}:{loc.split(':')[1].split()[0]}" for loc in out)
+    return counts.most_common()
+
+
+def source_line(ref):
+    """Text of 'file:line' of the C sources, stripped."""
+    name, number = ref.split(":")
+    for path in (CSRC / "src" / name, CSRC / "target" / name):
+        if path.exists() and number.isdigit():
+            return path.read_text().splitlines()[int(number) - 1].strip()
+    return "(newlib)"
+
+
+def function_of(funcs):
+    """A function mapping an address to the name of the function that holds it."""
+    spans = sorted((a, a + s, n) for n, (a, s) in funcs.items() if s > 0)
+
+    def name(addr):
+        for lo, hi, n in spans:
+            if lo <= addr < hi:
+                return n
+        return "?"
+
+    return name
+
+
+def measure(build_dir, workdir):
+    elf = cross_build(build_dir)
+    funcs = symbols(elf)
+    mnemonic, calls = disassembly(elf)
+    lines, pcs = trace(elf, workdir)
+
+    sizeof = {p[1]: int(p[2], 16) for p in (ln.split() for ln in lines) if p and p[0] == "sizeof"}
+    probes = [ln.split() for ln in lines if ln.startswith("probe ")]
+    if not lines or lines[-1] != "END":
+        raise RuntimeError("probe program did not finish:\n" + "\n".join(lines[-5:]))
+
+    # check of the counting method on a function without branches
+    ka = funcs["p2d_speed_Ka_default"]
+    ka_disassembled = sum(1 for a in mnemonic if ka[0] <= a < ka[0] + ka[1] and not mnemonic[a].startswith("."))
+    first, end = call_in_trace(pcs, ka[0], 0, mnemonic)
+    if end - first != ka_disassembled:
+        raise RuntimeError(f"trace counts {end - first} instructions in p2d_speed_Ka_default, "
+                           f"its disassembly has {ka_disassembled}")
+
+    marks = [i for i, a in enumerate(pcs) if a == funcs["p2d_cost_mark"][0]]
+    where = function_of(funcs)
+    rows = []
+    for probe in probes:
+        index = int(probe[1], 16)
+        controller = probe[2]
+        entry = funcs[f"p2d_{controller}_step"][0]
+        first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
+        path = pcs[first:end]
+        rows.append(dict(
+            key=tuple(probe[2:7]), point=probe[7], stack=int(probe[9], 16), count=len(path),
+            divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
+            per_function=Counter(where(a) for a in path), path=path,
+        ))
+
+    flash = {}
+    for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init"):
+        reach = reachable(calls, root)
+        flash[root] = (sum(funcs[f][1] for f in reach if f in funcs), sorted(reach))
+    speed_all = set().union(*(reachable(calls, f) for f in funcs if f.startswith("p2d_speed_")))
+    current_all = set().union(*(reachable(calls, f) for f in funcs if f.startswith("p2d_current_")))
+    flash["speed controller (all p2d_speed_*)"] = (sum(funcs[f][1] for f in speed_all), sorted(speed_all))
+    flash["current controller (all p2d_current_*)"] = (sum(funcs[f][1] for f in current_all), sorted(current_all))
+
+    target_rows = [r for r in rows if r["key"] == TARGET]
+    hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
+    return dict(modules=module_sizes(build_dir), funcs=funcs, sizeof=sizeof, rows=rows, flash=flash,
+                hot=hot, ka_check=ka_disassembled)
+
+
+def tool_version(cmd):
+    return run([cmd, "--version"]).splitlines()[0]
+
+
+def report(m):
+    """The markdown section of the results."""
+    cpu = "unknown CPU"
+    if Path("/proc/cpuinfo").exists():
+        found = re.search(r"^model name\s*:\s*(.+)$", Path("/proc/cpuinfo").read_text(), re.M)
+        cpu = found.group(1) if found else cpu
+    out = [
+        SECTION, "",
+        f"Measured {datetime.date.today().isoformat()} by `python3 benchmarks/footprint.py` on "
+        f"{platform.node() or 'host'} ({platform.machine()}, {cpu}, {os.cpu_count()} cores);",
+        f"{tool_version('arm-none-eabi-gcc')}; {tool_version('qemu-system-arm')}.",
+        "Flags: `-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard -O2 -ffp-contract=off`, newlib-nano.",
+        "",
+        "### Flash and RAM of the library modules (`arm-none-eabi-size`, bytes)", "",
+        "| module | text (flash) | data | bss |", "|---|---:|---:|---:|",
+    ]
+    for name, (text, data, bss) in m["modules"].items():
+        out.append(f"| {name}.c | {text} | {data} | {bss} |")
+    out += ["", "### Flash reachable from an entry point (static call graph, newlib included, bytes)", "",
+            "| entry | flash | functions |", "|---|---:|---|"]
+    for root, (size, reach) in m["flash"].items():
+        out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach if f in m["funcs"]) + " |")
+    out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items()]
+    stack = {}
+    for r in m["rows"]:
+        stack[r["key"][0]] = max(stack.get(r["key"][0], 0), r["stack"])
+    out += ["", "Stack of one step, largest over the probes (measured, painted stack): "
+            + ", ".join(f"{k} {b} bytes" for k, b in stack.items()) + ".",
+            "The firmware holds one `p2d_speed_t` and one `p2d_current_t` (static); the outputs live on the stack.",
+            "", "### Instructions executed by one step (QEMU trace; callees included)", "",
+            f"Counting method checked: the trace of `p2d_speed_Ka_default` has {m['ka_check']} instructions, "
+            "as many as its disassembly.", "",
+            "| controller | method | anti-windup | feedforward / decoupling | motor | unsaturated | saturated "
+            "| vdiv+vsqrt (unsat/sat) |",
+            "|---|---|---|---|---|---:|---:|---:|"]
+    by_key = {}
+    for r in m["rows"]:
+        by_key.setdefault(r["key"], {})[r["point"]] = r
+    for key, points in by_key.items():
+        unsat, sat = points.get("unsaturated"), points.get("saturated")
+        cell = lambda r, f: str(r[f]) if r else "-"  # noqa: E731
+        out.append(f"| {' | '.join(key)} | {cell(unsat, 'count')} | {cell(sat, 'count')} | "
+                   f"{cell(unsat, 'divides')}/{cell(sat, 'divides')} |")
+    target = by_key[TARGET]
+    worst = max(r["count"] for r in target.values())
+    step_flash = m["flash"]["p2d_speed_step"][0]
+    out += ["", "### Target: Tustin, back calculation, lowpass feedforward (surface PMSM)", "",
+            f"- instructions per speed step: {target['unsaturated']['count']} unsaturated, "
+            f"{target['saturated']['count']} saturated; target <= {TARGET_INSTRUCTIONS}: "
+            + ("met" if worst <= TARGET_INSTRUCTIONS else f"missed by {worst - TARGET_INSTRUCTIONS}"),
+            f"- flash reachable from `p2d_speed_step`: {step_flash} bytes; target <= {TARGET_FLASH_BYTES}: "
+            + ("met" if step_flash <= TARGET_FLASH_BYTES else f"missed by {step_flash - TARGET_FLASH_BYTES}"),
+            "- where the unsaturated step spends its instructions, by function: "
+            + ", ".join(f"{f} {n}" for f, n in target["unsaturated"]["per_function"].most_common()),
+            "", "Instructions by source line (unsaturated step):", "", "| instructions | line | source |",
+            "|---:|---|---|"]
+    out += [f"| {n} | {ref} | `{source_line(ref)}` |" for ref, n in m["hot"]]
+    return "\n".join(out) + "\n"
+
+
+def write_section(text):
+    """Replace (or append) this benchmark's section of results.md, keeping the others."""
+    old = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n"
+    start = old.find(SECTION + "\n")
+    if start < 0:
+        new = old.rstrip("\n") + "\n\n" + text
+    else:
+        nxt = old.find("\n## ", start + len(SECTION))
+        new = old[:start] + text + (old[nxt:] if nxt >= 0 else "")
+    tmp = RESULTS.with_suffix(".md.tmp")
+    tmp.write_text(new)
+    tmp.replace(RESULTS)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--build-dir", type=Path, help="cross build directory (default: a temporary one)")
+    args = parser.parse_args(argv)
+    with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
+        build_dir = (args.build_dir or Path(tmp) / "build").resolve()
+        text = report(measure(build_dir, Path(tmp)))
+    write_section(text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

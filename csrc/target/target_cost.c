@@ -1,0 +1,227 @@
+/*
+ * Cost probes of the controllers on the Cortex-M4F, read by
+ * benchmarks/footprint.py:
+ *
+ * - the size of every controller struct, as the target compiler lays it out;
+ * - one p2d_speed_step / p2d_current_step per configuration and operating
+ *   point, each right after a call of p2d_cost_mark(), so that an instruction
+ *   trace of QEMU (-singlestep -d exec,nochain) can count the instructions
+ *   executed from the entry of that step to its return;
+ * - the stack that step used, by painting the free stack below SP with a
+ *   pattern before the call and finding the lowest word overwritten.
+ *
+ * Output lines (semihosting):
+ *   sizeof <type> <bytes>
+ *   probe <index> <controller> <method> <anti_windup> <feedforward|coupling> <motor> <point> stack <bytes>
+ * The index counts the calls of p2d_cost_mark() in order.
+ */
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "pmsm2dof/current.h"
+#include "pmsm2dof/speed.h"
+#include "semihost.h"
+
+#define P2D_STACK_PAINT_WORDS 512u      /* painted words below SP (2 KiB) */
+#define P2D_STACK_PATTERN 0xC5A5C5A5u /* paint pattern */
+#define P2D_WARMUP_STEPS 4u             /* steps before the probe, so the state is not all zero */
+
+static p2d_line_t line;
+static uint32_t probe_index;
+
+/* Marks the next step call as a probe in the instruction trace. */
+__attribute__((noinline)) void p2d_cost_mark(void)
+{
+    __asm__ volatile("" ::: "memory");
+}
+
+static uint32_t stack_pointer(void)
+{
+    uint32_t sp;
+    __asm__ volatile("mov %0, sp" : "=r"(sp));
+    return sp;
+}
+
+/* Fill the free stack below sp with the pattern. */
+static void stack_paint(uint32_t sp)
+{
+    volatile uint32_t *w = (volatile uint32_t *)(uintptr_t)(sp - 4u * P2D_STACK_PAINT_WORDS);
+    for (uint32_t i = 0u; i < P2D_STACK_PAINT_WORDS; ++i) {
+        w[i] = P2D_STACK_PATTERN;
+    }
+}
+
+/* Bytes below sp overwritten since stack_paint(sp). */
+static uint32_t stack_used(uint32_t sp)
+{
+    volatile const uint32_t *w = (volatile const uint32_t *)(uintptr_t)(sp - 4u * P2D_STACK_PAINT_WORDS);
+    uint32_t i = 0u;
+    while (i < P2D_STACK_PAINT_WORDS && w[i] == P2D_STACK_PATTERN) {
+        ++i;
+    }
+    return 4u * (P2D_STACK_PAINT_WORDS - i);
+}
+
+static void print_sizeof(const char *type, uint32_t bytes)
+{
+    p2d_line_text(&line, "sizeof ");
+    p2d_line_text(&line, type);
+    p2d_line_text(&line, " ");
+    p2d_line_hex(&line, bytes);
+    p2d_line_flush(&line);
+}
+
+/* Start the line of the next probe; its description follows. */
+static void probe_begin(const char *controller)
+{
+    p2d_line_text(&line, "probe ");
+    p2d_line_hex(&line, probe_index++);
+    p2d_line_text(&line, controller);
+}
+
+/* End the line of a probe with the stack it used. */
+static void probe_end(uint32_t stack_bytes)
+{
+    p2d_line_text(&line, " stack ");
+    p2d_line_hex(&line, stack_bytes);
+    p2d_line_flush(&line);
+}
+
+static const char *const METHOD[] = {"forward_euler", "backward_euler", "tustin"};
+static const char *const ANTI_WINDUP[] = {"none", "back_calculation", "clamping"};
+static const char *const FEEDFORWARD[] = {"none", "lowpass", "no_tau", "full"};
+
+/*
+ * The drive of the paper's section 4 (J = 0.4 kg m^2, tau_i = 0.05 s,
+ * i_max = 7.6 A, alpha = 0.5 rad/s), with an assumed magnet flux and pole
+ * count, speed loop at 1 kHz.
+ */
+static p2d_speed_config_t speed_config(p2d_method_t method, p2d_anti_windup_t aw, p2d_feedforward_t ff, bool salient)
+{
+    p2d_speed_config_t cfg;
+    cfg.J_kgm2 = 0.4f;
+    cfg.alpha_radps = 0.5f;
+    cfg.zeta = 0.2887f;
+    cfg.m = ff == P2D_FF_NO_TAU || ff == P2D_FF_FULL ? 1.5f : 1.0f;
+    cfg.tau_i_s = 0.05f;
+    cfg.Ka = p2d_speed_Ka_default(cfg.J_kgm2, cfg.alpha_radps);
+    cfg.Ts_s = 1e-3f;
+    cfg.i_max_A = 7.6f;
+    cfg.psi_f_Wb = 0.35f;
+    cfg.Ld_H = salient ? 8e-3f : 12e-3f;
+    cfg.Lq_H = 12e-3f;
+    cfg.pole_pairs = 4u;
+    cfg.method = method;
+    cfg.feedforward = ff;
+    cfg.anti_windup = aw;
+    return cfg;
+}
+
+/* One speed probe: unsaturated (small error) or saturated (large error). */
+static void probe_speed(p2d_method_t method, p2d_anti_windup_t aw, p2d_feedforward_t ff, bool salient, bool saturate)
+{
+    p2d_speed_config_t cfg = speed_config(method, aw, ff, salient);
+    p2d_speed_t ctl;
+    p2d_speed_output_t out;
+    float w_ref = saturate ? 100.0f : 10.0f;
+    float w_m = saturate ? 0.0f : 9.9f;
+    uint32_t sp, stack_bytes;
+
+    if (p2d_speed_init(&ctl, &cfg) != P2D_OK) p2d_semihost_exit(false);
+    p2d_speed_reset(&ctl, w_ref, 0.0f);
+    for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
+        p2d_speed_step(&ctl, w_ref, w_m, &out);
+    }
+    sp = stack_pointer();
+    stack_paint(sp);
+    p2d_cost_mark();
+    p2d_speed_step(&ctl, w_ref, w_m, &out);
+    stack_bytes = stack_used(sp);
+    if (out.saturated != saturate || out.fault) p2d_semihost_exit(false);
+
+    probe_begin("speed ");
+    p2d_line_text(&line, METHOD[method]);
+    p2d_line_text(&line, " ");
+    p2d_line_text(&line, ANTI_WINDUP[aw]);
+    p2d_line_text(&line, " ");
+    p2d_line_text(&line, FEEDFORWARD[ff]);
+    p2d_line_text(&line, salient ? " salient" : " surface");
+    p2d_line_text(&line, saturate ? " saturated" : " unsaturated");
+    probe_end(stack_bytes);
+}
+
+/* One current probe, 10 kHz loop of a small drive, unsaturated or saturated voltage. */
+static void probe_current(p2d_anti_windup_t aw, bool decouple, bool saturate)
+{
+    p2d_current_config_t cfg;
+    p2d_current_t ctl;
+    p2d_current_output_t out;
+    float iq_ref = saturate ? 7.6f : 2.0f;
+    float u_dc = saturate ? 24.0f : 300.0f;
+    uint32_t sp, stack_bytes;
+
+    cfg.Rs_ohm = 0.5f;
+    cfg.Ld_H = 8e-3f;
+    cfg.Lq_H = 12e-3f;
+    cfg.psi_f_Wb = 0.35f;
+    cfg.tau_i_s = 1e-3f;
+    cfg.Ts_s = 1e-4f;
+    cfg.method = P2D_TUSTIN;
+    cfg.anti_windup = aw;
+    cfg.decouple = decouple;
+    if (p2d_current_init(&ctl, &cfg) != P2D_OK) p2d_semihost_exit(false);
+    for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
+        p2d_current_step(&ctl, 0.0f, iq_ref, 0.0f, 0.5f, 200.0f, u_dc, &out);
+    }
+    sp = stack_pointer();
+    stack_paint(sp);
+    p2d_cost_mark();
+    p2d_current_step(&ctl, 0.0f, iq_ref, 0.0f, 0.5f, 200.0f, u_dc, &out);
+    stack_bytes = stack_used(sp);
+    if (out.saturated != saturate || out.fault) p2d_semihost_exit(false);
+
+    probe_begin("current tustin ");
+    p2d_line_text(&line, ANTI_WINDUP[aw]);
+    p2d_line_text(&line, decouple ? " decoupled" : " coupled");
+    p2d_line_text(&line, " surface");
+    p2d_line_text(&line, saturate ? " saturated" : " unsaturated");
+    probe_end(stack_bytes);
+}
+
+int main(void)
+{
+    print_sizeof("p2d_speed_t", sizeof(p2d_speed_t));
+    print_sizeof("p2d_speed_coef_t", sizeof(p2d_speed_coef_t));
+    print_sizeof("p2d_speed_config_t", sizeof(p2d_speed_config_t));
+    print_sizeof("p2d_speed_output_t", sizeof(p2d_speed_output_t));
+    print_sizeof("p2d_current_t", sizeof(p2d_current_t));
+    print_sizeof("p2d_current_coef_t", sizeof(p2d_current_coef_t));
+    print_sizeof("p2d_current_config_t", sizeof(p2d_current_config_t));
+    print_sizeof("p2d_current_output_t", sizeof(p2d_current_output_t));
+
+    for (int aw = P2D_AW_NONE; aw <= P2D_AW_CLAMPING; ++aw) {
+        for (int ff = P2D_FF_NONE; ff <= P2D_FF_FULL; ++ff) {
+            for (int sat = 0; sat <= 1; ++sat) {
+                probe_speed(P2D_TUSTIN, (p2d_anti_windup_t)aw, (p2d_feedforward_t)ff, false, sat != 0);
+            }
+        }
+    }
+    /* the method changes coefficients only: the same path length is expected */
+    for (int method = P2D_FORWARD_EULER; method <= P2D_BACKWARD_EULER; ++method) {
+        probe_speed((p2d_method_t)method, P2D_AW_BACK_CALCULATION, P2D_FF_LOWPASS, false, false);
+    }
+    /* salient PMSM: MTPA current split by Newton iterations */
+    for (int sat = 0; sat <= 1; ++sat) {
+        probe_speed(P2D_TUSTIN, P2D_AW_BACK_CALCULATION, P2D_FF_LOWPASS, true, sat != 0);
+    }
+    for (int aw = P2D_AW_NONE; aw <= P2D_AW_CLAMPING; ++aw) {
+        for (int dec = 0; dec <= 1; ++dec) {
+            for (int sat = 0; sat <= 1; ++sat) {
+                probe_current((p2d_anti_windup_t)aw, dec != 0, sat != 0);
+            }
+        }
+    }
+    p2d_line_text(&line, "END");
+    p2d_line_flush(&line);
+    p2d_semihost_exit(true);
+}
