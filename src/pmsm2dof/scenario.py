@@ -46,14 +46,20 @@ T_END_MAX_S = 36000.0
 TS_MULTIPLE_RTOL = 1e-9
 
 
-class _Required:
-    """Marks a key without a default."""
+class _Placeholder:
+    """A value shown in error messages by its name, such as ``<missing>``."""
+
+    def __init__(self, text):
+        self.text = text
 
     def __repr__(self):
-        return "<missing>"
+        return self.text
 
 
-REQUIRED = _Required()
+#: Marks a key without a default (and a missing value in error messages).
+REQUIRED = _Placeholder("<missing>")
+_TABLE = _Placeholder("<table>")
+_ARRAY = _Placeholder("<array>")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -214,9 +220,9 @@ def _fields_of(parent):
 def _short(value):
     """The value as shown in an error message (tables and arrays are not spelled out)."""
     if isinstance(value, dict):
-        return "<table>"
+        return _TABLE
     if isinstance(value, list):
-        return "<array>"
+        return _ARRAY
     return value
 
 
@@ -322,7 +328,7 @@ def _check_relations(data):
                           f"an integer multiple (1, 2, 3, ...) of current_loop.Ts_s = {cl['Ts_s']!r}")
     if sc["feedforward"] == "lowpass" and sc["m"] != 1.0:
         raise ConfigError("speed_controller.m", sc["m"],
-                          "exactly 1 with feedforward 'lowpass' (eq 13 is eq 11 at m = 1); "
+                          "exactly 1 with feedforward 'lowpass' (eq 13 is eq 11 with m = 1 and tau_i = 0); "
                           "for m != 1 use feedforward 'no_tau' (eq 11 with tau_i = 0) or 'full'")
     if cl["model"] == "dq_pi" and cl["tau_i_s"] < cl["Ts_s"]:
         raise ConfigError("current_loop.tau_i_s", cl["tau_i_s"],
