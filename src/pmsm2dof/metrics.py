@@ -11,7 +11,8 @@ Reference step, from the speed ``w0`` at ``t_s`` to the new reference ``r`` (ste
 - ``rise_time_s``: from 10 % to 90 % of ``D`` (first crossings, linear interpolation);
 - ``settling_time_s``: from ``t_s`` until ``|w - r|`` stays within 2 % of ``|D|``;
 - ``steady_state_error_rpm``: ``r`` minus the mean speed over the last 10 % of the window, when
-  the speed spreads by at most 2 % of ``|D|`` there;
+  the speed is steady there: it spreads by at most 0.2 % of ``|D|`` (a speed still converging
+  inside the settling band is not a steady state);
 - ``iae_rpm_s``: integral of ``|speed_ref - speed|`` over the window;
 - ``saturation_time_s``: time with the current limit active (the logged flag holds until the next
   sample).
@@ -22,7 +23,7 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 - ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
 - ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the dip;
 - ``steady_state_error_rpm``, ``iae_rpm_s``, ``saturation_time_s`` as above (the spread test uses
-  2 % of the dip).
+  0.2 % of the dip).
 
 A figure that cannot be computed (no change at the step, the speed did not reach or did not
 settle before the window ends) is ``{"value": None, "reason": "..."}``, never NaN; a computed one
@@ -39,6 +40,16 @@ from .errors import SimulationError
 BAND = 0.02
 #: Final part of a window over which the steady state is measured.
 STEADY_FRACTION = 0.1
+#: Figures of each reference step, in output order.
+REFERENCE_FIGURES = ("overshoot_pct", "rise_time_s", "settling_time_s", "steady_state_error_rpm", "iae_rpm_s",
+                     "saturation_time_s")
+#: Figures of each load step, in output order.
+LOAD_FIGURES = ("speed_dip_rpm", "dip_time_s", "recovery_time_s", "steady_state_error_rpm", "iae_rpm_s",
+                "saturation_time_s")
+#: Figures of the whole run.
+RUN_FIGURES = ("iae_rpm_s", "saturation_time_s")
+#: Largest spread of the speed over that part, relative to the step (reference) or dip (load).
+STEADY_SPREAD = 0.002
 
 
 def _value(x):
@@ -104,8 +115,7 @@ def _window(t, t0, t1, *signals):
 
 def _reference_step(t, speed, ref, saturated, t0, t1, before, after):
     out = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": t1}
-    names = ("overshoot_pct", "rise_time_s", "settling_time_s", "steady_state_error_rpm", "iae_rpm_s",
-             "saturation_time_s")
+    names = REFERENCE_FIGURES
     if t1 <= t0:
         return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
     tw, (w, r) = _window(t, t0, t1, speed, ref)
@@ -128,7 +138,7 @@ def _reference_step(t, speed, ref, saturated, t0, t1, before, after):
         result["settling_time_s"] = (
             _value(t_settle - t0) if t_settle is not None else
             _missing(f"the speed did not settle within 2 % of the step before {t1:g} s"))
-        result["steady_state_error_rpm"] = _steady_state_error(tw, w, after, BAND * abs(step))
+        result["steady_state_error_rpm"] = _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
     result["iae_rpm_s"] = _value(np.trapezoid(np.abs(r - w), tw))
     result["saturation_time_s"] = _value(_saturation_time(t, saturated, t0, t1))
     return out | {"speed_at_step_rpm": float(w[0])} | {n: result[n] for n in names}
@@ -136,8 +146,7 @@ def _reference_step(t, speed, ref, saturated, t0, t1, before, after):
 
 def _load_step(t, speed, ref, saturated, t0, t1, before, after):
     out = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": t1}
-    names = ("speed_dip_rpm", "dip_time_s", "recovery_time_s", "steady_state_error_rpm", "iae_rpm_s",
-             "saturation_time_s")
+    names = LOAD_FIGURES
     if t1 <= t0:
         return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
     tw, (w, r) = _window(t, t0, t1, speed, ref)
@@ -158,7 +167,7 @@ def _load_step(t, speed, ref, saturated, t0, t1, before, after):
             result["recovery_time_s"] = (
                 _value(t_rec - t0) if t_rec is not None else
                 _missing(f"the speed did not recover to within 2 % of the dip before {t1:g} s"))
-            result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], BAND * dip)
+            result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], STEADY_SPREAD * dip)
     result["iae_rpm_s"] = _value(np.trapezoid(np.abs(e), tw))
     result["saturation_time_s"] = _value(_saturation_time(t, saturated, t0, t1))
     return out | {n: result[n] for n in names}
