@@ -158,6 +158,14 @@ def test_figures_that_cannot_be_computed_are_missing_with_a_reason():
     assert s["steady_state_error_rpm"]["value"] is None and "still changing" in s["steady_state_error_rpm"]["reason"]
     assert s["overshoot_pct"]["value"] == pytest.approx(100.0, rel=1e-4)
 
+    # a response inside the 2 % band but still converging has settled, yet has no steady state
+    steps = [(0.0, 500.0)]
+    converging = first_order(t, 0.0, 0.0, 500.0, 2.0)  # 500 exp(-10 / 2) = 3.4 rpm left at the end
+    s = compute_metrics(fake_result(t, converging, step_ref(t, steps), steps))["reference_steps"][0]
+    assert s["settling_time_s"]["value"] == pytest.approx(2.0 * math.log(50), abs=1e-5)
+    assert s["steady_state_error_rpm"]["value"] is None
+    assert "still changing" in s["steady_state_error_rpm"]["reason"]
+
     # a slow response cut short by the next step never reaches 90 % nor the reference
     steps = [(0.0, 100.0), (1.0, 50.0)]
     slow = first_order(t, 0.0, 0.0, 100.0, 5.0)
