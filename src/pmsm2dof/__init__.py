@@ -9,3 +9,7 @@ from .errors import ConfigError, Pmsm2dofError, SimulationError
 
 __all__ = ["ConfigError", "Pmsm2dofError", "SimulationError"]
 __all__ += ["ANTI_WINDUPS", "FEEDFORWARDS", "METHODS", "CurrentController", "SpeedController"]
+from .design import Design, design
+from .discretize import DiscreteDesign, SamplingWarning
+
+__all__ += ["Design", "DiscreteDesign", "SamplingWarning", "design"]

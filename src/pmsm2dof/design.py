@@ -1,0 +1,305 @@
+"""Analytical design of the 2DOF PI speed controller (paper section 3).
+
+The plant seen by the speed controller is the current loop in series with the
+mechanics (eq 2, 3)::
+
+    G(s) = Gci(s) Gm(s),  Gci = 1 / (tau_i s + 1),  Gm = 1 / (J s)
+
+The PI feedback ``F(s) = Kp + Ki/s`` is tuned by eq (9)::
+
+    Kp = J alpha,  Ki = J (alpha / (2 zeta))^2
+
+so that the loop ``J s^2 + Kp s + Ki`` (tau_i = 0) has natural frequency
+``alpha / (2 zeta)`` and damping ``zeta``. The reference feedforward ``Fr(s)``
+(eq 7, 10, 11) makes the tracking response first order,
+``Gx = m alpha / (s + m alpha)``, while the load rejection ``GN`` (eq 5, 8)
+stays that of the PI alone.
+
+Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for
+Permanent-Magnet Synchronous Motor Speed Controller"; eq (9) follows the
+analytical PI design of its reference [4].
+"""
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import control
+import numpy as np
+
+from .controllers import ANTI_WINDUPS, FEEDFORWARDS
+from .errors import ConfigError, require_choice, require_nonnegative, require_positive
+
+#: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
+HALF_POWER_DB = 20.0 * math.log10(1.0 / math.sqrt(2.0))
+
+
+@dataclass(frozen=True)
+class Margins:
+    """Stability margins of a loop gain (python-control ``stability_margins``).
+
+    Attributes
+    ----------
+    gain_margin : float
+        Gain margin [-] (``inf`` when the phase never crosses -180 deg).
+    phase_margin_deg : float
+        Phase margin [deg].
+    w_gain_crossover_radps : float
+        Frequency where ``|L| = 1`` [rad/s] (``nan`` when there is none).
+    w_phase_crossover_radps : float
+        Frequency where the phase is -180 deg [rad/s] (``nan`` when there is none).
+    """
+
+    gain_margin: float
+    phase_margin_deg: float
+    w_gain_crossover_radps: float
+    w_phase_crossover_radps: float
+
+    @property
+    def gain_margin_dB(self):
+        """Gain margin [dB]."""
+        return 20.0 * math.log10(self.gain_margin)
+
+
+def loop_margins(L):
+    """Gain and phase margins of the stable loop gain ``L`` (continuous or discrete).
+
+    The gain margin is the factor by which the loop gain can grow before the loop
+    goes unstable: the smallest ``1/|L|`` over the -180 deg crossings with
+    ``|L| < 1``. Crossings with ``|L| > 1`` are left out: this type-2 loop (PI and
+    integrating plant) has its phase at -180 deg at DC, and lowering its gain does
+    not destabilize it. For a discrete loop the Nyquist frequency ``pi/Ts``,
+    where ``L(-1)`` is real, is checked too: python-control's frequency grid
+    stops short of it. The phase margin is the smallest over the gain crossovers.
+    """
+    with warnings.catch_warnings():
+        # discrete loops: python-control evaluates the frequency response instead of
+        # solving polynomials and says so; that is expected here
+        warnings.filterwarnings("ignore", message="stability_margins: Falling back to 'frd'")
+        gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(L, returnall=True)
+    crossings = [(float(gm), float(w)) for gm, w in zip(gms, w_pcs) if gm > 1.0]
+    if L.isdtime():
+        L_nyquist = complex(L(-1.0))
+        if L_nyquist.real < 0.0 and abs(L_nyquist) < 1.0:
+            crossings.append((1.0 / abs(L_nyquist), math.pi / L.dt))
+    gm, w_pc = min(crossings) if crossings else (math.inf, math.nan)
+    pm, w_gc = min(zip(pms, w_gcs)) if len(pms) else (math.inf, math.nan)
+    return Margins(gm, float(pm), float(w_gc), w_pc)
+
+
+def tracking_tf(F, Fr, G):
+    """Reference-to-output transfer function of the 2DOF loop (eq 6), multiplied through.
+
+    With ``F = Fn/Fd``, ``Fr = Rn/Rd``, ``G = Gn/Gd`` (continuous or discrete, same ``dt``)::
+
+        Gx = (Fr + F) G / (1 + F G) = (Rn Fd + Fn Rd) Gn / (Rd (Fd Gd + Fn Gn))
+
+    Forming it from the polynomials keeps the integrator of ``F`` from appearing
+    in both numerator and denominator, a cancellation that root finding cannot
+    resolve reliably near z = 1.
+    """
+    Fn, Fd = F.num[0][0], F.den[0][0]
+    Rn, Rd = Fr.num[0][0], Fr.den[0][0]
+    Gn, Gd = G.num[0][0], G.den[0][0]
+    num = np.polymul(np.polyadd(np.polymul(Rn, Fd), np.polymul(Fn, Rd)), Gn)
+    den = np.polymul(Rd, np.polyadd(np.polymul(Fd, Gd), np.polymul(Fn, Gn)))
+    return control.tf(num, den, F.dt)
+
+
+def step_overshoot_pct(sys):
+    """Overshoot [%] of the step response of ``sys`` over its final value."""
+    return float(control.step_info(sys)["Overshoot"])
+
+
+@dataclass(frozen=True)
+class Design:
+    """A designed speed controller: inputs, gains (eq 9) and transfer functions.
+
+    Create it with :func:`design`. Transfer functions are python-control
+    ``TransferFunction`` objects built afresh on every access, so the design
+    itself never changes.
+
+    Attributes
+    ----------
+    J_kgm2 : float
+        Design inertia [kg m^2].
+    alpha_radps : float
+        Bandwidth of the P loop [rad/s] (eq 9).
+    zeta : float
+        Relative damping of the PI loop [-] (eq 9).
+    m : float
+        Tracking pole factor: ``Gx = m alpha / (s + m alpha)`` (eq 10) [-].
+    tau_i_s : float
+        Current-loop time constant [s] (eq 3), 0 for an ideal current loop.
+    feedforward : str
+        One of :data:`FEEDFORWARDS`.
+    anti_windup : str
+        One of :data:`ANTI_WINDUPS`.
+    Ka : float
+        Back-calculation gain [(rad/s)/Nm] (Fig. 5).
+    Kp : float
+        Proportional gain ``J alpha`` [Nm/(rad/s)] (eq 9).
+    Ki : float
+        Integral gain ``J (alpha / (2 zeta))^2`` [Nm/rad] (eq 9).
+    """
+
+    J_kgm2: float
+    alpha_radps: float
+    zeta: float
+    m: float
+    tau_i_s: float
+    feedforward: str
+    anti_windup: str
+    Ka: float
+    Kp: float
+    Ki: float
+
+    @property
+    def F(self):
+        """PI feedback ``F(s) = Kp + Ki / s = (Kp s + Ki) / s``."""
+        return control.tf([self.Kp, self.Ki], [1.0, 0.0])
+
+    @property
+    def Gci(self):
+        """Closed current loop ``1 / (tau_i s + 1)`` (eq 3)."""
+        return control.tf([1.0], [self.tau_i_s, 1.0])
+
+    @property
+    def Gm(self):
+        """Mechanics ``1 / (J s)`` from torque [Nm] to speed [rad/s] (eq 2)."""
+        return control.tf([1.0], [self.J_kgm2, 0.0])
+
+    @property
+    def G(self):
+        """Plant seen by the speed controller, ``Gci Gm`` (eq 2, 3)."""
+        return self.Gci * self.Gm
+
+    def fr_polynomials(self):
+        """Numerator and denominator of ``Fr(s)`` in powers of s, highest first.
+
+        eq (11): ``Fr = J alpha (m tau s^2 + (m - 1) s - alpha / (4 zeta^2)) / (s + m alpha)``,
+        with ``tau = 0`` for ``no_tau``, ``m = 1, tau = 0`` for ``lowpass`` (eq 13),
+        and ``Fr = 0`` for ``none``. The numerator always has three coefficients.
+        """
+        if self.feedforward == "none":
+            return np.zeros(3), np.array([1.0])
+        m = 1.0 if self.feedforward == "lowpass" else self.m
+        tau_s = self.tau_i_s if self.feedforward == "full" else 0.0
+        num = self.Kp * np.array([m * tau_s, m - 1.0, -self.alpha_radps / (4.0 * self.zeta**2)])
+        return num, np.array([1.0, m * self.alpha_radps])
+
+    @property
+    def Fr(self):
+        """Reference feedforward ``Fr(s)`` (eq 11, 12, 13; 0 for the 1DOF PI).
+
+        Improper for ``full`` with ``tau_i > 0`` (a derivative term).
+        """
+        num, den = self.fr_polynomials()
+        return control.tf(num, den)
+
+    @property
+    def L(self):
+        """Loop gain ``F G``."""
+        return self.F * self.G
+
+    @property
+    def Gx(self):
+        """Reference tracking ``(Fr + F) G / (1 + F G)`` (eq 6), pole-zero cancelled."""
+        return tracking_tf(self.F, self.Fr, self.G).minreal()
+
+    @property
+    def GN(self):
+        """Load rejection, from load torque [Nm] to speed [rad/s] (eq 5, 8).
+
+        The load acts on the mechanics, between ``Gci`` and ``Gm`` (Fig. 6), so eq (5)
+        reads ``-Gm / (1 + F Gci Gm)``, which is eq (8):
+        ``-(tau_i s^2 + s) / (J tau_i s^3 + J s^2 + Kp s + Ki)``. It does not
+        depend on ``Fr``: 1DOF and 2DOF reject loads identically.
+        """
+        return -control.feedback(self.Gm, self.F * self.Gci)
+
+    def closed_loop_poles(self):
+        """Poles of the feedback loop, roots of ``J tau_i s^3 + J s^2 + Kp s + Ki``.
+
+        The feedforward adds its own pole ``-m alpha`` on the reference path only.
+        """
+        return control.poles(control.feedback(self.L, 1))
+
+    def bandwidth_radps(self):
+        """Tracking bandwidth [rad/s]: where ``|Gx|`` first falls 3 dB (half power) below DC."""
+        return float(control.bandwidth(self.Gx, dbdrop=HALF_POWER_DB))
+
+    def margins(self):
+        """Gain and phase margins of the loop gain ``F G``."""
+        return loop_margins(self.L)
+
+    def overshoot_pct(self):
+        """Overshoot [%] of the linear unit-step tracking response ``Gx``."""
+        return step_overshoot_pct(self.Gx)
+
+    def discretize(self, Ts_s, method):
+        """Discrete controller for sampling period ``Ts_s`` [s] (Table 1, eq 14, 15).
+
+        See :func:`pmsm2dof.discretize.discretize`.
+        """
+        from .discretize import discretize
+
+        return discretize(self, Ts_s, method)
+
+    def to_c_header(self, path, Ts_s, method, **motor):
+        """Write a C header configuring the speed controller with this design.
+
+        See :func:`pmsm2dof.codegen.write_c_header` for the motor and limit keywords.
+        """
+        from .codegen import write_c_header
+
+        return write_c_header(path, self.discretize(Ts_s, method), **motor)
+
+
+def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="full",
+           anti_windup="back_calculation", Ka=None):
+    """Design the anti-windup 2DOF PI speed controller (paper section 3.3).
+
+    Parameters
+    ----------
+    J_kgm2 : float
+        Inertia [kg m^2], > 0.
+    alpha_radps : float
+        Bandwidth of the P loop [rad/s], > 0 (eq 9).
+    zeta : float
+        Relative damping of the PI loop [-], > 0 (eq 9).
+    m : float, optional
+        Tracking pole factor [-], > 0 (eq 10); exactly 1 with ``lowpass``.
+    tau_i_s : float, optional
+        Current-loop time constant [s], >= 0 (eq 3).
+    feedforward : {'none', 'lowpass', 'no_tau', 'full'}, optional
+        ``none``: 1DOF PI; ``lowpass``: eq (13), requires ``m == 1``;
+        ``no_tau``: eq (11) with ``tau_i = 0``; ``full``: eq (11).
+    anti_windup : {'none', 'back_calculation', 'clamping'}, optional
+        Integrator anti-windup (section 3.2).
+    Ka : float, optional
+        Back-calculation gain [(rad/s)/Nm], >= 0; default ``1 / Kp`` (section 3.3).
+
+    Returns
+    -------
+    Design
+
+    Raises
+    ------
+    ConfigError
+        For any input out of range, naming the parameter, its value and the valid range.
+    """
+    J_kgm2 = require_positive("J_kgm2", J_kgm2)
+    alpha_radps = require_positive("alpha_radps", alpha_radps)
+    zeta = require_positive("zeta", zeta)
+    m = require_positive("m", m)
+    tau_i_s = require_nonnegative("tau_i_s", tau_i_s)
+    require_choice("feedforward", feedforward, FEEDFORWARDS)
+    require_choice("anti_windup", anti_windup, ANTI_WINDUPS)
+    if feedforward == "lowpass" and m != 1.0:
+        raise ConfigError("m", m, "exactly 1 with feedforward 'lowpass' (eq 13); use 'no_tau' or 'full' for m != 1")
+    # eq 9
+    Kp = J_kgm2 * alpha_radps
+    Ki = J_kgm2 * (alpha_radps / (2.0 * zeta)) ** 2
+    Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
+    return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki)

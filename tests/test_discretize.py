@@ -1,0 +1,271 @@
+"""Discretization (paper section 3.4, Table 1, eq 14, 15) and the discrete closed loop.
+
+Truth: the substitutions of Table 1 applied here to the continuous transfer
+functions written out from eq (9)-(11), eq (14) and (15) by hand, the
+zero-order-hold equivalent of 1/(J s (tau s + 1)) derived by hand, a
+sample-by-sample simulation of the difference equations, and root loci.
+"""
+
+import itertools
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from pmsm2dof import SamplingWarning, SpeedController
+from pmsm2dof.design import FEEDFORWARDS, design
+from pmsm2dof.discretize import METHODS
+
+J, ALPHA, ZETA, TAU = 0.4, 0.5, 0.2887, 0.05
+CASES = [  # (J, alpha, zeta, m, tau_i, Ts)
+    (J, ALPHA, ZETA, 1.0, TAU, 1e-3),
+    (J, ALPHA, ZETA, 1.6, TAU, 0.02),
+    (0.01, 100.0, 0.7, 0.5, 0.002, 1e-4),
+    (2.0, 5.0, 1.2, 2.5, 0.0, 5e-3),
+]
+# points of the z plane away from the poles
+Z_POINTS = np.array([1.3 + 0.0j, np.exp(0.2j), 0.4 - 0.9j, -0.7 + 0.2j, 2.0 - 1.0j])
+
+
+def s_of_z(method, z, Ts):
+    """Table 1."""
+    return {
+        "forward_euler": (z - 1.0) / Ts,
+        "backward_euler": (z - 1.0) / (z * Ts),
+        "tustin": 2.0 * (z - 1.0) / (Ts * (z + 1.0)),
+    }[method]
+
+
+def fr_continuous(ff, J, alpha, zeta, m, tau, s):
+    """eq 11 (full), eq 11 with tau = 0 (no_tau), eq 13 (lowpass), 0 (none)."""
+    if ff == "none":
+        return 0.0 * s
+    if ff == "lowpass":
+        return -J * (alpha / (2 * zeta)) ** 2 / (s + alpha)
+    tau = tau if ff == "full" else 0.0
+    return J * alpha * (m * tau * s**2 + (m - 1) * s - alpha / (4 * zeta**2)) / (s + m * alpha)
+
+
+def kd(ff, J, alpha, m, tau):
+    """The derivative part of Fr: its s^2 coefficient over the leading 1 of s + m alpha."""
+    return J * alpha * m * tau if ff == "full" else 0.0
+
+
+def g_zoh(J, tau, Ts, z):
+    """ZOH equivalent of 1/(J s (tau s + 1)), derived from the step-invariance (1 - z^-1) Z{G(s)/s}."""
+    if tau == 0.0:
+        return Ts / (J * (z - 1.0))
+    a = math.exp(-Ts / tau)
+    return ((Ts - tau * (1 - a)) * z + (tau * (1 - a) - a * Ts)) / (J * (z - 1.0) * (z - a))
+
+
+def discretized(J, alpha, zeta, m, tau, Ts, ff, method, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SamplingWarning)
+        return design(J, alpha, zeta, m=m, tau_i_s=tau, feedforward=ff, **kw).discretize(Ts, method)
+
+
+@pytest.mark.parametrize("case, method, ff", list(itertools.product(CASES, METHODS, FEEDFORWARDS)))
+def test_coefficients_realize_table1_substitution(case, method, ff):
+    Jc, alpha, zeta, m, tau, Ts = case
+    m = 1.0 if ff == "lowpass" else m
+    dd = discretized(Jc, alpha, zeta, m, tau, Ts, ff, method)
+    z = Z_POINTS
+    zi = 1.0 / z
+    Kp, Ki = Jc * alpha, Jc * alpha**2 / (4 * zeta**2)
+    s = s_of_z(method, z, Ts)
+    # PI realization u = b_e0 e + x[k-1], x[k] = x[k-1] + Ki Ts e  ->  F(z)
+    F_realized = (dd.b_e0 + (dd.Ki_Ts - dd.b_e0) * zi) / (1.0 - zi)
+    np.testing.assert_allclose(F_realized, Kp + Ki / s, rtol=1e-9)
+    assert dd.Ki_Ts == pytest.approx(Ki * Ts, rel=1e-9)
+    # feedforward realization: section (b0 + b1 z^-1)/(1 + a1 z^-1) plus Kd (1 - z^-1)/Ts
+    Fr_realized = (dd.ff_b0 + dd.ff_b1 * zi) / (1.0 + dd.ff_a1 * zi) + dd.ff_Kd_per_Ts * (1.0 - zi)
+    Kd = kd(ff, Jc, alpha, m, tau)
+    # proper part by the method, derivative Kd s by the backward difference
+    expected = fr_continuous(ff, Jc, alpha, zeta, m, tau, s) - Kd * s + Kd * s_of_z("backward_euler", z, Ts)
+    np.testing.assert_allclose(Fr_realized, expected, rtol=1e-9, atol=1e-12 * Kp)
+    # the discrete transfer functions returned agree with the realization
+    np.testing.assert_allclose(dd.F_z(z), F_realized, rtol=1e-9)
+    np.testing.assert_allclose(dd.Fr_z(z), Fr_realized, rtol=1e-8, atol=1e-12 * Kp)
+    assert dd.Ki_Ka_Ts == pytest.approx(Ki * Ts / Kp, rel=1e-9)  # back calculation, Ka = 1/Kp
+
+
+def test_tustin_pi_is_eq14():
+    d = design(J, ALPHA, ZETA, tau_i_s=TAU)
+    Ts = 1e-3
+    dd = d.discretize(Ts, "tustin")
+    # eq 14: F(z) = Kp + Ki Ts/2 (1 + z^-1)/(1 - z^-1) = ((Kp + Ki Ts/2) + (Ki Ts/2 - Kp) z^-1) / (1 - z^-1)
+    Kp, Ki = J * ALPHA, J * ALPHA**2 / (4 * ZETA**2)
+    assert dd.b_e0 == pytest.approx(Kp + Ki * Ts / 2, rel=1e-12)
+    assert dd.Ki_Ts - dd.b_e0 == pytest.approx(Ki * Ts / 2 - Kp, rel=1e-12)
+    zi = 1.0 / Z_POINTS
+    np.testing.assert_allclose(dd.F_z(Z_POINTS), Kp + Ki * Ts / 2 * (1 + zi) / (1 - zi), rtol=1e-12)
+
+
+@pytest.mark.parametrize("Ts", [1e-3, 0.05, 0.2])
+def test_tustin_lowpass_is_eq15(Ts):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SamplingWarning)
+        dd = design(J, ALPHA, ZETA, feedforward="lowpass", tau_i_s=TAU).discretize(Ts, "tustin")
+    # eq 15: -J (alpha/(2 zeta))^2 / ((2/Ts)(1 - z^-1)/(1 + z^-1) + alpha)
+    #      = -Ki Ts (1 + z^-1) / ((2 + alpha Ts) - (2 - alpha Ts) z^-1)
+    Ki = J * (ALPHA / (2 * ZETA)) ** 2
+    assert dd.ff_b0 == pytest.approx(-Ki * Ts / (2 + ALPHA * Ts), rel=1e-12)
+    assert dd.ff_b1 == pytest.approx(-Ki * Ts / (2 + ALPHA * Ts), rel=1e-12)
+    assert dd.ff_a1 == pytest.approx(-(2 - ALPHA * Ts) / (2 + ALPHA * Ts), rel=1e-12)
+    assert dd.ff_Kd_per_Ts == 0.0
+    zi = 1.0 / Z_POINTS
+    eq15 = -Ki / (2 / Ts * (1 - zi) / (1 + zi) + ALPHA)
+    np.testing.assert_allclose(dd.Fr_z(Z_POINTS), eq15, rtol=1e-9)
+
+
+@pytest.mark.parametrize("method, ff", list(itertools.product(METHODS, FEEDFORWARDS)))
+def test_coefficients_equal_those_of_the_c_core(method, ff):
+    m = 1.0 if ff == "lowpass" else 1.6
+    dd = discretized(J, ALPHA, ZETA, m, TAU, 2e-3, ff, method)
+    ctl = SpeedController(J_kgm2=J, alpha_radps=ALPHA, zeta=ZETA, m=m, tau_i_s=TAU, Ts_s=2e-3, i_max_A=7.6,
+                          psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01, pole_pairs=4, method=method, feedforward=ff)
+    c = ctl.coefficients
+    for name in ("b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_b0", "ff_b1", "ff_a1", "ff_Kd_per_Ts"):
+        # float32 C arithmetic against double: a few float32 ulps of the largest term involved
+        assert getattr(dd, name) == pytest.approx(c[name], rel=2e-6, abs=2e-7 * max(abs(c[name]), J * ALPHA)), name
+
+
+@pytest.mark.parametrize("case, method", list(itertools.product(CASES, METHODS)))
+def test_discrete_poles_are_roots_of_the_zoh_characteristic_polynomial(case, method):
+    Jc, alpha, zeta, m, tau, Ts = case
+    dd = discretized(Jc, alpha, zeta, m, tau, Ts, "full", method)
+    # 1 + F(z) G(z) = 0 with F = (b_e0 z + Ki Ts - b_e0)/(z - 1) and the hand-derived ZOH plant
+    Kp, Ki = Jc * alpha, Jc * alpha**2 / (4 * zeta**2)
+    b_e0 = {"forward_euler": Kp, "backward_euler": Kp + Ki * Ts, "tustin": Kp + Ki * Ts / 2}[method]
+    Fn, Fd = np.array([b_e0, Ki * Ts - b_e0]), np.array([1.0, -1.0])
+    if tau == 0.0:
+        Gn, Gd = np.array([Ts / Jc]), np.array([1.0, -1.0])
+    else:
+        a = math.exp(-Ts / tau)
+        Gn = np.array([Ts - tau * (1 - a), tau * (1 - a) - a * Ts]) / Jc
+        Gd = np.polymul([1.0, -1.0], [1.0, -a])
+    char = np.polyadd(np.polymul(Fd, Gd), np.polymul(Fn, Gn))
+    np.testing.assert_allclose(np.sort_complex(np.array(dd.poles)), np.sort_complex(np.roots(char)), atol=1e-9)
+    np.testing.assert_allclose(dd.G_z(Z_POINTS), g_zoh(Jc, tau, Ts, Z_POINTS), rtol=1e-9)
+
+
+@pytest.mark.parametrize("case, method", list(itertools.product(CASES, METHODS)))
+def test_discrete_gain_margin_from_root_locus(case, method):
+    Jc, alpha, zeta, m, tau, Ts = case
+    dd = discretized(Jc, alpha, zeta, m, tau, Ts, "full", method)
+    Fn, Fd = dd.F_z.num[0][0], dd.F_z.den[0][0]
+    # the ZOH plant, by hand, as polynomials
+    if tau == 0.0:
+        Gn, Gd = np.array([Ts / Jc]), np.array([1.0, -1.0])
+    else:
+        a = math.exp(-Ts / tau)
+        Gn = np.array([Ts - tau * (1 - a), tau * (1 - a) - a * Ts]) / Jc
+        Gd = np.polymul([1.0, -1.0], [1.0, -a])
+
+    def radius(k):
+        return np.max(np.abs(np.roots(np.polyadd(np.polymul(Fd, Gd), k * np.polymul(Fn, Gn)))))
+
+    assert radius(1.0) < 1.0
+    gm = dd.margins.gain_margin
+    assert math.isfinite(gm)
+    # the loop is stable for every gain up to the margin and unstable just beyond
+    for k in np.linspace(1.0, 0.999 * gm, 60):
+        assert radius(k) < 1.0
+    assert radius(1.001 * gm) > 1.0
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_phase_margin_from_explicit_discrete_loop(method):
+    Ts = 0.02
+    dd = discretized(J, ALPHA, ZETA, 1.0, TAU, Ts, "full", method)
+    Kp, Ki = J * ALPHA, J * ALPHA**2 / (4 * ZETA**2)
+    w = np.linspace(0.05, 5.0, 200001)
+    z = np.exp(1j * w * Ts)
+    loop = (Kp + Ki / s_of_z(method, z, Ts)) * g_zoh(J, TAU, Ts, z)
+    k = np.argmin(np.abs(np.abs(loop) - 1.0))
+    assert dd.margins.w_gain_crossover_radps == pytest.approx(w[k], abs=1e-3)
+    assert dd.margins.phase_margin_deg == pytest.approx(180.0 + np.degrees(np.angle(loop[k])), abs=1e-2)
+
+
+@pytest.mark.parametrize("ff, Ts", [("none", 0.05), ("full", 0.05), ("lowpass", 0.3)])
+def test_overshoot_from_sample_by_sample_simulation(ff, Ts):
+    """Simulate the controller's difference equations with the exact sampled mechanics (tau_i = 0)."""
+    dd = discretized(J, ALPHA, ZETA, 1.0, 0.0, Ts, ff, "tustin")
+    n = int(80.0 / Ts)
+    w = 0.0
+    x = r_prev = y_prev = 0.0
+    out = np.empty(n)
+    for k in range(n):
+        r = 1.0
+        out[k] = w
+        e = r - w
+        y = dd.ff_b0 * r + dd.ff_b1 * r_prev - dd.ff_a1 * y_prev
+        u = dd.b_e0 * e + x + y + dd.ff_Kd_per_Ts * (r - r_prev)
+        x += dd.Ki_Ts * e
+        r_prev, y_prev = r, y
+        w += Ts / J * u  # torque held over the period: w[k+1] = w[k] + Ts u[k] / J
+    assert out[-1] == pytest.approx(1.0, abs=1e-6)
+    assert dd.overshoot_pct == pytest.approx(100.0 * max(out.max() - 1.0, 0.0), abs=1e-3)
+
+
+def test_sampling_warning_when_alpha_ts_is_large():
+    d = design(J, ALPHA, 1.0, tau_i_s=TAU)  # m = 1, zeta = 1: the largest design frequency is alpha
+    with pytest.warns(SamplingWarning, match="Ts_s"):
+        d.discretize(0.25, "tustin")  # alpha Ts = 0.125
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        d.discretize(0.19, "tustin")  # alpha Ts = 0.095
+
+
+def test_unstable_discrete_loop_is_refused():
+    Ts = 12.0
+    d = design(J, ALPHA, ZETA, anti_windup="none")
+    # by hand: Tustin PI and ZOH integrator, F(-1) G(-1) = -Kp Ts / (2 J) = -3: a pole beyond z = -1
+    Kp, Ki = J * ALPHA, J * ALPHA**2 / (4 * ZETA**2)
+    b_e0 = Kp + Ki * Ts / 2
+    char = np.polyadd(np.polymul([1.0, -1.0], [1.0, -1.0]), np.array([b_e0, Ki * Ts - b_e0]) * Ts / J)
+    assert np.max(np.abs(np.roots(char))) > 1.0
+    with pytest.warns(SamplingWarning), pytest.raises(ValueError, match=r"^Ts_s = 12\.0 .*discrete loop is stable"):
+        d.discretize(Ts, "tustin")
+
+
+def test_forward_euler_feedforward_pole_outside_unit_circle_is_refused():
+    d = design(J, ALPHA, 1.0, m=2.0)
+    # m alpha Ts = 2.2 > 2: pole 1 - m alpha Ts = -1.2; the C core refuses it too
+    with pytest.warns(SamplingWarning), pytest.raises(ValueError, match="^Ts_s = "):
+        d.discretize(2.2, "forward_euler")
+    with pytest.raises(ValueError, match="^Ts_s = "):
+        SpeedController(J_kgm2=J, alpha_radps=ALPHA, zeta=1.0, m=2.0, Ts_s=2.2, i_max_A=7.6, psi_f_Wb=0.2,
+                        Ld_H=0.01, Lq_H=0.01, pole_pairs=4, method="forward_euler", feedforward="full")
+
+
+def test_back_calculation_gain_too_large_is_refused():
+    Ki = J * ALPHA**2 / (4 * ZETA**2)
+    d = design(J, ALPHA, ZETA, Ka=2.5 / (Ki * 1e-3))  # Ki Ka Ts = 2.5 >= 2
+    with pytest.raises(ValueError, match="^Ka = "):
+        d.discretize(1e-3, "tustin")
+    # without back calculation Ka does not enter the discrete loop
+    design(J, ALPHA, ZETA, Ka=2.5 / (Ki * 1e-3), anti_windup="clamping").discretize(1e-3, "tustin")
+
+
+@pytest.mark.parametrize(
+    "param, Ts, method",
+    [("Ts_s", 0.0, "tustin"), ("Ts_s", -1e-3, "tustin"), ("Ts_s", math.nan, "tustin"), ("Ts_s", math.inf, "tustin"),
+     ("Ts_s", "1ms", "tustin"), ("method", 1e-3, "bilinear"), ("method", 1e-3, "zoh")],
+)
+def test_invalid_discretization_inputs(param, Ts, method):
+    with pytest.raises(ValueError) as exc:
+        design(J, ALPHA, ZETA).discretize(Ts, method)
+    assert str(exc.value).startswith(param + " = ")
+
+
+def test_as_dict_is_plain_numbers():
+    import json
+
+    dd = design(J, ALPHA, ZETA, tau_i_s=TAU).discretize(1e-3, "tustin")
+    data = json.loads(json.dumps(dd.as_dict(), allow_nan=False))
+    assert data["Kp"] == dd.design.Kp and data["Ki"] == dd.design.Ki and data["Ka"] == dd.design.Ka
+    assert data["continuous"]["margins"]["gain_margin"] is None  # infinite
+    assert data["discrete"]["coefficients"]["b_e0"] == dd.b_e0
