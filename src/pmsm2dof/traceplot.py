@@ -1,0 +1,69 @@
+"""The plot of one simulated run: speed, currents, torques and load against time.
+
+Drawn like the paper's Fig. 8 to 10 and 12 to 14 (speed and current responses), from a
+:class:`~pmsm2dof.simulate.Result`. Intervals where the current-vector limit is active (the
+saturation that the anti-windup of Fig. 5 acts on) are shaded in every panel.
+"""
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+
+from .plots import save_figure
+
+
+def _saturated_intervals(t, saturated):
+    """(start, end) of each run of set flags; the flag of sample k holds over [t[k], t[k+1])."""
+    flags = np.concatenate(([False], np.asarray(saturated, dtype=bool)[:-1], [False]))
+    edges = np.flatnonzero(np.diff(flags.astype(np.int8)))
+    return [(t[a], t[b]) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def trace_figure(result):
+    """A three-panel figure of ``result``: speed [rpm], dq currents [A], torques and load [Nm].
+
+    The current panel shows the limit ``+-limits.i_max_A``; shaded spans mark the samples where
+    the current-vector limit is active.
+    """
+    t = result.t_s
+    i_max = result.scenario.data["limits"]["i_max_A"]
+    fig = Figure(figsize=(8.0, 7.5), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_w, ax_i, ax_T = fig.subplots(3, 1, sharex=True)
+    fig.suptitle(result.scenario.name)
+
+    ax_w.plot(t, result.speed_ref_rpm, "k--", lw=1.0, label="reference")
+    ax_w.plot(t, result.speed_rpm, lw=1.4, label="speed")
+    ax_w.set_ylabel("speed [rpm]")
+
+    ax_i.plot(t, result.iq_ref_A, "--", lw=1.0, color="C0", label="iq command")
+    ax_i.plot(t, result.iq_A, lw=1.4, color="C0", label="iq")
+    ax_i.plot(t, result.id_ref_A, "--", lw=1.0, color="C1", label="id command")
+    ax_i.plot(t, result.id_A, lw=1.4, color="C1", label="id")
+    for sign in (1, -1):
+        ax_i.axhline(sign * i_max, color="grey", lw=0.8, ls=":")
+    ax_i.set_ylabel("current [A]")
+
+    ax_T.plot(t, result.torque_unsat_Nm, ":", lw=1.0, color="C3", label="controller output u")
+    ax_T.plot(t, result.torque_ref_Nm, "--", lw=1.0, color="C2", label="limited command u_sat")
+    ax_T.plot(t, result.torque_Nm, lw=1.4, color="C0", label="electromagnetic Te")
+    ax_T.plot(t, result.load_Nm, lw=1.4, color="C4", label="load")
+    ax_T.set_ylabel("torque [Nm]")
+    ax_T.set_xlabel("time [s]")
+
+    spans = _saturated_intervals(t, result.saturated)
+    for ax in (ax_w, ax_i, ax_T):
+        for a, b in spans:
+            ax.axvspan(a, b, color="orange", alpha=0.15, lw=0)
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize="small", loc="best")
+    if spans:
+        ax_w.axvspan(np.nan, np.nan, color="orange", alpha=0.15, label="current limit active")
+        ax_w.legend(fontsize="small", loc="best")
+    ax_T.set_xlim(t[0], t[-1])
+    return fig
+
+
+def plot_trace(result, path):
+    """Draw :func:`trace_figure` of ``result`` into ``path`` (.png or .svg), atomically."""
+    return save_figure(trace_figure(result), path)
