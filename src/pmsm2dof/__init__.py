@@ -13,3 +13,7 @@ from .design import Design, design
 from .discretize import DiscreteDesign, SamplingWarning
 
 __all__ += ["Design", "DiscreteDesign", "SamplingWarning", "design"]
+from .metrics import compute_metrics
+from .scenario import Scenario, list_presets, load_scenario
+
+__all__ += ["Scenario", "compute_metrics", "list_presets", "load_scenario"]
