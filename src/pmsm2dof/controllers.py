@@ -31,22 +31,15 @@ FEEDFORWARDS = ("none", "lowpass", "no_tau", "full")
 #: Anti-windup modes (paper section 3.2); the index is the C ``p2d_anti_windup_t`` value.
 ANTI_WINDUPS = ("none", "back_calculation", "clamping")
 
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
-
-
 def _float_param(name, value):
     """``value`` as a Python float, for a float32 field of a C configuration.
 
-    Range checks are left to the C init (which knows the valid ranges); here
-    only the type is checked, and values that float32 cannot hold (overflow to
-    inf, or a non-zero value that rounds to 0) are rejected, naming ``name``.
+    Only the type is checked here; the C init checks the range (it knows it)
+    and :func:`_raise_status` reports its verdict with the value given.
     """
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ConfigError(name, value, "a real number")
-    v = float(value)
-    if math.isfinite(v) and (abs(v) > _FLOAT32_MAX or (v != 0.0 and np.float32(v) == 0.0)):
-        raise ConfigError(name, value, "a number representable in float32 (|x| <= 3.4e38, not rounding to 0)")
-    return v
+    return float(value)
 
 
 def _finite(name, value):
@@ -65,10 +58,19 @@ def _choice_param(name, value, choices):
 
 
 def _raise_status(status, given):
-    """Raise the ConfigError of a non-zero C status, with the value the user gave."""
+    """Raise the ConfigError of a non-zero C status, with the value the user gave.
+
+    A value that float32 cannot hold (it overflows to inf or rounds to 0) is
+    rejected by C as inf or 0; the message says so.
+    """
     param = ffi.string(lib.p2d_status_param(status)).decode()
     valid = ffi.string(lib.p2d_status_range(status)).decode()
-    raise ConfigError(param, given.get(param), valid)
+    value = given.get(param)
+    if isinstance(value, numbers.Real) and math.isfinite(value) and value != 0:
+        as_float32 = float(np.float32(value))
+        if as_float32 == 0 or math.isinf(as_float32):
+            valid += f" (computed in float32, where {value!r} becomes {as_float32!r})"
+    raise ConfigError(param, value, valid)
 
 
 def _structured_dtype(ctype, fields):
