@@ -1,0 +1,504 @@
+/*
+ * Drive simulation engine: see drive.h for the model, the sampled-data loop,
+ * the initial state, the log and the stops.
+ */
+#include "drive.h"
+
+#include <math.h>
+
+#define P2D_SIM_INV_SQRT3 0.57735026918962576 /* 1/sqrt(3) */
+#define P2D_SIM_W_C_MIN_RADPS 0.01            /* narrowest Coulomb smoothing band [rad/s] */
+#define P2D_SIM_W_C_PERIODS 10.0              /* friction time constant J w_c / T_c in current periods [-] */
+#define P2D_SIM_OVERSPEED_FACTOR 2.0          /* overspeed bound in no-load speeds [-] */
+#define P2D_SIM_OVERCURRENT_FACTOR 10.0       /* overcurrent bound in max(i_max, short-circuit current) [-] */
+#define P2D_SIM_TS_MATCH_TOL 1e-6             /* relative mismatch allowed between float and double periods [-] */
+#define P2D_SIM_T_TOL 1e-6                    /* times closer than this many RK4 steps are equal [-] */
+
+typedef struct {
+    const char *param; /* configuration field */
+    const char *text;  /* valid range, or reason of a stop */
+} p2d_sim_status_text_t;
+
+static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
+    [P2D_SIM_OK] = {"", ""},
+    [P2D_SIM_ERR_NULL] = {"pointer", "non-NULL"},
+    [P2D_SIM_ERR_POLE_PAIRS] = {"motor.pole_pairs", "an integer >= 1"},
+    [P2D_SIM_ERR_RS] = {"motor.Rs_ohm", "finite and > 0"},
+    [P2D_SIM_ERR_LD] = {"motor.Ld_H", "finite and > 0"},
+    [P2D_SIM_ERR_LQ] = {"motor.Lq_H", "finite and > 0"},
+    [P2D_SIM_ERR_PSI_F] = {"motor.psi_f_Wb", "finite and > 0"},
+    [P2D_SIM_ERR_J] = {"motor.J_kgm2", "finite and > 0"},
+    [P2D_SIM_ERR_B] = {"motor.B_Nms", "finite and >= 0"},
+    [P2D_SIM_ERR_T_COULOMB] = {"motor.T_coulomb_Nm", "finite and >= 0"},
+    [P2D_SIM_ERR_U_DC] = {"u_dc_V", "finite and > 0"},
+    [P2D_SIM_ERR_CURRENT_MODEL] = {"current_model", "dq_pi (0) or first_order (1)"},
+    [P2D_SIM_ERR_TAU_I] = {"tau_i_s", "finite and > 0"},
+    [P2D_SIM_ERR_TS_CURRENT] = {"Ts_current_s", "finite, > 0 and equal to current.Ts_s (dq_pi)"},
+    [P2D_SIM_ERR_CURRENT_PER_SPEED] = {"current_per_speed",
+                                       "an integer >= 1 with current_per_speed * Ts_current_s = speed.Ts_s"},
+    [P2D_SIM_ERR_SUBSTEPS] = {"substeps", "an integer >= 1"},
+    [P2D_SIM_ERR_LOG_EVERY] = {"log_every", "an integer >= 1"},
+    [P2D_SIM_ERR_W_M0] = {"w_m0_radps", "finite, within twice the no-load speed 2 u_dc / (sqrt(3) p psi_f)"},
+    [P2D_SIM_ERR_REFERENCE] = {"reference", "entries with finite t_s >= 0 in nondecreasing order, finite "
+                                            "values and finite ramp_s >= 0"},
+    [P2D_SIM_ERR_LOAD] = {"load", "entries with finite t_s >= 0 in nondecreasing order, finite values "
+                                  "and finite ramp_s >= 0"},
+    [P2D_SIM_ERR_SPEED_CONTROLLER] = {"speed", "accepted by p2d_speed_init (see controller_status)"},
+    [P2D_SIM_ERR_CURRENT_CONTROLLER] = {"current", "accepted by p2d_current_init (see controller_status)"},
+    [P2D_SIM_ERR_LOG_FULL] = {"log_rows", "room for every logged sample"},
+    [P2D_SIM_STOP_NONFINITE] = {"", "the plant state became non-finite (NaN or infinite)"},
+    [P2D_SIM_STOP_OVERSPEED] = {"", "the speed exceeds twice the no-load speed of the DC link, "
+                                    "2 u_dc / (sqrt(3) p psi_f)"},
+    [P2D_SIM_STOP_OVERCURRENT] = {"", "the current exceeds ten times the larger of the current limit and "
+                                      "the short-circuit current psi_f / min(Ld, Lq)"},
+    [P2D_SIM_STOP_CONTROLLER_FAULT] = {"", "a controller's output became non-finite (non-finite policy)"},
+};
+
+static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
+    [P2D_LOG_T_S] = "t_s",
+    [P2D_LOG_W_REF_RADPS] = "w_ref_radps",
+    [P2D_LOG_W_M_RADPS] = "w_m_radps",
+    [P2D_LOG_ID_REF_A] = "id_ref_A",
+    [P2D_LOG_IQ_REF_A] = "iq_ref_A",
+    [P2D_LOG_ID_A] = "id_A",
+    [P2D_LOG_IQ_A] = "iq_A",
+    [P2D_LOG_UD_V] = "ud_V",
+    [P2D_LOG_UQ_V] = "uq_V",
+    [P2D_LOG_TORQUE_NM] = "torque_Nm",
+    [P2D_LOG_TORQUE_REF_NM] = "torque_ref_Nm",
+    [P2D_LOG_TORQUE_UNSAT_NM] = "torque_unsat_Nm",
+    [P2D_LOG_LOAD_NM] = "load_Nm",
+    [P2D_LOG_SATURATED] = "saturated",
+    [P2D_LOG_X_I_NM] = "x_i_Nm",
+};
+
+const char *p2d_sim_status_param(p2d_sim_status_t status)
+{
+    if ((unsigned)status >= (unsigned)P2D_SIM_STATUS_COUNT) return "unknown";
+    return P2D_SIM_STATUS_TEXT[status].param;
+}
+
+const char *p2d_sim_status_text(p2d_sim_status_t status)
+{
+    if ((unsigned)status >= (unsigned)P2D_SIM_STATUS_COUNT) return "unknown status code";
+    return P2D_SIM_STATUS_TEXT[status].text;
+}
+
+const char *p2d_sim_log_name(uint32_t column)
+{
+    if (column >= (uint32_t)P2D_LOG_COUNT) return "";
+    return P2D_LOG_NAMES[column];
+}
+
+static bool is_positive(double x) { return isfinite(x) && x > 0.0; }
+static bool is_nonnegative(double x) { return isfinite(x) && x >= 0.0; }
+
+/* |a - b| <= tol |b| */
+static bool nearly_equal(double a, double b, double tol) { return fabs(a - b) <= tol * fabs(b); }
+
+static bool schedule_valid(const p2d_schedule_t *s)
+{
+    if (s->n == 0u) return true;
+    if (s->t_s == 0 || s->value == 0 || s->ramp_s == 0) return false;
+    for (uint32_t i = 0; i < s->n; ++i) {
+        if (!is_nonnegative(s->t_s[i]) || !isfinite(s->value[i]) || !is_nonnegative(s->ramp_s[i])) return false;
+        if (i > 0u && s->t_s[i] < s->t_s[i - 1u]) return false;
+    }
+    return true;
+}
+
+static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
+{
+    const p2d_pmsm_params_t *m = &cfg->motor;
+    double Ts_speed_s;
+    if (m->pole_pairs < 1u) return P2D_SIM_ERR_POLE_PAIRS;
+    if (!is_positive(m->Rs_ohm)) return P2D_SIM_ERR_RS;
+    if (!is_positive(m->Ld_H)) return P2D_SIM_ERR_LD;
+    if (!is_positive(m->Lq_H)) return P2D_SIM_ERR_LQ;
+    if (!is_positive(m->psi_f_Wb)) return P2D_SIM_ERR_PSI_F;
+    if (!is_positive(m->J_kgm2)) return P2D_SIM_ERR_J;
+    if (!is_nonnegative(m->B_Nms)) return P2D_SIM_ERR_B;
+    if (!is_nonnegative(m->T_coulomb_Nm)) return P2D_SIM_ERR_T_COULOMB;
+    if (!is_positive(cfg->u_dc_V)) return P2D_SIM_ERR_U_DC;
+    if ((unsigned)cfg->current_model > (unsigned)P2D_CURRENT_FIRST_ORDER) return P2D_SIM_ERR_CURRENT_MODEL;
+    if (cfg->current_model == P2D_CURRENT_FIRST_ORDER && !is_positive(cfg->tau_i_s)) return P2D_SIM_ERR_TAU_I;
+    if (!is_positive(cfg->Ts_current_s)) return P2D_SIM_ERR_TS_CURRENT;
+    if (cfg->current_model == P2D_CURRENT_DQ_PI &&
+        !nearly_equal((double)cfg->current.Ts_s, cfg->Ts_current_s, P2D_SIM_TS_MATCH_TOL)) {
+        return P2D_SIM_ERR_TS_CURRENT;
+    }
+    Ts_speed_s = (double)cfg->current_per_speed * cfg->Ts_current_s;
+    if (cfg->current_per_speed < 1u || !nearly_equal((double)cfg->speed.Ts_s, Ts_speed_s, P2D_SIM_TS_MATCH_TOL)) {
+        return P2D_SIM_ERR_CURRENT_PER_SPEED;
+    }
+    if (cfg->substeps < 1u) return P2D_SIM_ERR_SUBSTEPS;
+    if (cfg->log_every < 1u) return P2D_SIM_ERR_LOG_EVERY;
+    if (!isfinite(cfg->w_m0_radps)) return P2D_SIM_ERR_W_M0;
+    if (!schedule_valid(&cfg->reference)) return P2D_SIM_ERR_REFERENCE;
+    if (!schedule_valid(&cfg->load)) return P2D_SIM_ERR_LOAD;
+    return P2D_SIM_OK;
+}
+
+/* ---- schedules ---------------------------------------------------------- */
+
+static void cursor_reset(p2d_schedule_cursor_t *c)
+{
+    c->next = 0u;
+    c->t0_s = 0.0;
+    c->v0 = 0.0;
+    c->v1 = 0.0;
+    c->ramp_s = 0.0;
+}
+
+/* Value of the present segment at t: v0 + (v1 - v0) (t - t0) / ramp during the ramp, v1 after. */
+static double segment_value(const p2d_schedule_cursor_t *c, double t_s)
+{
+    if (c->ramp_s > 0.0 && t_s < c->t0_s + c->ramp_s) {
+        return c->v0 + (c->v1 - c->v0) * fmax(t_s - c->t0_s, 0.0) / c->ramp_s;
+    }
+    return c->v1;
+}
+
+/* Slope of the present segment at t (inside a ramp: (v1 - v0) / ramp, else 0). */
+static double segment_slope(const p2d_schedule_cursor_t *c, double t_s)
+{
+    if (c->ramp_s > 0.0 && t_s > c->t0_s && t_s < c->t0_s + c->ramp_s) return (c->v1 - c->v0) / c->ramp_s;
+    return 0.0;
+}
+
+/* Enter every entry with t_s[i] <= t; a new segment starts from the value reached. */
+static void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
+{
+    while (c->next < s->n && s->t_s[c->next] <= t_s) {
+        double t_entry = s->t_s[c->next];
+        c->v0 = segment_value(c, t_entry);
+        c->t0_s = t_entry;
+        c->v1 = s->value[c->next];
+        c->ramp_s = s->ramp_s[c->next];
+        c->next++;
+    }
+}
+
+/* First time after t where the signal jumps or changes slope (HUGE_VAL if none). */
+static double cursor_next_break(const p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
+{
+    double t_break = c->next < s->n ? s->t_s[c->next] : HUGE_VAL;
+    double t_ramp_end = c->t0_s + c->ramp_s;
+    if (c->ramp_s > 0.0 && t_ramp_end > t_s && t_ramp_end < t_break) t_break = t_ramp_end;
+    return t_break;
+}
+
+/* ---- plant -------------------------------------------------------------- */
+
+/* T_f = B w_m + T_c tanh(w_m / w_c) */
+static double friction_Nm(const p2d_pmsm_t *m, double w_m_radps)
+{
+    double T = m->B_Nms * w_m_radps;
+    if (m->T_c_Nm > 0.0) T += m->T_c_Nm * tanh(w_m_radps * m->inv_w_c);
+    return T;
+}
+
+/* Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) */
+static double torque_Nm(const p2d_pmsm_t *m, double id_A, double iq_A)
+{
+    return iq_A * (m->kt_NmpA + m->c_T_NmpA2 * id_A);
+}
+
+/*
+ * Time derivative of x = (id, iq, w_m). Inputs a, b: (ud, uq) [V] for DQ_PI,
+ * (id_ref, iq_ref) [A] for FIRST_ORDER.
+ */
+static void plant_rate(const p2d_sim_t *sim, const double x[3], double a, double b, double T_load_Nm,
+                       double dx[3])
+{
+    const p2d_pmsm_t *m = &sim->pmsm;
+    double w_e = m->p * x[2];
+    if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
+        /* Ld did/dt = ud - Rs id + w_e Lq iq */
+        dx[0] = (a - m->Rs_ohm * x[0] + w_e * m->Lq_H * x[1]) * m->inv_Ld;
+        /* Lq diq/dt = uq - Rs iq - w_e (Ld id + psi_f) */
+        dx[1] = (b - m->Rs_ohm * x[1] - w_e * (m->Ld_H * x[0] + m->psi_f_Wb)) * m->inv_Lq;
+    } else {
+        /* eq 3: tau_i di/dt = i_ref - i */
+        dx[0] = (a - x[0]) * sim->inv_tau_i;
+        dx[1] = (b - x[1]) * sim->inv_tau_i;
+    }
+    /* J dw_m/dt = Te - T_load - B w_m - T_c tanh(w_m / w_c) */
+    dx[2] = (torque_Nm(m, x[0], x[1]) - T_load_Nm - friction_Nm(m, x[2])) * m->inv_J;
+}
+
+/* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
+static void rk4_step(p2d_sim_t *sim, double h, double a, double b, double T0_Nm, double dT_dt_Nmps)
+{
+    p2d_pmsm_t *m = &sim->pmsm;
+    double x[3] = {m->id_A, m->iq_A, m->w_m_radps};
+    double k1[3], k2[3], k3[3], k4[3], y[3];
+    int i;
+    plant_rate(sim, x, a, b, T0_Nm, k1);
+    for (i = 0; i < 3; ++i) y[i] = x[i] + 0.5 * h * k1[i];
+    plant_rate(sim, y, a, b, T0_Nm + 0.5 * h * dT_dt_Nmps, k2);
+    for (i = 0; i < 3; ++i) y[i] = x[i] + 0.5 * h * k2[i];
+    plant_rate(sim, y, a, b, T0_Nm + 0.5 * h * dT_dt_Nmps, k3);
+    for (i = 0; i < 3; ++i) y[i] = x[i] + h * k3[i];
+    plant_rate(sim, y, a, b, T0_Nm + h * dT_dt_Nmps, k4);
+    /* x(t + h) = x(t) + h (k1 + 2 k2 + 2 k3 + k4) / 6 */
+    m->id_A = x[0] + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]);
+    m->iq_A = x[1] + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]);
+    m->w_m_radps = x[2] + h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]);
+}
+
+/* Integrate the plant over the current period starting at t_start with the inputs held. */
+static void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
+{
+    for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
+        double t = t_start_s + (double)s * sim->dt_s;
+        double t_end = t_start_s + (double)(s + 1u) * sim->dt_s;
+        while (t < t_end - sim->t_tol_s) {
+            double t_break, t_stop, h;
+            cursor_advance(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
+            t_break = cursor_next_break(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
+            /* split the step at a load breakpoint inside it */
+            t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
+            h = t_stop - t;
+            rk4_step(sim, h, a, b, segment_value(&sim->load, t), segment_slope(&sim->load, t + 0.5 * h));
+            t = t_stop;
+        }
+    }
+}
+
+/* ---- inverter ----------------------------------------------------------- */
+
+/* Limit the command to ||u|| <= u_dc / sqrt(3) into (*ud, *uq) and apply it now or one period later. */
+static void inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V, double *ud_V, double *uq_V)
+{
+    double norm2 = ud_cmd_V * ud_cmd_V + uq_cmd_V * uq_cmd_V;
+    double k = norm2 > inv->u_max_V * inv->u_max_V ? inv->u_max_V / sqrt(norm2) : 1.0;
+    *ud_V = k * ud_cmd_V;
+    *uq_V = k * uq_cmd_V;
+    if (inv->delay) {
+        inv->ud_V = inv->ud_next_V;
+        inv->uq_V = inv->uq_next_V;
+        inv->ud_next_V = *ud_V;
+        inv->uq_next_V = *uq_V;
+    } else {
+        inv->ud_V = *ud_V;
+        inv->uq_V = *uq_V;
+    }
+}
+
+/* ---- loop --------------------------------------------------------------- */
+
+static p2d_sim_status_t stop(p2d_sim_t *sim, p2d_sim_status_t status, double t_s, double value, double bound)
+{
+    sim->status = status;
+    sim->t_stop_s = t_s;
+    sim->stop_value = value;
+    sim->stop_bound = bound;
+    return status;
+}
+
+static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
+{
+    const p2d_pmsm_t *m = &sim->pmsm;
+    double i2;
+    if (!isfinite(m->id_A) || !isfinite(m->iq_A) || !isfinite(m->w_m_radps)) {
+        return stop(sim, P2D_SIM_STOP_NONFINITE, t_s, 0.0, 0.0);
+    }
+    if (fabs(m->w_m_radps) > sim->w_bound_radps) {
+        return stop(sim, P2D_SIM_STOP_OVERSPEED, t_s, fabs(m->w_m_radps), sim->w_bound_radps);
+    }
+    i2 = m->id_A * m->id_A + m->iq_A * m->iq_A;
+    if (i2 > sim->i_bound_A * sim->i_bound_A) {
+        return stop(sim, P2D_SIM_STOP_OVERCURRENT, t_s, sqrt(i2), sim->i_bound_A);
+    }
+    return P2D_SIM_OK;
+}
+
+/* Steady-state voltage of eq 1 for the currents, speed and current slopes given. */
+static void pmsm_voltage(const p2d_pmsm_t *m, double did_dt, double diq_dt, double *ud_V, double *uq_V)
+{
+    double w_e = m->p * m->w_m_radps;
+    /* ud = Rs id + Ld did/dt - w_e Lq iq */
+    *ud_V = m->Rs_ohm * m->id_A + m->Ld_H * did_dt - w_e * m->Lq_H * m->iq_A;
+    /* uq = Rs iq + Lq diq/dt + w_e (Ld id + psi_f) */
+    *uq_V = m->Rs_ohm * m->iq_A + m->Lq_H * diq_dt + w_e * (m->Ld_H * m->id_A + m->psi_f_Wb);
+}
+
+p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
+{
+    const p2d_pmsm_params_t *mp;
+    p2d_pmsm_t *m;
+    p2d_sim_status_t status;
+    p2d_status_t ctl_status;
+    p2d_speed_output_t so;
+    double T_hold_Nm, L_min_H;
+
+    if (sim == 0 || cfg == 0) return P2D_SIM_ERR_NULL;
+    status = config_status(cfg);
+    if (status != P2D_SIM_OK) return status;
+    sim->cfg = *cfg;
+    sim->controller_status = P2D_OK;
+    ctl_status = p2d_speed_init(&sim->speed, &cfg->speed);
+    if (ctl_status != P2D_OK) {
+        sim->controller_status = ctl_status;
+        return P2D_SIM_ERR_SPEED_CONTROLLER;
+    }
+    if (cfg->current_model == P2D_CURRENT_DQ_PI) {
+        ctl_status = p2d_current_init(&sim->current, &cfg->current);
+        if (ctl_status != P2D_OK) {
+            sim->controller_status = ctl_status;
+            return P2D_SIM_ERR_CURRENT_CONTROLLER;
+        }
+    }
+
+    mp = &cfg->motor;
+    m = &sim->pmsm;
+    m->p = (double)mp->pole_pairs;
+    m->Rs_ohm = mp->Rs_ohm;
+    m->Ld_H = mp->Ld_H;
+    m->Lq_H = mp->Lq_H;
+    m->psi_f_Wb = mp->psi_f_Wb;
+    m->inv_Ld = 1.0 / mp->Ld_H;
+    m->inv_Lq = 1.0 / mp->Lq_H;
+    m->inv_J = 1.0 / mp->J_kgm2;
+    m->kt_NmpA = 1.5 * m->p * mp->psi_f_Wb;
+    m->c_T_NmpA2 = 1.5 * m->p * (mp->Ld_H - mp->Lq_H);
+    m->B_Nms = mp->B_Nms;
+    m->T_c_Nm = mp->T_coulomb_Nm;
+    /* w_c = max(w_c_min, 10 Ts_current T_c / J): friction time constant J w_c / T_c >= 10 Ts_current */
+    m->inv_w_c = 1.0 / fmax(P2D_SIM_W_C_MIN_RADPS,
+                            P2D_SIM_W_C_PERIODS * cfg->Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
+
+    sim->inverter.u_max_V = cfg->u_dc_V * P2D_SIM_INV_SQRT3;
+    sim->inverter.delay = cfg->computation_delay;
+    sim->inv_tau_i = cfg->current_model == P2D_CURRENT_FIRST_ORDER ? 1.0 / cfg->tau_i_s : 0.0;
+    sim->dt_s = cfg->Ts_current_s / (double)cfg->substeps;
+    sim->t_tol_s = P2D_SIM_T_TOL * sim->dt_s;
+    /* twice the no-load speed: 2 u_dc / (sqrt(3) p psi_f) */
+    sim->w_bound_radps = P2D_SIM_OVERSPEED_FACTOR * sim->inverter.u_max_V / (m->p * mp->psi_f_Wb);
+    /* ten times max(i_max, psi_f / min(Ld, Lq)) */
+    L_min_H = fmin(mp->Ld_H, mp->Lq_H);
+    sim->i_bound_A = P2D_SIM_OVERCURRENT_FACTOR * fmax((double)cfg->speed.i_max_A, mp->psi_f_Wb / L_min_H);
+    if (fabs(cfg->w_m0_radps) > sim->w_bound_radps) return P2D_SIM_ERR_W_M0;
+
+    cursor_reset(&sim->reference);
+    cursor_reset(&sim->load);
+    sim->n_current = 0u;
+    sim->n_speed = 0u;
+    sim->n_rows = 0u;
+    sim->status = P2D_SIM_OK;
+    sim->t_stop_s = 0.0;
+    sim->stop_value = 0.0;
+    sim->stop_bound = 0.0;
+
+    /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
+    m->w_m_radps = cfg->w_m0_radps;
+    T_hold_Nm = friction_Nm(m, cfg->w_m0_radps);
+    p2d_speed_reset(&sim->speed, (float)cfg->w_m0_radps, (float)T_hold_Nm);
+    p2d_speed_compute(&sim->speed, (float)cfg->w_m0_radps, (float)cfg->w_m0_radps, &so);
+    if (so.fault) return P2D_SIM_ERR_W_M0;
+    sim->id_ref_A = (double)so.id_ref_A;
+    sim->iq_ref_A = (double)so.iq_ref_A;
+    m->id_A = sim->id_ref_A;
+    m->iq_A = sim->iq_ref_A;
+    sim->inverter.ud_V = 0.0;
+    sim->inverter.uq_V = 0.0;
+    sim->inverter.ud_next_V = 0.0;
+    sim->inverter.uq_next_V = 0.0;
+    if (cfg->current_model == P2D_CURRENT_DQ_PI) {
+        const p2d_current_coef_t *c = &sim->current.coef[sim->current.active];
+        double w_e = m->p * m->w_m_radps;
+        double ud_V, uq_V;
+        pmsm_voltage(m, 0.0, 0.0, &ud_V, &uq_V);
+        /* integrators: zero error gives ud = x_d - w_e Lq iq, uq = x_q + w_e (Ld id + psi_f) (decoupling) */
+        sim->current.x_d_V = (float)(ud_V + w_e * (double)c->Lq_H * m->iq_A);
+        sim->current.x_q_V = (float)(uq_V - w_e * ((double)c->Ld_H * m->id_A + (double)c->psi_f_Wb));
+        /* the command applied over the first period under the computation delay */
+        sim->inverter.ud_next_V = ud_V;
+        sim->inverter.uq_next_V = uq_V;
+    }
+    return P2D_SIM_OK;
+}
+
+/* Write log row of speed sample k at t_k. */
+static void log_write(p2d_sim_t *sim, double *row, double t_k_s, double w_ref_radps,
+                      const p2d_speed_output_t *so, double ud_V, double uq_V)
+{
+    const p2d_pmsm_t *m = &sim->pmsm;
+    cursor_advance(&sim->load, &sim->cfg.load, t_k_s + sim->t_tol_s);
+    row[P2D_LOG_T_S] = t_k_s;
+    row[P2D_LOG_W_REF_RADPS] = w_ref_radps;
+    row[P2D_LOG_W_M_RADPS] = m->w_m_radps;
+    row[P2D_LOG_ID_REF_A] = (double)so->id_ref_A;
+    row[P2D_LOG_IQ_REF_A] = (double)so->iq_ref_A;
+    row[P2D_LOG_ID_A] = m->id_A;
+    row[P2D_LOG_IQ_A] = m->iq_A;
+    row[P2D_LOG_UD_V] = ud_V;
+    row[P2D_LOG_UQ_V] = uq_V;
+    row[P2D_LOG_TORQUE_NM] = torque_Nm(m, m->id_A, m->iq_A);
+    row[P2D_LOG_TORQUE_REF_NM] = (double)so->T_ref_Nm;
+    row[P2D_LOG_TORQUE_UNSAT_NM] = (double)so->T_unsat_Nm;
+    row[P2D_LOG_LOAD_NM] = segment_value(&sim->load, t_k_s);
+    row[P2D_LOG_SATURATED] = so->saturated ? 1.0 : 0.0;
+    row[P2D_LOG_X_I_NM] = (double)sim->speed.x_i_Nm;
+}
+
+p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
+{
+    const p2d_sim_config_t *cfg;
+    if (sim == 0) return P2D_SIM_ERR_NULL;
+    if (sim->status != P2D_SIM_OK) return sim->status;
+    cfg = &sim->cfg;
+    for (uint64_t k = 0; k < n_samples; ++k) {
+        double t_k = (double)sim->n_current * cfg->Ts_current_s;
+        bool log_row = sim->n_speed % cfg->log_every == 0u;
+        double w_ref;
+        p2d_speed_output_t so;
+        if (log_row && (log == 0 || sim->n_rows >= log_rows)) return P2D_SIM_ERR_LOG_FULL;
+
+        /* speed sample k: reference sampled at t_k */
+        cursor_advance(&sim->reference, &cfg->reference, t_k + sim->t_tol_s);
+        w_ref = segment_value(&sim->reference, t_k);
+        p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->pmsm.w_m_radps, &so);
+        if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
+        sim->id_ref_A = (double)so.id_ref_A;
+        sim->iq_ref_A = (double)so.iq_ref_A;
+
+        for (uint32_t j = 0; j < cfg->current_per_speed; ++j) {
+            double t = (double)sim->n_current * cfg->Ts_current_s;
+            double a, b, ud_log_V, uq_log_V;
+            p2d_sim_status_t status;
+            if (cfg->current_model == P2D_CURRENT_DQ_PI) {
+                p2d_current_output_t co;
+                double ud_cmd_V, uq_cmd_V;
+                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A,
+                                    (float)sim->pmsm.id_A, (float)sim->pmsm.iq_A,
+                                    (float)(sim->pmsm.p * sim->pmsm.w_m_radps), (float)cfg->u_dc_V, &co);
+                if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
+                inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, &ud_cmd_V, &uq_cmd_V);
+                /* the integrators learn the command the inverter accepted */
+                p2d_current_update(&sim->current, &co, (float)ud_cmd_V, (float)uq_cmd_V);
+                a = sim->inverter.ud_V;
+                b = sim->inverter.uq_V;
+                ud_log_V = a;
+                uq_log_V = b;
+            } else {
+                a = sim->id_ref_A;
+                b = sim->iq_ref_A;
+                /* the voltage eq 1 needs for the current slopes of eq 3 */
+                pmsm_voltage(&sim->pmsm, (a - sim->pmsm.id_A) * sim->inv_tau_i,
+                             (b - sim->pmsm.iq_A) * sim->inv_tau_i, &ud_log_V, &uq_log_V);
+            }
+            if (j == 0u && log_row) {
+                log_write(sim, log + sim->n_rows * (uint64_t)P2D_LOG_COUNT, t_k, w_ref, &so, ud_log_V, uq_log_V);
+                sim->n_rows++;
+            }
+            plant_advance(sim, t, a, b);
+            sim->n_current++;
+            status = check_state(sim, (double)sim->n_current * cfg->Ts_current_s);
+            if (status != P2D_SIM_OK) return status;
+        }
+        sim->n_speed++;
+    }
+    return P2D_SIM_OK;
+}

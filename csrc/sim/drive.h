@@ -1,0 +1,273 @@
+/*
+ * pmsm2dof: host-only simulation of the drive of the paper's Fig. 1, in double
+ * precision, driven by the deployable float32 controllers of csrc/src.
+ *
+ * Plant (paper eq 1 in SI units, mechanical speed w_m, electrical w_e = p w_m;
+ * the paper's p0 is used as pole pairs, and its torque lacks the factor 1.5 of
+ * the amplitude-invariant Park transform used here):
+ *   Ld did/dt = ud - Rs id + w_e Lq iq
+ *   Lq diq/dt = uq - Rs iq - w_e (Ld id + psi_f)
+ *   Te        = 1.5 p (psi_f iq + (Ld - Lq) id iq)
+ *   J dw_m/dt = Te - T_load(t) - B w_m - T_c tanh(w_m / w_c)
+ *
+ * Coulomb friction T_c is smoothed by tanh over the speed band w_c,
+ *   w_c = max(0.01 rad/s, 10 Ts_current T_c / J),
+ * so that the friction's linearization around zero speed, a time constant
+ * J w_c / T_c >= 10 Ts_current, is always resolved by the integrator (the band
+ * depends on the controller period, never on the integration step). Outside
+ * the band the friction is T_c sign(w_m). Inside, the model has no stiction: a
+ * load smaller than T_c lets the shaft creep at w_c atanh(T_load / T_c)
+ * instead of holding it at exactly zero speed.
+ *
+ * Current loop, two models:
+ *   P2D_CURRENT_DQ_PI        p2d_current_* at Ts_current drives the electrical
+ *                            model above through the inverter;
+ *   P2D_CURRENT_FIRST_ORDER  eq 3, i = i_ref / (tau_i s + 1) per axis, no
+ *                            electrical model and no inverter.
+ *
+ * Inverter: switching-cycle average model. The dq voltage applied over a
+ * current period is the command, held (the modulator is assumed to rotate the
+ * vector with the rotor), limited to the linear range of space-vector
+ * modulation ||u_dq|| <= u_dc / sqrt(3) by scaling the vector. With the
+ * computation delay the command computed at sample n is applied over period
+ * n + 1 (one-sample delay of a controller that writes the PWM registers for
+ * the next period); over the first period it applies the steady-state voltage
+ * of the initial state.
+ *
+ * Sampled-data loop, per speed sample k at t_k = k Ts_speed,
+ * Ts_speed = current_per_speed Ts_current:
+ *   the speed controller samples w_ref(t_k) and w_m(t_k) and computes the
+ *   current command (p2d_speed_step); then current_per_speed times: the
+ *   current controller samples id, iq, w_e and computes the voltage (dq_pi
+ *   only), the inverter applies it, and the plant is integrated over
+ *   Ts_current by `substeps` classical Runge-Kutta (RK4) steps of
+ *   dt = Ts_current / substeps. A load breakpoint (step, start or end of a
+ *   ramp) inside a step splits it, so every RK4 step sees a smooth load.
+ *   The speed reference is sampled by the speed controller (0 before the
+ *   first entry); the load acts in continuous time.
+ *
+ * Initial state: the drive is at rest in its steady state at w_m0 before
+ * t = 0, with the reference equal to w_m0 and no load: the speed controller is
+ * reset bumplessly (p2d_speed_reset) to the torque holding w_m0 against
+ * friction, the currents equal the command for that torque and the current
+ * integrators hold the steady-state voltage. Schedule entries at t = 0 are
+ * steps at t = 0.
+ *
+ * Log: one row of P2D_LOG_COUNT doubles (row-major) for every log_every-th
+ * speed sample, starting with sample 0. Row k holds the plant state at t_k
+ * (before the plant moves), the speed controller's outputs of sample k, its
+ * integrator after the update of sample k, the voltage applied over the
+ * current period starting at t_k (first_order: the voltage eq 1 needs to
+ * make the currents follow eq 3 at t_k, unlimited) and the load at t_k.
+ *
+ * Stops (p2d_sim_run returns the code, sim->t_stop_s holds the time):
+ *   P2D_SIM_STOP_NONFINITE         a state variable is NaN or infinite;
+ *   P2D_SIM_STOP_OVERSPEED         |w_m| > 2 u_dc / (sqrt(3) p psi_f): twice the
+ *                                  no-load speed of the DC link, where the
+ *                                  back-EMF exceeds the inverter's range twice
+ *                                  and the average model no longer describes it;
+ *   P2D_SIM_STOP_OVERCURRENT       ||i_dq|| > 10 max(i_max, psi_f / min(Ld, Lq)):
+ *                                  ten times the larger of the current limit and
+ *                                  the short-circuit current of the machine;
+ *   P2D_SIM_STOP_CONTROLLER_FAULT  a controller's non-finite policy engaged.
+ */
+#ifndef PMSM2DOF_SIM_DRIVE_H
+#define PMSM2DOF_SIM_DRIVE_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "pmsm2dof/current.h"
+#include "pmsm2dof/speed.h"
+#include "pmsm2dof/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Current-loop model. */
+typedef enum {
+    P2D_CURRENT_DQ_PI = 0,      /* C current controller + electrical model + inverter */
+    P2D_CURRENT_FIRST_ORDER = 1 /* eq 3: i = i_ref / (tau_i s + 1) */
+} p2d_current_model_t;
+
+/* Outcome of p2d_sim_init (configuration errors) and p2d_sim_run (stops). */
+typedef enum {
+    P2D_SIM_OK = 0,
+    P2D_SIM_ERR_NULL,                 /* a pointer argument is NULL */
+    P2D_SIM_ERR_POLE_PAIRS,           /* motor.pole_pairs */
+    P2D_SIM_ERR_RS,                   /* motor.Rs_ohm */
+    P2D_SIM_ERR_LD,                   /* motor.Ld_H */
+    P2D_SIM_ERR_LQ,                   /* motor.Lq_H */
+    P2D_SIM_ERR_PSI_F,                /* motor.psi_f_Wb */
+    P2D_SIM_ERR_J,                    /* motor.J_kgm2 */
+    P2D_SIM_ERR_B,                    /* motor.B_Nms */
+    P2D_SIM_ERR_T_COULOMB,            /* motor.T_coulomb_Nm */
+    P2D_SIM_ERR_U_DC,                 /* u_dc_V */
+    P2D_SIM_ERR_CURRENT_MODEL,        /* current_model */
+    P2D_SIM_ERR_TAU_I,                /* tau_i_s (first_order) */
+    P2D_SIM_ERR_TS_CURRENT,           /* Ts_current_s */
+    P2D_SIM_ERR_CURRENT_PER_SPEED,    /* current_per_speed */
+    P2D_SIM_ERR_SUBSTEPS,             /* substeps */
+    P2D_SIM_ERR_LOG_EVERY,            /* log_every */
+    P2D_SIM_ERR_W_M0,                 /* w_m0_radps */
+    P2D_SIM_ERR_REFERENCE,            /* reference schedule */
+    P2D_SIM_ERR_LOAD,                 /* load schedule */
+    P2D_SIM_ERR_SPEED_CONTROLLER,     /* p2d_speed_init rejected speed: see controller_status */
+    P2D_SIM_ERR_CURRENT_CONTROLLER,   /* p2d_current_init rejected current: see controller_status */
+    P2D_SIM_ERR_LOG_FULL,             /* the log buffer has no room for the next row */
+    P2D_SIM_STOP_NONFINITE,           /* the plant state is NaN or infinite */
+    P2D_SIM_STOP_OVERSPEED,           /* |w_m| beyond twice the no-load speed of the DC link */
+    P2D_SIM_STOP_OVERCURRENT,         /* ||i_dq|| beyond ten times max(i_max, short-circuit current) */
+    P2D_SIM_STOP_CONTROLLER_FAULT,    /* a controller's non-finite policy engaged */
+    P2D_SIM_STATUS_COUNT              /* number of codes, not a code */
+} p2d_sim_status_t;
+
+/* Columns of a log row. */
+typedef enum {
+    P2D_LOG_T_S = 0,          /* time t_k [s] */
+    P2D_LOG_W_REF_RADPS,      /* speed reference sampled by the speed controller [rad/s] */
+    P2D_LOG_W_M_RADPS,        /* mechanical speed [rad/s] */
+    P2D_LOG_ID_REF_A,         /* d-axis current command [A] */
+    P2D_LOG_IQ_REF_A,         /* q-axis current command [A] */
+    P2D_LOG_ID_A,             /* d-axis current [A] */
+    P2D_LOG_IQ_A,             /* q-axis current [A] */
+    P2D_LOG_UD_V,             /* d-axis voltage applied [V] */
+    P2D_LOG_UQ_V,             /* q-axis voltage applied [V] */
+    P2D_LOG_TORQUE_NM,        /* electromagnetic torque Te [Nm] */
+    P2D_LOG_TORQUE_REF_NM,    /* speed controller output u_sat [Nm] */
+    P2D_LOG_TORQUE_UNSAT_NM,  /* speed controller output before the limit u [Nm] */
+    P2D_LOG_LOAD_NM,          /* load torque [Nm] */
+    P2D_LOG_SATURATED,        /* 1 when the current-vector limit is active, else 0 [-] */
+    P2D_LOG_X_I_NM,           /* speed integrator after the update x[k] [Nm] */
+    P2D_LOG_COUNT             /* number of columns, not a column */
+} p2d_log_column_t;
+
+/* Piecewise-linear signal: 0 before the first entry; entry i starts at t_s[i]
+   and moves from the value reached at t_s[i] to value[i], in one step
+   (ramp_s[i] = 0) or linearly over ramp_s[i]. */
+typedef struct {
+    const double *t_s;    /* entry times [s], finite, >= 0, nondecreasing */
+    const double *value;  /* target of each entry [unit of the signal], finite */
+    const double *ramp_s; /* ramp duration of each entry [s], finite, >= 0 */
+    uint32_t n;           /* number of entries; 0: the signal is 0 */
+} p2d_schedule_t;
+
+/* Read position in a schedule; time only moves forward. */
+typedef struct {
+    uint32_t next;  /* index of the first entry not yet reached [-] */
+    double t0_s;    /* start of the present segment [s] */
+    double v0;      /* value at the start of the segment [unit of the signal] */
+    double v1;      /* target of the segment [unit of the signal] */
+    double ramp_s;  /* ramp duration of the segment [s]; 0: a step */
+} p2d_schedule_cursor_t;
+
+/* Parameters of the true plant. */
+typedef struct {
+    uint32_t pole_pairs;  /* pole pairs p [-], >= 1 */
+    double Rs_ohm;        /* stator resistance [ohm], > 0 */
+    double Ld_H;          /* d-axis inductance [H], > 0 */
+    double Lq_H;          /* q-axis inductance [H], > 0 */
+    double psi_f_Wb;      /* permanent-magnet flux linkage [Wb], > 0 */
+    double J_kgm2;        /* total inertia [kg m^2], > 0 */
+    double B_Nms;         /* viscous friction [Nm s/rad], >= 0 */
+    double T_coulomb_Nm;  /* Coulomb friction [Nm], >= 0 */
+} p2d_pmsm_params_t;
+
+/* PMSM and mechanics: coefficients precomputed at init, and the state. */
+typedef struct {
+    double p;             /* pole pairs [-] */
+    double Rs_ohm;        /* stator resistance [ohm] */
+    double Ld_H;          /* d-axis inductance [H] */
+    double Lq_H;          /* q-axis inductance [H] */
+    double psi_f_Wb;      /* flux linkage [Wb] */
+    double inv_Ld;        /* 1 / Ld [1/H] */
+    double inv_Lq;        /* 1 / Lq [1/H] */
+    double inv_J;         /* 1 / J [1/(kg m^2)] */
+    double kt_NmpA;       /* 1.5 p psi_f [Nm/A] */
+    double c_T_NmpA2;     /* 1.5 p (Ld - Lq) [Nm/A^2] */
+    double B_Nms;         /* viscous friction [Nm s/rad] */
+    double T_c_Nm;        /* Coulomb friction [Nm] */
+    double inv_w_c;       /* 1 / w_c, friction smoothing band [s/rad] */
+    double id_A;          /* state: d-axis current [A] */
+    double iq_A;          /* state: q-axis current [A] */
+    double w_m_radps;     /* state: mechanical speed [rad/s] */
+} p2d_pmsm_t;
+
+/* Switching-cycle average inverter with DC-link limit and optional delay. */
+typedef struct {
+    double u_max_V;       /* u_dc / sqrt(3) [V] */
+    bool delay;           /* one-sample computational delay */
+    double ud_V;          /* d-axis voltage applied over the present period [V] */
+    double uq_V;          /* q-axis voltage applied over the present period [V] */
+    double ud_next_V;     /* delay: d-axis command for the next period [V] */
+    double uq_next_V;     /* delay: q-axis command for the next period [V] */
+} p2d_inverter_t;
+
+/* Everything a simulation needs; rpm never appears here. */
+typedef struct {
+    p2d_pmsm_params_t motor;           /* true plant */
+    double u_dc_V;                     /* DC-link voltage [V], > 0 */
+    bool computation_delay;            /* inverter applies the command one current period later */
+    p2d_current_model_t current_model; /* DQ_PI or FIRST_ORDER */
+    double tau_i_s;                    /* FIRST_ORDER time constant of eq 3 [s], > 0 */
+    double Ts_current_s;               /* current-controller and PWM period [s], > 0 */
+    uint32_t current_per_speed;        /* Ts_speed / Ts_current [-], >= 1 */
+    uint32_t substeps;                 /* RK4 steps per current period [-], >= 1 */
+    uint32_t log_every;                /* log one speed sample in log_every [-], >= 1 */
+    double w_m0_radps;                 /* initial speed [rad/s], finite */
+    p2d_schedule_t reference;          /* speed reference [rad/s] */
+    p2d_schedule_t load;               /* load torque [Nm] */
+    p2d_speed_config_t speed;          /* speed controller (its i_max_A is the drive's limit) */
+    p2d_current_config_t current;      /* current controller, DQ_PI only */
+} p2d_sim_config_t;
+
+typedef struct {
+    p2d_sim_config_t cfg;            /* configuration (the schedules are not copied) */
+    p2d_speed_t speed;               /* speed controller */
+    p2d_current_t current;           /* current controller (DQ_PI) */
+    p2d_pmsm_t pmsm;                 /* plant */
+    p2d_inverter_t inverter;         /* inverter (DQ_PI) */
+    p2d_schedule_cursor_t reference; /* read position in the reference */
+    p2d_schedule_cursor_t load;      /* read position in the load */
+    double inv_tau_i;                /* 1 / tau_i, FIRST_ORDER [1/s] */
+    double dt_s;                     /* RK4 step Ts_current / substeps [s] */
+    double t_tol_s;                  /* times closer than this are equal: 1e-6 dt [s] */
+    double id_ref_A;                 /* current command held over the speed period [A] */
+    double iq_ref_A;                 /* current command held over the speed period [A] */
+    double w_bound_radps;            /* overspeed bound [rad/s] */
+    double i_bound_A;                /* overcurrent bound [A] */
+    uint64_t n_current;              /* current periods done: t = n_current Ts_current [-] */
+    uint64_t n_speed;                /* speed samples done [-] */
+    uint64_t n_rows;                 /* log rows written [-] */
+    p2d_status_t controller_status;  /* the controller init's code after a *_CONTROLLER error */
+    p2d_sim_status_t status;         /* P2D_SIM_OK or the reason of the stop */
+    double t_stop_s;                 /* time of the stop [s] */
+    double stop_value;               /* offending value (|w_m| [rad/s] or ||i_dq|| [A]) */
+    double stop_bound;               /* bound it crossed (same unit) */
+} p2d_sim_t;
+
+/* Validate cfg, initialize the controllers and set the initial state. */
+p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg);
+
+/*
+ * Run n_samples speed samples, appending log rows to log (capacity log_rows
+ * rows of P2D_LOG_COUNT doubles, the same buffer on every call). Returns
+ * P2D_SIM_OK or the stop code; after a stop every call returns that code.
+ */
+p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows);
+
+/* Name of the configuration field a code rejects ("" for OK and stops). */
+const char *p2d_sim_status_param(p2d_sim_status_t status);
+
+/* Valid range of that field, or the reason of a stop. */
+const char *p2d_sim_status_text(p2d_sim_status_t status);
+
+/* Name of a log column with its unit, e.g. "w_m_radps" ("" if out of range). */
+const char *p2d_sim_log_name(uint32_t column);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* PMSM2DOF_SIM_DRIVE_H */

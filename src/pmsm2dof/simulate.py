@@ -1,0 +1,422 @@
+"""Run a scenario in the compiled drive simulation engine.
+
+The engine (``csrc/sim/drive.c``, double precision) simulates the drive of the paper's
+Fig. 1: the PMSM of eq (1) with the amplitude-invariant torque
+``Te = 1.5 p (psi_f iq + (Ld - Lq) id iq)`` (the paper's eq 1 omits the 1.5 and calls p0 the
+number of poles while using it as pole pairs), the mechanics with viscous and Coulomb friction
+and the load schedule, a switching-cycle average inverter limited to ``u_dc / sqrt(3)`` with an
+optional one-sample computation delay, and either the dq current controllers (``dq_pi``) or the
+first-order current loop of eq (3) (``first_order``). The speed controller (eq 9-15, Fig. 5, 6)
+and the current controllers are the float32 C controllers of ``csrc/src``, the code that runs on
+the MCU. A whole run is one C call (``p2d_sim_run``), so the GIL is released while it runs.
+
+Sampling and integration
+    The speed controller runs every ``speed_controller.Ts_s``, the current controller every
+    ``current_loop.Ts_s``. The plant is integrated by the classical Runge-Kutta method (RK4) with
+    the step ``current_loop.Ts_s / ceil(current_loop.Ts_s / simulation.dt_s)``: at most ``dt_s``
+    and a whole fraction of the current period; a load step or ramp corner inside a step splits it.
+    One RK4 step per current period (``dt_s = current_loop.Ts_s``) is accurate to far better than
+    1e-4 of the speed for the paper's drive (tests/test_engine.py halves it).
+
+Log
+    One row per ``simulation.log_every`` speed-controller samples, starting at t = 0: the plant
+    state at the sampling instant, the speed controller's outputs of that sample, its integrator
+    after the update, the voltage applied over the current period that starts there
+    (``first_order``: the voltage eq 1 needs for the current slopes of eq 3, not limited) and the
+    load torque.
+
+Initial state
+    At rest in steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
+    load; the reference and load schedules apply from t = 0 (entries at t = 0 are steps at 0).
+
+Coulomb friction
+    ``T_coulomb_Nm tanh(w_m / w_c)`` with ``w_c = max(0.01 rad/s, 10 Ts_current T_c / J)``:
+    smooth, with no stiction (a load below T_c lets the shaft creep slowly instead of holding).
+
+Stops
+    The engine stops, and :func:`simulate` raises :class:`~pmsm2dof.errors.SimulationError`
+    with the time and the reason, when the state becomes non-finite, the speed exceeds twice the
+    no-load speed ``u_dc / (sqrt(3) p psi_f)``, or the current exceeds ten times the larger of
+    ``i_max_A`` and the short-circuit current ``psi_f / min(Ld, Lq)``.
+"""
+
+import dataclasses
+import io
+import math
+import time
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+
+from ._core import ffi, lib
+from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
+from .errors import ConfigError, SimulationError
+from .outputs import atomic_write
+from .scenario import CURRENT_LOOP_MODELS, Scenario
+
+RPM_PER_RADPS = 30.0 / math.pi
+
+#: Largest log the engine allocates [bytes]; beyond it simulation.log_every must grow.
+LOG_BYTES_MAX = 2 * 1024**3
+
+#: Most RK4 steps per current period (simulation.dt_s >= current_loop.Ts_s / this).
+SUBSTEPS_MAX = 10**6
+
+#: Speed-controller samples per progress-bar update (when progress is on).
+PROGRESS_CHUNKS = 200
+
+#: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
+_SPEED_KEYS = {
+    "J_kgm2": "speed_controller.J_design_kgm2",
+    "alpha_radps": "speed_controller.alpha",
+    "zeta": "speed_controller.zeta",
+    "m": "speed_controller.m",
+    "tau_i_s": "speed_controller.tau_i_design_s",
+    "Ka": "speed_controller.Ka",
+    "Ts_s": "speed_controller.Ts_s",
+    "i_max_A": "limits.i_max_A",
+    "psi_f_Wb": "motor.psi_f_Wb",
+    "Ld_H": "motor.Ld_H",
+    "Lq_H": "motor.Lq_H",
+    "pole_pairs": "motor.pole_pairs",
+    "method": "speed_controller.discretization",
+    "feedforward": "speed_controller.feedforward",
+    "anti_windup": "speed_controller.anti_windup",
+}
+
+#: Scenario key of each field that the C current controller init can reject.
+_CURRENT_KEYS = {
+    "Rs_ohm": "motor.Rs_ohm",
+    "Ld_H": "motor.Ld_H",
+    "Lq_H": "motor.Lq_H",
+    "psi_f_Wb": "motor.psi_f_Wb",
+    "tau_i_s": "current_loop.tau_i_s",
+    "Ts_s": "current_loop.Ts_s",
+    "method": "current_loop.discretization",
+    "anti_windup": "current_loop.anti_windup",
+}
+
+#: Scenario key of each field that p2d_sim_init can reject (p2d_sim_status_param).
+_SIM_KEYS = {
+    "motor.pole_pairs": "motor.pole_pairs",
+    "motor.Rs_ohm": "motor.Rs_ohm",
+    "motor.Ld_H": "motor.Ld_H",
+    "motor.Lq_H": "motor.Lq_H",
+    "motor.psi_f_Wb": "motor.psi_f_Wb",
+    "motor.J_kgm2": "motor.J_kgm2",
+    "motor.B_Nms": "motor.B_Nms",
+    "motor.T_coulomb_Nm": "motor.T_coulomb_Nm",
+    "u_dc_V": "limits.u_dc_V",
+    "current_model": "current_loop.model",
+    "tau_i_s": "current_loop.tau_i_s",
+    "Ts_current_s": "current_loop.Ts_s",
+    "current_per_speed": "speed_controller.Ts_s",
+    "substeps": "simulation.dt_s",
+    "log_every": "simulation.log_every",
+    "w_m0_radps": "simulation.speed0_rpm",
+    "reference": "reference",
+    "load": "load",
+}
+
+
+@dataclasses.dataclass(frozen=True, eq=False, repr=False)
+class Result:
+    """The trace of one simulation: numpy arrays of equal length, one per signal.
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The scenario simulated.
+    wall_time_s : float
+        Wall-clock time of the run [s].
+    t_s : time of the row, a speed-controller sampling instant [s]
+    speed_ref_rpm : speed reference sampled by the speed controller [rpm]
+    speed_rpm, w_m_radps : mechanical speed [rpm], [rad/s]
+    id_ref_A, iq_ref_A : current command of the speed controller [A]
+    id_A, iq_A : dq currents [A]
+    ud_V, uq_V : dq voltage applied over the next current period [V] (``first_order``: the
+        voltage eq 1 needs for the current slopes of eq 3, not limited)
+    torque_Nm : electromagnetic torque 1.5 p (psi_f iq + (Ld - Lq) id iq) [Nm]
+    torque_ref_Nm : speed controller output u_sat, after the current limit [Nm]
+    torque_unsat_Nm : speed controller output u before the limit [Nm]
+    load_Nm : load torque [Nm]
+    saturated : the current-vector limit is active (bool)
+    x_i_Nm : integrator of the speed PI after the sample's update [Nm]
+    """
+
+    signals: ClassVar[tuple] = (
+        "t_s", "speed_ref_rpm", "speed_rpm", "w_m_radps", "id_ref_A", "iq_ref_A", "id_A", "iq_A",
+        "ud_V", "uq_V", "torque_Nm", "torque_ref_Nm", "torque_unsat_Nm", "load_Nm", "saturated", "x_i_Nm",
+    )
+
+    scenario: Scenario
+    wall_time_s: float
+    t_s: np.ndarray
+    speed_ref_rpm: np.ndarray
+    speed_rpm: np.ndarray
+    w_m_radps: np.ndarray
+    id_ref_A: np.ndarray
+    iq_ref_A: np.ndarray
+    id_A: np.ndarray
+    iq_A: np.ndarray
+    ud_V: np.ndarray
+    uq_V: np.ndarray
+    torque_Nm: np.ndarray
+    torque_ref_Nm: np.ndarray
+    torque_unsat_Nm: np.ndarray
+    load_Nm: np.ndarray
+    saturated: np.ndarray
+    x_i_Nm: np.ndarray
+
+    def __repr__(self):
+        return (f"Result({self.scenario.name!r}, {len(self.t_s)} rows, t = {self.t_s[0]:g}..{self.t_s[-1]:g} s, "
+                f"wall {self.wall_time_s:.3g} s)")
+
+    def to_dataframe(self):
+        """The signals as a pandas DataFrame, one column per signal in :attr:`signals` order."""
+        import pandas as pd
+
+        return pd.DataFrame({name: getattr(self, name) for name in self.signals})
+
+    def save(self, path):
+        """Write the trace to ``path``; the format follows the extension.
+
+        ``.csv``: one column per signal with a header row (``saturated`` as 0/1);
+        ``.npz`` (numpy) and ``.mat`` (MATLAB, ``scipy.io.savemat``): one array per signal
+        and ``scenario_toml``, the scenario as TOML text. The file is written completely or
+        not at all.
+        """
+        path = Path(path)
+        suffix = path.suffix.lower()
+        arrays = {name: getattr(self, name) for name in self.signals}
+        if suffix == ".csv":
+            frame = self.to_dataframe()
+            frame["saturated"] = frame["saturated"].astype(np.int8)
+            atomic_write(path, frame.to_csv(index=False))
+        elif suffix == ".npz":
+            buf = io.BytesIO()
+            np.savez(buf, scenario_toml=np.array(self.scenario.to_toml()), **arrays)
+            atomic_write(path, buf.getvalue())
+        elif suffix == ".mat":
+            import scipy.io
+
+            buf = io.BytesIO()
+            scipy.io.savemat(buf, {"scenario_toml": self.scenario.to_toml(), **arrays}, oned_as="column")
+            atomic_write(path, buf.getvalue())
+        else:
+            raise ConfigError("path", str(path), "a file name ending in .csv, .npz or .mat")
+
+
+def simulate(scenario, progress=False):
+    """Simulate ``scenario`` in the compiled engine and return its :class:`Result`.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario (:func:`pmsm2dof.scenario.load_scenario`, ``Scenario.from_dict``).
+        The speed controller is designed (eq 9, 11) for ``speed_controller.J_design_kgm2`` and
+        ``tau_i_design_s``; the plant uses ``motor.J_kgm2`` and ``current_loop.tau_i_s``.
+        ``speed_controller.Ka`` None means the paper's 1/Kp (section 3.3).
+    progress : bool
+        Show a progress bar on stderr when the run lasts more than a second.
+
+    Raises
+    ------
+    ConfigError
+        A value the C controllers or the engine reject, naming the scenario key.
+    SimulationError
+        The run stopped: non-finite state, overspeed or overcurrent (time and reason given).
+    """
+    if not isinstance(scenario, Scenario):
+        raise ConfigError("scenario", type(scenario).__name__,
+                          "a pmsm2dof Scenario (load_scenario or Scenario.from_dict)")
+    data = scenario.data
+    run = _EngineRun(data)
+    start = time.perf_counter()
+    if progress:
+        from tqdm import tqdm
+
+        chunk = max(1, math.ceil(run.n_samples / PROGRESS_CHUNKS))
+        with tqdm(total=data["simulation"]["t_end_s"], unit="s", unit_scale=True, delay=1.0,
+                  desc=f"simulating {scenario.name}", leave=False) as bar:
+            done = 0
+            while done < run.n_samples:
+                n = min(chunk, run.n_samples - done)
+                run.advance(n)
+                done += n
+                bar.update(n * run.Ts_speed_s)
+    else:
+        run.advance(run.n_samples)
+    wall_time_s = time.perf_counter() - start
+    return Result(scenario=scenario, wall_time_s=wall_time_s, **run.signals())
+
+
+class _EngineRun:
+    """One engine instance: the C configuration built from scenario data, the state and the log."""
+
+    def __init__(self, data):
+        self.data = data
+        motor, limits, cl, sc, sim = (data[k] for k in ("motor", "limits", "current_loop", "speed_controller",
+                                                        "simulation"))
+        self.Ts_speed_s = sc["Ts_s"]
+        current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
+        substeps = max(1, math.ceil(cl["Ts_s"] / sim["dt_s"] * (1.0 - 1e-9)))
+        if substeps > SUBSTEPS_MAX:
+            raise ConfigError("simulation.dt_s", sim["dt_s"],
+                              f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl['Ts_s'] / SUBSTEPS_MAX:g} s")
+        self.n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
+        rows = -(-self.n_samples // sim["log_every"])
+        if rows * lib.P2D_LOG_COUNT * 8 > LOG_BYTES_MAX:
+            least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // LOG_BYTES_MAX)
+            raise ConfigError("simulation.log_every", sim["log_every"],
+                              f">= {least}: the log of {rows} rows would exceed {LOG_BYTES_MAX / 1024**3:g} GiB")
+
+        cfg = ffi.new("p2d_sim_config_t *")
+        m = cfg.motor
+        m.pole_pairs = motor["pole_pairs"]
+        for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb", "J_kgm2", "B_Nms", "T_coulomb_Nm"):
+            setattr(m, key, motor[key])
+        cfg.u_dc_V = limits["u_dc_V"]
+        cfg.computation_delay = data["inverter"]["computation_delay"]
+        cfg.current_model = CURRENT_LOOP_MODELS.index(cl["model"])
+        cfg.tau_i_s = cl["tau_i_s"]
+        cfg.Ts_current_s = cl["Ts_s"]
+        cfg.current_per_speed = current_per_speed
+        cfg.substeps = substeps
+        cfg.log_every = sim["log_every"]
+        cfg.w_m0_radps = sim["speed0_rpm"] / RPM_PER_RADPS
+        self._schedules = [
+            _schedule(cfg.reference, data["reference"], "speed_rpm", 1.0 / RPM_PER_RADPS),
+            _schedule(cfg.load, data["load"], "torque_Nm", 1.0),
+        ]
+
+        s = cfg.speed
+        s.J_kgm2 = _float32("speed_controller.J_design_kgm2", sc["J_design_kgm2"])
+        s.alpha_radps = _float32("speed_controller.alpha", sc["alpha"])
+        s.zeta = _float32("speed_controller.zeta", sc["zeta"])
+        s.m = _float32("speed_controller.m", sc["m"])
+        s.tau_i_s = _float32("speed_controller.tau_i_design_s", sc["tau_i_design_s"])
+        s.Ts_s = _float32("speed_controller.Ts_s", sc["Ts_s"])
+        s.i_max_A = _float32("limits.i_max_A", limits["i_max_A"])
+        s.psi_f_Wb = _float32("motor.psi_f_Wb", motor["psi_f_Wb"])
+        s.Ld_H = _float32("motor.Ld_H", motor["Ld_H"])
+        s.Lq_H = _float32("motor.Lq_H", motor["Lq_H"])
+        s.pole_pairs = motor["pole_pairs"]
+        s.method = METHODS.index(sc["discretization"])
+        s.feedforward = FEEDFORWARDS.index(sc["feedforward"])
+        s.anti_windup = ANTI_WINDUPS.index(sc["anti_windup"])
+        if sc["Ka"] is None:
+            # section 3.3: Ka = 1/Kp = 1/(J alpha), computed in float32 by the C library
+            s.Ka = lib.p2d_speed_Ka_default(s.J_kgm2, s.alpha_radps)
+        else:
+            s.Ka = _float32("speed_controller.Ka", sc["Ka"])
+
+        c = cfg.current
+        c.Rs_ohm = _float32("motor.Rs_ohm", motor["Rs_ohm"])
+        c.Ld_H = s.Ld_H
+        c.Lq_H = s.Lq_H
+        c.psi_f_Wb = s.psi_f_Wb
+        c.tau_i_s = _float32("current_loop.tau_i_s", cl["tau_i_s"])
+        c.Ts_s = _float32("current_loop.Ts_s", cl["Ts_s"])
+        c.method = METHODS.index(cl["discretization"])
+        c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
+        c.decouple = cl["decouple"]
+
+        self.cfg = cfg
+        self.sim = ffi.new("p2d_sim_t *")
+        status = lib.p2d_sim_init(self.sim, cfg)
+        if status != lib.P2D_SIM_OK:
+            self._raise_config(status)
+        self.log = np.zeros((rows, lib.P2D_LOG_COUNT))
+        self._log_ptr = ffi.cast("double *", ffi.from_buffer(self.log))
+
+    def advance(self, n_samples):
+        """Run ``n_samples`` speed-controller samples (one C call, GIL released)."""
+        status = lib.p2d_sim_run(self.sim, n_samples, self._log_ptr, self.log.shape[0])
+        if status != lib.P2D_SIM_OK:
+            self._raise_stop(status)
+
+    def signals(self):
+        """The log so far as the named arrays of :class:`Result`, rpm at the edge."""
+        log = self.log[: self.sim.n_rows]
+        col = {ffi.string(lib.p2d_sim_log_name(i)).decode(): log[:, i].copy() for i in range(lib.P2D_LOG_COUNT)}
+        bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
+        if bad:
+            first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
+            raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = "
+                                  f"{col['t_s'][first]:.6g} s")
+        return {
+            "t_s": col["t_s"],
+            "speed_ref_rpm": col["w_ref_radps"] * RPM_PER_RADPS,
+            "speed_rpm": col["w_m_radps"] * RPM_PER_RADPS,
+            "w_m_radps": col["w_m_radps"],
+            "id_ref_A": col["id_ref_A"],
+            "iq_ref_A": col["iq_ref_A"],
+            "id_A": col["id_A"],
+            "iq_A": col["iq_A"],
+            "ud_V": col["ud_V"],
+            "uq_V": col["uq_V"],
+            "torque_Nm": col["torque_Nm"],
+            "torque_ref_Nm": col["torque_ref_Nm"],
+            "torque_unsat_Nm": col["torque_unsat_Nm"],
+            "load_Nm": col["load_Nm"],
+            "saturated": col["saturated"] != 0.0,
+            "x_i_Nm": col["x_i_Nm"],
+        }
+
+    def _value(self, key):
+        node = self.data
+        for part in key.split("."):
+            node = node[part]
+        return node
+
+    def _raise_config(self, status):
+        if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER):
+            ctl = self.sim.controller_status
+            field = ffi.string(lib.p2d_status_param(ctl)).decode()
+            valid = ffi.string(lib.p2d_status_range(ctl)).decode()
+            keys = _SPEED_KEYS if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER else _CURRENT_KEYS
+            key = keys[field]
+            value = self._value(key)
+            if key == "speed_controller.Ka":
+                s = self.cfg.speed
+                Ki = s.J_kgm2 * (s.alpha_radps / (2.0 * s.zeta)) ** 2
+                valid = (f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
+                         f"{2.0 / (Ki * s.Ts_s):.6g} (Ki = {Ki:.6g} by eq 9)")
+                if value is None:
+                    value = f"None (default 1/Kp = {s.Ka:.6g})"
+            raise ConfigError(key, value, valid)
+        field = ffi.string(lib.p2d_sim_status_param(status)).decode()
+        valid = ffi.string(lib.p2d_sim_status_text(status)).decode()
+        key = _SIM_KEYS[field]
+        raise ConfigError(key, self._value(key), valid)
+
+    def _raise_stop(self, status):
+        sim = self.sim
+        reason = ffi.string(lib.p2d_sim_status_text(status)).decode()
+        if status == lib.P2D_SIM_STOP_OVERSPEED:
+            reason += (f": |speed| = {sim.stop_value * RPM_PER_RADPS:.6g} rpm > {sim.stop_bound * RPM_PER_RADPS:.6g}"
+                       " rpm")
+        elif status == lib.P2D_SIM_STOP_OVERCURRENT:
+            reason += f": ||i_dq|| = {sim.stop_value:.6g} A > {sim.stop_bound:.6g} A"
+        raise SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
+
+
+def _schedule(target, entries, value_key, scale):
+    """Fill the C schedule ``target`` from scenario entries; return the arrays it points into."""
+    arrays = [np.array([e[k] * (scale if k == value_key else 1.0) for e in entries], dtype=np.float64)
+              for k in ("t_s", value_key, "ramp_s")]
+    target.n = len(entries)
+    if entries:
+        target.t_s, target.value, target.ramp_s = (ffi.cast("double *", ffi.from_buffer(a)) for a in arrays)
+    return arrays
+
+
+def _float32(key, value):
+    """``value`` for a float32 field of a C controller, rejecting what float32 cannot hold."""
+    v = float(value)
+    f = float(np.float32(v)) if abs(v) <= float(np.finfo(np.float32).max) else math.inf
+    if not math.isfinite(f) or (v != 0.0 and f == 0.0):
+        raise ConfigError(key, value, "a number representable in float32 (|x| <= 3.4e38, not rounding to 0)")
+    return v
