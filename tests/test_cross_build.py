@@ -1,0 +1,75 @@
+"""The deployable controller builds for a Cortex-M4F and uses nothing but float math.
+
+Compiles every csrc/src/*.c with arm-none-eabi-gcc and the project's warning
+flags (-Werror), prints `arm-none-eabi-size` of the objects (so CI logs show
+the flash cost of the speed controller), and checks that the objects hold no
+mutable global state (.data/.bss empty) and call nothing but <math.h> and our
+own functions. The source check (only <math.h>, <stdint.h>, <stdbool.h> and our
+headers are included) needs no cross compiler.
+"""
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+CSRC = Path(__file__).resolve().parents[1] / "csrc"
+SOURCES = sorted((CSRC / "src").glob("*.c"))
+HEADERS = sorted((CSRC / "include" / "pmsm2dof").glob("*.h"))
+FLAGS = [
+    "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Wconversion", "-Wdouble-promotion", "-Werror",
+    "-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2",
+]  # fmt: skip
+ALLOWED_SYSTEM_HEADERS = {"math.h", "stdint.h", "stdbool.h"}
+# <math.h> float functions the controller may call (the FPU or libm provides them)
+MATH_FUNCTIONS = {"sqrtf", "fabsf", "fminf", "fmaxf", "copysignf", "hypotf", "expf", "sinf", "cosf", "atan2f"}
+
+
+def test_sources_include_only_math_stdint_stdbool_and_our_headers():
+    assert SOURCES and HEADERS
+    for path in SOURCES + HEADERS:
+        for line in path.read_text().splitlines():
+            m = re.match(r"\s*#\s*include\s*([<\"])([^>\"]+)[>\"]", line)
+            if not m:
+                continue
+            kind, name = m.groups()
+            if kind == "<":
+                assert name in ALLOWED_SYSTEM_HEADERS, f"{path.name} includes <{name}>"
+            else:
+                assert name.startswith("pmsm2dof/") and (CSRC / "include" / name).is_file(), (
+                    f'{path.name} includes "{name}"')
+
+
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
+def test_cortex_m4f_build(tmp_path, capsys):
+    objects = []
+    for source in SOURCES:
+        obj = tmp_path / (source.stem + ".o")
+        cc = subprocess.run(
+            ["arm-none-eabi-gcc", *FLAGS, "-I", str(CSRC / "include"), "-c", str(source), "-o", str(obj)],
+            capture_output=True, text=True,
+        )  # fmt: skip
+        assert cc.returncode == 0, cc.stderr
+        objects.append(obj)
+
+    size = subprocess.run(["arm-none-eabi-size", *map(str, objects)], capture_output=True, text=True, cwd=tmp_path)
+    assert size.returncode == 0, size.stderr
+    table = size.stdout.replace(str(tmp_path) + "/", "")
+    with capsys.disabled():
+        print("\narm-none-eabi-size (Cortex-M4F, -O2):\n" + table)
+
+    rows = {}
+    for line in table.splitlines()[1:]:
+        text, data, bss, *_, name = line.split()
+        rows[name] = (int(text), int(data), int(bss))
+    assert rows["speed.o"][0] > 0
+    for name, (_, data, bss) in rows.items():
+        assert data == 0 and bss == 0, f"{name} has mutable global state (.data {data} B, .bss {bss} B)"
+
+    nm = subprocess.run(["arm-none-eabi-nm", "-u", *map(str, objects)], capture_output=True, text=True)
+    assert nm.returncode == 0, nm.stderr
+    undefined = set(re.findall(r"^\s+U (\S+)$", nm.stdout, flags=re.M))
+    foreign = {s for s in undefined if s not in MATH_FUNCTIONS and not s.startswith(("p2d_", "__aeabi_"))}
+    assert not foreign, f"the controller calls outside <math.h>: {sorted(foreign)}"
