@@ -166,6 +166,13 @@ def test_figures_that_cannot_be_computed_are_missing_with_a_reason():
     assert s["steady_state_error_rpm"]["value"] is None
     assert "still changing" in s["steady_state_error_rpm"]["reason"]
 
+    # a response that enters the band only in the last 10 % of its window has not shown it settled
+    steps = [(0.0, 500.0)]
+    late = first_order(t, 0.0, 0.0, 500.0, 0.95 * t[-1] / math.log(50))
+    s = compute_metrics(fake_result(t, late, step_ref(t, steps), steps))["reference_steps"][0]
+    assert s["settling_time_s"]["value"] is None and "last 10 %" in s["settling_time_s"]["reason"]
+    assert s["rise_time_s"]["value"] is not None
+
     # a slow response cut short by the next step never reaches 90 % nor the reference
     steps = [(0.0, 100.0), (1.0, 50.0)]
     slow = first_order(t, 0.0, 0.0, 100.0, 5.0)

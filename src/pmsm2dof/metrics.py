@@ -9,7 +9,9 @@ Reference step, from the speed ``w0`` at ``t_s`` to the new reference ``r`` (ste
 
 - ``overshoot_pct``: ``100 max(0, max((w - r) / D))``;
 - ``rise_time_s``: from 10 % to 90 % of ``D`` (first crossings, linear interpolation);
-- ``settling_time_s``: from ``t_s`` until ``|w - r|`` stays within 2 % of ``|D|``;
+- ``settling_time_s``: from ``t_s`` until ``|w - r|`` stays within 2 % of ``|D|``; the speed must
+  be inside that band over at least the last 10 % of the window, else the figure is missing (a
+  speed that has just entered the band may leave it again);
 - ``steady_state_error_rpm``: ``r`` minus the mean speed over the last 10 % of the window, when
   the speed is steady there: it spreads by at most 0.2 % of ``|D|`` (a speed still converging
   inside the settling band is not a steady state);
@@ -21,7 +23,7 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 ``e = speed_ref - speed`` taken in the direction the load pushes (``sign(dT) e``):
 
 - ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
-- ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the dip;
+- ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the dip (the same rule);
 - ``steady_state_error_rpm``, ``iae_rpm_s``, ``saturation_time_s`` as above (the spread test uses
   0.2 % of the dip).
 
@@ -89,7 +91,11 @@ def _first_crossing(t, z, level):
 
 
 def _entry_into_band(t, dev, band):
-    """Time after which ``|dev| <= band`` for good (interpolated), or None if it ends outside."""
+    """Time after which ``|dev| <= band`` to the end (interpolated), or None.
+
+    None when ``dev`` is not inside the band over the whole final part of the window
+    (:data:`STEADY_FRACTION`): a trace that has just entered the band may leave it again.
+    """
     outside = np.nonzero(np.abs(dev) > band)[0]
     if outside.size == 0:
         return t[0]
@@ -97,7 +103,8 @@ def _entry_into_band(t, dev, band):
     if k == len(t) - 1:
         return None
     level = band if dev[k] > band else -band
-    return t[k] + (level - dev[k]) / (dev[k + 1] - dev[k]) * (t[k + 1] - t[k])
+    t_in = t[k] + (level - dev[k]) / (dev[k + 1] - dev[k]) * (t[k + 1] - t[k])
+    return t_in if t_in <= t[-1] - STEADY_FRACTION * (t[-1] - t[0]) else None
 
 
 def _saturation_time(t, saturated, t0, t1):
@@ -137,7 +144,8 @@ def _reference_step(t, speed, ref, saturated, t0, t1, before, after):
                                  _missing(f"the speed did not reach 90 % of the step before {t1:g} s"))
         result["settling_time_s"] = (
             _value(t_settle - t0) if t_settle is not None else
-            _missing(f"the speed did not settle within 2 % of the step before {t1:g} s"))
+            _missing(f"the speed did not settle within 2 % of the step (and stay there over the last "
+                     f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
         result["steady_state_error_rpm"] = _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
     result["iae_rpm_s"] = _value(np.trapezoid(np.abs(r - w), tw))
     result["saturation_time_s"] = _value(_saturation_time(t, saturated, t0, t1))
@@ -166,7 +174,8 @@ def _load_step(t, speed, ref, saturated, t0, t1, before, after):
             t_rec = _entry_into_band(tw, e, BAND * dip)
             result["recovery_time_s"] = (
                 _value(t_rec - t0) if t_rec is not None else
-                _missing(f"the speed did not recover to within 2 % of the dip before {t1:g} s"))
+                _missing(f"the speed did not recover to within 2 % of the dip (and stay there over the last "
+                         f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
             result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], STEADY_SPREAD * dip)
     result["iae_rpm_s"] = _value(np.trapezoid(np.abs(e), tw))
     result["saturation_time_s"] = _value(_saturation_time(t, saturated, t0, t1))
