@@ -40,6 +40,152 @@ def main(argv=None):
 
 
 # ---------------------------------------------------------------------------------------------
+# design and bode (pmsm2dof.design, discretize, codegen, plots)
+# ---------------------------------------------------------------------------------------------
+
+@cli.command()
+@click.option("--J", "J_kgm2", type=float, required=True, help="inertia [kg m^2], > 0")
+@click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0 (eq 9)")
+@click.option("--zeta", type=float, required=True, help="relative damping of the PI loop, > 0 (eq 9)")
+@click.option("--m", type=float, default=1.0, show_default=True, help="tracking pole factor, Gx = m alpha/(s + m alpha) (eq 10)")
+@click.option("--tau-i", "tau_i_s", type=float, default=0.0, show_default=True, help="current-loop time constant [s] (eq 3)")
+@click.option("--Ts", "Ts_s", type=float, required=True, help="speed-loop sampling period [s], > 0")
+@click.option("--method", default="tustin", show_default=True,
+              help="discretization (Table 1): forward_euler, backward_euler or tustin")
+@click.option("--feedforward", default="full", show_default=True,
+              help="none (1DOF PI), lowpass (eq 13, m = 1), no_tau (eq 11 with tau_i = 0) or full (eq 11)")
+@click.option("--anti-windup", default="back_calculation", show_default=True,
+              help="none, back_calculation or clamping")
+@click.option("--Ka", "Ka", type=float, default=None, help="back-calculation gain [(rad/s)/Nm], >= 0 [default: 1/Kp]")
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
+@click.option("--emit-c-header", "header", type=click.Path(dir_okay=False), default=None,
+              help="write a C header with the p2d_speed_config_t of this design")
+@click.option("--prefix", default="p2d_design", show_default=True, help="C identifier prefix in the header")
+@click.option("--i-max", "i_max_A", type=float, default=7.6, show_default=True,
+              help="header: current-vector limit [A] (the paper's iq limit)")
+@click.option("--pole-pairs", type=int, default=4, show_default=True, help="header: pole pairs")
+@click.option("--psi-f", "psi_f_Wb", type=float, default=0.2, show_default=True, help="header: magnet flux linkage [Wb]")
+@click.option("--Ld", "Ld_H", type=float, default=0.01, show_default=True, help="header: d-axis inductance [H]")
+@click.option("--Lq", "Lq_H", type=float, default=None, help="header: q-axis inductance [H] [default: Ld, surface PMSM]")
+@click.option("--Rs", "Rs_ohm", type=float, default=None,
+              help="header: stator resistance [ohm]; with --Ts-current adds a p2d_current_config_t")
+@click.option("--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s]")
+def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, anti_windup, Ka, as_json, header,
+           prefix, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm, Ts_current_s):
+    """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.
+
+    The motor options (--i-max, --pole-pairs, --psi-f, --Ld, --Lq, --Rs, --Ts-current) only
+    go into the C header; their defaults (the paper's 7.6 A limit, a 4-pole-pair surface
+    PMSM with 0.2 Wb and 10 mH) are placeholders to replace with your motor's data.
+    """
+    import json
+    import warnings
+
+    from .design import design as make_design
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        d = make_design(J_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward,
+                        anti_windup=anti_windup, Ka=Ka)
+        dd = d.discretize(Ts_s, method)
+    for w in caught:
+        print(f"pmsm2dof: warning: {_one_line(w.message)}", file=sys.stderr)
+    if header is not None:
+        from .codegen import write_c_header
+
+        write_c_header(header, dd, i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H,
+                       Lq_H=Ld_H if Lq_H is None else Lq_H, Rs_ohm=Rs_ohm, Ts_current_s=Ts_current_s, prefix=prefix)
+    if as_json:
+        click.echo(json.dumps(dd.as_dict()))
+        return
+    click.echo(_design_table(dd))
+    if header is not None:
+        click.echo(f"\nC header written to {header}")
+
+
+def _poles_text(poles, unit):
+    """Poles with conjugate pairs shown once as re ± im j."""
+    parts = []
+    for p in sorted(poles, key=lambda p: (p.real, -p.imag)):
+        if p.imag > 0:
+            parts.append(f"{p.real:.6g} ± {p.imag:.6g}j")
+        elif p.imag == 0:
+            parts.append(f"{p.real:.6g}")
+    return ", ".join(parts) + f" {unit}"
+
+
+def _margins_text(margins, unit):
+    return (f"gain {margins.gain_margin_dB:.4g} dB, phase {margins.phase_margin_deg:.4g} deg"
+            f" (crossover {margins.w_gain_crossover_radps:.4g} {unit})")
+
+
+def _design_table(dd):
+    d = dd.design
+    rows = [
+        ("Design inputs", None),
+        ("J", f"{d.J_kgm2:.6g} kg m^2"),
+        ("alpha", f"{d.alpha_radps:.6g} rad/s"),
+        ("zeta", f"{d.zeta:.6g}"),
+        ("m", f"{d.m:.6g}"),
+        ("tau_i", f"{d.tau_i_s:.6g} s"),
+        ("feedforward", d.feedforward),
+        ("anti-windup", d.anti_windup),
+        ("Gains (eq 9)", None),
+        ("Kp = J alpha", f"{d.Kp:.6g} Nm/(rad/s)"),
+        ("Ki = J (alpha/(2 zeta))^2", f"{d.Ki:.6g} Nm/rad"),
+        ("Ka", f"{d.Ka:.6g} (rad/s)/Nm" + (" (1/Kp)" if d.Ka == 1.0 / d.Kp else "")),
+        ("Continuous loop (F G, eq 2, 3, 6, 8)", None),
+        ("loop poles", _poles_text(d.closed_loop_poles(), "rad/s")),
+        ("feedforward pole", "none" if d.feedforward == "none" else f"{-d.fr_polynomials()[1][1]:.6g} rad/s"),
+        ("bandwidth (-3 dB of Gx)", f"{d.bandwidth_radps():.6g} rad/s"),
+        ("step overshoot", f"{d.overshoot_pct():.3g} %"),
+        ("margins", _margins_text(d.margins(), "rad/s")),
+        (f"Discrete loop ({dd.method}, Ts = {dd.Ts_s:g} s, ZOH plant)", None),
+        ("loop poles", _poles_text(dd.poles, "(z)")),
+        ("largest |z|", f"{max(abs(p) for p in dd.poles):.9g}"),
+        ("step overshoot", f"{dd.overshoot_pct:.3g} %"),
+        ("margins", _margins_text(dd.margins, "rad/s")),
+        ("Coefficients (p2d_speed_coef_t)", None),
+        ("b_e0", f"{dd.b_e0:.9g} Nm/(rad/s)"),
+        ("Ki_Ts", f"{dd.Ki_Ts:.9g} Nm/(rad/s)"),
+        ("Ki_Ka_Ts", f"{dd.Ki_Ka_Ts:.9g}"),
+        ("ff_b0", f"{dd.ff_b0:.9g} Nm/(rad/s)"),
+        ("ff_b1", f"{dd.ff_b1:.9g} Nm/(rad/s)"),
+        ("ff_a1", f"{dd.ff_a1:.9g}"),
+        ("ff_Kd_per_Ts", f"{dd.ff_Kd_per_Ts:.9g} Nm/(rad/s)"),
+    ]
+    width = max(len(name) for name, value in rows if value is not None) + 2
+    lines = []
+    for name, value in rows:
+        if value is None:
+            lines.append(("\n" if lines else "") + name)
+        else:
+            lines.append(f"  {name:<{width}}{value}")
+    return "\n".join(lines)
+
+
+@cli.command()
+@click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0")
+@click.option("--m", "m_list", default="0.2,0.5,1,2", show_default=True, help="comma-separated values of m (eq 10)")
+@click.option("--J", "J_kgm2", type=float, default=0.4, show_default=True, help="inertia [kg m^2] (paper section 4)")
+@click.option("--zeta", type=float, default=0.2887, show_default=True, help="relative damping (paper: Ki = 0.3)")
+@click.option("--tau-i", "tau_i_s", type=float, default=0.05, show_default=True, help="current-loop time constant [s]")
+@click.option("--feedforward", default="full", show_default=True, help="none, lowpass, no_tau or full")
+@click.option("--out", type=click.Path(dir_okay=False), required=True, help="figure file, .png or .svg")
+def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
+    """Bode diagram of the tracking response Gx for several m (paper Fig. 7)."""
+    from .errors import ConfigError
+    from .plots import bode_gx_sweep, save_figure
+
+    try:
+        m_values = [float(v) for v in m_list.split(",")]
+    except ValueError:
+        raise ConfigError("m", m_list, "comma-separated numbers > 0, e.g. 0.2,0.5,1,2") from None
+    save_figure(bode_gx_sweep(alpha_radps, m_values, J_kgm2=J_kgm2, zeta=zeta, tau_i_s=tau_i_s,
+                              feedforward=feedforward), out)
+
+
+# ---------------------------------------------------------------------------------------------
 # simulate and presets (pmsm2dof.scenario, simulate, metrics, traceplot)
 # ---------------------------------------------------------------------------------------------
 

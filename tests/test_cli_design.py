@@ -1,0 +1,103 @@
+"""The `pmsm2dof design` and `pmsm2dof bode` commands."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from pmsm2dof.cli import main
+
+PAPER = ["--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--m", "1", "--tau-i", "0.05", "--Ts", "1e-3",
+         "--method", "tustin", "--feedforward", "full"]
+
+
+def test_design_table_shows_gains_poles_margins_and_coefficients(capsys):
+    assert main(["design", *PAPER]) == 0
+    out = capsys.readouterr().out
+    for label in ("Kp = J alpha", "loop poles", "bandwidth", "margins", "b_e0", "ff_Kd_per_Ts"):
+        assert label in out
+    # eq 9 by hand: Kp = 0.4 * 0.5, Ki = 0.4 * (0.5 / (2 * 0.2887))^2
+    assert "0.2 Nm/(rad/s)" in out
+    assert f"{0.4 * (0.5 / (2 * 0.2887)) ** 2:.6g} Nm/rad" in out
+
+
+def test_design_json_in_a_fresh_process():
+    run = subprocess.run([sys.executable, "-m", "pmsm2dof", "design", *PAPER, "--json"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    data = json.loads(run.stdout)
+    assert data["Kp"] == pytest.approx(0.2, rel=1e-12)
+    assert data["Ki"] == pytest.approx(0.4 * (0.5 / (2 * 0.2887)) ** 2, rel=1e-12)
+    assert data["Ka"] == pytest.approx(5.0, rel=1e-12)
+    assert data["discrete"]["coefficients"]["b_e0"] == pytest.approx(0.2 + data["Ki"] * 1e-3 / 2, rel=1e-12)
+
+
+def test_design_emits_c_header(tmp_path, capsys):
+    header = tmp_path / "speed_design.h"
+    assert main(["design", *PAPER, "--emit-c-header", str(header), "--prefix", "motor1", "--json"]) == 0
+    json.loads(capsys.readouterr().out)
+    text = header.read_text()
+    assert "static const p2d_speed_config_t motor1_speed_config" in text
+    assert ".i_max_A = 7.6f" in text and ".pole_pairs = 4u" in text
+    assert "p2d_current_config_t" not in text
+    assert main(["design", *PAPER, "--emit-c-header", str(header), "--Rs", "0.5", "--Ts-current", "1e-4"]) == 0
+    assert "static const p2d_current_config_t p2d_design_current_config" in header.read_text()
+
+
+def test_sampling_warning_is_one_stderr_line(capsys):
+    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--Ts", "0.5"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("pmsm2dof: warning: Ts_s = 0.5")
+
+
+BAD = [
+    (["design", "--J", "-0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "J_kgm2"),
+    (["design", "--J", "0.4", "--alpha", "nan", "--zeta", "0.3", "--Ts", "1e-3"], "alpha_radps"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0", "--Ts", "1e-3"], "zeta"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "inf"], "Ts_s"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--tau-i", "-1"], "tau_i_s"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--Ka", "-2"], "Ka"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--m", "2",
+      "--feedforward", "lowpass"], "m"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--method", "zoh"], "method"),
+    (["design", "--J", "heavy", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
+    (["design", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
+    (["bode", "--alpha", "0.5", "--m", "0.2,x", "--out", "fig.png"], "m"),
+    (["bode", "--alpha", "0", "--out", "fig.png"], "alpha_radps"),
+    (["bode", "--alpha", "0.5", "--out", "fig.pdf"], "out"),
+]
+
+
+@pytest.mark.parametrize("argv, param", BAD)
+def test_bad_values_exit_2_with_one_stderr_line(tmp_path, monkeypatch, capsys, argv, param):
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.count("\n") == 1 and captured.err.startswith("pmsm2dof: error: ")
+    assert param in captured.err
+    assert "Traceback" not in captured.err
+    assert not any(tmp_path.iterdir())
+
+
+def test_bad_header_option_writes_nothing(tmp_path, capsys):
+    header = tmp_path / "h.h"
+    assert main(["design", *PAPER, "--emit-c-header", str(header), "--pole-pairs", "0"]) == 2
+    assert capsys.readouterr().err.startswith("pmsm2dof: error: pole_pairs = 0")
+    assert not any(tmp_path.iterdir())
+
+
+def test_bad_value_in_a_fresh_process_has_no_traceback():
+    run = subprocess.run([sys.executable, "-m", "pmsm2dof", "design", "--J", "0", "--alpha", "0.5", "--zeta", "0.3",
+                          "--Ts", "1e-3"], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines() == ["pmsm2dof: error: J_kgm2 = 0.0 is invalid: valid range is finite and > 0"]
+
+
+@pytest.mark.parametrize("name", ["fig7.png", "fig7.svg"])
+def test_bode_draws_fig7(tmp_path, name):
+    out = tmp_path / name
+    assert main(["bode", "--alpha", "0.5", "--m", "0.2,0.5,1,2", "--out", str(out)]) == 0
+    data = out.read_bytes()
+    assert data.startswith(b"\x89PNG") if name.endswith(".png") else b"<svg" in data[:2000]
