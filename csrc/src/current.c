@@ -94,7 +94,7 @@ void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_
                          p2d_current_output_t *out)
 {
     const p2d_current_coef_t *c = &ctl->coef[ctl->active];
-    float ud, uq, u_max, norm2, k;
+    float ud, uq, u_max, u_big, norm, k;
 
     out->ed_A = id_ref_A - id_A;
     out->eq_A = iq_ref_A - iq_A;
@@ -116,10 +116,16 @@ void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_
         return;
     }
     out->fault = false;
-    norm2 = ud * ud + uq * uq;
-    out->saturated = norm2 > u_max * u_max;
+    /*
+     * ||u_dq|| = u_big sqrt((ud/u_big)^2 + (uq/u_big)^2), u_big = max(|ud|, |uq|):
+     * the squares neither overflow nor underflow (ud^2 + uq^2 would for
+     * |u| > 1.8e19 V or < 1e-19 V, and a tiny vector would pass a zero limit)
+     */
+    u_big = fmaxf(fabsf(ud), fabsf(uq));
+    norm = u_big > 0.0f ? u_big * sqrtf((ud / u_big) * (ud / u_big) + (uq / u_big) * (uq / u_big)) : 0.0f;
+    out->saturated = norm > u_max;
     /* scale the vector back onto the limit circle, keeping its direction */
-    k = out->saturated ? u_max / sqrtf(norm2) : 1.0f;
+    k = out->saturated ? u_max / norm : 1.0f;
     out->ud_ref_V = k * ud;
     out->uq_ref_V = k * uq;
 }
