@@ -211,6 +211,7 @@ def test_bad_scenario_names_the_key(path):
     ("unknown_key_case", "did you mean 'motor.Rs_ohm'"),
     ("unknown_key_wrong_table", "did you mean 'limits.i_max_A'"),
     ("unknown_table", "did you mean 'simulation'"),
+    ("unknown_key_top_level", "did you mean 'current_loop.Ts_s' or 'speed_controller.Ts_s'"),
     ("unknown_key_in_entry", "did you mean 'load.0.torque_Nm'"),
     ("lowpass_m_not_1", "no_tau"),
     ("ts_not_multiple", "integer multiple"),
@@ -272,6 +273,8 @@ def test_derived_defaults_follow_their_source_unless_given():
     ({"current_loop.Ts_s": 3e-4}, "speed_controller.Ts_s"),
     ({"speed_controller.m": 0.5}, "speed_controller.m"),
     ({"": 1}, "override key"),
+    ({"motor.J_kgm2": 10**400}, "motor.J_kgm2"),
+    ({"speed_controller.Ts_s": 1e300, "current_loop.Ts_s": 1e-300}, "speed_controller.Ts_s"),
 ])
 def test_bad_overrides_name_the_key(overrides, key):
     with pytest.raises(ConfigError) as exc:

@@ -64,13 +64,9 @@ _ARRAY = _Placeholder("<array>")
 
 @dataclasses.dataclass(frozen=True)
 class SameAs:
-    """A default taken from another key of the same scenario: ``factor * data[key]``."""
+    """A default taken from another key of the same scenario (``"motor.J_kgm2"``)."""
 
     key: str
-    factor: float = 1.0
-
-    def describe(self):
-        return self.key if self.factor == 1.0 else f"{self.key} * {self.factor:g}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -120,7 +116,10 @@ class Field:
         if self.kind is float:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ConfigError(dotted, value, self.valid_range())
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError:
+                raise ConfigError(dotted, value, self.valid_range()) from None
             if not math.isfinite(value):
                 raise ConfigError(dotted, value, self.valid_range())
         elif self.kind is int:
@@ -233,12 +232,12 @@ def _unknown_key(dotted, value, parent, valid):
     where = f"[{parent}]" if parent else "the top level"
     prefix = f"{parent}." if parent else ""
     same_case = [v for v in valid if v.lower() == leaf.lower()]
-    elsewhere = [f.key.replace("[]", ".0") for f in SCHEMA if f.leaf.lower() == leaf.lower()]
+    elsewhere = [f"'{f.key.replace('[]', '.0')}'" for f in SCHEMA if f.leaf.lower() == leaf.lower()]
     close = difflib.get_close_matches(leaf, valid, n=1, cutoff=0.6)
     if same_case:
         hint = f"did you mean '{prefix}{same_case[0]}'?"
     elif elsewhere:
-        hint = f"did you mean '{elsewhere[0]}'?"
+        hint = f"did you mean {' or '.join(elsewhere)}?"
     elif close:
         hint = f"did you mean '{prefix}{close[0]}'?"
     else:
@@ -311,7 +310,7 @@ def _validate(tree):
     for f in SCHEMA:
         if isinstance(f.default, SameAs) and f.leaf not in given.get(f.parent, {}):
             table, leaf = f.default.key.split(".")
-            data[f.parent][f.leaf] = f.default.factor * data[table][leaf]
+            data[f.parent][f.leaf] = data[table][leaf]
     for name in ARRAYS:
         data[name] = [{f.leaf: e.get(f.leaf, f.default) for f in _fields_of(f"{name}[]")}
                       for e in given.get(name, [])]
@@ -323,7 +322,7 @@ def _check_relations(data):
     """The checks that involve more than one key."""
     sc, cl, sim = data["speed_controller"], data["current_loop"], data["simulation"]
     ratio = sc["Ts_s"] / cl["Ts_s"]
-    n = round(ratio)
+    n = round(ratio) if math.isfinite(ratio) else 0
     if n < 1 or abs(sc["Ts_s"] - n * cl["Ts_s"]) > TS_MULTIPLE_RTOL * sc["Ts_s"]:
         raise ConfigError("speed_controller.Ts_s", sc["Ts_s"],
                           f"an integer multiple (1, 2, 3, ...) of current_loop.Ts_s = {cl['Ts_s']!r}")
@@ -445,7 +444,7 @@ def _toml_fields(fields, given, data):
         if f.leaf in given:
             lines.append(f"{f.leaf} = {_toml_value(given[f.leaf])}")
         elif isinstance(f.default, SameAs):
-            lines.append(f"# {f.leaf} = {_toml_value(data[f.leaf])}  (default: {f.default.describe()})")
+            lines.append(f"# {f.leaf} = {_toml_value(data[f.leaf])}  (default: {f.default.key})")
         elif f.default is None:
             lines.append(f"# {f.leaf} =  (optional: {f.doc})")
         else:
@@ -550,7 +549,7 @@ def schema_reference():
         if f.default is REQUIRED:
             default = "required"
         elif isinstance(f.default, SameAs):
-            default = f"default {f.default.describe()}"
+            default = f"default {f.default.key}"
         elif f.default is None:
             default = "optional"
         else:
