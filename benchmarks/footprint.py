@@ -23,8 +23,8 @@ instructions per step
     before each measured step; the count runs from the step's entry to the
     return address of its call, callees (libm included) counted. These are
     executed instructions, not cycles: on the M4, ``vdiv.f32`` and
-    ``vsqrt.f32`` take 14 cycles, loads 2, taken branches 2-4 (Cortex-M4
-    Technical Reference Manual, 3.3 and FPU 7.2.3).
+    ``vsqrt.f32`` take 14 cycles, loads 2, taken branches 2 to 4 (Cortex-M4
+    Technical Reference Manual, instruction timings); QEMU models no cycles.
     The count is checked on ``p2d_speed_Ka_default``, which has no branch: the
     trace must give the number of instructions of its disassembly.
 
@@ -81,6 +81,19 @@ def module_sizes(build_dir):
         text, data, bss, _, _, path = line.split()
         sizes[Path(path).name.removesuffix(".c.obj")] = (int(text), int(data), int(bss))
     return sizes
+
+
+def library_functions(build_dir):
+    """[(module, symbol, size)] of the static library, largest first (``nm --size-sort``)."""
+    out = run(["arm-none-eabi-nm", "--size-sort", "-S", build_dir / "libpmsm2dof_controller.a"])
+    rows, module = [], None
+    for line in out.splitlines():
+        if line.endswith(".obj:"):
+            module = line[:-len(".c.obj:")]
+        parts = line.split()
+        if len(parts) == 4 and parts[2] in "TtRr":
+            rows.append((module, parts[3], int(parts[1], 16)))
+    return sorted(rows, key=lambda r: -r[2])
 
 
 def symbols(elf):
@@ -227,12 +240,20 @@ def measure(build_dir, workdir):
 
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
-    return dict(modules=module_sizes(build_dir), funcs=funcs, sizeof=sizeof, rows=rows, flash=flash,
+    return dict(modules=module_sizes(build_dir), library=library_functions(build_dir), funcs=funcs, sizeof=sizeof, rows=rows, flash=flash,
                 hot=hot, ka_check=ka_disassembled)
 
 
 def tool_version(cmd):
     return run([cmd, "--version"]).splitlines()[0]
+
+
+def code_version():
+    """Commit of the measured sources, and whether they differed from it."""
+    sources = ["csrc/src", "csrc/include", "csrc/target"]
+    commit = run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"]).strip()
+    dirty = run(["git", "-C", ROOT, "status", "--porcelain", "--", *sources]).strip()
+    return f"commit {commit}" + (f" with uncommitted changes in {', '.join(sources)}" if dirty else "")
 
 
 def report(m):
@@ -245,7 +266,7 @@ def report(m):
         SECTION, "",
         f"Measured {datetime.date.today().isoformat()} by `python3 benchmarks/footprint.py` on "
         f"{platform.node() or 'host'} ({platform.machine()}, {cpu}, {os.cpu_count()} cores);",
-        f"{tool_version('arm-none-eabi-gcc')}; {tool_version('qemu-system-arm')}.",
+        f"{tool_version('arm-none-eabi-gcc')}; {tool_version('qemu-system-arm')}; code: {code_version()}.",
         "Flags: `-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard -O2 -ffp-contract=off`, newlib-nano.",
         "",
         "### Flash and RAM of the library modules (`arm-none-eabi-size`, bytes)", "",
@@ -253,6 +274,11 @@ def report(m):
     ]
     for name, (text, data, bss) in m["modules"].items():
         out.append(f"| {name}.c | {text} | {data} | {bss} |")
+    out += ["", "Text includes read-only data (the status strings of status.c). No module has .data or .bss:",
+            "the controllers keep all state in the structs the caller allocates.", "",
+            "### Per function (`arm-none-eabi-nm --size-sort`, bytes)", "",
+            "| module | symbol | size |", "|---|---|---:|"]
+    out += [f"| {mod}.c | {sym} | {size} |" for mod, sym, size in m["library"]]
     out += ["", "### Flash reachable from an entry point (static call graph, newlib included, bytes)", "",
             "| entry | flash | functions |", "|---|---:|---|"]
     for root, (size, reach) in m["flash"].items():
