@@ -63,7 +63,8 @@ def main(argv=None):
 @click.option("--prefix", default="p2d_design", show_default=True, help="C identifier prefix in the header")
 @click.option("--i-max", "i_max_A", type=float, default=7.6, show_default=True,
               help="header: current-vector limit [A] (the paper's iq limit)")
-@click.option("--pole-pairs", type=int, default=4, show_default=True, help="header: pole pairs")
+@click.option("--pole-pairs", type=int, default=4, show_default=True,
+              help="header: pole pairs p, Te = 1.5 p psi_f iq (the paper's p0, called there the number of poles)")
 @click.option("--psi-f", "psi_f_Wb", type=float, default=0.2, show_default=True, help="header: magnet flux linkage [Wb]")
 @click.option("--Ld", "Ld_H", type=float, default=0.01, show_default=True, help="header: d-axis inductance [H]")
 @click.option("--Lq", "Lq_H", type=float, default=None, help="header: q-axis inductance [H] [default: Ld, surface PMSM]")

@@ -117,7 +117,9 @@ def c_header(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm=None
     i_max_A : float
         Current-vector limit ``||i_dq|| <= i_max_A`` [A], > 0.
     pole_pairs : int
-        Pole pairs [-], >= 1 (the paper's eq 1 calls it the number of poles).
+        Pole pairs p [-], >= 1. The torque is ``Te = 1.5 p (psi_f iq + (Ld - Lq) id iq)``
+        (amplitude-invariant Park); the paper's eq (1) omits the 1.5 and calls p0
+        the number of poles while using it as pole pairs.
     psi_f_Wb : float
         Permanent-magnet flux linkage [Wb], > 0.
     Ld_H, Lq_H : float
