@@ -46,6 +46,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     /* eq 9: Kp = J alpha, Ki = J (alpha / (2 zeta))^2 */
     k.Kp = cfg->J_kgm2 * cfg->alpha_radps;
     k.Ki = cfg->J_kgm2 * (cfg->alpha_radps / (2.0f * cfg->zeta)) * (cfg->alpha_radps / (2.0f * cfg->zeta));
+    if (!isfinite(k.Kp) || !isfinite(k.Ki)) return P2D_ERR_J; /* float32 overflow of the gains */
     k.Ki_Ts = k.Ki * cfg->Ts_s;
     k.clamping = cfg->anti_windup == P2D_AW_CLAMPING;
     k.Ki_Ka_Ts = 0.0f;

@@ -8,7 +8,7 @@ typedef struct {
 static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_OK] = {"", ""},
     [P2D_ERR_NULL] = {"pointer", "non-NULL"},
-    [P2D_ERR_J] = {"J_kgm2", "finite and > 0"},
+    [P2D_ERR_J] = {"J_kgm2", "finite and > 0, with the gains Kp = J*alpha and Ki = J*(alpha/(2*zeta))^2 finite in float32"},
     [P2D_ERR_ALPHA] = {"alpha_radps", "finite and > 0"},
     [P2D_ERR_ZETA] = {"zeta", "finite and > 0"},
     [P2D_ERR_M] = {"m", "finite and > 0"},

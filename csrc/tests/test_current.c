@@ -114,6 +114,17 @@ static void test_voltage_limit(void)
     /* zero or negative DC link: zero voltage */
     p2d_current_compute(&ctl, 1.0f, 1.0f, 0.0f, 0.0f, 0.0f, -5.0f, &out);
     CHECK(out.ud_ref_V == 0.0f && out.uq_ref_V == 0.0f && out.saturated && !out.fault);
+    /* a tiny vector (its square underflows) against a zero limit, a huge one (its square overflows) */
+    p2d_current_reset(&ctl);
+    p2d_current_compute(&ctl, 0.0f, 0.0f, 0.0f, 0.0f, 4e-24f, 0.0f, &out);
+    CHECK(out.uq_unsat_V > 0.0f && out.uq_ref_V == 0.0f && out.saturated);
+    p2d_current_compute(&ctl, 3e19f, 4e19f, 0.0f, 0.0f, 0.0f, 48.0f, &out);
+    {
+        /* Tustin b_e0 = Kp + Ki Ts / 2 per axis */
+        double ud = (2.0 + 0.5 * 500.0 * 1e-5) * 3e19, uq = (3.0 + 0.5 * 500.0 * 1e-5) * 4e19;
+        CHECK_CLOSE(out.ud_ref_V, u_max * ud / sqrt(ud * ud + uq * uq), 1e-4);
+        CHECK_CLOSE(out.uq_ref_V, u_max * uq / sqrt(ud * ud + uq * uq), 1e-4);
+    }
 }
 
 static void test_non_finite_policy(void)
