@@ -196,6 +196,7 @@ def function_of(funcs):
 
 
 def measure(build_dir, workdir):
+    """Every number of the report, from a cross build in build_dir and a QEMU trace in workdir."""
     elf = cross_build(build_dir)
     funcs = symbols(elf)
     mnemonic, calls = disassembly(elf)
@@ -229,19 +230,21 @@ def measure(build_dir, workdir):
             per_function=Counter(where(a) for a in path), path=path,
         ))
 
-    flash = {}
-    for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init"):
-        reach = reachable(calls, root)
-        flash[root] = (sum(funcs[f][1] for f in reach if f in funcs), sorted(reach))
-    speed_all = set().union(*(reachable(calls, f) for f in funcs if f.startswith("p2d_speed_")))
-    current_all = set().union(*(reachable(calls, f) for f in funcs if f.startswith("p2d_current_")))
-    flash["speed controller (all p2d_speed_*)"] = (sum(funcs[f][1] for f in speed_all), sorted(speed_all))
-    flash["current controller (all p2d_current_*)"] = (sum(funcs[f][1] for f in current_all), sorted(current_all))
+    def flash_of(names):
+        names = sorted(f for f in names if f in funcs)
+        return sum(funcs[f][1] for f in names), names
+
+    flash = {root: flash_of(reachable(calls, root))
+             for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init")}
+    for controller in ("speed", "current"):
+        entries = [f for f in funcs if f.startswith(f"p2d_{controller}_")]
+        flash[f"{controller} controller (all p2d_{controller}_*)"] = flash_of(
+            set().union(*(reachable(calls, f) for f in entries)))
 
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
-    return dict(modules=module_sizes(build_dir), library=library_functions(build_dir), funcs=funcs, sizeof=sizeof, rows=rows, flash=flash,
-                hot=hot, ka_check=ka_disassembled)
+    return dict(modules=module_sizes(build_dir), library=library_functions(build_dir), funcs=funcs,
+                sizeof=sizeof, rows=rows, flash=flash, hot=hot, ka_check=ka_disassembled)
 
 
 def tool_version(cmd):
@@ -282,7 +285,7 @@ def report(m):
     out += ["", "### Flash reachable from an entry point (static call graph, newlib included, bytes)", "",
             "| entry | flash | functions |", "|---|---:|---|"]
     for root, (size, reach) in m["flash"].items():
-        out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach if f in m["funcs"]) + " |")
+        out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
     out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
     out += [f"| {t} | {s} |" for t, s in m["sizeof"].items()]
     stack = {}
