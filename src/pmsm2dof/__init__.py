@@ -17,3 +17,6 @@ from .metrics import compute_metrics
 from .scenario import Scenario, list_presets, load_scenario
 
 __all__ += ["Scenario", "compute_metrics", "list_presets", "load_scenario"]
+from .simulate import Result, simulate
+
+__all__ += ["Result", "simulate"]

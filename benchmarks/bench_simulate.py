@@ -1,0 +1,156 @@
+"""Throughput of the drive simulation engine: simulated seconds per wall-clock second.
+
+Usage::
+
+    python3 benchmarks/bench_simulate.py [--runs 5] [--no-write]
+
+Runs the preset ``paper-condition-2`` (15 s: speed step, 8 Nm load step, speed step) with the
+``dq_pi`` current loop at Ts_current = 100 us, and the same with the ``first_order`` current loop,
+``--runs`` times each after one warm-up run, on one core (the engine is single-threaded), and
+reports the median of
+
+- the whole :func:`pmsm2dof.simulate` call (scenario to C configuration, the run, the Result);
+- the C run alone (``Result.wall_time_s``), also as nanoseconds per current-controller period.
+
+It also measures the accuracy of the plant step the run uses (the default, one RK4 step per
+current period): the largest change of the speed trace when the step is halved, relative to the
+largest speed. Writes the section "Simulation engine throughput" of ``benchmarks/results.md``
+(other sections are kept) and prints it. The target is at least 1000 simulated seconds per wall
+second for ``dq_pi``.
+"""
+
+import argparse
+import datetime
+import os
+import platform
+import re
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from pmsm2dof import load_scenario, simulate
+
+RESULTS = Path(__file__).resolve().parent / "results.md"
+SECTION = "## Simulation engine throughput"
+TARGET_SIM_S_PER_WALL_S = 1000.0
+
+
+def cpu_model():
+    """The ``Model name`` of lscpu (``/proc/cpuinfo`` if lscpu is absent)."""
+    try:
+        out = subprocess.run(["lscpu"], capture_output=True, text=True, check=True).stdout
+        found = re.search(r"^Model name:\s*(.+)$", out, re.M)
+        if found:
+            return found.group(1).strip()
+    except (OSError, subprocess.CalledProcessError):
+        pass
+    text = Path("/proc/cpuinfo").read_text() if Path("/proc/cpuinfo").exists() else ""
+    found = re.search(r"^model name\s*:\s*(.+)$", text, re.M)
+    return found.group(1).strip() if found else "unknown CPU"
+
+
+def git_commit():
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
+                              cwd=Path(__file__).resolve().parent).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def measure(scenario, runs):
+    """Median whole-call and C-run wall times [s] of ``runs`` runs after one warm-up."""
+    simulate(scenario)
+    calls, engine = [], []
+    for _ in range(runs):
+        start = time.perf_counter()
+        result = simulate(scenario)
+        calls.append(time.perf_counter() - start)
+        engine.append(result.wall_time_s)
+    return statistics.median(calls), statistics.median(engine)
+
+
+def halving_change(scenario):
+    """max |w(dt) - w(dt/2)| / max |w(dt/2)| of the speed traces."""
+    dt = scenario.data["simulation"]["dt_s"]
+    a = simulate(scenario)
+    b = simulate(scenario.with_overrides({"simulation.dt_s": dt / 2}))
+    return float(np.max(np.abs(a.w_m_radps - b.w_m_radps)) / np.max(np.abs(b.w_m_radps)))
+
+
+def write_section(text):
+    """Replace (or append) this benchmark's section of results.md, keeping the others."""
+    old = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n"
+    start = old.find(SECTION + "\n")
+    if start < 0:
+        new = old.rstrip("\n") + "\n\n" + text
+    else:
+        nxt = old.find("\n## ", start + len(SECTION))
+        new = old[:start] + text + ("\n" + old[nxt + 1:] if nxt >= 0 else "")
+    tmp = RESULTS.with_suffix(".md.tmp")
+    tmp.write_text(new)
+    tmp.replace(RESULTS)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--runs", type=int, default=5, help="timed runs per case (median reported)")
+    parser.add_argument("--no-write", action="store_true", help="print the section, do not write results.md")
+    args = parser.parse_args(argv)
+
+    base = load_scenario("paper-condition-2")
+    data = base.data
+    assert data["current_loop"]["model"] == "dq_pi" and data["current_loop"]["Ts_s"] == 1e-4
+    t_end_s = data["simulation"]["t_end_s"]
+    Ts_current_s = data["current_loop"]["Ts_s"]
+    load_before = os.getloadavg()[0]
+
+    rows = []
+    for label, scenario in (("dq_pi", base), ("first_order", base.with_overrides({"current_loop.model": "first_order"}))):
+        call_s, engine_s = measure(scenario, args.runs)
+        rows.append((label, t_end_s / call_s, t_end_s / engine_s, engine_s / (t_end_s / Ts_current_s) * 1e9))
+    change = halving_change(base)
+    load_after = os.getloadavg()[0]
+
+    dq_pi_rate = rows[0][1]
+    verdict = "met" if dq_pi_rate >= TARGET_SIM_S_PER_WALL_S else "NOT met"
+    lines = [
+        SECTION,
+        "",
+        f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC by "
+        f"`python3 benchmarks/bench_simulate.py --runs {args.runs}` at commit {git_commit()} on "
+        f"{cpu_model()}, nproc {os.cpu_count()}, Python {platform.python_version()}; "
+        f"1-minute load average {load_before:.2f} before and {load_after:.2f} after (the machine is shared, "
+        "so other work lowers these figures).",
+        "",
+        f"Preset `paper-condition-2` ({t_end_s:g} s simulated), current controller at "
+        f"Ts_current = {Ts_current_s * 1e6:g} us, speed controller at "
+        f"{data['speed_controller']['Ts_s'] * 1e3:g} ms, plant by RK4 with dt = {data['simulation']['dt_s'] * 1e6:g} us "
+        f"(the default, one step per current period), logged every speed sample. Median of {args.runs} runs "
+        "after a warm-up run, one core.",
+        "",
+        "| current loop | simulated s / wall s, whole `simulate()` call | simulated s / wall s, C run only "
+        "| ns per current period |",
+        "|---|---:|---:|---:|",
+    ]
+    lines += [f"| {label} | {call:.0f} | {engine:.0f} | {ns:.0f} |" for label, call, engine, ns in rows]
+    lines += [
+        "",
+        f"Target: >= {TARGET_SIM_S_PER_WALL_S:g} simulated s per wall s for dq_pi (whole call): {verdict}.",
+        f"Accuracy of the plant step: halving dt changes the speed trace by {change:.1e} of the largest speed "
+        "(requirement < 1e-4; tests/test_engine.py checks it).",
+        "",
+    ]
+    text = "\n".join(lines)
+    print(text)
+    if not args.no_write:
+        write_section(text)
+        print(f"wrote the section to {RESULTS}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
