@@ -1,0 +1,382 @@
+/*
+ * pmsm2dof tuner page: builds the controls the server describes, asks the server for a
+ * run whenever a control changes and redraws the plots and the metrics table.
+ *
+ * Changes are coalesced: those within COALESCE_MS of the first make one request, and at
+ * most one request is in flight; changes made while a run is computed make one request sent
+ * when it returns. A response is drawn only if it is newer than what is on screen (latest
+ * request wins). So the plots follow a moving slider at the pace the server allows.
+ */
+"use strict";
+
+const COALESCE_MS = 10;
+const PLOT_CONFIG = { displaylogo: false, responsive: true, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
+const COLORS = { current: "#1f77b4", reference: "#222", pinned: "#aaa", limit: "#d62728", d: "#2ca02c", gx: "#1f77b4", gn: "#ff7f0e" };
+
+/* Public state, read by the benchmark and the browser test. */
+window.tuner = {
+  pending: true,      // a change is not drawn (or rejected) yet
+  requestSeq: 0,      // number of the latest request sent
+  renderedSeq: 0,     // number of the request whose response is on screen
+  renderCount: 0,     // responses drawn
+  errorCount: 0,      // 422 answers shown
+  lastLatencyMs: null, // control change -> plots redrawn, for the response on screen
+  lastServerMs: null,  // server computing time for it
+  lastFetchMs: null,   // request sent -> response parsed, for it
+  current: null,      // response on screen
+  pinned: null,       // pinned response
+};
+
+const state = { specs: {}, values: {}, changedAt: 0, inFlight: false, dirty: false, timer: null };
+
+function el(tag, attrs, children) {
+  const node = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs || {})) {
+    if (k === "text") node.textContent = v;
+    else node.setAttribute(k, v);
+  }
+  for (const c of children || []) node.appendChild(c);
+  return node;
+}
+
+function fmt(x) {
+  if (x === null || x === undefined) return "\u2013";
+  if (typeof x !== "number") return String(x);
+  if (!isFinite(x)) return String(x);
+  if (x === 0) return "0";
+  return Number(x.toPrecision(4)).toString();
+}
+
+/* ---- controls ---------------------------------------------------------------- */
+
+function sliderToValue(spec, pos) {
+  const f = pos / 1000;
+  let v = spec.scale === "log"
+    ? spec.min * Math.pow(spec.max / spec.min, f)
+    : spec.min + f * (spec.max - spec.min);
+  if (spec.quantum) v = Math.max(1, Math.round(v / spec.quantum)) * spec.quantum;
+  return Number(v.toPrecision(4));
+}
+
+function valueToSlider(spec, v) {
+  let f = spec.scale === "log"
+    ? Math.log(v / spec.min) / Math.log(spec.max / spec.min)
+    : (v - spec.min) / (spec.max - spec.min);
+  if (!isFinite(f)) f = 0;
+  return Math.round(1000 * Math.min(1, Math.max(0, f)));
+}
+
+function buildControl(spec) {
+  const id = "ctl-" + spec.key.replace(/\W/g, "-");
+  const label = el("label", { for: id, title: spec.help || spec.key, text: spec.label + (spec.unit ? " [" + spec.unit + "]" : "") });
+  const row = el("div", { class: "control", "data-key": spec.key }, [label]);
+  state.specs[spec.key] = spec;
+  if (spec.kind === "select") {
+    const select = el("select", { id: id, name: spec.key });
+    for (const c of spec.choices) select.appendChild(el("option", { value: c, text: c }));
+    select.value = spec.value;
+    select.addEventListener("change", () => setValue(spec.key, select.value));
+    row.appendChild(select);
+    return row;
+  }
+  const range = el("input", { type: "range", min: "0", max: "1000", step: "1", "aria-label": spec.label });
+  const box = el("input", { type: "text", id: id, name: spec.key, inputmode: "decimal" });
+  row.append(range, box);
+  const show = (v) => { box.value = v === null ? "" : fmt(v); if (v !== null && isFinite(v)) range.value = valueToSlider(spec, v); };
+  show(spec.value);
+  range.addEventListener("input", () => { const v = sliderToValue(spec, Number(range.value)); box.value = fmt(v); setValue(spec.key, v); });
+  box.addEventListener("change", () => {
+    const text = box.value.trim();
+    const v = text === "" || isNaN(Number(text)) ? text : Number(text);
+    if (typeof v === "number" && isFinite(v)) range.value = valueToSlider(spec, v);
+    setValue(spec.key, v);
+  });
+  if (spec.nullable) {
+    const check = el("input", { type: "checkbox", id: id + "-default" });
+    const option = el("label", { class: "option", for: id + "-default" }, [check, document.createTextNode(" " + spec.null_label)]);
+    row.appendChild(el("span"));
+    row.appendChild(option);
+    const apply = () => {
+      range.disabled = box.disabled = check.checked;
+      setValue(spec.key, check.checked ? null : sliderToValue(spec, Number(range.value)));
+    };
+    check.checked = spec.value === null;
+    range.disabled = box.disabled = check.checked;
+    if (spec.value === null) { const v = spec.default_position; range.value = valueToSlider(spec, v); box.value = fmt(v); }
+    check.addEventListener("change", apply);
+  }
+  return row;
+}
+
+function buildControls(description) {
+  const form = document.getElementById("controls");
+  for (const group of description.groups) {
+    const fieldset = el("fieldset", {}, [el("legend", { text: group.legend })]);
+    for (const spec of group.controls) {
+      fieldset.appendChild(buildControl(spec));
+      state.values[spec.key] = spec.value;
+    }
+    form.appendChild(fieldset);
+  }
+  form.addEventListener("submit", (ev) => ev.preventDefault());
+  updateDependencies();
+}
+
+/* Controls that only mean something for some choices are disabled for the others. */
+function updateDependencies() {
+  for (const [key, spec] of Object.entries(state.specs)) {
+    if (!spec.enabled_when) continue;
+    const [other, allowed] = spec.enabled_when;
+    const on = allowed.includes(state.values[other]);
+    const row = document.querySelector(`.control[data-key="${key}"]`);
+    row.classList.toggle("disabled", !on);
+    for (const input of row.querySelectorAll("input, select")) input.disabled = !on || (input.type !== "checkbox" && spec.nullable && state.values[key] === null);
+  }
+}
+
+function setValue(key, value) {
+  state.values[key] = value;
+  updateDependencies();
+  state.changedAt = performance.now();
+  window.tuner.pending = true;
+  if (state.timer === null) state.timer = setTimeout(() => { state.timer = null; requestRun(); }, COALESCE_MS);
+}
+
+/* The request: every control's value, except those disabled by another control. */
+function requestBody() {
+  const body = {};
+  for (const [key, value] of Object.entries(state.values)) {
+    const spec = state.specs[key];
+    if (spec.enabled_when && !spec.enabled_when[1].includes(state.values[spec.enabled_when[0]])) {
+      if (spec.value_when_disabled !== undefined) body[key] = spec.value_when_disabled;
+      continue;
+    }
+    body[key] = value;
+  }
+  return body;
+}
+
+/* ---- requests ---------------------------------------------------------------- */
+
+async function postJSON(path, body) {
+  const response = await fetch(path, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
+  if (response.ok) return response;
+  let message = `HTTP ${response.status}`;
+  let param = null;
+  try { const err = await response.json(); message = err.error; param = err.param; } catch (e) { /* not JSON */ }
+  const error = new Error(message);
+  error.param = param;
+  throw error;
+}
+
+function showError(error) {
+  const banner = document.getElementById("error");
+  banner.textContent = error ? error.message : "";
+  banner.hidden = !error;
+  for (const row of document.querySelectorAll(".control.invalid")) row.classList.remove("invalid");
+  if (error && error.param) {
+    const row = document.querySelector(`.control[data-key="${error.param}"]`);
+    if (row) row.classList.add("invalid");
+  }
+}
+
+async function requestRun() {
+  if (state.inFlight) { state.dirty = true; return; }
+  state.inFlight = true;
+  state.dirty = false;
+  const seq = ++window.tuner.requestSeq;
+  const changedAt = state.changedAt;
+  document.getElementById("status").textContent = "computing\u2026";
+  try {
+    const sentAt = performance.now();
+    const response = await postJSON("api/run", requestBody());
+    const run = await response.json();
+    const fetchMs = performance.now() - sentAt;
+    if (seq > window.tuner.renderedSeq) {
+      await render(run);
+      window.tuner.renderedSeq = seq;
+      window.tuner.renderCount += 1;
+      await new Promise((resolve) => requestAnimationFrame(() => resolve()));
+      window.tuner.lastLatencyMs = performance.now() - changedAt;
+      window.tuner.lastServerMs = run.server_ms;
+      window.tuner.lastFetchMs = fetchMs;
+      showError(null);
+      document.getElementById("status").textContent =
+        `redrawn ${window.tuner.lastLatencyMs.toFixed(0)} ms after the change ` +
+        `(server ${run.server_ms.toFixed(0)} ms, request ${fetchMs.toFixed(0)} ms)`;
+    }
+  } catch (error) {
+    window.tuner.errorCount += 1;
+    showError(error);
+    document.getElementById("status").textContent = "not updated: see the message";
+  } finally {
+    state.inFlight = false;
+    if (state.dirty) requestRun();
+    else if (state.timer === null) window.tuner.pending = false;
+  }
+}
+
+async function download(kind) {
+  try {
+    const response = await postJSON("api/download/" + kind, requestBody());
+    const disposition = response.headers.get("Content-Disposition") || "";
+    const match = /filename="([^"]+)"/.exec(disposition);
+    const blob = await response.blob();
+    const url = URL.createObjectURL(blob);
+    const a = el("a", { href: url, download: match ? match[1] : kind });
+    document.body.appendChild(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 10000);
+    showError(null);
+  } catch (error) {
+    showError(error);
+  }
+}
+
+/* ---- drawing ----------------------------------------------------------------- */
+
+function line(x, y, name, color, extra) {
+  return Object.assign({ x: x, y: y, name: name, type: "scatter", mode: "lines", line: { color: color, width: 1.6 } }, extra || {});
+}
+
+function pinnedLine(x, y, name, extra) {
+  return line(x, y, name, COLORS.pinned, Object.assign({ line: { color: COLORS.pinned, width: 1.6, dash: "dot" } }, extra || {}));
+}
+
+function layout(title, xtitle, ytitle, extra) {
+  return Object.assign({
+    title: { text: title, font: { size: 13 }, x: 0.01, xanchor: "left" },
+    margin: { l: 58, r: 10, t: 44, b: 40 },
+    xaxis: { title: { text: xtitle } },
+    yaxis: { title: { text: ytitle } },
+    legend: { orientation: "h", x: 1, xanchor: "right", y: 1, yanchor: "bottom", font: { size: 11 } },
+    uirevision: "keep",
+  }, extra || {});
+}
+
+function speedTraces(run, pinned) {
+  const tr = run.traces;
+  const data = [
+    line(tr.speed_ref_rpm.t, tr.speed_ref_rpm.y, "reference", COLORS.reference, { line: { color: COLORS.reference, width: 1.2, dash: "dash" } }),
+    line(tr.speed_rpm.t, tr.speed_rpm.y, "speed", COLORS.current),
+  ];
+  if (pinned) data.push(pinnedLine(pinned.traces.speed_rpm.t, pinned.traces.speed_rpm.y, "speed (pinned)"));
+  return data;
+}
+
+function currentTraces(run, pinned) {
+  const tr = run.traces;
+  const tEnd = tr.iq_ref_A.t[tr.iq_ref_A.t.length - 1];
+  const limit = { color: COLORS.limit, width: 1, dash: "dash" };
+  const data = [
+    line(tr.iq_ref_A.t, tr.iq_ref_A.y, "iq command", COLORS.current),
+    line(tr.id_ref_A.t, tr.id_ref_A.y, "id command", COLORS.d),
+    line([0, tEnd], [run.i_max_A, run.i_max_A], "limit \u00b1i_max", COLORS.limit, { line: limit }),
+    line([0, tEnd], [-run.i_max_A, -run.i_max_A], "", COLORS.limit, { line: limit, showlegend: false }),
+  ];
+  if (pinned) data.push(pinnedLine(pinned.traces.iq_ref_A.t, pinned.traces.iq_ref_A.y, "iq command (pinned)"));
+  return data;
+}
+
+function loadTraces(run, pinned) {
+  const d = run.load_detail;
+  const data = [
+    line(d.t, d.speed_ref_rpm, "reference", COLORS.reference, { line: { color: COLORS.reference, width: 1.2, dash: "dash" } }),
+    line(d.t, d.speed_rpm, "speed", COLORS.current),
+  ];
+  if (pinned) data.push(pinnedLine(pinned.load_detail.t, pinned.load_detail.speed_rpm, "speed (pinned)"));
+  return data;
+}
+
+function bodeTraces(run, pinned) {
+  const b = run.bode;
+  const data = [
+    line(b.w_radps, b.Gx_dB, "|Gx|", COLORS.gx),
+    line(b.w_radps, b.GN_dB, "|GN|", COLORS.gn),
+    line(b.w_radps, b.Gx_deg, "\u2220Gx", COLORS.gx, { yaxis: "y2", showlegend: false }),
+    line(b.w_radps, b.GN_deg, "\u2220GN", COLORS.gn, { yaxis: "y2", showlegend: false }),
+  ];
+  if (pinned) {
+    const p = pinned.bode;
+    data.push(pinnedLine(p.w_radps, p.Gx_dB, "pinned"));
+    data.push(pinnedLine(p.w_radps, p.GN_dB, "", { showlegend: false }));
+    data.push(pinnedLine(p.w_radps, p.Gx_deg, "", { yaxis: "y2", showlegend: false }));
+    data.push(pinnedLine(p.w_radps, p.GN_deg, "", { yaxis: "y2", showlegend: false }));
+  }
+  return data;
+}
+
+function renderMetrics(run, pinned) {
+  const body = document.querySelector("#metrics tbody");
+  body.replaceChildren();
+  run.metrics.forEach((m, i) => {
+    const p = pinned ? pinned.metrics[i] : null;
+    body.appendChild(el("tr", { "data-metric": m.key }, [
+      el("td", { text: m.label + (m.unit ? " [" + m.unit + "]" : "") }),
+      el("td", { class: "current", text: fmt(m.value), title: m.reason }),
+      el("td", { class: "pinned", text: p ? fmt(p.value) : "", title: p ? p.reason : "" }),
+    ]));
+  });
+  const d = run.design;
+  document.getElementById("design").textContent =
+    `Kp = ${fmt(d.Kp)} Nm/(rad/s), Ki = ${fmt(d.Ki)} Nm/rad, Ka = ${fmt(d.Ka)} (rad/s)/Nm (eq 9)` +
+    (pinned ? ` \u2014 pinned: ${pinned.label}` : "");
+}
+
+async function render(run) {
+  window.tuner.current = run;
+  const pinned = window.tuner.pinned;
+  const w = run.load_detail.t;
+  await Promise.all([
+    Plotly.react("plot-speed", speedTraces(run, pinned), layout("Speed and reference", "t [s]", "speed [rpm]")),
+    Plotly.react("plot-current", currentTraces(run, pinned), layout("Current command and limit", "t [s]", "current [A]")),
+    Plotly.react("plot-load", loadTraces(run, pinned), layout(`Load step detail (${fmt(run.load_step_Nm)} Nm at ${fmt(run.t_load_s)} s)`,
+      "t [s]", "speed [rpm]", { xaxis: { title: { text: "t [s]" }, range: [w[0], w[w.length - 1]] } })),
+    Plotly.react("plot-bode", bodeTraces(run, pinned), layout("Bode: Gx (tracking, eq 6/10) and GN (load, eq 8)", "\u03c9 [rad/s]", "magnitude [dB]", {
+      xaxis: { type: "log", anchor: "y2", title: { text: "\u03c9 [rad/s]" } },
+      yaxis: { domain: [0.45, 1], title: { text: "magnitude [dB]" } },
+      yaxis2: { domain: [0, 0.4], title: { text: "phase [deg]" } },
+      shapes: [{ type: "line", xref: "x", yref: "paper", x0: run.bode.w_nyquist_radps, x1: run.bode.w_nyquist_radps,
+                 y0: 0, y1: 1, line: { color: "#999", width: 1, dash: "dot" } }],
+      annotations: [{ xref: "x", yref: "paper", x: Math.log10(run.bode.w_nyquist_radps), y: 1, text: "\u03c0/Ts",
+                      showarrow: false, xanchor: "right", font: { size: 10, color: "#777" } }],
+    })),
+  ]);
+  renderMetrics(run, pinned);
+}
+
+function pin() {
+  const run = window.tuner.current;
+  if (!run) return;
+  window.tuner.pinned = run;
+  document.getElementById("unpin").disabled = false;
+  return render(run);
+}
+
+function unpin() {
+  window.tuner.pinned = null;
+  document.getElementById("unpin").disabled = true;
+  if (window.tuner.current) return render(window.tuner.current);
+}
+
+async function start() {
+  try {
+    const response = await fetch("api/controls");
+    const description = await response.json();
+    document.getElementById("scenario-name").textContent = "scenario: " + description.name;
+    buildControls(description);
+  } catch (error) {
+    showError(new Error("cannot load the controls: " + error.message));
+    return;
+  }
+  document.getElementById("pin").addEventListener("click", pin);
+  document.getElementById("unpin").addEventListener("click", unpin);
+  document.getElementById("download-toml").addEventListener("click", () => download("scenario.toml"));
+  document.getElementById("download-header").addEventListener("click", () => download("header.h"));
+  document.getElementById("download-csv").addEventListener("click", () => download("trace.csv"));
+  state.changedAt = performance.now();
+  requestRun();
+}
+
+start();

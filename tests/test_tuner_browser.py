@@ -1,0 +1,161 @@
+"""End to end: the tuner page in a real headless Chromium (Playwright), against a live server.
+
+A person's session: open the page, move the bandwidth slider, see the plotted overshoot and
+the metrics table change, pin the run, switch the anti-windup off and see the overshoot grow
+(paper section 4.1, Fig. 8), type a bad value and read the message, download the C header and
+build it with the C core into a program that initializes the controller.
+"""
+
+import math
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from pmsm2dof.scenario import load_scenario
+from pmsm2dof.tuner import create_app, serving_in_thread
+
+CHROMIUM = Path("/usr/bin/chromium")
+ROOT = Path(__file__).resolve().parents[1]
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                 "--disable-sync", "--no-first-run", "--disable-quic"]
+
+if not CHROMIUM.exists():
+    pytest.skip("Debian's chromium is not installed at /usr/bin/chromium (scripts/install.sh installs it)",
+                allow_module_level=True)
+sync_api = pytest.importorskip("playwright.sync_api", reason="playwright for Python is not installed")
+
+# the plotted speed trace: overshoot [%] of its maximum before the load step over the step
+PLOTTED_OVERSHOOT_JS = """() => {
+  const run = window.tuner.current;
+  const speed = document.getElementById('plot-speed').data.find((d) => d.name === 'speed');
+  const step = run.traces.speed_ref_rpm.y.at(-1);
+  let peak = -Infinity;
+  speed.x.forEach((t, i) => { if (t < run.t_load_s) peak = Math.max(peak, speed.y[i]); });
+  return 100 * (peak - step) / step;
+}"""
+
+
+def metric_cells(page, key):
+    row = page.locator(f'#metrics tr[data-metric="{key}"]')
+    return row.locator("td.current").inner_text(), row.locator("td.pinned").inner_text()
+
+
+def wait_for_render(page, after):
+    """Wait until every change is drawn, with at least one drawing after ``after``."""
+    page.wait_for_function(f"!window.tuner.pending && window.tuner.renderCount > {after}", timeout=30000)
+
+
+@pytest.fixture(scope="module")
+def page():
+    with serving_in_thread(create_app(load_scenario("paper-condition-2"))) as url, \
+            sync_api.sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport={"width": 1440, "height": 900}, accept_downloads=True)
+        errors = []
+        page.on("pageerror", lambda exc: errors.append(str(exc)))
+        page.goto(url)
+        wait_for_render(page, 0)
+        yield page
+        browser.close()
+        assert not errors, errors
+
+
+def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
+    overshoot_before = page.evaluate(PLOTTED_OVERSHOOT_JS)
+    table_before, _ = metric_cells(page, "step.overshoot_pct")
+    # alpha = 0.5 rad/s: the first-order tracking of the 2DOF design has no overshoot yet at 7 s
+    assert table_before == "\u2013"
+
+    # move the bandwidth slider as a person would, with the keyboard
+    renders = page.evaluate("window.tuner.renderCount")
+    slider = page.locator('.control[data-key="speed_controller.alpha"] input[type=range]')
+    slider.focus()
+    for _ in range(150):
+        page.keyboard.press("ArrowRight")
+    wait_for_render(page, renders)
+    alpha = float(page.locator('input[name="speed_controller.alpha"]').input_value())
+    assert alpha == pytest.approx(0.5 * 10 ** (150 / 1000 * 2), rel=1e-3)  # log slider over 2 decades
+    overshoot_after = page.evaluate(PLOTTED_OVERSHOOT_JS)
+    table_after, _ = metric_cells(page, "step.overshoot_pct")
+    assert overshoot_after > 0 > overshoot_before
+    assert float(table_after) == pytest.approx(overshoot_after, abs=0.05)
+    kp_text = page.locator("#design").inner_text()
+    assert f"Kp = {0.4 * alpha:.4g} " in kp_text  # eq 9 with the design inertia 0.4 kg m^2
+
+    # pin, then switch the anti-windup off: the pinned column keeps the run with it
+    page.click("#pin")
+    page.wait_for_function("document.querySelector('#metrics tr[data-metric=\"step.overshoot_pct\"] td.pinned')"
+                           ".textContent !== ''")
+    assert metric_cells(page, "step.overshoot_pct")[1] == table_after
+    renders = page.evaluate("window.tuner.renderCount")
+    page.select_option('select[name="speed_controller.anti_windup"]', "none")
+    wait_for_render(page, renders)
+    current, pinned = metric_cells(page, "step.overshoot_pct")
+    assert pinned == table_after
+    assert float(current) > float(pinned)
+    names = page.evaluate("document.getElementById('plot-speed').data.map((d) => d.name)")
+    assert "speed (pinned)" in names
+
+    # a bad value: a visible message naming the key, the plots stay as they were
+    renders = page.evaluate("window.tuner.renderCount")
+    box = page.locator('input[name="speed_controller.zeta"]')
+    box.fill("-2")
+    box.press("Enter")
+    page.wait_for_function("window.tuner.errorCount > 0", timeout=30000)
+    banner = page.locator("#error")
+    assert banner.is_visible()
+    assert "speed_controller.zeta = -2.0 is invalid" in banner.inner_text()
+    assert page.locator('.control.invalid[data-key="speed_controller.zeta"]').count() == 1
+    assert page.evaluate("window.tuner.renderCount") == renders
+    box.fill("0.2887")
+    box.press("Enter")
+    wait_for_render(page, renders)
+    assert not banner.is_visible()
+
+    page.screenshot(path=str(tmp_path / "tuner.png"))
+    assert (tmp_path / "tuner.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")
+def test_downloaded_header_builds_and_initializes_the_controllers(page, tmp_path):
+    with page.expect_download() as info:
+        page.click("#download-header")
+    download = info.value
+    assert download.suggested_filename == "pmsm2dof_speed_config.h"
+    download.save_as(tmp_path / "pmsm2dof_speed_config.h")
+    (tmp_path / "main.c").write_text(
+        '#include "pmsm2dof_speed_config.h"\n'
+        "int main(void)\n{\n"
+        "    p2d_speed_t speed;\n    p2d_current_t current;\n"
+        "    if (p2d_speed_init(&speed, &p2d_design_speed_config) != P2D_OK) return 1;\n"
+        "    if (p2d_current_init(&current, &p2d_design_current_config) != P2D_OK) return 2;\n"
+        "    return 0;\n}\n")
+    sources = sorted(str(p) for p in (ROOT / "csrc" / "src").glob("*.c"))
+    build = subprocess.run(
+        ["gcc", "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-I", str(ROOT / "csrc" / "include"),
+         "-I", str(tmp_path), str(tmp_path / "main.c"), *sources, "-lm", "-o", str(tmp_path / "init")],
+        capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    assert subprocess.run([str(tmp_path / "init")]).returncode == 0
+
+
+def test_scenario_and_trace_downloads(page, tmp_path):
+    with page.expect_download() as info:
+        page.click("#download-toml")
+    path = tmp_path / info.value.suggested_filename
+    info.value.save_as(path)
+    scenario = load_scenario(path)
+    shown_alpha = float(page.locator('input[name="speed_controller.alpha"]').input_value())
+    assert scenario.data["speed_controller"]["alpha"] == shown_alpha
+    shown_aw = page.locator('select[name="speed_controller.anti_windup"]').input_value()
+    assert scenario.data["speed_controller"]["anti_windup"] == shown_aw
+
+    with page.expect_download() as info:
+        page.click("#download-csv")
+    lines = Path(info.value.path()).read_text().splitlines()
+    assert lines[0].startswith("t_s,")
+    t_end = scenario.data["simulation"]["t_end_s"]
+    Ts = scenario.data["speed_controller"]["Ts_s"]
+    assert len(lines) - 1 == math.floor(t_end / Ts + 1e-9) + 1
