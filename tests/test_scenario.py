@@ -106,7 +106,7 @@ def test_preset_data_is_complete_and_round_trips(name):
     assert Scenario.from_dict(d) == s
 
 
-def load_scenario_text(text, tmp=None):
+def load_scenario_text(text):
     return Scenario.from_dict(tomllib.loads(text))
 
 

@@ -31,6 +31,7 @@ import json
 import math
 import os
 import tomllib
+from collections.abc import Mapping
 from pathlib import Path
 
 from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
@@ -106,8 +107,8 @@ class Field:
             return "true or false"
         if self.kind is str:
             return "a string"
-        bounds = [f"{op} {v:g}" if isinstance(v, float) else f"{op} {v}" for op, v in ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le))
-                  if v is not None]
+        limits = ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le))
+        bounds = [f"{op} {v:g}" if isinstance(v, float) else f"{op} {v}" for op, v in limits if v is not None]
         noun = "an integer" if self.kind is int else "a finite number"
         return " ".join([noun, " and ".join(bounds)]) if bounds else noun
 
@@ -387,13 +388,28 @@ class Scenario:
         return self._data["description"]
 
     def with_overrides(self, overrides):
-        """A new scenario with ``{"dotted.key": value}`` changes applied, validated again.
+        """A new scenario with changes applied, validated again; this one is unchanged.
 
-        Keys address tables by name and arrays by index: ``"speed_controller.anti_windup"``,
-        ``"reference.0.speed_rpm"``; the index one past the end appends an entry. A whole table or
-        array may be replaced (``{"load": [{"t_s": 1.0, "torque_Nm": 2.0}]}``). ``None`` removes a
-        key, so that its default applies again.
+        Parameters
+        ----------
+        overrides : mapping
+            ``{"dotted.key": value}``. Keys address tables by name and arrays by index:
+            ``"speed_controller.anti_windup"``, ``"reference.0.speed_rpm"``; the index one past
+            the end appends an entry. A whole table or array may be replaced
+            (``{"load": [{"t_s": 1.0, "torque_Nm": 2.0}]}``). ``None`` removes a key, so that its
+            default (for a derived default such as ``J_design_kgm2``, its source key) applies again.
+
+        Returns
+        -------
+        Scenario
+
+        Raises
+        ------
+        ConfigError
+            Naming the dotted key that is unknown, of the wrong type or out of range.
         """
+        if not isinstance(overrides, Mapping):
+            raise ConfigError("overrides", _short(overrides), "a mapping of dotted keys to values")
         tree = copy.deepcopy(self._given)
         for key, value in overrides.items():
             _set_dotted(tree, key, copy.deepcopy(value))
@@ -405,8 +421,7 @@ class Scenario:
         ``load_scenario`` of the text gives back an equal scenario.
         """
         lines = []
-        top = [f for f in _fields_of("")]
-        lines += _toml_fields(top, self._given, self._data)
+        lines += _toml_fields(_fields_of(""), self._given, self._data)
         for table in _TABLES:
             lines += ["", f"[{table}]"] + _toml_fields(_fields_of(table), self._given.get(table, {}),
                                                       self._data[table])
@@ -489,10 +504,19 @@ def _set_dotted(tree, key, value):
 
 
 def parse_override(text):
-    """Parse one ``--set key=value`` into ``(key, value)``.
+    """Parse one ``--set key=value`` of the command line.
 
-    The value is read as a TOML literal (``0.5``, ``true``, ``"x"``, ``[{t_s = 1.0, torque_Nm = 2.0}]``)
-    and, when it is not one, taken as a plain string (``feedforward=none``).
+    Parameters
+    ----------
+    text : str
+        ``key=value``; the value is read as a TOML literal (``0.5``, ``true``, ``"x"``,
+        ``nan``, ``[{t_s = 1.0, torque_Nm = 2.0}]``) and, when it is not one, taken as a plain
+        string (``feedforward=none``).
+
+    Returns
+    -------
+    tuple
+        ``(key, value)`` for :meth:`Scenario.with_overrides`, which validates the value.
     """
     key, sep, raw = text.partition("=")
     key = key.strip()
@@ -516,10 +540,22 @@ def list_presets():
 
 
 def load_scenario(name_or_path):
-    """Load and validate a scenario from a preset name or a TOML file path.
+    """Load and validate a scenario from a preset name or a TOML file.
 
-    An existing file is read as TOML; any other name must be one of :func:`list_presets`.
-    Raises ConfigError for an unknown name, unreadable or invalid TOML, or a schema violation.
+    Parameters
+    ----------
+    name_or_path : str or os.PathLike
+        An existing file is read as TOML; any other name must be one of :func:`list_presets`.
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    ConfigError
+        For an unknown name, an unreadable or invalid TOML file, or a schema violation (naming
+        the dotted key, its value and its valid range).
     """
     path = Path(os.fspath(name_or_path))
     if path.is_file():

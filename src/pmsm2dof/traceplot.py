@@ -20,10 +20,18 @@ def _saturated_intervals(t, saturated):
 
 
 def trace_figure(result):
-    """A three-panel figure of ``result``: speed [rpm], dq currents [A], torques and load [Nm].
+    """A three-panel figure of a run: speed [rpm], dq currents [A], torques and load [Nm].
 
-    The current panel shows the limit ``+-limits.i_max_A``; shaded spans mark the samples where
-    the current-vector limit is active.
+    Parameters
+    ----------
+    result : Result
+        A run of :func:`pmsm2dof.simulate`.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        On the Agg canvas. The current panel shows the limit ``+-limits.i_max_A``; shaded spans
+        mark the samples where the current-vector limit is active.
     """
     t = result.t_s
     i_max = result.scenario.data["limits"]["i_max_A"]
@@ -65,5 +73,5 @@ def trace_figure(result):
 
 
 def plot_trace(result, path):
-    """Draw :func:`trace_figure` of ``result`` into ``path`` (.png or .svg), atomically."""
+    """Draw :func:`trace_figure` of ``result`` into ``path`` (.png or .svg) atomically; return the path."""
     return save_figure(trace_figure(result), path)
