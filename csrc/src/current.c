@@ -10,6 +10,9 @@
 static bool is_positive(float x) { return isfinite(x) && x > 0.0f; }
 static bool is_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
 
+/* a < 0 < b or b < 0 < a, without a product that can underflow to 0 */
+static bool opposite_signs(float a, float b) { return (a < 0.0f && b > 0.0f) || (a > 0.0f && b < 0.0f); }
+
 /* PI coefficients of one axis with inductance L_H (eq 3: Kp = L/tau_i, Ki = Rs/tau_i). */
 static p2d_pi_coef_t axis_coefficients(const p2d_current_config_t *cfg, float L_H)
 {
@@ -27,6 +30,11 @@ static p2d_pi_coef_t axis_coefficients(const p2d_current_config_t *cfg, float L_
         a.b_e0 = a.Kp + 0.5f * a.Ki_Ts;
     }
     return a;
+}
+
+static bool axis_finite(const p2d_pi_coef_t *a)
+{
+    return isfinite(a->Kp) && isfinite(a->Ki) && isfinite(a->b_e0) && isfinite(a->Ki_Ts) && isfinite(a->Ki_Ka_Ts);
 }
 
 static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_current_coef_t *c)
@@ -48,6 +56,7 @@ static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_cu
 
     k.d = axis_coefficients(cfg, cfg->Ld_H);
     k.q = axis_coefficients(cfg, cfg->Lq_H);
+    if (!axis_finite(&k.d) || !axis_finite(&k.q)) return P2D_ERR_TAU_I; /* float32 overflow of L/tau_i or Rs/tau_i */
     k.Ld_H = cfg->decouple ? cfg->Ld_H : 0.0f;
     k.Lq_H = cfg->decouple ? cfg->Lq_H : 0.0f;
     k.psi_f_Wb = cfg->decouple ? cfg->psi_f_Wb : 0.0f;
@@ -94,7 +103,7 @@ void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_
                          p2d_current_output_t *out)
 {
     const p2d_current_coef_t *c = &ctl->coef[ctl->active];
-    float ud, uq, u_max, u_big, norm, k;
+    float ud, uq, u_max, u_big, norm;
 
     out->ed_A = id_ref_A - id_A;
     out->eq_A = iq_ref_A - iq_A;
@@ -124,17 +133,17 @@ void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_
     u_big = fmaxf(fabsf(ud), fabsf(uq));
     norm = u_big > 0.0f ? u_big * sqrtf((ud / u_big) * (ud / u_big) + (uq / u_big) * (uq / u_big)) : 0.0f;
     out->saturated = norm > u_max;
-    /* scale the vector back onto the limit circle, keeping its direction */
-    k = out->saturated ? u_max / norm : 1.0f;
-    out->ud_ref_V = k * ud;
-    out->uq_ref_V = k * uq;
+    /* scale the vector back onto the limit circle, keeping its direction; the unit
+       vector first, as u_max / norm can be subnormal and lose its precision */
+    out->ud_ref_V = out->saturated ? u_max * (ud / norm) : ud;
+    out->uq_ref_V = out->saturated ? u_max * (uq / norm) : uq;
 }
 
 /* One axis: x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k], held under clamping. */
 static float axis_update(const p2d_pi_coef_t *a, bool clamping, float x_V, float e_A, float u_star_V)
 {
     float dx = a->Ki_Ts * e_A + a->Ki_Ka_Ts * u_star_V;
-    if (clamping && u_star_V * e_A < 0.0f) dx = 0.0f;
+    if (clamping && opposite_signs(u_star_V, e_A)) dx = 0.0f;
     return x_V + dx;
 }
 
@@ -142,13 +151,21 @@ void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
                         float ud_applied_V, float uq_applied_V)
 {
     const p2d_current_coef_t *c = &ctl->coef[ctl->active];
+    float x_d, x_q;
     if (out->fault || !isfinite(ud_applied_V) || !isfinite(uq_applied_V)) {
         ctl->fault_count++;
         return;
     }
     /* u* = u_sat - u per axis */
-    ctl->x_d_V = axis_update(&c->d, c->clamping, ctl->x_d_V, out->ed_A, ud_applied_V - out->ud_unsat_V);
-    ctl->x_q_V = axis_update(&c->q, c->clamping, ctl->x_q_V, out->eq_A, uq_applied_V - out->uq_unsat_V);
+    x_d = axis_update(&c->d, c->clamping, ctl->x_d_V, out->ed_A, ud_applied_V - out->ud_unsat_V);
+    x_q = axis_update(&c->q, c->clamping, ctl->x_q_V, out->eq_A, uq_applied_V - out->uq_unsat_V);
+    if (!isfinite(x_d) || !isfinite(x_q)) {
+        /* non-finite policy: an update that would overflow an integrator is refused */
+        ctl->fault_count++;
+        return;
+    }
+    ctl->x_d_V = x_d;
+    ctl->x_q_V = x_q;
 }
 
 void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A,

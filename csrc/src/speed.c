@@ -14,6 +14,9 @@
 static bool is_positive(float x) { return isfinite(x) && x > 0.0f; }
 static bool is_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
 
+/* a < 0 < b or b < 0 < a, without a product that can underflow to 0 */
+static bool opposite_signs(float a, float b) { return (a < 0.0f && b > 0.0f) || (a > 0.0f && b < 0.0f); }
+
 /* Torque [Nm] of the MTPA current vector with q-axis current iq_A. */
 static float mtpa_torque_Nm(const p2d_speed_coef_t *c, float iq_A)
 {
@@ -101,6 +104,8 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
         b1 = b0;
         a1 = -(2.0f - p_radps * cfg->Ts_s) / (2.0f + p_radps * cfg->Ts_s);
     }
+    /* float32 can round the pole -a1 onto the unit circle (m alpha Ts tiny, or huge with Tustin) */
+    if (cfg->feedforward != P2D_FF_NONE && !(fabsf(a1) < 1.0f)) return P2D_ERR_TS_UNSTABLE;
     if (cfg->feedforward == P2D_FF_NONE) {
         k.ff_b0 = 0.0f;
         k.ff_b1 = 0.0f;
@@ -131,7 +136,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
         k.T_max_Nm = iq * (k.kt_NmpA + k.c_T_Nm_per_A2 * id);
     }
     if (!is_positive(k.T_max_Nm) || !isfinite(k.ff_b0) || !isfinite(k.ff_b1) ||
-        !isfinite(k.ff_Kd_per_Ts) || !isfinite(k.b_e0)) {
+        !isfinite(k.ff_Kd_per_Ts) || !isfinite(k.b_e0) || !isfinite(k.Ki_Ts)) {
         return P2D_ERR_TS; /* only reachable through float overflow of extreme inputs */
     }
     *c = k;
@@ -168,18 +173,29 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    float y_ss;
-    if (!isfinite(w_ref_radps) || !isfinite(T_init_Nm)) {
-        /* non-finite policy: clear the state instead, count the fault */
+    /* steady state of y[k] = b0 r + b1 r - a1 y: y = (b0 + b1) r / (1 + a1) */
+    float y_ss = (c->ff_b0 + c->ff_b1) * w_ref_radps / (1.0f + c->ff_a1);
+    float x_i = T_init_Nm - y_ss;
+    if (!isfinite(w_ref_radps) || !isfinite(x_i)) {
+        /* non-finite policy (arguments, or a steady state that overflows): clear the state instead, count the fault */
         ctl->fault_count++;
         w_ref_radps = 0.0f;
-        T_init_Nm = 0.0f;
+        y_ss = 0.0f;
+        x_i = 0.0f;
     }
-    /* steady state of y[k] = b0 r + b1 r - a1 y: y = (b0 + b1) r / (1 + a1) */
-    y_ss = (c->ff_b0 + c->ff_b1) * w_ref_radps / (1.0f + c->ff_a1);
     ctl->r_prev_radps = w_ref_radps;
     ctl->y_ff_prev_Nm = y_ss;
-    ctl->x_i_Nm = T_init_Nm - y_ss;
+    ctl->x_i_Nm = x_i;
+}
+
+/* Non-finite policy: zero torque and current, fault raised, so that the update leaves the state alone. */
+static void fault_output(p2d_speed_output_t *out)
+{
+    out->T_ref_Nm = 0.0f;
+    out->id_ref_A = 0.0f;
+    out->iq_ref_A = 0.0f;
+    out->saturated = false;
+    out->fault = true;
 }
 
 void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps,
@@ -202,12 +218,7 @@ void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radp
     out->y_ff_Nm = y_ff;
     out->T_unsat_Nm = u;
     if (!isfinite(u)) {
-        /* non-finite policy: zero torque, no state update, fault raised */
-        out->T_ref_Nm = 0.0f;
-        out->id_ref_A = 0.0f;
-        out->iq_ref_A = 0.0f;
-        out->saturated = false;
-        out->fault = true;
+        fault_output(out);
         return;
     }
     out->fault = false;
@@ -254,12 +265,16 @@ void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radp
             out->iq_ref_A *= k;
         }
     }
+    if (!isfinite(out->id_ref_A) || !isfinite(out->iq_ref_A)) {
+        /* the MTPA inversion overflowed (extreme configurations only) */
+        fault_output(out);
+    }
 }
 
 void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    float u_star, dx;
+    float u_star, dx, x_i;
 
     if (out->fault || !isfinite(T_applied_Nm)) {
         ctl->fault_count++;
@@ -270,8 +285,14 @@ void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_a
     /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] */
     dx = c->Ki_Ts * out->e_radps + c->Ki_Ka_Ts * u_star;
     /* clamping: hold the integrator while the limit is active and e drives further into it */
-    if (c->clamping && u_star * out->e_radps < 0.0f) dx = 0.0f;
-    ctl->x_i_Nm += dx;
+    if (c->clamping && opposite_signs(u_star, out->e_radps)) dx = 0.0f;
+    x_i = ctl->x_i_Nm + dx;
+    if (!isfinite(x_i)) {
+        /* non-finite policy: an update that would overflow the integrator is refused */
+        ctl->fault_count++;
+        return;
+    }
+    ctl->x_i_Nm = x_i;
     ctl->r_prev_radps = out->w_ref_radps;
     ctl->y_ff_prev_Nm = out->y_ff_Nm;
 }

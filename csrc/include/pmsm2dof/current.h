@@ -20,7 +20,9 @@
  *
  * Non-finite policy: a non-finite voltage command (NaN/inf input or overflow)
  * gives a zero voltage output, no state update, `fault` set and the fault
- * counter incremented.
+ * counter incremented. An update with a non-finite applied voltage, or whose
+ * new integrator state would not be finite, is refused the same way (counted,
+ * state kept), so the state is never poisoned.
  */
 #ifndef PMSM2DOF_CURRENT_H
 #define PMSM2DOF_CURRENT_H

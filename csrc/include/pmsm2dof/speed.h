@@ -39,10 +39,13 @@
  * MTPA trajectory. Torque uses the amplitude-invariant Park transform:
  * Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) (the paper's eq 1 omits the 1.5).
  *
- * Non-finite policy: if the computed torque is not finite (NaN or inf speed,
- * reference, or an overflow), the output is zero torque and zero current, the
- * state is left untouched by the update, `fault` is set in the output and the
- * latched fault counter of the controller is incremented.
+ * Non-finite policy: if the computed torque or current is not finite (NaN or
+ * inf speed, reference, or an overflow), the output is zero torque and zero
+ * current, the state is left untouched by the update, `fault` is set in the
+ * output and the latched fault counter of the controller is incremented. An
+ * update with a non-finite applied torque, or whose new integrator state would
+ * not be finite, is refused the same way (counted, state kept), so the state
+ * is never poisoned.
  *
  * Parameter updates: p2d_speed_set_config validates the new configuration and
  * computes its coefficients into the inactive of two coefficient sets, then
@@ -146,7 +149,8 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
  * Bumpless reset: the feedforward section at its steady state for a constant
  * reference w_ref_radps, and the integrator such that the output equals
  * T_init_Nm at zero error. p2d_speed_reset(ctl, 0, 0) clears everything.
- * A non-finite argument clears the state as (0, 0) and counts a fault.
+ * A non-finite argument, or a steady state that overflows float32, clears the
+ * state as (0, 0) and counts a fault.
  */
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm);
 
