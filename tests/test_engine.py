@@ -18,6 +18,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from pmsm2dof._core import lib
+from pmsm2dof.controllers import CurrentController, SpeedController
 from pmsm2dof.errors import SimulationError
 from pmsm2dof.scenario import Scenario, load_scenario
 from pmsm2dof.simulate import _EngineRun, simulate
@@ -145,6 +146,40 @@ def test_speed_reversal_through_coulomb_friction_matches_scipy():
     # before the crossing the agreement is as tight as without friction
     before = result.t_s < 0.07
     assert np.max(np.abs(x[before, 2] - result.w_m_radps[before])) < 1e-7 * np.max(np.abs(result.w_m_radps))
+
+
+@pytest.mark.parametrize("delay", [False, True])
+def test_loop_feeds_the_controllers_the_sampled_state(delay):
+    """The controllers, stepped here by hand from the logged states (speed and current at the same
+    period, 100 us), give the logged commands; the inverter applies the current controller's
+    command in the same period, or with the computation delay one period later (0 V first, the
+    steady state at rest). u_dc = 60 V puts the voltage limit in play."""
+    tree = drive_tree(inverter={"computation_delay": delay}, limits={"i_max_A": 10.0, "u_dc_V": 60.0},
+                      simulation={"t_end_s": 0.1, "speed0_rpm": 0.0})
+    r = simulate(Scenario.from_dict(tree))
+    m = tree["motor"]
+    speed = SpeedController(J_kgm2=m["J_kgm2"], alpha_radps=20.0, zeta=0.7, m=2.0, tau_i_s=0.002, Ts_s=1e-4,
+                            i_max_A=10.0, psi_f_Wb=m["psi_f_Wb"], Ld_H=m["Ld_H"], Lq_H=m["Lq_H"],
+                            pole_pairs=m["pole_pairs"], feedforward="full")
+    current = CurrentController(Rs_ohm=m["Rs_ohm"], Ld_H=m["Ld_H"], Lq_H=m["Lq_H"], psi_f_Wb=m["psi_f_Wb"],
+                                tau_i_s=0.002, Ts_s=1e-4)
+    u_max = 60.0 / math.sqrt(3)
+    applied = np.zeros((len(r.t_s), 2))
+    previous = (0.0, 0.0)
+    for k in range(len(r.t_s)):
+        so = speed.step(r.speed_ref_rpm[k] * RADPS_PER_RPM, r.w_m_radps[k])
+        assert (so.id_ref_A, so.iq_ref_A, so.T_ref_Nm, so.T_unsat_Nm) == (
+            r.id_ref_A[k], r.iq_ref_A[k], r.torque_ref_Nm[k], r.torque_unsat_Nm[k])
+        assert speed.state["x_i_Nm"] == r.x_i_Nm[k]
+        assert so.saturated == r.saturated[k]
+        co = current.step(so.id_ref_A, so.iq_ref_A, r.id_A[k], r.iq_A[k], m["pole_pairs"] * r.w_m_radps[k], 60.0)
+        command = (co.ud_ref_V, co.uq_ref_V)
+        applied[k] = previous if delay else command
+        previous = command
+    # the engine's inverter limits the float32 command again in double: equal to float32 rounding
+    np.testing.assert_allclose(np.c_[r.ud_V, r.uq_V], applied, rtol=0, atol=1e-6 * u_max)
+    assert np.any(np.hypot(r.ud_V, r.uq_V) > (1 - 1e-6) * u_max)  # the voltage limit was reached
+    assert np.all(np.hypot(r.ud_V, r.uq_V) <= u_max * (1 + 1e-12))
 
 
 def test_first_order_multirate_matches_scipy_integration():

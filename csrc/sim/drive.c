@@ -420,27 +420,29 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     return P2D_SIM_OK;
 }
 
-/* Write log row of speed sample k at t_k. */
-static void log_write(p2d_sim_t *sim, double *row, double t_k_s, double w_ref_radps,
+/* Write row r (speed sample k at t_k) of the column-major log of log_rows rows. */
+static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double w_ref_radps,
                       const p2d_speed_output_t *so, double ud_V, double uq_V)
 {
     const p2d_pmsm_t *m = &sim->pmsm;
+    double *row = log + sim->n_rows;
     cursor_advance(&sim->load, &sim->cfg.load, t_k_s + sim->t_tol_s);
-    row[P2D_LOG_T_S] = t_k_s;
-    row[P2D_LOG_W_REF_RADPS] = w_ref_radps;
-    row[P2D_LOG_W_M_RADPS] = m->w_m_radps;
-    row[P2D_LOG_ID_REF_A] = (double)so->id_ref_A;
-    row[P2D_LOG_IQ_REF_A] = (double)so->iq_ref_A;
-    row[P2D_LOG_ID_A] = m->id_A;
-    row[P2D_LOG_IQ_A] = m->iq_A;
-    row[P2D_LOG_UD_V] = ud_V;
-    row[P2D_LOG_UQ_V] = uq_V;
-    row[P2D_LOG_TORQUE_NM] = torque_Nm(m, m->id_A, m->iq_A);
-    row[P2D_LOG_TORQUE_REF_NM] = (double)so->T_ref_Nm;
-    row[P2D_LOG_TORQUE_UNSAT_NM] = (double)so->T_unsat_Nm;
-    row[P2D_LOG_LOAD_NM] = segment_value(&sim->load, t_k_s);
-    row[P2D_LOG_SATURATED] = so->saturated ? 1.0 : 0.0;
-    row[P2D_LOG_X_I_NM] = (double)sim->speed.x_i_Nm;
+    row[P2D_LOG_T_S * log_rows] = t_k_s;
+    row[P2D_LOG_W_REF_RADPS * log_rows] = w_ref_radps;
+    row[P2D_LOG_W_M_RADPS * log_rows] = m->w_m_radps;
+    row[P2D_LOG_ID_REF_A * log_rows] = (double)so->id_ref_A;
+    row[P2D_LOG_IQ_REF_A * log_rows] = (double)so->iq_ref_A;
+    row[P2D_LOG_ID_A * log_rows] = m->id_A;
+    row[P2D_LOG_IQ_A * log_rows] = m->iq_A;
+    row[P2D_LOG_UD_V * log_rows] = ud_V;
+    row[P2D_LOG_UQ_V * log_rows] = uq_V;
+    row[P2D_LOG_TORQUE_NM * log_rows] = torque_Nm(m, m->id_A, m->iq_A);
+    row[P2D_LOG_TORQUE_REF_NM * log_rows] = (double)so->T_ref_Nm;
+    row[P2D_LOG_TORQUE_UNSAT_NM * log_rows] = (double)so->T_unsat_Nm;
+    row[P2D_LOG_LOAD_NM * log_rows] = segment_value(&sim->load, t_k_s);
+    row[P2D_LOG_SATURATED * log_rows] = so->saturated ? 1.0 : 0.0;
+    row[P2D_LOG_X_I_NM * log_rows] = (double)sim->speed.x_i_Nm;
+    sim->n_rows++;
 }
 
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
@@ -489,10 +491,7 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 pmsm_voltage(&sim->pmsm, (a - sim->pmsm.id_A) * sim->inv_tau_i,
                              (b - sim->pmsm.iq_A) * sim->inv_tau_i, &ud_log_V, &uq_log_V);
             }
-            if (j == 0u && log_row) {
-                log_write(sim, log + sim->n_rows * (uint64_t)P2D_LOG_COUNT, t_k, w_ref, &so, ud_log_V, uq_log_V);
-                sim->n_rows++;
-            }
+            if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);
             plant_advance(sim, t, a, b);
             sim->n_current++;
             status = check_state(sim, (double)sim->n_current * cfg->Ts_current_s);

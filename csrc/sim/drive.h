@@ -53,8 +53,10 @@
  * integrators hold the steady-state voltage. Schedule entries at t = 0 are
  * steps at t = 0.
  *
- * Log: one row of P2D_LOG_COUNT doubles (row-major) for every log_every-th
- * speed sample, starting with sample 0. Row k holds the plant state at t_k
+ * Log: one row for every log_every-th speed sample, starting with sample 0,
+ * in a column-major buffer of P2D_LOG_COUNT columns of log_rows doubles
+ * (column c of row r at log[c * log_rows + r]), so that every signal is a
+ * contiguous array. Row k holds the plant state at t_k
  * (before the plant moves), the speed controller's outputs of sample k, its
  * integrator after the update of sample k, the voltage applied over the
  * current period starting at t_k (first_order: the voltage eq 1 needs to
@@ -251,8 +253,8 @@ typedef struct {
 p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg);
 
 /*
- * Run n_samples speed samples, appending log rows to log (capacity log_rows
- * rows of P2D_LOG_COUNT doubles, the same buffer on every call). Returns
+ * Run n_samples speed samples, appending rows to the column-major log
+ * (P2D_LOG_COUNT columns of log_rows doubles, the same buffer on every call). Returns
  * P2D_SIM_OK or the stop code; after a stop every call returns that code.
  */
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows);

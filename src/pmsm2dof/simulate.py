@@ -328,19 +328,20 @@ class _EngineRun:
         status = lib.p2d_sim_init(self.sim, cfg)
         if status != lib.P2D_SIM_OK:
             self._raise_config(status)
-        self.log = np.zeros((rows, lib.P2D_LOG_COUNT))
+        # column-major: one contiguous array per signal
+        self.log = np.zeros((lib.P2D_LOG_COUNT, rows))
         self._log_ptr = ffi.cast("double *", ffi.from_buffer(self.log))
 
     def advance(self, n_samples):
         """Run ``n_samples`` speed-controller samples (one C call, GIL released)."""
-        status = lib.p2d_sim_run(self.sim, n_samples, self._log_ptr, self.log.shape[0])
+        status = lib.p2d_sim_run(self.sim, n_samples, self._log_ptr, self.log.shape[1])
         if status != lib.P2D_SIM_OK:
             self._raise_stop(status)
 
     def signals(self):
         """The log so far as the named arrays of :class:`Result`, rpm at the edge."""
-        log = self.log[: self.sim.n_rows]
-        col = {ffi.string(lib.p2d_sim_log_name(i)).decode(): log[:, i].copy() for i in range(lib.P2D_LOG_COUNT)}
+        n = self.sim.n_rows
+        col = {ffi.string(lib.p2d_sim_log_name(i)).decode(): self.log[i, :n] for i in range(lib.P2D_LOG_COUNT)}
         bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
         if bad:
             first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
