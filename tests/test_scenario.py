@@ -340,6 +340,18 @@ def test_round_trip_property(J, Rs, alpha, speed, Ka, name, n, delay):
     assert load_scenario_text(s.to_toml()) == s
 
 
+@pytest.mark.parametrize("name", ["tab\there", "quote \" and \\ backslash", "line\nbreak", "del \x7f", "nul \x00",
+                                  "Grüße, 速度"])
+def test_round_trip_of_awkward_strings(name):
+    s = load_scenario("paper-condition-2").with_overrides({"name": name, "description": name})
+    assert load_scenario_text(s.to_toml()) == s
+
+
+def test_strings_must_be_unicode():
+    with pytest.raises(ConfigError, match="name"):
+        load_scenario("paper-condition-2").with_overrides({"name": "lone \ud800 surrogate"})
+
+
 def test_schema_reference_documents_every_key():
     text = schema_reference()
     for f in SCHEMA:

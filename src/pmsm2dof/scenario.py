@@ -126,7 +126,7 @@ class Field:
         elif self.kind is int:
             if isinstance(value, bool) or not isinstance(value, int):
                 raise ConfigError(dotted, value, self.valid_range())
-        elif not isinstance(value, self.kind):
+        elif not isinstance(value, self.kind) or (self.kind is str and not _is_unicode(value)):
             raise ConfigError(dotted, value, self.valid_range())
         if self.choices and value not in self.choices:
             raise ConfigError(dotted, value, self.valid_range())
@@ -134,6 +134,15 @@ class Field:
                 or (self.lt is not None and not value < self.lt) or (self.le is not None and not value <= self.le)):
             raise ConfigError(dotted, value, self.valid_range())
         return value
+
+
+def _is_unicode(text):
+    """True if ``text`` can be written as UTF-8 (no lone surrogates)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 #: The scenario schema: every key, in file order. Units are in the key names.
@@ -450,7 +459,8 @@ def _toml_value(value):
         return "true" if value else "false"
     if isinstance(value, (int, float)):
         return repr(value)
-    return json.dumps(value, ensure_ascii=False)
+    # a TOML basic string is a JSON string in which DEL must be escaped as well
+    return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
 
 
 def _toml_fields(fields, given, data):
