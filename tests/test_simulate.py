@@ -150,6 +150,8 @@ def test_save_rejects_an_unknown_format(short_run, tmp_path):
     # 3.6e7 rows of 15 doubles
     ({"simulation.t_end_s": 36000.0}, "simulation.log_every", r">= 3: the log"),
     ({"simulation.dt_s": 1e-12}, "simulation.dt_s", r">= current_loop.Ts_s / 1e\+06"),
+    ({"speed_controller.Ts_s": 1000.0, "simulation.t_end_s": 2000.0}, "speed_controller.Ts_s",
+     r"<= 1e\+06 current_loop.Ts_s = 100 s"),
 ])
 def test_rejected_values_name_the_scenario_key(overrides, key, valid):
     with pytest.raises(ConfigError, match=valid) as err:

@@ -50,7 +50,7 @@ from typing import ClassVar
 import numpy as np
 
 from ._core import ffi, lib
-from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
+from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS, _float_param
 from .errors import ConfigError, SimulationError
 from .outputs import atomic_write
 from .scenario import CURRENT_LOOP_MODELS, Scenario
@@ -63,7 +63,10 @@ LOG_BYTES_MAX = 2 * 1024**3
 #: Most RK4 steps per current period (simulation.dt_s >= current_loop.Ts_s / this).
 SUBSTEPS_MAX = 10**6
 
-#: Speed-controller samples per progress-bar update (when progress is on).
+#: Most current periods per speed period (speed_controller.Ts_s <= this * current_loop.Ts_s).
+CURRENT_PER_SPEED_MAX = 10**6
+
+#: Number of C calls a run is split into when the progress bar is on.
 PROGRESS_CHUNKS = 200
 
 #: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
@@ -261,6 +264,9 @@ class _EngineRun:
                                                         "simulation"))
         self.Ts_speed_s = sc["Ts_s"]
         current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
+        if current_per_speed > CURRENT_PER_SPEED_MAX:
+            raise ConfigError("speed_controller.Ts_s", sc["Ts_s"],
+                              f"<= {CURRENT_PER_SPEED_MAX:g} current_loop.Ts_s = {cl['Ts_s'] * CURRENT_PER_SPEED_MAX:g} s")
         substeps = max(1, math.ceil(cl["Ts_s"] / sim["dt_s"] * (1.0 - 1e-9)))
         if substeps > SUBSTEPS_MAX:
             raise ConfigError("simulation.dt_s", sim["dt_s"],
@@ -292,16 +298,16 @@ class _EngineRun:
         ]
 
         s = cfg.speed
-        s.J_kgm2 = _float32("speed_controller.J_design_kgm2", sc["J_design_kgm2"])
-        s.alpha_radps = _float32("speed_controller.alpha", sc["alpha"])
-        s.zeta = _float32("speed_controller.zeta", sc["zeta"])
-        s.m = _float32("speed_controller.m", sc["m"])
-        s.tau_i_s = _float32("speed_controller.tau_i_design_s", sc["tau_i_design_s"])
-        s.Ts_s = _float32("speed_controller.Ts_s", sc["Ts_s"])
-        s.i_max_A = _float32("limits.i_max_A", limits["i_max_A"])
-        s.psi_f_Wb = _float32("motor.psi_f_Wb", motor["psi_f_Wb"])
-        s.Ld_H = _float32("motor.Ld_H", motor["Ld_H"])
-        s.Lq_H = _float32("motor.Lq_H", motor["Lq_H"])
+        s.J_kgm2 = _float_param("speed_controller.J_design_kgm2", sc["J_design_kgm2"])
+        s.alpha_radps = _float_param("speed_controller.alpha", sc["alpha"])
+        s.zeta = _float_param("speed_controller.zeta", sc["zeta"])
+        s.m = _float_param("speed_controller.m", sc["m"])
+        s.tau_i_s = _float_param("speed_controller.tau_i_design_s", sc["tau_i_design_s"])
+        s.Ts_s = _float_param("speed_controller.Ts_s", sc["Ts_s"])
+        s.i_max_A = _float_param("limits.i_max_A", limits["i_max_A"])
+        s.psi_f_Wb = _float_param("motor.psi_f_Wb", motor["psi_f_Wb"])
+        s.Ld_H = _float_param("motor.Ld_H", motor["Ld_H"])
+        s.Lq_H = _float_param("motor.Lq_H", motor["Lq_H"])
         s.pole_pairs = motor["pole_pairs"]
         s.method = METHODS.index(sc["discretization"])
         s.feedforward = FEEDFORWARDS.index(sc["feedforward"])
@@ -310,15 +316,15 @@ class _EngineRun:
             # section 3.3: Ka = 1/Kp = 1/(J alpha), computed in float32 by the C library
             s.Ka = lib.p2d_speed_Ka_default(s.J_kgm2, s.alpha_radps)
         else:
-            s.Ka = _float32("speed_controller.Ka", sc["Ka"])
+            s.Ka = _float_param("speed_controller.Ka", sc["Ka"])
 
         c = cfg.current
-        c.Rs_ohm = _float32("motor.Rs_ohm", motor["Rs_ohm"])
+        c.Rs_ohm = _float_param("motor.Rs_ohm", motor["Rs_ohm"])
         c.Ld_H = s.Ld_H
         c.Lq_H = s.Lq_H
         c.psi_f_Wb = s.psi_f_Wb
-        c.tau_i_s = _float32("current_loop.tau_i_s", cl["tau_i_s"])
-        c.Ts_s = _float32("current_loop.Ts_s", cl["Ts_s"])
+        c.tau_i_s = _float_param("current_loop.tau_i_s", cl["tau_i_s"])
+        c.Ts_s = _float_param("current_loop.Ts_s", cl["Ts_s"])
         c.method = METHODS.index(cl["discretization"])
         c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
         c.decouple = cl["decouple"]
@@ -413,11 +419,3 @@ def _schedule(target, entries, value_key, scale):
         target.t_s, target.value, target.ramp_s = (ffi.cast("double *", ffi.from_buffer(a)) for a in arrays)
     return arrays
 
-
-def _float32(key, value):
-    """``value`` for a float32 field of a C controller, rejecting what float32 cannot hold."""
-    v = float(value)
-    f = float(np.float32(v)) if abs(v) <= float(np.finfo(np.float32).max) else math.inf
-    if not math.isfinite(f) or (v != 0.0 and f == 0.0):
-        raise ConfigError(key, value, "a number representable in float32 (|x| <= 3.4e38, not rounding to 0)")
-    return v
