@@ -29,7 +29,7 @@ sync_api = pytest.importorskip("playwright.sync_api", reason="playwright for Pyt
 # the plotted speed trace: overshoot [%] of its maximum before the load step over the step
 PLOTTED_OVERSHOOT_JS = """() => {
   const run = window.tuner.current;
-  const speed = document.getElementById('plot-speed').data.find((d) => d.name === 'speed');
+  const speed = document.getElementById('plot').data.find((d) => d.name === 'speed' && d.xaxis === 'x');
   const step = run.traces.speed_ref_rpm.y.at(-1);
   let peak = -Infinity;
   speed.x.forEach((t, i) => { if (t < run.t_load_s) peak = Math.max(peak, speed.y[i]); });
@@ -95,7 +95,7 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     current, pinned = metric_cells(page, "step.overshoot_pct")
     assert pinned == table_after
     assert float(current) > float(pinned)
-    names = page.evaluate("document.getElementById('plot-speed').data.map((d) => d.name)")
+    names = page.evaluate("document.getElementById('plot').data.filter((d) => d.xaxis === 'x').map((d) => d.name)")
     assert "speed (pinned)" in names
 
     # a bad value: a visible message naming the key, the plots stay as they were

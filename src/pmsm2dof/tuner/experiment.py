@@ -32,7 +32,7 @@ from ..simulate import simulate
 
 #: Buckets of the min-max decimation of the traces sent to the page: each bucket keeps its
 #: minimum and its maximum, so peaks (the overshoot, the load dip) survive exactly.
-DECIMATION_BUCKETS = 700
+DECIMATION_BUCKETS = 500
 #: Points of the Bode plot.
 BODE_POINTS = 240
 #: Bode plot range around the design bandwidth alpha [decades below, decades above].
@@ -121,8 +121,8 @@ def bode_data(Gx, GN, alpha_radps, Ts_s):
     out = {"w_radps": w.tolist(), "w_nyquist_radps": math.pi / Ts_s}
     for name, sys in (("Gx", Gx), ("GN", GN)):
         h = np.asarray(control.frequency_response(sys, w).complex).reshape(-1)
-        with np.errstate(divide="ignore"):
-            out[f"{name}_dB"] = (20.0 * np.log10(np.abs(h))).tolist()
+        # a zero of the response on the grid would be -inf dB, which JSON cannot carry
+        out[f"{name}_dB"] = (20.0 * np.log10(np.maximum(np.abs(h), 1e-300))).tolist()
         out[f"{name}_deg"] = np.degrees(np.unwrap(np.angle(h))).tolist()
     return out
 
@@ -150,6 +150,7 @@ class Tuner:
         self._t_ref_s = data["reference"][0]["t_s"]
         self._initial = self._initial_values(data)
         self._run_cached = functools.lru_cache(maxsize=CACHED_RUNS)(self._run_uncached)
+        self._bode_cached = functools.lru_cache(maxsize=CACHED_RUNS)(self._bode_uncached)
 
     # ---- controls -------------------------------------------------------------------
 
@@ -296,12 +297,14 @@ class Tuner:
         keep = window[np.union1d(minmax_indices(speed_w), minmax_indices(ref_w))]
         load_detail = {"t": t[keep].tolist(), "speed_rpm": np.asarray(result.speed_rpm)[keep].tolist(),
                        "speed_ref_rpm": np.asarray(result.speed_ref_rpm)[keep].tolist()}
-        Gx, GN = loop_on_plant(dsg, data["motor"]["J_kgm2"])
+        # everything the Bode plot depends on: computed, and redrawn by the page, when it changes
+        bode_key = json.dumps([dsg.J_kgm2, dsg.alpha_radps, dsg.zeta, dsg.m, dsg.tau_i_s, dsg.feedforward,
+                               data["motor"]["J_kgm2"], data["speed_controller"]["Ts_s"]])
         out = {
             "label": _label(data),
             "traces": traces,
             "load_detail": load_detail,
-            "bode": bode_data(Gx, GN, dsg.alpha_radps, data["speed_controller"]["Ts_s"]),
+            "bode": self._bode_cached(bode_key),
             "metrics": self._metrics(result),
             "design": {"Kp": dsg.Kp, "Ki": dsg.Ki, "Ka": dsg.Ka},
             "i_max_A": data["limits"]["i_max_A"],
@@ -310,6 +313,13 @@ class Tuner:
         }
         out["server_ms"] = 1e3 * (time.perf_counter() - t0)
         return out
+
+    @staticmethod
+    def _bode_uncached(key):
+        J_design_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, J_true_kgm2, Ts_s = json.loads(key)
+        dsg = design(J_design_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward)
+        Gx, GN = loop_on_plant(dsg, J_true_kgm2)
+        return bode_data(Gx, GN, alpha_radps, Ts_s) | {"key": key}
 
     @staticmethod
     def _metrics(result):

@@ -235,76 +235,123 @@ async function download(kind) {
 }
 
 /* ---- drawing ----------------------------------------------------------------- */
+/*
+ * One plotly figure holds the four plots (one redraw instead of four):
+ *   x/y   speed and reference        x2/y2  current command and limit
+ *   x3/y3 load step detail           x4/y4  |Gx|, |GN| and x4/y5 their phases
+ * Titles carry the legends (plotly's legends are the slowest part of a redraw).
+ */
 
-function line(x, y, name, color, extra) {
-  return Object.assign({ x: x, y: y, name: name, type: "scatter", mode: "lines", line: { color: color, width: 1.6 } }, extra || {});
+const COLS = [[0, 0.45], [0.55, 1]];
+const TOP = [0.56, 0.96];
+const BOTTOM = [0, 0.41];
+const SOLID = "\u2014\u2014";
+const DASHED = "\u2013 \u2013";
+const DOTTED = "\u00b7\u00b7\u00b7\u00b7";
+
+function line(x, y, name, color, axes, dash) {
+  return { x: x, y: y, name: name, type: "scatter", mode: "lines", xaxis: axes[0], yaxis: axes[1],
+           line: { color: color, width: dash === "dot" ? 1.8 : 1.6, dash: dash || "solid" } };
 }
 
-function pinnedLine(x, y, name, extra) {
-  return line(x, y, name, COLORS.pinned, Object.assign({ line: { color: COLORS.pinned, width: 1.6, dash: "dot" } }, extra || {}));
+function pinnedLine(x, y, name, axes) {
+  return line(x, y, name, COLORS.pinned, axes, "dot");
 }
 
-function layout(title, xtitle, ytitle, extra) {
-  return Object.assign({
-    title: { text: title, font: { size: 13 }, x: 0.01, xanchor: "left" },
-    margin: { l: 58, r: 10, t: 44, b: 40 },
-    xaxis: { title: { text: xtitle } },
-    yaxis: { title: { text: ytitle } },
-    legend: { orientation: "h", x: 1, xanchor: "right", y: 1, yanchor: "bottom", font: { size: 11 } },
-    uirevision: "keep",
-  }, extra || {});
+function key(color, glyph, text) {
+  return `<span style="color:${color}">${glyph} ${text}</span>`;
+}
+
+function title(x, y, text, keys, pinned) {
+  if (pinned) keys.push(key(COLORS.pinned, DOTTED, "pinned"));
+  return { xref: "paper", yref: "paper", x: x, y: y, xanchor: "left", yanchor: "bottom", showarrow: false,
+           align: "left", text: `<b>${text}</b>    ` + keys.join("   "), font: { size: 12 } };
 }
 
 function speedTraces(run, pinned) {
   const tr = run.traces;
+  const axes = ["x", "y"];
   const data = [
-    line(tr.speed_ref_rpm.t, tr.speed_ref_rpm.y, "reference", COLORS.reference, { line: { color: COLORS.reference, width: 1.2, dash: "dash" } }),
-    line(tr.speed_rpm.t, tr.speed_rpm.y, "speed", COLORS.current),
+    line(tr.speed_ref_rpm.t, tr.speed_ref_rpm.y, "reference", COLORS.reference, axes, "dash"),
+    line(tr.speed_rpm.t, tr.speed_rpm.y, "speed", COLORS.current, axes),
   ];
-  if (pinned) data.push(pinnedLine(pinned.traces.speed_rpm.t, pinned.traces.speed_rpm.y, "speed (pinned)"));
+  if (pinned) data.push(pinnedLine(pinned.traces.speed_rpm.t, pinned.traces.speed_rpm.y, "speed (pinned)", axes));
   return data;
 }
 
 function currentTraces(run, pinned) {
   const tr = run.traces;
+  const axes = ["x2", "y2"];
   const tEnd = tr.iq_ref_A.t[tr.iq_ref_A.t.length - 1];
-  const limit = { color: COLORS.limit, width: 1, dash: "dash" };
   const data = [
-    line(tr.iq_ref_A.t, tr.iq_ref_A.y, "iq command", COLORS.current),
-    line(tr.id_ref_A.t, tr.id_ref_A.y, "id command", COLORS.d),
-    line([0, tEnd], [run.i_max_A, run.i_max_A], "limit \u00b1i_max", COLORS.limit, { line: limit }),
-    line([0, tEnd], [-run.i_max_A, -run.i_max_A], "", COLORS.limit, { line: limit, showlegend: false }),
+    line([0, tEnd], [run.i_max_A, run.i_max_A], "+i_max", COLORS.limit, axes, "dash"),
+    line([0, tEnd], [-run.i_max_A, -run.i_max_A], "-i_max", COLORS.limit, axes, "dash"),
+    line(tr.id_ref_A.t, tr.id_ref_A.y, "id command", COLORS.d, axes),
+    line(tr.iq_ref_A.t, tr.iq_ref_A.y, "iq command", COLORS.current, axes),
   ];
-  if (pinned) data.push(pinnedLine(pinned.traces.iq_ref_A.t, pinned.traces.iq_ref_A.y, "iq command (pinned)"));
+  if (pinned) data.push(pinnedLine(pinned.traces.iq_ref_A.t, pinned.traces.iq_ref_A.y, "iq command (pinned)", axes));
   return data;
 }
 
 function loadTraces(run, pinned) {
   const d = run.load_detail;
+  const axes = ["x3", "y3"];
   const data = [
-    line(d.t, d.speed_ref_rpm, "reference", COLORS.reference, { line: { color: COLORS.reference, width: 1.2, dash: "dash" } }),
-    line(d.t, d.speed_rpm, "speed", COLORS.current),
+    line(d.t, d.speed_ref_rpm, "reference", COLORS.reference, axes, "dash"),
+    line(d.t, d.speed_rpm, "speed", COLORS.current, axes),
   ];
-  if (pinned) data.push(pinnedLine(pinned.load_detail.t, pinned.load_detail.speed_rpm, "speed (pinned)"));
+  if (pinned) data.push(pinnedLine(pinned.load_detail.t, pinned.load_detail.speed_rpm, "speed (pinned)", axes));
   return data;
 }
 
 function bodeTraces(run, pinned) {
-  const b = run.bode;
-  const data = [
-    line(b.w_radps, b.Gx_dB, "|Gx|", COLORS.gx),
-    line(b.w_radps, b.GN_dB, "|GN|", COLORS.gn),
-    line(b.w_radps, b.Gx_deg, "\u2220Gx", COLORS.gx, { yaxis: "y2", showlegend: false }),
-    line(b.w_radps, b.GN_deg, "\u2220GN", COLORS.gn, { yaxis: "y2", showlegend: false }),
-  ];
-  if (pinned) {
-    const p = pinned.bode;
-    data.push(pinnedLine(p.w_radps, p.Gx_dB, "pinned"));
-    data.push(pinnedLine(p.w_radps, p.GN_dB, "", { showlegend: false }));
-    data.push(pinnedLine(p.w_radps, p.Gx_deg, "", { yaxis: "y2", showlegend: false }));
-    data.push(pinnedLine(p.w_radps, p.GN_deg, "", { yaxis: "y2", showlegend: false }));
+  const data = [];
+  for (const [b, pin] of pinned ? [[pinned.bode, true], [run.bode, false]] : [[run.bode, false]]) {
+    const name = (n) => (pin ? n + " (pinned)" : n);
+    const color = (c) => (pin ? COLORS.pinned : c);
+    const dash = pin ? "dot" : "solid";
+    data.push(line(b.w_radps, b.Gx_dB, name("|Gx| [dB]"), color(COLORS.gx), ["x4", "y4"], dash));
+    data.push(line(b.w_radps, b.GN_dB, name("|GN| [dB (rad/s)/Nm]"), color(COLORS.gn), ["x4", "y4"], dash));
+    data.push(line(b.w_radps, b.Gx_deg, name("\u2220Gx [deg]"), color(COLORS.gx), ["x4", "y5"], dash));
+    data.push(line(b.w_radps, b.GN_deg, name("\u2220GN [deg]"), color(COLORS.gn), ["x4", "y5"], dash));
   }
   return data;
+}
+
+function figureLayout(run, pinned) {
+  const w = run.load_detail.t;
+  const nyquist = run.bode.w_nyquist_radps;
+  const inView = nyquist <= run.bode.w_radps[run.bode.w_radps.length - 1];
+  const axis = (text, extra) => Object.assign({ title: { text: text, standoff: 2, font: { size: 12 } } }, extra);
+  return {
+    showlegend: false,
+    hovermode: "closest",
+    uirevision: "keep",
+    margin: { l: 62, r: 12, t: 8, b: 42 },
+    xaxis: axis("t [s]", { domain: COLS[0], anchor: "y" }),
+    yaxis: axis("speed [rpm]", { domain: TOP, anchor: "x" }),
+    xaxis2: axis("t [s]", { domain: COLS[1], anchor: "y2" }),
+    yaxis2: axis("current [A]", { domain: TOP, anchor: "x2" }),
+    xaxis3: axis("t [s]", { domain: COLS[0], anchor: "y3", range: [w[0], w[w.length - 1]] }),
+    yaxis3: axis("speed [rpm]", { domain: BOTTOM, anchor: "x3" }),
+    xaxis4: axis("\u03c9 [rad/s]", { domain: COLS[1], anchor: "y5", type: "log" }),
+    yaxis4: axis("magnitude [dB]", { domain: [0.22, BOTTOM[1]], anchor: "x4" }),
+    yaxis5: axis("phase [deg]", { domain: [0, 0.18], anchor: "x4" }),
+    annotations: [
+      title(COLS[0][0], TOP[1], "Speed",
+        [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")], pinned),
+      title(COLS[1][0], TOP[1], "Current command",
+        [key(COLORS.current, SOLID, "iq"), key(COLORS.d, SOLID, "id"), key(COLORS.limit, DASHED, "\u00b1i_max")], pinned),
+      title(COLS[0][0], BOTTOM[1], `Load step: ${fmt(run.load_step_Nm)} Nm at ${fmt(run.t_load_s)} s`,
+        [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")], pinned),
+      title(COLS[1][0], BOTTOM[1], "Bode (eq 6, 8)",
+        [key(COLORS.gx, SOLID, "Gx tracking"), key(COLORS.gn, SOLID, "GN load [(rad/s)/Nm]")], pinned),
+    ].concat(inView ? [{ xref: "x4", yref: "paper", x: Math.log10(nyquist), y: BOTTOM[1] - 0.01, text: "\u03c0/Ts",
+                         showarrow: false, xanchor: "right", yanchor: "top", font: { size: 10, color: "#777" } }] : []),
+    // pi/Ts, where the sampled controller leaves the continuous design, when it is in view
+    shapes: inView ? [{ type: "line", xref: "x4", yref: "paper", x0: nyquist, x1: nyquist, y0: 0, y1: BOTTOM[1],
+                        line: { color: "#999", width: 1, dash: "dot" } }] : [],
+  };
 }
 
 function renderMetrics(run, pinned) {
@@ -325,24 +372,15 @@ function renderMetrics(run, pinned) {
 }
 
 async function render(run) {
+  const previous = window.tuner.current;
+  if (previous && previous.bode.key === run.bode.key) {
+    run.bode = previous.bode;  // the same arrays: plotly does not recompute those traces
+  }
   window.tuner.current = run;
   const pinned = window.tuner.pinned;
-  const w = run.load_detail.t;
-  await Promise.all([
-    Plotly.react("plot-speed", speedTraces(run, pinned), layout("Speed and reference", "t [s]", "speed [rpm]")),
-    Plotly.react("plot-current", currentTraces(run, pinned), layout("Current command and limit", "t [s]", "current [A]")),
-    Plotly.react("plot-load", loadTraces(run, pinned), layout(`Load step detail (${fmt(run.load_step_Nm)} Nm at ${fmt(run.t_load_s)} s)`,
-      "t [s]", "speed [rpm]", { xaxis: { title: { text: "t [s]" }, range: [w[0], w[w.length - 1]] } })),
-    Plotly.react("plot-bode", bodeTraces(run, pinned), layout("Bode: Gx (tracking, eq 6/10) and GN (load, eq 8)", "\u03c9 [rad/s]", "magnitude [dB]", {
-      xaxis: { type: "log", anchor: "y2", title: { text: "\u03c9 [rad/s]" } },
-      yaxis: { domain: [0.45, 1], title: { text: "magnitude [dB]" } },
-      yaxis2: { domain: [0, 0.4], title: { text: "phase [deg]" } },
-      shapes: [{ type: "line", xref: "x", yref: "paper", x0: run.bode.w_nyquist_radps, x1: run.bode.w_nyquist_radps,
-                 y0: 0, y1: 1, line: { color: "#999", width: 1, dash: "dot" } }],
-      annotations: [{ xref: "x", yref: "paper", x: Math.log10(run.bode.w_nyquist_radps), y: 1, text: "\u03c0/Ts",
-                      showarrow: false, xanchor: "right", font: { size: 10, color: "#777" } }],
-    })),
-  ]);
+  const data = [].concat(speedTraces(run, pinned), currentTraces(run, pinned), loadTraces(run, pinned),
+                         bodeTraces(run, pinned));
+  await Plotly.react("plot", data, figureLayout(run, pinned), PLOT_CONFIG);
   renderMetrics(run, pinned);
 }
 
