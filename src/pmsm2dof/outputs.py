@@ -50,6 +50,10 @@ def atomic_write(path, data):
     except OSError as exc:
         raise ConfigError("path", str(path), f"a writable location ({exc.strerror})") from None
     try:
+        # mkstemp creates the file 0600; give it the mode an ordinary open() would
+        umask = os.umask(0)
+        os.umask(umask)
+        os.fchmod(fd, 0o666 & ~umask)
         with os.fdopen(fd, mode) as f:
             f.write(data)
         os.replace(tmp, path)
