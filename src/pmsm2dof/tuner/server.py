@@ -67,8 +67,10 @@ def bind_socket(host="127.0.0.1", port=None):
 
 
 def url_of(sock):
-    """The http URL that reaches the server listening on ``sock``."""
+    """The http URL that reaches the server listening on ``sock`` from this machine."""
     host, port = sock.getsockname()[:2]
+    if ipaddress.ip_address(host).is_unspecified:  # all interfaces: loopback is one of them
+        host = "127.0.0.1" if sock.family == socket.AF_INET else "::1"
     if ":" in host:
         host = f"[{host}]"
     return f"http://{host}:{port}/"
