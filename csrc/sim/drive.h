@@ -17,7 +17,9 @@
  * depends on the controller period, never on the integration step). Outside
  * the band the friction is T_c sign(w_m). Inside, the model has no stiction: a
  * load smaller than T_c lets the shaft creep at w_c atanh(T_load / T_c)
- * instead of holding it at exactly zero speed.
+ * instead of holding it at exactly zero speed. A reversal that crosses the
+ * band within one RK4 step integrates the friction jump of 2 T_c coarsely: the
+ * speed error it adds is below T_c dt / J.
  *
  * Current loop, two models:
  *   P2D_CURRENT_DQ_PI        p2d_current_* at Ts_current drives the electrical
@@ -46,7 +48,7 @@
  *   The speed reference is sampled by the speed controller (0 before the
  *   first entry); the load acts in continuous time.
  *
- * Initial state: the drive is at rest in its steady state at w_m0 before
+ * Initial state: the drive is in steady state at the speed w_m0 before
  * t = 0, with the reference equal to w_m0 and no load: the speed controller is
  * reset bumplessly (p2d_speed_reset) to the torque holding w_m0 against
  * friction, the currents equal the command for that torque and the current
@@ -66,8 +68,9 @@
  *   P2D_SIM_STOP_NONFINITE         a state variable is NaN or infinite;
  *   P2D_SIM_STOP_OVERSPEED         |w_m| > 2 u_dc / (sqrt(3) p psi_f): twice the
  *                                  no-load speed of the DC link, where the
- *                                  back-EMF exceeds the inverter's range twice
- *                                  and the average model no longer describes it;
+ *                                  back-EMF is twice the inverter's voltage
+ *                                  range and the average model no longer
+ *                                  describes the drive;
  *   P2D_SIM_STOP_OVERCURRENT       ||i_dq|| > 10 max(i_max, psi_f / min(Ld, Lq)):
  *                                  ten times the larger of the current limit and
  *                                  the short-circuit current of the machine;
