@@ -26,7 +26,7 @@ Log
     load torque.
 
 Initial state
-    At rest in steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
+    In steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
     load; the reference and load schedules apply from t = 0 (entries at t = 0 are steps at 0).
 
 Coulomb friction
