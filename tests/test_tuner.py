@@ -222,6 +222,19 @@ def test_bad_value_answers_422_naming_the_key(client, key, value):
         assert key in err["error"] and "valid" in err["error"]
 
 
+def test_a_run_that_stops_answers_422_with_the_reason(client, base):
+    """A load of -1000 Nm drives the motor past the engine's overspeed bound (twice the no-load
+    speed u_dc / (sqrt(3) p psi_f)): the engine stops and the page gets the reason, not a trace."""
+    motor = base.data["motor"]
+    bound_rpm = 2 * base.data["limits"]["u_dc_V"] / (math.sqrt(3) * motor["pole_pairs"] * motor["psi_f_Wb"]) / (
+        RADPS_PER_RPM)
+    response = client.post("/api/run", json={"tuner.load_step_Nm": -1000.0})
+    assert response.status_code == 422
+    err = response.json()
+    assert err["param"] is None
+    assert "stopped at t =" in err["error"] and f"{bound_rpm:.6g} rpm" in err["error"]
+
+
 def test_non_finite_json_number_is_rejected(client):
     response = client.post("/api/run", content=b'{"speed_controller.alpha": NaN}',
                            headers={"Content-Type": "application/json"})
