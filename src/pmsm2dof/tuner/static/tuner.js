@@ -82,8 +82,10 @@ function buildControl(spec) {
   const range = el("input", { type: "range", min: "0", max: "1000", step: "1", "aria-label": spec.label });
   const box = el("input", { type: "text", id: id, name: spec.key, inputmode: "decimal" });
   row.append(range, box);
-  const show = (v) => { box.value = v === null ? "" : fmt(v); if (v !== null && isFinite(v)) range.value = valueToSlider(spec, v); };
-  show(spec.value);
+  if (spec.value !== null) {
+    box.value = fmt(spec.value);
+    range.value = valueToSlider(spec, spec.value);
+  }
   range.addEventListener("input", () => { const v = sliderToValue(spec, Number(range.value)); box.value = fmt(v); setValue(spec.key, v); });
   box.addEventListener("change", () => {
     const text = box.value.trim();
