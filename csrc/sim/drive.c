@@ -43,6 +43,9 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
                                             "values and finite ramp_s >= 0"},
     [P2D_SIM_ERR_LOAD] = {"load", "entries with finite t_s >= 0 in nondecreasing order, finite values "
                                   "and finite ramp_s >= 0"},
+    [P2D_SIM_ERR_FAULTS] = {"faults", "entries with a known kind, finite t_s >= 0, finite duration_s > 0 (but "
+                                      "sensor_spike), a DC-link factor in [0, 1] with dq_pi, a finite spike "
+                                      "reading"},
     [P2D_SIM_ERR_SPEED_CONTROLLER] = {"speed", "accepted by p2d_speed_init (see controller_status)"},
     [P2D_SIM_ERR_CURRENT_CONTROLLER] = {"current", "accepted by p2d_current_init (see controller_status)"},
     [P2D_SIM_ERR_LOG_FULL] = {"log_rows", "room for every logged sample"},
@@ -70,6 +73,8 @@ static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
     [P2D_LOG_LOAD_NM] = "load_Nm",
     [P2D_LOG_SATURATED] = "saturated",
     [P2D_LOG_X_I_NM] = "x_i_Nm",
+    [P2D_LOG_W_MEAS_RADPS] = "w_meas_radps",
+    [P2D_LOG_U_DC_V] = "u_dc_V",
 };
 
 const char *p2d_sim_status_param(p2d_sim_status_t status)
@@ -107,6 +112,32 @@ static bool schedule_valid(const p2d_schedule_t *s)
     return true;
 }
 
+static bool faults_valid(const p2d_sim_config_t *cfg)
+{
+    if (cfg->n_faults == 0u) return true;
+    if (cfg->faults == 0) return false;
+    for (uint32_t i = 0; i < cfg->n_faults; ++i) {
+        const p2d_fault_t *f = &cfg->faults[i];
+        if (!is_nonnegative(f->t_s)) return false;
+        switch (f->kind) {
+        case P2D_FAULT_DC_LINK_SAG:
+            if (cfg->current_model != P2D_CURRENT_DQ_PI || !is_nonnegative(f->value) || f->value > 1.0) return false;
+            if (!is_positive(f->duration_s)) return false;
+            break;
+        case P2D_FAULT_SENSOR_HOLD:
+        case P2D_FAULT_SENSOR_ZERO:
+            if (!is_positive(f->duration_s)) return false;
+            break;
+        case P2D_FAULT_SENSOR_SPIKE:
+            if (!isfinite(f->value)) return false;
+            break;
+        default:
+            return false;
+        }
+    }
+    return true;
+}
+
 static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
 {
     const p2d_pmsm_params_t *m = &cfg->motor;
@@ -136,6 +167,7 @@ static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
     if (!isfinite(cfg->w_m0_radps)) return P2D_SIM_ERR_W_M0;
     if (!schedule_valid(&cfg->reference)) return P2D_SIM_ERR_REFERENCE;
     if (!schedule_valid(&cfg->load)) return P2D_SIM_ERR_LOAD;
+    if (!faults_valid(cfg)) return P2D_SIM_ERR_FAULTS;
     return P2D_SIM_OK;
 }
 
@@ -186,6 +218,40 @@ static double cursor_next_break(const p2d_schedule_cursor_t *c, const p2d_schedu
     double t_ramp_end = c->t0_s + c->ramp_s;
     if (c->ramp_s > 0.0 && t_ramp_end > t_s && t_ramp_end < t_break) t_break = t_ramp_end;
     return t_break;
+}
+
+/* ---- faults ------------------------------------------------------------- */
+
+/* t in [t_s, t_s + length) up to the time tolerance */
+static bool fault_active(const p2d_sim_t *sim, const p2d_fault_t *f, double length_s, double t_s)
+{
+    return t_s >= f->t_s - sim->t_tol_s && t_s < f->t_s + length_s - sim->t_tol_s;
+}
+
+/* The speed the speed controller reads at t_k: the first active sensor fault's, else w_m. */
+static double speed_reading(const p2d_sim_t *sim, double t_k_s)
+{
+    const double Ts_speed_s = (double)sim->cfg.current_per_speed * sim->cfg.Ts_current_s;
+    for (uint32_t i = 0; i < sim->cfg.n_faults; ++i) {
+        const p2d_fault_t *f = &sim->cfg.faults[i];
+        if (f->kind == P2D_FAULT_SENSOR_HOLD && fault_active(sim, f, f->duration_s, t_k_s)) return sim->w_meas_radps;
+        if (f->kind == P2D_FAULT_SENSOR_ZERO && fault_active(sim, f, f->duration_s, t_k_s)) return 0.0;
+        /* a spike is the one speed sample in [t_s, t_s + Ts_speed) */
+        if (f->kind == P2D_FAULT_SENSOR_SPIKE && fault_active(sim, f, Ts_speed_s, t_k_s)) return f->value;
+    }
+    return sim->pmsm.w_m_radps;
+}
+
+/* The DC link over the current period starting at t: value u_dc under the first active sag, else u_dc. */
+static double dc_link_V(const p2d_sim_t *sim, double t_s)
+{
+    for (uint32_t i = 0; i < sim->cfg.n_faults; ++i) {
+        const p2d_fault_t *f = &sim->cfg.faults[i];
+        if (f->kind == P2D_FAULT_DC_LINK_SAG && fault_active(sim, f, f->duration_s, t_s)) {
+            return f->value * sim->cfg.u_dc_V;
+        }
+    }
+    return sim->cfg.u_dc_V;
 }
 
 /* ---- plant -------------------------------------------------------------- */
@@ -390,6 +456,8 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->t_stop_s = 0.0;
     sim->stop_value = 0.0;
     sim->stop_bound = 0.0;
+    sim->w_meas_radps = cfg->w_m0_radps;
+    sim->u_dc_V = cfg->u_dc_V;
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     m->w_m_radps = cfg->w_m0_radps;
@@ -442,6 +510,8 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_LOAD_NM * log_rows] = segment_value(&sim->load, t_k_s);
     row[P2D_LOG_SATURATED * log_rows] = so->saturated ? 1.0 : 0.0;
     row[P2D_LOG_X_I_NM * log_rows] = (double)sim->speed.x_i_Nm;
+    row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
+    row[P2D_LOG_U_DC_V * log_rows] = sim->u_dc_V;
     sim->n_rows++;
 }
 
@@ -458,10 +528,11 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
         p2d_speed_output_t so;
         if (log_row && (log == 0 || sim->n_rows >= log_rows)) return P2D_SIM_ERR_LOG_FULL;
 
-        /* speed sample k: reference sampled at t_k */
+        /* speed sample k: reference and speed reading sampled at t_k */
         cursor_advance(&sim->reference, &cfg->reference, t_k + sim->t_tol_s);
         w_ref = segment_value(&sim->reference, t_k);
-        p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->pmsm.w_m_radps, &so);
+        sim->w_meas_radps = speed_reading(sim, t_k);
+        p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
         if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
         sim->id_ref_A = (double)so.id_ref_A;
         sim->iq_ref_A = (double)so.iq_ref_A;
@@ -473,9 +544,12 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
             if (cfg->current_model == P2D_CURRENT_DQ_PI) {
                 p2d_current_output_t co;
                 double ud_cmd_V, uq_cmd_V;
+                /* the DC link of this period sets the inverter's range and the controller's measurement */
+                sim->u_dc_V = dc_link_V(sim, t);
+                sim->inverter.u_max_V = sim->u_dc_V * P2D_SIM_INV_SQRT3;
                 p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A,
                                     (float)sim->pmsm.id_A, (float)sim->pmsm.iq_A,
-                                    (float)(sim->pmsm.p * sim->pmsm.w_m_radps), (float)cfg->u_dc_V, &co);
+                                    (float)(sim->pmsm.p * sim->pmsm.w_m_radps), (float)sim->u_dc_V, &co);
                 if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
                 inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, &ud_cmd_V, &uq_cmd_V);
                 /* the integrators learn the command the inverter accepted */

@@ -55,6 +55,23 @@
  * integrators hold the steady-state voltage. Schedule entries at t = 0 are
  * steps at t = 0.
  *
+ * Faults (p2d_fault_t, at most one of each group active at a time: the
+ * first active one in the list):
+ *   P2D_FAULT_DC_LINK_SAG   over [t_s, t_s + duration_s) the DC link is
+ *                           value * u_dc (value in [0, 1]): the inverter's
+ *                           range u_dc / sqrt(3) and the DC link the current
+ *                           controller measures shrink with it, for each
+ *                           current period by its start (dq_pi only; the
+ *                           overspeed bound keeps the nominal u_dc);
+ *   P2D_FAULT_SENSOR_HOLD   speed sensor group: the speed controller's
+ *                           samples in [t_s, t_s + duration_s) read the last
+ *                           reading before the window (a frozen sensor);
+ *   P2D_FAULT_SENSOR_ZERO   speed sensor group: they read 0 (a lost sensor);
+ *   P2D_FAULT_SENSOR_SPIKE  speed sensor group: the first speed sample at or
+ *                           after t_s reads value [rad/s] (one wrong sample).
+ * The sensor faults act on the speed the speed controller samples only; the
+ * current controllers keep the true electrical speed for their decoupling.
+ *
  * Log: one row for every log_every-th speed sample, starting with sample 0,
  * in a column-major buffer of P2D_LOG_COUNT columns of log_rows doubles
  * (column c of row r at log[c * log_rows + r]), so that every signal is a
@@ -62,7 +79,8 @@
  * (before the plant moves), the speed controller's outputs of sample k, its
  * integrator after the update of sample k, the voltage applied over the
  * current period starting at t_k (first_order: the voltage eq 1 needs to
- * make the currents follow eq 3 at t_k, unlimited) and the load at t_k.
+ * make the currents follow eq 3 at t_k, unlimited), the load at t_k, the
+ * speed reading of sample k and the DC link over that current period.
  *
  * Stops (p2d_sim_run returns the code, sim->t_stop_s holds the time):
  *   P2D_SIM_STOP_NONFINITE         a state variable is NaN or infinite;
@@ -118,6 +136,7 @@ typedef enum {
     P2D_SIM_ERR_W_M0,                 /* w_m0_radps */
     P2D_SIM_ERR_REFERENCE,            /* reference schedule */
     P2D_SIM_ERR_LOAD,                 /* load schedule */
+    P2D_SIM_ERR_FAULTS,               /* faults */
     P2D_SIM_ERR_SPEED_CONTROLLER,     /* p2d_speed_init rejected speed: see controller_status */
     P2D_SIM_ERR_CURRENT_CONTROLLER,   /* p2d_current_init rejected current: see controller_status */
     P2D_SIM_ERR_LOG_FULL,             /* the log buffer has no room for the next row */
@@ -145,6 +164,8 @@ typedef enum {
     P2D_LOG_LOAD_NM,          /* load torque [Nm] */
     P2D_LOG_SATURATED,        /* 1 when the current-vector limit is active, else 0 [-] */
     P2D_LOG_X_I_NM,           /* speed integrator after the update x[k] [Nm] */
+    P2D_LOG_W_MEAS_RADPS,     /* speed reading sampled by the speed controller [rad/s] */
+    P2D_LOG_U_DC_V,           /* DC-link voltage over the current period starting at t_k [V] */
     P2D_LOG_COUNT             /* number of columns, not a column */
 } p2d_log_column_t;
 
@@ -166,6 +187,23 @@ typedef struct {
     double v1;      /* target of the segment [unit of the signal] */
     double ramp_s;  /* ramp duration of the segment [s]; 0: a step */
 } p2d_schedule_cursor_t;
+
+/* Fault kinds: see the comment at the top. */
+typedef enum {
+    P2D_FAULT_DC_LINK_SAG = 0,  /* u_dc scaled by value over the window */
+    P2D_FAULT_SENSOR_HOLD = 1,  /* speed reading frozen over the window */
+    P2D_FAULT_SENSOR_ZERO = 2,  /* speed reading 0 over the window */
+    P2D_FAULT_SENSOR_SPIKE = 3  /* one speed sample reads value */
+} p2d_fault_kind_t;
+
+/* One fault. */
+typedef struct {
+    p2d_fault_kind_t kind; /* what fails */
+    double t_s;            /* start [s], finite, >= 0 */
+    double duration_s;     /* length of the window [s], finite, > 0 (SENSOR_SPIKE: unused) */
+    double value;          /* DC_LINK_SAG: factor of u_dc [-] in [0, 1]; SENSOR_SPIKE: the reading
+                              [rad/s], finite; others: unused */
+} p2d_fault_t;
 
 /* Parameters of the true plant. */
 typedef struct {
@@ -225,6 +263,8 @@ typedef struct {
     p2d_schedule_t load;               /* load torque [Nm] */
     p2d_speed_config_t speed;          /* speed controller (its i_max_A is the drive's limit) */
     p2d_current_config_t current;      /* current controller, DQ_PI only */
+    const p2d_fault_t *faults;         /* faults, in any order (not copied); DC_LINK_SAG needs DQ_PI */
+    uint32_t n_faults;                 /* number of faults; 0: none */
 } p2d_sim_config_t;
 
 typedef struct {
@@ -250,6 +290,8 @@ typedef struct {
     double t_stop_s;                 /* time of the stop [s] */
     double stop_value;               /* offending value (|w_m| [rad/s] or ||i_dq|| [A]) */
     double stop_bound;               /* bound it crossed (same unit) */
+    double w_meas_radps;             /* last speed reading given to the speed controller [rad/s] */
+    double u_dc_V;                   /* DC link over the present current period [V] */
 } p2d_sim_t;
 
 /* Validate cfg, initialize the controllers and set the initial state. */

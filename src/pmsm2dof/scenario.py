@@ -40,6 +40,9 @@ from .errors import ConfigError
 #: Current-loop models: the C dq current controllers driving the electrical model, or eq (3).
 CURRENT_LOOP_MODELS = ("dq_pi", "first_order")
 
+#: Fault kinds of ``[[fault]]`` entries, in the order of the engine's p2d_fault_kind_t.
+FAULT_KINDS = ("dc_link_sag", "sensor_hold", "sensor_zero", "sensor_spike")
+
 #: Longest simulated time of one scenario [s] (ten hours).
 T_END_MAX_S = 36000.0
 
@@ -211,12 +214,24 @@ SCHEMA = (
     Field("load[].torque_Nm", float, "new load torque [Nm]"),
     Field("load[].ramp_s", float, "0: a step; > 0: a linear ramp from the previous value over ramp_s [s]",
           default=0.0, ge=0),
+
+    Field("fault[].kind", str, "what fails: dc_link_sag (the DC link drops to u_dc_factor u_dc_V over the "
+          "window, dq_pi only), sensor_hold (the speed controller reads its last reading before the window), "
+          "sensor_zero (it reads 0), sensor_spike (its first sample at or after t_s reads speed_rpm)",
+          choices=FAULT_KINDS),
+    Field("fault[].t_s", float, "start of the fault [s], 0 <= t_s < simulation.t_end_s", ge=0),
+    Field("fault[].duration_s", float, "length of the fault window [s]; every kind but sensor_spike (one "
+          "sample)", default=None, gt=0),
+    Field("fault[].u_dc_factor", float, "dc_link_sag only: the DC link over the window as a fraction of "
+          "limits.u_dc_V", default=None, ge=0, le=1),
+    Field("fault[].speed_rpm", float, "sensor_spike only: the wrong speed reading [rpm]", default=None),
 )
 
 #: Arrays of tables: name -> (required, what its entries are).
 ARRAYS = {
     "reference": (True, "speed reference schedule; the reference is 0 before the first entry"),
     "load": (False, "load torque schedule; the load is 0 before the first entry"),
+    "fault": (False, "faults the simulation plays: DC-link sag, speed-sensor hold, zero or spike"),
 }
 
 _FIELDS = {f.key: f for f in SCHEMA}
@@ -358,6 +373,40 @@ def _check_relations(data):
                         f"{name}.{i}.t_s", e["t_s"],
                         f"> {name}.{i - 1}.t_s = {prev['t_s']!r} and >= the end of its ramp "
                         f"({earliest!r}): entries sorted by time, ramps not overlapping")
+    _check_faults(data)
+
+
+def _check_faults(data):
+    """Each fault has the keys its kind uses, acts before t_end and, within its group (DC link or
+    speed sensor), does not overlap another; a sensor_spike takes one speed period."""
+    sim, Ts_speed = data["simulation"], data["speed_controller"]["Ts_s"]
+    windows = {"dc_link": [], "sensor": []}
+    for i, f in enumerate(data["fault"]):
+        kind = f["kind"]
+        if f["t_s"] >= sim["t_end_s"]:
+            raise ConfigError(f"fault.{i}.t_s", f["t_s"], f">= 0 and < simulation.t_end_s = {sim['t_end_s']!r}")
+        uses = {"duration_s": kind != "sensor_spike", "u_dc_factor": kind == "dc_link_sag",
+                "speed_rpm": kind == "sensor_spike"}
+        for leaf, used in uses.items():
+            if used and f[leaf] is None:
+                field = _FIELDS[f"fault[].{leaf}"]
+                raise ConfigError(f"fault.{i}.{leaf}", REQUIRED,
+                                  f"required by kind {kind!r}: {field.valid_range()} ({field.doc})")
+            if not used and f[leaf] is not None:
+                raise ConfigError(f"fault.{i}.{leaf}", f[leaf], f"absent: kind {kind!r} does not use it")
+        if kind == "dc_link_sag" and data["current_loop"]["model"] != "dq_pi":
+            raise ConfigError(f"fault.{i}.kind", kind, "a sensor fault with current_loop.model 'first_order' "
+                              "(eq 3 has no inverter and no DC link): use 'dq_pi' for a DC-link sag")
+        group = "dc_link" if kind == "dc_link_sag" else "sensor"
+        start, end = f["t_s"], f["t_s"] + (Ts_speed if kind == "sensor_spike" else f["duration_s"])
+        tol = TS_MULTIPLE_RTOL * Ts_speed
+        for j, (s0, s1) in windows[group]:
+            if start < s1 - tol and s0 < end - tol:
+                raise ConfigError(f"fault.{i}.t_s", start,
+                                  f"outside [{s0!r}, {s1!r}) s, the window of fault.{j}: faults of the "
+                                  f"{'DC link' if group == 'dc_link' else 'speed sensor'} do not overlap "
+                                  "(a sensor_spike takes one speed_controller.Ts_s)")
+        windows[group].append((i, (start, end)))
 
 
 class Scenario:

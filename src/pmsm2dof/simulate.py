@@ -25,6 +25,14 @@ Log
     (``first_order``: the voltage eq 1 needs for the current slopes of eq 3, not limited) and the
     load torque.
 
+Faults
+    The scenario's ``[[fault]]`` entries (:data:`pmsm2dof.scenario.FAULT_KINDS`): a DC-link sag
+    scales ``u_dc`` over a window (the inverter's range and the DC link the current controller
+    measures, per current period); a speed-sensor fault changes what the speed controller reads
+    (held at the last reading, zero, or one wrong sample). The current controllers keep the true
+    speed for their decoupling. A stall needs no fault: a load above the torque the current limit
+    can give. ``speed_meas_rpm`` and ``u_dc_V`` of the :class:`Result` show what was read and applied.
+
 Initial state
     In steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
     load; the reference and load schedules apply from t = 0 (entries at t = 0 are steps at 0).
@@ -53,7 +61,7 @@ from ._core import ffi, lib
 from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS, _float_param
 from .errors import ConfigError, SimulationError
 from .outputs import atomic_write
-from .scenario import CURRENT_LOOP_MODELS, Scenario
+from .scenario import CURRENT_LOOP_MODELS, FAULT_KINDS, Scenario
 
 RPM_PER_RADPS = 30.0 / math.pi
 
@@ -120,6 +128,7 @@ _SIM_KEYS = {
     "w_m0_radps": "simulation.speed0_rpm",
     "reference": "reference",
     "load": "load",
+    "faults": "fault",
 }
 
 
@@ -146,11 +155,16 @@ class Result:
     load_Nm : load torque [Nm]
     saturated : the current-vector limit is active (bool)
     x_i_Nm : integrator of the speed PI after the sample's update [Nm]
+    speed_meas_rpm : speed reading sampled by the speed controller (differs from speed_rpm only
+        under a sensor fault) [rpm]
+    u_dc_V : DC-link voltage over the current period that starts at the row (nominal but under a
+        DC-link sag) [V]
     """
 
     signals: ClassVar[tuple] = (
         "t_s", "speed_ref_rpm", "speed_rpm", "w_m_radps", "id_ref_A", "iq_ref_A", "id_A", "iq_A",
         "ud_V", "uq_V", "torque_Nm", "torque_ref_Nm", "torque_unsat_Nm", "load_Nm", "saturated", "x_i_Nm",
+        "speed_meas_rpm", "u_dc_V",
     )
 
     scenario: Scenario
@@ -171,6 +185,8 @@ class Result:
     load_Nm: np.ndarray
     saturated: np.ndarray
     x_i_Nm: np.ndarray
+    speed_meas_rpm: np.ndarray
+    u_dc_V: np.ndarray
 
     def __repr__(self):
         return (f"Result({self.scenario.name!r}, {len(self.t_s)} rows, t = {self.t_s[0]:g}..{self.t_s[-1]:g} s, "
@@ -296,6 +312,7 @@ class _EngineRun:
             _schedule(cfg.reference, data["reference"], "speed_rpm", 1.0 / RPM_PER_RADPS),
             _schedule(cfg.load, data["load"], "torque_Nm", 1.0),
         ]
+        self._faults = _faults(cfg, data["fault"])
 
         s = cfg.speed
         s.J_kgm2 = _float_param("speed_controller.J_design_kgm2", sc["J_design_kgm2"])
@@ -370,6 +387,8 @@ class _EngineRun:
             "load_Nm": col["load_Nm"],
             "saturated": col["saturated"] != 0.0,
             "x_i_Nm": col["x_i_Nm"],
+            "speed_meas_rpm": col["w_meas_radps"] * RPM_PER_RADPS,
+            "u_dc_V": col["u_dc_V"],
         }
 
     def _value(self, key):
@@ -419,3 +438,18 @@ def _schedule(target, entries, value_key, scale):
         target.t_s, target.value, target.ramp_s = (ffi.cast("double *", ffi.from_buffer(a)) for a in arrays)
     return arrays
 
+
+def _faults(cfg, entries):
+    """Fill ``cfg.faults`` from the scenario's ``fault`` entries; return the C array it points to."""
+    faults = ffi.new("p2d_fault_t[]", max(1, len(entries)))
+    for f, e in zip(faults, entries):
+        f.kind = FAULT_KINDS.index(e["kind"])
+        f.t_s = e["t_s"]
+        f.duration_s = 0.0 if e["duration_s"] is None else e["duration_s"]
+        if e["kind"] == "dc_link_sag":
+            f.value = e["u_dc_factor"]
+        elif e["kind"] == "sensor_spike":
+            f.value = e["speed_rpm"] / RPM_PER_RADPS
+    cfg.faults = faults
+    cfg.n_faults = len(entries)
+    return faults
