@@ -23,9 +23,11 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 ``e = speed_ref - speed`` taken in the direction the load pushes (``sign(dT) e``):
 
 - ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
-- ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the dip (the same rule);
+- ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the deviation (the same
+  rule): the dip, or ``|e|`` at ``t_s`` when that is larger (a load that falls while the speed is
+  still far from its reference, as when an overload that stalled the drive is released);
 - ``steady_state_error_rpm``, ``iae_rpm_s``, ``saturation_time_s`` as above (the spread test uses
-  0.2 % of the dip).
+  0.2 % of the deviation).
 
 A figure that cannot be computed (no change at the step, the speed did not reach or did not
 settle before the window ends) is ``{"value": None, "reason": "..."}``, never NaN; a computed one
@@ -166,17 +168,21 @@ def _load_step(t, speed, ref, saturated, t0, t1, before, after):
         d = math.copysign(1.0, after - before) * e
         k = int(np.argmax(d))
         dip = float(d[k])
-        if dip <= 0.0:
+        deviation = max(dip, abs(float(e[0])))
+        if deviation <= 0.0:
             result.update({n: _missing("the speed did not give way to the load") for n in names[:4]})
         else:
-            result["speed_dip_rpm"] = _value(dip)
-            result["dip_time_s"] = _value(tw[k] - t0)
-            t_rec = _entry_into_band(tw, e, BAND * dip)
+            if dip > 0.0:
+                result["speed_dip_rpm"] = _value(dip)
+                result["dip_time_s"] = _value(tw[k] - t0)
+            else:
+                result.update({n: _missing("the speed did not give way to the load") for n in names[:2]})
+            t_rec = _entry_into_band(tw, e, BAND * deviation)
             result["recovery_time_s"] = (
                 _value(t_rec - t0) if t_rec is not None else
-                _missing(f"the speed did not recover to within 2 % of the dip (and stay there over the last "
-                         f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
-            result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], STEADY_SPREAD * dip)
+                _missing(f"the speed did not recover to within 2 % of the {'dip' if dip >= deviation else 'error'}"
+                         f" (and stay there over the last {100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
+            result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
     result["iae_rpm_s"] = _value(np.trapezoid(np.abs(e), tw))
     result["saturation_time_s"] = _value(_saturation_time(t, saturated, t0, t1))
     return out | {n: result[n] for n in names}
