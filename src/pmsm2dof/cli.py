@@ -264,3 +264,37 @@ def presets(keys):
     width = max(len(name) for name in names)
     for name in names:
         click.echo(f"{name:<{width}}  {load_scenario(name).description}")
+
+
+@cli.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--out", required=True, type=click.Path(file_okay=False),
+              help="output folder; rerun with the same folder to resume an interrupted sweep")
+@click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
+@click.option("--scheduler", default=None, metavar="ADDRESS",
+              help="run on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)")
+@click.option("--batch-size", type=int, default=None,
+              help="points per task [default: about 4 tasks per worker, at most 50 points]")
+def sweep(file, out, workers, scheduler, batch_size):
+    """Run a sweep (grid or Monte Carlo) of a scenario: one row of metrics per point, and figures.
+
+    FILE is a sweep TOML: a base scenario and axes (lists, ranges or random distributions of
+    dotted scenario keys); see `pmsm2dof.sweep` for the format. Writes OUT/results.parquet,
+    OUT/results.csv and OUT/figures/*.png once every point is done; finished points are kept
+    under OUT/parts, so an interrupted sweep resumes where it stopped.
+    """
+    from .sweep import load_sweep, run_sweep
+
+    chosen = load_sweep(file)
+    run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size)
+    table = run.table
+    stopped = table[table["status"] != "ok"]
+    click.echo(f"{chosen.name}: {len(table)} points ({run.computed} simulated, {run.resumed} already done), "
+               f"{len(stopped)} stopped by a SimulationError")
+    for _, row in stopped.head(5).iterrows():
+        click.echo(f"  point {row['point']}: {row['error']}")
+    ranked = table[table[chosen.rank_by].notna()].sort_values(chosen.rank_by, ascending=False)
+    for _, row in ranked.head(chosen.worst).iterrows():
+        values = ", ".join(f"{key}={row[key]}" for key in chosen.keys)
+        click.echo(f"  worst {chosen.rank_by} = {row[chosen.rank_by]:.4g} at point {row['point']}: {values}")
+    click.echo(f"wrote results.parquet, results.csv and {len(run.files) - 2} figures to {out}")

@@ -1,0 +1,695 @@
+"""Sweeps: many simulations of one base scenario, on local cores or a Dask cluster.
+
+A sweep file (TOML) names a base scenario and the axes along which it varies::
+
+    name = "alpha-vs-inertia"        # optional; default: the file name without .toml
+    base = "paper-condition-2"       # a preset name, or a scenario file (relative to this file)
+    draws = 500                      # Monte Carlo draws; required when an axis is a distribution
+    seed = 7                         # seed of the draws; required when an axis is a distribution
+    rank_by = "iae_speed_rads"       # metric whose largest values are the worst cases
+    worst = 3                        # number of worst-case traces drawn (default 3)
+
+    [axes]                           # each key is a dotted scenario key
+    "speed_controller.alpha" = [0.25, 0.5, 1.0]                          # a list
+    "motor.J_kgm2" = { start = 0.2, stop = 1.6, num = 8, scale = "log" } # a range
+    "speed_controller.Ka" = { distribution = "log_normal", median = 5.0, sigma = 0.5 }
+
+The list and range axes span a grid (their Cartesian product, in file order, the
+first axis varying slowest). Distribution axes are drawn ``draws`` times; with
+distribution axes every grid cell is simulated with the same ``draws`` draws
+(common random numbers), so a pure Monte Carlo study has only distribution axes.
+
+Ranges: ``scale = "linear"`` (default) gives ``num`` evenly spaced values from
+``start`` to ``stop`` inclusive, ``"log"`` evenly spaced logarithms (start, stop > 0).
+
+Distributions (each axis draws from its own stream, seeded by ``seed`` and the
+axis key, so adding or reordering axes does not change the other axes' draws):
+
+- ``uniform``: ``low`` < ``high``;
+- ``normal``: ``mean``, ``std`` >= 0;
+- ``log_normal``: ``median`` > 0, ``sigma`` >= 0: ``median * exp(sigma * N(0, 1))``.
+
+Plant inertia ``motor.J_kgm2`` and design inertia ``speed_controller.J_design_kgm2``
+are separate scenario keys, so an inertia axis models a plant that differs from
+the design (the robustness question of the paper's eq 8 and 9).
+
+Every point is validated before anything runs. Results have one row per point: its
+index, its axis values, ``status`` ("ok" or the SimulationError message) and every
+step- and load-response metric (see :mod:`pmsm2dof.metrics`).
+"""
+
+import contextlib
+import hashlib
+import itertools
+import json
+import math
+import numbers
+import os
+import tomllib
+import zlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ConfigError
+
+#: Distribution names and their parameters, in the order of the docstring.
+DISTRIBUTIONS = {
+    "uniform": ("low", "high"),
+    "normal": ("mean", "std"),
+    "log_normal": ("median", "sigma"),
+}
+SCALES = ("linear", "log")
+#: Default ranking metric of the worst cases: the integral of |speed reference - speed| over the run.
+DEFAULT_RANK_BY = "run_iae_rpm_s"
+_TOP_KEYS = ("name", "base", "draws", "seed", "rank_by", "worst", "axes")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One swept scenario key.
+
+    Attributes
+    ----------
+    key : str
+        Dotted scenario key, e.g. ``"motor.J_kgm2"``.
+    values : tuple or None
+        The values of a list or range axis; None for a distribution axis.
+    distribution : str or None
+        ``"uniform"``, ``"normal"`` or ``"log_normal"`` for a distribution axis.
+    params : dict
+        Parameters of the distribution (empty for list and range axes).
+    """
+
+    key: str
+    values: tuple | None
+    distribution: str | None = None
+    params: dict | None = None
+
+    @property
+    def is_random(self):
+        """True for a distribution axis."""
+        return self.distribution is not None
+
+    def draw(self, draws, seed):
+        """The ``draws`` values of a distribution axis, reproducible from ``seed`` and the key."""
+        rng = np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(self.key.encode())]))
+        p = self.params
+        if self.distribution == "uniform":
+            x = rng.uniform(p["low"], p["high"], draws)
+        elif self.distribution == "normal":
+            x = rng.normal(p["mean"], p["std"], draws)
+        else:
+            x = p["median"] * np.exp(p["sigma"] * rng.standard_normal(draws))
+        return tuple(float(v) for v in x)
+
+
+@dataclass(frozen=True)
+class Sweep:
+    """A validated sweep: the base scenario, the axes and every point.
+
+    Attributes
+    ----------
+    name : str
+    base : pmsm2dof.scenario.Scenario
+    axes : tuple of Axis
+    draws : int or None
+    seed : int or None
+    rank_by : str
+        Metric whose largest values are the worst cases.
+    worst : int
+        Number of worst-case traces to draw.
+    points : tuple of dict
+        One ``{dotted key: value}`` per point, in point-index order.
+    """
+
+    name: str
+    base: object
+    axes: tuple
+    draws: int | None
+    seed: int | None
+    rank_by: str
+    worst: int
+    points: tuple
+
+    @property
+    def grid_axes(self):
+        """The list and range axes."""
+        return tuple(a for a in self.axes if not a.is_random)
+
+    @property
+    def random_axes(self):
+        """The distribution axes."""
+        return tuple(a for a in self.axes if a.is_random)
+
+    @property
+    def keys(self):
+        """The dotted keys of the axes, in file order."""
+        return tuple(a.key for a in self.axes)
+
+    def digest(self):
+        """SHA-256 of the base scenario and the points: equal digests mean the same runs."""
+        text = json.dumps({"base": self.base.data, "points": self.points}, sort_keys=True, default=str)
+        return hashlib.sha256(text.encode()).hexdigest()
+
+    def scenario(self, index):
+        """The scenario of point ``index`` (the base with the point's values)."""
+        return self.base.with_overrides(self.points[index])
+
+
+def load_sweep(path):
+    """Read and validate a sweep file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The sweep TOML file.
+
+    Returns
+    -------
+    Sweep
+
+    Raises
+    ------
+    ConfigError
+        If the file is missing or malformed, or any key, axis or point is invalid.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ConfigError("sweep file", str(path), f"a readable TOML file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError("sweep file", str(path), f"valid TOML ({exc})") from None
+    data.setdefault("name", path.stem)
+    return parse_sweep(data, base_dir=path.parent)
+
+
+def parse_sweep(data, base_dir="."):
+    """Validate a sweep description given as a dict (the parsed TOML).
+
+    Parameters
+    ----------
+    data : dict
+        Keys as in the module docstring.
+    base_dir : str or Path
+        Folder against which a relative ``base`` scenario path is resolved.
+
+    Returns
+    -------
+    Sweep
+    """
+    from .scenario import Scenario, load_scenario
+
+    if not isinstance(data, dict):
+        raise ConfigError("sweep", data, "a table of sweep keys")
+    for key in data:
+        if key not in _TOP_KEYS:
+            raise ConfigError(key, data[key], "not a sweep key; the keys are " + ", ".join(_TOP_KEYS))
+    name = data.get("name", "sweep")
+    if not isinstance(name, str) or not name.strip():
+        raise ConfigError("name", name, "a non-empty string")
+    base = _load_base(load_scenario, data.get("base"), Path(base_dir))
+    # Freeze the defaults: an axis then changes its own key only (motor.J_kgm2 leaves the
+    # design inertia speed_controller.J_design_kgm2 of the base as it was).
+    base = Scenario.from_dict(base.data)
+
+    raw_axes = data.get("axes")
+    if not isinstance(raw_axes, dict) or not raw_axes:
+        raise ConfigError("axes", raw_axes, "a table with at least one 'dotted.key = values' entry")
+    axes = tuple(_parse_axis(key, spec, base.data) for key, spec in raw_axes.items())
+
+    has_random = any(a.is_random for a in axes)
+    draws = data.get("draws")
+    seed = data.get("seed")
+    if has_random:
+        draws = _require_int("draws", draws, 1, "an integer >= 1 (required with distribution axes)")
+        seed = _require_int("seed", seed, 0, "an integer >= 0 (required with distribution axes)")
+    else:
+        for key, value in (("draws", draws), ("seed", seed)):
+            if value is not None:
+                raise ConfigError(key, value, "absent: only distribution axes are drawn")
+
+    rank_by = data.get("rank_by", DEFAULT_RANK_BY)
+    columns = metric_columns(base.data)
+    if rank_by not in columns:
+        raise ConfigError("rank_by", rank_by, "a metric column of the base scenario: " + ", ".join(columns))
+    worst = _require_int("worst", data.get("worst", 3), 0, "an integer >= 0")
+
+    points = _expand(axes, draws, seed)
+    for index, point in enumerate(points):
+        try:
+            base.with_overrides(point)
+        except ConfigError as exc:
+            raise ConfigError(
+                f"point {index} ({_describe(point)}): {exc.param}", exc.value, exc.valid
+            ) from None
+    return Sweep(name.strip(), base, axes, draws, seed, rank_by, worst, tuple(points))
+
+
+def _load_base(load_scenario, base, base_dir):
+    if not isinstance(base, str) or not base.strip():
+        raise ConfigError("base", base, "a preset name or the path of a scenario TOML file")
+    candidate = base_dir / base
+    if base.endswith(".toml") or "/" in base or "\\" in base:
+        return load_scenario(str(candidate))
+    return load_scenario(base)
+
+
+def _parse_axis(key, spec, base_data):
+    _check_key(key, base_data)
+    where = f"axes.{key}"
+    if isinstance(spec, list):
+        if not spec:
+            raise ConfigError(where, spec, "a non-empty list of values")
+        return Axis(key, tuple(spec))
+    if not isinstance(spec, dict):
+        raise ConfigError(where, spec, "a list, a range {start, stop, num, scale} or a distribution")
+    if "distribution" in spec:
+        return _parse_distribution(key, where, spec)
+    if "start" in spec or "stop" in spec or "num" in spec:
+        return _parse_range(key, where, spec)
+    raise ConfigError(where, spec, "a list, a range {start, stop, num, scale} or a distribution")
+
+
+def _parse_range(key, where, spec):
+    allowed = ("start", "stop", "num", "scale")
+    _no_extra_keys(where, spec, allowed)
+    start = _require_finite(f"{where}.start", spec.get("start"))
+    stop = _require_finite(f"{where}.stop", spec.get("stop"))
+    num = _require_int(f"{where}.num", spec.get("num"), 1, "an integer >= 1")
+    scale = spec.get("scale", "linear")
+    if scale not in SCALES:
+        raise ConfigError(f"{where}.scale", scale, "one of " + ", ".join(repr(s) for s in SCALES))
+    if scale == "log":
+        for name, v in (("start", start), ("stop", stop)):
+            if v <= 0:
+                raise ConfigError(f"{where}.{name}", v, "> 0 for scale = 'log'")
+        values = np.geomspace(start, stop, num)
+    else:
+        values = np.linspace(start, stop, num)
+    return Axis(key, tuple(float(v) for v in values))
+
+
+def _parse_distribution(key, where, spec):
+    kind = spec["distribution"]
+    if kind not in DISTRIBUTIONS:
+        raise ConfigError(f"{where}.distribution", kind, "one of " + ", ".join(repr(d) for d in DISTRIBUTIONS))
+    names = DISTRIBUTIONS[kind]
+    _no_extra_keys(where, spec, ("distribution", *names))
+    params = {n: _require_finite(f"{where}.{n}", spec.get(n)) for n in names}
+    if kind == "uniform" and not params["low"] < params["high"]:
+        raise ConfigError(f"{where}.high", params["high"], f"> low = {params['low']!r}")
+    if kind == "normal" and params["std"] < 0:
+        raise ConfigError(f"{where}.std", params["std"], ">= 0")
+    if kind == "log_normal":
+        if params["median"] <= 0:
+            raise ConfigError(f"{where}.median", params["median"], "> 0")
+        if params["sigma"] < 0:
+            raise ConfigError(f"{where}.sigma", params["sigma"], ">= 0")
+    return Axis(key, None, kind, params)
+
+
+def _check_key(key, base_data):
+    """The dotted key must name a value of the scenario (a list element by its index)."""
+    node = base_data
+    for i, part in enumerate(key.split(".")):
+        if isinstance(node, dict) and part in node:
+            node = node[part]
+        elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
+            node = node[int(part)]
+        else:
+            raise ConfigError("axes", key, "dotted keys of the base scenario, e.g. 'motor.J_kgm2' "
+                              "or 'reference.0.speed_rpm'" + (f" (no '{part}' here)" if i else ""))
+    if isinstance(node, (dict, list)):
+        raise ConfigError("axes", key, "a key holding one value, not a table or list")
+
+
+def _expand(axes, draws, seed):
+    """Every point: the grid of list/range axes times the draws of the distribution axes."""
+    grid = [a for a in axes if not a.is_random]
+    random = [a for a in axes if a.is_random]
+    drawn = {a.key: a.draw(draws, seed) for a in random}
+    n_draws = draws if random else 1
+    points = []
+    for cell in itertools.product(*(a.values for a in grid)):
+        for d in range(n_draws):
+            values = dict(zip((a.key for a in grid), cell))
+            values.update({a.key: drawn[a.key][d] for a in random})
+            points.append({a.key: values[a.key] for a in axes})
+    return points
+
+
+def _describe(point):
+    return ", ".join(f"{k}={v!r}" for k, v in point.items())
+
+
+def _no_extra_keys(where, spec, allowed):
+    for k in spec:
+        if k not in allowed:
+            raise ConfigError(f"{where}.{k}", spec[k], "not a key here; the keys are " + ", ".join(allowed))
+
+
+def _require_finite(param, value):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+        raise ConfigError(param, value, "a finite number")
+    return float(value)
+
+
+def _require_int(param, value, minimum, valid):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+        raise ConfigError(param, value, valid)
+    return int(value)
+
+
+# ---------------------------------------------------------------------------------------------
+# Result columns
+# ---------------------------------------------------------------------------------------------
+
+def metric_columns(data):
+    """Names of the metric columns for a scenario's ``data``, in table order.
+
+    ``ref{i}_<figure>`` for the i-th entry of ``reference``, ``load{j}_<figure>`` for the j-th
+    entry of ``load`` and ``run_<figure>`` for the whole run (figures of
+    :func:`pmsm2dof.metrics.compute_metrics`).
+    """
+    from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
+
+    columns = [f"ref{i}_{f}" for i in range(len(data["reference"])) for f in REFERENCE_FIGURES]
+    columns += [f"load{j}_{f}" for j in range(len(data["load"])) for f in LOAD_FIGURES]
+    columns += [f"run_{f}" for f in RUN_FIGURES]
+    return columns
+
+
+def _flatten(metrics):
+    """The figures of ``compute_metrics`` as ``{column: value or None}`` and the reasons of the None."""
+    from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
+
+    figures = {}
+    for prefix, steps, names in (("ref", metrics["reference_steps"], REFERENCE_FIGURES),
+                                 ("load", metrics["load_steps"], LOAD_FIGURES)):
+        for i, step in enumerate(steps):
+            figures.update({f"{prefix}{i}_{name}": step[name] for name in names})
+    figures.update({f"run_{name}": metrics["run"][name] for name in RUN_FIGURES})
+    notes = "; ".join(f"{col}: {fig['reason']}" for col, fig in figures.items() if fig["value"] is None)
+    return {col: fig["value"] for col, fig in figures.items()}, notes
+
+
+def run_batch(base_data, batch):
+    """Simulate the points of one batch and measure them (runs in a worker thread or a Dask worker).
+
+    Parameters
+    ----------
+    base_data : dict
+        ``Sweep.base.data`` (plain data, so that it travels to Dask workers).
+    batch : list of (int, dict)
+        ``(point index, {dotted key: value})`` pairs.
+
+    Returns
+    -------
+    list of dict
+        One row per point: ``point``, the axis values, ``status`` (``"ok"`` or ``"error"``),
+        ``error`` (the SimulationError message or ""), ``wall_time_s`` of the simulation, every
+        metric column and ``notes`` (why a metric is missing). A run that diverges is a row with
+        status ``"error"`` and no metrics, never NaN.
+    """
+    from .errors import SimulationError
+    from .metrics import compute_metrics
+    from .scenario import Scenario
+    from .simulate import simulate
+
+    base = Scenario.from_dict(base_data)
+    columns = metric_columns(base_data)
+    rows = []
+    for index, point in batch:
+        row = {"point": index, **point}
+        try:
+            result = simulate(base.with_overrides(point))
+            figures, notes = _flatten(compute_metrics(result))
+        except SimulationError as exc:
+            row.update(status="error", error=str(exc), wall_time_s=None)
+            row.update(dict.fromkeys(columns))
+            row["notes"] = ""
+        else:
+            row.update(status="ok", error="", wall_time_s=result.wall_time_s, **figures, notes=notes)
+        rows.append(row)
+    return rows
+
+
+def _frame(rows, sweep):
+    """Rows as a DataFrame with fixed column order and nullable float metrics."""
+    import pandas as pd
+
+    columns = ["point", *sweep.keys, "status", "error", "wall_time_s", *metric_columns(sweep.base.data), "notes"]
+    frame = pd.DataFrame(rows, columns=columns)
+    for col in ["wall_time_s", *metric_columns(sweep.base.data)]:
+        frame[col] = frame[col].astype("Float64")
+    return frame
+
+
+# ---------------------------------------------------------------------------------------------
+# Running: output folder, resume, local threads or a Dask cluster
+# ---------------------------------------------------------------------------------------------
+
+MANIFEST = "sweep.json"
+PARTS = "parts"
+
+
+def _prepare_out(out, sweep):
+    """Create ``out`` with the sweep's manifest, or check that it holds the same sweep."""
+    from .outputs import atomic_write
+
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", str(out), "a folder (it is an existing file)")
+    manifest = out / MANIFEST
+    digest = sweep.digest()
+    if manifest.exists():
+        try:
+            old = json.loads(manifest.read_text()).get("digest")
+        except (OSError, ValueError, AttributeError):
+            old = None
+        if old != digest:
+            raise ConfigError("--out", str(out), "a new folder, or the folder of an earlier run of this same "
+                              "sweep (it holds the results of a different sweep)")
+        return
+    if out.exists() and any(out.iterdir()):
+        raise ConfigError("--out", str(out), "a new or empty folder, or the folder of an earlier run of this sweep")
+    try:
+        (out / PARTS).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError("--out", str(out), f"a writable folder ({exc.strerror})") from None
+    atomic_write(out / "base.toml", sweep.base.to_toml())
+    atomic_write(manifest, json.dumps({"name": sweep.name, "digest": digest, "points": len(sweep.points),
+                                       "keys": list(sweep.keys)}, indent=2) + "\n")
+
+
+def _read_parts(out):
+    """Rows of every finished batch stored under ``out/parts`` (written whole or not at all)."""
+    import pandas as pd
+
+    paths = sorted((out / PARTS).glob("part-*.parquet"))
+    if not paths:
+        return None
+    return pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
+
+
+def _save_part(out, sweep, rows):
+    """Store the rows of one finished batch as ``parts/part-<first point>.parquet`` (atomic)."""
+    import io
+
+    from .outputs import atomic_write
+
+    buf = io.BytesIO()
+    _frame(rows, sweep).to_parquet(buf, index=False)
+    atomic_write(out / PARTS / f"part-{rows[0]['point']:08d}.parquet", buf.getvalue())
+
+
+def _batches(indices, batch_size):
+    return [indices[i:i + batch_size] for i in range(0, len(indices), batch_size)]
+
+
+def default_workers():
+    """The number of cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+@dataclass(frozen=True)
+class SweepRun:
+    """What :func:`run_sweep` did.
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per point (see :func:`run_batch`), sorted by point.
+    out : Path
+        The output folder.
+    resumed : int
+        Points found finished in ``out`` and not run again.
+    computed : int
+        Points simulated by this call.
+    files : tuple of Path
+        The results and figures written.
+    """
+
+    table: object
+    out: Path
+    resumed: int
+    computed: int
+    files: tuple
+
+
+def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progress=True):
+    """Run every point of ``sweep`` not yet finished in ``out``, then write results and figures.
+
+    Each finished batch of points is stored at once as ``out/parts/part-*.parquet``, so an
+    interrupted sweep keeps its finished points and a second call with the same ``out``
+    computes only the missing ones. When all points are done, ``out`` receives
+    ``results.parquet`` and ``results.csv`` (one row per point, see :func:`run_batch`),
+    ``base.toml`` (the frozen base scenario), ``sweep.json`` and the figures under ``figures/``
+    (:mod:`pmsm2dof.sweepplots`), each written whole or not at all.
+
+    Parameters
+    ----------
+    sweep : Sweep
+    out : str or Path
+        Output folder: new, empty, or holding an earlier run of the same sweep.
+    workers : int, optional
+        Local threads (default: the cores available). The compiled engine releases the GIL for
+        the whole simulation, so threads run on all cores. Not used with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask distributed scheduler (``tcp://host:port``): the batches run
+        on its workers, which must have pmsm2dof installed.
+    batch_size : int, optional
+        Points per task (default: the remaining points spread over about 4 tasks per worker,
+        at most 50 points per task).
+    progress : bool
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    SweepRun
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    if scheduler is not None and workers is not None:
+        raise ConfigError("--workers", workers, "absent with --scheduler (the cluster's workers run the points)")
+    if scheduler is not None and (not isinstance(scheduler, str) or "://" not in scheduler):
+        raise ConfigError("--scheduler", scheduler, "the address of a Dask scheduler, e.g. tcp://10.0.0.5:8786")
+    if workers is None:
+        workers = default_workers() if scheduler is None else None
+    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+        raise ConfigError("--workers", workers, "an integer >= 1")
+    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int)
+                                   or batch_size < 1):
+        raise ConfigError("--batch-size", batch_size, "an integer >= 1")
+
+    with _connect(scheduler) if scheduler is not None else contextlib.nullcontext() as client:
+        _prepare_out(out, sweep)
+        finished = _read_parts(out)
+        done = set() if finished is None else set(int(i) for i in finished["point"])
+        todo = [i for i in range(len(sweep.points)) if i not in done]
+        base_data = sweep.base.data
+        with tqdm(total=len(sweep.points), initial=len(done), unit="run", desc=sweep.name,
+                  disable=not progress, leave=False) as bar:
+
+            def save(rows):
+                _save_part(out, sweep, rows)
+                bar.update(len(rows))
+
+            if todo and client is None:
+                size = batch_size or _auto_batch_size(len(todo), workers)
+                _run_local(sweep, _batches(todo, size), base_data, workers, save)
+            elif todo:
+                _run_dask(client, sweep, todo, batch_size, base_data, save)
+
+    table = _read_parts(out).drop_duplicates("point").sort_values("point", ignore_index=True)
+    if len(table) != len(sweep.points):
+        raise RuntimeError(f"{len(sweep.points) - len(table)} points of the sweep have no stored result")
+    files = _write_results(out, sweep, table)
+    return SweepRun(table, out, len(done), len(todo), files)
+
+
+def _auto_batch_size(n_points, n_workers):
+    return max(1, min(50, math.ceil(n_points / (4 * n_workers))))
+
+
+def _batch_args(sweep, indices):
+    return [(i, sweep.points[i]) for i in indices]
+
+
+def _run_local(sweep, batches, base_data, workers, save):
+    """Batches on a thread pool; on any exception or interrupt, keep what finished and re-raise."""
+    from concurrent.futures import ThreadPoolExecutor, as_completed
+
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pmsm2dof-sweep")
+    futures = [pool.submit(run_batch, base_data, _batch_args(sweep, b)) for b in batches]
+    saved = set()
+    try:
+        for fut in as_completed(futures):
+            save(fut.result())
+            saved.add(fut)
+    except BaseException:
+        for fut in futures:
+            fut.cancel()
+        pool.shutdown(wait=True)
+        for fut in futures:
+            if fut not in saved and fut.done() and not fut.cancelled() and fut.exception() is None:
+                save(fut.result())
+        raise
+    pool.shutdown(wait=True)
+
+
+def _connect(scheduler):
+    """A Dask distributed client of the scheduler at ``scheduler``."""
+    from dask.distributed import Client
+
+    try:
+        return Client(scheduler, timeout="10s", set_as_default=False)
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise ConfigError("--scheduler", scheduler,
+                          f"the address of a running Dask scheduler ({_one_line(exc)})") from None
+
+
+def _run_dask(client, sweep, todo, batch_size, base_data, save):
+    """Batches as tasks on a Dask distributed cluster; on any exception or interrupt, keep what finished."""
+    from dask.distributed import as_completed
+
+    threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
+    size = batch_size or _auto_batch_size(len(todo), max(1, threads))
+    futures = [client.submit(run_batch, base_data, _batch_args(sweep, b), pure=False)
+               for b in _batches(todo, size)]
+    saved = set()
+    try:
+        for fut in as_completed(futures, loop=client.loop):
+            save(fut.result())
+            saved.add(fut.key)
+    except BaseException:
+        client.cancel([f for f in futures if not f.done()])
+        for fut in futures:
+            if fut.key not in saved and fut.status == "finished":
+                save(fut.result())
+        raise
+
+
+def _one_line(exc):
+    return " ".join(str(exc).split())
+
+
+def _write_results(out, sweep, table):
+    """results.parquet, results.csv and the figures, moved into ``out`` together when all are written."""
+    from .outputs import staged_dir
+    from .sweepplots import draw_figures
+
+    with staged_dir(out) as tmp:
+        table.to_parquet(tmp / "results.parquet", index=False)
+        table.to_csv(tmp / "results.csv", index=False)
+        figures = draw_figures(sweep, table, tmp / "figures")
+    names = ["results.parquet", "results.csv", *(f"figures/{p.name}" for p in figures)]
+    return tuple(out / n for n in names)

@@ -1,0 +1,156 @@
+"""Figures of a sweep: heatmaps of 2-D grids, scatter plots and histograms, worst-case traces.
+
+Drawn by :func:`pmsm2dof.sweep.run_sweep` into ``<out>/figures`` with matplotlib's Agg
+backend (no display needed):
+
+- a grid with exactly two axes of more than one value and no distribution axes:
+  ``heatmap_<metric>.png`` for every metric column with at least one value, the first
+  axis along the rows and the second along the columns;
+- any other sweep: ``scatter_<metric>.png`` of the ranking metric (``rank_by``) against
+  every numeric axis; with distribution axes also ``histograms.png`` of every metric column;
+- always ``worst_traces.png``: speed and torque reference against time of the ``worst``
+  points with the largest ``rank_by``, simulated again (the engine is deterministic).
+
+Points whose simulation stopped (status "error") are marked with a cross (heatmaps) or
+listed in the figure title; they are never drawn as values.
+"""
+
+import numpy as np
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _is_numeric(values):
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+
+
+def draw_figures(sweep, table, folder):
+    """Draw the figures of ``sweep`` from its results ``table`` into ``folder``; return their paths."""
+    from .sweep import metric_columns
+
+    folder.mkdir(parents=True, exist_ok=True)
+    plt = _pyplot()
+    columns = [c for c in metric_columns(sweep.base.data) if table[c].notna().any()]
+    grid = [a for a in sweep.grid_axes if len(a.values) > 1]
+    paths = []
+    if len(grid) == 2 and not sweep.random_axes:
+        paths += [_heatmap(plt, sweep, grid, table, col, folder) for col in columns]
+    else:
+        numeric = [a.key for a in sweep.axes if _is_numeric(table[a.key].tolist())]
+        if numeric and sweep.rank_by in columns:
+            paths.append(_scatter(plt, sweep, table, sweep.rank_by, numeric, folder))
+        if sweep.random_axes and columns:
+            paths.append(_histograms(plt, table, columns, folder))
+    if sweep.worst > 0:
+        paths.append(_worst_traces(plt, sweep, table, folder))
+    return paths
+
+
+def _heatmap(plt, sweep, grid, table, col, folder):
+    rows_axis, cols_axis = grid
+    n_r, n_c = len(rows_axis.values), len(cols_axis.values)
+    # points run with the first axis slowest (axes of one value do not count): point = i * n_c + j
+    values = table[col].to_numpy(dtype=float, na_value=np.nan).reshape(n_r, n_c)
+    failed = (table["status"] != "ok").to_numpy().reshape(n_r, n_c)
+    fig, ax = plt.subplots(figsize=(1.2 + 0.55 * max(n_c, 6), 1.2 + 0.45 * max(n_r, 5)))
+    cmap = plt.get_cmap("viridis").copy()
+    cmap.set_bad("0.85")  # cells without a value: light gray
+    image = ax.imshow(np.ma.masked_invalid(values), origin="lower", aspect="auto", cmap=cmap)
+    fig.colorbar(image, ax=ax, label=col)
+    ax.set_xticks(range(n_c), [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in cols_axis.values],
+                  rotation=45 if n_c > 8 else 0)
+    ax.set_yticks(range(n_r), [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in rows_axis.values])
+    ax.set_xlabel(cols_axis.key)
+    ax.set_ylabel(rows_axis.key)
+    for i, j in zip(*np.nonzero(failed)):
+        ax.text(j, i, "x", ha="center", va="center", color="red", fontsize=12)
+    if n_r * n_c <= 144:
+        for i in range(n_r):
+            for j in range(n_c):
+                if np.isfinite(values[i, j]):
+                    ax.text(j, i, f"{values[i, j]:.3g}", ha="center", va="center", fontsize=7, color="w")
+    missing = int(np.sum(~np.isfinite(values) & ~failed))
+    ax.set_title(f"{sweep.name}: {col}" + (f" ({missing} cells without a value)" if missing else ""), fontsize=9)
+    fig.tight_layout()
+    path = folder / f"heatmap_{col}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _scatter(plt, sweep, table, col, keys, folder):
+    ok = table[table[col].notna()]
+    fig, axes = plt.subplots(1, len(keys), figsize=(4.2 * len(keys), 3.6), squeeze=False)
+    for ax, key in zip(axes[0], keys):
+        ax.scatter(ok[key].astype(float), ok[col].astype(float), s=10, alpha=0.6)
+        ax.set_xlabel(key)
+        ax.set_ylabel(col)
+        if (ok[key].astype(float) > 0).all() and ok[key].astype(float).max() > 20 * ok[key].astype(float).min():
+            ax.set_xscale("log")
+        ax.grid(True, alpha=0.3)
+    n_failed = int((table["status"] != "ok").sum())
+    fig.suptitle(f"{sweep.name}: {col}, {len(ok)} of {len(table)} points"
+                 + (f" ({n_failed} stopped)" if n_failed else ""), fontsize=9)
+    fig.tight_layout()
+    path = folder / f"scatter_{col}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _histograms(plt, table, columns, folder):
+    n = len(columns)
+    n_cols = min(4, n)
+    n_rows = -(-n // n_cols)
+    fig, axes = plt.subplots(n_rows, n_cols, figsize=(3.6 * n_cols, 2.8 * n_rows), squeeze=False)
+    for ax, col in zip(axes.flat, columns):
+        values = table[col].dropna().astype(float)
+        ax.hist(values, bins=min(40, max(5, int(np.sqrt(len(values))))))
+        ax.set_title(f"{col} ({len(values)} values)", fontsize=8)
+    for ax in list(axes.flat)[n:]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    path = folder / "histograms.png"
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _worst_traces(plt, sweep, table, folder):
+    from .simulate import simulate
+
+    ranked = table[table[sweep.rank_by].notna()].sort_values(sweep.rank_by, ascending=False)
+    worst = ranked.head(sweep.worst)
+    fig, (ax_w, ax_t) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
+    for _, row in worst.iterrows():
+        point = int(row["point"])
+        result = simulate(sweep.scenario(point))
+        label = f"#{point}: " + ", ".join(f"{k.split('.')[-1]}={row[k]:.4g}" if _is_numeric([row[k]])
+                                           else f"{k.split('.')[-1]}={row[k]}" for k in sweep.keys)
+        line, = ax_w.plot(result.t_s, result.speed_rpm, label=f"{label} ({sweep.rank_by} {row[sweep.rank_by]:.4g})")
+        ax_w.plot(result.t_s, result.speed_ref_rpm, "--", color=line.get_color(), linewidth=0.8)
+        ax_t.plot(result.t_s, result.torque_ref_Nm, color=line.get_color())
+    ax_w.set_ylabel("speed [rpm] (dashed: reference)")
+    ax_t.set_ylabel("torque reference [Nm]")
+    ax_t.set_xlabel("t [s]")
+    for ax in (ax_w, ax_t):
+        ax.grid(True, alpha=0.3)
+    if len(worst):
+        ax_w.legend(fontsize=7)
+    failed = table.loc[table["status"] != "ok", "point"].tolist()
+    title = f"{sweep.name}: the {len(worst)} points with the largest {sweep.rank_by}"
+    if failed:
+        title += f"; stopped: points {', '.join(str(p) for p in failed[:10])}" + (" ..." if len(failed) > 10 else "")
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    path = folder / "worst_traces.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
