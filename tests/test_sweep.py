@@ -10,6 +10,7 @@ import importlib
 import json
 import math
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -403,3 +404,12 @@ def test_cli_bad_sweep_file_exits_2_without_output(tmp_path, base_file, capsys):
     err = capsys.readouterr().err
     assert "axes.motor.J_kgm2.num = -3" in err and err.count("\n") == 1
     assert not out.exists()
+
+
+EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples" / "sweeps").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[p.name for p in EXAMPLES])
+def test_example_sweeps_are_valid(path):
+    sw = load_sweep(path)
+    assert sw.points and sw.name == path.stem
