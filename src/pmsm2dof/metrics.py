@@ -29,6 +29,15 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 - ``steady_state_error_rpm``, ``iae_rpm_s``, ``saturation_time_s`` as above (the spread test uses
   0.2 % of the deviation).
 
+Fault (each ``[[fault]]`` entry; a sensor_spike lasts one speed-controller period), from its
+start ``t_s`` over a window that ends at the next schedule entry or fault after the fault's end:
+
+- ``speed_deviation_rpm`` and ``deviation_time_s``: the peak of ``|e|`` and when it occurs after
+  ``t_s``;
+- ``recovery_time_s``: from the fault's end until ``|e|`` stays within 2 % of that peak (the same
+  rule);
+- ``saturation_time_s`` as above.
+
 A figure that cannot be computed (no change at the step, the speed did not reach or did not
 settle before the window ends) is ``{"value": None, "reason": "..."}``, never NaN; a computed one
 is ``{"value": x}``. Speeds are in rpm, as in the scenario and the trace.
@@ -50,6 +59,8 @@ REFERENCE_FIGURES = ("overshoot_pct", "rise_time_s", "settling_time_s", "steady_
 #: Figures of each load step, in output order.
 LOAD_FIGURES = ("speed_dip_rpm", "dip_time_s", "recovery_time_s", "steady_state_error_rpm", "iae_rpm_s",
                 "saturation_time_s")
+#: Figures of each fault, in output order.
+FAULT_FIGURES = ("speed_deviation_rpm", "deviation_time_s", "recovery_time_s", "saturation_time_s")
 #: Figures of the whole run.
 RUN_FIGURES = ("iae_rpm_s", "saturation_time_s")
 #: Largest spread of the speed over that part, relative to the step (reference) or dip (load).
@@ -188,6 +199,32 @@ def _load_step(t, speed, ref, saturated, t0, t1, before, after):
     return out | {n: result[n] for n in names}
 
 
+def _fault(t, speed, ref, saturated, fault, t_end_fault, t1):
+    t0 = fault["t_s"]
+    out = {"kind": fault["kind"], "t_s": t0, "end_s": t_end_fault, "window_end_s": t1}
+    names = FAULT_FIGURES
+    if t1 <= t0:
+        return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the fault") for n in names}
+    tw, (w, r) = _window(t, t0, t1, speed, ref)
+    e = np.abs(r - w)
+    k = int(np.argmax(e))
+    result = {"saturation_time_s": _value(_saturation_time(t, saturated, t0, t1))}
+    if e[k] <= 0.0:
+        result.update({n: _missing("the speed did not deviate from its reference") for n in names[:3]})
+    elif t_end_fault >= t1:
+        result.update({"speed_deviation_rpm": _value(e[k]), "deviation_time_s": _value(tw[k] - t0),
+                       "recovery_time_s": _missing(f"the fault lasts to the end of the window ({t1:g} s)")})
+    else:
+        result.update({"speed_deviation_rpm": _value(e[k]), "deviation_time_s": _value(tw[k] - t0)})
+        tr, (wr, rr) = _window(t, t_end_fault, t1, speed, ref)
+        t_rec = _entry_into_band(tr, rr - wr, BAND * e[k])
+        result["recovery_time_s"] = (
+            _value(t_rec - t_end_fault) if t_rec is not None else
+            _missing(f"the speed did not recover to within 2 % of its deviation (and stay there over the last "
+                     f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
+    return out | {n: result[n] for n in names}
+
+
 def _steady_state_error(tw, w, target, spread_max):
     """``target`` minus the mean of ``w`` over the last part of the window, if ``w`` is steady there."""
     tf, (final,) = _window(tw, tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0]), tw[-1], w)
@@ -210,7 +247,8 @@ def compute_metrics(result):
     Returns
     -------
     dict
-        JSON-serialisable: ``{"scenario", "reference_steps": [...], "load_steps": [...], "run"}``;
+        JSON-serialisable: ``{"scenario", "reference_steps": [...], "load_steps": [...], "faults": [...],
+        "run"}``;
         each figure is ``{"value": x}`` or ``{"value": None, "reason": "..."}`` (see the module
         docstring for the definitions).
     """
@@ -225,7 +263,9 @@ def compute_metrics(result):
     data = result.scenario.data
     ref_events = _schedule(data["reference"], "speed_rpm")
     load_events = _schedule(data["load"], "torque_Nm")
-    times = sorted({e[0] for e in ref_events + load_events})
+    Ts_speed = data["speed_controller"]["Ts_s"]
+    fault_ends = [f["t_s"] + (Ts_speed if f["kind"] == "sensor_spike" else f["duration_s"]) for f in data["fault"]]
+    times = sorted({e[0] for e in ref_events + load_events} | {f["t_s"] for f in data["fault"]})
 
     def window_end(t0):
         later = [x for x in times if x > t0]
@@ -236,6 +276,8 @@ def compute_metrics(result):
         "reference_steps": [_reference_step(t, speed, ref, saturated, t0, window_end(t0), b, a)
                             for t0, b, a in ref_events],
         "load_steps": [_load_step(t, speed, ref, saturated, t0, window_end(t0), b, a) for t0, b, a in load_events],
+        "faults": [_fault(t, speed, ref, saturated, f, end, window_end(end))
+                   for f, end in zip(data["fault"], fault_ends)],
         "run": {
             "t_end_s": float(t[-1]),
             "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
@@ -257,6 +299,11 @@ def summary_lines(metrics):
             f"rise {_fmt(s['rise_time_s'], 's')}, settling {_fmt(s['settling_time_s'], 's')}, "
             f"steady-state error {_fmt(s['steady_state_error_rpm'], 'rpm')}, "
             f"saturated {_fmt(s['saturation_time_s'], 's')}")
+    for s in metrics["faults"]:
+        lines.append(
+            f"fault {s['kind']} at {s['t_s']:g} s to {s['end_s']:g} s: speed deviation "
+            f"{_fmt(s['speed_deviation_rpm'], 'rpm')} after {_fmt(s['deviation_time_s'], 's')}, recovery "
+            f"{_fmt(s['recovery_time_s'], 's')} after its end, saturated {_fmt(s['saturation_time_s'], 's')}")
     for s in metrics["load_steps"]:
         lines.append(
             f"load step at {s['t_s']:g} s, {s['from_Nm']:g} -> {s['to_Nm']:g} Nm: dip "
