@@ -1,0 +1,199 @@
+"""Write the seed corpus of the fuzz targets (csrc/fuzz/corpus/{speed,current}).
+
+Each seed is a byte string in the input format decoded by fuzz_common.h,
+fuzz_speed.c and fuzz_current.c: a configuration, then operations. The seeds
+start the fuzzer from meaningful runs (the paper's drive in closed loop, a
+stall beyond the current limit, parameter updates valid and invalid, NaN and
+inf inputs, odd applied commands) instead of from empty inputs.
+
+Run from the repository root after changing the input format:
+
+    python3 csrc/fuzz/make_seeds.py
+"""
+
+import math
+import struct
+from pathlib import Path
+
+CORPUS = Path(__file__).resolve().parent / "corpus"
+
+# float tags of fuzz_common.h
+RAW, SPECIAL, NEAR = 0, 1, 2
+SPECIAL_INDEX = {"0": 0, "-0": 1, "nan": 2, "-nan": 3, "inf": 4, "-inf": 5, "max": 6, "-max": 7}
+
+# operations (op % 8) of both targets
+SAMPLE, CLOSED_LOOP, SET_MUTATED, SET_FRESH, RESET = 0, 4, 5, 6, 7
+
+
+def nominal(factor=1.0):
+    """A float equal to the nominal value of its field times ``factor`` (tag 2, within two decades)."""
+    k = round(16384 * math.log10(abs(factor)))
+    if not -32768 <= k <= 32767:
+        raise ValueError(f"factor {factor} is beyond two decades")
+    bits = (k & 0xFFFF) | (0x10000 if factor < 0 else 0)
+    return struct.pack("<BI", NEAR, bits)
+
+
+def special(name):
+    """One of the special values of FZ_SPECIAL."""
+    return struct.pack("<BI", SPECIAL, SPECIAL_INDEX[name])
+
+
+def raw(x):
+    """The float32 nearest to x, as a raw bit pattern."""
+    return struct.pack("<B", RAW) + struct.pack("<f", x)
+
+
+def u8(v):
+    return struct.pack("<B", v)
+
+
+def u16(v):
+    return struct.pack("<H", v)
+
+
+def fraction(f):
+    """A fraction in [0, 1] (fz_unit)."""
+    return u16(round(f * 65535))
+
+
+def speed_config(surface=True, m=None, method=2, feedforward=1, anti_windup=1, J=nominal(), Ts=nominal()):
+    """Speed controller configuration; m None means m = 1 (shape bit 1)."""
+    shape = (1 if surface else 0) | (2 if m is None else 0)
+    out = u8(shape) + J + nominal() + nominal()  # J, alpha, zeta
+    if m is not None:
+        out += m
+    out += nominal() + nominal() + Ts + nominal() + nominal() + nominal()  # tau_i, Ka, Ts, i_max, psi_f, Ld
+    if not surface:
+        out += nominal()  # Lq = 0.02 H against Ld = 0.01 H
+    return out + u8(3) + u8(method) + u8(feedforward) + u8(anti_windup)  # pole pairs 1 + 3 = 4
+
+
+def speed_sample(w_ref, w_m, mode=0, frac=1.0, applied=b""):
+    return u8(SAMPLE + 8 * mode) + w_ref + w_m + fraction(frac) + applied
+
+
+def speed_closed_loop(n, w_ref, T_load, mode=0, frac=1.0, J_mismatch=0.5):
+    return u8(CLOSED_LOOP) + u16(n - 1) + w_ref + T_load + u8(mode) + fraction(frac) + fraction(J_mismatch)
+
+
+def current_config(surface=False, decouple=True, method=2, anti_windup=1, Rs=nominal(), tau_i=nominal()):
+    """Current controller configuration; tau_i is relative to its nominal value 10 Ts."""
+    shape = (1 if surface else 0) | (2 if decouple else 0)
+    out = u8(shape) + Rs + nominal()  # Rs, Ld
+    if not surface:
+        out += nominal()  # Lq
+    return out + nominal() + nominal() + tau_i + u8(method) + u8(anti_windup)  # psi_f, Ts, tau_i
+
+
+def current_inputs(id_ref, iq_ref, id_, iq, w_e, u_dc):
+    return id_ref + iq_ref + id_ + iq + w_e + u_dc
+
+
+def current_sample(inputs, mode=0, frac=1.0, angle=0.0, applied=b""):
+    return u8(SAMPLE + 8 * mode) + inputs + fraction(frac) + fraction(angle) + applied
+
+
+def current_closed_loop(n, inputs, mode=0, frac=1.0, angle=0.0, mismatch=0.5):
+    return u8(CLOSED_LOOP) + u16(n - 1) + u8(mode) + fraction(frac) + fraction(angle) + fraction(mismatch) + inputs
+
+
+SPEED_SEEDS = {
+    # the paper's drive (J = 0.4 kg m^2, i_max = 7.6 A): Tustin, lowpass, back calculation;
+    # a step to 100 rad/s under 1 Nm, then to -50 rad/s
+    "paper_tustin_lowpass_backcalc": speed_config()
+    + speed_closed_loop(2048, nominal(), nominal())
+    + speed_closed_loop(1500, nominal(-0.5), nominal()),
+    # salient PMSM, backward Euler, full feedforward, clamping: a load 30x nominal stalls the drive,
+    # then the load drops
+    "salient_full_clamping_stall": speed_config(surface=False, method=1, feedforward=3, anti_windup=2)
+    + speed_closed_loop(1000, nominal(), nominal(30.0))
+    + speed_closed_loop(2000, nominal(), nominal(0.01)),
+    # forward Euler, no_tau with m = 2, no anti-windup; non-finite and huge inputs
+    "forward_notau_nan_inputs": speed_config(m=nominal(2.0), method=0, feedforward=2, anti_windup=0)
+    + speed_sample(nominal(), nominal(0.5))
+    + speed_sample(nominal(), special("nan"))
+    + speed_sample(special("inf"), nominal())
+    + speed_sample(special("-max"), special("max"))
+    + speed_sample(raw(3e38), raw(-3e38))
+    + speed_sample(nominal(), nominal(0.9)),
+    # parameter updates mid-run: alpha x2 (valid), Ts NaN (refused), fresh invalid config, feedforward none
+    "set_config_mid_run": speed_config()
+    + speed_closed_loop(300, nominal(), nominal())
+    + u8(SET_MUTATED) + u8(1) + nominal(2.0)
+    + speed_closed_loop(300, nominal(), nominal())
+    + u8(SET_MUTATED) + u8(6) + special("nan")
+    + u8(SET_FRESH) + speed_config(J=raw(-1.0))
+    + u8(SET_MUTATED) + u8(13) + u8(0)
+    + speed_closed_loop(300, nominal(), nominal()),
+    # bumpless reset to finite, non-finite and overflowing points
+    "reset_points": speed_config(surface=False, method=1, feedforward=3)
+    + u8(RESET) + nominal() + nominal()
+    + speed_sample(nominal(), nominal())
+    + u8(RESET) + special("nan") + nominal()
+    + u8(RESET) + raw(3e38) + raw(-3e38)
+    + speed_sample(nominal(), nominal()),
+    # applied torque: scaled, any within the limit, NaN, huge
+    "applied_torque_modes": speed_config(anti_windup=2)
+    + speed_sample(nominal(), nominal(0.01), mode=1, frac=0.3)
+    + speed_sample(nominal(), nominal(0.01), mode=2, frac=0.9)
+    + speed_sample(nominal(), nominal(0.01), mode=3, applied=special("nan"))
+    + speed_sample(nominal(), nominal(0.01), mode=3, applied=raw(1e30))
+    + speed_closed_loop(500, nominal(), nominal(5.0), mode=2, frac=0.1),
+    # a configuration init rejects (J < 0)
+    "rejected_init": speed_config(J=raw(-0.4)),
+}
+
+CURRENT_SEEDS = {
+    # salient motor, decoupled dq PIs, Tustin, back calculation: a closed-loop current step at 400 rad/s
+    "salient_tustin_backcalc": current_config()
+    + current_closed_loop(2048, current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal())),
+    # a reference far beyond the DC link (voltage limit), then back
+    "voltage_limit": current_config(anti_windup=2)
+    + current_closed_loop(1000, current_inputs(nominal(), nominal(50.0), nominal(), nominal(), nominal(), nominal()))
+    + current_closed_loop(1000, current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal())),
+    # surface motor, no decoupling, forward Euler, no anti-windup; non-finite inputs including u_dc
+    "surface_forward_nan_inputs": current_config(surface=True, decouple=False, method=0, anti_windup=0)
+    + current_sample(current_inputs(nominal(), nominal(), nominal(0.5), nominal(0.5), nominal(), nominal()))
+    + current_sample(current_inputs(nominal(), nominal(), special("nan"), nominal(), nominal(), nominal()))
+    + current_sample(current_inputs(nominal(), nominal(), nominal(), nominal(), special("inf"), nominal()))
+    + current_sample(current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), special("nan")))
+    + current_sample(current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), raw(-300.0)))
+    + current_sample(current_inputs(raw(3e38), raw(-3e38), nominal(), nominal(), nominal(), raw(1e30))),
+    # parameter updates: Ts x5 (valid), Rs NaN (refused), decoupling toggled, fresh invalid config
+    "set_config_mid_run": current_config(method=1)
+    + current_closed_loop(200, current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()))
+    + u8(SET_MUTATED) + u8(5) + nominal(5.0)
+    + u8(SET_MUTATED) + u8(0) + special("nan")
+    + u8(SET_MUTATED) + u8(8)
+    + u8(SET_FRESH) + current_config(Rs=raw(-0.5))
+    + current_closed_loop(200, current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()))
+    + u8(RESET),
+    # applied voltage: scaled, any inside the circle, NaN, huge
+    "applied_voltage_modes": current_config(anti_windup=2)
+    + current_sample(current_inputs(nominal(), nominal(20.0), nominal(), nominal(), nominal(), nominal()), mode=1,
+                     frac=0.5)
+    + current_sample(current_inputs(nominal(), nominal(20.0), nominal(), nominal(), nominal(), nominal()), mode=2,
+                     frac=0.99, angle=0.3)
+    + current_sample(current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()), mode=3,
+                     applied=special("nan") + nominal())
+    + current_sample(current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()), mode=3,
+                     applied=raw(1e30) + raw(-1e30)),
+    # a configuration init rejects (tau_i = Ts / 2 < Ts)
+    "rejected_init": current_config(tau_i=nominal(0.05)),
+}
+
+
+def main():
+    for target, seeds in (("speed", SPEED_SEEDS), ("current", CURRENT_SEEDS)):
+        folder = CORPUS / target
+        folder.mkdir(parents=True, exist_ok=True)
+        for old in folder.glob("*.bin"):
+            old.unlink()
+        for name, data in seeds.items():
+            (folder / f"{name}.bin").write_bytes(data)
+        print(f"{folder}: {len(seeds)} seeds, {sum(len(d) for d in seeds.values())} bytes")
+
+
+if __name__ == "__main__":
+    main()

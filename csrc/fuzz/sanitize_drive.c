@@ -1,0 +1,267 @@
+/*
+ * The simulation engine (csrc/sim/drive.c) on short scenarios, built by the
+ * P2D_SANITIZE CMake option with AddressSanitizer and UndefinedBehaviorSanitizer
+ * (first error fatal) and run as the ctest `sanitize_drive`.
+ *
+ * Each log buffer (column-major, drive.h) has exactly the rows the run needs, so that
+ * AddressSanitizer catches a write past its end. Scenarios:
+ *   1. the paper's condition 1 (section 4.1: J = 0.4 kg m^2, i_max = 7.6 A,
+ *      500 rpm at 0 s and 200 rpm at 5 s, 10 s; dq current PIs, lowpass
+ *      feedforward, back calculation, Tustin), run in four calls;
+ *   2. a salient PMSM at 300 rpm with the first-order current loop (eq 3), full
+ *      feedforward (eq 11), clamping, backward Euler, friction, and a load
+ *      ramp beyond the torque limit (15 Nm, T_max about 10 Nm) and back: a
+ *      stall and its recovery;
+ *      the speed must be back on the reference at the end (integral action
+ *      removes the steady-state error of friction);
+ *   3. a salient PMSM with dq current PIs, decoupling and clamping in the
+ *      current loop, computation delay, no_tau feedforward, forward Euler,
+ *      no speed anti-windup, a reference ramp and a negative load;
+ *   4. a load far beyond the limit that drives the shaft backwards until the
+ *      engine stops with P2D_SIM_STOP_OVERSPEED;
+ *   5. error paths: NULL, an invalid motor, an invalid controller, a log
+ *      buffer too small (P2D_SIM_ERR_LOG_FULL, without writing past it).
+ * Besides the sanitizers' own checks: the status codes, every logged value
+ * finite, ||i_ref|| <= i_max (float32 slack), and the recovery of scenario 2.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "drive.h"
+
+#define RADPS_PER_RPM (3.14159265358979323846 / 30.0)
+
+static int failures = 0;
+
+#define CHECK(cond, ...)                                                              \
+    do {                                                                              \
+        if (!(cond)) {                                                                \
+            fprintf(stderr, "sanitize_drive: %s:%d: %s: ", __FILE__, __LINE__, #cond); \
+            fprintf(stderr, __VA_ARGS__);                                             \
+            fputc('\n', stderr);                                                      \
+            failures++;                                                               \
+        }                                                                             \
+    } while (0)
+
+/* The paper's condition 1 drive (preset paper-condition-1.toml). */
+static void paper_drive(p2d_sim_config_t *cfg)
+{
+    memset(cfg, 0, sizeof *cfg);
+    cfg->motor.pole_pairs = 4u;
+    cfg->motor.Rs_ohm = 0.5;
+    cfg->motor.Ld_H = 0.01;
+    cfg->motor.Lq_H = 0.01;
+    cfg->motor.psi_f_Wb = 0.2;
+    cfg->motor.J_kgm2 = 0.4;
+    cfg->u_dc_V = 540.0;
+    cfg->current_model = P2D_CURRENT_DQ_PI;
+    cfg->tau_i_s = 0.05;
+    cfg->Ts_current_s = 1e-4;
+    cfg->current_per_speed = 10u;
+    cfg->substeps = 1u;
+    cfg->log_every = 1u;
+    cfg->speed.J_kgm2 = 0.4f;
+    cfg->speed.alpha_radps = 0.5f;
+    cfg->speed.zeta = 0.28867513f;
+    cfg->speed.m = 1.0f;
+    cfg->speed.tau_i_s = 0.05f;
+    cfg->speed.Ka = p2d_speed_Ka_default(0.4f, 0.5f);
+    cfg->speed.Ts_s = 1e-3f;
+    cfg->speed.i_max_A = 7.6f;
+    cfg->speed.psi_f_Wb = 0.2f;
+    cfg->speed.Ld_H = 0.01f;
+    cfg->speed.Lq_H = 0.01f;
+    cfg->speed.pole_pairs = 4u;
+    cfg->speed.method = P2D_TUSTIN;
+    cfg->speed.feedforward = P2D_FF_LOWPASS;
+    cfg->speed.anti_windup = P2D_AW_BACK_CALCULATION;
+    cfg->current.Rs_ohm = 0.5f;
+    cfg->current.Ld_H = 0.01f;
+    cfg->current.Lq_H = 0.01f;
+    cfg->current.psi_f_Wb = 0.2f;
+    cfg->current.tau_i_s = 0.05f;
+    cfg->current.Ts_s = 1e-4f;
+    cfg->current.method = P2D_TUSTIN;
+    cfg->current.anti_windup = P2D_AW_BACK_CALCULATION;
+    cfg->current.decouple = false;
+}
+
+/* A salient motor on the same mechanics. */
+static void make_salient(p2d_sim_config_t *cfg)
+{
+    cfg->motor.Ld_H = 0.008;
+    cfg->motor.Lq_H = 0.02;
+    cfg->speed.Ld_H = 0.008f;
+    cfg->speed.Lq_H = 0.02f;
+    cfg->current.Ld_H = 0.008f;
+    cfg->current.Lq_H = 0.02f;
+}
+
+/* Column c of row r in a column-major log of `capacity` rows (drive.h). */
+static double cell(const double *log, uint64_t capacity, uint64_t r, uint32_t c)
+{
+    return log[(uint64_t)c * capacity + r];
+}
+
+/* Every logged value finite and the current command within the limit. */
+static void check_log(const char *name, const double *log, uint64_t capacity, uint64_t rows, double i_max_A)
+{
+    for (uint64_t k = 0; k < rows; ++k) {
+        double i_ref;
+        for (uint32_t j = 0; j < (uint32_t)P2D_LOG_COUNT; ++j) {
+            CHECK(isfinite(cell(log, capacity, k, j)), "%s: row %llu column %s = %g", name, (unsigned long long)k,
+                  p2d_sim_log_name(j), cell(log, capacity, k, j));
+        }
+        i_ref = hypot(cell(log, capacity, k, P2D_LOG_ID_REF_A), cell(log, capacity, k, P2D_LOG_IQ_REF_A));
+        CHECK(i_ref <= i_max_A * (1.0 + 1e-6), "%s: row %llu ||i_ref|| = %g > i_max %g", name,
+              (unsigned long long)k, i_ref, i_max_A);
+    }
+}
+
+/* Run n samples in `calls` equal calls into a buffer of exactly the rows needed. */
+static p2d_sim_status_t run(const char *name, const p2d_sim_config_t *cfg, uint64_t n, uint64_t calls,
+                            double **log_out, uint64_t *rows_out)
+{
+    p2d_sim_t *sim = malloc(sizeof *sim);
+    uint64_t rows = (n + cfg->log_every - 1u) / cfg->log_every;
+    double *log = malloc((size_t)(rows * (uint64_t)P2D_LOG_COUNT) * sizeof *log);
+    p2d_sim_status_t status;
+    if (sim == NULL || log == NULL) {
+        fprintf(stderr, "sanitize_drive: out of memory\n");
+        exit(2);
+    }
+    status = p2d_sim_init(sim, cfg);
+    CHECK(status == P2D_SIM_OK, "%s: init returned %d (%s)", name, (int)status, p2d_sim_status_param(status));
+    for (uint64_t c = 0; c < calls && status == P2D_SIM_OK; ++c) {
+        status = p2d_sim_run(sim, n / calls, log, rows);
+    }
+    *rows_out = sim->n_rows;
+    *log_out = log;
+    check_log(name, log, rows, sim->n_rows, (double)cfg->speed.i_max_A);
+    free(sim);
+    return status;
+}
+
+int main(void)
+{
+    p2d_sim_config_t cfg;
+    p2d_sim_status_t status;
+    double *log;
+    uint64_t rows;
+
+    /* 1. paper condition 1: 500 rpm at 0 s, 200 rpm at 5 s, 10 s in four calls */
+    {
+        static const double ref_t[] = {0.0, 5.0};
+        static const double ref_v[] = {500.0 * RADPS_PER_RPM, 200.0 * RADPS_PER_RPM}, ref_r[] = {0.0, 0.0};
+        paper_drive(&cfg);
+        cfg.reference = (p2d_schedule_t){ref_t, ref_v, ref_r, 2u};
+        status = run("paper condition 1", &cfg, 10000u, 4u, &log, &rows);
+        CHECK(status == P2D_SIM_OK && rows == 10000u, "paper condition 1: status %d rows %llu", (int)status,
+              (unsigned long long)rows);
+        free(log);
+    }
+
+    /* 2. salient, first-order current loop, full feedforward, clamping: a stall and its recovery */
+    {
+        static const double ref_t[] = {0.0}, ref_v[] = {300.0 * RADPS_PER_RPM}, ref_r[] = {0.0};
+        static const double load_t[] = {0.3, 0.6}, load_v[] = {15.0, 0.0}, load_r[] = {0.2, 0.0};
+        paper_drive(&cfg);
+        make_salient(&cfg);
+        cfg.motor.B_Nms = 0.01;
+        cfg.motor.T_coulomb_Nm = 0.2;
+        cfg.w_m0_radps = ref_v[0];
+        cfg.current_model = P2D_CURRENT_FIRST_ORDER;
+        cfg.tau_i_s = 0.005;
+        cfg.substeps = 2u;
+        cfg.log_every = 3u;
+        cfg.speed.alpha_radps = 20.0f;
+        cfg.speed.zeta = 1.0f;
+        cfg.speed.m = 2.0f;
+        cfg.speed.tau_i_s = 0.005f;
+        cfg.speed.method = P2D_BACKWARD_EULER;
+        cfg.speed.feedforward = P2D_FF_FULL;
+        cfg.speed.anti_windup = P2D_AW_CLAMPING;
+        cfg.reference = (p2d_schedule_t){ref_t, ref_v, ref_r, 1u};
+        cfg.load = (p2d_schedule_t){load_t, load_v, load_r, 2u};
+        status = run("salient first-order stall", &cfg, 1500u, 1u, &log, &rows);
+        CHECK(status == P2D_SIM_OK && rows == 500u, "salient first-order stall: status %d rows %llu", (int)status,
+              (unsigned long long)rows);
+        if (rows == 500u) {
+            /* the limit holds during the stall (row 180: t = 0.54 s, 15 Nm > T_max), and the
+               speed is back on the reference at the last row (t = 1.497 s, 0.9 s after the load dropped) */
+            double w = cell(log, rows, 499u, P2D_LOG_W_M_RADPS);
+            CHECK(cell(log, rows, 180u, P2D_LOG_SATURATED) == 1.0, "salient first-order stall: not saturated");
+            CHECK(fabs(w - ref_v[0]) < 0.01 * ref_v[0], "salient first-order stall: w_m(1.497 s) = %g rad/s, "
+                  "reference %g", w, ref_v[0]);
+        }
+        free(log);
+    }
+
+    /* 3. salient, dq PIs with decoupling and clamping, delay, no_tau, forward Euler, no anti-windup */
+    {
+        static const double ref_t[] = {0.0, 0.2}, ref_v[] = {200.0, -100.0}, ref_r[] = {0.1, 0.3};
+        static const double load_t[] = {0.1}, load_v[] = {-3.0}, load_r[] = {0.0};
+        paper_drive(&cfg);
+        make_salient(&cfg);
+        cfg.computation_delay = true;
+        cfg.w_m0_radps = 10.0;
+        cfg.speed.alpha_radps = 30.0f;
+        cfg.speed.zeta = 0.7f;
+        cfg.speed.m = 0.5f;
+        cfg.speed.method = P2D_FORWARD_EULER;
+        cfg.speed.feedforward = P2D_FF_NO_TAU;
+        cfg.speed.anti_windup = P2D_AW_NONE;
+        cfg.current.tau_i_s = 0.002f;
+        cfg.current.decouple = true;
+        cfg.current.anti_windup = P2D_AW_CLAMPING;
+        cfg.reference = (p2d_schedule_t){ref_t, ref_v, ref_r, 2u};
+        cfg.load = (p2d_schedule_t){load_t, load_v, load_r, 1u};
+        status = run("salient dq_pi delay", &cfg, 800u, 2u, &log, &rows);
+        CHECK(status == P2D_SIM_OK && rows == 800u, "salient dq_pi delay: status %d rows %llu", (int)status,
+              (unsigned long long)rows);
+        free(log);
+    }
+
+    /* 4. a load far beyond the limit drives the shaft backwards into the overspeed stop */
+    {
+        static const double load_t[] = {0.0}, load_v[] = {400.0}, load_r[] = {0.0};
+        paper_drive(&cfg);
+        cfg.load = (p2d_schedule_t){load_t, load_v, load_r, 1u};
+        status = run("overspeed", &cfg, 20000u, 1u, &log, &rows);
+        CHECK(status == P2D_SIM_STOP_OVERSPEED, "overspeed: status %d (%s) after %llu rows", (int)status,
+              p2d_sim_status_text(status), (unsigned long long)rows);
+        free(log);
+    }
+
+    /* 5. error paths */
+    {
+        p2d_sim_t *sim = malloc(sizeof *sim);
+        double *small;
+        paper_drive(&cfg);
+        CHECK(p2d_sim_init(NULL, &cfg) == P2D_SIM_ERR_NULL && p2d_sim_init(sim, NULL) == P2D_SIM_ERR_NULL,
+              "NULL accepted");
+        cfg.motor.Rs_ohm = -1.0;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_RS, "negative Rs accepted");
+        paper_drive(&cfg);
+        cfg.speed.zeta = NAN;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_SPEED_CONTROLLER && sim->controller_status == P2D_ERR_ZETA,
+              "NaN zeta: status %d", (int)sim->controller_status);
+        paper_drive(&cfg);
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_OK, "valid configuration rejected");
+        small = malloc(10u * P2D_LOG_COUNT * sizeof *small);
+        status = p2d_sim_run(sim, 11u, small, 10u);
+        CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 10u, "log of 10 rows for 11 samples: status %d rows %llu",
+              (int)status, (unsigned long long)sim->n_rows);
+        free(small);
+        free(sim);
+    }
+
+    if (failures != 0) {
+        fprintf(stderr, "sanitize_drive: %d check(s) failed\n", failures);
+        return 1;
+    }
+    printf("sanitize_drive: 5 scenarios passed\n");
+    return 0;
+}
