@@ -208,6 +208,41 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
 
 
 # ---------------------------------------------------------------------------------------------
+# reproduce (pmsm2dof.studies, report)
+# ---------------------------------------------------------------------------------------------
+
+
+@cli.command()
+@click.option("--out", type=click.Path(), default="pmsm2dof-report", show_default=True,
+              help="folder for report.md, report.html, claims.json, the figures and their data")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
+              help="change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)")
+def reproduce(out, overrides):
+    """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
+
+    Runs the paper's conditions on the presets (the float32 C controller in the compiled
+    engine) and writes OUT/report.md, OUT/report.html (self-contained), OUT/claims.json (each
+    claim of the paper with the measured value and a verdict), OUT/figures/*.png and *.svg,
+    and the data of the figures, all or nothing.
+    """
+    import time
+
+    from .report import VERDICTS, reproduce as run_reproduction
+    from .scenario import parse_override
+
+    start = time.perf_counter()
+    changes = dict(parse_override(text) for text in overrides)
+    report = run_reproduction(out, overrides=changes, progress=True)
+    for claim in report.claims:
+        click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
+    counts = ", ".join(f"{sum(c.verdict == v for c in report.claims)} {v}" for v in VERDICTS)
+    click.echo(f"{len(report.claims)} claims: {counts}")
+    click.echo(f"{report.studies.n_runs} simulations; wrote report.md, report.html, claims.json and "
+               f"{sum(f.startswith('figures/') for f in report.files)} figure files to {out} "
+               f"in {time.perf_counter() - start:.1f} s")
+
+
+# ---------------------------------------------------------------------------------------------
 # simulate and presets (pmsm2dof.scenario, simulate, metrics, traceplot)
 # ---------------------------------------------------------------------------------------------
 
@@ -275,7 +310,8 @@ def presets(keys):
               help="run on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)")
 @click.option("--batch-size", type=int, default=None,
               help="points per task [default: about 4 tasks per worker, at most 50 points]")
-def sweep(file, out, workers, scheduler, batch_size):
+@click.option("--no-figures", is_flag=True, help="write the results table only")
+def sweep(file, out, workers, scheduler, batch_size, no_figures):
     """Run a sweep (grid or Monte Carlo) of a scenario: one row of metrics per point, and figures.
 
     FILE is a sweep TOML: a base scenario and axes (lists, ranges or random distributions of
@@ -286,7 +322,8 @@ def sweep(file, out, workers, scheduler, batch_size):
     from .sweep import load_sweep, run_sweep
 
     chosen = load_sweep(file)
-    run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size)
+    run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size,
+                    figures=not no_figures)
     table = run.table
     stopped = table[table["status"] != "ok"]
     click.echo(f"{chosen.name}: {len(table)} points ({run.computed} simulated, {run.resumed} already done), "

@@ -544,7 +544,7 @@ class SweepRun:
     files: tuple
 
 
-def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progress=True):
+def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progress=True, figures=True):
     """Run every point of ``sweep`` not yet finished in ``out``, then write results and figures.
 
     Each finished batch of points is stored at once as ``out/parts/part-*.parquet``, so an
@@ -570,6 +570,8 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
         at most 50 points per task).
     progress : bool
         Show a progress bar on stderr.
+    figures : bool
+        Draw the figures (False: the results table only).
 
     Returns
     -------
@@ -612,7 +614,7 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
     table = _read_parts(out).drop_duplicates("point").sort_values("point", ignore_index=True)
     if len(table) != len(sweep.points):
         raise RuntimeError(f"{len(sweep.points) - len(table)} points of the sweep have no stored result")
-    files = _write_results(out, sweep, table)
+    files = _write_results(out, sweep, table, figures)
     return SweepRun(table, out, len(done), len(todo), files)
 
 
@@ -682,14 +684,16 @@ def _one_line(exc):
     return " ".join(str(exc).split())
 
 
-def _write_results(out, sweep, table):
+def _write_results(out, sweep, table, figures):
     """results.parquet, results.csv and the figures, moved into ``out`` together when all are written."""
     from .outputs import staged_dir
     from .sweepplots import draw_figures
 
+    drawn = []
     with staged_dir(out) as tmp:
         table.to_parquet(tmp / "results.parquet", index=False)
         table.to_csv(tmp / "results.csv", index=False)
-        figures = draw_figures(sweep, table, tmp / "figures")
-    names = ["results.parquet", "results.csv", *(f"figures/{p.name}" for p in figures)]
+        if figures:
+            drawn = draw_figures(sweep, table, tmp / "figures")
+    names = ["results.parquet", "results.csv", *(f"figures/{p.name}" for p in drawn)]
     return tuple(out / n for n in names)

@@ -60,8 +60,7 @@ def _heatmap(plt, sweep, grid, table, col, folder):
     values = table[col].to_numpy(dtype=float, na_value=np.nan).reshape(n_r, n_c)
     failed = (table["status"] != "ok").to_numpy().reshape(n_r, n_c)
     fig, ax = plt.subplots(figsize=(1.2 + 0.55 * max(n_c, 6), 1.2 + 0.45 * max(n_r, 5)))
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")  # cells without a value: light gray
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")  # cells without a value: light gray
     image = ax.imshow(np.ma.masked_invalid(values), origin="lower", aspect="auto", cmap=cmap)
     fig.colorbar(image, ax=ax, label=col)
     ax.set_xticks(range(n_c), [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in cols_axis.values],
