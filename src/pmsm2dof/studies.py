@@ -1,0 +1,502 @@
+"""The simulations behind the paper reproduction: the paper's runs, sensitivity sweeps, discretization.
+
+Everything runs on the shipped presets (:func:`pmsm2dof.scenario.list_presets`), optionally all
+changed by the same overrides, in the compiled engine (:func:`pmsm2dof.simulate.simulate`):
+
+Paper runs (kept whole, for the figures and the claims)
+    Simulation conditions 1 and 2 of section 4.1 (Fig. 8 to 10) and experimental conditions 1 to 3
+    of section 4.2 (Fig. 12 to 14) as simulations, each with the 1DOF PI (feedforward ``none``)
+    and the 2DOF controller of the presets (the low-pass feedforward of eq 13, discretized as
+    eq 15), and in conditions 1 and experiment 1 with each anti-windup mode.
+
+Linear runs (kept whole)
+    A small step at a steady speed, which leaves the current far from its limit, with the
+    feedforward of eq 12 and of eq 13: the linear tracking the design promises (eq 10).
+
+Sensitivity sweeps (only their metrics are kept)
+    One 500 rpm step from rest (``paper-experiment-1``, run for :data:`STEP_T_END_S` so that
+    slow designs settle) and one 8 Nm load step at a steady 500 rpm (``paper-experiment-3``),
+    against the back-calculation gain Ka (Fig. 5), the tracking pole factor m (eq 10), the
+    damping zeta (eq 9), the inertia error (true J against the design J of eq 9, 11) and the
+    torque the current limit allows (the paper gives the 7.6 A limit but not the torque constant).
+
+Discretization study
+    The discrete loops of :func:`pmsm2dof.discretize.discretize` (ZOH plant) for forward Euler,
+    backward Euler and Tustin (Table 1) as the speed-loop sampling period grows, and engine runs
+    of a small, unsaturated step at a few of those periods as a check of the design's prediction.
+"""
+
+import dataclasses
+import math
+import time
+import warnings
+
+import numpy as np
+
+from .controllers import METHODS
+from .design import design, loop_margins
+from .discretize import MAX_W_TS, SamplingWarning
+from .errors import ConfigError, SimulationError
+from .metrics import compute_metrics
+from .scenario import load_scenario
+from .simulate import simulate
+
+#: The presets every study starts from.
+PRESETS = ("paper-condition-1", "paper-condition-2", "paper-experiment-1", "paper-experiment-2",
+           "paper-experiment-3")
+#: Preset of the step sweeps: no load, one 500 rpm step from rest at 0.5 s.
+STEP_BASE = "paper-experiment-1"
+#: Preset of the load sweeps: steady 500 rpm, an 8 Nm load step at 0.5 s.
+LOAD_BASE = "paper-experiment-3"
+#: Simulated time of the step sweeps [s]: m = 0.2 puts the tracking pole at 0.1 rad/s (2 % in 39 s).
+STEP_T_END_S = 60.0
+#: Points per sensitivity sweep in the full study.
+POINTS = 9
+#: Speed-loop sampling periods of the discretization study [s] (multiples of the 100 us current period).
+TS_GRID_S = (1e-3, 2e-3, 5e-3, 1e-2, 2e-2, 5e-2, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0)
+#: Periods of the discretization study also run in the engine [s].
+TS_ENGINE_S = (1e-3, 0.1, 0.3, 0.5)
+#: Small speed step of the linear runs [rpm]: even the derivative kick of eq 11 (J alpha m tau_i / Ts per
+#: rad/s of step) stays below the current limit.
+SMALL_STEP_RPM = 2.0
+
+ONE_DOF = "1DOF PI"
+TWO_DOF = "2DOF eq 15"
+#: Feedforward of each controller compared in the paper (section 4.1): eq 13 discretized as eq 15.
+FEEDFORWARD = {ONE_DOF: "none", TWO_DOF: "lowpass"}
+#: Anti-windup modes, as the scenario names them, and as the report labels them.
+AW_LABELS = {"none": "no AW", "back_calculation": "back-calculation AW", "clamping": "clamping"}
+
+
+@dataclasses.dataclass(frozen=True)
+class RunSpec:
+    """One simulation: a preset, changed by ``overrides`` (after the study's common overrides)."""
+
+    name: str
+    preset: str
+    overrides: dict
+
+
+def _controller(label, anti_windup="back_calculation"):
+    return {"speed_controller.feedforward": FEEDFORWARD[label], "speed_controller.anti_windup": anti_windup}
+
+
+def paper_runs():
+    """The runs of the paper's simulation and experimental conditions (section 4), by name.
+
+    ``c1``, ``c2``: simulation conditions 1 and 2; ``e1`` to ``e3``: experimental conditions 1 to 3;
+    ``1dof`` / ``2dof``: feedforward none / lowpass; the last part is the anti-windup mode.
+    """
+    runs = []
+    for cond, preset in (("c1", "paper-condition-1"), ("e1", "paper-experiment-1")):
+        for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
+            for aw in AW_LABELS:
+                runs.append(RunSpec(f"{cond}-{dof}-{aw}", preset, _controller(label, aw)))
+    runs.append(RunSpec("e1-2dof-full", "paper-experiment-1", {"speed_controller.feedforward": "full"}))
+    for cond, preset in (("c2", "paper-condition-2"), ("e2", "paper-experiment-2"), ("e3", "paper-experiment-3")):
+        for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
+            runs.append(RunSpec(f"{cond}-{dof}", preset, _controller(label)))
+    return runs
+
+
+@dataclasses.dataclass(frozen=True)
+class Series:
+    """One line of a sweep: a run per x value; ``kind`` is ``"step"`` or ``"load"``."""
+
+    label: str
+    kind: str
+    runs: tuple
+
+
+@dataclasses.dataclass(frozen=True)
+class Sweep:
+    """A sensitivity study: the same figures measured along one parameter.
+
+    Attributes
+    ----------
+    name : str
+        Short name, used in file names (``ka``, ``m``, ``zeta``, ``inertia``, ``torque_limit``).
+    title : str
+        What varies, in words.
+    x_label : str
+        Axis label of the varied parameter, with its unit.
+    x : tuple of float
+        The values.
+    series : tuple of Series
+        The lines, each a run per value.
+    references : tuple of (str, RunSpec)
+        Runs that do not depend on x, drawn as horizontal lines (label, run).
+    marks : tuple of (float, str)
+        Vertical lines: the presets' value.
+    bands : tuple of (float, float, str)
+        Shaded x ranges.
+    log_x : bool
+        Logarithmic x axis.
+    """
+
+    name: str
+    title: str
+    x_label: str
+    x: tuple
+    series: tuple
+    references: tuple = ()
+    marks: tuple = ()
+    bands: tuple = ()
+    log_x: bool = False
+
+    def runs(self):
+        """Every run of the sweep."""
+        return [r for s in self.series for r in s.runs] + [r for _, r in self.references]
+
+
+def _geom(lo, hi, n, *include):
+    """``n`` log-spaced values from ``lo`` to ``hi``, with the values ``include`` added, sorted."""
+    return tuple(sorted({float(v) for v in np.geomspace(lo, hi, n)} | {float(v) for v in include}))
+
+
+def _step(label, name, overrides, anti_windup="back_calculation"):
+    return RunSpec(name, STEP_BASE, {"simulation.t_end_s": STEP_T_END_S} | _controller(label, anti_windup)
+                   | overrides)
+
+
+def _load(label, name, overrides):
+    return RunSpec(name, LOAD_BASE, _controller(label) | overrides)
+
+
+def sweeps(bases, points=POINTS):
+    """The sensitivity sweeps around the presets ``bases`` (preset name -> Scenario).
+
+    Parameters
+    ----------
+    bases : dict
+        The presets of :data:`PRESETS` as run (with the study's common overrides).
+    points : int
+        Values per sweep, >= 2 (odd values put the preset's value at the centre of the
+        log-spaced sweeps).
+
+    Returns
+    -------
+    list of Sweep
+    """
+    if isinstance(points, bool) or not isinstance(points, int) or points < 2:
+        raise ConfigError("points", points, "an integer >= 2")
+    step_data = bases[STEP_BASE].data
+    sc = step_data["speed_controller"]
+    J_design = sc["J_design_kgm2"]
+    Kp = J_design * sc["alpha"]  # eq 9
+    out = []
+
+    # Ka (Fig. 5): the range the paper gives, read as 1/(3 Kp) .. 3/Kp, and its literal Kp/3 .. 3 Kp
+    used = _geom(1.0 / (3.0 * Kp), 3.0 / Kp, points, 1.0 / Kp)
+    literal = _geom(Kp / 3.0, 3.0 * Kp, max(2, points // 2 + 1))
+    ka = tuple(sorted(set(used) | set(literal)))
+    out.append(Sweep(
+        "ka", "back-calculation gain Ka", "Ka [(rad/s)/Nm]", ka,
+        tuple(Series(label, "step", tuple(_step(label, f"ka-{dof}-{i}", {"speed_controller.Ka": v})
+                                          for i, v in enumerate(ka)))
+              for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF))),
+        references=tuple((f"{label}, {AW_LABELS[aw]}", _step(label, f"ka-{dof}-{aw}", {}, aw))
+                         for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)) for aw in ("none", "clamping")),
+        marks=((1.0 / Kp, "1/Kp (preset)"),),
+        bands=((1.0 / (3.0 * Kp), 3.0 / Kp, "1/(3Kp) .. 3/Kp (used)"), (Kp / 3.0, 3.0 * Kp, "Kp/3 .. 3Kp (literal)")),
+        log_x=True))
+
+    # m (eq 10, 11): the full feedforward, whose Gx is m alpha / (s + m alpha)
+    m_values = tuple(float(v) for v in np.linspace(0.2, 2.0, points + 1))
+    full = {"speed_controller.feedforward": "full"}
+    out.append(Sweep(
+        "m", "tracking pole factor m (feedforward eq 11)", "m [-]", m_values,
+        (Series("2DOF eq 11, back-calculation AW", "step",
+                tuple(RunSpec(f"m-bc-{i}", STEP_BASE, {"simulation.t_end_s": STEP_T_END_S, **full,
+                                                       "speed_controller.m": m}) for i, m in enumerate(m_values))),
+         Series("2DOF eq 11, no AW", "step",
+                tuple(RunSpec(f"m-none-{i}", STEP_BASE, {"simulation.t_end_s": STEP_T_END_S, **full,
+                                                         "speed_controller.m": m,
+                                                         "speed_controller.anti_windup": "none"})
+                      for i, m in enumerate(m_values))),
+         Series("2DOF eq 11, back-calculation AW", "load",
+                tuple(RunSpec(f"m-load-{i}", LOAD_BASE, {**full, "speed_controller.m": m})
+                      for i, m in enumerate(m_values)))),
+        marks=((sc["m"], "preset"),)))
+
+    # zeta (eq 9)
+    zeta = _geom(0.2, 1.0, points, sc["zeta"])
+    out.append(Sweep(
+        "zeta", "relative damping zeta (eq 9)", "zeta [-]", zeta, _both_controllers("zeta", zeta, "speed_controller.zeta"),
+        marks=((sc["zeta"], "preset"),), log_x=True))
+
+    # inertia error: the plant's J from 0.5 to 2 times the J the controller is designed for
+    ratios = _geom(0.5, 2.0, points, 1.0)
+    series = []
+    for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
+        for kind, make in (("step", _step), ("load", _load)):
+            series.append(Series(label, kind, tuple(
+                make(label, f"inertia-{kind}-{dof}-{i}",
+                     {"motor.J_kgm2": r * J_design, "speed_controller.J_design_kgm2": J_design})
+                for i, r in enumerate(ratios))))
+    out.append(Sweep("inertia", "inertia error (true J / design J)", "true J / design J [-]", ratios,
+                     tuple(series), marks=((1.0, "J = design J"),), log_x=True))
+
+    # torque limit: the torque constant 1.5 p psi_f that turns the 7.6 A limit into torque is not in the paper
+    motor, limits = step_data["motor"], step_data["limits"]
+    psi_f = _geom(0.4 * motor["psi_f_Wb"], 2.5 * motor["psi_f_Wb"], points, motor["psi_f_Wb"])
+    torque_limit = tuple(1.5 * motor["pole_pairs"] * v * limits["i_max_A"] for v in psi_f)
+    out.append(Sweep(
+        "torque_limit", "torque the current limit allows, 1.5 p psi_f i_max (1DOF PI)",
+        "torque limit [Nm]", torque_limit,
+        tuple(Series(f"{ONE_DOF}, {AW_LABELS[aw]}", "step",
+                     tuple(_step(ONE_DOF, f"torque-{aw}-{i}", {"motor.psi_f_Wb": v}, aw) for i, v in enumerate(psi_f)))
+              for aw in AW_LABELS),
+        marks=((1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"], "preset"),), log_x=True))
+    return out
+
+
+def _both_controllers(name, values, key):
+    series = []
+    for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
+        for kind, make in (("step", _step), ("load", _load)):
+            series.append(Series(label, kind, tuple(make(label, f"{name}-{kind}-{dof}-{i}", {key: v})
+                                                    for i, v in enumerate(values))))
+    return tuple(series)
+
+
+@dataclasses.dataclass(frozen=True)
+class DiscretePoint:
+    """The discrete loop of one controller, method and sampling period (design level).
+
+    ``stable`` False when :func:`~pmsm2dof.discretize.discretize` rejects the period (the
+    discrete loop or the feedforward filter is unstable); the figures are then NaN and
+    ``reason`` says why. ``controller_error`` is ``|F(z)/F(s) - 1|`` of the PI at the continuous
+    gain crossover (z = exp(j w Ts)): how far the discrete controller is from the designed one.
+    """
+
+    controller: str
+    method: str
+    Ts_s: float
+    stable: bool
+    overshoot_pct: float
+    gain_margin_dB: float
+    phase_margin_deg: float
+    controller_error: float
+    reason: str = ""
+
+
+def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
+    """The discretization study on the design of scenario ``base`` (Table 1, eq 14, 15).
+
+    Parameters
+    ----------
+    base : Scenario
+        Its speed controller is designed (eq 9, 11) and discretized at each period.
+    Ts_grid : sequence of float
+        Speed-loop sampling periods [s], multiples of ``current_loop.Ts_s``.
+    progress : bool
+        Show a progress bar (tqdm) over the discrete designs.
+
+    Returns
+    -------
+    (list of DiscretePoint, dict)
+        The points, and the continuous reference: ``{controller: (overshoot_pct, Margins, w_gc)}``.
+    """
+    sc, cl = base.data["speed_controller"], base.data["current_loop"]
+    for Ts in Ts_grid:
+        if not math.isclose(Ts / cl["Ts_s"], round(Ts / cl["Ts_s"]), rel_tol=1e-9):
+            raise ConfigError("Ts_s", Ts, f"a multiple of current_loop.Ts_s = {cl['Ts_s']:g} s")
+    designs, continuous = {}, {}
+    for label, ff in FEEDFORWARD.items():
+        d = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=sc["m"], tau_i_s=sc["tau_i_design_s"],
+                   feedforward=ff, anti_windup=sc["anti_windup"], Ka=sc["Ka"])
+        margins = loop_margins(d.L)
+        designs[label] = d
+        continuous[label] = (d.overshoot_pct(), margins, margins.w_gain_crossover_radps)
+    cases = [(label, method, Ts) for label in FEEDFORWARD for method in METHODS for Ts in Ts_grid]
+    if progress:
+        from tqdm import tqdm
+
+        cases = tqdm(cases, desc="discretization", unit="design")
+    points = []
+    for label, method, Ts in cases:
+        d, w_gc = designs[label], continuous[label][2]
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", SamplingWarning)
+                dd = d.discretize(Ts, method)
+        except ConfigError as exc:
+            points.append(DiscretePoint(label, method, Ts, False, math.nan, math.nan, math.nan, math.nan, str(exc)))
+            continue
+        error = abs(complex(dd.F_z(np.exp(1j * w_gc * Ts))) / complex(d.F(1j * w_gc)) - 1.0)
+        points.append(DiscretePoint(label, method, Ts, True, dd.overshoot_pct, dd.margins.gain_margin_dB,
+                                    dd.margins.phase_margin_deg, error))
+    return points, continuous
+
+
+def largest_fine_Ts(base, Ts_grid=TS_GRID_S):
+    """The largest period of ``Ts_grid`` that :mod:`pmsm2dof.discretize` deems fine for the design.
+
+    That is ``max(alpha, alpha/(2 zeta), m alpha) Ts <= MAX_W_TS`` (beyond it discretize warns).
+    """
+    sc = base.data["speed_controller"]
+    w = max(sc["alpha"], sc["alpha"] / (2.0 * sc["zeta"]), sc["m"] * sc["alpha"])
+    fine = [Ts for Ts in Ts_grid if w * Ts <= MAX_W_TS]
+    return max(fine) if fine else min(Ts_grid)
+
+
+def _small_step(name, overrides):
+    """A run of :data:`SMALL_STEP_RPM` at a steady 500 rpm without load: the current stays below its limit."""
+    return RunSpec(name, LOAD_BASE, {
+        "load": [], "simulation.t_end_s": 20.0,
+        "reference": [{"t_s": 0.0, "speed_rpm": 500.0}, {"t_s": 0.5, "speed_rpm": 500.0 + SMALL_STEP_RPM}]}
+        | overrides)
+
+
+def linear_runs():
+    """Runs of the 2DOF controller in the linear range (a small step): eq 13 against eq 12 (m = 1).
+
+    Named ``lin-lowpass`` and ``lin-full``; their traces are kept.
+    """
+    return [_small_step(f"lin-{ff}", {"speed_controller.feedforward": ff, "speed_controller.m": 1.0})
+            for ff in ("lowpass", "full")]
+
+
+def discretization_runs(Ts_engine=TS_ENGINE_S):
+    """Engine runs of the 1DOF PI at a few speed-loop periods: a small step at a steady 500 rpm.
+
+    The step of :data:`SMALL_STEP_RPM` leaves the current far from its limit, so the loop stays
+    linear and its overshoot can be compared with that of the discrete design.
+    """
+    return [_small_step(f"disc-{method}-{Ts:g}", {
+        "speed_controller.feedforward": "none", "speed_controller.discretization": method,
+        "speed_controller.Ts_s": Ts}) for method in METHODS for Ts in Ts_engine]
+
+
+@dataclasses.dataclass
+class Studies:
+    """Everything the reproduction simulated and computed.
+
+    Attributes
+    ----------
+    bases : dict
+        Preset name -> Scenario as run (with the common overrides).
+    overrides : dict
+        The common overrides applied to every preset.
+    results : dict
+        Run name -> Result of the paper runs (:func:`paper_runs`) and the linear runs
+        (:func:`linear_runs`).
+    metrics : dict
+        Run name -> :func:`pmsm2dof.compute_metrics` of every run that completed.
+    failures : dict
+        Run name -> SimulationError message, for sweep and check runs that stopped.
+    sweeps : list of Sweep
+    discretization : list of DiscretePoint
+    continuous : dict
+        Controller label -> (overshoot_pct, Margins, gain crossover [rad/s]) of the continuous design.
+    fine_Ts_s : float
+        Largest period of the discretization grid that the design deems fine.
+    n_runs : int
+        Simulations run.
+    wall_time_s : float
+        Wall-clock time of all the runs and design computations [s].
+    """
+
+    bases: dict
+    overrides: dict
+    results: dict
+    metrics: dict
+    failures: dict
+    sweeps: list
+    discretization: list
+    continuous: dict
+    fine_Ts_s: float
+    n_runs: int
+    wall_time_s: float
+
+    def step(self, name, index=0):
+        """Figures of reference step ``index`` of run ``name`` (see :mod:`pmsm2dof.metrics`)."""
+        return self.metrics[name]["reference_steps"][index]
+
+    def load(self, name, index=0):
+        """Figures of load step ``index`` of run ``name``."""
+        return self.metrics[name]["load_steps"][index]
+
+    def sweep(self, name):
+        """The sweep called ``name``."""
+        return next(s for s in self.sweeps if s.name == name)
+
+    def figure(self, run_name, kind, figure):
+        """The value of ``figure`` of the step (kind ``"step"``) or load step (``"load"``) of a sweep run.
+
+        NaN when the run stopped or the figure could not be computed (its reason is in
+        :attr:`metrics` or :attr:`failures`).
+        """
+        if run_name not in self.metrics:
+            return math.nan
+        steps = self.metrics[run_name]["reference_steps" if kind == "step" else "load_steps"]
+        step = steps[-1] if kind == "step" else steps[0]
+        value = step[figure]["value"]
+        return math.nan if value is None else value
+
+    def series_values(self, series, figure):
+        """``figure`` along a series, as a float array (NaN where missing)."""
+        return np.array([self.figure(r.name, series.kind, figure) for r in series.runs], dtype=float)
+
+
+def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, progress=False):
+    """Run every simulation and design computation of the reproduction.
+
+    Parameters
+    ----------
+    overrides : mapping, optional
+        ``{"dotted.key": value}`` applied to every preset first (see
+        :meth:`pmsm2dof.scenario.Scenario.with_overrides`), e.g. ``{"motor.J_kgm2": 0.5}``.
+    points : int
+        Values per sensitivity sweep (:data:`POINTS` in the full study).
+    Ts_grid : sequence of float
+        Speed-loop sampling periods of the discretization study [s] (:data:`TS_GRID_S`).
+    progress : bool
+        Show progress bars (tqdm, on stderr) over the list of runs and the discrete designs.
+
+    Returns
+    -------
+    Studies
+
+    Raises
+    ------
+    ConfigError
+        An override or a derived run is invalid (naming the scenario key).
+    SimulationError
+        A run of the paper's conditions or a linear run stopped; stopped sweep and discretization
+        runs are kept in ``failures``.
+    """
+    overrides = dict(overrides or {})
+    start = time.perf_counter()
+    bases = {name: load_scenario(name).with_overrides(overrides) for name in PRESETS}
+    paper = paper_runs()
+    study_sweeps = sweeps(bases, points)
+    kept = paper + linear_runs()
+    specs = kept + [r for s in study_sweeps for r in s.runs()] + discretization_runs()
+    scenarios = {spec.name: bases[spec.preset].with_overrides(spec.overrides) for spec in specs}
+    keep = {spec.name for spec in kept}
+
+    results, metrics, failures = {}, {}, {}
+    iterator = specs
+    if progress:
+        from tqdm import tqdm
+
+        iterator = tqdm(specs, desc="pmsm2dof reproduce", unit="run")
+    for spec in iterator:
+        try:
+            result = simulate(scenarios[spec.name])
+        except SimulationError as exc:
+            if spec.name in keep:
+                raise
+            failures[spec.name] = str(exc)
+            continue
+        metrics[spec.name] = compute_metrics(result)
+        if spec.name in keep:
+            results[spec.name] = result
+
+    discretization, continuous = discretization_points(bases[STEP_BASE], Ts_grid, progress=progress)
+    return Studies(bases=bases, overrides=overrides, results=results, metrics=metrics, failures=failures,
+                   sweeps=study_sweeps, discretization=discretization, continuous=continuous,
+                   fine_Ts_s=largest_fine_Ts(bases[STEP_BASE], Ts_grid), n_runs=len(specs),
+                   wall_time_s=time.perf_counter() - start)
