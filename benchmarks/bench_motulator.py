@@ -164,7 +164,7 @@ def trace_difference(result, t_mot_s, w_mot_radps):
     return float(np.max(np.abs(diff))), float(np.sqrt(np.mean(diff**2))), float(np.max(np.abs(ours)))
 
 
-def report(name, scenario, spec, ours_walls, theirs_walls, info, diff):
+def report(name, scenario, spec, ours_walls, theirs_walls, info, diff, load):
     """The markdown section of the results."""
     t_end = spec["t_end"]
     ours = t_end / statistics.median(ours_walls)
@@ -175,7 +175,8 @@ def report(name, scenario, spec, ours_walls, theirs_walls, info, diff):
         SECTION, "",
         f"Measured {datetime.date.today().isoformat()} by `python3 benchmarks/bench_motulator.py` on "
         f"{machine_line()}; pmsm2dof {version('pmsm2dof')} on Python {platform.python_version()}, "
-        f"motulator {info['motulator_version']} on {info['python']} (separate venv).", "",
+        f"motulator {info['motulator_version']} on {info['python']} (separate venv); 1-minute load "
+        f"average {load[0]:.2f} before and {load[1]:.2f} after.", "",
         f"Situation: preset `{name}` ({t_end:g} s: "
         + ", ".join(f"{e['speed_rpm']:g} rpm at {e['t_s']:g} s" for e in scenario.data["reference"])
         + ", load " + ", ".join(f"{e['torque_Nm']:g} Nm at {e['t_s']:g} s" for e in scenario.data["load"])
@@ -215,13 +216,15 @@ def main(argv=None):
     args = parser.parse_args(argv)
 
     python = motulator_python()
+    load_before = os.getloadavg()[0]
     scenario = matched_scenario(args.scenario)
     spec = motulator_spec(scenario, args.runs)
     simulate(scenario)  # warm-up: page in the extension and numpy
     ours_walls, result = time_pmsm2dof(scenario, PMSM2DOF_RUNS)
     info, t_mot, w_mot = run_motulator(python, spec)
     diff = trace_difference(result, t_mot, w_mot)
-    text = report(args.scenario, scenario, spec, ours_walls, info["wall_s"], info, diff)
+    load = (load_before, os.getloadavg()[0])
+    text = report(args.scenario, scenario, spec, ours_walls, info["wall_s"], info, diff, load)
     if not args.no_write:
         write_section(SECTION, text)
     print(text)

@@ -27,6 +27,7 @@ import json
 import os
 import platform
 import re
+import resource
 import statistics
 import subprocess
 import sys
@@ -84,23 +85,32 @@ def single_run(repeats, runs):
     return scenario, rates
 
 
-def sweep_rates(path, repeats):
-    """Runs per second of the sweep at ``path`` on 1 and on 2 threads (no figures), repetitions interleaved.
+def _cpu_s():
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
 
-    Returns the sweep, ``{workers: [rate per repetition]}``, the time to write the results and
-    figures of a finished sweep, and the number of figures.
+
+def sweep_rates(path, repeats):
+    """The sweep at ``path`` on 1 and on 2 threads (no figures), repetitions interleaved.
+
+    Returns the sweep, ``{workers: [(runs per wall s, CPU s per run, share of the wall time
+    inside the engine's C call) per repetition]}``, the time to write the results and figures
+    of a finished sweep, and the number of figures.
     """
     from pmsm2dof.sweep import load_sweep, run_sweep
 
     sweep = load_sweep(path)
+    n = len(sweep.points)
     rates = {1: [], 2: []}
     with tempfile.TemporaryDirectory(prefix="p2d-bench-sweep-") as tmp:
         for k in range(repeats):
             for workers in rates:
                 out = Path(tmp) / f"w{workers}-{k}"
-                start = time.perf_counter()
-                run_sweep(sweep, out, workers=workers, progress=False, figures=False)
-                rates[workers].append(len(sweep.points) / (time.perf_counter() - start))
+                start, cpu = time.perf_counter(), _cpu_s()
+                run = run_sweep(sweep, out, workers=workers, progress=False, figures=False)
+                wall, cpu = time.perf_counter() - start, _cpu_s() - cpu
+                engine = float(run.table["wall_time_s"].sum())
+                rates[workers].append((n / wall, cpu / n, engine / (workers * wall)))
         start = time.perf_counter()
         run = run_sweep(sweep, out, progress=False, figures=True)
         outputs_s = time.perf_counter() - start
@@ -150,8 +160,11 @@ def memory(repeats):
 def report(single, sweeps, mem, repeats, runs, load):
     scenario, single_rates = single
     sweep, rates, outputs_s, n_figures = sweeps
-    rates1, rates2 = rates[1], rates[2]
+    rates1, rates2 = ([r[0] for r in rates[w]] for w in (1, 2))
     r1, r2 = statistics.median(rates1), statistics.median(rates2)
+    cpu1, cpu2 = (statistics.median(r[1] for r in rates[w]) for w in (1, 2))
+    engine1 = statistics.median(r[2] for r in rates[1])
+    amdahl = 1.0 / ((1.0 - engine1) + engine1 / 2.0)
     mem_runs, mem_idle = mem
     peak = statistics.median(m["peak_kB"] for m in mem_runs) / 1024
     idle = statistics.median(m["peak_kB"] for m in mem_idle) / 1024
@@ -175,12 +188,17 @@ def report(single, sweeps, mem, repeats, runs, load):
         f"| same sweep, 2 workers: runs/s | {r2:.4g} | " + ", ".join(f"{r:.4g}" for r in rates2) + " |",
         f"| speed-up 2 workers / 1 worker | {r2 / r1:.3g} | |",
         f"| parallel efficiency rate(2) / (2 rate(1)) | {100 * r2 / (2 * r1):.0f} % | |",
+        f"| CPU time per run, 1 worker / 2 workers (ms) | {1e3 * cpu1:.3g} / {1e3 * cpu2:.3g} | |",
+        f"| share of a 1-worker run inside the engine's C call (GIL released) | {100 * engine1:.0f} % | |",
+        f"| speed-up bound for 2 threads from that share (Amdahl) | {amdahl:.3g} | |",
         "",
         f"The sweep rates cover simulating every point (the sweep file is loaded once), measuring its "
         f"metrics and storing the Parquet parts, 1- and 2-worker repetitions interleaved; writing results.parquet, results.csv and the {n_figures} "
         f"figures (heatmaps and worst-case traces) afterwards took {outputs_s:.3g} s more. Local workers are "
         f"threads: the engine releases the GIL for the whole simulation (one C call), the rest of each point "
-        f"(scenario validation, metrics) holds it.",
+        f"(scenario validation, metrics) holds it. "
+        f"Equal CPU time per run on 1 and 2 workers means the threads add no work; a speed-up below the "
+        f"bound then comes from cores taken by other work (see the load average).",
         "",
         SECTION_MEMORY, "", head, "",
         f"A 60 s run of `paper-condition-2` with the speed controller at the current period "
