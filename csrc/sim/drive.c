@@ -334,16 +334,29 @@ static void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
 
 /* ---- inverter ----------------------------------------------------------- */
 
-/* Limit the command to ||u|| <= u_dc / sqrt(3) into (*ud, *uq) and apply it now or one period later. */
+/* Scale (*ud, *uq) to ||u|| <= u_max. */
+static void limit_voltage(double u_max_V, double *ud_V, double *uq_V)
+{
+    double norm2 = *ud_V * *ud_V + *uq_V * *uq_V;
+    double k = norm2 > u_max_V * u_max_V ? u_max_V / sqrt(norm2) : 1.0;
+    *ud_V *= k;
+    *uq_V *= k;
+}
+
+/*
+ * Limit the command to ||u|| <= u_dc / sqrt(3) into (*ud, *uq) and apply it now or one period
+ * later; a delayed command is limited again by the range of the period it is applied in (which
+ * differs only when the DC link sags in between).
+ */
 static void inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V, double *ud_V, double *uq_V)
 {
-    double norm2 = ud_cmd_V * ud_cmd_V + uq_cmd_V * uq_cmd_V;
-    double k = norm2 > inv->u_max_V * inv->u_max_V ? inv->u_max_V / sqrt(norm2) : 1.0;
-    *ud_V = k * ud_cmd_V;
-    *uq_V = k * uq_cmd_V;
+    *ud_V = ud_cmd_V;
+    *uq_V = uq_cmd_V;
+    limit_voltage(inv->u_max_V, ud_V, uq_V);
     if (inv->delay) {
         inv->ud_V = inv->ud_next_V;
         inv->uq_V = inv->uq_next_V;
+        limit_voltage(inv->u_max_V, &inv->ud_V, &inv->uq_V);
         inv->ud_next_V = *ud_V;
         inv->uq_next_V = *uq_V;
     } else {

@@ -33,8 +33,9 @@
  * modulation ||u_dq|| <= u_dc / sqrt(3) by scaling the vector. With the
  * computation delay the command computed at sample n is applied over period
  * n + 1 (one-sample delay of a controller that writes the PWM registers for
- * the next period); over the first period it applies the steady-state voltage
- * of the initial state.
+ * the next period), limited again by the range of period n + 1; over the
+ * first period it applies the steady-state voltage of the initial state,
+ * limited to the range.
  *
  * Sampled-data loop, per speed sample k at t_k = k Ts_speed,
  * Ts_speed = current_per_speed Ts_current:
