@@ -264,7 +264,7 @@ def _claim_first_order(studies):
     overshoot_lin = d.overshoot_pct()
     bandwidth = d.bandwidth_radps()
     pole = sc["alpha"]
-    small = studies.step("lin-full", 1)
+    small = studies.step("lin-full")
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / pole
     over_small = _value(small["overshoot_pct"])
     big, note = _overshoot(studies, "e1-2dof-full")
@@ -321,7 +321,7 @@ def _claim_lowpass(studies):
     sc = _speed_controller(studies)
     low = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_design_s"],
                  feedforward="lowpass")
-    small = studies.step("lin-lowpass", 1)
+    small = studies.step("lin-lowpass")
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc["alpha"]
     over_small = _value(small["overshoot_pct"])
     a, b = studies.results["lin-lowpass"], studies.results["lin-full"]
