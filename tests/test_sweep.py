@@ -303,6 +303,17 @@ def test_a_diverging_point_is_a_row_with_its_error_and_no_metrics(tmp_path, base
     assert str(info.value) == table.loc[1, "error"]
 
 
+def test_a_value_only_the_engine_rejects_stops_the_sweep_naming_the_point(tmp_path, base_file):
+    # finite and > 0 for the schema, but not a float32 for the C controller
+    sw = sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [50.0, 1e39]\n', worst=0)
+    out = tmp_path / "out"
+    with pytest.raises(ConfigError) as info:
+        run_sweep(sw, out, workers=1, batch_size=1, progress=False)
+    assert info.value.param == "point 1 (speed_controller.alpha=1e+39): speed_controller.alpha"
+    assert [p.name for p in (out / "parts").iterdir()] == ["part-00000000.parquet"]
+    assert not (out / "results.parquet").exists()
+
+
 def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monkeypatch):
     sw = sweep_of(base_file, GRID_AXES, worst=0)
     out = tmp_path / "out"

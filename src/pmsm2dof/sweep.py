@@ -6,7 +6,7 @@ A sweep file (TOML) names a base scenario and the axes along which it varies::
     base = "paper-condition-2"       # a preset name, or a scenario file (relative to this file)
     draws = 500                      # Monte Carlo draws; required when an axis is a distribution
     seed = 7                         # seed of the draws; required when an axis is a distribution
-    rank_by = "iae_speed_rads"       # metric whose largest values are the worst cases
+    rank_by = "load0_speed_dip_rpm"  # metric column whose largest values are the worst cases
     worst = 3                        # number of worst-case traces drawn (default 3)
 
     [axes]                           # each key is a dotted scenario key
@@ -18,6 +18,8 @@ The list and range axes span a grid (their Cartesian product, in file order, the
 first axis varying slowest). Distribution axes are drawn ``draws`` times; with
 distribution axes every grid cell is simulated with the same ``draws`` draws
 (common random numbers), so a pure Monte Carlo study has only distribution axes.
+A list may hold any values the key accepts (``["none", "lowpass"]``); list entries of
+the schedules are addressed by index (``"reference.0.speed_rpm"``, ``"load.0.torque_Nm"``).
 
 Ranges: ``scale = "linear"`` (default) gives ``num`` evenly spaced values from
 ``start`` to ``stop`` inclusive, ``"log"`` evenly spaced logarithms (start, stop > 0).
@@ -29,13 +31,18 @@ axis key, so adding or reordering axes does not change the other axes' draws):
 - ``normal``: ``mean``, ``std`` >= 0;
 - ``log_normal``: ``median`` > 0, ``sigma`` >= 0: ``median * exp(sigma * N(0, 1))``.
 
-Plant inertia ``motor.J_kgm2`` and design inertia ``speed_controller.J_design_kgm2``
-are separate scenario keys, so an inertia axis models a plant that differs from
-the design (the robustness question of the paper's eq 8 and 9).
+The base scenario is frozen with its defaults filled in, so that an axis changes its
+own key only: sweeping the plant inertia ``motor.J_kgm2`` keeps the design inertia
+``speed_controller.J_design_kgm2`` (and ``tau_i_design_s``) of the base, the
+robustness question of the design of eq 9 and 11 against the true plant. An absent
+``speed_controller.Ka`` stays the paper's 1/Kp of each point's design (section 3.3).
 
-Every point is validated before anything runs. Results have one row per point: its
-index, its axis values, ``status`` ("ok" or the SimulationError message) and every
-step- and load-response metric (see :mod:`pmsm2dof.metrics`).
+Every point is validated before anything runs. Results have one row per point:
+``point`` (its index), the axis values (one column per dotted key), ``status`` ("ok",
+or "error" when the engine stopped with a SimulationError, whose message is in
+``error``), ``wall_time_s`` of the simulation, every metric of
+:func:`pmsm2dof.metrics.compute_metrics` as the columns of :func:`metric_columns`
+(empty when a figure cannot be computed, with the reason in ``notes``).
 """
 
 import contextlib
@@ -78,8 +85,8 @@ class Axis:
         The values of a list or range axis; None for a distribution axis.
     distribution : str or None
         ``"uniform"``, ``"normal"`` or ``"log_normal"`` for a distribution axis.
-    params : dict
-        Parameters of the distribution (empty for list and range axes).
+    params : dict or None
+        Parameters of the distribution; None for list and range axes.
     """
 
     key: str
@@ -429,6 +436,9 @@ def run_batch(base_data, batch):
         try:
             result = simulate(base.with_overrides(point))
             figures, notes = _flatten(compute_metrics(result))
+        except ConfigError as exc:
+            # a value only the C controllers or the engine check (e.g. float32 range)
+            raise ConfigError(f"point {index} ({_describe(point)}): {exc.param}", exc.value, exc.valid) from None
         except SimulationError as exc:
             row.update(status="error", error=str(exc), wall_time_s=None)
             row.update(dict.fromkeys(columns))
