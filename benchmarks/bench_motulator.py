@@ -80,7 +80,10 @@ def cache_dir():
 
 def python312():
     """The newest Python 3.12 that pyenv holds."""
-    root = Path(subprocess.run(["pyenv", "root"], check=True, capture_output=True, text=True).stdout.strip())
+    try:
+        root = Path(subprocess.run(["pyenv", "root"], check=True, capture_output=True, text=True).stdout.strip())
+    except (OSError, subprocess.CalledProcessError) as exc:
+        sys.exit(f"bench_motulator: pyenv, which provides the venv's Python 3.12, does not run ({exc})")
     found = sorted(root.glob("versions/3.12.*/bin/python3.12"),
                    key=lambda p: tuple(int(x) for x in p.parent.parent.name.split(".") if x.isdigit()))
     if not found:
@@ -120,7 +123,7 @@ def motulator_spec(scenario, runs):
         "psi_f": motor["psi_f_Wb"], "J": motor["J_kgm2"], "B": motor["B_Nms"],
         "i_s_max": d["limits"]["i_max_A"], "u_dc": d["limits"]["u_dc_V"],
         "T_s": d["current_loop"]["Ts_s"], "alpha_c": 1.0 / d["current_loop"]["tau_i_s"],
-        "alpha_i": motor["Rs_ohm"] / motor["Ld_H"],
+        "alpha_i": motor["Rs_ohm"] / motor["Ld_H"],  # stator pole R_s/L (one L: exact for a surface PMSM)
         "k_p": gains.Kp, "k_i": gains.Ki,
         "t_end": d["simulation"]["t_end_s"], "w_M0": d["simulation"]["speed0_rpm"] / RPM_PER_RADPS,
         "reference": [[e["t_s"], e["speed_rpm"] / RPM_PER_RADPS, e["ramp_s"]] for e in d["reference"]],
