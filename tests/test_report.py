@@ -92,7 +92,7 @@ def test_html_parses_and_every_image_is_embedded_or_exists(report_dir):
     page.feed((report_dir / "report.html").read_text(encoding="utf-8"))
     page.close()
     assert page.errors == [] and page.stack == []
-    assert len(page.images) == len(STEMS)
+    assert len(page.images) >= len(STEMS)
     for src in page.images:
         if src.startswith("data:"):
             head, data = src.split(",", 1)
@@ -107,7 +107,7 @@ def test_html_parses_and_every_image_is_embedded_or_exists(report_dir):
 def test_markdown_links_exist_and_its_table_is_claims_json(report_dir, claims):
     text = (report_dir / "report.md").read_text(encoding="utf-8")
     targets = re.findall(r"\]\(([^)]+)\)", text)
-    assert len(targets) == 2 * len(STEMS)
+    assert {f"figures/{stem}.{ext}" for stem in STEMS for ext in ("png", "svg")} <= set(targets)
     for target in targets:
         assert (report_dir / target).is_file(), target
     rows = re.findall(r"^\| (C\d+) \|.*\| (reproduced|partly|not reproduced) \|", text, flags=re.M)
