@@ -12,7 +12,9 @@ nothing (:func:`pmsm2dof.outputs.staged_dir`):
 - ``claims.json``: one row per claim, with the paper's value, the measured one, a verdict
   (``reproduced``, ``partly``, ``not reproduced``) and the reason where they differ;
 - ``metrics.json`` (figures of merit of the paper runs), ``sensitivity.csv`` and
-  ``discretization.csv`` (the data of the study figures).
+  ``discretization.csv`` (the data of the study figures);
+- a section on fault scenarios the paper does not treat (the ``fault-*`` presets: a stall, a
+  DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode.
 
 Every measured value is computed from the simulation results (or, for design claims, from the
 transfer functions of :mod:`pmsm2dof.design`); the verdict rules are the constants below. The
@@ -41,10 +43,12 @@ from matplotlib.figure import Figure
 
 from . import studies as st
 from .design import design
-from .errors import ConfigError
-from .metrics import LOAD_FIGURES, REFERENCE_FIGURES
+from .errors import ConfigError, SimulationError
+from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, compute_metrics
 from .outputs import atomic_write, staged_dir
 from .plots import bode_gx_sweep
+from .scenario import load_scenario
+from .simulate import simulate
 
 #: Verdicts, best first.
 VERDICTS = ("reproduced", "partly", "not reproduced")
@@ -962,6 +966,111 @@ def fig_discretization(studies):
     return fig
 
 
+# ---------------------------------------------------------------------------------------------
+# fault scenarios: not in the paper; each anti-windup mode when something fails
+# ---------------------------------------------------------------------------------------------
+
+#: The fault presets of the report, in report order.
+FAULT_PRESETS = ("fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike")
+
+
+def run_faults(overrides=None):
+    """Simulate every fault preset with each anti-windup mode.
+
+    Returns ``{(preset, anti_windup): Result}``, or the reason instead of a Result when the
+    overrides do not apply to the preset or the run stopped.
+    """
+    runs = {}
+    for preset in FAULT_PRESETS:
+        for aw in st.AW_LABELS:
+            try:
+                scenario = load_scenario(preset).with_overrides({**(overrides or {}), "speed_controller.anti_windup": aw})
+                runs[preset, aw] = simulate(scenario)
+            except (ConfigError, SimulationError) as exc:
+                runs[preset, aw] = str(exc)
+    return runs
+
+
+def fault_figures(result):
+    """What a fault did to the drive, from its start (the jam of the stall) to the end of the run.
+
+    ``deviation_rpm``: peak of ``|speed_ref - speed|``; ``x_i_excursion_Nm``: peak change of the
+    speed integrator from its value before the fault; ``i_peak_A``: peak ``||i_dq||`` (the limit
+    bounds the command, not a current the inverter lacks the voltage to oppose);
+    ``saturation_time_s`` and ``recovery_time_s`` from :func:`pmsm2dof.metrics.compute_metrics`:
+    the fault's own figures, or for the stall those of the jam and of its release.
+    """
+    m = compute_metrics(result)
+    if m["faults"]:
+        fault = m["faults"][0]
+        t0, recovery, saturation = fault["t_s"], fault["recovery_time_s"], fault["saturation_time_s"]["value"]
+    else:
+        jam, release = m["load_steps"][:2]
+        t0, recovery = jam["t_s"], release["recovery_time_s"]
+        saturation = jam["saturation_time_s"]["value"] + release["saturation_time_s"]["value"]
+    k0 = int(np.searchsorted(result.t_s, t0 - 1e-9))
+    after = slice(k0, None)
+    return {
+        "t_s": t0,
+        "deviation_rpm": float(np.max(np.abs(result.speed_ref_rpm[after] - result.speed_rpm[after]))),
+        "x_i_excursion_Nm": float(np.max(np.abs(result.x_i_Nm[after] - result.x_i_Nm[max(k0 - 1, 0)]))),
+        "i_peak_A": float(np.max(np.hypot(result.id_A[after], result.iq_A[after]))),
+        "saturation_time_s": saturation,
+        "recovery_time_s": recovery["value"],
+    }
+
+
+def fig_faults(runs):
+    """Speed and speed integrator of each fault preset, one line per anti-windup mode."""
+    fig, axes = _figure(len(FAULT_PRESETS), 2, height=2.2, width=10.0)
+    for (ax_w, ax_x), preset in zip(axes, FAULT_PRESETS):
+        results = {aw: runs[preset, aw] for aw in st.AW_LABELS if not isinstance(runs[preset, aw], str)}
+        if not results:
+            ax_w.set_title(f"{preset}: did not run", fontsize="small")
+            continue
+        first = next(iter(results.values()))
+        t0 = fault_figures(first)["t_s"] - 0.5
+        t1 = first.t_s[-1]
+        ax_w.plot(*_thin(first, "speed_ref_rpm", t0, t1), "k:", lw=1.0, label="reference")
+        for aw, result in results.items():
+            ax_w.plot(*_thin(result, "speed_rpm", t0, t1), lw=1.2, label=st.AW_LABELS[aw], **_AW_STYLE[aw])
+            ax_x.plot(*_thin(result, "x_i_Nm", t0, t1), lw=1.2, label=st.AW_LABELS[aw], **_AW_STYLE[aw])
+        ax_w.set_title(first.scenario.description, fontsize="small", loc="left")
+        _finish(ax_w, "speed [rpm]")
+        _finish(ax_x, "integrator x_i [Nm]")
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[-1, 1].set_xlabel("time [s]")
+    return fig
+
+
+def _fault_blocks(runs, figure_captions):
+    """The report's section on the fault scenarios (no blocks without runs)."""
+    if runs is None:
+        return []
+    header = ("fault", "anti-windup", "peak speed error [rpm]", "integrator excursion [Nm]", "peak ||i_dq|| [A]",
+              "saturated [s]", "recovery [s]")
+    rows = []
+    for (preset, aw), result in runs.items():
+        if isinstance(result, str):
+            rows.append((preset, st.AW_LABELS[aw], f"did not run: {result}", "", "", "", ""))
+            continue
+        f = fault_figures(result)
+        recovery = "not within the run" if f["recovery_time_s"] is None else f"{f['recovery_time_s']:.3g}"
+        rows.append((preset, st.AW_LABELS[aw], f"{f['deviation_rpm']:.3g}", f"{f['x_i_excursion_Nm']:.3g}",
+                     f"{f['i_peak_A']:.3g}", f"{f['saturation_time_s']:.3g}", recovery))
+    return [
+        ("h2", "Fault scenarios (not in the paper)"),
+        ("p", "How each anti-windup mode of the speed controller behaves when something fails, on the paper's "
+              "drive with the 2DOF controller: the presets `fault-stall`, `fault-dc-link-sag`, `fault-sensor-hold`, "
+              "`fault-sensor-zero` and `fault-sensor-spike` (run one with `pmsm2dof simulate fault-stall --out "
+              "DIR`). Figures from the fault's start (the stall: the jam) to the end of the run; recovery: from the "
+              "fault's end (the stall: the release of the jam) until the speed stays within 2 % of its peak error "
+              "(`pmsm2dof.metrics`)."),
+        ("figure", "faults", figure_captions["faults"]),
+        ("table", header, rows),
+    ]
+
+
 def figures(studies):
     """Every figure of the report: ``{stem: (Figure, caption)}`` in report order."""
     sc = _speed_controller(studies)
@@ -1105,8 +1214,10 @@ def _discretization_table(studies):
     return header, rows
 
 
-def report_blocks(studies, claims, figure_captions, wall_time_s=None):
+def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs=None):
     """The report as a list of blocks, rendered by :func:`render_markdown` and :func:`render_html`.
+
+    ``fault_runs`` (of :func:`run_faults`) adds the section on the fault scenarios.
 
     Blocks: ``("h1"|"h2"|"h3"|"p", text)``, ``("list", [text])``, ``("table", header, rows)``,
     ``("figure", stem, caption)``. Text may hold `code` spans.
@@ -1170,6 +1281,7 @@ def report_blocks(studies, claims, figure_captions, wall_time_s=None):
         ("h2", "Discretization study"),
         ("figure", "discretization", figure_captions["discretization"]),
         ("table", *_discretization_table(studies)),
+        *_fault_blocks(fault_runs, figure_captions),
         ("h2", "Files"),
         ("list", ["`claims.json`: the claims table with the measured numbers",
                   "`metrics.json`: figures of merit of every run of the paper's conditions",
@@ -1306,6 +1418,10 @@ def write_report(studies, out, progress=False):
     start = time.perf_counter()
     claims = compute_claims(studies)
     made = figures(studies)
+    fault_runs = run_faults(studies.overrides)
+    made["faults"] = (fig_faults(fault_runs),
+                      "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: "
+                      "the reference.")
     files = []
     with staged_dir(out) as tmp:
         images = {}
@@ -1338,7 +1454,7 @@ def write_report(studies, out, progress=False):
         atomic_write(tmp / "discretization.csv",
                      _csv([_json_value(dataclasses.asdict(p)) for p in studies.discretization]))
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
-        blocks = report_blocks(studies, claims, captions, wall_time_s)
+        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs)
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]
