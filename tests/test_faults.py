@@ -24,11 +24,12 @@ from pmsm2dof.cli import main
 from pmsm2dof.controllers import ANTI_WINDUPS
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.metrics import compute_metrics
+from pmsm2dof.report import FAULT_PRESETS, _fault_blocks, fault_figures, run_faults
 from pmsm2dof.scenario import load_scenario
 from pmsm2dof.simulate import _EngineRun, simulate
 
 RADPS_PER_RPM = math.pi / 30.0
-FAULT_PRESETS = ["fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike"]
+PRESETS = ["fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike"]
 _RUNS = {}
 
 
@@ -69,7 +70,7 @@ def rows(result, t0, t1):
 
 
 @pytest.mark.parametrize("anti_windup", ANTI_WINDUPS)
-@pytest.mark.parametrize("preset", FAULT_PRESETS)
+@pytest.mark.parametrize("preset", PRESETS)
 def test_fault_runs_are_finite_and_respect_the_limits(preset, anti_windup):
     r = run(preset, anti_windup)
     for name in r.signals:
@@ -352,3 +353,32 @@ def test_adjacent_sags_follow_each_other():
     assert np.all(r.u_dc_V[rows(r, 20.0, 20.5)] == 0.5 * 540.0)
     assert np.all(r.u_dc_V[rows(r, 20.5, 21.0)] == 0.8 * 540.0)
     assert np.sum(r.u_dc_V != 540.0) == 1000
+
+
+# --- the report's fault section ---------------------------------------------------------------
+
+
+def test_report_fault_figures_are_those_of_the_traces():
+    assert set(FAULT_PRESETS) == set(PRESETS)
+    for preset in FAULT_PRESETS:
+        r = run(preset, "none")
+        d = r.scenario.data
+        t0 = (d["fault"] or d["load"])[0]["t_s"]
+        after = r.t_s >= t0 - 1e-9
+        k0 = np.nonzero(after)[0][0]
+        f = fault_figures(r)
+        assert f["t_s"] == t0
+        assert f["deviation_rpm"] == pytest.approx(np.max(np.abs(r.speed_ref_rpm - r.speed_rpm)[after]))
+        assert f["x_i_excursion_Nm"] == pytest.approx(np.max(np.abs(r.x_i_Nm[after] - r.x_i_Nm[k0 - 1])))
+        assert f["i_peak_A"] == pytest.approx(np.max(np.hypot(r.id_A, r.iq_A)[after]))
+        # saturated time from the flags, each holding over one speed period
+        assert f["saturation_time_s"] == pytest.approx(np.sum(r.saturated[after]) * drive(r)["Ts"], abs=2e-3)
+
+
+def test_report_fault_section_names_runs_that_cannot_run():
+    runs = run_faults({"current_loop.model": "first_order", "simulation.t_end_s": 25.0})
+    assert all(isinstance(runs["fault-dc-link-sag", aw], str) for aw in ANTI_WINDUPS)
+    assert "fault.0.kind" in runs["fault-dc-link-sag", "none"]
+    header, rows = _fault_blocks(runs, {"faults": "caption"})[3][1:]
+    assert len(rows) == len(runs) == 15
+    assert [row[2].startswith("did not run: fault.0.kind") for row in rows].count(True) == 3
