@@ -13,6 +13,9 @@ reference and load torque schedules of a run (section 4.1)::
     t_s = 0.0
     speed_rpm = 500.0
 
+Optional ``[[fault]]`` entries make the simulator play a fault: a DC-link sag over a window, or a
+speed-sensor reading held, zero or wrong for one sample (see :data:`FAULT_KINDS`).
+
 Every key, its type, valid range, default and meaning is declared once, in :data:`SCHEMA`; that
 table drives validation, the defaults filled into :attr:`Scenario.data`, :meth:`Scenario.to_toml`
 and :func:`schema_reference`. A bad file raises :class:`~pmsm2dof.errors.ConfigError` naming the
