@@ -149,9 +149,14 @@ class Sweep:
         return [r for s in self.series for r in s.runs] + [r for _, r in self.references]
 
 
+def _unique(values):
+    """``values`` sorted, those equal to 12 significant digits taken once (the last of them)."""
+    return tuple(sorted({float(f"{v:.12g}"): float(v) for v in values}.values()))
+
+
 def _geom(lo, hi, n, *include):
-    """``n`` log-spaced values from ``lo`` to ``hi``, with the values ``include`` added, sorted."""
-    return tuple(sorted({float(v) for v in np.geomspace(lo, hi, n)} | {float(v) for v in include}))
+    """``n`` log-spaced values from ``lo`` to ``hi``, with the values ``include`` added (exactly), sorted."""
+    return _unique([*np.geomspace(lo, hi, n), *include])
 
 
 def _step(label, name, overrides, anti_windup="back_calculation"):
@@ -189,7 +194,7 @@ def sweeps(bases, points=POINTS):
     # Ka (Fig. 5): the range the paper gives, read as 1/(3 Kp) .. 3/Kp, and its literal Kp/3 .. 3 Kp
     used = _geom(1.0 / (3.0 * Kp), 3.0 / Kp, points, 1.0 / Kp)
     literal = _geom(Kp / 3.0, 3.0 * Kp, max(2, points // 2 + 1))
-    ka = tuple(sorted(set(used) | set(literal)))
+    ka = _unique(literal + used)
     out.append(Sweep(
         "ka", "back-calculation gain Ka", "Ka [(rad/s)/Nm]", ka,
         tuple(Series(label, "step", tuple(_step(label, f"ka-{dof}-{i}", {"speed_controller.Ka": v})
