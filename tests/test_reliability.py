@@ -192,6 +192,40 @@ def test_any_scenario_simulates_or_fails_naming_the_key(overrides):
     event("simulated")
 
 
+#: Number keys of the drive and the controller that take any magnitude the schema allows.
+MAGNITUDE_KEYS = [f.key for f in SCALARS if f.kind is float and f.key not in TIME_VALUES
+                  and f.key != "simulation.speed0_rpm"]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(values=st.dictionaries(st.sampled_from(MAGNITUDE_KEYS), st.floats(-40.0, 40.0).map(lambda x: 10.0 ** x),
+                              min_size=1, max_size=3))
+def test_extreme_magnitudes_simulate_or_are_named(values):
+    """Values the schema accepts, from 1e-40 to 1e40: the float32 controllers and the engine either
+    run them, name the key they refuse with the value it holds, or stop with the time and reason."""
+    values = {k: (v if FIELDS[k].le is None else min(v, FIELDS[k].le)) for k, v in values.items()}
+    try:
+        scenario = BASE.with_overrides(values)
+    except ConfigError as exc:
+        check_message(exc)  # a relation between keys (tau_i >= Ts, m = 1 with lowpass ...)
+        event(f"rejected by the schema: {normalized(exc.param)}")
+        return
+    try:
+        result = simulate(scenario)
+    except ConfigError as exc:
+        check_message(exc)
+        held = value_at(scenario.data, exc.param)
+        assert same(exc.value, held) or (exc.param == "speed_controller.Ka" and held is None), (exc.param, exc.value)
+        event(f"rejected by the engine: {exc.param}")
+        return
+    except SimulationError as exc:
+        assert re.fullmatch(r"simulation of .* stopped at t = \S+ s: .+", str(exc)) and "\n" not in str(exc)
+        event(f"stopped: {str(exc).split(': ', 1)[1][:40]}")
+        return
+    check_result(result)
+    event("simulated")
+
+
 @st.composite
 def plausible_scenarios(draw):
     """Drives a user could mean, within what the drive can do: loads within 90 % of the torque limit,
