@@ -7,13 +7,16 @@ backend (no display needed):
   ``heatmap_<metric>.png`` for every metric column with at least one value, the first
   axis along the rows and the second along the columns;
 - any other sweep: ``scatter_<metric>.png`` of the ranking metric (``rank_by``) against
-  every numeric axis; with distribution axes also ``histograms.png`` of every metric column;
+  every numeric axis, one colour per cell of the grid axes when there are at most 10; with
+  distribution axes also ``histograms.png`` of every metric column;
 - always ``worst_traces.png``: speed and torque reference against time of the ``worst``
   points with the largest ``rank_by``, simulated again (the engine is deterministic).
 
 Points whose simulation stopped (status "error") are marked with a cross (heatmaps) or
 listed in the figure title; they are never drawn as values.
 """
+
+import math
 
 import numpy as np
 
@@ -86,14 +89,24 @@ def _heatmap(plt, sweep, grid, table, col, folder):
 
 def _scatter(plt, sweep, table, col, keys, folder):
     ok = table[table[col].notna()]
+    # one colour per cell of the grid axes (with more than one value), when there are few
+    grid = [a.key for a in sweep.grid_axes if len(a.values) > 1]
+    n_cells = math.prod(len(a.values) for a in sweep.grid_axes if len(a.values) > 1)
+    groups = list(ok.groupby(grid, sort=False)) if grid and n_cells <= 10 else [(None, ok)]
     fig, axes = plt.subplots(1, len(keys), figsize=(4.2 * len(keys), 3.6), squeeze=False)
     for ax, key in zip(axes[0], keys):
-        ax.scatter(ok[key].astype(float), ok[col].astype(float), s=10, alpha=0.6)
+        x_all = ok[key].astype(float)
+        for cell, part in groups:
+            label = None if cell is None else ", ".join(
+                f"{k.split('.')[-1]}={v}" for k, v in zip(grid, cell if isinstance(cell, tuple) else (cell,)))
+            ax.scatter(part[key].astype(float), part[col].astype(float), s=10, alpha=0.6, label=label)
         ax.set_xlabel(key)
         ax.set_ylabel(col)
-        if (ok[key].astype(float) > 0).all() and ok[key].astype(float).max() > 20 * ok[key].astype(float).min():
+        if (x_all > 0).all() and x_all.max() > 20 * x_all.min():
             ax.set_xscale("log")
         ax.grid(True, alpha=0.3)
+        if groups[0][0] is not None:
+            ax.legend(fontsize=7)
     n_failed = int((table["status"] != "ok").sum())
     fig.suptitle(f"{sweep.name}: {col}, {len(ok)} of {len(table)} points"
                  + (f" ({n_failed} stopped)" if n_failed else ""), fontsize=9)
