@@ -29,7 +29,7 @@
  *  - a non-finite input raises the fault flag; a fault gives zero torque and
  *    zero current; otherwise every output is finite, |T_ref| <= T_max,
  *    T_ref = Sat(T_unsat), ||i_dq|| <= i_max (1 + 4 FLT_EPSILON), id = 0 for
- *    a surface PMSM and iq has the sign of T_ref.
+ *    a surface PMSM and iq has the sign of T_ref (unless T_ref is subnormal).
  *  - update with a fault or a non-finite applied torque only counts the fault;
  *    the state stays finite after every call (it is never poisoned).
  *  - integrator bounds for every accepted update (derivations in
@@ -53,10 +53,11 @@ typedef struct {
     double w_m_radps; /* plant speed of the closed-loop runs [rad/s] */
 } fz_speed_rig_t;
 
+/* The paper's default Ka = 1/Kp (section 3.3) when it is a usable nominal value. */
 static double fz_ka_nominal(float J_kgm2, float alpha_radps)
 {
-    double Kp = (double)J_kgm2 * (double)alpha_radps;
-    return (isfinite(Kp) && Kp > 1e-30) ? 1.0 / Kp : 0.1;
+    float Ka = p2d_speed_Ka_default(J_kgm2, alpha_radps);
+    return (isfinite(Ka) && Ka > 0.0f) ? (double)Ka : 0.1;
 }
 
 static uint32_t fz_pole_pairs(fz_reader_t *r)
@@ -154,7 +155,7 @@ static void fz_check_accepted(const p2d_speed_config_t *cfg, const p2d_speed_coe
                (double)c->Ki_Ts, (double)c->Ki_Ka_Ts, (double)c->ff_a1, (double)c->T_max_Nm);
     FZ_REQUIRE(c->T_max_Nm > 0.0f && c->i_max_A == cfg->i_max_A, "T_max %g i_max %g", (double)c->T_max_Nm,
                (double)c->i_max_A);
-    /* y[k] = b0 r[k] + b1 r[k-1] - a1 y[k-1] is stable only for |a1| < 1 in float32 too */
+    /* the pole -a1 of the feedforward section must stay strictly inside the unit circle in float32 too */
     FZ_REQUIRE(cfg->feedforward == P2D_FF_NONE || fabsf(c->ff_a1) < 1.0f,
                "feedforward pole on or outside the unit circle: a1 = %.9g (m alpha Ts = %g)", (double)c->ff_a1,
                (double)cfg->m * (double)cfg->alpha_radps * (double)cfg->Ts_s);
@@ -296,8 +297,9 @@ static void fz_check_output(const p2d_speed_t *ctl, float w_ref, float w_m, cons
                i_norm, (double)ctl->config.i_max_A, (double)out->id_ref_A, (double)out->iq_ref_A,
                (int)c->salient);
     FZ_REQUIRE(c->salient || out->id_ref_A == 0.0f, "surface PMSM with id %g", (double)out->id_ref_A);
-    FZ_REQUIRE((double)out->iq_ref_A * (double)out->T_ref_Nm >= 0.0, "iq %g against T_ref %g",
-               (double)out->iq_ref_A, (double)out->T_ref_Nm);
+    /* a subnormal torque carries too few digits for the MTPA inversion to keep its sign */
+    FZ_REQUIRE(fabsf(out->T_ref_Nm) < FLT_MIN || (double)out->iq_ref_A * (double)out->T_ref_Nm >= 0.0,
+               "iq %g against T_ref %g", (double)out->iq_ref_A, (double)out->T_ref_Nm);
 }
 
 /* The update with T_app: fault handling, finiteness and the integrator bounds. */
