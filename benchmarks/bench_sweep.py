@@ -192,13 +192,13 @@ def report(single, sweeps, mem, repeats, runs, load):
         f"| share of a 1-worker run inside the engine's C call (GIL released) | {100 * engine1:.0f} % | |",
         f"| speed-up bound for 2 threads from that share (Amdahl) | {amdahl:.3g} | |",
         "",
-        f"The sweep rates cover simulating every point (the sweep file is loaded once), measuring its "
-        f"metrics and storing the Parquet parts, 1- and 2-worker repetitions interleaved; writing results.parquet, results.csv and the {n_figures} "
-        f"figures (heatmaps and worst-case traces) afterwards took {outputs_s:.3g} s more. Local workers are "
-        f"threads: the engine releases the GIL for the whole simulation (one C call), the rest of each point "
-        f"(scenario validation, metrics) holds it. "
-        f"Equal CPU time per run on 1 and 2 workers means the threads add no work; a speed-up below the "
-        f"bound then comes from cores taken by other work (see the load average).",
+        "The sweep rates cover simulating every point (the sweep file is loaded once), measuring its "
+        "metrics and storing the Parquet parts, 1- and 2-worker repetitions interleaved; writing "
+        f"results.parquet, results.csv and the {n_figures} figures (heatmaps and worst-case traces) "
+        f"afterwards took {outputs_s:.3g} s more. Local workers are threads: the engine releases the GIL "
+        "for the whole simulation (one C call), the rest of each point (scenario validation, metrics) "
+        "holds it. Equal CPU time per run on 1 and 2 workers means the threads add no work; a speed-up "
+        "below the bound then comes from cores taken by other work (see the load average).",
         "",
         SECTION_MEMORY, "", head, "",
         f"A 60 s run of `paper-condition-2` with the speed controller at the current period "
