@@ -6,9 +6,29 @@
 #include <math.h>
 
 #define P2D_INV_SQRT3 0.57735026918962576f /* 1/sqrt(3) */
+/*
+ * Smallest ud^2 + uq^2 [V^2] whose float32 sum is used as is: any square that
+ * underflowed below it (< 2^-126, subnormal or 0) is < 2^-26 of the sum, under
+ * its rounding. Below, or on overflow, the norm is taken in the scaled form.
+ */
+#define P2D_NORM2_MIN_V2 0x1p-100f
+
+/* Inlines a function even where it is large, if the compiler supports it (here: compute into step). */
+#if defined(__GNUC__)
+#define P2D_ALWAYS_INLINE __attribute__((always_inline)) inline
+#else
+#define P2D_ALWAYS_INLINE inline
+#endif
 
 static bool is_positive(float x) { return isfinite(x) && x > 0.0f; }
 static bool is_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
+
+/*
+ * Square root of an argument that is >= 0 by construction. Through fabsf the
+ * compiler sees that, and emits the bare vsqrt.f32 without the errno path (a
+ * call into libm's sqrtf for a negative argument).
+ */
+static inline float sqrt_nonnegative(float x) { return sqrtf(fabsf(x)); }
 
 /* a < 0 < b or b < 0 < a, without a product that can underflow to 0 */
 static bool opposite_signs(float a, float b) { return (a < 0.0f && b > 0.0f) || (a > 0.0f && b < 0.0f); }
@@ -50,13 +70,15 @@ static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_cu
     if ((unsigned)cfg->anti_windup > (unsigned)P2D_AW_CLAMPING) return P2D_ERR_ANTI_WINDUP;
     /* the discrete back-calculation loop x[k] = (1 - Rs Ts / L) x[k-1] + ... must be stable */
     if (cfg->anti_windup == P2D_AW_BACK_CALCULATION &&
-        !(cfg->Rs_ohm * cfg->Ts_s < 2.0f * fminf(cfg->Ld_H, cfg->Lq_H))) {
+        !(cfg->Rs_ohm * cfg->Ts_s < 2.0f * (cfg->Ld_H < cfg->Lq_H ? cfg->Ld_H : cfg->Lq_H))) {
         return P2D_ERR_TS_UNSTABLE;
     }
 
     k.d = axis_coefficients(cfg, cfg->Ld_H);
     k.q = axis_coefficients(cfg, cfg->Lq_H);
     if (!axis_finite(&k.d) || !axis_finite(&k.q)) return P2D_ERR_TAU_I; /* float32 overflow of L/tau_i or Rs/tau_i */
+    /* the same stability bound on the float32 loop gains: rounding can make Rs Ts / L exactly 2 */
+    if (!(k.d.Ki_Ka_Ts < 2.0f && k.q.Ki_Ka_Ts < 2.0f)) return P2D_ERR_TS_UNSTABLE;
     k.Ld_H = cfg->decouple ? cfg->Ld_H : 0.0f;
     k.Lq_H = cfg->decouple ? cfg->Lq_H : 0.0f;
     k.psi_f_Wb = cfg->decouple ? cfg->psi_f_Wb : 0.0f;
@@ -98,67 +120,76 @@ void p2d_current_reset(p2d_current_t *ctl)
     ctl->x_q_V = 0.0f;
 }
 
-void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
-                         float id_A, float iq_A, float w_e_radps, float u_dc_V,
-                         p2d_current_output_t *out)
+/* Non-finite policy: zero voltage, fault raised, so that the update leaves the state alone. */
+static bool fault_output(p2d_current_output_t *out)
 {
-    const p2d_current_coef_t *c = &ctl->coef[ctl->active];
-    float ud, uq, u_max, u_big, norm;
+    out->ud_ref_V = 0.0f;
+    out->uq_ref_V = 0.0f;
+    out->saturated = false;
+    out->fault = true;
+    return false;
+}
 
-    out->ed_A = id_ref_A - id_A;
-    out->eq_A = iq_ref_A - iq_A;
+/* The voltage command of this sample into out; returns !out->fault. Inlined in step, which then saves no registers. */
+static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2d_current_coef_t *c, float id_ref_A,
+                                   float iq_ref_A, float id_A, float iq_A, float w_e_radps, float u_dc_V,
+                                   p2d_current_output_t *out)
+{
+    float ed, eq, ud, uq, u_max, norm2, norm;
+
+    ed = id_ref_A - id_A;
+    eq = iq_ref_A - iq_A;
     /* ud[k] = b_e0 ed[k] + xd[k-1] - w_e Lq iq (decoupling, eq 1) */
-    ud = c->d.b_e0 * out->ed_A + ctl->x_d_V - w_e_radps * c->Lq_H * iq_A;
+    ud = fmaf(c->d.b_e0, ed, ctl->x_d_V) - w_e_radps * c->Lq_H * iq_A;
     /* uq[k] = b_e0 eq[k] + xq[k-1] + w_e (Ld id + psi_f) */
-    uq = c->q.b_e0 * out->eq_A + ctl->x_q_V + w_e_radps * (c->Ld_H * id_A + c->psi_f_Wb);
-    /* linear range of space-vector modulation: ||u_dq|| <= u_dc / sqrt(3) */
-    u_max = fmaxf(u_dc_V, 0.0f) * P2D_INV_SQRT3;
+    uq = fmaf(c->q.b_e0, eq, ctl->x_q_V) + w_e_radps * fmaf(c->Ld_H, id_A, c->psi_f_Wb);
+    out->ed_A = ed;
+    out->eq_A = eq;
     out->ud_unsat_V = ud;
     out->uq_unsat_V = uq;
-    /* u_dc_V is tested itself: fmaxf(NaN, 0) is 0, which would hide a NaN measurement */
-    if (!isfinite(ud) || !isfinite(uq) || !isfinite(u_dc_V)) {
-        /* non-finite policy: zero voltage, no state update, fault raised */
-        out->ud_ref_V = 0.0f;
-        out->uq_ref_V = 0.0f;
-        out->saturated = false;
-        out->fault = true;
-        return;
+    /* u_dc_V is tested itself: a NaN measurement must not pass as a zero voltage limit */
+    if (!(fabsf(u_dc_V) < INFINITY)) return fault_output(out);
+    /* linear range of space-vector modulation: ||u_dq|| <= u_dc / sqrt(3) */
+    u_max = u_dc_V > 0.0f ? u_dc_V * P2D_INV_SQRT3 : 0.0f;
+    norm2 = fmaf(ud, ud, uq * uq);
+    if (norm2 >= P2D_NORM2_MIN_V2 && norm2 < INFINITY) {
+        norm = sqrt_nonnegative(norm2);
+    } else {
+        /*
+         * ud, uq not finite, or their squares overflow (|u| > 1.8e19 V) or underflow
+         * (|u| < 1e-19 V, and a tiny vector would pass a zero limit):
+         * ||u_dq|| = u_big sqrt((ud/u_big)^2 + (uq/u_big)^2), u_big = max(|ud|, |uq|)
+         */
+        float u_big;
+        if (!(fabsf(ud) < INFINITY && fabsf(uq) < INFINITY)) return fault_output(out);
+        u_big = fabsf(ud) > fabsf(uq) ? fabsf(ud) : fabsf(uq);
+        norm = u_big > 0.0f ? u_big * sqrt_nonnegative(fmaf(ud / u_big, ud / u_big, (uq / u_big) * (uq / u_big)))
+                            : 0.0f;
     }
     out->fault = false;
-    /*
-     * ||u_dq|| = u_big sqrt((ud/u_big)^2 + (uq/u_big)^2), u_big = max(|ud|, |uq|):
-     * the squares neither overflow nor underflow (ud^2 + uq^2 would for
-     * |u| > 1.8e19 V or < 1e-19 V, and a tiny vector would pass a zero limit)
-     */
-    u_big = fmaxf(fabsf(ud), fabsf(uq));
-    norm = u_big > 0.0f ? u_big * sqrtf((ud / u_big) * (ud / u_big) + (uq / u_big) * (uq / u_big)) : 0.0f;
     out->saturated = norm > u_max;
     /* scale the vector back onto the limit circle, keeping its direction; the unit
        vector first, as u_max / norm can be subnormal and lose its precision */
     out->ud_ref_V = out->saturated ? u_max * (ud / norm) : ud;
     out->uq_ref_V = out->saturated ? u_max * (uq / norm) : uq;
+    return true;
 }
 
 /* One axis: x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k], held under clamping. */
-static float axis_update(const p2d_pi_coef_t *a, bool clamping, float x_V, float e_A, float u_star_V)
+static inline float axis_update(const p2d_pi_coef_t *a, bool clamping, float x_V, float e_A, float u_star_V)
 {
-    float dx = a->Ki_Ts * e_A + a->Ki_Ka_Ts * u_star_V;
+    float dx = fmaf(a->Ki_Ka_Ts, u_star_V, a->Ki_Ts * e_A);
     if (clamping && opposite_signs(u_star_V, e_A)) dx = 0.0f;
     return x_V + dx;
 }
 
-void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
-                        float ud_applied_V, float uq_applied_V)
+/* The state update with the applied voltages (finite) of an output that is not a fault. */
+static inline void current_integrate(p2d_current_t *ctl, const p2d_current_coef_t *c, const p2d_current_output_t *out,
+                                     float ud_applied_V, float uq_applied_V)
 {
-    const p2d_current_coef_t *c = &ctl->coef[ctl->active];
-    float x_d, x_q;
-    if (out->fault || !isfinite(ud_applied_V) || !isfinite(uq_applied_V)) {
-        ctl->fault_count++;
-        return;
-    }
     /* u* = u_sat - u per axis */
-    x_d = axis_update(&c->d, c->clamping, ctl->x_d_V, out->ed_A, ud_applied_V - out->ud_unsat_V);
-    x_q = axis_update(&c->q, c->clamping, ctl->x_q_V, out->eq_A, uq_applied_V - out->uq_unsat_V);
+    float x_d = axis_update(&c->d, c->clamping, ctl->x_d_V, out->ed_A, ud_applied_V - out->ud_unsat_V);
+    float x_q = axis_update(&c->q, c->clamping, ctl->x_q_V, out->eq_A, uq_applied_V - out->uq_unsat_V);
     if (!isfinite(x_d) || !isfinite(x_q)) {
         /* non-finite policy: an update that would overflow an integrator is refused */
         ctl->fault_count++;
@@ -168,10 +199,32 @@ void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
     ctl->x_q_V = x_q;
 }
 
+void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
+                         float id_A, float iq_A, float w_e_radps, float u_dc_V,
+                         p2d_current_output_t *out)
+{
+    (void)current_voltage(ctl, &ctl->coef[ctl->active], id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out);
+}
+
+void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
+                        float ud_applied_V, float uq_applied_V)
+{
+    if (out->fault || !isfinite(ud_applied_V) || !isfinite(uq_applied_V)) {
+        ctl->fault_count++;
+        return;
+    }
+    current_integrate(ctl, &ctl->coef[ctl->active], out, ud_applied_V, uq_applied_V);
+}
+
+/* compute + update with the own command, which is finite whenever the output is not a fault. */
 void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
                       float id_A, float iq_A, float w_e_radps, float u_dc_V,
                       p2d_current_output_t *out)
 {
-    p2d_current_compute(ctl, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out);
-    p2d_current_update(ctl, out, out->ud_ref_V, out->uq_ref_V);
+    const p2d_current_coef_t *c = &ctl->coef[ctl->active];
+    if (current_voltage(ctl, c, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out)) {
+        current_integrate(ctl, c, out, out->ud_ref_V, out->uq_ref_V);
+    } else {
+        ctl->fault_count++;
+    }
 }

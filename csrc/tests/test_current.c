@@ -145,6 +145,11 @@ static void test_non_finite_policy(void)
     CHECK(out.fault && ctl.x_d_V == xd && ctl.x_q_V == xq && ctl.fault_count == 2u);
     p2d_current_step(&ctl, 1.0f, 2.0f, 0.0f, 0.0f, INFINITY, 300.0f, &out);
     CHECK(out.fault && ctl.fault_count == 3u);
+    /* one axis alone not finite: a NaN d reference, an infinite q reference */
+    p2d_current_step(&ctl, NAN, 2.0f, 0.0f, 0.0f, 100.0f, 300.0f, &out);
+    CHECK(out.fault && out.ud_ref_V == 0.0f && out.uq_ref_V == 0.0f && ctl.fault_count == 4u);
+    p2d_current_step(&ctl, 1.0f, INFINITY, 0.0f, 0.0f, 100.0f, 300.0f, &out);
+    CHECK(out.fault && ctl.fault_count == 5u && ctl.x_d_V == xd && ctl.x_q_V == xq);
 }
 
 /*
