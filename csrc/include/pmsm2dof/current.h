@@ -16,7 +16,8 @@
  * 1 / (tau_i s + 1) when decoupled and unsaturated.
  *
  * Discrete PI, as in speed.h: u[k] = b_e0 e[k] + x[k-1],
- * x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k].
+ * x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k]. Rounding as in speed.h: the
+ * fmaf of the step round once, equally on the MCU and the host.
  *
  * Non-finite policy: a non-finite voltage command (NaN/inf input or overflow)
  * gives a zero voltage output, no state update, `fault` set and the fault
