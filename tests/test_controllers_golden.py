@@ -239,6 +239,26 @@ def test_hand_derived_feedforward_matches_python_control(method, form):
 
 
 @pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("form, m, tau_i_s", [("lowpass", 1.0, 0.0), ("no_tau", 1.6, 0.0), ("full", 0.7, 2e-3)])
+def test_feedforward_settles_on_its_static_gain(method, form, m, tau_i_s):
+    """After a reference step T_ff settles on Fr(0) r to float32 rounding (eq 11 at s = 0; eq 13: -Ki/alpha).
+
+    The feedforward pole is near z = 1 here (m alpha Ts = 0.014 to 0.032); a section on r with that pole
+    amplifies float32 rounding by about 1 / (m alpha Ts) and settled 6e-5 to 3e-4 Nm off on these 46 to 105 Nm.
+    """
+    ctl = SpeedController(**{**DESIGN, "i_max_A": 1e4}, **SURFACE, m=m, tau_i_s=tau_i_s, method=method,
+                          feedforward=form, anti_windup="none")
+    num, p = feedforward_polynomials(form, DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"], m, tau_i_s)
+    r = 47.0
+    expected = num[-1] / p * r
+    n = int(40 / (f32(m) * f32(DESIGN["alpha_radps"]) * f32(DESIGN["Ts_s"])))  # 40 time constants
+    out = ctl.run(np.full(n, r), r)
+    assert not out["saturated"].any()
+    ulp = float(np.spacing(np.float32(abs(expected))))
+    assert abs(float(out["T_ff_Nm"][-1]) - expected) <= 4 * ulp, (float(out["T_ff_Nm"][-1]), expected)
+
+
+@pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize(
     "form, m, tau_i_s", [("none", 1.0, 0.0), ("lowpass", 1.0, 0.0), ("no_tau", 1.6, 0.0), ("full", 0.7, 2e-3)]
 )

@@ -79,8 +79,10 @@ def test_coefficients_realize_table1_substitution(case, method, ff):
     F_realized = (dd.b_e0 + (dd.Ki_Ts - dd.b_e0) * zi) / (1.0 - zi)
     np.testing.assert_allclose(F_realized, Kp + Ki / s, rtol=1e-9)
     assert dd.Ki_Ts == pytest.approx(Ki * Ts, rel=1e-9)
-    # feedforward realization: section (b0 + b1 z^-1)/(1 + a1 z^-1) plus Kd (1 - z^-1)/Ts
-    Fr_realized = (dd.ff_b0 + dd.ff_b1 * zi) / (1.0 + dd.ff_a1 * zi) + dd.ff_Kd_per_Ts * (1.0 - zi)
+    # feedforward realization: static gain, transient section b_dr (1 - z^-1)/(1 + a1 z^-1), Kd (1 - z^-1)/Ts
+    Fr_realized = dd.ff_Fr0 + dd.ff_b_dr * (1.0 - zi) / (1.0 + dd.ff_a1 * zi) + dd.ff_Kd_per_Ts * (1.0 - zi)
+    # the static gain is Fr(0) of eq 11 / 13, -J alpha / (4 zeta^2 m) (0 for none)
+    assert dd.ff_Fr0 == pytest.approx(fr_continuous(ff, Jc, alpha, zeta, m, tau, 0.0), rel=1e-12)
     Kd = kd(ff, Jc, alpha, m, tau)
     # proper part by the method, derivative Kd s by the backward difference
     expected = fr_continuous(ff, Jc, alpha, zeta, m, tau, s) - Kd * s + Kd * s_of_z("backward_euler", z, Ts)
@@ -110,9 +112,11 @@ def test_tustin_lowpass_is_eq15(Ts):
         dd = design(J, ALPHA, ZETA, feedforward="lowpass", tau_i_s=TAU).discretize(Ts, "tustin")
     # eq 15: -J (alpha/(2 zeta))^2 / ((2/Ts)(1 - z^-1)/(1 + z^-1) + alpha)
     #      = -Ki Ts (1 + z^-1) / ((2 + alpha Ts) - (2 - alpha Ts) z^-1)
+    # around the static gain Fr(0) = -Ki / alpha:
+    #      = -Ki / alpha + b_dr (1 - z^-1) / (1 + a1 z^-1),  b_dr = b0 + Ki / alpha = 2 Ki / (alpha (2 + alpha Ts))
     Ki = J * (ALPHA / (2 * ZETA)) ** 2
-    assert dd.ff_b0 == pytest.approx(-Ki * Ts / (2 + ALPHA * Ts), rel=1e-12)
-    assert dd.ff_b1 == pytest.approx(-Ki * Ts / (2 + ALPHA * Ts), rel=1e-12)
+    assert dd.ff_Fr0 == pytest.approx(-Ki / ALPHA, rel=1e-12)
+    assert dd.ff_b_dr == pytest.approx(2 * Ki / (ALPHA * (2 + ALPHA * Ts)), rel=1e-12)
     assert dd.ff_a1 == pytest.approx(-(2 - ALPHA * Ts) / (2 + ALPHA * Ts), rel=1e-12)
     assert dd.ff_Kd_per_Ts == 0.0
     zi = 1.0 / Z_POINTS
@@ -127,7 +131,7 @@ def test_coefficients_equal_those_of_the_c_core(method, ff):
     ctl = SpeedController(J_kgm2=J, alpha_radps=ALPHA, zeta=ZETA, m=m, tau_i_s=TAU, Ts_s=2e-3, i_max_A=7.6,
                           psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01, pole_pairs=4, method=method, feedforward=ff)
     c = ctl.coefficients
-    for name in ("b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_b0", "ff_b1", "ff_a1", "ff_Kd_per_Ts"):
+    for name in ("b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_Fr0", "ff_b_dr", "ff_a1", "ff_Kd_per_Ts"):
         # float32 C arithmetic against double: a few float32 ulps of the largest term involved
         assert getattr(dd, name) == pytest.approx(c[name], rel=2e-6, abs=2e-7 * max(abs(c[name]), J * ALPHA)), name
 
@@ -201,8 +205,8 @@ def test_overshoot_from_sample_by_sample_simulation(ff, Ts):
         r = 1.0
         out[k] = w
         e = r - w
-        y = dd.ff_b0 * r + dd.ff_b1 * r_prev - dd.ff_a1 * y_prev
-        u = dd.b_e0 * e + x + y + dd.ff_Kd_per_Ts * (r - r_prev)
+        y = dd.ff_b_dr * (r - r_prev) - dd.ff_a1 * y_prev
+        u = dd.b_e0 * e + x + dd.ff_Fr0 * r + y + dd.ff_Kd_per_Ts * (r - r_prev)
         x += dd.Ki_Ts * e
         r_prev, y_prev = r, y
         w += Ts / J * u  # torque held over the period: w[k+1] = w[k] + Ts u[k] / J

@@ -6,29 +6,34 @@
 
 #include <math.h>
 
-#include "pmsm2dof/transforms.h"
-
 /* Newton iterations of the MTPA torque-to-current inversion (salient PMSM). */
 #define P2D_MTPA_NEWTON_ITERATIONS 5
+
+/* Keeps a function out of line where the compiler supports it (a code-size and register-saving hint only). */
+#if defined(__GNUC__)
+#define P2D_NOINLINE __attribute__((noinline))
+#else
+#define P2D_NOINLINE
+#endif
 
 static bool is_positive(float x) { return isfinite(x) && x > 0.0f; }
 static bool is_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
 
+/*
+ * Square root of an argument that is >= 0 by construction (or NaN). Through
+ * fabsf the compiler sees that, and emits the bare vsqrt.f32 without the
+ * errno path (a call into libm's sqrtf for a negative argument).
+ */
+static inline float sqrt_nonnegative(float x) { return sqrtf(fabsf(x)); }
+
 /* a < 0 < b or b < 0 < a, without a product that can underflow to 0 */
 static bool opposite_signs(float a, float b) { return (a < 0.0f && b > 0.0f) || (a > 0.0f && b < 0.0f); }
-
-/* Torque [Nm] of the MTPA current vector with q-axis current iq_A. */
-static float mtpa_torque_Nm(const p2d_speed_coef_t *c, float iq_A)
-{
-    /* Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) */
-    return iq_A * (c->kt_NmpA + c->c_T_Nm_per_A2 * p2d_mtpa_id_A(iq_A, c->psi_f_Wb, c->dL_H));
-}
 
 /* Validate cfg and compute its coefficients into *c. *c is written only on success. */
 static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_coef_t *c)
 {
     p2d_speed_coef_t k;
-    float m_eff, tau_eff, p_radps, D, c_ff, b0, b1, a1, A, B, r;
+    float m_eff, tau_eff, p_radps, c_ff, b_dr, a1, A, B, r;
 
     if (!is_positive(cfg->J_kgm2)) return P2D_ERR_J;
     if (!is_positive(cfg->alpha_radps)) return P2D_ERR_ALPHA;
@@ -74,7 +79,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
      * eq 11: Fr = J alpha (m tau s^2 + (m - 1) s - alpha/(4 zeta^2)) / (s + m alpha)
      *           = Kd s + D + c_ff / (s + p),  p = m alpha,
      * with A = m tau, B = (m - 1) - A p, r = -alpha/(4 zeta^2) - B p,
-     * Kd = J alpha A, D = J alpha B, c_ff = J alpha r.
+     * Kd = J alpha A, D = J alpha B, c_ff = J alpha r; D only enters the static gain Fr(0).
      * lowpass (eq 13) is the case m = 1, tau = 0; no_tau is tau = 0.
      */
     m_eff = cfg->feedforward == P2D_FF_LOWPASS ? 1.0f : cfg->m;
@@ -83,38 +88,37 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     A = m_eff * tau_eff;
     B = (m_eff - 1.0f) - A * p_radps;
     r = -cfg->alpha_radps / (4.0f * cfg->zeta * cfg->zeta) - B * p_radps;
-    D = k.Kp * B;
     c_ff = k.Kp * r;
 
-    /* c_ff / (s + p) -> (b0 + b1 z^-1) / (1 + a1 z^-1) */
+    /*
+     * c_ff / (s + p) -> (b0 + b1 z^-1) / (1 + a1 z^-1), realized around its static
+     * gain c_ff / p as c_ff / p + b_dr (1 - z^-1) / (1 + a1 z^-1), b_dr = b0 - c_ff / p
+     */
     if (cfg->method == P2D_FORWARD_EULER) {
         /* s = (z - 1)/Ts: c Ts z^-1 / (1 - (1 - p Ts) z^-1); pole 1 - p Ts inside the unit circle */
         if (cfg->feedforward != P2D_FF_NONE && !(p_radps * cfg->Ts_s < 2.0f)) return P2D_ERR_TS_UNSTABLE;
-        b0 = 0.0f;
-        b1 = c_ff * cfg->Ts_s;
+        b_dr = -c_ff / p_radps;
         a1 = p_radps * cfg->Ts_s - 1.0f;
     } else if (cfg->method == P2D_BACKWARD_EULER) {
-        /* s = (z - 1)/(z Ts): c Ts / ((1 + p Ts) - z^-1) */
-        b0 = c_ff * cfg->Ts_s / (1.0f + p_radps * cfg->Ts_s);
-        b1 = 0.0f;
+        /* s = (z - 1)/(z Ts): c Ts / ((1 + p Ts) - z^-1), b0 = c Ts / (1 + p Ts) */
+        b_dr = -c_ff / p_radps / (1.0f + p_radps * cfg->Ts_s);
         a1 = -1.0f / (1.0f + p_radps * cfg->Ts_s);
     } else {
         /* s = 2(z - 1)/(Ts (z + 1)): c Ts (1 + z^-1) / ((2 + p Ts) - (2 - p Ts) z^-1), eq 15 */
-        b0 = c_ff * cfg->Ts_s / (2.0f + p_radps * cfg->Ts_s);
-        b1 = b0;
+        b_dr = -2.0f * c_ff / p_radps / (2.0f + p_radps * cfg->Ts_s);
         a1 = -(2.0f - p_radps * cfg->Ts_s) / (2.0f + p_radps * cfg->Ts_s);
     }
     /* float32 can round the pole -a1 onto the unit circle (m alpha Ts tiny, or huge with Tustin) */
     if (cfg->feedforward != P2D_FF_NONE && !(fabsf(a1) < 1.0f)) return P2D_ERR_TS_UNSTABLE;
     if (cfg->feedforward == P2D_FF_NONE) {
-        k.ff_b0 = 0.0f;
-        k.ff_b1 = 0.0f;
+        k.ff_Fr0 = 0.0f;
+        k.ff_b_dr = 0.0f;
         k.ff_a1 = 0.0f;
         k.ff_Kd_per_Ts = 0.0f;
     } else {
-        /* D + (b0 + b1 z^-1)/(1 + a1 z^-1) = ((D + b0) + (D a1 + b1) z^-1) / (1 + a1 z^-1) */
-        k.ff_b0 = D + b0;
-        k.ff_b1 = D * a1 + b1;
+        /* Fr(0) = D + c_ff / p = -J alpha / (4 zeta^2 m) (eq 11 at s = 0) */
+        k.ff_Fr0 = -k.Kp / (4.0f * cfg->zeta * cfg->zeta * m_eff);
+        k.ff_b_dr = b_dr;
         k.ff_a1 = a1;
         /* Kd s by the backward difference: Kd (r[k] - r[k-1]) / Ts */
         k.ff_Kd_per_Ts = k.Kp * A / cfg->Ts_s;
@@ -135,7 +139,16 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
         float iq = sqrtf(I * I - id * id);
         k.T_max_Nm = iq * (k.kt_NmpA + k.c_T_Nm_per_A2 * id);
     }
-    if (!is_positive(k.T_max_Nm) || !isfinite(k.ff_b0) || !isfinite(k.ff_b1) ||
+    if (!k.salient && isfinite(k.T_max_Nm)) {
+        /*
+         * surface: iq = T / kt must stay within i_max_A in float32 for every |T| <= T_max.
+         * The rounded quotient is monotonic in T, so it is enough at T_max: lower
+         * T_max by ulps until it holds (kt i_max rounded, then divided by kt, can
+         * come out one ulp above i_max).
+         */
+        while (k.T_max_Nm / k.kt_NmpA > cfg->i_max_A) k.T_max_Nm = nextafterf(k.T_max_Nm, 0.0f);
+    }
+    if (!is_positive(k.T_max_Nm) || !isfinite(k.ff_Fr0) || !isfinite(k.ff_b_dr) ||
         !isfinite(k.ff_Kd_per_Ts) || !isfinite(k.b_e0) || !isfinite(k.Ki_Ts)) {
         return P2D_ERR_TS; /* only reachable through float overflow of extreme inputs */
     }
@@ -173,117 +186,142 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    /* steady state of y[k] = b0 r + b1 r - a1 y: y = (b0 + b1) r / (1 + a1) */
-    float y_ss = (c->ff_b0 + c->ff_b1) * w_ref_radps / (1.0f + c->ff_a1);
-    float x_i = T_init_Nm - y_ss;
+    /* steady state at r[k] = r[k-1] = w_ref: transient y = 0, T_ff = Fr0 w_ref; u = x at e = 0 */
+    float x_i = T_init_Nm - c->ff_Fr0 * w_ref_radps;
     if (!isfinite(w_ref_radps) || !isfinite(x_i)) {
         /* non-finite policy (arguments, or a steady state that overflows): clear the state instead, count the fault */
         ctl->fault_count++;
         w_ref_radps = 0.0f;
-        y_ss = 0.0f;
         x_i = 0.0f;
     }
     ctl->r_prev_radps = w_ref_radps;
-    ctl->y_ff_prev_Nm = y_ss;
+    ctl->y_ff_prev_Nm = 0.0f;
     ctl->x_i_Nm = x_i;
 }
 
 /* Non-finite policy: zero torque and current, fault raised, so that the update leaves the state alone. */
-static void fault_output(p2d_speed_output_t *out)
+static bool fault_output(p2d_speed_output_t *out)
 {
     out->T_ref_Nm = 0.0f;
     out->id_ref_A = 0.0f;
     out->iq_ref_A = 0.0f;
     out->saturated = false;
     out->fault = true;
+    return false;
 }
 
-void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps,
-                       p2d_speed_output_t *out)
+/*
+ * The torque command of this sample (eq 11-15 and the limit) into out, all but
+ * the current vector. Returns false, with the fault output, if u is not finite.
+ */
+static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
+                                float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
-    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    float e, y_ff, T_ff, u, T_sat, T_abs, iq;
+    float e, dr, y_ff, T_ff, u, T_sat;
 
     e = w_ref_radps - w_m_radps;
-    /* feedforward section: y[k] = b0 r[k] + b1 r[k-1] - a1 y[k-1] */
-    y_ff = c->ff_b0 * w_ref_radps + c->ff_b1 * ctl->r_prev_radps - c->ff_a1 * ctl->y_ff_prev_Nm;
-    /* T_ff[k] = y[k] + Kd (r[k] - r[k-1]) / Ts */
-    T_ff = y_ff + c->ff_Kd_per_Ts * (w_ref_radps - ctl->r_prev_radps);
+    dr = w_ref_radps - ctl->r_prev_radps;
+    /* feedforward transient: y[k] = b_dr (r[k] - r[k-1]) - a1 y[k-1] */
+    y_ff = fmaf(-c->ff_a1, ctl->y_ff_prev_Nm, c->ff_b_dr * dr);
+    /* T_ff[k] = Fr0 r[k] + y[k] + Kd (r[k] - r[k-1]) / Ts */
+    T_ff = fmaf(c->ff_Kd_per_Ts, dr, fmaf(c->ff_Fr0, w_ref_radps, y_ff));
     /* u[k] = b_e0 e[k] + x[k-1] + T_ff[k] */
-    u = c->b_e0 * e + ctl->x_i_Nm + T_ff;
+    u = fmaf(c->b_e0, e, ctl->x_i_Nm + T_ff);
 
     out->w_ref_radps = w_ref_radps;
     out->e_radps = e;
     out->T_ff_Nm = T_ff;
     out->y_ff_Nm = y_ff;
     out->T_unsat_Nm = u;
-    if (!isfinite(u)) {
-        fault_output(out);
-        return;
-    }
+    out->saturated = false;
     out->fault = false;
-
     /* u_sat = Sat(u): the current-vector limit ||i_dq|| <= I_max as the torque limit T_max */
-    T_sat = fminf(fmaxf(u, -c->T_max_Nm), c->T_max_Nm);
-    out->saturated = T_sat != u;
+    T_sat = u;
+    if (!(fabsf(u) <= c->T_max_Nm)) {
+        /* the limit is active, or u is NaN or inf */
+        if (!(fabsf(u) < INFINITY)) return fault_output(out);
+        T_sat = u > 0.0f ? c->T_max_Nm : -c->T_max_Nm;
+        out->saturated = true;
+    }
     out->T_ref_Nm = T_sat;
-    if (!c->salient) {
-        /* surface PMSM: id = 0, iq = T / (1.5 p psi_f), kept within I_max against rounding */
-        out->id_ref_A = 0.0f;
-        out->iq_ref_A = fminf(fmaxf(T_sat / c->kt_NmpA, -c->i_max_A), c->i_max_A);
-        return;
-    }
-    /*
-     * salient PMSM: solve Te(iq, id_mtpa(iq)) = T_sat by Newton. For iq > 0 the
-     * MTPA torque is increasing and convex, so Newton started above the root
-     * descends monotonically onto it. Two upper bounds of |iq| are known:
-     *   Te >= kt |iq|                       =>  |iq| <= |T| / kt
-     *   Te >= |c_T| iq^2 + kt |iq| / 2      =>  |iq| <= 2 |T| / (kt/2 + sqrt(kt^2/4 + 4 |c_T| |T|))
-     * (the second from |id| >= |iq| - psi_f / (2 |dL|) on the MTPA curve); the
-     * smaller one is a start close to the root for magnet- and for
-     * reluctance-dominated machines alike.
-     */
-    T_abs = fabsf(T_sat);
-    iq = fminf(T_abs / c->kt_NmpA,
-               2.0f * T_abs / (0.5f * c->kt_NmpA +
-                               sqrtf(0.25f * c->kt_NmpA * c->kt_NmpA + 4.0f * fabsf(c->c_T_Nm_per_A2) * T_abs)));
-    iq = copysignf(iq, T_sat);
-    for (int n = 0; n < P2D_MTPA_NEWTON_ITERATIONS; ++n) {
-        float id = p2d_mtpa_id_A(iq, c->psi_f_Wb, c->dL_H);
-        /* MTPA: dL id^2 + psi_f id - dL iq^2 = 0 => did/diq = 2 dL iq / (2 dL id + psi_f) */
-        float did_diq = 2.0f * c->dL_H * iq / (2.0f * c->dL_H * id + c->psi_f_Wb);
-        float dT_diq = c->kt_NmpA + c->c_T_Nm_per_A2 * (id + iq * did_diq);
-        iq -= (mtpa_torque_Nm(c, iq) - T_sat) / dT_diq;
-    }
-    out->iq_ref_A = iq;
-    out->id_ref_A = p2d_mtpa_id_A(iq, c->psi_f_Wb, c->dL_H);
-    {
-        float norm2 = out->id_ref_A * out->id_ref_A + iq * iq;
-        if (norm2 > c->i_max_A * c->i_max_A) {
-            float k = c->i_max_A / sqrtf(norm2);
-            out->id_ref_A *= k;
-            out->iq_ref_A *= k;
-        }
-    }
-    if (!isfinite(out->id_ref_A) || !isfinite(out->iq_ref_A)) {
-        /* the MTPA inversion overflowed (extreme configurations only) */
-        fault_output(out);
-    }
+    return true;
 }
 
-void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm)
+/* Surface PMSM: id = 0, iq = T / (1.5 p psi_f); |iq| <= I_max by the choice of T_max. */
+static inline void surface_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
 {
-    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    float u_star, dx, x_i;
+    out->id_ref_A = 0.0f;
+    out->iq_ref_A = out->T_ref_Nm / c->kt_NmpA;
+}
 
-    if (out->fault || !isfinite(T_applied_Nm)) {
-        ctl->fault_count++;
-        return;
+/*
+ * Salient PMSM: the MTPA current vector of the torque T = out->T_ref_Nm (|T| <= T_max).
+ * Returns false, with the fault output, if the inversion overflowed.
+ *
+ * On the MTPA trajectory dL id^2 + psi_f id - dL iq^2 = 0, so with
+ * s = sqrt(psi_f^2 + 4 dL^2 iq^2) and the flux v = s - psi_f >= 0:
+ *   id = v / (2 dL),   iq = sign(T) sqrt(v (v + 2 psi_f)) / (2 |dL|),
+ *   Te = 1.5 p iq (psi_f + dL id) = 1.5 p iq (v + 2 psi_f) / 2,
+ * and Te = T becomes the quartic v (v + 2 psi_f)^3 = q^2, q = 4 |dL| |T| / (1.5 p).
+ * In units of the flux sigma = max(psi_f, sqrt(q)), t = v / sigma solves
+ *   g(t) = t (t + 2 psi)^3 - K = 0,   psi = psi_f / sigma <= 1,   K = (sqrt(q) / sigma)^4 <= 1,
+ * so no power of a flux can overflow or underflow, for any machine.
+ * g is increasing and convex for t >= 0 (g'' = 12 (t + psi)(t + 2 psi)), so
+ * Newton started above the root descends monotonically onto it. Two upper
+ * bounds of the root, from g(t) + K >= t^4 and >= 8 psi^3 t:
+ *   t <= K^(1/4)   (reluctance dominated),   t <= K / (8 psi^3)   (magnet dominated);
+ * the smaller one is at most 2.7 times the root, and 5 iterations reach
+ * float32 rounding (csrc/tests/test_speed.c checks the torque and the MTPA
+ * condition on random machines). The flux v, not s, is the unknown, so that
+ * small torques keep their relative precision.
+ */
+static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
+{
+    const float T = out->T_ref_Nm;
+    float sqrt_q, sigma, psi, Q, K, t_magnet, t, id, iq, norm;
+
+    /* sqrt(q) = 2 sqrt(|T| / (1.5 p)) sqrt(|dL|), 1 / (1.5 p) = dL / c_T: q itself [Wb^2] could overflow */
+    sqrt_q = 2.0f * sqrt_nonnegative(fabsf(T) * (c->dL_H / c->c_T_Nm_per_A2)) * sqrt_nonnegative(fabsf(c->dL_H));
+    sigma = sqrt_q > c->psi_f_Wb ? sqrt_q : c->psi_f_Wb;
+    psi = c->psi_f_Wb / sigma;
+    Q = sqrt_q / sigma;
+    K = (Q * Q) * (Q * Q);
+    t = Q;
+    t_magnet = K / (8.0f * psi * psi * psi);
+    if (t_magnet < t) t = t_magnet;
+    for (int n = 0; n < P2D_MTPA_NEWTON_ITERATIONS; ++n) {
+        float w = t + 2.0f * psi;
+        float w2 = w * w;
+        /* t <- t - g(t) / g'(t),  g = t w^3 - K,  g' = w^2 (4 t + 2 psi),  w = t + 2 psi */
+        t -= fmaf(w2 * w, t, -K) / (w2 * fmaf(4.0f, t, 2.0f * psi));
     }
+    id = sigma * t / (2.0f * c->dL_H);
+    iq = copysignf(sigma * sqrt_nonnegative(t * (t + 2.0f * psi)) / (2.0f * fabsf(c->dL_H)), T);
+    /* the last rounding can leave ||i|| a few ulps above the limit: scale back onto it */
+    norm = sqrt_nonnegative(fmaf(id, id, iq * iq));
+    if (norm > c->i_max_A) {
+        float k = c->i_max_A / norm;
+        id *= k;
+        iq *= k;
+    }
+    if (!isfinite(id) || !isfinite(iq)) {
+        /* the MTPA inversion overflowed (extreme configurations only) */
+        return fault_output(out);
+    }
+    out->id_ref_A = id;
+    out->iq_ref_A = iq;
+    return true;
+}
+
+/* The state update with the applied torque T_applied_Nm (finite) of an output that is not a fault. */
+static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c,
+                                   const p2d_speed_output_t *out, float T_applied_Nm)
+{
+    float u_star, dx, x_i;
     /* u* = u_sat - u, with u_sat the torque actually applied */
     u_star = T_applied_Nm - out->T_unsat_Nm;
     /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] */
-    dx = c->Ki_Ts * out->e_radps + c->Ki_Ka_Ts * u_star;
+    dx = fmaf(c->Ki_Ka_Ts, u_star, c->Ki_Ts * out->e_radps);
     /* clamping: hold the integrator while the limit is active and e drives further into it */
     if (c->clamping && opposite_signs(u_star, out->e_radps)) dx = 0.0f;
     x_i = ctl->x_i_Nm + dx;
@@ -297,10 +335,55 @@ void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_a
     ctl->y_ff_prev_Nm = out->y_ff_Nm;
 }
 
+/* Step of a salient PMSM, after speed_torque: the MTPA current, then the update. */
+static P2D_NOINLINE void salient_step_end(p2d_speed_t *ctl, p2d_speed_output_t *out)
+{
+    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    if (mtpa_current(c, out)) {
+        speed_integrate(ctl, c, out, out->T_ref_Nm);
+    } else {
+        ctl->fault_count++;
+    }
+}
+
+void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
+{
+    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, out)) return;
+    if (c->salient) {
+        (void)mtpa_current(c, out);
+    } else {
+        surface_current(c, out);
+    }
+}
+
+void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm)
+{
+    if (out->fault || !isfinite(T_applied_Nm)) {
+        ctl->fault_count++;
+        return;
+    }
+    speed_integrate(ctl, &ctl->coef[ctl->active], out, T_applied_Nm);
+}
+
+/*
+ * compute + update with the own command, which is finite whenever the output
+ * is not a fault (no check of the applied torque). The salient path is a tail
+ * call, so the surface path needs no call and saves no registers.
+ */
 void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
-    p2d_speed_compute(ctl, w_ref_radps, w_m_radps, out);
-    p2d_speed_update(ctl, out, out->T_ref_Nm);
+    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, out)) {
+        ctl->fault_count++;
+        return;
+    }
+    if (c->salient) {
+        salient_step_end(ctl, out);
+        return;
+    }
+    surface_current(c, out);
+    speed_integrate(ctl, c, out, out->T_ref_Nm);
 }
 
 float p2d_speed_Ka_default(float J_kgm2, float alpha_radps)

@@ -2,6 +2,7 @@
  * Unit tests of the speed controller (pmsm2dof/speed.h). Expected values are
  * derived by hand from the paper's equations (eq 9, 13-15, Fig. 5) in double.
  */
+#include <float.h>
 #include <string.h>
 
 #include "check.h"
@@ -224,10 +225,12 @@ static void test_reset(void)
     cfg.feedforward = P2D_FF_LOWPASS;
     CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
     p2d_speed_reset(&ctl, 50.0f, 1.25f);
-    /* eq 13 at s = 0: Fr(0) r = -Ki / alpha r = -50 Nm */
-    CHECK_CLOSE(ctl.y_ff_prev_Nm, -200.0 / 200.0 * 50.0, 1e-4);
+    /* eq 13 at s = 0: Fr(0) r = -Ki / alpha r = -50 Nm, no transient; u = x = 1.25 Nm at e = 0 */
+    CHECK(ctl.y_ff_prev_Nm == 0.0f && ctl.r_prev_radps == 50.0f);
+    CHECK_CLOSE(ctl.x_i_Nm, 1.25 + 200.0 / 200.0 * 50.0, 1e-5);
     for (int k = 0; k < 3; ++k) {
         p2d_speed_step(&ctl, 50.0f, 50.0f, &out);
+        CHECK_CLOSE(out.T_ff_Nm, -50.0, 1e-5);
         CHECK_CLOSE(out.T_unsat_Nm, 1.25, 1e-5);
     }
     p2d_speed_reset(&ctl, 0.0f, 0.0f);
@@ -304,6 +307,161 @@ static void test_mtpa(void)
     }
 }
 
+/* Deterministic uniform numbers in [0, 1) for the randomized checks (xorshift32). */
+static double uniform(unsigned *state)
+{
+    *state ^= *state << 13;
+    *state ^= *state >> 17;
+    *state ^= *state << 5;
+    return (double)(*state >> 8) / 16777216.0;
+}
+
+/* lo (hi/lo)^u: log-uniform in [lo, hi) */
+static float log_uniform(unsigned *state, double lo, double hi)
+{
+    return (float)(lo * pow(hi / lo, uniform(state)));
+}
+
+/* float32 units in the last place of x */
+static double ulp(double x)
+{
+    int e;
+    (void)frexp(x, &e);
+    return ldexp(1.0, e - 24);
+}
+
+/*
+ * After a reference step the feedforward settles on Fr(0) r, Fr(0) = -J alpha / (4 zeta^2 m)
+ * (eq 11 at s = 0; -Ki/alpha for eq 13), to float32 rounding, also where the pole
+ * -a1 ~ 1 - m alpha Ts is close to 1 (m alpha Ts down to 5e-4).
+ */
+static void test_feedforward_steady_state(void)
+{
+    /* J, alpha, zeta, Ts: the golden-test drive at 10 kHz, and the paper's drive (section 4) at 1 kHz */
+    static const double designs[2][4] = {{0.02, 200.0, 0.8, 1e-4}, {0.4, 0.5, 0.2887, 1e-3}};
+    static const p2d_feedforward_t forms[3] = {P2D_FF_LOWPASS, P2D_FF_NO_TAU, P2D_FF_FULL};
+    static const float ms[3] = {1.0f, 1.6f, 0.7f};
+    double worst_ulps = 0.0;
+    for (int d = 0; d < 2; ++d) {
+        for (int method = P2D_FORWARD_EULER; method <= P2D_TUSTIN; ++method) {
+            for (int f = 0; f < 3; ++f) {
+                p2d_speed_config_t cfg = surface_config();
+                p2d_speed_t ctl;
+                p2d_speed_output_t out;
+                double Fr0, expected;
+                long settle;
+                cfg.J_kgm2 = (float)designs[d][0];
+                cfg.alpha_radps = (float)designs[d][1];
+                cfg.zeta = (float)designs[d][2];
+                cfg.Ts_s = (float)designs[d][3];
+                cfg.m = ms[f];
+                cfg.tau_i_s = 2e-3f;
+                cfg.feedforward = forms[f];
+                cfg.method = (p2d_method_t)method;
+                cfg.anti_windup = P2D_AW_NONE;
+                cfg.i_max_A = 1e6f; /* no torque limit */
+                CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
+                Fr0 = -(double)cfg.J_kgm2 * cfg.alpha_radps / (4.0 * cfg.zeta * cfg.zeta * cfg.m);
+                expected = Fr0 * 47.0;
+                /* the transient decays by about 1 - m alpha Ts per sample: 40 time constants */
+                settle = (long)(40.0 / ((double)cfg.m * cfg.alpha_radps * cfg.Ts_s));
+                for (long k = 0; k < settle; ++k) p2d_speed_step(&ctl, 47.0f, 47.0f, &out);
+                CHECK(!out.saturated && !out.fault);
+                worst_ulps = fmax(worst_ulps, fabs(out.T_ff_Nm - expected) / ulp(expected));
+                /* the float32 coefficient Fr0 (4 roundings) and one product: a few ulps */
+                CHECK_CLOSE(out.T_ff_Nm, expected, 4.0 * ulp(expected));
+            }
+        }
+    }
+    printf("feedforward steady state: worst %.2f float32 ulps from Fr(0) r\n", worst_ulps);
+}
+
+/*
+ * Surface PMSM: at the torque limit iq = T_max / kt never exceeds i_max_A in
+ * float32 (init lowers T_max where kt i_max, rounded, divides back to more),
+ * and stays within 2 ulps of it. Random machines over 6 decades.
+ */
+static void test_surface_current_limit_is_exact(void)
+{
+    unsigned state = 12345u;
+    int over = 0, loose = 0, rounding_cases = 0;
+    for (int n = 0; n < 20000; ++n) {
+        p2d_speed_config_t cfg = surface_config();
+        p2d_speed_t ctl;
+        p2d_speed_output_t out;
+        float kt;
+        cfg.psi_f_Wb = log_uniform(&state, 1e-3, 2.0);
+        cfg.pole_pairs = 1u + (uint32_t)(uniform(&state) * 12.0);
+        cfg.i_max_A = log_uniform(&state, 1e-2, 1e4);
+        cfg.Ld_H = cfg.Lq_H = 1e-3f;
+        cfg.anti_windup = P2D_AW_NONE;
+        if (p2d_speed_init(&ctl, &cfg) != P2D_OK) {
+            over++;
+            continue;
+        }
+        /* the rounding the limit has to absorb: (kt i_max) / kt > i_max in float32 */
+        kt = 1.5f * (float)cfg.pole_pairs * cfg.psi_f_Wb;
+        if ((kt * cfg.i_max_A) / kt > cfg.i_max_A) rounding_cases++;
+        for (int sign = -1; sign <= 1; sign += 2) {
+            p2d_speed_reset(&ctl, 0.0f, 0.0f);
+            p2d_speed_step(&ctl, (float)sign * 1e30f, 0.0f, &out);
+            if (!out.saturated || fabsf(out.iq_ref_A) > cfg.i_max_A) over++;
+            if (fabsf(out.iq_ref_A) < cfg.i_max_A - 2.0f * (float)ulp(cfg.i_max_A)) loose++;
+        }
+    }
+    CHECK(rounding_cases > 100);
+    CHECK(over == 0);
+    CHECK(loose == 0);
+}
+
+/*
+ * Salient PMSM, random machines (magnet to reluctance dominated, Ld < Lq and
+ * Ld > Lq) and torques over 6 decades up to T_max: the current command gives
+ * the torque Te = 1.5 p (psi_f iq + (Ld - Lq) id iq), lies on the MTPA curve
+ * id = 2 dL iq^2 / (psi_f + sqrt(psi_f^2 + 4 dL^2 iq^2)) and within i_max, all
+ * evaluated here in double.
+ */
+static void test_mtpa_random_machines(void)
+{
+    unsigned state = 777u;
+    double worst_T = 0.0, worst_mtpa = 0.0, worst_norm = 0.0;
+    int wrong = 0;
+    for (int n = 0; n < 20000; ++n) {
+        p2d_speed_config_t cfg = surface_config();
+        p2d_speed_t ctl;
+        p2d_speed_output_t out;
+        double psi, dL, id, iq, T, T_max, Te, id_mtpa;
+        cfg.psi_f_Wb = log_uniform(&state, 1e-3, 1.0);
+        cfg.Lq_H = log_uniform(&state, 1e-4, 1e-1);
+        cfg.Ld_H = cfg.Lq_H * (float)(0.05 + 3.0 * uniform(&state));
+        cfg.pole_pairs = 1u + (uint32_t)(uniform(&state) * 8.0);
+        cfg.i_max_A = log_uniform(&state, 1e-1, 1e3);
+        cfg.anti_windup = P2D_AW_NONE;
+        if (cfg.Ld_H == cfg.Lq_H || p2d_speed_init(&ctl, &cfg) != P2D_OK) continue;
+        psi = cfg.psi_f_Wb;
+        dL = (double)cfg.Ld_H - (double)cfg.Lq_H;
+        T_max = ctl.coef[ctl.active].T_max_Nm;
+        T = T_max * (n % 5 == 0 ? 1.0 : pow(10.0, -6.0 * uniform(&state))) * (n % 2 ? -1.0 : 1.0);
+        p2d_speed_reset(&ctl, 0.0f, (float)T);
+        p2d_speed_compute(&ctl, 0.0f, 0.0f, &out);
+        id = out.id_ref_A;
+        iq = out.iq_ref_A;
+        Te = 1.5 * cfg.pole_pairs * (psi * iq + dL * id * iq);
+        id_mtpa = 2.0 * dL * iq * iq / (psi + sqrt(psi * psi + 4.0 * dL * dL * iq * iq));
+        worst_T = fmax(worst_T, fabs(Te - out.T_ref_Nm) / fmax(fabs(out.T_ref_Nm), 1e-6 * T_max));
+        worst_mtpa = fmax(worst_mtpa, fabs(id - id_mtpa) / hypot(id, iq));
+        worst_norm = fmax(worst_norm, hypot(id, iq) / cfg.i_max_A - 1.0);
+        /* iq has the sign of the torque; dL id >= 0 on the MTPA curve */
+        if (out.fault || iq * T < 0.0 || id * dL < 0.0) wrong++;
+    }
+    CHECK(wrong == 0);
+    printf("MTPA: worst torque error %.3g, distance from the MTPA curve %.3g, ||i|| / i_max - 1 = %.3g\n",
+           worst_T, worst_mtpa, worst_norm);
+    CHECK(worst_T < 2e-6);
+    CHECK(worst_mtpa < 2e-6);
+    CHECK(worst_norm <= 4.0 * FLT_EPSILON);
+}
+
 int main(void)
 {
     test_validation();
@@ -317,5 +475,8 @@ int main(void)
     test_lowpass_feedforward_sequence();
     test_set_config();
     test_mtpa();
+    test_feedforward_steady_state();
+    test_surface_current_limit_is_exact();
+    test_mtpa_random_machines();
     return check_summary();
 }

@@ -171,8 +171,8 @@ def _design_table(dd):
         ("b_e0", f"{dd.b_e0:.9g} Nm/(rad/s)"),
         ("Ki_Ts", f"{dd.Ki_Ts:.9g} Nm/(rad/s)"),
         ("Ki_Ka_Ts", f"{dd.Ki_Ka_Ts:.9g}"),
-        ("ff_b0", f"{dd.ff_b0:.9g} Nm/(rad/s)"),
-        ("ff_b1", f"{dd.ff_b1:.9g} Nm/(rad/s)"),
+        ("ff_Fr0", f"{dd.ff_Fr0:.9g} Nm/(rad/s)"),
+        ("ff_b_dr", f"{dd.ff_b_dr:.9g} Nm/(rad/s)"),
         ("ff_a1", f"{dd.ff_a1:.9g}"),
         ("ff_Kd_per_Ts", f"{dd.ff_Kd_per_Ts:.9g} Nm/(rad/s)"),
     ]

@@ -235,7 +235,7 @@ def _record(discrete, speed, speed_ctl, current):
         "",
         "Coefficients computed by p2d_speed_init from this configuration (float32):",
     ]
-    for name in ("Kp", "Ki", "b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_b0", "ff_b1", "ff_a1", "ff_Kd_per_Ts", "T_max_Nm"):
+    for name in ("Kp", "Ki", "b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_Fr0", "ff_b_dr", "ff_a1", "ff_Kd_per_Ts", "T_max_Nm"):
         out.append(f"  {name:<12} = {coef[name]:.9g}")
     return out
 

@@ -135,7 +135,7 @@ class SpeedOutput:
     w_ref_radps : reference used this sample [rad/s]
     e_radps : speed error w_ref - w_m [rad/s]
     T_ff_Nm : feedforward torque Fr(z) w_ref [Nm] (eq 11-13, 15)
-    y_ff_Nm : output of the feedforward section, T_ff without the derivative part [Nm]
+    y_ff_Nm : transient of the feedforward, T_ff without Fr(0) w_ref and the derivative part [Nm]
     T_unsat_Nm : u, feedback plus feedforward before the limit [Nm]
     T_ref_Nm : u_sat, torque of the limited current vector [Nm]
     id_ref_A, iq_ref_A : current command [A], ||i_dq|| <= i_max_A

@@ -10,8 +10,11 @@ the form the C core realizes them (csrc/include/pmsm2dof/speed.h):
   whose transfer function is ``(b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1)``.
 - Feedforward (eq 11-13, 15): ``Fr`` is split by polynomial division into
   ``Kd s + D + c / (s + m alpha)``; the proper part ``D + c/(s + m alpha)`` becomes
-  ``(ff_b0 + ff_b1 z^-1) / (1 + ff_a1 z^-1)`` and the derivative ``Kd s`` is always
-  the backward difference ``Kd (1 - z^-1) / Ts``.
+  ``(b0 + b1 z^-1) / (1 + ff_a1 z^-1)``, realized around its static gain
+  ``ff_Fr0 = Fr(0)`` (kept by every method) as
+  ``ff_Fr0 + ff_b_dr (1 - z^-1) / (1 + ff_a1 z^-1)``, ``ff_b_dr = b0 - ff_Fr0``, so that
+  the steady-state torque ``Fr(0) r`` does not depend on the rounding of a pole near
+  z = 1; the derivative ``Kd s`` is always the backward difference ``Kd (1 - z^-1) / Ts``.
 
 The discrete closed loop uses the zero-order-hold equivalent of the plant
 ``G = Gci Gm``: the torque command is held over each sampling period.
@@ -33,7 +36,7 @@ SAMPLE_SYSTEM_METHODS = {"forward_euler": "euler", "backward_euler": "backward_d
 #: Largest design frequency times Ts [rad] above which the discretization is too coarse.
 MAX_W_TS = 0.1
 #: The coefficients of ``p2d_speed_coef_t`` a discretization determines.
-COEFFICIENTS = ("b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_b0", "ff_b1", "ff_a1", "ff_Kd_per_Ts")
+COEFFICIENTS = ("b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_Fr0", "ff_b_dr", "ff_a1", "ff_Kd_per_Ts")
 
 
 class SamplingWarning(UserWarning):
@@ -61,10 +64,12 @@ class DiscreteDesign:
         Integrator increment per unit error [Nm/(rad/s)].
     Ki_Ka_Ts : float
         Integrator increment per Nm of ``u*`` [-]; 0 unless back calculation.
-    ff_b0, ff_b1 : float
-        Feedforward section weights of ``r[k]`` and ``r[k-1]`` [Nm/(rad/s)].
+    ff_Fr0 : float
+        Static gain ``Fr(0)`` of the feedforward, weight of ``r[k]`` [Nm/(rad/s)].
+    ff_b_dr : float
+        Transient section, weight of ``r[k] - r[k-1]`` [Nm/(rad/s)].
     ff_a1 : float
-        Feedforward section weight of ``-y[k-1]`` [-].
+        Transient section, weight of ``-y[k-1]`` [-].
     ff_Kd_per_Ts : float
         Derivative term of the ``full`` feedforward, ``J alpha m tau_i / Ts`` [Nm/(rad/s)].
     poles : tuple of complex
@@ -83,8 +88,8 @@ class DiscreteDesign:
     b_e0: float
     Ki_Ts: float
     Ki_Ka_Ts: float
-    ff_b0: float
-    ff_b1: float
+    ff_Fr0: float
+    ff_b_dr: float
     ff_a1: float
     ff_Kd_per_Ts: float
     poles: tuple
@@ -193,13 +198,16 @@ def discretize(design, Ts_s, method):
 
     # feedforward: Fr = Kd s + D + c / (s + m alpha) = Kd s + P(s)
     if d.feedforward == "none":
-        ff_b0 = ff_b1 = ff_a1 = ff_Kd_per_Ts = 0.0
+        ff_Fr0 = ff_b_dr = ff_a1 = ff_Kd_per_Ts = 0.0
         Fr_z = control.tf([0.0], [1.0], Ts_s)
     else:
         fr_num, fr_den = d.fr_polynomials()
         (Kd, D), c = np.polydiv(fr_num, fr_den)
         P_z = control.sample_system(control.tf(np.polyadd(D * fr_den, c), fr_den), Ts_s, method=c2d_method)
-        (ff_b0, ff_b1), (_, ff_a1) = _coefficients_z(P_z)
+        (b0, _), (_, ff_a1) = _coefficients_z(P_z)
+        # P(z) = Fr(0) + (b0 - Fr(0)) (1 - z^-1) / (1 + a1 z^-1), as b0 + b1 = Fr(0) (1 + a1)
+        ff_Fr0 = fr_num[-1] / fr_den[-1]
+        ff_b_dr = b0 - ff_Fr0
         if abs(ff_a1) >= 1.0:
             raise ConfigError(
                 "Ts_s", Ts_s,
@@ -222,7 +230,7 @@ def discretize(design, Ts_s, method):
     return DiscreteDesign(
         design=d, Ts_s=Ts_s, method=method,
         b_e0=b_e0, Ki_Ts=Ki_Ts, Ki_Ka_Ts=Ki_Ka_Ts,
-        ff_b0=float(ff_b0), ff_b1=float(ff_b1), ff_a1=float(ff_a1), ff_Kd_per_Ts=float(ff_Kd_per_Ts),
+        ff_Fr0=float(ff_Fr0), ff_b_dr=float(ff_b_dr), ff_a1=float(ff_a1), ff_Kd_per_Ts=float(ff_Kd_per_Ts),
         poles=tuple(complex(p) for p in poles),
         overshoot_pct=step_overshoot_pct(Gx_z),
         margins=loop_margins(L_z),

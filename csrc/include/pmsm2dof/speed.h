@@ -25,6 +25,22 @@
  *            difference (r[k] - r[k-1]) / Ts, the only causal choice that has no
  *            pole on the unit circle (Tustin's s has one at z = -1).
  *
+ * Realization of the feedforward. Every method keeps the static gain, so the
+ * discretized proper part (b0 + b1 z^-1) / (1 + a1 z^-1) (D included) equals
+ *   Fr0 + b_dr (1 - z^-1) / (1 + a1 z^-1),   b_dr = b0 - Fr0,
+ * with Fr0 = Fr(s = 0) = -J alpha / (4 zeta^2 m) (eq 11 at s = 0; -Ki/alpha for
+ * LOWPASS), because b0 + b1 = Fr0 (1 + a1). The step computes
+ *   y[k]    = b_dr (r[k] - r[k-1]) - a1 y[k-1]                  transient [Nm]
+ *   T_ff[k] = Fr0 r[k] + y[k] + Kd (r[k] - r[k-1]) / Ts
+ * The steady-state torque Fr0 r is one product, and y decays to exactly 0 under
+ * a constant reference: T_ff settles within about one float32 ulp of Fr(0) r. A
+ * section on r itself, whose pole -a1 ~ 1 - m alpha Ts is near 1, amplifies the
+ * float32 rounding of its coefficients and of its state (which stops moving
+ * once its increments fall under half an ulp) by about 1/(m alpha Ts): folded
+ * with D it left offsets of 6e-5 to 3e-4 Nm on 46 to 105 Nm (m alpha Ts = 0.014
+ * to 0.032) and 1e-3 to 9e-3 Nm on 18 to 40 Nm (m alpha Ts = 3.5e-4 to 7.5e-4);
+ * keeping D apart leaves the section's own offset, of the same size.
+ *
  * Discrete PI, the same for all methods (only b_e0 differs):
  *   u[k]   = b_e0 e[k] + x[k-1] + T_ff[k]
  *   x[k]   = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k]          (back_calculation)
@@ -37,7 +53,20 @@
  * Salient PMSM: maximum torque per ampere. The current-vector limit
  * ||i_dq|| <= i_max_A is applied as the equivalent torque limit T_max on the
  * MTPA trajectory. Torque uses the amplitude-invariant Park transform:
- * Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) (the paper's eq 1 omits the 1.5).
+ * Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) (the paper's eq 1 omits the 1.5 and
+ * calls p the number of poles while using it as pole pairs).
+ * For a surface PMSM, init lowers T_max by float32 ulps until
+ * T_max / kt <= i_max_A holds in float32; a rounded quotient is monotonic in
+ * its dividend, so every |T| <= T_max gives |iq| <= i_max_A exactly and the
+ * step needs no current clamp. The MTPA inversion of a salient PMSM (Newton on
+ * a quartic, see speed.c) is a separate function that the step enters by a
+ * tail call, so that the surface path calls nothing and saves no registers.
+ *
+ * Rounding: where the step writes fmaf(a, b, c), a b + c is rounded once.
+ * fmaf is correctly rounded on every IEEE 754 system (vfma.f32 on the
+ * Cortex-M4F, the FMA instruction or libm on the host), so the MCU and the
+ * simulation stay equal to the bit; implicit contraction stays off
+ * (-ffp-contract=off), as the other sums are rounded twice on both.
  *
  * Non-finite policy: if the computed torque or current is not finite (NaN or
  * inf speed, reference, or an overflow), the output is zero torque and zero
@@ -101,11 +130,12 @@ typedef struct {
     float b_e0;           /* PI output gain on e[k] [Nm/(rad/s)] */
     float Ki_Ts;          /* integrator increment per unit error [Nm/(rad/s)] */
     float Ki_Ka_Ts;       /* integrator increment per Nm of u* [-]; 0 unless back calculation */
-    float ff_b0;          /* feedforward section, weight of r[k] [Nm/(rad/s)] */
-    float ff_b1;          /* feedforward section, weight of r[k-1] [Nm/(rad/s)] */
-    float ff_a1;          /* feedforward section, weight of -y[k-1] [-] */
+    float ff_Fr0;         /* feedforward static gain Fr(0), weight of r[k] [Nm/(rad/s)] */
+    float ff_b_dr;        /* feedforward transient section, weight of r[k] - r[k-1] [Nm/(rad/s)] */
+    float ff_a1;          /* feedforward transient section, weight of -y[k-1] [-] */
     float ff_Kd_per_Ts;   /* FULL derivative term J alpha m tau_i / Ts [Nm/(rad/s)] */
-    float T_max_Nm;       /* torque at ||i_dq|| = i_max_A on the MTPA trajectory [Nm] */
+    float T_max_Nm;       /* torque at ||i_dq|| = i_max_A on the MTPA trajectory [Nm]; surface
+                             PMSM: kt i_max_A, lowered until T_max_Nm / kt_NmpA <= i_max_A */
     float i_max_A;        /* current-vector limit [A] */
     float kt_NmpA;        /* 1.5 p psi_f [Nm/A] */
     float c_T_Nm_per_A2;  /* 1.5 p (Ld - Lq) [Nm/A^2]; 0 for a surface PMSM */
@@ -121,7 +151,7 @@ typedef struct {
     p2d_speed_config_t config; /* configuration of the active set */
     float x_i_Nm;              /* integrator state x[k-1] [Nm] */
     float r_prev_radps;        /* reference of the previous sample r[k-1] [rad/s] */
-    float y_ff_prev_Nm;        /* feedforward section output y[k-1] [Nm] */
+    float y_ff_prev_Nm;        /* feedforward transient y[k-1] [Nm]; 0 at a constant reference */
     uint32_t fault_count;      /* samples rejected by the non-finite policy [-] */
 } p2d_speed_t;
 
@@ -130,7 +160,7 @@ typedef struct {
     float w_ref_radps;  /* reference used this sample [rad/s] */
     float e_radps;      /* speed error w_ref - w_m [rad/s] */
     float T_ff_Nm;      /* feedforward torque Fr(z) w_ref [Nm] */
-    float y_ff_Nm;      /* output of the feedforward section (T_ff without the derivative) [Nm] */
+    float y_ff_Nm;      /* transient y[k] of the feedforward: T_ff - Fr0 w_ref - derivative [Nm] */
     float T_unsat_Nm;   /* u: feedback plus feedforward before the limit [Nm] */
     float T_ref_Nm;     /* u_sat: torque of the limited current vector [Nm] */
     float id_ref_A;     /* d-axis current command [A] */
@@ -146,8 +176,8 @@ p2d_status_t p2d_speed_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg);
 p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg);
 
 /*
- * Bumpless reset: the feedforward section at its steady state for a constant
- * reference w_ref_radps, and the integrator such that the output equals
+ * Bumpless reset: the feedforward at its steady state for a constant
+ * reference w_ref_radps (transient y = 0), and the integrator such that the output equals
  * T_init_Nm at zero error. p2d_speed_reset(ctl, 0, 0) clears everything.
  * A non-finite argument, or a steady state that overflows float32, clears the
  * state as (0, 0) and counts a fault.
