@@ -38,7 +38,7 @@
  * float32 rounding of its coefficients and of its state (which stops moving
  * once its increments fall under half an ulp) by about 1/(m alpha Ts): folded
  * with D it left offsets of 6e-5 to 3e-4 Nm on 46 to 105 Nm (m alpha Ts = 0.014
- * to 0.032) and 1e-3 to 9e-3 Nm on 18 to 40 Nm (m alpha Ts = 3.5e-4 to 7.5e-4);
+ * to 0.032) and 8e-4 to 9e-3 Nm on 18 to 40 Nm (m alpha Ts = 3.5e-4 to 8e-4);
  * keeping D apart leaves the section's own offset, of the same size.
  *
  * Discrete PI, the same for all methods (only b_e0 differs):
