@@ -81,6 +81,14 @@ def test_bad_values_exit_2_with_one_stderr_line(tmp_path, monkeypatch, capsys, a
     assert not any(tmp_path.iterdir())
 
 
+def test_design_whose_step_response_never_rises_exits_2_with_one_line(tmp_path, monkeypatch, capsys):
+    # zeta = 1e10 leaves Ki = J (alpha / (2 zeta))^2 ~ 1e-22: the integrator never acts in any finite horizon
+    monkeypatch.chdir(tmp_path)
+    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "1e10", "--Ts", "1e-3"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "overshoot is undefined" in err and "zeta" in err
+
+
 def test_bad_header_option_writes_nothing(tmp_path, capsys):
     header = tmp_path / "h.h"
     assert main(["design", *PAPER, "--emit-c-header", str(header), "--pole-pairs", "0"]) == 2

@@ -124,6 +124,18 @@ def test_tustin_lowpass_is_eq15(Ts):
     np.testing.assert_allclose(dd.Fr_z(Z_POINTS), eq15, rtol=1e-9)
 
 
+@pytest.mark.parametrize("J_tiny", [1e-15, 1e-9])
+def test_tiny_inertia_keeps_every_coefficient(J_tiny):
+    # every coefficient of eq 9, 11 and 14 is proportional to J (ff_a1 does not depend on it),
+    # so a tiny inertia must give the paper-drive coefficients scaled by J_tiny / J
+    paper = design(J, ALPHA, ZETA, tau_i_s=TAU, feedforward="full").discretize(1e-3, "tustin")
+    tiny = design(J_tiny, ALPHA, ZETA, tau_i_s=TAU, feedforward="full").discretize(1e-3, "tustin")
+    for name in ("b_e0", "Ki_Ts", "ff_Fr0", "ff_b_dr", "ff_Kd_per_Ts"):
+        assert getattr(tiny, name) == pytest.approx(getattr(paper, name) * J_tiny / J, rel=1e-9), name
+    assert tiny.ff_a1 == pytest.approx(paper.ff_a1, rel=1e-12)
+    assert tiny.Ki_Ka_Ts == pytest.approx(paper.Ki_Ka_Ts, rel=1e-9)
+
+
 @pytest.mark.parametrize("method, ff", list(itertools.product(METHODS, FEEDFORWARDS)))
 def test_coefficients_equal_those_of_the_c_core(method, ff):
     m = 1.0 if ff == "lowpass" else 1.6

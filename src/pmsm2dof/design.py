@@ -28,7 +28,7 @@ import control
 import numpy as np
 
 from .controllers import ANTI_WINDUPS, FEEDFORWARDS
-from .errors import ConfigError, require_choice, require_nonnegative, require_positive
+from .errors import ConfigError, SimulationError, require_choice, require_nonnegative, require_positive
 
 #: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
 HALF_POWER_DB = 20.0 * math.log10(1.0 / math.sqrt(2.0))
@@ -107,8 +107,22 @@ def tracking_tf(F, Fr, G):
 
 
 def step_overshoot_pct(sys):
-    """Overshoot [%] of the step response of ``sys`` over its final value."""
-    return float(control.step_info(sys)["Overshoot"])
+    """Overshoot [%] of the step response of ``sys`` over its final value.
+
+    Raises
+    ------
+    SimulationError
+        When the response is too slow for python-control to find its rise (for
+        example a PI whose integral action rounds away, zeta >> 1).
+    """
+    try:
+        return float(control.step_info(sys)["Overshoot"])
+    except (IndexError, ValueError):
+        slowest = min(control.poles(sys), key=lambda p: abs(p - 1.0) if sys.isdtime() else abs(p))
+        raise SimulationError(
+            f"the step response does not rise in a computable time (slowest pole {complex(slowest):.6g}"
+            f"{' in z' if sys.isdtime() else ' rad/s'}): its overshoot is undefined; check zeta, alpha and Ts_s"
+        ) from None
 
 
 @dataclass(frozen=True)

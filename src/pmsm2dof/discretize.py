@@ -134,6 +134,28 @@ def _finite_dict(values):
     return {k: (v if math.isfinite(v) else None) for k, v in values.items()}
 
 
+def _sample(tf_s, Ts_s, method):
+    """``control.sample_system(tf_s, Ts_s, method)`` computed on unit-scaled coefficients.
+
+    SciPy trims leading numerator coefficients below an absolute 1e-14, which drops
+    significant ones of a design with a tiny inertia, bandwidth or sampling period.
+    The system is therefore sampled in normalized time (``s = s' / Ts_s``, period 1)
+    with its numerator and denominator scaled to a largest coefficient of 1, and the
+    gain is restored afterwards; the result is the same transfer function.
+    """
+    num = np.atleast_1d(np.squeeze(tf_s.num[0][0])).astype(float)
+    den = np.atleast_1d(np.squeeze(tf_s.den[0][0])).astype(float)
+    n = len(den) - 1
+    # H(s'/Ts) multiplied above and below by Ts^n: the coefficient of s^k gets Ts^(n - k)
+    num = num * Ts_s ** (n - np.arange(len(num) - 1, -1, -1))
+    den = den * Ts_s ** (n - np.arange(n, -1, -1))
+    num_scale, den_scale = np.max(np.abs(num)), np.max(np.abs(den))
+    if num_scale == 0.0:
+        return control.tf([0.0], [1.0], Ts_s)
+    unit = control.sample_system(control.tf(num / num_scale, den / den_scale), 1.0, method=method)
+    return control.tf(unit.num[0][0] * (num_scale / den_scale), unit.den[0][0], Ts_s)
+
+
 def _coefficients_z(tf):
     """Numerator and denominator of a discrete first-order ``tf`` in powers of z^-1, den[0] = 1."""
     num = np.atleast_1d(np.squeeze(tf.num[0][0]))
@@ -185,7 +207,7 @@ def discretize(design, Ts_s, method):
     c2d_method = SAMPLE_SYSTEM_METHODS[method]
 
     # PI: F(z) = (b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1), eq 14 for Tustin
-    F_z = control.sample_system(d.F, Ts_s, method=c2d_method)
+    F_z = _sample(d.F, Ts_s, c2d_method)
     num, _ = _coefficients_z(F_z)
     b_e0 = float(num[0])
     Ki_Ts = float(num[0] + num[1])
@@ -203,7 +225,7 @@ def discretize(design, Ts_s, method):
     else:
         fr_num, fr_den = d.fr_polynomials()
         (Kd, D), c = np.polydiv(fr_num, fr_den)
-        P_z = control.sample_system(control.tf(np.polyadd(D * fr_den, c), fr_den), Ts_s, method=c2d_method)
+        P_z = _sample(control.tf(np.polyadd(D * fr_den, c), fr_den), Ts_s, c2d_method)
         (b0, _), (_, ff_a1) = _coefficients_z(P_z)
         # P(z) = Fr(0) + (b0 - Fr(0)) (1 - z^-1) / (1 + a1 z^-1), as b0 + b1 = Fr(0) (1 + a1)
         ff_Fr0 = fr_num[-1] / fr_den[-1]
@@ -217,7 +239,7 @@ def discretize(design, Ts_s, method):
         ff_Kd_per_Ts = Kd / Ts_s
         Fr_z = P_z + control.tf([ff_Kd_per_Ts, -ff_Kd_per_Ts], [1.0, 0.0], Ts_s) if Kd != 0.0 else P_z
 
-    G_z = control.sample_system(d.G, Ts_s, method="zoh")
+    G_z = _sample(d.G, Ts_s, "zoh")
     L_z = F_z * G_z
     poles = control.poles(control.feedback(L_z, 1))
     r_max = float(np.max(np.abs(poles)))
