@@ -212,7 +212,7 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
 # ---------------------------------------------------------------------------------------------
 
 
-@cli.command()
+@cli.command(short_help="Reproduce the paper: figures 7-14, sensitivity studies and the claims table.")
 @click.option("--out", type=click.Path(), default="pmsm2dof-report", show_default=True,
               help="folder for report.md, report.html, claims.json, the figures and their data")
 @click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
