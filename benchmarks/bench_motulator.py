@@ -35,7 +35,6 @@ fixed-step RK4; pmsm2dof's controllers compute in float32 (the MCU code).
 """
 
 import argparse
-import datetime
 import json
 import os
 import platform
@@ -49,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_sweep import machine_line, write_section
+from results_md import measured_by, write_section
 
 from pmsm2dof.design import design
 from pmsm2dof.scenario import load_scenario
@@ -183,8 +182,8 @@ def report(name, scenario, spec, ours_times, info, diff, load):
     max_diff, rms_diff, peak = diff
     lines = [
         SECTION, "",
-        f"Measured {datetime.date.today().isoformat()} by `python3 benchmarks/bench_motulator.py` on "
-        f"{machine_line()}; pmsm2dof {version('pmsm2dof')} on Python {platform.python_version()}, "
+        measured_by("python3 benchmarks/bench_motulator.py")
+        + f"; pmsm2dof {version('pmsm2dof')} on Python {platform.python_version()}, "
         f"motulator {info['motulator_version']} on {info['python']} (separate venv); 1-minute load "
         f"average {load[0]:.2f} before and {load[1]:.2f} after.", "",
         f"Situation: preset `{name}` ({t_end:g} s: "

@@ -21,10 +21,8 @@ second for ``dq_pi``.
 """
 
 import argparse
-import datetime
 import os
 import platform
-import re
 import statistics
 import subprocess
 import sys
@@ -32,26 +30,12 @@ import time
 from pathlib import Path
 
 import numpy as np
+from results_md import RESULTS, measured_by, write_section
 
 from pmsm2dof import load_scenario, simulate
 
-RESULTS = Path(__file__).resolve().parent / "results.md"
 SECTION = "## Simulation engine throughput"
 TARGET_SIM_S_PER_WALL_S = 1000.0
-
-
-def cpu_model():
-    """The ``Model name`` of lscpu (``/proc/cpuinfo`` if lscpu is absent)."""
-    try:
-        out = subprocess.run(["lscpu"], capture_output=True, text=True, check=True).stdout
-        found = re.search(r"^Model name:\s*(.+)$", out, re.M)
-        if found:
-            return found.group(1).strip()
-    except (OSError, subprocess.CalledProcessError):
-        pass
-    text = Path("/proc/cpuinfo").read_text() if Path("/proc/cpuinfo").exists() else ""
-    found = re.search(r"^model name\s*:\s*(.+)$", text, re.M)
-    return found.group(1).strip() if found else "unknown CPU"
 
 
 def git_commit():
@@ -83,20 +67,6 @@ def halving_change(scenario):
     return float(np.max(np.abs(a.w_m_radps - b.w_m_radps)) / np.max(np.abs(b.w_m_radps)))
 
 
-def write_section(text):
-    """Replace (or append) this benchmark's section of results.md, keeping the others."""
-    old = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n"
-    start = old.find(SECTION + "\n")
-    if start < 0:
-        new = old.rstrip("\n") + "\n\n" + text
-    else:
-        nxt = old.find("\n## ", start + len(SECTION))
-        new = old[:start] + text + ("\n" + old[nxt + 1:] if nxt >= 0 else "")
-    tmp = RESULTS.with_suffix(".md.tmp")
-    tmp.write_text(new)
-    tmp.replace(RESULTS)
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=5, help="timed runs per case (median reported)")
@@ -124,9 +94,8 @@ def main(argv=None):
     lines = [
         SECTION,
         "",
-        f"Measured {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC by "
-        f"`python3 benchmarks/bench_simulate.py --runs {args.runs}` at commit {git_commit()} on "
-        f"{cpu_model()}, nproc {os.cpu_count()}, Python {platform.python_version()}; "
+        measured_by(f"python3 benchmarks/bench_simulate.py --runs {args.runs}")
+        + f" at commit {git_commit()}, Python {platform.python_version()}; "
         f"1-minute load average {load_before:.2f} before and {load_after:.2f} after (the machine is shared "
         "with other work, which lowers these figures).",
         "",
@@ -154,7 +123,7 @@ def main(argv=None):
     text = "\n".join(lines)
     print(text)
     if not args.no_write:
-        write_section(text)
+        write_section(SECTION, text)
         print(f"wrote the section to {RESULTS}", file=sys.stderr)
     return 0
 

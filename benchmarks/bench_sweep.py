@@ -22,11 +22,9 @@ Writes the sections "Simulation and sweep throughput" and "Memory of a long run"
 """
 
 import argparse
-import datetime
 import json
 import os
 import platform
-import re
 import resource
 import statistics
 import subprocess
@@ -36,34 +34,12 @@ import time
 from importlib.metadata import version
 from pathlib import Path
 
+from results_md import measured_by, write_section
+
 HERE = Path(__file__).resolve().parent
-RESULTS = HERE / "results.md"
 GRID = HERE.parent / "examples" / "sweeps" / "alpha-inertia-grid.toml"
 SECTION_SPEED = "## Simulation and sweep throughput"
 SECTION_MEMORY = "## Memory of a long run"
-
-
-def machine_line():
-    """``host (machine, CPU model, N cores)`` for the results."""
-    cpu = "unknown CPU"
-    if Path("/proc/cpuinfo").exists():
-        found = re.search(r"^model name\s*:\s*(.+)$", Path("/proc/cpuinfo").read_text(), re.M)
-        cpu = found.group(1) if found else cpu
-    return f"{platform.node() or 'host'} ({platform.machine()}, {cpu}, {os.cpu_count()} cores)"
-
-
-def write_section(section, text):
-    """Replace (or append) the section titled ``section`` of results.md, keeping the others."""
-    old = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n"
-    start = old.find(section + "\n")
-    if start < 0:
-        new = old.rstrip("\n") + "\n\n" + text
-    else:
-        nxt = old.find("\n## ", start + len(section))
-        new = old[:start] + text + (old[nxt:] if nxt >= 0 else "")
-    tmp = RESULTS.with_suffix(".md.tmp")
-    tmp.write_text(new)
-    tmp.replace(RESULTS)
 
 
 def single_run(repeats, runs):
@@ -172,8 +148,8 @@ def report(single, sweeps, mem, repeats, runs, load):
     hwm_idle = statistics.median(m["hwm_kB"] for m in mem_idle) / 1024
     rows, signals = mem_runs[0]["rows"], mem_runs[0]["signals"]
     d = scenario.data
-    head = (f"Measured {datetime.date.today().isoformat()} by `python3 benchmarks/bench_sweep.py` on "
-            f"{machine_line()}; Python {platform.python_version()}, pmsm2dof {version('pmsm2dof')}. "
+    head = (measured_by("python3 benchmarks/bench_sweep.py")
+            + f"; Python {platform.python_version()}, pmsm2dof {version('pmsm2dof')}. "
             f"Medians of {repeats} repetitions, measured side by side in one run; 1-minute load average "
             f"{load[0]:.2f} before and {load[1]:.2f} after (other work on the machine slows the numbers down).")
     lines = [

@@ -34,9 +34,7 @@ Usage: ``python3 benchmarks/footprint.py [--build-dir DIR]``.
 """
 
 import argparse
-import datetime
 import os
-import platform
 import re
 import subprocess
 import sys
@@ -44,10 +42,11 @@ import tempfile
 from collections import Counter
 from pathlib import Path
 
+from results_md import measured_by, write_section
+
 ROOT = Path(__file__).resolve().parents[1]
 CSRC = ROOT / "csrc"
 TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
-RESULTS = ROOT / "benchmarks" / "results.md"
 SECTION = "## Footprint and cost on the Cortex-M4F"
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
 QEMU_TIMEOUT_S = 120
@@ -261,14 +260,9 @@ def code_version():
 
 def report(m):
     """The markdown section of the results."""
-    cpu = "unknown CPU"
-    if Path("/proc/cpuinfo").exists():
-        found = re.search(r"^model name\s*:\s*(.+)$", Path("/proc/cpuinfo").read_text(), re.M)
-        cpu = found.group(1) if found else cpu
     out = [
         SECTION, "",
-        f"Measured {datetime.date.today().isoformat()} by `python3 benchmarks/footprint.py` on "
-        f"{platform.node() or 'host'} ({platform.machine()}, {cpu}, {os.cpu_count()} cores);",
+        measured_by("python3 benchmarks/footprint.py") + ";",
         f"{tool_version('arm-none-eabi-gcc')}; {tool_version('qemu-system-arm')}; code: {code_version()}.",
         "Flags: `-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard -O2 -ffp-contract=off`, newlib-nano.",
         "",
@@ -325,20 +319,6 @@ def report(m):
     return "\n".join(out) + "\n"
 
 
-def write_section(text):
-    """Replace (or append) this benchmark's section of results.md, keeping the others."""
-    old = RESULTS.read_text() if RESULTS.exists() else "# Benchmark results\n"
-    start = old.find(SECTION + "\n")
-    if start < 0:
-        new = old.rstrip("\n") + "\n\n" + text
-    else:
-        nxt = old.find("\n## ", start + len(SECTION))
-        new = old[:start] + text + (old[nxt:] if nxt >= 0 else "")
-    tmp = RESULTS.with_suffix(".md.tmp")
-    tmp.write_text(new)
-    tmp.replace(RESULTS)
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--build-dir", type=Path, help="cross build directory (default: a temporary one)")
@@ -346,7 +326,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
         build_dir = (args.build_dir or Path(tmp) / "build").resolve()
         text = report(measure(build_dir, Path(tmp)))
-    write_section(text)
+    write_section(SECTION, text)
     print(text)
     return 0
 
