@@ -182,6 +182,11 @@ def _series(sweep, label, kind):
     return next(s for s in sweep.series if s.label == label and s.kind == kind)
 
 
+def _along(studies, sweep, label, kind, figure):
+    """``figure`` along the series ``label`` of ``kind`` (step or load) of ``sweep`` (NaN where missing)."""
+    return studies.series_values(_series(sweep, label, kind), figure)
+
+
 def _reference(sweep, label):
     return next(r for lbl, r in sweep.references if lbl == label)
 
@@ -274,7 +279,7 @@ def _claim_first_order(studies):
     big, note = _overshoot(studies, "e1-2dof-full")
     _, sat = _saturation_run(studies.results["e1-2dof-full"], studies.step("e1-2dof-full")["t_s"])
     sweep = studies.sweep("m")
-    over_m = studies.series_values(_series(sweep, "2DOF eq 11, back-calculation AW", "step"), "overshoot_pct")
+    over_m = _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "overshoot_pct")
     ok = (overshoot_lin < NO_OVERSHOOT_PCT and math.isclose(bandwidth, pole, rel_tol=FIRST_ORDER_RTOL)
           and over_small is not None
           and over_small < NO_OVERSHOOT_PCT and rise is not None
@@ -305,7 +310,7 @@ def _claim_fig7(studies):
     bandwidths = [design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=m, tau_i_s=sc["tau_i_design_s"],
                          feedforward="full").bandwidth_radps() for m in FIG7_M]
     sweep = studies.sweep("m")
-    rise = studies.series_values(_series(sweep, "2DOF eq 11, back-calculation AW", "step"), "rise_time_s")
+    rise = _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "rise_time_s")
     bw_up = all(b > a for a, b in zip(bandwidths, bandwidths[1:]))
     rise_down = all(b <= a * 1.001 for a, b in zip(rise, rise[1:]))
     return _claim(
@@ -516,7 +521,7 @@ def _claim_current_reverse(studies):
 
 def _torque_for(studies, label, level):
     sweep = studies.sweep("torque_limit")
-    y = studies.series_values(_series(sweep, label, "step"), "overshoot_pct")
+    y = _along(studies, sweep, label, "step", "overshoot_pct")
     return _crossing(sweep.x, y, level), sweep
 
 
@@ -528,7 +533,7 @@ def _claim_aw_overshoot(studies):
     about = abs(value - 16.0) <= ABOUT_RTOL * 16.0
     torque, sweep = _torque_for(studies, f"{st.ONE_DOF}, back-calculation AW", 16.0)
     if torque is not None:
-        y_none = studies.series_values(_series(sweep, f"{st.ONE_DOF}, no AW", "step"), "overshoot_pct")
+        y_none = _along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")
         no_aw_there = float(np.interp(torque, sweep.x, y_none))
         i_max = studies.bases[st.STEP_BASE].data["limits"]["i_max_A"]
         where = (f"the sweep of the torque limit gives 16 % with AW at about {torque:.2g} Nm (a torque constant of "
@@ -629,8 +634,7 @@ def _claim_e1(studies):
     bc, _ = _overshoot(studies, "e1-1dof-back_calculation")
     both = abs(none - 35.0) <= ABOUT_RTOL * 35.0 and abs(bc - 15.0) <= ABOUT_RTOL * 15.0
     sweep = studies.sweep("torque_limit")
-    least_no_aw = float(np.nanmin(studies.series_values(_series(sweep, f"{st.ONE_DOF}, no AW", "step"),
-                                                        "overshoot_pct")))
+    least_no_aw = float(np.nanmin(_along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")))
     if both:
         reason = ""
     elif bc >= none:
@@ -701,12 +705,12 @@ def _claim_e3(studies):
 def _claim_aw_everywhere(studies):
     pairs = []
     sweep = studies.sweep("torque_limit")
-    none = studies.series_values(_series(sweep, f"{st.ONE_DOF}, no AW", "step"), "overshoot_pct")
+    none = _along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")
     for label in (f"{st.ONE_DOF}, back-calculation AW", f"{st.ONE_DOF}, clamping"):
-        pairs += list(zip(studies.series_values(_series(sweep, label, "step"), "overshoot_pct"), none))
+        pairs += list(zip(_along(studies, sweep, label, "step", "overshoot_pct"), none))
     sweep = studies.sweep("m")
-    pairs += list(zip(studies.series_values(_series(sweep, "2DOF eq 11, back-calculation AW", "step"), "overshoot_pct"),
-                      studies.series_values(_series(sweep, "2DOF eq 11, no AW", "step"), "overshoot_pct")))
+    pairs += list(zip(_along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "overshoot_pct"),
+                      _along(studies, sweep, "2DOF eq 11, no AW", "step", "overshoot_pct")))
     for cond in ("c1", "e1"):
         for dof in ("1dof", "2dof"):
             pairs.append((_overshoot(studies, f"{cond}-{dof}-back_calculation")[0],
@@ -736,10 +740,10 @@ def _claim_2dof_everywhere(studies):
     worst_load = 0.0
     for name in ("zeta", "inertia"):
         sweep = studies.sweep(name)
-        o1 = studies.series_values(_series(sweep, st.ONE_DOF, "step"), "overshoot_pct")
-        o2 = studies.series_values(_series(sweep, st.TWO_DOF, "step"), "overshoot_pct")
-        d1 = studies.series_values(_series(sweep, st.ONE_DOF, "load"), "speed_dip_rpm")
-        d2 = studies.series_values(_series(sweep, st.TWO_DOF, "load"), "speed_dip_rpm")
+        o1 = _along(studies, sweep, st.ONE_DOF, "step", "overshoot_pct")
+        o2 = _along(studies, sweep, st.TWO_DOF, "step", "overshoot_pct")
+        d1 = _along(studies, sweep, st.ONE_DOF, "load", "speed_dip_rpm")
+        d2 = _along(studies, sweep, st.TWO_DOF, "load", "speed_dip_rpm")
         total += len(o1)
         over_better += int(np.sum(o2 < o1))
         rel = np.abs(d2 - d1) / d1
