@@ -52,12 +52,19 @@ def kd(ff, J, alpha, m, tau):
     return J * alpha * m * tau if ff == "full" else 0.0
 
 
-def g_zoh(J, tau, Ts, z):
-    """ZOH equivalent of 1/(J s (tau s + 1)), derived from the step-invariance (1 - z^-1) Z{G(s)/s}."""
+def zoh_plant(J, tau, Ts):
+    """Numerator and denominator in z of the ZOH equivalent of 1/(J s (tau s + 1)), derived from the
+    step-invariance (1 - z^-1) Z{G(s)/s}."""
     if tau == 0.0:
-        return Ts / (J * (z - 1.0))
+        return np.array([Ts / J]), np.array([1.0, -1.0])
     a = math.exp(-Ts / tau)
-    return ((Ts - tau * (1 - a)) * z + (tau * (1 - a) - a * Ts)) / (J * (z - 1.0) * (z - a))
+    return np.array([Ts - tau * (1 - a), tau * (1 - a) - a * Ts]) / J, np.polymul([1.0, -1.0], [1.0, -a])
+
+
+def g_zoh(J, tau, Ts, z):
+    """The ZOH plant of :func:`zoh_plant` at the points ``z``."""
+    num, den = zoh_plant(J, tau, Ts)
+    return np.polyval(num, z) / np.polyval(den, z)
 
 
 def discretized(J, alpha, zeta, m, tau, Ts, ff, method, **kw):
@@ -156,12 +163,7 @@ def test_discrete_poles_are_roots_of_the_zoh_characteristic_polynomial(case, met
     Kp, Ki = Jc * alpha, Jc * alpha**2 / (4 * zeta**2)
     b_e0 = {"forward_euler": Kp, "backward_euler": Kp + Ki * Ts, "tustin": Kp + Ki * Ts / 2}[method]
     Fn, Fd = np.array([b_e0, Ki * Ts - b_e0]), np.array([1.0, -1.0])
-    if tau == 0.0:
-        Gn, Gd = np.array([Ts / Jc]), np.array([1.0, -1.0])
-    else:
-        a = math.exp(-Ts / tau)
-        Gn = np.array([Ts - tau * (1 - a), tau * (1 - a) - a * Ts]) / Jc
-        Gd = np.polymul([1.0, -1.0], [1.0, -a])
+    Gn, Gd = zoh_plant(Jc, tau, Ts)
     char = np.polyadd(np.polymul(Fd, Gd), np.polymul(Fn, Gn))
     np.testing.assert_allclose(np.sort_complex(np.array(dd.poles)), np.sort_complex(np.roots(char)), atol=1e-9)
     np.testing.assert_allclose(dd.G_z(Z_POINTS), g_zoh(Jc, tau, Ts, Z_POINTS), rtol=1e-9)
@@ -172,13 +174,7 @@ def test_discrete_gain_margin_from_root_locus(case, method):
     Jc, alpha, zeta, m, tau, Ts = case
     dd = discretized(Jc, alpha, zeta, m, tau, Ts, "full", method)
     Fn, Fd = dd.F_z.num[0][0], dd.F_z.den[0][0]
-    # the ZOH plant, by hand, as polynomials
-    if tau == 0.0:
-        Gn, Gd = np.array([Ts / Jc]), np.array([1.0, -1.0])
-    else:
-        a = math.exp(-Ts / tau)
-        Gn = np.array([Ts - tau * (1 - a), tau * (1 - a) - a * Ts]) / Jc
-        Gd = np.polymul([1.0, -1.0], [1.0, -a])
+    Gn, Gd = zoh_plant(Jc, tau, Ts)  # the ZOH plant, by hand, as polynomials
 
     def radius(k):
         return np.max(np.abs(np.roots(np.polyadd(np.polymul(Fd, Gd), k * np.polymul(Fn, Gn)))))
