@@ -93,7 +93,7 @@ def test_run_equals_steps_and_compute_update(feedforward):
         assert a == b
         for field in dataclasses.fields(SpeedOutput):
             assert getattr(a, field.name) == bulk[field.name][k]
-        assert stepped.state["x_i_Nm"] == bulk["x_i_Nm"][k]
+        assert stepped.x_i_Nm == bulk["x_i_Nm"][k]
     assert bulk["saturated"].any() and not bulk["saturated"].all()
 
 
@@ -131,7 +131,7 @@ def test_reset_is_bumpless(method, feedforward, m):
     T_ff = np.max(np.abs(out["T_ff_Nm"]))
     np.testing.assert_allclose(out["T_ref_Nm"], 0.75, rtol=0, atol=1e-6 + 2e-5 * T_ff)
     ctl.reset()
-    assert ctl.state == {"x_i_Nm": 0.0, "r_prev_radps": 0.0, "y_ff_prev_Nm": 0.0}
+    assert ctl.state == {"x_Nm": 0.0, "r_prev_radps": 0.0, "y_ff_prev_Nm": 0.0}
     with pytest.raises(ConfigError, match="T_init_Nm"):
         ctl.reset(0.0, math.nan)
 

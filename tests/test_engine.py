@@ -170,7 +170,7 @@ def test_loop_feeds_the_controllers_the_sampled_state(delay):
         so = speed.step(r.speed_ref_rpm[k] * RADPS_PER_RPM, r.w_m_radps[k])
         assert (so.id_ref_A, so.iq_ref_A, so.T_ref_Nm, so.T_unsat_Nm) == (
             r.id_ref_A[k], r.iq_ref_A[k], r.torque_ref_Nm[k], r.torque_unsat_Nm[k])
-        assert speed.state["x_i_Nm"] == r.x_i_Nm[k]
+        assert speed.x_i_Nm == r.x_i_Nm[k]
         assert so.saturated == r.saturated[k]
         co = current.step(so.id_ref_A, so.iq_ref_A, r.id_A[k], r.iq_A[k], m["pole_pairs"] * r.w_m_radps[k], 60.0)
         command = (co.ud_ref_V, co.uq_ref_V)

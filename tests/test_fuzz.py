@@ -95,7 +95,7 @@ def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
 MUTANTS = {
     # the non-finite policy of the update is gone: a NaN applied torque enters the integrator
     "speed_nan_state": ("speed", "speed.c", [("if (out->fault || !isfinite(T_applied_Nm)) {", "if (out->fault) {"),
-                                             ("if (!isfinite(x_i)) {", "if (0) {")]),
+                                             ("if (!isfinite(x)) {", "if (0) {")]),
     # clamping never holds the integrator: it winds up while the torque is saturated
     "speed_no_clamping": ("speed", "speed.c", [("opposite_signs(u_star, out->e_radps)) dx = 0.0f;",
                                                 "opposite_signs(u_star, out->e_radps)) dx = dx;")]),

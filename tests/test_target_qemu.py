@@ -54,11 +54,11 @@ needs_qemu = pytest.mark.skipif(
 SAMPLES = 120
 METHOD, FEEDFORWARD, ANTI_WINDUP = 3, 4, 3  # number of enumerators of each
 SPEED_FIELDS = ("w_ref_radps", "e_radps", "T_ff_Nm", "y_ff_Nm", "T_unsat_Nm", "T_ref_Nm", "id_ref_A", "iq_ref_A",
-                "saturated", "fault", "x_i_Nm", "r_prev_radps", "y_ff_prev_Nm", "fault_count")
+                "saturated", "fault", "x_Nm", "r_prev_radps", "y_ff_prev_Nm", "fault_count")
 CURRENT_FIELDS = ("ed_A", "eq_A", "ud_unsat_V", "uq_unsat_V", "ud_ref_V", "uq_ref_V", "saturated", "fault",
                   "x_d_V", "x_q_V", "fault_count")
 # words that the non-finite policy keeps finite: they must match to the bit, never only as NaN
-SPEED_EXACT = {"T_ref_Nm", "id_ref_A", "iq_ref_A", "saturated", "fault", "x_i_Nm", "r_prev_radps", "y_ff_prev_Nm",
+SPEED_EXACT = {"T_ref_Nm", "id_ref_A", "iq_ref_A", "saturated", "fault", "x_Nm", "r_prev_radps", "y_ff_prev_Nm",
                "fault_count"}
 CURRENT_EXACT = {"ud_ref_V", "uq_ref_V", "saturated", "fault", "x_d_V", "x_q_V", "fault_count"}
 

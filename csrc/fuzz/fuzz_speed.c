@@ -169,8 +169,8 @@ static void fz_check_accepted(const p2d_speed_config_t *cfg, const p2d_speed_coe
 
 static void fz_check_state_finite(const p2d_speed_t *ctl)
 {
-    FZ_REQUIRE(isfinite(ctl->x_i_Nm) && isfinite(ctl->r_prev_radps) && isfinite(ctl->y_ff_prev_Nm),
-               "state poisoned: x_i %g r_prev %g y_ff_prev %g", (double)ctl->x_i_Nm,
+    FZ_REQUIRE(isfinite(ctl->x_Nm) && isfinite(ctl->r_prev_radps) && isfinite(ctl->y_ff_prev_Nm),
+               "state poisoned: x %g r_prev %g y_ff_prev %g", (double)ctl->x_Nm,
                (double)ctl->r_prev_radps, (double)ctl->y_ff_prev_Nm);
 }
 
@@ -199,7 +199,7 @@ static bool fz_same_controller(const p2d_speed_t *a, const p2d_speed_t *b)
     static const float probes[5][2] = {{0.0f, 0.0f}, {100.0f, 90.0f}, {-50.0f, 10.0f}, {1e3f, -1e3f}, {1e-30f, 0.0f}};
     p2d_speed_t b_state;
     memcpy(&b_state, b, sizeof b_state);
-    b_state.x_i_Nm = a->x_i_Nm;
+    b_state.x_Nm = a->x_Nm;
     b_state.r_prev_radps = a->r_prev_radps;
     b_state.y_ff_prev_Nm = a->y_ff_prev_Nm;
     for (int k = 0; k < 5; ++k) {
@@ -230,9 +230,9 @@ static bool fz_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     }
     fz_check_accepted(cfg, &ctl->coef[ctl->active]);
     fz_probe(ctl);
-    FZ_REQUIRE(ctl->x_i_Nm == 0.0f && ctl->r_prev_radps == 0.0f && ctl->y_ff_prev_Nm == 0.0f &&
+    FZ_REQUIRE(ctl->x_Nm == 0.0f && ctl->r_prev_radps == 0.0f && ctl->y_ff_prev_Nm == 0.0f &&
                    ctl->fault_count == 0u,
-               "init did not clear the state: x_i %g r_prev %g y_ff_prev %g", (double)ctl->x_i_Nm,
+               "init did not clear the state: x %g r_prev %g y_ff_prev %g", (double)ctl->x_Nm,
                (double)ctl->r_prev_radps, (double)ctl->y_ff_prev_Nm);
     return true;
 }
@@ -258,7 +258,7 @@ static void fz_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     FZ_REQUIRE(fz_same_controller(ctl, &fresh), "set_config and init computed different coefficients");
     fz_probe(ctl);
     FZ_REQUIRE(memcmp(&ctl->config, cfg, sizeof *cfg) == 0, "config not stored");
-    FZ_REQUIRE(fz_bits_equal(ctl->x_i_Nm, before.x_i_Nm) && fz_bits_equal(ctl->r_prev_radps, before.r_prev_radps) &&
+    FZ_REQUIRE(fz_bits_equal(ctl->x_Nm, before.x_Nm) && fz_bits_equal(ctl->r_prev_radps, before.r_prev_radps) &&
                    fz_bits_equal(ctl->y_ff_prev_Nm, before.y_ff_prev_Nm) &&
                    ctl->fault_count == before.fault_count,
                "set_config changed the state");
@@ -307,9 +307,19 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
                             float T_app)
 {
     const p2d_speed_coef_t *c = &before->coef[before->active];
-    double x0 = before->x_i_Nm, x1 = ctl->x_i_Nm, e = out->e_radps, T_ff = out->T_ff_Nm;
+    /*
+     * The state is x = x_i + Fr0 r[k-1]; the bounds below are on the integral x_i, exact in
+     * double from the float32 state (a product of two floats is exact in double). The
+     * realization through x rounds sums of magnitude |x| and |Fr0 r|: they join the slack.
+     */
+    double Fr0 = c->ff_Fr0, dr = (double)out->w_ref_radps - (double)before->r_prev_radps;
+    double xs0 = before->x_Nm, xs1 = ctl->x_Nm;
+    double x0 = xs0 - Fr0 * (double)before->r_prev_radps, x1 = xs1 - Fr0 * (double)ctl->r_prev_radps;
+    double e = out->e_radps, T_ff = out->T_ff_Nm;
     double g = c->Ki_Ka_Ts, kits = c->Ki_Ts, b = c->b_e0, T = T_app;
     double u_star = T - (double)out->T_unsat_Nm;
+    double ff_sum = fabs(xs0) + fabs(Fr0 * (double)before->r_prev_radps) + fabs(Fr0 * (double)out->w_ref_radps) +
+                    fabs(Fr0 * dr) + fabs((double)out->y_ff_Nm);
     double slack;
     fz_check_state_finite(ctl);
     if (ctl->fault_count != before->fault_count) {
@@ -318,11 +328,12 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
         memcpy(&expected, before, sizeof expected);
         expected.fault_count++;
         FZ_REQUIRE(memcmp(ctl, &expected, sizeof expected) == 0, "a rejected update changed the state");
-        /* refused only when a term of x[k-1] + Ki Ts e + g (T_app - T_unsat) comes near the float32 range */
+        /* refused only when a term of x[k-1] + Ki Ts e + g (T_app - T_unsat) + Fr0 dr comes near the float32 range */
         FZ_REQUIRE(out->fault || !isfinite(T_app) ||
-                       fmax(fmax(fabs(x0), fabs(kits * e)), fmax(fabs(u_star), fabs(g * u_star))) > 0.25 * FLT_MAX,
-                   "update refused a sample whose new state is finite: x %g e %g Ki_Ts %g g %g T_app %g T_unsat %g",
-                   x0, e, kits, g, T, (double)out->T_unsat_Nm);
+                       fmax(fmax(fmax(fabs(xs0), fabs(kits * e)), fmax(fabs(u_star), fabs(g * u_star))),
+                            fabs(Fr0 * dr)) > 0.25 * FLT_MAX,
+                   "update refused a sample whose new state is finite: x %g e %g Ki_Ts %g g %g T_app %g T_unsat %g "
+                   "Fr0 dr %g", xs0, e, kits, g, T, (double)out->T_unsat_Nm, Fr0 * dr);
         return;
     }
     FZ_REQUIRE(!out->fault && isfinite(T_app), "a fault or a non-finite applied torque %g was not counted", T);
@@ -331,14 +342,15 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
     if (c->Ki_Ka_Ts > 0.0f) {
         /* x[k] = (1 - g) x[k-1] + (Ki Ts - g b) e + g (T_app - T_ff): a contraction by |1 - g| < 1 */
         double bound = (fabs(kits - g * b) * fabs(e) + g * (fabs(T) + fabs(T_ff))) / (1.0 - fabs(1.0 - g));
-        slack = fz_slack(fabs(x0) + fabs(kits * e) + g * (fabs(T) + fabs(b * e) + fabs(x0) + fabs(T_ff)));
+        slack = fz_slack(fabs(x0) + fabs(kits * e) + g * (fabs(T) + fabs(b * e) + fabs(x0) + fabs(T_ff)) +
+                         (1.0 + g) * ff_sum + fabs(xs1));
         FZ_REQUIRE(fabs(x1) <= fmax(fabs(x0), bound) + slack,
                    "back calculation: |x| %.9g -> %.9g above the bound %.9g (g %g e %g T_app %g T_ff %g)", x0, x1,
                    bound, g, e, T, T_ff);
     } else if (c->clamping) {
         /* x moves towards z only while u has not passed T_app (see above) */
         double z = T + (kits - b) * e - T_ff;
-        slack = fz_slack(fabs(x0) + fabs(b * e) + fabs(kits * e) + fabs(T_ff) + fabs(T));
+        slack = fz_slack(fabs(x0) + fabs(b * e) + fabs(kits * e) + fabs(T_ff) + fabs(T) + ff_sum + fabs(xs1));
         FZ_REQUIRE(x1 <= fmax(x0, z) + slack && x1 >= fmin(x0, z) - slack,
                    "clamping: x %.9g -> %.9g passed z = %.9g (e %g T_app %g T_unsat %g T_ff %g)", x0, x1, z, e, T,
                    (double)out->T_unsat_Nm, T_ff);
@@ -404,7 +416,7 @@ static void fz_reset(p2d_speed_t *ctl, fz_reader_t *r)
         FZ_REQUIRE(isfinite(w_ref) && isfinite(T_init) && ctl->r_prev_radps == w_ref,
                    "reset(%g, %g) accepted: r_prev %g", (double)w_ref, (double)T_init, (double)ctl->r_prev_radps);
     } else {
-        FZ_REQUIRE(ctl->fault_count == before.fault_count + 1u && ctl->x_i_Nm == 0.0f &&
+        FZ_REQUIRE(ctl->fault_count == before.fault_count + 1u && ctl->x_Nm == 0.0f &&
                        ctl->r_prev_radps == 0.0f && ctl->y_ff_prev_Nm == 0.0f,
                    "a refused reset(%g, %g) must clear the state and count one fault", (double)w_ref,
                    (double)T_init);

@@ -8,7 +8,7 @@ void p2d_speed_run(p2d_speed_t *ctl, size_t n, const float *w_ref_radps, const f
 {
     for (size_t k = 0; k < n; ++k) {
         p2d_speed_step(ctl, w_ref_radps[k], w_m_radps[k], &out[k]);
-        x_i_Nm[k] = ctl->x_i_Nm;
+        x_i_Nm[k] = p2d_speed_integrator_Nm(ctl);
     }
 }
 

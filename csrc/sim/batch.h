@@ -20,7 +20,7 @@ extern "C" {
 
 /*
  * For k = 0 .. n-1: p2d_speed_step(ctl, w_ref_radps[k], w_m_radps[k], &out[k]),
- * then x_i_Nm[k] = the integrator state after that sample [Nm].
+ * then x_i_Nm[k] = p2d_speed_integrator_Nm(ctl), the integral of the PI after that sample [Nm].
  */
 void p2d_speed_run(p2d_speed_t *ctl, size_t n, const float *w_ref_radps, const float *w_m_radps,
                    p2d_speed_output_t *out, float *x_i_Nm);

@@ -522,7 +522,7 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_TORQUE_UNSAT_NM * log_rows] = (double)so->T_unsat_Nm;
     row[P2D_LOG_LOAD_NM * log_rows] = segment_value(&sim->load, t_k_s);
     row[P2D_LOG_SATURATED * log_rows] = so->saturated ? 1.0 : 0.0;
-    row[P2D_LOG_X_I_NM * log_rows] = (double)sim->speed.x_i_Nm;
+    row[P2D_LOG_X_I_NM * log_rows] = (double)p2d_speed_integrator_Nm(&sim->speed);
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
     row[P2D_LOG_U_DC_V * log_rows] = sim->u_dc_V;
     sim->n_rows++;

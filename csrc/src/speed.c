@@ -186,17 +186,20 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    /* steady state at r[k] = r[k-1] = w_ref: transient y = 0, T_ff = Fr0 w_ref; u = x at e = 0 */
-    float x_i = T_init_Nm - c->ff_Fr0 * w_ref_radps;
-    if (!isfinite(w_ref_radps) || !isfinite(x_i)) {
+    /*
+     * steady state at r[k] = r[k-1] = w_ref: transient y = 0, T_ff = Fr0 w_ref, and u = x at e = 0,
+     * so x = T_init; the integral x_i = T_init - Fr0 w_ref must be finite too
+     */
+    float x = T_init_Nm;
+    if (!isfinite(w_ref_radps) || !isfinite(T_init_Nm - c->ff_Fr0 * w_ref_radps)) {
         /* non-finite policy (arguments, or a steady state that overflows): clear the state instead, count the fault */
         ctl->fault_count++;
         w_ref_radps = 0.0f;
-        x_i = 0.0f;
+        x = 0.0f;
     }
     ctl->r_prev_radps = w_ref_radps;
     ctl->y_ff_prev_Nm = 0.0f;
-    ctl->x_i_Nm = x_i;
+    ctl->x_Nm = x;
 }
 
 /* Non-finite policy: zero torque and current, fault raised, so that the update leaves the state alone. */
@@ -217,16 +220,19 @@ static bool fault_output(p2d_speed_output_t *out)
 static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
                                 float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
-    float e, dr, y_ff, T_ff, u, T_sat;
+    float e, dr, y_ff, y_d, T_ff, u, T_sat;
 
     e = w_ref_radps - w_m_radps;
+    /* dr[k] = r[k] - r[k-1] */
     dr = w_ref_radps - ctl->r_prev_radps;
-    /* feedforward transient: y[k] = b_dr (r[k] - r[k-1]) - a1 y[k-1] */
+    /* feedforward transient: y[k] = b_dr dr[k] - a1 y[k-1] */
     y_ff = fmaf(-c->ff_a1, ctl->y_ff_prev_Nm, c->ff_b_dr * dr);
-    /* T_ff[k] = Fr0 r[k] + y[k] + Kd (r[k] - r[k-1]) / Ts */
-    T_ff = fmaf(c->ff_Kd_per_Ts, dr, fmaf(c->ff_Fr0, w_ref_radps, y_ff));
-    /* u[k] = b_e0 e[k] + x[k-1] + T_ff[k] */
-    u = fmaf(c->b_e0, e, ctl->x_i_Nm + T_ff);
+    /* y[k] + Kd dr[k] / Ts */
+    y_d = fmaf(c->ff_Kd_per_Ts, dr, y_ff);
+    /* T_ff[k] = Fr0 r[k] + y[k] + Kd dr[k] / Ts */
+    T_ff = fmaf(c->ff_Fr0, w_ref_radps, y_d);
+    /* u[k] = b_e0 e[k] + x[k-1] + (Fr0 dr[k] + y[k] + Kd dr[k] / Ts), x[k-1] = x_i[k-1] + Fr0 r[k-1] */
+    u = fmaf(c->b_e0, e, ctl->x_Nm + fmaf(c->ff_Fr0, dr, y_d));
 
     out->w_ref_radps = w_ref_radps;
     out->e_radps = e;
@@ -317,20 +323,21 @@ static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
 static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c,
                                    const p2d_speed_output_t *out, float T_applied_Nm)
 {
-    float u_star, dx, x_i;
+    float u_star, dx, x;
     /* u* = u_sat - u, with u_sat the torque actually applied */
     u_star = T_applied_Nm - out->T_unsat_Nm;
-    /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] */
+    /* integration: Ki Ts e[k] + Ki Ka Ts u*[k] */
     dx = fmaf(c->Ki_Ka_Ts, u_star, c->Ki_Ts * out->e_radps);
     /* clamping: hold the integrator while the limit is active and e drives further into it */
     if (c->clamping && opposite_signs(u_star, out->e_radps)) dx = 0.0f;
-    x_i = ctl->x_i_Nm + dx;
-    if (!isfinite(x_i)) {
+    /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]: the static feedforward moves with r, never held */
+    x = fmaf(c->ff_Fr0, out->w_ref_radps - ctl->r_prev_radps, ctl->x_Nm + dx);
+    if (!isfinite(x)) {
         /* non-finite policy: an update that would overflow the integrator is refused */
         ctl->fault_count++;
         return;
     }
-    ctl->x_i_Nm = x_i;
+    ctl->x_Nm = x;
     ctl->r_prev_radps = out->w_ref_radps;
     ctl->y_ff_prev_Nm = out->y_ff_Nm;
 }
@@ -384,6 +391,12 @@ void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_sp
     }
     surface_current(c, out);
     speed_integrate(ctl, c, out, out->T_ref_Nm);
+}
+
+float p2d_speed_integrator_Nm(const p2d_speed_t *ctl)
+{
+    /* x_i[k-1] = x[k-1] - Fr0 r[k-1] */
+    return fmaf(-ctl->coef[ctl->active].ff_Fr0, ctl->r_prev_radps, ctl->x_Nm);
 }
 
 float p2d_speed_Ka_default(float J_kgm2, float alpha_radps)

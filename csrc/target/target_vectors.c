@@ -12,7 +12,7 @@
  *   applied command (exercises the non-finite policy of the update).
  *
  * Output, one line per sample (all words hex):
- *   S case k  w_ref e T_ff y_ff T_unsat T_ref id_ref iq_ref saturated fault x_i r_prev y_ff_prev fault_count
+ *   S case k  w_ref e T_ff y_ff T_unsat T_ref id_ref iq_ref saturated fault x r_prev y_ff_prev fault_count
  *   C case k  ed eq ud_unsat uq_unsat ud_ref uq_ref saturated fault x_d x_q fault_count
  * and one line per case after init: "I S case status" or "I C case status".
  */
@@ -79,7 +79,7 @@ static void run_speed_case(uint32_t c, p2d_line_t *line)
         p2d_line_float(line, out.iq_ref_A);
         p2d_line_hex(line, out.saturated);
         p2d_line_hex(line, out.fault);
-        p2d_line_float(line, ctl.x_i_Nm);
+        p2d_line_float(line, ctl.x_Nm);
         p2d_line_float(line, ctl.r_prev_radps);
         p2d_line_float(line, ctl.y_ff_prev_Nm);
         p2d_line_hex(line, ctl.fault_count);

@@ -155,21 +155,21 @@ static void test_anti_windup_modes(void)
     CHECK(out.saturated);
     CHECK_CLOSE(out.T_ref_Nm, 3.0, 1e-6);
     CHECK_CLOSE(out.iq_ref_A, 10.0, 1e-5);
-    CHECK_CLOSE(ctl.x_i_Nm, 3.0 - b_e0 * e + e / Ka, 1e-3);
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), 3.0 - b_e0 * e + e / Ka, 1e-3);
 
     cfg.anti_windup = P2D_AW_CLAMPING;
     CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
     for (int k = 0; k < 1000; ++k) p2d_speed_step(&ctl, 100.0f, 0.0f, &out);
-    CHECK(ctl.x_i_Nm == 0.0f);
+    CHECK(p2d_speed_integrator_Nm(&ctl) == 0.0f);
     /* the error reverses: integration resumes at once */
     p2d_speed_step(&ctl, -0.001f, 0.0f, &out);
     CHECK(!out.saturated);
-    CHECK_CLOSE(ctl.x_i_Nm, -0.001 * 200.0 * 1e-4, 1e-9);
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), -0.001 * 200.0 * 1e-4, 1e-9);
 
     cfg.anti_windup = P2D_AW_NONE;
     CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
     for (int k = 0; k < 1000; ++k) p2d_speed_step(&ctl, 100.0f, 0.0f, &out);
-    CHECK_CLOSE(ctl.x_i_Nm, 1000 * 200.0 * 1e-4 * e, 0.05);
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), 1000 * 200.0 * 1e-4 * e, 0.05);
 }
 
 /* update() uses the torque actually applied: u* = T_applied - u */
@@ -180,10 +180,10 @@ static void test_update_with_applied_torque(void)
     p2d_speed_output_t out;
     CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
     p2d_speed_compute(&ctl, 0.2f, 0.0f, &out);
-    CHECK(ctl.x_i_Nm == 0.0f); /* compute leaves the state alone */
+    CHECK(p2d_speed_integrator_Nm(&ctl) == 0.0f); /* compute leaves the state alone */
     p2d_speed_update(&ctl, &out, 0.5f);
     /* x[0] = Ki Ts e + Ki Ka Ts (0.5 - u) */
-    CHECK_CLOSE(ctl.x_i_Nm, 200e-4 * 0.2 + 200e-4 * 0.25 * (0.5 - out.T_unsat_Nm), 1e-7);
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), 200e-4 * 0.2 + 200e-4 * 0.25 * (0.5 - out.T_unsat_Nm), 1e-7);
 }
 
 static void test_non_finite_policy(void)
@@ -199,21 +199,21 @@ static void test_non_finite_policy(void)
     p2d_speed_step(&ctl, 10.0f, NAN, &out);
     CHECK(out.fault);
     CHECK(out.T_ref_Nm == 0.0f && out.id_ref_A == 0.0f && out.iq_ref_A == 0.0f);
-    CHECK(ctl.x_i_Nm == before.x_i_Nm);
+    CHECK(ctl.x_Nm == before.x_Nm);
     CHECK(ctl.y_ff_prev_Nm == before.y_ff_prev_Nm);
     CHECK(ctl.r_prev_radps == before.r_prev_radps);
     CHECK(ctl.fault_count == 1u);
     p2d_speed_step(&ctl, INFINITY, 1.0f, &out);
-    CHECK(out.fault && ctl.fault_count == 2u && ctl.x_i_Nm == before.x_i_Nm);
+    CHECK(out.fault && ctl.fault_count == 2u && ctl.x_Nm == before.x_Nm);
     /* a non-finite applied torque is refused too */
     p2d_speed_compute(&ctl, 10.0f, 1.0f, &out);
     p2d_speed_update(&ctl, &out, NAN);
-    CHECK(ctl.fault_count == 3u && ctl.x_i_Nm == before.x_i_Nm);
+    CHECK(ctl.fault_count == 3u && ctl.x_Nm == before.x_Nm);
     p2d_speed_step(&ctl, 10.0f, 1.0f, &out);
     CHECK(!out.fault && isfinite(out.T_ref_Nm));
     /* a non-finite reset clears the state and counts a fault */
     p2d_speed_reset(&ctl, NAN, 1.0f);
-    CHECK(ctl.fault_count == 4u && ctl.x_i_Nm == 0.0f && ctl.r_prev_radps == 0.0f);
+    CHECK(ctl.fault_count == 4u && ctl.x_Nm == 0.0f && ctl.r_prev_radps == 0.0f);
 }
 
 /* Bumpless reset: at zero error and constant reference the output is T_init */
@@ -227,14 +227,15 @@ static void test_reset(void)
     p2d_speed_reset(&ctl, 50.0f, 1.25f);
     /* eq 13 at s = 0: Fr(0) r = -Ki / alpha r = -50 Nm, no transient; u = x = 1.25 Nm at e = 0 */
     CHECK(ctl.y_ff_prev_Nm == 0.0f && ctl.r_prev_radps == 50.0f);
-    CHECK_CLOSE(ctl.x_i_Nm, 1.25 + 200.0 / 200.0 * 50.0, 1e-5);
+    CHECK(ctl.x_Nm == 1.25f);
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), 1.25 + 200.0 / 200.0 * 50.0, 1e-5);
     for (int k = 0; k < 3; ++k) {
         p2d_speed_step(&ctl, 50.0f, 50.0f, &out);
         CHECK_CLOSE(out.T_ff_Nm, -50.0, 1e-5);
         CHECK_CLOSE(out.T_unsat_Nm, 1.25, 1e-5);
     }
     p2d_speed_reset(&ctl, 0.0f, 0.0f);
-    CHECK(ctl.x_i_Nm == 0.0f && ctl.y_ff_prev_Nm == 0.0f && ctl.r_prev_radps == 0.0f);
+    CHECK(ctl.x_Nm == 0.0f && ctl.y_ff_prev_Nm == 0.0f && ctl.r_prev_radps == 0.0f);
 }
 
 /* Lowpass feedforward, Tustin (eq 15): y[k] = ((2 - a Ts) y[k-1] - Ki Ts (r[k] + r[k-1])) / (2 + a Ts) */
@@ -274,9 +275,73 @@ static void test_set_config(void)
     cfg.zeta = 2.0f;
     CHECK(p2d_speed_set_config(&ctl, &cfg) == P2D_OK);
     CHECK(ctl.active != before.active);
-    CHECK(ctl.x_i_Nm == before.x_i_Nm);
+    CHECK(ctl.x_Nm == before.x_Nm);
     /* Ki = J (alpha / (2 zeta))^2 = 0.02 * 50^2 = 50 */
     CHECK_CLOSE(ctl.coef[ctl.active].Ki, 50.0, 1e-4);
+}
+
+/*
+ * A change of Fr(0) across set_config is bumpless: at a constant reference and
+ * zero error u = x_i + Fr(0) r keeps its value, and the integral takes the
+ * difference. Lowpass (eq 13): Fr(0) = -Ki / alpha = -J alpha / (4 zeta^2).
+ */
+static void test_set_config_bumpless_feedforward(void)
+{
+    p2d_speed_config_t cfg = surface_config();
+    p2d_speed_t ctl;
+    p2d_speed_output_t out;
+    const double J = 0.02, alpha = 200.0, r = 50.0, T0 = 1.25;
+    double Fr0_old, Fr0_new;
+    cfg.feedforward = P2D_FF_LOWPASS;
+    CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
+    p2d_speed_reset(&ctl, (float)r, (float)T0);
+    p2d_speed_step(&ctl, (float)r, (float)r, &out);
+    CHECK_CLOSE(out.T_unsat_Nm, T0, 1e-6);
+    Fr0_old = -J * alpha / (4.0 * 1.0 * 1.0);
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), T0 - Fr0_old * r, 1e-5);
+    cfg.zeta = 2.0f;
+    CHECK(p2d_speed_set_config(&ctl, &cfg) == P2D_OK);
+    Fr0_new = -J * alpha / (4.0 * 2.0 * 2.0);
+    for (int k = 0; k < 3; ++k) {
+        p2d_speed_step(&ctl, (float)r, (float)r, &out);
+        CHECK_CLOSE(out.T_unsat_Nm, T0, 1e-6);
+        CHECK_CLOSE(out.T_ff_Nm, Fr0_new * r, 1e-5);
+    }
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), T0 - Fr0_new * r, 1e-5);
+}
+
+/*
+ * The integrator state holds the load torque, not the static feedforward:
+ * under a constant reference r = 500 rad/s with Fr(0) r = -500 Nm (lowpass,
+ * eq 13: Fr(0) = -Ki / alpha = -1 Nm/(rad/s)), an error e = 2^-11 rad/s gives
+ * increments Ki Ts e = 9.8e-6 Nm, under half an ulp of 501 Nm (1.5e-5 Nm) but
+ * far above half an ulp of the 1 Nm load (6e-8 Nm). They must move the command
+ * exactly as in the 1DOF PI (Fr = 0), whose state is the same 1 Nm.
+ */
+static void test_integrator_resolution_under_feedforward(void)
+{
+    p2d_speed_config_t cfg = surface_config();
+    p2d_speed_t ctl, pi;
+    p2d_speed_output_t out, out_pi;
+    const float r = 500.0f, e = 0x1p-11f;
+    const double Ki_Ts = 200.0 * 1e-4;
+    cfg.anti_windup = P2D_AW_NONE;
+    cfg.i_max_A = 1e4f;
+    CHECK(p2d_speed_init(&pi, &cfg) == P2D_OK);
+    cfg.feedforward = P2D_FF_LOWPASS;
+    CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
+    CHECK_CLOSE(ctl.coef[ctl.active].ff_Fr0 * r, -500.0, 1e-3);
+    p2d_speed_reset(&ctl, r, 1.0f);
+    p2d_speed_reset(&pi, r, 1.0f);
+    for (int k = 0; k < 1000; ++k) {
+        p2d_speed_step(&ctl, r, r - e, &out);
+        p2d_speed_step(&pi, r, r - e, &out_pi);
+    }
+    CHECK(!out.saturated && out.e_radps == e);
+    CHECK(out.T_unsat_Nm == out_pi.T_unsat_Nm);
+    /* 1000 increments Ki Ts e on x = 1 Nm */
+    CHECK_CLOSE(ctl.x_Nm, 1.0 + 1000.0 * Ki_Ts * (double)e, 1e-4);
+    CHECK_CLOSE(p2d_speed_integrator_Nm(&ctl), 501.0 + 1000.0 * Ki_Ts * (double)e, 1e-4);
 }
 
 /* Salient PMSM: MTPA current gives the commanded torque, ||i|| <= i_max */
@@ -474,6 +539,8 @@ int main(void)
     test_reset();
     test_lowpass_feedforward_sequence();
     test_set_config();
+    test_set_config_bumpless_feedforward();
+    test_integrator_resolution_under_feedforward();
     test_mtpa();
     test_feedforward_steady_state();
     test_surface_current_limit_is_exact();

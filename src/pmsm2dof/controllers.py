@@ -314,7 +314,7 @@ class SpeedController:
         -------
         dict of numpy.ndarray
             One array per field of :class:`SpeedOutput` (float32, bool for
-            ``saturated`` and ``fault``) plus ``x_i_Nm``, the integrator state
+            ``saturated`` and ``fault``) plus ``x_i_Nm``, the integral of the PI
             after each sample. The state carries over to the next call. Samples
             with non-finite input are flagged in ``fault``.
         """
@@ -367,9 +367,18 @@ class SpeedController:
 
     @property
     def state(self):
-        """Controller state: integrator ``x_i_Nm``, ``r_prev_radps`` and ``y_ff_prev_Nm``."""
+        """Controller state: ``x_Nm``, ``r_prev_radps`` and ``y_ff_prev_Nm``.
+
+        ``x_Nm`` is the integrator plus the static feedforward, x = x_i + Fr(0) r[k-1]
+        (csrc/include/pmsm2dof/speed.h); :attr:`x_i_Nm` is the integral alone.
+        """
         c = self._ctl
-        return {"x_i_Nm": c.x_i_Nm, "r_prev_radps": c.r_prev_radps, "y_ff_prev_Nm": c.y_ff_prev_Nm}
+        return {"x_Nm": c.x_Nm, "r_prev_radps": c.r_prev_radps, "y_ff_prev_Nm": c.y_ff_prev_Nm}
+
+    @property
+    def x_i_Nm(self):
+        """Integral of the PI, x_i = x - Fr(0) r[k-1] [Nm] (``p2d_speed_integrator_Nm``)."""
+        return lib.p2d_speed_integrator_Nm(self._ctl)
 
     @property
     def fault_count(self):

@@ -29,25 +29,44 @@
  * discretized proper part (b0 + b1 z^-1) / (1 + a1 z^-1) (D included) equals
  *   Fr0 + b_dr (1 - z^-1) / (1 + a1 z^-1),   b_dr = b0 - Fr0,
  * with Fr0 = Fr(s = 0) = -J alpha / (4 zeta^2 m) (eq 11 at s = 0; -Ki/alpha for
- * LOWPASS), because b0 + b1 = Fr0 (1 + a1). The step computes
- *   y[k]    = b_dr (r[k] - r[k-1]) - a1 y[k-1]                  transient [Nm]
- *   T_ff[k] = Fr0 r[k] + y[k] + Kd (r[k] - r[k-1]) / Ts
- * The steady-state torque Fr0 r is one product, and y decays to exactly 0 under
- * a constant reference: T_ff settles within about one float32 ulp of Fr(0) r. A
- * section on r itself, whose pole -a1 ~ 1 - m alpha Ts is near 1, amplifies the
- * float32 rounding of its coefficients and of its state (which stops moving
- * once its increments fall under half an ulp) by about 1/(m alpha Ts): folded
- * with D it left offsets of 6e-5 to 3e-4 Nm on 46 to 105 Nm (m alpha Ts = 0.014
- * to 0.032) and 8e-4 to 9e-3 Nm on 18 to 40 Nm (m alpha Ts = 3.5e-4 to 8e-4);
- * keeping D apart leaves the section's own offset, of the same size.
+ * LOWPASS), because b0 + b1 = Fr0 (1 + a1). With dr[k] = r[k] - r[k-1]:
+ *   y[k]    = b_dr dr[k] - a1 y[k-1]                            transient [Nm]
+ *   T_ff[k] = Fr0 r[k] + y[k] + Kd dr[k] / Ts
+ * y decays to exactly 0 under a constant reference. A section on r itself,
+ * whose pole -a1 ~ 1 - m alpha Ts is near 1, amplifies the float32 rounding of
+ * its coefficients and of its state (which stops moving once its increments
+ * fall under half an ulp) by about 1/(m alpha Ts): folded with D it left
+ * offsets of 6e-5 to 3e-4 Nm on 46 to 105 Nm (m alpha Ts = 0.014 to 0.032) and
+ * 8e-4 to 9e-3 Nm on 18 to 40 Nm (m alpha Ts = 3.5e-4 to 8e-4).
  *
- * Discrete PI, the same for all methods (only b_e0 differs):
- *   u[k]   = b_e0 e[k] + x[k-1] + T_ff[k]
- *   x[k]   = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k]          (back_calculation)
+ * Discrete PI (eq 14), the same for all methods (only b_e0 differs):
+ *   u[k]   = b_e0 e[k] + x_i[k-1] + T_ff[k]
+ *   x_i[k] = x_i[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k]        (back_calculation)
  *   b_e0   = Kp (forward Euler), Kp + Ki Ts (backward Euler), Kp + Ki Ts / 2 (Tustin, eq 14)
  * The error path is exactly F(z) of the chosen method. The applied command is
  * only known after the output is computed, so the u* path enters the state one
  * sample later for every method (the usual embedded realization).
+ *
+ * The state x: integrator plus static feedforward. At a constant reference
+ * the integral x_i holds the load torque minus Fr0 r (39.4 Nm for 8 Nm of
+ * load on the paper's drive at 500 rpm: Fr0 r = -31.4 Nm), and in float32 an
+ * increment Ki Ts e under half an ulp of x_i is lost: the speed error stalls
+ * in a dead band that grows with |Fr0 r| (0.31 rpm at Ts = 1e-4 s there, 20
+ * times that of the 1DOF PI). The step therefore keeps the sum that the limit
+ * sees at steady state,
+ *   x[k] = x_i[k] + Fr0 r[k],
+ * and realizes the same equations as
+ *   u[k] = b_e0 e[k] + x[k-1] + (Fr0 dr[k] + y[k] + Kd dr[k] / Ts)
+ *   x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]
+ * Check: x[k-1] + Fr0 dr[k] = x_i[k-1] + Fr0 r[k], so u[k] is the u[k] above;
+ * and x[k] - Fr0 r[k] = x_i[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] = x_i[k], so
+ * x[k] = x_i[k] + Fr0 r[k] holds at every k by induction. The transfer
+ * functions from r, w_m and u* are unchanged. The term Fr0 dr[k] is the
+ * feedforward moving, not integration: clamping holds only the integration
+ * (Ki Ts e + Ki Ka Ts u*), so x_i is held exactly as before. At a constant
+ * reference x holds the load torque alone (8 Nm), and the dead band is that of
+ * the 1DOF PI. p2d_speed_integrator_Nm returns x_i = x - Fr0 r[k-1], the
+ * integral of the PI, for logs and analysis (one rounding of the difference).
  *
  * Torque to current: surface PMSM (Ld == Lq): id = 0, iq = T / (1.5 p psi_f).
  * Salient PMSM: maximum torque per ampere. The current-vector limit
@@ -79,7 +98,11 @@
  * Parameter updates: p2d_speed_set_config validates the new configuration and
  * computes its coefficients into the inactive of two coefficient sets, then
  * makes it active with one aligned 32-bit store. On an invalid configuration
- * nothing changes. Call it from a context that the step cannot preempt
+ * nothing changes. The state (x, r[k-1], y[k-1]) is kept as it is, so the
+ * output at a constant reference and zero error, x + y, does not jump: when
+ * Fr0 changes, the integral x_i = x - Fr0 r[k-1] takes the difference
+ * (Fr0_old - Fr0_new) r[k-1] over and the sum that the limit sees stays put
+ * (bumpless transfer). Call it from a context that the step cannot preempt
  * mid-update in reverse (on a single-core MCU: from the background loop,
  * with step in the interrupt).
  *
@@ -149,7 +172,7 @@ typedef struct {
     p2d_speed_coef_t coef[2];  /* active and shadow coefficient sets */
     uint32_t active;           /* index of the active set, 0 or 1 */
     p2d_speed_config_t config; /* configuration of the active set */
-    float x_i_Nm;              /* integrator state x[k-1] [Nm] */
+    float x_Nm;                /* integrator plus static feedforward x[k-1] = x_i[k-1] + Fr0 r[k-1] [Nm] */
     float r_prev_radps;        /* reference of the previous sample r[k-1] [rad/s] */
     float y_ff_prev_Nm;        /* feedforward transient y[k-1] [Nm]; 0 at a constant reference */
     uint32_t fault_count;      /* samples rejected by the non-finite policy [-] */
@@ -178,7 +201,7 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
 /*
  * Bumpless reset: the feedforward at its steady state for a constant
  * reference w_ref_radps (transient y = 0), and the integrator such that the output equals
- * T_init_Nm at zero error. p2d_speed_reset(ctl, 0, 0) clears everything.
+ * T_init_Nm at zero error (x = T_init_Nm, x_i = T_init_Nm - Fr0 w_ref_radps). p2d_speed_reset(ctl, 0, 0) clears everything.
  * A non-finite argument, or a steady state that overflows float32, clears the
  * state as (0, 0) and counts a fault.
  */
@@ -194,6 +217,9 @@ void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_a
 /* compute + update with the controller's own limited torque. */
 void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps,
                     p2d_speed_output_t *out);
+
+/* The integral of the PI, x_i[k-1] = x[k-1] - Fr0 r[k-1] [Nm] (rounded once). */
+float p2d_speed_integrator_Nm(const p2d_speed_t *ctl);
 
 /* The paper's default back-calculation gain Ka = 1/Kp = 1/(J alpha) (section 3.3). */
 float p2d_speed_Ka_default(float J_kgm2, float alpha_radps);
