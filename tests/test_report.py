@@ -161,7 +161,11 @@ def test_measured_values_follow_the_simulations():
         {"motor.J_kgm2": 0.5, "speed_controller.J_design_kgm2": 0.4}, **REDUCED))}
     tuned = {c.id: c for c in compute_claims(run_studies({"speed_controller.zeta": 0.35}, **REDUCED))}
     for cid, claim in base.items():
-        if "simulation" in claim.source:
+        if cid == "C20":
+            # eq 5 and 8 do not depend on Fr, and with Fr(0) r held in the speed integrator's state the
+            # 1DOF and 2DOF load dips agree to the float32 bit: C20 is counts and a zero difference
+            assert plant[cid].values["load_same"] == plant[cid].values["points"] == claim.values["load_same"]
+        elif "simulation" in claim.source:
             assert plant[cid].values != claim.values, f"{cid} does not change with the plant's inertia"
         if "design" in claim.source:
             assert tuned[cid].values != claim.values, f"{cid} does not change with zeta"

@@ -279,9 +279,17 @@ static void fz_check_output(const p2d_speed_t *ctl, float w_ref, float w_m, cons
                    (double)out->iq_ref_A);
         return;
     }
+    /*
+     * the command does not use the static feedforward Fr0 r (the state holds it, speed.h): the
+     * diagnostic T_ff may overflow only where Fr0 r[k-1] or Fr0 r[k] is out of the float32 range
+     */
+    FZ_REQUIRE(isfinite(out->T_ff_Nm) ||
+                   fmax(fabs((double)c->ff_Fr0 * (double)ctl->r_prev_radps), fabs((double)c->ff_Fr0 * (double)w_ref)) >
+                       0.25 * FLT_MAX,
+               "non-finite T_ff %g without fault (w_ref %g r_prev %g Fr0 %g)", (double)out->T_ff_Nm, (double)w_ref,
+               (double)ctl->r_prev_radps, (double)c->ff_Fr0);
     FZ_REQUIRE(isfinite(out->T_unsat_Nm) && isfinite(out->T_ref_Nm) && isfinite(out->id_ref_A) &&
-                   isfinite(out->iq_ref_A) && isfinite(out->e_radps) && isfinite(out->T_ff_Nm) &&
-                   isfinite(out->y_ff_Nm),
+                   isfinite(out->iq_ref_A) && isfinite(out->e_radps) && isfinite(out->y_ff_Nm),
                "non-finite output without fault: T %g id %g iq %g (w_ref %g w_m %g; T_max %g, salient %d)",
                (double)out->T_ref_Nm, (double)out->id_ref_A, (double)out->iq_ref_A, (double)w_ref, (double)w_m,
                (double)c->T_max_Nm, (int)c->salient);

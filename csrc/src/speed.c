@@ -220,19 +220,19 @@ static bool fault_output(p2d_speed_output_t *out)
 static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
                                 float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
-    float e, dr, y_ff, y_d, T_ff, u, T_sat;
+    float e, dr, y_ff, dT_ff, T_ff, u, T_sat;
 
     e = w_ref_radps - w_m_radps;
     /* dr[k] = r[k] - r[k-1] */
     dr = w_ref_radps - ctl->r_prev_radps;
     /* feedforward transient: y[k] = b_dr dr[k] - a1 y[k-1] */
     y_ff = fmaf(-c->ff_a1, ctl->y_ff_prev_Nm, c->ff_b_dr * dr);
-    /* y[k] + Kd dr[k] / Ts */
-    y_d = fmaf(c->ff_Kd_per_Ts, dr, y_ff);
-    /* T_ff[k] = Fr0 r[k] + y[k] + Kd dr[k] / Ts */
-    T_ff = fmaf(c->ff_Fr0, w_ref_radps, y_d);
-    /* u[k] = b_e0 e[k] + x[k-1] + (Fr0 dr[k] + y[k] + Kd dr[k] / Ts), x[k-1] = x_i[k-1] + Fr0 r[k-1] */
-    u = fmaf(c->b_e0, e, ctl->x_Nm + fmaf(c->ff_Fr0, dr, y_d));
+    /* dT[k] = Fr0 dr[k] + y[k] + Kd dr[k] / Ts, the move of T_ff from Fr0 r[k-1] */
+    dT_ff = fmaf(c->ff_Fr0, dr, fmaf(c->ff_Kd_per_Ts, dr, y_ff));
+    /* T_ff[k] = Fr0 r[k-1] + dT[k] = Fr0 r[k] + y[k] + Kd dr[k] / Ts */
+    T_ff = fmaf(c->ff_Fr0, ctl->r_prev_radps, dT_ff);
+    /* u[k] = b_e0 e[k] + x[k-1] + dT[k], x[k-1] = x_i[k-1] + Fr0 r[k-1] */
+    u = fmaf(c->b_e0, e, ctl->x_Nm + dT_ff);
 
     out->w_ref_radps = w_ref_radps;
     out->e_radps = e;

@@ -51,13 +51,15 @@
  * the integral x_i holds the load torque minus Fr0 r (39.4 Nm for 8 Nm of
  * load on the paper's drive at 500 rpm: Fr0 r = -31.4 Nm), and in float32 an
  * increment Ki Ts e under half an ulp of x_i is lost: the speed error stalls
- * in a dead band that grows with |Fr0 r| (0.31 rpm at Ts = 1e-4 s there, 20
- * times that of the 1DOF PI). The step therefore keeps the sum that the limit
+ * in a dead band that grows with |Fr0 r| (0.31 rpm at Ts = 1e-4 s there, about
+ * 20 times that of the 1DOF PI). The step therefore keeps the sum that the limit
  * sees at steady state,
  *   x[k] = x_i[k] + Fr0 r[k],
  * and realizes the same equations as
- *   u[k] = b_e0 e[k] + x[k-1] + (Fr0 dr[k] + y[k] + Kd dr[k] / Ts)
- *   x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]
+ *   dT[k]   = Fr0 dr[k] + y[k] + Kd dr[k] / Ts      move of T_ff from Fr0 r[k-1] [Nm]
+ *   u[k]    = b_e0 e[k] + x[k-1] + dT[k]
+ *   x[k]    = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]
+ *   T_ff[k] = Fr0 r[k-1] + dT[k]                     (the output T_ff_Nm)
  * Check: x[k-1] + Fr0 dr[k] = x_i[k-1] + Fr0 r[k], so u[k] is the u[k] above;
  * and x[k] - Fr0 r[k] = x_i[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] = x_i[k], so
  * x[k] = x_i[k] + Fr0 r[k] holds at every k by induction. The transfer
@@ -65,8 +67,9 @@
  * feedforward moving, not integration: clamping holds only the integration
  * (Ki Ts e + Ki Ka Ts u*), so x_i is held exactly as before. At a constant
  * reference x holds the load torque alone (8 Nm), and the dead band is that of
- * the 1DOF PI. p2d_speed_integrator_Nm returns x_i = x - Fr0 r[k-1], the
- * integral of the PI, for logs and analysis (one rounding of the difference).
+ * the 1DOF PI (0.016 rpm there, the same as with Fr = 0).
+ * p2d_speed_integrator_Nm returns x_i = x - Fr0 r[k-1], the integral of the
+ * PI, for logs and analysis (one rounding of the difference).
  *
  * Torque to current: surface PMSM (Ld == Lq): id = 0, iq = T / (1.5 p psi_f).
  * Salient PMSM: maximum torque per ampere. The current-vector limit
@@ -93,7 +96,8 @@
  * output and the latched fault counter of the controller is incremented. An
  * update with a non-finite applied torque, or whose new integrator state would
  * not be finite, is refused the same way (counted, state kept), so the state
- * is never poisoned.
+ * is never poisoned. The command does not use Fr0 r itself (the state holds
+ * it): where Fr0 r overflows float32 only the diagnostic T_ff_Nm is infinite.
  *
  * Parameter updates: p2d_speed_set_config validates the new configuration and
  * computes its coefficients into the inactive of two coefficient sets, then
