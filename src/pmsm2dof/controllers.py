@@ -67,7 +67,8 @@ def _raise_status(status, given):
     valid = ffi.string(lib.p2d_status_range(status)).decode()
     value = given.get(param)
     if isinstance(value, numbers.Real) and math.isfinite(value) and value != 0:
-        as_float32 = float(np.float32(value))
+        with np.errstate(over="ignore"):  # the overflow to inf is what the message reports
+            as_float32 = float(np.float32(value))
         if as_float32 == 0 or math.isinf(as_float32):
             valid += f" (computed in float32, where {value!r} becomes {as_float32!r})"
     raise ConfigError(param, value, valid)
