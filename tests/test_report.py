@@ -147,6 +147,21 @@ def test_bad_out_and_bad_override_fail_cleanly(tmp_path, capsys):
     assert a_file.read_text() == "x"
 
 
+def test_unwritable_out_fails_before_any_run(tmp_path, capsys, monkeypatch):
+    import pmsm2dof.studies
+
+    def no_runs(*args, **kwargs):
+        raise AssertionError("the studies ran although the output folder cannot be written")
+
+    monkeypatch.setattr(pmsm2dof.studies, "run_studies", no_runs)
+    a_file = tmp_path / "a-file"
+    a_file.write_text("x")
+    # a folder inside a file cannot be created, whoever runs the test (root included)
+    assert main(["reproduce", "--out", str(a_file / "report")]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "out" in err and "writable" in err
+
+
 # ---------------------------------------------------------------------------------------------
 # the measured values come from the simulations
 # ---------------------------------------------------------------------------------------------

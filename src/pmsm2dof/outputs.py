@@ -13,6 +13,24 @@ from pathlib import Path
 from .errors import ConfigError
 
 
+def _stage(out):
+    """Create and return the temporary sibling folder of ``out``, or raise ConfigError."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ConfigError("out", str(out), "a folder path (it is an existing file)")
+    parent = out.resolve().parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        return Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
+    except OSError as exc:
+        raise ConfigError("out", str(out), f"a writable folder ({exc.strerror})") from None
+
+
+def require_writable_dir(out):
+    """Raise ConfigError now, before any long work, if ``out`` cannot be written as a folder."""
+    _stage(out).rmdir()
+
+
 @contextlib.contextmanager
 def staged_dir(out):
     """Yield a temporary folder whose files replace those in ``out`` on success.
@@ -20,14 +38,7 @@ def staged_dir(out):
     On an exception the temporary folder is removed and ``out`` is untouched.
     """
     out = Path(out)
-    parent = out.resolve().parent
-    if out.exists() and not out.is_dir():
-        raise ConfigError("out", str(out), "a folder path (it is an existing file)")
-    try:
-        parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
-    except OSError as exc:
-        raise ConfigError("out", str(out), f"a writable folder ({exc.strerror})") from None
+    tmp = _stage(out)
     try:
         yield tmp
         out.mkdir(exist_ok=True)

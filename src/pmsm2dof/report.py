@@ -45,7 +45,7 @@ from . import studies as st
 from .design import design
 from .errors import ConfigError, SimulationError
 from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, compute_metrics
-from .outputs import atomic_write, staged_dir
+from .outputs import atomic_write, require_writable_dir, staged_dir
 from .plots import bode_gx_sweep
 from .scenario import load_scenario
 from .simulate import simulate
@@ -1491,8 +1491,7 @@ def reproduce(out="pmsm2dof-report", overrides=None, points=st.POINTS, progress=
     SimulationError
         A run of the paper's conditions stopped.
     """
-    if Path(out).exists() and not Path(out).is_dir():
-        raise ConfigError("out", str(out), "a folder path (it is an existing file)")
+    require_writable_dir(out)
     studies = st.run_studies(overrides, points=points, progress=progress)
     claims, files, wall_time_s = write_report(studies, out, progress=progress)
     return Report(out=Path(out), claims=claims, studies=studies, files=files, wall_time_s=wall_time_s)
