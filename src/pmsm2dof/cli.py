@@ -17,27 +17,6 @@ def cli():
     """Design, simulate and deploy the anti-windup 2DOF PI speed controller of a PMSM."""
 
 
-@cli.command()
-@click.argument("scenario", required=False, metavar="[PRESET_OR_FILE]")
-@click.option("--port", type=int, default=None,
-              help="TCP port; 0 for any free port [default: 8765, or a free one if busy]")
-@click.option("--host", default="127.0.0.1", show_default=True,
-              help="interface to listen on; anything but loopback exposes the tuner to the network")
-@click.option("--no-browser", is_flag=True, help="do not open the page in a browser")
-def tune(scenario, port, host, no_browser):
-    """Tune the speed controller in the browser: responses redrawn as the sliders move.
-
-    Starts from PRESET_OR_FILE (default: paper-condition-2) and serves a local page with
-    sliders for alpha, zeta, m, Ka, the feedforward, anti-windup, discretization and Ts,
-    the inertia error and the speed and load steps; downloads the scenario (TOML), the
-    C header of the design and the trace (CSV).
-    """
-    from .scenario import load_scenario
-    from .tuner import DEFAULT_PRESET, run_tuner
-
-    run_tuner(load_scenario(scenario or DEFAULT_PRESET), host=host, port=port, open_browser=not no_browser)
-
-
 def _one_line(text):
     return " ".join(str(text).split())
 
@@ -301,6 +280,11 @@ def presets(keys):
         click.echo(f"{name:<{width}}  {load_scenario(name).description}")
 
 
+# ---------------------------------------------------------------------------------------------
+# sweep (pmsm2dof.sweep, sweepplots)
+# ---------------------------------------------------------------------------------------------
+
+
 @cli.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--out", required=True, type=click.Path(file_okay=False),
@@ -335,3 +319,29 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
         values = ", ".join(f"{key}={row[key]}" for key in chosen.keys)
         click.echo(f"  worst {chosen.rank_by} = {row[chosen.rank_by]:.4g} at point {row['point']}: {values}")
     click.echo(f"wrote results.parquet, results.csv and {len(run.files) - 2} figures to {out}")
+
+
+# ---------------------------------------------------------------------------------------------
+# tune (pmsm2dof.tuner)
+# ---------------------------------------------------------------------------------------------
+
+
+@cli.command()
+@click.argument("scenario", required=False, metavar="[PRESET_OR_FILE]")
+@click.option("--port", type=int, default=None,
+              help="TCP port; 0 for any free port [default: 8765, or a free one if busy]")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="interface to listen on; anything but loopback exposes the tuner to the network")
+@click.option("--no-browser", is_flag=True, help="do not open the page in a browser")
+def tune(scenario, port, host, no_browser):
+    """Tune the speed controller in the browser: responses redrawn as the sliders move.
+
+    Starts from PRESET_OR_FILE (default: paper-condition-2) and serves a local page with
+    sliders for alpha, zeta, m, Ka, the feedforward, anti-windup, discretization and Ts,
+    the inertia error and the speed and load steps; downloads the scenario (TOML), the
+    C header of the design and the trace (CSV).
+    """
+    from .scenario import load_scenario
+    from .tuner import DEFAULT_PRESET, run_tuner
+
+    run_tuner(load_scenario(scenario or DEFAULT_PRESET), host=host, port=port, open_browser=not no_browser)
