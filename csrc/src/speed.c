@@ -214,13 +214,13 @@ static bool fault_output(p2d_speed_output_t *out)
 }
 
 /*
- * The torque command of this sample (eq 11-15 and the limit) into out, all but
- * the current vector. Returns false, with the fault output, if u is not finite.
+ * u[k], the torque of this sample before the limit (eq 11-15), with the
+ * outputs that come before the limit (reference, error, feedforward, u) into out.
  */
-static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
-                                float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
+static inline float speed_unlimited(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
+                                    float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
-    float e, dr, y_ff, dT_ff, T_ff, u, T_sat;
+    float e, dr, y_ff, dT_ff, T_ff, u;
 
     e = w_ref_radps - w_m_radps;
     /* dr[k] = r[k] - r[k-1] */
@@ -239,17 +239,29 @@ static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *
     out->T_ff_Nm = T_ff;
     out->y_ff_Nm = y_ff;
     out->T_unsat_Nm = u;
-    out->saturated = false;
-    out->fault = false;
+    return u;
+}
+
+/*
+ * The torque command of this sample (eq 11-15 and the limit) into out, all but
+ * the current vector. Returns false, with the fault output, if u is not finite.
+ */
+static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
+                                float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
+{
+    const float u = speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
+    float T_sat = u;
+    bool saturated = false;
     /* u_sat = Sat(u): the current-vector limit ||i_dq|| <= I_max as the torque limit T_max */
-    T_sat = u;
     if (!(fabsf(u) <= c->T_max_Nm)) {
         /* the limit is active, or u is NaN or inf */
         if (!(fabsf(u) < INFINITY)) return fault_output(out);
         T_sat = u > 0.0f ? c->T_max_Nm : -c->T_max_Nm;
-        out->saturated = true;
+        saturated = true;
     }
     out->T_ref_Nm = T_sat;
+    out->saturated = saturated;
+    out->fault = false;
     return true;
 }
 
@@ -319,6 +331,19 @@ static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
     return true;
 }
 
+/* The new state x[k], r[k] and y[k] of out; an x that is not finite is refused (counted, state kept). */
+static inline void speed_store(p2d_speed_t *ctl, const p2d_speed_output_t *out, float x)
+{
+    if (!isfinite(x)) {
+        /* non-finite policy: an update that would overflow the integrator is refused */
+        ctl->fault_count++;
+        return;
+    }
+    ctl->x_Nm = x;
+    ctl->r_prev_radps = out->w_ref_radps;
+    ctl->y_ff_prev_Nm = out->y_ff_Nm;
+}
+
 /* The state update with the applied torque T_applied_Nm (finite) of an output that is not a fault. */
 static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c,
                                    const p2d_speed_output_t *out, float T_applied_Nm)
@@ -332,17 +357,10 @@ static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c,
     if (c->clamping && opposite_signs(u_star, out->e_radps)) dx = 0.0f;
     /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]: the static feedforward moves with r, never held */
     x = fmaf(c->ff_Fr0, out->w_ref_radps - ctl->r_prev_radps, ctl->x_Nm + dx);
-    if (!isfinite(x)) {
-        /* non-finite policy: an update that would overflow the integrator is refused */
-        ctl->fault_count++;
-        return;
-    }
-    ctl->x_Nm = x;
-    ctl->r_prev_radps = out->w_ref_radps;
-    ctl->y_ff_prev_Nm = out->y_ff_Nm;
+    speed_store(ctl, out, x);
 }
 
-/* Step of a salient PMSM, after speed_torque: the MTPA current, then the update. */
+/* Step of a salient PMSM, after the limit: the MTPA current, then the update. */
 static P2D_NOINLINE void salient_step_end(p2d_speed_t *ctl, p2d_speed_output_t *out)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
@@ -374,23 +392,52 @@ void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_a
 }
 
 /*
- * compute + update with the own command, which is finite whenever the output
- * is not a fault (no check of the applied torque). The salient path is a tail
- * call, so the surface path needs no call and saves no registers.
+ * compute + update with the own command, written out per branch of the limit
+ * (the same numbers as compute and update, in fewer instructions). The
+ * salient path is a tail call, so the surface path calls nothing and saves no
+ * registers.
+ *
+ * Unlimited (|u| <= T_max, so u is finite): u_sat = u and u* = u - u = +0, so
+ * the clamping condition is false and Ki Ka Ts u* = +0 (Ki Ka Ts >= 0 and
+ * finite): fmaf(Ki Ka Ts, u*, Ki Ts e) = Ki Ts e + 0, where + 0 turns a -0
+ * into +0 as the fused sum does.
  */
 void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, out)) {
-        ctl->fault_count++;
-        return;
+    const float u = speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
+    float T_sat;
+
+    if (fabsf(u) <= c->T_max_Nm) {
+        out->T_ref_Nm = u;
+        out->saturated = false;
+        out->fault = false;
+        if (c->salient) {
+            salient_step_end(ctl, out);
+            return;
+        }
+        surface_current(c, out);
+        /* x[k] = x[k-1] + (Ki Ts e[k] + 0) + Fr0 dr[k] */
+        speed_store(ctl, out, fmaf(c->ff_Fr0, w_ref_radps - ctl->r_prev_radps,
+                                   ctl->x_Nm + (c->Ki_Ts * out->e_radps + 0.0f)));
+    } else {
+        if (!(fabsf(u) < INFINITY)) {
+            /* non-finite policy: u is NaN or inf */
+            (void)fault_output(out);
+            ctl->fault_count++;
+            return;
+        }
+        T_sat = u > 0.0f ? c->T_max_Nm : -c->T_max_Nm;
+        out->T_ref_Nm = T_sat;
+        out->saturated = true;
+        out->fault = false;
+        if (c->salient) {
+            salient_step_end(ctl, out);
+            return;
+        }
+        surface_current(c, out);
+        speed_integrate(ctl, c, out, T_sat);
     }
-    if (c->salient) {
-        salient_step_end(ctl, out);
-        return;
-    }
-    surface_current(c, out);
-    speed_integrate(ctl, c, out, out->T_ref_Nm);
 }
 
 float p2d_speed_integrator_Nm(const p2d_speed_t *ctl)
