@@ -75,6 +75,7 @@ static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
     [P2D_LOG_X_I_NM] = "x_i_Nm",
     [P2D_LOG_W_MEAS_RADPS] = "w_meas_radps",
     [P2D_LOG_U_DC_V] = "u_dc_V",
+    [P2D_LOG_VOLTAGE_LIMITED] = "voltage_limited",
 };
 
 const char *p2d_sim_status_param(p2d_sim_status_t status)
@@ -334,35 +335,46 @@ static void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
 
 /* ---- inverter ----------------------------------------------------------- */
 
-/* Scale (*ud, *uq) to ||u|| <= u_max. */
-static void limit_voltage(double u_max_V, double *ud_V, double *uq_V)
+/*
+ * Scale (*ud, *uq) to ||u|| <= u_max; return true when it was cut. hypot neither underflows nor
+ * overflows, so a zero range (a DC link at 0 V) applies exactly zero to any nonzero command, a
+ * subnormal one included.
+ */
+static bool limit_voltage(double u_max_V, double *ud_V, double *uq_V)
 {
-    double norm2 = *ud_V * *ud_V + *uq_V * *uq_V;
-    double k = norm2 > u_max_V * u_max_V ? u_max_V / sqrt(norm2) : 1.0;
-    *ud_V *= k;
-    *uq_V *= k;
+    double norm = hypot(*ud_V, *uq_V);
+    if (!(norm > u_max_V)) return false;
+    *ud_V *= u_max_V / norm;
+    *uq_V *= u_max_V / norm;
+    return true;
 }
 
 /*
  * Limit the command to ||u|| <= u_dc / sqrt(3) into (*ud, *uq) and apply it now or one period
  * later; a delayed command is limited again by the range of the period it is applied in (which
- * differs only when the DC link sags in between).
+ * differs only when the DC link sags in between). cmd_limited says that the controller already
+ * cut the command to its range. Returns true when the voltage applied over the present period was
+ * cut, by the controller or by the inverter, in this period or in the one it was computed in.
  */
-static void inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V, double *ud_V, double *uq_V)
+static bool inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V, bool cmd_limited,
+                           double *ud_V, double *uq_V)
 {
+    bool limited;
     *ud_V = ud_cmd_V;
     *uq_V = uq_cmd_V;
-    limit_voltage(inv->u_max_V, ud_V, uq_V);
-    if (inv->delay) {
-        inv->ud_V = inv->ud_next_V;
-        inv->uq_V = inv->uq_next_V;
-        limit_voltage(inv->u_max_V, &inv->ud_V, &inv->uq_V);
-        inv->ud_next_V = *ud_V;
-        inv->uq_next_V = *uq_V;
-    } else {
+    cmd_limited |= limit_voltage(inv->u_max_V, ud_V, uq_V);
+    if (!inv->delay) {
         inv->ud_V = *ud_V;
         inv->uq_V = *uq_V;
+        return cmd_limited;
     }
+    inv->ud_V = inv->ud_next_V;
+    inv->uq_V = inv->uq_next_V;
+    limited = limit_voltage(inv->u_max_V, &inv->ud_V, &inv->uq_V) || inv->limited_next;
+    inv->ud_next_V = *ud_V;
+    inv->uq_next_V = *uq_V;
+    inv->limited_next = cmd_limited;
+    return limited;
 }
 
 /* ---- loop --------------------------------------------------------------- */
@@ -486,6 +498,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->inverter.uq_V = 0.0;
     sim->inverter.ud_next_V = 0.0;
     sim->inverter.uq_next_V = 0.0;
+    sim->inverter.limited_next = false;
     if (cfg->current_model == P2D_CURRENT_DQ_PI) {
         const p2d_current_coef_t *c = &sim->current.coef[sim->current.active];
         double w_e = m->p * m->w_m_radps;
@@ -525,6 +538,7 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_X_I_NM * log_rows] = (double)p2d_speed_integrator_Nm(&sim->speed);
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
     row[P2D_LOG_U_DC_V * log_rows] = sim->u_dc_V;
+    row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* counted over the speed period by the loop */
     sim->n_rows++;
 }
 
@@ -537,6 +551,7 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
     for (uint64_t k = 0; k < n_samples; ++k) {
         double t_k = (double)sim->n_current * cfg->Ts_current_s;
         bool log_row = sim->n_speed % cfg->log_every == 0u;
+        uint32_t n_limited = 0u; /* current periods of this speed sample at the voltage limit */
         double w_ref;
         p2d_speed_output_t so;
         if (log_row && (log == 0 || sim->n_rows >= log_rows)) return P2D_SIM_ERR_LOG_FULL;
@@ -564,7 +579,8 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                                     (float)sim->pmsm.id_A, (float)sim->pmsm.iq_A,
                                     (float)(sim->pmsm.p * sim->pmsm.w_m_radps), (float)sim->u_dc_V, &co);
                 if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
-                inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, &ud_cmd_V, &uq_cmd_V);
+                n_limited += inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, co.saturated,
+                                            &ud_cmd_V, &uq_cmd_V);
                 /* the integrators learn the command the inverter accepted */
                 p2d_current_update(&sim->current, &co, (float)ud_cmd_V, (float)uq_cmd_V);
                 a = sim->inverter.ud_V;
@@ -577,12 +593,17 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 /* the voltage eq 1 needs for the current slopes of eq 3 */
                 pmsm_voltage(&sim->pmsm, (a - sim->pmsm.id_A) * sim->inv_tau_i,
                              (b - sim->pmsm.iq_A) * sim->inv_tau_i, &ud_log_V, &uq_log_V);
+                n_limited += hypot(ud_log_V, uq_log_V) > sim->inverter.u_max_V;
             }
             if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);
             plant_advance(sim, t, a, b);
             sim->n_current++;
             status = check_state(sim, (double)sim->n_current * cfg->Ts_current_s);
             if (status != P2D_SIM_OK) return status;
+        }
+        if (log_row) {
+            log[P2D_LOG_VOLTAGE_LIMITED * log_rows + sim->n_rows - 1u] =
+                (double)n_limited / (double)cfg->current_per_speed;
         }
         sim->n_speed++;
     }

@@ -81,7 +81,11 @@
  * integrator after the update of sample k, the voltage applied over the
  * current period starting at t_k (first_order: the voltage eq 1 needs to
  * make the currents follow eq 3 at t_k, unlimited), the load at t_k, the
- * speed reading of sample k and the DC link over that current period.
+ * speed reading of sample k, the DC link over that current period, and the
+ * share of the speed period's current periods at the voltage limit (the
+ * current controller's voltage-vector limit active, or the inverter cutting a
+ * delayed command; first_order: the voltage that eq 1 needs for eq 3 beyond the
+ * inverter's range, a sign that eq 3 does not describe the drive there).
  *
  * Stops (p2d_sim_run returns the code, sim->t_stop_s holds the time):
  *   P2D_SIM_STOP_NONFINITE         a state variable is NaN or infinite;
@@ -167,6 +171,9 @@ typedef enum {
     P2D_LOG_X_I_NM,           /* speed integrator after the update x[k] [Nm] */
     P2D_LOG_W_MEAS_RADPS,     /* speed reading sampled by the speed controller [rad/s] */
     P2D_LOG_U_DC_V,           /* DC-link voltage over the current period starting at t_k [V] */
+    P2D_LOG_VOLTAGE_LIMITED,  /* share of the current periods of speed sample k whose voltage was
+                                 limited to u_dc / sqrt(3) [-] in [0, 1] (first_order: whose
+                                 voltage of eq 1 exceeded that range, which eq 3 ignores) */
     P2D_LOG_COUNT             /* number of columns, not a column */
 } p2d_log_column_t;
 
@@ -246,6 +253,7 @@ typedef struct {
     double uq_V;          /* q-axis voltage applied over the present period [V] */
     double ud_next_V;     /* delay: d-axis command for the next period [V] */
     double uq_next_V;     /* delay: q-axis command for the next period [V] */
+    bool limited_next;    /* delay: the command for the next period was cut to the range */
 } p2d_inverter_t;
 
 /* Everything a simulation needs; rpm never appears here. */

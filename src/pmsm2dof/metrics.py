@@ -29,6 +29,11 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 - ``steady_state_error_rpm``, ``iae_rpm_s``, ``saturation_time_s`` as above (the spread test uses
   0.2 % of the deviation).
 
+Whole run: ``iae_rpm_s`` and ``saturation_time_s`` as above, and ``voltage_limit_time_s``, the time
+during which the inverter's range ``u_dc / sqrt(3)`` cut the voltage (the trace's ``voltage_limited``
+share of each speed sample; missing for a trace without it). A drive at its voltage limit no longer
+follows its current commands: the speed loop's design (eq 3, 9) does not hold there.
+
 Fault (each ``[[fault]]`` entry; a sensor_spike lasts one speed-controller period), from its
 start ``t_s`` over a window that ends at the next schedule entry or fault after the fault's end:
 
@@ -62,7 +67,7 @@ LOAD_FIGURES = ("speed_dip_rpm", "dip_time_s", "recovery_time_s", "steady_state_
 #: Figures of each fault, in output order.
 FAULT_FIGURES = ("speed_deviation_rpm", "deviation_time_s", "recovery_time_s", "saturation_time_s")
 #: Figures of the whole run.
-RUN_FIGURES = ("iae_rpm_s", "saturation_time_s")
+RUN_FIGURES = ("iae_rpm_s", "saturation_time_s", "voltage_limit_time_s")
 #: Largest spread of the speed over that part, relative to the step (reference) or dip (load).
 STEADY_SPREAD = 0.002
 
@@ -121,10 +126,13 @@ def _entry_into_band(t, dev, band):
 
 
 def _saturation_time(t, saturated, t0, t1):
-    """Time in [t0, t1] with the flag set; the flag of sample k holds over [t[k], t[k+1])."""
+    """Time in [t0, t1] with the flag set; the flag of sample k holds over [t[k], t[k+1]).
+
+    ``saturated`` may also be a share in [0, 1] of each sample's interval (``voltage_limited``).
+    """
     starts = np.clip(t[:-1], t0, t1)
     ends = np.clip(t[1:], t0, t1)
-    return float(np.sum((ends - starts)[saturated[:-1]]))
+    return float(np.sum((ends - starts) * saturated[:-1]))
 
 
 def _window(t, t0, t1, *signals):
@@ -282,8 +290,18 @@ def compute_metrics(result):
             "t_end_s": float(t[-1]),
             "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
             "saturation_time_s": _value(_saturation_time(t, saturated, t[0], t[-1])),
+            "voltage_limit_time_s": _voltage_limit_time(result, t),
         },
     }
+
+
+def _voltage_limit_time(result, t):
+    if getattr(result, "voltage_limited", None) is None:
+        return _missing("the trace has no voltage_limited signal")
+    share = _trace(result, "voltage_limited")
+    if np.any((share < 0.0) | (share > 1.0)):
+        raise SimulationError("result.voltage_limited must be a share in [0, 1]")
+    return _value(_saturation_time(t, share, t[0], t[-1]))
 
 
 def _fmt(figure, unit):
@@ -310,4 +328,10 @@ def summary_lines(metrics):
             f"{_fmt(s['speed_dip_rpm'], 'rpm')} after {_fmt(s['dip_time_s'], 's')}, "
             f"recovery {_fmt(s['recovery_time_s'], 's')}, "
             f"steady-state error {_fmt(s['steady_state_error_rpm'], 'rpm')}")
+    run = metrics["run"]
+    voltage = run["voltage_limit_time_s"]["value"]
+    if voltage:
+        share = 100.0 * voltage / run["t_end_s"]
+        lines.append(f"VOLTAGE LIMIT: the inverter's range u_dc/sqrt(3) cut the voltage for {voltage:.4g} s "
+                     f"({share:.3g} % of the run): the currents do not follow their commands there")
     return lines

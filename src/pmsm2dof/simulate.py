@@ -159,12 +159,15 @@ class Result:
         under a sensor fault) [rpm]
     u_dc_V : DC-link voltage over the current period that starts at the row (nominal but under a
         DC-link sag) [V]
+    voltage_limited : share of the current periods of the row's speed sample whose voltage was cut
+        to the inverter's range ``u_dc / sqrt(3)`` [-], in [0, 1] (``first_order``: whose voltage of
+        eq 1 exceeded that range, which eq 3 ignores)
     """
 
     signals: ClassVar[tuple] = (
         "t_s", "speed_ref_rpm", "speed_rpm", "w_m_radps", "id_ref_A", "iq_ref_A", "id_A", "iq_A",
         "ud_V", "uq_V", "torque_Nm", "torque_ref_Nm", "torque_unsat_Nm", "load_Nm", "saturated", "x_i_Nm",
-        "speed_meas_rpm", "u_dc_V",
+        "speed_meas_rpm", "u_dc_V", "voltage_limited",
     )
 
     scenario: Scenario
@@ -187,6 +190,7 @@ class Result:
     x_i_Nm: np.ndarray
     speed_meas_rpm: np.ndarray
     u_dc_V: np.ndarray
+    voltage_limited: np.ndarray
 
     def __repr__(self):
         return (f"Result({self.scenario.name!r}, {len(self.t_s)} rows, t = {self.t_s[0]:g}..{self.t_s[-1]:g} s, "
@@ -389,6 +393,7 @@ class _EngineRun:
             "x_i_Nm": col["x_i_Nm"],
             "speed_meas_rpm": col["w_meas_radps"] * RPM_PER_RADPS,
             "u_dc_V": col["u_dc_V"],
+            "voltage_limited": col["voltage_limited"],
         }
 
     def _value(self, key):

@@ -1,8 +1,10 @@
-"""The plot of one simulated run: speed, currents, torques and load against time.
+"""The plot of one simulated run: speed, currents, torques, load and voltage against time.
 
 Drawn like the paper's Fig. 8 to 10 and 12 to 14 (speed and current responses), from a
 :class:`~pmsm2dof.simulate.Result`. Intervals where the current-vector limit is active (the
-saturation that the anti-windup of Fig. 5 acts on) are shaded in every panel.
+saturation that the anti-windup of Fig. 5 acts on) are shaded in every panel; the voltage panel
+shows ``||u_dq||`` against the inverter's range ``u_dc / sqrt(3)`` and shades, in another colour,
+the intervals where that range cut the voltage.
 """
 
 import numpy as np
@@ -20,7 +22,7 @@ def _saturated_intervals(t, saturated):
 
 
 def trace_figure(result):
-    """A three-panel figure of a run: speed [rpm], dq currents [A], torques and load [Nm].
+    """A four-panel figure of a run: speed [rpm], dq currents [A], torques and load [Nm], voltage [V].
 
     Parameters
     ----------
@@ -31,13 +33,14 @@ def trace_figure(result):
     -------
     matplotlib.figure.Figure
         On the Agg canvas. The current panel shows the limit ``+-limits.i_max_A``; shaded spans
-        mark the samples where the current-vector limit is active.
+        mark the samples where the current-vector limit is active. The voltage panel shows
+        ``||u_dq||`` and the range ``u_dc / sqrt(3)``, with the samples at the voltage limit shaded.
     """
     t = result.t_s
     i_max = result.scenario.data["limits"]["i_max_A"]
-    fig = Figure(figsize=(8.0, 7.5), layout="constrained")
+    fig = Figure(figsize=(8.0, 9.5), layout="constrained")
     FigureCanvasAgg(fig)
-    ax_w, ax_i, ax_T = fig.subplots(3, 1, sharex=True)
+    ax_w, ax_i, ax_T, ax_u = fig.subplots(4, 1, sharex=True, height_ratios=(1.0, 1.0, 1.0, 0.7))
     fig.suptitle(result.scenario.name)
 
     ax_w.plot(t, result.speed_ref_rpm, "k--", lw=1.0, label="reference")
@@ -57,10 +60,16 @@ def trace_figure(result):
     ax_T.plot(t, result.torque_Nm, lw=1.4, color="C0", label="electromagnetic Te")
     ax_T.plot(t, result.load_Nm, lw=1.4, color="C4", label="load")
     ax_T.set_ylabel("torque [Nm]")
-    ax_T.set_xlabel("time [s]")
+
+    ax_u.plot(t, np.hypot(result.ud_V, result.uq_V), lw=1.4, color="C0", label="||u_dq||")
+    ax_u.plot(t, result.u_dc_V / np.sqrt(3.0), ":", lw=1.0, color="grey", label="range u_dc/sqrt(3)")
+    ax_u.set_ylabel("voltage [V]")
+    ax_u.set_xlabel("time [s]")
+    for a, b in _saturated_intervals(t, result.voltage_limited > 0.0):
+        ax_u.axvspan(a, b, color="purple", alpha=0.15, lw=0)
 
     spans = _saturated_intervals(t, result.saturated)
-    for ax in (ax_w, ax_i, ax_T):
+    for ax in (ax_w, ax_i, ax_T, ax_u):
         for a, b in spans:
             ax.axvspan(a, b, color="orange", alpha=0.15, lw=0)
         ax.grid(True, alpha=0.3)
@@ -68,7 +77,10 @@ def trace_figure(result):
     if spans:
         ax_w.axvspan(np.nan, np.nan, color="orange", alpha=0.15, label="current limit active")
         ax_w.legend(fontsize="small", loc="best")
-    ax_T.set_xlim(t[0], t[-1])
+    if np.any(result.voltage_limited > 0.0):
+        ax_u.axvspan(np.nan, np.nan, color="purple", alpha=0.15, label="voltage limit active")
+        ax_u.legend(fontsize="small", loc="best")
+    ax_u.set_xlim(t[0], t[-1])
     return fig
 
 
