@@ -1,8 +1,11 @@
 # CMake toolchain file: Cortex-M4F (ARMv7E-M, single-precision FPU), bare metal,
 # Debian's arm-none-eabi-gcc with newlib.
 #
-#   cmake -S csrc -B build-m4f -DCMAKE_TOOLCHAIN_FILE=csrc/cmake/arm-none-eabi-cortex-m4f.cmake
+#   cmake -S csrc -B build-m4f -DCMAKE_TOOLCHAIN_FILE="$PWD/csrc/cmake/arm-none-eabi-cortex-m4f.cmake"
 #   cmake --build build-m4f
+#
+# (from the repository root; CMake reads a relative toolchain path against the
+# build folder and the source folder, not the current one: give it absolute)
 #
 # -ffp-contract=off keeps every a*b+c as a rounded multiply and a rounded add,
 # as on the host (x86-64 has no FMA without -mfma): the float32 results on the
