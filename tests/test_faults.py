@@ -223,7 +223,7 @@ def test_dc_link_sag_each_anti_windup_mode():
         assert np.array_equal(runs[aw].speed_rpm[inside], r.speed_rpm[inside])
     after = r.t_s >= t_end
     overshoot = {aw: np.max(x.speed_rpm[after]) - x.speed_ref_rpm[-1] for aw, x in runs.items()}
-    saturation = {aw: compute_metrics(x)["faults"][0]["saturation_time_s"]["value"] for aw, x in runs.items()}
+    saturation = {aw: compute_metrics(x)["faults"][0]["current_limit_time_s"]["value"] for aw, x in runs.items()}
     assert overshoot["none"] > 1.2 * overshoot["back_calculation"]
     assert overshoot["none"] > 1.2 * overshoot["clamping"]
     assert saturation["none"] > saturation["back_calculation"] > saturation["clamping"] > 0.0
@@ -371,8 +371,9 @@ def test_report_fault_figures_are_those_of_the_traces():
         assert f["deviation_rpm"] == pytest.approx(np.max(np.abs(r.speed_ref_rpm - r.speed_rpm)[after]))
         assert f["x_i_excursion_Nm"] == pytest.approx(np.max(np.abs(r.x_i_Nm[after] - r.x_i_Nm[k0 - 1])))
         assert f["i_peak_A"] == pytest.approx(np.max(np.hypot(r.id_A, r.iq_A)[after]))
-        # saturated time from the flags, each holding over one speed period
-        assert f["saturation_time_s"] == pytest.approx(np.sum(r.saturated[after]) * drive(r)["Ts"], abs=2e-3)
+        # time at the current limit from the flags and the command, each sample holding over one speed period
+        limited = r.saturated | (np.hypot(r.id_ref_A, r.iq_ref_A) >= 0.99 * d["limits"]["i_max_A"])
+        assert f["current_limit_time_s"] == pytest.approx(np.sum(limited[after]) * drive(r)["Ts"], abs=2e-3)
 
 
 def test_report_fault_section_names_runs_that_cannot_run():

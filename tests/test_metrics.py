@@ -19,8 +19,8 @@ from pmsm2dof.scenario import load_scenario
 DT = 1e-3
 
 
-def fake_result(t, speed, ref, reference, load=(), saturated=None):
-    """A Result honouring the contract, with the given traces and schedules."""
+def fake_result(t, speed, ref, reference, load=(), saturated=None, iq_ref=None):
+    """A Result honouring the contract, with the given traces and schedules (id_ref = 0, iq_ref = 0 unless given)."""
     scenario = load_scenario("paper-condition-2").with_overrides({
         "simulation.t_end_s": float(t[-1] + DT),
         "reference": [{"t_s": float(a), "speed_rpm": float(b)} for a, b in reference],
@@ -28,7 +28,10 @@ def fake_result(t, speed, ref, reference, load=(), saturated=None):
     })
     if saturated is None:
         saturated = np.zeros(t.shape, dtype=bool)
-    return SimpleNamespace(t_s=t, speed_rpm=speed, speed_ref_rpm=ref, saturated=saturated, scenario=scenario)
+    if iq_ref is None:
+        iq_ref = np.zeros_like(t)
+    return SimpleNamespace(t_s=t, speed_rpm=speed, speed_ref_rpm=ref, saturated=saturated, id_ref_A=np.zeros_like(t),
+                           iq_ref_A=iq_ref, scenario=scenario)
 
 
 def step_ref(t, steps):
@@ -135,16 +138,36 @@ def test_load_decrease_counts_the_speed_rise_as_the_dip():
     assert s["dip_time_s"]["value"] == pytest.approx(tau, abs=DT)
 
 
-def test_saturation_time_split_by_windows():
+def test_current_limit_time_split_by_windows():
     """The flag holds from its sample to the next: 1.0 s before the load step at 2 s, 0.5 s after."""
     t = np.arange(0.0, 5.0, DT)
     sat = (t >= 1.0 - DT / 2) & (t < 2.5 - DT / 2)
     res = fake_result(t, np.full_like(t, 100.0), np.full_like(t, 100.0), [(0.0, 100.0)],
                       load=[(2.0, 1.0)], saturated=sat)
     m = compute_metrics(res)
-    assert m["reference_steps"][0]["saturation_time_s"]["value"] == pytest.approx(1.0, abs=1e-9)
-    assert m["load_steps"][0]["saturation_time_s"]["value"] == pytest.approx(0.5, abs=1e-9)
-    assert m["run"]["saturation_time_s"]["value"] == pytest.approx(1.5, abs=1e-9)
+    assert m["reference_steps"][0]["current_limit_time_s"]["value"] == pytest.approx(1.0, abs=1e-9)
+    assert m["load_steps"][0]["current_limit_time_s"]["value"] == pytest.approx(0.5, abs=1e-9)
+    assert m["run"]["current_limit_time_s"]["value"] == pytest.approx(1.5, abs=1e-9)
+
+
+def test_current_limit_time_follows_the_command_through_a_chattering_flag():
+    """From 1 s to 3 s the command holds within 0.05 % of i_max while the flag toggles every sample, except
+    for one sample at 2 s where it dips 5 % below: 2 s at the limit minus that one sample."""
+    t = np.arange(0.0, 5.0, DT)
+    res = fake_result(t, np.full_like(t, 100.0), np.full_like(t, 100.0), [(0.0, 100.0)])
+    i_max = res.scenario.data["limits"]["i_max_A"]
+    k = np.arange(t.size)
+    holding = (t >= 1.0 - DT / 2) & (t < 3.0 - DT / 2)
+    res.saturated = holding & (k % 2 == 0)
+    res.iq_ref_A = np.where(holding, np.where(res.saturated, i_max, (1 - 5e-4) * i_max), 0.5 * i_max)
+    dip = int(np.argmin(np.abs(t - 2.0))) | 1  # an odd sample: not flagged
+    res.iq_ref_A[dip] = 0.95 * i_max
+    m = compute_metrics(res)
+    assert np.sum(res.saturated) * DT == pytest.approx(1.0, abs=1e-9)  # the flag alone says half of it
+    assert m["run"]["current_limit_time_s"]["value"] == pytest.approx(2.0 - DT, abs=1e-9)
+    # the command's direction does not matter: a braking (negative) command at the limit counts the same
+    res.iq_ref_A = -res.iq_ref_A
+    assert compute_metrics(res)["run"]["current_limit_time_s"]["value"] == pytest.approx(2.0 - DT, abs=1e-9)
 
 
 def test_figures_that_cannot_be_computed_are_missing_with_a_reason():

@@ -215,6 +215,28 @@ def test_anti_windup_reduces_the_overshoot_of_condition_1(claims):
     assert with_aw["values"]["overshoot_pct"] == pytest.approx(over["back_calculation"], abs=0.05)
 
 
+def test_time_at_the_current_limit_is_that_of_the_iq_command_in_claims_and_metrics(report_dir, claims):
+    """Condition 1, 1DOF PI, first step (0 to 5 s): the time iq_cmd spends within 1 % of the 7.6 A limit.
+
+    With clamping the limit flag toggles every sample while iq_cmd holds at the limit; the claim and
+    metrics.json must count the time of the command, not the first unbroken stretch of the flag."""
+    metrics = json.loads((report_dir / "metrics.json").read_text())
+    row = claim_about(claims, ["u* is soon reduced to zero"])
+    for aw in ("none", "back_calculation", "clamping"):
+        r = run("paper-condition-1", **{"speed_controller.feedforward": "none", "speed_controller.anti_windup": aw})
+        Ts = r.scenario.data["speed_controller"]["Ts_s"]
+        i_max = r.scenario.data["limits"]["i_max_A"]
+        first_step = r.t_s < 5.0 - Ts / 2
+        expected = np.sum(np.abs(r.iq_ref_A[first_step]) >= 0.99 * i_max) * Ts
+        if aw == "clamping":
+            flips = np.sum(np.diff(r.saturated[first_step].astype(int)) != 0)
+            assert flips > 500 and np.sum(r.saturated[first_step]) * Ts < 0.6 * expected
+        assert row["values"]["current_limit_time_s"][aw] == pytest.approx(expected, abs=1.5 * Ts)
+        step = metrics[f"c1-1dof-{aw}"]["reference_steps"][0]
+        assert step["current_limit_time_s"]["value"] == pytest.approx(expected, abs=1.5 * Ts)
+    assert row["verdict"] == "reproduced"
+
+
 def test_2dof_load_response_equals_1dof(claims):
     one = run("paper-experiment-3", **{"speed_controller.feedforward": "none"})
     two = run("paper-experiment-3", **{"speed_controller.feedforward": "lowpass"})

@@ -44,7 +44,7 @@ from matplotlib.figure import Figure
 from . import studies as st
 from .design import design
 from .errors import ConfigError, SimulationError
-from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, compute_metrics
+from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, at_current_limit, compute_metrics
 from .outputs import atomic_write, require_writable_dir, staged_dir
 from .plots import bode_gx_sweep
 from .scenario import load_scenario
@@ -148,14 +148,18 @@ def _fmt(x, digits=3, unit=""):
     return f"{x:.{digits}g}{(' ' + unit) if unit else ''}"
 
 
-def _saturation_run(result, t0):
-    """(delay, duration) [s] of the first interval with the current limit active after ``t0``."""
-    t, sat = result.t_s, result.saturated
-    after = np.nonzero(sat & (t >= t0))[0]
+def _limit_run(result, t0):
+    """(delay, duration) [s] of the first unbroken stretch at the current limit after ``t0``.
+
+    At the limit as :func:`pmsm2dof.metrics.at_current_limit` says (the flag, or the command
+    within 1 % of the limit), so that a flag that toggles while the command holds does not cut it.
+    """
+    t, limited = result.t_s, at_current_limit(result)
+    after = np.nonzero(limited & (t >= t0))[0]
     if after.size == 0:
         return math.nan, 0.0
     k = after[0]
-    ends = np.nonzero(~sat[k:])[0]
+    ends = np.nonzero(~limited[k:])[0]
     end = t[k + ends[0]] if ends.size else t[-1]
     return float(t[k] - t0), float(end - t[k])
 
@@ -277,7 +281,7 @@ def _claim_first_order(studies):
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / pole
     over_small = _value(small["overshoot_pct"])
     big, note = _overshoot(studies, "e1-2dof-full")
-    _, sat = _saturation_run(studies.results["e1-2dof-full"], studies.step("e1-2dof-full")["t_s"])
+    limit_time = _value(studies.step("e1-2dof-full")["current_limit_time_s"])
     sweep = studies.sweep("m")
     over_m = _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "overshoot_pct")
     ok = (overshoot_lin < NO_OVERSHOOT_PCT and math.isclose(bandwidth, pole, rel_tol=FIRST_ORDER_RTOL)
@@ -292,7 +296,7 @@ def _claim_first_order(studies):
         measured=(f"m = 1: linear Gx (eq 6 with eq 11) overshoot {overshoot_lin:.2g} %, -3 dB bandwidth "
                   f"{bandwidth:.4g} rad/s (m alpha = {pole:.4g}); simulated {st.SMALL_STEP_RPM:g} rpm step: overshoot "
                   f"{_fmt(over_small, 2, '%')}, 10-90 % rise {_fmt(rise, 4, 's')} (eq 10: ln 9/(m alpha) = "
-                  f"{rise_eq10:.4g} s); 500 rpm step from rest (current limit active {sat:.2f} s): "
+                  f"{rise_eq10:.4g} s); 500 rpm step from rest (at the current limit for {limit_time:.2f} s): "
                   f"{_over_text(big, note)}; the larger m of the sweep saturate longer and overshoot up to "
                   f"{np.nanmax(over_m):.1f} % (m = {sweep.x[int(np.nanargmax(over_m))]:g})"),
         values={"overshoot_linear_pct": overshoot_lin, "bandwidth_radps": bandwidth,
@@ -393,20 +397,21 @@ def _claim_ka_range(studies):
 
 def _claim_unwind(studies):
     runs = {aw: studies.results[f"c1-1dof-{aw}"] for aw in st.AW_LABELS}
-    sat = {aw: _saturation_run(r, 0.0)[1] for aw, r in runs.items()}
+    limit_time = {aw: _value(studies.step(f"c1-1dof-{aw}", 0)["current_limit_time_s"]) for aw in runs}
     x_peak = {aw: float(np.max(r.x_i_Nm[_window(r, 0.0, C1_SECOND_STEP_S)])) for aw, r in runs.items()}
-    ok = sat["back_calculation"] < sat["none"]
+    ok = limit_time["back_calculation"] < limit_time["none"]
     return _claim(
         section="3.3, 4.1",
         claim="with AW the signal u* is soon reduced to zero: the integrator quickly comes out of saturation",
         paper="qualitative",
-        measured=(f"condition 1, 1DOF PI: current limit active for {sat['none']:.2f} s without AW, "
-                  f"{sat['back_calculation']:.2f} s with back-calculation, {sat['clamping']:.2f} s with clamping; "
+        measured=(f"condition 1, 1DOF PI, first step: at the current limit for {limit_time['none']:.2f} s without "
+                  f"AW, {limit_time['back_calculation']:.2f} s with back-calculation, {limit_time['clamping']:.2f} s "
+                  "with clamping; "
                   f"integrator peak {x_peak['none']:.2f} / {x_peak['back_calculation']:.2f} / "
                   f"{x_peak['clamping']:.2f} Nm"),
-        values={"saturation_s": sat, "integrator_peak_Nm": x_peak},
+        values={"current_limit_time_s": limit_time, "integrator_peak_Nm": x_peak},
         verdict=_verdict(ok),
-        reason="" if ok else "back calculation does not shorten the saturation",
+        reason="" if ok else "back calculation does not shorten the time at the current limit",
         source="simulation", evidence="runs c1-1dof-*, fig08_speed_aw, fig09_current_aw")
 
 
@@ -463,9 +468,9 @@ def _claim_tustin(studies):
 
 def _claim_limit_reached(studies):
     r = studies.results["c1-1dof-none"]
-    delay, hold = _saturation_run(r, 0.0)
+    delay, hold = _limit_run(r, 0.0)
     r2 = studies.results["c1-2dof-none"]
-    _, hold2 = _saturation_run(r2, 0.0)
+    _, hold2 = _limit_run(r2, 0.0)
     ok = delay < 0.1 and hold > 1.0
     return _claim(
         section="4.1 (cond. 1, Fig. 9)",
@@ -483,14 +488,14 @@ def _claim_no_aw_overshoot(studies):
     first, _ = _overshoot(studies, "c1-1dof-none", 0)
     second, _ = _overshoot(studies, "c1-1dof-none", 1)
     two, note = _overshoot(studies, "c1-2dof-none", 0)
-    sat_second = _value(studies.step("c1-1dof-none", 1)["saturation_time_s"])
+    limit_second = _value(studies.step("c1-1dof-none", 1)["current_limit_time_s"])
     ok = first > 55.0
     return _claim(
         section="4.1 (cond. 1, Fig. 8)",
         claim="without AW the speed overshoots by more than 55 % under the step references",
         paper="> 55 %",
         measured=(f"1DOF PI without AW: {first:.1f} % at the 500 rpm step, {second:.1f} % at the 200 rpm step "
-                  f"(current limited {sat_second:.2f} s after it); 2DOF eq 15 without AW at the 500 rpm step: "
+                  f"(at the current limit for {limit_second:.2f} s after it); 2DOF eq 15 without AW at the 500 rpm step: "
                   f"{_over_text(two, note)}"),
         values={"overshoot_first_pct": first, "overshoot_second_pct": second, "overshoot_2dof_pct": two},
         verdict=_verdict(ok, first > 0.0),
@@ -566,8 +571,8 @@ def _claim_1dof_load(studies):
     Kp = data["speed_controller"]["J_design_kgm2"] * data["speed_controller"]["alpha"]
     dip_c2 = _value(studies.load("c2-1dof")["speed_dip_rpm"])
     e3 = studies.load("e3-1dof")
-    dip, rec, sse, sat = (_value(e3[k]) for k in ("speed_dip_rpm", "recovery_time_s", "steady_state_error_rpm",
-                                                  "saturation_time_s"))
+    dip, rec, sse, limit_time = (_value(e3[k]) for k in ("speed_dip_rpm", "recovery_time_s",
+                                                         "steady_state_error_rpm", "current_limit_time_s"))
     recovered = rec is not None and sse is not None and abs(sse) < 0.005 * speed
     good = recovered and dip <= GOOD_DIP_FRACTION * speed
     if good:
@@ -586,9 +591,9 @@ def _claim_1dof_load(studies):
         paper="'good', no number",
         measured=(f"{load:g} Nm at a steady {speed:g} rpm (experiment 3): dip {dip:.0f} rpm ({100 * dip / speed:.0f} "
                   f"%), back to 2 % of the dip in {_fmt(rec, 3, 's')}, steady-state error {_fmt(sse, 2, 'rpm')}, "
-                  f"current limited for {_fmt(sat, 2, 's')}; at 7 s in condition 2, {dip_c2:.0f} rpm"),
-        values={"speed_dip_rpm": dip, "recovery_time_s": rec, "steady_state_error_rpm": sse, "saturation_s": sat,
-                "speed_dip_condition_2_rpm": dip_c2},
+                  f"at the current limit for {_fmt(limit_time, 2, 's')}; at 7 s in condition 2, {dip_c2:.0f} rpm"),
+        values={"speed_dip_rpm": dip, "recovery_time_s": rec, "steady_state_error_rpm": sse,
+                "current_limit_time_s": limit_time, "speed_dip_condition_2_rpm": dip_c2},
         verdict=_verdict(good, recovered),
         reason=reason,
         source="simulation", evidence="runs e3-1dof, c2-1dof, fig10_2dof, fig14_exp3_load")
@@ -1001,17 +1006,17 @@ def fault_figures(result):
     ``deviation_rpm``: peak of ``|speed_ref - speed|``; ``x_i_excursion_Nm``: peak change of the
     speed integrator from its value before the fault; ``i_peak_A``: peak ``||i_dq||`` (the limit
     bounds the command, not a current the inverter lacks the voltage to oppose);
-    ``saturation_time_s`` and ``recovery_time_s`` from :func:`pmsm2dof.metrics.compute_metrics`:
+    ``current_limit_time_s`` and ``recovery_time_s`` from :func:`pmsm2dof.metrics.compute_metrics`:
     the fault's own figures, or for the stall those of the jam and of its release.
     """
     m = compute_metrics(result)
     if m["faults"]:
         fault = m["faults"][0]
-        t0, recovery, saturation = fault["t_s"], fault["recovery_time_s"], fault["saturation_time_s"]["value"]
+        t0, recovery, limit_time = fault["t_s"], fault["recovery_time_s"], fault["current_limit_time_s"]["value"]
     else:
         jam, release = m["load_steps"][:2]
         t0, recovery = jam["t_s"], release["recovery_time_s"]
-        saturation = jam["saturation_time_s"]["value"] + release["saturation_time_s"]["value"]
+        limit_time = jam["current_limit_time_s"]["value"] + release["current_limit_time_s"]["value"]
     k0 = int(np.searchsorted(result.t_s, t0 - 1e-9))
     after = slice(k0, None)
     return {
@@ -1019,7 +1024,7 @@ def fault_figures(result):
         "deviation_rpm": float(np.max(np.abs(result.speed_ref_rpm[after] - result.speed_rpm[after]))),
         "x_i_excursion_Nm": float(np.max(np.abs(result.x_i_Nm[after] - result.x_i_Nm[max(k0 - 1, 0)]))),
         "i_peak_A": float(np.max(np.hypot(result.id_A[after], result.iq_A[after]))),
-        "saturation_time_s": saturation,
+        "current_limit_time_s": limit_time,
         "recovery_time_s": recovery["value"],
     }
 
@@ -1052,7 +1057,7 @@ def _fault_blocks(runs, figure_captions):
     if runs is None:
         return []
     header = ("fault", "anti-windup", "peak speed error [rpm]", "integrator excursion [Nm]", "peak ||i_dq|| [A]",
-              "saturated [s]", "recovery [s]")
+              "at the current limit [s]", "recovery [s]")
     rows = []
     for (preset, aw), result in runs.items():
         if isinstance(result, str):
@@ -1061,7 +1066,7 @@ def _fault_blocks(runs, figure_captions):
         f = fault_figures(result)
         recovery = "not within the run" if f["recovery_time_s"] is None else f"{f['recovery_time_s']:.3g}"
         rows.append((preset, st.AW_LABELS[aw], f"{f['deviation_rpm']:.3g}", f"{f['x_i_excursion_Nm']:.3g}",
-                     f"{f['i_peak_A']:.3g}", f"{f['saturation_time_s']:.3g}", recovery))
+                     f"{f['i_peak_A']:.3g}", f"{f['current_limit_time_s']:.3g}", recovery))
     return [
         ("h2", "Fault scenarios (not in the paper)"),
         ("p", "How each anti-windup mode of the speed controller behaves when something fails, on the paper's "

@@ -58,7 +58,7 @@ TABLE_METRICS = (
     ("step", "overshoot_pct", "overshoot", "%"),
     ("step", "rise_time_s", "rise time 10-90 %", "s"),
     ("step", "settling_time_s", "settling time 2 %", "s"),
-    ("step", "saturation_time_s", "time at the current limit", "s"),
+    ("step", "current_limit_time_s", "time at the current limit", "s"),
     ("load", "speed_dip_rpm", "load dip", "rpm"),
     ("load", "recovery_time_s", "recovery time 2 %", "s"),
 )
