@@ -11,6 +11,8 @@ simulations changes when the plant's inertia changes, every design claim when ze
 """
 
 import base64
+import csv
+import io
 import json
 import math
 import re
@@ -23,7 +25,7 @@ from scipy.optimize import brentq
 
 from pmsm2dof import load_scenario, simulate
 from pmsm2dof.cli import main
-from pmsm2dof.report import FIG7_M, VERDICTS, compute_claims
+from pmsm2dof.report import FIG7_M, VERDICTS, compute_claims, fig_faults, figures, run_faults
 from pmsm2dof.studies import run_studies
 
 STEMS = ["fig07_bode_gx", "fig08_speed_aw", "fig09_current_aw", "fig10_2dof", "fig12_exp1_aw", "fig13_exp2_tracking",
@@ -31,6 +33,7 @@ STEMS = ["fig07_bode_gx", "fig08_speed_aw", "fig09_current_aw", "fig10_2dof", "f
 VOID = {"meta", "img", "br", "hr", "link", "input"}
 PNG = b"\x89PNG\r\n\x1a\n"
 J, ALPHA, ZETA, TAU_I = 0.4, 0.5, 1 / (2 * math.sqrt(3)), 0.05  # the paper's values (section 4.1)
+REDUCED = {"points": 3, "Ts_grid": (1e-3, 0.1, 0.3)}  # studies small enough to run again in a test
 
 
 @pytest.fixture(scope="module")
@@ -163,11 +166,93 @@ def test_unwritable_out_fails_before_any_run(tmp_path, capsys, monkeypatch):
 
 
 # ---------------------------------------------------------------------------------------------
-# the measured values come from the simulations
+# every figure has a title and its data beside it
 # ---------------------------------------------------------------------------------------------
 
-REDUCED = {"points": 3, "Ts_grid": (1e-3, 0.1, 0.3)}
+#: How the figure data columns end: a unit, or the name of a dimensionless quantity.
+UNIT_ENDINGS = ("_s", "_rpm", "_A", "_Nm", "_pct", "_dB", "_deg", "_radps", "_radps_per_Nm", "_controller_error")
+DIMENSIONLESS = ("m", "zeta", "J_over_J_design")
 
+
+def read_csv_columns(text):
+    """{name: float array} of a figure CSV; empty cells (a shorter column, a missing value) are NaN."""
+    rows = list(csv.reader(io.StringIO(text)))
+    header, body = rows[0], rows[1:]
+    return {name: np.array([float(row[k]) if row[k] else np.nan for row in body]) for k, name in enumerate(header)}
+
+
+def test_every_figure_has_its_csv_with_units_in_the_column_names(report_dir):
+    stems = {p.stem for p in (report_dir / "figures").glob("*.png")}
+    assert set(STEMS) | {"faults"} <= stems
+    for stem in stems:
+        columns = read_csv_columns((report_dir / "figures" / f"{stem}.csv").read_text())
+        assert columns, stem
+        for name, values in columns.items():
+            assert name in DIMENSIONLESS or name.endswith(UNIT_ENDINGS), (stem, name)
+            assert np.any(np.isfinite(values)), (stem, name)
+
+
+@pytest.fixture(scope="module")
+def drawn():
+    """The report's figures in memory, drawn from reduced studies: {stem: (Figure, FigureData)}."""
+    made = {stem: (fig, data) for stem, (fig, data, _caption) in figures(run_studies({}, **REDUCED)).items()}
+    made["faults"] = fig_faults(run_faults())
+    return made
+
+
+def test_every_figure_has_a_title_that_fits(drawn):
+    for stem, (fig, _data) in drawn.items():
+        fig.canvas.draw()
+        title = fig._suptitle if fig._suptitle else fig.axes[0].title  # Fig. 7 (plots.py): its axes title
+        assert title.get_text(), f"{stem} has no title"
+        box = title.get_window_extent()
+        assert 0 <= box.x0 and box.x1 <= fig.bbox.x1, f"{stem}: the title is cut off"
+
+
+def test_figure_csv_holds_every_line_the_figure_draws(drawn):
+    """Each line drawn in data coordinates is, point for point, a pair of columns of the CSV read back."""
+    for stem, (fig, data) in drawn.items():
+        columns = read_csv_columns(data.to_csv())
+        lines = [line for ax in fig.axes for line in ax.lines if line.get_transform() == ax.transData]
+        assert lines, stem
+        for line in lines:
+            x, y = (np.asarray(v, float) for v in line.get_data())
+            same = [name for name, values in columns.items()
+                    if np.array_equal(values[:len(y)], y, equal_nan=True) and np.all(np.isnan(values[len(y):]))]
+            assert same, f"{stem}: the line {line.get_label()!r} is not in the CSV"
+            assert any(np.array_equal(values[:len(x)], x, equal_nan=True) for values in columns.values()), stem
+
+
+def test_figure_csv_traces_are_those_of_the_simulations(report_dir):
+    """The CSV of Fig. 8 and Fig. 14 against runs of the presets made here: the same samples, to the bit."""
+    c1 = read_csv_columns((report_dir / "figures" / "fig08_speed_aw.csv").read_text())
+    for aw in ("none", "clamping"):
+        r = run("paper-condition-1", **{"speed_controller.feedforward": "none", "speed_controller.anti_windup": aw})
+        k = np.searchsorted(r.t_s, c1["t_s"])
+        assert np.array_equal(r.t_s[k], c1["t_s"]) and np.array_equal(r.speed_rpm[k], c1[f"1dof_{aw}_speed_rpm"])
+
+    e3 = read_csv_columns((report_dir / "figures" / "fig14_exp3_load.csv").read_text())
+    r = run("paper-experiment-3", **{"speed_controller.feedforward": "none"})
+    k = np.searchsorted(r.t_s, e3["t_s"])
+    assert np.array_equal(r.t_s[k], e3["t_s"])
+    assert np.array_equal(r.speed_rpm[k], e3["1dof_speed_rpm"]) and np.array_equal(r.iq_ref_A[k], e3["1dof_iq_ref_A"])
+    # Fig. 14's lower panel: iq_cmd goes from the no-load value to the 7.6 A limit after the 8 Nm step
+    i_max = r.scenario.data["limits"]["i_max_A"]
+    assert abs(e3["1dof_iq_ref_A"][0]) < 0.1 and np.max(e3["2dof_iq_ref_A"]) == pytest.approx(i_max, rel=1e-6)
+
+
+def test_fig7_csv_is_the_first_order_tracking_of_eq_10(report_dir):
+    data = read_csv_columns((report_dir / "figures" / "fig07_bode_gx.csv").read_text())
+    w = data["w_radps"]
+    for m in FIG7_M:
+        Gx = m * ALPHA / (1j * w + m * ALPHA)  # eq 10
+        assert data[f"m{m:g}_Gx_magnitude_dB"] == pytest.approx(20 * np.log10(np.abs(Gx)), abs=1e-6)
+        assert data[f"m{m:g}_Gx_phase_deg"] == pytest.approx(np.degrees(np.angle(Gx)), abs=1e-6)
+
+
+# ---------------------------------------------------------------------------------------------
+# the measured values come from the simulations
+# ---------------------------------------------------------------------------------------------
 
 def test_measured_values_follow_the_simulations():
     base_studies = run_studies({}, **REDUCED)

@@ -202,7 +202,7 @@ def reproduce(out, overrides):
     Runs the paper's conditions on the presets (the float32 C controller in the compiled
     engine) and writes OUT/report.md, OUT/report.html (self-contained), OUT/claims.json (each
     claim of the paper with the measured value and a verdict), OUT/figures/*.png and *.svg,
-    and the data of the figures, all or nothing.
+    and beside each figure its data (OUT/figures/*.csv), all or nothing.
     """
     import time
 

@@ -7,7 +7,8 @@ nothing (:func:`pmsm2dof.outputs.staged_dir`):
 
 - ``figures/*.png`` and ``figures/*.svg``: Fig. 7 (Bode of Gx), Fig. 8 to 10 (simulation
   conditions 1 and 2), Fig. 12 to 14 (the experimental conditions, simulated), the sensitivity
-  figures and the discretization study;
+  figures, the discretization study and the fault scenarios; beside each, ``figures/*.csv`` with
+  the numbers it draws (:class:`FigureData`);
 - ``report.md`` and ``report.html`` (self-contained: the figures embedded as base64 PNG);
 - ``claims.json``: one row per claim, with the paper's value, the measured one, a verdict
   (``reproduced``, ``partly``, ``not reproduced``) and the reason where they differ;
@@ -30,6 +31,7 @@ import csv
 import dataclasses
 import html
 import io
+import itertools
 import json
 import math
 import re
@@ -495,7 +497,8 @@ def _claim_no_aw_overshoot(studies):
         claim="without AW the speed overshoots by more than 55 % under the step references",
         paper="> 55 %",
         measured=(f"1DOF PI without AW: {first:.1f} % at the 500 rpm step, {second:.1f} % at the 200 rpm step "
-                  f"(at the current limit for {limit_second:.2f} s after it); 2DOF eq 15 without AW at the 500 rpm step: "
+                  f"(at the current limit for {limit_second:.2f} s after it); 2DOF eq 15 without AW at the 500 rpm "
+                  "step: "
                   f"{_over_text(two, note)}"),
         values={"overshoot_first_pct": first, "overshoot_second_pct": second, "overshoot_2dof_pct": two},
         verdict=_verdict(ok, first > 0.0),
@@ -787,6 +790,44 @@ def _claim_implementation():
 # figures
 # ---------------------------------------------------------------------------------------------
 
+class FigureData:
+    """The numbers a report figure draws, as named columns: written beside it as CSV.
+
+    Every line of a figure is drawn from the values :meth:`__call__` records, so the CSV holds
+    exactly what the figure shows. Names end with the unit, as the traces and the metrics spell
+    them (``speed_rpm``, ``iq_ref_A``, ``overshoot_pct``), after a tag of the run or series
+    (``1dof_none_speed_rpm``). A name shared by several lines (their time axis) must hold the
+    same values each time. Columns may differ in length: a shorter one ends in empty cells, and
+    NaN (a figure that could not be computed) is an empty cell.
+    """
+
+    def __init__(self):
+        self.columns = {}
+
+    def __call__(self, name, values):
+        """Record column ``name``; return its values (a float array) to draw."""
+        values = np.atleast_1d(np.asarray(values, dtype=float))
+        known = self.columns.get(name)
+        if known is not None and not np.array_equal(known, values, equal_nan=True):
+            raise ValueError(f"figure data column {name!r} recorded with two different sets of values")
+        self.columns[name] = values
+        return values
+
+    def to_csv(self):
+        """The columns as CSV text: a header row, then numbers in their shortest exact form."""
+        buf = io.StringIO()
+        writer = csv.writer(buf, lineterminator="\n")
+        writer.writerow(self.columns)
+        for row in itertools.zip_longest(*self.columns.values()):
+            writer.writerow(["" if v is None or not math.isfinite(v) else repr(float(v)) for v in row])
+        return buf.getvalue()
+
+
+def _tag(label):
+    """A series label as a column-name prefix: ``"2DOF eq 15, no AW"`` -> ``"2dof_eq_15_no_aw"``."""
+    return re.sub(r"[^a-z0-9]+", "_", label.lower()).strip("_")
+
+
 def _figure(rows, cols=1, height=2.6, width=8.0):
     fig = Figure(figsize=(width, height * rows + 0.7), layout="constrained")
     FigureCanvasAgg(fig)
@@ -803,8 +844,16 @@ def _thin(result, name, t0=None, t1=None):
     return t[idx], getattr(result, name)[idx]
 
 
+def _trace(data, ax, result, name, column, prefix="", t0=None, t1=None, **style):
+    """Draw signal ``name`` of ``result`` against time on ``ax``, recorded as ``column`` and its time axis."""
+    t, y = _thin(result, name, t0, t1)
+    ax.plot(data(f"{prefix}t_s", t), data(column, y), **style)
+
+
 _AW_STYLE = {"none": {"color": "C3"}, "back_calculation": {"color": "C0"}, "clamping": {"color": "C2", "ls": "--"}}
 _DOF_STYLE = {"1dof": {"color": "C3"}, "2dof": {"color": "C0"}}
+#: Two responses equal to the bit: the first wide and pale under the second, dashed.
+_SAME_STYLE = {"1dof": {"color": "C3", "lw": 3.0, "alpha": 0.5}, "2dof": {"color": "C0", "lw": 1.2, "ls": "--"}}
 
 
 def _finish(ax, ylabel, xlabel=None):
@@ -815,57 +864,76 @@ def _finish(ax, ylabel, xlabel=None):
     ax.legend(fontsize="small", loc="best")
 
 
+def _current_limit(ax, result, signs=(1, -1)):
+    """Dotted horizontal lines at the current limit (``+i_max`` and ``-i_max`` by default)."""
+    i_max = result.scenario.data["limits"]["i_max_A"]
+    for sign in signs:
+        ax.axhline(sign * i_max, color="grey", lw=0.8, ls=":")
+
+
+def _load_steps(axes, result):
+    """Dashed vertical lines at the load steps of ``result``, labelled on the first axes."""
+    for entry in result.scenario.data["load"]:
+        for ax in axes:
+            ax.axvline(entry["t_s"], color="C4", lw=0.8, ls="--")
+        axes[0].annotate(f"load {entry['torque_Nm']:g} Nm", (entry["t_s"], axes[0].get_ylim()[0]), fontsize="small",
+                         color="C4", xytext=(3, 3), textcoords="offset points")
+
+
 def fig_aw(studies, cond, signal):
     """Fig. 8 (speed) or 9 (current command) of condition ``cond``: each AW mode, 1DOF and 2DOF."""
     fig, axes = _figure(2)
+    data = FigureData()
     for ax, (dof, label) in zip(axes[:, 0], (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF))):
         first = studies.results[f"{cond}-{dof}-none"]
         if signal == "speed_rpm":
-            ax.plot(*_thin(first, "speed_ref_rpm"), "k:", lw=1.0, label="reference")
+            _trace(data, ax, first, "speed_ref_rpm", "speed_ref_rpm", color="k", ls=":", lw=1.0, label="reference")
         else:
-            i_max = first.scenario.data["limits"]["i_max_A"]
-            for sign in (1, -1):
-                ax.axhline(sign * i_max, color="grey", lw=0.8, ls=":")
+            _current_limit(ax, first)
         for aw, aw_label in st.AW_LABELS.items():
-            ax.plot(*_thin(studies.results[f"{cond}-{dof}-{aw}"], signal), lw=1.3, label=aw_label, **_AW_STYLE[aw])
+            _trace(data, ax, studies.results[f"{cond}-{dof}-{aw}"], signal, f"{dof}_{aw}_{signal}", lw=1.3,
+                   label=aw_label, **_AW_STYLE[aw])
         ax.set_title(label)
         _finish(ax, "speed [rpm]" if signal == "speed_rpm" else "iq command [A]")
     axes[-1, 0].set_xlabel("time [s]")
-    return fig
+    number, what = (8, "speed") if signal == "speed_rpm" else (9, "current command iq_cmd")
+    fig.suptitle(f"Fig. {number}: simulation condition 1, {what} without and with AW")
+    return fig, data
 
 
 def fig_2dof(studies, cond):
     """Fig. 10: condition 2, speed and current command of the 1DOF PI and of the 2DOF controller."""
     fig, axes = _figure(2)
+    data = FigureData()
     ax_w, ax_i = axes[:, 0]
     r1 = studies.results[f"{cond}-1dof"]
-    ax_w.plot(*_thin(r1, "speed_ref_rpm"), "k:", lw=1.0, label="reference")
+    _trace(data, ax_w, r1, "speed_ref_rpm", "speed_ref_rpm", color="k", ls=":", lw=1.0, label="reference")
     for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
         r = studies.results[f"{cond}-{dof}"]
-        ax_w.plot(*_thin(r, "speed_rpm"), lw=1.3, label=label, **_DOF_STYLE[dof])
-        ax_i.plot(*_thin(r, "iq_ref_A"), lw=1.3, label=label, **_DOF_STYLE[dof])
-    for entry in r1.scenario.data["load"]:
-        for ax in (ax_w, ax_i):
-            ax.axvline(entry["t_s"], color="C4", lw=0.8, ls="--")
-        ax_w.annotate(f"load {entry['torque_Nm']:g} Nm", (entry["t_s"], ax_w.get_ylim()[0]), fontsize="small",
-                      color="C4", xytext=(3, 3), textcoords="offset points")
+        _trace(data, ax_w, r, "speed_rpm", f"{dof}_speed_rpm", lw=1.3, label=label, **_DOF_STYLE[dof])
+        _trace(data, ax_i, r, "iq_ref_A", f"{dof}_iq_ref_A", lw=1.3, label=label, **_DOF_STYLE[dof])
+    _load_steps((ax_w, ax_i), r1)
     _finish(ax_w, "speed [rpm]")
     _finish(ax_i, "iq command [A]", "time [s]")
-    return fig
+    fig.suptitle("Fig. 10: simulation condition 2, 1DOF PI against the 2DOF controller")
+    return fig, data
 
 
 def fig_exp1(studies):
     """Fig. 12: experiment 1, the 500 rpm step with and without AW."""
     fig, axes = _figure(1, height=3.2)
+    data = FigureData()
     ax = axes[0, 0]
-    ax.plot(*_thin(studies.results["e1-1dof-none"], "speed_ref_rpm"), "k:", lw=1.0, label="reference")
+    _trace(data, ax, studies.results["e1-1dof-none"], "speed_ref_rpm", "speed_ref_rpm", color="k", ls=":", lw=1.0,
+           label="reference")
     for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
         for aw in ("none", "back_calculation"):
             style = dict(_DOF_STYLE[dof], ls="-" if aw == "back_calculation" else "--")
-            ax.plot(*_thin(studies.results[f"e1-{dof}-{aw}"], "speed_rpm"), lw=1.3,
-                    label=f"{label}, {st.AW_LABELS[aw]}", **style)
+            _trace(data, ax, studies.results[f"e1-{dof}-{aw}"], "speed_rpm", f"{dof}_{aw}_speed_rpm", lw=1.3,
+                   label=f"{label}, {st.AW_LABELS[aw]}", **style)
     _finish(ax, "speed [rpm]", "time [s]")
-    return fig
+    fig.suptitle("Fig. 12 (experiment 1, simulated): speed responses with and without AW")
+    return fig, data
 
 
 def fig_exp2(studies):
@@ -873,30 +941,49 @@ def fig_exp2(studies):
     r1 = studies.results["e2-1dof"]
     steps = studies.metrics["e2-1dof"]["reference_steps"]
     fig, axes = _figure(2)
-    for ax, step, title in zip(axes[:, 0], steps, ("(a) step up", "(b) step down")):
+    data = FigureData()
+    for ax, step, (prefix, title) in zip(axes[:, 0], steps, (("up_", "(a) step up"), ("down_", "(b) step down"))):
         t0, t1 = step["t_s"] - 0.5, step["window_end_s"]
-        ax.plot(*_thin(r1, "speed_ref_rpm", t0, t1), "k:", lw=1.0, label="reference")
+        _trace(data, ax, r1, "speed_ref_rpm", f"{prefix}speed_ref_rpm", prefix, t0, t1, color="k", ls=":", lw=1.0,
+               label="reference")
         for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
-            ax.plot(*_thin(studies.results[f"e2-{dof}"], "speed_rpm", t0, t1), lw=1.3, label=label, **_DOF_STYLE[dof])
+            _trace(data, ax, studies.results[f"e2-{dof}"], "speed_rpm", f"{prefix}{dof}_speed_rpm", prefix, t0, t1,
+                   lw=1.3, label=label, **_DOF_STYLE[dof])
         ax.set_title(title)
         _finish(ax, "speed [rpm]")
     axes[-1, 0].set_xlabel("time [s]")
-    return fig
+    fig.suptitle("Fig. 13 (experiment 2, simulated): speed-reference tracking")
+    return fig, data
 
 
 def fig_exp3(studies):
-    """Fig. 14: experiment 3, the load step at a steady speed, and the difference of the two responses."""
+    """Fig. 14: experiment 3, the load step at a steady speed: speed and current command."""
     fig, axes = _figure(2)
-    ax_w, ax_d = axes[:, 0]
-    r1, r2 = studies.results["e3-1dof"], studies.results["e3-2dof"]
-    ax_w.plot(*_thin(r1, "speed_rpm"), lw=3.0, alpha=0.5, label=st.ONE_DOF, **_DOF_STYLE["1dof"])
-    ax_w.plot(*_thin(r2, "speed_rpm"), lw=1.2, ls="--", label=st.TWO_DOF, **_DOF_STYLE["2dof"])
+    data = FigureData()
+    ax_w, ax_i = axes[:, 0]
+    r1 = studies.results["e3-1dof"]
+    for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
+        r = studies.results[f"e3-{dof}"]
+        _trace(data, ax_w, r, "speed_rpm", f"{dof}_speed_rpm", label=label, **_SAME_STYLE[dof])
+        _trace(data, ax_i, r, "iq_ref_A", f"{dof}_iq_ref_A", label=label, **_SAME_STYLE[dof])
+    _current_limit(ax_i, r1, signs=(1,))
+    _load_steps((ax_w, ax_i), r1)
     _finish(ax_w, "speed [rpm]")
-    t = r1.t_s[:: max(1, math.ceil(r1.t_s.size / PLOT_POINTS))]
-    diff = (r2.speed_rpm - r1.speed_rpm)[:: max(1, math.ceil(r1.t_s.size / PLOT_POINTS))]
-    ax_d.plot(t, diff, color="k", lw=1.0, label="2DOF - 1DOF")
-    _finish(ax_d, "speed difference [rpm]", "time [s]")
-    return fig
+    _finish(ax_i, "iq command [A]", "time [s]")
+    fig.suptitle("Fig. 14 (experiment 3, simulated): load-torque rejection")
+    return fig, data
+
+
+def _bode_data(fig):
+    """The curves of the Bode figure of Fig. 7 (:func:`pmsm2dof.plots.bode_gx_sweep`), recorded as drawn."""
+    data = FigureData()
+    magnitude, phase = fig.axes[:2]
+    for m, line_mag, line_phase in zip(FIG7_M, magnitude.lines, phase.lines):
+        data("w_radps", line_mag.get_xdata())
+        data("w_radps", line_phase.get_xdata())
+        data(f"m{m:g}_Gx_magnitude_dB", line_mag.get_ydata())
+        data(f"m{m:g}_Gx_phase_deg", line_phase.get_ydata())
+    return data
 
 
 _STEP_PANELS = (("overshoot_pct", "overshoot [%]"), ("settling_time_s", "2 % settling time [s]"))
@@ -907,19 +994,22 @@ def fig_sweep(studies, sweep):
     """A sensitivity figure: overshoot and settling of the step (and dip and recovery of the load step)."""
     has_load = any(s.kind == "load" for s in sweep.series)
     fig, axes = _figure(2 if has_load else 1, 2, height=3.0, width=9.0)
+    data = FigureData()
     panels = [("step", f, label) for f, label in _STEP_PANELS]
     if has_load:
         panels += [("load", f, label) for f, label in _LOAD_PANELS]
     for ax, (kind, figure, label) in zip(axes.flat, panels):
         for k, series in enumerate(s for s in sweep.series if s.kind == kind):
             ls = "--" if kind == "load" and k > 0 else "-"
-            ax.plot(sweep.x, studies.series_values(series, figure), marker="o", ms=3.5, ls=ls, color=f"C{k}",
-                    label=series.label)
+            ax.plot(data(sweep.x_column, sweep.x),
+                    data(f"{_tag(series.label)}_{figure}", studies.series_values(series, figure)),
+                    marker="o", ms=3.5, ls=ls, color=f"C{k}", label=series.label)
         labels = [s.label for s in sweep.series if s.kind == kind]
         for ref_label, run in sweep.references if kind == "step" else ():
             k = next(k for k, label in enumerate(labels) if ref_label.startswith(label))
-            ax.axhline(studies.figure(run.name, "step", figure), color=f"C{k}", lw=1.0,
-                       ls=":" if ref_label.endswith(st.AW_LABELS["none"]) else "-.", label=ref_label)
+            value = data(f"{_tag(ref_label)}_{figure}", studies.figure(run.name, "step", figure))[0]
+            ax.axhline(value, color=f"C{k}", lw=1.0, ls=":" if ref_label.endswith(st.AW_LABELS["none"]) else "-.",
+                       label=ref_label)
         for x, mark in sweep.marks:
             ax.axvline(x, color="grey", lw=0.8, ls="--", label=mark)
         for j, (lo, hi, band) in enumerate(sweep.bands):
@@ -935,12 +1025,13 @@ def fig_sweep(studies, sweep):
     if has_load:
         axes.flat[2].legend(fontsize="x-small", loc="best")
     fig.suptitle(f"Sensitivity to the {sweep.title}")
-    return fig
+    return fig, data
 
 
 def fig_discretization(studies):
     """Discretization study: overshoot, margins and controller error against the sampling period."""
     fig, axes = _figure(2, 2, height=3.0, width=9.0)
+    data = FigureData()
     names = {"forward_euler": "forward Euler", "backward_euler": "backward Euler", "tustin": "Tustin"}
     panels = (("overshoot_pct", "step overshoot [%]"), ("phase_margin_deg", "phase margin [deg]"),
               ("gain_margin_dB", "gain margin [dB]"), ("controller_error", "|F(z)/F(s) - 1| at crossover"))
@@ -950,18 +1041,23 @@ def fig_discretization(studies):
                 if controller == st.TWO_DOF and field != "overshoot_pct":
                     continue  # the feedforward is outside the loop: same margins and PI
                 pts = [p for p in studies.discretization if p.controller == controller and p.method == method]
-                ax.plot([p.Ts_s for p in pts], [getattr(p, field) for p in pts], ls=ls, marker="o", ms=3,
-                        color=f"C{k}", label=names[method] if controller == st.ONE_DOF else None)
+                ax.plot(data("Ts_s", [p.Ts_s for p in pts]),
+                        data(f"{_tag(controller)}_{method}_{field}", [getattr(p, field) for p in pts]),
+                        ls=ls, marker="o", ms=3, color=f"C{k}",
+                        label=names[method] if controller == st.ONE_DOF else None)
             if field == "overshoot_pct":
-                runs = [(Ts, f"disc-{method}-{Ts:g}") for Ts in st.TS_ENGINE_S]
-                ax.plot([Ts for Ts, _ in runs], [studies.figure(n, "step", "overshoot_pct") for _, n in runs],
+                engine = [studies.figure(f"disc-{method}-{Ts:g}", "step", "overshoot_pct") for Ts in st.TS_ENGINE_S]
+                ax.plot(data("engine_Ts_s", st.TS_ENGINE_S),
+                        data(f"engine_{_tag(st.ONE_DOF)}_{method}_overshoot_pct", engine),
                         ls="none", marker="x", ms=8, color=f"C{k}", label="engine" if k == 0 else None)
         if field == "overshoot_pct":
             for controller, ls in ((st.ONE_DOF, "-"), (st.TWO_DOF, "--")):
-                ax.axhline(studies.continuous[controller][0], color="k", lw=0.8, ls=ls, alpha=0.5)
+                value = data(f"continuous_{_tag(controller)}_overshoot_pct", studies.continuous[controller][0])[0]
+                ax.axhline(value, color="k", lw=0.8, ls=ls, alpha=0.5)
         elif field == "phase_margin_deg":
-            ax.axhline(studies.continuous[st.ONE_DOF][1].phase_margin_deg, color="k", lw=0.8, alpha=0.5,
-                       label="continuous")
+            value = data(f"continuous_{_tag(st.ONE_DOF)}_phase_margin_deg",
+                         studies.continuous[st.ONE_DOF][1].phase_margin_deg)[0]
+            ax.axhline(value, color="k", lw=0.8, alpha=0.5, label="continuous")
         ax.axvline(studies.fine_Ts_s, color="grey", lw=0.8, ls="-.")
         ax.set_xscale("log")
         if field == "controller_error":
@@ -972,7 +1068,7 @@ def fig_discretization(studies):
         ax.legend(fontsize="xx-small", loc="best")
     fig.suptitle("Discretization (Table 1): ZOH loop of the design; black: continuous; dash-dot: largest "
                  "recommended Ts", fontsize="medium")
-    return fig
+    return fig, data
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1032,6 +1128,7 @@ def fault_figures(result):
 def fig_faults(runs):
     """Speed and speed integrator of each fault preset, one line per anti-windup mode."""
     fig, axes = _figure(len(FAULT_PRESETS), 2, height=2.2, width=10.0)
+    data = FigureData()
     for (ax_w, ax_x), preset in zip(axes, FAULT_PRESETS):
         results = {aw: runs[preset, aw] for aw in st.AW_LABELS if not isinstance(runs[preset, aw], str)}
         if not results:
@@ -1040,16 +1137,20 @@ def fig_faults(runs):
         first = next(iter(results.values()))
         t0 = fault_figures(first)["t_s"] - 0.5
         t1 = first.t_s[-1]
-        ax_w.plot(*_thin(first, "speed_ref_rpm", t0, t1), "k:", lw=1.0, label="reference")
+        tag = f"{_tag(preset)}_"
+        _trace(data, ax_w, first, "speed_ref_rpm", f"{tag}speed_ref_rpm", tag, t0, t1, color="k", ls=":", lw=1.0,
+               label="reference")
         for aw, result in results.items():
-            ax_w.plot(*_thin(result, "speed_rpm", t0, t1), lw=1.2, label=st.AW_LABELS[aw], **_AW_STYLE[aw])
-            ax_x.plot(*_thin(result, "x_i_Nm", t0, t1), lw=1.2, label=st.AW_LABELS[aw], **_AW_STYLE[aw])
+            style = dict(lw=1.2, label=st.AW_LABELS[aw], **_AW_STYLE[aw])
+            _trace(data, ax_w, result, "speed_rpm", f"{tag}{aw}_speed_rpm", tag, t0, t1, **style)
+            _trace(data, ax_x, result, "x_i_Nm", f"{tag}{aw}_x_i_Nm", tag, t0, t1, **style)
         ax_w.set_title(first.scenario.description, fontsize="small", loc="left")
         _finish(ax_w, "speed [rpm]")
         _finish(ax_x, "integrator x_i [Nm]")
     axes[-1, 0].set_xlabel("time [s]")
     axes[-1, 1].set_xlabel("time [s]")
-    return fig
+    fig.suptitle("Fault scenarios (not in the paper): each anti-windup mode of the 2DOF controller")
+    return fig, data
 
 
 def _fault_blocks(runs, figure_captions):
@@ -1081,40 +1182,42 @@ def _fault_blocks(runs, figure_captions):
 
 
 def figures(studies):
-    """Every figure of the report: ``{stem: (Figure, caption)}`` in report order."""
+    """Every figure of the report: ``{stem: (Figure, FigureData, caption)}`` in report order."""
     sc = _speed_controller(studies)
     Kp = sc["J_design_kgm2"] * sc["alpha"]
+    bode = bode_gx_sweep(sc["alpha"], FIG7_M, J_kgm2=sc["J_design_kgm2"], zeta=sc["zeta"],
+                         tau_i_s=sc["tau_i_design_s"], feedforward="full")
     out = {
         "fig07_bode_gx": (
-            bode_gx_sweep(sc["alpha"], FIG7_M, J_kgm2=sc["J_design_kgm2"], zeta=sc["zeta"],
-                          tau_i_s=sc["tau_i_design_s"], feedforward="full"),
+            bode, _bode_data(bode),
             f"Fig. 7: Bode diagram of the tracking response Gx (eq 6 with the feedforward of eq 11), alpha = "
             f"{sc['alpha']:g} rad/s, m from {FIG7_M[0]:g} to {FIG7_M[-1]:g}."),
         "fig08_speed_aw": (
-            fig_aw(studies, "c1", "speed_rpm"),
+            *fig_aw(studies, "c1", "speed_rpm"),
             "Fig. 8: simulation condition 1 (500 rpm at 0 s, 200 rpm at 5 s, no load), speed without AW, with "
             "back-calculation AW (Ka = 1/Kp) and with clamping; top: 1DOF PI, bottom: 2DOF with the eq 15 "
             "feedforward (the presets' controller)."),
         "fig09_current_aw": (
-            fig_aw(studies, "c1", "iq_ref_A"),
+            *fig_aw(studies, "c1", "iq_ref_A"),
             "Fig. 9: simulation condition 1, the current command iq_cmd of the runs of Fig. 8; dotted: the 7.6 A "
             "limit."),
         "fig10_2dof": (
-            fig_2dof(studies, "c2"),
+            *fig_2dof(studies, "c2"),
             f"Fig. 10: simulation condition 2 (500 rpm at 0 s, 8 Nm at 7 s, 200 rpm at 10 s), 1DOF PI (Kp = "
             f"{Kp:.3g}, Ki = {sc['J_design_kgm2'] * (sc['alpha'] / (2 * sc['zeta'])) ** 2:.3g}) against the 2DOF "
             "controller with the eq 15 feedforward, both with back-calculation AW."),
         "fig12_exp1_aw": (
-            fig_exp1(studies),
+            *fig_exp1(studies),
             "Fig. 12 (experiment 1, simulated): 500 rpm step at 0.5 s, with and without AW."),
         "fig13_exp2_tracking": (
-            fig_exp2(studies),
+            *fig_exp2(studies),
             "Fig. 13 (experiment 2, simulated): tracking of (a) the step up 0 -> 500 rpm and (b) the step down "
             "500 -> 200 rpm, 1DOF PI against 2DOF eq 15."),
         "fig14_exp3_load": (
-            fig_exp3(studies),
-            "Fig. 14 (experiment 3, simulated): 8 Nm load step at a steady 500 rpm; bottom: the difference of the "
-            "two speeds."),
+            *fig_exp3(studies),
+            "Fig. 14 (experiment 3, simulated): 8 Nm load step at a steady 500 rpm, speed (top) and current command "
+            "iq_cmd (bottom) of the 1DOF PI (wide) and the 2DOF controller (dashed), which coincide: the feedforward "
+            "acts on the reference only; dotted: the 7.6 A limit."),
     }
     captions = {
         "ka": (f"Sensitivity to Ka (1DOF PI and 2DOF eq 15, back-calculation AW, 500 rpm step from rest). Shaded: "
@@ -1129,9 +1232,9 @@ def figures(studies):
                          "psi_f; the paper gives no torque constant): 1DOF PI, 500 rpm step, each AW mode."),
     }
     for sweep in studies.sweeps:
-        out[f"sens_{sweep.name}"] = (fig_sweep(studies, sweep), captions[sweep.name])
+        out[f"sens_{sweep.name}"] = (*fig_sweep(studies, sweep), captions[sweep.name])
     out["discretization"] = (
-        fig_discretization(studies),
+        *fig_discretization(studies),
         "Discretization study: the design's discrete loop (ZOH plant, python-control) for forward Euler, backward "
         f"Euler and Tustin as Ts grows; overshoot: solid 1DOF PI, dashed 2DOF eq 15, crosses the engine's overshoot "
         f"of a {st.SMALL_STEP_RPM:g} rpm step with the 1DOF PI. The margins and the PI are the same for both "
@@ -1295,7 +1398,9 @@ def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs
         ("list", ["`claims.json`: the claims table with the measured numbers",
                   "`metrics.json`: figures of merit of every run of the paper's conditions",
                   "`sensitivity.csv`, `discretization.csv`: the data of the study figures",
-                  "`figures/*.png`, `figures/*.svg`: the figures"]),
+                  "`figures/*.png`, `figures/*.svg`: the figures",
+                  "`figures/*.csv`: the numbers each figure draws, beside it under the same name (one column per "
+                  "line, named with its unit; a time axis shared by the lines that use it)"]),
     ]
     return blocks
 
@@ -1428,7 +1533,7 @@ def write_report(studies, out, progress=False):
     claims = compute_claims(studies)
     made = figures(studies)
     fault_runs = run_faults(studies.overrides)
-    made["faults"] = (fig_faults(fault_runs),
+    made["faults"] = (*fig_faults(fault_runs),
                       "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: "
                       "the reference.")
     files = []
@@ -1439,7 +1544,7 @@ def write_report(studies, out, progress=False):
             from tqdm import tqdm
 
             items = tqdm(items, desc="figures", unit="figure")
-        for stem, (fig, _caption) in items:
+        for stem, (fig, data, _caption) in items:
             for fmt in ("png", "svg"):
                 buf = io.BytesIO()
                 fig.savefig(buf, format=fmt, dpi=110)
@@ -1447,7 +1552,9 @@ def write_report(studies, out, progress=False):
                 files.append(f"figures/{stem}.{fmt}")
                 if fmt == "png":
                     images[stem] = buf.getvalue()
-        captions = {stem: caption for stem, (_fig, caption) in made.items()}
+            atomic_write(tmp / "figures" / f"{stem}.csv", data.to_csv())
+            files.append(f"figures/{stem}.csv")
+        captions = {stem: caption for stem, (_fig, _data, caption) in made.items()}
         claims_json = {
             "paper": "Wang, Lin, Yang, Fang, Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous Motor "
                      "Speed Controller",

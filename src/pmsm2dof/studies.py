@@ -120,6 +120,8 @@ class Sweep:
         What varies, in words.
     x_label : str
         Axis label of the varied parameter, with its unit.
+    x_column : str
+        Name of the varied parameter in data files, ending with its unit (none: dimensionless).
     x : tuple of float
         The values.
     series : tuple of Series
@@ -137,6 +139,7 @@ class Sweep:
     name: str
     title: str
     x_label: str
+    x_column: str
     x: tuple
     series: tuple
     references: tuple = ()
@@ -196,7 +199,7 @@ def sweeps(bases, points=POINTS):
     literal = _geom(Kp / 3.0, 3.0 * Kp, max(2, points // 2 + 1))
     ka = _unique(literal + used)
     out.append(Sweep(
-        "ka", "back-calculation gain Ka", "Ka [(rad/s)/Nm]", ka,
+        "ka", "back-calculation gain Ka", "Ka [(rad/s)/Nm]", "Ka_radps_per_Nm", ka,
         tuple(Series(label, "step", tuple(_step(label, f"ka-{dof}-{i}", {"speed_controller.Ka": v})
                                           for i, v in enumerate(ka)))
               for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF))),
@@ -210,7 +213,7 @@ def sweeps(bases, points=POINTS):
     m_values = tuple(float(v) for v in np.linspace(0.2, 2.0, points + 1))
     full = {"speed_controller.feedforward": "full"}
     out.append(Sweep(
-        "m", "tracking pole factor m (feedforward eq 11)", "m [-]", m_values,
+        "m", "tracking pole factor m (feedforward eq 11)", "m [-]", "m", m_values,
         (Series("2DOF eq 11, back-calculation AW", "step",
                 tuple(RunSpec(f"m-bc-{i}", STEP_BASE, {"simulation.t_end_s": STEP_T_END_S, **full,
                                                        "speed_controller.m": m}) for i, m in enumerate(m_values))),
@@ -227,8 +230,8 @@ def sweeps(bases, points=POINTS):
     # zeta (eq 9)
     zeta = _geom(0.2, 1.0, points, sc["zeta"])
     out.append(Sweep(
-        "zeta", "relative damping zeta (eq 9)", "zeta [-]", zeta, _both_controllers("zeta", zeta, "speed_controller.zeta"),
-        marks=((sc["zeta"], "preset"),), log_x=True))
+        "zeta", "relative damping zeta (eq 9)", "zeta [-]", "zeta", zeta,
+        _both_controllers("zeta", zeta, "speed_controller.zeta"), marks=((sc["zeta"], "preset"),), log_x=True))
 
     # inertia error: the plant's J from 0.5 to 2 times the J the controller is designed for
     ratios = _geom(0.5, 2.0, points, 1.0)
@@ -239,8 +242,8 @@ def sweeps(bases, points=POINTS):
                 make(label, f"inertia-{kind}-{dof}-{i}",
                      {"motor.J_kgm2": r * J_design, "speed_controller.J_design_kgm2": J_design})
                 for i, r in enumerate(ratios))))
-    out.append(Sweep("inertia", "inertia error (true J / design J)", "true J / design J [-]", ratios,
-                     tuple(series), marks=((1.0, "J = design J"),), log_x=True))
+    out.append(Sweep("inertia", "inertia error (true J / design J)", "true J / design J [-]", "J_over_J_design",
+                     ratios, tuple(series), marks=((1.0, "J = design J"),), log_x=True))
 
     # torque limit: the torque constant 1.5 p psi_f that turns the 7.6 A limit into torque is not in the paper
     motor, limits = step_data["motor"], step_data["limits"]
@@ -248,7 +251,7 @@ def sweeps(bases, points=POINTS):
     torque_limit = tuple(1.5 * motor["pole_pairs"] * v * limits["i_max_A"] for v in psi_f)
     out.append(Sweep(
         "torque_limit", "torque the current limit allows, 1.5 p psi_f i_max (1DOF PI)",
-        "torque limit [Nm]", torque_limit,
+        "torque limit [Nm]", "torque_limit_Nm", torque_limit,
         tuple(Series(f"{ONE_DOF}, {AW_LABELS[aw]}", "step",
                      tuple(_step(ONE_DOF, f"torque-{aw}-{i}", {"motor.psi_f_Wb": v}, aw) for i, v in enumerate(psi_f)))
               for aw in AW_LABELS),
