@@ -10,6 +10,7 @@ import importlib
 import json
 import math
 import textwrap
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from pmsm2dof.errors import ConfigError
 from pmsm2dof.metrics import compute_metrics
 from pmsm2dof.scenario import load_scenario
 from pmsm2dof.simulate import simulate
-from pmsm2dof.sweep import load_sweep, metric_columns, parse_sweep, run_sweep
+from pmsm2dof.sweep import SweepPartWarning, load_sweep, metric_columns, parse_sweep, run_sweep
 
 # the modules (the package exports functions of the same names)
 simulate_module = importlib.import_module("pmsm2dof.simulate")
@@ -351,6 +352,67 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monk
     monkeypatch.setattr(simulate_module, "simulate", real_simulate)
     fresh = run_sweep(sw, tmp_path / "fresh", workers=1, progress=False).table
     pd.testing.assert_frame_equal(run.table.drop(columns="wall_time_s"), fresh.drop(columns="wall_time_s"))
+
+
+def damage(part, how):
+    """Cut ``part`` to half its bytes, fill it with bytes that are no Parquet, or rename a column."""
+    data = part.read_bytes()
+    if how == "truncated":
+        part.write_bytes(data[: len(data) // 2])
+    elif how == "garbage":
+        part.write_bytes(b"not a parquet file\n" * 20)
+    else:  # as an earlier version wrote it: the time at the current limit under its old name
+        frame = pd.read_parquet(part)
+        frame.rename(columns={"run_current_limit_time_s": "run_saturation_time_s"}).to_parquet(part)
+
+
+def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, base_file, monkeypatch):
+    sw = sweep_of(base_file, GRID_AXES, worst=0)
+    out = tmp_path / "out"
+    first = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=False).table
+    parts = sorted((out / "parts").iterdir())
+    assert len(parts) == 5
+    damaged = {parts[0].name: "truncated", parts[2].name: "garbage", parts[4].name: "columns"}
+    for name, how in damaged.items():
+        damage(out / "parts" / name, how)
+    lost = {p for name in damaged for p in range(int(name[5:13]), min(int(name[5:13]) + 2, 9))}
+
+    simulated = []
+    real_simulate = simulate_module.simulate
+
+    def counting_simulate(scenario, *args, **kwargs):
+        simulated.append(scenario)
+        return real_simulate(scenario, *args, **kwargs)
+
+    monkeypatch.setattr(simulate_module, "simulate", counting_simulate)
+    with pytest.warns(SweepPartWarning) as caught:
+        run = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=False)
+    messages = [str(w.message) for w in caught]
+    assert len(messages) == 3
+    for name, how in damaged.items():
+        (message,) = [m for m in messages if f"parts/{name}" in m]
+        assert ("cannot be read" if how != "columns" else "columns") in message
+        assert message.endswith("deleted, its points run again")
+    assert run.computed == len(lost) == len(simulated) and run.resumed == 9 - len(lost)
+    assert all(any(s == sw.scenario(i) for i in lost) for s in simulated)
+    pd.testing.assert_frame_equal(run.table.drop(columns="wall_time_s"), first.drop(columns="wall_time_s"))
+    # the damaged files are gone; the parts now read without a warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", SweepPartWarning)
+        assert run_sweep(sw, out, workers=1, progress=False, figures=False).computed == 0
+
+
+def test_cli_resume_with_a_damaged_part_warns_in_one_line(tmp_path, base_file, capsys):
+    path = write_sweep(tmp_path, 'base = "base.toml"\nworst = 0\n[axes]\n"speed_controller.alpha" = [25.0, 50.0]\n')
+    out = tmp_path / "out"
+    assert main(["sweep", str(path), "--out", str(out), "--workers", "1", "--batch-size", "1", "--no-figures"]) == 0
+    capsys.readouterr()
+    damage(out / "parts" / "part-00000001.parquet", "truncated")
+    assert main(["sweep", str(path), "--out", str(out), "--no-figures"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.startswith("pmsm2dof: warning: parts/part-00000001.parquet of the earlier run in ")
+    assert captured.err.count("\n") == 1 and "Traceback" not in captured.err
+    assert "2 points (1 simulated, 1 already done)" in captured.out
 
 
 def test_out_folder_of_another_sweep_is_refused(tmp_path, base_file):

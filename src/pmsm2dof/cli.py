@@ -301,13 +301,27 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
     FILE is a sweep TOML: a base scenario and axes (lists, ranges or random distributions of
     dotted scenario keys); see `pmsm2dof.sweep` for the format. Writes OUT/results.parquet,
     OUT/results.csv and OUT/figures/*.png once every point is done; finished points are kept
-    under OUT/parts, so an interrupted sweep resumes where it stopped.
+    under OUT/parts, so an interrupted sweep resumes where it stopped (a part damaged since is
+    deleted with a warning and its points run again).
     """
-    from .sweep import load_sweep, run_sweep
+    import warnings
+
+    from .sweep import SweepPartWarning, load_sweep, run_sweep
 
     chosen = load_sweep(file)
-    run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size,
-                    figures=not no_figures)
+    with warnings.catch_warnings():
+        show = warnings.showwarning
+
+        def one_line(message, category, *args, **kwargs):
+            if issubclass(category, SweepPartWarning):
+                print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
+            else:
+                show(message, category, *args, **kwargs)
+
+        warnings.simplefilter("always", SweepPartWarning)
+        warnings.showwarning = one_line
+        run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size,
+                        figures=not no_figures)
     table = run.table
     stopped = table[table["status"] != "ok"]
     click.echo(f"{chosen.name}: {len(table)} points ({run.computed} simulated, {run.resumed} already done), "

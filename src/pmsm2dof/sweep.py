@@ -53,6 +53,7 @@ import math
 import numbers
 import os
 import tomllib
+import warnings
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -468,6 +469,10 @@ MANIFEST = "sweep.json"
 PARTS = "parts"
 
 
+class SweepPartWarning(UserWarning):
+    """A stored part of an earlier run of the sweep cannot be used: it is deleted and its points run again."""
+
+
 def _prepare_out(out, sweep):
     """Create ``out`` with the sweep's manifest, or check that it holds the same sweep."""
     from .outputs import atomic_write
@@ -496,14 +501,40 @@ def _prepare_out(out, sweep):
                                        "keys": list(sweep.keys)}, indent=2) + "\n")
 
 
-def _read_parts(out):
-    """Rows of every finished batch stored under ``out/parts`` (written whole or not at all)."""
-    import pandas as pd
+def _read_parts(out, sweep):
+    """Rows of every finished batch stored under ``out/parts``, or None when there is none.
 
-    paths = sorted((out / PARTS).glob("part-*.parquet"))
-    if not paths:
-        return None
-    return pd.concat([pd.read_parquet(p) for p in paths], ignore_index=True)
+    Parts are written whole or not at all, but a file can still be damaged afterwards (a full
+    disk, a copy cut short, another program). A part that cannot be read, or that does not hold
+    the columns and points of ``sweep`` as this version writes them, is deleted with a
+    :class:`SweepPartWarning` that names it: its points are then missing and run again.
+    """
+    import pandas as pd
+    import pyarrow
+
+    columns = list(_frame([], sweep).columns)
+    frames = []
+    for path in sorted((out / PARTS).glob("part-*.parquet")):
+        try:
+            frame = pd.read_parquet(path)
+        except (OSError, ValueError, pyarrow.ArrowException) as exc:
+            problem = f"cannot be read ({_one_line(exc).replace(repr(str(path)), 'the file')})"
+        else:
+            if list(frame.columns) != columns:
+                problem = "does not hold the columns of this sweep"
+            elif not frame["point"].between(0, len(sweep.points) - 1).all():
+                problem = "holds points this sweep does not have"
+            else:
+                frames.append(frame)
+                continue
+        try:
+            path.unlink()
+        except OSError as exc:
+            raise ConfigError("--out", str(out), f"a folder where the damaged {PARTS}/{path.name} can be "
+                              f"deleted ({exc.strerror})") from None
+        warnings.warn(f"{PARTS}/{path.name} of the earlier run in {out} {problem}: deleted, its points run again",
+                      SweepPartWarning, stacklevel=3)
+    return pd.concat(frames, ignore_index=True) if frames else None
 
 
 def _save_part(out, sweep, rows):
@@ -559,7 +590,8 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
 
     Each finished batch of points is stored at once as ``out/parts/part-*.parquet``, so an
     interrupted sweep keeps its finished points and a second call with the same ``out``
-    computes only the missing ones. When all points are done, ``out`` receives
+    computes only the missing ones; a stored part that cannot be used is deleted and its points
+    computed again, with a :class:`SweepPartWarning` naming it. When all points are done, ``out`` receives
     ``results.parquet`` and ``results.csv`` (one row per point, see :func:`run_batch`),
     ``base.toml`` (the frozen base scenario), ``sweep.json`` and the figures under ``figures/``
     (:mod:`pmsm2dof.sweepplots`), each written whole or not at all.
@@ -604,7 +636,7 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
 
     with _connect(scheduler) if scheduler is not None else contextlib.nullcontext() as client:
         _prepare_out(out, sweep)
-        finished = _read_parts(out)
+        finished = _read_parts(out, sweep)
         done = set() if finished is None else set(int(i) for i in finished["point"])
         todo = [i for i in range(len(sweep.points)) if i not in done]
         base_data = sweep.base.data
@@ -621,7 +653,7 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
             elif todo:
                 _run_dask(client, sweep, todo, batch_size, base_data, save)
 
-    table = _read_parts(out).drop_duplicates("point").sort_values("point", ignore_index=True)
+    table = _read_parts(out, sweep).drop_duplicates("point").sort_values("point", ignore_index=True)
     if len(table) != len(sweep.points):
         raise RuntimeError(f"{len(sweep.points) - len(table)} points of the sweep have no stored result")
     files = _write_results(out, sweep, table, figures)
