@@ -170,6 +170,26 @@ def test_current_limit_time_follows_the_command_through_a_chattering_flag():
     assert compute_metrics(res)["run"]["current_limit_time_s"]["value"] == pytest.approx(2.0 - DT, abs=1e-9)
 
 
+def test_voltage_limit_time_counts_a_sample_whose_voltage_holds_at_the_range():
+    """From 1 s to 3 s the applied voltage holds within 0.5 % of u_dc/sqrt(3) while the range cuts only some
+    current periods of each sample (share 1 or 0.3), except one sample at 2 s whose voltage is 10 % below it
+    (share 0); at 4 s one sample with 40 % of its periods cut before the voltage fell: 2 s - DT + 0.4 DT."""
+    t = np.arange(0.0, 5.0, DT)
+    res = fake_result(t, np.full_like(t, 100.0), np.full_like(t, 100.0), [(0.0, 100.0)])
+    res.u_dc_V = np.full_like(t, 540.0)
+    u_max = 540.0 / math.sqrt(3.0)
+    holding = (t >= 1.0 - DT / 2) & (t < 3.0 - DT / 2)
+    u = np.where(holding, 0.995 * u_max, 0.5 * u_max)
+    share = np.where(holding, np.where(np.arange(t.size) % 2 == 0, 1.0, 0.3), 0.0)
+    dip = int(np.argmin(np.abs(t - 2.0)))
+    u[dip], share[dip] = 0.9 * u_max, 0.0
+    share[int(np.argmin(np.abs(t - 4.0)))] = 0.4
+    res.ud_V, res.uq_V, res.voltage_limited = -0.6 * u, 0.8 * u, share
+    m = compute_metrics(res)
+    assert np.sum(share[:-1]) * DT < 1.4  # the cut periods alone say 1.3 s of the 2 s
+    assert m["run"]["voltage_limit_time_s"]["value"] == pytest.approx(2.0 - DT + 0.4 * DT, abs=1e-9)
+
+
 def test_figures_that_cannot_be_computed_are_missing_with_a_reason():
     t = np.arange(0.0, 10.0, DT)
     # a sustained oscillation around the reference never settles

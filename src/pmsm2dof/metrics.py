@@ -30,9 +30,9 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
   uses 0.2 % of the deviation).
 
 Whole run: ``iae_rpm_s`` and ``current_limit_time_s`` as above, and ``voltage_limit_time_s``, the time
-during which the inverter's range ``u_dc / sqrt(3)`` cut the voltage (the trace's ``voltage_limited``
-share of each speed sample; missing for a trace without it). A drive at its voltage limit no longer
-follows its current commands: the speed loop's design (eq 3, 9) does not hold there.
+at the inverter's range ``u_dc / sqrt(3)`` (:func:`at_voltage_limit`; missing for a trace without
+the ``voltage_limited`` signal). A drive at its voltage limit no longer follows its current
+commands: the speed loop's design (eq 3, 9) does not hold there.
 
 Fault (each ``[[fault]]`` entry; a sensor_spike lasts one speed-controller period), from its
 start ``t_s`` over a window that ends at the next schedule entry or fault after the fault's end:
@@ -70,8 +70,8 @@ FAULT_FIGURES = ("speed_deviation_rpm", "deviation_time_s", "recovery_time_s", "
 RUN_FIGURES = ("iae_rpm_s", "current_limit_time_s", "voltage_limit_time_s")
 #: Largest spread of the speed over that part, relative to the step (reference) or dip (load).
 STEADY_SPREAD = 0.002
-#: The current command counts as at the limit within this fraction of ``i_max`` (:func:`at_current_limit`).
-CURRENT_LIMIT_RTOL = 0.01
+#: A command within this fraction of its limit is at the limit (:func:`at_current_limit`, :func:`at_voltage_limit`).
+LIMIT_RTOL = 0.01
 
 
 def _value(x):
@@ -132,7 +132,7 @@ def at_current_limit(result):
 
     A sample is at the limit when the speed controller's ``saturated`` flag is set or the
     magnitude of the current command ``(id_ref_A, iq_ref_A)`` is at least
-    ``(1 - CURRENT_LIMIT_RTOL) i_max``. The limit bounds the torque (``Te = 1.5 p psi_f iq`` for a
+    ``(1 - LIMIT_RTOL) i_max``. The limit bounds the torque (``Te = 1.5 p psi_f iq`` for a
     surface PMSM), so within 1 % of it the drive accelerates at 99 % or more of what the limit
     allows, which no speed trace tells from the limit itself.
 
@@ -158,7 +158,36 @@ def at_current_limit(result):
         raise SimulationError("result.saturated must be as long as result.t_s")
     i_max = result.scenario.data["limits"]["i_max_A"]
     command = np.hypot(_trace(result, "id_ref_A"), _trace(result, "iq_ref_A"))
-    return saturated | (command >= (1.0 - CURRENT_LIMIT_RTOL) * i_max)
+    return saturated | (command >= (1.0 - LIMIT_RTOL) * i_max)
+
+
+def at_voltage_limit(result):
+    """The share of each sample at the inverter's voltage limit, counted as :func:`at_current_limit` counts.
+
+    A sample is at the limit for its whole interval when the applied voltage ``||(ud_V, uq_V)||``
+    is at least ``(1 - LIMIT_RTOL) u_dc / sqrt(3)``; otherwise for the share of its current periods
+    whose voltage the range cut (the engine's ``voltage_limited``). Within 1 % of its range the
+    inverter has next to no voltage left to drive the currents to their commands, which the speed
+    loop's design assumes it has (eq 3, 9); and a current controller whose limit acts on some
+    current periods of a sample and not on others while the voltage holds at the range is at
+    the limit for all of them, as the speed controller's chattering flag is for the current.
+
+    Parameters
+    ----------
+    result : Result
+        Arrays ``voltage_limited``, ``ud_V``, ``uq_V`` and ``u_dc_V``.
+
+    Returns
+    -------
+    numpy.ndarray of float
+        In [0, 1], one per sample.
+    """
+    share = _trace(result, "voltage_limited")
+    if np.any((share < 0.0) | (share > 1.0)):
+        raise SimulationError("result.voltage_limited must be a share in [0, 1]")
+    u_max = _trace(result, "u_dc_V") / math.sqrt(3.0)
+    at_range = np.hypot(_trace(result, "ud_V"), _trace(result, "uq_V")) >= (1.0 - LIMIT_RTOL) * u_max
+    return np.where(at_range, 1.0, share)
 
 
 def _time_where(t, mask, t0, t1):
@@ -333,10 +362,7 @@ def compute_metrics(result):
 def _voltage_limit_time(result, t):
     if getattr(result, "voltage_limited", None) is None:
         return _missing("the trace has no voltage_limited signal")
-    share = _trace(result, "voltage_limited")
-    if np.any((share < 0.0) | (share > 1.0)):
-        raise SimulationError("result.voltage_limited must be a share in [0, 1]")
-    return _value(_time_where(t, share, t[0], t[-1]))
+    return _value(_time_where(t, at_voltage_limit(result), t[0], t[-1]))
 
 
 def _fmt(figure, unit):
@@ -368,6 +394,6 @@ def summary_lines(metrics):
     voltage = run["voltage_limit_time_s"]["value"]
     if voltage:
         share = 100.0 * voltage / run["t_end_s"]
-        lines.append(f"VOLTAGE LIMIT: the inverter's range u_dc/sqrt(3) cut the voltage for {voltage:.4g} s "
+        lines.append(f"VOLTAGE LIMIT: at the inverter's range u_dc/sqrt(3) for {voltage:.4g} s "
                      f"({share:.3g} % of the run): the currents do not follow their commands there")
     return lines
