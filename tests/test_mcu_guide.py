@@ -35,9 +35,12 @@ def shell_blocks(text):
 
 def user_environment(tmp_path):
     """The environment of a shell with no virtual environment active and a Python without pmsm2dof first."""
+    installed = Path(sysconfig.get_path("scripts")) / "pmsm2dof"
+    installed = installed if installed.is_file() else Path(shutil.which("pmsm2dof") or "")
+    assert installed.is_file(), "the pmsm2dof command of this installation is not found"
     tool = tmp_path / "tool-bin"
     tool.mkdir()
-    (tool / "pmsm2dof").symlink_to(Path(sysconfig.get_path("scripts")) / "pmsm2dof")
+    (tool / "pmsm2dof").symlink_to(installed)
     other = tmp_path / "other-python-bin"
     other.mkdir()
     for name in ("python3", f"python3.{sys.version_info.minor}", "python"):
