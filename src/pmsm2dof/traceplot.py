@@ -2,15 +2,17 @@
 
 Drawn like the paper's Fig. 8 to 10 and 12 to 14 (speed and current responses), from a
 :class:`~pmsm2dof.simulate.Result`. Intervals where the current-vector limit is active (the
-saturation that the anti-windup of Fig. 5 acts on) are shaded in every panel; the voltage panel
-shows ``||u_dq||`` against the inverter's range ``u_dc / sqrt(3)`` and shades, in another colour,
-the intervals where that range cut the voltage.
+saturation that the anti-windup of Fig. 5 acts on, :func:`~pmsm2dof.metrics.at_current_limit`) are
+shaded in every panel; the voltage panel shows ``||u_dq||`` against the inverter's range
+``u_dc / sqrt(3)`` and shades, in another colour, the intervals at the voltage limit
+(:func:`~pmsm2dof.metrics.at_voltage_limit`).
 """
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from .metrics import at_current_limit, at_voltage_limit
 from .plots import save_figure
 
 
@@ -65,10 +67,11 @@ def trace_figure(result):
     ax_u.plot(t, result.u_dc_V / np.sqrt(3.0), ":", lw=1.0, color="grey", label="range u_dc/sqrt(3)")
     ax_u.set_ylabel("voltage [V]")
     ax_u.set_xlabel("time [s]")
-    for a, b in _saturated_intervals(t, result.voltage_limited > 0.0):
+    voltage_limited = at_voltage_limit(result) > 0.0
+    for a, b in _saturated_intervals(t, voltage_limited):
         ax_u.axvspan(a, b, color="purple", alpha=0.15, lw=0)
 
-    spans = _saturated_intervals(t, result.saturated)
+    spans = _saturated_intervals(t, at_current_limit(result))
     for ax in (ax_w, ax_i, ax_T, ax_u):
         for a, b in spans:
             ax.axvspan(a, b, color="orange", alpha=0.15, lw=0)
@@ -77,7 +80,7 @@ def trace_figure(result):
     if spans:
         ax_w.axvspan(np.nan, np.nan, color="orange", alpha=0.15, label="current limit active")
         ax_w.legend(fontsize="small", loc="best")
-    if np.any(result.voltage_limited > 0.0):
+    if np.any(voltage_limited):
         ax_u.axvspan(np.nan, np.nan, color="purple", alpha=0.15, label="voltage limit active")
         ax_u.legend(fontsize="small", loc="best")
     ax_u.set_xlim(t[0], t[-1])
