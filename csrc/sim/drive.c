@@ -261,14 +261,14 @@ static double dc_link_V(const p2d_sim_t *sim, double t_s)
 static double friction_Nm(const p2d_pmsm_t *m, double w_m_radps)
 {
     double T = m->B_Nms * w_m_radps;
-    if (m->T_c_Nm > 0.0) T += m->T_c_Nm * tanh(w_m_radps * m->inv_w_c);
+    if (m->T_coulomb_Nm > 0.0) T += m->T_coulomb_Nm * tanh(w_m_radps * m->inv_w_c_s_per_rad);
     return T;
 }
 
 /* Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) */
 static double torque_Nm(const p2d_pmsm_t *m, double id_A, double iq_A)
 {
-    return iq_A * (m->kt_NmpA + m->c_T_NmpA2 * id_A);
+    return iq_A * (m->kt_Nm_per_A + m->c_T_Nm_per_A2 * id_A);
 }
 
 /*
@@ -279,19 +279,19 @@ static void plant_rate(const p2d_sim_t *sim, const double x[3], double a, double
                        double dx[3])
 {
     const p2d_pmsm_t *m = &sim->pmsm;
-    double w_e = m->p * x[2];
+    double w_e = m->pole_pairs * x[2];
     if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
         /* Ld did/dt = ud - Rs id + w_e Lq iq */
-        dx[0] = (a - m->Rs_ohm * x[0] + w_e * m->Lq_H * x[1]) * m->inv_Ld;
+        dx[0] = (a - m->Rs_ohm * x[0] + w_e * m->Lq_H * x[1]) * m->inv_Ld_per_H;
         /* Lq diq/dt = uq - Rs iq - w_e (Ld id + psi_f) */
-        dx[1] = (b - m->Rs_ohm * x[1] - w_e * (m->Ld_H * x[0] + m->psi_f_Wb)) * m->inv_Lq;
+        dx[1] = (b - m->Rs_ohm * x[1] - w_e * (m->Ld_H * x[0] + m->psi_f_Wb)) * m->inv_Lq_per_H;
     } else {
         /* eq 3: tau_i di/dt = i_ref - i */
-        dx[0] = (a - x[0]) * sim->inv_tau_i;
-        dx[1] = (b - x[1]) * sim->inv_tau_i;
+        dx[0] = (a - x[0]) * sim->inv_tau_i_per_s;
+        dx[1] = (b - x[1]) * sim->inv_tau_i_per_s;
     }
     /* J dw_m/dt = Te - T_load - B w_m - T_c tanh(w_m / w_c) */
-    dx[2] = (torque_Nm(m, x[0], x[1]) - T_load_Nm - friction_Nm(m, x[2])) * m->inv_J;
+    dx[2] = (torque_Nm(m, x[0], x[1]) - T_load_Nm - friction_Nm(m, x[2])) * m->inv_J_per_kgm2;
 }
 
 /* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
@@ -408,7 +408,7 @@ static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
 /* Steady-state voltage of eq 1 for the currents, speed and current slopes given. */
 static void pmsm_voltage(const p2d_pmsm_t *m, double did_dt, double diq_dt, double *ud_V, double *uq_V)
 {
-    double w_e = m->p * m->w_m_radps;
+    double w_e = m->pole_pairs * m->w_m_radps;
     /* ud = Rs id + Ld did/dt - w_e Lq iq */
     *ud_V = m->Rs_ohm * m->id_A + m->Ld_H * did_dt - w_e * m->Lq_H * m->iq_A;
     /* uq = Rs iq + Lq diq/dt + w_e (Ld id + psi_f) */
@@ -444,29 +444,29 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 
     mp = &cfg->motor;
     m = &sim->pmsm;
-    m->p = (double)mp->pole_pairs;
+    m->pole_pairs = (double)mp->pole_pairs;
     m->Rs_ohm = mp->Rs_ohm;
     m->Ld_H = mp->Ld_H;
     m->Lq_H = mp->Lq_H;
     m->psi_f_Wb = mp->psi_f_Wb;
-    m->inv_Ld = 1.0 / mp->Ld_H;
-    m->inv_Lq = 1.0 / mp->Lq_H;
-    m->inv_J = 1.0 / mp->J_kgm2;
-    m->kt_NmpA = 1.5 * m->p * mp->psi_f_Wb;
-    m->c_T_NmpA2 = 1.5 * m->p * (mp->Ld_H - mp->Lq_H);
+    m->inv_Ld_per_H = 1.0 / mp->Ld_H;
+    m->inv_Lq_per_H = 1.0 / mp->Lq_H;
+    m->inv_J_per_kgm2 = 1.0 / mp->J_kgm2;
+    m->kt_Nm_per_A = 1.5 * m->pole_pairs * mp->psi_f_Wb;
+    m->c_T_Nm_per_A2 = 1.5 * m->pole_pairs * (mp->Ld_H - mp->Lq_H);
     m->B_Nms = mp->B_Nms;
-    m->T_c_Nm = mp->T_coulomb_Nm;
+    m->T_coulomb_Nm = mp->T_coulomb_Nm;
     /* w_c = max(w_c_min, 10 Ts_current T_c / J): friction time constant J w_c / T_c >= 10 Ts_current */
-    m->inv_w_c = 1.0 / fmax(P2D_SIM_W_C_MIN_RADPS,
+    m->inv_w_c_s_per_rad = 1.0 / fmax(P2D_SIM_W_C_MIN_RADPS,
                             P2D_SIM_W_C_PERIODS * cfg->Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
 
     sim->inverter.u_max_V = cfg->u_dc_V * P2D_SIM_INV_SQRT3;
     sim->inverter.delay = cfg->computation_delay;
-    sim->inv_tau_i = cfg->current_model == P2D_CURRENT_FIRST_ORDER ? 1.0 / cfg->tau_i_s : 0.0;
+    sim->inv_tau_i_per_s = cfg->current_model == P2D_CURRENT_FIRST_ORDER ? 1.0 / cfg->tau_i_s : 0.0;
     sim->dt_s = cfg->Ts_current_s / (double)cfg->substeps;
     sim->t_tol_s = P2D_SIM_T_TOL * sim->dt_s;
     /* twice the no-load speed: 2 u_dc / (sqrt(3) p psi_f) */
-    sim->w_bound_radps = P2D_SIM_OVERSPEED_FACTOR * sim->inverter.u_max_V / (m->p * mp->psi_f_Wb);
+    sim->w_bound_radps = P2D_SIM_OVERSPEED_FACTOR * sim->inverter.u_max_V / (m->pole_pairs * mp->psi_f_Wb);
     /* ten times max(i_max, psi_f / min(Ld, Lq)) */
     L_min_H = fmin(mp->Ld_H, mp->Lq_H);
     sim->i_bound_A = P2D_SIM_OVERCURRENT_FACTOR * fmax((double)cfg->speed.i_max_A, mp->psi_f_Wb / L_min_H);
@@ -501,7 +501,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->inverter.limited_next = false;
     if (cfg->current_model == P2D_CURRENT_DQ_PI) {
         const p2d_current_coef_t *c = &sim->current.coef[sim->current.active];
-        double w_e = m->p * m->w_m_radps;
+        double w_e = m->pole_pairs * m->w_m_radps;
         double ud_V, uq_V;
         pmsm_voltage(m, 0.0, 0.0, &ud_V, &uq_V);
         /* integrators: zero error gives ud = x_d - w_e Lq iq, uq = x_q + w_e (Ld id + psi_f) (decoupling) */
@@ -577,7 +577,7 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 sim->inverter.u_max_V = sim->u_dc_V * P2D_SIM_INV_SQRT3;
                 p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A,
                                     (float)sim->pmsm.id_A, (float)sim->pmsm.iq_A,
-                                    (float)(sim->pmsm.p * sim->pmsm.w_m_radps), (float)sim->u_dc_V, &co);
+                                    (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps), (float)sim->u_dc_V, &co);
                 if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
                 n_limited += inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, co.saturated,
                                             &ud_cmd_V, &uq_cmd_V);
@@ -591,8 +591,8 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 a = sim->id_ref_A;
                 b = sim->iq_ref_A;
                 /* the voltage eq 1 needs for the current slopes of eq 3 */
-                pmsm_voltage(&sim->pmsm, (a - sim->pmsm.id_A) * sim->inv_tau_i,
-                             (b - sim->pmsm.iq_A) * sim->inv_tau_i, &ud_log_V, &uq_log_V);
+                pmsm_voltage(&sim->pmsm, (a - sim->pmsm.id_A) * sim->inv_tau_i_per_s,
+                             (b - sim->pmsm.iq_A) * sim->inv_tau_i_per_s, &ud_log_V, &uq_log_V);
                 n_limited += hypot(ud_log_V, uq_log_V) > sim->inverter.u_max_V;
             }
             if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);

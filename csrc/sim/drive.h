@@ -227,22 +227,22 @@ typedef struct {
 
 /* PMSM and mechanics: coefficients precomputed at init, and the state. */
 typedef struct {
-    double p;             /* pole pairs [-] */
-    double Rs_ohm;        /* stator resistance [ohm] */
-    double Ld_H;          /* d-axis inductance [H] */
-    double Lq_H;          /* q-axis inductance [H] */
-    double psi_f_Wb;      /* flux linkage [Wb] */
-    double inv_Ld;        /* 1 / Ld [1/H] */
-    double inv_Lq;        /* 1 / Lq [1/H] */
-    double inv_J;         /* 1 / J [1/(kg m^2)] */
-    double kt_NmpA;       /* 1.5 p psi_f [Nm/A] */
-    double c_T_NmpA2;     /* 1.5 p (Ld - Lq) [Nm/A^2] */
-    double B_Nms;         /* viscous friction [Nm s/rad] */
-    double T_c_Nm;        /* Coulomb friction [Nm] */
-    double inv_w_c;       /* 1 / w_c, friction smoothing band [s/rad] */
-    double id_A;          /* state: d-axis current [A] */
-    double iq_A;          /* state: q-axis current [A] */
-    double w_m_radps;     /* state: mechanical speed [rad/s] */
+    double pole_pairs;         /* pole pairs p [-] */
+    double Rs_ohm;             /* stator resistance [ohm] */
+    double Ld_H;               /* d-axis inductance [H] */
+    double Lq_H;               /* q-axis inductance [H] */
+    double psi_f_Wb;           /* flux linkage [Wb] */
+    double inv_Ld_per_H;       /* 1 / Ld [1/H] */
+    double inv_Lq_per_H;       /* 1 / Lq [1/H] */
+    double inv_J_per_kgm2;     /* 1 / J [1/(kg m^2)] */
+    double kt_Nm_per_A;        /* 1.5 p psi_f [Nm/A] */
+    double c_T_Nm_per_A2;      /* 1.5 p (Ld - Lq) [Nm/A^2] */
+    double B_Nms;              /* viscous friction [Nm s/rad] */
+    double T_coulomb_Nm;       /* Coulomb friction [Nm] */
+    double inv_w_c_s_per_rad;  /* 1 / w_c, friction smoothing band [s/rad] */
+    double id_A;               /* state: d-axis current [A] */
+    double iq_A;               /* state: q-axis current [A] */
+    double w_m_radps;          /* state: mechanical speed [rad/s] */
 } p2d_pmsm_t;
 
 /* Switching-cycle average inverter with DC-link limit and optional delay. */
@@ -284,7 +284,7 @@ typedef struct {
     p2d_inverter_t inverter;         /* inverter (DQ_PI) */
     p2d_schedule_cursor_t reference; /* read position in the reference */
     p2d_schedule_cursor_t load;      /* read position in the load */
-    double inv_tau_i;                /* 1 / tau_i, FIRST_ORDER [1/s] */
+    double inv_tau_i_per_s;          /* 1 / tau_i, FIRST_ORDER [1/s] */
     double dt_s;                     /* RK4 step Ts_current / substeps [s] */
     double t_tol_s;                  /* times closer than this are equal: 1e-6 dt [s] */
     double id_ref_A;                 /* current command held over the speed period [A] */

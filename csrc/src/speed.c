@@ -129,7 +129,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     k.psi_f_Wb = cfg->psi_f_Wb;
     k.dL_H = cfg->Ld_H - cfg->Lq_H;
     k.salient = cfg->Ld_H != cfg->Lq_H;
-    k.kt_NmpA = 1.5f * (float)cfg->pole_pairs * cfg->psi_f_Wb;
+    k.kt_Nm_per_A = 1.5f * (float)cfg->pole_pairs * cfg->psi_f_Wb;
     k.c_T_Nm_per_A2 = 1.5f * (float)cfg->pole_pairs * k.dL_H;
     {
         /* MTPA point at ||i|| = I: id = 2 dL I^2 / (psi_f + sqrt(psi_f^2 + 8 dL^2 I^2)) */
@@ -137,7 +137,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
         float id = 2.0f * k.dL_H * I * I /
                    (k.psi_f_Wb + sqrtf(k.psi_f_Wb * k.psi_f_Wb + 8.0f * k.dL_H * k.dL_H * I * I));
         float iq = sqrtf(I * I - id * id);
-        k.T_max_Nm = iq * (k.kt_NmpA + k.c_T_Nm_per_A2 * id);
+        k.T_max_Nm = iq * (k.kt_Nm_per_A + k.c_T_Nm_per_A2 * id);
     }
     if (!k.salient && isfinite(k.T_max_Nm)) {
         /*
@@ -146,7 +146,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
          * T_max by ulps until it holds (kt i_max rounded, then divided by kt, can
          * come out one ulp above i_max).
          */
-        while (k.T_max_Nm / k.kt_NmpA > cfg->i_max_A) k.T_max_Nm = nextafterf(k.T_max_Nm, 0.0f);
+        while (k.T_max_Nm / k.kt_Nm_per_A > cfg->i_max_A) k.T_max_Nm = nextafterf(k.T_max_Nm, 0.0f);
     }
     if (!is_positive(k.T_max_Nm) || !isfinite(k.ff_Fr0) || !isfinite(k.ff_b_dr) ||
         !isfinite(k.ff_Kd_per_Ts) || !isfinite(k.b_e0) || !isfinite(k.Ki_Ts)) {
@@ -269,7 +269,7 @@ static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *
 static inline void surface_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
 {
     out->id_ref_A = 0.0f;
-    out->iq_ref_A = out->T_ref_Nm / c->kt_NmpA;
+    out->iq_ref_A = out->T_ref_Nm / c->kt_Nm_per_A;
 }
 
 /*

@@ -162,9 +162,9 @@ typedef struct {
     float ff_a1;          /* feedforward transient section, weight of -y[k-1] [-] */
     float ff_Kd_per_Ts;   /* FULL derivative term J alpha m tau_i / Ts [Nm/(rad/s)] */
     float T_max_Nm;       /* torque at ||i_dq|| = i_max_A on the MTPA trajectory [Nm]; surface
-                             PMSM: kt i_max_A, lowered until T_max_Nm / kt_NmpA <= i_max_A */
+                             PMSM: kt i_max_A, lowered until T_max_Nm / kt_Nm_per_A <= i_max_A */
     float i_max_A;        /* current-vector limit [A] */
-    float kt_NmpA;        /* 1.5 p psi_f [Nm/A] */
+    float kt_Nm_per_A;    /* 1.5 p psi_f [Nm/A] */
     float c_T_Nm_per_A2;  /* 1.5 p (Ld - Lq) [Nm/A^2]; 0 for a surface PMSM */
     float psi_f_Wb;       /* flux linkage [Wb], MTPA */
     float dL_H;           /* Ld - Lq [H], MTPA */
