@@ -149,10 +149,10 @@ static void fz_check_accepted(const p2d_speed_config_t *cfg, const p2d_speed_coe
                "accepted method %u feedforward %u anti_windup %u", (unsigned)cfg->method,
                (unsigned)cfg->feedforward, (unsigned)cfg->anti_windup);
     FZ_REQUIRE(cfg->feedforward != P2D_FF_LOWPASS || cfg->m == 1.0f, "lowpass with m = %g", (double)cfg->m);
-    FZ_REQUIRE(isfinite(c->b_e0) && isfinite(c->Ki_Ts) && isfinite(c->Ki_Ka_Ts) && isfinite(c->ff_a1) &&
+    FZ_REQUIRE(isfinite(c->pi.b_e0) && isfinite(c->pi.Ki_Ts) && isfinite(c->pi.Ki_Ka_Ts) && isfinite(c->ff_a1) &&
                    isfinite(c->T_max_Nm),
-               "non-finite coefficient: b_e0 %g Ki_Ts %g Ki_Ka_Ts %g ff_a1 %g T_max %g", (double)c->b_e0,
-               (double)c->Ki_Ts, (double)c->Ki_Ka_Ts, (double)c->ff_a1, (double)c->T_max_Nm);
+               "non-finite coefficient: b_e0 %g Ki_Ts %g Ki_Ka_Ts %g ff_a1 %g T_max %g", (double)c->pi.b_e0,
+               (double)c->pi.Ki_Ts, (double)c->pi.Ki_Ka_Ts, (double)c->ff_a1, (double)c->T_max_Nm);
     FZ_REQUIRE(c->T_max_Nm > 0.0f && c->i_max_A == cfg->i_max_A, "T_max %g i_max %g", (double)c->T_max_Nm,
                (double)c->i_max_A);
     /* the pole -a1 of the feedforward section must stay strictly inside the unit circle in float32 too */
@@ -160,9 +160,9 @@ static void fz_check_accepted(const p2d_speed_config_t *cfg, const p2d_speed_coe
                "feedforward pole on or outside the unit circle: a1 = %.9g (m alpha Ts = %g)", (double)c->ff_a1,
                (double)cfg->m * (double)cfg->alpha_radps * (double)cfg->Ts_s);
     if (cfg->anti_windup == P2D_AW_BACK_CALCULATION) {
-        FZ_REQUIRE(c->Ki_Ka_Ts >= 0.0f && c->Ki_Ka_Ts < 2.0f, "Ki Ka Ts = %g", (double)c->Ki_Ka_Ts);
+        FZ_REQUIRE(c->pi.Ki_Ka_Ts >= 0.0f && c->pi.Ki_Ka_Ts < 2.0f, "Ki Ka Ts = %g", (double)c->pi.Ki_Ka_Ts);
     } else {
-        FZ_REQUIRE(c->Ki_Ka_Ts == 0.0f, "Ki Ka Ts = %g without back calculation", (double)c->Ki_Ka_Ts);
+        FZ_REQUIRE(c->pi.Ki_Ka_Ts == 0.0f, "Ki Ka Ts = %g without back calculation", (double)c->pi.Ki_Ka_Ts);
     }
     FZ_REQUIRE(c->clamping == (cfg->anti_windup == P2D_AW_CLAMPING), "clamping flag");
 }
@@ -324,7 +324,7 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
     double xs0 = before->x_Nm, xs1 = ctl->x_Nm;
     double x0 = xs0 - Fr0 * (double)before->r_prev_radps, x1 = xs1 - Fr0 * (double)ctl->r_prev_radps;
     double e = out->e_radps, T_ff = out->T_ff_Nm;
-    double g = c->Ki_Ka_Ts, kits = c->Ki_Ts, b = c->b_e0, T = T_app;
+    double g = c->pi.Ki_Ka_Ts, kits = c->pi.Ki_Ts, b = c->pi.b_e0, T = T_app;
     double u_star = T - (double)out->T_unsat_Nm;
     double ff_sum = fabs(xs0) + fabs(Fr0 * (double)before->r_prev_radps) + fabs(Fr0 * (double)out->w_ref_radps) +
                     fabs(Fr0 * dr) + fabs((double)out->y_ff_Nm);
@@ -347,7 +347,7 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
     FZ_REQUIRE(!out->fault && isfinite(T_app), "a fault or a non-finite applied torque %g was not counted", T);
     FZ_REQUIRE(ctl->r_prev_radps == out->w_ref_radps && ctl->y_ff_prev_Nm == out->y_ff_Nm,
                "feedforward state not advanced");
-    if (c->Ki_Ka_Ts > 0.0f) {
+    if (c->pi.Ki_Ka_Ts > 0.0f) {
         /* x[k] = (1 - g) x[k-1] + (Ki Ts - g b) e + g (T_app - T_ff): a contraction by |1 - g| < 1 */
         double bound = (fabs(kits - g * b) * fabs(e) + g * (fabs(T) + fabs(T_ff))) / (1.0 - fabs(1.0 - g));
         slack = fz_slack(fabs(x0) + fabs(kits * e) + g * (fabs(T) + fabs(b * e) + fabs(x0) + fabs(T_ff)) +

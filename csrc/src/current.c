@@ -5,6 +5,8 @@
 
 #include <math.h>
 
+#include "pi.h"
+
 #define P2D_INV_SQRT3 0.57735026918962576f /* 1/sqrt(3) */
 /*
  * Smallest ud^2 + uq^2 [V^2] whose float32 sum is used as is: any square that
@@ -13,58 +15,24 @@
  */
 #define P2D_NORM2_MIN_V2 0x1p-100f
 
-/* Inlines a function even where it is large, if the compiler supports it (here: compute into step). */
-#if defined(__GNUC__)
-#define P2D_ALWAYS_INLINE __attribute__((always_inline)) inline
-#else
-#define P2D_ALWAYS_INLINE inline
-#endif
-
-static bool is_positive(float x) { return isfinite(x) && x > 0.0f; }
-static bool is_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
-
-/*
- * Square root of an argument that is >= 0 by construction. Through fabsf the
- * compiler sees that, and emits the bare vsqrt.f32 without the errno path (a
- * call into libm's sqrtf for a negative argument).
- */
-static inline float sqrt_nonnegative(float x) { return sqrtf(fabsf(x)); }
-
-/* a < 0 < b or b < 0 < a, without a product that can underflow to 0 */
-static bool opposite_signs(float a, float b) { return (a < 0.0f && b > 0.0f) || (a > 0.0f && b < 0.0f); }
-
-/* PI coefficients of one axis with inductance L_H (eq 3: Kp = L/tau_i, Ki = Rs/tau_i). */
+/* PI coefficients of one axis with inductance L_H (eq 3: Kp = L/tau_i, Ki = Rs/tau_i; eq 14, Table 1). */
 static p2d_pi_coef_t axis_coefficients(const p2d_current_config_t *cfg, float L_H)
 {
-    p2d_pi_coef_t a;
-    a.Kp = L_H / cfg->tau_i_s;
-    a.Ki = cfg->Rs_ohm / cfg->tau_i_s;
-    a.Ki_Ts = a.Ki * cfg->Ts_s;
-    /* back calculation with Ka = 1/Kp: Ki Ka Ts = Rs Ts / L */
-    a.Ki_Ka_Ts = cfg->anti_windup == P2D_AW_BACK_CALCULATION ? a.Ki_Ts / a.Kp : 0.0f;
-    if (cfg->method == P2D_FORWARD_EULER) {
-        a.b_e0 = a.Kp;
-    } else if (cfg->method == P2D_BACKWARD_EULER) {
-        a.b_e0 = a.Kp + a.Ki_Ts;
-    } else {
-        a.b_e0 = a.Kp + 0.5f * a.Ki_Ts;
-    }
+    p2d_pi_coef_t a = p2d_pi_coefficients(L_H / cfg->tau_i_s, cfg->Rs_ohm / cfg->tau_i_s, cfg->Ts_s, cfg->method);
+    /* back calculation with Ka = 1/Kp: Ki Ka Ts = Ki Ts / Kp = Rs Ts / L */
+    if (cfg->anti_windup == P2D_AW_BACK_CALCULATION) a.Ki_Ka_Ts = a.Ki_Ts / a.Kp;
     return a;
 }
 
-static bool axis_finite(const p2d_pi_coef_t *a)
-{
-    return isfinite(a->Kp) && isfinite(a->Ki) && isfinite(a->b_e0) && isfinite(a->Ki_Ts) && isfinite(a->Ki_Ka_Ts);
-}
-
+/* Validate cfg and compute its coefficients into *c. *c is written only on success. */
 static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_current_coef_t *c)
 {
     p2d_current_coef_t k;
-    if (!is_positive(cfg->Rs_ohm)) return P2D_ERR_RS;
-    if (!is_positive(cfg->Ld_H)) return P2D_ERR_LD;
-    if (!is_positive(cfg->Lq_H)) return P2D_ERR_LQ;
-    if (!is_nonnegative(cfg->psi_f_Wb)) return P2D_ERR_PSI_F;
-    if (!is_positive(cfg->Ts_s)) return P2D_ERR_TS;
+    if (!p2d_is_positive(cfg->Rs_ohm)) return P2D_ERR_RS;
+    if (!p2d_is_positive(cfg->Ld_H)) return P2D_ERR_LD;
+    if (!p2d_is_positive(cfg->Lq_H)) return P2D_ERR_LQ;
+    if (!p2d_is_nonnegative(cfg->psi_f_Wb)) return P2D_ERR_PSI_F;
+    if (!p2d_is_positive(cfg->Ts_s)) return P2D_ERR_TS;
     if (!isfinite(cfg->tau_i_s) || !(cfg->tau_i_s >= cfg->Ts_s)) return P2D_ERR_TAU_I;
     if ((unsigned)cfg->method > (unsigned)P2D_TUSTIN) return P2D_ERR_METHOD;
     if ((unsigned)cfg->anti_windup > (unsigned)P2D_AW_CLAMPING) return P2D_ERR_ANTI_WINDUP;
@@ -76,7 +44,7 @@ static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_cu
 
     k.d = axis_coefficients(cfg, cfg->Ld_H);
     k.q = axis_coefficients(cfg, cfg->Lq_H);
-    if (!axis_finite(&k.d) || !axis_finite(&k.q)) return P2D_ERR_TAU_I; /* float32 overflow of L/tau_i or Rs/tau_i */
+    if (!p2d_pi_finite(&k.d) || !p2d_pi_finite(&k.q)) return P2D_ERR_TAU_I; /* float32 overflow of L/tau_i or Rs/tau_i */
     /* the same stability bound on the float32 loop gains: rounding can make Rs Ts / L exactly 2 */
     if (!(k.d.Ki_Ka_Ts < 2.0f && k.q.Ki_Ka_Ts < 2.0f)) return P2D_ERR_TS_UNSTABLE;
     k.Ld_H = cfg->decouple ? cfg->Ld_H : 0.0f;
@@ -101,16 +69,17 @@ p2d_status_t p2d_current_init(p2d_current_t *ctl, const p2d_current_config_t *cf
     return P2D_OK;
 }
 
+/* The shadow swap of pi.h. */
 p2d_status_t p2d_current_set_config(p2d_current_t *ctl, const p2d_current_config_t *cfg)
 {
     p2d_status_t status;
-    uint32_t shadow;
+    uint32_t inactive;
     if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
-    shadow = 1u - ctl->active;
-    status = current_coefficients(cfg, &ctl->coef[shadow]);
+    inactive = p2d_shadow_inactive(ctl->active);
+    status = current_coefficients(cfg, &ctl->coef[inactive]);
     if (status != P2D_OK) return status;
     ctl->config = *cfg;
-    ctl->active = shadow;
+    p2d_shadow_activate(&ctl->active, inactive);
     return P2D_OK;
 }
 
@@ -140,9 +109,9 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
     ed = id_ref_A - id_A;
     eq = iq_ref_A - iq_A;
     /* ud[k] = b_e0 ed[k] + xd[k-1] - w_e Lq iq (decoupling, eq 1) */
-    ud = fmaf(c->d.b_e0, ed, ctl->x_d_V) - w_e_radps * c->Lq_H * iq_A;
+    ud = p2d_pi_output(c->d, ed, ctl->x_d_V) - w_e_radps * c->Lq_H * iq_A;
     /* uq[k] = b_e0 eq[k] + xq[k-1] + w_e (Ld id + psi_f) */
-    uq = fmaf(c->q.b_e0, eq, ctl->x_q_V) + w_e_radps * fmaf(c->Ld_H, id_A, c->psi_f_Wb);
+    uq = p2d_pi_output(c->q, eq, ctl->x_q_V) + w_e_radps * fmaf(c->Ld_H, id_A, c->psi_f_Wb);
     out->ed_A = ed;
     out->eq_A = eq;
     out->ud_unsat_V = ud;
@@ -153,7 +122,7 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
     u_max = u_dc_V > 0.0f ? u_dc_V * P2D_INV_SQRT3 : 0.0f;
     norm2 = fmaf(ud, ud, uq * uq);
     if (norm2 >= P2D_NORM2_MIN_V2 && norm2 < INFINITY) {
-        norm = sqrt_nonnegative(norm2);
+        norm = p2d_sqrt_nonnegative(norm2);
     } else {
         /*
          * ud, uq not finite, or their squares overflow (|u| > 1.8e19 V) or underflow
@@ -163,7 +132,7 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
         float u_big;
         if (!(fabsf(ud) < INFINITY && fabsf(uq) < INFINITY)) return fault_output(out);
         u_big = fabsf(ud) > fabsf(uq) ? fabsf(ud) : fabsf(uq);
-        norm = u_big > 0.0f ? u_big * sqrt_nonnegative(fmaf(ud / u_big, ud / u_big, (uq / u_big) * (uq / u_big)))
+        norm = u_big > 0.0f ? u_big * p2d_sqrt_nonnegative(fmaf(ud / u_big, ud / u_big, (uq / u_big) * (uq / u_big)))
                             : 0.0f;
     }
     out->fault = false;
@@ -175,21 +144,13 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
     return true;
 }
 
-/* One axis: x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k], held under clamping. */
-static inline float axis_update(const p2d_pi_coef_t *a, bool clamping, float x_V, float e_A, float u_star_V)
-{
-    float dx = fmaf(a->Ki_Ka_Ts, u_star_V, a->Ki_Ts * e_A);
-    if (clamping && opposite_signs(u_star_V, e_A)) dx = 0.0f;
-    return x_V + dx;
-}
-
 /* The state update with the applied voltages (finite) of an output that is not a fault. */
 static inline void current_integrate(p2d_current_t *ctl, const p2d_current_coef_t *c, const p2d_current_output_t *out,
                                      float ud_applied_V, float uq_applied_V)
 {
-    /* u* = u_sat - u per axis */
-    float x_d = axis_update(&c->d, c->clamping, ctl->x_d_V, out->ed_A, ud_applied_V - out->ud_unsat_V);
-    float x_q = axis_update(&c->q, c->clamping, ctl->x_q_V, out->eq_A, uq_applied_V - out->uq_unsat_V);
+    /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] per axis, u* = u_sat - u */
+    float x_d = ctl->x_d_V + p2d_pi_integration(c->d, c->clamping, out->ed_A, ud_applied_V - out->ud_unsat_V);
+    float x_q = ctl->x_q_V + p2d_pi_integration(c->q, c->clamping, out->eq_A, uq_applied_V - out->uq_unsat_V);
     if (!isfinite(x_d) || !isfinite(x_q)) {
         /* non-finite policy: an update that would overflow an integrator is refused */
         ctl->fault_count++;

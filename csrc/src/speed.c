@@ -6,45 +6,27 @@
 
 #include <math.h>
 
+#include "pi.h"
+
 /* Newton iterations of the MTPA torque-to-current inversion (salient PMSM). */
 #define P2D_MTPA_NEWTON_ITERATIONS 5
-
-/* Keeps a function out of line where the compiler supports it (a code-size and register-saving hint only). */
-#if defined(__GNUC__)
-#define P2D_NOINLINE __attribute__((noinline))
-#else
-#define P2D_NOINLINE
-#endif
-
-static bool is_positive(float x) { return isfinite(x) && x > 0.0f; }
-static bool is_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
-
-/*
- * Square root of an argument that is >= 0 by construction (or NaN). Through
- * fabsf the compiler sees that, and emits the bare vsqrt.f32 without the
- * errno path (a call into libm's sqrtf for a negative argument).
- */
-static inline float sqrt_nonnegative(float x) { return sqrtf(fabsf(x)); }
-
-/* a < 0 < b or b < 0 < a, without a product that can underflow to 0 */
-static bool opposite_signs(float a, float b) { return (a < 0.0f && b > 0.0f) || (a > 0.0f && b < 0.0f); }
 
 /* Validate cfg and compute its coefficients into *c. *c is written only on success. */
 static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_coef_t *c)
 {
     p2d_speed_coef_t k;
-    float m_eff, tau_eff, p_radps, c_ff, b_dr, a1, A, B, r;
+    float Kp, Ki, m_eff, tau_eff, p_radps, c_ff, b_dr, a1, A, B, r;
 
-    if (!is_positive(cfg->J_kgm2)) return P2D_ERR_J;
-    if (!is_positive(cfg->alpha_radps)) return P2D_ERR_ALPHA;
-    if (!is_positive(cfg->zeta)) return P2D_ERR_ZETA;
-    if (!is_positive(cfg->m)) return P2D_ERR_M;
-    if (!is_nonnegative(cfg->tau_i_s)) return P2D_ERR_TAU_I;
-    if (!is_positive(cfg->Ts_s)) return P2D_ERR_TS;
-    if (!is_positive(cfg->i_max_A)) return P2D_ERR_I_MAX;
-    if (!is_positive(cfg->psi_f_Wb)) return P2D_ERR_PSI_F;
-    if (!is_positive(cfg->Ld_H)) return P2D_ERR_LD;
-    if (!is_positive(cfg->Lq_H)) return P2D_ERR_LQ;
+    if (!p2d_is_positive(cfg->J_kgm2)) return P2D_ERR_J;
+    if (!p2d_is_positive(cfg->alpha_radps)) return P2D_ERR_ALPHA;
+    if (!p2d_is_positive(cfg->zeta)) return P2D_ERR_ZETA;
+    if (!p2d_is_positive(cfg->m)) return P2D_ERR_M;
+    if (!p2d_is_nonnegative(cfg->tau_i_s)) return P2D_ERR_TAU_I;
+    if (!p2d_is_positive(cfg->Ts_s)) return P2D_ERR_TS;
+    if (!p2d_is_positive(cfg->i_max_A)) return P2D_ERR_I_MAX;
+    if (!p2d_is_positive(cfg->psi_f_Wb)) return P2D_ERR_PSI_F;
+    if (!p2d_is_positive(cfg->Ld_H)) return P2D_ERR_LD;
+    if (!p2d_is_positive(cfg->Lq_H)) return P2D_ERR_LQ;
     if (cfg->pole_pairs < 1u) return P2D_ERR_POLE_PAIRS;
     if ((unsigned)cfg->method > (unsigned)P2D_TUSTIN) return P2D_ERR_METHOD;
     if ((unsigned)cfg->feedforward > (unsigned)P2D_FF_FULL) return P2D_ERR_FEEDFORWARD;
@@ -52,27 +34,18 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     if (cfg->feedforward == P2D_FF_LOWPASS && cfg->m != 1.0f) return P2D_ERR_M_LOWPASS;
 
     /* eq 9: Kp = J alpha, Ki = J (alpha / (2 zeta))^2 */
-    k.Kp = cfg->J_kgm2 * cfg->alpha_radps;
-    k.Ki = cfg->J_kgm2 * (cfg->alpha_radps / (2.0f * cfg->zeta)) * (cfg->alpha_radps / (2.0f * cfg->zeta));
-    if (!isfinite(k.Kp) || !isfinite(k.Ki)) return P2D_ERR_J; /* float32 overflow of the gains */
-    k.Ki_Ts = k.Ki * cfg->Ts_s;
+    Kp = cfg->J_kgm2 * cfg->alpha_radps;
+    Ki = cfg->J_kgm2 * (cfg->alpha_radps / (2.0f * cfg->zeta)) * (cfg->alpha_radps / (2.0f * cfg->zeta));
+    if (!isfinite(Kp) || !isfinite(Ki)) return P2D_ERR_J; /* float32 overflow of the gains */
+    /* eq 14 and Table 1 */
+    k.pi = p2d_pi_coefficients(Kp, Ki, cfg->Ts_s, cfg->method);
     k.clamping = cfg->anti_windup == P2D_AW_CLAMPING;
-    k.Ki_Ka_Ts = 0.0f;
     if (cfg->anti_windup == P2D_AW_BACK_CALCULATION) {
         /* the discrete back-calculation loop x[k] = (1 - Ki Ka Ts) x[k-1] + ... must be stable */
-        if (!is_nonnegative(cfg->Ka) || !(k.Ki * cfg->Ka * cfg->Ts_s < 2.0f)) return P2D_ERR_KA;
-        k.Ki_Ka_Ts = k.Ki * cfg->Ka * cfg->Ts_s;
-    } else if (!is_nonnegative(cfg->Ka)) {
+        if (!p2d_is_nonnegative(cfg->Ka) || !(Ki * cfg->Ka * cfg->Ts_s < 2.0f)) return P2D_ERR_KA;
+        k.pi.Ki_Ka_Ts = Ki * cfg->Ka * cfg->Ts_s;
+    } else if (!p2d_is_nonnegative(cfg->Ka)) {
         return P2D_ERR_KA;
-    }
-
-    /* eq 14 and Table 1: the weight of e[k] in u[k] */
-    if (cfg->method == P2D_FORWARD_EULER) {
-        k.b_e0 = k.Kp;
-    } else if (cfg->method == P2D_BACKWARD_EULER) {
-        k.b_e0 = k.Kp + k.Ki_Ts;
-    } else {
-        k.b_e0 = k.Kp + 0.5f * k.Ki_Ts;
     }
 
     /*
@@ -88,7 +61,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     A = m_eff * tau_eff;
     B = (m_eff - 1.0f) - A * p_radps;
     r = -cfg->alpha_radps / (4.0f * cfg->zeta * cfg->zeta) - B * p_radps;
-    c_ff = k.Kp * r;
+    c_ff = Kp * r;
 
     /*
      * c_ff / (s + p) -> (b0 + b1 z^-1) / (1 + a1 z^-1), realized around its static
@@ -117,11 +90,11 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
         k.ff_Kd_per_Ts = 0.0f;
     } else {
         /* Fr(0) = D + c_ff / p = -J alpha / (4 zeta^2 m) (eq 11 at s = 0) */
-        k.ff_Fr0 = -k.Kp / (4.0f * cfg->zeta * cfg->zeta * m_eff);
+        k.ff_Fr0 = -Kp / (4.0f * cfg->zeta * cfg->zeta * m_eff);
         k.ff_b_dr = b_dr;
         k.ff_a1 = a1;
         /* Kd s by the backward difference: Kd (r[k] - r[k-1]) / Ts */
-        k.ff_Kd_per_Ts = k.Kp * A / cfg->Ts_s;
+        k.ff_Kd_per_Ts = Kp * A / cfg->Ts_s;
     }
 
     /* torque to current and the current-vector limit as a torque limit on the MTPA trajectory */
@@ -148,8 +121,8 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
          */
         while (k.T_max_Nm / k.kt_Nm_per_A > cfg->i_max_A) k.T_max_Nm = nextafterf(k.T_max_Nm, 0.0f);
     }
-    if (!is_positive(k.T_max_Nm) || !isfinite(k.ff_Fr0) || !isfinite(k.ff_b_dr) ||
-        !isfinite(k.ff_Kd_per_Ts) || !isfinite(k.b_e0) || !isfinite(k.Ki_Ts)) {
+    if (!p2d_is_positive(k.T_max_Nm) || !isfinite(k.ff_Fr0) || !isfinite(k.ff_b_dr) ||
+        !isfinite(k.ff_Kd_per_Ts) || !p2d_pi_finite(&k.pi)) {
         return P2D_ERR_TS; /* only reachable through float overflow of extreme inputs */
     }
     *c = k;
@@ -170,16 +143,17 @@ p2d_status_t p2d_speed_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     return P2D_OK;
 }
 
+/* The shadow swap of pi.h. */
 p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
 {
     p2d_status_t status;
-    uint32_t shadow;
+    uint32_t inactive;
     if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
-    shadow = 1u - ctl->active;
-    status = speed_coefficients(cfg, &ctl->coef[shadow]);
+    inactive = p2d_shadow_inactive(ctl->active);
+    status = speed_coefficients(cfg, &ctl->coef[inactive]);
     if (status != P2D_OK) return status;
     ctl->config = *cfg;
-    ctl->active = shadow;
+    p2d_shadow_activate(&ctl->active, inactive);
     return P2D_OK;
 }
 
@@ -232,7 +206,7 @@ static inline float speed_unlimited(const p2d_speed_t *ctl, const p2d_speed_coef
     /* T_ff[k] = Fr0 r[k-1] + dT[k] = Fr0 r[k] + y[k] + Kd dr[k] / Ts */
     T_ff = fmaf(c->ff_Fr0, ctl->r_prev_radps, dT_ff);
     /* u[k] = b_e0 e[k] + x[k-1] + dT[k], x[k-1] = x_i[k-1] + Fr0 r[k-1] */
-    u = fmaf(c->b_e0, e, ctl->x_Nm + dT_ff);
+    u = p2d_pi_output(c->pi, e, ctl->x_Nm + dT_ff);
 
     out->w_ref_radps = w_ref_radps;
     out->e_radps = e;
@@ -299,7 +273,7 @@ static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
     float sqrt_q, sigma, psi, Q, K, t_magnet, t, id, iq, norm;
 
     /* sqrt(q) = 2 sqrt(|T| / (1.5 p)) sqrt(|dL|), 1 / (1.5 p) = dL / c_T: q itself [Wb^2] could overflow */
-    sqrt_q = 2.0f * sqrt_nonnegative(fabsf(T) * (c->dL_H / c->c_T_Nm_per_A2)) * sqrt_nonnegative(fabsf(c->dL_H));
+    sqrt_q = 2.0f * p2d_sqrt_nonnegative(fabsf(T) * (c->dL_H / c->c_T_Nm_per_A2)) * p2d_sqrt_nonnegative(fabsf(c->dL_H));
     sigma = sqrt_q > c->psi_f_Wb ? sqrt_q : c->psi_f_Wb;
     psi = c->psi_f_Wb / sigma;
     Q = sqrt_q / sigma;
@@ -314,9 +288,9 @@ static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
         t -= fmaf(w2 * w, t, -K) / (w2 * fmaf(4.0f, t, 2.0f * psi));
     }
     id = sigma * t / (2.0f * c->dL_H);
-    iq = copysignf(sigma * sqrt_nonnegative(t * (t + 2.0f * psi)) / (2.0f * fabsf(c->dL_H)), T);
+    iq = copysignf(sigma * p2d_sqrt_nonnegative(t * (t + 2.0f * psi)) / (2.0f * fabsf(c->dL_H)), T);
     /* the last rounding can leave ||i|| a few ulps above the limit: scale back onto it */
-    norm = sqrt_nonnegative(fmaf(id, id, iq * iq));
+    norm = p2d_sqrt_nonnegative(fmaf(id, id, iq * iq));
     if (norm > c->i_max_A) {
         float k = c->i_max_A / norm;
         id *= k;
@@ -348,13 +322,9 @@ static inline void speed_store(p2d_speed_t *ctl, const p2d_speed_output_t *out, 
 static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c,
                                    const p2d_speed_output_t *out, float T_applied_Nm)
 {
-    float u_star, dx, x;
-    /* u* = u_sat - u, with u_sat the torque actually applied */
-    u_star = T_applied_Nm - out->T_unsat_Nm;
-    /* integration: Ki Ts e[k] + Ki Ka Ts u*[k] */
-    dx = fmaf(c->Ki_Ka_Ts, u_star, c->Ki_Ts * out->e_radps);
-    /* clamping: hold the integrator while the limit is active and e drives further into it */
-    if (c->clamping && opposite_signs(u_star, out->e_radps)) dx = 0.0f;
+    float dx, x;
+    /* integration Ki Ts e[k] + Ki Ka Ts u*[k], u* = u_sat - u with u_sat the torque actually applied */
+    dx = p2d_pi_integration(c->pi, c->clamping, out->e_radps, T_applied_Nm - out->T_unsat_Nm);
     /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]: the static feedforward moves with r, never held */
     x = fmaf(c->ff_Fr0, out->w_ref_radps - ctl->r_prev_radps, ctl->x_Nm + dx);
     speed_store(ctl, out, x);
@@ -395,12 +365,8 @@ void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_a
  * compute + update with the own command, written out per branch of the limit
  * (the same numbers as compute and update, in fewer instructions). The
  * salient path is a tail call, so the surface path calls nothing and saves no
- * registers.
- *
- * Unlimited (|u| <= T_max, so u is finite): u_sat = u and u* = u - u = +0, so
- * the clamping condition is false and Ki Ka Ts u* = +0 (Ki Ka Ts >= 0 and
- * finite): fmaf(Ki Ka Ts, u*, Ki Ts e) = Ki Ts e + 0, where + 0 turns a -0
- * into +0 as the fused sum does.
+ * registers. Unlimited (|u| <= T_max, so u is finite), u* = u - u = +0 and the
+ * integration is p2d_pi_integration_unlimited.
  */
 void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
@@ -419,7 +385,7 @@ void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_sp
         surface_current(c, out);
         /* x[k] = x[k-1] + (Ki Ts e[k] + 0) + Fr0 dr[k] */
         speed_store(ctl, out, fmaf(c->ff_Fr0, w_ref_radps - ctl->r_prev_radps,
-                                   ctl->x_Nm + (c->Ki_Ts * out->e_radps + 0.0f)));
+                                   ctl->x_Nm + p2d_pi_integration_unlimited(c->pi, out->e_radps)));
     } else {
         if (!(fabsf(u) < INFINITY)) {
             /* non-finite policy: u is NaN or inf */

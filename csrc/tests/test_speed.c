@@ -94,8 +94,8 @@ static void test_gains(void)
     CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
     c = &ctl.coef[ctl.active];
     /* eq 9: Kp = J alpha = 4, Ki = J (alpha / 2 zeta)^2 = 200 */
-    CHECK_CLOSE(c->Kp, 4.0, 1e-6);
-    CHECK_CLOSE(c->Ki, 200.0, 1e-4);
+    CHECK_CLOSE(c->pi.Kp, 4.0, 1e-6);
+    CHECK_CLOSE(c->pi.Ki, 200.0, 1e-4);
     /* surface PMSM: T_max = 1.5 p psi_f i_max = 3 Nm */
     CHECK_CLOSE(c->T_max_Nm, 3.0, 1e-6);
     CHECK_CLOSE(p2d_speed_Ka_default(0.02f, 200.0f), 0.25, 1e-7);
@@ -277,7 +277,7 @@ static void test_set_config(void)
     CHECK(ctl.active != before.active);
     CHECK(ctl.x_Nm == before.x_Nm);
     /* Ki = J (alpha / (2 zeta))^2 = 0.02 * 50^2 = 50 */
-    CHECK_CLOSE(ctl.coef[ctl.active].Ki, 50.0, 1e-4);
+    CHECK_CLOSE(ctl.coef[ctl.active].pi.Ki, 50.0, 1e-4);
 }
 
 /*

@@ -334,12 +334,12 @@ class SpeedController:
     @property
     def Kp(self):
         """Proportional gain J alpha [Nm/(rad/s)] (eq 9)."""
-        return self._coef.Kp
+        return self._coef.pi.Kp
 
     @property
     def Ki(self):
         """Integral gain J (alpha / (2 zeta))**2 [Nm/rad] (eq 9)."""
-        return self._coef.Ki
+        return self._coef.pi.Ki
 
     @property
     def Ka(self):
@@ -348,8 +348,11 @@ class SpeedController:
 
     @property
     def coefficients(self):
-        """The active precomputed coefficients (the C ``p2d_speed_coef_t``) as a dict."""
-        return _struct_dict(self._coef, "p2d_speed_coef_t")
+        """The active precomputed coefficients (the C ``p2d_speed_coef_t``, its PI ``pi`` flattened) as a dict."""
+        c = self._coef
+        coef = _struct_dict(c.pi, "p2d_pi_coef_t")
+        coef.update((name, value) for name, value in _struct_dict(c, "p2d_speed_coef_t").items() if name != "pi")
+        return coef
 
     @property
     def config(self):

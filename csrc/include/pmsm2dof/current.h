@@ -49,18 +49,9 @@ typedef struct {
     bool decouple;                 /* add the back-EMF and cross-coupling feedforward */
 } p2d_current_config_t;
 
-/* One PI axis. */
 typedef struct {
-    float Kp;        /* proportional gain [V/A] */
-    float Ki;        /* integral gain [V/(A s)] */
-    float b_e0;      /* output gain on e[k] [V/A] */
-    float Ki_Ts;     /* integrator increment per unit error [V/A] */
-    float Ki_Ka_Ts;  /* integrator increment per volt of u* [-] */
-} p2d_pi_coef_t;
-
-typedef struct {
-    p2d_pi_coef_t d;       /* d-axis PI */
-    p2d_pi_coef_t q;       /* q-axis PI */
+    p2d_pi_coef_t d;       /* d-axis PI, Kp = Ld / tau_i, Ki = Rs / tau_i (u in V, e in A) */
+    p2d_pi_coef_t q;       /* q-axis PI, Kp = Lq / tau_i, Ki = Rs / tau_i (u in V, e in A) */
     float Ld_H;            /* decoupling [H] (0 when decoupling is off) */
     float Lq_H;            /* decoupling [H] (0 when decoupling is off) */
     float psi_f_Wb;        /* decoupling [Wb] (0 when decoupling is off) */

@@ -152,11 +152,7 @@ typedef struct {
 
 /* Precomputed coefficients: everything the step needs for one Ts. */
 typedef struct {
-    float Kp;             /* proportional gain [Nm/(rad/s)] (eq 9) */
-    float Ki;             /* integral gain [Nm/rad] (eq 9) */
-    float b_e0;           /* PI output gain on e[k] [Nm/(rad/s)] */
-    float Ki_Ts;          /* integrator increment per unit error [Nm/(rad/s)] */
-    float Ki_Ka_Ts;       /* integrator increment per Nm of u* [-]; 0 unless back calculation */
+    p2d_pi_coef_t pi;     /* PI, Kp = J alpha, Ki = J (alpha / (2 zeta))^2 (eq 9) (u in Nm, e in rad/s) */
     float ff_Fr0;         /* feedforward static gain Fr(0), weight of r[k] [Nm/(rad/s)] */
     float ff_b_dr;        /* feedforward transient section, weight of r[k] - r[k-1] [Nm/(rad/s)] */
     float ff_a1;          /* feedforward transient section, weight of -y[k-1] [-] */

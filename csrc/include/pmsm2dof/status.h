@@ -1,5 +1,7 @@
 /*
- * pmsm2dof: status codes shared by every controller init and parameter update.
+ * pmsm2dof: the status codes of every controller init and parameter update,
+ * and the types the controllers share (discretization method, anti-windup
+ * mode, coefficients of a discrete PI).
  *
  * Each error code names exactly one configuration field, so that callers
  * (the Python bindings, firmware diagnostics) can report which parameter was
@@ -56,6 +58,20 @@ typedef enum {
     P2D_AW_CLAMPING = 2          /* conditional integration: hold while the limit is active
                                     and the error would drive further into it */
 } p2d_anti_windup_t;
+
+/*
+ * Coefficients of one discrete PI, u[k] = b_e0 e[k] + x[k-1],
+ * x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] (eq 14, Table 1, Fig. 5). Units
+ * with e in [E] and u in [U]: [U] = [Nm], [E] = [rad/s] in the speed
+ * controller; [U] = [V], [E] = [A] in the current controller.
+ */
+typedef struct {
+    float Kp;       /* proportional gain [U/E] */
+    float Ki;       /* integral gain [U/(E s)] */
+    float b_e0;     /* weight of e[k] in u[k]: Kp, Kp + Ki Ts or Kp + Ki Ts / 2 by method [U/E] */
+    float Ki_Ts;    /* integrator increment per unit of error [U/E] */
+    float Ki_Ka_Ts; /* integrator increment per unit of u* [-]; 0 unless back calculation */
+} p2d_pi_coef_t;
 
 #ifdef __cplusplus
 }
