@@ -6,6 +6,7 @@
 
 #include <math.h>
 
+#include "mtpa.h"
 #include "pi.h"
 
 /* Newton iterations of the MTPA torque-to-current inversion (salient PMSM). */
@@ -103,14 +104,14 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     k.dL_H = cfg->Ld_H - cfg->Lq_H;
     k.salient = cfg->Ld_H != cfg->Lq_H;
     k.kt_Nm_per_A = 1.5f * (float)cfg->pole_pairs * cfg->psi_f_Wb;
-    k.c_T_Nm_per_A2 = 1.5f * (float)cfg->pole_pairs * k.dL_H;
+    k.k_mtpa_Wb_per_sqrt_Nm = 2.0f * sqrtf(fabsf(k.dL_H) / (1.5f * (float)cfg->pole_pairs));
     {
-        /* MTPA point at ||i|| = I: id = 2 dL I^2 / (psi_f + sqrt(psi_f^2 + 8 dL^2 I^2)) */
+        /* the MTPA point at ||i|| = I */
         float I = cfg->i_max_A;
-        float id = 2.0f * k.dL_H * I * I /
-                   (k.psi_f_Wb + sqrtf(k.psi_f_Wb * k.psi_f_Wb + 8.0f * k.dL_H * k.dL_H * I * I));
+        float id = p2d_mtpa_id_of_norm_A(I, k.psi_f_Wb, k.dL_H);
         float iq = sqrtf(I * I - id * id);
-        k.T_max_Nm = iq * (k.kt_Nm_per_A + k.c_T_Nm_per_A2 * id);
+        /* Te = iq (kt + c_T id), c_T = 1.5 p (Ld - Lq) [Nm/A^2] */
+        k.T_max_Nm = iq * (k.kt_Nm_per_A + 1.5f * (float)cfg->pole_pairs * k.dL_H * id);
     }
     if (!k.salient && isfinite(k.T_max_Nm)) {
         /*
@@ -265,15 +266,17 @@ static inline void surface_current(const p2d_speed_coef_t *c, p2d_speed_output_t
  * the smaller one is at most 2.7 times the root, and 5 iterations reach
  * float32 rounding (csrc/tests/test_speed.c checks the torque and the MTPA
  * condition on random machines). The flux v, not s, is the unknown, so that
- * small torques keep their relative precision.
+ * small torques keep their relative precision. iq follows from v, and id from
+ * iq by the MTPA relation of mtpa.h, the one p2d_mtpa_id_A computes: the
+ * command lies on the same trajectory, to the bit, as the public function's.
  */
 static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
 {
     const float T = out->T_ref_Nm;
     float sqrt_q, sigma, psi, Q, K, t_magnet, t, id, iq, norm;
 
-    /* sqrt(q) = 2 sqrt(|T| / (1.5 p)) sqrt(|dL|), 1 / (1.5 p) = dL / c_T: q itself [Wb^2] could overflow */
-    sqrt_q = 2.0f * p2d_sqrt_nonnegative(fabsf(T) * (c->dL_H / c->c_T_Nm_per_A2)) * p2d_sqrt_nonnegative(fabsf(c->dL_H));
+    /* sqrt(q) = 2 sqrt(|dL| / (1.5 p)) sqrt(|T|): q itself [Wb^2] could overflow */
+    sqrt_q = c->k_mtpa_Wb_per_sqrt_Nm * p2d_sqrt_nonnegative(T);
     sigma = sqrt_q > c->psi_f_Wb ? sqrt_q : c->psi_f_Wb;
     psi = c->psi_f_Wb / sigma;
     Q = sqrt_q / sigma;
@@ -287,8 +290,9 @@ static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
         /* t <- t - g(t) / g'(t),  g = t w^3 - K,  g' = w^2 (4 t + 2 psi),  w = t + 2 psi */
         t -= fmaf(w2 * w, t, -K) / (w2 * fmaf(4.0f, t, 2.0f * psi));
     }
-    id = sigma * t / (2.0f * c->dL_H);
     iq = copysignf(sigma * p2d_sqrt_nonnegative(t * (t + 2.0f * psi)) / (2.0f * fabsf(c->dL_H)), T);
+    /* id on the MTPA trajectory for this iq: the relation p2d_mtpa_id_A computes, to the bit */
+    id = p2d_mtpa_id_of_iq_A(iq, c->psi_f_Wb, c->dL_H);
     /* the last rounding can leave ||i|| a few ulps above the limit: scale back onto it */
     norm = p2d_sqrt_nonnegative(fmaf(id, id, iq * iq));
     if (norm > c->i_max_A) {
@@ -296,7 +300,8 @@ static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
         id *= k;
         iq *= k;
     }
-    if (!isfinite(id) || !isfinite(iq)) {
+    /* id = iq x / (psi_f + h) is NaN whenever iq or x = 2 dL iq is not finite (inf / inf), else finite */
+    if (!isfinite(id)) {
         /* the MTPA inversion overflowed (extreme configurations only) */
         return fault_output(out);
     }

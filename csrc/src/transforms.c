@@ -2,6 +2,8 @@
 
 #include <math.h>
 
+#include "mtpa.h"
+
 #define P2D_INV_SQRT3 0.57735026918962576f /* 1/sqrt(3) */
 #define P2D_SQRT3_2 0.86602540378443865f   /* sqrt(3)/2 */
 
@@ -36,7 +38,7 @@ void p2d_inv_park(float d, float q, float sin_th, float cos_th, float *x_alpha, 
 
 float p2d_mtpa_id_A(float iq_A, float psi_f_Wb, float dL_H)
 {
-    /* id = 2 dL iq^2 / (psi_f + sqrt(psi_f^2 + 4 dL^2 iq^2)) */
-    float dL_iq = dL_H * iq_A;
-    return 2.0f * dL_iq * iq_A / (psi_f_Wb + sqrtf(psi_f_Wb * psi_f_Wb + 4.0f * dL_iq * dL_iq));
+    /* id = 2 dL iq^2 / (psi_f + sqrt(psi_f^2 + 4 dL^2 iq^2)); without a magnet at zero current: 0 */
+    if (psi_f_Wb == 0.0f && dL_H * iq_A == 0.0f) return 0.0f;
+    return p2d_mtpa_id_of_iq_A(iq_A, psi_f_Wb, dL_H);
 }

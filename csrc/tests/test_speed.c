@@ -7,6 +7,7 @@
 
 #include "check.h"
 #include "pmsm2dof/speed.h"
+#include "pmsm2dof/transforms.h"
 
 /* A surface PMSM: J = 0.02 kg m^2, alpha = 200 rad/s, zeta = 1, Ts = 100 us, 10 A, p = 4. */
 static p2d_speed_config_t surface_config(void)
@@ -527,6 +528,37 @@ static void test_mtpa_random_machines(void)
     CHECK(worst_norm <= 4.0 * FLT_EPSILON);
 }
 
+/*
+ * One MTPA: inside the current limit, the salient command is on the trajectory of
+ * the public p2d_mtpa_id_A to the bit, id_ref = p2d_mtpa_id_A(iq_ref, psi_f, Ld - Lq),
+ * on random machines and torques up to 0.9 T_max (so that the vector is not
+ * scaled back onto the limit).
+ */
+static void test_mtpa_is_the_public_relation(void)
+{
+    unsigned state = 4242u;
+    int compared = 0, equal = 0;
+    for (int n = 0; n < 5000; ++n) {
+        p2d_speed_config_t cfg = surface_config();
+        p2d_speed_t ctl;
+        p2d_speed_output_t out;
+        float T;
+        cfg.psi_f_Wb = log_uniform(&state, 1e-3, 1.0);
+        cfg.Lq_H = log_uniform(&state, 1e-4, 1e-1);
+        cfg.Ld_H = cfg.Lq_H * (float)(0.05 + 3.0 * uniform(&state));
+        cfg.pole_pairs = 1u + (uint32_t)(uniform(&state) * 8.0);
+        cfg.i_max_A = log_uniform(&state, 1e-1, 1e3);
+        if (cfg.Ld_H == cfg.Lq_H || p2d_speed_init(&ctl, &cfg) != P2D_OK) continue;
+        T = (float)(0.9 * ctl.coef[ctl.active].T_max_Nm * pow(10.0, -4.0 * uniform(&state)) * (n % 2 ? -1.0 : 1.0));
+        p2d_speed_reset(&ctl, 0.0f, T);
+        p2d_speed_compute(&ctl, 0.0f, 0.0f, &out);
+        compared++;
+        equal += out.id_ref_A == p2d_mtpa_id_A(out.iq_ref_A, cfg.psi_f_Wb, cfg.Ld_H - cfg.Lq_H);
+    }
+    CHECK(compared > 4000);
+    CHECK(equal == compared);
+}
+
 int main(void)
 {
     test_validation();
@@ -545,5 +577,6 @@ int main(void)
     test_feedforward_steady_state();
     test_surface_current_limit_is_exact();
     test_mtpa_random_machines();
+    test_mtpa_is_the_public_relation();
     return check_summary();
 }

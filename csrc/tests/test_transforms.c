@@ -2,6 +2,8 @@
  * Unit tests of the Clarke and Park transforms and the MTPA split
  * (pmsm2dof/transforms.h), against the definitions computed in double.
  */
+#include <float.h>
+
 #include "check.h"
 #include "pmsm2dof/transforms.h"
 
@@ -83,10 +85,49 @@ static void test_mtpa(void)
     }
 }
 
+/*
+ * MTPA over the whole float32 range: machines from 1e-30 Wb to 1e10 Wb of magnet
+ * flux (and none), inductance differences from 1e-30 H to 1e5 H, currents from
+ * 1e-30 A to 1e30 A, where psi_f^2 or (2 dL iq)^2 overflow or underflow in
+ * float32. Expected: id = iq x / (psi_f + hypot(psi_f, x)), x = 2 dL iq, in
+ * double (no square of it leaves the double range here), to a relative 1e-6,
+ * wherever x and id are normal float32 numbers.
+ */
+static void test_mtpa_extreme_machines(void)
+{
+    const double psis[] = {0.0, 1e-30, 1e-20, 0.05, 1e10};
+    const double dLs[] = {-1e-30, -4e-3, -1e5, 3e-3};
+    const double iqs[] = {1e-30, 1e-3, 5.0, 1e15, 1e30};
+    double worst = 0.0;
+    int checked = 0;
+    for (unsigned a = 0; a < sizeof psis / sizeof psis[0]; ++a) {
+        for (unsigned b = 0; b < sizeof dLs / sizeof dLs[0]; ++b) {
+            for (unsigned c = 0; c < 2u * sizeof iqs / sizeof iqs[0]; ++c) {
+                const double psi = psis[a], dL = dLs[b], iq = (c % 2u ? -1.0 : 1.0) * iqs[c / 2u];
+                const double x = 2.0 * dL * iq;
+                const double id = x == 0.0 && psi == 0.0 ? 0.0 : iq * x / (psi + hypot(psi, x));
+                const float got = p2d_mtpa_id_A((float)iq, (float)psi, (float)dL);
+                /* x and the exact id must be normal float32 numbers (or 0) */
+                if (fabs(x) > FLT_MAX || (x != 0.0 && fabs(x) < FLT_MIN) || (id != 0.0 && fabs(id) < FLT_MIN)) continue;
+                checked++;
+                CHECK(isfinite(got));
+                worst = fmax(worst, id == 0.0 ? fabs(got) : fabs(got - id) / fabs(id));
+            }
+        }
+    }
+    printf("MTPA id over extreme machines: %d cases, worst relative error %.3g\n", checked, worst);
+    CHECK(checked > 100);
+    CHECK(worst < 1e-6);
+    /* no magnet (synchronous reluctance): id = sign(dL) |iq|, and 0 at zero current */
+    CHECK(p2d_mtpa_id_A(3.0f, 0.0f, -1e-3f) == -3.0f);
+    CHECK(p2d_mtpa_id_A(0.0f, 0.0f, -1e-3f) == 0.0f);
+}
+
 int main(void)
 {
     test_balanced_set_gives_constant_dq();
     test_round_trips();
     test_mtpa();
+    test_mtpa_extreme_machines();
     return check_summary();
 }

@@ -161,7 +161,8 @@ typedef struct {
                              PMSM: kt i_max_A, lowered until T_max_Nm / kt_Nm_per_A <= i_max_A */
     float i_max_A;        /* current-vector limit [A] */
     float kt_Nm_per_A;    /* 1.5 p psi_f [Nm/A] */
-    float c_T_Nm_per_A2;  /* 1.5 p (Ld - Lq) [Nm/A^2]; 0 for a surface PMSM */
+    float k_mtpa_Wb_per_sqrt_Nm; /* 2 sqrt(|Ld - Lq| / (1.5 p)): flux scale sqrt(q) = k sqrt(|T|) of the MTPA
+                                    inversion (speed.c) [Wb/sqrt(Nm)]; 0 for a surface PMSM */
     float psi_f_Wb;       /* flux linkage [Wb], MTPA */
     float dL_H;           /* Ld - Lq [H], MTPA */
     bool salient;         /* Ld != Lq: MTPA current split */

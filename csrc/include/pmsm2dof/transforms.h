@@ -30,7 +30,11 @@ void p2d_inv_park(float d, float q, float sin_th, float cos_th, float *x_alpha, 
  * MTPA d-axis current for a given q-axis current:
  *   id = 2 dL iq^2 / (psi_f + sqrt(psi_f^2 + 4 dL^2 iq^2)),  dL = Ld - Lq,
  * the root of dL id^2 + psi_f id - dL iq^2 = 0 that is 0 for dL = 0, written
- * without cancellation. Negative for the usual dL < 0.
+ * without cancellation, and scaled so that no square overflows or underflows
+ * (a few ulps for any finite iq_A, psi_f_Wb >= 0, dL_H). Negative for the
+ * usual dL < 0. The speed controller's current command of a salient PMSM
+ * satisfies id_ref_A = p2d_mtpa_id_A(iq_ref_A, psi_f_Wb, Ld_H - Lq_H) exactly
+ * (inside the current limit).
  */
 float p2d_mtpa_id_A(float iq_A, float psi_f_Wb, float dL_H);
 
