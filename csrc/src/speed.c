@@ -1,6 +1,6 @@
 /*
- * 2DOF PI speed controller with anti-windup: see pmsm2dof/speed.h for the
- * equations and the paper references.
+ * 2DOF PI speed controller with anti-windup: the contract and the equations
+ * are in pmsm2dof/speed.h, their derivation in docs/theory/speed-controller.md.
  */
 #include "pmsm2dof/speed.h"
 
@@ -251,24 +251,12 @@ static inline void surface_current(const p2d_speed_coef_t *c, p2d_speed_output_t
  * Salient PMSM: the MTPA current vector of the torque T = out->T_ref_Nm (|T| <= T_max).
  * Returns false, with the fault output, if the inversion overflowed.
  *
- * On the MTPA trajectory dL id^2 + psi_f id - dL iq^2 = 0, so with
- * s = sqrt(psi_f^2 + 4 dL^2 iq^2) and the flux v = s - psi_f >= 0:
- *   id = v / (2 dL),   iq = sign(T) sqrt(v (v + 2 psi_f)) / (2 |dL|),
- *   Te = 1.5 p iq (psi_f + dL id) = 1.5 p iq (v + 2 psi_f) / 2,
- * and Te = T becomes the quartic v (v + 2 psi_f)^3 = q^2, q = 4 |dL| |T| / (1.5 p).
- * In units of the flux sigma = max(psi_f, sqrt(q)), t = v / sigma solves
- *   g(t) = t (t + 2 psi)^3 - K = 0,   psi = psi_f / sigma <= 1,   K = (sqrt(q) / sigma)^4 <= 1,
- * so no power of a flux can overflow or underflow, for any machine.
- * g is increasing and convex for t >= 0 (g'' = 12 (t + psi)(t + 2 psi)), so
- * Newton started above the root descends monotonically onto it. Two upper
- * bounds of the root, from g(t) + K >= t^4 and >= 8 psi^3 t:
- *   t <= K^(1/4)   (reluctance dominated),   t <= K / (8 psi^3)   (magnet dominated);
- * the smaller one is at most 2.7 times the root, and 5 iterations reach
- * float32 rounding (csrc/tests/test_speed.c checks the torque and the MTPA
- * condition on random machines). The flux v, not s, is the unknown, so that
- * small torques keep their relative precision. iq follows from v, and id from
- * iq by the MTPA relation of mtpa.h, the one p2d_mtpa_id_A computes: the
- * command lies on the same trajectory, to the bit, as the public function's.
+ * Newton on the quartic of the MTPA flux v = sqrt(psi_f^2 + 4 dL^2 iq^2) - psi_f,
+ *   g(t) = t (t + 2 psi)^3 - K = 0,   t = v / sigma,   psi = psi_f / sigma,   K = (sqrt(q) / sigma)^4,
+ * q = 4 |dL| |T| / (1.5 p), in units of sigma = max(psi_f, sqrt(q)) so that nothing overflows or
+ * underflows, started at the smaller of the upper bounds K^(1/4) and K / (8 psi^3) of the root
+ * (derivation: docs/theory/speed-controller.md). iq follows from v, and id from iq by the MTPA
+ * relation of mtpa.h, the one p2d_mtpa_id_A computes: the command is on its trajectory to the bit.
  */
 static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
 {

@@ -2,113 +2,56 @@
  * pmsm2dof: the 2DOF PI speed controller with anti-windup (paper Fig. 5 and 6).
  *
  * Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet
- * Synchronous Motor Speed Controller". Equation numbers below are the paper's.
+ * Synchronous Motor Speed Controller". Equation numbers are the paper's. The
+ * derivation of the realization below (feedforward section, the state
+ * x = x_i + Fr0 r, rounding, MTPA inversion) is in docs/theory/speed-controller.md.
  *
- *   e      = w_ref - w_m                                  speed error [rad/s]
- *   T_fb   = F(z) e,  F(s) = Kp + Ki/s                    PI feedback (eq 14)
- *   T_ff   = Fr(z) w_ref                                  2DOF feedforward (eq 11-13, 15)
- *   u      = T_fb + T_ff                                  torque before the limit [Nm]
- *   u_sat  = torque of the current vector limited to ||i_dq|| <= i_max_A
- *   u*     = u_sat - u                                    anti-windup signal [Nm]
+ *   e       = w_ref - w_m                                 speed error [rad/s]
+ *   T_fb    = F(z) e,  F(s) = Kp + Ki/s                   PI feedback (eq 14)
+ *   T_ff    = Fr(z) w_ref                                 2DOF feedforward (eq 11-13, 15)
+ *   u       = T_fb + T_ff                                 torque before the limit [Nm]
+ *   u_sat   = torque of the current vector limited to ||i_dq|| <= i_max_A
+ *   u*      = u_sat - u                                   anti-windup signal [Nm]
  *   dx_i/dt = Ki (e + Ka u*)                              back calculation (Fig. 5)
- *
  * Gains (eq 9): Kp = J alpha, Ki = J (alpha / (2 zeta))^2.
  *
  * Feedforward forms:
- *   NONE     Fr = 0 (1DOF PI).
- *   LOWPASS  Fr = -Ki / (s + alpha)                                  eq 13 (m = 1, tau_i neglected)
- *   NO_TAU   Fr = J alpha ((m - 1) s - alpha/(4 zeta^2)) / (s + m alpha)   eq 11 with tau_i = 0
+ *   NONE     Fr = 0 (1DOF PI)
+ *   LOWPASS  Fr = -Ki / (s + alpha)                                            eq 13 (m = 1)
+ *   NO_TAU   Fr = J alpha ((m - 1) s - alpha/(4 zeta^2)) / (s + m alpha)      eq 11, tau_i = 0
  *   FULL     Fr = J alpha (m tau_i s^2 + (m - 1) s - alpha/(4 zeta^2)) / (s + m alpha)   eq 11
- *            FULL is improper. It is split by polynomial division into
- *            Kd s + D + c / (s + m alpha); the proper part is discretized by the
- *            chosen method and the derivative Kd s always by the backward
- *            difference (r[k] - r[k-1]) / Ts, the only causal choice that has no
- *            pole on the unit circle (Tustin's s has one at z = -1).
+ * Every dynamic part is discretized by the chosen method (Table 1); the
+ * derivative of FULL, which is improper, by the backward difference.
  *
- * Realization of the feedforward. Every method keeps the static gain, so the
- * discretized proper part (b0 + b1 z^-1) / (1 + a1 z^-1) (D included) equals
- *   Fr0 + b_dr (1 - z^-1) / (1 + a1 z^-1),   b_dr = b0 - Fr0,
- * with Fr0 = Fr(s = 0) = -J alpha / (4 zeta^2 m) (eq 11 at s = 0; -Ki/alpha for
- * LOWPASS), because b0 + b1 = Fr0 (1 + a1). With dr[k] = r[k] - r[k-1]:
- *   y[k]    = b_dr dr[k] - a1 y[k-1]                            transient [Nm]
- *   T_ff[k] = Fr0 r[k] + y[k] + Kd dr[k] / Ts
- * y decays to exactly 0 under a constant reference. A section on r itself,
- * whose pole -a1 ~ 1 - m alpha Ts is near 1, amplifies the float32 rounding of
- * its coefficients and of its state (which stops moving once its increments
- * fall under half an ulp) by about 1/(m alpha Ts): folded with D it left
- * offsets of 6e-5 to 3e-4 Nm on 46 to 105 Nm (m alpha Ts = 0.014 to 0.032) and
- * 8e-4 to 9e-3 Nm on 18 to 40 Nm (m alpha Ts = 3.5e-4 to 8e-4).
+ * Discrete PI (eq 14), every method: u[k] = b_e0 e[k] + x_i[k-1] + T_ff[k],
+ * x_i[k] = x_i[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] (back calculation; clamping
+ * holds the integration while the limit is active and e drives into it),
+ * b_e0 = Kp (forward Euler), Kp + Ki Ts (backward Euler), Kp + Ki Ts / 2 (Tustin).
+ * The state is x = x_i + Fr0 r with Fr0 = Fr(0), which keeps the float32
+ * resolution of the 1DOF PI at steady state; p2d_speed_integrator_Nm returns x_i.
  *
- * Discrete PI (eq 14), the same for all methods (only b_e0 differs):
- *   u[k]   = b_e0 e[k] + x_i[k-1] + T_ff[k]
- *   x_i[k] = x_i[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k]        (back_calculation)
- *   b_e0   = Kp (forward Euler), Kp + Ki Ts (backward Euler), Kp + Ki Ts / 2 (Tustin, eq 14)
- * The error path is exactly F(z) of the chosen method. The applied command is
- * only known after the output is computed, so the u* path enters the state one
- * sample later for every method (the usual embedded realization).
+ * Torque to current (Te = 1.5 p (psi_f iq + (Ld - Lq) id iq), amplitude-
+ * invariant dq; the paper's eq 1 omits the 1.5): surface PMSM (Ld == Lq)
+ * id = 0, iq = T / (1.5 p psi_f); salient PMSM: the maximum-torque-per-ampere
+ * vector (id on the trajectory of p2d_mtpa_id_A). The limit ||i_dq|| <= i_max_A
+ * is applied as the torque limit T_max_Nm of the MTPA vector of length
+ * i_max_A; the command never exceeds i_max_A, also after rounding.
  *
- * The state x: integrator plus static feedforward. At a constant reference
- * the integral x_i holds the load torque minus Fr0 r (39.4 Nm for 8 Nm of
- * load on the paper's drive at 500 rpm: Fr0 r = -31.4 Nm), and in float32 an
- * increment Ki Ts e under half an ulp of x_i is lost: the speed error stalls
- * in a dead band that grows with |Fr0 r| (0.31 rpm at Ts = 1e-4 s there, about
- * 20 times that of the 1DOF PI). The step therefore keeps the sum that the limit
- * sees at steady state,
- *   x[k] = x_i[k] + Fr0 r[k],
- * and realizes the same equations as
- *   dT[k]   = Fr0 dr[k] + y[k] + Kd dr[k] / Ts      move of T_ff from Fr0 r[k-1] [Nm]
- *   u[k]    = b_e0 e[k] + x[k-1] + dT[k]
- *   x[k]    = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]
- *   T_ff[k] = Fr0 r[k-1] + dT[k]                     (the output T_ff_Nm)
- * Check: x[k-1] + Fr0 dr[k] = x_i[k-1] + Fr0 r[k], so u[k] is the u[k] above;
- * and x[k] - Fr0 r[k] = x_i[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] = x_i[k], so
- * x[k] = x_i[k] + Fr0 r[k] holds at every k by induction. The transfer
- * functions from r, w_m and u* are unchanged. The term Fr0 dr[k] is the
- * feedforward moving, not integration: clamping holds only the integration
- * (Ki Ts e + Ki Ka Ts u*), so x_i is held exactly as before. At a constant
- * reference x holds the load torque alone (8 Nm), and the dead band is that of
- * the 1DOF PI (0.016 rpm there, the same as with Fr = 0).
- * p2d_speed_integrator_Nm returns x_i = x - Fr0 r[k-1], the integral of the
- * PI, for logs and analysis (one rounding of the difference).
- *
- * Torque to current: surface PMSM (Ld == Lq): id = 0, iq = T / (1.5 p psi_f).
- * Salient PMSM: maximum torque per ampere. The current-vector limit
- * ||i_dq|| <= i_max_A is applied as the equivalent torque limit T_max on the
- * MTPA trajectory. Torque uses the amplitude-invariant Park transform:
- * Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) (the paper's eq 1 omits the 1.5 and
- * calls p the number of poles while using it as pole pairs).
- * For a surface PMSM, init lowers T_max by float32 ulps until
- * T_max / kt <= i_max_A holds in float32; a rounded quotient is monotonic in
- * its dividend, so every |T| <= T_max gives |iq| <= i_max_A exactly and the
- * step needs no current clamp. The MTPA inversion of a salient PMSM (Newton on
- * a quartic, see speed.c) is a separate function that the step enters by a
- * tail call, so that the surface path calls nothing and saves no registers.
- *
- * Rounding: where the step writes fmaf(a, b, c), a b + c is rounded once.
- * fmaf is correctly rounded on every IEEE 754 system (vfma.f32 on the
- * Cortex-M4F, the FMA instruction or libm on the host), so the MCU and the
- * simulation stay equal to the bit; implicit contraction stays off
- * (-ffp-contract=off), as the other sums are rounded twice on both.
+ * Rounding: every fmaf(a, b, c) of the step is rounded once, on the MCU as on
+ * the host; build with -ffp-contract=off so that nothing else is fused.
  *
  * Non-finite policy: if the computed torque or current is not finite (NaN or
- * inf speed, reference, or an overflow), the output is zero torque and zero
- * current, the state is left untouched by the update, `fault` is set in the
- * output and the latched fault counter of the controller is incremented. An
- * update with a non-finite applied torque, or whose new integrator state would
- * not be finite, is refused the same way (counted, state kept), so the state
- * is never poisoned. The command does not use Fr0 r itself (the state holds
- * it): where Fr0 r overflows float32 only the diagnostic T_ff_Nm is infinite.
+ * inf input, or an overflow), the output is zero torque and current with
+ * `fault` set, the state is not updated and fault_count is incremented. An
+ * update with a non-finite applied torque, or whose new state would not be
+ * finite, is refused the same way. The state is never poisoned.
  *
  * Parameter updates: p2d_speed_set_config validates the new configuration and
  * computes its coefficients into the inactive of two coefficient sets, then
- * makes it active with one aligned 32-bit store. On an invalid configuration
- * nothing changes. The state (x, r[k-1], y[k-1]) is kept as it is, so the
- * output at a constant reference and zero error, x + y, does not jump: when
- * Fr0 changes, the integral x_i = x - Fr0 r[k-1] takes the difference
- * (Fr0_old - Fr0_new) r[k-1] over and the sum that the limit sees stays put
- * (bumpless transfer). Call it from a context that the step cannot preempt
- * mid-update in reverse (on a single-core MCU: from the background loop,
- * with step in the interrupt).
+ * activates it with one aligned 32-bit store; on an invalid configuration
+ * nothing changes. The state is kept and the output at a constant reference
+ * does not jump (bumpless). Call it where the step cannot preempt it in
+ * reverse (single-core MCU: from the background loop, step in the interrupt).
  *
  * Portable C99, float32, no allocation, no global state.
  */
