@@ -28,15 +28,14 @@
 #include <string.h>
 
 /* Abort (a crash for libFuzzer, which then saves the input) when cond is false. */
-#define FZ_REQUIRE(cond, ...)                                                        \
-    do {                                                                             \
-        if (!(cond)) {                                                               \
-            fprintf(stderr, "pmsm2dof fuzz invariant violated at %s:%d: %s\n  ",     \
-                    __FILE__, __LINE__, #cond);                                      \
-            fprintf(stderr, __VA_ARGS__);                                            \
-            fputc('\n', stderr);                                                     \
-            abort();                                                                 \
-        }                                                                            \
+#define FZ_REQUIRE(cond, ...)                                                                                \
+    do {                                                                                                     \
+        if (!(cond)) {                                                                                       \
+            fprintf(stderr, "pmsm2dof fuzz invariant violated at %s:%d: %s\n  ", __FILE__, __LINE__, #cond); \
+            fprintf(stderr, __VA_ARGS__);                                                                    \
+            fputc('\n', stderr);                                                                             \
+            abort();                                                                                         \
+        }                                                                                                    \
     } while (0)
 
 /*
@@ -106,10 +105,10 @@ static inline uint32_t fz_u16(fz_reader_t *r)
 /* A fraction in [0, 1]. */
 static inline double fz_unit(fz_reader_t *r) { return (double)fz_u16(r) / 65535.0; }
 
-static const float FZ_SPECIAL[16] = {
-    0.0f, -0.0f, NAN, -NAN, INFINITY, -INFINITY, FLT_MAX, -FLT_MAX,
-    FLT_MIN, -FLT_MIN, 1.40129846e-45f /* smallest subnormal */, 1e-30f, 1e30f, -1e30f, 1.0f, -1.0f,
-};
+/* 1.40129846e-45f: the smallest subnormal */
+static const float FZ_SPECIAL[16] = {0.0f,    -0.0f,    NAN,     -NAN,     INFINITY,        -INFINITY,
+                                     FLT_MAX, -FLT_MAX, FLT_MIN, -FLT_MIN, 1.40129846e-45f, 1e-30f,
+                                     1e30f,   -1e30f,   1.0f,    -1.0f};
 
 /* A float for a quantity of typical magnitude nominal (see the file comment). */
 static inline float fz_float(fz_reader_t *r, double nominal, bool may_be_negative)
@@ -119,18 +118,11 @@ static inline float fz_float(fz_reader_t *r, double nominal, bool may_be_negativ
     double decades, v;
     float f;
     switch (tag % 8u) {
-    case 0:
-        memcpy(&f, &bits, sizeof f);
-        return f;
-    case 1:
-        return FZ_SPECIAL[bits % 16u];
+    case 0: memcpy(&f, &bits, sizeof f); return f;
+    case 1: return FZ_SPECIAL[bits % 16u];
     case 6:
-    case 7:
-        decades = (double)(int16_t)(uint16_t)(bits & 0xffffu) / 4096.0;
-        break;
-    default:
-        decades = (double)(int16_t)(uint16_t)(bits & 0xffffu) / 16384.0;
-        break;
+    case 7: decades = (double)(int16_t)(uint16_t)(bits & 0xffffu) / 4096.0; break;
+    default: decades = (double)(int16_t)(uint16_t)(bits & 0xffffu) / 16384.0; break;
     }
     v = nominal * pow(10.0, decades);
     if (may_be_negative && (bits & 0x10000u)) v = -v;
@@ -144,8 +136,8 @@ static inline float fz_float(fz_reader_t *r, double nominal, bool may_be_negativ
 static inline uint32_t fz_enum(fz_reader_t *r, uint32_t n_valid)
 {
     uint8_t b = fz_u8(r);
-    const uint32_t invalid[8] = {n_valid, n_valid + 1u, n_valid + 5u, 100u,
-                                 0x7fffffffu, 0x80000000u, 0xfffffffeu, 0xffffffffu};
+    const uint32_t invalid[8] = {n_valid,     n_valid + 1u, n_valid + 5u, 100u,
+                                 0x7fffffffu, 0x80000000u,  0xfffffffeu,  0xffffffffu};
     if (b < 248u) return b % n_valid;
     return invalid[b - 248u];
 }

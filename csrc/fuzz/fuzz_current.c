@@ -82,8 +82,7 @@ static float fz_near(fz_reader_t *r, float current, double fallback)
 }
 
 /* The active configuration with one field redrawn. */
-static void fz_current_config_mutated(fz_reader_t *r, const p2d_current_config_t *active,
-                                      p2d_current_config_t *cfg)
+static void fz_current_config_mutated(fz_reader_t *r, const p2d_current_config_t *active, p2d_current_config_t *cfg)
 {
     memset(cfg, 0, sizeof *cfg);
     cfg->Rs_ohm = active->Rs_ohm;
@@ -167,8 +166,10 @@ static void fz_probe(const p2d_current_t *ctl)
     memcpy(&copy, ctl, sizeof copy);
     p2d_current_reset(&copy);
     p2d_current_step(&copy, 1e-30f, 1e-30f, 0.0f, 0.0f, 1e-30f, 1.0f, &out);
-    FZ_REQUIRE(!out.fault && copy.fault_count == ctl->fault_count, "an accepted configuration faults on a 1e-30 "
-               "probe (ud %g uq %g): a coefficient is not finite", (double)out.ud_unsat_V, (double)out.uq_unsat_V);
+    FZ_REQUIRE(!out.fault && copy.fault_count == ctl->fault_count,
+               "an accepted configuration faults on a 1e-30 "
+               "probe (ud %g uq %g): a coefficient is not finite",
+               (double)out.ud_unsat_V, (double)out.uq_unsat_V);
 }
 
 /*
@@ -356,8 +357,7 @@ static void fz_sample(fz_current_rig_t *rig, fz_reader_t *r, unsigned mode, doub
         ud_app = out.ud_ref_V;
         uq_app = out.uq_ref_V;
     } else {
-        p2d_current_compute(&rig->ctl, in->id_ref_A, in->iq_ref_A, in->id_A, in->iq_A, in->w_e_radps, in->u_dc_V,
-                            &out);
+        p2d_current_compute(&rig->ctl, in->id_ref_A, in->iq_ref_A, in->id_A, in->iq_A, in->w_e_radps, in->u_dc_V, &out);
         FZ_REQUIRE(memcmp(&rig->ctl, &before, sizeof before) == 0, "compute changed the controller");
         if (mode == 1u) {
             ud_app = (float)(fraction * (double)out.ud_ref_V);
@@ -435,9 +435,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     while (!fz_done(&r)) {
         uint8_t op = fz_u8(&r);
         switch (op % 8u) {
-        case 4:
-            fz_closed_loop(&rig, &r);
-            break;
+        case 4: fz_closed_loop(&rig, &r); break;
         case 5:
             fz_current_config_mutated(&r, &rig.ctl.config, &cfg);
             fz_set_config(&rig.ctl, &cfg);

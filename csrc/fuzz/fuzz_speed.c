@@ -49,7 +49,7 @@
 
 /* Plant and loop state of one fuzz input. */
 typedef struct {
-    p2d_speed_t ctl; /* controller under test */
+    p2d_speed_t ctl;  /* controller under test */
     double w_m_radps; /* plant speed of the closed-loop runs [rad/s] */
 } fz_speed_rig_t;
 
@@ -129,8 +129,7 @@ static bool fz_nonnegative(float x) { return isfinite(x) && x >= 0.0f; }
 /* A rejection names one speed-controller parameter. */
 static void fz_check_rejection(p2d_status_t status)
 {
-    FZ_REQUIRE(status > P2D_OK && status < P2D_STATUS_COUNT && status != P2D_ERR_NULL &&
-                   status != P2D_ERR_RS,
+    FZ_REQUIRE(status > P2D_OK && status < P2D_STATUS_COUNT && status != P2D_ERR_NULL && status != P2D_ERR_RS,
                "status %d", (int)status);
     FZ_REQUIRE(p2d_status_param(status)[0] != '\0' && p2d_status_range(status)[0] != '\0',
                "status %d has no parameter name or range", (int)status);
@@ -144,10 +143,9 @@ static void fz_check_accepted(const p2d_speed_config_t *cfg, const p2d_speed_coe
                    fz_positive(cfg->Ts_s) && fz_positive(cfg->i_max_A) && fz_positive(cfg->psi_f_Wb) &&
                    fz_positive(cfg->Ld_H) && fz_positive(cfg->Lq_H) && cfg->pole_pairs >= 1u,
                "accepted a configuration outside the documented ranges");
-    FZ_REQUIRE((unsigned)cfg->method <= 2u && (unsigned)cfg->feedforward <= 3u &&
-                   (unsigned)cfg->anti_windup <= 2u,
-               "accepted method %u feedforward %u anti_windup %u", (unsigned)cfg->method,
-               (unsigned)cfg->feedforward, (unsigned)cfg->anti_windup);
+    FZ_REQUIRE((unsigned)cfg->method <= 2u && (unsigned)cfg->feedforward <= 3u && (unsigned)cfg->anti_windup <= 2u,
+               "accepted method %u feedforward %u anti_windup %u", (unsigned)cfg->method, (unsigned)cfg->feedforward,
+               (unsigned)cfg->anti_windup);
     FZ_REQUIRE(cfg->feedforward != P2D_FF_LOWPASS || cfg->m == 1.0f, "lowpass with m = %g", (double)cfg->m);
     FZ_REQUIRE(isfinite(c->pi.b_e0) && isfinite(c->pi.Ki_Ts) && isfinite(c->pi.Ki_Ka_Ts) && isfinite(c->ff_a1) &&
                    isfinite(c->T_max_Nm),
@@ -170,8 +168,8 @@ static void fz_check_accepted(const p2d_speed_config_t *cfg, const p2d_speed_coe
 static void fz_check_state_finite(const p2d_speed_t *ctl)
 {
     FZ_REQUIRE(isfinite(ctl->x_Nm) && isfinite(ctl->r_prev_radps) && isfinite(ctl->y_ff_prev_Nm),
-               "state poisoned: x %g r_prev %g y_ff_prev %g", (double)ctl->x_Nm,
-               (double)ctl->r_prev_radps, (double)ctl->y_ff_prev_Nm);
+               "state poisoned: x %g r_prev %g y_ff_prev %g", (double)ctl->x_Nm, (double)ctl->r_prev_radps,
+               (double)ctl->y_ff_prev_Nm);
 }
 
 /*
@@ -186,8 +184,10 @@ static void fz_probe(const p2d_speed_t *ctl)
     memcpy(&copy, ctl, sizeof copy);
     p2d_speed_reset(&copy, 0.0f, 0.0f);
     p2d_speed_step(&copy, 1e-30f, 0.0f, &out);
-    FZ_REQUIRE(!out.fault && copy.fault_count == ctl->fault_count, "an accepted configuration faults on a 1e-30 rad/s "
-               "probe (T_unsat %g): a coefficient is not finite", (double)out.T_unsat_Nm);
+    FZ_REQUIRE(!out.fault && copy.fault_count == ctl->fault_count,
+               "an accepted configuration faults on a 1e-30 rad/s "
+               "probe (T_unsat %g): a coefficient is not finite",
+               (double)out.T_unsat_Nm);
 }
 
 /*
@@ -230,8 +230,7 @@ static bool fz_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     }
     fz_check_accepted(cfg, &ctl->coef[ctl->active]);
     fz_probe(ctl);
-    FZ_REQUIRE(ctl->x_Nm == 0.0f && ctl->r_prev_radps == 0.0f && ctl->y_ff_prev_Nm == 0.0f &&
-                   ctl->fault_count == 0u,
+    FZ_REQUIRE(ctl->x_Nm == 0.0f && ctl->r_prev_radps == 0.0f && ctl->y_ff_prev_Nm == 0.0f && ctl->fault_count == 0u,
                "init did not clear the state: x %g r_prev %g y_ff_prev %g", (double)ctl->x_Nm,
                (double)ctl->r_prev_radps, (double)ctl->y_ff_prev_Nm);
     return true;
@@ -247,8 +246,7 @@ static void fz_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     status = p2d_speed_set_config(ctl, cfg);
     FZ_REQUIRE(status == status_init, "set_config status %d, init status %d", (int)status, (int)status_init);
     if (status != P2D_OK) {
-        FZ_REQUIRE(memcmp(ctl, &before, sizeof before) == 0, "rejected set_config (status %d) wrote",
-                   (int)status);
+        FZ_REQUIRE(memcmp(ctl, &before, sizeof before) == 0, "rejected set_config (status %d) wrote", (int)status);
         return;
     }
     FZ_REQUIRE(ctl->active == 1u - before.active, "active %u -> %u", before.active, ctl->active);
@@ -259,8 +257,7 @@ static void fz_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     fz_probe(ctl);
     FZ_REQUIRE(memcmp(&ctl->config, cfg, sizeof *cfg) == 0, "config not stored");
     FZ_REQUIRE(fz_bits_equal(ctl->x_Nm, before.x_Nm) && fz_bits_equal(ctl->r_prev_radps, before.r_prev_radps) &&
-                   fz_bits_equal(ctl->y_ff_prev_Nm, before.y_ff_prev_Nm) &&
-                   ctl->fault_count == before.fault_count,
+                   fz_bits_equal(ctl->y_ff_prev_Nm, before.y_ff_prev_Nm) && ctl->fault_count == before.fault_count,
                "set_config changed the state");
 }
 
@@ -283,9 +280,8 @@ static void fz_check_output(const p2d_speed_t *ctl, float w_ref, float w_m, cons
      * the command does not use the static feedforward Fr0 r (the state holds it, speed.h): the
      * diagnostic T_ff may overflow only where Fr0 r[k-1] or Fr0 r[k] is out of the float32 range
      */
-    FZ_REQUIRE(isfinite(out->T_ff_Nm) ||
-                   fmax(fabs((double)c->ff_Fr0 * (double)ctl->r_prev_radps), fabs((double)c->ff_Fr0 * (double)w_ref)) >
-                       0.25 * FLT_MAX,
+    FZ_REQUIRE(isfinite(out->T_ff_Nm) || fmax(fabs((double)c->ff_Fr0 * (double)ctl->r_prev_radps),
+                                              fabs((double)c->ff_Fr0 * (double)w_ref)) > 0.25 * FLT_MAX,
                "non-finite T_ff %g without fault (w_ref %g r_prev %g Fr0 %g)", (double)out->T_ff_Nm, (double)w_ref,
                (double)ctl->r_prev_radps, (double)c->ff_Fr0);
     FZ_REQUIRE(isfinite(out->T_unsat_Nm) && isfinite(out->T_ref_Nm) && isfinite(out->id_ref_A) &&
@@ -294,16 +290,15 @@ static void fz_check_output(const p2d_speed_t *ctl, float w_ref, float w_m, cons
                (double)out->T_ref_Nm, (double)out->id_ref_A, (double)out->iq_ref_A, (double)w_ref, (double)w_m,
                (double)c->T_max_Nm, (int)c->salient);
     /* u_sat = Sat(u) with the torque limit T_max */
-    T_sat = out->T_unsat_Nm > c->T_max_Nm ? c->T_max_Nm
+    T_sat = out->T_unsat_Nm > c->T_max_Nm    ? c->T_max_Nm
             : out->T_unsat_Nm < -c->T_max_Nm ? -c->T_max_Nm
-                                            : out->T_unsat_Nm;
+                                             : out->T_unsat_Nm;
     FZ_REQUIRE(out->T_ref_Nm == T_sat && out->saturated == (T_sat != out->T_unsat_Nm),
                "T_ref %g is not Sat(%g) with T_max %g", (double)out->T_ref_Nm, (double)out->T_unsat_Nm,
                (double)c->T_max_Nm);
     i_norm = hypot((double)out->id_ref_A, (double)out->iq_ref_A);
     FZ_REQUIRE(fz_within_circle(i_norm, ctl->config.i_max_A), "||i_dq|| = %.9g > i_max %.9g (id %g iq %g, salient %d)",
-               i_norm, (double)ctl->config.i_max_A, (double)out->id_ref_A, (double)out->iq_ref_A,
-               (int)c->salient);
+               i_norm, (double)ctl->config.i_max_A, (double)out->id_ref_A, (double)out->iq_ref_A, (int)c->salient);
     FZ_REQUIRE(c->salient || out->id_ref_A == 0.0f, "surface PMSM with id %g", (double)out->id_ref_A);
     /* a subnormal torque carries too few digits for the MTPA inversion to keep its sign */
     FZ_REQUIRE(fabsf(out->T_ref_Nm) < FLT_MIN || (double)out->iq_ref_A * (double)out->T_ref_Nm >= 0.0,
@@ -341,7 +336,8 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
                        fmax(fmax(fmax(fabs(xs0), fabs(kits * e)), fmax(fabs(u_star), fabs(g * u_star))),
                             fabs(Fr0 * dr)) > 0.25 * FLT_MAX,
                    "update refused a sample whose new state is finite: x %g e %g Ki_Ts %g g %g T_app %g T_unsat %g "
-                   "Fr0 dr %g", xs0, e, kits, g, T, (double)out->T_unsat_Nm, Fr0 * dr);
+                   "Fr0 dr %g",
+                   xs0, e, kits, g, T, (double)out->T_unsat_Nm, Fr0 * dr);
         return;
     }
     FZ_REQUIRE(!out->fault && isfinite(T_app), "a fault or a non-finite applied torque %g was not counted", T);
@@ -424,10 +420,9 @@ static void fz_reset(p2d_speed_t *ctl, fz_reader_t *r)
         FZ_REQUIRE(isfinite(w_ref) && isfinite(T_init) && ctl->r_prev_radps == w_ref,
                    "reset(%g, %g) accepted: r_prev %g", (double)w_ref, (double)T_init, (double)ctl->r_prev_radps);
     } else {
-        FZ_REQUIRE(ctl->fault_count == before.fault_count + 1u && ctl->x_Nm == 0.0f &&
-                       ctl->r_prev_radps == 0.0f && ctl->y_ff_prev_Nm == 0.0f,
-                   "a refused reset(%g, %g) must clear the state and count one fault", (double)w_ref,
-                   (double)T_init);
+        FZ_REQUIRE(ctl->fault_count == before.fault_count + 1u && ctl->x_Nm == 0.0f && ctl->r_prev_radps == 0.0f &&
+                       ctl->y_ff_prev_Nm == 0.0f,
+                   "a refused reset(%g, %g) must clear the state and count one fault", (double)w_ref, (double)T_init);
     }
 }
 
@@ -447,9 +442,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     while (!fz_done(&r)) {
         uint8_t op = fz_u8(&r);
         switch (op % 8u) {
-        case 4:
-            fz_closed_loop(&rig, &r);
-            break;
+        case 4: fz_closed_loop(&rig, &r); break;
         case 5:
             fz_speed_config_mutated(&r, &rig.ctl.config, &cfg);
             fz_set_config(&rig.ctl, &cfg);
@@ -458,9 +451,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             fz_speed_config(&r, &cfg);
             fz_set_config(&rig.ctl, &cfg);
             break;
-        case 7:
-            fz_reset(&rig.ctl, &r);
-            break;
+        case 7: fz_reset(&rig.ctl, &r); break;
         default: {
             float w_ref = fz_float(&r, 100.0, true);
             float w_m = fz_float(&r, 100.0, true);

@@ -35,14 +35,14 @@
 
 static int failures = 0;
 
-#define CHECK(cond, ...)                                                              \
-    do {                                                                              \
-        if (!(cond)) {                                                                \
+#define CHECK(cond, ...)                                                               \
+    do {                                                                               \
+        if (!(cond)) {                                                                 \
             fprintf(stderr, "sanitize_drive: %s:%d: %s: ", __FILE__, __LINE__, #cond); \
-            fprintf(stderr, __VA_ARGS__);                                             \
-            fputc('\n', stderr);                                                      \
-            failures++;                                                               \
-        }                                                                             \
+            fprintf(stderr, __VA_ARGS__);                                              \
+            fputc('\n', stderr);                                                       \
+            failures++;                                                                \
+        }                                                                              \
     } while (0)
 
 /* The paper's condition 1 drive (preset paper-condition-1.toml). */
@@ -115,14 +115,14 @@ static void check_log(const char *name, const double *log, uint64_t capacity, ui
                   p2d_sim_log_name(j), cell(log, capacity, k, j));
         }
         i_ref = hypot(cell(log, capacity, k, P2D_LOG_ID_REF_A), cell(log, capacity, k, P2D_LOG_IQ_REF_A));
-        CHECK(i_ref <= i_max_A * (1.0 + 1e-6), "%s: row %llu ||i_ref|| = %g > i_max %g", name,
-              (unsigned long long)k, i_ref, i_max_A);
+        CHECK(i_ref <= i_max_A * (1.0 + 1e-6), "%s: row %llu ||i_ref|| = %g > i_max %g", name, (unsigned long long)k,
+              i_ref, i_max_A);
     }
 }
 
 /* Run n samples in `calls` equal calls into a buffer of exactly the rows needed. */
-static p2d_sim_status_t run(const char *name, const p2d_sim_config_t *cfg, uint64_t n, uint64_t calls,
-                            double **log_out, uint64_t *rows_out)
+static p2d_sim_status_t run(const char *name, const p2d_sim_config_t *cfg, uint64_t n, uint64_t calls, double **log_out,
+                            uint64_t *rows_out)
 {
     p2d_sim_t *sim = malloc(sizeof *sim);
     uint64_t rows = (n + cfg->log_every - 1u) / cfg->log_every;
@@ -193,8 +193,10 @@ int main(void)
                speed is back on the reference at the last row (t = 1.497 s, 0.9 s after the load dropped) */
             double w = cell(log, rows, 499u, P2D_LOG_W_M_RADPS);
             CHECK(cell(log, rows, 180u, P2D_LOG_SATURATED) == 1.0, "salient first-order stall: not saturated");
-            CHECK(fabs(w - ref_v[0]) < 0.01 * ref_v[0], "salient first-order stall: w_m(1.497 s) = %g rad/s, "
-                  "reference %g", w, ref_v[0]);
+            CHECK(fabs(w - ref_v[0]) < 0.01 * ref_v[0],
+                  "salient first-order stall: w_m(1.497 s) = %g rad/s, "
+                  "reference %g",
+                  w, ref_v[0]);
         }
         free(log);
     }
@@ -252,8 +254,8 @@ int main(void)
         CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_OK, "valid configuration rejected");
         small = malloc(10u * P2D_LOG_COUNT * sizeof *small);
         status = p2d_sim_run(sim, 11u, small, 10u);
-        CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 10u, "log of 10 rows for 11 samples: status %d rows %llu",
-              (int)status, (unsigned long long)sim->n_rows);
+        CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 10u,
+              "log of 10 rows for 11 samples: status %d rows %llu", (int)status, (unsigned long long)sim->n_rows);
         free(small);
         free(sim);
     }

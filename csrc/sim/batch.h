@@ -30,9 +30,9 @@ void p2d_speed_run(p2d_speed_t *ctl, size_t n, const float *w_ref_radps, const f
  * w_e_radps[k], u_dc_V[k], &out[k]), then x_d_V[k], x_q_V[k] = the integrator
  * states after that sample [V].
  */
-void p2d_current_run(p2d_current_t *ctl, size_t n, const float *id_ref_A, const float *iq_ref_A,
-                     const float *id_A, const float *iq_A, const float *w_e_radps,
-                     const float *u_dc_V, p2d_current_output_t *out, float *x_d_V, float *x_q_V);
+void p2d_current_run(p2d_current_t *ctl, size_t n, const float *id_ref_A, const float *iq_ref_A, const float *id_A,
+                     const float *iq_A, const float *w_e_radps, const float *u_dc_V, p2d_current_output_t *out,
+                     float *x_d_V, float *x_q_V);
 
 #ifdef __cplusplus
 }

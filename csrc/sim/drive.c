@@ -132,8 +132,7 @@ static bool faults_valid(const p2d_sim_config_t *cfg)
         case P2D_FAULT_SENSOR_SPIKE:
             if (!isfinite(f->value)) return false;
             break;
-        default:
-            return false;
+        default: return false;
         }
     }
     return true;
@@ -275,8 +274,7 @@ static double torque_Nm(const p2d_pmsm_t *m, double id_A, double iq_A)
  * Time derivative of x = (id, iq, w_m). Inputs a, b: (ud, uq) [V] for DQ_PI,
  * (id_ref, iq_ref) [A] for FIRST_ORDER.
  */
-static void plant_rate(const p2d_sim_t *sim, const double x[3], double a, double b, double T_load_Nm,
-                       double dx[3])
+static void plant_rate(const p2d_sim_t *sim, const double x[3], double a, double b, double T_load_Nm, double dx[3])
 {
     const p2d_pmsm_t *m = &sim->pmsm;
     double w_e = m->pole_pairs * x[2];
@@ -356,8 +354,8 @@ static bool limit_voltage(double u_max_V, double *ud_V, double *uq_V)
  * cut the command to its range. Returns true when the voltage applied over the present period was
  * cut, by the controller or by the inverter, in this period or in the one it was computed in.
  */
-static bool inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V, bool cmd_limited,
-                           double *ud_V, double *uq_V)
+static bool inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V, bool cmd_limited, double *ud_V,
+                           double *uq_V)
 {
     bool limited;
     *ud_V = ud_cmd_V;
@@ -457,8 +455,8 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     m->B_Nms = mp->B_Nms;
     m->T_coulomb_Nm = mp->T_coulomb_Nm;
     /* w_c = max(w_c_min, 10 Ts_current T_c / J): friction time constant J w_c / T_c >= 10 Ts_current */
-    m->inv_w_c_s_per_rad = 1.0 / fmax(P2D_SIM_W_C_MIN_RADPS,
-                            P2D_SIM_W_C_PERIODS * cfg->Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
+    m->inv_w_c_s_per_rad =
+        1.0 / fmax(P2D_SIM_W_C_MIN_RADPS, P2D_SIM_W_C_PERIODS * cfg->Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
 
     sim->inverter.u_max_V = cfg->u_dc_V * P2D_SIM_INV_SQRT3;
     sim->inverter.delay = cfg->computation_delay;
@@ -575,9 +573,9 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 /* the DC link of this period sets the inverter's range and the controller's measurement */
                 sim->u_dc_V = dc_link_V(sim, t);
                 sim->inverter.u_max_V = sim->u_dc_V * P2D_SIM_INV_SQRT3;
-                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A,
-                                    (float)sim->pmsm.id_A, (float)sim->pmsm.iq_A,
-                                    (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps), (float)sim->u_dc_V, &co);
+                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)sim->pmsm.id_A,
+                                    (float)sim->pmsm.iq_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
+                                    (float)sim->u_dc_V, &co);
                 if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
                 n_limited += inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, co.saturated,
                                             &ud_cmd_V, &uq_cmd_V);

@@ -122,59 +122,59 @@ typedef enum {
 /* Outcome of p2d_sim_init (configuration errors) and p2d_sim_run (stops). */
 typedef enum {
     P2D_SIM_OK = 0,
-    P2D_SIM_ERR_NULL,                 /* a pointer argument is NULL */
-    P2D_SIM_ERR_POLE_PAIRS,           /* motor.pole_pairs */
-    P2D_SIM_ERR_RS,                   /* motor.Rs_ohm */
-    P2D_SIM_ERR_LD,                   /* motor.Ld_H */
-    P2D_SIM_ERR_LQ,                   /* motor.Lq_H */
-    P2D_SIM_ERR_PSI_F,                /* motor.psi_f_Wb */
-    P2D_SIM_ERR_J,                    /* motor.J_kgm2 */
-    P2D_SIM_ERR_B,                    /* motor.B_Nms */
-    P2D_SIM_ERR_T_COULOMB,            /* motor.T_coulomb_Nm */
-    P2D_SIM_ERR_U_DC,                 /* u_dc_V */
-    P2D_SIM_ERR_CURRENT_MODEL,        /* current_model */
-    P2D_SIM_ERR_TAU_I,                /* tau_i_s (first_order) */
-    P2D_SIM_ERR_TS_CURRENT,           /* Ts_current_s */
-    P2D_SIM_ERR_CURRENT_PER_SPEED,    /* current_per_speed */
-    P2D_SIM_ERR_SUBSTEPS,             /* substeps */
-    P2D_SIM_ERR_LOG_EVERY,            /* log_every */
-    P2D_SIM_ERR_W_M0,                 /* w_m0_radps */
-    P2D_SIM_ERR_REFERENCE,            /* reference schedule */
-    P2D_SIM_ERR_LOAD,                 /* load schedule */
-    P2D_SIM_ERR_FAULTS,               /* faults */
-    P2D_SIM_ERR_SPEED_CONTROLLER,     /* p2d_speed_init rejected speed: see controller_status */
-    P2D_SIM_ERR_CURRENT_CONTROLLER,   /* p2d_current_init rejected current: see controller_status */
-    P2D_SIM_ERR_LOG_FULL,             /* the log buffer has no room for the next row */
-    P2D_SIM_STOP_NONFINITE,           /* the plant state is NaN or infinite */
-    P2D_SIM_STOP_OVERSPEED,           /* |w_m| beyond twice the no-load speed of the DC link */
-    P2D_SIM_STOP_OVERCURRENT,         /* ||i_dq|| beyond ten times max(i_max, short-circuit current) */
-    P2D_SIM_STOP_CONTROLLER_FAULT,    /* a controller's non-finite policy engaged */
-    P2D_SIM_STATUS_COUNT              /* number of codes, not a code */
+    P2D_SIM_ERR_NULL,               /* a pointer argument is NULL */
+    P2D_SIM_ERR_POLE_PAIRS,         /* motor.pole_pairs */
+    P2D_SIM_ERR_RS,                 /* motor.Rs_ohm */
+    P2D_SIM_ERR_LD,                 /* motor.Ld_H */
+    P2D_SIM_ERR_LQ,                 /* motor.Lq_H */
+    P2D_SIM_ERR_PSI_F,              /* motor.psi_f_Wb */
+    P2D_SIM_ERR_J,                  /* motor.J_kgm2 */
+    P2D_SIM_ERR_B,                  /* motor.B_Nms */
+    P2D_SIM_ERR_T_COULOMB,          /* motor.T_coulomb_Nm */
+    P2D_SIM_ERR_U_DC,               /* u_dc_V */
+    P2D_SIM_ERR_CURRENT_MODEL,      /* current_model */
+    P2D_SIM_ERR_TAU_I,              /* tau_i_s (first_order) */
+    P2D_SIM_ERR_TS_CURRENT,         /* Ts_current_s */
+    P2D_SIM_ERR_CURRENT_PER_SPEED,  /* current_per_speed */
+    P2D_SIM_ERR_SUBSTEPS,           /* substeps */
+    P2D_SIM_ERR_LOG_EVERY,          /* log_every */
+    P2D_SIM_ERR_W_M0,               /* w_m0_radps */
+    P2D_SIM_ERR_REFERENCE,          /* reference schedule */
+    P2D_SIM_ERR_LOAD,               /* load schedule */
+    P2D_SIM_ERR_FAULTS,             /* faults */
+    P2D_SIM_ERR_SPEED_CONTROLLER,   /* p2d_speed_init rejected speed: see controller_status */
+    P2D_SIM_ERR_CURRENT_CONTROLLER, /* p2d_current_init rejected current: see controller_status */
+    P2D_SIM_ERR_LOG_FULL,           /* the log buffer has no room for the next row */
+    P2D_SIM_STOP_NONFINITE,         /* the plant state is NaN or infinite */
+    P2D_SIM_STOP_OVERSPEED,         /* |w_m| beyond twice the no-load speed of the DC link */
+    P2D_SIM_STOP_OVERCURRENT,       /* ||i_dq|| beyond ten times max(i_max, short-circuit current) */
+    P2D_SIM_STOP_CONTROLLER_FAULT,  /* a controller's non-finite policy engaged */
+    P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
 /* Columns of a log row. */
 typedef enum {
-    P2D_LOG_T_S = 0,          /* time t_k [s] */
-    P2D_LOG_W_REF_RADPS,      /* speed reference sampled by the speed controller [rad/s] */
-    P2D_LOG_W_M_RADPS,        /* mechanical speed [rad/s] */
-    P2D_LOG_ID_REF_A,         /* d-axis current command [A] */
-    P2D_LOG_IQ_REF_A,         /* q-axis current command [A] */
-    P2D_LOG_ID_A,             /* d-axis current [A] */
-    P2D_LOG_IQ_A,             /* q-axis current [A] */
-    P2D_LOG_UD_V,             /* d-axis voltage applied [V] */
-    P2D_LOG_UQ_V,             /* q-axis voltage applied [V] */
-    P2D_LOG_TORQUE_NM,        /* electromagnetic torque Te [Nm] */
-    P2D_LOG_TORQUE_REF_NM,    /* speed controller output u_sat [Nm] */
-    P2D_LOG_TORQUE_UNSAT_NM,  /* speed controller output before the limit u [Nm] */
-    P2D_LOG_LOAD_NM,          /* load torque [Nm] */
-    P2D_LOG_SATURATED,        /* 1 when the current-vector limit is active, else 0 [-] */
-    P2D_LOG_X_I_NM,           /* speed integrator after the update x[k] [Nm] */
-    P2D_LOG_W_MEAS_RADPS,     /* speed reading sampled by the speed controller [rad/s] */
-    P2D_LOG_U_DC_V,           /* DC-link voltage over the current period starting at t_k [V] */
-    P2D_LOG_VOLTAGE_LIMITED,  /* share of the current periods of speed sample k whose voltage was
-                                 limited to u_dc / sqrt(3) [-] in [0, 1] (first_order: whose
-                                 voltage of eq 1 exceeded that range, which eq 3 ignores) */
-    P2D_LOG_COUNT             /* number of columns, not a column */
+    P2D_LOG_T_S = 0,         /* time t_k [s] */
+    P2D_LOG_W_REF_RADPS,     /* speed reference sampled by the speed controller [rad/s] */
+    P2D_LOG_W_M_RADPS,       /* mechanical speed [rad/s] */
+    P2D_LOG_ID_REF_A,        /* d-axis current command [A] */
+    P2D_LOG_IQ_REF_A,        /* q-axis current command [A] */
+    P2D_LOG_ID_A,            /* d-axis current [A] */
+    P2D_LOG_IQ_A,            /* q-axis current [A] */
+    P2D_LOG_UD_V,            /* d-axis voltage applied [V] */
+    P2D_LOG_UQ_V,            /* q-axis voltage applied [V] */
+    P2D_LOG_TORQUE_NM,       /* electromagnetic torque Te [Nm] */
+    P2D_LOG_TORQUE_REF_NM,   /* speed controller output u_sat [Nm] */
+    P2D_LOG_TORQUE_UNSAT_NM, /* speed controller output before the limit u [Nm] */
+    P2D_LOG_LOAD_NM,         /* load torque [Nm] */
+    P2D_LOG_SATURATED,       /* 1 when the current-vector limit is active, else 0 [-] */
+    P2D_LOG_X_I_NM,          /* speed integrator after the update x[k] [Nm] */
+    P2D_LOG_W_MEAS_RADPS,    /* speed reading sampled by the speed controller [rad/s] */
+    P2D_LOG_U_DC_V,          /* DC-link voltage over the current period starting at t_k [V] */
+    P2D_LOG_VOLTAGE_LIMITED, /* share of the current periods of speed sample k whose voltage was
+                                limited to u_dc / sqrt(3) [-] in [0, 1] (first_order: whose
+                                voltage of eq 1 exceeded that range, which eq 3 ignores) */
+    P2D_LOG_COUNT            /* number of columns, not a column */
 } p2d_log_column_t;
 
 /* Piecewise-linear signal: 0 before the first entry; entry i starts at t_s[i]
@@ -189,19 +189,19 @@ typedef struct {
 
 /* Read position in a schedule; time only moves forward. */
 typedef struct {
-    uint32_t next;  /* index of the first entry not yet reached [-] */
-    double t0_s;    /* start of the present segment [s] */
-    double v0;      /* value at the start of the segment [unit of the signal] */
-    double v1;      /* target of the segment [unit of the signal] */
-    double ramp_s;  /* ramp duration of the segment [s]; 0: a step */
+    uint32_t next; /* index of the first entry not yet reached [-] */
+    double t0_s;   /* start of the present segment [s] */
+    double v0;     /* value at the start of the segment [unit of the signal] */
+    double v1;     /* target of the segment [unit of the signal] */
+    double ramp_s; /* ramp duration of the segment [s]; 0: a step */
 } p2d_schedule_cursor_t;
 
 /* Fault kinds: see the comment at the top. */
 typedef enum {
-    P2D_FAULT_DC_LINK_SAG = 0,  /* u_dc scaled by value over the window */
-    P2D_FAULT_SENSOR_HOLD = 1,  /* speed reading frozen over the window */
-    P2D_FAULT_SENSOR_ZERO = 2,  /* speed reading 0 over the window */
-    P2D_FAULT_SENSOR_SPIKE = 3  /* one speed sample reads value */
+    P2D_FAULT_DC_LINK_SAG = 0, /* u_dc scaled by value over the window */
+    P2D_FAULT_SENSOR_HOLD = 1, /* speed reading frozen over the window */
+    P2D_FAULT_SENSOR_ZERO = 2, /* speed reading 0 over the window */
+    P2D_FAULT_SENSOR_SPIKE = 3 /* one speed sample reads value */
 } p2d_fault_kind_t;
 
 /* One fault. */
@@ -215,45 +215,45 @@ typedef struct {
 
 /* Parameters of the true plant. */
 typedef struct {
-    uint32_t pole_pairs;  /* pole pairs p [-], >= 1 */
-    double Rs_ohm;        /* stator resistance [ohm], > 0 */
-    double Ld_H;          /* d-axis inductance [H], > 0 */
-    double Lq_H;          /* q-axis inductance [H], > 0 */
-    double psi_f_Wb;      /* permanent-magnet flux linkage [Wb], > 0 */
-    double J_kgm2;        /* total inertia [kg m^2], > 0 */
-    double B_Nms;         /* viscous friction [Nm s/rad], >= 0 */
-    double T_coulomb_Nm;  /* Coulomb friction [Nm], >= 0 */
+    uint32_t pole_pairs; /* pole pairs p [-], >= 1 */
+    double Rs_ohm;       /* stator resistance [ohm], > 0 */
+    double Ld_H;         /* d-axis inductance [H], > 0 */
+    double Lq_H;         /* q-axis inductance [H], > 0 */
+    double psi_f_Wb;     /* permanent-magnet flux linkage [Wb], > 0 */
+    double J_kgm2;       /* total inertia [kg m^2], > 0 */
+    double B_Nms;        /* viscous friction [Nm s/rad], >= 0 */
+    double T_coulomb_Nm; /* Coulomb friction [Nm], >= 0 */
 } p2d_pmsm_params_t;
 
 /* PMSM and mechanics: coefficients precomputed at init, and the state. */
 typedef struct {
-    double pole_pairs;         /* pole pairs p [-] */
-    double Rs_ohm;             /* stator resistance [ohm] */
-    double Ld_H;               /* d-axis inductance [H] */
-    double Lq_H;               /* q-axis inductance [H] */
-    double psi_f_Wb;           /* flux linkage [Wb] */
-    double inv_Ld_per_H;       /* 1 / Ld [1/H] */
-    double inv_Lq_per_H;       /* 1 / Lq [1/H] */
-    double inv_J_per_kgm2;     /* 1 / J [1/(kg m^2)] */
-    double kt_Nm_per_A;        /* 1.5 p psi_f [Nm/A] */
-    double c_T_Nm_per_A2;      /* 1.5 p (Ld - Lq) [Nm/A^2] */
-    double B_Nms;              /* viscous friction [Nm s/rad] */
-    double T_coulomb_Nm;       /* Coulomb friction [Nm] */
-    double inv_w_c_s_per_rad;  /* 1 / w_c, friction smoothing band [s/rad] */
-    double id_A;               /* state: d-axis current [A] */
-    double iq_A;               /* state: q-axis current [A] */
-    double w_m_radps;          /* state: mechanical speed [rad/s] */
+    double pole_pairs;        /* pole pairs p [-] */
+    double Rs_ohm;            /* stator resistance [ohm] */
+    double Ld_H;              /* d-axis inductance [H] */
+    double Lq_H;              /* q-axis inductance [H] */
+    double psi_f_Wb;          /* flux linkage [Wb] */
+    double inv_Ld_per_H;      /* 1 / Ld [1/H] */
+    double inv_Lq_per_H;      /* 1 / Lq [1/H] */
+    double inv_J_per_kgm2;    /* 1 / J [1/(kg m^2)] */
+    double kt_Nm_per_A;       /* 1.5 p psi_f [Nm/A] */
+    double c_T_Nm_per_A2;     /* 1.5 p (Ld - Lq) [Nm/A^2] */
+    double B_Nms;             /* viscous friction [Nm s/rad] */
+    double T_coulomb_Nm;      /* Coulomb friction [Nm] */
+    double inv_w_c_s_per_rad; /* 1 / w_c, friction smoothing band [s/rad] */
+    double id_A;              /* state: d-axis current [A] */
+    double iq_A;              /* state: q-axis current [A] */
+    double w_m_radps;         /* state: mechanical speed [rad/s] */
 } p2d_pmsm_t;
 
 /* Switching-cycle average inverter with DC-link limit and optional delay. */
 typedef struct {
-    double u_max_V;       /* u_dc / sqrt(3) [V] */
-    bool delay;           /* one-sample computational delay */
-    double ud_V;          /* d-axis voltage applied over the present period [V] */
-    double uq_V;          /* q-axis voltage applied over the present period [V] */
-    double ud_next_V;     /* delay: d-axis command for the next period [V] */
-    double uq_next_V;     /* delay: q-axis command for the next period [V] */
-    bool limited_next;    /* delay: the command for the next period was cut to the range */
+    double u_max_V;    /* u_dc / sqrt(3) [V] */
+    bool delay;        /* one-sample computational delay */
+    double ud_V;       /* d-axis voltage applied over the present period [V] */
+    double uq_V;       /* q-axis voltage applied over the present period [V] */
+    double ud_next_V;  /* delay: d-axis command for the next period [V] */
+    double uq_next_V;  /* delay: q-axis command for the next period [V] */
+    bool limited_next; /* delay: the command for the next period was cut to the range */
 } p2d_inverter_t;
 
 /* Everything a simulation needs; rpm never appears here. */

@@ -44,7 +44,8 @@ static p2d_status_t current_coefficients(const p2d_current_config_t *cfg, p2d_cu
 
     k.d = axis_coefficients(cfg, cfg->Ld_H);
     k.q = axis_coefficients(cfg, cfg->Lq_H);
-    if (!p2d_pi_finite(&k.d) || !p2d_pi_finite(&k.q)) return P2D_ERR_TAU_I; /* float32 overflow of L/tau_i or Rs/tau_i */
+    if (!p2d_pi_finite(&k.d) || !p2d_pi_finite(&k.q))
+        return P2D_ERR_TAU_I; /* float32 overflow of L/tau_i or Rs/tau_i */
     /* the same stability bound on the float32 loop gains: rounding can make Rs Ts / L exactly 2 */
     if (!(k.d.Ki_Ka_Ts < 2.0f && k.q.Ki_Ka_Ts < 2.0f)) return P2D_ERR_TS_UNSTABLE;
     k.Ld_H = cfg->decouple ? cfg->Ld_H : 0.0f;
@@ -101,8 +102,8 @@ static bool fault_output(p2d_current_output_t *out)
 
 /* The voltage command of this sample into out; returns !out->fault. Inlined in step, which then saves no registers. */
 static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2d_current_coef_t *c, float id_ref_A,
-                                   float iq_ref_A, float id_A, float iq_A, float w_e_radps, float u_dc_V,
-                                   p2d_current_output_t *out)
+                                              float iq_ref_A, float id_A, float iq_A, float w_e_radps, float u_dc_V,
+                                              p2d_current_output_t *out)
 {
     float ed, eq, ud, uq, u_max, norm2, norm;
 
@@ -160,15 +161,13 @@ static inline void current_integrate(p2d_current_t *ctl, const p2d_current_coef_
     ctl->x_q_V = x_q;
 }
 
-void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
-                         float id_A, float iq_A, float w_e_radps, float u_dc_V,
-                         p2d_current_output_t *out)
+void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A, float id_A, float iq_A,
+                         float w_e_radps, float u_dc_V, p2d_current_output_t *out)
 {
     (void)current_voltage(ctl, &ctl->coef[ctl->active], id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out);
 }
 
-void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
-                        float ud_applied_V, float uq_applied_V)
+void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out, float ud_applied_V, float uq_applied_V)
 {
     if (out->fault || !isfinite(ud_applied_V) || !isfinite(uq_applied_V)) {
         ctl->fault_count++;
@@ -178,9 +177,8 @@ void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
 }
 
 /* compute + update with the own command, which is finite whenever the output is not a fault. */
-void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
-                      float id_A, float iq_A, float w_e_radps, float u_dc_V,
-                      p2d_current_output_t *out)
+void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A, float id_A, float iq_A, float w_e_radps,
+                      float u_dc_V, p2d_current_output_t *out)
 {
     const p2d_current_coef_t *c = &ctl->coef[ctl->active];
     if (current_voltage(ctl, c, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out)) {

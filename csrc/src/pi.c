@@ -24,6 +24,5 @@ p2d_pi_coef_t p2d_pi_coefficients(float Kp, float Ki, float Ts_s, p2d_method_t m
 
 bool p2d_pi_finite(const p2d_pi_coef_t *pi)
 {
-    return isfinite(pi->Kp) && isfinite(pi->Ki) && isfinite(pi->b_e0) && isfinite(pi->Ki_Ts) &&
-           isfinite(pi->Ki_Ka_Ts);
+    return isfinite(pi->Kp) && isfinite(pi->Ki) && isfinite(pi->b_e0) && isfinite(pi->Ki_Ts) && isfinite(pi->Ki_Ka_Ts);
 }

@@ -122,8 +122,8 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
          */
         while (k.T_max_Nm / k.kt_Nm_per_A > cfg->i_max_A) k.T_max_Nm = nextafterf(k.T_max_Nm, 0.0f);
     }
-    if (!p2d_is_positive(k.T_max_Nm) || !isfinite(k.ff_Fr0) || !isfinite(k.ff_b_dr) ||
-        !isfinite(k.ff_Kd_per_Ts) || !p2d_pi_finite(&k.pi)) {
+    if (!p2d_is_positive(k.T_max_Nm) || !isfinite(k.ff_Fr0) || !isfinite(k.ff_b_dr) || !isfinite(k.ff_Kd_per_Ts) ||
+        !p2d_pi_finite(&k.pi)) {
         return P2D_ERR_TS; /* only reachable through float overflow of extreme inputs */
     }
     *c = k;
@@ -192,8 +192,8 @@ static bool fault_output(p2d_speed_output_t *out)
  * u[k], the torque of this sample before the limit (eq 11-15), with the
  * outputs that come before the limit (reference, error, feedforward, u) into out.
  */
-static inline float speed_unlimited(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
-                                    float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
+static inline float speed_unlimited(const p2d_speed_t *ctl, const p2d_speed_coef_t *c, float w_ref_radps,
+                                    float w_m_radps, p2d_speed_output_t *out)
 {
     float e, dr, y_ff, dT_ff, T_ff, u;
 
@@ -221,8 +221,8 @@ static inline float speed_unlimited(const p2d_speed_t *ctl, const p2d_speed_coef
  * The torque command of this sample (eq 11-15 and the limit) into out, all but
  * the current vector. Returns false, with the fault output, if u is not finite.
  */
-static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c,
-                                float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
+static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c, float w_ref_radps, float w_m_radps,
+                                p2d_speed_output_t *out)
 {
     const float u = speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
     float T_sat = u;
@@ -312,8 +312,8 @@ static inline void speed_store(p2d_speed_t *ctl, const p2d_speed_output_t *out, 
 }
 
 /* The state update with the applied torque T_applied_Nm (finite) of an output that is not a fault. */
-static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c,
-                                   const p2d_speed_output_t *out, float T_applied_Nm)
+static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c, const p2d_speed_output_t *out,
+                                   float T_applied_Nm)
 {
     float dx, x;
     /* integration Ki Ts e[k] + Ki Ka Ts u*[k], u* = u_sat - u with u_sat the torque actually applied */
@@ -377,8 +377,9 @@ void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_sp
         }
         surface_current(c, out);
         /* x[k] = x[k-1] + (Ki Ts e[k] + 0) + Fr0 dr[k] */
-        speed_store(ctl, out, fmaf(c->ff_Fr0, w_ref_radps - ctl->r_prev_radps,
-                                   ctl->x_Nm + p2d_pi_integration_unlimited(c->pi, out->e_radps)));
+        speed_store(ctl, out,
+                    fmaf(c->ff_Fr0, w_ref_radps - ctl->r_prev_radps,
+                         ctl->x_Nm + p2d_pi_integration_unlimited(c->pi, out->e_radps)));
     } else {
         if (!(fabsf(u) < INFINITY)) {
             /* non-finite policy: u is NaN or inf */

@@ -8,15 +8,21 @@ typedef struct {
 static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_OK] = {"", ""},
     [P2D_ERR_NULL] = {"pointer", "non-NULL"},
-    [P2D_ERR_J] = {"J_kgm2", "finite and > 0, with the gains Kp = J*alpha and Ki = J*(alpha/(2*zeta))^2 finite in float32"},
+    [P2D_ERR_J] = {"J_kgm2",
+                   "finite and > 0, with the gains Kp = J*alpha and Ki = J*(alpha/(2*zeta))^2 finite in float32"},
     [P2D_ERR_ALPHA] = {"alpha_radps", "finite and > 0"},
     [P2D_ERR_ZETA] = {"zeta", "finite and > 0"},
     [P2D_ERR_M] = {"m", "finite and > 0"},
     [P2D_ERR_M_LOWPASS] = {"m", "exactly 1 with feedforward lowpass (eq 13); use no_tau or full for m != 1"},
-    [P2D_ERR_TAU_I] = {"tau_i_s", "finite and >= 0 (speed controller); finite and >= Ts_s (current controller), with the gains L/tau_i_s and Rs/tau_i_s finite in float32"},
-    [P2D_ERR_KA] = {"Ka", "finite and >= 0, and Ki*Ka*Ts_s < 2 with back_calculation (stable discrete anti-windup loop)"},
+    [P2D_ERR_TAU_I] = {"tau_i_s", "finite and >= 0 (speed controller); finite and >= Ts_s (current controller), with "
+                                  "the gains L/tau_i_s and Rs/tau_i_s finite in float32"},
+    [P2D_ERR_KA] = {"Ka",
+                    "finite and >= 0, and Ki*Ka*Ts_s < 2 with back_calculation (stable discrete anti-windup loop)"},
     [P2D_ERR_TS] = {"Ts_s", "finite and > 0"},
-    [P2D_ERR_TS_UNSTABLE] = {"Ts_s", "small enough that every discrete pole stays inside the unit circle (forward-Euler feedforward: m*alpha*Ts_s < 2; current back calculation: Rs*Ts_s/min(Ld, Lq) < 2; and m*alpha*Ts_s neither so small, nor with tustin so large, that float32 rounds the feedforward pole onto the unit circle)"},
+    [P2D_ERR_TS_UNSTABLE] =
+        {"Ts_s", "small enough that every discrete pole stays inside the unit circle (forward-Euler feedforward: "
+                 "m*alpha*Ts_s < 2; current back calculation: Rs*Ts_s/min(Ld, Lq) < 2; and m*alpha*Ts_s neither so "
+                 "small, nor with tustin so large, that float32 rounds the feedforward pole onto the unit circle)"},
     [P2D_ERR_I_MAX] = {"i_max_A", "finite and > 0"},
     [P2D_ERR_POLE_PAIRS] = {"pole_pairs", "an integer >= 1"},
     [P2D_ERR_PSI_F] = {"psi_f_Wb", "finite and > 0 (speed controller), >= 0 (current controller)"},

@@ -16,10 +16,7 @@ static uint32_t semihost_call(uint32_t op, uint32_t arg)
     return r0;
 }
 
-void p2d_semihost_write(const char *text)
-{
-    (void)semihost_call(P2D_SYS_WRITE0, (uint32_t)(uintptr_t)text);
-}
+void p2d_semihost_write(const char *text) { (void)semihost_call(P2D_SYS_WRITE0, (uint32_t)(uintptr_t)text); }
 
 void p2d_semihost_exit(bool ok)
 {

@@ -34,15 +34,17 @@ void PendSV_Handler(void) __attribute__((weak, alias("p2d_default_handler")));
 void SysTick_Handler(void) __attribute__((weak, alias("p2d_default_handler")));
 
 /* exception vectors 1..15 (Armv7-M ARM, B1.5.3); device interrupts would follow */
-__attribute__((section(".isr_vector"), used))
-static const p2d_vector_t p2d_vectors[15] = {
+__attribute__((section(".isr_vector"), used)) static const p2d_vector_t p2d_vectors[15] = {
     Reset_Handler,
     NMI_Handler,
     HardFault_Handler,
     MemManage_Handler,
     BusFault_Handler,
     UsageFault_Handler,
-    0, 0, 0, 0,
+    0,
+    0,
+    0,
+    0,
     SVC_Handler,
     DebugMon_Handler,
     0,

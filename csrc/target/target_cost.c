@@ -22,18 +22,15 @@
 #include "pmsm2dof/speed.h"
 #include "semihost.h"
 
-#define P2D_STACK_PAINT_WORDS 512u      /* painted words below SP (2 KiB) */
+#define P2D_STACK_PAINT_WORDS 512u    /* painted words below SP (2 KiB) */
 #define P2D_STACK_PATTERN 0xC5A5C5A5u /* paint pattern */
-#define P2D_WARMUP_STEPS 4u             /* steps before the probe, so the state is not all zero */
+#define P2D_WARMUP_STEPS 4u           /* steps before the probe, so the state is not all zero */
 
 static p2d_line_t line;
 static uint32_t probe_index;
 
 /* Marks the next step call as a probe in the instruction trace. */
-__attribute__((noinline)) void p2d_cost_mark(void)
-{
-    __asm__ volatile("" ::: "memory");
-}
+__attribute__((noinline)) void p2d_cost_mark(void) { __asm__ volatile("" ::: "memory"); }
 
 static uint32_t stack_pointer(void)
 {

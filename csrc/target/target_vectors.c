@@ -99,8 +99,8 @@ static void run_current_case(uint32_t c, p2d_line_t *line)
     for (uint32_t k = 0u; k < P2D_VEC_SAMPLES; ++k) {
         const uint32_t *in = p2d_vec_current_input[c][k];
         float lim = from_bits(in[6]);
-        p2d_current_compute(&ctl, from_bits(in[0]), from_bits(in[1]), from_bits(in[2]),
-                            from_bits(in[3]), from_bits(in[4]), from_bits(in[5]), &out);
+        p2d_current_compute(&ctl, from_bits(in[0]), from_bits(in[1]), from_bits(in[2]), from_bits(in[3]),
+                            from_bits(in[4]), from_bits(in[5]), &out);
         p2d_current_update(&ctl, &out, limit(out.ud_ref_V, lim), limit(out.uq_ref_V, lim));
 
         line_case(line, "C ", c, k);

@@ -34,20 +34,44 @@ static void test_validation(void)
 {
     p2d_current_config_t cfg;
     CHECK(init_with(base_config()) == P2D_OK);
-    cfg = base_config(); cfg.Rs_ohm = 0.0f; CHECK(init_with(cfg) == P2D_ERR_RS);
-    cfg = base_config(); cfg.Ld_H = NAN; CHECK(init_with(cfg) == P2D_ERR_LD);
-    cfg = base_config(); cfg.Lq_H = -1.0f; CHECK(init_with(cfg) == P2D_ERR_LQ);
-    cfg = base_config(); cfg.psi_f_Wb = -0.1f; CHECK(init_with(cfg) == P2D_ERR_PSI_F);
-    cfg = base_config(); cfg.psi_f_Wb = 0.0f; CHECK(init_with(cfg) == P2D_OK);
-    cfg = base_config(); cfg.Ts_s = 0.0f; CHECK(init_with(cfg) == P2D_ERR_TS);
-    cfg = base_config(); cfg.tau_i_s = 0.5e-5f; CHECK(init_with(cfg) == P2D_ERR_TAU_I);
-    cfg = base_config(); cfg.tau_i_s = INFINITY; CHECK(init_with(cfg) == P2D_ERR_TAU_I);
-    cfg = base_config(); cfg.method = (p2d_method_t)9; CHECK(init_with(cfg) == P2D_ERR_METHOD);
-    cfg = base_config(); cfg.anti_windup = (p2d_anti_windup_t)9; CHECK(init_with(cfg) == P2D_ERR_ANTI_WINDUP);
+    cfg = base_config();
+    cfg.Rs_ohm = 0.0f;
+    CHECK(init_with(cfg) == P2D_ERR_RS);
+    cfg = base_config();
+    cfg.Ld_H = NAN;
+    CHECK(init_with(cfg) == P2D_ERR_LD);
+    cfg = base_config();
+    cfg.Lq_H = -1.0f;
+    CHECK(init_with(cfg) == P2D_ERR_LQ);
+    cfg = base_config();
+    cfg.psi_f_Wb = -0.1f;
+    CHECK(init_with(cfg) == P2D_ERR_PSI_F);
+    cfg = base_config();
+    cfg.psi_f_Wb = 0.0f;
+    CHECK(init_with(cfg) == P2D_OK);
+    cfg = base_config();
+    cfg.Ts_s = 0.0f;
+    CHECK(init_with(cfg) == P2D_ERR_TS);
+    cfg = base_config();
+    cfg.tau_i_s = 0.5e-5f;
+    CHECK(init_with(cfg) == P2D_ERR_TAU_I);
+    cfg = base_config();
+    cfg.tau_i_s = INFINITY;
+    CHECK(init_with(cfg) == P2D_ERR_TAU_I);
+    cfg = base_config();
+    cfg.method = (p2d_method_t)9;
+    CHECK(init_with(cfg) == P2D_ERR_METHOD);
+    cfg = base_config();
+    cfg.anti_windup = (p2d_anti_windup_t)9;
+    CHECK(init_with(cfg) == P2D_ERR_ANTI_WINDUP);
     /* back calculation loop 1 - Rs Ts / L: Rs Ts / Ld = 2.5 is unstable; without back calculation it is no pole */
-    cfg = base_config(); cfg.Rs_ohm = 500.0f; CHECK(init_with(cfg) == P2D_ERR_TS_UNSTABLE);
-    cfg.anti_windup = P2D_AW_CLAMPING; CHECK(init_with(cfg) == P2D_OK);
-    cfg = base_config(); CHECK(p2d_current_init(0, &cfg) == P2D_ERR_NULL);
+    cfg = base_config();
+    cfg.Rs_ohm = 500.0f;
+    CHECK(init_with(cfg) == P2D_ERR_TS_UNSTABLE);
+    cfg.anti_windup = P2D_AW_CLAMPING;
+    CHECK(init_with(cfg) == P2D_OK);
+    cfg = base_config();
+    CHECK(p2d_current_init(0, &cfg) == P2D_ERR_NULL);
 }
 
 static void test_gains(void)

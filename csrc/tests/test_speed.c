@@ -44,37 +44,83 @@ static void test_validation(void)
     p2d_speed_t before;
 
     CHECK(init_with(surface_config()) == P2D_OK);
-    cfg = surface_config(); cfg.J_kgm2 = 0.0f; CHECK(init_with(cfg) == P2D_ERR_J);
-    cfg = surface_config(); cfg.J_kgm2 = -1.0f; CHECK(init_with(cfg) == P2D_ERR_J);
-    cfg = surface_config(); cfg.alpha_radps = NAN; CHECK(init_with(cfg) == P2D_ERR_ALPHA);
-    cfg = surface_config(); cfg.zeta = -0.5f; CHECK(init_with(cfg) == P2D_ERR_ZETA);
-    cfg = surface_config(); cfg.m = 0.0f; CHECK(init_with(cfg) == P2D_ERR_M);
-    cfg = surface_config(); cfg.tau_i_s = -1e-3f; CHECK(init_with(cfg) == P2D_ERR_TAU_I);
-    cfg = surface_config(); cfg.Ts_s = INFINITY; CHECK(init_with(cfg) == P2D_ERR_TS);
-    cfg = surface_config(); cfg.i_max_A = 0.0f; CHECK(init_with(cfg) == P2D_ERR_I_MAX);
-    cfg = surface_config(); cfg.Ka = -1.0f; CHECK(init_with(cfg) == P2D_ERR_KA);
-    cfg = surface_config(); cfg.Ka = -1.0f; cfg.anti_windup = P2D_AW_NONE; CHECK(init_with(cfg) == P2D_ERR_KA);
-    cfg = surface_config(); cfg.psi_f_Wb = 0.0f; CHECK(init_with(cfg) == P2D_ERR_PSI_F);
-    cfg = surface_config(); cfg.Ld_H = 0.0f; CHECK(init_with(cfg) == P2D_ERR_LD);
-    cfg = surface_config(); cfg.Lq_H = -1.0f; CHECK(init_with(cfg) == P2D_ERR_LQ);
-    cfg = surface_config(); cfg.pole_pairs = 0u; CHECK(init_with(cfg) == P2D_ERR_POLE_PAIRS);
-    cfg = surface_config(); cfg.method = (p2d_method_t)3; CHECK(init_with(cfg) == P2D_ERR_METHOD);
-    cfg = surface_config(); cfg.feedforward = (p2d_feedforward_t)4; CHECK(init_with(cfg) == P2D_ERR_FEEDFORWARD);
-    cfg = surface_config(); cfg.anti_windup = (p2d_anti_windup_t)3; CHECK(init_with(cfg) == P2D_ERR_ANTI_WINDUP);
-    cfg = surface_config(); cfg.feedforward = P2D_FF_LOWPASS; cfg.m = 2.0f; CHECK(init_with(cfg) == P2D_ERR_M_LOWPASS);
+    cfg = surface_config();
+    cfg.J_kgm2 = 0.0f;
+    CHECK(init_with(cfg) == P2D_ERR_J);
+    cfg = surface_config();
+    cfg.J_kgm2 = -1.0f;
+    CHECK(init_with(cfg) == P2D_ERR_J);
+    cfg = surface_config();
+    cfg.alpha_radps = NAN;
+    CHECK(init_with(cfg) == P2D_ERR_ALPHA);
+    cfg = surface_config();
+    cfg.zeta = -0.5f;
+    CHECK(init_with(cfg) == P2D_ERR_ZETA);
+    cfg = surface_config();
+    cfg.m = 0.0f;
+    CHECK(init_with(cfg) == P2D_ERR_M);
+    cfg = surface_config();
+    cfg.tau_i_s = -1e-3f;
+    CHECK(init_with(cfg) == P2D_ERR_TAU_I);
+    cfg = surface_config();
+    cfg.Ts_s = INFINITY;
+    CHECK(init_with(cfg) == P2D_ERR_TS);
+    cfg = surface_config();
+    cfg.i_max_A = 0.0f;
+    CHECK(init_with(cfg) == P2D_ERR_I_MAX);
+    cfg = surface_config();
+    cfg.Ka = -1.0f;
+    CHECK(init_with(cfg) == P2D_ERR_KA);
+    cfg = surface_config();
+    cfg.Ka = -1.0f;
+    cfg.anti_windup = P2D_AW_NONE;
+    CHECK(init_with(cfg) == P2D_ERR_KA);
+    cfg = surface_config();
+    cfg.psi_f_Wb = 0.0f;
+    CHECK(init_with(cfg) == P2D_ERR_PSI_F);
+    cfg = surface_config();
+    cfg.Ld_H = 0.0f;
+    CHECK(init_with(cfg) == P2D_ERR_LD);
+    cfg = surface_config();
+    cfg.Lq_H = -1.0f;
+    CHECK(init_with(cfg) == P2D_ERR_LQ);
+    cfg = surface_config();
+    cfg.pole_pairs = 0u;
+    CHECK(init_with(cfg) == P2D_ERR_POLE_PAIRS);
+    cfg = surface_config();
+    cfg.method = (p2d_method_t)3;
+    CHECK(init_with(cfg) == P2D_ERR_METHOD);
+    cfg = surface_config();
+    cfg.feedforward = (p2d_feedforward_t)4;
+    CHECK(init_with(cfg) == P2D_ERR_FEEDFORWARD);
+    cfg = surface_config();
+    cfg.anti_windup = (p2d_anti_windup_t)3;
+    CHECK(init_with(cfg) == P2D_ERR_ANTI_WINDUP);
+    cfg = surface_config();
+    cfg.feedforward = P2D_FF_LOWPASS;
+    cfg.m = 2.0f;
+    CHECK(init_with(cfg) == P2D_ERR_M_LOWPASS);
     /* back calculation: Ki Ka Ts = 100^2 * 0.02 * 1000 * 1e-4 = 20 >= 2 */
-    cfg = surface_config(); cfg.Ka = 1000.0f; CHECK(init_with(cfg) == P2D_ERR_KA);
+    cfg = surface_config();
+    cfg.Ka = 1000.0f;
+    CHECK(init_with(cfg) == P2D_ERR_KA);
     /* forward-Euler feedforward pole 1 - m alpha Ts: m alpha Ts = 2 is rejected, but only with a feedforward */
-    cfg = surface_config(); cfg.method = P2D_FORWARD_EULER; cfg.Ts_s = 0.01f;
-    cfg.anti_windup = P2D_AW_NONE; CHECK(init_with(cfg) == P2D_OK);
-    cfg.feedforward = P2D_FF_NO_TAU; CHECK(init_with(cfg) == P2D_ERR_TS_UNSTABLE);
-    cfg = surface_config(); CHECK(p2d_speed_init(0, &cfg) == P2D_ERR_NULL);
+    cfg = surface_config();
+    cfg.method = P2D_FORWARD_EULER;
+    cfg.Ts_s = 0.01f;
+    cfg.anti_windup = P2D_AW_NONE;
+    CHECK(init_with(cfg) == P2D_OK);
+    cfg.feedforward = P2D_FF_NO_TAU;
+    CHECK(init_with(cfg) == P2D_ERR_TS_UNSTABLE);
+    cfg = surface_config();
+    CHECK(p2d_speed_init(0, &cfg) == P2D_ERR_NULL);
     CHECK(p2d_speed_init(&ctl, 0) == P2D_ERR_NULL);
 
     /* a failed init leaves the object untouched */
     memset(&ctl, 0x5a, sizeof ctl);
     before = ctl;
-    cfg = surface_config(); cfg.zeta = 0.0f;
+    cfg = surface_config();
+    cfg.zeta = 0.0f;
     CHECK(p2d_speed_init(&ctl, &cfg) == P2D_ERR_ZETA);
     CHECK(memcmp(&ctl, &before, sizeof ctl) == 0);
 
@@ -383,10 +429,7 @@ static double uniform(unsigned *state)
 }
 
 /* lo (hi/lo)^u: log-uniform in [lo, hi) */
-static float log_uniform(unsigned *state, double lo, double hi)
-{
-    return (float)(lo * pow(hi / lo, uniform(state)));
-}
+static float log_uniform(unsigned *state, double lo, double hi) { return (float)(lo * pow(hi / lo, uniform(state))); }
 
 /* float32 units in the last place of x */
 static double ulp(double x)
@@ -521,8 +564,8 @@ static void test_mtpa_random_machines(void)
         if (out.fault || iq * T < 0.0 || id * dL < 0.0) wrong++;
     }
     CHECK(wrong == 0);
-    printf("MTPA: worst torque error %.3g, distance from the MTPA curve %.3g, ||i|| / i_max - 1 = %.3g\n",
-           worst_T, worst_mtpa, worst_norm);
+    printf("MTPA: worst torque error %.3g, distance from the MTPA curve %.3g, ||i|| / i_max - 1 = %.3g\n", worst_T,
+           worst_mtpa, worst_norm);
     CHECK(worst_T < 2e-6);
     CHECK(worst_mtpa < 2e-6);
     CHECK(worst_norm <= 4.0 * FLT_EPSILON);

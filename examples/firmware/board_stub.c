@@ -17,12 +17,10 @@
 #define SYST_CSR (*(volatile uint32_t *)0xE000E010u) /* SysTick control and status */
 #define SYST_RVR (*(volatile uint32_t *)0xE000E014u) /* SysTick reload value */
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u) /* SysTick current value */
-#define SYST_CSR_ENABLE_TICKINT_CORECLK 0x7u          /* counter on, interrupt on, core clock */
+#define SYST_CSR_ENABLE_TICKINT_CORECLK 0x7u         /* counter on, interrupt on, core clock */
 
-void board_init(void)
-{
-    /* STUB: clocks, ADC triggered by the PWM timer, PWM timer, encoder */
-}
+/* STUB: clocks, ADC triggered by the PWM timer, PWM timer, encoder */
+void board_init(void) {}
 
 void board_start_control_interrupt(uint32_t rate_hz)
 {
@@ -32,10 +30,7 @@ void board_start_control_interrupt(uint32_t rate_hz)
 }
 
 /* The control interrupt of this example. */
-void SysTick_Handler(void)
-{
-    foc_isr();
-}
+void SysTick_Handler(void) { foc_isr(); }
 
 void board_read_phase_currents(float *ia_A, float *ib_A, float *ic_A)
 {
@@ -78,7 +73,4 @@ void board_pwm_enable(int enable)
     (void)enable;
 }
 
-void board_wait_for_interrupt(void)
-{
-    __asm__ volatile("wfi");
-}
+void board_wait_for_interrupt(void) { __asm__ volatile("wfi"); }

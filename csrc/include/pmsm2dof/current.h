@@ -50,12 +50,12 @@ typedef struct {
 } p2d_current_config_t;
 
 typedef struct {
-    p2d_pi_coef_t d;       /* d-axis PI, Kp = Ld / tau_i, Ki = Rs / tau_i (u in V, e in A) */
-    p2d_pi_coef_t q;       /* q-axis PI, Kp = Lq / tau_i, Ki = Rs / tau_i (u in V, e in A) */
-    float Ld_H;            /* decoupling [H] (0 when decoupling is off) */
-    float Lq_H;            /* decoupling [H] (0 when decoupling is off) */
-    float psi_f_Wb;        /* decoupling [Wb] (0 when decoupling is off) */
-    bool clamping;         /* conditional integration */
+    p2d_pi_coef_t d; /* d-axis PI, Kp = Ld / tau_i, Ki = Rs / tau_i (u in V, e in A) */
+    p2d_pi_coef_t q; /* q-axis PI, Kp = Lq / tau_i, Ki = Rs / tau_i (u in V, e in A) */
+    float Ld_H;      /* decoupling [H] (0 when decoupling is off) */
+    float Lq_H;      /* decoupling [H] (0 when decoupling is off) */
+    float psi_f_Wb;  /* decoupling [Wb] (0 when decoupling is off) */
+    bool clamping;   /* conditional integration */
 } p2d_current_coef_t;
 
 typedef struct {
@@ -68,14 +68,14 @@ typedef struct {
 } p2d_current_t;
 
 typedef struct {
-    float ed_A;        /* d-axis current error [A] */
-    float eq_A;        /* q-axis current error [A] */
-    float ud_unsat_V;  /* d-axis voltage before the limit [V] */
-    float uq_unsat_V;  /* q-axis voltage before the limit [V] */
-    float ud_ref_V;    /* d-axis voltage command, limited [V] */
-    float uq_ref_V;    /* q-axis voltage command, limited [V] */
-    bool saturated;    /* the voltage-vector limit is active */
-    bool fault;        /* non-finite policy engaged: outputs are zero */
+    float ed_A;       /* d-axis current error [A] */
+    float eq_A;       /* q-axis current error [A] */
+    float ud_unsat_V; /* d-axis voltage before the limit [V] */
+    float uq_unsat_V; /* q-axis voltage before the limit [V] */
+    float ud_ref_V;   /* d-axis voltage command, limited [V] */
+    float uq_ref_V;   /* q-axis voltage command, limited [V] */
+    bool saturated;   /* the voltage-vector limit is active */
+    bool fault;       /* non-finite policy engaged: outputs are zero */
 } p2d_current_output_t;
 
 p2d_status_t p2d_current_init(p2d_current_t *ctl, const p2d_current_config_t *cfg);
@@ -83,18 +83,15 @@ p2d_status_t p2d_current_set_config(p2d_current_t *ctl, const p2d_current_config
 void p2d_current_reset(p2d_current_t *ctl);
 
 /* Compute the voltage command; w_e_radps is the electrical speed, u_dc_V the measured DC link. */
-void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
-                         float id_A, float iq_A, float w_e_radps, float u_dc_V,
-                         p2d_current_output_t *out);
+void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A, float id_A, float iq_A,
+                         float w_e_radps, float u_dc_V, p2d_current_output_t *out);
 
 /* Update the integrators with the voltage actually applied. */
-void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out,
-                        float ud_applied_V, float uq_applied_V);
+void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out, float ud_applied_V, float uq_applied_V);
 
 /* compute + update with the controller's own limited voltage. */
-void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A,
-                      float id_A, float iq_A, float w_e_radps, float u_dc_V,
-                      p2d_current_output_t *out);
+void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A, float id_A, float iq_A, float w_e_radps,
+                      float u_dc_V, p2d_current_output_t *out);
 
 #ifdef __cplusplus
 }

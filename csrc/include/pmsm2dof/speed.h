@@ -95,21 +95,21 @@ typedef struct {
 
 /* Precomputed coefficients: everything the step needs for one Ts. */
 typedef struct {
-    p2d_pi_coef_t pi;     /* PI, Kp = J alpha, Ki = J (alpha / (2 zeta))^2 (eq 9) (u in Nm, e in rad/s) */
-    float ff_Fr0;         /* feedforward static gain Fr(0), weight of r[k] [Nm/(rad/s)] */
-    float ff_b_dr;        /* feedforward transient section, weight of r[k] - r[k-1] [Nm/(rad/s)] */
-    float ff_a1;          /* feedforward transient section, weight of -y[k-1] [-] */
-    float ff_Kd_per_Ts;   /* FULL derivative term J alpha m tau_i / Ts [Nm/(rad/s)] */
-    float T_max_Nm;       /* torque at ||i_dq|| = i_max_A on the MTPA trajectory [Nm]; surface
-                             PMSM: kt i_max_A, lowered until T_max_Nm / kt_Nm_per_A <= i_max_A */
-    float i_max_A;        /* current-vector limit [A] */
-    float kt_Nm_per_A;    /* 1.5 p psi_f [Nm/A] */
+    p2d_pi_coef_t pi;            /* PI, Kp = J alpha, Ki = J (alpha / (2 zeta))^2 (eq 9) (u in Nm, e in rad/s) */
+    float ff_Fr0;                /* feedforward static gain Fr(0), weight of r[k] [Nm/(rad/s)] */
+    float ff_b_dr;               /* feedforward transient section, weight of r[k] - r[k-1] [Nm/(rad/s)] */
+    float ff_a1;                 /* feedforward transient section, weight of -y[k-1] [-] */
+    float ff_Kd_per_Ts;          /* FULL derivative term J alpha m tau_i / Ts [Nm/(rad/s)] */
+    float T_max_Nm;              /* torque at ||i_dq|| = i_max_A on the MTPA trajectory [Nm]; surface
+                                    PMSM: kt i_max_A, lowered until T_max_Nm / kt_Nm_per_A <= i_max_A */
+    float i_max_A;               /* current-vector limit [A] */
+    float kt_Nm_per_A;           /* 1.5 p psi_f [Nm/A] */
     float k_mtpa_Wb_per_sqrt_Nm; /* 2 sqrt(|Ld - Lq| / (1.5 p)): flux scale sqrt(q) = k sqrt(|T|) of the MTPA
                                     inversion (speed.c) [Wb/sqrt(Nm)]; 0 for a surface PMSM */
-    float psi_f_Wb;       /* flux linkage [Wb], MTPA */
-    float dL_H;           /* Ld - Lq [H], MTPA */
-    bool salient;         /* Ld != Lq: MTPA current split */
-    bool clamping;        /* conditional integration */
+    float psi_f_Wb;              /* flux linkage [Wb], MTPA */
+    float dL_H;                  /* Ld - Lq [H], MTPA */
+    bool salient;                /* Ld != Lq: MTPA current split */
+    bool clamping;               /* conditional integration */
 } p2d_speed_coef_t;
 
 typedef struct {
@@ -124,16 +124,16 @@ typedef struct {
 
 /* Result of p2d_speed_compute: the command and what the update needs. */
 typedef struct {
-    float w_ref_radps;  /* reference used this sample [rad/s] */
-    float e_radps;      /* speed error w_ref - w_m [rad/s] */
-    float T_ff_Nm;      /* feedforward torque Fr(z) w_ref [Nm] */
-    float y_ff_Nm;      /* transient y[k] of the feedforward: T_ff - Fr0 w_ref - derivative [Nm] */
-    float T_unsat_Nm;   /* u: feedback plus feedforward before the limit [Nm] */
-    float T_ref_Nm;     /* u_sat: torque of the limited current vector [Nm] */
-    float id_ref_A;     /* d-axis current command [A] */
-    float iq_ref_A;     /* q-axis current command [A] */
-    bool saturated;     /* the current-vector limit is active */
-    bool fault;         /* non-finite policy engaged: outputs are zero */
+    float w_ref_radps; /* reference used this sample [rad/s] */
+    float e_radps;     /* speed error w_ref - w_m [rad/s] */
+    float T_ff_Nm;     /* feedforward torque Fr(z) w_ref [Nm] */
+    float y_ff_Nm;     /* transient y[k] of the feedforward: T_ff - Fr0 w_ref - derivative [Nm] */
+    float T_unsat_Nm;  /* u: feedback plus feedforward before the limit [Nm] */
+    float T_ref_Nm;    /* u_sat: torque of the limited current vector [Nm] */
+    float id_ref_A;    /* d-axis current command [A] */
+    float iq_ref_A;    /* q-axis current command [A] */
+    bool saturated;    /* the current-vector limit is active */
+    bool fault;        /* non-finite policy engaged: outputs are zero */
 } p2d_speed_output_t;
 
 /* Validate cfg and precompute; on error ctl is left unchanged. Resets state. */
@@ -152,15 +152,13 @@ p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cf
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm);
 
 /* Compute the command for this sample; does not change the state. */
-void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps,
-                       p2d_speed_output_t *out);
+void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out);
 
 /* Update the state with the torque actually applied (after every limit). */
 void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm);
 
 /* compute + update with the controller's own limited torque. */
-void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps,
-                    p2d_speed_output_t *out);
+void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out);
 
 /* The integral of the PI, x_i[k-1] = x[k-1] - Fr0 r[k-1] [Nm] (rounded once). */
 float p2d_speed_integrator_Nm(const p2d_speed_t *ctl);

@@ -16,26 +16,26 @@ extern "C" {
 
 typedef enum {
     P2D_OK = 0,
-    P2D_ERR_NULL,          /* a pointer argument is NULL */
-    P2D_ERR_J,             /* J_kgm2 */
-    P2D_ERR_ALPHA,         /* alpha_radps */
-    P2D_ERR_ZETA,          /* zeta */
-    P2D_ERR_M,             /* m */
-    P2D_ERR_M_LOWPASS,     /* m must be 1 with the lowpass feedforward (eq 13) */
-    P2D_ERR_TAU_I,         /* tau_i_s */
-    P2D_ERR_KA,            /* Ka */
-    P2D_ERR_TS,            /* Ts_s */
-    P2D_ERR_TS_UNSTABLE,   /* Ts_s too large: forward-Euler filter pole leaves the unit circle */
-    P2D_ERR_I_MAX,         /* i_max_A */
-    P2D_ERR_POLE_PAIRS,    /* pole_pairs */
-    P2D_ERR_PSI_F,         /* psi_f_Wb */
-    P2D_ERR_LD,            /* Ld_H */
-    P2D_ERR_LQ,            /* Lq_H */
-    P2D_ERR_RS,            /* Rs_ohm */
-    P2D_ERR_METHOD,        /* method */
-    P2D_ERR_FEEDFORWARD,   /* feedforward */
-    P2D_ERR_ANTI_WINDUP,   /* anti_windup */
-    P2D_STATUS_COUNT       /* number of codes, not a code */
+    P2D_ERR_NULL,        /* a pointer argument is NULL */
+    P2D_ERR_J,           /* J_kgm2 */
+    P2D_ERR_ALPHA,       /* alpha_radps */
+    P2D_ERR_ZETA,        /* zeta */
+    P2D_ERR_M,           /* m */
+    P2D_ERR_M_LOWPASS,   /* m must be 1 with the lowpass feedforward (eq 13) */
+    P2D_ERR_TAU_I,       /* tau_i_s */
+    P2D_ERR_KA,          /* Ka */
+    P2D_ERR_TS,          /* Ts_s */
+    P2D_ERR_TS_UNSTABLE, /* Ts_s too large: forward-Euler filter pole leaves the unit circle */
+    P2D_ERR_I_MAX,       /* i_max_A */
+    P2D_ERR_POLE_PAIRS,  /* pole_pairs */
+    P2D_ERR_PSI_F,       /* psi_f_Wb */
+    P2D_ERR_LD,          /* Ld_H */
+    P2D_ERR_LQ,          /* Lq_H */
+    P2D_ERR_RS,          /* Rs_ohm */
+    P2D_ERR_METHOD,      /* method */
+    P2D_ERR_FEEDFORWARD, /* feedforward */
+    P2D_ERR_ANTI_WINDUP, /* anti_windup */
+    P2D_STATUS_COUNT     /* number of codes, not a code */
 } p2d_status_t;
 
 /* Name of the configuration field that a status code rejects ("" for P2D_OK). */
