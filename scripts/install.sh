@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # Install everything pmsm2dof needs on a fresh Debian machine with Python >= 3.11:
-# the Cortex-M cross compiler and emulator, clang for fuzzing, Chromium for the
-# browser test, then the package itself (editable) with its test extras.
+# the Cortex-M cross compiler and emulator, clang for fuzzing, clang-format for the C
+# style, Chromium for the browser test, then the package itself (editable) with its
+# test extras.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-DEBS="gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm cmake clang libclang-rt-14-dev chromium"
+DEBS="gcc-arm-none-eabi libnewlib-arm-none-eabi qemu-system-arm cmake clang clang-format libclang-rt-14-dev chromium"
 missing=""
 for deb in $DEBS; do
   dpkg-query -W -f='${Status}' "$deb" 2>/dev/null | grep -q "install ok installed" || missing="$missing $deb"
