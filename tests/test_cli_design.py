@@ -1,6 +1,7 @@
 """The `pmsm2dof design` and `pmsm2dof bode` commands."""
 
 import json
+import math
 import subprocess
 import sys
 
@@ -81,12 +82,51 @@ def test_bad_values_exit_2_with_one_stderr_line(tmp_path, monkeypatch, capsys, a
     assert not any(tmp_path.iterdir())
 
 
-def test_design_whose_step_response_never_rises_exits_2_with_one_line(tmp_path, monkeypatch, capsys):
-    # zeta = 1e10 leaves Ki = J (alpha / (2 zeta))^2 ~ 1e-22: the integrator never acts in any finite horizon
-    monkeypatch.chdir(tmp_path)
-    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "1e10", "--Ts", "1e-3"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "overshoot is undefined" in err and "zeta" in err
+def test_design_with_a_vanishing_integral_action_is_not_refused(capsys):
+    # zeta = 1e10 leaves Ki = J (alpha / (2 zeta))^2 ~ 1e-22: a stable loop whose slowest pole,
+    # -Ki / Kp = -1.25e-21 rad/s, is nearly cancelled by the PI's zero; the P loop alone gives the
+    # first-order response Kp / (J s + Kp), without overshoot
+    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "1e10", "--Ts", "1e-3", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    for part in ("continuous", "discrete"):
+        assert "overshoot_pct" not in data[part]["missing"]
+        assert data[part]["overshoot_pct"] == pytest.approx(0.0, abs=1e-9)
+
+
+# designs once refused with "the step response does not rise in a computable time"
+SLOW_OR_FINE = [
+    ["--J", "0.4", "--alpha", "0.45", "--zeta", "0.2887", "--Ts", "1e-3", "--feedforward", "lowpass"],
+    ["--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--tau-i", "0.05", "--Ts", "1e-4", "--feedforward", "lowpass"],
+    ["--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--tau-i", "0.05", "--Ts", "1e-4", "--feedforward", "none"],
+]
+
+
+@pytest.mark.parametrize("argv", SLOW_OR_FINE)
+def test_slow_or_finely_sampled_designs_are_not_refused(tmp_path, capsys, argv):
+    header = tmp_path / "speed.h"
+    motor = ["--i-max", "7.6", "--pole-pairs", "4", "--psi-f", "0.2", "--Ld", "0.01"]
+    assert main(["design", *argv, *motor, "--emit-c-header", str(header), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    for part in ("continuous", "discrete"):
+        assert data[part]["overshoot_pct"] is not None and "overshoot_pct" not in data[part]["missing"]
+    assert max(math.hypot(*p) for p in data["discrete"]["poles_z"]) < 1.0
+    assert "p2d_design_speed_config" in header.read_text()
+
+
+def test_margins_json_has_gain_margin_in_dB_and_no_infinity(capsys):
+    assert main(["design", *PAPER, "--json"]) == 0
+    out = capsys.readouterr().out
+    data = json.loads(out, parse_constant=lambda name: pytest.fail(f"{name} is not JSON"))
+    continuous, discrete = data["continuous"], data["discrete"]
+    assert "gain_margin" not in continuous["margins"] and "gain_margin" not in discrete["margins"]
+    # the continuous loop of eq 8 is stable for every gain (Routh: Kp > tau Ki): infinite margin
+    assert continuous["margins"]["gain_margin_dB"] is None
+    assert continuous["missing"]["gain_margin_dB"].startswith("infinite")
+    # discrete (Tustin PI, ZOH plant): the -180 deg crossing; the table prints the same number in dB
+    assert discrete["margins"]["gain_margin_dB"] > 20.0
+    assert main(["design", *PAPER]) == 0
+    table = capsys.readouterr().out
+    assert f"gain {discrete['margins']['gain_margin_dB']:.4g} dB" in table
 
 
 def test_bad_header_option_writes_nothing(tmp_path, capsys):

@@ -247,3 +247,18 @@ def test_invalid_header_options_leave_no_file(tmp_path, param, options):
     assert str(exc.value).startswith(param + " = ")
     assert not path.exists()
     assert not any(path.parent.glob("*")) if path.parent.exists() else True
+
+
+@pytest.mark.parametrize("feedforward", ["lowpass", "none"])
+def test_header_of_a_finely_sampled_design_from_the_tuner(feedforward):
+    """The paper's design with the speed loop at Ts = 1e-4 (alpha Ts = 5e-5): the tuner's
+    header download once failed on a figure of merit of this stable design."""
+    from pmsm2dof.scenario import load_scenario
+    from pmsm2dof.tuner.experiment import Tuner
+
+    values = {"speed_controller.Ts_s": 1e-4, "speed_controller.feedforward": feedforward}
+    name, media_type, text = Tuner(load_scenario("paper-condition-2")).download("header.h", values)
+    assert media_type == "text/x-c"
+    assert ".Ts_s = 0.0001f" in text and f".feedforward = P2D_FF_{feedforward.upper()}" in text
+    overshoot = float(re.search(r"discrete .*\n.*\n \*   tracking step overshoot = (\S+) %", text).group(1))
+    assert overshoot == pytest.approx(49.5 if feedforward == "none" else 0.026, abs=0.01)

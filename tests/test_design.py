@@ -144,7 +144,7 @@ def test_phase_margin_from_explicit_loop(J, alpha, zeta, m, tau):
     assert margins.phase_margin_deg == pytest.approx(180.0 + math.degrees(np.angle(loop(w_c))), abs=1e-6)
     # Routh on J tau s^3 + J s^2 + k Kp s + k Ki: stable for every gain k when Kp > tau Ki
     assert Kp > tau * Ki
-    assert margins.gain_margin == math.inf
+    assert margins.gain_margin_dB == math.inf
 
 
 def test_design_is_immutable_and_transfer_functions_are_fresh():

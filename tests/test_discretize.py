@@ -10,8 +10,11 @@ import itertools
 import math
 import warnings
 
+import control
+import mpmath
 import numpy as np
 import pytest
+from scipy import optimize, signal
 
 from pmsm2dof import SamplingWarning, SpeedController
 from pmsm2dof.design import FEEDFORWARDS, design
@@ -180,7 +183,7 @@ def test_discrete_gain_margin_from_root_locus(case, method):
         return np.max(np.abs(np.roots(np.polyadd(np.polymul(Fd, Gd), k * np.polymul(Fn, Gn)))))
 
     assert radius(1.0) < 1.0
-    gm = dd.margins.gain_margin
+    gm = 10.0 ** (dd.margins.gain_margin_dB / 20.0)
     assert math.isfinite(gm)
     # the loop is stable for every gain up to the margin and unstable just beyond
     for k in np.linspace(1.0, 0.999 * gm, 60):
@@ -279,5 +282,148 @@ def test_as_dict_is_plain_numbers():
     dd = design(J, ALPHA, ZETA, tau_i_s=TAU).discretize(1e-3, "tustin")
     data = json.loads(json.dumps(dd.as_dict(), allow_nan=False))
     assert data["Kp"] == dd.design.Kp and data["Ki"] == dd.design.Ki and data["Ka"] == dd.design.Ka
-    assert data["continuous"]["margins"]["gain_margin"] is None  # infinite
+    assert data["continuous"]["margins"]["gain_margin_dB"] is None  # infinite
+    assert data["continuous"]["missing"]["gain_margin_dB"].startswith("infinite")
     assert data["discrete"]["coefficients"]["b_e0"] == dd.b_e0
+
+
+# ---- fine and coarse sampling: the figures of every stable design --------------------------
+
+ALPHA_TS_GRID = np.logspace(-6.0, -1.0, 6)
+ANCHOR_ALPHA_TS = 1e-3  # finest alpha Ts that a sample-by-sample simulation covers in a moment
+
+
+def gx_continuous(ff, J, alpha, zeta, m, tau):
+    """eq 6 with eq 11 / 13 multiplied through by hand: (Rn s + (Kp s + Ki) Rd) / (Rd (J tau s^3 + J s^2 + Kp s + Ki))."""
+    Kp, Ki = J * alpha, J * alpha**2 / (4 * zeta**2)
+    if ff == "none":
+        Rn, Rd = np.zeros(1), np.ones(1)
+    elif ff == "lowpass":
+        Rn, Rd = np.array([-Ki]), np.array([1.0, alpha])
+    else:
+        t = tau if ff == "full" else 0.0
+        Rn, Rd = J * alpha * np.array([m * t, m - 1.0, -alpha / (4 * zeta**2)]), np.array([1.0, m * alpha])
+    num = np.polyadd(np.polymul(Rn, [1.0, 0.0]), np.polymul([Kp, Ki], Rd))
+    return num, np.polymul(Rd, [J * tau, J, Kp, Ki])
+
+
+def continuous_overshoot_pct(ff, J, alpha, zeta, m, tau):
+    """Peak of the step response of :func:`gx_continuous` from its partial fractions (SciPy),
+    ``y(t) = sum r_i (exp(p_i t) - 1) / p_i``, on a dense grid refined by a bounded search."""
+    residues, poles, direct = signal.residue(*gx_continuous(ff, J, alpha, zeta, m, tau))
+    assert not np.any(direct)
+
+    def y(t):
+        return np.real(np.sum(residues[:, None] / poles[:, None] * np.expm1(np.outer(poles, np.atleast_1d(t))), 0))
+
+    t = np.linspace(0.0, 40.0 / np.min(-poles.real), 200001)
+    k = int(np.argmax(y(t)))
+    lo, hi = t[max(k - 1, 0)], t[min(k + 1, len(t) - 1)]
+    peak = -optimize.minimize_scalar(lambda x: -y(x)[0], bounds=(lo, hi), method="bounded",
+                                     options={"xatol": 1e-12}).fun
+    assert y(t[-1])[0] == pytest.approx(1.0, abs=1e-12)
+    return 100.0 * max(peak - 1.0, 0.0)
+
+
+def simulated_overshoot_pct(dd):
+    """Sample-by-sample simulation: the controller's difference equations and SciPy's ZOH plant."""
+    d, Ts = dd.design, dd.Ts_s
+    tau = d.tau_i_s
+    # states (T, w): tau T' = u - T, J w' = T; without the current loop the plant is J w' = u
+    if tau > 0.0:
+        A, B, C = [[-1 / tau, 0.0], [1 / d.J_kgm2, 0.0]], [[1 / tau], [0.0]], [[0.0, 1.0]]
+    else:
+        A, B, C = [[0.0, 0.0], [1.0, 0.0]], [[0.0], [1 / d.J_kgm2]], [[0.0, 1.0]]
+    (a11, a12), (a21, a22) = signal.cont2discrete((np.array(A), np.array(B), np.array(C), np.zeros((1, 1))), Ts,
+                                                  method="zoh")[0].tolist()
+    (b1,), (b2,) = signal.cont2discrete((np.array(A), np.array(B), np.array(C), np.zeros((1, 1))), Ts,
+                                        method="zoh")[1].tolist()
+    slowest = min(np.min(-d.closed_loop_poles().real), d.m * d.alpha_radps)
+    T = w = q = r_prev = y_prev = 0.0
+    out = np.empty(int(40.0 / (slowest * Ts)))
+    for k in range(len(out)):
+        r = 1.0
+        out[k] = w
+        e = r - w
+        y = dd.ff_b_dr * (r - r_prev) - dd.ff_a1 * y_prev
+        u = dd.b_e0 * e + q + dd.ff_Fr0 * r + y + dd.ff_Kd_per_Ts * (r - r_prev)
+        q += dd.Ki_Ts * e
+        r_prev, y_prev = r, y
+        T, w = a11 * T + a12 * w + b1 * u, a21 * T + a22 * w + b2 * u
+    assert out[-1] == pytest.approx(1.0, abs=1e-9)
+    return 100.0 * max(out.max() - 1.0, 0.0)
+
+
+@pytest.mark.parametrize("tau", [0.0, TAU])
+@pytest.mark.parametrize("ff", FEEDFORWARDS)
+@pytest.mark.parametrize("method", METHODS)
+def test_every_stable_design_has_its_figures_from_alpha_ts_1e_6_to_0_1(tau, ff, method):
+    """Never refused, never garbage: the discrete overshoot is the simulated one where a simulation
+    is quick, and tends to the continuous one at first order in Ts below (anchored on the simulation)."""
+    m = 1.0 if ff in ("none", "lowpass") else 0.5
+    continuous = continuous_overshoot_pct(ff, J, ALPHA, ZETA, m, tau)
+    d = design(J, ALPHA, ZETA, m=m, tau_i_s=tau, feedforward=ff)
+    assert d.overshoot_pct() == pytest.approx(continuous, abs=1e-6)
+    anchor = simulated_overshoot_pct(discretized(J, ALPHA, ZETA, m, tau, ANCHOR_ALPHA_TS / ALPHA, ff, method))
+    for alpha_Ts in ALPHA_TS_GRID:
+        dd = discretized(J, ALPHA, ZETA, m, tau, alpha_Ts / ALPHA, ff, method)
+        assert max(abs(p) for p in dd.poles) < 1.0
+        assert "overshoot_pct" not in dd.missing
+        assert math.isfinite(dd.margins.gain_margin_dB) and math.isfinite(dd.margins.phase_margin_deg)
+        if alpha_Ts >= ANCHOR_ALPHA_TS:
+            truth = anchor if alpha_Ts == ANCHOR_ALPHA_TS else simulated_overshoot_pct(dd)
+            assert dd.overshoot_pct == pytest.approx(truth, abs=1e-7), alpha_Ts
+        else:
+            expected = continuous + (anchor - continuous) * alpha_Ts / ANCHOR_ALPHA_TS
+            tolerance = 0.03 * abs(anchor - continuous) * alpha_Ts / ANCHOR_ALPHA_TS + 2e-5
+            assert dd.overshoot_pct == pytest.approx(expected, abs=tolerance), alpha_Ts
+
+
+@pytest.mark.parametrize("ff", FEEDFORWARDS)
+def test_poles_near_z_1_are_those_of_a_50_digit_root_finding(ff):
+    """The paper's design at Ts = 1e-4 (alpha Ts = 5e-5): multiplied out in double precision,
+    its tracking transfer function shows a pole at |z| = 1.00005; the loop is stable."""
+    Ts = 1e-4
+    dd = discretized(J, ALPHA, ZETA, 1.0, TAU, Ts, ff, "tustin")
+    mpmath.mp.dps = 50
+    # 1 + F(z) G(z) = 0 by hand (eq 14, ZOH of 1 / (J s (tau s + 1))), in 50 digits
+    Ts_mp, tau, J_mp = mpmath.mpf(Ts), mpmath.mpf(TAU), mpmath.mpf(J)
+    Kp, Ki = J_mp * mpmath.mpf(ALPHA), J_mp * mpmath.mpf(ALPHA) ** 2 / (4 * mpmath.mpf(ZETA) ** 2)
+    a = mpmath.exp(-Ts_mp / tau)
+    b_e0 = Kp + Ki * Ts_mp / 2
+    Fn, Fd = [b_e0, Ki * Ts_mp - b_e0], [1, -1]
+    Gn = [(Ts_mp - tau * (1 - a)) / J_mp, (tau * (1 - a) - a * Ts_mp) / J_mp]
+    Gd = [1, -(1 + a), a]
+    FdGd = [sum(Fd[i] * Gd[k - i] for i in range(2) if 0 <= k - i < 3) for k in range(4)]
+    FnGn = [0] + [sum(Fn[i] * Gn[k - i] for i in range(2) if 0 <= k - i < 2) for k in range(3)]
+    exact = sorted(mpmath.polyroots([x + y for x, y in zip(FdGd, FnGn)], maxsteps=200, extraprec=200),
+                   key=lambda p: (float(mpmath.re(p)), float(mpmath.im(p))))
+    assert all(abs(p) < 1 for p in exact)
+    np.testing.assert_allclose(sorted(dd.poles, key=lambda p: (p.real, p.imag)), [complex(p) for p in exact],
+                               rtol=0.0, atol=1e-13)
+    # the tracking response adds the feedforward pole -ff_a1 and the pole at 0 of r[k-1]
+    assert np.max(np.abs(control.poles(dd.Gx_z))) < 1.0
+
+
+def test_unstable_discrete_loop_names_the_stable_range_of_Ts():
+    d = design(J, ALPHA, ZETA, tau_i_s=TAU, feedforward="none", anti_windup="none")
+    with pytest.warns(SamplingWarning), pytest.raises(ValueError, match=r"^Ts_s = 12\.0 .* < ") as exc:
+        d.discretize(12.0, "tustin")
+    bound = float(str(exc.value).split("< ")[1].split(" s")[0])
+    Kp, Ki = J * ALPHA, J * ALPHA**2 / (4 * ZETA**2)
+
+    def radius(Ts):  # 1 + F(z) G(z) = 0 with the Tustin PI (eq 14) and the hand-derived ZOH plant
+        b_e0 = Kp + Ki * Ts / 2
+        Gn, Gd = zoh_plant(J, TAU, Ts)
+        return np.max(np.abs(np.roots(np.polyadd(np.polymul([1.0, -1.0], Gd), np.polymul([b_e0, Ki * Ts - b_e0], Gn)))))
+
+    assert all(radius(Ts) < 1.0 for Ts in np.linspace(1e-3, 0.999 * bound, 200))
+    assert radius(1.001 * bound) > 1.0
+
+
+def test_continuously_unstable_design_names_alpha():
+    # Routh on J tau s^3 + J s^2 + Kp s + Ki: unstable when Kp < tau Ki, i.e. alpha tau > 4 zeta^2
+    alpha = 10.0
+    assert np.max(np.roots([J * TAU, J, J * alpha, J * alpha**2 / (4 * ZETA**2)]).real) > 0.0
+    with pytest.raises(ValueError, match=r"^alpha_radps = 10\.0 .*< 4 zeta\^2 / tau_i_s = 6\.667"):
+        design(J, alpha, ZETA, tau_i_s=TAU).discretize(1e-4, "tustin")

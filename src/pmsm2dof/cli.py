@@ -120,6 +120,10 @@ def _margins_text(margins, unit):
             f" (crossover {margins.w_gain_crossover_radps:.4g} {unit})")
 
 
+def _overshoot_text(value, missing):
+    return f"{value:.3g} %" if "overshoot_pct" not in missing else f"n/a ({missing['overshoot_pct']})"
+
+
 def _design_table(dd):
     d = dd.design
     rows = [
@@ -139,12 +143,12 @@ def _design_table(dd):
         ("loop poles", _poles_text(d.closed_loop_poles(), "rad/s")),
         ("feedforward pole", "none" if d.feedforward == "none" else f"{-d.fr_polynomials()[1][1]:.6g} rad/s"),
         ("bandwidth (-3 dB of Gx)", f"{d.bandwidth_radps():.6g} rad/s"),
-        ("step overshoot", f"{d.overshoot_pct():.3g} %"),
+        ("step overshoot", _overshoot_text(d.overshoot_pct(), d.missing())),
         ("margins", _margins_text(d.margins(), "rad/s")),
         (f"Discrete loop ({dd.method}, Ts = {dd.Ts_s:g} s, ZOH plant)", None),
         ("loop poles", _poles_text(dd.poles, "(z)")),
         ("largest |z|", f"{max(abs(p) for p in dd.poles):.9g}"),
-        ("step overshoot", f"{dd.overshoot_pct:.3g} %"),
+        ("step overshoot", _overshoot_text(dd.overshoot_pct, dd.missing)),
         ("margins", _margins_text(dd.margins, "rad/s")),
         ("Coefficients (p2d_speed_coef_t)", None),
         ("b_e0", f"{dd.b_e0:.9g} Nm/(rad/s)"),

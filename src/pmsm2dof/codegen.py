@@ -224,13 +224,13 @@ def _record(discrete, speed, speed_ctl, current):
         f"  Fr(s) = ({_poly_s(d.fr_polynomials()[0])}) / ({_poly_s(d.fr_polynomials()[1])})",
         f"  loop poles: {_complex_list(d.closed_loop_poles())} rad/s",
         f"  tracking bandwidth (-3 dB of Gx) = {d.bandwidth_radps():.6g} rad/s,"
-        f" step overshoot = {d.overshoot_pct():.3g} %",
+        f" step overshoot = {_overshoot_text(d.overshoot_pct(), d.missing())}",
         f"  margins of F G: gain {dm.gain_margin_dB:.4g} dB, phase {dm.phase_margin_deg:.4g} deg"
         f" at {dm.w_gain_crossover_radps:.4g} rad/s",
         "",
         f"Derived, discrete ({discrete.method}, Ts_s = {discrete.Ts_s:.9g} s; ZOH plant):",
         f"  loop poles: {_complex_list(discrete.poles)}",
-        f"  tracking step overshoot = {discrete.overshoot_pct:.3g} %",
+        f"  tracking step overshoot = {_overshoot_text(discrete.overshoot_pct, discrete.missing)}",
         f"  margins of F(z) G(z): gain {zm.gain_margin_dB:.4g} dB, phase {zm.phase_margin_deg:.4g} deg",
         "",
         "Coefficients computed by p2d_speed_init from this configuration (float32):",
@@ -238,6 +238,10 @@ def _record(discrete, speed, speed_ctl, current):
     for name in ("Kp", "Ki", "b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_Fr0", "ff_b_dr", "ff_a1", "ff_Kd_per_Ts", "T_max_Nm"):
         out.append(f"  {name:<12} = {coef[name]:.9g}")
     return out
+
+
+def _overshoot_text(value, missing):
+    return f"{value:.3g} %" if "overshoot_pct" not in missing else f"n/a ({missing['overshoot_pct']})"
 
 
 def _complex_list(values):

@@ -20,15 +20,16 @@ Permanent-Magnet Synchronous Motor Speed Controller"; eq (9) follows the
 analytical PI design of its reference [4].
 """
 
+import functools
 import math
-import warnings
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import control
 import numpy as np
 
 from .controllers import ANTI_WINDUPS, FEEDFORWARDS
-from .errors import ConfigError, SimulationError, require_choice, require_nonnegative, require_positive
+from .errors import ConfigError, require_choice, require_nonnegative, require_positive
+from .stepresponse import StepResponse
 
 #: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
 HALF_POWER_DB = 20.0 * math.log10(1.0 / math.sqrt(2.0))
@@ -40,63 +41,84 @@ class Margins:
 
     Attributes
     ----------
-    gain_margin : float
-        Gain margin [-] (``inf`` when the phase never crosses -180 deg).
+    gain_margin_dB : float
+        Gain margin [dB] (``inf`` when the phase never crosses -180 deg where ``|L| < 1``).
     phase_margin_deg : float
-        Phase margin [deg].
+        Phase margin [deg] (``inf`` when ``|L|`` never crosses 1).
     w_gain_crossover_radps : float
         Frequency where ``|L| = 1`` [rad/s] (``nan`` when there is none).
     w_phase_crossover_radps : float
-        Frequency where the phase is -180 deg [rad/s] (``nan`` when there is none).
+        Frequency of the gain margin's -180 deg crossing [rad/s] (``nan`` when there is none).
     """
 
-    gain_margin: float
+    gain_margin_dB: float
     phase_margin_deg: float
     w_gain_crossover_radps: float
     w_phase_crossover_radps: float
 
-    @property
-    def gain_margin_dB(self):
-        """Gain margin [dB]."""
-        return 20.0 * math.log10(self.gain_margin)
+    def values_and_reasons(self):
+        """The margins as JSON-ready numbers, and the reason of each one that is ``None``.
+
+        Returns
+        -------
+        (dict, dict)
+            ``{name: value or None}`` (infinite and undefined values are ``None``) and
+            ``{name: reason}`` for the ``None`` ones.
+        """
+        no_phase_crossing = "infinite: the phase of the loop gain never crosses -180 deg where |L| < 1"
+        no_gain_crossing = "infinite: |L| never crosses 1"
+        reasons = {
+            "gain_margin_dB": no_phase_crossing,
+            "phase_margin_deg": no_gain_crossing,
+            "w_gain_crossover_radps": "undefined: |L| never crosses 1",
+            "w_phase_crossover_radps": "undefined: the phase of the loop gain never crosses -180 deg where |L| < 1",
+        }
+        values = asdict(self)
+        missing = {name: reasons[name] for name, v in values.items() if not math.isfinite(v)}
+        return {name: (v if math.isfinite(v) else None) for name, v in values.items()}, missing
+
+
+def pick_margins(gains, phases_deg, w_phase_radps, w_gain_radps, extra_crossings=()):
+    """The :class:`Margins` of a loop gain from all its -180 deg and unit-gain crossings.
+
+    The gain margin is the factor by which the loop gain can grow before the loop goes
+    unstable: the smallest ``1/|L|`` over the -180 deg crossings with ``|L| < 1``. Crossings
+    with ``|L| > 1`` are left out: this type-2 loop (PI and integrating plant) has its phase
+    at -180 deg at DC, and lowering its gain does not destabilize it. The phase margin is the
+    smallest over the gain crossovers.
+
+    Parameters
+    ----------
+    gains, w_phase_radps : sequence of float
+        ``1/|L|`` [-] and frequency [rad/s] at each -180 deg crossing.
+    phases_deg, w_gain_radps : sequence of float
+        Phase margin [deg] and frequency [rad/s] at each crossing of ``|L| = 1``.
+    extra_crossings : sequence of (float, float)
+        Further ``(1/|L|, frequency)`` -180 deg crossings (the Nyquist frequency of a
+        discrete loop).
+    """
+    crossings = [(float(gm), float(w)) for gm, w in zip(gains, w_phase_radps) if gm > 1.0]
+    crossings += [(float(gm), float(w)) for gm, w in extra_crossings if gm > 1.0]
+    gm, w_pc = min(crossings) if crossings else (math.inf, math.nan)
+    pm, w_gc = min(zip(phases_deg, w_gain_radps)) if len(phases_deg) else (math.inf, math.nan)
+    return Margins(20.0 * math.log10(gm), float(pm), float(w_gc), w_pc)
 
 
 def loop_margins(L):
-    """Gain and phase margins of the stable loop gain ``L`` (continuous or discrete).
-
-    The gain margin is the factor by which the loop gain can grow before the loop
-    goes unstable: the smallest ``1/|L|`` over the -180 deg crossings with
-    ``|L| < 1``. Crossings with ``|L| > 1`` are left out: this type-2 loop (PI and
-    integrating plant) has its phase at -180 deg at DC, and lowering its gain does
-    not destabilize it. For a discrete loop the Nyquist frequency ``pi/Ts``,
-    where ``L(-1)`` is real, is checked too: python-control's frequency grid
-    stops short of it. The phase margin is the smallest over the gain crossovers.
-    """
-    with warnings.catch_warnings():
-        # discrete loops: python-control evaluates the frequency response instead of
-        # solving polynomials and says so; that is expected here
-        warnings.filterwarnings("ignore", message="stability_margins: Falling back to 'frd'")
-        gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(L, returnall=True)
-    crossings = [(float(gm), float(w)) for gm, w in zip(gms, w_pcs) if gm > 1.0]
-    if L.isdtime():
-        L_nyquist = complex(L(-1.0))
-        if L_nyquist.real < 0.0 and abs(L_nyquist) < 1.0:
-            crossings.append((1.0 / abs(L_nyquist), math.pi / L.dt))
-    gm, w_pc = min(crossings) if crossings else (math.inf, math.nan)
-    pm, w_gc = min(zip(pms, w_gcs)) if len(pms) else (math.inf, math.nan)
-    return Margins(gm, float(pm), float(w_gc), w_pc)
+    """Gain and phase margins of the stable continuous loop gain ``L(s)`` (see :func:`pick_margins`)."""
+    gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(L, returnall=True)
+    return pick_margins(gms, pms, w_pcs, w_gcs)
 
 
 def tracking_tf(F, Fr, G):
     """Reference-to-output transfer function of the 2DOF loop (eq 6), multiplied through.
 
-    With ``F = Fn/Fd``, ``Fr = Rn/Rd``, ``G = Gn/Gd`` (continuous or discrete, same ``dt``)::
+    With ``F = Fn/Fd``, ``Fr = Rn/Rd``, ``G = Gn/Gd``::
 
         Gx = (Fr + F) G / (1 + F G) = (Rn Fd + Fn Rd) Gn / (Rd (Fd Gd + Fn Gn))
 
-    Forming it from the polynomials keeps the integrator of ``F`` from appearing
-    in both numerator and denominator, a cancellation that root finding cannot
-    resolve reliably near z = 1.
+    Forming it from the polynomials keeps the integrator of ``F`` from appearing in both
+    numerator and denominator.
     """
     Fn, Fd = F.num[0][0], F.den[0][0]
     Rn, Rd = Fr.num[0][0], Fr.den[0][0]
@@ -106,23 +128,9 @@ def tracking_tf(F, Fr, G):
     return control.tf(num, den, F.dt)
 
 
-def step_overshoot_pct(sys):
-    """Overshoot [%] of the step response of ``sys`` over its final value.
-
-    Raises
-    ------
-    SimulationError
-        When the response is too slow for python-control to find its rise (for
-        example a PI whose integral action rounds away, zeta >> 1).
-    """
-    try:
-        return float(control.step_info(sys)["Overshoot"])
-    except (IndexError, ValueError):
-        slowest = min(control.poles(sys), key=lambda p: abs(p - 1.0) if sys.isdtime() else abs(p))
-        raise SimulationError(
-            f"the step response does not rise in a computable time (slowest pole {complex(slowest):.6g}"
-            f"{' in z' if sys.isdtime() else ' rad/s'}): its overshoot is undefined; check zeta, alpha and Ts_s"
-        ) from None
+@functools.lru_cache(maxsize=64)
+def _overshoot(design):
+    return design.tracking_step().overshoot_pct()
 
 
 @dataclass(frozen=True)
@@ -247,9 +255,57 @@ class Design:
         """Gain and phase margins of the loop gain ``F G``."""
         return loop_margins(self.L)
 
+    def tracking_step(self):
+        """The unit reference step of the loop (eq 6) as a :class:`~pmsm2dof.stepresponse.StepResponse`.
+
+        States: the torque ``T`` after the current loop (eq 3, absent when tau_i = 0), the
+        momentum ``p = J w`` (eq 2), the PI integral ``q`` and the feedforward state ``v``,
+        with ``Fr = Kd s + D + c / (s + m alpha)`` split by polynomial division::
+
+            u = q + Kp (r - w) + D r + v + Kd dr/dt
+            tau_i T' = u - T,  p' = T,  q' = Ki (r - w),  v' = -m alpha v + c r
+
+        The derivative of the step reaches the current loop as an impulse: ``T(0+) = Kd / tau_i``.
+        """
+        fr_num, fr_den = self.fr_polynomials()
+        has_ff = self.feedforward != "none"
+        (Kd, D), c = np.polydiv(fr_num, fr_den) if has_ff else ((0.0, 0.0), np.zeros(1))
+        lag = self.tau_i_s > 0.0
+        iT, ip = (0, 1) if lag else (None, 0)
+        iq = ip + 1
+        iv = iq + 1
+        n = iv + 1 if has_ff else iv
+        A, b, x0 = np.zeros((n, n)), np.zeros(n), np.zeros(n)
+        # the row of u: q + Kp (r - p/J) + D r + v
+        u_row, u_r = np.zeros(n), self.Kp + D
+        u_row[iq], u_row[ip] = 1.0, -self.Kp / self.J_kgm2
+        if has_ff:
+            u_row[iv] = 1.0
+            A[iv, iv], b[iv] = -fr_den[1], c[-1]
+        if lag:
+            A[iT], b[iT] = u_row / self.tau_i_s, u_r / self.tau_i_s
+            A[iT, iT] -= 1.0 / self.tau_i_s
+            A[ip, iT] = 1.0
+            x0[iT] = Kd / self.tau_i_s
+        else:
+            A[ip], b[ip] = u_row, u_r
+        A[iq, ip], b[iq] = -self.Ki / self.J_kgm2, self.Ki
+        out = np.zeros(n)
+        out[ip] = 1.0 / self.J_kgm2
+        return StepResponse.continuous(A, b, out, x0)
+
     def overshoot_pct(self):
-        """Overshoot [%] of the linear unit-step tracking response ``Gx``."""
-        return step_overshoot_pct(self.Gx)
+        """Overshoot [%] of the linear unit-step tracking response (eq 6).
+
+        NaN when it cannot be computed; :meth:`missing` says why.
+        """
+        return _overshoot(self)[0]
+
+    def missing(self):
+        """``{figure: reason}`` for each figure of the continuous design that is NaN or infinite."""
+        _margins, missing = self.margins().values_and_reasons()
+        reason = _overshoot(self)[1]
+        return ({"overshoot_pct": reason} if reason else {}) | missing
 
     def discretize(self, Ts_s, method):
         """Discrete controller for sampling period ``Ts_s`` [s] (Table 1, eq 14, 15).

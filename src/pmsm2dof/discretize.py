@@ -18,18 +18,35 @@ the form the C core realizes them (csrc/include/pmsm2dof/speed.h):
 
 The discrete closed loop uses the zero-order-hold equivalent of the plant
 ``G = Gci Gm``: the torque command is held over each sampling period.
+
+Near z = 1 (a sampling period much shorter than the loop's time constants) the roots and
+values of transfer functions multiplied out in z are lost to rounding: the coefficients of
+``(z - 1)^2 (z - a) + ...`` no longer carry the poles' distance to 1, and a stable loop
+shows a pole at 1.00005. The loop's figures are therefore computed from forms that keep
+that distance:
+
+- stability, poles and margins in the w plane, ``z = (1 + w Ts/2) / (1 - w Ts/2)``, where
+  the realized PI is exactly ``Kp' + Ki / w`` (``Kp' = b_e0 - Ki Ts / 2``) and the ZOH plant
+  ``(1 - w Ts/2)(1 + kappa w) / (J w (1 + rho w))`` (derived in :func:`plant_w`); the
+  characteristic polynomial has continuous-like coefficients, so the Routh-Hurwitz test
+  (``Re w < 0`` is ``|z| < 1``) is decided without root finding, and python-control finds the
+  margins of ``L(w)`` as for a continuous loop (gain and phase are those of ``L(z)``; the
+  frequency maps back as ``w_z = (2/Ts) atan(w_w Ts/2)``);
+- the tracking step response from the realized difference equations in increment form
+  (:class:`~pmsm2dof.stepresponse.StepResponse`).
 """
 
 import math
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import control
 import numpy as np
 
 from .controllers import METHODS
-from .design import Design, Margins, loop_margins, step_overshoot_pct, tracking_tf
+from .design import Design, Margins, pick_margins
 from .errors import ConfigError, require_choice, require_positive
+from .stepresponse import StepResponse
 
 #: The same methods as named by SciPy ``cont2discrete`` / python-control ``sample_system``.
 SAMPLE_SYSTEM_METHODS = {"forward_euler": "euler", "backward_euler": "backward_diff", "tustin": "bilinear"}
@@ -73,13 +90,19 @@ class DiscreteDesign:
     ff_Kd_per_Ts : float
         Derivative term of the ``full`` feedforward, ``J alpha m tau_i / Ts`` [Nm/(rad/s)].
     poles : tuple of complex
-        Poles of the discrete feedback loop with the ZOH plant.
+        Poles of the discrete feedback loop with the ZOH plant, in z.
     overshoot_pct : float
-        Overshoot [%] of the discrete tracking step response ``Gx_z``.
+        Overshoot [%] of the discrete tracking step response (NaN when it cannot be
+        computed; ``missing`` says why).
     margins : Margins
-        Margins of the discrete loop gain ``L_z``.
-    F_z, Fr_z, G_z, L_z, Gx_z : control.TransferFunction
-        Discrete PI, feedforward, ZOH plant, loop gain and tracking response.
+        Margins of the discrete loop gain ``F(z) G(z)``.
+    missing : dict
+        ``{figure: reason}`` for each discrete figure that is NaN or infinite.
+    F_z, Fr_z, G_z, L_z : control.TransferFunction
+        Discrete PI, feedforward, ZOH plant and loop gain.
+    Gx_z : control.StateSpace
+        Tracking response, realized from the difference equations (states: plant, PI
+        integral, feedforward ``y[k-1]`` and ``r[k-1]``).
     """
 
     design: Design
@@ -95,18 +118,23 @@ class DiscreteDesign:
     poles: tuple
     overshoot_pct: float
     margins: Margins
+    missing: dict
     F_z: control.TransferFunction = field(compare=False, repr=False)
     Fr_z: control.TransferFunction = field(compare=False, repr=False)
     G_z: control.TransferFunction = field(compare=False, repr=False)
     L_z: control.TransferFunction = field(compare=False, repr=False)
-    Gx_z: control.TransferFunction = field(compare=False, repr=False)
+    Gx_z: control.StateSpace = field(compare=False, repr=False)
 
     def as_dict(self):
         """Inputs, continuous and discrete results as plain numbers (JSON-ready).
 
-        Complex poles are ``[re, im]`` pairs; infinite or undefined margins are ``None``.
+        Complex poles are ``[re, im]`` pairs. A figure that is infinite or cannot be computed
+        is ``None``, with the reason under ``missing``.
         """
         d = self.design
+        margins, _ = d.margins().values_and_reasons()
+        discrete_margins, _ = self.margins.values_and_reasons()
+        overshoot = d.overshoot_pct()
         return {
             "J_kgm2": d.J_kgm2, "alpha_radps": d.alpha_radps, "zeta": d.zeta, "m": d.m, "tau_i_s": d.tau_i_s,
             "feedforward": d.feedforward, "anti_windup": d.anti_windup, "Ts_s": self.Ts_s, "method": self.method,
@@ -114,13 +142,15 @@ class DiscreteDesign:
             "continuous": {
                 "poles_radps": _pairs(d.closed_loop_poles()),
                 "bandwidth_radps": d.bandwidth_radps(),
-                "overshoot_pct": d.overshoot_pct(),
-                "margins": _finite_dict(asdict(d.margins())),
+                "overshoot_pct": overshoot if math.isfinite(overshoot) else None,
+                "margins": margins,
+                "missing": d.missing(),
             },
             "discrete": {
                 "poles_z": _pairs(self.poles),
-                "overshoot_pct": self.overshoot_pct,
-                "margins": _finite_dict(asdict(self.margins)),
+                "overshoot_pct": self.overshoot_pct if math.isfinite(self.overshoot_pct) else None,
+                "margins": discrete_margins,
+                "missing": self.missing,
                 "coefficients": {name: getattr(self, name) for name in COEFFICIENTS},
             },
         }
@@ -128,10 +158,6 @@ class DiscreteDesign:
 
 def _pairs(values):
     return [[complex(v).real, complex(v).imag] for v in values]
-
-
-def _finite_dict(values):
-    return {k: (v if math.isfinite(v) else None) for k, v in values.items()}
 
 
 def _sample(tf_s, Ts_s, method):
@@ -162,6 +188,165 @@ def _coefficients_z(tf):
     den = np.atleast_1d(np.squeeze(tf.den[0][0]))
     num = np.concatenate([np.zeros(len(den) - len(num)), num])
     return num / den[0], den / den[0]
+
+
+def _pi_coefficients(design, Ts_s, method):
+    """``(b_e0, Ki_Ts, F_z)`` of the PI ``F(z) = (b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1)`` (eq 14 for Tustin).
+
+    The integral part ``Ki / s`` is sampled alone, ``(i0 + i1 z^-1) / (1 - z^-1)``, so that
+    ``Ki Ts = i0 + i1`` is a sum of two terms of its own size, not the difference of two
+    terms of the size of Kp.
+    """
+    I_z = _sample(control.tf([design.Ki], [1.0, 0.0]), Ts_s, SAMPLE_SYSTEM_METHODS[method])
+    (i0, i1), _ = _coefficients_z(I_z)
+    return design.Kp + float(i0), float(i0 + i1), design.Kp + I_z
+
+
+def plant_w(J_kgm2, tau_i_s, Ts_s):
+    """The ZOH plant in the w plane, ``z = (1 + w Ts/2) / (1 - w Ts/2)``: (numerator, denominator).
+
+    The ZOH equivalent of ``1 / (J s (tau s + 1))`` is (step invariance)
+    ``G(z) = (n1 z + n0) / (J (z - 1)(z - a))``, ``a = exp(-Ts/tau)``, ``n1 = Ts - tau (1 - a)``,
+    ``n0 = tau (1 - a) - a Ts``. With ``z - 1 = w Ts / (1 - w Ts/2)`` and
+    ``z - a = ((1 - a) + w Ts (1 + a)/2) / (1 - w Ts/2)`` it becomes::
+
+        G(w) = (1 - w Ts/2)(1 + kappa w) / (J w (1 + rho w)),
+        rho = (Ts/2) coth(Ts / (2 tau)),  kappa = rho - tau
+
+    and ``(1 - w Ts/2) / (J w)`` for tau = 0 (the limit, ``rho = kappa = Ts/2``).
+    ``kappa = tau ((x/2) coth(x/2) - 1)``, ``x = Ts/tau``, is taken from its series
+    ``tau x^2 / 12 (1 - x^2/60)`` for x < 1e-3, where the difference would round away.
+    """
+    hold = np.array([-0.5 * Ts_s, 1.0])
+    if tau_i_s == 0.0:
+        return hold, np.array([J_kgm2, 0.0])
+    x = Ts_s / tau_i_s
+    rho = 0.5 * Ts_s / math.tanh(0.5 * x)
+    kappa = tau_i_s * x * x / 12.0 * (1.0 - x * x / 60.0) if x < 1e-3 else rho - tau_i_s
+    return np.polymul(hold, [kappa, 1.0]), J_kgm2 * np.array([rho, 1.0, 0.0])
+
+
+def _loop_w(design, Ts_s, b_e0, Ki_Ts):
+    """Numerator and denominator of the loop gain ``L(w) = F(w) G(w)``.
+
+    The realized PI is exactly ``F(w) = Kp' + Ki / w``, ``Kp' = b_e0 - Ki Ts / 2``:
+    ``Ki Ts / (z - 1) = Ki Ts (1 - w Ts/2) / (w Ts) = Ki / w - Ki Ts / 2``.
+    """
+    G_num, G_den = plant_w(design.J_kgm2, design.tau_i_s, Ts_s)
+    return np.polymul([b_e0 - 0.5 * Ki_Ts, Ki_Ts / Ts_s], G_num), np.polymul([1.0, 0.0], G_den)
+
+
+def _hurwitz(char):
+    """True when every root of the polynomial ``char`` (degree 2 or 3) has ``Re w < 0`` (Routh-Hurwitz)."""
+    if not np.all(char > 0.0):
+        return False
+    return len(char) == 3 or char[1] * char[2] > char[0] * char[3]
+
+
+def _stable(design, Ts_s, method):
+    """Whether the discrete feedback loop is stable at ``Ts_s`` (Routh-Hurwitz in the w plane)."""
+    b_e0, Ki_Ts, _ = _pi_coefficients(design, Ts_s, method)
+    L_num, L_den = _loop_w(design, Ts_s, b_e0, Ki_Ts)
+    return _hurwitz(np.polyadd(L_den, L_num))
+
+
+def _unstable_loop_error(design, Ts_s, method, z_max):
+    """The ConfigError of a discrete loop that is unstable at ``Ts_s``, naming the range that is stable."""
+    d = design
+    if not d.Kp > d.tau_i_s * d.Ki:
+        # Routh on J tau s^3 + J s^2 + Kp s + Ki: no sampling period helps
+        return ConfigError(
+            "alpha_radps", d.alpha_radps,
+            f"< 4 zeta^2 / tau_i_s = {4.0 * d.zeta**2 / d.tau_i_s:.6g} rad/s with zeta = {d.zeta:g} and tau_i_s = "
+            f"{d.tau_i_s:g} s: beyond it the continuous loop J tau_i s^3 + J s^2 + Kp s + Ki is unstable (Routh: "
+            "Kp > tau_i Ki), at any Ts_s")
+    # the largest period below which every period of a fine log grid is stable, then bisection
+    grid = Ts_s * np.logspace(-9.0, 0.0, 181)
+    stable = [_stable(d, Ts, method) for Ts in grid]
+    first_bad = stable.index(False)
+    if first_bad == 0:
+        return ConfigError("Ts_s", Ts_s, f"a period that makes the discrete loop stable (none found from {grid[0]:.3g} s "
+                                         f"to {Ts_s:g} s with {method} and a ZOH plant)")
+    lo, hi = grid[first_bad - 1], grid[first_bad]
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _stable(d, mid, method) else (lo, mid)
+    return ConfigError(
+        "Ts_s", Ts_s,
+        f"< {lo:.4g} s, where the discrete loop is stable ({method}, ZOH plant; at Ts_s = {Ts_s:g} s its "
+        f"largest closed-loop pole has |z| = {z_max:.6g})")
+
+
+def _margins(design, Ts_s, b_e0, Ki_Ts):
+    """Margins of ``F(z) G(z)``, found by python-control on ``L(w)`` (same gain and phase).
+
+    A frequency ``w_w`` of the w plane is ``w_z = (2/Ts) atan(w_w Ts / 2)``; the Nyquist
+    frequency ``pi/Ts``, ``z = -1``, is ``w = infinity``, where ``L`` is the ratio of the
+    leading coefficients (numerator and denominator have the same degree).
+    """
+    num, den = _loop_w(design, Ts_s, b_e0, Ki_Ts)
+    gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(control.tf(num, den), returnall=True)
+
+    def to_z(w):
+        return 2.0 / Ts_s * np.arctan(0.5 * Ts_s * np.asarray(w, dtype=float))
+
+    L_nyquist = num[0] / den[0]
+    extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []
+    return pick_margins(gms, pms, to_z(w_pcs), to_z(w_gcs), extra)
+
+
+def _plant_increments(J_kgm2, tau_i_s, Ts_s):
+    """The ZOH plant over one period in increment form: ``(E_p, g_p, c_p)``.
+
+    States: the torque ``T`` after the current loop (absent when tau_i = 0) and the momentum
+    ``p = J w``; with ``u`` held over the period and ``a = exp(-Ts/tau)``::
+
+        T[k+1] - T[k] = (1 - a)(u - T[k])
+        p[k+1] - p[k] = tau (1 - a) T[k] + (Ts - tau (1 - a)) u,   w = p / J
+
+    ``1 - a = -expm1(-x)`` and ``Ts - tau (1 - a) = tau (x + expm1(-x))``, ``x = Ts/tau``.
+    """
+    if tau_i_s == 0.0:
+        return np.zeros((1, 1)), np.array([Ts_s]), np.array([1.0 / J_kgm2])
+    x = Ts_s / tau_i_s
+    one_minus_a = -math.expm1(-x)
+    E_p = np.array([[-one_minus_a, 0.0], [tau_i_s * one_minus_a, 0.0]])
+    return E_p, np.array([one_minus_a, tau_i_s * (x + math.expm1(-x))]), np.array([0.0, 1.0 / J_kgm2])
+
+
+def _tracking_increments(design, Ts_s, b_e0, Ki_Ts, ff_Fr0, ff_b_dr, ff_a1, ff_Kd_per_Ts):
+    """The tracking loop over one period in increment form: ``(E, f, c)`` of a unit reference step.
+
+    States: the plant (:func:`_plant_increments`), the PI integral ``q = x[k-1]``, and with a
+    feedforward its transient ``v = y[k-1]`` and ``s = r[k-1]``; the realized difference
+    equations (see the module docstring)::
+
+        y[k] = -ff_a1 v + ff_b_dr (r - s)
+        u[k] = q + b_e0 (r - w) + ff_Fr0 r + y[k] + ff_Kd_per_Ts (r - s)
+        q[k+1] - q = Ki_Ts (r - w),  v[k+1] - v = y[k] - v,  s[k+1] - s = r - s
+    """
+    E_p, g_p, c_p = _plant_increments(design.J_kgm2, design.tau_i_s, Ts_s)
+    n_p = len(g_p)
+    has_ff = design.feedforward != "none"
+    n = n_p + (3 if has_ff else 1)
+    iq, iv, i_s = n_p, n_p + 1, n_p + 2
+    # u = u_row x + u_r r
+    u_row, u_r = np.zeros(n), b_e0
+    u_row[:n_p], u_row[iq] = -b_e0 * c_p, 1.0
+    E, f = np.zeros((n, n)), np.zeros(n)
+    if has_ff:
+        u_row[iv], u_row[i_s] = -ff_a1, -(ff_b_dr + ff_Kd_per_Ts)
+        u_r += ff_Fr0 + ff_b_dr + ff_Kd_per_Ts
+        # v[k+1] - v = -(1 + a1) v + b_dr (r - s),  s[k+1] - s = r - s
+        E[iv, iv], E[iv, i_s], f[iv] = -(1.0 + ff_a1), -ff_b_dr, ff_b_dr
+        E[i_s, i_s], f[i_s] = -1.0, 1.0
+    E[:n_p] = np.outer(g_p, u_row)
+    E[:n_p, :n_p] += E_p
+    f[:n_p] = g_p * u_r
+    E[iq, :n_p], f[iq] = -Ki_Ts * c_p, Ki_Ts
+    c = np.zeros(n)
+    c[:n_p] = c_p
+    return E, f, c
 
 
 def discretize(design, Ts_s, method):
@@ -207,10 +392,7 @@ def discretize(design, Ts_s, method):
     c2d_method = SAMPLE_SYSTEM_METHODS[method]
 
     # PI: F(z) = (b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1), eq 14 for Tustin
-    F_z = _sample(d.F, Ts_s, c2d_method)
-    num, _ = _coefficients_z(F_z)
-    b_e0 = float(num[0])
-    Ki_Ts = float(num[0] + num[1])
+    b_e0, Ki_Ts, F_z = _pi_coefficients(d, Ts_s, method)
     Ki_Ka_Ts = Ki_Ts * d.Ka if d.anti_windup == "back_calculation" else 0.0
     if Ki_Ka_Ts >= 2.0:
         raise ConfigError(
@@ -239,22 +421,25 @@ def discretize(design, Ts_s, method):
         ff_Kd_per_Ts = Kd / Ts_s
         Fr_z = P_z + control.tf([ff_Kd_per_Ts, -ff_Kd_per_Ts], [1.0, 0.0], Ts_s) if Kd != 0.0 else P_z
 
+    # feedback loop in the w plane: 1 + F(w) G(w) = 0, stable when Re w < 0
+    L_num, L_den = _loop_w(d, Ts_s, b_e0, Ki_Ts)
+    char_w = np.polyadd(L_den, L_num)
+    poles_w = np.roots(char_w)
+    poles = (1.0 + 0.5 * Ts_s * poles_w) / (1.0 - 0.5 * Ts_s * poles_w)
+    if not _hurwitz(char_w):
+        raise _unstable_loop_error(d, Ts_s, method, float(np.max(np.abs(poles))))
+    coefficients = dict(b_e0=b_e0, Ki_Ts=Ki_Ts, ff_Fr0=float(ff_Fr0), ff_b_dr=float(ff_b_dr), ff_a1=float(ff_a1),
+                        ff_Kd_per_Ts=float(ff_Kd_per_Ts))
+    E, f, c = _tracking_increments(d, Ts_s, **coefficients)
+    overshoot, reason = StepResponse(E, f, c, dt_s=Ts_s).overshoot_pct()
+    margins = _margins(d, Ts_s, b_e0, Ki_Ts)
     G_z = _sample(d.G, Ts_s, "zoh")
-    L_z = F_z * G_z
-    poles = control.poles(control.feedback(L_z, 1))
-    r_max = float(np.max(np.abs(poles)))
-    if not r_max < 1.0:
-        raise ConfigError(
-            "Ts_s", Ts_s,
-            f"small enough that the discrete loop is stable (with {method} and a ZOH plant the largest "
-            f"closed-loop pole has |z| = {r_max:.6g} >= 1)")
-    Gx_z = tracking_tf(F_z, Fr_z, G_z)
     return DiscreteDesign(
-        design=d, Ts_s=Ts_s, method=method,
-        b_e0=b_e0, Ki_Ts=Ki_Ts, Ki_Ka_Ts=Ki_Ka_Ts,
-        ff_Fr0=float(ff_Fr0), ff_b_dr=float(ff_b_dr), ff_a1=float(ff_a1), ff_Kd_per_Ts=float(ff_Kd_per_Ts),
+        design=d, Ts_s=Ts_s, method=method, Ki_Ka_Ts=Ki_Ka_Ts, **coefficients,
         poles=tuple(complex(p) for p in poles),
-        overshoot_pct=step_overshoot_pct(Gx_z),
-        margins=loop_margins(L_z),
-        F_z=F_z, Fr_z=Fr_z, G_z=G_z, L_z=L_z, Gx_z=Gx_z,
+        overshoot_pct=overshoot,
+        margins=margins,
+        missing=({"overshoot_pct": reason} if reason else {}) | margins.values_and_reasons()[1],
+        F_z=F_z, Fr_z=Fr_z, G_z=G_z, L_z=F_z * G_z,
+        Gx_z=control.ss(np.eye(len(f)) + E, f[:, None], c[None, :], 0.0, Ts_s),
     )
