@@ -146,6 +146,6 @@ def test_bad_value_in_a_fresh_process_has_no_traceback():
 @pytest.mark.parametrize("name", ["fig7.png", "fig7.svg"])
 def test_bode_draws_fig7(tmp_path, name):
     out = tmp_path / name
-    assert main(["bode", "--alpha", "0.5", "--m", "0.2,0.5,1,2", "--out", str(out)]) == 0
+    assert main(["bode", "--alpha", "0.5", "--feedforward", "full", "--m", "0.2,0.5,1,2", "--out", str(out)]) == 0
     data = out.read_bytes()
     assert data.startswith(b"\x89PNG") if name.endswith(".png") else b"<svg" in data[:2000]

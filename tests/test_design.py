@@ -54,7 +54,7 @@ def test_package_exports_design():
 
 @pytest.mark.parametrize("J, alpha, zeta, m, tau", PARAMETER_SETS)
 def test_gains_eq9(J, alpha, zeta, m, tau):
-    d = design(J, alpha, zeta, m=m, tau_i_s=tau)
+    d = design(J, alpha, zeta, m=m, tau_i_s=tau, feedforward="full")
     assert d.Kp == pytest.approx(J * alpha, rel=1e-14)
     assert d.Ki == pytest.approx(J * alpha**2 / (4.0 * zeta**2), rel=1e-14)
 
@@ -106,7 +106,7 @@ def test_gn_is_eq8_for_every_feedforward(J, alpha, zeta, m, tau):
 
 @pytest.mark.parametrize("J, alpha, zeta, m, tau", PARAMETER_SETS)
 def test_closed_loop_poles_are_roots_of_eq8_denominator(J, alpha, zeta, m, tau):
-    d = design(J, alpha, zeta, m=m, tau_i_s=tau)
+    d = design(J, alpha, zeta, m=m, tau_i_s=tau, feedforward="full")
     char = [J * tau, J, J * alpha, J * alpha**2 / (4 * zeta**2)]
     expected = np.sort_complex(np.roots(np.trim_zeros(char, "f")))
     np.testing.assert_allclose(np.sort_complex(d.closed_loop_poles()), expected, rtol=1e-9)
@@ -139,7 +139,7 @@ def test_phase_margin_from_explicit_loop(J, alpha, zeta, m, tau):
         return (Kp * s + Ki) / (J * s * s * (tau * s + 1.0))
 
     w_c = optimize.brentq(lambda w: abs(loop(w)) - 1.0, 1e-6 * alpha, 1e6 * alpha)
-    margins = design(J, alpha, zeta, m=m, tau_i_s=tau).margins()
+    margins = design(J, alpha, zeta, m=m, tau_i_s=tau, feedforward="full").margins()
     assert margins.w_gain_crossover_radps == pytest.approx(w_c, rel=1e-6)
     assert margins.phase_margin_deg == pytest.approx(180.0 + math.degrees(np.angle(loop(w_c))), abs=1e-6)
     # Routh on J tau s^3 + J s^2 + k Kp s + k Ki: stable for every gain k when Kp > tau Ki

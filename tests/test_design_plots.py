@@ -19,7 +19,7 @@ def lines(ax):
 
 def test_fig7_bode_of_gx_is_first_order_for_each_m():
     m_values = [0.2, 0.5, 1.0, 2.0]
-    fig = bode_gx_sweep(ALPHA, m_values, J_kgm2=J, zeta=ZETA, tau_i_s=TAU)
+    fig = bode_gx_sweep(ALPHA, m_values, J_kgm2=J, zeta=ZETA, tau_i_s=TAU, feedforward="full")
     mag_ax, phase_ax = fig.axes[:2]
     assert len(mag_ax.get_lines()) == len(m_values)
     for m, (w, mag_dB), (_, phase_deg) in zip(m_values, lines(mag_ax), lines(phase_ax)):

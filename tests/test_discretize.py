@@ -247,7 +247,7 @@ def test_unstable_discrete_loop_is_refused():
 
 
 def test_forward_euler_feedforward_pole_outside_unit_circle_is_refused():
-    d = design(J, ALPHA, 1.0, m=2.0)
+    d = design(J, ALPHA, 1.0, m=2.0, feedforward="full")
     # m alpha Ts = 2.2 > 2: pole 1 - m alpha Ts = -1.2; the C core refuses it too
     with pytest.warns(SamplingWarning), pytest.raises(ValueError, match="^Ts_s = "):
         d.discretize(2.2, "forward_euler")

@@ -52,8 +52,9 @@ def main(argv=None):
 @click.option("--Ts", "Ts_s", type=float, required=True, help="speed-loop sampling period [s], > 0")
 @click.option("--method", default="tustin", show_default=True,
               help="discretization (Table 1): forward_euler, backward_euler or tustin")
-@click.option("--feedforward", default="full", show_default=True,
-              help="none (1DOF PI), lowpass (eq 13, m = 1), no_tau (eq 11 with tau_i = 0) or full (eq 11)")
+@click.option("--feedforward", default="lowpass", show_default=True,
+              help="lowpass (eq 13/15, the paper's 2DOF controller; needs m = 1), none (1DOF PI), "
+                   "no_tau (eq 11 with tau_i = 0) or full (eq 11); for m != 1 choose no_tau or full")
 @click.option("--anti-windup", default="back_calculation", show_default=True,
               help="none, back_calculation or clamping")
 @click.option("--Ka", "Ka", type=float, default=None, help="back-calculation gain [(rad/s)/Nm], >= 0 [default: 1/Kp]")
@@ -171,14 +172,19 @@ def _design_table(dd):
 
 @cli.command()
 @click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0")
-@click.option("--m", "m_list", default="0.2,0.5,1,2", show_default=True, help="comma-separated values of m (eq 10)")
+@click.option("--m", "m_list", default="1", show_default=True,
+              help="comma-separated values of m (eq 10); other than 1 with --feedforward no_tau or full")
 @click.option("--J", "J_kgm2", type=float, default=0.4, show_default=True, help="inertia [kg m^2] (paper section 4)")
 @click.option("--zeta", type=float, default=0.2887, show_default=True, help="relative damping (paper: Ki = 0.3)")
 @click.option("--tau-i", "tau_i_s", type=float, default=0.05, show_default=True, help="current-loop time constant [s]")
-@click.option("--feedforward", default="full", show_default=True, help="none, lowpass, no_tau or full")
+@click.option("--feedforward", default="lowpass", show_default=True,
+              help="lowpass (eq 13, m = 1), none, no_tau or full (eq 11); Fig. 7 is full with m = 0.2,0.5,1,2")
 @click.option("--out", type=click.Path(dir_okay=False), required=True, help="figure file, .png or .svg")
 def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
-    """Bode diagram of the tracking response Gx for several m (paper Fig. 7)."""
+    """Bode diagram of the tracking response Gx for several m (paper Fig. 7).
+
+    Fig. 7 of the paper: --feedforward full --m 0.2,0.5,1,2.
+    """
     from .errors import ConfigError
     from .plots import bode_gx_sweep, save_figure
 

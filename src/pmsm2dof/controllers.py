@@ -179,7 +179,7 @@ class SpeedController:
         Relative damping of the PI loop, > 0 (eq 9).
     m : float, default 1.0
         Tracking pole factor, Gx = m alpha / (s + m alpha) (eq 10), > 0; must be 1
-        with ``feedforward="lowpass"``.
+        with ``feedforward="lowpass"``, the default.
     tau_i_s : float, default 0.0
         Current-loop time constant [s], >= 0 (eq 3); used by ``feedforward="full"``.
     Ka : float or None, default None
@@ -196,10 +196,13 @@ class SpeedController:
         Pole pairs, >= 1. The torque is ``Te = 1.5 p (psi_f iq + (Ld - Lq) id iq)``
         (amplitude-invariant Park; the paper's eq 1 omits the 1.5 and calls p0
         the number of poles while using it as pole pairs).
-    method : {"forward_euler", "backward_euler", "tustin"}
+    method : {"forward_euler", "backward_euler", "tustin"}, default "tustin"
         Discretization of every dynamic part (Table 1).
-    feedforward : {"none", "lowpass", "no_tau", "full"}
-    anti_windup : {"none", "back_calculation", "clamping"}
+    feedforward : {"lowpass", "none", "no_tau", "full"}, default "lowpass"
+        ``"lowpass"``: eq 13 discretized as eq 15, the paper's 2DOF controller (section 4),
+        which requires m = 1; ``"none"``: the 1DOF PI; ``"no_tau"`` or ``"full"``: eq 11,
+        for any m.
+    anti_windup : {"none", "back_calculation", "clamping"}, default "back_calculation"
 
     Raises
     ------
@@ -228,7 +231,7 @@ class SpeedController:
         Lq_H,
         pole_pairs,
         method="tustin",
-        feedforward="none",
+        feedforward="lowpass",
         anti_windup="back_calculation",
     ):
         self._ctl = ffi.new("p2d_speed_t *")

@@ -326,7 +326,7 @@ class Design:
         return write_c_header(path, self.discretize(Ts_s, method), **motor)
 
 
-def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="full",
+def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="lowpass",
            anti_windup="back_calculation", Ka=None):
     """Design the anti-windup 2DOF PI speed controller (paper section 3.3).
 
@@ -339,12 +339,14 @@ def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="full",
     zeta : float
         Relative damping of the PI loop [-], > 0 (eq 9).
     m : float, optional
-        Tracking pole factor [-], > 0 (eq 10); exactly 1 with ``lowpass``.
+        Tracking pole factor [-], > 0 (eq 10); exactly 1 with ``lowpass``, the default
+        feedforward.
     tau_i_s : float, optional
         Current-loop time constant [s], >= 0 (eq 3).
-    feedforward : {'none', 'lowpass', 'no_tau', 'full'}, optional
-        ``none``: 1DOF PI; ``lowpass``: eq (13), requires ``m == 1``;
-        ``no_tau``: eq (11) with ``tau_i = 0``; ``full``: eq (11).
+    feedforward : {'lowpass', 'none', 'no_tau', 'full'}, optional
+        ``lowpass`` (default): eq (13), discretized as eq (15), the paper's 2DOF controller of
+        section 4, requires ``m == 1``; ``none``: 1DOF PI; ``no_tau``: eq (11) with
+        ``tau_i = 0``; ``full``: eq (11). For ``m != 1`` choose ``no_tau`` or ``full``.
     anti_windup : {'none', 'back_calculation', 'clamping'}, optional
         Integrator anti-windup (section 3.2).
     Ka : float, optional
@@ -367,7 +369,8 @@ def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="full",
     require_choice("feedforward", feedforward, FEEDFORWARDS)
     require_choice("anti_windup", anti_windup, ANTI_WINDUPS)
     if feedforward == "lowpass" and m != 1.0:
-        raise ConfigError("m", m, "exactly 1 with feedforward 'lowpass' (eq 13); use 'no_tau' or 'full' for m != 1")
+        raise ConfigError("m", m, "exactly 1 with feedforward 'lowpass' (eq 13, the default); for m != 1 choose "
+                                  "feedforward 'no_tau' or 'full' (eq 11)")
     # eq 9
     Kp = J_kgm2 * alpha_radps
     Ki = J_kgm2 * (alpha_radps / (2.0 * zeta)) ** 2

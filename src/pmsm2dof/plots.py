@@ -53,12 +53,13 @@ def _bode(axes, systems, labels, styles=None):
     axes[0].legend(fontsize="small")
 
 
-def bode_gx_sweep(alpha_radps, m_values, J_kgm2=0.4, zeta=0.2887, tau_i_s=0.05, feedforward="full"):
+def bode_gx_sweep(alpha_radps, m_values, J_kgm2=0.4, zeta=0.2887, tau_i_s=0.05, feedforward="lowpass"):
     """Bode diagram of the tracking response ``Gx`` (eq 6) for several ``m`` (paper Fig. 7).
 
     With the ``full`` feedforward ``Gx = m alpha / (s + m alpha)`` (eq 10) whatever
-    J, zeta and tau_i; the paper draws alpha = 0.5 and m from 0.2 to 2. The
-    defaults of J, zeta and tau_i are the paper's section 4 values.
+    J, zeta and tau_i; the paper's Fig. 7 is alpha = 0.5 and m from 0.2 to 2 with it.
+    The default feedforward, ``lowpass`` (eq 13), takes m = 1 only. The defaults of J,
+    zeta and tau_i are the paper's section 4 values.
 
     Returns
     -------
