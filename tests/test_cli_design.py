@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 import subprocess
 import sys
 
@@ -36,14 +37,49 @@ def test_design_json_in_a_fresh_process():
 
 def test_design_emits_c_header(tmp_path, capsys):
     header = tmp_path / "speed_design.h"
-    assert main(["design", *PAPER, "--emit-c-header", str(header), "--prefix", "motor1", "--json"]) == 0
-    json.loads(capsys.readouterr().out)
+    motor = ["--i-max", "5", "--pole-pairs", "3", "--psi-f", "0.1", "--Ld", "0.002", "--Lq", "0.003"]
+    assert main(["design", *PAPER, *motor, "--emit-c-header", str(header), "--prefix", "motor1", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
     text = header.read_text()
     assert "static const p2d_speed_config_t motor1_speed_config" in text
-    assert ".i_max_A = 7.6f" in text and ".pole_pairs = 4u" in text
+    assert ".i_max_A = 5.0f" in text and ".pole_pairs = 3u" in text and ".Lq_H = 0.003f" in text
     assert "p2d_current_config_t" not in text
-    assert main(["design", *PAPER, "--emit-c-header", str(header), "--Rs", "0.5", "--Ts-current", "1e-4"]) == 0
+    assert data["header"]["motor"]["psi_f_Wb"] == {"value": 0.1, "source": "given: --psi-f"}
+    assert main(["design", *PAPER, *motor, "--emit-c-header", str(header), "--Rs", "0.5", "--Ts-current",
+                 "1e-4"]) == 0
     assert "static const p2d_current_config_t p2d_design_current_config" in header.read_text()
+
+
+def test_header_without_motor_data_names_what_is_missing(tmp_path, capsys):
+    header = tmp_path / "speed.h"
+    assert main(["design", *PAPER, "--emit-c-header", str(header), "--psi-f", "0.1"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1
+    assert "--i-max, --pole-pairs, --Ld missing" in captured.err and "--paper-drive" in captured.err
+    assert not any(tmp_path.iterdir())
+
+
+def test_paper_drive_fills_in_what_is_not_given_and_says_so(tmp_path, capsys):
+    header = tmp_path / "speed.h"
+    assert main(["design", *PAPER, "--emit-c-header", str(header), "--paper-drive", "--Ld", "0.012",
+                 "--Rs", "0.3", "--Ts-current", "1e-4"]) == 0
+    out = capsys.readouterr().out
+    # the paper's drive is the preset's: 7.6 A limit (section 4), 4 pole pairs, 0.2 Wb
+    from pmsm2dof import load_scenario
+
+    preset = load_scenario("paper-condition-1").data
+    expected = {"i_max_A": (preset["limits"]["i_max_A"], "paper drive"),
+                "pole_pairs": (preset["motor"]["pole_pairs"], "paper drive"),
+                "psi_f_Wb": (preset["motor"]["psi_f_Wb"], "paper drive"),
+                "Ld_H": (0.012, "given: --Ld"), "Lq_H": (0.012, "= Ld_H: surface PMSM"),
+                "Rs_ohm": (0.3, "given: --Rs")}
+    summary = {line.split()[0]: line for line in out.split("C header written to")[1].splitlines()[1:]}
+    text = header.read_text()
+    for name, (value, source) in expected.items():
+        assert f"= {value:<8g}" in summary[name] and source in summary[name], summary[name]
+        recorded = re.search(rf"^ \*   {name}\s+= (\S+) .*\((.*)\)$", text, flags=re.M)
+        assert float(recorded.group(1)) == value and source in recorded.group(2)
+    assert "placeholder" in summary["i_max_A"] and "placeholder" not in summary["Ld_H"]
 
 
 def test_sampling_warning_is_one_stderr_line(capsys):
@@ -131,7 +167,7 @@ def test_margins_json_has_gain_margin_in_dB_and_no_infinity(capsys):
 
 def test_bad_header_option_writes_nothing(tmp_path, capsys):
     header = tmp_path / "h.h"
-    assert main(["design", *PAPER, "--emit-c-header", str(header), "--pole-pairs", "0"]) == 2
+    assert main(["design", *PAPER, "--emit-c-header", str(header), "--paper-drive", "--pole-pairs", "0"]) == 2
     assert capsys.readouterr().err.startswith("pmsm2dof: error: pole_pairs = 0")
     assert not any(tmp_path.iterdir())
 
@@ -149,3 +185,11 @@ def test_bode_draws_fig7(tmp_path, name):
     assert main(["bode", "--alpha", "0.5", "--feedforward", "full", "--m", "0.2,0.5,1,2", "--out", str(out)]) == 0
     data = out.read_bytes()
     assert data.startswith(b"\x89PNG") if name.endswith(".png") else b"<svg" in data[:2000]
+
+
+def test_bode_says_what_it_wrote(tmp_path, capsys):
+    out = tmp_path / "gx.svg"
+    assert main(["bode", "--alpha", "0.5", "--out", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert captured.out.count("\n") == 1 and captured.out.startswith(f"wrote {out}")
+    assert captured.err == ""

@@ -33,3 +33,17 @@ def test_anti_windup_off_example_winds_up(tmp_path, monkeypatch):
     out = tmp_path / args[args.index("--out") + 1]
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["reference_steps"][0]["overshoot_pct"]["value"] > 55.0
+
+
+def test_design_and_bode_commands_run_as_written(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    commands = [a for a in readme_commands("pmsm2dof") if a[0] in ("design", "bode")]
+    assert {a[0] for a in commands} == {"design", "bode"}
+    for args in commands:
+        assert main(args) == 0, args
+        captured = capsys.readouterr()
+        for option in ("--emit-c-header", "--out"):
+            if option in args:
+                written = args[args.index(option) + 1]
+                assert (tmp_path / written).stat().st_size > 0
+                assert written in captured.out  # the command says what it wrote

@@ -62,29 +62,35 @@ def main(argv=None):
 @click.option("--emit-c-header", "header", type=click.Path(dir_okay=False), default=None,
               help="write a C header with the p2d_speed_config_t of this design")
 @click.option("--prefix", default="p2d_design", show_default=True, help="C identifier prefix in the header")
-@click.option("--i-max", "i_max_A", type=float, default=7.6, show_default=True,
-              help="header: current-vector limit [A] (the paper's iq limit)")
-@click.option("--pole-pairs", type=int, default=4, show_default=True,
+@click.option("--i-max", "i_max_A", type=float, default=None, help="header: current-vector limit [A]")
+@click.option("--pole-pairs", type=int, default=None,
               help="header: pole pairs p, Te = 1.5 p psi_f iq (the paper's p0, called there the number of poles)")
-@click.option("--psi-f", "psi_f_Wb", type=float, default=0.2, show_default=True, help="header: magnet flux linkage [Wb]")
-@click.option("--Ld", "Ld_H", type=float, default=0.01, show_default=True, help="header: d-axis inductance [H]")
+@click.option("--psi-f", "psi_f_Wb", type=float, default=None, help="header: magnet flux linkage [Wb]")
+@click.option("--Ld", "Ld_H", type=float, default=None, help="header: d-axis inductance [H]")
 @click.option("--Lq", "Lq_H", type=float, default=None, help="header: q-axis inductance [H] [default: Ld, surface PMSM]")
 @click.option("--Rs", "Rs_ohm", type=float, default=None,
               help="header: stator resistance [ohm]; with --Ts-current adds a p2d_current_config_t")
 @click.option("--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s]")
+@click.option("--paper-drive", is_flag=True,
+              help="header: take the motor data not given from the paper's drive (preset paper-condition-1: "
+                   "7.6 A, 4 pole pairs, 0.2 Wb, 10 mH, 0.5 ohm), placeholders rather than your motor's")
 def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, anti_windup, Ka, as_json, header,
-           prefix, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm, Ts_current_s):
+           prefix, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm, Ts_current_s, paper_drive):
     """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.
 
-    The motor options (--i-max, --pole-pairs, --psi-f, --Ld, --Lq, --Rs, --Ts-current) only
-    go into the C header; their defaults (the paper's 7.6 A limit, a 4-pole-pair surface
-    PMSM with 0.2 Wb and 10 mH) are placeholders to replace with your motor's data.
+    With --emit-c-header the header needs the motor data: --i-max, --pole-pairs, --psi-f and
+    --Ld (--Lq for a salient motor; --Rs with --Ts-current for the current controller), or
+    --paper-drive to take what is not given from the paper's drive. The summary says where
+    each value came from.
     """
     import json
     import warnings
 
     from .design import design as make_design
 
+    if header is not None:
+        motor, sources = _header_motor(dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H,
+                                            Lq_H=Lq_H, Rs_ohm=Rs_ohm), Ts_current_s is not None, paper_drive)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         d = make_design(J_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward,
@@ -95,14 +101,71 @@ def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, ant
     if header is not None:
         from .codegen import write_c_header
 
-        write_c_header(header, dd, i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H,
-                       Lq_H=Ld_H if Lq_H is None else Lq_H, Rs_ohm=Rs_ohm, Ts_current_s=Ts_current_s, prefix=prefix)
+        write_c_header(header, dd, **motor, Ts_current_s=Ts_current_s, prefix=prefix, motor_sources=sources)
     if as_json:
-        click.echo(json.dumps(dd.as_dict()))
+        data = dd.as_dict()
+        if header is not None:
+            data["header"] = {"path": header, "motor": {name: {"value": motor[name], "source": sources[name]}
+                                                        for name in sources}}
+        click.echo(json.dumps(data))
         return
     click.echo(_design_table(dd))
     if header is not None:
-        click.echo(f"\nC header written to {header}")
+        click.echo(f"\nC header written to {header}, with the motor data")
+        width = max(len(name) for name in sources)
+        for name, source in sources.items():
+            click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
+
+
+#: The shipped scenario whose motor and current limit --paper-drive fills in.
+PAPER_DRIVE_PRESET = "paper-condition-1"
+#: Motor data of the header: keyword -> (option, unit, scenario key).
+_HEADER_MOTOR = {
+    "i_max_A": ("--i-max", "A", "limits.i_max_A"),
+    "pole_pairs": ("--pole-pairs", "", "motor.pole_pairs"),
+    "psi_f_Wb": ("--psi-f", "Wb", "motor.psi_f_Wb"),
+    "Ld_H": ("--Ld", "H", "motor.Ld_H"),
+    "Lq_H": ("--Lq", "H", "motor.Lq_H"),
+    "Rs_ohm": ("--Rs", "ohm", "motor.Rs_ohm"),
+}
+
+
+def _header_motor(given, current_loop, paper_drive):
+    """The motor data of the C header and where each value came from.
+
+    Every value is either given, or, with ``paper_drive``, taken from the paper's drive
+    (:data:`PAPER_DRIVE_PRESET`); ``Lq_H`` not given is ``Ld_H`` (surface PMSM) when ``Ld_H``
+    is given. ``Rs_ohm`` is needed only for the current controller (``current_loop``).
+
+    Raises
+    ------
+    click.UsageError
+        Naming the missing options when a value is neither given nor taken from the paper drive.
+    """
+    needed = ["i_max_A", "pole_pairs", "psi_f_Wb", "Ld_H", "Lq_H"]
+    needed += ["Rs_ohm"] if current_loop or given["Rs_ohm"] is not None else []
+    motor, sources = {}, {}
+    if given["Lq_H"] is None and given["Ld_H"] is not None:
+        given = given | {"Lq_H": given["Ld_H"]}
+        sources["Lq_H"] = "= Ld_H: surface PMSM, --Lq not given"
+    missing = [name for name in needed if given[name] is None]
+    if missing and not paper_drive:
+        options = ", ".join(_HEADER_MOTOR[name][0] for name in missing if name != "Lq_H")
+        raise click.UsageError(f"--emit-c-header needs the motor data: {options} missing; give them, or "
+                               "--paper-drive for the paper's drive (placeholders, not your motor)")
+    if missing:
+        from .scenario import load_scenario
+
+        data = load_scenario(PAPER_DRIVE_PRESET).data
+    for name in needed:
+        if given[name] is not None:
+            motor[name] = given[name]
+            sources.setdefault(name, "given: " + _HEADER_MOTOR[name][0])
+        else:
+            table, key = _HEADER_MOTOR[name][2].split(".")
+            motor[name] = data[table][key]
+            sources[name] = f"paper drive, preset {PAPER_DRIVE_PRESET}: a placeholder, not your motor"
+    return motor, {name: sources[name] for name in needed}
 
 
 def _poles_text(poles, unit):
@@ -194,6 +257,7 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
         raise ConfigError("m", m_list, "comma-separated numbers > 0, e.g. 0.2,0.5,1,2") from None
     save_figure(bode_gx_sweep(alpha_radps, m_values, J_kgm2=J_kgm2, zeta=zeta, tau_i_s=tau_i_s,
                               feedforward=feedforward), out)
+    click.echo(f"wrote {out}: Bode diagram of Gx, feedforward {feedforward}, m = {', '.join(f'{m:g}' for m in m_values)}")
 
 
 # ---------------------------------------------------------------------------------------------

@@ -107,7 +107,8 @@ def speed_config(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H):
 
 
 def c_header(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm=None, Ts_current_s=None,
-             current_method=None, current_anti_windup="back_calculation", decouple=True, prefix="p2d_design"):
+             current_method=None, current_anti_windup="back_calculation", decouple=True, prefix="p2d_design",
+             motor_sources=None):
     """The text of a C header configuring the controllers with ``discrete``.
 
     Parameters
@@ -138,6 +139,9 @@ def c_header(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm=None
     prefix : str, optional
         C identifier prefix: the header defines ``<prefix>_speed_config``
         (and ``<prefix>_current_config``) and the guard ``<PREFIX>_H``.
+    motor_sources : dict, optional
+        Where motor values came from, ``{keyword: text}`` (for example a placeholder drive);
+        recorded next to each value in the header's comment.
 
     Returns
     -------
@@ -169,7 +173,8 @@ def c_header(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm=None
         CurrentController(**current)
 
     lines = ["/*", f" * {prefix}.h: controller configuration designed with pmsm2dof {version('pmsm2dof')}.", " *"]
-    lines += [" * " + line if line else " *" for line in _record(discrete, speed, speed_ctl, current)]
+    record = _record(discrete, speed, speed_ctl, current, motor_sources or {})
+    lines += [" * " + line if line else " *" for line in record]
     lines += [" */", f"#ifndef {prefix.upper()}_H", f"#define {prefix.upper()}_H", "",
               "#include <stdbool.h>", "", '#include "pmsm2dof/speed.h"']
     if current is not None:
@@ -183,7 +188,7 @@ def c_header(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm=None
     return "\n".join(lines)
 
 
-def _record(discrete, speed, speed_ctl, current):
+def _record(discrete, speed, speed_ctl, current, motor_sources):
     """Comment lines recording the design inputs and the derived values."""
     d = discrete.design
     dm = d.margins()
@@ -204,15 +209,15 @@ def _record(discrete, speed, speed_ctl, current):
         f"  Ka          = {d.Ka:.9g} (rad/s)/Nm",
         f"  Ts_s        = {discrete.Ts_s:.9g} s",
         f"  method      = {discrete.method}",
-        f"  i_max_A     = {speed['i_max_A']:.9g} A",
-        f"  pole_pairs  = {speed['pole_pairs']}",
-        f"  psi_f_Wb    = {speed['psi_f_Wb']:.9g} Wb",
-        f"  Ld_H        = {speed['Ld_H']:.9g} H",
-        f"  Lq_H        = {speed['Lq_H']:.9g} H",
+        f"  i_max_A     = {speed['i_max_A']:.9g} A" + _source(motor_sources, "i_max_A"),
+        f"  pole_pairs  = {speed['pole_pairs']}" + _source(motor_sources, "pole_pairs"),
+        f"  psi_f_Wb    = {speed['psi_f_Wb']:.9g} Wb" + _source(motor_sources, "psi_f_Wb"),
+        f"  Ld_H        = {speed['Ld_H']:.9g} H" + _source(motor_sources, "Ld_H"),
+        f"  Lq_H        = {speed['Lq_H']:.9g} H" + _source(motor_sources, "Lq_H"),
     ]
     if current is not None:
         out += [
-            f"  Rs_ohm      = {current['Rs_ohm']:.9g} ohm",
+            f"  Rs_ohm      = {current['Rs_ohm']:.9g} ohm" + _source(motor_sources, "Rs_ohm"),
             f"  current loop: Ts_s = {current['Ts_s']:.9g} s, method = {current['method']},",
             f"                anti_windup = {current['anti_windup']}, decouple = {current['decouple']}",
         ]
@@ -238,6 +243,10 @@ def _record(discrete, speed, speed_ctl, current):
     for name in ("Kp", "Ki", "b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_Fr0", "ff_b_dr", "ff_a1", "ff_Kd_per_Ts", "T_max_Nm"):
         out.append(f"  {name:<12} = {coef[name]:.9g}")
     return out
+
+
+def _source(motor_sources, name):
+    return f" ({motor_sources[name]})" if name in motor_sources else ""
 
 
 def _overshoot_text(value, missing):
