@@ -72,8 +72,8 @@ def main(argv=None):
               help="header: stator resistance [ohm]; with --Ts-current adds a p2d_current_config_t")
 @click.option("--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s]")
 @click.option("--paper-drive", is_flag=True,
-              help="header: take the motor data not given from the paper's drive (preset paper-condition-1: "
-                   "7.6 A, 4 pole pairs, 0.2 Wb, 10 mH, 0.5 ohm), placeholders rather than your motor's")
+              help="header: take the motor data not given from the paper's drive (the preset "
+                   "paper-condition-1), placeholders rather than your motor's")
 def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, anti_windup, Ka, as_json, header,
            prefix, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm, Ts_current_s, paper_drive):
     """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.

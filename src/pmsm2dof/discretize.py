@@ -374,9 +374,13 @@ def discretize(design, Ts_s, method):
     Raises
     ------
     ConfigError
-        ``Ts_s`` or ``method`` out of range, the feedforward filter or the discrete
-        feedback loop unstable at this ``Ts_s``, or ``Ka`` too large for the discrete
-        back-calculation loop ``x[k] = (1 - Ki Ka Ts) x[k-1] + ...``.
+        ``Ts_s`` or ``method`` out of range; the feedforward filter or the discrete
+        feedback loop unstable at this ``Ts_s`` (the message gives the periods that are
+        stable); ``alpha_radps`` when the continuous loop itself is unstable
+        (``alpha tau_i >= 4 zeta^2``, Routh on eq 8's denominator); or ``Ka`` too large for
+        the discrete back-calculation loop ``x[k] = (1 - Ki Ka Ts) x[k-1] + ...``.
+        A stable design is never refused for a figure of merit: one that cannot be
+        computed is NaN, with its reason in ``DiscreteDesign.missing``.
     """
     Ts_s = require_positive("Ts_s", Ts_s)
     require_choice("method", method, METHODS)
