@@ -11,8 +11,12 @@ import re
 import socket
 import subprocess
 import sys
+import threading
+import time
 import tomllib
 import warnings
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import httpx
 import numpy as np
@@ -26,18 +30,24 @@ with warnings.catch_warnings():
 
 from pmsm2dof.design import design
 from pmsm2dof.scenario import load_scenario
-from pmsm2dof.tuner import create_app
+from pmsm2dof.simulate import _EngineRun
+from pmsm2dof.tuner import create_app, serving_in_thread
+from pmsm2dof.tuner.app import CLIENT_HEADER
 from pmsm2dof.tuner.experiment import (
     CONTROLS,
     DECIMATION_BUCKETS,
+    LOG_ROWS_MAX,
+    STEPS_MAX,
     Tuner,
     bode_data,
     loop_on_plant,
     minmax_indices,
 )
+from pmsm2dof.tuner.server import HostCheck
 
 PRESET = "paper-condition-2"
 RADPS_PER_RPM = 2.0 * math.pi / 60.0
+POST_PATHS = ("/api/run", "/api/download/scenario.toml", "/api/download/header.h", "/api/download/trace.csv")
 
 
 @pytest.fixture(scope="module")
@@ -193,6 +203,28 @@ def test_anti_windup_lowers_the_overshoot_of_a_saturated_step(client):
     assert overshoot("none") > 1.5 * overshoot("back_calculation") > 0
 
 
+# ---- the work one request may ask for --------------------------------------------------
+
+
+def test_a_run_beyond_the_work_bound_answers_422_naming_the_key_and_the_bound(client, base):
+    """10000 s at the 100 us current loop would be 1e8 integration steps; the bound is 1e7 (1000 s)."""
+    assert STEPS_MAX * base.data["current_loop"]["Ts_s"] == pytest.approx(1000.0)
+    for path in ("/api/run", "/api/download/trace.csv", "/api/download/header.h"):
+        response = client.post(path, json={"simulation.t_end_s": 10000.0})
+        assert response.status_code == 422, path
+        err = response.json()
+        assert err["param"] == "simulation.t_end_s"
+        assert "simulation.t_end_s = 10000.0 is invalid" in err["error"] and "<= 1000 s" in err["error"]
+
+
+def test_a_run_at_the_bound_logs_at_most_log_rows_max_rows(client):
+    """1000 s of 1 ms samples: 1000001 samples, logged every 201st (ceil(1000001 / 5000))."""
+    out = run(client, simulation__t_end_s=1000.0)
+    assert out["log"] == {"every": 201, "period_s": pytest.approx(0.201), "rows": 4976}
+    assert out["log"]["rows"] <= LOG_ROWS_MAX
+    assert out["traces"]["speed_rpm"]["t"][-1] == pytest.approx(4975 * 0.201)
+
+
 BAD_VALUES = [
     ("speed_controller.alpha", -1.0),
     ("speed_controller.alpha", "fast"),
@@ -214,7 +246,7 @@ BAD_VALUES = [
 
 @pytest.mark.parametrize("key, value", BAD_VALUES)
 def test_bad_value_answers_422_naming_the_key(client, key, value):
-    for path in ("/api/run", "/api/download/scenario.toml", "/api/download/header.h", "/api/download/trace.csv"):
+    for path in POST_PATHS:
         response = client.post(path, json={key: value})
         assert response.status_code == 422, (path, response.text)
         err = response.json()
@@ -249,6 +281,220 @@ def test_body_that_is_not_an_object_answers_422(client, body):
     assert response.json()["param"] == "body"
 
 
+# ---- what the server answers to ----------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", POST_PATHS)
+@pytest.mark.parametrize("content_type, content", [
+    ("text/plain", b'{"simulation.t_end_s": 20.0}'),  # a cross-site fetch without preflight
+    ("application/x-www-form-urlencoded", b"speed_controller.alpha=0.6"),  # a cross-site form
+    ("multipart/form-data; boundary=x", b"--x--\r\n"),
+    (None, b"{}"),
+])
+def test_a_body_not_sent_as_json_answers_415(client, path, content_type, content):
+    headers = {} if content_type is None else {"Content-Type": content_type}
+    response = client.post(path, content=content, headers=headers)
+    assert response.status_code == 415
+    err = response.json()
+    assert err["param"] == "Content-Type" and "application/json" in err["error"]
+
+
+def test_json_with_a_charset_is_json(client):
+    response = client.post("/api/run", content=b"{}", headers={"Content-Type": "application/json; charset=utf-8"})
+    assert response.status_code == 200
+
+
+@pytest.fixture(scope="module")
+def served(base):
+    """The tuner on a real uvicorn server on loopback: (url, port, app)."""
+    app = create_app(base)
+    with serving_in_thread(app) as url:
+        yield url, int(url.rsplit(":", 1)[1].strip("/")), app
+
+
+REFUSED_HOSTS = [
+    "evil.example:{port}",
+    "evil.example",
+    "127.0.0.1.nip.io:{port}",  # names that resolve to 127.0.0.1: what DNS rebinding makes of a site
+    "7f000001.c0a80001.rbndr.us:{port}",
+    "localtest.me:{port}",
+    "127.0.0.1:{other}",  # right address, port of another service
+    "localhost:{other}",
+    "127.0.0.1",  # no port: port 80
+    "user@127.0.0.1:{port}",
+]
+
+
+@pytest.mark.parametrize("host", REFUSED_HOSTS)
+def test_a_request_for_another_host_answers_421(served, host):
+    url, port, _ = served
+    host = host.format(port=port, other=port + 1)
+    for method, path in (("GET", ""), ("GET", "api/controls"), ("POST", "api/run")):
+        response = httpx.request(method, url + path, headers={"Host": host}, json={} if method == "POST" else None,
+                                 timeout=30)
+        assert response.status_code == 421, (host, path)
+        assert repr(host) in response.text and f"127.0.0.1:{port}" in response.text
+
+
+@pytest.mark.parametrize("host", ["127.0.0.1:{port}", "localhost:{port}", "LocalHost:{port}"])
+def test_a_request_for_this_server_is_answered(served, host):
+    url, port, _ = served
+    response = httpx.get(url + "api/controls", headers={"Host": host.format(port=port)}, timeout=30)
+    assert response.status_code == 200 and response.json()["name"] == "paper condition 2"
+
+
+@pytest.mark.parametrize("origin, status", [
+    ("http://evil.example", 403),
+    ("null", 403),  # a sandboxed page or a file
+    ("http://127.0.0.1:{other}", 403),
+    ("https://127.0.0.1:{port}", 403),
+    ("http://127.0.0.1:{port}", 200),
+    ("http://localhost:{port}", 200),
+])
+def test_a_post_from_another_origin_answers_403(served, origin, status):
+    url, port, _ = served
+    origin = origin.format(port=port, other=port + 1)
+    response = httpx.post(url + "api/download/scenario.toml", json={}, headers={"Origin": origin}, timeout=30)
+    assert response.status_code == status, origin
+    if status == 403:
+        assert repr(origin) in response.text
+
+
+def test_a_server_on_all_interfaces_also_answers_its_addresses_but_no_name():
+    check = HostCheck(None, {"127.0.0.1", "localhost", "0.0.0.0"}, 8765, any_address=True)
+    assert check.accepts("192.168.1.20:8765") and check.accepts("[fe80::1]:8765")
+    assert not check.accepts("192.168.1.20:8766")
+    assert not check.accepts("attacker.example:8765")
+
+
+class EngineWatch:
+    """Counts the engine's C calls (``_EngineRun.advance``) that run at the same time, and the
+    samples each run advanced."""
+
+    def __init__(self, advance):
+        self._advance = advance
+        self._lock = threading.Lock()
+        self.running = 0
+        self.peak = 0
+        self.runs = {}  # engine run -> samples advanced
+
+    def advance(self, run, n):
+        with self._lock:
+            self.running += 1
+            self.peak = max(self.peak, self.running)
+            self.runs.setdefault(run, 0)
+        try:
+            return self._advance(run, n)
+        finally:
+            with self._lock:
+                self.running -= 1
+                self.runs[run] += n
+
+
+@pytest.fixture
+def watch(monkeypatch):
+    watch = EngineWatch(_EngineRun.advance)
+    monkeypatch.setattr(_EngineRun, "advance", lambda run, n: watch.advance(run, n))
+    return watch
+
+
+def post_run(url, values, client_id):
+    return httpx.post(url + "api/run", json=values, headers={CLIENT_HEADER: client_id}, timeout=120)
+
+
+def wait_until(condition, timeout_s=60.0):
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.002)
+
+
+def test_a_newer_run_of_a_client_supersedes_its_older_one(served, watch):
+    """The older run stops between two C calls (it does not run to its end) and answers 409."""
+    url, _, app = served
+    with ThreadPoolExecutor(1) as pool:
+        older = pool.submit(post_run, url, {"simulation.t_end_s": 1000.0, "speed_controller.alpha": 0.51}, "tab-1")
+        wait_until(lambda: watch.runs)  # the older run is simulating
+        newer = post_run(url, {"speed_controller.alpha": 0.52}, "tab-1")
+        older = older.result()
+    assert newer.status_code == 200
+    assert older.status_code == 409 and "superseded" in older.json()["error"]
+    long_run = next(run for run in watch.runs if run.n_samples == 1_000_001)
+    assert watch.runs[long_run] < long_run.n_samples
+    assert watch.peak == 1
+    assert app.state.slots.clients() == 0  # nothing kept for the client once answered
+
+
+def test_concurrent_runs_of_one_client_simulate_one_at_a_time(served, watch):
+    """A run, then three more sent together while it simulates: the first is superseded, at
+    least the last to arrive is answered, and no two of them simulate at once."""
+    url, _, _ = served
+
+    def send(k):
+        return post_run(url, {"simulation.t_end_s": 600.0, "speed_controller.alpha": 0.53 + 0.01 * k}, "tab-2")
+
+    with ThreadPoolExecutor(4) as pool:
+        first = pool.submit(send, 0)
+        wait_until(lambda: watch.runs)
+        others = [pool.submit(send, k) for k in (1, 2, 3)]
+        codes = [f.result().status_code for f in others]
+        assert first.result().status_code == 409
+    assert watch.peak == 1
+    assert set(codes) <= {200, 409} and 200 in codes
+
+
+def test_two_clients_simulate_side_by_side(served, watch):
+    url, _, _ = served
+    with ThreadPoolExecutor(2) as pool:
+        first = pool.submit(post_run, url, {"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.61}, "tab-a")
+        wait_until(lambda: watch.runs)
+        second = pool.submit(post_run, url, {"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.62}, "tab-b")
+        assert first.result().status_code == 200 and second.result().status_code == 200
+    assert watch.peak == 2
+
+
+def test_a_download_waits_for_the_run_of_its_client_and_is_not_superseded(served, watch):
+    url, _, _ = served
+    headers = {CLIENT_HEADER: "tab-3"}
+    with ThreadPoolExecutor(1) as pool:
+        download = pool.submit(httpx.post, url + "api/download/trace.csv", timeout=120, headers=headers,
+                               json={"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.71})
+        wait_until(lambda: watch.runs)
+        run_answer = post_run(url, {"speed_controller.alpha": 0.72}, "tab-3")
+        download = download.result()
+    assert download.status_code == 200 and run_answer.status_code == 200
+    assert len(download.text.splitlines()) == 4969 + 1  # 800001 samples logged every 161st, and the header
+    assert watch.peak == 1
+
+
+def process_memory_kib(pid):
+    fields = dict(line.split(":", 1) for line in Path(f"/proc/{pid}/status").read_text().splitlines())
+    return {key: int(fields[key].split()[0]) for key in ("VmRSS", "VmHWM")}
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the memory of the server in /proc")
+def test_three_runs_at_the_bound_keep_the_server_memory_small():
+    """Three clients each ask for the longest run the tuner allows, at the same time: the server
+    grows by less than 100 MiB at its peak and keeps less than 30 MiB after (a log of every 1 ms
+    sample of 1000 s alone is 150 MB)."""
+    proc = subprocess.Popen([sys.executable, "-m", "pmsm2dof", "tune", PRESET, "--port", "0", "--no-browser"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        url = re.search(r"http://\S+/", proc.stdout.readline()).group(0)
+        with ThreadPoolExecutor(3) as pool:  # warm-up: imports, worker threads, first runs
+            assert all(f.result().status_code == 200 for f in
+                       [pool.submit(post_run, url, {"simulation.t_end_s": 20.0 + k}, f"warm-{k}") for k in range(3)])
+            before = process_memory_kib(proc.pid)
+            answers = [pool.submit(post_run, url, {"simulation.t_end_s": 1000.0 - k}, f"client-{k}") for k in range(3)]
+            assert all(f.result().status_code == 200 for f in answers)
+        after = process_memory_kib(proc.pid)
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+    assert after["VmHWM"] - before["VmRSS"] < 100 * 1024
+    assert after["VmRSS"] - before["VmRSS"] < 30 * 1024
+
+
 # ---- downloads -------------------------------------------------------------------------
 
 
@@ -276,14 +522,17 @@ def test_header_download_holds_the_posted_design(client):
     assert '#include "pmsm2dof/speed.h"' in text
 
 
-def test_trace_download_is_the_full_rate_run(client, base):
-    response = client.post("/api/download/trace.csv", json={"simulation.t_end_s": 9.0})
+def test_trace_download_is_the_logged_run(client, base):
+    """The trace is the run the page draws: 12001 speed samples of 1 ms logged every 3rd (LOG_ROWS_MAX = 5000)."""
+    response = client.post("/api/download/trace.csv", json={"simulation.t_end_s": 12.0})
     assert response.status_code == 200
     frame = pd.read_csv(io.StringIO(response.text))
     Ts = base.data["speed_controller"]["Ts_s"]
-    assert {"t_s", "speed_rpm", "speed_ref_rpm", "iq_ref_A"} <= set(frame.columns)
-    assert frame["t_s"].iloc[-1] == pytest.approx(9.0, abs=2 * Ts)
-    assert np.diff(frame["t_s"]).max() == pytest.approx(Ts, rel=1e-6)
+    assert LOG_ROWS_MAX == 5000
+    assert {"t_s", "speed_rpm", "speed_ref_rpm", "iq_ref_A", "voltage_limited"} <= set(frame.columns)
+    assert len(frame) == 4001
+    assert frame["t_s"].iloc[-1] == pytest.approx(12.0, abs=Ts / 2)
+    np.testing.assert_allclose(np.diff(frame["t_s"]), 3 * Ts, rtol=1e-6)
 
 
 def test_unknown_download_answers_422(client):

@@ -15,6 +15,7 @@ import pytest
 
 from pmsm2dof.scenario import load_scenario
 from pmsm2dof.tuner import create_app, serving_in_thread
+from pmsm2dof.tuner.experiment import LOG_ROWS_MAX
 
 CHROMIUM = Path("/usr/bin/chromium")
 ROOT = Path(__file__).resolve().parents[1]
@@ -118,6 +119,14 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     assert (tmp_path / "tuner.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_no_button_sends_the_chart_to_a_cloud_service(page):
+    page.locator("#plot").hover()  # the mode bar shows on hover
+    titles = page.evaluate("[...document.querySelectorAll('#plot .modebar-btn')].map((b) => b.dataset.title)")
+    assert "Download plot as a PNG" in titles
+    assert not [t for t in titles if "share" in t.lower() or "cloud" in t.lower() or "chart studio" in t.lower()]
+    assert page.evaluate("document.getElementById('plot')._context.showSendToCloud") is False
+
+
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")
 def test_downloaded_header_builds_and_initializes_the_controllers(page, tmp_path):
     with page.expect_download() as info:
@@ -158,4 +167,7 @@ def test_scenario_and_trace_downloads(page, tmp_path):
     assert lines[0].startswith("t_s,")
     t_end = scenario.data["simulation"]["t_end_s"]
     Ts = scenario.data["speed_controller"]["Ts_s"]
-    assert len(lines) - 1 == math.floor(t_end / Ts + 1e-9) + 1
+    # the run on screen: its samples logged every n-th, n the least that keeps LOG_ROWS_MAX rows
+    samples = math.floor(t_end / Ts + 1e-9) + 1
+    every = math.ceil(samples / LOG_ROWS_MAX)
+    assert len(lines) - 1 == math.ceil(samples / every)

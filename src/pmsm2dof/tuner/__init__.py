@@ -42,4 +42,4 @@ def run_tuner(scenario, host="127.0.0.1", port=None, open_browser=True):
     print(f"pmsm2dof tuner for '{scenario.name}' at {url} (Ctrl-C to stop)", flush=True)
     if open_browser:
         webbrowser.open(url)
-    serve(app, sock)
+    serve(app, sock, host)

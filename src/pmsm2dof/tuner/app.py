@@ -9,10 +9,17 @@ Endpoints
 ``POST /api/run``                  run the tuner's experiment for the posted control values
 ``POST /api/download/{kind}``      ``scenario.toml``, ``header.h`` or ``trace.csv`` of those values
 
-A POST body is a JSON object mapping control keys (the scenario's dotted keys, e.g.
-``speed_controller.alpha``, and the experiment's ``tuner.*`` keys) to values. Bad input
-(ConfigError) or numerical trouble (SimulationError) answers HTTP 422 with
-``{"error": message, "param": key}``; the page shows the message next to the control.
+A POST body is a JSON object, sent as ``Content-Type: application/json`` (anything else answers
+415: a form of another site cannot post to the tuner without a CORS preflight, which it does
+not grant), mapping control keys (the scenario's dotted keys, e.g. ``speed_controller.alpha``,
+and the experiment's ``tuner.*`` keys) to values. Bad input (ConfigError) or numerical trouble
+(SimulationError) answers HTTP 422 with ``{"error": message, "param": key}``; the page shows
+the message next to the control.
+
+A client (the peer address and the page's ``X-Pmsm2dof-Client`` header) runs one simulation at
+a time: a newer run request cancels the older one, which answers 409
+(:mod:`pmsm2dof.tuner.slots`). The Host and Origin checks are the server's
+(:mod:`pmsm2dof.tuner.server`), which knows the address it is bound to.
 """
 
 import json
@@ -27,8 +34,11 @@ from starlette.staticfiles import StaticFiles
 
 from ..errors import ConfigError, SimulationError
 from .experiment import Tuner
+from .slots import ClientSlots, Superseded
 
 STATIC_DIR = Path(__file__).parent / "static"
+#: Header with which the page names itself, so that its runs supersede each other only.
+CLIENT_HEADER = "X-Pmsm2dof-Client"
 
 
 def plotly_js_path():
@@ -39,12 +49,24 @@ def plotly_js_path():
     return Path(str(path))
 
 
+class _NotJSON(Exception):
+    """The request's body is not declared as JSON."""
+
+
 def _error(exc):
+    if isinstance(exc, _NotJSON):
+        return JSONResponse({"error": str(exc), "param": "Content-Type"}, status_code=415)
+    if isinstance(exc, Superseded):
+        return JSONResponse({"error": str(exc), "param": None}, status_code=409)
     param = exc.param if isinstance(exc, ConfigError) else None
     return JSONResponse({"error": str(exc), "param": param}, status_code=422)
 
 
 async def _body(request):
+    media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if media_type != "application/json":
+        raise _NotJSON(f"Content-Type = {media_type or '(none)'!r} is refused: the tuner takes a JSON object "
+                       "of control values, sent as application/json")
     try:
         body = await request.json()
     except (json.JSONDecodeError, UnicodeDecodeError):
@@ -54,15 +76,27 @@ async def _body(request):
     return body
 
 
+def _client(request):
+    peer = request.client.host if request.client else ""
+    return peer, request.headers.get(CLIENT_HEADER, "")
+
+
 def create_app(scenario):
     """The tuner application for a base scenario.
 
     Parameters
     ----------
     scenario : pmsm2dof.scenario.Scenario
-        Base scenario: motor, limits, current loop and the initial controller settings.
+        Base scenario: motor, limits, current loop, schedules and the initial controller settings.
+
+    Returns
+    -------
+    starlette.applications.Starlette
+        Its ``state.tuner`` is the :class:`~pmsm2dof.tuner.experiment.Tuner`, its
+        ``state.slots`` the :class:`~pmsm2dof.tuner.slots.ClientSlots` of its clients.
     """
     tuner = Tuner(scenario)
+    slots = ClientSlots()
     plotly_js = plotly_js_path()
 
     async def index(request):
@@ -77,16 +111,18 @@ def create_app(scenario):
     async def run(request):
         try:
             body = await _body(request)
-            return JSONResponse(await run_in_threadpool(tuner.run, body))
-        except (ConfigError, SimulationError) as exc:
+            with slots.request(_client(request), supersede=True) as ticket:
+                return JSONResponse(await run_in_threadpool(tuner.run, body, ticket))
+        except (_NotJSON, Superseded, ConfigError, SimulationError) as exc:
             return _error(exc)
 
     async def download(request):
         kind = request.path_params["kind"]
         try:
             body = await _body(request)
-            filename, media_type, text = await run_in_threadpool(tuner.download, kind, body)
-        except (ConfigError, SimulationError) as exc:
+            with slots.request(_client(request), supersede=False) as ticket:
+                filename, media_type, text = await run_in_threadpool(tuner.download, kind, body, ticket)
+        except (_NotJSON, ConfigError, SimulationError) as exc:
             return _error(exc)
         return Response(text, media_type=media_type,
                         headers={"Content-Disposition": f'attachment; filename="{filename}"'})
@@ -99,4 +135,7 @@ def create_app(scenario):
         Route("/api/download/{kind}", download, methods=["POST"]),
         Mount("/static", StaticFiles(directory=STATIC_DIR), name="static"),
     ]
-    return Starlette(routes=routes)
+    app = Starlette(routes=routes)
+    app.state.tuner = tuner
+    app.state.slots = slots
+    return app

@@ -13,11 +13,20 @@ torque step at ``tuner.t_load_s``. The controls are
 
 Every request is validated by :meth:`pmsm2dof.scenario.Scenario.with_overrides`, exactly like
 a scenario file, after the experiment's keys are checked here; errors name the control key.
+
+The work of one run is bounded: at most :data:`STEPS_MAX` plant integration steps (a longer
+``simulation.t_end_s`` answers a ConfigError naming the bound), and ``simulation.log_every`` is
+raised so that the run logs at most :data:`LOG_ROWS_MAX` rows (the plots draw a thousand points a
+trace; the metrics and the trace download are those of the logged rows). A run is simulated in
+chunks of about :data:`CHUNK_STEPS` steps and stops between two of them when a newer request of
+the same client supersedes it (:mod:`pmsm2dof.tuner.slots`).
 """
 
+import collections
 import functools
 import json
 import math
+import threading
 import time
 
 import control
@@ -28,7 +37,8 @@ from ..controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ..design import design
 from ..errors import ConfigError, require_nonnegative, require_positive
 from ..metrics import compute_metrics
-from ..simulate import simulate
+from ..simulate import Result, _EngineRun
+from .slots import Ticket
 
 #: Buckets of the min-max decimation of the traces sent to the page: each bucket keeps its
 #: minimum and its maximum, so peaks (the overshoot, the load dip) survive exactly.
@@ -39,6 +49,12 @@ BODE_POINTS = 240
 BODE_DECADES = (2.0, 2.5)
 #: Runs kept for the downloads that follow a run with the same control values.
 CACHED_RUNS = 8
+#: Most rows a run logs (simulation.log_every grows to keep below it).
+LOG_ROWS_MAX = 5000
+#: Most plant integration steps (RK4) one run may take: about half a second of the engine.
+STEPS_MAX = 10**7
+#: Integration steps per C call: a superseded run stops within one call (a few ms).
+CHUNK_STEPS = 50_000
 
 SCENARIO_CONTROLS = (
     "speed_controller.alpha",
@@ -149,7 +165,8 @@ class Tuner:
         self._J_design_kgm2 = data["speed_controller"]["J_design_kgm2"]
         self._t_ref_s = data["reference"][0]["t_s"]
         self._initial = self._initial_values(data)
-        self._run_cached = functools.lru_cache(maxsize=CACHED_RUNS)(self._run_uncached)
+        self._cache = collections.OrderedDict()
+        self._cache_lock = threading.Lock()
         self._bode_cached = functools.lru_cache(maxsize=CACHED_RUNS)(self._bode_uncached)
 
     # ---- controls -------------------------------------------------------------------
@@ -262,28 +279,87 @@ class Tuner:
         })
         return self.base.with_overrides(overrides)
 
+    @staticmethod
+    def logged(scenario):
+        """The scenario as the tuner simulates it: ``simulation.log_every`` raised to log at most
+        :data:`LOG_ROWS_MAX` rows.
+
+        Raises
+        ------
+        ConfigError
+            Naming ``simulation.t_end_s`` when the run would take more than :data:`STEPS_MAX`
+            plant integration steps.
+        """
+        data = scenario.data
+        sim, Ts_cl = data["simulation"], data["current_loop"]["Ts_s"]
+        # the engine's integration step: current_loop.Ts_s / ceil(current_loop.Ts_s / dt_s) (pmsm2dof.simulate)
+        h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim["dt_s"] * (1.0 - 1e-9)))
+        if sim["t_end_s"] > STEPS_MAX * h_s:
+            raise ConfigError("simulation.t_end_s", sim["t_end_s"],
+                              f"<= {STEPS_MAX * h_s:g} s in the tuner: at most {STEPS_MAX:.0e} plant integration "
+                              f"steps of {h_s:g} s per run (pmsm2dof simulate runs longer ones)")
+        n_samples = math.floor(sim["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
+        log_every = max(sim["log_every"], -(-n_samples // LOG_ROWS_MAX))
+        return scenario.with_overrides({"simulation.log_every": log_every})
+
     # ---- runs ------------------------------------------------------------------------
 
-    def _evaluate(self, values):
-        """(scenario, result) of the control values, from a small cache keyed by the values."""
-        return self._run_cached(json.dumps(values, sort_keys=True))
+    def _evaluate(self, values, ticket=None):
+        """(scenario, result) of the control values, from a small cache keyed by the values.
 
-    def _run_uncached(self, key):
-        scenario = self.scenario(json.loads(key))
-        return scenario, simulate(scenario)
+        ``result.scenario`` is :meth:`logged` of ``scenario``. On a cache miss the simulation
+        runs under ``ticket`` (its client's slot; a slot of its own when None).
+        """
+        key = json.dumps(values, sort_keys=True)
+        with self._cache_lock:
+            if key in self._cache:
+                self._cache.move_to_end(key)
+                return self._cache[key]
+        scenario = self.scenario(values)
+        result = self._simulate(self.logged(scenario), ticket or Ticket())
+        with self._cache_lock:
+            self._cache[key] = scenario, result
+            while len(self._cache) > CACHED_RUNS:
+                self._cache.popitem(last=False)
+        return scenario, result
 
-    def run(self, values):
+    @staticmethod
+    def _simulate(scenario, ticket):
+        """:func:`pmsm2dof.simulate` in chunks of about :data:`CHUNK_STEPS` steps, stopping with
+        :class:`~pmsm2dof.tuner.slots.Superseded` between two when ``ticket`` is cancelled."""
+        run = _EngineRun(scenario.data)
+        chunk = max(1, CHUNK_STEPS // (run.cfg.current_per_speed * run.cfg.substeps))
+        with ticket.simulation():
+            start = time.perf_counter()
+            done = 0
+            while done < run.n_samples:
+                ticket.check()
+                n = min(chunk, run.n_samples - done)
+                run.advance(n)
+                done += n
+            wall_time_s = time.perf_counter() - start
+        return Result(scenario=scenario, wall_time_s=wall_time_s, **run.signals())
+
+    def run(self, values, ticket=None):
         """Run the experiment; return what the page draws (JSON-ready dict).
 
         Keys: ``traces`` (decimated ``{"t", "y"}`` of speed_ref_rpm, speed_rpm, iq_ref_A,
         id_ref_A), ``load_detail`` (speed and reference from shortly before the load step,
         decimated on their own so that the dip keeps its full resolution), ``bode``,
         ``metrics`` (list of ``{key, label, unit, value}``), ``design`` (Kp, Ki, Ka),
-        ``i_max_A``, ``t_load_s``, ``load_step_Nm``, ``label`` and ``server_ms``.
+        ``log`` (every, period_s, rows), ``i_max_A``, ``t_load_s``, ``load_step_Nm``, ``label``
+        and ``server_ms``.
+
+        Raises
+        ------
+        ConfigError, SimulationError
+            Bad control values, a run over the bound, a run that stopped.
+        pmsm2dof.tuner.slots.Superseded
+            ``ticket`` was cancelled by a newer request of its client.
         """
         t0 = time.perf_counter()
-        scenario, result = self._evaluate(values)
-        data = scenario.data
+        scenario, result = self._evaluate(values, ticket)
+        data = result.scenario.data
         dsg = design_of(scenario)
         t = np.asarray(result.t_s)
         t_load_s = data["load"][0]["t_s"]
@@ -300,6 +376,7 @@ class Tuner:
         # everything the Bode plot depends on: computed, and redrawn by the page, when it changes
         bode_key = json.dumps([dsg.J_kgm2, dsg.alpha_radps, dsg.zeta, dsg.m, dsg.tau_i_s, dsg.feedforward,
                                data["motor"]["J_kgm2"], data["speed_controller"]["Ts_s"]])
+        log_every = data["simulation"]["log_every"]
         out = {
             "label": _label(data),
             "traces": traces,
@@ -307,6 +384,7 @@ class Tuner:
             "bode": self._bode_cached(bode_key),
             "metrics": self._metrics(result),
             "design": {"Kp": dsg.Kp, "Ki": dsg.Ki, "Ka": dsg.Ka},
+            "log": {"every": log_every, "period_s": log_every * data["speed_controller"]["Ts_s"], "rows": len(t)},
             "i_max_A": data["limits"]["i_max_A"],
             "t_load_s": t_load_s,
             "load_step_Nm": data["load"][0]["torque_Nm"],
@@ -338,18 +416,22 @@ class Tuner:
 
     # ---- downloads -------------------------------------------------------------------
 
-    def download(self, kind, values):
-        """``(filename, media type, text)`` of a download: scenario.toml, header.h or trace.csv."""
+    def download(self, kind, values, ticket=None):
+        """``(filename, media type, text)`` of a download: scenario.toml, header.h or trace.csv.
+
+        The trace is the run the page draws: the rows it logs (:meth:`logged`).
+        """
         if kind == "scenario.toml":
             scenario = self.scenario(values)
             return f"{_slug(scenario.name)}-tuned.toml", "application/toml", scenario.to_toml()
         if kind == "header.h":
-            # the run first: the engine initializes the same C controllers and names the
-            # scenario key of any value they reject
-            scenario, _ = self._evaluate(values)
+            scenario = self.scenario(values)
+            # the engine's init runs the C controllers' init, which names the scenario key of any
+            # value they reject; nothing is simulated
+            _EngineRun(self.logged(scenario).data)
             return "pmsm2dof_speed_config.h", "text/x-c", self._c_header(scenario)
         if kind == "trace.csv":
-            scenario, result = self._evaluate(values)
+            scenario, result = self._evaluate(values, ticket)
             return f"{_slug(scenario.name)}-trace.csv", "text/csv", result.to_dataframe().to_csv(index=False)
         raise ConfigError("download", kind, "one of 'scenario.toml', 'header.h', 'trace.csv'")
 

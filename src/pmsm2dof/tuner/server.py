@@ -3,6 +3,10 @@
 The socket is bound here (not by uvicorn) so that the port is known before the server
 starts, bad hosts and busy ports become a ConfigError, and ``port=0`` asks the system for
 a free port.
+
+The server answers only requests addressed to it (:class:`HostCheck`): a page of another site
+can make its own name resolve to 127.0.0.1 (DNS rebinding) and reach a local server as if it
+were its own; the browser still sends that name in the ``Host`` header, which is refused.
 """
 
 import contextlib
@@ -11,6 +15,7 @@ import ipaddress
 import socket
 import threading
 import time
+from urllib.parse import urlsplit
 
 import uvicorn
 
@@ -76,16 +81,100 @@ def url_of(sock):
     return f"http://{host}:{port}/"
 
 
-def make_server(app, sock):
-    """A uvicorn server for ``app`` on the bound socket ``sock``, quiet except for errors."""
-    host, port = sock.getsockname()[:2]
-    config = uvicorn.Config(app, host=host, port=port, log_level="warning", access_log=False, lifespan="off")
+class HostCheck:
+    """ASGI middleware: answer only requests addressed to this server, and posts of its own pages.
+
+    A request's ``Host`` must name the bound port and one of ``names`` (for a server bound to
+    all interfaces, any IP address as well: an address cannot be rebound); otherwise it answers
+    421. A request with an ``Origin`` header (a browser's post or cross-site fetch) must come from
+    such an http origin; otherwise it answers 403.
+
+    Parameters
+    ----------
+    app : ASGI application
+    names : iterable of str
+        Host names and addresses accepted, lower case, IPv6 without brackets.
+    port : int
+        The bound port.
+    any_address : bool
+        Accept any IP address as the host too.
+    """
+
+    def __init__(self, app, names, port, any_address=False):
+        self.app = app
+        self.names = frozenset(names)
+        self.port = port
+        self.any_address = any_address
+
+    def accepts(self, authority, scheme="http"):
+        """True if ``scheme://authority`` names this server."""
+        try:
+            parts = urlsplit(f"{scheme}://{authority}")
+            port = parts.port or (80 if scheme == "http" else None)
+        except ValueError:
+            return False
+        name = parts.hostname or ""
+        if scheme != "http" or port != self.port or parts.username is not None or parts.path:
+            return False
+        return name in self.names or (self.any_address and _is_address(name))
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] == "http":
+            headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope["headers"]}
+            host = headers.get("host", "")
+            origin = headers.get("origin")
+            if not self.accepts(host):
+                shown = ", ".join(f"{n}:{self.port}" for n in sorted(self.names))
+                return await _refuse(send, 421, f"pmsm2dof tuner: Host {host[:100]!r} is not this server "
+                                                f"(it answers to {shown}); open http://127.0.0.1:{self.port}/ "
+                                                "if it listens on loopback")
+            if origin is not None:
+                scheme, _, authority = origin.partition("://")
+                if not self.accepts(authority, scheme):
+                    return await _refuse(send, 403, f"pmsm2dof tuner: requests from the page of {origin[:100]!r} "
+                                                    "are refused: only the tuner's own page may use it")
+        await self.app(scope, receive, send)
+
+
+def _is_address(name):
+    try:
+        ipaddress.ip_address(name)
+    except ValueError:
+        return False
+    return True
+
+
+async def _refuse(send, status, text):
+    body = (text + "\n").encode()
+    await send({"type": "http.response.start", "status": status,
+                "headers": [(b"content-type", b"text/plain; charset=utf-8"),
+                            (b"content-length", str(len(body)).encode())]})
+    await send({"type": "http.response.body", "body": body})
+
+
+def host_check(app, sock, host):
+    """:class:`HostCheck` of ``app`` served on ``sock``, bound for the ``host`` asked for.
+
+    Accepted: 127.0.0.1, localhost, the bound address and ``host`` as given (a name of this
+    machine's interface), with the bound port; any IP address too when bound to all interfaces.
+    """
+    address, port = sock.getsockname()[:2]
+    names = {"127.0.0.1", "localhost", address.lower(), host.lower().strip("[]")}
+    return HostCheck(app, names, port, any_address=ipaddress.ip_address(address).is_unspecified)
+
+
+def make_server(app, sock, host):
+    """A uvicorn server for ``app`` behind :func:`host_check` on the bound socket ``sock``, quiet
+    except for errors."""
+    address, port = sock.getsockname()[:2]
+    config = uvicorn.Config(host_check(app, sock, host), host=address, port=port, log_level="warning",
+                            access_log=False, lifespan="off")
     return uvicorn.Server(config)
 
 
-def serve(app, sock):
-    """Serve ``app`` on ``sock`` until interrupted (Ctrl-C)."""
-    make_server(app, sock).run(sockets=[sock])
+def serve(app, sock, host):
+    """Serve ``app`` on ``sock``, bound for ``host``, until interrupted (Ctrl-C)."""
+    make_server(app, sock, host).run(sockets=[sock])
 
 
 @contextlib.contextmanager
@@ -95,7 +184,7 @@ def serving_in_thread(app, host="127.0.0.1", port=0, timeout_s=10.0):
     Used by the browser test and the benchmark.
     """
     sock = bind_socket(host, port)
-    server = make_server(app, sock)
+    server = make_server(app, sock, host)
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
     try:

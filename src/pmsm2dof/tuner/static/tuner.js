@@ -6,12 +6,17 @@
  * most one request is in flight; changes made while a run is computed make one request sent
  * when it returns. A response is drawn only if it is newer than what is on screen (latest
  * request wins). So the plots follow a moving slider at the pace the server allows.
+ * Requests carry the page's client id: the server runs one simulation per client at a time
+ * and answers 409 to a request that a newer one of the same client superseded.
  */
 "use strict";
 
 const COALESCE_MS = 10;
-const PLOT_CONFIG = { displaylogo: false, responsive: true, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
+/* No mode-bar button sends the chart anywhere: the page works offline and keeps its data local. */
+const PLOT_CONFIG = { displaylogo: false, responsive: true, showSendToCloud: false, plotlyServerURL: "",
+                      modeBarButtonsToRemove: ["lasso2d", "select2d", "sendChartToCloud"] };
 const COLORS = { current: "#1f77b4", reference: "#222", pinned: "#aaa", limit: "#d62728", d: "#2ca02c", gx: "#1f77b4", gn: "#ff7f0e" };
+const CLIENT_ID = (self.crypto && crypto.randomUUID) ? crypto.randomUUID() : String(Math.random()).slice(2);
 
 /* Public state, read by the benchmark and the browser test. */
 window.tuner = {
@@ -161,13 +166,15 @@ function requestBody() {
 /* ---- requests ---------------------------------------------------------------- */
 
 async function postJSON(path, body) {
-  const response = await fetch(path, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
+  const response = await fetch(path, { method: "POST", body: JSON.stringify(body),
+                                       headers: { "Content-Type": "application/json", "X-Pmsm2dof-Client": CLIENT_ID } });
   if (response.ok) return response;
   let message = `HTTP ${response.status}`;
   let param = null;
   try { const err = await response.json(); message = err.error; param = err.param; } catch (e) { /* not JSON */ }
   const error = new Error(message);
   error.param = param;
+  error.status = response.status;
   throw error;
 }
 
@@ -208,9 +215,13 @@ async function requestRun() {
         `(server ${run.server_ms.toFixed(0)} ms, request ${fetchMs.toFixed(0)} ms)`;
     }
   } catch (error) {
-    window.tuner.errorCount += 1;
-    showError(error);
-    document.getElementById("status").textContent = "not updated: see the message";
+    if (error.status === 409) {
+      document.getElementById("status").textContent = "superseded by a newer request";
+    } else {
+      window.tuner.errorCount += 1;
+      showError(error);
+      document.getElementById("status").textContent = "not updated: see the message";
+    }
   } finally {
     state.inFlight = false;
     if (state.dirty) requestRun();
