@@ -34,7 +34,6 @@ from pmsm2dof.simulate import _EngineRun
 from pmsm2dof.tuner import create_app, serving_in_thread
 from pmsm2dof.tuner.app import CLIENT_HEADER
 from pmsm2dof.tuner.experiment import (
-    CONTROLS,
     DECIMATION_BUCKETS,
     LOG_ROWS_MAX,
     STEPS_MAX,
@@ -127,12 +126,13 @@ def test_initial_controls_are_the_preset(client, base):
     description = client.get("/api/controls").json()
     assert description["name"] == data["name"]
     specs = {c["key"]: c for g in description["groups"] for c in g["controls"]}
-    assert set(specs) == set(CONTROLS)
+    assert set(specs) == set(Tuner(base).keys)
     assert specs["speed_controller.alpha"]["value"] == data["speed_controller"]["alpha"]
     assert specs["speed_controller.Ka"]["value"] is None
-    assert specs["tuner.speed_step_rpm"]["value"] == data["reference"][0]["speed_rpm"]
-    assert specs["tuner.load_step_Nm"]["value"] == data["load"][0]["torque_Nm"]
-    assert specs["tuner.t_load_s"]["value"] == data["load"][0]["t_s"]
+    for name, value_key in (("reference", "speed_rpm"), ("load", "torque_Nm")):
+        for i, entry in enumerate(data[name]):
+            assert specs[f"{name}.{i}.{value_key}"]["value"] == entry[value_key]
+            assert specs[f"{name}.{i}.t_s"]["value"] == entry["t_s"]
     assert specs["tuner.J_ratio"]["value"] == 1.0
     for spec in specs.values():
         if spec["kind"] == "slider":
@@ -147,8 +147,21 @@ def test_inertia_ratio_changes_the_plant_not_the_design(base):
     assert data["motor"]["J_kgm2"] == pytest.approx(2.0 * base.data["motor"]["J_kgm2"])
     assert data["speed_controller"]["J_design_kgm2"] == base.data["motor"]["J_kgm2"]
     assert data["speed_controller"]["alpha"] == 0.8
-    assert data["reference"] == [{"t_s": 0.0, "speed_rpm": 500.0, "ramp_s": 0.0}]
-    assert data["load"] == [{"t_s": 7.0, "torque_Nm": 8.0, "ramp_s": 0.0}]
+    assert data["reference"] == base.data["reference"]
+    assert data["load"] == base.data["load"]
+
+
+def test_every_reference_and_load_entry_is_a_control():
+    """Paper condition 1 has two reference entries and no load: both entries are controls, and
+    the tuner runs them as they are, adding none."""
+    base = load_scenario("paper-condition-1")
+    tuner = Tuner(base)
+    specs = {c["key"]: c for g in tuner.controls()["groups"] for c in g["controls"]}
+    assert [specs[f"reference.{i}.{k}"]["value"] for i in (0, 1) for k in ("t_s", "speed_rpm")] == [0.0, 500.0, 5.0, 200.0]
+    assert not [key for key in specs if key.startswith("load.")]
+    data = tuner.scenario({"reference.1.speed_rpm": 300.0}).data
+    assert [(e["t_s"], e["speed_rpm"]) for e in data["reference"]] == [(0.0, 500.0), (5.0, 300.0)]
+    assert data["load"] == []
 
 
 # ---- /api/run --------------------------------------------------------------------------
@@ -162,10 +175,10 @@ def test_run_returns_decimated_traces_that_keep_the_peaks(client):
     # the plotted overshoot is the table's: decimation kept the peak before the load step
     speed = out["traces"]["speed_rpm"]
     t, y = np.asarray(speed["t"]), np.asarray(speed["y"])
-    plotted_pct = 100.0 * (y[t < out["t_load_s"]].max() - 500.0) / 500.0
+    plotted_pct = 100.0 * (y[t < out["detail"]["t_s"]].max() - 500.0) / 500.0
     table = {m["key"]: m for m in out["metrics"]}
-    assert table["step.overshoot_pct"]["value"] == pytest.approx(plotted_pct, abs=0.05)
-    assert table["load.speed_dip_rpm"]["value"] > 0
+    assert table["reference_steps.0.overshoot_pct"]["value"] == pytest.approx(plotted_pct, abs=0.05)
+    assert table["load_steps.0.speed_dip_rpm"]["value"] > 0
     assert out["design"]["Kp"] == pytest.approx(0.4 * 0.5)
     assert out["server_ms"] > 0
 
@@ -186,8 +199,8 @@ def test_saturated_start_accelerates_at_the_torque_limit_over_the_true_inertia(c
 
 def test_settled_load_is_carried_by_the_q_current(client, base):
     motor = base.data["motor"]
-    out = run(client, simulation__t_end_s=40.0, tuner__load_step_Nm=5.0, tuner__t_load_s=10.0,
-              speed_controller__alpha=1.0)
+    out = run(client, simulation__t_end_s=40.0, load__0__torque_Nm=5.0, load__0__t_s=10.0,
+              reference__1__speed_rpm=500.0, speed_controller__alpha=1.0)
     iq = out["traces"]["iq_ref_A"]["y"][-1]
     assert iq == pytest.approx(5.0 / (1.5 * motor["pole_pairs"] * motor["psi_f_Wb"]), rel=0.01)
     assert out["traces"]["speed_rpm"]["y"][-1] == pytest.approx(500.0, abs=1.0)
@@ -198,9 +211,38 @@ def test_anti_windup_lowers_the_overshoot_of_a_saturated_step(client):
 
     def overshoot(mode):
         rows = run(client, speed_controller__anti_windup=mode, speed_controller__feedforward="none")["metrics"]
-        return {m["key"]: m["value"] for m in rows}["step.overshoot_pct"]
+        return {m["key"]: m["value"] for m in rows}["reference_steps.0.overshoot_pct"]
 
     assert overshoot("none") > 1.5 * overshoot("back_calculation") > 0
+
+
+def test_both_reference_steps_of_paper_condition_1_run_and_are_measured():
+    """Condition 1 steps the reference to 500 rpm at 0 s and to 200 rpm at 5 s: both run.
+
+    Truth, eq 10: the 2DOF lowpass design (m = 1) tracks the 300 rpm step down as
+    m alpha / (s + m alpha), from the speed w5 it has at 5 s (still approaching 500 rpm): rise time
+    10-90 % ln(9) / (m alpha) = 4.39 s, and at 10 s the speed is (w5 - 200 rpm) exp(-2.5) above
+    200 rpm, never below it (the current loop, tau_i = 0.05 s, lags by a little). The torque it
+    asks for, J m alpha 300 rpm = 6.3 Nm, stays below the current limit 1.5 p psi_f i_max =
+    9.12 Nm, so the loop is linear.
+    """
+    with TestClient(create_app(load_scenario("paper-condition-1"))) as c:
+        out = run(c)
+    ref = out["traces"]["speed_ref_rpm"]
+    t, r = np.asarray(ref["t"]), np.asarray(ref["y"])
+    assert np.all(r[(t > 0.01) & (t < 4.99)] == 500.0) and np.all(r[t > 5.01] == 200.0)
+    t_w, w = np.asarray(out["traces"]["speed_rpm"]["t"]), np.asarray(out["traces"]["speed_rpm"]["y"])
+    w5 = np.interp(5.0, t_w, w)
+    assert np.interp(9.99, t_w, w) == pytest.approx(200.0 + (w5 - 200.0) * math.exp(-0.5 * 4.99), abs=2.0)
+    assert w[t_w > 5.0].min() > 200.0
+    table = {m["key"]: m for m in out["metrics"]}
+    groups = [m["group"] for m in out["metrics"]]
+    assert "speed reference at 5 s: 500 \u2192 200 rpm" in groups
+    assert out["detail"]["title"] == "Reference step: 500 \u2192 200 rpm at 5 s"
+    assert table["reference_steps.1.rise_time_s"]["value"] == pytest.approx(math.log(9) / 0.5, rel=0.02)
+    assert "did not reach the reference" in table["reference_steps.1.overshoot_pct"]["reason"]
+    assert table["reference_steps.1.current_limit_time_s"]["value"] == 0.0
+    assert table["reference_steps.0.current_limit_time_s"]["value"] > 0.0  # the 500 rpm start does saturate
 
 
 # ---- the work one request may ask for --------------------------------------------------
@@ -237,10 +279,12 @@ BAD_VALUES = [
     ("speed_controller.Ts_s", 1.5e-4),  # not an integer multiple of the 1e-4 s current loop
     ("simulation.t_end_s", 1e9),
     ("tuner.J_ratio", 0.0),
-    ("tuner.speed_step_rpm", None),
-    ("tuner.load_step_Nm", "8 Nm"),
-    ("tuner.t_load_s", 20.0),  # after the end of the 15 s run
+    ("reference.0.speed_rpm", None),
+    ("reference.1.t_s", 0.0),  # not after reference.0.t_s
+    ("load.0.torque_Nm", "8 Nm"),
+    ("load.0.t_s", 20.0),  # after the end of the 15 s run
     ("motor.J_kgm2", 1.0),  # not a control of the tuner
+    ("reference.2.speed_rpm", 300.0),  # the tuner keeps the preset's entries, it adds none
 ]
 
 
@@ -260,7 +304,7 @@ def test_a_run_that_stops_answers_422_with_the_reason(client, base):
     motor = base.data["motor"]
     bound_rpm = 2 * base.data["limits"]["u_dc_V"] / (math.sqrt(3) * motor["pole_pairs"] * motor["psi_f_Wb"]) / (
         RADPS_PER_RPM)
-    response = client.post("/api/run", json={"tuner.load_step_Nm": -1000.0})
+    response = client.post("/api/run", json={"load.0.torque_Nm": -1000.0})
     assert response.status_code == 422
     err = response.json()
     assert err["param"] is None
@@ -500,7 +544,7 @@ def test_three_runs_at_the_bound_keep_the_server_memory_small():
 
 def test_scenario_download_loads_back_to_the_run_scenario(client, base, tmp_path):
     values = {"speed_controller.alpha": 0.7, "speed_controller.anti_windup": "clamping", "tuner.J_ratio": 1.5,
-              "tuner.load_step_Nm": -3.0}
+              "load.0.torque_Nm": -3.0}
     response = client.post("/api/download/scenario.toml", json=values)
     assert response.status_code == 200
     assert 'filename="paper-condition-2-tuned.toml"' in response.headers["content-disposition"]

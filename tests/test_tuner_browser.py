@@ -31,11 +31,12 @@ sync_api = pytest.importorskip("playwright.sync_api", reason="playwright for Pyt
 PLOTTED_OVERSHOOT_JS = """() => {
   const run = window.tuner.current;
   const speed = document.getElementById('plot').data.find((d) => d.name === 'speed' && d.xaxis === 'x');
-  const step = run.traces.speed_ref_rpm.y.at(-1);
+  const step = 500;
   let peak = -Infinity;
-  speed.x.forEach((t, i) => { if (t < run.t_load_s) peak = Math.max(peak, speed.y[i]); });
+  speed.x.forEach((t, i) => { if (t < run.detail.t_s) peak = Math.max(peak, speed.y[i]); });
   return 100 * (peak - step) / step;
 }"""
+OVERSHOOT = "reference_steps.0.overshoot_pct"
 
 
 def metric_cells(page, key):
@@ -65,7 +66,7 @@ def page():
 
 def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     overshoot_before = page.evaluate(PLOTTED_OVERSHOOT_JS)
-    table_before, _ = metric_cells(page, "step.overshoot_pct")
+    table_before, _ = metric_cells(page, OVERSHOOT)
     # alpha = 0.5 rad/s: the first-order tracking of the 2DOF design has no overshoot yet at 7 s
     assert table_before == "\u2013"
 
@@ -79,7 +80,7 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     alpha = float(page.locator('input[name="speed_controller.alpha"]').input_value())
     assert alpha == pytest.approx(0.5 * 10 ** (150 / 1000 * 2), rel=1e-3)  # log slider over 2 decades
     overshoot_after = page.evaluate(PLOTTED_OVERSHOOT_JS)
-    table_after, _ = metric_cells(page, "step.overshoot_pct")
+    table_after, _ = metric_cells(page, OVERSHOOT)
     assert overshoot_after > 0 > overshoot_before
     assert float(table_after) == pytest.approx(overshoot_after, abs=0.05)
     kp_text = page.locator("#design").inner_text()
@@ -87,13 +88,13 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
 
     # pin, then switch the anti-windup off: the pinned column keeps the run with it
     page.click("#pin")
-    page.wait_for_function("document.querySelector('#metrics tr[data-metric=\"step.overshoot_pct\"] td.pinned')"
+    page.wait_for_function(f"document.querySelector('#metrics tr[data-metric=\"{OVERSHOOT}\"] td.pinned')"
                            ".textContent !== ''")
-    assert metric_cells(page, "step.overshoot_pct")[1] == table_after
+    assert metric_cells(page, OVERSHOOT)[1] == table_after
     renders = page.evaluate("window.tuner.renderCount")
     page.select_option('select[name="speed_controller.anti_windup"]', "none")
     wait_for_render(page, renders)
-    current, pinned = metric_cells(page, "step.overshoot_pct")
+    current, pinned = metric_cells(page, OVERSHOOT)
     assert pinned == table_after
     assert float(current) > float(pinned)
     names = page.evaluate("document.getElementById('plot').data.filter((d) => d.xaxis === 'x').map((d) => d.name)")
@@ -125,6 +126,20 @@ def test_no_button_sends_the_chart_to_a_cloud_service(page):
     assert "Download plot as a PNG" in titles
     assert not [t for t in titles if "share" in t.lower() or "cloud" in t.lower() or "chart studio" in t.lower()]
     assert page.evaluate("document.getElementById('plot')._context.showSendToCloud") is False
+
+
+def test_both_reference_steps_of_the_preset_are_plotted_and_measured(page):
+    """paper-condition-2: 500 rpm at 0 s, 8 Nm at 7 s, 200 rpm at 10 s."""
+    ref = page.evaluate("""() => {
+      const d = document.getElementById('plot').data.find((d) => d.name === 'reference' && d.xaxis === 'x');
+      return [d.x, d.y];
+    }""")
+    levels = {y for t, y in zip(*ref) if 0.01 < t < 9.99} | {y for t, y in zip(*ref) if t > 10.01}
+    assert levels == {500.0, 200.0}
+    groups = page.locator("#metrics tr.group").all_inner_texts()
+    assert groups == ["speed reference at 0 s: 0 \u2192 500 rpm", "load at 7 s: 0 \u2192 8 Nm",
+                      "speed reference at 10 s: 500 \u2192 200 rpm", "whole run (0 to 15 s)"]
+    assert page.locator('#metrics tr[data-metric="reference_steps.1.overshoot_pct"] td.current').inner_text()
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")

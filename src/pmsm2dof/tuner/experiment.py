@@ -1,18 +1,18 @@
 """What the tuner computes: from control values to a scenario, a run, plot data and downloads.
 
-The tuner's experiment is the paper's simulation condition 2 reduced to its two events
-(section 4.1): a speed reference step at ``reference.0.t_s`` of the base scenario, then a load
-torque step at ``tuner.t_load_s``. The controls are
+The tuner's experiment is the base scenario: every entry of its ``reference`` and ``load``
+schedules, and its faults. The controls are
 
 - scenario keys, applied as overrides of the base scenario (``speed_controller.alpha``,
   ``zeta``, ``m``, ``Ka``, ``feedforward``, ``anti_windup``, ``discretization``, ``Ts_s``,
-  ``simulation.t_end_s``), and
-- the experiment's own keys: ``tuner.J_ratio`` (true inertia / design inertia: the design
-  inertia stays that of the base scenario and ``motor.J_kgm2`` follows the ratio),
-  ``tuner.speed_step_rpm``, ``tuner.load_step_Nm`` and ``tuner.t_load_s``.
+  ``simulation.t_end_s``, and ``reference.<i>.t_s``, ``reference.<i>.speed_rpm``,
+  ``load.<i>.t_s``, ``load.<i>.torque_Nm`` of the first :data:`ENTRY_CONTROLS_MAX` entries of
+  each schedule; later entries run as the scenario has them), and
+- ``tuner.J_ratio`` (true inertia / design inertia: the design inertia stays that of the base
+  scenario and ``motor.J_kgm2`` follows the ratio).
 
 Every request is validated by :meth:`pmsm2dof.scenario.Scenario.with_overrides`, exactly like
-a scenario file, after the experiment's keys are checked here; errors name the control key.
+a scenario file; errors name the control key.
 
 The work of one run is bounded: at most :data:`STEPS_MAX` plant integration steps (a longer
 ``simulation.t_end_s`` answers a ConfigError naming the bound), and ``simulation.log_every`` is
@@ -35,7 +35,7 @@ import numpy as np
 from ..codegen import c_header
 from ..controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ..design import design
-from ..errors import ConfigError, require_nonnegative, require_positive
+from ..errors import ConfigError, require_positive
 from ..metrics import compute_metrics
 from ..simulate import Result, _EngineRun
 from .slots import Ticket
@@ -55,29 +55,32 @@ LOG_ROWS_MAX = 5000
 STEPS_MAX = 10**7
 #: Integration steps per C call: a superseded run stops within one call (a few ms).
 CHUNK_STEPS = 50_000
+#: Entries of each schedule (reference, load) of the base scenario that get controls.
+ENTRY_CONTROLS_MAX = 6
 
-SCENARIO_CONTROLS = (
-    "speed_controller.alpha",
-    "speed_controller.zeta",
-    "speed_controller.m",
-    "speed_controller.Ka",
-    "speed_controller.feedforward",
-    "speed_controller.anti_windup",
-    "speed_controller.discretization",
-    "speed_controller.Ts_s",
-    "simulation.t_end_s",
-)
-TUNER_CONTROLS = ("tuner.J_ratio", "tuner.speed_step_rpm", "tuner.load_step_Nm", "tuner.t_load_s")
-CONTROLS = SCENARIO_CONTROLS + TUNER_CONTROLS
-#: Rows of the metrics table: (step, key of pmsm2dof.metrics, label, unit).
-TABLE_METRICS = (
-    ("step", "overshoot_pct", "overshoot", "%"),
-    ("step", "rise_time_s", "rise time 10-90 %", "s"),
-    ("step", "settling_time_s", "settling time 2 %", "s"),
-    ("step", "current_limit_time_s", "time at the current limit", "s"),
-    ("load", "speed_dip_rpm", "load dip", "rpm"),
-    ("load", "recovery_time_s", "recovery time 2 %", "s"),
-)
+SPEED_CONTROLLER_CONTROLS = ("alpha", "zeta", "m", "Ka", "feedforward", "anti_windup", "discretization", "Ts_s")
+#: Schedules of the experiment: (name, value key, label, unit).
+SCHEDULES = (("reference", "speed_rpm", "reference", "rpm"), ("load", "torque_Nm", "load", "Nm"))
+#: Rows of the metrics table, per part of compute_metrics: (figure key, label, unit).
+TABLE_METRICS = {
+    "reference_steps": (
+        ("overshoot_pct", "overshoot", "%"),
+        ("rise_time_s", "rise time 10-90 %", "s"),
+        ("settling_time_s", "settling time 2 %", "s"),
+        ("current_limit_time_s", "time at the current limit", "s"),
+    ),
+    "load_steps": (
+        ("speed_dip_rpm", "load dip", "rpm"),
+        ("recovery_time_s", "recovery time 2 %", "s"),
+    ),
+    "faults": (
+        ("speed_deviation_rpm", "speed deviation", "rpm"),
+        ("recovery_time_s", "recovery time 2 % after the fault", "s"),
+    ),
+    "run": (
+        ("current_limit_time_s", "time at the current limit", "s"),
+    ),
+}
 
 
 def minmax_indices(y, buckets=DECIMATION_BUCKETS):
@@ -156,14 +159,13 @@ class Tuner:
     Parameters
     ----------
     base : pmsm2dof.scenario.Scenario
-        Motor, limits, current loop, initial controller settings and timing.
+        Motor, limits, current loop, initial controller settings, schedules, faults and timing.
     """
 
     def __init__(self, base):
         self.base = base
         data = base.data
         self._J_design_kgm2 = data["speed_controller"]["J_design_kgm2"]
-        self._t_ref_s = data["reference"][0]["t_s"]
         self._initial = self._initial_values(data)
         self._cache = collections.OrderedDict()
         self._cache_lock = threading.Lock()
@@ -173,18 +175,19 @@ class Tuner:
 
     def _initial_values(self, data):
         sc, sim = data["speed_controller"], data["simulation"]
-        steps = [r["speed_rpm"] for r in data["reference"] if r["speed_rpm"] != 0.0]
-        loads = [entry for entry in data["load"] if entry["torque_Nm"] != 0.0]
-        values = {f"speed_controller.{k}": sc[k] for k in
-                  ("alpha", "zeta", "m", "Ka", "feedforward", "anti_windup", "discretization", "Ts_s")}
-        values.update({
-            "simulation.t_end_s": sim["t_end_s"],
-            "tuner.J_ratio": data["motor"]["J_kgm2"] / self._J_design_kgm2,
-            "tuner.speed_step_rpm": steps[0] if steps else 0.0,
-            "tuner.load_step_Nm": loads[0]["torque_Nm"] if loads else 0.0,
-            "tuner.t_load_s": loads[0]["t_s"] if loads else self._t_ref_s + 0.6 * (sim["t_end_s"] - self._t_ref_s),
-        })
+        values = {f"speed_controller.{k}": sc[k] for k in SPEED_CONTROLLER_CONTROLS}
+        values["tuner.J_ratio"] = data["motor"]["J_kgm2"] / self._J_design_kgm2
+        for name, value_key, _, _ in SCHEDULES:
+            for i, entry in enumerate(data[name][:ENTRY_CONTROLS_MAX]):
+                values[f"{name}.{i}.t_s"] = entry["t_s"]
+                values[f"{name}.{i}.{value_key}"] = entry[value_key]
+        values["simulation.t_end_s"] = sim["t_end_s"]
         return values
+
+    @property
+    def keys(self):
+        """The control keys a request may set, in the page's order."""
+        return tuple(self._initial)
 
     def controls(self):
         """Description of the page's controls: groups of specs with ranges and initial values.
@@ -194,7 +197,7 @@ class Tuner:
         (values are integer multiples of it) and ``nullable`` (a checkbox sends null);
         ``enabled_when = [key, [choices]]`` disables a control unless another has one of the
         choices (``value_when_disabled`` is then sent). Ranges are only those of the sliders:
-        any value can be typed, and the server validates it.
+        any value can be typed, and the server validates it. A group may carry a ``note``.
         """
         v = self._initial
         data = self.base.data
@@ -203,7 +206,6 @@ class Tuner:
         Kp = self._J_design_kgm2 * alpha
         Ts_cl = data["current_loop"]["Ts_s"]
         torque_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"]
-        step = abs(v["tuner.speed_step_rpm"]) or 500.0
         t_end = v["simulation.t_end_s"]
 
         def slider(key, label, unit, lo, hi, scale="lin", **extra):
@@ -212,6 +214,28 @@ class Tuner:
 
         def select(key, label, choices, **extra):
             return dict(key=key, label=label, unit="", kind="select", choices=list(choices), value=v[key], **extra)
+
+        experiment = [slider("tuner.J_ratio", "true J / design J", "", 0.25, 4.0, "log",
+                             help=f"design inertia {self._J_design_kgm2:g} kg m^2 stays; the plant's changes")]
+        notes = []
+        for name, value_key, label, unit in SCHEDULES:
+            entries = data[name]
+            values = [e[value_key] for e in entries]
+            if name == "reference":  # the scenario has at least one reference entry
+                top = 3 * (max(abs(x) for x in values) or 500.0)
+                lo, hi = (-top if min(values) < 0 else 0.0), top
+            else:
+                lo, hi = -torque_max_Nm, torque_max_Nm
+            for i in range(min(len(entries), ENTRY_CONTROLS_MAX)):
+                experiment.append(slider(f"{name}.{i}.{value_key}", f"{label} {i + 1}", unit, lo, hi,
+                                         help=f"{name}.{i}.{value_key}"))
+                experiment.append(slider(f"{name}.{i}.t_s", f"{label} {i + 1} at", "s", 0.0, t_end,
+                                         help=f"{name}.{i}.t_s"))
+            if len(entries) > ENTRY_CONTROLS_MAX:
+                notes.append(f"{name} entries {ENTRY_CONTROLS_MAX + 1} to {len(entries)} run as the scenario has them")
+        t_last = max(v[key] for key in v if key.endswith(".t_s"))
+        t_end_min = 1.05 * t_last if t_end / 10 < 1.05 * t_last < t_end else t_end / 10
+        experiment.append(slider("simulation.t_end_s", "simulated time", "s", t_end_min, t_end * 10, "log"))
 
         groups = [
             {"legend": "PI design (eq 9, 10)", "controls": [
@@ -237,15 +261,7 @@ class Tuner:
                        max(1000 * Ts_cl, 10 * v["speed_controller.Ts_s"]), "log", quantum=Ts_cl,
                        help=f"an integer multiple of the current-loop period {Ts_cl:g} s"),
             ]},
-            {"legend": "Experiment", "controls": [
-                slider("tuner.J_ratio", "true J / design J", "", 0.25, 4.0, "log",
-                       help=f"design inertia {self._J_design_kgm2:g} kg m^2 stays; the plant's changes"),
-                slider("tuner.speed_step_rpm", "speed step", "rpm", 0.0, 3 * step,
-                       help=f"reference step at t = {self._t_ref_s:g} s"),
-                slider("tuner.load_step_Nm", "load step", "Nm", -torque_max_Nm, torque_max_Nm),
-                slider("tuner.t_load_s", "load step at", "s", 0.0, t_end),
-                slider("simulation.t_end_s", "simulated time", "s", t_end / 10, t_end * 10, "log"),
-            ]},
+            {"legend": "Experiment", "controls": experiment, "note": "; ".join(notes)},
         ]
         return {"name": self.base.name, "groups": groups}
 
@@ -260,24 +276,13 @@ class Tuner:
             Naming the control key, its value and the valid range.
         """
         for key, value in values.items():
-            if key not in CONTROLS:
-                raise ConfigError(key, value, "one of the tuner's controls: " + ", ".join(CONTROLS))
+            if key not in self._initial:
+                raise ConfigError(key, value, "one of the tuner's controls: " + ", ".join(self._initial))
         v = dict(self._initial, **values)
-        J_ratio = require_positive("tuner.J_ratio", v["tuner.J_ratio"])
-        step_rpm = _require_finite("tuner.speed_step_rpm", v["tuner.speed_step_rpm"])
-        load_Nm = _require_finite("tuner.load_step_Nm", v["tuner.load_step_Nm"])
-        t_load_s = require_nonnegative("tuner.t_load_s", v["tuner.t_load_s"])
-        overrides = {key: v[key] for key in SCENARIO_CONTROLS}
-        t_end_s = overrides["simulation.t_end_s"]
-        if isinstance(t_end_s, (int, float)) and not isinstance(t_end_s, bool) and t_load_s >= t_end_s:
-            raise ConfigError("tuner.t_load_s", t_load_s, f">= 0 and < simulation.t_end_s = {t_end_s!r}")
-        overrides.update({
-            "motor.J_kgm2": J_ratio * self._J_design_kgm2,
-            "speed_controller.J_design_kgm2": self._J_design_kgm2,
-            "reference": [{"t_s": self._t_ref_s, "speed_rpm": step_rpm}],
-            "load": [{"t_s": t_load_s, "torque_Nm": load_Nm}],
-        })
-        return self.base.with_overrides(overrides)
+        J_ratio = require_positive("tuner.J_ratio", v.pop("tuner.J_ratio"))
+        v.update({"motor.J_kgm2": J_ratio * self._J_design_kgm2,
+                  "speed_controller.J_design_kgm2": self._J_design_kgm2})
+        return self.base.with_overrides(v)
 
     @staticmethod
     def logged(scenario):
@@ -344,11 +349,12 @@ class Tuner:
         """Run the experiment; return what the page draws (JSON-ready dict).
 
         Keys: ``traces`` (decimated ``{"t", "y"}`` of speed_ref_rpm, speed_rpm, iq_ref_A,
-        id_ref_A), ``load_detail`` (speed and reference from shortly before the load step,
-        decimated on their own so that the dip keeps its full resolution), ``bode``,
-        ``metrics`` (list of ``{key, label, unit, value}``), ``design`` (Kp, Ki, Ka),
-        ``log`` (every, period_s, rows), ``i_max_A``, ``t_load_s``, ``load_step_Nm``, ``label``
-        and ``server_ms``.
+        id_ref_A), ``detail`` (speed and reference around the first load step, or without one
+        the last reference step, until the next schedule entry, decimated on their own so that
+        the dip keeps its full resolution; its ``t_s`` and ``title``), ``bode``, ``metrics``
+        (list of ``{key, group, label, unit, value, reason}``, key the path in
+        :func:`pmsm2dof.metrics.compute_metrics`), ``design`` (Kp, Ki, Ka), ``log`` (every,
+        period_s, rows), ``i_max_A``, ``t_end_s``, ``label`` and ``server_ms``.
 
         Raises
         ------
@@ -362,17 +368,22 @@ class Tuner:
         data = result.scenario.data
         dsg = design_of(scenario)
         t = np.asarray(result.t_s)
-        t_load_s = data["load"][0]["t_s"]
-        t_end_s = data["simulation"]["t_end_s"]
         traces = {name: _trace(t, getattr(result, name))
                   for name in ("speed_ref_rpm", "speed_rpm", "iq_ref_A", "id_ref_A")}
-        pre_s = 0.1 * (t_end_s - t_load_s)
-        window = np.flatnonzero(t >= t_load_s - pre_s)
+        figures = compute_metrics(result)
+        if figures["load_steps"]:
+            event = figures["load_steps"][0]
+            title = f"Load step: {event['from_Nm']:g} \u2192 {event['to_Nm']:g} Nm at {event['t_s']:g} s"
+        else:
+            event = figures["reference_steps"][-1]
+            title = f"Reference step: {event['from_rpm']:g} \u2192 {event['to_rpm']:g} rpm at {event['t_s']:g} s"
+        t0_s, t1_s = event["t_s"], event["window_end_s"]
+        window = np.flatnonzero((t >= t0_s - 0.1 * (t1_s - t0_s)) & (t <= t1_s))
         speed_w = np.asarray(result.speed_rpm)[window]
         ref_w = np.asarray(result.speed_ref_rpm)[window]
         keep = window[np.union1d(minmax_indices(speed_w), minmax_indices(ref_w))]
-        load_detail = {"t": t[keep].tolist(), "speed_rpm": np.asarray(result.speed_rpm)[keep].tolist(),
-                       "speed_ref_rpm": np.asarray(result.speed_ref_rpm)[keep].tolist()}
+        detail = {"t": t[keep].tolist(), "speed_rpm": np.asarray(result.speed_rpm)[keep].tolist(),
+                  "speed_ref_rpm": np.asarray(result.speed_ref_rpm)[keep].tolist(), "t_s": t0_s, "title": title}
         # everything the Bode plot depends on: computed, and redrawn by the page, when it changes
         bode_key = json.dumps([dsg.J_kgm2, dsg.alpha_radps, dsg.zeta, dsg.m, dsg.tau_i_s, dsg.feedforward,
                                data["motor"]["J_kgm2"], data["speed_controller"]["Ts_s"]])
@@ -380,14 +391,13 @@ class Tuner:
         out = {
             "label": _label(data),
             "traces": traces,
-            "load_detail": load_detail,
+            "detail": detail,
             "bode": self._bode_cached(bode_key),
-            "metrics": self._metrics(result),
+            "metrics": _metric_rows(figures),
             "design": {"Kp": dsg.Kp, "Ki": dsg.Ki, "Ka": dsg.Ka},
             "log": {"every": log_every, "period_s": log_every * data["speed_controller"]["Ts_s"], "rows": len(t)},
             "i_max_A": data["limits"]["i_max_A"],
-            "t_load_s": t_load_s,
-            "load_step_Nm": data["load"][0]["torque_Nm"],
+            "t_end_s": data["simulation"]["t_end_s"],
         }
         out["server_ms"] = 1e3 * (time.perf_counter() - t0)
         return out
@@ -398,21 +408,6 @@ class Tuner:
         dsg = design(J_design_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward)
         Gx, GN = loop_on_plant(dsg, J_true_kgm2)
         return bode_data(Gx, GN, alpha_radps, Ts_s) | {"key": key}
-
-    @staticmethod
-    def _metrics(result):
-        """The metrics table: the speed step's and the load step's figures (pmsm2dof.metrics).
-
-        A figure that cannot be computed has ``value`` None and a ``reason``.
-        """
-        figures = compute_metrics(result)
-        step, load = figures["reference_steps"][0], figures["load_steps"][0]
-        rows = []
-        for source, key, label, unit in TABLE_METRICS:
-            figure = (step if source == "step" else load)[key]
-            rows.append({"key": f"{source}.{key}", "label": label, "unit": unit, "value": figure["value"],
-                         "reason": figure.get("reason", "")})
-        return rows
 
     # ---- downloads -------------------------------------------------------------------
 
@@ -447,10 +442,33 @@ class Tuner:
                         current_anti_windup=cl["anti_windup"], decouple=cl["decouple"])
 
 
-def _require_finite(param, value):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ConfigError(param, value, "a finite number")
-    return float(value)
+def _metric_rows(figures):
+    """The metrics table: the figures of every reference step, load step and fault in time order,
+    then the whole run's; a figure that cannot be computed has ``value`` None and a ``reason``."""
+    parts = []
+    for part in ("reference_steps", "load_steps", "faults"):
+        for i, event in enumerate(figures[part]):
+            parts.append((event["t_s"], part, i, _event_title(part, event)))
+    parts.sort(key=lambda p: p[0])  # stable: at equal times references, then loads, then faults
+    run = figures["run"]
+    parts.append((None, "run", None, f"whole run (0 to {run['t_end_s']:g} s)"))
+    rows = []
+    for _, part, i, group in parts:
+        event = figures[part] if i is None else figures[part][i]
+        prefix = part if i is None else f"{part}.{i}"
+        for key, label, unit in TABLE_METRICS[part]:
+            figure = event[key]
+            rows.append({"key": f"{prefix}.{key}", "group": group, "label": label, "unit": unit,
+                         "value": figure["value"], "reason": figure.get("reason", "")})
+    return rows
+
+
+def _event_title(part, event):
+    if part == "reference_steps":
+        return f"speed reference at {event['t_s']:g} s: {event['from_rpm']:g} \u2192 {event['to_rpm']:g} rpm"
+    if part == "load_steps":
+        return f"load at {event['t_s']:g} s: {event['from_Nm']:g} \u2192 {event['to_Nm']:g} Nm"
+    return f"fault {event['kind']} at {event['t_s']:g} s to {event['end_s']:g} s"
 
 
 def _slug(name):

@@ -123,6 +123,7 @@ function buildControls(description) {
       fieldset.appendChild(buildControl(spec));
       state.values[spec.key] = spec.value;
     }
+    if (group.note) fieldset.appendChild(el("p", { class: "note", text: group.note }));
     form.appendChild(fieldset);
   }
   form.addEventListener("submit", (ev) => ev.preventDefault());
@@ -251,7 +252,8 @@ async function download(kind) {
 /*
  * One plotly figure holds the four plots (one redraw instead of four):
  *   x/y   speed and reference        x2/y2  current command and limit
- *   x3/y3 load step detail           x4/y4  |Gx|, |GN| and x4/y5 their phases
+ *   x3/y3 detail of the load step    x4/y4  |Gx|, |GN| and x4/y5 their phases
+ *         (or of the last reference step without one)
  * Titles carry the legends (plotly's legends are the slowest part of a redraw).
  */
 
@@ -306,14 +308,14 @@ function currentTraces(run, pinned) {
   return data;
 }
 
-function loadTraces(run, pinned) {
-  const d = run.load_detail;
+function detailTraces(run, pinned) {
+  const d = run.detail;
   const axes = ["x3", "y3"];
   const data = [
     line(d.t, d.speed_ref_rpm, "reference", COLORS.reference, axes, "dash"),
     line(d.t, d.speed_rpm, "speed", COLORS.current, axes),
   ];
-  if (pinned) data.push(pinnedLine(pinned.load_detail.t, pinned.load_detail.speed_rpm, "speed (pinned)", axes));
+  if (pinned) data.push(pinnedLine(pinned.detail.t, pinned.detail.speed_rpm, "speed (pinned)", axes));
   return data;
 }
 
@@ -332,7 +334,7 @@ function bodeTraces(run, pinned) {
 }
 
 function figureLayout(run, pinned) {
-  const w = run.load_detail.t;
+  const w = run.detail.t;
   const nyquist = run.bode.w_nyquist_radps;
   const inView = nyquist <= run.bode.w_radps[run.bode.w_radps.length - 1];
   const axis = (text, extra) => Object.assign({ title: { text: text, standoff: 2, font: { size: 12 } } }, extra);
@@ -355,7 +357,7 @@ function figureLayout(run, pinned) {
         [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")], pinned),
       title(COLS[1][0], TOP[1], "Current command",
         [key(COLORS.current, SOLID, "iq"), key(COLORS.d, SOLID, "id"), key(COLORS.limit, DASHED, "\u00b1i_max")], pinned),
-      title(COLS[0][0], BOTTOM[1], `Load step: ${fmt(run.load_step_Nm)} Nm at ${fmt(run.t_load_s)} s`,
+      title(COLS[0][0], BOTTOM[1], run.detail.title,
         [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")], pinned),
       title(COLS[1][0], BOTTOM[1], "Bode (eq 6, 8)",
         [key(COLORS.gx, SOLID, "Gx tracking"), key(COLORS.gn, SOLID, "GN load [(rad/s)/Nm]")], pinned),
@@ -370,17 +372,25 @@ function figureLayout(run, pinned) {
 function renderMetrics(run, pinned) {
   const body = document.querySelector("#metrics tbody");
   body.replaceChildren();
-  run.metrics.forEach((m, i) => {
-    const p = pinned ? pinned.metrics[i] : null;
+  const pinnedRows = new Map(pinned ? pinned.metrics.map((m) => [m.key, m]) : []);
+  let group = null;
+  for (const m of run.metrics) {
+    if (m.group !== group) {
+      group = m.group;
+      body.appendChild(el("tr", { class: "group" }, [el("th", { colspan: "3", text: group })]));
+    }
+    const p = pinnedRows.get(m.key);
     body.appendChild(el("tr", { "data-metric": m.key }, [
       el("td", { text: m.label + (m.unit ? " [" + m.unit + "]" : "") }),
       el("td", { class: "current", text: fmt(m.value), title: m.reason }),
       el("td", { class: "pinned", text: p ? fmt(p.value) : "", title: p ? p.reason : "" }),
     ]));
-  });
+  }
   const d = run.design;
+  const log = run.log;
   document.getElementById("design").textContent =
-    `Kp = ${fmt(d.Kp)} Nm/(rad/s), Ki = ${fmt(d.Ki)} Nm/rad, Ka = ${fmt(d.Ka)} (rad/s)/Nm (eq 9)` +
+    `Kp = ${fmt(d.Kp)} Nm/(rad/s), Ki = ${fmt(d.Ki)} Nm/rad, Ka = ${fmt(d.Ka)} (rad/s)/Nm (eq 9); ` +
+    `plots and metrics from ${log.rows} samples, one every ${fmt(1e3 * log.period_s)} ms` +
     (pinned ? ` \u2014 pinned: ${pinned.label}` : "");
 }
 
@@ -391,7 +401,7 @@ async function render(run) {
   }
   window.tuner.current = run;
   const pinned = window.tuner.pinned;
-  const data = [].concat(speedTraces(run, pinned), currentTraces(run, pinned), loadTraces(run, pinned),
+  const data = [].concat(speedTraces(run, pinned), currentTraces(run, pinned), detailTraces(run, pinned),
                          bodeTraces(run, pinned));
   await Plotly.react("plot", data, figureLayout(run, pinned), PLOT_CONFIG);
   renderMetrics(run, pinned);
