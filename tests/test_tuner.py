@@ -36,9 +36,11 @@ from pmsm2dof.tuner.app import CLIENT_HEADER
 from pmsm2dof.tuner.experiment import (
     DECIMATION_BUCKETS,
     LOG_ROWS_MAX,
+    SPANS_MAX,
     STEPS_MAX,
     Tuner,
     bode_data,
+    limit_spans,
     loop_on_plant,
     minmax_indices,
 )
@@ -86,6 +88,18 @@ def test_minmax_keeps_every_bucket_extreme_and_the_ends():
 
 def test_minmax_leaves_short_traces_whole():
     assert np.array_equal(minmax_indices(np.arange(50.0), buckets=100), np.arange(50))
+
+
+def test_limit_spans_hold_each_flag_until_the_next_sample_and_merge_across_the_shortest_gaps():
+    t = np.arange(12.0)
+    flags = np.array([0, 1, 1, 0, 0, 0, 1, 0, 1, 0, 0, 1], dtype=bool)
+    # the flag of sample k holds over [t[k], t[k+1]); the last sample has no interval
+    assert limit_spans(t, flags) == [[1, 3], [6, 7], [8, 9]]
+    # two spans at most: the gap of 1 s between 7 and 8 closes, the gap of 3 s stays
+    assert limit_spans(t, flags, most=2) == [[1, 3], [6, 9]]
+    chatter = np.arange(10_000) % 2 == 0  # a flag set every other sample
+    spans = limit_spans(np.arange(10_000.0), chatter)
+    assert len(spans) == SPANS_MAX and spans[0][0] == 0 and spans[-1][1] == 9_999
 
 
 # ---- transfer functions of the Bode plot -----------------------------------------------
@@ -157,7 +171,8 @@ def test_every_reference_and_load_entry_is_a_control():
     base = load_scenario("paper-condition-1")
     tuner = Tuner(base)
     specs = {c["key"]: c for g in tuner.controls()["groups"] for c in g["controls"]}
-    assert [specs[f"reference.{i}.{k}"]["value"] for i in (0, 1) for k in ("t_s", "speed_rpm")] == [0.0, 500.0, 5.0, 200.0]
+    entries = [specs[f"reference.{i}.{k}"]["value"] for i in (0, 1) for k in ("t_s", "speed_rpm")]
+    assert entries == [0.0, 500.0, 5.0, 200.0]
     assert not [key for key in specs if key.startswith("load.")]
     data = tuner.scenario({"reference.1.speed_rpm": 300.0}).data
     assert [(e["t_s"], e["speed_rpm"]) for e in data["reference"]] == [(0.0, 500.0), (5.0, 300.0)]
@@ -243,6 +258,36 @@ def test_both_reference_steps_of_paper_condition_1_run_and_are_measured():
     assert "did not reach the reference" in table["reference_steps.1.overshoot_pct"]["reason"]
     assert table["reference_steps.1.current_limit_time_s"]["value"] == 0.0
     assert table["reference_steps.0.current_limit_time_s"]["value"] > 0.0  # the 500 rpm start does saturate
+
+
+def test_the_voltage_limit_is_plotted_timed_and_warned_about():
+    """At u_dc = 60 V the inverter's range u_dc / sqrt(3) = 34.6 V is below the back-EMF of the
+    500 rpm reference, p w_m psi_f = 41.9 V: by eq 1 in steady state (id = 0) the range caps the
+    speed at u_dc / (sqrt(3) p psi_f) = 413.5 rpm, and the drive runs at its voltage limit."""
+    base = load_scenario(PRESET).with_overrides({"limits.u_dc_V": 60.0})
+    motor = base.data["motor"]
+    u_max_V = 60.0 / math.sqrt(3.0)
+    w_cap_rpm = u_max_V / (motor["pole_pairs"] * motor["psi_f_Wb"]) / RADPS_PER_RPM
+    with TestClient(create_app(base)) as c:
+        out = run(c)
+    traces = out["traces"]
+    np.testing.assert_allclose(traces["u_max_V"]["y"], u_max_V, rtol=1e-12)
+    assert max(traces["u_dq_V"]["y"]) <= u_max_V * (1 + 1e-6)
+    peak_rpm = max(y for t, y in zip(traces["speed_rpm"]["t"], traces["speed_rpm"]["y"]) if t < 7.0)
+    assert 0.9 * w_cap_rpm < peak_rpm <= w_cap_rpm
+    table = {m["key"]: m for m in out["metrics"]}
+    limited_s = table["run.voltage_limit_time_s"]["value"]
+    assert limited_s > 3.0
+    assert sum(b - a for a, b in out["spans"]["voltage"]) >= limited_s
+    (warning,) = out["warnings"]
+    assert warning.startswith("Voltage limit") and f"{limited_s:.4g} s" in warning
+
+
+def test_a_drive_within_its_voltage_range_has_no_voltage_warning(client):
+    out = run(client)
+    assert {m["key"]: m["value"] for m in out["metrics"]}["run.voltage_limit_time_s"] == 0.0
+    assert out["spans"]["voltage"] == [] and out["warnings"] == []
+    assert max(out["traces"]["u_dq_V"]["y"]) < 540.0 / math.sqrt(3.0)
 
 
 # ---- the work one request may ask for --------------------------------------------------

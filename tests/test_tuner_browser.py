@@ -3,9 +3,11 @@
 A person's session: open the page, move the bandwidth slider, see the plotted overshoot and
 the metrics table change, pin the run, switch the anti-windup off and see the overshoot grow
 (paper section 4.1, Fig. 8), type a bad value and read the message, download the C header and
-build it with the C core into a program that initializes the controller.
+build it with the C core into a program that initializes the controller. And a drive whose DC
+link is too low for its speed: the voltage limit is shown.
 """
 
+import contextlib
 import math
 import shutil
 import subprocess
@@ -37,6 +39,9 @@ PLOTTED_OVERSHOOT_JS = """() => {
   return 100 * (peak - step) / step;
 }"""
 OVERSHOOT = "reference_steps.0.overshoot_pct"
+# the traces of the figure: name -> {xaxis, color, dash}
+TRACES_JS = """() => Object.fromEntries(document.getElementById('plot').data.map(
+  (d) => [d.name, {xaxis: d.xaxis, color: d.line.color, dash: d.line.dash}]))"""
 
 
 def metric_cells(page, key):
@@ -50,18 +55,31 @@ def wait_for_render(page, after):
 
 
 @pytest.fixture(scope="module")
-def page():
-    with serving_in_thread(create_app(load_scenario("paper-condition-2"))) as url, \
-            sync_api.sync_playwright() as playwright:
+def browser():
+    with sync_api.sync_playwright() as playwright:
         browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+@contextlib.contextmanager
+def tuner_page(browser, scenario):
+    """The tuner of ``scenario`` served and open in a new page, drawn once; no script error."""
+    with serving_in_thread(create_app(scenario)) as url:
         page = browser.new_page(viewport={"width": 1440, "height": 900}, accept_downloads=True)
         errors = []
         page.on("pageerror", lambda exc: errors.append(str(exc)))
         page.goto(url)
         wait_for_render(page, 0)
         yield page
-        browser.close()
+        page.close()
         assert not errors, errors
+
+
+@pytest.fixture(scope="module")
+def page(browser):
+    with tuner_page(browser, load_scenario("paper-condition-2")) as page:
+        yield page
 
 
 def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
@@ -140,6 +158,27 @@ def test_both_reference_steps_of_the_preset_are_plotted_and_measured(page):
     assert groups == ["speed reference at 0 s: 0 \u2192 500 rpm", "load at 7 s: 0 \u2192 8 Nm",
                       "speed reference at 10 s: 500 \u2192 200 rpm", "whole run (0 to 15 s)"]
     assert page.locator('#metrics tr[data-metric="reference_steps.1.overshoot_pct"] td.current').inner_text()
+
+
+def test_the_voltage_and_its_range_are_plotted_without_a_warning_within_it(page):
+    traces = page.evaluate(TRACES_JS)
+    assert traces["||u_dq||"]["xaxis"] == "x6" and traces["range u_dc/\u221a3"]["xaxis"] == "x6"
+    assert metric_cells(page, "run.voltage_limit_time_s")[0] == "0"
+    assert not page.locator("#warning").is_visible()
+    assert page.locator('#metrics tr.warning').count() == 0
+
+
+def test_a_drive_at_its_voltage_limit_is_shaded_timed_and_warned_about(browser):
+    """u_dc = 60 V: the range u_dc/sqrt(3) = 34.6 V is below the back-EMF of 500 rpm (41.9 V)."""
+    with tuner_page(browser, load_scenario("paper-condition-2").with_overrides({"limits.u_dc_V": 60.0})) as page:
+        warning = page.locator("#warning")
+        assert warning.is_visible() and "Voltage limit" in warning.inner_text()
+        row = page.locator('#metrics tr.warning[data-metric="run.voltage_limit_time_s"]')
+        assert float(row.locator("td.current").inner_text()) > 3.0
+        shapes = page.evaluate("document.getElementById('plot').layout.shapes.map((s) => [s.name, s.xref])")
+        assert {xref for name, xref in shapes if name == "voltage limit"} == {"x", "x2", "x3", "x6"}
+        keys = page.locator("#plot .annotation-text").all_text_contents()
+        assert any("voltage limit" in k for k in keys)
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None, reason="gcc is not installed")

@@ -36,8 +36,9 @@ from ..codegen import c_header
 from ..controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ..design import design
 from ..errors import ConfigError, require_positive
-from ..metrics import compute_metrics
+from ..metrics import at_current_limit, at_voltage_limit, compute_metrics
 from ..simulate import Result, _EngineRun
+from ..traceplot import _saturated_intervals
 from .slots import Ticket
 
 #: Buckets of the min-max decimation of the traces sent to the page: each bucket keeps its
@@ -57,6 +58,8 @@ STEPS_MAX = 10**7
 CHUNK_STEPS = 50_000
 #: Entries of each schedule (reference, load) of the base scenario that get controls.
 ENTRY_CONTROLS_MAX = 6
+#: Most shaded spans a limit gets on the page: beyond, the spans closest together merge.
+SPANS_MAX = 40
 
 SPEED_CONTROLLER_CONTROLS = ("alpha", "zeta", "m", "Ka", "feedforward", "anti_windup", "discretization", "Ts_s")
 #: Schedules of the experiment: (name, value key, label, unit).
@@ -79,6 +82,7 @@ TABLE_METRICS = {
     ),
     "run": (
         ("current_limit_time_s", "time at the current limit", "s"),
+        ("voltage_limit_time_s", "time at the voltage limit", "s"),
     ),
 }
 
@@ -106,6 +110,22 @@ def minmax_indices(y, buckets=DECIMATION_BUCKETS):
 def _trace(t, y):
     keep = minmax_indices(y)
     return {"t": np.asarray(t)[keep].tolist(), "y": np.asarray(y)[keep].tolist()}
+
+
+def limit_spans(t, flags, most=SPANS_MAX):
+    """``[start, end]`` of each run of set ``flags`` (the flag of sample k holds over [t[k], t[k+1])).
+
+    When there are more than ``most`` runs, those separated by the shortest gaps are merged, so
+    that a flag that chatters (clamping at the limit every other sample) shades one span and
+    the page draws at most ``most`` of them.
+    """
+    spans = np.asarray(_saturated_intervals(np.asarray(t), flags), dtype=float).reshape(-1, 2)
+    if len(spans) > most:
+        gaps = spans[1:, 0] - spans[:-1, 1]
+        cuts = np.sort(np.argsort(gaps, kind="stable")[len(gaps) - (most - 1):])  # the widest gaps stay
+        spans = np.column_stack((np.concatenate(([spans[0, 0]], spans[cuts + 1, 0])),
+                                 np.concatenate((spans[cuts, 1], [spans[-1, 1]]))))
+    return spans.tolist()
 
 
 def loop_on_plant(dsg, J_true_kgm2):
@@ -349,12 +369,16 @@ class Tuner:
         """Run the experiment; return what the page draws (JSON-ready dict).
 
         Keys: ``traces`` (decimated ``{"t", "y"}`` of speed_ref_rpm, speed_rpm, iq_ref_A,
-        id_ref_A), ``detail`` (speed and reference around the first load step, or without one
-        the last reference step, until the next schedule entry, decimated on their own so that
-        the dip keeps its full resolution; its ``t_s`` and ``title``), ``bode``, ``metrics``
-        (list of ``{key, group, label, unit, value, reason}``, key the path in
-        :func:`pmsm2dof.metrics.compute_metrics`), ``design`` (Kp, Ki, Ka), ``log`` (every,
-        period_s, rows), ``i_max_A``, ``t_end_s``, ``label`` and ``server_ms``.
+        id_ref_A, u_dq_V = ||u_dq|| and u_max_V = u_dc / sqrt(3)), ``spans`` (``current`` and
+        ``voltage``: the ``[start, end]`` intervals at the current-vector limit and at the
+        inverter's voltage range, by :func:`pmsm2dof.metrics.at_current_limit` and
+        :func:`~pmsm2dof.metrics.at_voltage_limit`, as plot.png shades them), ``detail`` (speed and reference around the first load step,
+        or without one the last reference step, until the next schedule entry, decimated on
+        their own so that the dip keeps its full resolution; its ``t_s`` and ``title``),
+        ``bode``, ``metrics`` (list of ``{key, group, label, unit, value, reason}``, key the path
+        in :func:`pmsm2dof.metrics.compute_metrics`), ``warnings`` (sentences: the voltage limit
+        cut in), ``design`` (Kp, Ki, Ka), ``log`` (every, period_s, rows), ``i_max_A``,
+        ``t_end_s``, ``label`` and ``server_ms``.
 
         Raises
         ------
@@ -368,8 +392,11 @@ class Tuner:
         data = result.scenario.data
         dsg = design_of(scenario)
         t = np.asarray(result.t_s)
+        u_dq_V = np.hypot(result.ud_V, result.uq_V)
         traces = {name: _trace(t, getattr(result, name))
                   for name in ("speed_ref_rpm", "speed_rpm", "iq_ref_A", "id_ref_A")}
+        traces["u_dq_V"] = _trace(t, u_dq_V)
+        traces["u_max_V"] = _trace(t, np.asarray(result.u_dc_V) / math.sqrt(3.0))
         figures = compute_metrics(result)
         if figures["load_steps"]:
             event = figures["load_steps"][0]
@@ -391,9 +418,12 @@ class Tuner:
         out = {
             "label": _label(data),
             "traces": traces,
+            "spans": {"current": limit_spans(t, at_current_limit(result)),
+                      "voltage": limit_spans(t, at_voltage_limit(result) > 0.0)},
             "detail": detail,
             "bode": self._bode_cached(bode_key),
             "metrics": _metric_rows(figures),
+            "warnings": _warnings(figures, data),
             "design": {"Kp": dsg.Kp, "Ki": dsg.Ki, "Ka": dsg.Ka},
             "log": {"every": log_every, "period_s": log_every * data["speed_controller"]["Ts_s"], "rows": len(t)},
             "i_max_A": data["limits"]["i_max_A"],
@@ -469,6 +499,18 @@ def _event_title(part, event):
     if part == "load_steps":
         return f"load at {event['t_s']:g} s: {event['from_Nm']:g} \u2192 {event['to_Nm']:g} Nm"
     return f"fault {event['kind']} at {event['t_s']:g} s to {event['end_s']:g} s"
+
+
+def _warnings(figures, data):
+    """Sentences the page shows above the metrics: the run left the design's assumptions."""
+    run = figures["run"]
+    voltage_s = run["voltage_limit_time_s"]["value"]
+    if not voltage_s:
+        return []
+    u_max_V = data["limits"]["u_dc_V"] / math.sqrt(3.0)
+    return [f"Voltage limit: the inverter's range u_dc/\u221a3 = {u_max_V:.4g} V cut the voltage for "
+            f"{voltage_s:.4g} s ({100.0 * voltage_s / run['t_end_s']:.3g} % of the run). There the currents do "
+            "not follow their commands and the design (eq 3, 9) does not hold."]
 
 
 def _slug(name):

@@ -15,7 +15,11 @@ const COALESCE_MS = 10;
 /* No mode-bar button sends the chart anywhere: the page works offline and keeps its data local. */
 const PLOT_CONFIG = { displaylogo: false, responsive: true, showSendToCloud: false, plotlyServerURL: "",
                       modeBarButtonsToRemove: ["lasso2d", "select2d", "sendChartToCloud"] };
-const COLORS = { current: "#1f77b4", reference: "#222", pinned: "#aaa", limit: "#d62728", d: "#2ca02c", gx: "#1f77b4", gn: "#ff7f0e" };
+const COLORS = { current: "#1f77b4", reference: "#222", pinned: "#aaa", limit: "#d62728", d: "#2ca02c",
+                 gx: "#1f77b4", gn: "#ff7f0e" };
+/* Shading of the spans at a limit: its fill, and the colour of its key in the titles. */
+const SPANS = { current: { fill: "rgba(255, 165, 0, 0.2)", key: "#e69500", text: "current limit" },
+                voltage: { fill: "rgba(148, 0, 211, 0.14)", key: "#9400d3", text: "voltage limit" } };
 const CLIENT_ID = (self.crypto && crypto.randomUUID) ? crypto.randomUUID() : String(Math.random()).slice(2);
 
 /* Public state, read by the benchmark and the browser test. */
@@ -250,19 +254,24 @@ async function download(kind) {
 
 /* ---- drawing ----------------------------------------------------------------- */
 /*
- * One plotly figure holds the four plots (one redraw instead of four):
+ * One plotly figure holds the six plots (one redraw instead of six):
  *   x/y   speed and reference        x2/y2  current command and limit
- *   x3/y3 detail of the load step    x4/y4  |Gx|, |GN| and x4/y5 their phases
+ *   x3/y3 detail of the load step    x6/y6  voltage ||u_dq|| and the range u_dc/sqrt(3)
  *         (or of the last reference step without one)
- * Titles carry the legends (plotly's legends are the slowest part of a redraw).
+ *   x4/y4 |Gx|, |GN|                 x5/y5  their phases
+ * Spans at the current limit (orange) and at the voltage limit (purple) are shaded in the four
+ * time plots. Titles carry the legends (plotly's legends are the slowest part of a redraw).
  */
 
 const COLS = [[0, 0.45], [0.55, 1]];
-const TOP = [0.56, 0.96];
-const BOTTOM = [0, 0.41];
+const TOP = [0.72, 0.97];
+const MIDDLE = [0.38, 0.63];
+const BOTTOM = [0, 0.29];
+const TIME_AXES = [["x", "y"], ["x2", "y2"], ["x3", "y3"], ["x6", "y6"]];
 const SOLID = "\u2014\u2014";
 const DASHED = "\u2013 \u2013";
 const DOTTED = "\u00b7\u00b7\u00b7\u00b7";
+const PATCH = "\u25ae";
 
 function line(x, y, name, color, axes, dash) {
   return { x: x, y: y, name: name, type: "scatter", mode: "lines", xaxis: axes[0], yaxis: axes[1],
@@ -277,46 +286,51 @@ function key(color, glyph, text) {
   return `<span style="color:${color}">${glyph} ${text}</span>`;
 }
 
-function title(x, y, text, keys, pinned) {
-  if (pinned) keys.push(key(COLORS.pinned, DOTTED, "pinned"));
+function title(x, y, text, keys) {
   return { xref: "paper", yref: "paper", x: x, y: y, xanchor: "left", yanchor: "bottom", showarrow: false,
            align: "left", text: `<b>${text}</b>    ` + keys.join("   "), font: { size: 12 } };
 }
 
+/* One time plot: the run's traces [x, y, name, color, dash], then the pinned run's copy of the
+   main one [x, y, name], dotted grey. */
+function timePlot(axes, traces, pinnedTrace) {
+  const data = traces.map(([x, y, name, color, dash]) => line(x, y, name, color, axes, dash));
+  if (pinnedTrace) data.push(pinnedLine(pinnedTrace[0], pinnedTrace[1], pinnedTrace[2], axes));
+  return data;
+}
+
 function speedTraces(run, pinned) {
   const tr = run.traces;
-  const axes = ["x", "y"];
-  const data = [
-    line(tr.speed_ref_rpm.t, tr.speed_ref_rpm.y, "reference", COLORS.reference, axes, "dash"),
-    line(tr.speed_rpm.t, tr.speed_rpm.y, "speed", COLORS.current, axes),
-  ];
-  if (pinned) data.push(pinnedLine(pinned.traces.speed_rpm.t, pinned.traces.speed_rpm.y, "speed (pinned)", axes));
-  return data;
+  return timePlot(["x", "y"], [
+    [tr.speed_ref_rpm.t, tr.speed_ref_rpm.y, "reference", COLORS.reference, "dash"],
+    [tr.speed_rpm.t, tr.speed_rpm.y, "speed", COLORS.current],
+  ], pinned && [pinned.traces.speed_rpm.t, pinned.traces.speed_rpm.y, "speed (pinned)"]);
 }
 
 function currentTraces(run, pinned) {
   const tr = run.traces;
-  const axes = ["x2", "y2"];
-  const tEnd = tr.iq_ref_A.t[tr.iq_ref_A.t.length - 1];
-  const data = [
-    line([0, tEnd], [run.i_max_A, run.i_max_A], "+i_max", COLORS.limit, axes, "dash"),
-    line([0, tEnd], [-run.i_max_A, -run.i_max_A], "-i_max", COLORS.limit, axes, "dash"),
-    line(tr.id_ref_A.t, tr.id_ref_A.y, "id command", COLORS.d, axes),
-    line(tr.iq_ref_A.t, tr.iq_ref_A.y, "iq command", COLORS.current, axes),
-  ];
-  if (pinned) data.push(pinnedLine(pinned.traces.iq_ref_A.t, pinned.traces.iq_ref_A.y, "iq command (pinned)", axes));
-  return data;
+  return timePlot(["x2", "y2"], [
+    [[0, run.t_end_s], [run.i_max_A, run.i_max_A], "+i_max", COLORS.limit, "dash"],
+    [[0, run.t_end_s], [-run.i_max_A, -run.i_max_A], "-i_max", COLORS.limit, "dash"],
+    [tr.id_ref_A.t, tr.id_ref_A.y, "id command", COLORS.d],
+    [tr.iq_ref_A.t, tr.iq_ref_A.y, "iq command", COLORS.current],
+  ], pinned && [pinned.traces.iq_ref_A.t, pinned.traces.iq_ref_A.y, "iq command (pinned)"]);
 }
 
 function detailTraces(run, pinned) {
   const d = run.detail;
-  const axes = ["x3", "y3"];
-  const data = [
-    line(d.t, d.speed_ref_rpm, "reference", COLORS.reference, axes, "dash"),
-    line(d.t, d.speed_rpm, "speed", COLORS.current, axes),
-  ];
-  if (pinned) data.push(pinnedLine(pinned.detail.t, pinned.detail.speed_rpm, "speed (pinned)", axes));
-  return data;
+  return timePlot(["x3", "y3"], [
+    [d.t, d.speed_ref_rpm, "reference", COLORS.reference, "dash"],
+    [d.t, d.speed_rpm, "speed", COLORS.current],
+  ], pinned && [pinned.detail.t, pinned.detail.speed_rpm, "speed (pinned)"]);
+}
+
+function voltageTraces(run, pinned) {
+  const tr = run.traces;
+  return timePlot(["x6", "y6"], [
+    [tr.u_max_V.t, tr.u_max_V.y, "range u_dc/\u221a3", COLORS.limit, "dash"],
+    [tr.u_dq_V.t, tr.u_dq_V.y, "||u_dq||", COLORS.current],
+  ], pinned && [pinned.traces.u_dq_V.t, pinned.traces.u_dq_V.y, "||u_dq|| (pinned)"]);
 }
 
 function bodeTraces(run, pinned) {
@@ -327,10 +341,23 @@ function bodeTraces(run, pinned) {
     const dash = pin ? "dot" : "solid";
     data.push(line(b.w_radps, b.Gx_dB, name("|Gx| [dB]"), color(COLORS.gx), ["x4", "y4"], dash));
     data.push(line(b.w_radps, b.GN_dB, name("|GN| [dB (rad/s)/Nm]"), color(COLORS.gn), ["x4", "y4"], dash));
-    data.push(line(b.w_radps, b.Gx_deg, name("\u2220Gx [deg]"), color(COLORS.gx), ["x4", "y5"], dash));
-    data.push(line(b.w_radps, b.GN_deg, name("\u2220GN [deg]"), color(COLORS.gn), ["x4", "y5"], dash));
+    data.push(line(b.w_radps, b.Gx_deg, name("\u2220Gx [deg]"), color(COLORS.gx), ["x5", "y5"], dash));
+    data.push(line(b.w_radps, b.GN_deg, name("\u2220GN [deg]"), color(COLORS.gn), ["x5", "y5"], dash));
   }
   return data;
+}
+
+function spanShapes(run) {
+  const shapes = [];
+  for (const [kind, span] of Object.entries(SPANS)) {
+    for (const [t0, t1] of run.spans[kind]) {
+      for (const [x, y] of TIME_AXES) {
+        shapes.push({ type: "rect", xref: x, yref: y + " domain", x0: t0, x1: t1, y0: 0, y1: 1, layer: "below",
+                      fillcolor: span.fill, line: { width: 0 }, name: span.text });
+      }
+    }
+  }
+  return shapes;
 }
 
 function figureLayout(run, pinned) {
@@ -338,34 +365,51 @@ function figureLayout(run, pinned) {
   const nyquist = run.bode.w_nyquist_radps;
   const inView = nyquist <= run.bode.w_radps[run.bode.w_radps.length - 1];
   const axis = (text, extra) => Object.assign({ title: { text: text, standoff: 2, font: { size: 12 } } }, extra);
+  const pinKey = pinned ? [key(COLORS.pinned, DOTTED, "pinned")] : [];
+  const limitKeys = Object.entries(SPANS).filter(([kind]) => run.spans[kind].length)
+    .map(([, span]) => key(span.key, PATCH, span.text));
+  const bodeKeys = [key(COLORS.gx, SOLID, "Gx tracking"), key(COLORS.gn, SOLID, "GN load [(rad/s)/Nm]")];
+  const annotations = [
+    title(COLS[0][0], TOP[1], "Speed",
+      [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")].concat(pinKey, limitKeys)),
+    title(COLS[1][0], TOP[1], "Current command",
+      [key(COLORS.current, SOLID, "iq"), key(COLORS.d, SOLID, "id"), key(COLORS.limit, DASHED, "\u00b1i_max")].concat(pinKey)),
+    title(COLS[0][0], MIDDLE[1], run.detail.title,
+      [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")].concat(pinKey)),
+    title(COLS[1][0], MIDDLE[1], "Voltage",
+      [key(COLORS.current, SOLID, "||u_dq||"), key(COLORS.limit, DASHED, "range u_dc/\u221a3")].concat(pinKey)),
+    title(COLS[0][0], BOTTOM[1], "Bode magnitude (eq 6, 8)", bodeKeys.concat(pinKey)),
+    title(COLS[1][0], BOTTOM[1], "Bode phase", []),
+  ];
+  const shapes = spanShapes(run);
+  // pi/Ts, where the sampled controller leaves the continuous design, when it is in view
+  if (inView) {
+    for (const [x, y] of [["x4", "y4"], ["x5", "y5"]]) {
+      shapes.push({ type: "line", xref: x, yref: y + " domain", x0: nyquist, x1: nyquist, y0: 0, y1: 1,
+                    line: { color: "#999", width: 1, dash: "dot" } });
+      annotations.push({ xref: x, yref: y + " domain", x: Math.log10(nyquist), y: 1, text: "\u03c0/Ts",
+                         showarrow: false, xanchor: "right", yanchor: "top", font: { size: 10, color: "#777" } });
+    }
+  }
   return {
     showlegend: false,
     hovermode: "closest",
     uirevision: "keep",
-    margin: { l: 62, r: 12, t: 8, b: 42 },
+    margin: { l: 62, r: 12, t: 22, b: 42 },
     xaxis: axis("t [s]", { domain: COLS[0], anchor: "y" }),
     yaxis: axis("speed [rpm]", { domain: TOP, anchor: "x" }),
     xaxis2: axis("t [s]", { domain: COLS[1], anchor: "y2" }),
     yaxis2: axis("current [A]", { domain: TOP, anchor: "x2" }),
     xaxis3: axis("t [s]", { domain: COLS[0], anchor: "y3", range: [w[0], w[w.length - 1]] }),
-    yaxis3: axis("speed [rpm]", { domain: BOTTOM, anchor: "x3" }),
-    xaxis4: axis("\u03c9 [rad/s]", { domain: COLS[1], anchor: "y5", type: "log" }),
-    yaxis4: axis("magnitude [dB]", { domain: [0.22, BOTTOM[1]], anchor: "x4" }),
-    yaxis5: axis("phase [deg]", { domain: [0, 0.18], anchor: "x4" }),
-    annotations: [
-      title(COLS[0][0], TOP[1], "Speed",
-        [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")], pinned),
-      title(COLS[1][0], TOP[1], "Current command",
-        [key(COLORS.current, SOLID, "iq"), key(COLORS.d, SOLID, "id"), key(COLORS.limit, DASHED, "\u00b1i_max")], pinned),
-      title(COLS[0][0], BOTTOM[1], run.detail.title,
-        [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")], pinned),
-      title(COLS[1][0], BOTTOM[1], "Bode (eq 6, 8)",
-        [key(COLORS.gx, SOLID, "Gx tracking"), key(COLORS.gn, SOLID, "GN load [(rad/s)/Nm]")], pinned),
-    ].concat(inView ? [{ xref: "x4", yref: "paper", x: Math.log10(nyquist), y: BOTTOM[1] - 0.01, text: "\u03c0/Ts",
-                         showarrow: false, xanchor: "right", yanchor: "top", font: { size: 10, color: "#777" } }] : []),
-    // pi/Ts, where the sampled controller leaves the continuous design, when it is in view
-    shapes: inView ? [{ type: "line", xref: "x4", yref: "paper", x0: nyquist, x1: nyquist, y0: 0, y1: BOTTOM[1],
-                        line: { color: "#999", width: 1, dash: "dot" } }] : [],
+    yaxis3: axis("speed [rpm]", { domain: MIDDLE, anchor: "x3" }),
+    xaxis6: axis("t [s]", { domain: COLS[1], anchor: "y6" }),
+    yaxis6: axis("voltage [V]", { domain: MIDDLE, anchor: "x6", rangemode: "tozero" }),
+    xaxis4: axis("\u03c9 [rad/s]", { domain: COLS[0], anchor: "y4", type: "log" }),
+    yaxis4: axis("magnitude [dB]", { domain: BOTTOM, anchor: "x4" }),
+    xaxis5: axis("\u03c9 [rad/s]", { domain: COLS[1], anchor: "y5", type: "log" }),
+    yaxis5: axis("phase [deg]", { domain: BOTTOM, anchor: "x5" }),
+    annotations: annotations,
+    shapes: shapes,
   };
 }
 
@@ -380,12 +424,16 @@ function renderMetrics(run, pinned) {
       body.appendChild(el("tr", { class: "group" }, [el("th", { colspan: "3", text: group })]));
     }
     const p = pinnedRows.get(m.key);
-    body.appendChild(el("tr", { "data-metric": m.key }, [
+    const warn = m.key === "run.voltage_limit_time_s" && m.value > 0;
+    body.appendChild(el("tr", { "data-metric": m.key, class: warn ? "warning" : "" }, [
       el("td", { text: m.label + (m.unit ? " [" + m.unit + "]" : "") }),
       el("td", { class: "current", text: fmt(m.value), title: m.reason }),
       el("td", { class: "pinned", text: p ? fmt(p.value) : "", title: p ? p.reason : "" }),
     ]));
   }
+  const warning = document.getElementById("warning");
+  warning.textContent = run.warnings.join(" ");
+  warning.hidden = run.warnings.length === 0;
   const d = run.design;
   const log = run.log;
   document.getElementById("design").textContent =
@@ -402,7 +450,7 @@ async function render(run) {
   window.tuner.current = run;
   const pinned = window.tuner.pinned;
   const data = [].concat(speedTraces(run, pinned), currentTraces(run, pinned), detailTraces(run, pinned),
-                         bodeTraces(run, pinned));
+                         voltageTraces(run, pinned), bodeTraces(run, pinned));
   await Plotly.react("plot", data, figureLayout(run, pinned), PLOT_CONFIG);
   renderMetrics(run, pinned);
 }
