@@ -117,6 +117,17 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     assert float(current) > float(pinned)
     names = page.evaluate("document.getElementById('plot').data.filter((d) => d.xaxis === 'x').map((d) => d.name)")
     assert "speed (pinned)" in names
+    traces = page.evaluate(TRACES_JS)
+
+    # the pinned Bode curves: dotted, a colour for Gx and another for GN, none of the current ones
+    for unit in ("|Gx| [dB]", "|GN| [dB (rad/s)/Nm]", "\u2220Gx [deg]", "\u2220GN [deg]"):
+        assert traces["pinned " + unit]["dash"] == "dot" and traces[unit]["dash"] == "solid"
+    colors = [traces[name]["color"] for name in ("pinned |Gx| [dB]", "pinned |GN| [dB (rad/s)/Nm]",
+                                                 "|Gx| [dB]", "|GN| [dB (rad/s)/Nm]")]
+    assert len(set(colors)) == 4
+    assert traces["pinned \u2220Gx [deg]"]["color"] == colors[0]
+    keys = page.locator("#plot .annotation-text").all_text_contents()
+    assert any("pinned Gx" in k and "pinned GN" in k for k in keys)
 
     # a bad value: a visible message naming the key, the plots stay as they were
     renders = page.evaluate("window.tuner.renderCount")

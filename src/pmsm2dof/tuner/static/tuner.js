@@ -16,7 +16,7 @@ const COALESCE_MS = 10;
 const PLOT_CONFIG = { displaylogo: false, responsive: true, showSendToCloud: false, plotlyServerURL: "",
                       modeBarButtonsToRemove: ["lasso2d", "select2d", "sendChartToCloud"] };
 const COLORS = { current: "#1f77b4", reference: "#222", pinned: "#aaa", limit: "#d62728", d: "#2ca02c",
-                 gx: "#1f77b4", gn: "#ff7f0e" };
+                 gx: "#1f77b4", gn: "#ff7f0e", gxPinned: "#74a9cf", gnPinned: "#fdae6b" };
 /* Shading of the spans at a limit: its fill, and the colour of its key in the titles. */
 const SPANS = { current: { fill: "rgba(255, 165, 0, 0.2)", key: "#e69500", text: "current limit" },
                 voltage: { fill: "rgba(148, 0, 211, 0.14)", key: "#9400d3", text: "voltage limit" } };
@@ -333,16 +333,16 @@ function voltageTraces(run, pinned) {
   ], pinned && [pinned.traces.u_dq_V.t, pinned.traces.u_dq_V.y, "||u_dq|| (pinned)"]);
 }
 
+/* Bode of the run, and of the pinned run dotted in lighter colours of its own per curve. */
 function bodeTraces(run, pinned) {
   const data = [];
-  for (const [b, pin] of pinned ? [[pinned.bode, true], [run.bode, false]] : [[run.bode, false]]) {
-    const name = (n) => (pin ? n + " (pinned)" : n);
-    const color = (c) => (pin ? COLORS.pinned : c);
-    const dash = pin ? "dot" : "solid";
-    data.push(line(b.w_radps, b.Gx_dB, name("|Gx| [dB]"), color(COLORS.gx), ["x4", "y4"], dash));
-    data.push(line(b.w_radps, b.GN_dB, name("|GN| [dB (rad/s)/Nm]"), color(COLORS.gn), ["x4", "y4"], dash));
-    data.push(line(b.w_radps, b.Gx_deg, name("\u2220Gx [deg]"), color(COLORS.gx), ["x5", "y5"], dash));
-    data.push(line(b.w_radps, b.GN_deg, name("\u2220GN [deg]"), color(COLORS.gn), ["x5", "y5"], dash));
+  const curves = [[run.bode, "", COLORS.gx, COLORS.gn, "solid"]];
+  if (pinned) curves.unshift([pinned.bode, "pinned ", COLORS.gxPinned, COLORS.gnPinned, "dot"]);
+  for (const [b, prefix, gx, gn, dash] of curves) {
+    data.push(line(b.w_radps, b.Gx_dB, prefix + "|Gx| [dB]", gx, ["x4", "y4"], dash));
+    data.push(line(b.w_radps, b.GN_dB, prefix + "|GN| [dB (rad/s)/Nm]", gn, ["x4", "y4"], dash));
+    data.push(line(b.w_radps, b.Gx_deg, prefix + "\u2220Gx [deg]", gx, ["x5", "y5"], dash));
+    data.push(line(b.w_radps, b.GN_deg, prefix + "\u2220GN [deg]", gn, ["x5", "y5"], dash));
   }
   return data;
 }
@@ -369,6 +369,7 @@ function figureLayout(run, pinned) {
   const limitKeys = Object.entries(SPANS).filter(([kind]) => run.spans[kind].length)
     .map(([, span]) => key(span.key, PATCH, span.text));
   const bodeKeys = [key(COLORS.gx, SOLID, "Gx tracking"), key(COLORS.gn, SOLID, "GN load [(rad/s)/Nm]")];
+  const pinnedBodeKeys = pinned ? [key(COLORS.gxPinned, DOTTED, "pinned Gx"), key(COLORS.gnPinned, DOTTED, "pinned GN")] : [];
   const annotations = [
     title(COLS[0][0], TOP[1], "Speed",
       [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")].concat(pinKey, limitKeys)),
@@ -378,8 +379,8 @@ function figureLayout(run, pinned) {
       [key(COLORS.current, SOLID, "speed"), key(COLORS.reference, DASHED, "reference")].concat(pinKey)),
     title(COLS[1][0], MIDDLE[1], "Voltage",
       [key(COLORS.current, SOLID, "||u_dq||"), key(COLORS.limit, DASHED, "range u_dc/\u221a3")].concat(pinKey)),
-    title(COLS[0][0], BOTTOM[1], "Bode magnitude (eq 6, 8)", bodeKeys.concat(pinKey)),
-    title(COLS[1][0], BOTTOM[1], "Bode phase", []),
+    title(COLS[0][0], BOTTOM[1], "Bode magnitude (eq 6, 8)", bodeKeys),
+    title(COLS[1][0], BOTTOM[1], "Bode phase", pinnedBodeKeys),
   ];
   const shapes = spanShapes(run);
   // pi/Ts, where the sampled controller leaves the continuous design, when it is in view
