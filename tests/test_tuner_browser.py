@@ -2,9 +2,9 @@
 
 A person's session: open the page, move the bandwidth slider, see the plotted overshoot and
 the metrics table change, pin the run, switch the anti-windup off and see the overshoot grow
-(paper section 4.1, Fig. 8), type a bad value and read the message, download the C header and
-build it with the C core into a program that initializes the controller. And a drive whose DC
-link is too low for its speed: the voltage limit is shown.
+(paper section 4.1, Fig. 8), type a bad value and read the message over the dimmed plots,
+download the C header and build it with the C core into a program that initializes the
+controller. And a drive whose DC link is too low for its speed: the voltage limit is shown.
 """
 
 import contextlib
@@ -129,8 +129,9 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     keys = page.locator("#plot .annotation-text").all_text_contents()
     assert any("pinned Gx" in k and "pinned GN" in k for k in keys)
 
-    # a bad value: a visible message naming the key, the plots stay as they were
+    # a bad value: a visible message naming the key; the plots stay, dimmed under a banner
     renders = page.evaluate("window.tuner.renderCount")
+    assert not page.locator("#stale").is_visible()
     box = page.locator('input[name="speed_controller.zeta"]')
     box.fill("-2")
     box.press("Enter")
@@ -140,10 +141,15 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     assert "speed_controller.zeta = -2.0 is invalid" in banner.inner_text()
     assert page.locator('.control.invalid[data-key="speed_controller.zeta"]').count() == 1
     assert page.evaluate("window.tuner.renderCount") == renders
+    assert page.locator("#stale").is_visible() and page.evaluate("window.tuner.stale")
+    assert "last valid settings" in page.locator("#stale").inner_text()
+    assert float(page.evaluate("getComputedStyle(document.getElementById('plot')).opacity")) < 0.5
     box.fill("0.2887")
     box.press("Enter")
     wait_for_render(page, renders)
     assert not banner.is_visible()
+    assert not page.locator("#stale").is_visible() and not page.evaluate("window.tuner.stale")
+    assert page.evaluate("getComputedStyle(document.getElementById('plot')).opacity") == "1"
 
     page.screenshot(path=str(tmp_path / "tuner.png"))
     assert (tmp_path / "tuner.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -8,6 +8,9 @@
  * request wins). So the plots follow a moving slider at the pace the server allows.
  * Requests carry the page's client id: the server runs one simulation per client at a time
  * and answers 409 to a request that a newer one of the same client superseded.
+ *
+ * After a rejected request the plots stay, dimmed and marked stale, until a valid one
+ * redraws them.
  */
 "use strict";
 
@@ -29,6 +32,7 @@ window.tuner = {
   renderedSeq: 0,     // number of the request whose response is on screen
   renderCount: 0,     // responses drawn
   errorCount: 0,      // 422 answers shown
+  stale: false,       // the plots show the last valid settings, not the controls'
   lastLatencyMs: null, // control change -> plots redrawn, for the response on screen
   lastServerMs: null,  // server computing time for it
   lastFetchMs: null,   // request sent -> response parsed, for it
@@ -194,6 +198,14 @@ function showError(error) {
   }
 }
 
+/* Plots and metrics of settings that are no longer the controls' are dimmed under a banner. */
+function markStale(stale) {
+  window.tuner.stale = stale;
+  document.getElementById("plots").classList.toggle("stale", stale);
+  document.getElementById("metrics").classList.toggle("stale", stale);
+  document.getElementById("stale").hidden = !stale;
+}
+
 async function requestRun() {
   if (state.inFlight) { state.dirty = true; return; }
   state.inFlight = true;
@@ -215,6 +227,7 @@ async function requestRun() {
       window.tuner.lastServerMs = run.server_ms;
       window.tuner.lastFetchMs = fetchMs;
       showError(null);
+      markStale(false);
       document.getElementById("status").textContent =
         `redrawn ${window.tuner.lastLatencyMs.toFixed(0)} ms after the change ` +
         `(server ${run.server_ms.toFixed(0)} ms, request ${fetchMs.toFixed(0)} ms)`;
@@ -225,6 +238,7 @@ async function requestRun() {
     } else {
       window.tuner.errorCount += 1;
       showError(error);
+      if (window.tuner.current) markStale(true);
       document.getElementById("status").textContent = "not updated: see the message";
     }
   } finally {
