@@ -5,7 +5,7 @@ Three numbers per preset:
 - server: ``Tuner.run`` in-process (design, simulation in the compiled engine, metrics,
   decimation, Bode), of which the simulation alone;
 - HTTP: a POST /api/run through uvicorn on loopback, JSON included;
-- browser: in headless Chromium, a keyboard step of the alpha slider until the four plots and
+- browser: in headless Chromium, a keyboard step of the alpha slider until the six plots and
   the metrics table are redrawn (``window.tuner.lastLatencyMs``, measured by the page from the
   input event to the animation frame after the redraw; it includes the 10 ms coalescing
   delay), and of it the request (``lastFetchMs``: sent -> JSON parsed).
