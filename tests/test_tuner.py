@@ -611,6 +611,15 @@ def test_header_download_holds_the_posted_design(client):
     assert '#include "pmsm2dof/speed.h"' in text
 
 
+@pytest.mark.parametrize("feedforward", ["lowpass", "none"])
+def test_header_download_of_the_paper_design_sampled_at_100_us(client, feedforward):
+    """The paper's design (alpha = 0.5 rad/s) at Ts = 1e-4 s: slow against the sampling, but stable."""
+    response = client.post("/api/download/header.h", json={"speed_controller.Ts_s": 1e-4,
+                                                           "speed_controller.feedforward": feedforward})
+    assert response.status_code == 200, response.text
+    assert "Ts_s        = 0.0001 s" in response.text
+
+
 def test_trace_download_is_the_logged_run(client, base):
     """The trace is the run the page draws: 12001 speed samples of 1 ms logged every 3rd (LOG_ROWS_MAX = 5000)."""
     response = client.post("/api/download/trace.csv", json={"simulation.t_end_s": 12.0})
