@@ -21,6 +21,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
@@ -290,20 +291,46 @@ def test_plausible_scenarios_simulate_with_finite_results(scenario):
         event(f"rejected: {exc.param}")
         return
     check_result(result)
+    check_sensor_readings(scenario, result)
+    event("simulated")
+
+
+def check_sensor_readings(scenario, result):
+    """Outside its sensor faults the speed controller reads the true speed; a spike reads its value."""
     d = scenario.data
     spikes = [f for f in d["fault"] if f["kind"] == "sensor_spike"]
     quiet = np.ones(len(result.t_s), dtype=bool)
     Ts = d["speed_controller"]["Ts_s"]
+    # the engine takes times closer than 1e-6 of its integration step as equal (drive.h, t_tol_s)
+    Ts_current = d["current_loop"]["Ts_s"]
+    t_tol = 1e-6 * Ts_current / math.ceil(Ts_current / d["simulation"]["dt_s"] * (1.0 - 1e-9))
     for f in d["fault"]:
         if f["kind"] != "dc_link_sag":
             end = f["t_s"] + (Ts if f["kind"] == "sensor_spike" else f["duration_s"])
-            quiet &= ~((result.t_s >= f["t_s"] - 1e-9) & (result.t_s < end - 1e-9))
+            quiet &= ~((result.t_s >= f["t_s"] - t_tol) & (result.t_s < end - t_tol))
     assert np.array_equal(result.speed_meas_rpm[quiet], result.speed_rpm[quiet])
     for f in spikes:
-        k = np.searchsorted(result.t_s, f["t_s"] - 1e-9)
+        k = np.searchsorted(result.t_s, f["t_s"] - t_tol)
         if k < len(result.t_s):
             assert math.isclose(result.speed_meas_rpm[k], f["speed_rpm"], rel_tol=1e-12, abs_tol=1e-9)
-    event("simulated")
+
+
+def test_a_sensor_fault_window_off_the_sample_grid_is_read_as_the_engine_times_it():
+    """A hold from 1e-9 s for 10 ms covers the sample at 10 ms: [1e-9, 0.01 + 1e-9) holds it.
+
+    Found by the property above, which had compared sample times with 1e-9 s instead of the
+    engine's tolerance of 1e-6 of an integration step (5e-11 s here).
+    """
+    scenario = load_scenario("paper-condition-1").with_overrides({
+        "current_loop.tau_i_s": 0.00025, "current_loop.Ts_s": 5e-05, "speed_controller.Ts_s": 5e-05,
+        "simulation.t_end_s": 0.05, "simulation.speed0_rpm": 0.0,
+        "reference": [{"t_s": 0.0, "speed_rpm": -5.0}],
+        "fault": [{"kind": "sensor_hold", "t_s": 1e-9, "duration_s": 0.01}]})
+    result = simulate(scenario)
+    k = int(np.searchsorted(result.t_s, 0.01 - 1e-12))
+    assert result.t_s[k] == pytest.approx(0.01) and result.speed_rpm[k] != 0.0
+    assert result.speed_meas_rpm[k] == result.speed_meas_rpm[0]
+    check_sensor_readings(scenario, result)
 
 
 PRESET_TEXT = (Path(__file__).parents[1] / "src" / "pmsm2dof" / "presets" / "fault-sensor-spike.toml").read_bytes()
