@@ -50,9 +50,9 @@ import numpy as np
 
 from results_md import measured_by, write_section
 
-from pmsm2dof.design import design
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.simulate import RPM_PER_RADPS, simulate
+from pmsm2dof.analysis.design import design
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.sim.simulate import RPM_PER_RADPS, simulate
 
 HERE = Path(__file__).resolve().parent
 RUNNER = HERE / "motulator" / "run_motulator.py"

@@ -44,8 +44,8 @@ SECTION_MEMORY = "## Memory of a long run"
 
 def single_run(repeats, runs):
     """Simulated s per wall s of paper-condition-2 (dq_pi): the median of ``runs`` timed runs, per repeat."""
-    from pmsm2dof.scenario import load_scenario
-    from pmsm2dof.simulate import simulate
+    from pmsm2dof.sim.scenario import load_scenario
+    from pmsm2dof.sim.simulate import simulate
 
     scenario = load_scenario("paper-condition-2").with_overrides({"current_loop.model": "dq_pi"})
     t_end = scenario.data["simulation"]["t_end_s"]
@@ -73,7 +73,8 @@ def sweep_rates(path, repeats):
     inside the engine's C call) per repetition]}``, the time to write the results and figures
     of a finished sweep, and the number of figures.
     """
-    from pmsm2dof.sweep import load_sweep, run_sweep
+    from pmsm2dof.studies.sweep import load_sweep, run_sweep
+    from pmsm2dof.ui.plots.sweep import draw_figures
 
     sweep = load_sweep(path)
     n = len(sweep.points)
@@ -83,20 +84,20 @@ def sweep_rates(path, repeats):
             for workers in rates:
                 out = Path(tmp) / f"w{workers}-{k}"
                 start, cpu = time.perf_counter(), _cpu_s()
-                run = run_sweep(sweep, out, workers=workers, progress=False, figures=False)
+                run = run_sweep(sweep, out, workers=workers, progress=False, figures=None)
                 wall, cpu = time.perf_counter() - start, _cpu_s() - cpu
                 engine = float(run.table["wall_time_s"].sum())
                 rates[workers].append((n / wall, cpu / n, engine / (workers * wall)))
         start = time.perf_counter()
-        run = run_sweep(sweep, out, progress=False, figures=True)
+        run = run_sweep(sweep, out, progress=False, figures=draw_figures)
         outputs_s = time.perf_counter() - start
     return sweep, rates, outputs_s, len(run.files) - 2
 
 
 MEMORY_PROBE = r"""
 import json, resource, sys, time
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.simulate import simulate
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.sim.simulate import simulate
 base = load_scenario("paper-condition-2")
 Ts = base.data["current_loop"]["Ts_s"]
 scenario = base.with_overrides({"simulation.t_end_s": 60.0, "speed_controller.Ts_s": Ts,

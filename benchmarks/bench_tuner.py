@@ -25,9 +25,9 @@ import time
 
 import httpx
 
-from pmsm2dof.scenario import list_presets, load_scenario
-from pmsm2dof.tuner import create_app, serving_in_thread
-from pmsm2dof.tuner.experiment import Tuner
+from pmsm2dof.sim.scenario import list_presets, load_scenario
+from pmsm2dof.ui.tuner import create_app, serving_in_thread
+from pmsm2dof.ui.tuner.experiment import Tuner
 
 CHROMIUM = "/usr/bin/chromium"
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from pmsm2dof.cli import main
+from pmsm2dof.ui.cli import main
 
 PAPER = ["--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--m", "1", "--tau-i", "0.05", "--Ts", "1e-3",
          "--method", "tustin", "--feedforward", "full"]

@@ -16,9 +16,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pmsm2dof.cli import main
+from pmsm2dof.ui.cli import main
 from pmsm2dof.errors import SimulationError
-from pmsm2dof.scenario import list_presets, load_scenario
+from pmsm2dof.sim.scenario import list_presets, load_scenario
 
 BAD = Path(__file__).parent / "bad_scenarios"
 REQUIRED_COLUMNS = ["t_s", "speed_ref_rpm", "speed_rpm", "id_ref_A", "iq_ref_A", "id_A", "iq_A", "torque_Nm",
@@ -97,7 +97,7 @@ def test_out_is_an_existing_file(tmp_path, capsys):
 
 def test_failure_during_the_run_leaves_the_old_output_untouched(tmp_path, capsys, monkeypatch):
     """An error after the trace is written (here: in the plot) leaves no new file behind."""
-    import pmsm2dof.traceplot
+    import pmsm2dof.ui.plots.trace
 
     out = tmp_path / "out"
     out.mkdir()
@@ -106,7 +106,7 @@ def test_failure_during_the_run_leaves_the_old_output_untouched(tmp_path, capsys
     def failing_plot(result, path):
         raise SimulationError("plot failed on purpose")
 
-    monkeypatch.setattr(pmsm2dof.traceplot, "plot_trace", failing_plot)
+    monkeypatch.setattr(pmsm2dof.ui.plots.trace, "plot_trace", failing_plot)
     code, _, err = run(["simulate", "paper-experiment-1", "--set", "simulation.t_end_s=1", "--out", str(out)],
                        capsys)
     assert code == 2 and "plot failed on purpose" in err and len(err.splitlines()) == 1

@@ -15,8 +15,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pmsm2dof import CurrentController, SpeedController
-from pmsm2dof.codegen import c_float, c_header
-from pmsm2dof.design import design
+from pmsm2dof.analysis.codegen import c_float, c_header
+from pmsm2dof.analysis.design import design
 
 ROOT = Path(__file__).resolve().parents[1]
 CSRC = ROOT / "csrc"
@@ -253,8 +253,8 @@ def test_invalid_header_options_leave_no_file(tmp_path, param, options):
 def test_header_of_a_finely_sampled_design_from_the_tuner(feedforward):
     """The paper's design with the speed loop at Ts = 1e-4 (alpha Ts = 5e-5): the tuner's
     header download once failed on a figure of merit of this stable design."""
-    from pmsm2dof.scenario import load_scenario
-    from pmsm2dof.tuner.experiment import Tuner
+    from pmsm2dof.sim.scenario import load_scenario
+    from pmsm2dof.ui.tuner.experiment import Tuner
 
     values = {"speed_controller.Ts_s": 1e-4, "speed_controller.feedforward": feedforward}
     name, media_type, text = Tuner(load_scenario("paper-condition-2")).download("header.h", values)

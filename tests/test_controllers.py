@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from pmsm2dof._core import lib
-from pmsm2dof.controllers import (
+from pmsm2dof.core.bindings import lib
+from pmsm2dof.core import (
     ANTI_WINDUPS,
     FEEDFORWARDS,
     METHODS,
@@ -41,7 +41,7 @@ def test_every_status_code_names_a_parameter_of_the_bindings():
 
     names = set(inspect.signature(SpeedController).parameters) | set(inspect.signature(CurrentController).parameters)
     for status in range(2, lib.P2D_STATUS_COUNT):  # after P2D_OK and P2D_ERR_NULL
-        from pmsm2dof._core import ffi
+        from pmsm2dof.core.bindings import ffi
 
         assert ffi.string(lib.p2d_status_param(status)).decode() in names
 

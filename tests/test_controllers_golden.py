@@ -18,8 +18,8 @@ import scipy.linalg
 import scipy.signal
 from scipy.optimize import minimize_scalar
 
-from pmsm2dof._core import ffi, lib
-from pmsm2dof.controllers import ANTI_WINDUPS, METHODS, CurrentController, SpeedController
+from pmsm2dof.core.bindings import ffi, lib
+from pmsm2dof.core import ANTI_WINDUPS, METHODS, CurrentController, SpeedController
 
 
 def f32(x):

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from pmsm2dof.controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
+from pmsm2dof.core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
 from pmsm2dof.errors import ConfigError
 
 SETTINGS = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -10,9 +10,9 @@ import tomllib
 import pytest
 
 from pmsm2dof import SpeedController, design, load_scenario
-from pmsm2dof.cli import main
-from pmsm2dof.plots import bode_gx_sweep
-from pmsm2dof.scenario import Scenario
+from pmsm2dof.ui.cli import main
+from pmsm2dof.ui.plots.design import bode_gx_sweep
+from pmsm2dof.sim.scenario import Scenario
 
 MOTOR = dict(Ts_s=1e-3, i_max_A=7.6, psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01, pole_pairs=4)
 DEFAULT = "lowpass"

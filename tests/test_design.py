@@ -13,7 +13,8 @@ import pytest
 from scipy import optimize, signal
 
 import pmsm2dof
-from pmsm2dof.design import FEEDFORWARDS, Design, design
+from pmsm2dof.analysis.design import Design, design
+from pmsm2dof.core import FEEDFORWARDS
 
 # (J_kgm2, alpha_radps, zeta, m, tau_i_s): the paper's values and others far from them
 PARAMETER_SETS = [

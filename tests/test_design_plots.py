@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from pmsm2dof.design import design
-from pmsm2dof.plots import bode_gn, bode_gx_sweep, save_figure, step_responses
+from pmsm2dof.analysis.design import design
+from pmsm2dof.ui.plots.design import bode_gn, bode_gx_sweep, save_figure, step_responses
 
 J, ALPHA, ZETA, TAU = 0.4, 0.5, 0.2887, 0.05
 KP, KI = J * ALPHA, J * ALPHA**2 / (4 * ZETA**2)

@@ -19,8 +19,9 @@ import pytest
 from scipy import optimize, signal
 
 from pmsm2dof import SamplingWarning, SpeedController
-from pmsm2dof.design import FEEDFORWARDS, design
-from pmsm2dof.discretize import METHODS
+from pmsm2dof.analysis.design import design
+from pmsm2dof.core import FEEDFORWARDS
+from pmsm2dof.core import METHODS
 
 J, ALPHA, ZETA, TAU = 0.4, 0.5, 0.2887, 0.05
 CASES = [  # (J, alpha, zeta, m, tau_i, Ts)

@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from pmsm2dof._core import lib
-from pmsm2dof.controllers import CurrentController, SpeedController
+from pmsm2dof.core.bindings import lib
+from pmsm2dof.core import CurrentController, SpeedController
 from pmsm2dof.errors import SimulationError
-from pmsm2dof.scenario import Scenario, load_scenario
-from pmsm2dof.simulate import _EngineRun, simulate
+from pmsm2dof.sim.scenario import Scenario, load_scenario
+from pmsm2dof.sim.simulate import Simulation, simulate
 
 RADPS_PER_RPM = math.pi / 30.0
 
@@ -322,7 +322,7 @@ def test_overcurrent_stops():
     """A current controller tuned for 1000 times the plant's inductance: with the computation
     delay the loop is unstable and the voltage bangs between the limits, driving currents far
     beyond ten times the short-circuit current of this low-flux plant."""
-    run = _EngineRun(paper2(**{"inverter.computation_delay": True, "simulation.t_end_s": 0.1,
+    run = Simulation(paper2(**{"inverter.computation_delay": True, "simulation.t_end_s": 0.1,
                                "reference": [{"t_s": 0.0, "speed_rpm": 500.0}], "load": []}).data)
     run.cfg.motor.Ld_H = run.cfg.motor.Lq_H = 1e-5
     run.cfg.motor.psi_f_Wb = 1e-4

@@ -19,14 +19,15 @@ import math
 import numpy as np
 import pytest
 
-from pmsm2dof._core import lib
-from pmsm2dof.cli import main
-from pmsm2dof.controllers import ANTI_WINDUPS
+from pmsm2dof.core.bindings import lib
+from pmsm2dof.ui.cli import main
+from pmsm2dof.core import ANTI_WINDUPS
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.metrics import compute_metrics
-from pmsm2dof.report import FAULT_PRESETS, _fault_blocks, fault_figures, run_faults
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.simulate import _EngineRun, simulate
+from pmsm2dof.sim.metrics import compute_metrics
+from pmsm2dof.studies.faults import FAULT_PRESETS, fault_figures, run_faults
+from pmsm2dof.ui.report.render import _fault_blocks
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.sim.simulate import Simulation, simulate
 
 RADPS_PER_RPM = math.pi / 30.0
 PRESETS = ["fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike"]
@@ -331,7 +332,7 @@ def test_sensor_spike_between_samples_hits_the_next_one():
 @pytest.mark.parametrize("field, value", [("value", 1.5), ("value", -0.1), ("value", math.nan), ("duration_s", 0.0),
                                           ("t_s", -1.0), ("t_s", math.inf), ("kind", 7)])
 def test_engine_rejects_bad_fault_entries_naming_the_fault_key(field, value):
-    r = _EngineRun(load_scenario("fault-dc-link-sag").data)
+    r = Simulation(load_scenario("fault-dc-link-sag").data)
     setattr(r.cfg.faults[0], field, value)
     status = lib.p2d_sim_init(r.sim, r.cfg)
     assert status == lib.P2D_SIM_ERR_FAULTS
@@ -341,7 +342,7 @@ def test_engine_rejects_bad_fault_entries_naming_the_fault_key(field, value):
 
 
 def test_engine_rejects_a_sag_without_an_inverter():
-    r = _EngineRun(load_scenario("fault-dc-link-sag").data)
+    r = Simulation(load_scenario("fault-dc-link-sag").data)
     r.cfg.current_model = lib.P2D_CURRENT_FIRST_ORDER
     assert lib.p2d_sim_init(r.sim, r.cfg) == lib.P2D_SIM_ERR_FAULTS
 

@@ -13,8 +13,8 @@ import pytest
 from scipy.optimize import brentq
 
 from pmsm2dof.errors import SimulationError
-from pmsm2dof.metrics import compute_metrics, summary_lines
-from pmsm2dof.scenario import load_scenario
+from pmsm2dof.sim.metrics import compute_metrics, summary_lines
+from pmsm2dof.sim.scenario import load_scenario
 
 DT = 1e-3
 

@@ -16,9 +16,9 @@ import pytest
 from scipy.optimize import brentq
 from scipy.signal import residue
 
-from pmsm2dof.metrics import compute_metrics
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.simulate import simulate
+from pmsm2dof.sim.metrics import compute_metrics
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.sim.simulate import simulate
 
 RPM_PER_RADPS = 30 / math.pi
 

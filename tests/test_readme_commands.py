@@ -8,7 +8,7 @@ import re
 import shlex
 from pathlib import Path
 
-from pmsm2dof.cli import main
+from pmsm2dof.ui.cli import main
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

@@ -26,8 +26,9 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from pmsm2dof.errors import ConfigError, SimulationError
-from pmsm2dof.scenario import ARRAYS, FAULT_KINDS, SCHEMA, _Placeholder, load_scenario
-from pmsm2dof.simulate import simulate
+from pmsm2dof.core import FAULT_KINDS
+from pmsm2dof.sim.scenario import ARRAYS, SCHEMA, _Placeholder, load_scenario
+from pmsm2dof.sim.simulate import simulate
 
 BASE = load_scenario("paper-condition-1").with_overrides({
     "simulation.t_end_s": 0.05,
@@ -333,7 +334,7 @@ def test_a_sensor_fault_window_off_the_sample_grid_is_read_as_the_engine_times_i
     check_sensor_readings(scenario, result)
 
 
-PRESET_TEXT = (Path(__file__).parents[1] / "src" / "pmsm2dof" / "presets" / "fault-sensor-spike.toml").read_bytes()
+PRESET_TEXT = (Path(__file__).parents[1] / "src" / "pmsm2dof" / "sim" / "presets" / "fault-sensor-spike.toml").read_bytes()
 
 
 @settings(max_examples=300, deadline=None)

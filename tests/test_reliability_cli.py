@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from pmsm2dof.cli import main
+from pmsm2dof.ui.cli import main
 
 BAD_FILES = sorted((Path(__file__).parent / "bad_scenarios").glob("*.toml"))
 

@@ -24,9 +24,12 @@ import pytest
 from scipy.optimize import brentq
 
 from pmsm2dof import load_scenario, simulate
-from pmsm2dof.cli import main
-from pmsm2dof.report import FIG7_M, VERDICTS, compute_claims, fig_faults, figures, run_faults
-from pmsm2dof.studies import run_studies
+from pmsm2dof.ui.cli import main
+from pmsm2dof.studies.faults import run_faults
+from pmsm2dof.ui.report import VERDICTS, compute_claims
+from pmsm2dof.ui.report.claims import FIG7_M
+from pmsm2dof.ui.report.figures import fig_faults, figures
+from pmsm2dof.studies.paper import run_studies
 
 STEMS = ["fig07_bode_gx", "fig08_speed_aw", "fig09_current_aw", "fig10_2dof", "fig12_exp1_aw", "fig13_exp2_tracking",
          "fig14_exp3_load", "sens_ka", "sens_m", "sens_zeta", "sens_inertia", "sens_torque_limit", "discretization"]
@@ -151,12 +154,12 @@ def test_bad_out_and_bad_override_fail_cleanly(tmp_path, capsys):
 
 
 def test_unwritable_out_fails_before_any_run(tmp_path, capsys, monkeypatch):
-    import pmsm2dof.studies
+    import pmsm2dof.studies.paper
 
     def no_runs(*args, **kwargs):
         raise AssertionError("the studies ran although the output folder cannot be written")
 
-    monkeypatch.setattr(pmsm2dof.studies, "run_studies", no_runs)
+    monkeypatch.setattr(pmsm2dof.studies.paper, "run_studies", no_runs)
     a_file = tmp_path / "a-file"
     a_file.write_text("x")
     # a folder inside a file cannot be created, whoever runs the test (root included)

@@ -15,7 +15,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.scenario import SCHEMA, Scenario, list_presets, load_scenario, parse_override, schema_reference
+from pmsm2dof.sim.scenario import SCHEMA, Scenario, list_presets, load_scenario, schema_reference
+from pmsm2dof.ui.cli import parse_override
 
 BAD = sorted((Path(__file__).parent / "bad_scenarios").glob("*.toml"))
 PAPER_PRESETS = ["paper-condition-1", "paper-condition-2", "paper-experiment-1", "paper-experiment-2",

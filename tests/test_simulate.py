@@ -10,8 +10,8 @@ import scipy.io
 
 import pmsm2dof
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.scenario import Scenario, load_scenario
-from pmsm2dof.simulate import Result, _EngineRun, simulate
+from pmsm2dof.sim.scenario import Scenario, load_scenario
+from pmsm2dof.sim.simulate import Result, Simulation, simulate
 
 RPM_PER_RADPS = 30.0 / math.pi
 
@@ -165,7 +165,7 @@ def test_engine_validates_what_it_is_given():
     data = paper2().data
     data["reference"] = [{"t_s": 2.0, "speed_rpm": 100.0, "ramp_s": 0.0}, {"t_s": 1.0, "speed_rpm": 0.0, "ramp_s": 0.0}]
     with pytest.raises(ConfigError, match=r"nondecreasing") as err:
-        _EngineRun(data)
+        Simulation(data)
     assert err.value.param == "reference"
 
 

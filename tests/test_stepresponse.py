@@ -1,4 +1,4 @@
-"""Step-response overshoot at any time scale (pmsm2dof.stepresponse).
+"""Step-response overshoot at any time scale (pmsm2dof.analysis.stepresponse).
 
 Truth: the closed-form overshoot of the second-order system, the closed-form response of a
 system with poles six decades apart (partial fractions by SciPy, peak by root finding), and
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
-from pmsm2dof.stepresponse import StepResponse
+from pmsm2dof.analysis.stepresponse import StepResponse
 
 
 def second_order(wn, zeta):

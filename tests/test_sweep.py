@@ -17,16 +17,17 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pmsm2dof.cli import main
+from pmsm2dof.ui.cli import main
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.metrics import compute_metrics
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.simulate import simulate
-from pmsm2dof.sweep import SweepPartWarning, load_sweep, metric_columns, parse_sweep, run_sweep
+from pmsm2dof.sim.metrics import compute_metrics
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.sim.simulate import simulate
+from pmsm2dof.studies.sweep import SweepPartWarning, load_sweep, metric_columns, parse_sweep, run_sweep
+from pmsm2dof.ui.plots.sweep import draw_figures
 
 # the modules (the package exports functions of the same names)
-simulate_module = importlib.import_module("pmsm2dof.simulate")
-sweep_module = importlib.import_module("pmsm2dof.sweep")
+simulate_module = importlib.import_module("pmsm2dof.sim.simulate")
+sweep_module = importlib.import_module("pmsm2dof.studies.sweep")
 
 # A small drive that settles within 0.3 s: a speed step at 0 s and a load step at 0.3 s.
 BASE_TOML = """
@@ -255,7 +256,7 @@ def test_local_run_equals_single_runs_and_writes_every_output(tmp_path, base_fil
     path = write_sweep(tmp_path, f'base = "base.toml"\nworst = 2\n{GRID_AXES}')
     sw = load_sweep(path)
     out = tmp_path / "out"
-    run = run_sweep(sw, out, workers=2, batch_size=2, progress=False)
+    run = run_sweep(sw, out, workers=2, batch_size=2, progress=False, figures=draw_figures)
     table = run.table
     assert list(table["point"]) == list(range(9))
     assert (table["status"] == "ok").all()
@@ -287,14 +288,14 @@ def test_local_run_equals_single_runs_and_writes_every_output(tmp_path, base_fil
     assert all((out / "figures" / n).stat().st_size > 1000 for n in names)
     assert json.loads((out / "sweep.json").read_text())["digest"] == sw.digest()
 
-    one = run_sweep(sw, tmp_path / "one", workers=1, progress=False).table
+    one = run_sweep(sw, tmp_path / "one", workers=1, progress=False, figures=draw_figures).table
     pd.testing.assert_frame_equal(one.drop(columns="wall_time_s"), table.drop(columns="wall_time_s"))
 
 
 def test_a_diverging_point_is_a_row_with_its_error_and_no_metrics(tmp_path, base_file):
     # a driving load far beyond the current limit: the shaft overspeeds, the engine stops
     sw = sweep_of(base_file, '[axes]\n"load.0.torque_Nm" = [2.0, -2000.0]\n', worst=0)
-    table = run_sweep(sw, tmp_path / "out", workers=1, progress=False).table
+    table = run_sweep(sw, tmp_path / "out", workers=1, progress=False, figures=draw_figures).table
     assert list(table["status"]) == ["ok", "error"]
     assert table.loc[0, "error"] == ""
     assert "speed" in table.loc[1, "error"]
@@ -309,7 +310,7 @@ def test_a_value_only_the_engine_rejects_stops_the_sweep_naming_the_point(tmp_pa
     sw = sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [50.0, 1e39]\n', worst=0)
     out = tmp_path / "out"
     with pytest.raises(ConfigError) as info:
-        run_sweep(sw, out, workers=1, batch_size=1, progress=False)
+        run_sweep(sw, out, workers=1, batch_size=1, progress=False, figures=draw_figures)
     assert info.value.param == "point 1 (speed_controller.alpha=1e+39): speed_controller.alpha"
     assert [p.name for p in (out / "parts").iterdir()] == ["part-00000000.parquet"]
     assert not (out / "results.parquet").exists()
@@ -329,7 +330,7 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monk
 
     monkeypatch.setattr(sweep_module, "_save_part", save_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
-        run_sweep(sw, out, workers=1, batch_size=2, progress=False)
+        run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=draw_figures)
     monkeypatch.setattr(sweep_module, "_save_part", real_save)
     assert not (out / "results.parquet").exists() and not (out / "results.csv").exists()
     finished = set(saved)
@@ -343,14 +344,14 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monk
         return real_simulate(scenario, *args, **kwargs)
 
     monkeypatch.setattr(simulate_module, "simulate", counting_simulate)
-    run = run_sweep(sw, out, workers=1, batch_size=2, progress=False)
+    run = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=draw_figures)
     assert run.resumed == len(finished) and run.computed == 9 - len(finished)
     missing = [sw.scenario(i) for i in range(9) if i not in finished]
     assert len(simulated) == len(missing)
     assert all(any(s == m for m in missing) for s in simulated)
 
     monkeypatch.setattr(simulate_module, "simulate", real_simulate)
-    fresh = run_sweep(sw, tmp_path / "fresh", workers=1, progress=False).table
+    fresh = run_sweep(sw, tmp_path / "fresh", workers=1, progress=False, figures=draw_figures).table
     pd.testing.assert_frame_equal(run.table.drop(columns="wall_time_s"), fresh.drop(columns="wall_time_s"))
 
 
@@ -369,7 +370,7 @@ def damage(part, how):
 def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, base_file, monkeypatch):
     sw = sweep_of(base_file, GRID_AXES, worst=0)
     out = tmp_path / "out"
-    first = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=False).table
+    first = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=None).table
     parts = sorted((out / "parts").iterdir())
     assert len(parts) == 5
     damaged = {parts[0].name: "truncated", parts[2].name: "garbage", parts[4].name: "columns"}
@@ -386,7 +387,7 @@ def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, bas
 
     monkeypatch.setattr(simulate_module, "simulate", counting_simulate)
     with pytest.warns(SweepPartWarning) as caught:
-        run = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=False)
+        run = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=None)
     messages = [str(w.message) for w in caught]
     assert len(messages) == 3
     for name, how in damaged.items():
@@ -399,7 +400,7 @@ def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, bas
     # the damaged files are gone; the parts now read without a warning
     with warnings.catch_warnings():
         warnings.simplefilter("error", SweepPartWarning)
-        assert run_sweep(sw, out, workers=1, progress=False, figures=False).computed == 0
+        assert run_sweep(sw, out, workers=1, progress=False, figures=None).computed == 0
 
 
 def test_cli_resume_with_a_damaged_part_warns_in_one_line(tmp_path, base_file, capsys):
@@ -417,9 +418,9 @@ def test_cli_resume_with_a_damaged_part_warns_in_one_line(tmp_path, base_file, c
 
 def test_out_folder_of_another_sweep_is_refused(tmp_path, base_file):
     out = tmp_path / "out"
-    run_sweep(sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [25.0]\n', worst=0), out, progress=False)
+    run_sweep(sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [25.0]\n', worst=0), out, progress=False, figures=draw_figures)
     with pytest.raises(ConfigError, match="different sweep"):
-        run_sweep(sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [30.0]\n', worst=0), out, progress=False)
+        run_sweep(sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [30.0]\n', worst=0), out, progress=False, figures=draw_figures)
 
 
 def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
@@ -430,12 +431,12 @@ def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
     "motor.J_kgm2" = { distribution = "log_normal", median = 0.01, sigma = 0.2 }
     """
     sw = sweep_of(base_file, textwrap.dedent(axes), draws=4, seed=5, worst=1)
-    local = run_sweep(sw, tmp_path / "local", workers=2, progress=False).table
+    local = run_sweep(sw, tmp_path / "local", workers=2, progress=False, figures=draw_figures).table
     with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://",
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
         remote = run_sweep(sw, tmp_path / "dask", scheduler=cluster.scheduler_address, batch_size=3,
-                           progress=False).table
+                           progress=False, figures=draw_figures).table
     pd.testing.assert_frame_equal(remote.drop(columns="wall_time_s"), local.drop(columns="wall_time_s"))
     names = {p.name for p in (tmp_path / "dask" / "figures").iterdir()}
     assert {"scatter_run_iae_rpm_s.png", "histograms.png", "worst_traces.png"} <= names

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pmsm2dof._core import ffi, lib
+from pmsm2dof.core.bindings import ffi, lib
 
 ROOT = Path(__file__).resolve().parents[1]
 CSRC = ROOT / "csrc"

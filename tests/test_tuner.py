@@ -28,12 +28,12 @@ with warnings.catch_warnings():
     warnings.filterwarnings("ignore", message="Using `httpx` with `starlette.testclient`")
     from starlette.testclient import TestClient
 
-from pmsm2dof.design import design
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.simulate import _EngineRun
-from pmsm2dof.tuner import create_app, serving_in_thread
-from pmsm2dof.tuner.app import CLIENT_HEADER
-from pmsm2dof.tuner.experiment import (
+from pmsm2dof.analysis.design import design
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.sim.simulate import Simulation
+from pmsm2dof.ui.tuner import create_app, serving_in_thread
+from pmsm2dof.ui.tuner.app import CLIENT_HEADER
+from pmsm2dof.ui.tuner.experiment import (
     DECIMATION_BUCKETS,
     LOG_ROWS_MAX,
     SPANS_MAX,
@@ -44,7 +44,7 @@ from pmsm2dof.tuner.experiment import (
     loop_on_plant,
     minmax_indices,
 )
-from pmsm2dof.tuner.server import HostCheck
+from pmsm2dof.ui.tuner.server import HostCheck
 
 PRESET = "paper-condition-2"
 RADPS_PER_RPM = 2.0 * math.pi / 60.0
@@ -457,7 +457,7 @@ def test_a_server_on_all_interfaces_also_answers_its_addresses_but_no_name():
 
 
 class EngineWatch:
-    """Counts the engine's C calls (``_EngineRun.advance``) that run at the same time, and the
+    """Counts the engine's C calls (``Simulation.advance``) that run at the same time, and the
     samples each run advanced."""
 
     def __init__(self, advance):
@@ -482,8 +482,8 @@ class EngineWatch:
 
 @pytest.fixture
 def watch(monkeypatch):
-    watch = EngineWatch(_EngineRun.advance)
-    monkeypatch.setattr(_EngineRun, "advance", lambda run, n: watch.advance(run, n))
+    watch = EngineWatch(Simulation.advance)
+    monkeypatch.setattr(Simulation, "advance", lambda run, n: watch.advance(run, n))
     return watch
 
 

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.tuner import create_app, serving_in_thread
-from pmsm2dof.tuner.experiment import LOG_ROWS_MAX
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.ui.tuner import create_app, serving_in_thread
+from pmsm2dof.ui.tuner.experiment import LOG_ROWS_MAX
 
 CHROMIUM = Path("/usr/bin/chromium")
 ROOT = Path(__file__).resolve().parents[1]

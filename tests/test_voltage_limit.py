@@ -9,10 +9,10 @@ import math
 import numpy as np
 import pytest
 
-from pmsm2dof.cli import main
-from pmsm2dof.metrics import compute_metrics, summary_lines
-from pmsm2dof.scenario import load_scenario
-from pmsm2dof.simulate import RPM_PER_RADPS, simulate
+from pmsm2dof.ui.cli import main
+from pmsm2dof.sim.metrics import compute_metrics, summary_lines
+from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.sim.simulate import RPM_PER_RADPS, simulate
 
 SQRT3 = math.sqrt(3.0)
 
@@ -110,7 +110,7 @@ def test_simulate_cli_names_the_voltage_limit(tmp_path, capsys):
 
 
 def test_the_trace_plot_shows_the_voltage_and_its_range():
-    from pmsm2dof.traceplot import trace_figure
+    from pmsm2dof.ui.plots.trace import trace_figure
 
     r = simulate(servo(48.0, 3000.0, load_Nm=1.5))
     ax_u = trace_figure(r).axes[3]

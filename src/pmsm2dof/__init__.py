@@ -2,21 +2,80 @@
 
 Implements Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet
 Synchronous Motor Speed Controller" (equation numbers in docstrings are the paper's).
+
+The package is layered, imports pointing down only: :mod:`pmsm2dof.ui` (command line, plots,
+report, tuner) over :mod:`pmsm2dof.studies` (many runs) over :mod:`pmsm2dof.sim` (scenarios,
+the simulation engine, metrics) and :mod:`pmsm2dof.analysis` (design, discretization, margins,
+C headers) over :mod:`pmsm2dof.core` (the C controllers), all over :mod:`pmsm2dof.errors` and
+:mod:`pmsm2dof.outputs`. The names below are loaded on first use, so that ``import pmsm2dof``
+costs nothing until one is used.
 """
 
-from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
-from .errors import ConfigError, Pmsm2dofError, SimulationError
+import importlib
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["ConfigError", "Pmsm2dofError", "SimulationError"]
-__all__ += ["ANTI_WINDUPS", "FEEDFORWARDS", "METHODS", "CurrentController", "SpeedController"]
-from .design import Design, design
-from .discretize import DiscreteDesign, SamplingWarning
+#: Public name -> module that defines it.
+_EXPORTS = {
+    "ConfigError": "pmsm2dof.errors",
+    "Pmsm2dofError": "pmsm2dof.errors",
+    "SimulationError": "pmsm2dof.errors",
+    "ANTI_WINDUPS": "pmsm2dof.core",
+    "FEEDFORWARDS": "pmsm2dof.core",
+    "METHODS": "pmsm2dof.core",
+    "CurrentController": "pmsm2dof.core",
+    "SpeedController": "pmsm2dof.core",
+    "Design": "pmsm2dof.analysis.design",
+    "design": "pmsm2dof.analysis.design",
+    "DiscreteDesign": "pmsm2dof.analysis.discretize",
+    "SamplingWarning": "pmsm2dof.analysis.discretize",
+    "Scenario": "pmsm2dof.sim.scenario",
+    "list_presets": "pmsm2dof.sim.scenario",
+    "load_scenario": "pmsm2dof.sim.scenario",
+    "compute_metrics": "pmsm2dof.sim.metrics",
+    "Result": "pmsm2dof.sim.simulate",
+    "simulate": "pmsm2dof.sim.simulate",
+}
 
-__all__ += ["Design", "DiscreteDesign", "SamplingWarning", "design"]
-from .metrics import compute_metrics
-from .scenario import Scenario, list_presets, load_scenario
+__all__ = [
+    "ANTI_WINDUPS",
+    "FEEDFORWARDS",
+    "METHODS",
+    "ConfigError",
+    "CurrentController",
+    "Design",
+    "DiscreteDesign",
+    "Pmsm2dofError",
+    "Result",
+    "SamplingWarning",
+    "Scenario",
+    "SimulationError",
+    "SpeedController",
+    "compute_metrics",
+    "design",
+    "list_presets",
+    "load_scenario",
+    "simulate",
+]
 
-__all__ += ["Scenario", "compute_metrics", "list_presets", "load_scenario"]
-from .simulate import Result, simulate
+if TYPE_CHECKING:
+    from .analysis.design import Design, design
+    from .analysis.discretize import DiscreteDesign, SamplingWarning
+    from .core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
+    from .errors import ConfigError, Pmsm2dofError, SimulationError
+    from .sim.metrics import compute_metrics
+    from .sim.scenario import Scenario, list_presets, load_scenario
+    from .sim.simulate import Result, simulate
 
-__all__ += ["Result", "simulate"]
+
+def __getattr__(name: str) -> Any:
+    """Load a public name from its module on first use (PEP 562)."""
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'pmsm2dof' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -41,7 +41,7 @@ Every point is validated before anything runs. Results have one row per point:
 ``point`` (its index), the axis values (one column per dotted key), ``status`` ("ok",
 or "error" when the engine stopped with a SimulationError, whose message is in
 ``error``), ``wall_time_s`` of the simulation, every metric of
-:func:`pmsm2dof.metrics.compute_metrics` as the columns of :func:`metric_columns`
+:func:`pmsm2dof.sim.metrics.compute_metrics` as the columns of :func:`metric_columns`
 (empty when a figure cannot be computed, with the reason in ``notes``).
 """
 
@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 #: Distribution names and their parameters, in the order of the docstring.
 DISTRIBUTIONS = {
@@ -120,7 +120,7 @@ class Sweep:
     Attributes
     ----------
     name : str
-    base : pmsm2dof.scenario.Scenario
+    base : pmsm2dof.sim.scenario.Scenario
     axes : tuple of Axis
     draws : int or None
     seed : int or None
@@ -210,7 +210,7 @@ def parse_sweep(data, base_dir="."):
     -------
     Sweep
     """
-    from .scenario import Scenario, load_scenario
+    from ..sim.scenario import Scenario, load_scenario
 
     if not isinstance(data, dict):
         raise ConfigError("sweep", data, "a table of sweep keys")
@@ -382,9 +382,9 @@ def metric_columns(data):
 
     ``ref{i}_<figure>`` for the i-th entry of ``reference``, ``load{j}_<figure>`` for the j-th
     entry of ``load`` and ``run_<figure>`` for the whole run (figures of
-    :func:`pmsm2dof.metrics.compute_metrics`).
+    :func:`pmsm2dof.sim.metrics.compute_metrics`).
     """
-    from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
+    from ..sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
 
     columns = [f"ref{i}_{f}" for i in range(len(data["reference"])) for f in REFERENCE_FIGURES]
     columns += [f"load{j}_{f}" for j in range(len(data["load"])) for f in LOAD_FIGURES]
@@ -394,7 +394,7 @@ def metric_columns(data):
 
 def _flatten(metrics):
     """The figures of ``compute_metrics`` as ``{column: value or None}`` and the reasons of the None."""
-    from .metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
+    from ..sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
 
     figures = {}
     for prefix, steps, names in (("ref", metrics["reference_steps"], REFERENCE_FIGURES),
@@ -424,10 +424,10 @@ def run_batch(base_data, batch):
         metric column and ``notes`` (why a metric is missing). A run that diverges is a row with
         status ``"error"`` and no metrics, never NaN.
     """
-    from .errors import SimulationError
-    from .metrics import compute_metrics
-    from .scenario import Scenario
-    from .simulate import simulate
+    from ..errors import SimulationError
+    from ..sim.metrics import compute_metrics
+    from ..sim.scenario import Scenario
+    from ..sim.simulate import simulate
 
     base = Scenario.from_dict(base_data)
     columns = metric_columns(base_data)
@@ -475,10 +475,10 @@ class SweepPartWarning(UserWarning):
 
 def _prepare_out(out, sweep):
     """Create ``out`` with the sweep's manifest, or check that it holds the same sweep."""
-    from .outputs import atomic_write
+    from ..outputs import atomic_write
 
     if out.exists() and not out.is_dir():
-        raise ConfigError("--out", str(out), "a folder (it is an existing file)")
+        raise ConfigError("out", str(out), "a folder (it is an existing file)")
     manifest = out / MANIFEST
     digest = sweep.digest()
     if manifest.exists():
@@ -487,15 +487,15 @@ def _prepare_out(out, sweep):
         except (OSError, ValueError, AttributeError):
             old = None
         if old != digest:
-            raise ConfigError("--out", str(out), "a new folder, or the folder of an earlier run of this same "
+            raise ConfigError("out", str(out), "a new folder, or the folder of an earlier run of this same "
                               "sweep (it holds the results of a different sweep)")
         return
     if out.exists() and any(out.iterdir()):
-        raise ConfigError("--out", str(out), "a new or empty folder, or the folder of an earlier run of this sweep")
+        raise ConfigError("out", str(out), "a new or empty folder, or the folder of an earlier run of this sweep")
     try:
         (out / PARTS).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ConfigError("--out", str(out), f"a writable folder ({exc.strerror})") from None
+        raise ConfigError("out", str(out), f"a writable folder ({exc.strerror})") from None
     atomic_write(out / "base.toml", sweep.base.to_toml())
     atomic_write(manifest, json.dumps({"name": sweep.name, "digest": digest, "points": len(sweep.points),
                                        "keys": list(sweep.keys)}, indent=2) + "\n")
@@ -530,7 +530,7 @@ def _read_parts(out, sweep):
         try:
             path.unlink()
         except OSError as exc:
-            raise ConfigError("--out", str(out), f"a folder where the damaged {PARTS}/{path.name} can be "
+            raise ConfigError("out", str(out), f"a folder where the damaged {PARTS}/{path.name} can be "
                               f"deleted ({exc.strerror})") from None
         warnings.warn(f"{PARTS}/{path.name} of the earlier run in {out} {problem}: deleted, its points run again",
                       SweepPartWarning, stacklevel=3)
@@ -541,7 +541,7 @@ def _save_part(out, sweep, rows):
     """Store the rows of one finished batch as ``parts/part-<first point>.parquet`` (atomic)."""
     import io
 
-    from .outputs import atomic_write
+    from ..outputs import atomic_write
 
     buf = io.BytesIO()
     _frame(rows, sweep).to_parquet(buf, index=False)
@@ -585,7 +585,7 @@ class SweepRun:
     files: tuple
 
 
-def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progress=True, figures=True):
+def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progress=True, figures=None):
     """Run every point of ``sweep`` not yet finished in ``out``, then write results and figures.
 
     Each finished batch of points is stored at once as ``out/parts/part-*.parquet``, so an
@@ -593,8 +593,8 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
     computes only the missing ones; a stored part that cannot be used is deleted and its points
     computed again, with a :class:`SweepPartWarning` naming it. When all points are done, ``out`` receives
     ``results.parquet`` and ``results.csv`` (one row per point, see :func:`run_batch`),
-    ``base.toml`` (the frozen base scenario), ``sweep.json`` and the figures under ``figures/``
-    (:mod:`pmsm2dof.sweepplots`), each written whole or not at all.
+    ``base.toml`` (the frozen base scenario), ``sweep.json`` and, with ``figures``, the figures
+    under ``figures/``, each written whole or not at all.
 
     Parameters
     ----------
@@ -612,8 +612,10 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
         at most 50 points per task).
     progress : bool
         Show a progress bar on stderr.
-    figures : bool
-        Draw the figures (False: the results table only).
+    figures : callable, optional
+        ``figures(sweep, table, folder)`` draws the figures into ``folder`` and returns their
+        paths (:func:`pmsm2dof.ui.plots.sweep.draw_figures`, as ``pmsm2dof sweep`` does); None
+        writes the results table only.
 
     Returns
     -------
@@ -623,16 +625,16 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
 
     out = Path(out)
     if scheduler is not None and workers is not None:
-        raise ConfigError("--workers", workers, "absent with --scheduler (the cluster's workers run the points)")
+        raise ConfigError("workers", workers, "absent when a scheduler is given (the cluster's workers run the points)")
     if scheduler is not None and (not isinstance(scheduler, str) or "://" not in scheduler):
-        raise ConfigError("--scheduler", scheduler, "the address of a Dask scheduler, e.g. tcp://10.0.0.5:8786")
+        raise ConfigError("scheduler", scheduler, "the address of a Dask scheduler, e.g. tcp://10.0.0.5:8786")
     if workers is None:
         workers = default_workers() if scheduler is None else None
     elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError("--workers", workers, "an integer >= 1")
+        raise ConfigError("workers", workers, "an integer >= 1")
     if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int)
                                    or batch_size < 1):
-        raise ConfigError("--batch-size", batch_size, "an integer >= 1")
+        raise ConfigError("batch_size", batch_size, "an integer >= 1")
 
     with _connect(scheduler) if scheduler is not None else contextlib.nullcontext() as client:
         _prepare_out(out, sweep)
@@ -697,7 +699,7 @@ def _connect(scheduler):
     try:
         return Client(scheduler, timeout="10s", set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
-        raise ConfigError("--scheduler", scheduler,
+        raise ConfigError("scheduler", scheduler,
                           f"the address of a running Dask scheduler ({_one_line(exc)})") from None
 
 
@@ -728,14 +730,13 @@ def _one_line(exc):
 
 def _write_results(out, sweep, table, figures):
     """results.parquet, results.csv and the figures, moved into ``out`` together when all are written."""
-    from .outputs import staged_dir
-    from .sweepplots import draw_figures
+    from ..outputs import staged_dir
 
     drawn = []
     with staged_dir(out) as tmp:
         table.to_parquet(tmp / "results.parquet", index=False)
         table.to_csv(tmp / "results.csv", index=False)
         if figures:
-            drawn = draw_figures(sweep, table, tmp / "figures")
+            drawn = figures(sweep, table, tmp / "figures")
     names = ["results.parquet", "results.csv", *(f"figures/{p.name}" for p in drawn)]
     return tuple(out / n for n in names)

@@ -1,7 +1,8 @@
 """Figures of a sweep: heatmaps of 2-D grids, scatter plots and histograms, worst-case traces.
 
-Drawn by :func:`pmsm2dof.sweep.run_sweep` into ``<out>/figures`` with matplotlib's Agg
-backend (no display needed):
+Drawn by :func:`draw_figures`, which ``pmsm2dof sweep`` gives to
+:func:`pmsm2dof.studies.sweep.run_sweep`, into ``<out>/figures`` with matplotlib's Agg backend
+(no display needed):
 
 - a grid with exactly two axes of more than one value and no distribution axes:
   ``heatmap_<metric>.png`` for every metric column with at least one value, the first
@@ -20,6 +21,9 @@ import math
 
 import numpy as np
 
+from ...sim.simulate import simulate
+from ...studies.sweep import metric_columns
+
 
 def _pyplot():
     import matplotlib
@@ -36,8 +40,6 @@ def _is_numeric(values):
 
 def draw_figures(sweep, table, folder):
     """Draw the figures of ``sweep`` from its results ``table`` into ``folder``; return their paths."""
-    from .sweep import metric_columns
-
     folder.mkdir(parents=True, exist_ok=True)
     plt = _pyplot()
     columns = [c for c in metric_columns(sweep.base.data) if table[c].notna().any()]
@@ -136,8 +138,6 @@ def _histograms(plt, table, columns, folder):
 
 
 def _worst_traces(plt, sweep, table, folder):
-    from .simulate import simulate
-
     ranked = table[table[sweep.rank_by].notna()].sort_values(sweep.rank_by, ascending=False)
     worst = ranked.head(sweep.worst)
     fig, (ax_w, ax_t) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)

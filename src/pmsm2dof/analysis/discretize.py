@@ -33,20 +33,24 @@ that distance:
   margins of ``L(w)`` as for a continuous loop (gain and phase are those of ``L(z)``; the
   frequency maps back as ``w_z = (2/Ts) atan(w_w Ts/2)``);
 - the tracking step response from the realized difference equations in increment form
-  (:class:`~pmsm2dof.stepresponse.StepResponse`).
+  (:class:`~pmsm2dof.analysis.stepresponse.StepResponse`).
 """
 
 import math
 import warnings
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import control
 import numpy as np
 
-from .controllers import METHODS
-from .design import Design, Margins, pick_margins
-from .errors import ConfigError, require_choice, require_positive
+from ..core import METHODS
+from ..errors import ConfigError, require_choice, require_positive
+from .margins import Margins, pick_margins
 from .stepresponse import StepResponse
+
+if TYPE_CHECKING:
+    from .design import Design
 
 #: The same methods as named by SciPy ``cont2discrete`` / python-control ``sample_system``.
 SAMPLE_SYSTEM_METHODS = {"forward_euler": "euler", "backward_euler": "backward_diff", "tustin": "bilinear"}
@@ -105,7 +109,7 @@ class DiscreteDesign:
         integral, feedforward ``y[k-1]`` and ``r[k-1]``).
     """
 
-    design: Design
+    design: "Design"
     Ts_s: float
     method: str
     b_e0: float

@@ -52,7 +52,7 @@ import math
 
 import numpy as np
 
-from .errors import SimulationError
+from ..errors import SimulationError
 
 #: Settling band, relative to the step (reference) or to the dip (load).
 BAND = 0.02

@@ -1,7 +1,7 @@
 """The simulations behind the paper reproduction: the paper's runs, sensitivity sweeps, discretization.
 
-Everything runs on the shipped presets (:func:`pmsm2dof.scenario.list_presets`), optionally all
-changed by the same overrides, in the compiled engine (:func:`pmsm2dof.simulate.simulate`):
+Everything runs on the shipped presets (:func:`pmsm2dof.sim.scenario.list_presets`), optionally all
+changed by the same overrides, in the compiled engine (:func:`pmsm2dof.sim.simulate.simulate`):
 
 Paper runs (kept whole, for the figures and the claims)
     Simulation conditions 1 and 2 of section 4.1 (Fig. 8 to 10) and experimental conditions 1 to 3
@@ -21,7 +21,7 @@ Sensitivity sweeps (only their metrics are kept)
     torque the current limit allows (the paper gives the 7.6 A limit but not the torque constant).
 
 Discretization study
-    The discrete loops of :func:`pmsm2dof.discretize.discretize` (ZOH plant) for forward Euler,
+    The discrete loops of :func:`pmsm2dof.analysis.discretize.discretize` (ZOH plant) for forward Euler,
     backward Euler and Tustin (Table 1) as the speed-loop sampling period grows, and engine runs
     of a small, unsaturated step at a few of those periods as a check of the design's prediction.
 """
@@ -33,13 +33,14 @@ import warnings
 
 import numpy as np
 
-from .controllers import METHODS
-from .design import design, loop_margins
-from .discretize import MAX_W_TS, SamplingWarning
-from .errors import ConfigError, SimulationError
-from .metrics import compute_metrics
-from .scenario import load_scenario
-from .simulate import simulate
+from ..analysis.design import design
+from ..analysis.discretize import MAX_W_TS, SamplingWarning
+from ..analysis.margins import loop_margins
+from ..core import METHODS, pi_gains
+from ..errors import ConfigError, SimulationError
+from ..sim.metrics import compute_metrics
+from ..sim.scenario import load_scenario
+from ..sim.simulate import simulate
 
 #: The presets every study starts from.
 PRESETS = ("paper-condition-1", "paper-condition-2", "paper-experiment-1", "paper-experiment-2",
@@ -191,7 +192,7 @@ def sweeps(bases, points=POINTS):
     step_data = bases[STEP_BASE].data
     sc = step_data["speed_controller"]
     J_design = sc["J_design_kgm2"]
-    Kp = J_design * sc["alpha"]  # eq 9
+    Kp, _ = pi_gains(J_design, sc["alpha"], sc["zeta"])  # eq 9
     out = []
 
     # Ka (Fig. 5): the range the paper gives, read as 1/(3 Kp) .. 3/Kp, and its literal Kp/3 .. 3 Kp
@@ -272,7 +273,7 @@ def _both_controllers(name, values, key):
 class DiscretePoint:
     """The discrete loop of one controller, method and sampling period (design level).
 
-    ``stable`` False when :func:`~pmsm2dof.discretize.discretize` rejects the period (the
+    ``stable`` False when :func:`~pmsm2dof.analysis.discretize.discretize` rejects the period (the
     discrete loop or the feedforward filter is unstable); the figures are then NaN and
     ``reason`` says why. ``controller_error`` is ``|F(z)/F(s) - 1|`` of the PI at the continuous
     gain crossover (z = exp(j w Ts)): how far the discrete controller is from the designed one.
@@ -339,7 +340,7 @@ def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
 
 
 def largest_fine_Ts(base, Ts_grid=TS_GRID_S):
-    """The largest period of ``Ts_grid`` that :mod:`pmsm2dof.discretize` deems fine for the design.
+    """The largest period of ``Ts_grid`` that :mod:`pmsm2dof.analysis.discretize` deems fine for the design.
 
     That is ``max(alpha, alpha/(2 zeta), m alpha) Ts <= MAX_W_TS`` (beyond it discretize warns).
     """
@@ -420,8 +421,12 @@ class Studies:
     n_runs: int
     wall_time_s: float
 
+    def speed_controller(self):
+        """The ``speed_controller`` table of the sensitivity base (:data:`STEP_BASE`), as run."""
+        return self.bases[STEP_BASE].data["speed_controller"]
+
     def step(self, name, index=0):
-        """Figures of reference step ``index`` of run ``name`` (see :mod:`pmsm2dof.metrics`)."""
+        """Figures of reference step ``index`` of run ``name`` (see :mod:`pmsm2dof.sim.metrics`)."""
         return self.metrics[name]["reference_steps"][index]
 
     def load(self, name, index=0):
@@ -457,7 +462,7 @@ def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, progress=False
     ----------
     overrides : mapping, optional
         ``{"dotted.key": value}`` applied to every preset first (see
-        :meth:`pmsm2dof.scenario.Scenario.with_overrides`), e.g. ``{"motor.J_kgm2": 0.5}``.
+        :meth:`pmsm2dof.sim.scenario.Scenario.with_overrides`), e.g. ``{"motor.J_kgm2": 0.5}``.
     points : int
         Values per sensitivity sweep (:data:`POINTS` in the full study).
     Ts_grid : sequence of float

@@ -5,10 +5,11 @@ Every error the user can cause ends as one line on stderr and exit status 2.
 """
 
 import sys
+import tomllib
 
 import click
 
-from .errors import Pmsm2dofError
+from ..errors import ConfigError, Pmsm2dofError
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -19,6 +20,41 @@ def cli():
 
 def _one_line(text):
     return " ".join(str(text).split())
+
+
+def _as_option(exc, options):
+    """``exc`` with its parameter named by its command-line option, when it has one in ``options``."""
+    if exc.param in options:
+        return ConfigError(options[exc.param], exc.value, exc.valid)
+    return exc
+
+
+def parse_override(text):
+    """Parse one ``--set key=value`` of the command line.
+
+    Parameters
+    ----------
+    text : str
+        ``key=value``; the value is read as a TOML literal (``0.5``, ``true``, ``"x"``,
+        ``nan``, ``[{t_s = 1.0, torque_Nm = 2.0}]``) and, when it is not one, taken as a plain
+        string (``feedforward=none``).
+
+    Returns
+    -------
+    tuple
+        ``(key, value)`` for :meth:`pmsm2dof.sim.scenario.Scenario.with_overrides`, which
+        validates the value.
+    """
+    key, sep, raw = text.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise ConfigError("--set", text, "key=value, e.g. speed_controller.alpha=0.5")
+    raw = raw.strip()
+    try:
+        parsed = tomllib.loads(f"v = {raw}")
+    except tomllib.TOMLDecodeError:
+        return key, raw
+    return (key, parsed["v"]) if list(parsed) == ["v"] else (key, raw)
 
 
 def main(argv=None):
@@ -40,7 +76,7 @@ def main(argv=None):
 
 
 # ---------------------------------------------------------------------------------------------
-# design and bode (pmsm2dof.design, discretize, codegen, plots)
+# design and bode (pmsm2dof.analysis, ui.plots.design)
 # ---------------------------------------------------------------------------------------------
 
 @cli.command()
@@ -86,7 +122,7 @@ def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, ant
     import json
     import warnings
 
-    from .design import design as make_design
+    from ..analysis.design import design as make_design
 
     if header is not None:
         motor, sources = _header_motor(dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H,
@@ -99,7 +135,7 @@ def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, ant
     for w in caught:
         print(f"pmsm2dof: warning: {_one_line(w.message)}", file=sys.stderr)
     if header is not None:
-        from .codegen import write_c_header
+        from ..analysis.codegen import write_c_header
 
         write_c_header(header, dd, **motor, Ts_current_s=Ts_current_s, prefix=prefix, motor_sources=sources)
     if as_json:
@@ -154,7 +190,7 @@ def _header_motor(given, current_loop, paper_drive):
         raise click.UsageError(f"--emit-c-header needs the motor data: {options} missing; give them, or "
                                "--paper-drive for the paper's drive (placeholders, not your motor)")
     if missing:
-        from .scenario import load_scenario
+        from ..sim.scenario import load_scenario
 
         data = load_scenario(PAPER_DRIVE_PRESET).data
     for name in needed:
@@ -248,8 +284,7 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
 
     Fig. 7 of the paper: --feedforward full --m 0.2,0.5,1,2.
     """
-    from .errors import ConfigError
-    from .plots import bode_gx_sweep, save_figure
+    from .plots.design import bode_gx_sweep, save_figure
 
     try:
         m_values = [float(v) for v in m_list.split(",")]
@@ -261,7 +296,7 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
 
 
 # ---------------------------------------------------------------------------------------------
-# reproduce (pmsm2dof.studies, report)
+# reproduce (pmsm2dof.studies.paper, ui.report)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -280,8 +315,8 @@ def reproduce(out, overrides):
     """
     import time
 
-    from .report import VERDICTS, reproduce as run_reproduction
-    from .scenario import parse_override
+    from .report import VERDICTS
+    from .report import reproduce as run_reproduction
 
     start = time.perf_counter()
     changes = dict(parse_override(text) for text in overrides)
@@ -296,7 +331,7 @@ def reproduce(out, overrides):
 
 
 # ---------------------------------------------------------------------------------------------
-# simulate and presets (pmsm2dof.scenario, simulate, metrics, traceplot)
+# simulate and presets (pmsm2dof.sim, ui.plots.trace)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -316,11 +351,11 @@ def simulate(scenario, overrides, out):
     """
     import json
 
-    from .metrics import compute_metrics, summary_lines
-    from .outputs import atomic_write, staged_dir
-    from .scenario import load_scenario, parse_override
-    from .simulate import simulate as run_simulation
-    from .traceplot import plot_trace
+    from ..outputs import atomic_write, staged_dir
+    from ..sim.metrics import compute_metrics, summary_lines
+    from ..sim.scenario import load_scenario
+    from ..sim.simulate import simulate as run_simulation
+    from .plots import trace
 
     chosen = load_scenario(scenario)
     changes = dict(parse_override(text) for text in overrides)
@@ -331,7 +366,7 @@ def simulate(scenario, overrides, out):
         metrics = compute_metrics(result)
         result.save(tmp / "trace.csv")
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
-        plot_trace(result, tmp / "plot.png")
+        trace.plot_trace(result, tmp / "plot.png")
         atomic_write(tmp / "scenario.toml", chosen.to_toml())
     click.echo(f"{chosen.name}: {result.t_s[-1]:g} s simulated in {result.wall_time_s:.3g} s")
     for line in summary_lines(metrics):
@@ -343,7 +378,7 @@ def simulate(scenario, overrides, out):
 @click.option("--keys", is_flag=True, help="list every scenario key (type, range, default, meaning) instead")
 def presets(keys):
     """List the scenarios shipped with pmsm2dof, by name, for `pmsm2dof simulate NAME`."""
-    from .scenario import list_presets, load_scenario, schema_reference
+    from ..sim.scenario import list_presets, load_scenario, schema_reference
 
     if keys:
         click.echo(schema_reference())
@@ -355,7 +390,7 @@ def presets(keys):
 
 
 # ---------------------------------------------------------------------------------------------
-# sweep (pmsm2dof.sweep, sweepplots)
+# sweep (pmsm2dof.studies.sweep, ui.plots.sweep)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -373,14 +408,15 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
     """Run a sweep (grid or Monte Carlo) of a scenario: one row of metrics per point, and figures.
 
     FILE is a sweep TOML: a base scenario and axes (lists, ranges or random distributions of
-    dotted scenario keys); see `pmsm2dof.sweep` for the format. Writes OUT/results.parquet,
+    dotted scenario keys); see `pmsm2dof.studies.sweep` for the format. Writes OUT/results.parquet,
     OUT/results.csv and OUT/figures/*.png once every point is done; finished points are kept
     under OUT/parts, so an interrupted sweep resumes where it stopped (a part damaged since is
     deleted with a warning and its points run again).
     """
     import warnings
 
-    from .sweep import SweepPartWarning, load_sweep, run_sweep
+    from ..studies.sweep import SweepPartWarning, load_sweep, run_sweep
+    from .plots.sweep import draw_figures
 
     chosen = load_sweep(file)
     with warnings.catch_warnings():
@@ -394,8 +430,12 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
 
         warnings.simplefilter("always", SweepPartWarning)
         warnings.showwarning = one_line
-        run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size,
-                        figures=not no_figures)
+        try:
+            run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size,
+                            figures=None if no_figures else draw_figures)
+        except ConfigError as exc:
+            raise _as_option(exc, {"out": "--out", "workers": "--workers", "scheduler": "--scheduler",
+                                   "batch_size": "--batch-size"}) from None
     table = run.table
     stopped = table[table["status"] != "ok"]
     click.echo(f"{chosen.name}: {len(table)} points ({run.computed} simulated, {run.resumed} already done), "
@@ -410,7 +450,7 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
 
 
 # ---------------------------------------------------------------------------------------------
-# tune (pmsm2dof.tuner)
+# tune (pmsm2dof.ui.tuner)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -429,7 +469,7 @@ def tune(scenario, port, host, no_browser):
     the inertia error and the speed and load steps; downloads the scenario (TOML), the
     C header of the design and the trace (CSV).
     """
-    from .scenario import load_scenario
+    from ..sim.scenario import load_scenario
     from .tuner import DEFAULT_PRESET, run_tuner
 
     run_tuner(load_scenario(scenario or DEFAULT_PRESET), host=host, port=port, open_browser=not no_browser)

@@ -19,7 +19,7 @@ from urllib.parse import urlsplit
 
 import uvicorn
 
-from ..errors import ConfigError
+from ...errors import ConfigError
 
 DEFAULT_PORT = 8765
 """Port tried first when none is given; a free one is chosen if it is busy."""

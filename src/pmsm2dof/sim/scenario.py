@@ -14,7 +14,7 @@ reference and load torque schedules of a run (section 4.1)::
     speed_rpm = 500.0
 
 Optional ``[[fault]]`` entries make the simulator play a fault: a DC-link sag over a window, or a
-speed-sensor reading held, zero or wrong for one sample (see :data:`FAULT_KINDS`).
+speed-sensor reading held, zero or wrong for one sample (see :data:`pmsm2dof.core.FAULT_KINDS`).
 
 Every key, its type, valid range, default and meaning is declared once, in :data:`SCHEMA`; that
 table drives validation, the defaults filled into :attr:`Scenario.data`, :meth:`Scenario.to_toml`
@@ -37,14 +37,8 @@ import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 
-from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
-from .errors import ConfigError
-
-#: Current-loop models: the C dq current controllers driving the electrical model, or eq (3).
-CURRENT_LOOP_MODELS = ("dq_pi", "first_order")
-
-#: Fault kinds of ``[[fault]]`` entries, in the order of the engine's p2d_fault_kind_t.
-FAULT_KINDS = ("dc_link_sag", "sensor_hold", "sensor_zero", "sensor_spike")
+from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, METHODS
+from ..errors import ConfigError
 
 #: Longest simulated time of one scenario [s] (ten hours).
 T_END_MAX_S = 36000.0
@@ -203,7 +197,7 @@ SCHEMA = (
 
     Field("simulation.t_end_s", float, "simulated time [s]", gt=0, le=T_END_MAX_S),
     Field("simulation.dt_s", float, "largest plant integration step [s] (RK4; the default, one step per "
-          "current period, is accurate to better than 1e-4 of the speed: see pmsm2dof.simulate)",
+          "current period, is accurate to better than 1e-4 of the speed: see pmsm2dof.sim.simulate)",
           default=SameAs("current_loop.Ts_s"), gt=0),
     Field("simulation.log_every", int, "log every n-th speed-controller sample", default=1, ge=1, le=10**9),
     Field("simulation.speed0_rpm", float, "initial speed [rpm]", default=0.0),
@@ -565,39 +559,12 @@ def _set_dotted(tree, key, value):
             node = child
 
 
-def parse_override(text):
-    """Parse one ``--set key=value`` of the command line.
-
-    Parameters
-    ----------
-    text : str
-        ``key=value``; the value is read as a TOML literal (``0.5``, ``true``, ``"x"``,
-        ``nan``, ``[{t_s = 1.0, torque_Nm = 2.0}]``) and, when it is not one, taken as a plain
-        string (``feedforward=none``).
-
-    Returns
-    -------
-    tuple
-        ``(key, value)`` for :meth:`Scenario.with_overrides`, which validates the value.
-    """
-    key, sep, raw = text.partition("=")
-    key = key.strip()
-    if not sep or not key:
-        raise ConfigError("--set", text, "key=value, e.g. speed_controller.alpha=0.5")
-    raw = raw.strip()
-    try:
-        parsed = tomllib.loads(f"v = {raw}")
-    except tomllib.TOMLDecodeError:
-        return key, raw
-    return (key, parsed["v"]) if list(parsed) == ["v"] else (key, raw)
-
-
 def _presets_dir():
-    return importlib.resources.files("pmsm2dof") / "presets"
+    return importlib.resources.files("pmsm2dof.sim") / "presets"
 
 
 def list_presets():
-    """Names of the scenarios shipped with the package (``pmsm2dof/presets/*.toml``), sorted."""
+    """Names of the scenarios shipped with the package (``pmsm2dof/sim/presets/*.toml``), sorted."""
     return sorted(p.name[:-len(".toml")] for p in _presets_dir().iterdir() if p.name.endswith(".toml"))
 
 

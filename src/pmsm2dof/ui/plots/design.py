@@ -14,9 +14,9 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .design import design
-from .errors import ConfigError, require_positive
-from .outputs import atomic_write
+from ...analysis.design import design
+from ...errors import ConfigError, require_positive
+from ...outputs import atomic_write
 
 #: File formats :func:`save_figure` writes, by extension.
 FORMATS = {".png": "png", ".svg": "svg"}

@@ -3,7 +3,7 @@
 The page asks for a run whenever a control moves; a script or a second tab may ask for many at
 once. Each request holds a :class:`Ticket`; a client's simulations run one at a time under its
 slot, and a newer run request cancels the ticket of the older one, whose simulation stops at the
-next chunk boundary (:meth:`pmsm2dof.tuner.experiment.Tuner.run` checks between C calls) and
+next chunk boundary (:meth:`pmsm2dof.ui.tuner.experiment.Tuner.run` checks between C calls) and
 answers HTTP 409.
 """
 

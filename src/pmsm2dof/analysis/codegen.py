@@ -8,7 +8,7 @@ block records every design input and the derived values, so that the numbers
 on the MCU can be traced back to the design.
 
 Every configuration is first given to the C core itself (through
-:mod:`pmsm2dof.controllers`), so a header is only written when its
+:mod:`pmsm2dof.core`), so a header is only written when its
 configuration initializes without error.
 """
 
@@ -17,9 +17,9 @@ from importlib.metadata import version
 
 import numpy as np
 
-from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
-from .errors import ConfigError, require_choice, require_positive
-from .outputs import atomic_write
+from ..core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
+from ..errors import ConfigError, require_choice, require_positive
+from ..outputs import atomic_write
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
@@ -94,7 +94,7 @@ def _initializer(ctype, identifier, config, fields):
 
 
 def speed_config(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H):
-    """Keyword arguments of :class:`~pmsm2dof.controllers.SpeedController` for a discrete design.
+    """Keyword arguments of :class:`~pmsm2dof.core.controllers.SpeedController` for a discrete design.
 
     They hold the same values as the ``p2d_speed_config_t`` of the header.
     """

@@ -2,8 +2,8 @@
 controls move (a Starlette app on uvicorn, plotted with the plotly.js shipped in the
 ``plotly`` package, so it works offline).
 
-See :mod:`pmsm2dof.tuner.experiment` for what is computed, :mod:`pmsm2dof.tuner.app` for
-the endpoints and :mod:`pmsm2dof.tuner.server` for serving.
+See :mod:`pmsm2dof.ui.tuner.experiment` for what is computed, :mod:`pmsm2dof.ui.tuner.app` for
+the endpoints and :mod:`pmsm2dof.ui.tuner.server` for serving.
 """
 
 import sys
@@ -23,12 +23,12 @@ def run_tuner(scenario, host="127.0.0.1", port=None, open_browser=True):
 
     Parameters
     ----------
-    scenario : pmsm2dof.scenario.Scenario
+    scenario : pmsm2dof.sim.scenario.Scenario
         Base scenario.
     host : str
         Interface to listen on; the loopback address unless another is asked for explicitly.
     port : int or None
-        TCP port; 0 for any free port; None for :data:`~pmsm2dof.tuner.server.DEFAULT_PORT`
+        TCP port; 0 for any free port; None for :data:`~pmsm2dof.ui.tuner.server.DEFAULT_PORT`
         or a free one when it is busy.
     open_browser : bool
         Open the page in the default browser.

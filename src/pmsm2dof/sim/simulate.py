@@ -26,7 +26,7 @@ Log
     load torque.
 
 Faults
-    The scenario's ``[[fault]]`` entries (:data:`pmsm2dof.scenario.FAULT_KINDS`): a DC-link sag
+    The scenario's ``[[fault]]`` entries (:data:`pmsm2dof.core.FAULT_KINDS`): a DC-link sag
     scales ``u_dc`` over a window (the inverter's range and the DC link the current controller
     measures, per current period); a speed-sensor fault changes what the speed controller reads
     (held at the last reading, zero, or one wrong sample). The current controllers keep the true
@@ -57,13 +57,29 @@ from typing import ClassVar
 
 import numpy as np
 
-from ._core import ffi, lib
-from .controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS, _float_param
-from .errors import ConfigError, SimulationError
-from .outputs import atomic_write
-from .scenario import CURRENT_LOOP_MODELS, FAULT_KINDS, Scenario
+from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, LOG_COLUMNS, METHODS, pi_gains
+from ..core.bindings import c_string, ffi, lib
+from ..errors import ConfigError, SimulationError
+from ..outputs import atomic_write
+from .scenario import Scenario
 
 RPM_PER_RADPS = 30.0 / math.pi
+
+#: The speeds of the engine's log shown in rpm at the edge, by log column (the others keep their
+#: C names); the mechanical speed is kept in rad/s too.
+RPM_SIGNALS = {"w_ref_radps": "speed_ref_rpm", "w_m_radps": "speed_rpm", "w_meas_radps": "speed_meas_rpm"}
+#: Log columns that hold a flag (0 or 1), returned as bool arrays.
+FLAG_SIGNALS = ("saturated",)
+
+
+def _signal_names(log_columns):
+    """The signals of a :class:`Result`, in order, from the columns of the engine's log."""
+    names = []
+    for column in log_columns:
+        names.append(RPM_SIGNALS.get(column, column))
+        if column == "w_m_radps":
+            names.append(column)
+    return tuple(names)
 
 #: Largest log the engine allocates [bytes]; beyond it simulation.log_every must grow.
 LOG_BYTES_MAX = 2 * 1024**3
@@ -164,11 +180,8 @@ class Result:
         eq 1 exceeded that range, which eq 3 ignores)
     """
 
-    signals: ClassVar[tuple] = (
-        "t_s", "speed_ref_rpm", "speed_rpm", "w_m_radps", "id_ref_A", "iq_ref_A", "id_A", "iq_A",
-        "ud_V", "uq_V", "torque_Nm", "torque_ref_Nm", "torque_unsat_Nm", "load_Nm", "saturated", "x_i_Nm",
-        "speed_meas_rpm", "u_dc_V", "voltage_limited",
-    )
+    #: The signal names, in order: the engine's log columns (p2d_sim_log_name), speeds in rpm.
+    signals: ClassVar[tuple] = _signal_names(LOG_COLUMNS)
 
     scenario: Scenario
     wall_time_s: float
@@ -237,7 +250,7 @@ def simulate(scenario, progress=False):
     Parameters
     ----------
     scenario : Scenario
-        A validated scenario (:func:`pmsm2dof.scenario.load_scenario`, ``Scenario.from_dict``).
+        A validated scenario (:func:`pmsm2dof.sim.scenario.load_scenario`, ``Scenario.from_dict``).
         The speed controller is designed (eq 9, 11) for ``speed_controller.J_design_kgm2`` and
         ``tau_i_design_s``; the plant uses ``motor.J_kgm2`` and ``current_loop.tau_i_s``.
         ``speed_controller.Ka`` None means the paper's 1/Kp (section 3.3).
@@ -255,7 +268,7 @@ def simulate(scenario, progress=False):
         raise ConfigError("scenario", type(scenario).__name__,
                           "a pmsm2dof Scenario (load_scenario or Scenario.from_dict)")
     data = scenario.data
-    run = _EngineRun(data)
+    run = Simulation(data)
     start = time.perf_counter()
     if progress:
         from tqdm import tqdm
@@ -271,12 +284,25 @@ def simulate(scenario, progress=False):
                 bar.update(n * run.Ts_speed_s)
     else:
         run.advance(run.n_samples)
-    wall_time_s = time.perf_counter() - start
-    return Result(scenario=scenario, wall_time_s=wall_time_s, **run.signals())
+    return run.result(scenario, time.perf_counter() - start)
 
 
-class _EngineRun:
-    """One engine instance: the C configuration built from scenario data, the state and the log."""
+class Simulation:
+    """One engine instance: the C configuration built from scenario data, the state and the log.
+
+    :func:`simulate` runs it whole; a caller that wants to stop between parts of a run (the
+    tuner) calls :meth:`advance` in chunks, then :meth:`signals`.
+
+    Parameters
+    ----------
+    data : dict
+        :attr:`Scenario.data` of a validated scenario.
+
+    Raises
+    ------
+    ConfigError
+        A value the C controllers or the engine reject, naming the scenario key.
+    """
 
     def __init__(self, data):
         self.data = data
@@ -319,16 +345,16 @@ class _EngineRun:
         self._faults = _faults(cfg, data["fault"])
 
         s = cfg.speed
-        s.J_kgm2 = _float_param("speed_controller.J_design_kgm2", sc["J_design_kgm2"])
-        s.alpha_radps = _float_param("speed_controller.alpha", sc["alpha"])
-        s.zeta = _float_param("speed_controller.zeta", sc["zeta"])
-        s.m = _float_param("speed_controller.m", sc["m"])
-        s.tau_i_s = _float_param("speed_controller.tau_i_design_s", sc["tau_i_design_s"])
-        s.Ts_s = _float_param("speed_controller.Ts_s", sc["Ts_s"])
-        s.i_max_A = _float_param("limits.i_max_A", limits["i_max_A"])
-        s.psi_f_Wb = _float_param("motor.psi_f_Wb", motor["psi_f_Wb"])
-        s.Ld_H = _float_param("motor.Ld_H", motor["Ld_H"])
-        s.Lq_H = _float_param("motor.Lq_H", motor["Lq_H"])
+        s.J_kgm2 = sc["J_design_kgm2"]
+        s.alpha_radps = sc["alpha"]
+        s.zeta = sc["zeta"]
+        s.m = sc["m"]
+        s.tau_i_s = sc["tau_i_design_s"]
+        s.Ts_s = sc["Ts_s"]
+        s.i_max_A = limits["i_max_A"]
+        s.psi_f_Wb = motor["psi_f_Wb"]
+        s.Ld_H = motor["Ld_H"]
+        s.Lq_H = motor["Lq_H"]
         s.pole_pairs = motor["pole_pairs"]
         s.method = METHODS.index(sc["discretization"])
         s.feedforward = FEEDFORWARDS.index(sc["feedforward"])
@@ -337,15 +363,15 @@ class _EngineRun:
             # section 3.3: Ka = 1/Kp = 1/(J alpha), computed in float32 by the C library
             s.Ka = lib.p2d_speed_Ka_default(s.J_kgm2, s.alpha_radps)
         else:
-            s.Ka = _float_param("speed_controller.Ka", sc["Ka"])
+            s.Ka = sc["Ka"]
 
         c = cfg.current
-        c.Rs_ohm = _float_param("motor.Rs_ohm", motor["Rs_ohm"])
+        c.Rs_ohm = motor["Rs_ohm"]
         c.Ld_H = s.Ld_H
         c.Lq_H = s.Lq_H
         c.psi_f_Wb = s.psi_f_Wb
-        c.tau_i_s = _float_param("current_loop.tau_i_s", cl["tau_i_s"])
-        c.Ts_s = _float_param("current_loop.Ts_s", cl["Ts_s"])
+        c.tau_i_s = cl["tau_i_s"]
+        c.Ts_s = cl["Ts_s"]
         c.method = METHODS.index(cl["discretization"])
         c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
         c.decouple = cl["decouple"]
@@ -366,35 +392,27 @@ class _EngineRun:
             self._raise_stop(status)
 
     def signals(self):
-        """The log so far as the named arrays of :class:`Result`, rpm at the edge."""
+        """The log so far as the named arrays of :class:`Result`, rpm at the edge (:data:`RPM_SIGNALS`)."""
         n = self.sim.n_rows
-        col = {ffi.string(lib.p2d_sim_log_name(i)).decode(): self.log[i, :n] for i in range(lib.P2D_LOG_COUNT)}
+        col = {name: self.log[i, :n] for i, name in enumerate(LOG_COLUMNS)}
         bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
         if bad:
             first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
             raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = "
                                   f"{col['t_s'][first]:.6g} s")
-        return {
-            "t_s": col["t_s"],
-            "speed_ref_rpm": col["w_ref_radps"] * RPM_PER_RADPS,
-            "speed_rpm": col["w_m_radps"] * RPM_PER_RADPS,
-            "w_m_radps": col["w_m_radps"],
-            "id_ref_A": col["id_ref_A"],
-            "iq_ref_A": col["iq_ref_A"],
-            "id_A": col["id_A"],
-            "iq_A": col["iq_A"],
-            "ud_V": col["ud_V"],
-            "uq_V": col["uq_V"],
-            "torque_Nm": col["torque_Nm"],
-            "torque_ref_Nm": col["torque_ref_Nm"],
-            "torque_unsat_Nm": col["torque_unsat_Nm"],
-            "load_Nm": col["load_Nm"],
-            "saturated": col["saturated"] != 0.0,
-            "x_i_Nm": col["x_i_Nm"],
-            "speed_meas_rpm": col["w_meas_radps"] * RPM_PER_RADPS,
-            "u_dc_V": col["u_dc_V"],
-            "voltage_limited": col["voltage_limited"],
-        }
+        signals = {}
+        for name, values in col.items():
+            if name in RPM_SIGNALS:
+                signals[RPM_SIGNALS[name]] = values * RPM_PER_RADPS
+                if name == "w_m_radps":
+                    signals[name] = values
+            else:
+                signals[name] = values != 0.0 if name in FLAG_SIGNALS else values
+        return signals
+
+    def result(self, scenario, wall_time_s):
+        """The :class:`Result` of the log so far, for ``scenario`` (the one this run was built from)."""
+        return Result(scenario=scenario, wall_time_s=wall_time_s, **self.signals())
 
     def _value(self, key):
         node = self.data
@@ -405,27 +423,27 @@ class _EngineRun:
     def _raise_config(self, status):
         if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER):
             ctl = self.sim.controller_status
-            field = ffi.string(lib.p2d_status_param(ctl)).decode()
-            valid = ffi.string(lib.p2d_status_range(ctl)).decode()
+            field = c_string(lib.p2d_status_param(ctl))
+            valid = c_string(lib.p2d_status_range(ctl))
             keys = _SPEED_KEYS if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER else _CURRENT_KEYS
             key = keys[field]
             value = self._value(key)
             if key == "speed_controller.Ka":
                 s = self.cfg.speed
-                Ki = s.J_kgm2 * (s.alpha_radps / (2.0 * s.zeta)) ** 2
+                _, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
                 valid = (f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
                          f"{2.0 / (Ki * s.Ts_s):.6g} (Ki = {Ki:.6g} by eq 9)")
                 if value is None:
                     value = f"None (default 1/Kp = {s.Ka:.6g})"
             raise ConfigError(key, value, valid)
-        field = ffi.string(lib.p2d_sim_status_param(status)).decode()
-        valid = ffi.string(lib.p2d_sim_status_text(status)).decode()
+        field = c_string(lib.p2d_sim_status_param(status))
+        valid = c_string(lib.p2d_sim_status_text(status))
         key = _SIM_KEYS[field]
         raise ConfigError(key, self._value(key), valid)
 
     def _raise_stop(self, status):
         sim = self.sim
-        reason = ffi.string(lib.p2d_sim_status_text(status)).decode()
+        reason = c_string(lib.p2d_sim_status_text(status))
         if status == lib.P2D_SIM_STOP_OVERSPEED:
             reason += (f": |speed| = {sim.stop_value * RPM_PER_RADPS:.6g} rpm > {sim.stop_bound * RPM_PER_RADPS:.6g}"
                        " rpm")

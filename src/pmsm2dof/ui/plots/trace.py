@@ -1,22 +1,22 @@
 """The plot of one simulated run: speed, currents, torques, load and voltage against time.
 
 Drawn like the paper's Fig. 8 to 10 and 12 to 14 (speed and current responses), from a
-:class:`~pmsm2dof.simulate.Result`. Intervals where the current-vector limit is active (the
-saturation that the anti-windup of Fig. 5 acts on, :func:`~pmsm2dof.metrics.at_current_limit`) are
+:class:`~pmsm2dof.sim.simulate.Result`. Intervals where the current-vector limit is active (the
+saturation that the anti-windup of Fig. 5 acts on, :func:`~pmsm2dof.sim.metrics.at_current_limit`) are
 shaded in every panel; the voltage panel shows ``||u_dq||`` against the inverter's range
 ``u_dc / sqrt(3)`` and shades, in another colour, the intervals at the voltage limit
-(:func:`~pmsm2dof.metrics.at_voltage_limit`).
+(:func:`~pmsm2dof.sim.metrics.at_voltage_limit`).
 """
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from .metrics import at_current_limit, at_voltage_limit
-from .plots import save_figure
+from ...sim.metrics import at_current_limit, at_voltage_limit
+from .design import save_figure
 
 
-def _saturated_intervals(t, saturated):
+def saturated_intervals(t, saturated):
     """(start, end) of each run of set flags; the flag of sample k holds over [t[k], t[k+1])."""
     flags = np.concatenate(([False], np.asarray(saturated, dtype=bool)[:-1], [False]))
     edges = np.flatnonzero(np.diff(flags.astype(np.int8)))
@@ -68,10 +68,10 @@ def trace_figure(result):
     ax_u.set_ylabel("voltage [V]")
     ax_u.set_xlabel("time [s]")
     voltage_limited = at_voltage_limit(result) > 0.0
-    for a, b in _saturated_intervals(t, voltage_limited):
+    for a, b in saturated_intervals(t, voltage_limited):
         ax_u.axvspan(a, b, color="purple", alpha=0.15, lw=0)
 
-    spans = _saturated_intervals(t, at_current_limit(result))
+    spans = saturated_intervals(t, at_current_limit(result))
     for ax in (ax_w, ax_i, ax_T, ax_u):
         for a, b in spans:
             ax.axvspan(a, b, color="orange", alpha=0.15, lw=0)

@@ -18,8 +18,8 @@ the message next to the control.
 
 A client (the peer address and the page's ``X-Pmsm2dof-Client`` header) runs one simulation at
 a time: a newer run request cancels the older one, which answers 409
-(:mod:`pmsm2dof.tuner.slots`). The Host and Origin checks are the server's
-(:mod:`pmsm2dof.tuner.server`), which knows the address it is bound to.
+(:mod:`pmsm2dof.ui.tuner.slots`). The Host and Origin checks are the server's
+(:mod:`pmsm2dof.ui.tuner.server`), which knows the address it is bound to.
 """
 
 import json
@@ -32,7 +32,7 @@ from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
-from ..errors import ConfigError, SimulationError
+from ...errors import ConfigError, SimulationError
 from .experiment import Tuner
 from .slots import ClientSlots, Superseded
 
@@ -86,14 +86,14 @@ def create_app(scenario):
 
     Parameters
     ----------
-    scenario : pmsm2dof.scenario.Scenario
+    scenario : pmsm2dof.sim.scenario.Scenario
         Base scenario: motor, limits, current loop, schedules and the initial controller settings.
 
     Returns
     -------
     starlette.applications.Starlette
-        Its ``state.tuner`` is the :class:`~pmsm2dof.tuner.experiment.Tuner`, its
-        ``state.slots`` the :class:`~pmsm2dof.tuner.slots.ClientSlots` of its clients.
+        Its ``state.tuner`` is the :class:`~pmsm2dof.ui.tuner.experiment.Tuner`, its
+        ``state.slots`` the :class:`~pmsm2dof.ui.tuner.slots.ClientSlots` of its clients.
     """
     tuner = Tuner(scenario)
     slots = ClientSlots()

@@ -21,15 +21,11 @@ import numbers
 
 import numpy as np
 
-from ._core import ffi, lib
-from .errors import ConfigError
+from ..errors import ConfigError
+from .bindings import ANTI_WINDUPS, FEEDFORWARDS, METHODS, c_string, ffi, lib, struct_fields
 
-#: Discretization methods (paper Table 1); the index is the C ``p2d_method_t`` value.
-METHODS = ("forward_euler", "backward_euler", "tustin")
-#: 2DOF feedforward forms; the index is the C ``p2d_feedforward_t`` value.
-FEEDFORWARDS = ("none", "lowpass", "no_tau", "full")
-#: Anti-windup modes (paper section 3.2); the index is the C ``p2d_anti_windup_t`` value.
-ANTI_WINDUPS = ("none", "back_calculation", "clamping")
+#: The choices of each enum type of the C configurations, indexed by their C value.
+_CHOICES = {"p2d_method_t": METHODS, "p2d_feedforward_t": FEEDFORWARDS, "p2d_anti_windup_t": ANTI_WINDUPS}
 
 def _float_param(name, value):
     """``value`` as a Python float, for a float32 field of a C configuration.
@@ -57,14 +53,50 @@ def _choice_param(name, value, choices):
     return choices.index(value)
 
 
+def _set_fields(cfg, fields, params):
+    """Write ``params`` into the C configuration ``cfg``, field by field as its C type asks.
+
+    ``fields`` maps a field to its C type (:func:`~pmsm2dof.core.bindings.struct_fields`):
+    ``float`` takes a real number, ``uint32_t`` an integer, an enum one of its names, ``_Bool``
+    True or False. Only the type is checked here: the C init checks the range.
+    """
+    for name, ctype in fields.items():
+        value = params[name]
+        if ctype == "float":
+            setattr(cfg, name, _float_param(name, value))
+        elif ctype == "uint32_t":
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= value <= 0xFFFFFFFF:
+                raise ConfigError(name, value, "an integer >= 1")
+            setattr(cfg, name, int(value))
+        elif ctype in _CHOICES:
+            setattr(cfg, name, _choice_param(name, value, _CHOICES[ctype]))
+        else:  # _Bool
+            if not isinstance(value, (bool, np.bool_)):
+                raise ConfigError(name, value, "True or False")
+            setattr(cfg, name, bool(value))
+
+
+def _get_fields(cfg, fields):
+    """The C configuration ``cfg`` as a dict of Python values: floats, ints, enum names, bools."""
+    values = {}
+    for name, ctype in fields.items():
+        value = getattr(cfg, name)
+        if ctype in _CHOICES:
+            value = _CHOICES[ctype][value]
+        elif ctype == "_Bool":
+            value = bool(value)
+        values[name] = value
+    return values
+
+
 def _raise_status(status, given):
     """Raise the ConfigError of a non-zero C status, with the value the user gave.
 
     A value that float32 cannot hold (it overflows to inf or rounds to 0) is
     rejected by C as inf or 0; the message says so.
     """
-    param = ffi.string(lib.p2d_status_param(status)).decode()
-    valid = ffi.string(lib.p2d_status_range(status)).decode()
+    param = c_string(lib.p2d_status_param(status))
+    valid = c_string(lib.p2d_status_range(status))
     value = given.get(param)
     if isinstance(value, numbers.Real) and math.isfinite(value) and value != 0:
         with np.errstate(over="ignore"):  # the overflow to inf is what the message reports
@@ -79,7 +111,7 @@ def _structured_dtype(ctype, fields):
     return np.dtype(
         {
             "names": list(fields),
-            "formats": [np.bool_ if kind == "bool" else np.float32 for kind in fields.values()],
+            "formats": [np.bool_ if kind == "_Bool" else np.float32 for kind in fields.values()],
             "offsets": [ffi.offsetof(ctype, name) for name in fields],
             "itemsize": ffi.sizeof(ctype),
         }
@@ -110,21 +142,11 @@ def _float_ptr(array):
 # Speed controller
 # ---------------------------------------------------------------------------------------------
 
-_SPEED_OUTPUT_FIELDS = {
-    "w_ref_radps": "float",
-    "e_radps": "float",
-    "T_ff_Nm": "float",
-    "y_ff_Nm": "float",
-    "T_unsat_Nm": "float",
-    "T_ref_Nm": "float",
-    "id_ref_A": "float",
-    "iq_ref_A": "float",
-    "saturated": "bool",
-    "fault": "bool",
-}
+_SPEED_OUTPUT_FIELDS = struct_fields("p2d_speed_output_t")
 _SPEED_OUTPUT_DTYPE = _structured_dtype("p2d_speed_output_t", _SPEED_OUTPUT_FIELDS)
-_SPEED_FLOATS = ("J_kgm2", "alpha_radps", "zeta", "m", "tau_i_s", "Ts_s", "i_max_A", "psi_f_Wb", "Ld_H", "Lq_H")
-_SPEED_PARAMS = _SPEED_FLOATS + ("Ka", "pole_pairs", "method", "feedforward", "anti_windup")
+#: The parameters of SpeedController: the fields of p2d_speed_config_t, with their C types.
+_SPEED_CONFIG_FIELDS = struct_fields("p2d_speed_config_t")
+_SPEED_PARAMS = tuple(_SPEED_CONFIG_FIELDS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -250,15 +272,7 @@ class SpeedController:
     def _c_config(params):
         """The C configuration of ``params``; type errors raise ConfigError."""
         cfg = ffi.new("p2d_speed_config_t *")
-        for name in _SPEED_FLOATS:
-            setattr(cfg, name, _float_param(name, params[name]))
-        p = params["pole_pairs"]
-        if isinstance(p, bool) or not isinstance(p, numbers.Integral) or not 1 <= p <= 0xFFFFFFFF:
-            raise ConfigError("pole_pairs", p, "an integer >= 1")
-        cfg.pole_pairs = int(p)
-        cfg.method = _choice_param("method", params["method"], METHODS)
-        cfg.feedforward = _choice_param("feedforward", params["feedforward"], FEEDFORWARDS)
-        cfg.anti_windup = _choice_param("anti_windup", params["anti_windup"], ANTI_WINDUPS)
+        _set_fields(cfg, {name: t for name, t in _SPEED_CONFIG_FIELDS.items() if name != "Ka"}, params)
         if params["Ka"] is None:
             # section 3.3: Ka = 1/Kp, computed in float32 by the C library
             cfg.Ka = lib.p2d_speed_Ka_default(cfg.J_kgm2, cfg.alpha_radps)
@@ -363,13 +377,9 @@ class SpeedController:
 
         ``SpeedController(**ctl.config)`` builds an equal controller.
         """
-        c = self._ctl.config
-        cfg = {name: getattr(c, name) for name in _SPEED_FLOATS}
-        cfg["Ka"] = None if self._params["Ka"] is None else c.Ka
-        cfg["pole_pairs"] = c.pole_pairs
-        cfg["method"] = METHODS[c.method]
-        cfg["feedforward"] = FEEDFORWARDS[c.feedforward]
-        cfg["anti_windup"] = ANTI_WINDUPS[c.anti_windup]
+        cfg = _get_fields(self._ctl.config, _SPEED_CONFIG_FIELDS)
+        if self._params["Ka"] is None:
+            cfg["Ka"] = None
         return cfg
 
     @property
@@ -420,19 +430,11 @@ def _struct_dict(cdata, ctype):
 # Current controller
 # ---------------------------------------------------------------------------------------------
 
-_CURRENT_OUTPUT_FIELDS = {
-    "ed_A": "float",
-    "eq_A": "float",
-    "ud_unsat_V": "float",
-    "uq_unsat_V": "float",
-    "ud_ref_V": "float",
-    "uq_ref_V": "float",
-    "saturated": "bool",
-    "fault": "bool",
-}
+_CURRENT_OUTPUT_FIELDS = struct_fields("p2d_current_output_t")
 _CURRENT_OUTPUT_DTYPE = _structured_dtype("p2d_current_output_t", _CURRENT_OUTPUT_FIELDS)
-_CURRENT_FLOATS = ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb", "tau_i_s", "Ts_s")
-_CURRENT_PARAMS = _CURRENT_FLOATS + ("method", "anti_windup", "decouple")
+#: The parameters of CurrentController: the fields of p2d_current_config_t, with their C types.
+_CURRENT_CONFIG_FIELDS = struct_fields("p2d_current_config_t")
+_CURRENT_PARAMS = tuple(_CURRENT_CONFIG_FIELDS)
 _CURRENT_INPUTS = ("id_ref_A", "iq_ref_A", "id_A", "iq_A", "w_e_radps", "u_dc_V")
 
 
@@ -521,13 +523,7 @@ class CurrentController:
     @staticmethod
     def _c_config(params):
         cfg = ffi.new("p2d_current_config_t *")
-        for name in _CURRENT_FLOATS:
-            setattr(cfg, name, _float_param(name, params[name]))
-        cfg.method = _choice_param("method", params["method"], METHODS)
-        cfg.anti_windup = _choice_param("anti_windup", params["anti_windup"], ANTI_WINDUPS)
-        if not isinstance(params["decouple"], (bool, np.bool_)):
-            raise ConfigError("decouple", params["decouple"], "True or False")
-        cfg.decouple = bool(params["decouple"])
+        _set_fields(cfg, _CURRENT_CONFIG_FIELDS, params)
         return cfg
 
     def set_config(self, **changes):
@@ -605,12 +601,7 @@ class CurrentController:
     @property
     def config(self):
         """The active configuration (float32 values); ``CurrentController(**ctl.config)`` rebuilds it."""
-        c = self._ctl.config
-        cfg = {name: getattr(c, name) for name in _CURRENT_FLOATS}
-        cfg["method"] = METHODS[c.method]
-        cfg["anti_windup"] = ANTI_WINDUPS[c.anti_windup]
-        cfg["decouple"] = bool(c.decouple)
-        return cfg
+        return _get_fields(self._ctl.config, _CURRENT_CONFIG_FIELDS)
 
     @property
     def state(self):

@@ -22,92 +22,20 @@ analytical PI design of its reference [4].
 
 import functools
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import control
 import numpy as np
 
-from .controllers import ANTI_WINDUPS, FEEDFORWARDS
-from .errors import ConfigError, require_choice, require_nonnegative, require_positive
+from ..core import ANTI_WINDUPS, FEEDFORWARDS, pi_gains
+from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
+from .codegen import write_c_header
+from .discretize import discretize
+from .margins import loop_margins
 from .stepresponse import StepResponse
 
 #: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
 HALF_POWER_DB = 20.0 * math.log10(1.0 / math.sqrt(2.0))
-
-
-@dataclass(frozen=True)
-class Margins:
-    """Stability margins of a loop gain (python-control ``stability_margins``).
-
-    Attributes
-    ----------
-    gain_margin_dB : float
-        Gain margin [dB] (``inf`` when the phase never crosses -180 deg where ``|L| < 1``).
-    phase_margin_deg : float
-        Phase margin [deg] (``inf`` when ``|L|`` never crosses 1).
-    w_gain_crossover_radps : float
-        Frequency where ``|L| = 1`` [rad/s] (``nan`` when there is none).
-    w_phase_crossover_radps : float
-        Frequency of the gain margin's -180 deg crossing [rad/s] (``nan`` when there is none).
-    """
-
-    gain_margin_dB: float
-    phase_margin_deg: float
-    w_gain_crossover_radps: float
-    w_phase_crossover_radps: float
-
-    def values_and_reasons(self):
-        """The margins as JSON-ready numbers, and the reason of each one that is ``None``.
-
-        Returns
-        -------
-        (dict, dict)
-            ``{name: value or None}`` (infinite and undefined values are ``None``) and
-            ``{name: reason}`` for the ``None`` ones.
-        """
-        no_phase_crossing = "infinite: the phase of the loop gain never crosses -180 deg where |L| < 1"
-        no_gain_crossing = "infinite: |L| never crosses 1"
-        reasons = {
-            "gain_margin_dB": no_phase_crossing,
-            "phase_margin_deg": no_gain_crossing,
-            "w_gain_crossover_radps": "undefined: |L| never crosses 1",
-            "w_phase_crossover_radps": "undefined: the phase of the loop gain never crosses -180 deg where |L| < 1",
-        }
-        values = asdict(self)
-        missing = {name: reasons[name] for name, v in values.items() if not math.isfinite(v)}
-        return {name: (v if math.isfinite(v) else None) for name, v in values.items()}, missing
-
-
-def pick_margins(gains, phases_deg, w_phase_radps, w_gain_radps, extra_crossings=()):
-    """The :class:`Margins` of a loop gain from all its -180 deg and unit-gain crossings.
-
-    The gain margin is the factor by which the loop gain can grow before the loop goes
-    unstable: the smallest ``1/|L|`` over the -180 deg crossings with ``|L| < 1``. Crossings
-    with ``|L| > 1`` are left out: this type-2 loop (PI and integrating plant) has its phase
-    at -180 deg at DC, and lowering its gain does not destabilize it. The phase margin is the
-    smallest over the gain crossovers.
-
-    Parameters
-    ----------
-    gains, w_phase_radps : sequence of float
-        ``1/|L|`` [-] and frequency [rad/s] at each -180 deg crossing.
-    phases_deg, w_gain_radps : sequence of float
-        Phase margin [deg] and frequency [rad/s] at each crossing of ``|L| = 1``.
-    extra_crossings : sequence of (float, float)
-        Further ``(1/|L|, frequency)`` -180 deg crossings (the Nyquist frequency of a
-        discrete loop).
-    """
-    crossings = [(float(gm), float(w)) for gm, w in zip(gains, w_phase_radps) if gm > 1.0]
-    crossings += [(float(gm), float(w)) for gm, w in extra_crossings if gm > 1.0]
-    gm, w_pc = min(crossings) if crossings else (math.inf, math.nan)
-    pm, w_gc = min(zip(phases_deg, w_gain_radps)) if len(phases_deg) else (math.inf, math.nan)
-    return Margins(20.0 * math.log10(gm), float(pm), float(w_gc), w_pc)
-
-
-def loop_margins(L):
-    """Gain and phase margins of the stable continuous loop gain ``L(s)`` (see :func:`pick_margins`)."""
-    gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(L, returnall=True)
-    return pick_margins(gms, pms, w_pcs, w_gcs)
 
 
 def tracking_tf(F, Fr, G):
@@ -256,7 +184,7 @@ class Design:
         return loop_margins(self.L)
 
     def tracking_step(self):
-        """The unit reference step of the loop (eq 6) as a :class:`~pmsm2dof.stepresponse.StepResponse`.
+        """The unit reference step of the loop (eq 6) as a :class:`~pmsm2dof.analysis.stepresponse.StepResponse`.
 
         States: the torque ``T`` after the current loop (eq 3, absent when tau_i = 0), the
         momentum ``p = J w`` (eq 2), the PI integral ``q`` and the feedforward state ``v``,
@@ -310,19 +238,15 @@ class Design:
     def discretize(self, Ts_s, method):
         """Discrete controller for sampling period ``Ts_s`` [s] (Table 1, eq 14, 15).
 
-        See :func:`pmsm2dof.discretize.discretize`.
+        See :func:`pmsm2dof.analysis.discretize.discretize`.
         """
-        from .discretize import discretize
-
         return discretize(self, Ts_s, method)
 
     def to_c_header(self, path, Ts_s, method, **motor):
         """Write a C header configuring the speed controller with this design.
 
-        See :func:`pmsm2dof.codegen.write_c_header` for the motor and limit keywords.
+        See :func:`pmsm2dof.analysis.codegen.write_c_header` for the motor and limit keywords.
         """
-        from .codegen import write_c_header
-
         return write_c_header(path, self.discretize(Ts_s, method), **motor)
 
 
@@ -371,8 +295,6 @@ def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="lowpass",
     if feedforward == "lowpass" and m != 1.0:
         raise ConfigError("m", m, "exactly 1 with feedforward 'lowpass' (eq 13, the default); for m != 1 choose "
                                   "feedforward 'no_tau' or 'full' (eq 11)")
-    # eq 9
-    Kp = J_kgm2 * alpha_radps
-    Ki = J_kgm2 * (alpha_radps / (2.0 * zeta)) ** 2
+    Kp, Ki = pi_gains(J_kgm2, alpha_radps, zeta)  # eq 9
     Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
     return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki)

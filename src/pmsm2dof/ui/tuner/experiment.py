@@ -11,7 +11,7 @@ schedules, and its faults. The controls are
 - ``tuner.J_ratio`` (true inertia / design inertia: the design inertia stays that of the base
   scenario and ``motor.J_kgm2`` follows the ratio).
 
-Every request is validated by :meth:`pmsm2dof.scenario.Scenario.with_overrides`, exactly like
+Every request is validated by :meth:`pmsm2dof.sim.scenario.Scenario.with_overrides`, exactly like
 a scenario file; errors name the control key.
 
 The work of one run is bounded: at most :data:`STEPS_MAX` plant integration steps (a longer
@@ -19,7 +19,7 @@ The work of one run is bounded: at most :data:`STEPS_MAX` plant integration step
 raised so that the run logs at most :data:`LOG_ROWS_MAX` rows (the plots draw a thousand points a
 trace; the metrics and the trace download are those of the logged rows). A run is simulated in
 chunks of about :data:`CHUNK_STEPS` steps and stops between two of them when a newer request of
-the same client supersedes it (:mod:`pmsm2dof.tuner.slots`).
+the same client supersedes it (:mod:`pmsm2dof.ui.tuner.slots`).
 """
 
 import collections
@@ -32,13 +32,13 @@ import time
 import control
 import numpy as np
 
-from ..codegen import c_header
-from ..controllers import ANTI_WINDUPS, FEEDFORWARDS, METHODS
-from ..design import design
-from ..errors import ConfigError, require_positive
-from ..metrics import at_current_limit, at_voltage_limit, compute_metrics
-from ..simulate import Result, _EngineRun
-from ..traceplot import _saturated_intervals
+from ...analysis.codegen import c_header
+from ...analysis.design import design
+from ...core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
+from ...errors import ConfigError, require_positive
+from ...sim.metrics import at_current_limit, at_voltage_limit, compute_metrics
+from ...sim.simulate import Simulation
+from ..plots.trace import saturated_intervals
 from .slots import Ticket
 
 #: Buckets of the min-max decimation of the traces sent to the page: each bucket keeps its
@@ -119,7 +119,7 @@ def limit_spans(t, flags, most=SPANS_MAX):
     that a flag that chatters (clamping at the limit every other sample) shades one span and
     the page draws at most ``most`` of them.
     """
-    spans = np.asarray(_saturated_intervals(np.asarray(t), flags), dtype=float).reshape(-1, 2)
+    spans = np.asarray(saturated_intervals(np.asarray(t), flags), dtype=float).reshape(-1, 2)
     if len(spans) > most:
         gaps = spans[1:, 0] - spans[:-1, 1]
         cuts = np.sort(np.argsort(gaps, kind="stable")[len(gaps) - (most - 1):])  # the widest gaps stay
@@ -167,7 +167,7 @@ def bode_data(Gx, GN, alpha_radps, Ts_s):
 
 
 def design_of(scenario):
-    """The :class:`~pmsm2dof.design.Design` of a scenario's speed controller (eq 9-13)."""
+    """The :class:`~pmsm2dof.analysis.design.Design` of a scenario's speed controller (eq 9-13)."""
     sc = scenario.data["speed_controller"]
     return design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=sc["m"], tau_i_s=sc["tau_i_design_s"],
                   feedforward=sc["feedforward"], anti_windup=sc["anti_windup"], Ka=sc["Ka"])
@@ -178,7 +178,7 @@ class Tuner:
 
     Parameters
     ----------
-    base : pmsm2dof.scenario.Scenario
+    base : pmsm2dof.sim.scenario.Scenario
         Motor, limits, current loop, initial controller settings, schedules, faults and timing.
     """
 
@@ -317,7 +317,7 @@ class Tuner:
         """
         data = scenario.data
         sim, Ts_cl = data["simulation"], data["current_loop"]["Ts_s"]
-        # the engine's integration step: current_loop.Ts_s / ceil(current_loop.Ts_s / dt_s) (pmsm2dof.simulate)
+        # the engine's integration step: current_loop.Ts_s / ceil(current_loop.Ts_s / dt_s) (pmsm2dof.sim.simulate)
         h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim["dt_s"] * (1.0 - 1e-9)))
         if sim["t_end_s"] > STEPS_MAX * h_s:
             raise ConfigError("simulation.t_end_s", sim["t_end_s"],
@@ -351,8 +351,8 @@ class Tuner:
     @staticmethod
     def _simulate(scenario, ticket):
         """:func:`pmsm2dof.simulate` in chunks of about :data:`CHUNK_STEPS` steps, stopping with
-        :class:`~pmsm2dof.tuner.slots.Superseded` between two when ``ticket`` is cancelled."""
-        run = _EngineRun(scenario.data)
+        :class:`~pmsm2dof.ui.tuner.slots.Superseded` between two when ``ticket`` is cancelled."""
+        run = Simulation(scenario.data)
         chunk = max(1, CHUNK_STEPS // (run.cfg.current_per_speed * run.cfg.substeps))
         with ticket.simulation():
             start = time.perf_counter()
@@ -363,7 +363,7 @@ class Tuner:
                 run.advance(n)
                 done += n
             wall_time_s = time.perf_counter() - start
-        return Result(scenario=scenario, wall_time_s=wall_time_s, **run.signals())
+        return run.result(scenario, wall_time_s)
 
     def run(self, values, ticket=None):
         """Run the experiment; return what the page draws (JSON-ready dict).
@@ -371,12 +371,12 @@ class Tuner:
         Keys: ``traces`` (decimated ``{"t", "y"}`` of speed_ref_rpm, speed_rpm, iq_ref_A,
         id_ref_A, u_dq_V = ||u_dq|| and u_max_V = u_dc / sqrt(3)), ``spans`` (``current`` and
         ``voltage``: the ``[start, end]`` intervals at the current-vector limit and at the
-        inverter's voltage range, by :func:`pmsm2dof.metrics.at_current_limit` and
-        :func:`~pmsm2dof.metrics.at_voltage_limit`, as plot.png shades them), ``detail`` (speed and reference around the first load step,
+        inverter's voltage range, by :func:`pmsm2dof.sim.metrics.at_current_limit` and
+        :func:`~pmsm2dof.sim.metrics.at_voltage_limit`, as plot.png shades them), ``detail`` (speed and reference around the first load step,
         or without one the last reference step, until the next schedule entry, decimated on
         their own so that the dip keeps its full resolution; its ``t_s`` and ``title``),
         ``bode``, ``metrics`` (list of ``{key, group, label, unit, value, reason}``, key the path
-        in :func:`pmsm2dof.metrics.compute_metrics`), ``warnings`` (sentences: the voltage limit
+        in :func:`pmsm2dof.sim.metrics.compute_metrics`), ``warnings`` (sentences: the voltage limit
         cut in), ``design`` (Kp, Ki, Ka), ``log`` (every, period_s, rows), ``i_max_A``,
         ``t_end_s``, ``label`` and ``server_ms``.
 
@@ -384,7 +384,7 @@ class Tuner:
         ------
         ConfigError, SimulationError
             Bad control values, a run over the bound, a run that stopped.
-        pmsm2dof.tuner.slots.Superseded
+        pmsm2dof.ui.tuner.slots.Superseded
             ``ticket`` was cancelled by a newer request of its client.
         """
         t0 = time.perf_counter()
@@ -453,7 +453,7 @@ class Tuner:
             scenario = self.scenario(values)
             # the engine's init runs the C controllers' init, which names the scenario key of any
             # value they reject; nothing is simulated
-            _EngineRun(self.logged(scenario).data)
+            Simulation(self.logged(scenario).data)
             return "pmsm2dof_speed_config.h", "text/x-c", self._c_header(scenario)
         if kind == "trace.csv":
             scenario, result = self._evaluate(values, ticket)
@@ -462,7 +462,7 @@ class Tuner:
 
     @staticmethod
     def _c_header(scenario):
-        """C header of the scenario's speed and current controllers (pmsm2dof.codegen)."""
+        """C header of the scenario's speed and current controllers (pmsm2dof.analysis.codegen)."""
         data = scenario.data
         motor, sc, cl = data["motor"], data["speed_controller"], data["current_loop"]
         discrete = design_of(scenario).discretize(sc["Ts_s"], sc["discretization"])

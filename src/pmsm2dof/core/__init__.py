@@ -1,0 +1,25 @@
+"""The controller: bindings to the C library and the Python objects over its controllers.
+
+The lowest layer of pmsm2dof (above :mod:`pmsm2dof.errors` and :mod:`pmsm2dof.outputs`): it
+imports nothing of the other layers. :mod:`.bindings` holds the compiled library and the names
+read from its headers, :mod:`.controllers` the :class:`SpeedController` and
+:class:`CurrentController` that wrap the deployable C controllers, :mod:`.gains` eq 9.
+"""
+
+from .bindings import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, LOG_COLUMNS, METHODS
+from .controllers import CurrentController, CurrentOutput, SpeedController, SpeedOutput
+from .gains import pi_gains
+
+__all__ = [
+    "ANTI_WINDUPS",
+    "CURRENT_LOOP_MODELS",
+    "FAULT_KINDS",
+    "FEEDFORWARDS",
+    "LOG_COLUMNS",
+    "METHODS",
+    "CurrentController",
+    "CurrentOutput",
+    "SpeedController",
+    "SpeedOutput",
+    "pi_gains",
+]

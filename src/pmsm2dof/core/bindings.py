@@ -1,0 +1,69 @@
+"""The compiled C library and the names it defines, read from its headers.
+
+``ffi`` and ``lib`` are those of the cffi extension ``pmsm2dof._core``, built from the public
+headers of ``csrc/include/pmsm2dof`` and ``csrc/sim`` (see ``ffibuild.py``). Every name that
+Python shares with the C code is read here from those declarations instead of being written a
+second time: the choices of the enums (:func:`enum_names`), the fields of the C structs
+(:func:`struct_fields`) and the columns of the engine's log (:data:`LOG_COLUMNS`). This is the
+only module that imports the extension.
+"""
+
+from .._core import ffi, lib
+
+__all__ = [
+    "ANTI_WINDUPS",
+    "CURRENT_LOOP_MODELS",
+    "FAULT_KINDS",
+    "FEEDFORWARDS",
+    "LOG_COLUMNS",
+    "METHODS",
+    "c_string",
+    "enum_names",
+    "ffi",
+    "lib",
+    "struct_fields",
+]
+
+
+def c_string(pointer: object) -> str:
+    """The C string ``pointer`` (``const char *``) as a Python str."""
+    return ffi.string(pointer).decode()  # type: ignore[no-any-return, union-attr]
+
+
+def enum_names(ctype: str, prefix: str) -> tuple[str, ...]:
+    """The enumerators of the C enum ``ctype`` as lower-case names, indexed by their value.
+
+    ``enum_names("p2d_method_t", "P2D_")`` is ``("forward_euler", "backward_euler", "tustin")``:
+    each enumerator loses ``prefix`` and is lowered. The values must be 0, 1, 2, ... so that a
+    name's index is its C value.
+    """
+    elements = ffi.typeof(ctype).elements
+    if sorted(elements) != list(range(len(elements))):
+        raise RuntimeError(f"{ctype}: values {sorted(elements)} are not 0..{len(elements) - 1}")
+    names = []
+    for value in range(len(elements)):
+        name = elements[value]
+        if not name.startswith(prefix):
+            raise RuntimeError(f"{ctype}: {name} does not start with {prefix}")
+        names.append(name[len(prefix) :].lower())
+    return tuple(names)
+
+
+def struct_fields(ctype: str) -> dict[str, str]:
+    """The fields of the C struct ``ctype`` in declaration order: ``{name: C type name}``."""
+    return {name: field.type.cname for name, field in ffi.typeof(ctype).fields}
+
+
+#: Discretization methods (paper Table 1); the index is the C ``p2d_method_t`` value.
+METHODS = enum_names("p2d_method_t", "P2D_")
+#: 2DOF feedforward forms; the index is the C ``p2d_feedforward_t`` value.
+FEEDFORWARDS = enum_names("p2d_feedforward_t", "P2D_FF_")
+#: Anti-windup modes (paper section 3.2); the index is the C ``p2d_anti_windup_t`` value.
+ANTI_WINDUPS = enum_names("p2d_anti_windup_t", "P2D_AW_")
+#: Current-loop models of the engine (``p2d_current_model_t``): the C dq current controllers
+#: driving the electrical model, or the closed loop of eq 3.
+CURRENT_LOOP_MODELS = enum_names("p2d_current_model_t", "P2D_CURRENT_")
+#: Fault kinds the engine plays (``p2d_fault_kind_t``).
+FAULT_KINDS = enum_names("p2d_fault_kind_t", "P2D_FAULT_")
+#: Names of the columns of the engine's log, with their units (``p2d_sim_log_name``).
+LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))

@@ -1,0 +1,162 @@
+"""The paper reproduction: figures, the claims table and the report of ``pmsm2dof reproduce``.
+
+:func:`reproduce` runs the studies of :mod:`pmsm2dof.studies.paper` (the paper's simulation and
+experimental conditions, the sensitivity sweeps and the discretization study) and the fault
+scenarios of :mod:`pmsm2dof.studies.faults`, checks every claim of the paper (sections 3, 4.1,
+4.2 and 5) against what they measured (:mod:`.claims`), draws the figures (:mod:`.figures`)
+and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
+(:mod:`.render`):
+
+- ``figures/*.png`` and ``figures/*.svg``: Fig. 7 (Bode of Gx), Fig. 8 to 10 (simulation
+  conditions 1 and 2), Fig. 12 to 14 (the experimental conditions, simulated), the sensitivity
+  figures, the discretization study and the fault scenarios; beside each, ``figures/*.csv`` with
+  the numbers it draws (:class:`~pmsm2dof.ui.report.figures.FigureData`);
+- ``report.md`` and ``report.html`` (self-contained: the figures embedded as base64 PNG);
+- ``claims.json``: one row per claim, with the paper's value, the measured one, a verdict
+  (``reproduced``, ``partly``, ``not reproduced``) and the reason where they differ;
+- ``metrics.json`` (figures of merit of the paper runs), ``sensitivity.csv`` and
+  ``discretization.csv`` (the data of the study figures);
+- a section on fault scenarios the paper does not treat (the ``fault-*`` presets: a stall, a
+  DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode.
+
+Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous
+Motor Speed Controller" (equation, figure and section numbers are the paper's).
+"""
+
+import dataclasses
+import io
+import json
+import time
+from importlib.metadata import version
+from pathlib import Path
+
+from ...outputs import atomic_write, require_writable_dir, staged_dir
+from ...studies import paper as st
+from ...studies.faults import run_faults
+from .claims import VERDICTS, Claim, compute_claims
+from .figures import fig_faults, figures
+from .render import csv_text, json_value, sensitivity_rows, render_html, render_markdown, report_blocks
+
+__all__ = ["VERDICTS", "Claim", "Report", "compute_claims", "reproduce", "write_report"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Report:
+    """What :func:`reproduce` wrote.
+
+    Attributes
+    ----------
+    out : pathlib.Path
+        The output folder.
+    claims : list of Claim
+    studies : Studies
+    files : list of str
+        The files written, relative to ``out``.
+    wall_time_s : float
+        Wall-clock time of the whole reproduction [s].
+    """
+
+    out: Path
+    claims: list
+    studies: object
+    files: list
+    wall_time_s: float
+
+
+def write_report(studies, out, progress=False):
+    """Check the claims on ``studies`` and write the report into ``out``, all or nothing.
+
+    Parameters
+    ----------
+    studies : Studies
+        Of :func:`pmsm2dof.studies.paper.run_studies`.
+    out : str or os.PathLike
+        Output folder (created; files of the same names replaced).
+    progress : bool
+        Show a progress bar over the figures.
+
+    Returns
+    -------
+    (list of Claim, list of str, float)
+        The claims, the files written (relative to ``out``) and the wall-clock time of the
+        studies and the report [s].
+    """
+    start = time.perf_counter()
+    claims = compute_claims(studies)
+    made = figures(studies)
+    fault_runs = run_faults(studies.overrides)
+    made["faults"] = (*fig_faults(fault_runs),
+                      "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: "
+                      "the reference.")
+    files = []
+    with staged_dir(out) as tmp:
+        images = {}
+        items = made.items()
+        if progress:
+            from tqdm import tqdm
+
+            items = tqdm(items, desc="figures", unit="figure")
+        for stem, (fig, data, _caption) in items:
+            for fmt in ("png", "svg"):
+                buf = io.BytesIO()
+                fig.savefig(buf, format=fmt, dpi=110)
+                atomic_write(tmp / "figures" / f"{stem}.{fmt}", buf.getvalue())
+                files.append(f"figures/{stem}.{fmt}")
+                if fmt == "png":
+                    images[stem] = buf.getvalue()
+            atomic_write(tmp / "figures" / f"{stem}.csv", data.to_csv())
+            files.append(f"figures/{stem}.csv")
+        captions = {stem: caption for stem, (_fig, _data, caption) in made.items()}
+        claims_json = {
+            "paper": "Wang, Lin, Yang, Fang, Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous Motor "
+                     "Speed Controller",
+            "pmsm2dof_version": version("pmsm2dof"),
+            "overrides": json_value(studies.overrides),
+            "verdict_counts": {v: sum(c.verdict == v for c in claims) for v in VERDICTS},
+            "claims": [json_value(dataclasses.asdict(c)) for c in claims],
+        }
+        atomic_write(tmp / "claims.json", json.dumps(claims_json, indent=2, allow_nan=False) + "\n")
+        atomic_write(tmp / "metrics.json", json.dumps({name: studies.metrics[name] for name in studies.results},
+                                                      indent=2, allow_nan=False) + "\n")
+        atomic_write(tmp / "sensitivity.csv", csv_text(sensitivity_rows(studies)))
+        atomic_write(tmp / "discretization.csv",
+                     csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization]))
+        wall_time_s = studies.wall_time_s + time.perf_counter() - start
+        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs)
+        atomic_write(tmp / "report.md", render_markdown(blocks))
+        atomic_write(tmp / "report.html", render_html(blocks, images))
+        files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]
+    return claims, files, studies.wall_time_s + time.perf_counter() - start
+
+
+def reproduce(out="pmsm2dof-report", overrides=None, points=st.POINTS, progress=False):
+    """Run the paper reproduction and write the report into ``out``, all or nothing.
+
+    Parameters
+    ----------
+    out : str or os.PathLike
+        Output folder (created; files of the same names replaced).
+    overrides : mapping, optional
+        ``{"dotted.key": value}`` applied to every preset (see :func:`pmsm2dof.studies.paper.run_studies`).
+    points : int
+        Values per sensitivity sweep; the full study uses :data:`pmsm2dof.studies.paper.POINTS`.
+    progress : bool
+        Show progress bars over the runs, the discrete designs and the figures.
+
+    Returns
+    -------
+    Report
+
+    Raises
+    ------
+    ConfigError
+        Invalid overrides or points (naming the parameter or scenario key), or ``out`` not a
+        writable folder.
+    SimulationError
+        A run of the paper's conditions stopped.
+    """
+    require_writable_dir(out)
+    studies = st.run_studies(overrides, points=points, progress=progress)
+    claims, files, wall_time_s = write_report(studies, out, progress=progress)
+    return Report(out=Path(out), claims=claims, studies=studies, files=files, wall_time_s=wall_time_s)
+
