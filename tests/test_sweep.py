@@ -22,11 +22,13 @@ from pmsm2dof.errors import ConfigError
 from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
-from pmsm2dof.studies.sweep import SweepPartWarning, load_sweep, metric_columns, parse_sweep, run_sweep
+from pmsm2dof.studies.engine import PartWarning
+from pmsm2dof.studies.sweep import load_sweep, metric_columns, parse_sweep, run_sweep
 from pmsm2dof.ui.plots.sweep import draw_figures
 
 # the modules (the package exports functions of the same names)
-simulate_module = importlib.import_module("pmsm2dof.sim.simulate")
+# the simulate that the engine calls (the tests count the simulations)
+simulate_module = importlib.import_module("pmsm2dof.studies.engine")
 sweep_module = importlib.import_module("pmsm2dof.studies.sweep")
 
 # A small drive that settles within 0.3 s: a speed step at 0 s and a load step at 0.3 s.
@@ -386,7 +388,7 @@ def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, bas
         return real_simulate(scenario, *args, **kwargs)
 
     monkeypatch.setattr(simulate_module, "simulate", counting_simulate)
-    with pytest.warns(SweepPartWarning) as caught:
+    with pytest.warns(PartWarning) as caught:
         run = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=None)
     messages = [str(w.message) for w in caught]
     assert len(messages) == 3
@@ -399,7 +401,7 @@ def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, bas
     pd.testing.assert_frame_equal(run.table.drop(columns="wall_time_s"), first.drop(columns="wall_time_s"))
     # the damaged files are gone; the parts now read without a warning
     with warnings.catch_warnings():
-        warnings.simplefilter("error", SweepPartWarning)
+        warnings.simplefilter("error", PartWarning)
         assert run_sweep(sw, out, workers=1, progress=False, figures=None).computed == 0
 
 

@@ -423,6 +423,10 @@ class Scenario:
     def __setattr__(self, name, value):
         raise AttributeError("a Scenario is immutable: use with_overrides()")
 
+    def __reduce__(self):
+        # pickled by its parts (threads and Dask workers of pmsm2dof.studies.engine), not by setattr
+        return Scenario, (self._given, self._data)
+
     @classmethod
     def from_dict(cls, tree):
         """Validate a nested dict (as read from TOML; ``None`` means absent) into a Scenario."""

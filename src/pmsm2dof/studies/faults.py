@@ -7,30 +7,41 @@ sample) run with each anti-windup mode of the speed controller (:func:`run_fault
 
 import numpy as np
 
-from ..errors import ConfigError, SimulationError
+from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import load_scenario
-from ..sim.simulate import simulate
+from .engine import Run, run_many
 from .paper import AW_LABELS
 
 #: The fault presets of the report, in report order.
 FAULT_PRESETS = ("fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike")
 
 
-def run_faults(overrides=None):
-    """Simulate every fault preset with each anti-windup mode.
+def run_faults(overrides=None, workers=None):
+    """Simulate every fault preset with each anti-windup mode (:func:`pmsm2dof.studies.engine.run_many`).
 
-    Returns ``{(preset, anti_windup): Result}``, or the reason instead of a Result when the
-    overrides do not apply to the preset or the run stopped.
+    Returns ``{(preset, anti_windup): Result}`` in the order of :data:`FAULT_PRESETS` and
+    :data:`~pmsm2dof.studies.paper.AW_LABELS`, or the reason instead of a Result when the
+    overrides do not apply to the preset or the run stopped. ``workers``: local threads of the
+    engine (default: the cores available).
     """
-    runs = {}
+    runs, bases, todo = {}, {}, []
     for preset in FAULT_PRESETS:
         for aw in AW_LABELS:
+            key = f"{preset}-{aw}"
             try:
                 scenario = load_scenario(preset).with_overrides({**(overrides or {}), "speed_controller.anti_windup": aw})
-                runs[preset, aw] = simulate(scenario)
-            except (ConfigError, SimulationError) as exc:
+            except ConfigError as exc:
                 runs[preset, aw] = str(exc)
+                continue
+            bases[key] = scenario.data
+            todo.append(Run(key, key, {}, key))
+            runs[preset, aw] = None
+    outcomes = {o.key: o for o in run_many(bases, todo, keep=[r.key for r in todo], workers=workers)}
+    for preset, aw in runs:
+        outcome = outcomes.get(f"{preset}-{aw}")
+        if outcome is not None:
+            runs[preset, aw] = outcome.result if outcome.metrics is not None else outcome.error
     return runs
 
 

@@ -1,7 +1,8 @@
 """The simulations behind the paper reproduction: the paper's runs, sensitivity sweeps, discretization.
 
 Everything runs on the shipped presets (:func:`pmsm2dof.sim.scenario.list_presets`), optionally all
-changed by the same overrides, in the compiled engine (:func:`pmsm2dof.sim.simulate.simulate`):
+changed by the same overrides, in the compiled engine, many at a time
+(:func:`pmsm2dof.studies.engine.run_many`):
 
 Paper runs (kept whole, for the figures and the claims)
     Simulation conditions 1 and 2 of section 4.1 (Fig. 8 to 10) and experimental conditions 1 to 3
@@ -38,9 +39,8 @@ from ..analysis.discretize import MAX_W_TS, SamplingWarning
 from ..analysis.margins import loop_margins
 from ..core import METHODS, pi_gains
 from ..errors import ConfigError, SimulationError
-from ..sim.metrics import compute_metrics
 from ..sim.scenario import load_scenario
-from ..sim.simulate import simulate
+from .engine import Run, run_many
 
 #: The presets every study starts from.
 PRESETS = ("paper-condition-1", "paper-condition-2", "paper-experiment-1", "paper-experiment-2",
@@ -455,7 +455,7 @@ class Studies:
         return np.array([self.figure(r.name, series.kind, figure) for r in series.runs], dtype=float)
 
 
-def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, progress=False):
+def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, workers=None, progress=False):
     """Run every simulation and design computation of the reproduction.
 
     Parameters
@@ -467,6 +467,9 @@ def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, progress=False
         Values per sensitivity sweep (:data:`POINTS` in the full study).
     Ts_grid : sequence of float
         Speed-loop sampling periods of the discretization study [s] (:data:`TS_GRID_S`).
+    workers : int, optional
+        Local threads of the engine (:func:`pmsm2dof.studies.engine.run_many`; default: the
+        cores available).
     progress : bool
         Show progress bars (tqdm, on stderr) over the list of runs and the discrete designs.
 
@@ -489,26 +492,23 @@ def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, progress=False
     study_sweeps = sweeps(bases, points)
     kept = paper + linear_runs()
     specs = kept + [r for s in study_sweeps for r in s.runs()] + discretization_runs()
-    scenarios = {spec.name: bases[spec.preset].with_overrides(spec.overrides) for spec in specs}
+    for spec in specs:  # every run valid before any runs
+        bases[spec.preset].with_overrides(spec.overrides)
     keep = {spec.name for spec in kept}
+    outcomes = run_many({name: base.data for name, base in bases.items()},
+                        [Run(spec.name, spec.preset, spec.overrides, spec.name) for spec in specs],
+                        keep=keep, workers=workers, progress=progress, description="pmsm2dof reproduce")
 
     results, metrics, failures = {}, {}, {}
-    iterator = specs
-    if progress:
-        from tqdm import tqdm
-
-        iterator = tqdm(specs, desc="pmsm2dof reproduce", unit="run")
-    for spec in iterator:
-        try:
-            result = simulate(scenarios[spec.name])
-        except SimulationError as exc:
-            if spec.name in keep:
-                raise
-            failures[spec.name] = str(exc)
+    for outcome in outcomes:
+        if outcome.metrics is None:
+            if outcome.key in keep:
+                raise SimulationError(outcome.error)
+            failures[outcome.key] = outcome.error
             continue
-        metrics[spec.name] = compute_metrics(result)
-        if spec.name in keep:
-            results[spec.name] = result
+        metrics[outcome.key] = outcome.metrics
+        if outcome.key in keep:
+            results[outcome.key] = outcome.result
 
     discretization, continuous = discretization_points(bases[STEP_BASE], Ts_grid, progress=progress)
     return Studies(bases=bases, overrides=overrides, results=results, metrics=metrics, failures=failures,

@@ -45,15 +45,12 @@ or "error" when the engine stopped with a SimulationError, whose message is in
 (empty when a figure cannot be computed, with the reason in ``notes``).
 """
 
-import contextlib
 import hashlib
 import itertools
 import json
 import math
 import numbers
-import os
 import tomllib
-import warnings
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,6 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConfigError
+from .engine import PartStore, Run, check_options, connect, run_many
 
 #: Distribution names and their parameters, in the order of the docstring.
 DISTRIBUTIONS = {
@@ -406,48 +404,20 @@ def _flatten(metrics):
     return {col: fig["value"] for col, fig in figures.items()}, notes
 
 
-def run_batch(base_data, batch):
-    """Simulate the points of one batch and measure them (runs in a worker thread or a Dask worker).
-
-    Parameters
-    ----------
-    base_data : dict
-        ``Sweep.base.data`` (plain data, so that it travels to Dask workers).
-    batch : list of (int, dict)
-        ``(point index, {dotted key: value})`` pairs.
-
-    Returns
-    -------
-    list of dict
-        One row per point: ``point``, the axis values, ``status`` (``"ok"`` or ``"error"``),
-        ``error`` (the SimulationError message or ""), ``wall_time_s`` of the simulation, every
-        metric column and ``notes`` (why a metric is missing). A run that diverges is a row with
-        status ``"error"`` and no metrics, never NaN.
-    """
-    from ..errors import SimulationError
-    from ..sim.metrics import compute_metrics
-    from ..sim.scenario import Scenario
-    from ..sim.simulate import simulate
-
-    base = Scenario.from_dict(base_data)
-    columns = metric_columns(base_data)
-    rows = []
-    for index, point in batch:
-        row = {"point": index, **point}
-        try:
-            result = simulate(base.with_overrides(point))
-            figures, notes = _flatten(compute_metrics(result))
-        except ConfigError as exc:
-            # a value only the C controllers or the engine check (e.g. float32 range)
-            raise ConfigError(f"point {index} ({_describe(point)}): {exc.param}", exc.value, exc.valid) from None
-        except SimulationError as exc:
-            row.update(status="error", error=str(exc), wall_time_s=None)
-            row.update(dict.fromkeys(columns))
-            row["notes"] = ""
-        else:
-            row.update(status="ok", error="", wall_time_s=result.wall_time_s, **figures, notes=notes)
-        rows.append(row)
-    return rows
+def _row(sweep, point, outcome):
+    """The results row of one point: ``point``, the axis values, ``status`` (``"ok"`` or
+    ``"error"``), ``error`` (the SimulationError message or ""), ``wall_time_s`` of the
+    simulation, every metric column and ``notes`` (why a metric is missing). A run that diverges
+    is a row with status ``"error"`` and no metrics, never NaN."""
+    row = {"point": point, **sweep.points[point]}
+    if outcome.metrics is None:
+        row.update(status="error", error=outcome.error, wall_time_s=None)
+        row.update(dict.fromkeys(metric_columns(sweep.base.data)))
+        row["notes"] = ""
+    else:
+        figures, notes = _flatten(outcome.metrics)
+        row.update(status="ok", error="", wall_time_s=outcome.wall_time_s, **figures, notes=notes)
+    return row
 
 
 def _frame(rows, sweep):
@@ -467,10 +437,6 @@ def _frame(rows, sweep):
 
 MANIFEST = "sweep.json"
 PARTS = "parts"
-
-
-class SweepPartWarning(UserWarning):
-    """A stored part of an earlier run of the sweep cannot be used: it is deleted and its points run again."""
 
 
 def _prepare_out(out, sweep):
@@ -501,63 +467,14 @@ def _prepare_out(out, sweep):
                                        "keys": list(sweep.keys)}, indent=2) + "\n")
 
 
-def _read_parts(out, sweep):
-    """Rows of every finished batch stored under ``out/parts``, or None when there is none.
-
-    Parts are written whole or not at all, but a file can still be damaged afterwards (a full
-    disk, a copy cut short, another program). A part that cannot be read, or that does not hold
-    the columns and points of ``sweep`` as this version writes them, is deleted with a
-    :class:`SweepPartWarning` that names it: its points are then missing and run again.
-    """
-    import pandas as pd
-    import pyarrow
-
-    columns = list(_frame([], sweep).columns)
-    frames = []
-    for path in sorted((out / PARTS).glob("part-*.parquet")):
-        try:
-            frame = pd.read_parquet(path)
-        except (OSError, ValueError, pyarrow.ArrowException) as exc:
-            problem = f"cannot be read ({_one_line(exc).replace(repr(str(path)), 'the file')})"
-        else:
-            if list(frame.columns) != columns:
-                problem = "does not hold the columns of this sweep"
-            elif not frame["point"].between(0, len(sweep.points) - 1).all():
-                problem = "holds points this sweep does not have"
-            else:
-                frames.append(frame)
-                continue
-        try:
-            path.unlink()
-        except OSError as exc:
-            raise ConfigError("out", str(out), f"a folder where the damaged {PARTS}/{path.name} can be "
-                              f"deleted ({exc.strerror})") from None
-        warnings.warn(f"{PARTS}/{path.name} of the earlier run in {out} {problem}: deleted, its points run again",
-                      SweepPartWarning, stacklevel=3)
-    return pd.concat(frames, ignore_index=True) if frames else None
+def _parts(out, sweep):
+    """The store of the finished points' rows of ``sweep`` in ``out/parts``."""
+    return PartStore(out / PARTS, lambda rows: _frame(rows, sweep), "point", len(sweep.points))
 
 
 def _save_part(out, sweep, rows):
-    """Store the rows of one finished batch as ``parts/part-<first point>.parquet`` (atomic)."""
-    import io
-
-    from ..outputs import atomic_write
-
-    buf = io.BytesIO()
-    _frame(rows, sweep).to_parquet(buf, index=False)
-    atomic_write(out / PARTS / f"part-{rows[0]['point']:08d}.parquet", buf.getvalue())
-
-
-def _batches(indices, batch_size):
-    return [indices[i:i + batch_size] for i in range(0, len(indices), batch_size)]
-
-
-def default_workers():
-    """The number of cores this process may run on."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:
-        return os.cpu_count() or 1
+    """Store the rows of one finished batch of points (``parts/part-<first point>.parquet``)."""
+    _parts(out, sweep).save(rows)
 
 
 @dataclass(frozen=True)
@@ -567,7 +484,7 @@ class SweepRun:
     Attributes
     ----------
     table : pandas.DataFrame
-        One row per point (see :func:`run_batch`), sorted by point.
+        One row per point (see :func:`run_sweep`), sorted by point.
     out : Path
         The output folder.
     resumed : int
@@ -588,13 +505,14 @@ class SweepRun:
 def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progress=True, figures=None):
     """Run every point of ``sweep`` not yet finished in ``out``, then write results and figures.
 
-    Each finished batch of points is stored at once as ``out/parts/part-*.parquet``, so an
-    interrupted sweep keeps its finished points and a second call with the same ``out``
-    computes only the missing ones; a stored part that cannot be used is deleted and its points
-    computed again, with a :class:`SweepPartWarning` naming it. When all points are done, ``out`` receives
-    ``results.parquet`` and ``results.csv`` (one row per point, see :func:`run_batch`),
-    ``base.toml`` (the frozen base scenario), ``sweep.json`` and, with ``figures``, the figures
-    under ``figures/``, each written whole or not at all.
+    The points run on the engine of :mod:`pmsm2dof.studies.engine`. Each finished batch of
+    points is stored at once as ``out/parts/part-*.parquet``, so an interrupted sweep keeps its
+    finished points and a second call with the same ``out`` computes only the missing ones; a
+    stored part that cannot be used is deleted and its points computed again, with a
+    :class:`~pmsm2dof.studies.engine.PartWarning` naming it. When all points are done, ``out``
+    receives ``results.parquet`` and ``results.csv`` (one row per point, see
+    :func:`metric_columns`), ``base.toml`` (the frozen base scenario), ``sweep.json`` and, with
+    ``figures``, the figures under ``figures/``, each written whole or not at all.
 
     Parameters
     ----------
@@ -620,112 +538,30 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
     Returns
     -------
     SweepRun
+
+    Raises
+    ------
+    ConfigError
+        ``out``, ``workers``, ``scheduler`` or ``batch_size`` invalid (naming the parameter), or a
+        point's value that only the C controllers or the engine reject (naming the point).
     """
-    from tqdm import tqdm
-
     out = Path(out)
-    if scheduler is not None and workers is not None:
-        raise ConfigError("workers", workers, "absent when a scheduler is given (the cluster's workers run the points)")
-    if scheduler is not None and (not isinstance(scheduler, str) or "://" not in scheduler):
-        raise ConfigError("scheduler", scheduler, "the address of a Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    if workers is None:
-        workers = default_workers() if scheduler is None else None
-    elif isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-        raise ConfigError("workers", workers, "an integer >= 1")
-    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int)
-                                   or batch_size < 1):
-        raise ConfigError("batch_size", batch_size, "an integer >= 1")
-
-    with _connect(scheduler) if scheduler is not None else contextlib.nullcontext() as client:
+    check_options(workers, scheduler, batch_size)
+    with connect(scheduler) as client:
         _prepare_out(out, sweep)
-        finished = _read_parts(out, sweep)
+        parts = _parts(out, sweep)
+        finished = parts.read()
         done = set() if finished is None else set(int(i) for i in finished["point"])
-        todo = [i for i in range(len(sweep.points)) if i not in done]
-        base_data = sweep.base.data
-        with tqdm(total=len(sweep.points), initial=len(done), unit="run", desc=sweep.name,
-                  disable=not progress, leave=False) as bar:
-
-            def save(rows):
-                _save_part(out, sweep, rows)
-                bar.update(len(rows))
-
-            if todo and client is None:
-                size = batch_size or _auto_batch_size(len(todo), workers)
-                _run_local(sweep, _batches(todo, size), base_data, workers, save)
-            elif todo:
-                _run_dask(client, sweep, todo, batch_size, base_data, save)
-
-    table = _read_parts(out, sweep).drop_duplicates("point").sort_values("point", ignore_index=True)
+        todo = [Run(i, "base", sweep.points[i], f"point {i} ({_describe(sweep.points[i])})")
+                for i in range(len(sweep.points)) if i not in done]
+        run_many({"base": sweep.base.data}, todo, workers=workers, client=client, batch_size=batch_size,
+                 progress=progress, description=sweep.name,
+                 on_batch=lambda outcomes: _save_part(out, sweep, [_row(sweep, o.key, o) for o in outcomes]))
+    table = parts.read().drop_duplicates("point").sort_values("point", ignore_index=True)
     if len(table) != len(sweep.points):
         raise RuntimeError(f"{len(sweep.points) - len(table)} points of the sweep have no stored result")
     files = _write_results(out, sweep, table, figures)
     return SweepRun(table, out, len(done), len(todo), files)
-
-
-def _auto_batch_size(n_points, n_workers):
-    return max(1, min(50, math.ceil(n_points / (4 * n_workers))))
-
-
-def _batch_args(sweep, indices):
-    return [(i, sweep.points[i]) for i in indices]
-
-
-def _run_local(sweep, batches, base_data, workers, save):
-    """Batches on a thread pool; on any exception or interrupt, keep what finished and re-raise."""
-    from concurrent.futures import ThreadPoolExecutor, as_completed
-
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pmsm2dof-sweep")
-    futures = [pool.submit(run_batch, base_data, _batch_args(sweep, b)) for b in batches]
-    saved = set()
-    try:
-        for fut in as_completed(futures):
-            save(fut.result())
-            saved.add(fut)
-    except BaseException:
-        for fut in futures:
-            fut.cancel()
-        pool.shutdown(wait=True)
-        for fut in futures:
-            if fut not in saved and fut.done() and not fut.cancelled() and fut.exception() is None:
-                save(fut.result())
-        raise
-    pool.shutdown(wait=True)
-
-
-def _connect(scheduler):
-    """A Dask distributed client of the scheduler at ``scheduler``."""
-    from dask.distributed import Client
-
-    try:
-        return Client(scheduler, timeout="10s", set_as_default=False)
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ConfigError("scheduler", scheduler,
-                          f"the address of a running Dask scheduler ({_one_line(exc)})") from None
-
-
-def _run_dask(client, sweep, todo, batch_size, base_data, save):
-    """Batches as tasks on a Dask distributed cluster; on any exception or interrupt, keep what finished."""
-    from dask.distributed import as_completed
-
-    threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
-    size = batch_size or _auto_batch_size(len(todo), max(1, threads))
-    futures = [client.submit(run_batch, base_data, _batch_args(sweep, b), pure=False)
-               for b in _batches(todo, size)]
-    saved = set()
-    try:
-        for fut in as_completed(futures, loop=client.loop):
-            save(fut.result())
-            saved.add(fut.key)
-    except BaseException:
-        client.cancel([f for f in futures if not f.done()])
-        for fut in futures:
-            if fut.key not in saved and fut.status == "finished":
-                save(fut.result())
-        raise
-
-
-def _one_line(exc):
-    return " ".join(str(exc).split())
 
 
 def _write_results(out, sweep, table, figures):

@@ -415,7 +415,8 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
     """
     import warnings
 
-    from ..studies.sweep import SweepPartWarning, load_sweep, run_sweep
+    from ..studies.engine import PartWarning
+    from ..studies.sweep import load_sweep, run_sweep
     from .plots.sweep import draw_figures
 
     chosen = load_sweep(file)
@@ -423,12 +424,12 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
         show = warnings.showwarning
 
         def one_line(message, category, *args, **kwargs):
-            if issubclass(category, SweepPartWarning):
+            if issubclass(category, PartWarning):
                 print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
             else:
                 show(message, category, *args, **kwargs)
 
-        warnings.simplefilter("always", SweepPartWarning)
+        warnings.simplefilter("always", PartWarning)
         warnings.showwarning = one_line
         try:
             run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size,
