@@ -41,7 +41,6 @@ from pmsm2dof.ui.tuner.experiment import (
     Tuner,
     bode_data,
     limit_spans,
-    loop_on_plant,
     minmax_indices,
 )
 from pmsm2dof.ui.tuner.server import HostCheck
@@ -113,7 +112,7 @@ def eq8_GN(s, J, tau, Kp, Ki):
 @pytest.mark.parametrize("J_ratio", [1.0, 0.5, 2.5])
 def test_load_response_is_eq8_with_the_true_inertia(J_ratio):
     d = design(0.4, 0.5, 0.2887, m=1.0, tau_i_s=0.05, feedforward="lowpass")
-    _, GN = loop_on_plant(d, J_ratio * 0.4)
+    _, GN = d.on_plant(J_ratio * 0.4)
     w = np.logspace(-3, 3, 50)
     got = np.asarray(GN(1j * w)).reshape(-1)
     want = eq8_GN(1j * w, J_ratio * 0.4, 0.05, d.Kp, d.Ki)
@@ -122,7 +121,7 @@ def test_load_response_is_eq8_with_the_true_inertia(J_ratio):
 
 def test_full_feedforward_tracks_as_eq10_on_the_design_inertia():
     d = design(0.4, 0.5, 0.2887, m=1.7, tau_i_s=0.05, feedforward="full")
-    Gx, _ = loop_on_plant(d, 0.4)
+    Gx, _ = d.on_plant(0.4)
     w = np.logspace(-3, 3, 50)
     m_alpha = 1.7 * 0.5
     np.testing.assert_allclose(np.asarray(Gx(1j * w)).reshape(-1), m_alpha / (1j * w + m_alpha), rtol=1e-7)

@@ -155,7 +155,7 @@ class Design:
     @property
     def Gx(self):
         """Reference tracking ``(Fr + F) G / (1 + F G)`` (eq 6), pole-zero cancelled."""
-        return tracking_tf(self.F, self.Fr, self.G).minreal()
+        return self.on_plant(self.J_kgm2)[0]
 
     @property
     def GN(self):
@@ -166,7 +166,19 @@ class Design:
         ``-(tau_i s^2 + s) / (J tau_i s^3 + J s^2 + Kp s + Ki)``. It does not
         depend on ``Fr``: 1DOF and 2DOF reject loads identically.
         """
-        return -control.feedback(self.Gm, self.F * self.Gci)
+        return self.on_plant(self.J_kgm2)[1]
+
+    def on_plant(self, J_plant_kgm2):
+        """``(Gx, GN)`` of this controller on a plant of inertia ``J_plant_kgm2`` [kg m^2].
+
+        The controller (``F``, ``Fr``) stays designed for :attr:`J_kgm2`; the plant is
+        ``Gm = 1 / (J_plant s)``, ``G = Gci Gm`` (eq 2, 3). ``Gx = (Fr + F) G / (1 + F G)`` (eq 6,
+        by :func:`tracking_tf`, pole-zero cancelled) and ``GN = -Gm / (1 + F Gci Gm)`` (eq 5
+        with the load at the mechanics, eq 8). With ``J_plant_kgm2 == J_kgm2`` these are
+        :attr:`Gx` and :attr:`GN`.
+        """
+        Gm = control.tf([1.0], [J_plant_kgm2, 0.0])
+        return tracking_tf(self.F, self.Fr, self.Gci * Gm).minreal(), -control.feedback(Gm, self.F * self.Gci)
 
     def closed_loop_poles(self):
         """Poles of the feedback loop, roots of ``J tau_i s^3 + J s^2 + Kp s + Ki``.

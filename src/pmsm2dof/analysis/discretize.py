@@ -1,20 +1,24 @@
 """Discretization of the speed controller (paper section 3.4, Table 1, eq 14, 15).
 
-Every dynamic part is discretized with python-control ``sample_system`` (SciPy
-``cont2discrete``): forward Euler ``s = (z - 1)/Ts`` ('euler'), backward Euler
-``s = (z - 1)/(z Ts)`` ('backward_diff') and Tustin ``s = 2(z - 1)/(Ts (z + 1))``
-('bilinear'). The coefficients are read off the discrete transfer functions in
-the form the C core realizes them (csrc/include/pmsm2dof/speed.h):
+The coefficients are those the C controller computes (``p2d_speed_init``, float32, the code
+that runs on the MCU), read from a :class:`~pmsm2dof.core.SpeedController` configured with the
+design: forward Euler ``s = (z - 1)/Ts``, backward Euler ``s = (z - 1)/(z Ts)`` and Tustin
+``s = 2(z - 1)/(Ts (z + 1))`` applied to every dynamic part, in the form the C core realizes
+them (csrc/include/pmsm2dof/speed.h):
 
 - PI (eq 14 for Tustin): ``u[k] = b_e0 e[k] + x[k-1]``, ``x[k] = x[k-1] + Ki Ts e[k]``,
   whose transfer function is ``(b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1)``.
-- Feedforward (eq 11-13, 15): ``Fr`` is split by polynomial division into
-  ``Kd s + D + c / (s + m alpha)``; the proper part ``D + c/(s + m alpha)`` becomes
-  ``(b0 + b1 z^-1) / (1 + ff_a1 z^-1)``, realized around its static gain
+- Feedforward (eq 11-13, 15): ``Fr`` split into ``Kd s + D + c / (s + m alpha)``; the proper
+  part ``(b0 + b1 z^-1) / (1 + ff_a1 z^-1)`` realized around its static gain
   ``ff_Fr0 = Fr(0)`` (kept by every method) as
-  ``ff_Fr0 + ff_b_dr (1 - z^-1) / (1 + ff_a1 z^-1)``, ``ff_b_dr = b0 - ff_Fr0``, so that
-  the steady-state torque ``Fr(0) r`` does not depend on the rounding of a pole near
-  z = 1; the derivative ``Kd s`` is always the backward difference ``Kd (1 - z^-1) / Ts``.
+  ``ff_Fr0 + ff_b_dr (1 - z^-1) / (1 + ff_a1 z^-1)``, so that the steady-state torque
+  ``Fr(0) r`` does not depend on the rounding of a pole near z = 1; the derivative ``Kd s``
+  is always the backward difference ``Kd (1 - z^-1) / Ts``.
+
+The rules that refuse a configuration (the feedforward pole on or outside the unit circle,
+``Ki Ka Ts >= 2`` with back calculation, float32 overflow) are the C controller's too; this
+module adds the analysis of the sampled loop. Nothing of the controller's maths is written
+here a second time (tests/oracles/ derives the coefficients independently and checks them).
 
 The discrete closed loop uses the zero-order-hold equivalent of the plant
 ``G = Gci Gm``: the torque command is held over each sampling period.
@@ -44,7 +48,7 @@ from typing import TYPE_CHECKING
 import control
 import numpy as np
 
-from ..core import METHODS
+from ..core import METHODS, SpeedController
 from ..errors import ConfigError, require_choice, require_positive
 from .margins import Margins, pick_margins
 from .stepresponse import StepResponse
@@ -52,8 +56,9 @@ from .stepresponse import StepResponse
 if TYPE_CHECKING:
     from .design import Design
 
-#: The same methods as named by SciPy ``cont2discrete`` / python-control ``sample_system``.
-SAMPLE_SYSTEM_METHODS = {"forward_euler": "euler", "backward_euler": "backward_diff", "tustin": "bilinear"}
+#: Motor data given to the C controller whose coefficients a discretization reads: the PI and
+#: feedforward coefficients do not depend on them (they fill the torque-to-current part only).
+NEUTRAL_MOTOR = {"i_max_A": 1.0, "psi_f_Wb": 1.0, "Ld_H": 1.0, "Lq_H": 1.0, "pole_pairs": 1}
 #: Largest design frequency times Ts [rad] above which the discretization is too coarse.
 MAX_W_TS = 0.1
 #: The coefficients of ``p2d_speed_coef_t`` a discretization determines.
@@ -68,8 +73,8 @@ class SamplingWarning(UserWarning):
 class DiscreteDesign:
     """A design discretized for one sampling period and method.
 
-    The coefficient attributes carry the names and meaning of the fields of
-    ``p2d_speed_coef_t`` in the C core (computed here in double precision).
+    The coefficient attributes are the fields of ``p2d_speed_coef_t`` as the C core computes
+    them (float32 values, as on the MCU), and the figures are those of the loop they realize.
 
     Attributes
     ----------
@@ -165,7 +170,7 @@ def _pairs(values):
 
 
 def _sample(tf_s, Ts_s, method):
-    """``control.sample_system(tf_s, Ts_s, method)`` computed on unit-scaled coefficients.
+    """``control.sample_system(tf_s, Ts_s, method)`` computed on unit-scaled coefficients (the ZOH plant).
 
     SciPy trims leading numerator coefficients below an absolute 1e-14, which drops
     significant ones of a design with a tiny inertia, bandwidth or sampling period.
@@ -186,24 +191,36 @@ def _sample(tf_s, Ts_s, method):
     return control.tf(unit.num[0][0] * (num_scale / den_scale), unit.den[0][0], Ts_s)
 
 
-def _coefficients_z(tf):
-    """Numerator and denominator of a discrete first-order ``tf`` in powers of z^-1, den[0] = 1."""
-    num = np.atleast_1d(np.squeeze(tf.num[0][0]))
-    den = np.atleast_1d(np.squeeze(tf.den[0][0]))
-    num = np.concatenate([np.zeros(len(den) - len(num)), num])
-    return num / den[0], den / den[0]
+def c_coefficients(design, Ts_s, method, feedforward=None, anti_windup=None):
+    """The coefficients ``p2d_speed_init`` computes for ``design`` at ``Ts_s`` with ``method``.
 
+    ``feedforward`` and ``anti_windup`` default to the design's. The C controller validates the
+    configuration: a feedforward pole on or outside the unit circle, ``Ki Ka Ts >= 2`` with back
+    calculation or a float32 overflow raise its ConfigError (naming ``Ts_s``, ``Ka``, ...).
 
-def _pi_coefficients(design, Ts_s, method):
-    """``(b_e0, Ki_Ts, F_z)`` of the PI ``F(z) = (b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1)`` (eq 14 for Tustin).
-
-    The integral part ``Ki / s`` is sampled alone, ``(i0 + i1 z^-1) / (1 - z^-1)``, so that
-    ``Ki Ts = i0 + i1`` is a sum of two terms of its own size, not the difference of two
-    terms of the size of Kp.
+    Returns
+    -------
+    dict
+        :attr:`pmsm2dof.core.SpeedController.coefficients` (float32 values).
     """
-    I_z = _sample(control.tf([design.Ki], [1.0, 0.0]), Ts_s, SAMPLE_SYSTEM_METHODS[method])
-    (i0, i1), _ = _coefficients_z(I_z)
-    return design.Kp + float(i0), float(i0 + i1), design.Kp + I_z
+    d = design
+    ctl = SpeedController(J_kgm2=d.J_kgm2, alpha_radps=d.alpha_radps, zeta=d.zeta, m=d.m, tau_i_s=d.tau_i_s,
+                          Ka=d.Ka, Ts_s=Ts_s, method=method, feedforward=feedforward or d.feedforward,
+                          anti_windup=anti_windup or d.anti_windup, **NEUTRAL_MOTOR)
+    return ctl.coefficients
+
+
+def _pi_z(b_e0, Ki_Ts, Ts_s):
+    """The realized PI ``(b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1)`` (eq 14 for Tustin)."""
+    return control.tf([b_e0, Ki_Ts - b_e0], [1.0, -1.0], Ts_s)
+
+
+def _feedforward_z(ff_Fr0, ff_b_dr, ff_a1, ff_Kd_per_Ts, Ts_s):
+    """The realized feedforward ``ff_Fr0 + ff_b_dr (1 - z^-1)/(1 + ff_a1 z^-1) + ff_Kd_per_Ts (1 - z^-1)``."""
+    static = control.tf([ff_Fr0], [1.0], Ts_s)
+    transient = control.tf([ff_b_dr, -ff_b_dr], [1.0, ff_a1], Ts_s)
+    derivative = control.tf([ff_Kd_per_Ts, -ff_Kd_per_Ts], [1.0, 0.0], Ts_s)
+    return static + transient + derivative if ff_Kd_per_Ts != 0.0 else static + transient
 
 
 def plant_w(J_kgm2, tau_i_s, Ts_s):
@@ -249,8 +266,8 @@ def _hurwitz(char):
 
 def _stable(design, Ts_s, method):
     """Whether the discrete feedback loop is stable at ``Ts_s`` (Routh-Hurwitz in the w plane)."""
-    b_e0, Ki_Ts, _ = _pi_coefficients(design, Ts_s, method)
-    L_num, L_den = _loop_w(design, Ts_s, b_e0, Ki_Ts)
+    pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
+    L_num, L_den = _loop_w(design, Ts_s, pi["b_e0"], pi["Ki_Ts"])
     return _hurwitz(np.polyadd(L_den, L_num))
 
 
@@ -397,37 +414,44 @@ def discretize(design, Ts_s, method):
             SamplingWarning,
             stacklevel=3,
         )
-    c2d_method = SAMPLE_SYSTEM_METHODS[method]
+    return discrete_loop(d, Ts_s, method, c_coefficients(d, Ts_s, method))
 
-    # PI: F(z) = (b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1), eq 14 for Tustin
-    b_e0, Ki_Ts, F_z = _pi_coefficients(d, Ts_s, method)
-    Ki_Ka_Ts = Ki_Ts * d.Ka if d.anti_windup == "back_calculation" else 0.0
-    if Ki_Ka_Ts >= 2.0:
-        raise ConfigError(
-            "Ka", d.Ka,
-            f"finite, >= 0 and < 2 / (Ki Ts_s) = {2.0 / Ki_Ts:.6g} with back_calculation at Ts_s = {Ts_s:g} s "
-            "(stability of the discrete anti-windup loop)")
 
-    # feedforward: Fr = Kd s + D + c / (s + m alpha) = Kd s + P(s)
+def discrete_loop(design, Ts_s, method, coefficients):
+    """The discrete loop of ``design`` realized with the controller ``coefficients`` at ``Ts_s``.
+
+    :func:`discretize` gives it the coefficients of the C controller; any other set in the same
+    realization (a fixed-point port, the double-precision values of a test) is analysed alike.
+
+    Parameters
+    ----------
+    design : Design
+        The continuous design (the plant: J, tau_i; the feedforward form).
+    Ts_s : float
+        Sampling period [s], > 0.
+    method : str
+        The discretization the coefficients come from (recorded, not used).
+    coefficients : mapping
+        ``b_e0``, ``Ki_Ts``, ``Ki_Ka_Ts``, ``ff_Fr0``, ``ff_b_dr``, ``ff_a1``, ``ff_Kd_per_Ts``: the
+        fields of ``p2d_speed_coef_t`` (its PI flattened).
+
+    Returns
+    -------
+    DiscreteDesign
+
+    Raises
+    ------
+    ConfigError
+        The discrete feedback loop is unstable (naming the periods that are stable).
+    """
+    d = design
+    c = {name: float(coefficients[name]) for name in COEFFICIENTS}
+    b_e0, Ki_Ts = c["b_e0"], c["Ki_Ts"]
+    F_z = _pi_z(b_e0, Ki_Ts, Ts_s)
     if d.feedforward == "none":
-        ff_Fr0 = ff_b_dr = ff_a1 = ff_Kd_per_Ts = 0.0
         Fr_z = control.tf([0.0], [1.0], Ts_s)
     else:
-        fr_num, fr_den = d.fr_polynomials()
-        (Kd, D), c = np.polydiv(fr_num, fr_den)
-        P_z = _sample(control.tf(np.polyadd(D * fr_den, c), fr_den), Ts_s, c2d_method)
-        (b0, _), (_, ff_a1) = _coefficients_z(P_z)
-        # P(z) = Fr(0) + (b0 - Fr(0)) (1 - z^-1) / (1 + a1 z^-1), as b0 + b1 = Fr(0) (1 + a1)
-        ff_Fr0 = fr_num[-1] / fr_den[-1]
-        ff_b_dr = b0 - ff_Fr0
-        if abs(ff_a1) >= 1.0:
-            raise ConfigError(
-                "Ts_s", Ts_s,
-                f"small enough that the feedforward pole stays inside the unit circle "
-                f"(m*alpha*Ts_s = {fr_den[1] * Ts_s:.4g}, must be < 2 with {method})")
-        # Kd s -> Kd (1 - z^-1) / Ts
-        ff_Kd_per_Ts = Kd / Ts_s
-        Fr_z = P_z + control.tf([ff_Kd_per_Ts, -ff_Kd_per_Ts], [1.0, 0.0], Ts_s) if Kd != 0.0 else P_z
+        Fr_z = _feedforward_z(c["ff_Fr0"], c["ff_b_dr"], c["ff_a1"], c["ff_Kd_per_Ts"], Ts_s)
 
     # feedback loop in the w plane: 1 + F(w) G(w) = 0, stable when Re w < 0
     L_num, L_den = _loop_w(d, Ts_s, b_e0, Ki_Ts)
@@ -436,18 +460,16 @@ def discretize(design, Ts_s, method):
     poles = (1.0 + 0.5 * Ts_s * poles_w) / (1.0 - 0.5 * Ts_s * poles_w)
     if not _hurwitz(char_w):
         raise _unstable_loop_error(d, Ts_s, method, float(np.max(np.abs(poles))))
-    coefficients = dict(b_e0=b_e0, Ki_Ts=Ki_Ts, ff_Fr0=float(ff_Fr0), ff_b_dr=float(ff_b_dr), ff_a1=float(ff_a1),
-                        ff_Kd_per_Ts=float(ff_Kd_per_Ts))
-    E, f, c = _tracking_increments(d, Ts_s, **coefficients)
-    overshoot, reason = StepResponse(E, f, c, dt_s=Ts_s).overshoot_pct()
+    E, f, out = _tracking_increments(d, Ts_s, **{k: v for k, v in c.items() if k != "Ki_Ka_Ts"})
+    overshoot, reason = StepResponse(E, f, out, dt_s=Ts_s).overshoot_pct()
     margins = _margins(d, Ts_s, b_e0, Ki_Ts)
-    G_z = _sample(d.G, Ts_s, "zoh")
+    G_z = _sample(d.G, Ts_s, "zoh")  # the plant held over each period, not the controller
     return DiscreteDesign(
-        design=d, Ts_s=Ts_s, method=method, Ki_Ka_Ts=Ki_Ka_Ts, **coefficients,
+        design=d, Ts_s=Ts_s, method=method, **c,
         poles=tuple(complex(p) for p in poles),
         overshoot_pct=overshoot,
         margins=margins,
         missing=({"overshoot_pct": reason} if reason else {}) | margins.values_and_reasons()[1],
         F_z=F_z, Fr_z=Fr_z, G_z=G_z, L_z=F_z * G_z,
-        Gx_z=control.ss(np.eye(len(f)) + E, f[:, None], c[None, :], 0.0, Ts_s),
+        Gx_z=control.ss(np.eye(len(f)) + E, f[:, None], out[None, :], 0.0, Ts_s),
     )

@@ -128,27 +128,6 @@ def limit_spans(t, flags, most=SPANS_MAX):
     return spans.tolist()
 
 
-def loop_on_plant(dsg, J_true_kgm2):
-    """Tracking and load transfer functions of the designed controller on the true inertia.
-
-    The controller (``F``, ``Fr``) is designed for ``dsg.J_kgm2``; the plant has the inertia
-    ``J_true_kgm2``: ``Gm = 1 / (J_true s)``, ``G = Gci Gm`` (eq 2, 3). Then
-    ``Gx = (Fr + F) G / (1 + F G)`` (eq 6) and ``GN = -Gm / (1 + F Gci Gm)`` (eq 5 with the
-    load entering at the mechanics, Fig. 6, which is eq 8). For ``J_true == dsg.J_kgm2``
-    these are ``dsg.Gx`` and ``dsg.GN``.
-
-    Returns
-    -------
-    Gx, GN : control.TransferFunction
-        Speed over reference [-] and speed [rad/s] over load torque [Nm].
-    """
-    Gm = control.tf([1.0], [J_true_kgm2, 0.0])
-    G = dsg.Gci * Gm
-    Gx = ((dsg.Fr + dsg.F) * control.feedback(G, dsg.F)).minreal()
-    GN = -control.feedback(Gm, dsg.F * dsg.Gci)
-    return Gx, GN
-
-
 def bode_data(Gx, GN, alpha_radps, Ts_s):
     """Magnitude [dB] and unwrapped phase [deg] of ``Gx`` and ``GN`` around ``alpha_radps``.
 
@@ -436,7 +415,7 @@ class Tuner:
     def _bode_uncached(key):
         J_design_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, J_true_kgm2, Ts_s = json.loads(key)
         dsg = design(J_design_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward)
-        Gx, GN = loop_on_plant(dsg, J_true_kgm2)
+        Gx, GN = dsg.on_plant(J_true_kgm2)
         return bode_data(Gx, GN, alpha_radps, Ts_s) | {"key": key}
 
     # ---- downloads -------------------------------------------------------------------

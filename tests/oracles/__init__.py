@@ -1,0 +1,1 @@
+"""Independent derivations the tests check the code against (never imported by pmsm2dof)."""
