@@ -1,4 +1,11 @@
-"""Hypothesis profiles: random exploration on a workstation, the same examples every run in CI.
+"""The fast and the full suite, and the Hypothesis profiles.
+
+``python3 -m pytest`` runs the fast subset, for development (well under 30 s on two cores): the
+tests marked ``slow`` (cross builds, QEMU, fuzzing, sanitizers, the browser, the reproduction,
+long engine runs and fresh interpreters; ``--durations=50`` finds new ones) are deselected, not
+skipped. ``python3 -m pytest --full`` runs every test; CI runs it (``.ci/run``).
+
+Hypothesis profiles: random exploration on a workstation, the same examples every run in CI.
 
 ``HYPOTHESIS_PROFILE=ci`` (set by ``.ci/run``) selects the ``ci`` profile; without it the
 property tests run with Hypothesis' defaults, drawing new examples on every run and replaying
@@ -19,6 +26,23 @@ A test's own ``@settings`` (its number of examples, say) still applies on top of
 import os
 
 from hypothesis import HealthCheck, settings
+
+
+def pytest_addoption(parser):
+    parser.addoption("--full", action="store_true", help="run the slow tests too (the full suite CI runs)")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "slow: a test of the full suite only (python3 -m pytest --full)")
+
+
+def pytest_collection_modifyitems(config, items):
+    if config.getoption("--full"):
+        return
+    slow = [item for item in items if item.get_closest_marker("slow")]
+    if slow:
+        config.hook.pytest_deselected(items=slow)
+        items[:] = [item for item in items if not item.get_closest_marker("slow")]
 
 settings.register_profile("ci", derandomize=True, database=None, deadline=None,
                           suppress_health_check=[HealthCheck.too_slow])

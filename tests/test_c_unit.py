@@ -11,6 +11,9 @@ from pathlib import Path
 
 import pytest
 
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = pytest.mark.slow
+
 CSRC = Path(__file__).resolve().parents[1] / "csrc"
 
 

@@ -24,6 +24,7 @@ def test_design_table_shows_gains_poles_margins_and_coefficients(capsys):
     assert f"{0.4 * (0.5 / (2 * 0.2887)) ** 2:.6g} Nm/rad" in out
 
 
+@pytest.mark.slow
 def test_design_json_in_a_fresh_process():
     run = subprocess.run([sys.executable, "-m", "pmsm2dof", "design", *PAPER, "--json"],
                          capture_output=True, text=True, timeout=120)
@@ -173,6 +174,7 @@ def test_bad_header_option_writes_nothing(tmp_path, capsys):
     assert not any(tmp_path.iterdir())
 
 
+@pytest.mark.slow
 def test_bad_value_in_a_fresh_process_has_no_traceback():
     run = subprocess.run([sys.executable, "-m", "pmsm2dof", "design", "--J", "0", "--alpha", "0.5", "--zeta", "0.3",
                           "--Ts", "1e-3"], capture_output=True, text=True, timeout=120)
@@ -180,6 +182,7 @@ def test_bad_value_in_a_fresh_process_has_no_traceback():
     assert run.stderr.strip().splitlines() == ["pmsm2dof: error: J_kgm2 = 0.0 is invalid: valid range is finite and > 0"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["fig7.png", "fig7.svg"])
 def test_bode_draws_fig7(tmp_path, name):
     out = tmp_path / name
@@ -188,6 +191,7 @@ def test_bode_draws_fig7(tmp_path, name):
     assert data.startswith(b"\x89PNG") if name.endswith(".png") else b"<svg" in data[:2000]
 
 
+@pytest.mark.slow
 def test_bode_says_what_it_wrote(tmp_path, capsys):
     out = tmp_path / "gx.svg"
     assert main(["bode", "--alpha", "0.5", "--out", str(out)]) == 0

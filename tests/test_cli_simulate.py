@@ -115,6 +115,7 @@ def test_failure_during_the_run_leaves_the_old_output_untouched(tmp_path, capsys
     assert not list(tmp_path.glob(".out.*"))
 
 
+@pytest.mark.slow
 def test_simulate_paper_condition_2(tmp_path):
     """The real command, as a user runs it: files, columns, physics and the paper's schedule."""
     out = tmp_path / "out"
@@ -150,6 +151,7 @@ def test_simulate_paper_condition_2(tmp_path):
     assert load_scenario(out / "scenario.toml") == load_scenario("paper-condition-2")
 
 
+@pytest.mark.slow
 def test_simulate_with_overrides(tmp_path, capsys):
     out = tmp_path / "out"
     code, stdout, err = run(["simulate", "paper-experiment-1", "--set", "simulation.t_end_s=1.5",

@@ -153,6 +153,7 @@ def build_and_run(tmp_path, header_text, prefix, with_current):
     return {tag: np.array(v) for tag, v in rows.items()}
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(GCC is None, reason="gcc is not installed")
 @pytest.mark.parametrize("name", list(CASES))
 def test_header_compiles_and_matches_python_configured_controller(tmp_path, name):
@@ -249,6 +250,7 @@ def test_invalid_header_options_leave_no_file(tmp_path, param, options):
     assert not any(path.parent.glob("*")) if path.parent.exists() else True
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("feedforward", ["lowpass", "none"])
 def test_header_of_a_finely_sampled_design_from_the_tuner(feedforward):
     """The paper's design with the speed loop at Ts = 1e-4 (alpha Ts = 5e-5): the tuner's

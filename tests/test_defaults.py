@@ -37,6 +37,7 @@ def test_cli_design_default(capsys):
     assert json.loads(capsys.readouterr().out)["feedforward"] == DEFAULT
 
 
+@pytest.mark.slow
 def test_bode_default_draws_the_lowpass(tmp_path, capsys):
     assert main(["bode", "--alpha", "0.5", "--out", str(tmp_path / "gx.png")]) == 0
     title = bode_gx_sweep(0.5, [1.0]).axes[0].get_title()

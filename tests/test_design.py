@@ -113,6 +113,7 @@ def test_closed_loop_poles_are_roots_of_eq8_denominator(J, alpha, zeta, m, tau):
     np.testing.assert_allclose(np.sort_complex(d.closed_loop_poles()), expected, rtol=1e-9)
 
 
+@pytest.mark.slow
 def test_one_dof_bandwidth_and_overshoot_from_explicit_response():
     J, alpha, zeta = 0.4, 0.5, 0.2887
     Kp, Ki = J * alpha, J * alpha**2 / (4 * zeta**2)

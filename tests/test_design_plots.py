@@ -53,6 +53,7 @@ def test_step_responses_match_scipy_integration():
     assert abs(y_load[-1]) < 1e-2 * abs(y_load).max()  # the integrator rejects a constant load
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("suffix", [".png", ".svg"])
 def test_save_figure_writes_png_and_svg(tmp_path, suffix):
     path = save_figure(bode_gx_sweep(ALPHA, [1.0]), tmp_path / ("fig7" + suffix))

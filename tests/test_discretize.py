@@ -354,6 +354,7 @@ def continuous_overshoot_pct(ff, J, alpha, zeta, m, tau):
     return 100.0 * max(peak - 1.0, 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tau", [0.0, TAU])
 @pytest.mark.parametrize("ff", FEEDFORWARDS)
 @pytest.mark.parametrize("method", METHODS)

@@ -180,6 +180,7 @@ def test_stall_recovery_is_reported_and_anti_windup_recovers_sooner():
         assert figures["none"][0] is None or figures["none"][0] > recovery
 
 
+@pytest.mark.slow
 def test_stall_recovery_time_in_the_cli_output(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["simulate", "fault-stall", "--out", str(out)]) == 0
@@ -377,6 +378,7 @@ def test_report_fault_figures_are_those_of_the_traces():
         assert f["current_limit_time_s"] == pytest.approx(np.sum(limited[after]) * drive(r)["Ts"], abs=2e-3)
 
 
+@pytest.mark.slow
 def test_report_fault_section_names_runs_that_cannot_run():
     runs = run_faults({"current_loop.model": "first_order", "simulation.t_end_s": 25.0})
     assert all(isinstance(runs["fault-dc-link-sag", aw], str) for aw in ANTI_WINDUPS)

@@ -23,6 +23,9 @@ from pathlib import Path
 
 import pytest
 
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parent.parent
 CSRC = ROOT / "csrc"
 CORPUS = CSRC / "fuzz" / "corpus"

@@ -4,7 +4,7 @@ A small property test, run in a fresh pytest process next to a copy of ``tests/c
 records the examples Hypothesis draws, and a second one fails: with ``HYPOTHESIS_PROFILE=ci`` two
 runs draw the same examples and store no failure in an example database; without it two runs draw
 different ones and the failure is stored (to be replayed first next time). And ``.ci/run``, the
-CI entry point, selects that profile for the README's test command.
+CI entry point, selects that profile for the README's full test command.
 """
 
 import os
@@ -13,6 +13,11 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+
+import pytest
+
+#: Slow (each check runs pytest twice in a fresh process): run by the full suite.
+pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -71,7 +76,7 @@ def test_default_profile_explores_new_examples_every_run_and_stores_the_failure(
 
 def test_ci_entry_point_runs_the_readme_test_command_with_the_ci_profile():
     script = (ROOT / ".ci" / "run").read_text()
-    readme_command = re.search(r"```sh\n(python3 -m pytest)\n```", (ROOT / "README.md").read_text()).group(1)
+    readme_command = re.search(r"```sh\n(python3 -m pytest --full)\n```", (ROOT / "README.md").read_text()).group(1)
     commands = [line.strip() for line in script.splitlines() if line.strip() and not line.startswith("#")]
     assert commands[-1] == readme_command
     assert "export HYPOTHESIS_PROFILE=ci" in commands[:-1]

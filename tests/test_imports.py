@@ -36,10 +36,12 @@ def loaded_after(code):
     "from pmsm2dof.ui.cli import main\nmain(['presets'])",
     "import pmsm2dof\npmsm2dof.simulate, pmsm2dof.load_scenario, pmsm2dof.compute_metrics, pmsm2dof.SpeedController",
 ])
+@pytest.mark.slow
 def test_importing_and_help_load_no_heavy_library(code):
     assert loaded_after(code) == []
 
 
+@pytest.mark.slow
 def test_the_design_loads_python_control_when_used():
     """The probe sees a heavy import when there is one (a check that can fail)."""
     assert "control" in loaded_after("import pmsm2dof\npmsm2dof.design")

@@ -24,9 +24,10 @@ TOOLS = ("cmake", "make", "arm-none-eabi-gcc", "sh")
 BLOCK_TIMEOUT_S = 600
 
 _MISSING = [t for t in TOOLS if shutil.which(t) is None]
-pytestmark = pytest.mark.skipif(
+#: Slow (cross builds and QEMU): run by the full suite.
+pytestmark = [pytest.mark.slow, pytest.mark.skipif(
     bool(_MISSING), reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-    "libnewlib-arm-none-eabi; scripts/install.sh installs them)")
+    "libnewlib-arm-none-eabi; scripts/install.sh installs them)")]
 
 
 def shell_blocks(text):

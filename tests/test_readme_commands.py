@@ -3,6 +3,7 @@
 The commands are read from README.md itself, so the text cannot drift from the tool.
 """
 
+import pytest
 import json
 import re
 import shlex
@@ -25,6 +26,7 @@ def readme_commands(program):
     return commands
 
 
+@pytest.mark.slow
 def test_anti_windup_off_example_winds_up(tmp_path, monkeypatch):
     """Fig. 8 / claim C10: without anti-windup the speed overshoots by more than 55 %."""
     (args,) = [a for a in readme_commands("pmsm2dof") if "speed_controller.anti_windup=none" in a]
@@ -35,6 +37,7 @@ def test_anti_windup_off_example_winds_up(tmp_path, monkeypatch):
     assert metrics["reference_steps"][0]["overshoot_pct"]["value"] > 55.0
 
 
+@pytest.mark.slow
 def test_design_and_bode_commands_run_as_written(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     commands = [a for a in readme_commands("pmsm2dof") if a[0] in ("design", "bode")]

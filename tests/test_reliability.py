@@ -186,6 +186,7 @@ def simulate_or_explain(scenario):
     event("simulated")
 
 
+@pytest.mark.slow
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(overrides=wild_overrides())
 def test_any_scenario_simulates_or_fails_naming_the_key(overrides):
@@ -208,6 +209,7 @@ MAGNITUDE_KEYS = [f.key for f in SCALARS if f.kind is float and f.key not in TIM
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(values=st.dictionaries(st.sampled_from(MAGNITUDE_KEYS), st.floats(-40.0, 40.0).map(lambda x: 10.0 ** x),
                               min_size=1, max_size=3))
+@pytest.mark.slow
 def test_extreme_magnitudes_simulate_or_are_named(values):
     """Values the schema accepts, from 1e-40 to 1e40: the float32 controllers and the engine either
     run them, name the key they refuse with the value it holds, or stop with the time and reason."""
@@ -281,6 +283,7 @@ def plausible_scenarios(draw):
     })
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(scenario=plausible_scenarios())
 def test_plausible_scenarios_simulate_with_finite_results(scenario):
@@ -340,6 +343,7 @@ PRESET_TEXT = (Path(__file__).parents[1] / "src" / "pmsm2dof" / "sim" / "presets
 @settings(max_examples=300, deadline=None)
 @given(cuts=st.lists(st.tuples(st.integers(0, len(PRESET_TEXT) - 1), st.integers(0, 8), st.binary(max_size=8)),
                      min_size=1, max_size=4))
+@pytest.mark.slow
 def test_corrupted_scenario_file_loads_or_names_the_problem(cuts):
     text = bytearray(PRESET_TEXT)
     for at, length, insert in cuts:

@@ -31,6 +31,9 @@ from pmsm2dof.ui.report.claims import FIG7_M
 from pmsm2dof.ui.report.figures import fig_faults, figures
 from pmsm2dof.studies.paper import run_studies
 
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = pytest.mark.slow
+
 STEMS = ["fig07_bode_gx", "fig08_speed_aw", "fig09_current_aw", "fig10_2dof", "fig12_exp1_aw", "fig13_exp2_tracking",
          "fig14_exp3_load", "sens_ka", "sens_m", "sens_zeta", "sens_inertia", "sens_torque_limit", "discretization"]
 VOID = {"meta", "img", "br", "hr", "link", "input"}

@@ -16,6 +16,9 @@ from pathlib import Path
 
 import pytest
 
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parent.parent
 CSRC = ROOT / "csrc"
 SANITIZE = ["-fsanitize=address,undefined", "-fno-sanitize-recover=all"]

@@ -19,6 +19,7 @@ def second_order(wn, zeta):
     return np.array([[0.0, wn], [-wn, -2.0 * zeta * wn]]), np.array([0.0, wn]), np.array([1.0, 0.0])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("wn", [1e-4, 1.0, 3e4])
 @pytest.mark.parametrize("zeta", [0.02, 0.3, 0.7, 0.95])
 def test_continuous_second_order_overshoot_is_the_closed_form(wn, zeta):

@@ -123,6 +123,7 @@ def test_linear_range_by_hand(base_file):
     assert [p["speed_controller.zeta"] for p in sw.points] == pytest.approx([0.5, 1.0, 1.5, 2.0], rel=1e-15)
 
 
+@pytest.mark.slow
 def test_draws_are_reproducible_independent_per_key_and_follow_their_distribution(base_file):
     axes = """
     [axes]
@@ -254,6 +255,7 @@ def expected_row(base_file, point):
     return row
 
 
+@pytest.mark.slow
 def test_local_run_equals_single_runs_and_writes_every_output(tmp_path, base_file):
     path = write_sweep(tmp_path, f'base = "base.toml"\nworst = 2\n{GRID_AXES}')
     sw = load_sweep(path)
@@ -318,6 +320,7 @@ def test_a_value_only_the_engine_rejects_stops_the_sweep_naming_the_point(tmp_pa
     assert not (out / "results.parquet").exists()
 
 
+@pytest.mark.slow
 def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monkeypatch):
     sw = sweep_of(base_file, GRID_AXES, worst=0)
     out = tmp_path / "out"
@@ -425,6 +428,7 @@ def test_out_folder_of_another_sweep_is_refused(tmp_path, base_file):
         run_sweep(sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [30.0]\n', worst=0), out, progress=False, figures=draw_figures)
 
 
+@pytest.mark.slow
 def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
     distributed = pytest.importorskip("dask.distributed")
     axes = """
@@ -448,6 +452,7 @@ def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
 # command line
 # ---------------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_cli_runs_a_sweep_and_resumes(tmp_path, base_file, capsys):
     path = write_sweep(tmp_path, 'base = "base.toml"\nworst = 1\n[axes]\n"speed_controller.alpha" = [25.0, 50.0]\n')
     out = tmp_path / "out"

@@ -35,6 +35,9 @@ import pytest
 
 from pmsm2dof.core.bindings import ffi, lib
 
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[1]
 CSRC = ROOT / "csrc"
 TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"

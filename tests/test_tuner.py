@@ -303,6 +303,7 @@ def test_a_run_beyond_the_work_bound_answers_422_naming_the_key_and_the_bound(cl
         assert "simulation.t_end_s = 10000.0 is invalid" in err["error"] and "<= 1000 s" in err["error"]
 
 
+@pytest.mark.slow
 def test_a_run_at_the_bound_logs_at_most_log_rows_max_rows(client):
     """1000 s of 1 ms samples: 1000001 samples, logged every 201st (ceil(1000001 / 5000))."""
     out = run(client, simulation__t_end_s=1000.0)
@@ -513,6 +514,7 @@ def test_a_newer_run_of_a_client_supersedes_its_older_one(served, watch):
     assert app.state.slots.clients() == 0  # nothing kept for the client once answered
 
 
+@pytest.mark.slow
 def test_concurrent_runs_of_one_client_simulate_one_at_a_time(served, watch):
     """A run, then three more sent together while it simulates: the first is superseded, at
     least the last to arrive is answered, and no two of them simulate at once."""
@@ -531,6 +533,7 @@ def test_concurrent_runs_of_one_client_simulate_one_at_a_time(served, watch):
     assert set(codes) <= {200, 409} and 200 in codes
 
 
+@pytest.mark.slow
 def test_two_clients_simulate_side_by_side(served, watch):
     url, _, _ = served
     with ThreadPoolExecutor(2) as pool:
@@ -541,6 +544,7 @@ def test_two_clients_simulate_side_by_side(served, watch):
     assert watch.peak == 2
 
 
+@pytest.mark.slow
 def test_a_download_waits_for_the_run_of_its_client_and_is_not_superseded(served, watch):
     url, _, _ = served
     headers = {CLIENT_HEADER: "tab-3"}
@@ -560,6 +564,7 @@ def process_memory_kib(pid):
     return {key: int(fields[key].split()[0]) for key in ("VmRSS", "VmHWM")}
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads the memory of the server in /proc")
 def test_three_runs_at_the_bound_keep_the_server_memory_small():
     """Three clients each ask for the longest run the tuner allows, at the same time: the server
@@ -610,6 +615,7 @@ def test_header_download_holds_the_posted_design(client):
     assert '#include "pmsm2dof/speed.h"' in text
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("feedforward", ["lowpass", "none"])
 def test_header_download_of_the_paper_design_sampled_at_100_us(client, feedforward):
     """The paper's design (alpha = 0.5 rad/s) at Ts = 1e-4 s: slow against the sampling, but stable."""
@@ -656,6 +662,7 @@ def test_page_and_assets_are_served_locally(client):
 # ---- the command -----------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_tune_serves_on_loopback_and_stops(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "pmsm2dof", "tune", PRESET, "--port", "0", "--no-browser"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -674,6 +681,7 @@ def test_tune_serves_on_loopback_and_stops(tmp_path):
     (["--host", "no-such-host.invalid"], "host"),
     (["no-such-preset"], "scenario"),
 ])
+@pytest.mark.slow
 def test_tune_bad_arguments_exit_2_with_one_line(args, param):
     proc = subprocess.run([sys.executable, "-m", "pmsm2dof", "tune", "--no-browser", *args],
                           capture_output=True, text=True, timeout=60)
@@ -683,6 +691,7 @@ def test_tune_bad_arguments_exit_2_with_one_line(args, param):
     assert len(lines) == 1 and lines[0].startswith(f"pmsm2dof: error: {param} = ")
 
 
+@pytest.mark.slow
 def test_tune_on_a_busy_port_exits_2():
     with socket.socket() as busy:
         busy.bind(("127.0.0.1", 0))

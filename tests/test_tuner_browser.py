@@ -19,6 +19,9 @@ from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.ui.tuner import create_app, serving_in_thread
 from pmsm2dof.ui.tuner.experiment import LOG_ROWS_MAX
 
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = pytest.mark.slow
+
 CHROMIUM = Path("/usr/bin/chromium")
 ROOT = Path(__file__).resolve().parents[1]
 CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",

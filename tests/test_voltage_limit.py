@@ -103,6 +103,7 @@ def test_a_zero_range_applies_exactly_zero_volts():
     assert np.all(r.ud_V[window] == 0.0) and np.all(r.uq_V[window] == 0.0)
 
 
+@pytest.mark.slow
 def test_simulate_cli_names_the_voltage_limit(tmp_path, capsys):
     (tmp_path / "servo.toml").write_text(servo(48.0, 3000.0, load_Nm=1.5).to_toml())
     main(["simulate", str(tmp_path / "servo.toml"), "--out", str(tmp_path / "out")])
