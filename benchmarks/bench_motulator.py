@@ -47,7 +47,6 @@ from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
-
 from results_md import measured_by, write_section
 
 from pmsm2dof.analysis.design import design
@@ -84,8 +83,10 @@ def python312():
         root = Path(subprocess.run(["pyenv", "root"], check=True, capture_output=True, text=True).stdout.strip())
     except (OSError, subprocess.CalledProcessError) as exc:
         sys.exit(f"bench_motulator: pyenv, which provides the venv's Python 3.12, does not run ({exc})")
-    found = sorted(root.glob("versions/3.12.*/bin/python3.12"),
-                   key=lambda p: tuple(int(x) for x in p.parent.parent.name.split(".") if x.isdigit()))
+    found = sorted(
+        root.glob("versions/3.12.*/bin/python3.12"),
+        key=lambda p: tuple(int(x) for x in p.parent.parent.name.split(".") if x.isdigit()),
+    )
     if not found:
         sys.exit(f"bench_motulator: no Python 3.12 under {root}/versions (pyenv install 3.12)")
     return found[-1]
@@ -98,11 +99,11 @@ def motulator_python():
     if not python.exists():
         venv.parent.mkdir(parents=True, exist_ok=True)
         subprocess.run([str(python312()), "-m", "venv", str(venv)], check=True)
-    pip = subprocess.run([str(python), "-m", "pip", "install", "-q", "--upgrade", "motulator"],
-                         capture_output=True, text=True)
+    pip = subprocess.run(
+        [str(python), "-m", "pip", "install", "-q", "--upgrade", "motulator"], capture_output=True, text=True
+    )
     if pip.returncode != 0:
-        print("bench_motulator: could not upgrade motulator, using the installed one:\n" + pip.stderr,
-              file=sys.stderr)
+        print("bench_motulator: could not upgrade motulator, using the installed one:\n" + pip.stderr, file=sys.stderr)
     return python
 
 
@@ -119,13 +120,22 @@ def motulator_spec(scenario, runs):
     motor, sc = d["motor"], d["speed_controller"]
     gains = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], feedforward="none")
     return {
-        "n_p": motor["pole_pairs"], "R_s": motor["Rs_ohm"], "L_d": motor["Ld_H"], "L_q": motor["Lq_H"],
-        "psi_f": motor["psi_f_Wb"], "J": motor["J_kgm2"], "B": motor["B_Nms"],
-        "i_s_max": d["limits"]["i_max_A"], "u_dc": d["limits"]["u_dc_V"],
-        "T_s": d["current_loop"]["Ts_s"], "alpha_c": 1.0 / d["current_loop"]["tau_i_s"],
+        "n_p": motor["pole_pairs"],
+        "R_s": motor["Rs_ohm"],
+        "L_d": motor["Ld_H"],
+        "L_q": motor["Lq_H"],
+        "psi_f": motor["psi_f_Wb"],
+        "J": motor["J_kgm2"],
+        "B": motor["B_Nms"],
+        "i_s_max": d["limits"]["i_max_A"],
+        "u_dc": d["limits"]["u_dc_V"],
+        "T_s": d["current_loop"]["Ts_s"],
+        "alpha_c": 1.0 / d["current_loop"]["tau_i_s"],
         "alpha_i": motor["Rs_ohm"] / motor["Ld_H"],  # stator pole R_s/L (one L: exact for a surface PMSM)
-        "k_p": gains.Kp, "k_i": gains.Ki,
-        "t_end": d["simulation"]["t_end_s"], "w_M0": d["simulation"]["speed0_rpm"] / RPM_PER_RADPS,
+        "k_p": gains.Kp,
+        "k_i": gains.Ki,
+        "t_end": d["simulation"]["t_end_s"],
+        "w_M0": d["simulation"]["speed0_rpm"] / RPM_PER_RADPS,
         "reference": [[e["t_s"], e["speed_rpm"] / RPM_PER_RADPS, e["ramp_s"]] for e in d["reference"]],
         "load": [[e["t_s"], e["torque_Nm"], e["ramp_s"]] for e in d["load"]],
         "runs": runs,
@@ -147,8 +157,7 @@ def run_motulator(python, spec):
     with tempfile.TemporaryDirectory(prefix="p2d-motulator-") as tmp:
         spec_path, out_path = Path(tmp) / "spec.json", Path(tmp) / "trace.npz"
         spec_path.write_text(json.dumps(spec))
-        proc = subprocess.run([str(python), str(RUNNER), str(spec_path), str(out_path)],
-                              capture_output=True, text=True)
+        proc = subprocess.run([str(python), str(RUNNER), str(spec_path), str(out_path)], capture_output=True, text=True)
         if proc.returncode != 0:
             sys.exit("bench_motulator: motulator run failed:\n" + proc.stderr)
         info = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -181,19 +190,24 @@ def report(name, scenario, spec, ours_times, info, diff, load):
     theirs_cpu = t_end / statistics.median(theirs_cpus)
     max_diff, rms_diff, peak = diff
     lines = [
-        SECTION, "",
+        SECTION,
+        "",
         measured_by("python3 benchmarks/bench_motulator.py")
         + f"; pmsm2dof {version('pmsm2dof')} on Python {platform.python_version()}, "
         f"motulator {info['motulator_version']} on {info['python']} (separate venv); 1-minute load "
-        f"average {load[0]:.2f} before and {load[1]:.2f} after.", "",
+        f"average {load[0]:.2f} before and {load[1]:.2f} after.",
+        "",
         f"Situation: preset `{name}` ({t_end:g} s: "
         + ", ".join(f"{e['speed_rpm']:g} rpm at {e['t_s']:g} s" for e in scenario.data["reference"])
-        + ", load " + ", ".join(f"{e['torque_Nm']:g} Nm at {e['t_s']:g} s" for e in scenario.data["load"])
-        + "), with " + ", ".join(f"`{k} = {json.dumps(v)}`" for k, v in MATCHED.items())
+        + ", load "
+        + ", ".join(f"{e['torque_Nm']:g} Nm at {e['t_s']:g} s" for e in scenario.data["load"])
+        + "), with "
+        + ", ".join(f"`{k} = {json.dumps(v)}`" for k, v in MATCHED.items())
         + f" and `speed_controller.Ts_s = {spec['T_s']:g}` (the current period): 1DOF PI speed loop with "
         f"Kp = {spec['k_p']:.4g} Nm s/rad, Ki = {spec['k_i']:.4g} Nm/rad (eq 9), Ka = 1/Kp, "
         f"current limit {spec['i_s_max']:g} A, dq current control with tau_i = {1 / spec['alpha_c']:g} s, "
-        f"both loops at {spec['T_s'] * 1e6:g} us, one period of computational delay.", "",
+        f"both loops at {spec['T_s'] * 1e6:g} us, one period of computational delay.",
+        "",
         "| simulator | runs | median wall time (s) | throughput (simulated s / wall s) "
         "| throughput (simulated s / CPU s) |",
         "|---|---:|---:|---:|---:|",
@@ -202,11 +216,14 @@ def report(name, scenario, spec, ours_times, info, diff, load):
         f"| {theirs_cpu:.4g} |",
         "",
         f"Ratio pmsm2dof / motulator: **{ratio:.0f}x** in wall time (target >= {TARGET_RATIO:.0f}x: "
-        + ("met" if ratio >= TARGET_RATIO else "missed") + f"), {ours_cpu / theirs_cpu:.0f}x in CPU time "
-        "(the process's own CPU seconds, which other load on the machine does not inflate).", "",
+        + ("met" if ratio >= TARGET_RATIO else "missed")
+        + f"), {ours_cpu / theirs_cpu:.0f}x in CPU time "
+        "(the process's own CPU seconds, which other load on the machine does not inflate).",
+        "",
         f"Speed traces on a {GRID_STEP_S * 1e3:g} ms grid: largest difference {max_diff:.3g} rpm, "
         f"RMS {rms_diff:.3g} rpm ({100 * max_diff / peak:.2g} % and {100 * rms_diff / peak:.2g} % of the "
-        f"{peak:.4g} rpm peak speed).", "",
+        f"{peak:.4g} rpm peak speed).",
+        "",
         "Same situation: motulator's current controller is given pmsm2dof's decoupling feedforward "
         "j w_m psi_s(i) and dq PI gains (Kp = L/tau_i, Ki = Rs/tau_i) by two small subclasses in "
         "`benchmarks/motulator/run_motulator.py`; with its own complex-vector PI the slow current loop "

@@ -40,8 +40,13 @@ TARGET_SIM_S_PER_WALL_S = 1000.0
 
 def git_commit():
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True,
-                              cwd=Path(__file__).resolve().parent).stdout.strip()
+        return subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=Path(__file__).resolve().parent,
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
 
@@ -81,11 +86,23 @@ def main(argv=None):
     load_before = os.getloadavg()[0]
 
     rows = []
-    for label, scenario in (("dq_pi", base), ("first_order", base.with_overrides({"current_loop.model": "first_order"}))):
+    for label, scenario in (
+        ("dq_pi", base),
+        ("first_order", base.with_overrides({"current_loop.model": "first_order"})),
+    ):
         calls, cpu, engine = measure(scenario, args.runs)
         call_s, engine_s = statistics.median(calls), statistics.median(engine)
-        rows.append((label, t_end_s / call_s, t_end_s / max(calls), t_end_s / min(calls),
-                     t_end_s / statistics.median(cpu), t_end_s / engine_s, engine_s / (t_end_s / Ts_current_s) * 1e9))
+        rows.append(
+            (
+                label,
+                t_end_s / call_s,
+                t_end_s / max(calls),
+                t_end_s / min(calls),
+                t_end_s / statistics.median(cpu),
+                t_end_s / engine_s,
+                engine_s / (t_end_s / Ts_current_s) * 1e9,
+            )
+        )
     change = halving_change(base)
     load_after = os.getloadavg()[0]
 
@@ -109,8 +126,10 @@ def main(argv=None):
         "| simulated s / CPU s, whole call | simulated s / wall s, C run only | ns per current period (C run) |",
         "|---|---:|---:|---:|---:|",
     ]
-    lines += [f"| {label} | {call:.0f} ({low:.0f}-{high:.0f}) | {per_cpu:.0f} | {engine:.0f} | {ns:.0f} |"
-              for label, call, low, high, per_cpu, engine, ns in rows]
+    lines += [
+        f"| {label} | {call:.0f} ({low:.0f}-{high:.0f}) | {per_cpu:.0f} | {engine:.0f} | {ns:.0f} |"
+        for label, call, low, high, per_cpu, engine, ns in rows
+    ]
     lines += [
         "",
         f"Target: >= {TARGET_SIM_S_PER_WALL_S:g} simulated s per wall s for dq_pi (whole call, median): {verdict}. "

@@ -124,9 +124,9 @@ def memory(repeats):
     Linux carries ``ru_maxrss`` over fork and exec, so a child starts from the parent's peak:
     this runs before the benchmark has grown, and ``VmHWM`` (reset by exec) cross-checks it.
     """
+
     def probe(mode):
-        proc = subprocess.run([sys.executable, "-c", MEMORY_PROBE, mode], check=True, capture_output=True,
-                              text=True)
+        proc = subprocess.run([sys.executable, "-c", MEMORY_PROBE, mode], check=True, capture_output=True, text=True)
         return json.loads(proc.stdout)
 
     runs = [probe("run") for _ in range(repeats)]
@@ -149,17 +149,24 @@ def report(single, sweeps, mem, repeats, runs, load):
     hwm_idle = statistics.median(m["hwm_kB"] for m in mem_idle) / 1024
     rows, signals = mem_runs[0]["rows"], mem_runs[0]["signals"]
     d = scenario.data
-    head = (measured_by("python3 benchmarks/bench_sweep.py")
-            + f"; Python {platform.python_version()}, pmsm2dof {version('pmsm2dof')}. "
-            f"Medians of {repeats} repetitions, measured side by side in one run; 1-minute load average "
-            f"{load[0]:.2f} before and {load[1]:.2f} after (other work on the machine slows the numbers down).")
+    head = (
+        measured_by("python3 benchmarks/bench_sweep.py")
+        + f"; Python {platform.python_version()}, pmsm2dof {version('pmsm2dof')}. "
+        f"Medians of {repeats} repetitions, measured side by side in one run; 1-minute load average "
+        f"{load[0]:.2f} before and {load[1]:.2f} after (other work on the machine slows the numbers down)."
+    )
     lines = [
-        SECTION_SPEED, "", head, "",
-        "| measurement | median | repetitions |", "|---|---:|---|",
+        SECTION_SPEED,
+        "",
+        head,
+        "",
+        "| measurement | median | repetitions |",
+        "|---|---:|---|",
         f"| single run, `paper-condition-2` ({d['simulation']['t_end_s']:g} s, `dq_pi`, current "
         f"{d['current_loop']['Ts_s'] * 1e6:g} us, speed {d['speed_controller']['Ts_s'] * 1e3:g} ms): "
         f"simulated s per wall s (median of {runs} runs each) | {statistics.median(single_rates):.4g} | "
-        + ", ".join(f"{r:.4g}" for r in single_rates) + " |",
+        + ", ".join(f"{r:.4g}" for r in single_rates)
+        + " |",
         f"| sweep `{sweep.name}` ({len(sweep.points)} runs of paper-condition-2), 1 worker: runs/s | "
         f"{r1:.4g} | " + ", ".join(f"{r:.4g}" for r in rates1) + " |",
         f"| same sweep, 2 workers: runs/s | {r2:.4g} | " + ", ".join(f"{r:.4g}" for r in rates2) + " |",
@@ -179,12 +186,17 @@ def report(single, sweeps, mem, repeats, runs, load):
         "and 2 workers means the threads add no work; a speed-up far below that figure then comes from "
         "cores taken by other work (see the load average).",
         "",
-        SECTION_MEMORY, "", head, "",
+        SECTION_MEMORY,
+        "",
+        head,
+        "",
         f"A 60 s run of `paper-condition-2` with the speed controller at the current period "
         f"({d['current_loop']['Ts_s'] * 1e6:g} us) and `log_every = 1`, i.e. logged at every current "
         f"sample: {rows} rows x {signals} signals; the float64 log alone is "
-        f"{rows * signals * 8 / 2**20:.1f} MiB.", "",
-        "| process | peak RSS, ru_maxrss (MiB) | VmHWM (MiB) |", "|---|---:|---:|",
+        f"{rows * signals * 8 / 2**20:.1f} MiB.",
+        "",
+        "| process | peak RSS, ru_maxrss (MiB) | VmHWM (MiB) |",
+        "|---|---:|---:|",
         f"| imports pmsm2dof and loads the scenario | {idle:.1f} | {hwm_idle:.1f} |",
         f"| ... and simulates it (`simulate`, Result held) | {peak:.1f} | {hwm:.1f} |",
         f"| difference: the run | {peak - idle:.1f} | {hwm - hwm_idle:.1f} |",
@@ -193,8 +205,9 @@ def report(single, sweeps, mem, repeats, runs, load):
         "(median of the repetitions), measured first so that the small parent's peak, which Linux carries "
         "into the child, stays below the child's; `VmHWM` of /proc/self/status (reset by exec) agrees.",
     ]
-    return "\n".join(lines[:lines.index(SECTION_MEMORY) - 1]) + "\n", "\n".join(
-        lines[lines.index(SECTION_MEMORY):]) + "\n"
+    return "\n".join(lines[: lines.index(SECTION_MEMORY) - 1]) + "\n", "\n".join(
+        lines[lines.index(SECTION_MEMORY) :]
+    ) + "\n"
 
 
 def main(argv=None):

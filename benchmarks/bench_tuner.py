@@ -30,8 +30,15 @@ from pmsm2dof.ui.tuner import create_app, serving_in_thread
 from pmsm2dof.ui.tuner.experiment import Tuner
 
 CHROMIUM = "/usr/bin/chromium"
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run", "--disable-quic"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+]
 PRESETS = [name for name in list_presets() if name.startswith("paper-")]
 IDLE = "(n) => !window.tuner.pending && window.tuner.renderCount > n"
 
@@ -118,9 +125,12 @@ def main():
                 http = bench_http(url, base.data["speed_controller"]["alpha"], args.repeat)
                 request_ms, browser_ms = bench_browser(page, url, args.repeat)
             rows.append((name, base.data["simulation"]["t_end_s"], sim, server, size, http, request_ms, browser_ms))
-            print(f"{name}: server {server['median']:.1f} ms (simulation {sim['median']:.1f} ms), "
-                  f"HTTP {http['median']:.1f} ms, browser {browser_ms['median']:.1f} ms "
-                  f"(request {request_ms['median']:.1f} ms)", flush=True)
+            print(
+                f"{name}: server {server['median']:.1f} ms (simulation {sim['median']:.1f} ms), "
+                f"HTTP {http['median']:.1f} ms, browser {browser_ms['median']:.1f} ms "
+                f"(request {request_ms['median']:.1f} ms)",
+                flush=True,
+            )
         if args.screenshot:
             with serving_in_thread(create_app(load_scenario("paper-condition-2"))) as url:
                 screenshot(page, url, args.screenshot)
@@ -129,8 +139,10 @@ def main():
     print()
     print(f"median / p90 / max over {args.repeat} changes of alpha [ms]; JSON of one run [kB]")
     print()
-    print("| preset | t_end [s] | simulation | server total | JSON | HTTP round trip | browser: request "
-          "| browser: change -> redrawn |")
+    print(
+        "| preset | t_end [s] | simulation | server total | JSON | HTTP round trip | browser: request "
+        "| browser: change -> redrawn |"
+    )
     print("|---|---|---|---|---|---|---|---|")
     for name, t_end, sim, server, size, http, request_ms, browser_ms in rows:
         cells = [f"{s['median']:.0f} / {s['p90']:.0f} / {s['max']:.0f}" for s in (sim, server)]

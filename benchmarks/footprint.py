@@ -88,7 +88,7 @@ def library_functions(build_dir):
     rows, module = [], None
     for line in out.splitlines():
         if line.endswith(".obj:"):
-            module = line[:-len(".c.obj:")]
+            module = line[: -len(".c.obj:")]
         parts = line.split()
         if len(parts) == 4 and parts[2] in "TtRr":
             rows.append((module, parts[3], int(parts[1], 16)))
@@ -141,7 +141,10 @@ def trace(elf, workdir):
     log = workdir / "exec.log"
     done = subprocess.run(
         [*QEMU, "-singlestep", "-d", "exec,nochain", "-D", log, "-kernel", elf],
-        capture_output=True, text=True, timeout=QEMU_TIMEOUT_S, stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=QEMU_TIMEOUT_S,
+        stdin=subprocess.DEVNULL,
     )
     # semihosting output arrives on stderr
     if done.returncode != 0:
@@ -211,8 +214,9 @@ def measure(build_dir, workdir):
     ka_disassembled = sum(1 for a in mnemonic if ka[0] <= a < ka[0] + ka[1] and not mnemonic[a].startswith("."))
     first, end = call_in_trace(pcs, ka[0], 0, mnemonic)
     if end - first != ka_disassembled:
-        raise RuntimeError(f"trace counts {end - first} instructions in p2d_speed_Ka_default, "
-                           f"its disassembly has {ka_disassembled}")
+        raise RuntimeError(
+            f"trace counts {end - first} instructions in p2d_speed_Ka_default, its disassembly has {ka_disassembled}"
+        )
 
     marks = [i for i, a in enumerate(pcs) if a == funcs["p2d_cost_mark"][0]]
     where = function_of(funcs)
@@ -223,27 +227,44 @@ def measure(build_dir, workdir):
         entry = funcs[f"p2d_{controller}_step"][0]
         first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
         path = pcs[first:end]
-        rows.append(dict(
-            key=tuple(probe[2:7]), point=probe[7], stack=int(probe[9], 16), count=len(path),
-            divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
-            per_function=Counter(where(a) for a in path), path=path,
-        ))
+        rows.append(
+            dict(
+                key=tuple(probe[2:7]),
+                point=probe[7],
+                stack=int(probe[9], 16),
+                count=len(path),
+                divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
+                per_function=Counter(where(a) for a in path),
+                path=path,
+            )
+        )
 
     def flash_of(names):
         names = sorted(f for f in names if f in funcs)
         return sum(funcs[f][1] for f in names), names
 
-    flash = {root: flash_of(reachable(calls, root))
-             for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init")}
+    flash = {
+        root: flash_of(reachable(calls, root))
+        for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init")
+    }
     for controller in ("speed", "current"):
         entries = [f for f in funcs if f.startswith(f"p2d_{controller}_")]
         flash[f"{controller} controller (all p2d_{controller}_*)"] = flash_of(
-            set().union(*(reachable(calls, f) for f in entries)))
+            set().union(*(reachable(calls, f) for f in entries))
+        )
 
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
-    return dict(modules=module_sizes(build_dir), library=library_functions(build_dir), funcs=funcs,
-                sizeof=sizeof, rows=rows, flash=flash, hot=hot, ka_check=ka_disassembled)
+    return dict(
+        modules=module_sizes(build_dir),
+        library=library_functions(build_dir),
+        funcs=funcs,
+        sizeof=sizeof,
+        rows=rows,
+        flash=flash,
+        hot=hot,
+        ka_check=ka_disassembled,
+    )
 
 
 def tool_version(cmd):
@@ -261,23 +282,37 @@ def code_version():
 def report(m):
     """The markdown section of the results."""
     out = [
-        SECTION, "",
+        SECTION,
+        "",
         measured_by("python3 benchmarks/footprint.py") + ";",
         f"{tool_version('arm-none-eabi-gcc')}; {tool_version('qemu-system-arm')}; code: {code_version()}.",
         "Flags: `-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard -O2 -ffp-contract=off`, newlib-nano.",
         "",
-        "### Flash and RAM of the library modules (`arm-none-eabi-size`, bytes)", "",
-        "| module | text (flash) | data | bss |", "|---|---:|---:|---:|",
+        "### Flash and RAM of the library modules (`arm-none-eabi-size`, bytes)",
+        "",
+        "| module | text (flash) | data | bss |",
+        "|---|---:|---:|---:|",
     ]
     for name, (text, data, bss) in m["modules"].items():
         out.append(f"| {name}.c | {text} | {data} | {bss} |")
-    out += ["", "Text includes read-only data (the status strings of status.c). No module has .data or .bss:",
-            "the controllers keep all state in the structs the caller allocates.", "",
-            "### Per function (`arm-none-eabi-nm --size-sort`, bytes)", "",
-            "| module | symbol | size |", "|---|---|---:|"]
+    out += [
+        "",
+        "Text includes read-only data (the status strings of status.c). No module has .data or .bss:",
+        "the controllers keep all state in the structs the caller allocates.",
+        "",
+        "### Per function (`arm-none-eabi-nm --size-sort`, bytes)",
+        "",
+        "| module | symbol | size |",
+        "|---|---|---:|",
+    ]
     out += [f"| {mod}.c | {sym} | {size} |" for mod, sym, size in m["library"]]
-    out += ["", "### Flash reachable from an entry point (static call graph, newlib included, bytes)", "",
-            "| entry | flash | functions |", "|---|---:|---|"]
+    out += [
+        "",
+        "### Flash reachable from an entry point (static call graph, newlib included, bytes)",
+        "",
+        "| entry | flash | functions |",
+        "|---|---:|---|",
+    ]
     for root, (size, reach) in m["flash"].items():
         out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
     out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
@@ -285,36 +320,52 @@ def report(m):
     stack = {}
     for r in m["rows"]:
         stack[r["key"][0]] = max(stack.get(r["key"][0], 0), r["stack"])
-    out += ["", "Stack of one step, largest over the probes (measured, painted stack): "
-            + ", ".join(f"{k} {b} bytes" for k, b in stack.items()) + ".",
-            "The firmware holds one `p2d_speed_t` and one `p2d_current_t` (static); the outputs live on the stack.",
-            "", "### Instructions executed by one step (QEMU trace; callees included)", "",
-            f"Counting method checked: the trace of `p2d_speed_Ka_default` has {m['ka_check']} instructions, "
-            "as many as its disassembly.", "",
-            "| controller | method | anti-windup | feedforward / decoupling | motor | unsaturated | saturated "
-            "| vdiv+vsqrt (unsat/sat) |",
-            "|---|---|---|---|---|---:|---:|---:|"]
+    out += [
+        "",
+        "Stack of one step, largest over the probes (measured, painted stack): "
+        + ", ".join(f"{k} {b} bytes" for k, b in stack.items())
+        + ".",
+        "The firmware holds one `p2d_speed_t` and one `p2d_current_t` (static); the outputs live on the stack.",
+        "",
+        "### Instructions executed by one step (QEMU trace; callees included)",
+        "",
+        f"Counting method checked: the trace of `p2d_speed_Ka_default` has {m['ka_check']} instructions, "
+        "as many as its disassembly.",
+        "",
+        "| controller | method | anti-windup | feedforward / decoupling | motor | unsaturated | saturated "
+        "| vdiv+vsqrt (unsat/sat) |",
+        "|---|---|---|---|---|---:|---:|---:|",
+    ]
     by_key = {}
     for r in m["rows"]:
         by_key.setdefault(r["key"], {})[r["point"]] = r
     for key, points in by_key.items():
         unsat, sat = points.get("unsaturated"), points.get("saturated")
         cell = lambda r, f: str(r[f]) if r else "-"  # noqa: E731
-        out.append(f"| {' | '.join(key)} | {cell(unsat, 'count')} | {cell(sat, 'count')} | "
-                   f"{cell(unsat, 'divides')}/{cell(sat, 'divides')} |")
+        out.append(
+            f"| {' | '.join(key)} | {cell(unsat, 'count')} | {cell(sat, 'count')} | "
+            f"{cell(unsat, 'divides')}/{cell(sat, 'divides')} |"
+        )
     target = by_key[TARGET]
     worst = max(r["count"] for r in target.values())
     step_flash = m["flash"]["p2d_speed_step"][0]
-    out += ["", "### Target: Tustin, back calculation, lowpass feedforward (surface PMSM)", "",
-            f"- instructions per speed step: {target['unsaturated']['count']} unsaturated, "
-            f"{target['saturated']['count']} saturated; target <= {TARGET_INSTRUCTIONS}: "
-            + ("met" if worst <= TARGET_INSTRUCTIONS else f"missed by {worst - TARGET_INSTRUCTIONS}"),
-            f"- flash reachable from `p2d_speed_step`: {step_flash} bytes; target <= {TARGET_FLASH_BYTES}: "
-            + ("met" if step_flash <= TARGET_FLASH_BYTES else f"missed by {step_flash - TARGET_FLASH_BYTES}"),
-            "- where the unsaturated step spends its instructions, by function: "
-            + ", ".join(f"{f} {n}" for f, n in target["unsaturated"]["per_function"].most_common()),
-            "", "Instructions by source line (unsaturated step):", "", "| instructions | line | source |",
-            "|---:|---|---|"]
+    out += [
+        "",
+        "### Target: Tustin, back calculation, lowpass feedforward (surface PMSM)",
+        "",
+        f"- instructions per speed step: {target['unsaturated']['count']} unsaturated, "
+        f"{target['saturated']['count']} saturated; target <= {TARGET_INSTRUCTIONS}: "
+        + ("met" if worst <= TARGET_INSTRUCTIONS else f"missed by {worst - TARGET_INSTRUCTIONS}"),
+        f"- flash reachable from `p2d_speed_step`: {step_flash} bytes; target <= {TARGET_FLASH_BYTES}: "
+        + ("met" if step_flash <= TARGET_FLASH_BYTES else f"missed by {step_flash - TARGET_FLASH_BYTES}"),
+        "- where the unsaturated step spends its instructions, by function: "
+        + ", ".join(f"{f} {n}" for f, n in target["unsaturated"]["per_function"].most_common()),
+        "",
+        "Instructions by source line (unsaturated step):",
+        "",
+        "| instructions | line | source |",
+        "|---:|---|---|",
+    ]
     out += [f"| {n} | {ref} | `{source_line(ref)}` |" for ref, n in m["hot"]]
     return "\n".join(out) + "\n"
 

@@ -10,8 +10,24 @@ import pytest
 
 from pmsm2dof.ui.cli import main
 
-PAPER = ["--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--m", "1", "--tau-i", "0.05", "--Ts", "1e-3",
-         "--method", "tustin", "--feedforward", "full"]
+PAPER = [
+    "--J",
+    "0.4",
+    "--alpha",
+    "0.5",
+    "--zeta",
+    "0.2887",
+    "--m",
+    "1",
+    "--tau-i",
+    "0.05",
+    "--Ts",
+    "1e-3",
+    "--method",
+    "tustin",
+    "--feedforward",
+    "full",
+]
 
 
 def test_design_table_shows_gains_poles_margins_and_coefficients(capsys):
@@ -26,8 +42,9 @@ def test_design_table_shows_gains_poles_margins_and_coefficients(capsys):
 
 @pytest.mark.slow
 def test_design_json_in_a_fresh_process():
-    run = subprocess.run([sys.executable, "-m", "pmsm2dof", "design", *PAPER, "--json"],
-                         capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-m", "pmsm2dof", "design", *PAPER, "--json"], capture_output=True, text=True, timeout=120
+    )
     assert run.returncode == 0, run.stderr
     data = json.loads(run.stdout)
     assert data["Kp"] == pytest.approx(0.2, rel=1e-12)
@@ -47,8 +64,7 @@ def test_design_emits_c_header(tmp_path, capsys):
     assert ".i_max_A = 5.0f" in text and ".pole_pairs = 3u" in text and ".Lq_H = 0.003f" in text
     assert "p2d_current_config_t" not in text
     assert data["header"]["motor"]["psi_f_Wb"] == {"value": 0.1, "source": "given: --psi-f"}
-    assert main(["design", *PAPER, *motor, "--emit-c-header", str(header), "--Rs", "0.5", "--Ts-current",
-                 "1e-4"]) == 0
+    assert main(["design", *PAPER, *motor, "--emit-c-header", str(header), "--Rs", "0.5", "--Ts-current", "1e-4"]) == 0
     assert "static const p2d_current_config_t p2d_design_current_config" in header.read_text()
 
 
@@ -63,18 +79,37 @@ def test_header_without_motor_data_names_what_is_missing(tmp_path, capsys):
 
 def test_paper_drive_fills_in_what_is_not_given_and_says_so(tmp_path, capsys):
     header = tmp_path / "speed.h"
-    assert main(["design", *PAPER, "--emit-c-header", str(header), "--paper-drive", "--Ld", "0.012",
-                 "--Rs", "0.3", "--Ts-current", "1e-4"]) == 0
+    assert (
+        main(
+            [
+                "design",
+                *PAPER,
+                "--emit-c-header",
+                str(header),
+                "--paper-drive",
+                "--Ld",
+                "0.012",
+                "--Rs",
+                "0.3",
+                "--Ts-current",
+                "1e-4",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     # the paper's drive is the preset's: 7.6 A limit (section 4), 4 pole pairs, 0.2 Wb
     from pmsm2dof import load_scenario
 
     preset = load_scenario("paper-condition-1").data
-    expected = {"i_max_A": (preset["limits"]["i_max_A"], "paper drive"),
-                "pole_pairs": (preset["motor"]["pole_pairs"], "paper drive"),
-                "psi_f_Wb": (preset["motor"]["psi_f_Wb"], "paper drive"),
-                "Ld_H": (0.012, "given: --Ld"), "Lq_H": (0.012, "= Ld_H: surface PMSM"),
-                "Rs_ohm": (0.3, "given: --Rs")}
+    expected = {
+        "i_max_A": (preset["limits"]["i_max_A"], "paper drive"),
+        "pole_pairs": (preset["motor"]["pole_pairs"], "paper drive"),
+        "psi_f_Wb": (preset["motor"]["psi_f_Wb"], "paper drive"),
+        "Ld_H": (0.012, "given: --Ld"),
+        "Lq_H": (0.012, "= Ld_H: surface PMSM"),
+        "Rs_ohm": (0.3, "given: --Rs"),
+    }
     summary = {line.split()[0]: line for line in out.split("C header written to")[1].splitlines()[1:]}
     text = header.read_text()
     for name, (value, source) in expected.items():
@@ -97,8 +132,24 @@ BAD = [
     (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "inf"], "Ts_s"),
     (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--tau-i", "-1"], "tau_i_s"),
     (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--Ka", "-2"], "Ka"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--m", "2",
-      "--feedforward", "lowpass"], "m"),
+    (
+        [
+            "design",
+            "--J",
+            "0.4",
+            "--alpha",
+            "0.5",
+            "--zeta",
+            "0.3",
+            "--Ts",
+            "1e-3",
+            "--m",
+            "2",
+            "--feedforward",
+            "lowpass",
+        ],
+        "m",
+    ),
     (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--method", "zoh"], "method"),
     (["design", "--J", "heavy", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
     (["design", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
@@ -176,10 +227,16 @@ def test_bad_header_option_writes_nothing(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_bad_value_in_a_fresh_process_has_no_traceback():
-    run = subprocess.run([sys.executable, "-m", "pmsm2dof", "design", "--J", "0", "--alpha", "0.5", "--zeta", "0.3",
-                          "--Ts", "1e-3"], capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-m", "pmsm2dof", "design", "--J", "0", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 2
-    assert run.stderr.strip().splitlines() == ["pmsm2dof: error: J_kgm2 = 0.0 is invalid: valid range is finite and > 0"]
+    assert run.stderr.strip().splitlines() == [
+        "pmsm2dof: error: J_kgm2 = 0.0 is invalid: valid range is finite and > 0"
+    ]
 
 
 @pytest.mark.slow

@@ -16,13 +16,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pmsm2dof.ui.cli import main
 from pmsm2dof.errors import SimulationError
 from pmsm2dof.sim.scenario import list_presets, load_scenario
+from pmsm2dof.ui.cli import main
 
 BAD = Path(__file__).parent / "bad_scenarios"
-REQUIRED_COLUMNS = ["t_s", "speed_ref_rpm", "speed_rpm", "id_ref_A", "iq_ref_A", "id_A", "iq_A", "torque_Nm",
-                    "load_Nm"]
+REQUIRED_COLUMNS = ["t_s", "speed_ref_rpm", "speed_rpm", "id_ref_A", "iq_ref_A", "id_A", "iq_A", "torque_Nm", "load_Nm"]
 
 
 def run(argv, capsys):
@@ -42,27 +41,30 @@ def assert_clean_failure(code, err, tmp_path, must_mention):
     assert not list(tmp_path.glob(".out.*")), "a temporary folder was left behind"
 
 
-@pytest.mark.parametrize("args, must_mention", [
-    ([str(BAD / "missing_motor_J.toml")], "motor.J_kgm2"),
-    ([str(BAD / "unknown_key_case.toml")], "did you mean 'motor.Rs_ohm'"),
-    ([str(BAD / "wrong_type_pole_pairs_string.toml")], "motor.pole_pairs"),
-    ([str(BAD / "not_toml.toml")], "valid TOML"),
-    (["paper-condition-2", "--set", "motor.J_kgm2=0"], "motor.J_kgm2"),
-    (["paper-condition-2", "--set", "motor.J_kgm2=-0.4"], "motor.J_kgm2"),
-    (["paper-condition-2", "--set", "limits.i_max_A=true"], "limits.i_max_A"),
-    (["paper-condition-2", "--set", "motor.J_kgm2=nan"], "motor.J_kgm2"),
-    (["paper-condition-2", "--set", 'motor.J_kgm2="nan"'], "motor.J_kgm2"),
-    (["paper-condition-2", "--set", "motor.J_kgm2=inf"], "motor.J_kgm2"),
-    (["paper-condition-2", "--set", "simulation.t_end_s=1e9"], "simulation.t_end_s"),
-    (["paper-condition-2", "--set", "speed_controller.Ts_s=1.05e-3"], "speed_controller.Ts_s"),
-    (["paper-condition-2", "--set", "reference.1.t_s=99"], "reference.1.t_s"),
-    (["paper-condition-2", "--set", "speed_controller.m=2"], "no_tau"),
-    (["paper-condition-2", "--set", "motor.J=0.4"], "motor.J"),
-    (["paper-condition-2", "--set", "motor.J_kgm2"], "--set"),
-    (["paper-condition-2", "--set", "speed_controller.Ka=1e9"], "speed_controller.Ka"),
-    (["paper-condition-9"], "paper-condition-2"),
-    (["no/such/file.toml"], "no/such/file.toml"),
-])
+@pytest.mark.parametrize(
+    "args, must_mention",
+    [
+        ([str(BAD / "missing_motor_J.toml")], "motor.J_kgm2"),
+        ([str(BAD / "unknown_key_case.toml")], "did you mean 'motor.Rs_ohm'"),
+        ([str(BAD / "wrong_type_pole_pairs_string.toml")], "motor.pole_pairs"),
+        ([str(BAD / "not_toml.toml")], "valid TOML"),
+        (["paper-condition-2", "--set", "motor.J_kgm2=0"], "motor.J_kgm2"),
+        (["paper-condition-2", "--set", "motor.J_kgm2=-0.4"], "motor.J_kgm2"),
+        (["paper-condition-2", "--set", "limits.i_max_A=true"], "limits.i_max_A"),
+        (["paper-condition-2", "--set", "motor.J_kgm2=nan"], "motor.J_kgm2"),
+        (["paper-condition-2", "--set", 'motor.J_kgm2="nan"'], "motor.J_kgm2"),
+        (["paper-condition-2", "--set", "motor.J_kgm2=inf"], "motor.J_kgm2"),
+        (["paper-condition-2", "--set", "simulation.t_end_s=1e9"], "simulation.t_end_s"),
+        (["paper-condition-2", "--set", "speed_controller.Ts_s=1.05e-3"], "speed_controller.Ts_s"),
+        (["paper-condition-2", "--set", "reference.1.t_s=99"], "reference.1.t_s"),
+        (["paper-condition-2", "--set", "speed_controller.m=2"], "no_tau"),
+        (["paper-condition-2", "--set", "motor.J=0.4"], "motor.J"),
+        (["paper-condition-2", "--set", "motor.J_kgm2"], "--set"),
+        (["paper-condition-2", "--set", "speed_controller.Ka=1e9"], "speed_controller.Ka"),
+        (["paper-condition-9"], "paper-condition-2"),
+        (["no/such/file.toml"], "no/such/file.toml"),
+    ],
+)
 def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, must_mention):
     code, out, err = run(["simulate", *args, "--out", str(tmp_path / "out")], capsys)
     assert_clean_failure(code, err, tmp_path, must_mention)
@@ -107,8 +109,7 @@ def test_failure_during_the_run_leaves_the_old_output_untouched(tmp_path, capsys
         raise SimulationError("plot failed on purpose")
 
     monkeypatch.setattr(pmsm2dof.ui.plots.trace, "plot_trace", failing_plot)
-    code, _, err = run(["simulate", "paper-experiment-1", "--set", "simulation.t_end_s=1", "--out", str(out)],
-                       capsys)
+    code, _, err = run(["simulate", "paper-experiment-1", "--set", "simulation.t_end_s=1", "--out", str(out)], capsys)
     assert code == 2 and "plot failed on purpose" in err and len(err.splitlines()) == 1
     assert sorted(p.name for p in out.iterdir()) == ["trace.csv"]
     assert (out / "trace.csv").read_text() == "old"
@@ -119,8 +120,12 @@ def test_failure_during_the_run_leaves_the_old_output_untouched(tmp_path, capsys
 def test_simulate_paper_condition_2(tmp_path):
     """The real command, as a user runs it: files, columns, physics and the paper's schedule."""
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "pmsm2dof", "simulate", "paper-condition-2", "--out", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pmsm2dof", "simulate", "paper-condition-2", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     assert "paper condition 2" in proc.stdout and "load step at 7 s" in proc.stdout
     assert sorted(p.name for p in out.iterdir()) == ["metrics.json", "plot.png", "scenario.toml", "trace.csv"]
@@ -154,9 +159,21 @@ def test_simulate_paper_condition_2(tmp_path):
 @pytest.mark.slow
 def test_simulate_with_overrides(tmp_path, capsys):
     out = tmp_path / "out"
-    code, stdout, err = run(["simulate", "paper-experiment-1", "--set", "simulation.t_end_s=1.5",
-                             "--set", "speed_controller.anti_windup=none", "--set", "current_loop.model=first_order",
-                             "--out", str(out)], capsys)
+    code, stdout, err = run(
+        [
+            "simulate",
+            "paper-experiment-1",
+            "--set",
+            "simulation.t_end_s=1.5",
+            "--set",
+            "speed_controller.anti_windup=none",
+            "--set",
+            "current_loop.model=first_order",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     s = load_scenario(out / "scenario.toml")
     assert s.data["simulation"]["t_end_s"] == 1.5

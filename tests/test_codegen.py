@@ -26,23 +26,42 @@ N_STEPS = 60
 
 CASES = {
     "paper_tustin_full": dict(
-        design=dict(J_kgm2=0.4, alpha_radps=0.5, zeta=0.2887, m=1.0, tau_i_s=0.05, feedforward="full",
-                    anti_windup="back_calculation"),
-        Ts_s=1e-3, method="tustin",
+        design=dict(
+            J_kgm2=0.4,
+            alpha_radps=0.5,
+            zeta=0.2887,
+            m=1.0,
+            tau_i_s=0.05,
+            feedforward="full",
+            anti_windup="back_calculation",
+        ),
+        Ts_s=1e-3,
+        method="tustin",
         motor=dict(i_max_A=7.6, pole_pairs=4, psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01),
         current=dict(Rs_ohm=0.5, Ts_current_s=1e-4),
     ),
     "salient_forward_lowpass_clamping": dict(
-        design=dict(J_kgm2=0.02, alpha_radps=30.0, zeta=0.7, m=1.0, tau_i_s=0.002, feedforward="lowpass",
-                    anti_windup="clamping"),
-        Ts_s=2e-4, method="forward_euler",
+        design=dict(
+            J_kgm2=0.02, alpha_radps=30.0, zeta=0.7, m=1.0, tau_i_s=0.002, feedforward="lowpass", anti_windup="clamping"
+        ),
+        Ts_s=2e-4,
+        method="forward_euler",
         motor=dict(i_max_A=12.0, pole_pairs=3, psi_f_Wb=0.05, Ld_H=0.008, Lq_H=0.02),
         current=None,
     ),
     "backward_no_tau_explicit_Ka": dict(
-        design=dict(J_kgm2=1.5, alpha_radps=4.0, zeta=1.0, m=1.6, tau_i_s=0.01, feedforward="no_tau",
-                    anti_windup="back_calculation", Ka=0.3),
-        Ts_s=5e-4, method="backward_euler",
+        design=dict(
+            J_kgm2=1.5,
+            alpha_radps=4.0,
+            zeta=1.0,
+            m=1.6,
+            tau_i_s=0.01,
+            feedforward="no_tau",
+            anti_windup="back_calculation",
+            Ka=0.3,
+        ),
+        Ts_s=5e-4,
+        method="backward_euler",
         motor=dict(i_max_A=20.0, pole_pairs=5, psi_f_Wb=0.3, Ld_H=0.004, Lq_H=0.004),
         current=dict(Rs_ohm=0.2, Ts_current_s=5e-5),
     ),
@@ -59,10 +78,17 @@ def inputs(n):
 
 def current_inputs(n):
     k = np.arange(n)
-    return [a.astype(np.float32) for a in (
-        np.where(k < 10, 0.0, -1.0), np.where(k < 5, 0.0, 8.0), 0.1 * np.cos(0.3 * k), 0.15 * k,
-        300.0 + 2.0 * k, np.full(n, 48.0),
-    )]
+    return [
+        a.astype(np.float32)
+        for a in (
+            np.where(k < 10, 0.0, -1.0),
+            np.where(k < 5, 0.0, 8.0),
+            0.1 * np.cos(0.3 * k),
+            0.15 * k,
+            300.0 + 2.0 * k,
+            np.full(n, 48.0),
+        )
+    ]
 
 
 def c_array(name, values):
@@ -135,15 +161,28 @@ def build_and_run(tmp_path, header_text, prefix, with_current):
         names = ("id_ref", "iq_ref", "id", "iq", "w_e", "u_dc")
         arrays += [c_array(name, a) for name, a in zip(names, current_inputs(N_STEPS))]
         current = CURRENT.format(prefix=prefix, n=N_STEPS)
-    (tmp_path / "main.c").write_text(PROGRAM.format(
-        header=f"{prefix}.h", arrays="\n".join(arrays), prefix=prefix, n=N_STEPS, current=current,
-        n_configs=2 if with_current else 1))
+    (tmp_path / "main.c").write_text(
+        PROGRAM.format(
+            header=f"{prefix}.h",
+            arrays="\n".join(arrays),
+            prefix=prefix,
+            n=N_STEPS,
+            current=current,
+            n_configs=2 if with_current else 1,
+        )
+    )
     plus = f" + (int)sizeof({prefix}_current_config) / (int)sizeof(p2d_current_config_t)" if with_current else ""
     (tmp_path / "second.c").write_text(SECOND_UNIT.format(header=f"{prefix}.h", prefix=prefix, plus_current=plus))
     exe = tmp_path / "run"
-    sources = [str(tmp_path / "main.c"), str(tmp_path / "second.c")] + sorted(str(p) for p in (CSRC / "src").glob("*.c"))
-    subprocess.run([GCC, *CFLAGS, f"-I{CSRC / 'include'}", f"-I{tmp_path}", *sources, "-o", str(exe), "-lm"],
-                   check=True, capture_output=True, text=True)
+    sources = [str(tmp_path / "main.c"), str(tmp_path / "second.c")] + sorted(
+        str(p) for p in (CSRC / "src").glob("*.c")
+    )
+    subprocess.run(
+        [GCC, *CFLAGS, f"-I{CSRC / 'include'}", f"-I{tmp_path}", *sources, "-o", str(exe), "-lm"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=30)
     assert run.returncode == 0, run.stdout + run.stderr
     rows = {"config": [], "speed": [], "current": []}
@@ -171,8 +210,9 @@ def test_header_compiles_and_matches_python_configured_controller(tmp_path, name
     np.testing.assert_array_equal(result["config"][0].astype(np.float32), np.float32(expected))
 
     # the same controller configured from Python, from the values written out above
-    ctl = SpeedController(**{k: v for k, v in inp.items() if k != "Ka"}, Ka=Ka, Ts_s=case["Ts_s"],
-                          method=case["method"], **case["motor"])
+    ctl = SpeedController(
+        **{k: v for k, v in inp.items() if k != "Ka"}, Ka=Ka, Ts_s=case["Ts_s"], method=case["method"], **case["motor"]
+    )
     w_ref, w_m = inputs(N_STEPS)
     py = ctl.run(w_ref, w_m)
     c = result["speed"]
@@ -182,10 +222,17 @@ def test_header_compiles_and_matches_python_configured_controller(tmp_path, name
     assert py["saturated"].any() and not py["saturated"].all()  # the sequence exercises the limit
 
     if case["current"] is not None:
-        cc = CurrentController(Rs_ohm=case["current"]["Rs_ohm"], Ld_H=case["motor"]["Ld_H"],
-                               Lq_H=case["motor"]["Lq_H"], psi_f_Wb=case["motor"]["psi_f_Wb"],
-                               tau_i_s=inp["tau_i_s"], Ts_s=case["current"]["Ts_current_s"],
-                               method=case["method"], anti_windup="back_calculation", decouple=True)
+        cc = CurrentController(
+            Rs_ohm=case["current"]["Rs_ohm"],
+            Ld_H=case["motor"]["Ld_H"],
+            Lq_H=case["motor"]["Lq_H"],
+            psi_f_Wb=case["motor"]["psi_f_Wb"],
+            tau_i_s=inp["tau_i_s"],
+            Ts_s=case["current"]["Ts_current_s"],
+            method=case["method"],
+            anti_windup="back_calculation",
+            decouple=True,
+        )
         py_c = cc.run(*current_inputs(N_STEPS))
         np.testing.assert_array_equal(result["current"][:, 0].astype(np.float32), py_c["ud_ref_V"])
         np.testing.assert_array_equal(result["current"][:, 1].astype(np.float32), py_c["uq_ref_V"])
@@ -193,11 +240,17 @@ def test_header_compiles_and_matches_python_configured_controller(tmp_path, name
 
 def test_header_records_every_design_input():
     case = CASES["backward_no_tau_explicit_Ka"]
-    text = c_header(design(**case["design"]).discretize(case["Ts_s"], case["method"]),
-                    **case["motor"], **case["current"])
+    text = c_header(
+        design(**case["design"]).discretize(case["Ts_s"], case["method"]), **case["motor"], **case["current"]
+    )
     recorded = dict(re.findall(r"^ \*   (\w+)\s+= (\S+)", text, flags=re.M))
-    for name, value in {**case["design"], **case["motor"], "Rs_ohm": 0.2, "Ts_s": case["Ts_s"],
-                        "method": case["method"]}.items():
+    for name, value in {
+        **case["design"],
+        **case["motor"],
+        "Rs_ohm": 0.2,
+        "Ts_s": case["Ts_s"],
+        "method": case["method"],
+    }.items():
         if isinstance(value, str):
             assert recorded[name] == value, name
         else:

@@ -6,7 +6,6 @@ import math
 import numpy as np
 import pytest
 
-from pmsm2dof.core.bindings import lib
 from pmsm2dof.core import (
     ANTI_WINDUPS,
     FEEDFORWARDS,
@@ -16,10 +15,20 @@ from pmsm2dof.core import (
     SpeedController,
     SpeedOutput,
 )
+from pmsm2dof.core.bindings import lib
 from pmsm2dof.errors import ConfigError
 
-SPEED = dict(J_kgm2=0.01, alpha_radps=150.0, zeta=0.7, Ts_s=1e-4, i_max_A=8.0, psi_f_Wb=0.06, Ld_H=1e-3,
-             Lq_H=2.5e-3, pole_pairs=4)
+SPEED = dict(
+    J_kgm2=0.01,
+    alpha_radps=150.0,
+    zeta=0.7,
+    Ts_s=1e-4,
+    i_max_A=8.0,
+    psi_f_Wb=0.06,
+    Ld_H=1e-3,
+    Lq_H=2.5e-3,
+    pole_pairs=4,
+)
 CURRENT = dict(Rs_ohm=0.5, Ld_H=1e-3, Lq_H=2e-3, psi_f_Wb=0.05, tau_i_s=1e-3, Ts_s=1e-4)
 
 
@@ -29,11 +38,13 @@ def f32(x):
 
 def test_choice_tuples_are_the_c_enum_values():
     assert [getattr(lib, n) for n in ("P2D_FORWARD_EULER", "P2D_BACKWARD_EULER", "P2D_TUSTIN")] == [
-        METHODS.index(m) for m in METHODS]
+        METHODS.index(m) for m in METHODS
+    ]
     assert [getattr(lib, n) for n in ("P2D_FF_NONE", "P2D_FF_LOWPASS", "P2D_FF_NO_TAU", "P2D_FF_FULL")] == [0, 1, 2, 3]
     assert FEEDFORWARDS == ("none", "lowpass", "no_tau", "full")
     assert [getattr(lib, n) for n in ("P2D_AW_NONE", "P2D_AW_BACK_CALCULATION", "P2D_AW_CLAMPING")] == [
-        ANTI_WINDUPS.index(a) for a in ANTI_WINDUPS]
+        ANTI_WINDUPS.index(a) for a in ANTI_WINDUPS
+    ]
 
 
 def test_every_status_code_names_a_parameter_of_the_bindings():

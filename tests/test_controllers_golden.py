@@ -18,8 +18,8 @@ import scipy.linalg
 import scipy.signal
 from scipy.optimize import minimize_scalar
 
-from pmsm2dof.core.bindings import ffi, lib
 from pmsm2dof.core import ANTI_WINDUPS, METHODS, CurrentController, SpeedController
+from pmsm2dof.core.bindings import ffi, lib
 
 
 def f32(x):
@@ -104,8 +104,9 @@ def feedforward_sequence(r, form, method, J_kgm2, alpha_radps, zeta, m, tau_i_s,
     return y + Kd * np.diff(r, prepend=0.0) / Ts
 
 
-def speed_reference(w_ref, w_m, T_ff, method, anti_windup, Ka, T_max_Nm, J_kgm2, alpha_radps, zeta, Ts_s,
-                    ties=None, **_):
+def speed_reference(
+    w_ref, w_m, T_ff, method, anti_windup, Ka, T_max_Nm, J_kgm2, alpha_radps, zeta, Ts_s, ties=None, **_
+):
     """u[k] and u_sat[k] of the PI with anti-windup, by hand, for given sequences.
 
     Integral part of F (eq 14 and Table 1), e[-1] = 0:
@@ -196,8 +197,11 @@ def test_unsaturated_pi_is_F_of_z(method):
     """Eq 14 / Table 1: with no limit active the error path is F(z), the method's c2d of Kp + Ki/s."""
     ctl = make_speed(method, "none", "none")
     Kp, Ki = gains(DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"])
-    Fz = control.sample_system(control.tf([Kp, Ki], [1, 0]), f32(DESIGN["Ts_s"]), method={
-        "forward_euler": "euler", "backward_euler": "backward_diff", "tustin": "tustin"}[method])
+    Fz = control.sample_system(
+        control.tf([Kp, Ki], [1, 0]),
+        f32(DESIGN["Ts_s"]),
+        method={"forward_euler": "euler", "backward_euler": "backward_diff", "tustin": "tustin"}[method],
+    )
     rng = np.random.default_rng(7)
     e = np.float32(rng.uniform(-0.5, 0.5, 400)).astype(float)
     out = ctl.run(e, 0.0)
@@ -231,11 +235,16 @@ def test_hand_derived_feedforward_matches_python_control(method, form):
     n1, n0 = num[1] - num[0] * p, num[2]
     Ts = 1e-3
     b0, b1, a1 = first_order_section(n1, n0, p, Ts, method)
-    Gz = control.sample_system(control.tf([n1, n0], [1, p]), Ts, method={
-        "forward_euler": "euler", "backward_euler": "backward_diff", "tustin": "tustin"}[method])
+    Gz = control.sample_system(
+        control.tf([n1, n0], [1, p]),
+        Ts,
+        method={"forward_euler": "euler", "backward_euler": "backward_diff", "tustin": "tustin"}[method],
+    )
     num_z, den_z = np.atleast_1d(Gz.num[0][0]), np.atleast_1d(Gz.den[0][0])
     num_z = np.r_[np.zeros(2 - len(num_z)), num_z] / den_z[0]
-    np.testing.assert_allclose([b0, b1, a1], [num_z[0], num_z[1], den_z[1] / den_z[0]], rtol=1e-12, atol=1e-12 * abs(n0))
+    np.testing.assert_allclose(
+        [b0, b1, a1], [num_z[0], num_z[1], den_z[1] / den_z[0]], rtol=1e-12, atol=1e-12 * abs(n0)
+    )
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -246,8 +255,15 @@ def test_feedforward_settles_on_its_static_gain(method, form, m, tau_i_s):
     The feedforward pole is near z = 1 here (m alpha Ts = 0.014 to 0.032); a section on r with that pole
     amplifies float32 rounding by about 1 / (m alpha Ts) and settled 6e-5 to 3e-4 Nm off on these 46 to 105 Nm.
     """
-    ctl = SpeedController(**{**DESIGN, "i_max_A": 1e4}, **SURFACE, m=m, tau_i_s=tau_i_s, method=method,
-                          feedforward=form, anti_windup="none")
+    ctl = SpeedController(
+        **{**DESIGN, "i_max_A": 1e4},
+        **SURFACE,
+        m=m,
+        tau_i_s=tau_i_s,
+        method=method,
+        feedforward=form,
+        anti_windup="none",
+    )
     num, p = feedforward_polynomials(form, DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"], m, tau_i_s)
     r = 47.0
     expected = num[-1] / p * r
@@ -272,16 +288,18 @@ def test_speed_controller_golden(method, form, m, tau_i_s, anti_windup):
     """
     ctl = make_speed(method, form, anti_windup, m=m, tau_i_s=tau_i_s)
     w_ref = speed_steps()
-    T_ff = feedforward_sequence(w_ref, form, method, DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"], m,
-                                tau_i_s, DESIGN["Ts_s"])
+    T_ff = feedforward_sequence(
+        w_ref, form, method, DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"], m, tau_i_s, DESIGN["Ts_s"]
+    )
     Kp, _ = gains(DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"])
     T_max = 1.5 * SURFACE["pole_pairs"] * f32(SURFACE["psi_f_Wb"]) * f32(DESIGN["i_max_A"])
     w_m = closed_loop_speed(DESIGN["J_kgm2"], DESIGN["Ts_s"])
     u, u_sat, w = speed_reference(w_ref, w_m, T_ff, method, anti_windup, 1 / Kp, T_max, **DESIGN)
     out = ctl.run(w_ref, w)
     if anti_windup == "clamping":
-        u, u_sat, _ = speed_reference(w_ref, w, T_ff, method, anti_windup, 1 / Kp, T_max, **DESIGN,
-                                      ties=out["saturated"])
+        u, u_sat, _ = speed_reference(
+            w_ref, w, T_ff, method, anti_windup, 1 / Kp, T_max, **DESIGN, ties=out["saturated"]
+        )
 
     saturated = np.abs(u) > T_max
     assert saturated.sum() > 1000, "the run must saturate"
@@ -304,8 +322,9 @@ def test_applied_torque_drives_the_anti_windup(anti_windup):
     """compute/update with a tighter limit downstream: u* = T_applied - u, as in Fig. 5."""
     ctl = make_speed("tustin", "lowpass", anti_windup)
     w_ref = speed_steps(2000)
-    T_ff = feedforward_sequence(w_ref, "lowpass", "tustin", DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"],
-                                1.0, 0.0, DESIGN["Ts_s"])
+    T_ff = feedforward_sequence(
+        w_ref, "lowpass", "tustin", DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"], 1.0, 0.0, DESIGN["Ts_s"]
+    )
     Kp, _ = gains(DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"])
     T_applied_max = 2.0
     w_m = closed_loop_speed(DESIGN["J_kgm2"], DESIGN["Ts_s"])
@@ -327,8 +346,9 @@ def test_salient_saturation_uses_the_mtpa_torque_limit():
     motor32 = {k: (f32(v) if isinstance(v, float) else v) for k, v in SALIENT.items()}
     T_max = max_torque_Nm(f32(DESIGN["i_max_A"]), motor32)
     w_ref = speed_steps()
-    T_ff = feedforward_sequence(w_ref, "lowpass", "tustin", DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"],
-                                1.0, 0.0, DESIGN["Ts_s"])
+    T_ff = feedforward_sequence(
+        w_ref, "lowpass", "tustin", DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"], 1.0, 0.0, DESIGN["Ts_s"]
+    )
     Kp, _ = gains(DESIGN["J_kgm2"], DESIGN["alpha_radps"], DESIGN["zeta"])
     w_m = closed_loop_speed(DESIGN["J_kgm2"], DESIGN["Ts_s"])
     u, u_sat, w = speed_reference(w_ref, w_m, T_ff, "tustin", "back_calculation", 1 / Kp, T_max, **DESIGN)
@@ -342,8 +362,14 @@ def test_salient_saturation_uses_the_mtpa_torque_limit():
     assert np.max(norm) > 0.999 * DESIGN["i_max_A"]
 
 
-@pytest.mark.parametrize("motor", [SALIENT, dict(psi_f_Wb=0.01, Ld_H=1e-3, Lq_H=10e-3, pole_pairs=3),
-                                   dict(psi_f_Wb=0.1, Ld_H=3e-3, Lq_H=1e-3, pole_pairs=2)])
+@pytest.mark.parametrize(
+    "motor",
+    [
+        SALIENT,
+        dict(psi_f_Wb=0.01, Ld_H=1e-3, Lq_H=10e-3, pole_pairs=3),
+        dict(psi_f_Wb=0.1, Ld_H=3e-3, Lq_H=1e-3, pole_pairs=2),
+    ],
+)
 def test_mtpa_current_gives_the_torque_at_least_current(motor):
     """MTPA: the current command produces the commanded torque, and no shorter current vector can."""
     ctl = SpeedController(**DESIGN, **motor, anti_windup="none")
@@ -418,7 +444,8 @@ def test_voltage_limit_holds(anti_windup):
             saturated += 1
             assert norm == pytest.approx(u_dc / math.sqrt(3), rel=1e-6)
             assert math.atan2(out.uq_ref_V, out.ud_ref_V) == pytest.approx(
-                math.atan2(out.uq_unsat_V, out.ud_unsat_V), abs=1e-5)
+                math.atan2(out.uq_unsat_V, out.ud_unsat_V), abs=1e-5
+            )
         x = Ad @ x + Bd @ np.array([out.ud_ref_V, out.uq_ref_V, 1.0])
     assert saturated > 20
 

@@ -103,8 +103,9 @@ def test_integrator_under_sustained_saturation(anti_windup, cfg, e_over, sign):
 
 # --- invalid parameters -----------------------------------------------------------------------
 
-SPEED_BASE = dict(J_kgm2=0.01, alpha_radps=100.0, zeta=0.8, Ts_s=1e-4, i_max_A=10.0, psi_f_Wb=0.05, Ld_H=1e-3,
-                  Lq_H=2e-3, pole_pairs=4)
+SPEED_BASE = dict(
+    J_kgm2=0.01, alpha_radps=100.0, zeta=0.8, Ts_s=1e-4, i_max_A=10.0, psi_f_Wb=0.05, Ld_H=1e-3, Lq_H=2e-3, pole_pairs=4
+)
 BAD_NUMBERS = [math.nan, math.inf, -math.inf]
 SPEED_BAD = {
     "J_kgm2": [0.0, -1.0, 1e-60] + BAD_NUMBERS,
@@ -228,7 +229,10 @@ def test_non_finite_current_input_faults_and_keeps_state(bad, index, anti_windup
 @pytest.mark.parametrize("anti_windup", ANTI_WINDUPS)
 @SETTINGS
 @given(
-    id_ref=st.floats(-1e3, 1e3), iq_ref=st.floats(-1e3, 1e3), w_e=st.floats(-1e4, 1e4), u_dc=st.floats(0.0, 1e3),
+    id_ref=st.floats(-1e3, 1e3),
+    iq_ref=st.floats(-1e3, 1e3),
+    w_e=st.floats(-1e4, 1e4),
+    u_dc=st.floats(0.0, 1e3),
     n=st.integers(1, 200),
 )
 def test_voltage_within_limit(anti_windup, id_ref, iq_ref, w_e, u_dc, n):

@@ -26,9 +26,13 @@ MEAN_FROM_S = 50.0
 
 @pytest.mark.parametrize("feedforward", ["none", "lowpass"])
 def test_steady_speed_error_within_the_load_torque_dead_band(feedforward):
-    scenario = pmsm2dof.load_scenario("paper-experiment-3").with_overrides({
-        "speed_controller.Ts_s": TS_SPEED_S, "simulation.t_end_s": T_END_S,
-        "speed_controller.feedforward": feedforward})
+    scenario = pmsm2dof.load_scenario("paper-experiment-3").with_overrides(
+        {
+            "speed_controller.Ts_s": TS_SPEED_S,
+            "simulation.t_end_s": T_END_S,
+            "speed_controller.feedforward": feedforward,
+        }
+    )
     d = scenario.data
     sc = d["speed_controller"]
     J, alpha, zeta = sc["J_design_kgm2"], sc["alpha"], sc["zeta"]

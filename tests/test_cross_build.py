@@ -29,8 +29,19 @@ FLAGS = [
 ]  # fmt: skip
 ALLOWED_SYSTEM_HEADERS = {"math.h", "stdint.h", "stdbool.h"}
 # <math.h> float functions the controller may call (the FPU or libm provides them)
-MATH_FUNCTIONS = {"sqrtf", "fabsf", "fminf", "fmaxf", "copysignf", "hypotf", "expf", "sinf", "cosf", "atan2f",
-                  "nextafterf"}
+MATH_FUNCTIONS = {
+    "sqrtf",
+    "fabsf",
+    "fminf",
+    "fmaxf",
+    "copysignf",
+    "hypotf",
+    "expf",
+    "sinf",
+    "cosf",
+    "atan2f",
+    "nextafterf",
+}
 
 
 def test_sources_include_only_math_stdint_stdbool_and_our_headers():

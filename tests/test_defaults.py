@@ -10,9 +10,9 @@ import tomllib
 import pytest
 
 from pmsm2dof import SpeedController, design, load_scenario
+from pmsm2dof.sim.scenario import Scenario
 from pmsm2dof.ui.cli import main
 from pmsm2dof.ui.plots.design import bode_gx_sweep
-from pmsm2dof.sim.scenario import Scenario
 
 MOTOR = dict(Ts_s=1e-3, i_max_A=7.6, psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01, pole_pairs=4)
 DEFAULT = "lowpass"
@@ -45,9 +45,11 @@ def test_bode_default_draws_the_lowpass(tmp_path, capsys):
 
 
 def test_m_other_than_1_without_a_feedforward_says_to_choose_no_tau_or_full(capsys):
-    for make in (lambda: design(0.4, 0.5, 0.2887, m=2.0),
-                 lambda: SpeedController(J_kgm2=0.4, alpha_radps=0.5, zeta=0.2887, m=2.0, **MOTOR),
-                 lambda: bode_gx_sweep(0.5, [0.5, 1.0])):
+    for make in (
+        lambda: design(0.4, 0.5, 0.2887, m=2.0),
+        lambda: SpeedController(J_kgm2=0.4, alpha_radps=0.5, zeta=0.2887, m=2.0, **MOTOR),
+        lambda: bode_gx_sweep(0.5, [0.5, 1.0]),
+    ):
         with pytest.raises(ValueError, match=r"^m = (2|0\.5)\b.*no_tau'? or '?full") as exc:
             make()
         assert "lowpass" in str(exc.value)

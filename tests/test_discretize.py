@@ -25,10 +25,9 @@ from scipy import optimize, signal
 
 from oracles.discretize import coefficients as oracle_coefficients
 from pmsm2dof import SamplingWarning, SpeedController
-from pmsm2dof.analysis.discretize import discrete_loop
 from pmsm2dof.analysis.design import design
-from pmsm2dof.core import FEEDFORWARDS
-from pmsm2dof.core import METHODS
+from pmsm2dof.analysis.discretize import discrete_loop
+from pmsm2dof.core import FEEDFORWARDS, METHODS
 
 J, ALPHA, ZETA, TAU = 0.4, 0.5, 0.2887, 0.05
 CASES = [  # (J, alpha, zeta, m, tau_i, Ts)
@@ -191,8 +190,21 @@ def test_coefficients_are_those_of_the_c_core_and_of_the_python_oracle(case, met
     Jc, alpha, zeta, m, tau, Ts = case
     m = 1.0 if ff == "lowpass" else m
     dd = discretized(Jc, alpha, zeta, m, tau, Ts, ff, method)
-    ctl = SpeedController(J_kgm2=Jc, alpha_radps=alpha, zeta=zeta, m=m, tau_i_s=tau, Ts_s=Ts, i_max_A=7.6,
-                          psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01, pole_pairs=4, method=method, feedforward=ff)
+    ctl = SpeedController(
+        J_kgm2=Jc,
+        alpha_radps=alpha,
+        zeta=zeta,
+        m=m,
+        tau_i_s=tau,
+        Ts_s=Ts,
+        i_max_A=7.6,
+        psi_f_Wb=0.2,
+        Ld_H=0.01,
+        Lq_H=0.01,
+        pole_pairs=4,
+        method=method,
+        feedforward=ff,
+    )
     c = ctl.coefficients
     oracle = oracle_coefficients(Jc, alpha, zeta, m, tau, Ts, method, ff)
     for name in ("b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_Fr0", "ff_b_dr", "ff_a1", "ff_Kd_per_Ts"):
@@ -281,8 +293,20 @@ def test_forward_euler_feedforward_pole_outside_unit_circle_is_refused():
     with pytest.warns(SamplingWarning), pytest.raises(ValueError, match="^Ts_s = "):
         d.discretize(2.2, "forward_euler")
     with pytest.raises(ValueError, match="^Ts_s = "):
-        SpeedController(J_kgm2=J, alpha_radps=ALPHA, zeta=1.0, m=2.0, Ts_s=2.2, i_max_A=7.6, psi_f_Wb=0.2,
-                        Ld_H=0.01, Lq_H=0.01, pole_pairs=4, method="forward_euler", feedforward="full")
+        SpeedController(
+            J_kgm2=J,
+            alpha_radps=ALPHA,
+            zeta=1.0,
+            m=2.0,
+            Ts_s=2.2,
+            i_max_A=7.6,
+            psi_f_Wb=0.2,
+            Ld_H=0.01,
+            Lq_H=0.01,
+            pole_pairs=4,
+            method="forward_euler",
+            feedforward="full",
+        )
 
 
 def test_back_calculation_gain_too_large_is_refused():
@@ -296,8 +320,15 @@ def test_back_calculation_gain_too_large_is_refused():
 
 @pytest.mark.parametrize(
     "param, Ts, method",
-    [("Ts_s", 0.0, "tustin"), ("Ts_s", -1e-3, "tustin"), ("Ts_s", math.nan, "tustin"), ("Ts_s", math.inf, "tustin"),
-     ("Ts_s", "1ms", "tustin"), ("method", 1e-3, "bilinear"), ("method", 1e-3, "zoh")],
+    [
+        ("Ts_s", 0.0, "tustin"),
+        ("Ts_s", -1e-3, "tustin"),
+        ("Ts_s", math.nan, "tustin"),
+        ("Ts_s", math.inf, "tustin"),
+        ("Ts_s", "1ms", "tustin"),
+        ("method", 1e-3, "bilinear"),
+        ("method", 1e-3, "zoh"),
+    ],
 )
 def test_invalid_discretization_inputs(param, Ts, method):
     with pytest.raises(ValueError) as exc:
@@ -348,8 +379,9 @@ def continuous_overshoot_pct(ff, J, alpha, zeta, m, tau):
     t = np.linspace(0.0, 40.0 / np.min(-poles.real), 200001)
     k = int(np.argmax(y(t)))
     lo, hi = t[max(k - 1, 0)], t[min(k + 1, len(t) - 1)]
-    peak = -optimize.minimize_scalar(lambda x: -y(x)[0], bounds=(lo, hi), method="bounded",
-                                     options={"xatol": 1e-12}).fun
+    peak = -optimize.minimize_scalar(
+        lambda x: -y(x)[0], bounds=(lo, hi), method="bounded", options={"xatol": 1e-12}
+    ).fun
     assert y(t[-1])[0] == pytest.approx(1.0, abs=1e-12)
     return 100.0 * max(peak - 1.0, 0.0)
 
@@ -377,8 +409,9 @@ def test_every_stable_design_has_its_figures_from_alpha_ts_1e_6_to_0_1(tau, ff, 
         else:
             # below the anchor the float32 rounding of the C coefficients (1e-7 against alpha Ts) can
             # outweigh the discretization: the analysis is checked on the double-precision coefficients
-            ideal = discrete_loop(d, alpha_Ts / ALPHA, method,
-                                  oracle_coefficients(J, ALPHA, ZETA, m, tau, alpha_Ts / ALPHA, method, ff))
+            ideal = discrete_loop(
+                d, alpha_Ts / ALPHA, method, oracle_coefficients(J, ALPHA, ZETA, m, tau, alpha_Ts / ALPHA, method, ff)
+            )
             expected = continuous + (anchor - continuous) * alpha_Ts / ANCHOR_ALPHA_TS
             tolerance = 0.03 * abs(anchor - continuous) * alpha_Ts / ANCHOR_ALPHA_TS + 2e-5
             assert ideal.overshoot_pct == pytest.approx(expected, abs=tolerance), alpha_Ts
@@ -403,11 +436,14 @@ def test_poles_near_z_1_are_those_of_a_50_digit_root_finding(ff):
     Gd = [1, -(1 + a), a]
     FdGd = [sum(Fd[i] * Gd[k - i] for i in range(2) if 0 <= k - i < 3) for k in range(4)]
     FnGn = [0] + [sum(Fn[i] * Gn[k - i] for i in range(2) if 0 <= k - i < 2) for k in range(3)]
-    exact = sorted(mpmath.polyroots([x + y for x, y in zip(FdGd, FnGn)], maxsteps=200, extraprec=200),
-                   key=lambda p: (float(mpmath.re(p)), float(mpmath.im(p))))
+    exact = sorted(
+        mpmath.polyroots([x + y for x, y in zip(FdGd, FnGn)], maxsteps=200, extraprec=200),
+        key=lambda p: (float(mpmath.re(p)), float(mpmath.im(p))),
+    )
     assert all(abs(p) < 1 for p in exact)
-    np.testing.assert_allclose(sorted(dd.poles, key=lambda p: (p.real, p.imag)), [complex(p) for p in exact],
-                               rtol=0.0, atol=1e-13)
+    np.testing.assert_allclose(
+        sorted(dd.poles, key=lambda p: (p.real, p.imag)), [complex(p) for p in exact], rtol=0.0, atol=1e-13
+    )
     # the tracking response adds the feedforward pole -ff_a1 and the pole at 0 of r[k-1]
     assert np.max(np.abs(control.poles(dd.Gx_z))) < 1.0
 

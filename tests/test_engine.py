@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from pmsm2dof.core.bindings import lib
 from pmsm2dof.core import CurrentController, SpeedController
+from pmsm2dof.core.bindings import lib
 from pmsm2dof.errors import SimulationError
 from pmsm2dof.sim.scenario import Scenario, load_scenario
 from pmsm2dof.sim.simulate import Simulation, simulate
@@ -95,8 +95,9 @@ def replay(result, inputs):
     for k in range(len(t) - 1):
         points = [t[k]] + [b for b in breaks if t[k] < b < t[k + 1]] + [t[k + 1]]
         for ta, tb in zip(points[:-1], points[1:]):
-            sol = solve_ivp(rhs, (ta, tb), x, method="DOP853", rtol=1e-10, atol=1e-12 * scale,
-                            args=(inputs[0][k], inputs[1][k]))
+            sol = solve_ivp(
+                rhs, (ta, tb), x, method="DOP853", rtol=1e-10, atol=1e-12 * scale, args=(inputs[0][k], inputs[1][k])
+            )
             x = sol.y[:, -1]
         states.append(x)
     return np.array(states)
@@ -106,8 +107,16 @@ def drive_tree(**sections):
     """A salient motor with both frictions, a fast speed loop, and the given sections replaced."""
     tree = {
         "name": "engine test drive",
-        "motor": {"pole_pairs": 3, "Rs_ohm": 0.4, "Ld_H": 0.006, "Lq_H": 0.012, "psi_f_Wb": 0.15,
-                  "J_kgm2": 0.02, "B_Nms": 0.002, "T_coulomb_Nm": 0.3},
+        "motor": {
+            "pole_pairs": 3,
+            "Rs_ohm": 0.4,
+            "Ld_H": 0.006,
+            "Lq_H": 0.012,
+            "psi_f_Wb": 0.15,
+            "J_kgm2": 0.02,
+            "B_Nms": 0.002,
+            "T_coulomb_Nm": 0.3,
+        },
         "limits": {"i_max_A": 10.0, "u_dc_V": 300.0},
         "inverter": {"computation_delay": True},
         "current_loop": {"model": "dq_pi", "tau_i_s": 0.002, "Ts_s": 1e-4},
@@ -154,22 +163,41 @@ def test_loop_feeds_the_controllers_the_sampled_state(delay):
     period, 100 us), give the logged commands; the inverter applies the current controller's
     command in the same period, or with the computation delay one period later (0 V first, the
     steady state at rest). u_dc = 60 V puts the voltage limit in play."""
-    tree = drive_tree(inverter={"computation_delay": delay}, limits={"i_max_A": 10.0, "u_dc_V": 60.0},
-                      simulation={"t_end_s": 0.1, "speed0_rpm": 0.0})
+    tree = drive_tree(
+        inverter={"computation_delay": delay},
+        limits={"i_max_A": 10.0, "u_dc_V": 60.0},
+        simulation={"t_end_s": 0.1, "speed0_rpm": 0.0},
+    )
     r = simulate(Scenario.from_dict(tree))
     m = tree["motor"]
-    speed = SpeedController(J_kgm2=m["J_kgm2"], alpha_radps=20.0, zeta=0.7, m=2.0, tau_i_s=0.002, Ts_s=1e-4,
-                            i_max_A=10.0, psi_f_Wb=m["psi_f_Wb"], Ld_H=m["Ld_H"], Lq_H=m["Lq_H"],
-                            pole_pairs=m["pole_pairs"], feedforward="full")
-    current = CurrentController(Rs_ohm=m["Rs_ohm"], Ld_H=m["Ld_H"], Lq_H=m["Lq_H"], psi_f_Wb=m["psi_f_Wb"],
-                                tau_i_s=0.002, Ts_s=1e-4)
+    speed = SpeedController(
+        J_kgm2=m["J_kgm2"],
+        alpha_radps=20.0,
+        zeta=0.7,
+        m=2.0,
+        tau_i_s=0.002,
+        Ts_s=1e-4,
+        i_max_A=10.0,
+        psi_f_Wb=m["psi_f_Wb"],
+        Ld_H=m["Ld_H"],
+        Lq_H=m["Lq_H"],
+        pole_pairs=m["pole_pairs"],
+        feedforward="full",
+    )
+    current = CurrentController(
+        Rs_ohm=m["Rs_ohm"], Ld_H=m["Ld_H"], Lq_H=m["Lq_H"], psi_f_Wb=m["psi_f_Wb"], tau_i_s=0.002, Ts_s=1e-4
+    )
     u_max = 60.0 / math.sqrt(3)
     applied = np.zeros((len(r.t_s), 2))
     previous = (0.0, 0.0)
     for k in range(len(r.t_s)):
         so = speed.step(r.speed_ref_rpm[k] * RADPS_PER_RPM, r.w_m_radps[k])
         assert (so.id_ref_A, so.iq_ref_A, so.T_ref_Nm, so.T_unsat_Nm) == (
-            r.id_ref_A[k], r.iq_ref_A[k], r.torque_ref_Nm[k], r.torque_unsat_Nm[k])
+            r.id_ref_A[k],
+            r.iq_ref_A[k],
+            r.torque_ref_Nm[k],
+            r.torque_unsat_Nm[k],
+        )
         assert speed.x_i_Nm == r.x_i_Nm[k]
         assert so.saturated == r.saturated[k]
         co = current.step(so.id_ref_A, so.iq_ref_A, r.id_A[k], r.iq_A[k], m["pole_pairs"] * r.w_m_radps[k], 60.0)
@@ -198,8 +226,11 @@ def test_first_order_multirate_matches_scipy_integration():
     m, tau = tree["motor"], 0.002
     w_e = m["pole_pairs"] * result.w_m_radps
     ud = m["Rs_ohm"] * result.id_A + m["Ld_H"] * (result.id_ref_A - result.id_A) / tau - w_e * m["Lq_H"] * result.iq_A
-    uq = (m["Rs_ohm"] * result.iq_A + m["Lq_H"] * (result.iq_ref_A - result.iq_A) / tau
-          + w_e * (m["Ld_H"] * result.id_A + m["psi_f_Wb"]))
+    uq = (
+        m["Rs_ohm"] * result.iq_A
+        + m["Lq_H"] * (result.iq_ref_A - result.iq_A) / tau
+        + w_e * (m["Ld_H"] * result.id_A + m["psi_f_Wb"])
+    )
     np.testing.assert_allclose(result.ud_V, ud, rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(result.uq_V, uq, rtol=1e-12, atol=1e-9)
 
@@ -212,9 +243,18 @@ def test_linear_tracking_follows_eq10(m):
     torque: |error| <~ m alpha Ts / 2 of the step; allowed m alpha Ts.
     """
     Ts, alpha = 1e-3, 0.5
-    result = simulate(paper2(**{
-        "current_loop.model": "first_order", "speed_controller.feedforward": "full", "speed_controller.m": m,
-        "reference": [{"t_s": 0.0, "speed_rpm": 1.0}], "load": [], "simulation.t_end_s": 12.0}))
+    result = simulate(
+        paper2(
+            **{
+                "current_loop.model": "first_order",
+                "speed_controller.feedforward": "full",
+                "speed_controller.m": m,
+                "reference": [{"t_s": 0.0, "speed_rpm": 1.0}],
+                "load": [],
+                "simulation.t_end_s": 12.0,
+            }
+        )
+    )
     assert not result.saturated.any()
     w_step = 1.0 * RADPS_PER_RPM
     ideal = w_step * (1.0 - np.exp(-m * alpha * result.t_s))
@@ -230,10 +270,18 @@ def test_load_step_independent_of_feedforward_and_matches_GN():
     w0 = 300.0 * RADPS_PER_RPM
     runs = {}
     for ff in ("none", "lowpass", "full"):
-        runs[ff] = simulate(paper2(**{
-            "current_loop.model": "first_order", "speed_controller.feedforward": ff,
-            "simulation.speed0_rpm": 300.0, "reference": [{"t_s": 0.0, "speed_rpm": 300.0}],
-            "load": [{"t_s": 1.0, "torque_Nm": 0.5}], "simulation.t_end_s": 20.0}))
+        runs[ff] = simulate(
+            paper2(
+                **{
+                    "current_loop.model": "first_order",
+                    "speed_controller.feedforward": ff,
+                    "simulation.speed0_rpm": 300.0,
+                    "reference": [{"t_s": 0.0, "speed_rpm": 300.0}],
+                    "load": [{"t_s": 1.0, "torque_Nm": 0.5}],
+                    "simulation.t_end_s": 20.0,
+                }
+            )
+        )
         assert not runs[ff].saturated.any()
     dw = runs["none"].w_m_radps - w0
     dip = np.max(np.abs(dw))
@@ -268,12 +316,22 @@ def test_steady_state_torque_balances_load_and_friction(model):
     dead band of ~1e-4 rad/s in the integral action, a property of the deployable controller.
     """
     B, Tc, load = 0.02, 0.5, 3.0
-    result = simulate(paper2(**{
-        "current_loop.model": model, "motor.B_Nms": B, "motor.T_coulomb_Nm": Tc,
-        "speed_controller.feedforward": "none", "speed_controller.alpha": 5.0, "speed_controller.zeta": 0.7,
-        "simulation.speed0_rpm": 300.0,
-        "reference": [{"t_s": 0.0, "speed_rpm": 300.0}], "load": [{"t_s": 0.5, "torque_Nm": load}],
-        "simulation.t_end_s": 8.0}))
+    result = simulate(
+        paper2(
+            **{
+                "current_loop.model": model,
+                "motor.B_Nms": B,
+                "motor.T_coulomb_Nm": Tc,
+                "speed_controller.feedforward": "none",
+                "speed_controller.alpha": 5.0,
+                "speed_controller.zeta": 0.7,
+                "simulation.speed0_rpm": 300.0,
+                "reference": [{"t_s": 0.0, "speed_rpm": 300.0}],
+                "load": [{"t_s": 0.5, "torque_Nm": load}],
+                "simulation.t_end_s": 8.0,
+            }
+        )
+    )
     w = result.w_m_radps[-1]
     assert w == pytest.approx(300.0 * RADPS_PER_RPM, rel=1e-5)
     assert np.ptp(result.w_m_radps[-1000:]) < 1e-6 * w  # settled: constant speed over the last second
@@ -283,11 +341,18 @@ def test_steady_state_torque_balances_load_and_friction(model):
     assert result.torque_Nm[-1] == pytest.approx(1.5 * 4 * 0.2 * result.iq_A[-1], rel=1e-12)
 
 
-@pytest.mark.parametrize("overrides", [
-    {},
-    {"inverter.computation_delay": True, "motor.Ld_H": 0.008, "motor.Lq_H": 0.012,
-     "load": [{"t_s": 7.00037, "torque_Nm": 8.0, "ramp_s": 0.5}]},
-])
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {},
+        {
+            "inverter.computation_delay": True,
+            "motor.Ld_H": 0.008,
+            "motor.Lq_H": 0.012,
+            "load": [{"t_s": 7.00037, "torque_Nm": 8.0, "ramp_s": 0.5}],
+        },
+    ],
+)
 def test_halving_the_step_changes_the_speed_by_less_than_1e_4(overrides):
     base = paper2(**overrides)
     dt = base.data["simulation"]["dt_s"]
@@ -299,8 +364,14 @@ def test_halving_the_step_changes_the_speed_by_less_than_1e_4(overrides):
 
 def test_runaway_under_overhauling_load_stops_with_the_time():
     """A load beyond the torque limit drives the motor up to twice its no-load speed."""
-    scenario = paper2(**{"motor.J_kgm2": 0.05, "load": [{"t_s": 0.5, "torque_Nm": -60.0}],
-                         "reference": [{"t_s": 0.0, "speed_rpm": 500.0}], "simulation.t_end_s": 5.0})
+    scenario = paper2(
+        **{
+            "motor.J_kgm2": 0.05,
+            "load": [{"t_s": 0.5, "torque_Nm": -60.0}],
+            "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
+            "simulation.t_end_s": 5.0,
+        }
+    )
     no_load_rpm = 540.0 / math.sqrt(3) / (4 * 0.2) / RADPS_PER_RPM
     with pytest.raises(SimulationError, match=r"stopped at t = [0-9.]+ s: the speed exceeds twice") as err:
         simulate(scenario)
@@ -314,16 +385,31 @@ def test_runaway_under_overhauling_load_stops_with_the_time():
 
 def test_non_finite_state_stops():
     with pytest.raises(SimulationError, match=r"t = 0\.5001 s: the plant state became non-finite"):
-        simulate(paper2(**{"load": [{"t_s": 0.5, "torque_Nm": 1e308}], "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
-                           "simulation.t_end_s": 1.0}))
+        simulate(
+            paper2(
+                **{
+                    "load": [{"t_s": 0.5, "torque_Nm": 1e308}],
+                    "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
+                    "simulation.t_end_s": 1.0,
+                }
+            )
+        )
 
 
 def test_overcurrent_stops():
     """A current controller tuned for 1000 times the plant's inductance: with the computation
     delay the loop is unstable and the voltage bangs between the limits, driving currents far
     beyond ten times the short-circuit current of this low-flux plant."""
-    run = Simulation(paper2(**{"inverter.computation_delay": True, "simulation.t_end_s": 0.1,
-                               "reference": [{"t_s": 0.0, "speed_rpm": 500.0}], "load": []}).data)
+    run = Simulation(
+        paper2(
+            **{
+                "inverter.computation_delay": True,
+                "simulation.t_end_s": 0.1,
+                "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
+                "load": [],
+            }
+        ).data
+    )
     run.cfg.motor.Ld_H = run.cfg.motor.Lq_H = 1e-5
     run.cfg.motor.psi_f_Wb = 1e-4
     assert lib.p2d_sim_init(run.sim, run.cfg) == lib.P2D_SIM_OK

@@ -19,15 +19,15 @@ import math
 import numpy as np
 import pytest
 
-from pmsm2dof.core.bindings import lib
-from pmsm2dof.ui.cli import main
 from pmsm2dof.core import ANTI_WINDUPS
+from pmsm2dof.core.bindings import lib
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.sim.metrics import compute_metrics
-from pmsm2dof.studies.faults import FAULT_PRESETS, fault_figures, run_faults
-from pmsm2dof.ui.report.render import _fault_blocks
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import Simulation, simulate
+from pmsm2dof.studies.faults import FAULT_PRESETS, fault_figures, run_faults
+from pmsm2dof.ui.cli import main
+from pmsm2dof.ui.report.render import _fault_blocks
 
 RADPS_PER_RPM = math.pi / 30.0
 PRESETS = ["fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike"]
@@ -51,8 +51,14 @@ def drive(result):
     Ki = sc["J_design_kgm2"] * (sc["alpha"] / (2 * sc["zeta"])) ** 2
     Ts = sc["Ts_s"]
     return {
-        "Kp": Kp, "Ki": Ki, "Ts": Ts, "Ka": 1.0 / Kp, "b_e0": Kp + Ki * Ts / 2, "J": m["J_kgm2"],
-        "alpha": sc["alpha"], "i_max": d["limits"]["i_max_A"],
+        "Kp": Kp,
+        "Ki": Ki,
+        "Ts": Ts,
+        "Ka": 1.0 / Kp,
+        "b_e0": Kp + Ki * Ts / 2,
+        "J": m["J_kgm2"],
+        "alpha": sc["alpha"],
+        "i_max": d["limits"]["i_max_A"],
         "T_max": 1.5 * m["pole_pairs"] * m["psi_f_Wb"] * d["limits"]["i_max_A"],
         "w_ref": d["reference"][0]["speed_rpm"] * RADPS_PER_RPM,
     }
@@ -137,7 +143,7 @@ def test_stall_back_calculation_holds_the_integrator_at_its_fixed_point():
     t_jam, _, t_release = stall_times(r)
     first = np.argmax(r.saturated & (r.t_s >= t_jam))
     last = np.nonzero(r.saturated & (r.t_s > t_release))[0][-1]
-    assert np.all(r.saturated[first:last + 1])
+    assert np.all(r.saturated[first : last + 1])
     c = d["Ki"] * d["Ka"] * d["Ts"]
     n = last - first
     assert n * c > 5  # saturated for more than five time constants of the contraction
@@ -188,8 +194,9 @@ def test_stall_recovery_time_in_the_cli_output(tmp_path, capsys):
     line = next(s for s in stdout.splitlines() if "load step at 3.5 s" in s)
     metrics = json.loads((out / "metrics.json").read_text())
     recovery = metrics["load_steps"][1]["recovery_time_s"]["value"]
-    assert recovery == pytest.approx(compute_metrics(run("fault-stall", "back_calculation"))["load_steps"][1]
-                                     ["recovery_time_s"]["value"])
+    assert recovery == pytest.approx(
+        compute_metrics(run("fault-stall", "back_calculation"))["load_steps"][1]["recovery_time_s"]["value"]
+    )
     assert f"recovery {recovery:.4g} s" in line
 
 
@@ -290,8 +297,11 @@ def test_sensor_zero_charges_the_integrator_as_each_mode_prescribes():
         x0, x_end = r.x_i_Nm[k0], r.x_i_Nm[inside][-1]
         c = d["Ki"] * d["Ka"] * d["Ts"]
         x_star = d["T_max"] + d["Ki"] / d["alpha"] * d["w_ref"] - d["w_ref"] * d["Ki"] * d["Ts"] / 2
-        expected = {"none": x0 + n * d["Ki"] * d["Ts"] * d["w_ref"], "clamping": x0,
-                    "back_calculation": x_star - (x_star - x0) * (1 - c) ** n}[aw]
+        expected = {
+            "none": x0 + n * d["Ki"] * d["Ts"] * d["w_ref"],
+            "clamping": x0,
+            "back_calculation": x_star - (x_star - x0) * (1 - c) ** n,
+        }[aw]
         assert x_end == pytest.approx(expected, abs=2e-4)
         charge[aw] = compute_metrics(r)["faults"][0]["speed_deviation_rpm"]["value"]
     # the same speed at the window's end; the integrator's charge sets the overshoot after it
@@ -310,14 +320,19 @@ def test_sensor_spike_is_one_sample_and_what_it_leaves_in_the_integrator(anti_wi
     assert r.saturated[k] and not r.saturated[k - 1] and not r.saturated[k + 1]
     e = error_radps(r)[k]
     u = r.torque_unsat_Nm[k]
-    step = {"none": d["Ki"] * d["Ts"] * e, "clamping": 0.0,
-            "back_calculation": d["Ki"] * d["Ts"] * e + d["Ki"] * d["Ka"] * d["Ts"] * (d["T_max"] - u)}[anti_windup]
+    step = {
+        "none": d["Ki"] * d["Ts"] * e,
+        "clamping": 0.0,
+        "back_calculation": d["Ki"] * d["Ts"] * e + d["Ki"] * d["Ka"] * d["Ts"] * (d["T_max"] - u),
+    }[anti_windup]
     assert r.x_i_Nm[k] - r.x_i_Nm[k - 1] == pytest.approx(step, abs=1e-4)
 
 
 def test_sensor_spike_upsets_the_speed_only_without_anti_windup():
-    deviation = {aw: compute_metrics(run("fault-sensor-spike", aw))["faults"][0]["speed_deviation_rpm"]["value"]
-                 for aw in ANTI_WINDUPS}
+    deviation = {
+        aw: compute_metrics(run("fault-sensor-spike", aw))["faults"][0]["speed_deviation_rpm"]["value"]
+        for aw in ANTI_WINDUPS
+    }
     assert deviation["none"] > 20 * max(deviation["back_calculation"], deviation["clamping"])
 
 
@@ -330,8 +345,18 @@ def test_sensor_spike_between_samples_hits_the_next_one():
 # --- the engine's own checks of fault entries -------------------------------------------------
 
 
-@pytest.mark.parametrize("field, value", [("value", 1.5), ("value", -0.1), ("value", math.nan), ("duration_s", 0.0),
-                                          ("t_s", -1.0), ("t_s", math.inf), ("kind", 7)])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("value", 1.5),
+        ("value", -0.1),
+        ("value", math.nan),
+        ("duration_s", 0.0),
+        ("t_s", -1.0),
+        ("t_s", math.inf),
+        ("kind", 7),
+    ],
+)
 def test_engine_rejects_bad_fault_entries_naming_the_fault_key(field, value):
     r = Simulation(load_scenario("fault-dc-link-sag").data)
     setattr(r.cfg.faults[0], field, value)
@@ -349,8 +374,10 @@ def test_engine_rejects_a_sag_without_an_inverter():
 
 
 def test_adjacent_sags_follow_each_other():
-    faults = [{"kind": "dc_link_sag", "t_s": 20.0, "duration_s": 0.5, "u_dc_factor": 0.5},
-              {"kind": "dc_link_sag", "t_s": 20.5, "duration_s": 0.5, "u_dc_factor": 0.8}]
+    faults = [
+        {"kind": "dc_link_sag", "t_s": 20.0, "duration_s": 0.5, "u_dc_factor": 0.5},
+        {"kind": "dc_link_sag", "t_s": 20.5, "duration_s": 0.5, "u_dc_factor": 0.8},
+    ]
     r = run("fault-dc-link-sag", "back_calculation", fault=faults)
     assert np.all(r.u_dc_V[rows(r, 20.0, 20.5)] == 0.5 * 540.0)
     assert np.all(r.u_dc_V[rows(r, 20.5, 21.0)] == 0.8 * 540.0)

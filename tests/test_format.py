@@ -23,10 +23,12 @@ def clang_format():
 
 
 def test_c_sources_are_formatted(clang_format):
-    done = subprocess.run(["bash", str(ROOT / "scripts" / "clang-format.sh")], capture_output=True, text=True,
-                          timeout=300)
+    done = subprocess.run(
+        ["bash", str(ROOT / "scripts" / "clang-format.sh")], capture_output=True, text=True, timeout=300
+    )
     assert done.returncode == 0, (
-        "C sources differ from .clang-format (fix: bash scripts/clang-format.sh --fix):\n" + done.stderr[-5000:])
+        "C sources differ from .clang-format (fix: bash scripts/clang-format.sh --fix):\n" + done.stderr[-5000:]
+    )
 
 
 def test_the_check_catches_a_misformatted_source(clang_format):

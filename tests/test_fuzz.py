@@ -44,8 +44,9 @@ def _libfuzzer_missing(tmp_path):
         "#include <stddef.h>\n#include <stdint.h>\n"
         "int LLVMFuzzerTestOneInput(const uint8_t *d, size_t n) { (void)d; (void)n; return 0; }\n"
     )
-    result = subprocess.run(["clang", *SANITIZE, str(probe), "-o", str(tmp_path / "probe")],
-                            capture_output=True, text=True)
+    result = subprocess.run(
+        ["clang", *SANITIZE, str(probe), "-o", str(tmp_path / "probe")], capture_output=True, text=True
+    )
     if result.returncode != 0:
         return "clang cannot link libFuzzer with ASan/UBSan (Debian: libclang-rt-14-dev): " + result.stderr[-300:]
     return None
@@ -59,8 +60,16 @@ def fuzz_build(tmp_path_factory):
         pytest.skip(missing)
     build = tmp_path_factory.mktemp("fuzz-build")
     for command in (
-        ["cmake", "-S", str(CSRC), "-B", str(build), "-DCMAKE_C_COMPILER=clang", "-DP2D_FUZZ=ON",
-         "-DCMAKE_BUILD_TYPE=RelWithDebInfo"],
+        [
+            "cmake",
+            "-S",
+            str(CSRC),
+            "-B",
+            str(build),
+            "-DCMAKE_C_COMPILER=clang",
+            "-DP2D_FUZZ=ON",
+            "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
+        ],
         ["cmake", "--build", str(build), "--target", "fuzz_speed", "fuzz_current", "-j", "2"],
     ):
         result = subprocess.run(command, capture_output=True, text=True)
@@ -83,26 +92,48 @@ def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
     seeds = len(list(corpus.iterdir()))
     assert seeds > 0
     result = subprocess.run(
-        [str(fuzz_build / f"fuzz_{target}"), str(corpus), f"-max_total_time={FUZZ_SECONDS}", "-timeout=30",
-         "-rss_limit_mb=2048", "-print_final_stats=1", f"-artifact_prefix={tmp_path}/"],
-        capture_output=True, text=True, timeout=4 * FUZZ_SECONDS + 120,
+        [
+            str(fuzz_build / f"fuzz_{target}"),
+            str(corpus),
+            f"-max_total_time={FUZZ_SECONDS}",
+            "-timeout=30",
+            "-rss_limit_mb=2048",
+            "-print_final_stats=1",
+            f"-artifact_prefix={tmp_path}/",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=4 * FUZZ_SECONDS + 120,
     )
     assert result.returncode == 0, f"fuzz_{target} found a failure:\n" + result.stderr[-6000:]
     executions, seconds, rate, units = _stats(result.stderr)
-    print(f"\nfuzz_{target}: {executions} executions in {seconds} s ({rate} exec/s), "
-          f"corpus {seeds} seeds -> {units} units")
+    print(
+        f"\nfuzz_{target}: {executions} executions in {seconds} s ({rate} exec/s), "
+        f"corpus {seeds} seeds -> {units} units"
+    )
     assert executions > seeds
 
 
 # name: (fuzz target, controller source, [(original text, mutated text), ...])
 MUTANTS = {
     # the non-finite policy of the update is gone: a NaN applied torque enters the integrator
-    "speed_nan_state": ("speed", "speed.c", [("if (out->fault || !isfinite(T_applied_Nm)) {", "if (out->fault) {"),
-                                             ("if (!isfinite(x)) {", "if (0) {")]),
+    "speed_nan_state": (
+        "speed",
+        "speed.c",
+        [("if (out->fault || !isfinite(T_applied_Nm)) {", "if (out->fault) {"), ("if (!isfinite(x)) {", "if (0) {")],
+    ),
     # clamping never holds the integrator: it winds up while the torque is saturated (the PI block of both
     # controllers, caught by the speed controller's invariants)
-    "speed_no_clamping": ("speed", "pi.h", [("if (clamping && p2d_opposite_signs(u_star, e)) dx = 0.0f;",
-                                             "if (clamping && p2d_opposite_signs(u_star, e)) dx = dx;")]),
+    "speed_no_clamping": (
+        "speed",
+        "pi.h",
+        [
+            (
+                "if (clamping && p2d_opposite_signs(u_star, e)) dx = 0.0f;",
+                "if (clamping && p2d_opposite_signs(u_star, e)) dx = dx;",
+            )
+        ],
+    ),
     # the voltage-vector limit is never active
     "current_no_limit": ("current", "current.c", [("out->saturated = norm > u_max;", "out->saturated = false;")]),
 }
@@ -127,12 +158,23 @@ def test_fuzz_invariants_catch_a_mutant(mutant, tmp_path):
             sources.append(str(copy))
     binary = tmp_path / mutant
     build = subprocess.run(
-        ["clang", *SANITIZE, "-I", str(CSRC / "include"), str(CSRC / "fuzz" / f"fuzz_{target}.c"), *sources,
-         "-lm", "-o", str(binary)],
-        capture_output=True, text=True,
+        [
+            "clang",
+            *SANITIZE,
+            "-I",
+            str(CSRC / "include"),
+            str(CSRC / "fuzz" / f"fuzz_{target}.c"),
+            *sources,
+            "-lm",
+            "-o",
+            str(binary),
+        ],
+        capture_output=True,
+        text=True,
     )
     assert build.returncode == 0, build.stderr[-3000:]
     seeds = sorted(str(p) for p in (CORPUS / target).iterdir())
-    result = subprocess.run([str(binary), f"-artifact_prefix={tmp_path}/", *seeds],
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [str(binary), f"-artifact_prefix={tmp_path}/", *seeds], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode != 0 and "pmsm2dof fuzz invariant violated" in result.stderr, result.stderr[-3000:]

@@ -46,8 +46,14 @@ def draws(folder, run, profile):
     env["DRAWS_FILE"] = str(folder / f"draws-{run}.txt")
     if profile is not None:
         env["HYPOTHESIS_PROFILE"] = profile
-    proc = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "test_draws.py"],
-                          cwd=folder, env=env, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "test_draws.py"],
+        cwd=folder,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 1 and "1 failed, 1 passed" in proc.stdout, proc.stdout + proc.stderr
     return Path(env["DRAWS_FILE"]).read_text().splitlines()
 

@@ -23,19 +23,23 @@ print("loaded:" + ",".join(m for m in {heavy!r} if m in sys.modules))
 
 def loaded_after(code):
     """The heavy modules in ``sys.modules`` after running ``code`` in a fresh interpreter."""
-    run = subprocess.run([sys.executable, "-c", PROBE.format(code=code, heavy=HEAVY)], capture_output=True,
-                         text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-c", PROBE.format(code=code, heavy=HEAVY)], capture_output=True, text=True, timeout=120
+    )
     assert run.returncode == 0, run.stderr
     (line,) = [line for line in run.stdout.splitlines() if line.startswith("loaded:")]
-    return [m for m in line[len("loaded:"):].split(",") if m]
+    return [m for m in line[len("loaded:") :].split(",") if m]
 
 
-@pytest.mark.parametrize("code", [
-    "import pmsm2dof",
-    "from pmsm2dof.ui.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass",
-    "from pmsm2dof.ui.cli import main\nmain(['presets'])",
-    "import pmsm2dof\npmsm2dof.simulate, pmsm2dof.load_scenario, pmsm2dof.compute_metrics, pmsm2dof.SpeedController",
-])
+@pytest.mark.parametrize(
+    "code",
+    [
+        "import pmsm2dof",
+        "from pmsm2dof.ui.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass",
+        "from pmsm2dof.ui.cli import main\nmain(['presets'])",
+        "import pmsm2dof\npmsm2dof.simulate, pmsm2dof.load_scenario, pmsm2dof.compute_metrics, pmsm2dof.SpeedController",
+    ],
+)
 @pytest.mark.slow
 def test_importing_and_help_load_no_heavy_library(code):
     assert loaded_after(code) == []

@@ -26,8 +26,14 @@ LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
 def lint_imports(source_root):
     """``lint-imports`` with the project's contracts on the package found in ``source_root``."""
     env = dict(os.environ, PYTHONPATH=str(source_root))
-    return subprocess.run([str(LINT_IMPORTS), "--config", str(ROOT / "pyproject.toml"), "--no-cache"],
-                          cwd=source_root, env=env, capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [str(LINT_IMPORTS), "--config", str(ROOT / "pyproject.toml"), "--no-cache"],
+        cwd=source_root,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def test_the_layers_keep_their_import_contracts():
@@ -36,12 +42,15 @@ def test_the_layers_keep_their_import_contracts():
     assert "3 kept, 0 broken" in run.stdout
 
 
-@pytest.mark.parametrize("module, line, broken", [
-    ("core/controllers.py", "from ..ui import cli", "layers"),  # upward
-    ("sim/metrics.py", "from ..analysis import margins", "layers"),  # between the independent siblings
-    ("analysis/discretize.py", "from . import design", "no import cycles"),  # design imports discretize
-    ("sim/metrics.py", "from .. import design", "public names"),  # the facade, not a module
-])
+@pytest.mark.parametrize(
+    "module, line, broken",
+    [
+        ("core/controllers.py", "from ..ui import cli", "layers"),  # upward
+        ("sim/metrics.py", "from ..analysis import margins", "layers"),  # between the independent siblings
+        ("analysis/discretize.py", "from . import design", "no import cycles"),  # design imports discretize
+        ("sim/metrics.py", "from .. import design", "public names"),  # the facade, not a module
+    ],
+)
 def test_a_wrong_import_breaks_a_contract(tmp_path, module, line, broken):
     copy = tmp_path / "src"
     shutil.copytree(PACKAGE, copy / "pmsm2dof", ignore=shutil.ignore_patterns("*.so", "__pycache__"))
@@ -77,7 +86,12 @@ def test_library_errors_name_parameters_not_command_line_flags():
         if path.relative_to(PACKAGE).parts[0] == "ui":
             continue
         for node in ast.walk(ast.parse(path.read_text())):
-            if (isinstance(node, ast.Call) and getattr(node.func, "id", None) == "ConfigError" and node.args
-                    and isinstance(node.args[0], ast.Constant) and str(node.args[0].value).startswith("-")):
+            if (
+                isinstance(node, ast.Call)
+                and getattr(node.func, "id", None) == "ConfigError"
+                and node.args
+                and isinstance(node.args[0], ast.Constant)
+                and str(node.args[0].value).startswith("-")
+            ):
                 flags.append(f"{path.relative_to(PACKAGE)}:{node.lineno}: {node.args[0].value}")
     assert flags == []

@@ -25,9 +25,14 @@ BLOCK_TIMEOUT_S = 600
 
 _MISSING = [t for t in TOOLS if shutil.which(t) is None]
 #: Slow (cross builds and QEMU): run by the full suite.
-pytestmark = [pytest.mark.slow, pytest.mark.skipif(
-    bool(_MISSING), reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-    "libnewlib-arm-none-eabi; scripts/install.sh installs them)")]
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        bool(_MISSING),
+        reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
+        "libnewlib-arm-none-eabi; scripts/install.sh installs them)",
+    ),
+]
 
 
 def shell_blocks(text):
@@ -50,16 +55,18 @@ def user_environment(tmp_path):
         script.write_text(f'#!/bin/sh\nexec "{sys.executable}" -S "$@"\n')
         script.chmod(0o755)
     system = [str(Path(shutil.which(t)).parent) for t in TOOLS] + ["/usr/bin", "/bin"]
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME", "CONDA_PREFIX") and not k.startswith("CMAKE_")}
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME", "CONDA_PREFIX") and not k.startswith("CMAKE_")
+    }
     env["PATH"] = os.pathsep.join(dict.fromkeys([str(tool), str(other), *system]))
     return env
 
 
 def test_other_python_cannot_import_pmsm2dof(tmp_path):
     env = user_environment(tmp_path)
-    probe = subprocess.run(["python3", "-c", "import pmsm2dof"], env=env, cwd=tmp_path, capture_output=True,
-                           text=True)
+    probe = subprocess.run(["python3", "-c", "import pmsm2dof"], env=env, cwd=tmp_path, capture_output=True, text=True)
     assert probe.returncode != 0 and "pmsm2dof" in probe.stderr
 
 
@@ -71,8 +78,9 @@ def test_every_shell_block_of_the_guide_runs_as_written(tmp_path):
         shutil.copytree(ROOT / folder, repo / folder, ignore=shutil.ignore_patterns("build*", "__pycache__"))
     env = user_environment(tmp_path)
     for block in blocks:
-        proc = subprocess.run(["sh", "-e", "-c", block], cwd=repo, env=env, capture_output=True, text=True,
-                              timeout=BLOCK_TIMEOUT_S)
+        proc = subprocess.run(
+            ["sh", "-e", "-c", block], cwd=repo, env=env, capture_output=True, text=True, timeout=BLOCK_TIMEOUT_S
+        )
         assert proc.returncode == 0, f"{block}\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
 
     assert (repo / "build-m4f" / "libpmsm2dof_controller.a").is_file()

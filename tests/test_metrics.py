@@ -21,17 +21,26 @@ DT = 1e-3
 
 def fake_result(t, speed, ref, reference, load=(), saturated=None, iq_ref=None):
     """A Result honouring the contract, with the given traces and schedules (id_ref = 0, iq_ref = 0 unless given)."""
-    scenario = load_scenario("paper-condition-2").with_overrides({
-        "simulation.t_end_s": float(t[-1] + DT),
-        "reference": [{"t_s": float(a), "speed_rpm": float(b)} for a, b in reference],
-        "load": [{"t_s": float(a), "torque_Nm": float(b)} for a, b in load],
-    })
+    scenario = load_scenario("paper-condition-2").with_overrides(
+        {
+            "simulation.t_end_s": float(t[-1] + DT),
+            "reference": [{"t_s": float(a), "speed_rpm": float(b)} for a, b in reference],
+            "load": [{"t_s": float(a), "torque_Nm": float(b)} for a, b in load],
+        }
+    )
     if saturated is None:
         saturated = np.zeros(t.shape, dtype=bool)
     if iq_ref is None:
         iq_ref = np.zeros_like(t)
-    return SimpleNamespace(t_s=t, speed_rpm=speed, speed_ref_rpm=ref, saturated=saturated, id_ref_A=np.zeros_like(t),
-                           iq_ref_A=iq_ref, scenario=scenario)
+    return SimpleNamespace(
+        t_s=t,
+        speed_rpm=speed,
+        speed_ref_rpm=ref,
+        saturated=saturated,
+        id_ref_A=np.zeros_like(t),
+        iq_ref_A=iq_ref,
+        scenario=scenario,
+    )
 
 
 def step_ref(t, steps):
@@ -142,8 +151,9 @@ def test_current_limit_time_split_by_windows():
     """The flag holds from its sample to the next: 1.0 s before the load step at 2 s, 0.5 s after."""
     t = np.arange(0.0, 5.0, DT)
     sat = (t >= 1.0 - DT / 2) & (t < 2.5 - DT / 2)
-    res = fake_result(t, np.full_like(t, 100.0), np.full_like(t, 100.0), [(0.0, 100.0)],
-                      load=[(2.0, 1.0)], saturated=sat)
+    res = fake_result(
+        t, np.full_like(t, 100.0), np.full_like(t, 100.0), [(0.0, 100.0)], load=[(2.0, 1.0)], saturated=sat
+    )
     m = compute_metrics(res)
     assert m["reference_steps"][0]["current_limit_time_s"]["value"] == pytest.approx(1.0, abs=1e-9)
     assert m["load_steps"][0]["current_limit_time_s"]["value"] == pytest.approx(0.5, abs=1e-9)

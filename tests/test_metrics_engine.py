@@ -24,16 +24,18 @@ RPM_PER_RADPS = 30 / math.pi
 
 
 def linear_scenario(**overrides):
-    base = load_scenario("paper-condition-2").with_overrides({
-        "current_loop.model": "first_order", "speed_controller.feedforward": "full", "load": []})
+    base = load_scenario("paper-condition-2").with_overrides(
+        {"current_loop.model": "first_order", "speed_controller.feedforward": "full", "load": []}
+    )
     return base.with_overrides(overrides)
 
 
 @pytest.mark.parametrize("m", [1.0, 2.0])
 def test_reference_step_follows_eq_10(m):
     alpha = 0.5
-    s = linear_scenario(**{"speed_controller.m": m, "simulation.t_end_s": 20.0,
-                           "reference": [{"t_s": 0.5, "speed_rpm": 1.0}]})
+    s = linear_scenario(
+        **{"speed_controller.m": m, "simulation.t_end_s": 20.0, "reference": [{"t_s": 0.5, "speed_rpm": 1.0}]}
+    )
     result = simulate(s)
     assert not result.saturated.any()
     step = compute_metrics(result)["reference_steps"][0]
@@ -57,9 +59,15 @@ def gn_step(J, tau_i, Kp, Ki, dT):
 def test_load_step_follows_eq_8(feedforward):
     J, alpha, zeta, tau_i, dT, t_load = 0.4, 0.5, 1 / (2 * math.sqrt(3)), 0.05, 1.0, 1.0
     Kp, Ki = J * alpha, J * (alpha / (2 * zeta)) ** 2  # eq 9
-    s = linear_scenario(**{"speed_controller.feedforward": feedforward, "simulation.t_end_s": 45.0,
-                           "simulation.speed0_rpm": 100.0, "reference": [{"t_s": 0.0, "speed_rpm": 100.0}],
-                           "load": [{"t_s": t_load, "torque_Nm": dT}]})
+    s = linear_scenario(
+        **{
+            "speed_controller.feedforward": feedforward,
+            "simulation.t_end_s": 45.0,
+            "simulation.speed0_rpm": 100.0,
+            "reference": [{"t_s": 0.0, "speed_rpm": 100.0}],
+            "load": [{"t_s": t_load, "torque_Nm": dT}],
+        }
+    )
     result = simulate(s)
     assert not result.saturated.any()
     step = compute_metrics(result)["load_steps"][0]
@@ -68,7 +76,7 @@ def test_load_step_follows_eq_8(feedforward):
     grid = np.linspace(0.0, 44.0, 440001)
     deviation_radps = -w(grid)
     k = int(np.argmax(deviation_radps))
-    t_peak = brentq(lambda x: (w(x + 1e-6) - w(x - 1e-6)), grid[k - 1], grid[k + 1])
+    t_peak = brentq(lambda x: w(x + 1e-6) - w(x - 1e-6), grid[k - 1], grid[k + 1])
     dip = -w(t_peak) * RPM_PER_RADPS
     band = 0.02 * dip / RPM_PER_RADPS
     last_out = np.nonzero(np.abs(deviation_radps) > band)[0][-1]

@@ -3,11 +3,12 @@
 The commands are read from README.md itself, so the text cannot drift from the tool.
 """
 
-import pytest
 import json
 import re
 import shlex
 from pathlib import Path
+
+import pytest
 
 from pmsm2dof.ui.cli import main
 

@@ -25,22 +25,43 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from pmsm2dof.errors import ConfigError, SimulationError
 from pmsm2dof.core import FAULT_KINDS
+from pmsm2dof.errors import ConfigError, SimulationError
 from pmsm2dof.sim.scenario import ARRAYS, SCHEMA, _Placeholder, load_scenario
 from pmsm2dof.sim.simulate import simulate
 
-BASE = load_scenario("paper-condition-1").with_overrides({
-    "simulation.t_end_s": 0.05,
-    "reference": [{"t_s": 0.0, "speed_rpm": 500.0}, {"t_s": 0.02, "speed_rpm": 200.0}],
-    "load": [{"t_s": 0.03, "torque_Nm": 4.0}],
-})
+BASE = load_scenario("paper-condition-1").with_overrides(
+    {
+        "simulation.t_end_s": 0.05,
+        "reference": [{"t_s": 0.0, "speed_rpm": 500.0}, {"t_s": 0.02, "speed_rpm": 200.0}],
+        "load": [{"t_s": 0.03, "torque_Nm": 4.0}],
+    }
+)
 FIELDS = {f.key: f for f in SCHEMA}
 SCALARS = [f for f in SCHEMA if "[]" not in f.key]
 
 #: Values that are wrong for a number key in some way.
-WILD = [0, 0.0, -0.0, -1.0, -1, 1e-300, 5e-324, 1e-12, 1e12, 1e300, 1.7976931348623157e308, 10**30, -10**30,
-        math.nan, math.inf, -math.inf, 3.5e38, 2, 1.0]
+WILD = [
+    0,
+    0.0,
+    -0.0,
+    -1.0,
+    -1,
+    1e-300,
+    5e-324,
+    1e-12,
+    1e12,
+    1e300,
+    1.7976931348623157e308,
+    10**30,
+    -(10**30),
+    math.nan,
+    math.inf,
+    -math.inf,
+    3.5e38,
+    2,
+    1.0,
+]
 #: Values of the wrong type for most keys.
 WRONG_TYPES = ["nan", "inf", "1.0", "", "fast", True, False, [], [1.0], {}, {"x": 1}]
 #: Time keys: rejected values, or plausible ones that keep a run short.
@@ -67,7 +88,7 @@ def value_for(field):
     if field.kind is float:
         start = base_value(field.key)
         scale = abs(start) if isinstance(start, float) and start else 1.0
-        plausible = st.floats(-3, 3).map(lambda x: scale * 10.0 ** x)
+        plausible = st.floats(-3, 3).map(lambda x: scale * 10.0**x)
     elif field.kind is int:
         plausible = st.integers(-5, 2000)
     elif field.kind is bool:
@@ -92,9 +113,15 @@ def entry(name):
         "u_dc_factor": st.floats(0.0, 1.0) | st.sampled_from([1.5, -0.1, math.nan]),
         "stray": st.just(1.0),
     }
-    needs = {"reference": ["t_s", "speed_rpm", "ramp_s"], "load": ["t_s", "torque_Nm", "ramp_s"],
-             "dc_link_sag": ["t_s", "duration_s", "u_dc_factor"], "sensor_hold": ["t_s", "duration_s"],
-             "sensor_zero": ["t_s", "duration_s"], "sensor_spike": ["t_s", "speed_rpm"], "encoder_loss": ["t_s"]}
+    needs = {
+        "reference": ["t_s", "speed_rpm", "ramp_s"],
+        "load": ["t_s", "torque_Nm", "ramp_s"],
+        "dc_link_sag": ["t_s", "duration_s", "u_dc_factor"],
+        "sensor_hold": ["t_s", "duration_s"],
+        "sensor_zero": ["t_s", "duration_s"],
+        "sensor_spike": ["t_s", "speed_rpm"],
+        "encoder_loss": ["t_s"],
+    }
 
     @st.composite
     def one(draw):
@@ -138,8 +165,11 @@ def same(shown, held):
     """The value a message shows is the one held (a number key shows an integer as its float)."""
     if isinstance(shown, float) and isinstance(held, int) and not isinstance(held, bool):
         held = float(held)
-    return shown is held or shown == held or (isinstance(shown, float) and isinstance(held, float)
-                                               and math.isnan(shown) and math.isnan(held))
+    return (
+        shown is held
+        or shown == held
+        or (isinstance(shown, float) and isinstance(held, float) and math.isnan(shown) and math.isnan(held))
+    )
 
 
 def check_message(exc):
@@ -202,13 +232,17 @@ def test_any_scenario_simulates_or_fails_naming_the_key(overrides):
 
 
 #: Number keys of the drive and the controller that take any magnitude the schema allows.
-MAGNITUDE_KEYS = [f.key for f in SCALARS if f.kind is float and f.key not in TIME_VALUES
-                  and f.key != "simulation.speed0_rpm"]
+MAGNITUDE_KEYS = [
+    f.key for f in SCALARS if f.kind is float and f.key not in TIME_VALUES and f.key != "simulation.speed0_rpm"
+]
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(values=st.dictionaries(st.sampled_from(MAGNITUDE_KEYS), st.floats(-40.0, 40.0).map(lambda x: 10.0 ** x),
-                              min_size=1, max_size=3))
+@given(
+    values=st.dictionaries(
+        st.sampled_from(MAGNITUDE_KEYS), st.floats(-40.0, 40.0).map(lambda x: 10.0**x), min_size=1, max_size=3
+    )
+)
 @pytest.mark.slow
 def test_extreme_magnitudes_simulate_or_are_named(values):
     """Values the schema accepts, from 1e-40 to 1e40: the float32 controllers and the engine either
@@ -243,7 +277,7 @@ def plausible_scenarios(draw):
     t_end = 0.05
     T_max = 1.5 * p * psi * i_max  # of a surface motor
     # any torque within the current limit: |id iq| <= i_max^2 / 2
-    T_most = 1.5 * p * (psi * i_max + abs(Ld - Lq) * i_max ** 2 / 2)
+    T_most = 1.5 * p * (psi * i_max + abs(Ld - Lq) * i_max**2 / 2)
     w_no_load_rpm = u_dc / math.sqrt(3) / (p * psi) * 30 / math.pi
     J_least = (T_most + 0.9 * T_max) * t_end / (0.5 * w_no_load_rpm * math.pi / 30)
     J = max(draw(st.floats(1e-4, 1.0)), J_least * draw(st.floats(1.0, 10.0)))
@@ -264,23 +298,35 @@ def plausible_scenarios(draw):
         if kind == "dc_link_sag":
             f["u_dc_factor"] = draw(st.floats(0.0, 1.0))
         faults.append(f)
-    return BASE.with_overrides({
-        "motor.pole_pairs": p, "motor.psi_f_Wb": psi, "motor.Ld_H": Ld, "motor.Lq_H": Lq,
-        "motor.Rs_ohm": draw(st.floats(0.01, 5.0)), "motor.J_kgm2": J,
-        "motor.B_Nms": draw(st.floats(0.0, 0.1)), "motor.T_coulomb_Nm": draw(st.floats(0.0, 0.2)) * T_max,
-        "limits.i_max_A": i_max, "limits.u_dc_V": u_dc,
-        "inverter.computation_delay": draw(st.booleans()),
-        "current_loop.model": model, "current_loop.tau_i_s": tau_i, "current_loop.Ts_s": Ts_current,
-        "speed_controller.Ts_s": Ts_speed, "speed_controller.alpha": alpha,
-        "speed_controller.zeta": draw(st.floats(0.3, 2.0)),
-        "speed_controller.anti_windup": draw(st.sampled_from(["none", "back_calculation", "clamping"])),
-        "speed_controller.feedforward": draw(st.sampled_from(["none", "lowpass", "full"])),
-        "speed_controller.discretization": draw(st.sampled_from(["forward_euler", "backward_euler", "tustin"])),
-        "simulation.t_end_s": t_end, "simulation.speed0_rpm": draw(speed),
-        "reference": [{"t_s": t, "speed_rpm": draw(speed)} for t in times],
-        "load": [{"t_s": t, "torque_Nm": draw(st.floats(-0.9, 0.9)) * T_max} for t in times[:2]],
-        "fault": faults,
-    })
+    return BASE.with_overrides(
+        {
+            "motor.pole_pairs": p,
+            "motor.psi_f_Wb": psi,
+            "motor.Ld_H": Ld,
+            "motor.Lq_H": Lq,
+            "motor.Rs_ohm": draw(st.floats(0.01, 5.0)),
+            "motor.J_kgm2": J,
+            "motor.B_Nms": draw(st.floats(0.0, 0.1)),
+            "motor.T_coulomb_Nm": draw(st.floats(0.0, 0.2)) * T_max,
+            "limits.i_max_A": i_max,
+            "limits.u_dc_V": u_dc,
+            "inverter.computation_delay": draw(st.booleans()),
+            "current_loop.model": model,
+            "current_loop.tau_i_s": tau_i,
+            "current_loop.Ts_s": Ts_current,
+            "speed_controller.Ts_s": Ts_speed,
+            "speed_controller.alpha": alpha,
+            "speed_controller.zeta": draw(st.floats(0.3, 2.0)),
+            "speed_controller.anti_windup": draw(st.sampled_from(["none", "back_calculation", "clamping"])),
+            "speed_controller.feedforward": draw(st.sampled_from(["none", "lowpass", "full"])),
+            "speed_controller.discretization": draw(st.sampled_from(["forward_euler", "backward_euler", "tustin"])),
+            "simulation.t_end_s": t_end,
+            "simulation.speed0_rpm": draw(speed),
+            "reference": [{"t_s": t, "speed_rpm": draw(speed)} for t in times],
+            "load": [{"t_s": t, "torque_Nm": draw(st.floats(-0.9, 0.9)) * T_max} for t in times[:2]],
+            "fault": faults,
+        }
+    )
 
 
 @pytest.mark.slow
@@ -325,11 +371,17 @@ def test_a_sensor_fault_window_off_the_sample_grid_is_read_as_the_engine_times_i
     Found by the property above, which had compared sample times with 1e-9 s instead of the
     engine's tolerance of 1e-6 of an integration step (5e-11 s here).
     """
-    scenario = load_scenario("paper-condition-1").with_overrides({
-        "current_loop.tau_i_s": 0.00025, "current_loop.Ts_s": 5e-05, "speed_controller.Ts_s": 5e-05,
-        "simulation.t_end_s": 0.05, "simulation.speed0_rpm": 0.0,
-        "reference": [{"t_s": 0.0, "speed_rpm": -5.0}],
-        "fault": [{"kind": "sensor_hold", "t_s": 1e-9, "duration_s": 0.01}]})
+    scenario = load_scenario("paper-condition-1").with_overrides(
+        {
+            "current_loop.tau_i_s": 0.00025,
+            "current_loop.Ts_s": 5e-05,
+            "speed_controller.Ts_s": 5e-05,
+            "simulation.t_end_s": 0.05,
+            "simulation.speed0_rpm": 0.0,
+            "reference": [{"t_s": 0.0, "speed_rpm": -5.0}],
+            "fault": [{"kind": "sensor_hold", "t_s": 1e-9, "duration_s": 0.01}],
+        }
+    )
     result = simulate(scenario)
     k = int(np.searchsorted(result.t_s, 0.01 - 1e-12))
     assert result.t_s[k] == pytest.approx(0.01) and result.speed_rpm[k] != 0.0
@@ -337,17 +389,24 @@ def test_a_sensor_fault_window_off_the_sample_grid_is_read_as_the_engine_times_i
     check_sensor_readings(scenario, result)
 
 
-PRESET_TEXT = (Path(__file__).parents[1] / "src" / "pmsm2dof" / "sim" / "presets" / "fault-sensor-spike.toml").read_bytes()
+PRESET_TEXT = (
+    Path(__file__).parents[1] / "src" / "pmsm2dof" / "sim" / "presets" / "fault-sensor-spike.toml"
+).read_bytes()
 
 
 @settings(max_examples=300, deadline=None)
-@given(cuts=st.lists(st.tuples(st.integers(0, len(PRESET_TEXT) - 1), st.integers(0, 8), st.binary(max_size=8)),
-                     min_size=1, max_size=4))
+@given(
+    cuts=st.lists(
+        st.tuples(st.integers(0, len(PRESET_TEXT) - 1), st.integers(0, 8), st.binary(max_size=8)),
+        min_size=1,
+        max_size=4,
+    )
+)
 @pytest.mark.slow
 def test_corrupted_scenario_file_loads_or_names_the_problem(cuts):
     text = bytearray(PRESET_TEXT)
     for at, length, insert in cuts:
-        text[at:at + length] = insert
+        text[at : at + length] = insert
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "corrupt.toml"
         path.write_bytes(bytes(text))

@@ -104,27 +104,36 @@ def test_bad_simulate_arguments(extra, mention, workdir, capsys):
     assert_clean_failure(["simulate", PAPER, *extra, "--out", "out"], workdir, capsys, mention)
 
 
-@pytest.mark.parametrize("preset, extra, mention", [
-    ("fault-dc-link-sag", ["--set", "current_loop.model=first_order"], "fault.0.kind"),
-    ("fault-sensor-spike", ["--set", "fault.0.duration_s=0.1"], "fault.0.duration_s"),
-    ("fault-sensor-hold", ["--set", "fault.1.kind=sensor_spike", "--set", "fault.1.t_s=1.2",
-                           "--set", "fault.1.speed_rpm=0"], "fault.1.t_s"),
-    ("fault-stall", ["--set", "load.1.t_s=0.5"], "load.1.t_s"),
-])
+@pytest.mark.parametrize(
+    "preset, extra, mention",
+    [
+        ("fault-dc-link-sag", ["--set", "current_loop.model=first_order"], "fault.0.kind"),
+        ("fault-sensor-spike", ["--set", "fault.0.duration_s=0.1"], "fault.0.duration_s"),
+        (
+            "fault-sensor-hold",
+            ["--set", "fault.1.kind=sensor_spike", "--set", "fault.1.t_s=1.2", "--set", "fault.1.speed_rpm=0"],
+            "fault.1.t_s",
+        ),
+        ("fault-stall", ["--set", "load.1.t_s=0.5"], "load.1.t_s"),
+    ],
+)
 def test_bad_fault_overrides(preset, extra, mention, workdir, capsys):
     assert_clean_failure(["simulate", preset, *extra, "--out", "out"], workdir, capsys, mention)
 
 
-@pytest.mark.parametrize("argv, mention", [
-    (["simulate", "paper-condition-9", "--out", "out"], "fault-stall"),
-    (["simulate", "no/such/file.toml", "--out", "out"], "no/such/file.toml"),
-    (["simulate", ".", "--out", "out"], "scenario = '.'"),
-    (["simulate", PAPER], "--out"),
-    (["simulate", "--out", "out"], "PRESET_OR_FILE"),
-    (["simulate", PAPER, "--out", "out", "--bogus"], "--bogus"),
-    (["simulat", PAPER], "Did you mean 'simulate'"),
-    (["presets", "--bogus"], "--bogus"),
-])
+@pytest.mark.parametrize(
+    "argv, mention",
+    [
+        (["simulate", "paper-condition-9", "--out", "out"], "fault-stall"),
+        (["simulate", "no/such/file.toml", "--out", "out"], "no/such/file.toml"),
+        (["simulate", ".", "--out", "out"], "scenario = '.'"),
+        (["simulate", PAPER], "--out"),
+        (["simulate", "--out", "out"], "PRESET_OR_FILE"),
+        (["simulate", PAPER, "--out", "out", "--bogus"], "--bogus"),
+        (["simulat", PAPER], "Did you mean 'simulate'"),
+        (["presets", "--bogus"], "--bogus"),
+    ],
+)
 def test_bad_names_and_options(argv, mention, workdir, capsys):
     assert_clean_failure(argv, workdir, capsys, mention)
 
@@ -132,10 +141,13 @@ def test_bad_names_and_options(argv, mention, workdir, capsys):
 @pytest.mark.parametrize("where", ["below_a_file", "in_proc", "an_existing_file", "below_dev_null"])
 def test_unwritable_output_folder(where, workdir, capsys):
     (workdir / "file").write_text("x")
-    out = {"below_a_file": "file/out", "in_proc": "/proc/pmsm2dof-out", "an_existing_file": "file",
-           "below_dev_null": "/dev/null/out"}[where]
-    assert_clean_failure(["simulate", PAPER, "--out", out], workdir, capsys,
-                         "out = ")
+    out = {
+        "below_a_file": "file/out",
+        "in_proc": "/proc/pmsm2dof-out",
+        "an_existing_file": "file",
+        "below_dev_null": "/dev/null/out",
+    }[where]
+    assert_clean_failure(["simulate", PAPER, "--out", out], workdir, capsys, "out = ")
     assert (workdir / "file").read_text() == "x"
 
 
@@ -176,23 +188,26 @@ def test_bad_design_options(extra, mention, workdir, capsys):
     assert_clean_failure([*DESIGN, *extra], workdir, capsys, mention)
 
 
-@pytest.mark.parametrize("extra, mention", [
-    (["--m", ""], "m = ''"),
-    (["--m", "0"], "m = 0.0"),
-    (["--m", "-1,2"], "m = -1.0"),
-    (["--alpha", "nan"], "alpha_radps = nan"),
-    (["--J", "0"], "J_kgm2 = 0.0"),
-    (["--feedforward", "bogus"], "feedforward = 'bogus'"),
-    (["--out", "fig"], "out = 'fig'"),
-    (["--out", "/proc/pmsm2dof.png"], "/proc/pmsm2dof.png"),
-])
+@pytest.mark.parametrize(
+    "extra, mention",
+    [
+        (["--m", ""], "m = ''"),
+        (["--m", "0"], "m = 0.0"),
+        (["--m", "-1,2"], "m = -1.0"),
+        (["--alpha", "nan"], "alpha_radps = nan"),
+        (["--J", "0"], "J_kgm2 = 0.0"),
+        (["--feedforward", "bogus"], "feedforward = 'bogus'"),
+        (["--out", "fig"], "out = 'fig'"),
+        (["--out", "/proc/pmsm2dof.png"], "/proc/pmsm2dof.png"),
+    ],
+)
 def test_bad_bode_options(extra, mention, workdir, capsys):
     argv = ["bode", "--alpha", "0.5", "--out", "fig.png"]
     for i in range(0, len(extra), 2):
         if extra[i] in argv:
             argv[argv.index(extra[i]) + 1] = extra[i + 1]
         else:
-            argv += extra[i:i + 2]
+            argv += extra[i : i + 2]
     assert_clean_failure(argv, workdir, capsys, mention)
 
 
@@ -200,8 +215,12 @@ def test_bad_bode_options(extra, mention, workdir, capsys):
 def test_bad_input_in_a_fresh_process(tmp_path):
     """The console entry point, as a user runs it: the same single line, no traceback."""
     path = Path(__file__).parent / "bad_scenarios" / "fault_sensor_overlap.toml"
-    run = subprocess.run([sys.executable, "-m", "pmsm2dof", "simulate", str(path), "--out", str(tmp_path / "out")],
-                         capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-m", "pmsm2dof", "simulate", str(path), "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 2
     assert run.stderr.count("\n") == 1 and run.stderr.startswith("pmsm2dof: error: fault.1.t_s = ")
     assert not any(tmp_path.iterdir())

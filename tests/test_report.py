@@ -24,18 +24,31 @@ import pytest
 from scipy.optimize import brentq
 
 from pmsm2dof import load_scenario, simulate
-from pmsm2dof.ui.cli import main
 from pmsm2dof.studies.faults import run_faults
+from pmsm2dof.studies.paper import run_studies
+from pmsm2dof.ui.cli import main
 from pmsm2dof.ui.report import VERDICTS, compute_claims
 from pmsm2dof.ui.report.claims import FIG7_M
 from pmsm2dof.ui.report.figures import fig_faults, figures
-from pmsm2dof.studies.paper import run_studies
 
 #: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
 pytestmark = pytest.mark.slow
 
-STEMS = ["fig07_bode_gx", "fig08_speed_aw", "fig09_current_aw", "fig10_2dof", "fig12_exp1_aw", "fig13_exp2_tracking",
-         "fig14_exp3_load", "sens_ka", "sens_m", "sens_zeta", "sens_inertia", "sens_torque_limit", "discretization"]
+STEMS = [
+    "fig07_bode_gx",
+    "fig08_speed_aw",
+    "fig09_current_aw",
+    "fig10_2dof",
+    "fig12_exp1_aw",
+    "fig13_exp2_tracking",
+    "fig14_exp3_load",
+    "sens_ka",
+    "sens_m",
+    "sens_zeta",
+    "sens_inertia",
+    "sens_torque_limit",
+    "discretization",
+]
 VOID = {"meta", "img", "br", "hr", "link", "input"}
 PNG = b"\x89PNG\r\n\x1a\n"
 J, ALPHA, ZETA, TAU_I = 0.4, 0.5, 1 / (2 * math.sqrt(3)), 0.05  # the paper's values (section 4.1)
@@ -65,6 +78,7 @@ def claim_about(claims, words):
 # ---------------------------------------------------------------------------------------------
 # the report is produced and renders
 # ---------------------------------------------------------------------------------------------
+
 
 def test_every_output_is_written(report_dir):
     for name in ("report.md", "report.html", "claims.json", "metrics.json", "sensitivity.csv", "discretization.csv"):
@@ -146,8 +160,10 @@ def _flatten(values):
 def test_bad_out_and_bad_override_fail_cleanly(tmp_path, capsys):
     a_file = tmp_path / "taken"
     a_file.write_text("x")
-    for argv, mention in ((["reproduce", "--out", str(a_file)], "out"),
-                          (["reproduce", "--out", str(tmp_path / "out"), "--set", "motor.J_kgm2=-1"], "motor.J_kgm2")):
+    for argv, mention in (
+        (["reproduce", "--out", str(a_file)], "out"),
+        (["reproduce", "--out", str(tmp_path / "out"), "--set", "motor.J_kgm2=-1"], "motor.J_kgm2"),
+    ):
         assert main(argv) == 2
         err = capsys.readouterr().err
         assert len(err.splitlines()) == 1 and err.startswith("pmsm2dof: error: ") and mention in err
@@ -223,10 +239,13 @@ def test_figure_csv_holds_every_line_the_figure_draws(drawn):
         assert lines, stem
         for line in lines:
             x, y = (np.asarray(v, float) for v in line.get_data())
-            same = [name for name, values in columns.items()
-                    if np.array_equal(values[:len(y)], y, equal_nan=True) and np.all(np.isnan(values[len(y):]))]
+            same = [
+                name
+                for name, values in columns.items()
+                if np.array_equal(values[: len(y)], y, equal_nan=True) and np.all(np.isnan(values[len(y) :]))
+            ]
             assert same, f"{stem}: the line {line.get_label()!r} is not in the CSV"
-            assert any(np.array_equal(values[:len(x)], x, equal_nan=True) for values in columns.values()), stem
+            assert any(np.array_equal(values[: len(x)], x, equal_nan=True) for values in columns.values()), stem
 
 
 def test_figure_csv_traces_are_those_of_the_simulations(report_dir):
@@ -260,11 +279,14 @@ def test_fig7_csv_is_the_first_order_tracking_of_eq_10(report_dir):
 # the measured values come from the simulations
 # ---------------------------------------------------------------------------------------------
 
+
 def test_measured_values_follow_the_simulations():
     base_studies = run_studies({}, **REDUCED)
     base = {c.id: c for c in compute_claims(base_studies)}
-    plant = {c.id: c for c in compute_claims(run_studies(
-        {"motor.J_kgm2": 0.5, "speed_controller.J_design_kgm2": 0.4}, **REDUCED))}
+    plant = {
+        c.id: c
+        for c in compute_claims(run_studies({"motor.J_kgm2": 0.5, "speed_controller.J_design_kgm2": 0.4}, **REDUCED))
+    }
     tuned = {c.id: c for c in compute_claims(run_studies({"speed_controller.zeta": 0.35}, **REDUCED))}
     for cid, claim in base.items():
         if cid == "C20":
@@ -282,6 +304,7 @@ def test_measured_values_follow_the_simulations():
 # the qualitative claims hold, measured independently on engine traces
 # ---------------------------------------------------------------------------------------------
 
+
 def overshoot_pct(result, t0, t1, target_rpm):
     """Largest excursion beyond the new reference, in % of the step from the speed at t0."""
     window = (result.t_s >= t0) & (result.t_s < t1)
@@ -295,9 +318,15 @@ def run(preset, **overrides):
 
 
 def test_anti_windup_reduces_the_overshoot_of_condition_1(claims):
-    over = {aw: overshoot_pct(run("paper-condition-1", **{"speed_controller.feedforward": "none",
-                                                          "speed_controller.anti_windup": aw}), 0.0, 5.0, 500.0)
-            for aw in ("none", "back_calculation", "clamping")}
+    over = {
+        aw: overshoot_pct(
+            run("paper-condition-1", **{"speed_controller.feedforward": "none", "speed_controller.anti_windup": aw}),
+            0.0,
+            5.0,
+            500.0,
+        )
+        for aw in ("none", "back_calculation", "clamping")
+    }
     assert over["back_calculation"] < over["none"] - 10.0
     assert over["clamping"] < over["none"] - 10.0
     without = claim_about(claims, ["without AW", "55 %"])
@@ -349,8 +378,9 @@ def test_2dof_reduces_the_tracking_overshoot(claims):
         assert o2 < 1.0 < 20.0 < o1
     row = claim_about(claims, ["step up 0 -> 500 rpm"])
     measured = np.array(row["values"]["overshoot_pct"])
-    assert measured[:, 0] == pytest.approx([overshoot_pct(one, 0.5, 10.5, 500.0),
-                                            overshoot_pct(one, 10.5, 20.0, 200.0)], abs=0.05)
+    assert measured[:, 0] == pytest.approx(
+        [overshoot_pct(one, 0.5, 10.5, 500.0), overshoot_pct(one, 10.5, 20.0, 200.0)], abs=0.05
+    )
     assert row["verdict"] == "reproduced"
 
 
@@ -377,8 +407,11 @@ def test_discrete_pi_error_matches_table_1_substitutions(claims):
     assert f"Ts = {Ts:g} s" in row["measured"]
     z = np.exp(1j * w_gc * Ts)
     F = Kp + Ki / (1j * w_gc)
-    s_of_z = {"forward_euler": (z - 1) / Ts, "backward_euler": (z - 1) / (z * Ts),
-              "tustin": 2 * (z - 1) / (Ts * (z + 1))}  # Table 1
+    s_of_z = {
+        "forward_euler": (z - 1) / Ts,
+        "backward_euler": (z - 1) / (z * Ts),
+        "tustin": 2 * (z - 1) / (Ts * (z + 1)),
+    }  # Table 1
     for method, s in s_of_z.items():
         expected = abs((Kp + Ki / s) / F - 1.0)
         assert row["values"]["controller_error"][method] == pytest.approx(expected, rel=1e-4), method

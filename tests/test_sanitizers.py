@@ -31,8 +31,10 @@ def _compiler(tmp_path):
     for cc in ("clang", "cc"):
         if shutil.which(cc) is None:
             continue
-        if subprocess.run([cc, *SANITIZE, str(probe), "-o", str(tmp_path / "probe")],
-                          capture_output=True).returncode == 0:
+        if (
+            subprocess.run([cc, *SANITIZE, str(probe), "-o", str(tmp_path / "probe")], capture_output=True).returncode
+            == 0
+        ):
             return cc
     return None
 
@@ -44,8 +46,10 @@ def sanitize_build(tmp_path_factory):
         pytest.skip("cmake is not installed")
     cc = _compiler(tmp_path_factory.mktemp("probe"))
     if cc is None:
-        pytest.skip("no C compiler here links AddressSanitizer and UndefinedBehaviorSanitizer "
-                    "(Debian: clang libclang-rt-14-dev)")
+        pytest.skip(
+            "no C compiler here links AddressSanitizer and UndefinedBehaviorSanitizer "
+            "(Debian: clang libclang-rt-14-dev)"
+        )
     build = tmp_path_factory.mktemp("sanitize-build")
     for command in (
         ["cmake", "-S", str(CSRC), "-B", str(build), f"-DCMAKE_C_COMPILER={cc}", "-DP2D_SANITIZE=ON"],
@@ -66,16 +70,19 @@ def test_every_ctest_is_instrumented(sanitize_build):
     assert "sanitize_drive" in names
     assert any(name.startswith("test_") for name in names), names
     for name in names:
-        symbols = subprocess.run(["nm", str(sanitize_build / name)], capture_output=True, text=True,
-                                 check=True).stdout
+        symbols = subprocess.run(["nm", str(sanitize_build / name)], capture_output=True, text=True, check=True).stdout
         assert "__asan_report" in symbols and "__ubsan_handle" in symbols, f"{name} is not instrumented"
 
 
 def test_ctest_under_sanitizers(sanitize_build):
-    env = dict(os.environ, ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:halt_on_error=1",
-               UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1")
-    result = subprocess.run(["ctest", "--output-on-failure"], cwd=sanitize_build, env=env, capture_output=True,
-                            text=True, timeout=600)
+    env = dict(
+        os.environ,
+        ASAN_OPTIONS="detect_leaks=1:abort_on_error=0:halt_on_error=1",
+        UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1",
+    )
+    result = subprocess.run(
+        ["ctest", "--output-on-failure"], cwd=sanitize_build, env=env, capture_output=True, text=True, timeout=600
+    )
     summary = re.search(r"(\d+)% tests passed, (\d+) tests failed out of (\d+)", result.stdout)
     assert result.returncode == 0 and summary, result.stdout[-6000:] + result.stderr[-3000:]
     names = _ctest_names(sanitize_build)

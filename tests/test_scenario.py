@@ -19,8 +19,13 @@ from pmsm2dof.sim.scenario import SCHEMA, Scenario, list_presets, load_scenario,
 from pmsm2dof.ui.cli import parse_override
 
 BAD = sorted((Path(__file__).parent / "bad_scenarios").glob("*.toml"))
-PAPER_PRESETS = ["paper-condition-1", "paper-condition-2", "paper-experiment-1", "paper-experiment-2",
-                 "paper-experiment-3"]
+PAPER_PRESETS = [
+    "paper-condition-1",
+    "paper-condition-2",
+    "paper-experiment-1",
+    "paper-experiment-2",
+    "paper-experiment-3",
+]
 
 
 def rpm_to_radps(rpm):
@@ -173,7 +178,11 @@ speed_rpm = 100
     assert d["current_loop"]["discretization"] == "tustin"
     sc = d["speed_controller"]
     assert (sc["m"], sc["feedforward"], sc["anti_windup"], sc["discretization"]) == (
-        1.0, "lowpass", "back_calculation", "tustin")
+        1.0,
+        "lowpass",
+        "back_calculation",
+        "tustin",
+    )
     assert sc["Ka"] is None
     assert sc["J_design_kgm2"] == 0.01 and sc["tau_i_design_s"] == 0.001
     assert d["simulation"]["log_every"] == 1 and d["simulation"]["speed0_rpm"] == 0.0
@@ -208,18 +217,21 @@ def test_bad_scenario_names_the_key(path):
     assert "valid range is" in message and "\n" not in message
 
 
-@pytest.mark.parametrize("stem, hint", [
-    ("unknown_key_case", "did you mean 'motor.Rs_ohm'"),
-    ("unknown_key_wrong_table", "did you mean 'limits.i_max_A'"),
-    ("unknown_table", "did you mean 'simulation'"),
-    ("unknown_key_top_level", "did you mean 'current_loop.Ts_s' or 'speed_controller.Ts_s'"),
-    ("unknown_key_in_entry", "did you mean 'load.0.torque_Nm'"),
-    ("lowpass_m_not_1", "no_tau"),
-    ("ts_not_multiple", "integer multiple"),
-    ("missing_motor_J", "required"),
-    ("wrong_type_bool_number", "finite number"),
-    ("huge_t_end", "<= 36000"),
-])
+@pytest.mark.parametrize(
+    "stem, hint",
+    [
+        ("unknown_key_case", "did you mean 'motor.Rs_ohm'"),
+        ("unknown_key_wrong_table", "did you mean 'limits.i_max_A'"),
+        ("unknown_table", "did you mean 'simulation'"),
+        ("unknown_key_top_level", "did you mean 'current_loop.Ts_s' or 'speed_controller.Ts_s'"),
+        ("unknown_key_in_entry", "did you mean 'load.0.torque_Nm'"),
+        ("lowpass_m_not_1", "no_tau"),
+        ("ts_not_multiple", "integer multiple"),
+        ("missing_motor_J", "required"),
+        ("wrong_type_bool_number", "finite number"),
+        ("huge_t_end", "<= 36000"),
+    ],
+)
 def test_bad_scenario_message_helps(stem, hint):
     with pytest.raises(ConfigError, match=re.escape(hint)):
         load_scenario(Path(__file__).parent / "bad_scenarios" / f"{stem}.toml")
@@ -230,8 +242,9 @@ def test_bad_scenario_message_helps(stem, hint):
 
 def test_overrides_by_dotted_key_and_index():
     base = load_scenario("paper-condition-2")
-    s = base.with_overrides({"speed_controller.anti_windup": "none", "reference.0.speed_rpm": 300,
-                             "load.0.ramp_s": 0.5})
+    s = base.with_overrides(
+        {"speed_controller.anti_windup": "none", "reference.0.speed_rpm": 300, "load.0.ramp_s": 0.5}
+    )
     d = s.data
     assert d["speed_controller"]["anti_windup"] == "none"
     assert d["reference"][0]["speed_rpm"] == 300.0
@@ -262,21 +275,24 @@ def test_derived_defaults_follow_their_source_unless_given():
     assert s.data["motor"]["J_kgm2"] == 0.8
 
 
-@pytest.mark.parametrize("overrides, key", [
-    ({"motor.J_kgm": 1.0}, "motor.J_kgm"),
-    ({"motor.J_kgm2": 0}, "motor.J_kgm2"),
-    ({"motor.J_kgm2": float("nan")}, "motor.J_kgm2"),
-    ({"reference.5.speed_rpm": 1.0}, "reference.5"),
-    ({"reference.x.speed_rpm": 1.0}, "reference.x"),
-    ({"motor.J_kgm2.x": 1.0}, "motor.J_kgm2.x"),
-    ({"reference.0.speed_rpm": "fast"}, "reference.0.speed_rpm"),
-    ({"simulation.t_end_s": 5.0}, "reference.1.t_s"),
-    ({"current_loop.Ts_s": 3e-4}, "speed_controller.Ts_s"),
-    ({"speed_controller.m": 0.5}, "speed_controller.m"),
-    ({"": 1}, "override key"),
-    ({"motor.J_kgm2": 10**400}, "motor.J_kgm2"),
-    ({"speed_controller.Ts_s": 1e300, "current_loop.Ts_s": 1e-300}, "speed_controller.Ts_s"),
-])
+@pytest.mark.parametrize(
+    "overrides, key",
+    [
+        ({"motor.J_kgm": 1.0}, "motor.J_kgm"),
+        ({"motor.J_kgm2": 0}, "motor.J_kgm2"),
+        ({"motor.J_kgm2": float("nan")}, "motor.J_kgm2"),
+        ({"reference.5.speed_rpm": 1.0}, "reference.5"),
+        ({"reference.x.speed_rpm": 1.0}, "reference.x"),
+        ({"motor.J_kgm2.x": 1.0}, "motor.J_kgm2.x"),
+        ({"reference.0.speed_rpm": "fast"}, "reference.0.speed_rpm"),
+        ({"simulation.t_end_s": 5.0}, "reference.1.t_s"),
+        ({"current_loop.Ts_s": 3e-4}, "speed_controller.Ts_s"),
+        ({"speed_controller.m": 0.5}, "speed_controller.m"),
+        ({"": 1}, "override key"),
+        ({"motor.J_kgm2": 10**400}, "motor.J_kgm2"),
+        ({"speed_controller.Ts_s": 1e300, "current_loop.Ts_s": 1e-300}, "speed_controller.Ts_s"),
+    ],
+)
 def test_bad_overrides_name_the_key(overrides, key):
     with pytest.raises(ConfigError) as exc:
         load_scenario("paper-condition-2").with_overrides(overrides)
@@ -284,8 +300,9 @@ def test_bad_overrides_name_the_key(overrides, key):
 
 
 def test_m_other_than_1_is_accepted_with_the_general_feedforward():
-    s = load_scenario("paper-condition-2").with_overrides({"speed_controller.m": 2.0,
-                                                            "speed_controller.feedforward": "no_tau"})
+    s = load_scenario("paper-condition-2").with_overrides(
+        {"speed_controller.m": 2.0, "speed_controller.feedforward": "no_tau"}
+    )
     assert s.data["speed_controller"]["m"] == 2.0
 
 
@@ -298,17 +315,20 @@ def test_scenario_is_immutable():
     assert s.data["motor"]["J_kgm2"] == 0.4
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("speed_controller.alpha=0.7", ("speed_controller.alpha", 0.7)),
-    ("simulation.log_every = 10", ("simulation.log_every", 10)),
-    ("inverter.computation_delay=true", ("inverter.computation_delay", True)),
-    ("speed_controller.feedforward=none", ("speed_controller.feedforward", "none")),
-    ('name="a b"', ("name", "a b")),
-    ("name=a = b", ("name", "a = b")),
-    ("load=[{t_s = 1.0, torque_Nm = 2.0}]", ("load", [{"t_s": 1.0, "torque_Nm": 2.0}])),
-    ("reference.0.speed_rpm=-300", ("reference.0.speed_rpm", -300)),
-    ("motor.J_kgm2=1\nx = 2", ("motor.J_kgm2", "1\nx = 2")),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("speed_controller.alpha=0.7", ("speed_controller.alpha", 0.7)),
+        ("simulation.log_every = 10", ("simulation.log_every", 10)),
+        ("inverter.computation_delay=true", ("inverter.computation_delay", True)),
+        ("speed_controller.feedforward=none", ("speed_controller.feedforward", "none")),
+        ('name="a b"', ("name", "a b")),
+        ("name=a = b", ("name", "a = b")),
+        ("load=[{t_s = 1.0, torque_Nm = 2.0}]", ("load", [{"t_s": 1.0, "torque_Nm": 2.0}])),
+        ("reference.0.speed_rpm=-300", ("reference.0.speed_rpm", -300)),
+        ("motor.J_kgm2=1\nx = 2", ("motor.J_kgm2", "1\nx = 2")),
+    ],
+)
 def test_parse_override(text, expected):
     assert parse_override(text) == expected
 
@@ -330,19 +350,36 @@ positive = st.floats(min_value=1e-6, max_value=1e6, allow_nan=False, allow_infin
 
 
 @settings(max_examples=60, deadline=None)
-@given(J=positive, Rs=positive, alpha=positive, speed=st.floats(-1e4, 1e4), Ka=st.none() | positive,
-       name=st.text(max_size=20), n=st.integers(1, 50), delay=st.booleans())
+@given(
+    J=positive,
+    Rs=positive,
+    alpha=positive,
+    speed=st.floats(-1e4, 1e4),
+    Ka=st.none() | positive,
+    name=st.text(max_size=20),
+    n=st.integers(1, 50),
+    delay=st.booleans(),
+)
 def test_round_trip_property(J, Rs, alpha, speed, Ka, name, n, delay):
     """load(to_toml(s)) == s for any valid values, including awkward floats and strings."""
-    s = load_scenario("paper-condition-2").with_overrides({
-        "motor.J_kgm2": J, "motor.Rs_ohm": Rs, "speed_controller.alpha": alpha, "reference.1.speed_rpm": speed,
-        "speed_controller.Ka": Ka, "name": name, "speed_controller.Ts_s": n * 1e-4,
-        "inverter.computation_delay": delay})
+    s = load_scenario("paper-condition-2").with_overrides(
+        {
+            "motor.J_kgm2": J,
+            "motor.Rs_ohm": Rs,
+            "speed_controller.alpha": alpha,
+            "reference.1.speed_rpm": speed,
+            "speed_controller.Ka": Ka,
+            "name": name,
+            "speed_controller.Ts_s": n * 1e-4,
+            "inverter.computation_delay": delay,
+        }
+    )
     assert load_scenario_text(s.to_toml()) == s
 
 
-@pytest.mark.parametrize("name", ["tab\there", "quote \" and \\ backslash", "line\nbreak", "del \x7f", "nul \x00",
-                                  "Grüße, 速度"])
+@pytest.mark.parametrize(
+    "name", ["tab\there", 'quote " and \\ backslash', "line\nbreak", "del \x7f", "nul \x00", "Grüße, 速度"]
+)
 def test_round_trip_of_awkward_strings(name):
     s = load_scenario("paper-condition-2").with_overrides({"name": name, "description": name})
     assert load_scenario_text(s.to_toml()) == s

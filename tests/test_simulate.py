@@ -81,10 +81,16 @@ def schedule_value(entries, key, t):
 
 
 def test_reference_is_sampled_and_load_follows_the_schedules():
-    reference = [{"t_s": 0.2, "speed_rpm": 300.0, "ramp_s": 0.5}, {"t_s": 1.0, "speed_rpm": -100.0},
-                 {"t_s": 1.5, "speed_rpm": 50.0, "ramp_s": 0.25}]
-    load = [{"t_s": 0.1, "torque_Nm": 2.0, "ramp_s": 0.3}, {"t_s": 0.9, "torque_Nm": -1.0},
-            {"t_s": 1.2, "torque_Nm": 0.5, "ramp_s": 0.6}]
+    reference = [
+        {"t_s": 0.2, "speed_rpm": 300.0, "ramp_s": 0.5},
+        {"t_s": 1.0, "speed_rpm": -100.0},
+        {"t_s": 1.5, "speed_rpm": 50.0, "ramp_s": 0.25},
+    ]
+    load = [
+        {"t_s": 0.1, "torque_Nm": 2.0, "ramp_s": 0.3},
+        {"t_s": 0.9, "torque_Nm": -1.0},
+        {"t_s": 1.2, "torque_Nm": 0.5, "ramp_s": 0.6},
+    ]
     r = simulate(paper2(**{"reference": reference, "load": load, "simulation.t_end_s": 2.0}))
     expected_ref = [schedule_value(reference, "speed_rpm", t) for t in r.t_s]
     expected_load = [schedule_value(load, "torque_Nm", t) for t in r.t_s]
@@ -97,10 +103,22 @@ def test_reference_is_sampled_and_load_follows_the_schedules():
 @pytest.mark.parametrize("delay", [False, True])
 def test_starts_in_steady_state_at_speed0(model, delay):
     """Salient motor with friction at 400 rpm, the reference equal to it: nothing moves."""
-    r = simulate(paper2(**{
-        "current_loop.model": model, "inverter.computation_delay": delay, "motor.Ld_H": 0.008,
-        "motor.Lq_H": 0.014, "motor.B_Nms": 0.01, "motor.T_coulomb_Nm": 0.4, "simulation.speed0_rpm": 400.0,
-        "reference": [{"t_s": 0.0, "speed_rpm": 400.0}], "load": [], "simulation.t_end_s": 1.0}))
+    r = simulate(
+        paper2(
+            **{
+                "current_loop.model": model,
+                "inverter.computation_delay": delay,
+                "motor.Ld_H": 0.008,
+                "motor.Lq_H": 0.014,
+                "motor.B_Nms": 0.01,
+                "motor.T_coulomb_Nm": 0.4,
+                "simulation.speed0_rpm": 400.0,
+                "reference": [{"t_s": 0.0, "speed_rpm": 400.0}],
+                "load": [],
+                "simulation.t_end_s": 1.0,
+            }
+        )
+    )
     w0 = 400.0 / RPM_PER_RADPS
     hold_Nm = 0.01 * w0 + 0.4
     assert np.max(np.abs(r.w_m_radps - w0)) < 1e-6 * w0
@@ -139,20 +157,33 @@ def test_save_rejects_an_unknown_format(short_run, tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("overrides, key, valid", [
-    # Ki Ka Ts = 0.3 * 1e4 * 1e-3 = 3 > 2: the discrete back-calculation loop is unstable
-    ({"speed_controller.Ka": 1e4}, "speed_controller.Ka", r"Ka < 6666\.67 \(Ki = 0\.3 by eq 9\)"),
-    # forward Euler: the feedforward pole 1 - m alpha Ts leaves the unit circle at m alpha Ts >= 2
-    ({"speed_controller.discretization": "forward_euler", "speed_controller.alpha": 2500.0,
-      "speed_controller.anti_windup": "clamping"}, "speed_controller.Ts_s", r"m\*alpha\*Ts_s < 2"),
-    # a value float32 cannot hold
-    ({"speed_controller.J_design_kgm2": 1e-50}, "speed_controller.J_design_kgm2", "float32"),
-    # 3.6e7 rows of 15 doubles
-    ({"simulation.t_end_s": 36000.0}, "simulation.log_every", r">= 3: the log"),
-    ({"simulation.dt_s": 1e-12}, "simulation.dt_s", r">= current_loop.Ts_s / 1e\+06"),
-    ({"speed_controller.Ts_s": 1000.0, "simulation.t_end_s": 2000.0}, "speed_controller.Ts_s",
-     r"<= 1e\+06 current_loop.Ts_s = 100 s"),
-])
+@pytest.mark.parametrize(
+    "overrides, key, valid",
+    [
+        # Ki Ka Ts = 0.3 * 1e4 * 1e-3 = 3 > 2: the discrete back-calculation loop is unstable
+        ({"speed_controller.Ka": 1e4}, "speed_controller.Ka", r"Ka < 6666\.67 \(Ki = 0\.3 by eq 9\)"),
+        # forward Euler: the feedforward pole 1 - m alpha Ts leaves the unit circle at m alpha Ts >= 2
+        (
+            {
+                "speed_controller.discretization": "forward_euler",
+                "speed_controller.alpha": 2500.0,
+                "speed_controller.anti_windup": "clamping",
+            },
+            "speed_controller.Ts_s",
+            r"m\*alpha\*Ts_s < 2",
+        ),
+        # a value float32 cannot hold
+        ({"speed_controller.J_design_kgm2": 1e-50}, "speed_controller.J_design_kgm2", "float32"),
+        # 3.6e7 rows of 15 doubles
+        ({"simulation.t_end_s": 36000.0}, "simulation.log_every", r">= 3: the log"),
+        ({"simulation.dt_s": 1e-12}, "simulation.dt_s", r">= current_loop.Ts_s / 1e\+06"),
+        (
+            {"speed_controller.Ts_s": 1000.0, "simulation.t_end_s": 2000.0},
+            "speed_controller.Ts_s",
+            r"<= 1e\+06 current_loop.Ts_s = 100 s",
+        ),
+    ],
+)
 def test_rejected_values_name_the_scenario_key(overrides, key, valid):
     with pytest.raises(ConfigError, match=valid) as err:
         simulate(paper2(**overrides))

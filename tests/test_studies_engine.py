@@ -31,8 +31,14 @@ def bases():
 @pytest.mark.parametrize("workers, batch_size", [(1, None), (2, 1)])
 def test_outcomes_in_the_order_of_the_runs_equal_single_runs(bases, workers, batch_size):
     batches = []
-    outcomes = run_many({k: v.data for k, v in bases.items()}, RUNS, keep=["b"], workers=workers,
-                        batch_size=batch_size, on_batch=batches.append)
+    outcomes = run_many(
+        {k: v.data for k, v in bases.items()},
+        RUNS,
+        keep=["b"],
+        workers=workers,
+        batch_size=batch_size,
+        on_batch=batches.append,
+    )
     assert [o.key for o in outcomes] == [r.key for r in RUNS]
     assert sorted(o.key for batch in batches for o in batch) == sorted(r.key for r in RUNS)
     for run, outcome in zip(RUNS, outcomes):
@@ -54,10 +60,15 @@ def test_a_value_only_the_c_code_rejects_names_the_run(bases):
     assert info.value.param == "run too-fast: speed_controller.alpha"
 
 
-@pytest.mark.parametrize("options, param", [
-    (dict(workers=0), "workers"), (dict(workers=2, scheduler="tcp://127.0.0.1:9"), "workers"),
-    (dict(scheduler="127.0.0.1:9"), "scheduler"), (dict(batch_size=0), "batch_size"),
-])
+@pytest.mark.parametrize(
+    "options, param",
+    [
+        (dict(workers=0), "workers"),
+        (dict(workers=2, scheduler="tcp://127.0.0.1:9"), "workers"),
+        (dict(scheduler="127.0.0.1:9"), "scheduler"),
+        (dict(batch_size=0), "batch_size"),
+    ],
+)
 def test_bad_options_name_the_parameter(options, param):
     with pytest.raises(ConfigError) as info:
         check_options(**options)

@@ -17,13 +17,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pmsm2dof.ui.cli import main
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
 from pmsm2dof.studies.engine import PartWarning
 from pmsm2dof.studies.sweep import load_sweep, metric_columns, parse_sweep, run_sweep
+from pmsm2dof.ui.cli import main
 from pmsm2dof.ui.plots.sweep import draw_figures
 
 # the modules (the package exports functions of the same names)
@@ -104,6 +104,7 @@ def sweep_of(base_file, axes_text, **top):
 # expansion
 # ---------------------------------------------------------------------------------------------
 
+
 def test_grid_is_the_product_with_the_first_axis_slowest(base_file):
     sw = sweep_of(base_file, GRID_AXES)
     alphas = [25.0, 50.0, 100.0]
@@ -150,8 +151,12 @@ def test_draws_are_reproducible_independent_per_key_and_follow_their_distributio
     assert np.std(zeta) == pytest.approx(0.05, rel=0.05)
     # independent streams: weak correlation, and one axis alone draws the same values
     assert abs(np.corrcoef(np.log(J), Ka)[0, 1]) < 0.1
-    alone = sweep_of(base_file, '[axes]\n"motor.J_kgm2" = { distribution = "log_normal", median = 0.01, '
-                                'sigma = 0.3 }\n', draws=n, seed=11)
+    alone = sweep_of(
+        base_file,
+        '[axes]\n"motor.J_kgm2" = { distribution = "log_normal", median = 0.01, sigma = 0.3 }\n',
+        draws=n,
+        seed=11,
+    )
     assert [p["motor.J_kgm2"] for p in alone.points] == list(J)
 
 
@@ -197,16 +202,21 @@ BAD = [
     ({"axes": {"motor.J_kgm2": {"start": 0.1, "stop": 0.2, "num": 3, "scale": "cubic"}}}, "axes.motor.J_kgm2.scale"),
     ({"axes": {"motor.J_kgm2": {"start": 0.1, "stop": 0.2, "num": 3, "step": 1}}}, "axes.motor.J_kgm2.step"),
     ({"axes": {"motor.J_kgm2": {"distribution": "cauchy"}}, "draws": 3, "seed": 1}, "axes.motor.J_kgm2.distribution"),
-    ({"axes": {"motor.J_kgm2": {"distribution": "uniform", "low": 0.2, "high": 0.1}}, "draws": 3, "seed": 1},
-     "axes.motor.J_kgm2.high"),
-    ({"axes": {"motor.J_kgm2": {"distribution": "normal", "mean": 0.2, "std": -1.0}}, "draws": 3, "seed": 1},
-     "axes.motor.J_kgm2.std"),
-    ({"axes": {"motor.J_kgm2": {"distribution": "log_normal", "median": -0.2, "sigma": 0.1}}, "draws": 3,
-      "seed": 1}, "axes.motor.J_kgm2.median"),
+    (
+        {"axes": {"motor.J_kgm2": {"distribution": "uniform", "low": 0.2, "high": 0.1}}, "draws": 3, "seed": 1},
+        "axes.motor.J_kgm2.high",
+    ),
+    (
+        {"axes": {"motor.J_kgm2": {"distribution": "normal", "mean": 0.2, "std": -1.0}}, "draws": 3, "seed": 1},
+        "axes.motor.J_kgm2.std",
+    ),
+    (
+        {"axes": {"motor.J_kgm2": {"distribution": "log_normal", "median": -0.2, "sigma": 0.1}}, "draws": 3, "seed": 1},
+        "axes.motor.J_kgm2.median",
+    ),
     ({"axes": {"motor.J_kgm2": {"distribution": "uniform", "low": 0.1, "high": 0.2}}, "seed": 1}, "draws"),
     ({"axes": {"motor.J_kgm2": {"distribution": "uniform", "low": 0.1, "high": 0.2}}, "draws": 3}, "seed"),
-    ({"axes": {"motor.J_kgm2": {"distribution": "uniform", "low": 0.1, "high": 0.2}}, "draws": 0, "seed": 1},
-     "draws"),
+    ({"axes": {"motor.J_kgm2": {"distribution": "uniform", "low": 0.1, "high": 0.2}}, "draws": 0, "seed": 1}, "draws"),
     ({"draws": 10}, "draws"),
     ({"rank_by": "overshoot"}, "rank_by"),
     ({"worst": -1}, "worst"),
@@ -241,6 +251,7 @@ def test_unreadable_and_malformed_files(tmp_path):
 # ---------------------------------------------------------------------------------------------
 # running
 # ---------------------------------------------------------------------------------------------
+
 
 def expected_row(base_file, point):
     """Metrics of one point from a scenario built here and the single-run path."""
@@ -423,9 +434,19 @@ def test_cli_resume_with_a_damaged_part_warns_in_one_line(tmp_path, base_file, c
 
 def test_out_folder_of_another_sweep_is_refused(tmp_path, base_file):
     out = tmp_path / "out"
-    run_sweep(sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [25.0]\n', worst=0), out, progress=False, figures=draw_figures)
+    run_sweep(
+        sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [25.0]\n', worst=0),
+        out,
+        progress=False,
+        figures=draw_figures,
+    )
     with pytest.raises(ConfigError, match="different sweep"):
-        run_sweep(sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [30.0]\n', worst=0), out, progress=False, figures=draw_figures)
+        run_sweep(
+            sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [30.0]\n', worst=0),
+            out,
+            progress=False,
+            figures=draw_figures,
+        )
 
 
 @pytest.mark.slow
@@ -438,11 +459,18 @@ def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
     """
     sw = sweep_of(base_file, textwrap.dedent(axes), draws=4, seed=5, worst=1)
     local = run_sweep(sw, tmp_path / "local", workers=2, progress=False, figures=draw_figures).table
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://",
-                                  host="127.0.0.1", dashboard_address=None) as cluster:
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://", host="127.0.0.1", dashboard_address=None
+    ) as cluster:
         assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
-        remote = run_sweep(sw, tmp_path / "dask", scheduler=cluster.scheduler_address, batch_size=3,
-                           progress=False, figures=draw_figures).table
+        remote = run_sweep(
+            sw,
+            tmp_path / "dask",
+            scheduler=cluster.scheduler_address,
+            batch_size=3,
+            progress=False,
+            figures=draw_figures,
+        ).table
     pd.testing.assert_frame_equal(remote.drop(columns="wall_time_s"), local.drop(columns="wall_time_s"))
     names = {p.name for p in (tmp_path / "dask" / "figures").iterdir()}
     assert {"scatter_run_iae_rpm_s.png", "histograms.png", "worst_traces.png"} <= names
@@ -451,6 +479,7 @@ def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
 # ---------------------------------------------------------------------------------------------
 # command line
 # ---------------------------------------------------------------------------------------------
+
 
 @pytest.mark.slow
 def test_cli_runs_a_sweep_and_resumes(tmp_path, base_file, capsys):
@@ -464,11 +493,14 @@ def test_cli_runs_a_sweep_and_resumes(tmp_path, base_file, capsys):
     assert "2 points (0 simulated, 2 already done)" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--workers", "0"], "--workers = 0"),
-    (["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"], "--workers"),
-    (["--scheduler", "127.0.0.1:9"], "--scheduler"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--workers", "0"], "--workers = 0"),
+        (["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"], "--workers"),
+        (["--scheduler", "127.0.0.1:9"], "--scheduler"),
+    ],
+)
 def test_cli_bad_options_exit_2_with_one_line_and_no_output(tmp_path, base_file, capsys, args, message):
     path = write_sweep(tmp_path, 'base = "base.toml"\n[axes]\n"speed_controller.alpha" = [25.0]\n')
     out = tmp_path / "out"

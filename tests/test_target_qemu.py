@@ -48,21 +48,58 @@ BUILD_TIMEOUT_S = 600
 
 _MISSING = [t for t in ("cmake", "arm-none-eabi-gcc") if shutil.which(t) is None]
 needs_cross = pytest.mark.skipif(
-    bool(_MISSING), reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-    "libnewlib-arm-none-eabi; scripts/install.sh installs them)")
+    bool(_MISSING),
+    reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
+    "libnewlib-arm-none-eabi; scripts/install.sh installs them)",
+)
 needs_qemu = pytest.mark.skipif(
     shutil.which("qemu-system-arm") is None,
-    reason="qemu-system-arm not installed (Debian: qemu-system-arm; scripts/install.sh installs it)")
+    reason="qemu-system-arm not installed (Debian: qemu-system-arm; scripts/install.sh installs it)",
+)
 
 SAMPLES = 120
 METHOD, FEEDFORWARD, ANTI_WINDUP = 3, 4, 3  # number of enumerators of each
-SPEED_FIELDS = ("w_ref_radps", "e_radps", "T_ff_Nm", "y_ff_Nm", "T_unsat_Nm", "T_ref_Nm", "id_ref_A", "iq_ref_A",
-                "saturated", "fault", "x_Nm", "r_prev_radps", "y_ff_prev_Nm", "fault_count")
-CURRENT_FIELDS = ("ed_A", "eq_A", "ud_unsat_V", "uq_unsat_V", "ud_ref_V", "uq_ref_V", "saturated", "fault",
-                  "x_d_V", "x_q_V", "fault_count")
+SPEED_FIELDS = (
+    "w_ref_radps",
+    "e_radps",
+    "T_ff_Nm",
+    "y_ff_Nm",
+    "T_unsat_Nm",
+    "T_ref_Nm",
+    "id_ref_A",
+    "iq_ref_A",
+    "saturated",
+    "fault",
+    "x_Nm",
+    "r_prev_radps",
+    "y_ff_prev_Nm",
+    "fault_count",
+)
+CURRENT_FIELDS = (
+    "ed_A",
+    "eq_A",
+    "ud_unsat_V",
+    "uq_unsat_V",
+    "ud_ref_V",
+    "uq_ref_V",
+    "saturated",
+    "fault",
+    "x_d_V",
+    "x_q_V",
+    "fault_count",
+)
 # words that the non-finite policy keeps finite: they must match to the bit, never only as NaN
-SPEED_EXACT = {"T_ref_Nm", "id_ref_A", "iq_ref_A", "saturated", "fault", "x_Nm", "r_prev_radps", "y_ff_prev_Nm",
-               "fault_count"}
+SPEED_EXACT = {
+    "T_ref_Nm",
+    "id_ref_A",
+    "iq_ref_A",
+    "saturated",
+    "fault",
+    "x_Nm",
+    "r_prev_radps",
+    "y_ff_prev_Nm",
+    "fault_count",
+}
 CURRENT_EXACT = {"ud_ref_V", "uq_ref_V", "saturated", "fault", "x_d_V", "x_q_V", "fault_count"}
 
 
@@ -80,6 +117,7 @@ def f32(x):
 # golden vectors, generated here (fixed seed)
 # --------------------------------------------------------------------------------------------
 
+
 def speed_cases(rng):
     """One p2d_speed_config_t (as a dict of float32-exact values) per method x feedforward x
     anti-windup for a surface PMSM, plus every method x anti-windup for a salient one."""
@@ -89,16 +127,26 @@ def speed_cases(rng):
     for method, ff, aw, salient in combos:
         J, alpha, zeta = rng.uniform(0.01, 1.0), rng.uniform(1.0, 100.0), rng.uniform(0.5, 1.0)
         Lq = rng.uniform(1e-3, 2e-2)
-        cases.append(dict(
-            J_kgm2=f32(J), alpha_radps=f32(alpha), zeta=f32(zeta),
-            m=1.0 if ff in (0, 1) else f32(rng.uniform(0.5, 3.0)),
-            tau_i_s=f32(rng.uniform(1e-3, 5e-2)),
-            # Ka around the paper's default 1/Kp (sections 3.2, 3.3), within a factor of about 3
-            Ka=f32(rng.uniform(0.3, 3.0) / (J * alpha)),
-            Ts_s=f32(1e-3), i_max_A=f32(rng.uniform(2.0, 20.0)), psi_f_Wb=f32(rng.uniform(0.05, 0.5)),
-            Ld_H=f32(Lq * rng.uniform(0.3, 0.8) if salient else Lq), Lq_H=f32(Lq),
-            pole_pairs=int(rng.integers(1, 8)), method=method, feedforward=ff, anti_windup=aw,
-        ))
+        cases.append(
+            dict(
+                J_kgm2=f32(J),
+                alpha_radps=f32(alpha),
+                zeta=f32(zeta),
+                m=1.0 if ff in (0, 1) else f32(rng.uniform(0.5, 3.0)),
+                tau_i_s=f32(rng.uniform(1e-3, 5e-2)),
+                # Ka around the paper's default 1/Kp (sections 3.2, 3.3), within a factor of about 3
+                Ka=f32(rng.uniform(0.3, 3.0) / (J * alpha)),
+                Ts_s=f32(1e-3),
+                i_max_A=f32(rng.uniform(2.0, 20.0)),
+                psi_f_Wb=f32(rng.uniform(0.05, 0.5)),
+                Ld_H=f32(Lq * rng.uniform(0.3, 0.8) if salient else Lq),
+                Lq_H=f32(Lq),
+                pole_pairs=int(rng.integers(1, 8)),
+                method=method,
+                feedforward=ff,
+                anti_windup=aw,
+            )
+        )
     return cases
 
 
@@ -109,12 +157,19 @@ def current_cases(rng):
         for aw in range(ANTI_WINDUP):
             for decouple in (False, True):
                 Ts = 1e-4
-                cases.append(dict(
-                    Rs_ohm=f32(rng.uniform(0.05, 2.0)), Ld_H=f32(rng.uniform(1e-4, 5e-3)),
-                    Lq_H=f32(rng.uniform(1e-4, 1e-2)), psi_f_Wb=f32(rng.uniform(0.0, 0.3)),
-                    tau_i_s=f32(Ts * rng.uniform(2.0, 50.0)), Ts_s=f32(Ts),
-                    method=method, anti_windup=aw, decouple=decouple,
-                ))
+                cases.append(
+                    dict(
+                        Rs_ohm=f32(rng.uniform(0.05, 2.0)),
+                        Ld_H=f32(rng.uniform(1e-4, 5e-3)),
+                        Lq_H=f32(rng.uniform(1e-4, 1e-2)),
+                        psi_f_Wb=f32(rng.uniform(0.0, 0.3)),
+                        tau_i_s=f32(Ts * rng.uniform(2.0, 50.0)),
+                        Ts_s=f32(Ts),
+                        method=method,
+                        anti_windup=aw,
+                        decouple=decouple,
+                    )
+                )
     return cases
 
 
@@ -182,26 +237,34 @@ def vectors_header(speed, speed_in, current, current_in):
     speed_enums = dict(method="p2d_method_t", feedforward="p2d_feedforward_t", anti_windup="p2d_anti_windup_t")
 
     def config(cfg, enums):
-        return "{" + ", ".join(
-            f".{k} = ({enums[k]}){v}" if k in enums else f".{k} = {c_value(v)}" for k, v in cfg.items()) + "}"
+        return (
+            "{"
+            + ", ".join(f".{k} = ({enums[k]}){v}" if k in enums else f".{k} = {c_value(v)}" for k, v in cfg.items())
+            + "}"
+        )
 
     def words(x):
-        return "{" + ",\n".join("{" + ", ".join(f"0x{w:08x}u" for w in row) + "}"
-                                for row in x.view(np.uint32)) + "}"
+        return "{" + ",\n".join("{" + ", ".join(f"0x{w:08x}u" for w in row) + "}" for row in x.view(np.uint32)) + "}"
 
-    text = ["/* written by tests/test_target_qemu.py */",
-            f"#define P2D_VEC_SAMPLES {SAMPLES}u",
-            f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
-            f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
-            "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
-            ",\n".join(config(c, speed_enums) for c in speed), "};",
-            "static const uint32_t p2d_vec_speed_input[P2D_VEC_SPEED_CASES][P2D_VEC_SAMPLES][3] = {",
-            ",\n".join(words(x) for x in speed_in), "};",
-            "static const p2d_current_config_t p2d_vec_current_config[P2D_VEC_CURRENT_CASES] = {",
-            ",\n".join(config(c, dict(method="p2d_method_t", anti_windup="p2d_anti_windup_t")) for c in current),
-            "};",
-            "static const uint32_t p2d_vec_current_input[P2D_VEC_CURRENT_CASES][P2D_VEC_SAMPLES][7] = {",
-            ",\n".join(words(x) for x in current_in), "};", ""]
+    text = [
+        "/* written by tests/test_target_qemu.py */",
+        f"#define P2D_VEC_SAMPLES {SAMPLES}u",
+        f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
+        f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
+        "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
+        ",\n".join(config(c, speed_enums) for c in speed),
+        "};",
+        "static const uint32_t p2d_vec_speed_input[P2D_VEC_SPEED_CASES][P2D_VEC_SAMPLES][3] = {",
+        ",\n".join(words(x) for x in speed_in),
+        "};",
+        "static const p2d_current_config_t p2d_vec_current_config[P2D_VEC_CURRENT_CASES] = {",
+        ",\n".join(config(c, dict(method="p2d_method_t", anti_windup="p2d_anti_windup_t")) for c in current),
+        "};",
+        "static const uint32_t p2d_vec_current_input[P2D_VEC_CURRENT_CASES][P2D_VEC_SAMPLES][7] = {",
+        ",\n".join(words(x) for x in current_in),
+        "};",
+        "",
+    ]
     return "\n".join(text)
 
 
@@ -210,13 +273,18 @@ def vectors():
     rng = np.random.default_rng(20240615)
     speed = speed_cases(rng)
     current = current_cases(rng)
-    return dict(speed=speed, speed_in=[speed_inputs(rng, c) for c in speed],
-                current=current, current_in=[current_inputs(rng, c) for c in current])
+    return dict(
+        speed=speed,
+        speed_in=[speed_inputs(rng, c) for c in speed],
+        current=current,
+        current_in=[current_inputs(rng, c) for c in current],
+    )
 
 
 # --------------------------------------------------------------------------------------------
 # host side: the same C through pmsm2dof._core
 # --------------------------------------------------------------------------------------------
+
 
 def word(cdata, field):
     """The 32-bit word of a float, bool (0/1) or uint32 field, as the target prints it."""
@@ -268,12 +336,14 @@ def host_current(cfg, inputs):
 # builds
 # --------------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def cross_build(tmp_path_factory, vectors):
     """The csrc cross build: the library, the probe programs and the golden-vector runner."""
     tmp = tmp_path_factory.mktemp("cortex-m4f")
     (tmp / "p2d_target_vectors.h").write_text(
-        vectors_header(vectors["speed"], vectors["speed_in"], vectors["current"], vectors["current_in"]))
+        vectors_header(vectors["speed"], vectors["speed_in"], vectors["current"], vectors["current_in"])
+    )
     build = tmp / "build"
     run(["cmake", "-S", CSRC, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}", f"-DP2D_TARGET_VECTORS_DIR={tmp}"])
     run(["cmake", "--build", build, "-j2"])
@@ -284,8 +354,17 @@ def cross_build(tmp_path_factory, vectors):
 def firmware_build(tmp_path_factory):
     """The firmware example, configured from a fresh build directory."""
     build = tmp_path_factory.mktemp("firmware") / "build"
-    run(["cmake", "-S", FIRMWARE, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
-         f"-DPython3_EXECUTABLE={sys.executable}"])
+    run(
+        [
+            "cmake",
+            "-S",
+            FIRMWARE,
+            "-B",
+            build,
+            f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
+            f"-DPython3_EXECUTABLE={sys.executable}",
+        ]
+    )
     run(["cmake", "--build", build, "-j2"])
     return build
 
@@ -302,8 +381,13 @@ def test_library_cross_builds_for_cortex_m4f_hard_float(cross_build):
     assert sorted(members) == sorted(f"{p.name}.obj" for p in (CSRC / "src").glob("*.c"))
     attributes = run(["arm-none-eabi-readelf", "-A", lib_a])
     # one block per object, each Armv7E-M Thumb-2 with the single-precision FPU, floats in FPU registers
-    for tag in ("Tag_CPU_arch: v7E-M", "Tag_THUMB_ISA_use: Thumb-2", "Tag_FP_arch: VFPv4-D16",
-                "Tag_ABI_HardFP_use: SP only", "Tag_ABI_VFP_args: VFP registers"):
+    for tag in (
+        "Tag_CPU_arch: v7E-M",
+        "Tag_THUMB_ISA_use: Thumb-2",
+        "Tag_FP_arch: VFPv4-D16",
+        "Tag_ABI_HardFP_use: SP only",
+        "Tag_ABI_VFP_args: VFP registers",
+    ):
         assert attributes.count(tag) == len(members), tag
 
 
@@ -314,8 +398,15 @@ def test_firmware_example_builds_with_the_generated_header(firmware_build):
     assert "static const p2d_current_config_t p2d_design_current_config" in header
     elf = firmware_build / "firmware.elf"
     symbols = elf_symbols(elf)
-    for name in ("Reset_Handler", "SysTick_Handler", "foc_isr", "p2d_speed_compute", "p2d_speed_update",
-                 "p2d_current_compute", "p2d_current_update"):
+    for name in (
+        "Reset_Handler",
+        "SysTick_Handler",
+        "foc_isr",
+        "p2d_speed_compute",
+        "p2d_speed_update",
+        "p2d_current_compute",
+        "p2d_current_update",
+    ):
         assert name in symbols, name
     # the vector table at address 0: initial SP at the top of SRAM, reset and SysTick (exception 15) handlers
     words = vector_table(elf)
@@ -345,8 +436,12 @@ def test_firmware_runs_current_loop_every_interrupt_and_speed_loop_every_tenth(f
     log = tmp_path / "exec.log"
     # log only the translation blocks that start at the entry of a watched function
     dfilter = ",".join(f"{symbols[name]:#x}+2" for name in watched)
-    qemu = subprocess.Popen([*QEMU, "-d", "exec,nochain", "-dfilter", dfilter, "-D", str(log), "-kernel", str(elf)],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    qemu = subprocess.Popen(
+        [*QEMU, "-d", "exec,nochain", "-dfilter", dfilter, "-D", str(log), "-kernel", str(elf)],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+    )
     time.sleep(2.0)
     qemu.send_signal(signal.SIGTERM)
     qemu.communicate(timeout=30)
@@ -384,8 +479,9 @@ def parse_target_output(text):
 @needs_qemu
 def test_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
     elf = cross_build / "target" / "p2d_target_vectors"
-    done = subprocess.run([*QEMU, "-kernel", str(elf)], capture_output=True, text=True, timeout=QEMU_TIMEOUT_S,
-                          stdin=subprocess.DEVNULL)
+    done = subprocess.run(
+        [*QEMU, "-kernel", str(elf)], capture_output=True, text=True, timeout=QEMU_TIMEOUT_S, stdin=subprocess.DEVNULL
+    )
     # semihosting output arrives on stderr
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stderr.splitlines()[-1] == "END"
@@ -394,8 +490,9 @@ def test_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
     mismatches = []
     seen = {(tag, path): 0 for tag in "SC" for path in ("unsaturated", "saturated", "fault")}
     for tag, cases, inputs, host, fields, exact in (
-            ("S", vectors["speed"], vectors["speed_in"], host_speed, SPEED_FIELDS, SPEED_EXACT),
-            ("C", vectors["current"], vectors["current_in"], host_current, CURRENT_FIELDS, CURRENT_EXACT)):
+        ("S", vectors["speed"], vectors["speed_in"], host_speed, SPEED_FIELDS, SPEED_EXACT),
+        ("C", vectors["current"], vectors["current_in"], host_current, CURRENT_FIELDS, CURRENT_EXACT),
+    ):
         for c, (cfg, x) in enumerate(zip(cases, inputs)):
             status, host_rows = host(cfg, x)
             assert status == 0 and target_status[tag][c] == 0, (tag, c, status, target_status[tag].get(c), cfg)
@@ -412,7 +509,9 @@ def test_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
                     mismatches.append(f"{tag} case {c} sample {k} {name}: target {t:08x}, host {h:08x} ({cfg})")
     assert len(target_rows["S"]) == len(vectors["speed"]) * SAMPLES
     assert len(target_rows["C"]) == len(vectors["current"]) * SAMPLES
-    assert not mismatches, (f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
-                            "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20]))
+    assert not mismatches, (
+        f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
+        "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20])
+    )
     # the vectors went through every path of both controllers: unsaturated, saturated, non-finite
     assert min(seen.values()) >= 50, seen

@@ -80,7 +80,7 @@ def test_minmax_keeps_every_bucket_extreme_and_the_ends():
     assert np.all(np.diff(keep) > 0)
     width = math.ceil(len(y) / 100)
     for start in range(0, len(y), width):  # brute force, bucket by bucket
-        chunk = y[start:start + width]
+        chunk = y[start : start + width]
         kept = y[keep[(keep >= start) & (keep < start + width)]]
         assert kept.max() == chunk.max() and kept.min() == chunk.min()
 
@@ -201,8 +201,9 @@ def test_saturated_start_accelerates_at_the_torque_limit_over_the_true_inertia(c
     motor = base.data["motor"]
     T_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * base.data["limits"]["i_max_A"]
     for J_ratio in (1.0, 2.0):
-        out = run(client, tuner__J_ratio=J_ratio, speed_controller__feedforward="none",
-                  speed_controller__anti_windup="none")
+        out = run(
+            client, tuner__J_ratio=J_ratio, speed_controller__feedforward="none", speed_controller__anti_windup="none"
+        )
         t, y = np.asarray(out["traces"]["speed_rpm"]["t"]), np.asarray(out["traces"]["speed_rpm"]["y"])
         # 0.4 s .. 1.0 s: the 1DOF PI commands the limit (its proportional part alone asks for
         # Kp * 52 rad/s = 10.5 Nm > T_max) and the current loop (tau_i = 0.05 s) has settled there
@@ -213,8 +214,14 @@ def test_saturated_start_accelerates_at_the_torque_limit_over_the_true_inertia(c
 
 def test_settled_load_is_carried_by_the_q_current(client, base):
     motor = base.data["motor"]
-    out = run(client, simulation__t_end_s=40.0, load__0__torque_Nm=5.0, load__0__t_s=10.0,
-              reference__1__speed_rpm=500.0, speed_controller__alpha=1.0)
+    out = run(
+        client,
+        simulation__t_end_s=40.0,
+        load__0__torque_Nm=5.0,
+        load__0__t_s=10.0,
+        reference__1__speed_rpm=500.0,
+        speed_controller__alpha=1.0,
+    )
     iq = out["traces"]["iq_ref_A"]["y"][-1]
     assert iq == pytest.approx(5.0 / (1.5 * motor["pole_pairs"] * motor["psi_f_Wb"]), rel=0.01)
     assert out["traces"]["speed_rpm"]["y"][-1] == pytest.approx(500.0, abs=1.0)
@@ -347,8 +354,9 @@ def test_a_run_that_stops_answers_422_with_the_reason(client, base):
     """A load of -1000 Nm drives the motor past the engine's overspeed bound (twice the no-load
     speed u_dc / (sqrt(3) p psi_f)): the engine stops and the page gets the reason, not a trace."""
     motor = base.data["motor"]
-    bound_rpm = 2 * base.data["limits"]["u_dc_V"] / (math.sqrt(3) * motor["pole_pairs"] * motor["psi_f_Wb"]) / (
-        RADPS_PER_RPM)
+    bound_rpm = (
+        2 * base.data["limits"]["u_dc_V"] / (math.sqrt(3) * motor["pole_pairs"] * motor["psi_f_Wb"]) / (RADPS_PER_RPM)
+    )
     response = client.post("/api/run", json={"load.0.torque_Nm": -1000.0})
     assert response.status_code == 422
     err = response.json()
@@ -357,8 +365,9 @@ def test_a_run_that_stops_answers_422_with_the_reason(client, base):
 
 
 def test_non_finite_json_number_is_rejected(client):
-    response = client.post("/api/run", content=b'{"speed_controller.alpha": NaN}',
-                           headers={"Content-Type": "application/json"})
+    response = client.post(
+        "/api/run", content=b'{"speed_controller.alpha": NaN}', headers={"Content-Type": "application/json"}
+    )
     assert response.status_code == 422
     assert response.json()["param"] == "speed_controller.alpha"
 
@@ -374,12 +383,15 @@ def test_body_that_is_not_an_object_answers_422(client, body):
 
 
 @pytest.mark.parametrize("path", POST_PATHS)
-@pytest.mark.parametrize("content_type, content", [
-    ("text/plain", b'{"simulation.t_end_s": 20.0}'),  # a cross-site fetch without preflight
-    ("application/x-www-form-urlencoded", b"speed_controller.alpha=0.6"),  # a cross-site form
-    ("multipart/form-data; boundary=x", b"--x--\r\n"),
-    (None, b"{}"),
-])
+@pytest.mark.parametrize(
+    "content_type, content",
+    [
+        ("text/plain", b'{"simulation.t_end_s": 20.0}'),  # a cross-site fetch without preflight
+        ("application/x-www-form-urlencoded", b"speed_controller.alpha=0.6"),  # a cross-site form
+        ("multipart/form-data; boundary=x", b"--x--\r\n"),
+        (None, b"{}"),
+    ],
+)
 def test_a_body_not_sent_as_json_answers_415(client, path, content_type, content):
     headers = {} if content_type is None else {"Content-Type": content_type}
     response = client.post(path, content=content, headers=headers)
@@ -419,8 +431,9 @@ def test_a_request_for_another_host_answers_421(served, host):
     url, port, _ = served
     host = host.format(port=port, other=port + 1)
     for method, path in (("GET", ""), ("GET", "api/controls"), ("POST", "api/run")):
-        response = httpx.request(method, url + path, headers={"Host": host}, json={} if method == "POST" else None,
-                                 timeout=30)
+        response = httpx.request(
+            method, url + path, headers={"Host": host}, json={} if method == "POST" else None, timeout=30
+        )
         assert response.status_code == 421, (host, path)
         assert repr(host) in response.text and f"127.0.0.1:{port}" in response.text
 
@@ -432,14 +445,17 @@ def test_a_request_for_this_server_is_answered(served, host):
     assert response.status_code == 200 and response.json()["name"] == "paper condition 2"
 
 
-@pytest.mark.parametrize("origin, status", [
-    ("http://evil.example", 403),
-    ("null", 403),  # a sandboxed page or a file
-    ("http://127.0.0.1:{other}", 403),
-    ("https://127.0.0.1:{port}", 403),
-    ("http://127.0.0.1:{port}", 200),
-    ("http://localhost:{port}", 200),
-])
+@pytest.mark.parametrize(
+    "origin, status",
+    [
+        ("http://evil.example", 403),
+        ("null", 403),  # a sandboxed page or a file
+        ("http://127.0.0.1:{other}", 403),
+        ("https://127.0.0.1:{port}", 403),
+        ("http://127.0.0.1:{port}", 200),
+        ("http://localhost:{port}", 200),
+    ],
+)
 def test_a_post_from_another_origin_answers_403(served, origin, status):
     url, port, _ = served
     origin = origin.format(port=port, other=port + 1)
@@ -549,8 +565,13 @@ def test_a_download_waits_for_the_run_of_its_client_and_is_not_superseded(served
     url, _, _ = served
     headers = {CLIENT_HEADER: "tab-3"}
     with ThreadPoolExecutor(1) as pool:
-        download = pool.submit(httpx.post, url + "api/download/trace.csv", timeout=120, headers=headers,
-                               json={"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.71})
+        download = pool.submit(
+            httpx.post,
+            url + "api/download/trace.csv",
+            timeout=120,
+            headers=headers,
+            json={"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.71},
+        )
         wait_until(lambda: watch.runs)
         run_answer = post_run(url, {"speed_controller.alpha": 0.72}, "tab-3")
         download = download.result()
@@ -570,13 +591,19 @@ def test_three_runs_at_the_bound_keep_the_server_memory_small():
     """Three clients each ask for the longest run the tuner allows, at the same time: the server
     grows by less than 100 MiB at its peak and keeps less than 30 MiB after (a log of every 1 ms
     sample of 1000 s alone is 150 MB)."""
-    proc = subprocess.Popen([sys.executable, "-m", "pmsm2dof", "tune", PRESET, "--port", "0", "--no-browser"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pmsm2dof", "tune", PRESET, "--port", "0", "--no-browser"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         url = re.search(r"http://\S+/", proc.stdout.readline()).group(0)
         with ThreadPoolExecutor(3) as pool:  # warm-up: imports, worker threads, first runs
-            assert all(f.result().status_code == 200 for f in
-                       [pool.submit(post_run, url, {"simulation.t_end_s": 20.0 + k}, f"warm-{k}") for k in range(3)])
+            assert all(
+                f.result().status_code == 200
+                for f in [pool.submit(post_run, url, {"simulation.t_end_s": 20.0 + k}, f"warm-{k}") for k in range(3)]
+            )
             before = process_memory_kib(proc.pid)
             answers = [pool.submit(post_run, url, {"simulation.t_end_s": 1000.0 - k}, f"client-{k}") for k in range(3)]
             assert all(f.result().status_code == 200 for f in answers)
@@ -592,8 +619,12 @@ def test_three_runs_at_the_bound_keep_the_server_memory_small():
 
 
 def test_scenario_download_loads_back_to_the_run_scenario(client, base, tmp_path):
-    values = {"speed_controller.alpha": 0.7, "speed_controller.anti_windup": "clamping", "tuner.J_ratio": 1.5,
-              "load.0.torque_Nm": -3.0}
+    values = {
+        "speed_controller.alpha": 0.7,
+        "speed_controller.anti_windup": "clamping",
+        "tuner.J_ratio": 1.5,
+        "load.0.torque_Nm": -3.0,
+    }
     response = client.post("/api/download/scenario.toml", json=values)
     assert response.status_code == 200
     assert 'filename="paper-condition-2-tuned.toml"' in response.headers["content-disposition"]
@@ -606,8 +637,10 @@ def test_scenario_download_loads_back_to_the_run_scenario(client, base, tmp_path
 
 
 def test_header_download_holds_the_posted_design(client):
-    response = client.post("/api/download/header.h", json={"speed_controller.alpha": 0.75,
-                                                           "speed_controller.discretization": "backward_euler"})
+    response = client.post(
+        "/api/download/header.h",
+        json={"speed_controller.alpha": 0.75, "speed_controller.discretization": "backward_euler"},
+    )
     assert response.status_code == 200
     text = response.text
     assert re.search(r"\.alpha_radps = 0\.75f,", text)
@@ -619,8 +652,9 @@ def test_header_download_holds_the_posted_design(client):
 @pytest.mark.parametrize("feedforward", ["lowpass", "none"])
 def test_header_download_of_the_paper_design_sampled_at_100_us(client, feedforward):
     """The paper's design (alpha = 0.5 rad/s) at Ts = 1e-4 s: slow against the sampling, but stable."""
-    response = client.post("/api/download/header.h", json={"speed_controller.Ts_s": 1e-4,
-                                                           "speed_controller.feedforward": feedforward})
+    response = client.post(
+        "/api/download/header.h", json={"speed_controller.Ts_s": 1e-4, "speed_controller.feedforward": feedforward}
+    )
     assert response.status_code == 200, response.text
     assert "Ts_s        = 0.0001 s" in response.text
 
@@ -664,8 +698,12 @@ def test_page_and_assets_are_served_locally(client):
 
 @pytest.mark.slow
 def test_tune_serves_on_loopback_and_stops(tmp_path):
-    proc = subprocess.Popen([sys.executable, "-m", "pmsm2dof", "tune", PRESET, "--port", "0", "--no-browser"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "pmsm2dof", "tune", PRESET, "--port", "0", "--no-browser"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         line = proc.stdout.readline()
         url = re.search(r"http://\S+/", line).group(0)
@@ -676,15 +714,19 @@ def test_tune_serves_on_loopback_and_stops(tmp_path):
         proc.wait(timeout=30)
 
 
-@pytest.mark.parametrize("args, param", [
-    (["--port", "70000"], "port"),
-    (["--host", "no-such-host.invalid"], "host"),
-    (["no-such-preset"], "scenario"),
-])
+@pytest.mark.parametrize(
+    "args, param",
+    [
+        (["--port", "70000"], "port"),
+        (["--host", "no-such-host.invalid"], "host"),
+        (["no-such-preset"], "scenario"),
+    ],
+)
 @pytest.mark.slow
 def test_tune_bad_arguments_exit_2_with_one_line(args, param):
-    proc = subprocess.run([sys.executable, "-m", "pmsm2dof", "tune", "--no-browser", *args],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "pmsm2dof", "tune", "--no-browser", *args], capture_output=True, text=True, timeout=60
+    )
     assert proc.returncode == 2
     assert proc.stdout == ""
     lines = proc.stderr.strip().splitlines()
@@ -697,7 +739,11 @@ def test_tune_on_a_busy_port_exits_2():
         busy.bind(("127.0.0.1", 0))
         busy.listen(1)
         port = busy.getsockname()[1]
-        proc = subprocess.run([sys.executable, "-m", "pmsm2dof", "tune", "--no-browser", "--port", str(port)],
-                              capture_output=True, text=True, timeout=60)
+        proc = subprocess.run(
+            [sys.executable, "-m", "pmsm2dof", "tune", "--no-browser", "--port", str(port)],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
     assert proc.returncode == 2
     assert proc.stderr.startswith(f"pmsm2dof: error: port = {port} is invalid")

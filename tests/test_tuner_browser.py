@@ -24,12 +24,21 @@ pytestmark = pytest.mark.slow
 
 CHROMIUM = Path("/usr/bin/chromium")
 ROOT = Path(__file__).resolve().parents[1]
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-                 "--disable-sync", "--no-first-run", "--disable-quic"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+]
 
 if not CHROMIUM.exists():
-    pytest.skip("Debian's chromium is not installed at /usr/bin/chromium (scripts/install.sh installs it)",
-                allow_module_level=True)
+    pytest.skip(
+        "Debian's chromium is not installed at /usr/bin/chromium (scripts/install.sh installs it)",
+        allow_module_level=True,
+    )
 sync_api = pytest.importorskip("playwright.sync_api", reason="playwright for Python is not installed")
 
 # the plotted speed trace: overshoot [%] of its maximum before the load step over the step
@@ -109,8 +118,9 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
 
     # pin, then switch the anti-windup off: the pinned column keeps the run with it
     page.click("#pin")
-    page.wait_for_function(f"document.querySelector('#metrics tr[data-metric=\"{OVERSHOOT}\"] td.pinned')"
-                           ".textContent !== ''")
+    page.wait_for_function(
+        f"document.querySelector('#metrics tr[data-metric=\"{OVERSHOOT}\"] td.pinned').textContent !== ''"
+    )
     assert metric_cells(page, OVERSHOOT)[1] == table_after
     renders = page.evaluate("window.tuner.renderCount")
     page.select_option('select[name="speed_controller.anti_windup"]', "none")
@@ -125,8 +135,10 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
     # the pinned Bode curves: dotted, a colour for Gx and another for GN, none of the current ones
     for unit in ("|Gx| [dB]", "|GN| [dB (rad/s)/Nm]", "\u2220Gx [deg]", "\u2220GN [deg]"):
         assert traces["pinned " + unit]["dash"] == "dot" and traces[unit]["dash"] == "solid"
-    colors = [traces[name]["color"] for name in ("pinned |Gx| [dB]", "pinned |GN| [dB (rad/s)/Nm]",
-                                                 "|Gx| [dB]", "|GN| [dB (rad/s)/Nm]")]
+    colors = [
+        traces[name]["color"]
+        for name in ("pinned |Gx| [dB]", "pinned |GN| [dB (rad/s)/Nm]", "|Gx| [dB]", "|GN| [dB (rad/s)/Nm]")
+    ]
     assert len(set(colors)) == 4
     assert traces["pinned \u2220Gx [deg]"]["color"] == colors[0]
     keys = page.locator("#plot .annotation-text").all_text_contents()
@@ -175,8 +187,12 @@ def test_both_reference_steps_of_the_preset_are_plotted_and_measured(page):
     levels = {y for t, y in zip(*ref) if 0.01 < t < 9.99} | {y for t, y in zip(*ref) if t > 10.01}
     assert levels == {500.0, 200.0}
     groups = page.locator("#metrics tr.group").all_inner_texts()
-    assert groups == ["speed reference at 0 s: 0 \u2192 500 rpm", "load at 7 s: 0 \u2192 8 Nm",
-                      "speed reference at 10 s: 500 \u2192 200 rpm", "whole run (0 to 15 s)"]
+    assert groups == [
+        "speed reference at 0 s: 0 \u2192 500 rpm",
+        "load at 7 s: 0 \u2192 8 Nm",
+        "speed reference at 10 s: 500 \u2192 200 rpm",
+        "whole run (0 to 15 s)",
+    ]
     assert page.locator('#metrics tr[data-metric="reference_steps.1.overshoot_pct"] td.current').inner_text()
 
 
@@ -185,7 +201,7 @@ def test_the_voltage_and_its_range_are_plotted_without_a_warning_within_it(page)
     assert traces["||u_dq||"]["xaxis"] == "x6" and traces["range u_dc/\u221a3"]["xaxis"] == "x6"
     assert metric_cells(page, "run.voltage_limit_time_s")[0] == "0"
     assert not page.locator("#warning").is_visible()
-    assert page.locator('#metrics tr.warning').count() == 0
+    assert page.locator("#metrics tr.warning").count() == 0
 
 
 def test_a_drive_at_its_voltage_limit_is_shaded_timed_and_warned_about(browser):
@@ -214,12 +230,30 @@ def test_downloaded_header_builds_and_initializes_the_controllers(page, tmp_path
         "    p2d_speed_t speed;\n    p2d_current_t current;\n"
         "    if (p2d_speed_init(&speed, &p2d_design_speed_config) != P2D_OK) return 1;\n"
         "    if (p2d_current_init(&current, &p2d_design_current_config) != P2D_OK) return 2;\n"
-        "    return 0;\n}\n")
+        "    return 0;\n}\n"
+    )
     sources = sorted(str(p) for p in (ROOT / "csrc" / "src").glob("*.c"))
     build = subprocess.run(
-        ["gcc", "-std=c99", "-Wall", "-Wextra", "-Wpedantic", "-Werror", "-I", str(ROOT / "csrc" / "include"),
-         "-I", str(tmp_path), str(tmp_path / "main.c"), *sources, "-lm", "-o", str(tmp_path / "init")],
-        capture_output=True, text=True)
+        [
+            "gcc",
+            "-std=c99",
+            "-Wall",
+            "-Wextra",
+            "-Wpedantic",
+            "-Werror",
+            "-I",
+            str(ROOT / "csrc" / "include"),
+            "-I",
+            str(tmp_path),
+            str(tmp_path / "main.c"),
+            *sources,
+            "-lm",
+            "-o",
+            str(tmp_path / "init"),
+        ],
+        capture_output=True,
+        text=True,
+    )
     assert build.returncode == 0, build.stderr
     assert subprocess.run([str(tmp_path / "init")]).returncode == 0
 

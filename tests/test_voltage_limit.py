@@ -9,25 +9,36 @@ import math
 import numpy as np
 import pytest
 
-from pmsm2dof.ui.cli import main
 from pmsm2dof.sim.metrics import compute_metrics, summary_lines
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import RPM_PER_RADPS, simulate
+from pmsm2dof.ui.cli import main
 
 SQRT3 = math.sqrt(3.0)
 
 
 def servo(u_dc_V, speed_rpm, model="dq_pi", delay=False, load_Nm=0.0):
     """A small surface servo (p = 4, psi_f = 0.022 Wb) holding speed_rpm against load_Nm."""
-    return load_scenario("paper-condition-1").with_overrides({
-        "motor.J_kgm2": 2e-4, "motor.Rs_ohm": 0.3, "motor.Ld_H": 5e-4, "motor.Lq_H": 5e-4,
-        "motor.psi_f_Wb": 0.022, "limits.i_max_A": 20.0, "limits.u_dc_V": u_dc_V,
-        "inverter.computation_delay": delay, "current_loop.model": model, "current_loop.tau_i_s": 1e-3,
-        "speed_controller.alpha": 100.0, "speed_controller.zeta": 0.7071,
-        "simulation.speed0_rpm": speed_rpm, "simulation.t_end_s": 0.2,
-        "reference": [{"t_s": 0.0, "speed_rpm": speed_rpm}],
-        "load": [{"t_s": 0.0, "torque_Nm": load_Nm}],
-    })
+    return load_scenario("paper-condition-1").with_overrides(
+        {
+            "motor.J_kgm2": 2e-4,
+            "motor.Rs_ohm": 0.3,
+            "motor.Ld_H": 5e-4,
+            "motor.Lq_H": 5e-4,
+            "motor.psi_f_Wb": 0.022,
+            "limits.i_max_A": 20.0,
+            "limits.u_dc_V": u_dc_V,
+            "inverter.computation_delay": delay,
+            "current_loop.model": model,
+            "current_loop.tau_i_s": 1e-3,
+            "speed_controller.alpha": 100.0,
+            "speed_controller.zeta": 0.7071,
+            "simulation.speed0_rpm": speed_rpm,
+            "simulation.t_end_s": 0.2,
+            "reference": [{"t_s": 0.0, "speed_rpm": speed_rpm}],
+            "load": [{"t_s": 0.0, "torque_Nm": load_Nm}],
+        }
+    )
 
 
 def steady_voltage_V(s, speed_rpm, load_Nm):
@@ -58,9 +69,11 @@ def test_a_drive_beyond_its_range_is_voltage_limited_and_applies_the_whole_range
     full = r.voltage_limited == 1.0
     # the load step at t = 0 asks for a current that the range cannot drive at this speed: once
     # the current has risen, the voltage stays cut
-    assert full[len(full) // 4:].all()
+    assert full[len(full) // 4 :].all()
     # the rows whose periods were all cut apply exactly the range
-    assert np.allclose(np.hypot(r.ud_V[full], r.uq_V[full]), u_max, rtol=1e-6)  # cut to the float32 range of the controller
+    assert np.allclose(
+        np.hypot(r.ud_V[full], r.uq_V[full]), u_max, rtol=1e-6
+    )  # cut to the float32 range of the controller
     # and the drive slows down: the speed it can reach is below the one asked for
     assert r.speed_rpm[-1] < 3000.0 - 100.0
     m = compute_metrics(r)
@@ -69,8 +82,9 @@ def test_a_drive_beyond_its_range_is_voltage_limited_and_applies_the_whole_range
 
 
 def test_rows_below_the_range_are_not_flagged():
-    s = servo(48.0, 1000.0, load_Nm=0.5).with_overrides({"reference": [{"t_s": 0.0, "speed_rpm": 1000.0},
-                                                                      {"t_s": 0.05, "speed_rpm": 3000.0}]})
+    s = servo(48.0, 1000.0, load_Nm=0.5).with_overrides(
+        {"reference": [{"t_s": 0.0, "speed_rpm": 1000.0}, {"t_s": 0.05, "speed_rpm": 3000.0}]}
+    )
     r = simulate(s)
     u = np.hypot(r.ud_V, r.uq_V)
     u_max = 48.0 / SQRT3
@@ -95,8 +109,9 @@ def test_a_zero_range_applies_exactly_zero_volts():
     With a speed of 1e-310 rpm the steady-state voltage of the first period is subnormal: its
     squared norm underflows to 0, which a comparison of squares let through unscaled.
     """
-    s = servo(48.0, 1e-310, delay=True).with_overrides({
-        "fault": [{"kind": "dc_link_sag", "t_s": 0.0, "duration_s": 0.01, "u_dc_factor": 0.0}]})
+    s = servo(48.0, 1e-310, delay=True).with_overrides(
+        {"fault": [{"kind": "dc_link_sag", "t_s": 0.0, "duration_s": 0.01, "u_dc_factor": 0.0}]}
+    )
     r = simulate(s)
     window = r.t_s < 0.01
     assert np.all(r.u_dc_V[window] == 0.0)

@@ -139,8 +139,9 @@ def simulate_once(spec):
 
 
 def main(spec_path, out_path):
-    import motulator  # noqa: F401  (fail early if the venv lacks it)
     from importlib.metadata import version
+
+    import motulator  # noqa: F401  (fail early if the venv lacks it)
 
     with open(spec_path) as f:
         spec = json.load(f)

@@ -120,18 +120,31 @@ SPEED_SEEDS = {
     # parameter updates mid-run: alpha x2 (valid), Ts NaN (refused), fresh invalid config, feedforward none
     "set_config_mid_run": speed_config()
     + speed_closed_loop(300, nominal(), nominal())
-    + u8(SET_MUTATED) + u8(1) + nominal(2.0)
+    + u8(SET_MUTATED)
+    + u8(1)
+    + nominal(2.0)
     + speed_closed_loop(300, nominal(), nominal())
-    + u8(SET_MUTATED) + u8(6) + special("nan")
-    + u8(SET_FRESH) + speed_config(J=raw(-1.0))
-    + u8(SET_MUTATED) + u8(13) + u8(0)
+    + u8(SET_MUTATED)
+    + u8(6)
+    + special("nan")
+    + u8(SET_FRESH)
+    + speed_config(J=raw(-1.0))
+    + u8(SET_MUTATED)
+    + u8(13)
+    + u8(0)
     + speed_closed_loop(300, nominal(), nominal()),
     # bumpless reset to finite, non-finite and overflowing points
     "reset_points": speed_config(surface=False, method=1, feedforward=3)
-    + u8(RESET) + nominal() + nominal()
+    + u8(RESET)
+    + nominal()
+    + nominal()
     + speed_sample(nominal(), nominal())
-    + u8(RESET) + special("nan") + nominal()
-    + u8(RESET) + raw(3e38) + raw(-3e38)
+    + u8(RESET)
+    + special("nan")
+    + nominal()
+    + u8(RESET)
+    + raw(3e38)
+    + raw(-3e38)
     + speed_sample(nominal(), nominal()),
     # applied torque: scaled, any within the limit, NaN, huge
     "applied_torque_modes": speed_config(anti_windup=2)
@@ -163,22 +176,39 @@ CURRENT_SEEDS = {
     # parameter updates: Ts x5 (valid), Rs NaN (refused), decoupling toggled, fresh invalid config
     "set_config_mid_run": current_config(method=1)
     + current_closed_loop(200, current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()))
-    + u8(SET_MUTATED) + u8(5) + nominal(5.0)
-    + u8(SET_MUTATED) + u8(0) + special("nan")
-    + u8(SET_MUTATED) + u8(8)
-    + u8(SET_FRESH) + current_config(Rs=raw(-0.5))
+    + u8(SET_MUTATED)
+    + u8(5)
+    + nominal(5.0)
+    + u8(SET_MUTATED)
+    + u8(0)
+    + special("nan")
+    + u8(SET_MUTATED)
+    + u8(8)
+    + u8(SET_FRESH)
+    + current_config(Rs=raw(-0.5))
     + current_closed_loop(200, current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()))
     + u8(RESET),
     # applied voltage: scaled, any inside the circle, NaN, huge
     "applied_voltage_modes": current_config(anti_windup=2)
-    + current_sample(current_inputs(nominal(), nominal(20.0), nominal(), nominal(), nominal(), nominal()), mode=1,
-                     frac=0.5)
-    + current_sample(current_inputs(nominal(), nominal(20.0), nominal(), nominal(), nominal(), nominal()), mode=2,
-                     frac=0.99, angle=0.3)
-    + current_sample(current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()), mode=3,
-                     applied=special("nan") + nominal())
-    + current_sample(current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()), mode=3,
-                     applied=raw(1e30) + raw(-1e30)),
+    + current_sample(
+        current_inputs(nominal(), nominal(20.0), nominal(), nominal(), nominal(), nominal()), mode=1, frac=0.5
+    )
+    + current_sample(
+        current_inputs(nominal(), nominal(20.0), nominal(), nominal(), nominal(), nominal()),
+        mode=2,
+        frac=0.99,
+        angle=0.3,
+    )
+    + current_sample(
+        current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()),
+        mode=3,
+        applied=special("nan") + nominal(),
+    )
+    + current_sample(
+        current_inputs(nominal(), nominal(), nominal(), nominal(), nominal(), nominal()),
+        mode=3,
+        applied=raw(1e30) + raw(-1e30),
+    ),
     # a configuration init rejects (tau_i = Ts / 2 < Ts)
     "rejected_init": current_config(tau_i=nominal(0.05)),
 }

@@ -44,8 +44,9 @@ def _first_order_z(tf):
     return num / den[0], den / den[0]
 
 
-def coefficients(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, Ka=None,
-                 anti_windup="back_calculation"):
+def coefficients(
+    J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, Ka=None, anti_windup="back_calculation"
+):
     """The fields of ``p2d_speed_coef_t`` a discretization determines, in double precision."""
     Kp, Ki = pi_gains(J_kgm2, alpha_radps, zeta)  # eq 9
     Ka = 1.0 / Kp if Ka is None else Ka
@@ -64,4 +65,9 @@ def coefficients(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforwar
     P_z = sample(control.tf(np.polyadd(D * fr_den, c), fr_den), Ts_s, SAMPLE_SYSTEM_METHODS[method])
     (b0, _), (_, a1) = _first_order_z(P_z)
     Fr0 = fr_num[-1] / fr_den[-1]
-    return out | {"ff_Fr0": float(Fr0), "ff_b_dr": float(b0 - Fr0), "ff_a1": float(a1), "ff_Kd_per_Ts": float(Kd / Ts_s)}
+    return out | {
+        "ff_Fr0": float(Fr0),
+        "ff_b_dr": float(b0 - Fr0),
+        "ff_a1": float(a1),
+        "ff_Kd_per_Ts": float(Kd / Ts_s),
+    }

@@ -100,15 +100,40 @@ def speed_config(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H):
     """
     d = discrete.design
     return dict(
-        J_kgm2=d.J_kgm2, alpha_radps=d.alpha_radps, zeta=d.zeta, m=d.m, tau_i_s=d.tau_i_s, Ka=d.Ka,
-        Ts_s=discrete.Ts_s, i_max_A=i_max_A, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, pole_pairs=pole_pairs,
-        method=discrete.method, feedforward=d.feedforward, anti_windup=d.anti_windup,
+        J_kgm2=d.J_kgm2,
+        alpha_radps=d.alpha_radps,
+        zeta=d.zeta,
+        m=d.m,
+        tau_i_s=d.tau_i_s,
+        Ka=d.Ka,
+        Ts_s=discrete.Ts_s,
+        i_max_A=i_max_A,
+        psi_f_Wb=psi_f_Wb,
+        Ld_H=Ld_H,
+        Lq_H=Lq_H,
+        pole_pairs=pole_pairs,
+        method=discrete.method,
+        feedforward=d.feedforward,
+        anti_windup=d.anti_windup,
     )
 
 
-def c_header(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm=None, Ts_current_s=None,
-             current_method=None, current_anti_windup="back_calculation", decouple=True, prefix="p2d_design",
-             motor_sources=None):
+def c_header(
+    discrete,
+    *,
+    i_max_A,
+    pole_pairs,
+    psi_f_Wb,
+    Ld_H,
+    Lq_H,
+    Rs_ohm=None,
+    Ts_current_s=None,
+    current_method=None,
+    current_anti_windup="back_calculation",
+    decouple=True,
+    prefix="p2d_design",
+    motor_sources=None,
+):
     """The text of a C header configuring the controllers with ``discrete``.
 
     Parameters
@@ -166,17 +191,30 @@ def c_header(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm=None
         require_choice("current_method", current_method, METHODS)
         require_choice("current_anti_windup", current_anti_windup, ANTI_WINDUPS)
         current = dict(
-            Rs_ohm=require_positive("Rs_ohm", Rs_ohm), Ld_H=Ld_H, Lq_H=Lq_H, psi_f_Wb=psi_f_Wb,
-            tau_i_s=discrete.design.tau_i_s, Ts_s=require_positive("Ts_current_s", Ts_current_s),
-            method=current_method, anti_windup=current_anti_windup, decouple=decouple,
+            Rs_ohm=require_positive("Rs_ohm", Rs_ohm),
+            Ld_H=Ld_H,
+            Lq_H=Lq_H,
+            psi_f_Wb=psi_f_Wb,
+            tau_i_s=discrete.design.tau_i_s,
+            Ts_s=require_positive("Ts_current_s", Ts_current_s),
+            method=current_method,
+            anti_windup=current_anti_windup,
+            decouple=decouple,
         )
         CurrentController(**current)
 
     lines = ["/*", f" * {prefix}.h: controller configuration designed with pmsm2dof {version('pmsm2dof')}.", " *"]
     record = _record(discrete, speed, speed_ctl, current, motor_sources or {})
     lines += [" * " + line if line else " *" for line in record]
-    lines += [" */", f"#ifndef {prefix.upper()}_H", f"#define {prefix.upper()}_H", "",
-              "#include <stdbool.h>", "", '#include "pmsm2dof/speed.h"']
+    lines += [
+        " */",
+        f"#ifndef {prefix.upper()}_H",
+        f"#define {prefix.upper()}_H",
+        "",
+        "#include <stdbool.h>",
+        "",
+        '#include "pmsm2dof/speed.h"',
+    ]
     if current is not None:
         lines.append('#include "pmsm2dof/current.h"')
     lines += ["", "/* Pass to p2d_speed_init(); the C core computes the coefficients listed above. */"]
@@ -195,8 +233,8 @@ def _record(discrete, speed, speed_ctl, current, motor_sources):
     zm = discrete.margins
     coef = speed_ctl.coefficients
     out = [
-        "Anti-windup 2DOF PI speed controller of Wang, Lin, Yang, Fang, \"Anti-Windup and",
-        "2DOF Design for Permanent-Magnet Synchronous Motor Speed Controller\" (Fig. 5, 6).",
+        'Anti-windup 2DOF PI speed controller of Wang, Lin, Yang, Fang, "Anti-Windup and',
+        '2DOF Design for Permanent-Magnet Synchronous Motor Speed Controller" (Fig. 5, 6).',
         "",
         "Design inputs:",
         f"  J_kgm2      = {d.J_kgm2:.9g} kg m^2",

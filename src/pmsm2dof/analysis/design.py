@@ -262,8 +262,9 @@ class Design:
         return write_c_header(path, self.discretize(Ts_s, method), **motor)
 
 
-def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="lowpass",
-           anti_windup="back_calculation", Ka=None):
+def design(
+    J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="lowpass", anti_windup="back_calculation", Ka=None
+):
     """Design the anti-windup 2DOF PI speed controller (paper section 3.3).
 
     Parameters
@@ -305,8 +306,12 @@ def design(J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="lowpass",
     require_choice("feedforward", feedforward, FEEDFORWARDS)
     require_choice("anti_windup", anti_windup, ANTI_WINDUPS)
     if feedforward == "lowpass" and m != 1.0:
-        raise ConfigError("m", m, "exactly 1 with feedforward 'lowpass' (eq 13, the default); for m != 1 choose "
-                                  "feedforward 'no_tau' or 'full' (eq 11)")
+        raise ConfigError(
+            "m",
+            m,
+            "exactly 1 with feedforward 'lowpass' (eq 13, the default); for m != 1 choose "
+            "feedforward 'no_tau' or 'full' (eq 11)",
+        )
     Kp, Ki = pi_gains(J_kgm2, alpha_radps, zeta)  # eq 9
     Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
     return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki)

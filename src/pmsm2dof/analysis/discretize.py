@@ -145,9 +145,18 @@ class DiscreteDesign:
         discrete_margins, _ = self.margins.values_and_reasons()
         overshoot = d.overshoot_pct()
         return {
-            "J_kgm2": d.J_kgm2, "alpha_radps": d.alpha_radps, "zeta": d.zeta, "m": d.m, "tau_i_s": d.tau_i_s,
-            "feedforward": d.feedforward, "anti_windup": d.anti_windup, "Ts_s": self.Ts_s, "method": self.method,
-            "Kp": d.Kp, "Ki": d.Ki, "Ka": d.Ka,
+            "J_kgm2": d.J_kgm2,
+            "alpha_radps": d.alpha_radps,
+            "zeta": d.zeta,
+            "m": d.m,
+            "tau_i_s": d.tau_i_s,
+            "feedforward": d.feedforward,
+            "anti_windup": d.anti_windup,
+            "Ts_s": self.Ts_s,
+            "method": self.method,
+            "Kp": d.Kp,
+            "Ki": d.Ki,
+            "Ka": d.Ka,
             "continuous": {
                 "poles_radps": _pairs(d.closed_loop_poles()),
                 "bandwidth_radps": d.bandwidth_radps(),
@@ -204,9 +213,19 @@ def c_coefficients(design, Ts_s, method, feedforward=None, anti_windup=None):
         :attr:`pmsm2dof.core.SpeedController.coefficients` (float32 values).
     """
     d = design
-    ctl = SpeedController(J_kgm2=d.J_kgm2, alpha_radps=d.alpha_radps, zeta=d.zeta, m=d.m, tau_i_s=d.tau_i_s,
-                          Ka=d.Ka, Ts_s=Ts_s, method=method, feedforward=feedforward or d.feedforward,
-                          anti_windup=anti_windup or d.anti_windup, **NEUTRAL_MOTOR)
+    ctl = SpeedController(
+        J_kgm2=d.J_kgm2,
+        alpha_radps=d.alpha_radps,
+        zeta=d.zeta,
+        m=d.m,
+        tau_i_s=d.tau_i_s,
+        Ka=d.Ka,
+        Ts_s=Ts_s,
+        method=method,
+        feedforward=feedforward or d.feedforward,
+        anti_windup=anti_windup or d.anti_windup,
+        **NEUTRAL_MOTOR,
+    )
     return ctl.coefficients
 
 
@@ -277,25 +296,33 @@ def _unstable_loop_error(design, Ts_s, method, z_max):
     if not d.Kp > d.tau_i_s * d.Ki:
         # Routh on J tau s^3 + J s^2 + Kp s + Ki: no sampling period helps
         return ConfigError(
-            "alpha_radps", d.alpha_radps,
+            "alpha_radps",
+            d.alpha_radps,
             f"< 4 zeta^2 / tau_i_s = {4.0 * d.zeta**2 / d.tau_i_s:.6g} rad/s with zeta = {d.zeta:g} and tau_i_s = "
             f"{d.tau_i_s:g} s: beyond it the continuous loop J tau_i s^3 + J s^2 + Kp s + Ki is unstable (Routh: "
-            "Kp > tau_i Ki), at any Ts_s")
+            "Kp > tau_i Ki), at any Ts_s",
+        )
     # the largest period below which every period of a fine log grid is stable, then bisection
     grid = Ts_s * np.logspace(-9.0, 0.0, 181)
     stable = [_stable(d, Ts, method) for Ts in grid]
     first_bad = stable.index(False)
     if first_bad == 0:
-        return ConfigError("Ts_s", Ts_s, f"a period that makes the discrete loop stable (none found from {grid[0]:.3g} s "
-                                         f"to {Ts_s:g} s with {method} and a ZOH plant)")
+        return ConfigError(
+            "Ts_s",
+            Ts_s,
+            f"a period that makes the discrete loop stable (none found from {grid[0]:.3g} s "
+            f"to {Ts_s:g} s with {method} and a ZOH plant)",
+        )
     lo, hi = grid[first_bad - 1], grid[first_bad]
     for _ in range(60):
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if _stable(d, mid, method) else (lo, mid)
     return ConfigError(
-        "Ts_s", Ts_s,
+        "Ts_s",
+        Ts_s,
         f"< {lo:.4g} s, where the discrete loop is stable ({method}, ZOH plant; at Ts_s = {Ts_s:g} s its "
-        f"largest closed-loop pole has |z| = {z_max:.6g})")
+        f"largest closed-loop pole has |z| = {z_max:.6g})",
+    )
 
 
 def _margins(design, Ts_s, b_e0, Ki_Ts):
@@ -465,11 +492,17 @@ def discrete_loop(design, Ts_s, method, coefficients):
     margins = _margins(d, Ts_s, b_e0, Ki_Ts)
     G_z = _sample(d.G, Ts_s, "zoh")  # the plant held over each period, not the controller
     return DiscreteDesign(
-        design=d, Ts_s=Ts_s, method=method, **c,
+        design=d,
+        Ts_s=Ts_s,
+        method=method,
+        **c,
         poles=tuple(complex(p) for p in poles),
         overshoot_pct=overshoot,
         margins=margins,
         missing=({"overshoot_pct": reason} if reason else {}) | margins.values_and_reasons()[1],
-        F_z=F_z, Fr_z=Fr_z, G_z=G_z, L_z=F_z * G_z,
+        F_z=F_z,
+        Fr_z=Fr_z,
+        G_z=G_z,
+        L_z=F_z * G_z,
         Gx_z=control.ss(np.eye(len(f)) + E, f[:, None], out[None, :], 0.0, Ts_s),
     )

@@ -10,6 +10,7 @@ from dataclasses import asdict, dataclass
 
 import control
 
+
 @dataclass(frozen=True)
 class Margins:
     """Stability margins of a loop gain (python-control ``stability_margins``).

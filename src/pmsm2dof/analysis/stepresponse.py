@@ -176,14 +176,18 @@ class StepResponse:
         nu = self.rates()
         if np.any(nu.real >= 0.0):
             worst = nu[np.argmax(nu.real)] / self.dt_s
-            return math.nan, (f"the loop is not stable (a mode grows or stays at the rate {complex(worst):.4g} "
-                              "1/s), so its step response has no final value")
+            return math.nan, (
+                f"the loop is not stable (a mode grows or stays at the rate {complex(worst):.4g} "
+                "1/s), so its step response has no final value"
+            )
         segments = self._grid(nu)
         points = sum(-(-(stop - start) // h) for start, stop, h in segments)
         if points > MAX_POINTS:
             slowest = float(np.min(-nu.real)) / self.dt_s
-            return math.nan, (f"the step response needs {points:.3g} evaluations (> {MAX_POINTS:g}) to follow "
-                              f"its modes, from lightly damped ones to the slowest ({slowest:.3g} 1/s)")
+            return math.nan, (
+                f"the step response needs {points:.3g} evaluations (> {MAX_POINTS:g}) to follow "
+                f"its modes, from lightly damped ones to the slowest ({slowest:.3g} 1/s)"
+            )
         k_of, y = self._evaluate(segments)
         y0, y_end = float(self.c @ self.x0), float(y[-1])
         step = y_end - y0
@@ -259,6 +263,5 @@ class StepResponse:
             return -float(self.c @ (x + self._A @ G @ x + G @ self._b))
 
         span = (2.0 if k_best > 0 else 1.0) * self.dt_s
-        found = optimize.minimize_scalar(minus_y, bounds=(0.0, span), method="bounded",
-                                         options={"xatol": 1e-10 * span})
+        found = optimize.minimize_scalar(minus_y, bounds=(0.0, span), method="bounded", options={"xatol": 1e-10 * span})
         return max(y_best, -float(found.fun))

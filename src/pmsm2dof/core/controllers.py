@@ -27,6 +27,7 @@ from .bindings import ANTI_WINDUPS, FEEDFORWARDS, METHODS, c_string, ffi, lib, s
 #: The choices of each enum type of the C configurations, indexed by their C value.
 _CHOICES = {"p2d_method_t": METHODS, "p2d_feedforward_t": FEEDFORWARDS, "p2d_anti_windup_t": ANTI_WINDUPS}
 
+
 def _float_param(name, value):
     """``value`` as a Python float, for a float32 field of a C configuration.
 
@@ -289,7 +290,9 @@ class SpeedController:
         """
         unknown = sorted(set(changes) - set(_SPEED_PARAMS))
         if unknown:
-            raise ConfigError(unknown[0], changes[unknown[0]], "a parameter of SpeedController: " + ", ".join(_SPEED_PARAMS))
+            raise ConfigError(
+                unknown[0], changes[unknown[0]], "a parameter of SpeedController: " + ", ".join(_SPEED_PARAMS)
+            )
         params = {**self._params, **changes}
         cfg = self._c_config(params)
         status = lib.p2d_speed_set_config(self._ctl, cfg)
@@ -533,7 +536,9 @@ class CurrentController:
         """
         unknown = sorted(set(changes) - set(_CURRENT_PARAMS))
         if unknown:
-            raise ConfigError(unknown[0], changes[unknown[0]], "a parameter of CurrentController: " + ", ".join(_CURRENT_PARAMS))
+            raise ConfigError(
+                unknown[0], changes[unknown[0]], "a parameter of CurrentController: " + ", ".join(_CURRENT_PARAMS)
+            )
         params = {**self._params, **changes}
         status = lib.p2d_current_set_config(self._ctl, self._c_config(params))
         if status != lib.P2D_OK:

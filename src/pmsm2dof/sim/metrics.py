@@ -59,11 +59,23 @@ BAND = 0.02
 #: Final part of a window over which the steady state is measured.
 STEADY_FRACTION = 0.1
 #: Figures of each reference step, in output order.
-REFERENCE_FIGURES = ("overshoot_pct", "rise_time_s", "settling_time_s", "steady_state_error_rpm", "iae_rpm_s",
-                     "current_limit_time_s")
+REFERENCE_FIGURES = (
+    "overshoot_pct",
+    "rise_time_s",
+    "settling_time_s",
+    "steady_state_error_rpm",
+    "iae_rpm_s",
+    "current_limit_time_s",
+)
 #: Figures of each load step, in output order.
-LOAD_FIGURES = ("speed_dip_rpm", "dip_time_s", "recovery_time_s", "steady_state_error_rpm", "iae_rpm_s",
-                "current_limit_time_s")
+LOAD_FIGURES = (
+    "speed_dip_rpm",
+    "dip_time_s",
+    "recovery_time_s",
+    "steady_state_error_rpm",
+    "iae_rpm_s",
+    "current_limit_time_s",
+)
 #: Figures of each fault, in output order.
 FAULT_FIGURES = ("speed_deviation_rpm", "deviation_time_s", "recovery_time_s", "current_limit_time_s")
 #: Figures of the whole run.
@@ -215,8 +227,11 @@ def _reference_step(t, speed, ref, limited, t0, t1, before, after):
     step = after - w[0]
     result = {}
     if after == before or abs(step) <= 1e-3 * abs(after - before):
-        reason = ("the reference does not change" if after == before
-                  else f"the speed is already at the new reference ({w[0]:g} rpm)")
+        reason = (
+            "the reference does not change"
+            if after == before
+            else f"the speed is already at the new reference ({w[0]:g} rpm)"
+        )
         result.update({n: _missing(reason) for n in names[:4]})
     else:
         z = (w - w[0]) / step
@@ -226,12 +241,19 @@ def _reference_step(t, speed, ref, limited, t0, t1, before, after):
             result["overshoot_pct"] = _value(100.0 * max(0.0, np.max(z) - 1.0))
         else:
             result["overshoot_pct"] = _missing(f"the speed did not reach the reference before {t1:g} s")
-        result["rise_time_s"] = (_value(t90 - t10) if t90 is not None else
-                                 _missing(f"the speed did not reach 90 % of the step before {t1:g} s"))
+        result["rise_time_s"] = (
+            _value(t90 - t10)
+            if t90 is not None
+            else _missing(f"the speed did not reach 90 % of the step before {t1:g} s")
+        )
         result["settling_time_s"] = (
-            _value(t_settle - t0) if t_settle is not None else
-            _missing(f"the speed did not settle within 2 % of the step (and stay there over the last "
-                     f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
+            _value(t_settle - t0)
+            if t_settle is not None
+            else _missing(
+                f"the speed did not settle within 2 % of the step (and stay there over the last "
+                f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
+            )
+        )
         result["steady_state_error_rpm"] = _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
     result["iae_rpm_s"] = _value(np.trapezoid(np.abs(r - w), tw))
     result["current_limit_time_s"] = _value(_time_where(t, limited, t0, t1))
@@ -263,9 +285,13 @@ def _load_step(t, speed, ref, limited, t0, t1, before, after):
                 result.update({n: _missing("the speed did not give way to the load") for n in names[:2]})
             t_rec = _entry_into_band(tw, e, BAND * deviation)
             result["recovery_time_s"] = (
-                _value(t_rec - t0) if t_rec is not None else
-                _missing(f"the speed did not recover to within 2 % of the {'dip' if dip >= deviation else 'error'}"
-                         f" (and stay there over the last {100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
+                _value(t_rec - t0)
+                if t_rec is not None
+                else _missing(
+                    f"the speed did not recover to within 2 % of the {'dip' if dip >= deviation else 'error'}"
+                    f" (and stay there over the last {100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
+                )
+            )
             result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
     result["iae_rpm_s"] = _value(np.trapezoid(np.abs(e), tw))
     result["current_limit_time_s"] = _value(_time_where(t, limited, t0, t1))
@@ -285,16 +311,25 @@ def _fault(t, speed, ref, limited, fault, t_end_fault, t1):
     if e[k] <= 0.0:
         result.update({n: _missing("the speed did not deviate from its reference") for n in names[:3]})
     elif t_end_fault >= t1:
-        result.update({"speed_deviation_rpm": _value(e[k]), "deviation_time_s": _value(tw[k] - t0),
-                       "recovery_time_s": _missing(f"the fault lasts to the end of the window ({t1:g} s)")})
+        result.update(
+            {
+                "speed_deviation_rpm": _value(e[k]),
+                "deviation_time_s": _value(tw[k] - t0),
+                "recovery_time_s": _missing(f"the fault lasts to the end of the window ({t1:g} s)"),
+            }
+        )
     else:
         result.update({"speed_deviation_rpm": _value(e[k]), "deviation_time_s": _value(tw[k] - t0)})
         tr, (wr, rr) = _window(t, t_end_fault, t1, speed, ref)
         t_rec = _entry_into_band(tr, rr - wr, BAND * e[k])
         result["recovery_time_s"] = (
-            _value(t_rec - t_end_fault) if t_rec is not None else
-            _missing(f"the speed did not recover to within 2 % of its deviation (and stay there over the last "
-                     f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"))
+            _value(t_rec - t_end_fault)
+            if t_rec is not None
+            else _missing(
+                f"the speed did not recover to within 2 % of its deviation (and stay there over the last "
+                f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
+            )
+        )
     return out | {n: result[n] for n in names}
 
 
@@ -303,8 +338,10 @@ def _steady_state_error(tw, w, target, spread_max):
     tf, (final,) = _window(tw, tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0]), tw[-1], w)
     spread = float(np.ptp(final))
     if spread > spread_max:
-        return _missing(f"the speed is still changing at {tw[-1]:g} s (spread {spread:.3g} rpm over the last "
-                        f"{100 * STEADY_FRACTION:g} % of the window, more than {spread_max:.3g} rpm)")
+        return _missing(
+            f"the speed is still changing at {tw[-1]:g} s (spread {spread:.3g} rpm over the last "
+            f"{100 * STEADY_FRACTION:g} % of the window, more than {spread_max:.3g} rpm)"
+        )
     return _value(target - np.trapezoid(final, tf) / (tf[-1] - tf[0]))
 
 
@@ -345,11 +382,13 @@ def compute_metrics(result):
 
     return {
         "scenario": data["name"],
-        "reference_steps": [_reference_step(t, speed, ref, limited, t0, window_end(t0), b, a)
-                            for t0, b, a in ref_events],
+        "reference_steps": [
+            _reference_step(t, speed, ref, limited, t0, window_end(t0), b, a) for t0, b, a in ref_events
+        ],
         "load_steps": [_load_step(t, speed, ref, limited, t0, window_end(t0), b, a) for t0, b, a in load_events],
-        "faults": [_fault(t, speed, ref, limited, f, end, window_end(end))
-                   for f, end in zip(data["fault"], fault_ends)],
+        "faults": [
+            _fault(t, speed, ref, limited, f, end, window_end(end)) for f, end in zip(data["fault"], fault_ends)
+        ],
         "run": {
             "t_end_s": float(t[-1]),
             "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
@@ -377,23 +416,28 @@ def summary_lines(metrics):
             f"reference step at {s['t_s']:g} s to {s['to_rpm']:g} rpm: overshoot {_fmt(s['overshoot_pct'], '%')}, "
             f"rise {_fmt(s['rise_time_s'], 's')}, settling {_fmt(s['settling_time_s'], 's')}, "
             f"steady-state error {_fmt(s['steady_state_error_rpm'], 'rpm')}, "
-            f"at the current limit {_fmt(s['current_limit_time_s'], 's')}")
+            f"at the current limit {_fmt(s['current_limit_time_s'], 's')}"
+        )
     for s in metrics["faults"]:
         lines.append(
             f"fault {s['kind']} at {s['t_s']:g} s to {s['end_s']:g} s: speed deviation "
             f"{_fmt(s['speed_deviation_rpm'], 'rpm')} after {_fmt(s['deviation_time_s'], 's')}, recovery "
             f"{_fmt(s['recovery_time_s'], 's')} after its end, at the current limit "
-            f"{_fmt(s['current_limit_time_s'], 's')}")
+            f"{_fmt(s['current_limit_time_s'], 's')}"
+        )
     for s in metrics["load_steps"]:
         lines.append(
             f"load step at {s['t_s']:g} s, {s['from_Nm']:g} -> {s['to_Nm']:g} Nm: dip "
             f"{_fmt(s['speed_dip_rpm'], 'rpm')} after {_fmt(s['dip_time_s'], 's')}, "
             f"recovery {_fmt(s['recovery_time_s'], 's')}, "
-            f"steady-state error {_fmt(s['steady_state_error_rpm'], 'rpm')}")
+            f"steady-state error {_fmt(s['steady_state_error_rpm'], 'rpm')}"
+        )
     run = metrics["run"]
     voltage = run["voltage_limit_time_s"]["value"]
     if voltage:
         share = 100.0 * voltage / run["t_end_s"]
-        lines.append(f"VOLTAGE LIMIT: at the inverter's range u_dc/sqrt(3) for {voltage:.4g} s "
-                     f"({share:.3g} % of the run): the currents do not follow their commands there")
+        lines.append(
+            f"VOLTAGE LIMIT: at the inverter's range u_dc/sqrt(3) for {voltage:.4g} s "
+            f"({share:.3g} % of the run): the currents do not follow their commands there"
+        )
     return lines

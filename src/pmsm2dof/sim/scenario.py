@@ -130,8 +130,12 @@ class Field:
             raise ConfigError(dotted, value, self.valid_range())
         if self.choices and value not in self.choices:
             raise ConfigError(dotted, value, self.valid_range())
-        if ((self.gt is not None and not value > self.gt) or (self.ge is not None and not value >= self.ge)
-                or (self.lt is not None and not value < self.lt) or (self.le is not None and not value <= self.le)):
+        if (
+            (self.gt is not None and not value > self.gt)
+            or (self.ge is not None and not value >= self.ge)
+            or (self.lt is not None and not value < self.lt)
+            or (self.le is not None and not value <= self.le)
+        ):
             raise ConfigError(dotted, value, self.valid_range())
         return value
 
@@ -149,9 +153,13 @@ def _is_unicode(text):
 SCHEMA = (
     Field("name", str, "name of the scenario, shown in summaries and plots"),
     Field("description", str, "one line on what the scenario shows, listed by `pmsm2dof presets`", default=""),
-
-    Field("motor.pole_pairs", int, "pole pairs p (the paper's p0 of eq 1, which it calls the number of poles)",
-          ge=1, le=1000),
+    Field(
+        "motor.pole_pairs",
+        int,
+        "pole pairs p (the paper's p0 of eq 1, which it calls the number of poles)",
+        ge=1,
+        le=1000,
+    ),
     Field("motor.Rs_ohm", float, "stator resistance Rs [ohm] (eq 1)", gt=0),
     Field("motor.Ld_H", float, "d-axis inductance Ld [H] (eq 1)", gt=0),
     Field("motor.Lq_H", float, "q-axis inductance Lq [H] (eq 1); Lq != Ld makes a salient motor (MTPA)", gt=0),
@@ -159,68 +167,142 @@ SCHEMA = (
     Field("motor.J_kgm2", float, "true inertia of motor and load J [kg m^2] (eq 1, 2)", gt=0),
     Field("motor.B_Nms", float, "viscous friction B [Nm s/rad]", default=0.0, ge=0),
     Field("motor.T_coulomb_Nm", float, "Coulomb friction torque [Nm]", default=0.0, ge=0),
-
     Field("limits.i_max_A", float, "current-vector limit ||i_dq|| <= i_max_A [A] (Sat of Fig. 1 and 2)", gt=0),
     Field("limits.u_dc_V", float, "DC-link voltage [V]; the voltage vector is limited to u_dc/sqrt(3)", gt=0),
-
-    Field("inverter.computation_delay", bool,
-          "true: the voltage command is applied one current-controller sample later", default=False),
-
-    Field("current_loop.model", str, "dq_pi: the C dq current controllers and the electrical model of eq 1; "
-          "first_order: the closed current loop as eq 3", choices=CURRENT_LOOP_MODELS),
+    Field(
+        "inverter.computation_delay",
+        bool,
+        "true: the voltage command is applied one current-controller sample later",
+        default=False,
+    ),
+    Field(
+        "current_loop.model",
+        str,
+        "dq_pi: the C dq current controllers and the electrical model of eq 1; "
+        "first_order: the closed current loop as eq 3",
+        choices=CURRENT_LOOP_MODELS,
+    ),
     Field("current_loop.tau_i_s", float, "time constant of the closed current loop tau_i [s] (eq 3)", gt=0),
     Field("current_loop.Ts_s", float, "sampling period of the current controller [s]", gt=0),
     Field("current_loop.decouple", bool, "add the back-EMF and cross-coupling feedforward (dq_pi)", default=True),
-    Field("current_loop.anti_windup", str, "anti-windup of the current PIs (dq_pi)", default="back_calculation",
-          choices=ANTI_WINDUPS),
-    Field("current_loop.discretization", str, "discretization of the current PIs (Table 1)", default="tustin",
-          choices=METHODS),
-
+    Field(
+        "current_loop.anti_windup",
+        str,
+        "anti-windup of the current PIs (dq_pi)",
+        default="back_calculation",
+        choices=ANTI_WINDUPS,
+    ),
+    Field(
+        "current_loop.discretization",
+        str,
+        "discretization of the current PIs (Table 1)",
+        default="tustin",
+        choices=METHODS,
+    ),
     Field("speed_controller.alpha", float, "bandwidth alpha [rad/s] of the P loop (eq 9)", gt=0),
     Field("speed_controller.zeta", float, "relative damping zeta of the PI loop (eq 9)", gt=0),
-    Field("speed_controller.m", float, "tracking pole factor, Gx = m alpha / (s + m alpha) (eq 10)",
-          default=1.0, gt=0),
-    Field("speed_controller.feedforward", str, "2DOF feedforward Fr: none (1DOF PI), lowpass (eq 13, 15), "
-          "no_tau (eq 11 with tau_i = 0), full (eq 11)", default="lowpass", choices=FEEDFORWARDS),
-    Field("speed_controller.anti_windup", str, "anti-windup of the speed PI (section 3.2, Fig. 5)",
-          default="back_calculation", choices=ANTI_WINDUPS),
-    Field("speed_controller.Ka", float, "back-calculation gain Ka [(rad/s)/Nm] (Fig. 5); absent: 1/Kp "
-          "(section 3.3)", default=None, ge=0),
-    Field("speed_controller.discretization", str, "discretization of the PI and Fr (Table 1, eq 14, 15)",
-          default="tustin", choices=METHODS),
-    Field("speed_controller.Ts_s", float, "sampling period of the speed controller [s], an integer multiple "
-          "of current_loop.Ts_s", gt=0),
-    Field("speed_controller.J_design_kgm2", float, "inertia the gains are designed for [kg m^2] (eq 9, 11)",
-          default=SameAs("motor.J_kgm2"), gt=0),
-    Field("speed_controller.tau_i_design_s", float, "current-loop time constant the full feedforward is "
-          "designed for [s] (eq 11)", default=SameAs("current_loop.tau_i_s"), ge=0),
-
+    Field("speed_controller.m", float, "tracking pole factor, Gx = m alpha / (s + m alpha) (eq 10)", default=1.0, gt=0),
+    Field(
+        "speed_controller.feedforward",
+        str,
+        "2DOF feedforward Fr: none (1DOF PI), lowpass (eq 13, 15), no_tau (eq 11 with tau_i = 0), full (eq 11)",
+        default="lowpass",
+        choices=FEEDFORWARDS,
+    ),
+    Field(
+        "speed_controller.anti_windup",
+        str,
+        "anti-windup of the speed PI (section 3.2, Fig. 5)",
+        default="back_calculation",
+        choices=ANTI_WINDUPS,
+    ),
+    Field(
+        "speed_controller.Ka",
+        float,
+        "back-calculation gain Ka [(rad/s)/Nm] (Fig. 5); absent: 1/Kp (section 3.3)",
+        default=None,
+        ge=0,
+    ),
+    Field(
+        "speed_controller.discretization",
+        str,
+        "discretization of the PI and Fr (Table 1, eq 14, 15)",
+        default="tustin",
+        choices=METHODS,
+    ),
+    Field(
+        "speed_controller.Ts_s",
+        float,
+        "sampling period of the speed controller [s], an integer multiple of current_loop.Ts_s",
+        gt=0,
+    ),
+    Field(
+        "speed_controller.J_design_kgm2",
+        float,
+        "inertia the gains are designed for [kg m^2] (eq 9, 11)",
+        default=SameAs("motor.J_kgm2"),
+        gt=0,
+    ),
+    Field(
+        "speed_controller.tau_i_design_s",
+        float,
+        "current-loop time constant the full feedforward is designed for [s] (eq 11)",
+        default=SameAs("current_loop.tau_i_s"),
+        ge=0,
+    ),
     Field("simulation.t_end_s", float, "simulated time [s]", gt=0, le=T_END_MAX_S),
-    Field("simulation.dt_s", float, "largest plant integration step [s] (RK4; the default, one step per "
-          "current period, is accurate to better than 1e-4 of the speed: see pmsm2dof.sim.simulate)",
-          default=SameAs("current_loop.Ts_s"), gt=0),
+    Field(
+        "simulation.dt_s",
+        float,
+        "largest plant integration step [s] (RK4; the default, one step per "
+        "current period, is accurate to better than 1e-4 of the speed: see pmsm2dof.sim.simulate)",
+        default=SameAs("current_loop.Ts_s"),
+        gt=0,
+    ),
     Field("simulation.log_every", int, "log every n-th speed-controller sample", default=1, ge=1, le=10**9),
     Field("simulation.speed0_rpm", float, "initial speed [rpm]", default=0.0),
-
     Field("reference[].t_s", float, "time of the reference change [s], 0 <= t_s < simulation.t_end_s", ge=0),
     Field("reference[].speed_rpm", float, "new speed reference [rpm]"),
-    Field("reference[].ramp_s", float, "0: a step; > 0: a linear ramp from the previous value over ramp_s [s]",
-          default=0.0, ge=0),
-
+    Field(
+        "reference[].ramp_s",
+        float,
+        "0: a step; > 0: a linear ramp from the previous value over ramp_s [s]",
+        default=0.0,
+        ge=0,
+    ),
     Field("load[].t_s", float, "time of the load change [s], 0 <= t_s < simulation.t_end_s", ge=0),
     Field("load[].torque_Nm", float, "new load torque [Nm]"),
-    Field("load[].ramp_s", float, "0: a step; > 0: a linear ramp from the previous value over ramp_s [s]",
-          default=0.0, ge=0),
-
-    Field("fault[].kind", str, "what fails: dc_link_sag (the DC link drops to u_dc_factor u_dc_V over the "
-          "window, dq_pi only), sensor_hold (the speed controller reads its last reading before the window), "
-          "sensor_zero (it reads 0), sensor_spike (its first sample at or after t_s reads speed_rpm)",
-          choices=FAULT_KINDS),
+    Field(
+        "load[].ramp_s",
+        float,
+        "0: a step; > 0: a linear ramp from the previous value over ramp_s [s]",
+        default=0.0,
+        ge=0,
+    ),
+    Field(
+        "fault[].kind",
+        str,
+        "what fails: dc_link_sag (the DC link drops to u_dc_factor u_dc_V over the "
+        "window, dq_pi only), sensor_hold (the speed controller reads its last reading before the window), "
+        "sensor_zero (it reads 0), sensor_spike (its first sample at or after t_s reads speed_rpm)",
+        choices=FAULT_KINDS,
+    ),
     Field("fault[].t_s", float, "start of the fault [s], 0 <= t_s < simulation.t_end_s", ge=0),
-    Field("fault[].duration_s", float, "length of the fault window [s]; every kind but sensor_spike (one "
-          "sample)", default=None, gt=0),
-    Field("fault[].u_dc_factor", float, "dc_link_sag only: the DC link over the window as a fraction of "
-          "limits.u_dc_V", default=None, ge=0, le=1),
+    Field(
+        "fault[].duration_s",
+        float,
+        "length of the fault window [s]; every kind but sensor_spike (one sample)",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "fault[].u_dc_factor",
+        float,
+        "dc_link_sag only: the DC link over the window as a fraction of limits.u_dc_V",
+        default=None,
+        ge=0,
+        le=1,
+    ),
     Field("fault[].speed_rpm", float, "sensor_spike only: the wrong speed reading [rpm]", default=None),
 )
 
@@ -287,8 +369,9 @@ def _validate_table(table, parent, prefix):
             given[key] = _FIELDS[f"{parent}.{key}" if parent else key].check(dotted, value)
     for f in fields:
         if f.default is REQUIRED and f.leaf not in given:
-            raise ConfigError(f"{prefix}.{f.leaf}" if prefix else f.leaf, REQUIRED,
-                              f"required: {f.valid_range()} ({f.doc})")
+            raise ConfigError(
+                f"{prefix}.{f.leaf}" if prefix else f.leaf, REQUIRED, f"required: {f.valid_range()} ({f.doc})"
+            )
     return given
 
 
@@ -334,8 +417,7 @@ def _validate(tree):
             table, leaf = f.default.key.split(".")
             data[f.parent][f.leaf] = data[table][leaf]
     for name in ARRAYS:
-        data[name] = [{f.leaf: e.get(f.leaf, f.default) for f in _fields_of(f"{name}[]")}
-                      for e in given.get(name, [])]
+        data[name] = [{f.leaf: e.get(f.leaf, f.default) for f in _fields_of(f"{name}[]")} for e in given.get(name, [])]
     _check_relations(data)
     return given, data
 
@@ -346,30 +428,39 @@ def _check_relations(data):
     ratio = sc["Ts_s"] / cl["Ts_s"]
     n = round(ratio) if math.isfinite(ratio) else 0
     if n < 1 or abs(sc["Ts_s"] - n * cl["Ts_s"]) > TS_MULTIPLE_RTOL * sc["Ts_s"]:
-        raise ConfigError("speed_controller.Ts_s", sc["Ts_s"],
-                          f"an integer multiple (1, 2, 3, ...) of current_loop.Ts_s = {cl['Ts_s']!r}")
+        raise ConfigError(
+            "speed_controller.Ts_s",
+            sc["Ts_s"],
+            f"an integer multiple (1, 2, 3, ...) of current_loop.Ts_s = {cl['Ts_s']!r}",
+        )
     if sc["feedforward"] == "lowpass" and sc["m"] != 1.0:
-        raise ConfigError("speed_controller.m", sc["m"],
-                          "exactly 1 with feedforward 'lowpass' (eq 13 is eq 11 with m = 1 and tau_i = 0); "
-                          "for m != 1 use feedforward 'no_tau' (eq 11 with tau_i = 0) or 'full'")
+        raise ConfigError(
+            "speed_controller.m",
+            sc["m"],
+            "exactly 1 with feedforward 'lowpass' (eq 13 is eq 11 with m = 1 and tau_i = 0); "
+            "for m != 1 use feedforward 'no_tau' (eq 11 with tau_i = 0) or 'full'",
+        )
     if cl["model"] == "dq_pi" and cl["tau_i_s"] < cl["Ts_s"]:
-        raise ConfigError("current_loop.tau_i_s", cl["tau_i_s"],
-                          f">= current_loop.Ts_s = {cl['Ts_s']!r} (the dq current PIs cannot be faster "
-                          "than their sampling)")
+        raise ConfigError(
+            "current_loop.tau_i_s",
+            cl["tau_i_s"],
+            f">= current_loop.Ts_s = {cl['Ts_s']!r} (the dq current PIs cannot be faster than their sampling)",
+        )
     for name, value_key in (("reference", "speed_rpm"), ("load", "torque_Nm")):
         entries = data[name]
         for i, e in enumerate(entries):
             if e["t_s"] >= sim["t_end_s"]:
-                raise ConfigError(f"{name}.{i}.t_s", e["t_s"],
-                                  f">= 0 and < simulation.t_end_s = {sim['t_end_s']!r}")
+                raise ConfigError(f"{name}.{i}.t_s", e["t_s"], f">= 0 and < simulation.t_end_s = {sim['t_end_s']!r}")
             if i > 0:
                 prev = entries[i - 1]
                 earliest = prev["t_s"] + prev["ramp_s"]
                 if not (e["t_s"] > prev["t_s"] and e["t_s"] >= earliest):
                     raise ConfigError(
-                        f"{name}.{i}.t_s", e["t_s"],
+                        f"{name}.{i}.t_s",
+                        e["t_s"],
                         f"> {name}.{i - 1}.t_s = {prev['t_s']!r} and >= the end of its ramp "
-                        f"({earliest!r}): entries sorted by time, ramps not overlapping")
+                        f"({earliest!r}): entries sorted by time, ramps not overlapping",
+                    )
     _check_faults(data)
 
 
@@ -382,27 +473,38 @@ def _check_faults(data):
         kind = f["kind"]
         if f["t_s"] >= sim["t_end_s"]:
             raise ConfigError(f"fault.{i}.t_s", f["t_s"], f">= 0 and < simulation.t_end_s = {sim['t_end_s']!r}")
-        uses = {"duration_s": kind != "sensor_spike", "u_dc_factor": kind == "dc_link_sag",
-                "speed_rpm": kind == "sensor_spike"}
+        uses = {
+            "duration_s": kind != "sensor_spike",
+            "u_dc_factor": kind == "dc_link_sag",
+            "speed_rpm": kind == "sensor_spike",
+        }
         for leaf, used in uses.items():
             if used and f[leaf] is None:
                 field = _FIELDS[f"fault[].{leaf}"]
-                raise ConfigError(f"fault.{i}.{leaf}", REQUIRED,
-                                  f"required by kind {kind!r}: {field.valid_range()} ({field.doc})")
+                raise ConfigError(
+                    f"fault.{i}.{leaf}", REQUIRED, f"required by kind {kind!r}: {field.valid_range()} ({field.doc})"
+                )
             if not used and f[leaf] is not None:
                 raise ConfigError(f"fault.{i}.{leaf}", f[leaf], f"absent: kind {kind!r} does not use it")
         if kind == "dc_link_sag" and data["current_loop"]["model"] != "dq_pi":
-            raise ConfigError(f"fault.{i}.kind", kind, "a sensor fault with current_loop.model 'first_order' "
-                              "(eq 3 has no inverter and no DC link): use 'dq_pi' for a DC-link sag")
+            raise ConfigError(
+                f"fault.{i}.kind",
+                kind,
+                "a sensor fault with current_loop.model 'first_order' "
+                "(eq 3 has no inverter and no DC link): use 'dq_pi' for a DC-link sag",
+            )
         group = "dc_link" if kind == "dc_link_sag" else "sensor"
         start, end = f["t_s"], f["t_s"] + (Ts_speed if kind == "sensor_spike" else f["duration_s"])
         tol = TS_MULTIPLE_RTOL * Ts_speed
         for j, (s0, s1) in windows[group]:
             if start < s1 - tol and s0 < end - tol:
-                raise ConfigError(f"fault.{i}.t_s", start,
-                                  f"outside [{s0!r}, {s1!r}) s, the window of fault.{j}: faults of the "
-                                  f"{'DC link' if group == 'dc_link' else 'speed sensor'} do not overlap "
-                                  "(a sensor_spike takes one speed_controller.Ts_s)")
+                raise ConfigError(
+                    f"fault.{i}.t_s",
+                    start,
+                    f"outside [{s0!r}, {s1!r}) s, the window of fault.{j}: faults of the "
+                    f"{'DC link' if group == 'dc_link' else 'speed sensor'} do not overlap "
+                    "(a sensor_spike takes one speed_controller.Ts_s)",
+                )
         windows[group].append((i, (start, end)))
 
 
@@ -482,8 +584,7 @@ class Scenario:
         lines = []
         lines += _toml_fields(_fields_of(""), self._given, self._data)
         for table in _TABLES:
-            lines += ["", f"[{table}]"] + _toml_fields(_fields_of(table), self._given.get(table, {}),
-                                                      self._data[table])
+            lines += ["", f"[{table}]"] + _toml_fields(_fields_of(table), self._given.get(table, {}), self._data[table])
         for name, (_, what) in ARRAYS.items():
             fields = _fields_of(f"{name}[]")
             entries = self._given.get(name, [])
@@ -535,11 +636,12 @@ def _set_dotted(tree, key, value):
     node = tree
     for depth, part in enumerate(parts):
         last = depth == len(parts) - 1
-        here = ".".join(parts[:depth + 1])
+        here = ".".join(parts[: depth + 1])
         if isinstance(node, list):
             if not part.isdigit() or int(part) > len(node):
-                raise ConfigError(here, value, f"an index 0..{len(node)} of {'.'.join(parts[:depth])} "
-                                               f"({len(node)} appends an entry)")
+                raise ConfigError(
+                    here, value, f"an index 0..{len(node)} of {'.'.join(parts[:depth])} ({len(node)} appends an entry)"
+                )
             index = int(part)
             if index == len(node):
                 node.append({})
@@ -569,7 +671,7 @@ def _presets_dir():
 
 def list_presets():
     """Names of the scenarios shipped with the package (``pmsm2dof/sim/presets/*.toml``), sorted."""
-    return sorted(p.name[:-len(".toml")] for p in _presets_dir().iterdir() if p.name.endswith(".toml"))
+    return sorted(p.name[: -len(".toml")] for p in _presets_dir().iterdir() if p.name.endswith(".toml"))
 
 
 def load_scenario(name_or_path):
@@ -625,6 +727,8 @@ def schema_reference():
             default = f"default {_toml_value(f.default)}"
         lines.append(f"{f.key:36s} {f.valid_range()}; {default}. {f.doc}")
     for name, (required, what) in ARRAYS.items():
-        lines.append(f"{name + '[]':36s} {'required, at least one entry' if required else 'optional'}: {what}; "
-                     "entries sorted by t_s, ramps not overlapping")
+        lines.append(
+            f"{name + '[]':36s} {'required, at least one entry' if required else 'optional'}: {what}; "
+            "entries sorted by t_s, ramps not overlapping"
+        )
     return "\n".join(lines)

@@ -81,6 +81,7 @@ def _signal_names(log_columns):
             names.append(column)
     return tuple(names)
 
+
 #: Largest log the engine allocates [bytes]; beyond it simulation.log_every must grow.
 LOG_BYTES_MAX = 2 * 1024**3
 
@@ -206,8 +207,10 @@ class Result:
     voltage_limited: np.ndarray
 
     def __repr__(self):
-        return (f"Result({self.scenario.name!r}, {len(self.t_s)} rows, t = {self.t_s[0]:g}..{self.t_s[-1]:g} s, "
-                f"wall {self.wall_time_s:.3g} s)")
+        return (
+            f"Result({self.scenario.name!r}, {len(self.t_s)} rows, t = {self.t_s[0]:g}..{self.t_s[-1]:g} s, "
+            f"wall {self.wall_time_s:.3g} s)"
+        )
 
     def to_dataframe(self):
         """The signals as a pandas DataFrame, one column per signal in :attr:`signals` order."""
@@ -265,8 +268,9 @@ def simulate(scenario, progress=False):
         The run stopped: non-finite state, overspeed or overcurrent (time and reason given).
     """
     if not isinstance(scenario, Scenario):
-        raise ConfigError("scenario", type(scenario).__name__,
-                          "a pmsm2dof Scenario (load_scenario or Scenario.from_dict)")
+        raise ConfigError(
+            "scenario", type(scenario).__name__, "a pmsm2dof Scenario (load_scenario or Scenario.from_dict)"
+        )
     data = scenario.data
     run = Simulation(data)
     start = time.perf_counter()
@@ -274,8 +278,14 @@ def simulate(scenario, progress=False):
         from tqdm import tqdm
 
         chunk = max(1, math.ceil(run.n_samples / PROGRESS_CHUNKS))
-        with tqdm(total=data["simulation"]["t_end_s"], unit="s", unit_scale=True, delay=1.0,
-                  desc=f"simulating {scenario.name}", leave=False) as bar:
+        with tqdm(
+            total=data["simulation"]["t_end_s"],
+            unit="s",
+            unit_scale=True,
+            delay=1.0,
+            desc=f"simulating {scenario.name}",
+            leave=False,
+        ) as bar:
             done = 0
             while done < run.n_samples:
                 n = min(chunk, run.n_samples - done)
@@ -306,23 +316,33 @@ class Simulation:
 
     def __init__(self, data):
         self.data = data
-        motor, limits, cl, sc, sim = (data[k] for k in ("motor", "limits", "current_loop", "speed_controller",
-                                                        "simulation"))
+        motor, limits, cl, sc, sim = (
+            data[k] for k in ("motor", "limits", "current_loop", "speed_controller", "simulation")
+        )
         self.Ts_speed_s = sc["Ts_s"]
         current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
         if current_per_speed > CURRENT_PER_SPEED_MAX:
-            raise ConfigError("speed_controller.Ts_s", sc["Ts_s"],
-                              f"<= {CURRENT_PER_SPEED_MAX:g} current_loop.Ts_s = {cl['Ts_s'] * CURRENT_PER_SPEED_MAX:g} s")
+            raise ConfigError(
+                "speed_controller.Ts_s",
+                sc["Ts_s"],
+                f"<= {CURRENT_PER_SPEED_MAX:g} current_loop.Ts_s = {cl['Ts_s'] * CURRENT_PER_SPEED_MAX:g} s",
+            )
         substeps = max(1, math.ceil(cl["Ts_s"] / sim["dt_s"] * (1.0 - 1e-9)))
         if substeps > SUBSTEPS_MAX:
-            raise ConfigError("simulation.dt_s", sim["dt_s"],
-                              f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl['Ts_s'] / SUBSTEPS_MAX:g} s")
+            raise ConfigError(
+                "simulation.dt_s",
+                sim["dt_s"],
+                f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl['Ts_s'] / SUBSTEPS_MAX:g} s",
+            )
         self.n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
         rows = -(-self.n_samples // sim["log_every"])
         if rows * lib.P2D_LOG_COUNT * 8 > LOG_BYTES_MAX:
             least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // LOG_BYTES_MAX)
-            raise ConfigError("simulation.log_every", sim["log_every"],
-                              f">= {least}: the log of {rows} rows would exceed {LOG_BYTES_MAX / 1024**3:g} GiB")
+            raise ConfigError(
+                "simulation.log_every",
+                sim["log_every"],
+                f">= {least}: the log of {rows} rows would exceed {LOG_BYTES_MAX / 1024**3:g} GiB",
+            )
 
         cfg = ffi.new("p2d_sim_config_t *")
         m = cfg.motor
@@ -398,8 +418,7 @@ class Simulation:
         bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
         if bad:
             first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
-            raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = "
-                                  f"{col['t_s'][first]:.6g} s")
+            raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = {col['t_s'][first]:.6g} s")
         signals = {}
         for name, values in col.items():
             if name in RPM_SIGNALS:
@@ -431,8 +450,10 @@ class Simulation:
             if key == "speed_controller.Ka":
                 s = self.cfg.speed
                 _, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
-                valid = (f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
-                         f"{2.0 / (Ki * s.Ts_s):.6g} (Ki = {Ki:.6g} by eq 9)")
+                valid = (
+                    f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
+                    f"{2.0 / (Ki * s.Ts_s):.6g} (Ki = {Ki:.6g} by eq 9)"
+                )
                 if value is None:
                     value = f"None (default 1/Kp = {s.Ka:.6g})"
             raise ConfigError(key, value, valid)
@@ -445,8 +466,7 @@ class Simulation:
         sim = self.sim
         reason = c_string(lib.p2d_sim_status_text(status))
         if status == lib.P2D_SIM_STOP_OVERSPEED:
-            reason += (f": |speed| = {sim.stop_value * RPM_PER_RADPS:.6g} rpm > {sim.stop_bound * RPM_PER_RADPS:.6g}"
-                       " rpm")
+            reason += f": |speed| = {sim.stop_value * RPM_PER_RADPS:.6g} rpm > {sim.stop_bound * RPM_PER_RADPS:.6g} rpm"
         elif status == lib.P2D_SIM_STOP_OVERCURRENT:
             reason += f": ||i_dq|| = {sim.stop_value:.6g} A > {sim.stop_bound:.6g} A"
         raise SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
@@ -454,8 +474,10 @@ class Simulation:
 
 def _schedule(target, entries, value_key, scale):
     """Fill the C schedule ``target`` from scenario entries; return the arrays it points into."""
-    arrays = [np.array([e[k] * (scale if k == value_key else 1.0) for e in entries], dtype=np.float64)
-              for k in ("t_s", value_key, "ramp_s")]
+    arrays = [
+        np.array([e[k] * (scale if k == value_key else 1.0) for e in entries], dtype=np.float64)
+        for k in ("t_s", value_key, "ramp_s")
+    ]
     target.n = len(entries)
     if entries:
         target.t_s, target.value, target.ramp_s = (ffi.cast("double *", ffi.from_buffer(a)) for a in arrays)

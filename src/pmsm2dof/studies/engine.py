@@ -165,8 +165,9 @@ def connect(scheduler: str | None) -> Iterator[Any]:
     try:
         client = Client(scheduler, timeout="10s", set_as_default=False)
     except (OSError, TimeoutError, ValueError) as exc:
-        raise ConfigError("scheduler", scheduler,
-                          f"the address of a running Dask scheduler ({one_line(exc)})") from None
+        raise ConfigError(
+            "scheduler", scheduler, f"the address of a running Dask scheduler ({one_line(exc)})"
+        ) from None
     with client:
         yield client
 
@@ -375,8 +376,15 @@ class PartStore:
             try:
                 path.unlink()
             except OSError as exc:
-                raise ConfigError("out", str(self.folder.parent), f"a folder where the damaged {where} can be "
-                                  f"deleted ({exc.strerror})") from None
-            warnings.warn(f"{where} of the earlier run in {self.folder.parent} {problem}: deleted, its "
-                          f"{self.key_column}s run again", PartWarning, stacklevel=3)
+                raise ConfigError(
+                    "out",
+                    str(self.folder.parent),
+                    f"a folder where the damaged {where} can be deleted ({exc.strerror})",
+                ) from None
+            warnings.warn(
+                f"{where} of the earlier run in {self.folder.parent} {problem}: deleted, its "
+                f"{self.key_column}s run again",
+                PartWarning,
+                stacklevel=3,
+            )
         return pd.concat(frames, ignore_index=True) if frames else None

@@ -30,7 +30,9 @@ def run_faults(overrides=None, workers=None):
         for aw in AW_LABELS:
             key = f"{preset}-{aw}"
             try:
-                scenario = load_scenario(preset).with_overrides({**(overrides or {}), "speed_controller.anti_windup": aw})
+                scenario = load_scenario(preset).with_overrides(
+                    {**(overrides or {}), "speed_controller.anti_windup": aw}
+                )
             except ConfigError as exc:
                 runs[preset, aw] = str(exc)
                 continue
@@ -72,4 +74,3 @@ def fault_figures(result):
         "current_limit_time_s": limit_time,
         "recovery_time_s": recovery["value"],
     }
-

@@ -43,8 +43,7 @@ from ..sim.scenario import load_scenario
 from .engine import Run, run_many
 
 #: The presets every study starts from.
-PRESETS = ("paper-condition-1", "paper-condition-2", "paper-experiment-1", "paper-experiment-2",
-           "paper-experiment-3")
+PRESETS = ("paper-condition-1", "paper-condition-2", "paper-experiment-1", "paper-experiment-2", "paper-experiment-3")
 #: Preset of the step sweeps: no load, one 500 rpm step from rest at 0.5 s.
 STEP_BASE = "paper-experiment-1"
 #: Preset of the load sweeps: steady 500 rpm, an 8 Nm load step at 0.5 s.
@@ -164,8 +163,7 @@ def _geom(lo, hi, n, *include):
 
 
 def _step(label, name, overrides, anti_windup="back_calculation"):
-    return RunSpec(name, STEP_BASE, {"simulation.t_end_s": STEP_T_END_S} | _controller(label, anti_windup)
-                   | overrides)
+    return RunSpec(name, STEP_BASE, {"simulation.t_end_s": STEP_T_END_S} | _controller(label, anti_windup) | overrides)
 
 
 def _load(label, name, overrides):
@@ -199,64 +197,158 @@ def sweeps(bases, points=POINTS):
     used = _geom(1.0 / (3.0 * Kp), 3.0 / Kp, points, 1.0 / Kp)
     literal = _geom(Kp / 3.0, 3.0 * Kp, max(2, points // 2 + 1))
     ka = _unique(literal + used)
-    out.append(Sweep(
-        "ka", "back-calculation gain Ka", "Ka [(rad/s)/Nm]", "Ka_radps_per_Nm", ka,
-        tuple(Series(label, "step", tuple(_step(label, f"ka-{dof}-{i}", {"speed_controller.Ka": v})
-                                          for i, v in enumerate(ka)))
-              for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF))),
-        references=tuple((f"{label}, {AW_LABELS[aw]}", _step(label, f"ka-{dof}-{aw}", {}, aw))
-                         for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)) for aw in ("none", "clamping")),
-        marks=((1.0 / Kp, "1/Kp (preset)"),),
-        bands=((1.0 / (3.0 * Kp), 3.0 / Kp, "1/(3Kp) .. 3/Kp (used)"), (Kp / 3.0, 3.0 * Kp, "Kp/3 .. 3Kp (literal)")),
-        log_x=True))
+    out.append(
+        Sweep(
+            "ka",
+            "back-calculation gain Ka",
+            "Ka [(rad/s)/Nm]",
+            "Ka_radps_per_Nm",
+            ka,
+            tuple(
+                Series(
+                    label,
+                    "step",
+                    tuple(_step(label, f"ka-{dof}-{i}", {"speed_controller.Ka": v}) for i, v in enumerate(ka)),
+                )
+                for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF))
+            ),
+            references=tuple(
+                (f"{label}, {AW_LABELS[aw]}", _step(label, f"ka-{dof}-{aw}", {}, aw))
+                for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF))
+                for aw in ("none", "clamping")
+            ),
+            marks=((1.0 / Kp, "1/Kp (preset)"),),
+            bands=(
+                (1.0 / (3.0 * Kp), 3.0 / Kp, "1/(3Kp) .. 3/Kp (used)"),
+                (Kp / 3.0, 3.0 * Kp, "Kp/3 .. 3Kp (literal)"),
+            ),
+            log_x=True,
+        )
+    )
 
     # m (eq 10, 11): the full feedforward, whose Gx is m alpha / (s + m alpha)
     m_values = tuple(float(v) for v in np.linspace(0.2, 2.0, points + 1))
     full = {"speed_controller.feedforward": "full"}
-    out.append(Sweep(
-        "m", "tracking pole factor m (feedforward eq 11)", "m [-]", "m", m_values,
-        (Series("2DOF eq 11, back-calculation AW", "step",
-                tuple(RunSpec(f"m-bc-{i}", STEP_BASE, {"simulation.t_end_s": STEP_T_END_S, **full,
-                                                       "speed_controller.m": m}) for i, m in enumerate(m_values))),
-         Series("2DOF eq 11, no AW", "step",
-                tuple(RunSpec(f"m-none-{i}", STEP_BASE, {"simulation.t_end_s": STEP_T_END_S, **full,
-                                                         "speed_controller.m": m,
-                                                         "speed_controller.anti_windup": "none"})
-                      for i, m in enumerate(m_values))),
-         Series("2DOF eq 11, back-calculation AW", "load",
-                tuple(RunSpec(f"m-load-{i}", LOAD_BASE, {**full, "speed_controller.m": m})
-                      for i, m in enumerate(m_values)))),
-        marks=((sc["m"], "preset"),)))
+    out.append(
+        Sweep(
+            "m",
+            "tracking pole factor m (feedforward eq 11)",
+            "m [-]",
+            "m",
+            m_values,
+            (
+                Series(
+                    "2DOF eq 11, back-calculation AW",
+                    "step",
+                    tuple(
+                        RunSpec(
+                            f"m-bc-{i}",
+                            STEP_BASE,
+                            {"simulation.t_end_s": STEP_T_END_S, **full, "speed_controller.m": m},
+                        )
+                        for i, m in enumerate(m_values)
+                    ),
+                ),
+                Series(
+                    "2DOF eq 11, no AW",
+                    "step",
+                    tuple(
+                        RunSpec(
+                            f"m-none-{i}",
+                            STEP_BASE,
+                            {
+                                "simulation.t_end_s": STEP_T_END_S,
+                                **full,
+                                "speed_controller.m": m,
+                                "speed_controller.anti_windup": "none",
+                            },
+                        )
+                        for i, m in enumerate(m_values)
+                    ),
+                ),
+                Series(
+                    "2DOF eq 11, back-calculation AW",
+                    "load",
+                    tuple(
+                        RunSpec(f"m-load-{i}", LOAD_BASE, {**full, "speed_controller.m": m})
+                        for i, m in enumerate(m_values)
+                    ),
+                ),
+            ),
+            marks=((sc["m"], "preset"),),
+        )
+    )
 
     # zeta (eq 9)
     zeta = _geom(0.2, 1.0, points, sc["zeta"])
-    out.append(Sweep(
-        "zeta", "relative damping zeta (eq 9)", "zeta [-]", "zeta", zeta,
-        _both_controllers("zeta", zeta, "speed_controller.zeta"), marks=((sc["zeta"], "preset"),), log_x=True))
+    out.append(
+        Sweep(
+            "zeta",
+            "relative damping zeta (eq 9)",
+            "zeta [-]",
+            "zeta",
+            zeta,
+            _both_controllers("zeta", zeta, "speed_controller.zeta"),
+            marks=((sc["zeta"], "preset"),),
+            log_x=True,
+        )
+    )
 
     # inertia error: the plant's J from 0.5 to 2 times the J the controller is designed for
     ratios = _geom(0.5, 2.0, points, 1.0)
     series = []
     for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
         for kind, make in (("step", _step), ("load", _load)):
-            series.append(Series(label, kind, tuple(
-                make(label, f"inertia-{kind}-{dof}-{i}",
-                     {"motor.J_kgm2": r * J_design, "speed_controller.J_design_kgm2": J_design})
-                for i, r in enumerate(ratios))))
-    out.append(Sweep("inertia", "inertia error (true J / design J)", "true J / design J [-]", "J_over_J_design",
-                     ratios, tuple(series), marks=((1.0, "J = design J"),), log_x=True))
+            series.append(
+                Series(
+                    label,
+                    kind,
+                    tuple(
+                        make(
+                            label,
+                            f"inertia-{kind}-{dof}-{i}",
+                            {"motor.J_kgm2": r * J_design, "speed_controller.J_design_kgm2": J_design},
+                        )
+                        for i, r in enumerate(ratios)
+                    ),
+                )
+            )
+    out.append(
+        Sweep(
+            "inertia",
+            "inertia error (true J / design J)",
+            "true J / design J [-]",
+            "J_over_J_design",
+            ratios,
+            tuple(series),
+            marks=((1.0, "J = design J"),),
+            log_x=True,
+        )
+    )
 
     # torque limit: the torque constant 1.5 p psi_f that turns the 7.6 A limit into torque is not in the paper
     motor, limits = step_data["motor"], step_data["limits"]
     psi_f = _geom(0.4 * motor["psi_f_Wb"], 2.5 * motor["psi_f_Wb"], points, motor["psi_f_Wb"])
     torque_limit = tuple(1.5 * motor["pole_pairs"] * v * limits["i_max_A"] for v in psi_f)
-    out.append(Sweep(
-        "torque_limit", "torque the current limit allows, 1.5 p psi_f i_max (1DOF PI)",
-        "torque limit [Nm]", "torque_limit_Nm", torque_limit,
-        tuple(Series(f"{ONE_DOF}, {AW_LABELS[aw]}", "step",
-                     tuple(_step(ONE_DOF, f"torque-{aw}-{i}", {"motor.psi_f_Wb": v}, aw) for i, v in enumerate(psi_f)))
-              for aw in AW_LABELS),
-        marks=((1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"], "preset"),), log_x=True))
+    out.append(
+        Sweep(
+            "torque_limit",
+            "torque the current limit allows, 1.5 p psi_f i_max (1DOF PI)",
+            "torque limit [Nm]",
+            "torque_limit_Nm",
+            torque_limit,
+            tuple(
+                Series(
+                    f"{ONE_DOF}, {AW_LABELS[aw]}",
+                    "step",
+                    tuple(_step(ONE_DOF, f"torque-{aw}-{i}", {"motor.psi_f_Wb": v}, aw) for i, v in enumerate(psi_f)),
+                )
+                for aw in AW_LABELS
+            ),
+            marks=((1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"], "preset"),),
+            log_x=True,
+        )
+    )
     return out
 
 
@@ -264,8 +356,11 @@ def _both_controllers(name, values, key):
     series = []
     for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
         for kind, make in (("step", _step), ("load", _load)):
-            series.append(Series(label, kind, tuple(make(label, f"{name}-{kind}-{dof}-{i}", {key: v})
-                                                    for i, v in enumerate(values))))
+            series.append(
+                Series(
+                    label, kind, tuple(make(label, f"{name}-{kind}-{dof}-{i}", {key: v}) for i, v in enumerate(values))
+                )
+            )
     return tuple(series)
 
 
@@ -313,8 +408,16 @@ def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
             raise ConfigError("Ts_s", Ts, f"a multiple of current_loop.Ts_s = {cl['Ts_s']:g} s")
     designs, continuous = {}, {}
     for label, ff in FEEDFORWARD.items():
-        d = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=sc["m"], tau_i_s=sc["tau_i_design_s"],
-                   feedforward=ff, anti_windup=sc["anti_windup"], Ka=sc["Ka"])
+        d = design(
+            sc["J_design_kgm2"],
+            sc["alpha"],
+            sc["zeta"],
+            m=sc["m"],
+            tau_i_s=sc["tau_i_design_s"],
+            feedforward=ff,
+            anti_windup=sc["anti_windup"],
+            Ka=sc["Ka"],
+        )
         margins = loop_margins(d.L)
         designs[label] = d
         continuous[label] = (d.overshoot_pct(), margins, margins.w_gain_crossover_radps)
@@ -334,8 +437,11 @@ def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
             points.append(DiscretePoint(label, method, Ts, False, math.nan, math.nan, math.nan, math.nan, str(exc)))
             continue
         error = abs(complex(dd.F_z(np.exp(1j * w_gc * Ts))) / complex(d.F(1j * w_gc)) - 1.0)
-        points.append(DiscretePoint(label, method, Ts, True, dd.overshoot_pct, dd.margins.gain_margin_dB,
-                                    dd.margins.phase_margin_deg, error))
+        points.append(
+            DiscretePoint(
+                label, method, Ts, True, dd.overshoot_pct, dd.margins.gain_margin_dB, dd.margins.phase_margin_deg, error
+            )
+        )
     return points, continuous
 
 
@@ -356,8 +462,11 @@ def _small_step(name, overrides):
     From rest rather than at speed, so that the float32 resolution of a large speed reference
     (about 1e-7 of it per operation) stays far below the step.
     """
-    return RunSpec(name, STEP_BASE, {"simulation.t_end_s": 20.0,
-                                     "reference": [{"t_s": 0.5, "speed_rpm": SMALL_STEP_RPM}]} | overrides)
+    return RunSpec(
+        name,
+        STEP_BASE,
+        {"simulation.t_end_s": 20.0, "reference": [{"t_s": 0.5, "speed_rpm": SMALL_STEP_RPM}]} | overrides,
+    )
 
 
 def linear_runs():
@@ -365,8 +474,10 @@ def linear_runs():
 
     Named ``lin-lowpass`` and ``lin-full``; their traces are kept.
     """
-    return [_small_step(f"lin-{ff}", {"speed_controller.feedforward": ff, "speed_controller.m": 1.0})
-            for ff in ("lowpass", "full")]
+    return [
+        _small_step(f"lin-{ff}", {"speed_controller.feedforward": ff, "speed_controller.m": 1.0})
+        for ff in ("lowpass", "full")
+    ]
 
 
 def discretization_runs(Ts_engine=TS_ENGINE_S):
@@ -375,9 +486,18 @@ def discretization_runs(Ts_engine=TS_ENGINE_S):
     The step of :data:`SMALL_STEP_RPM` leaves the current far from its limit, so the loop stays
     linear and its overshoot can be compared with that of the discrete design.
     """
-    return [_small_step(f"disc-{method}-{Ts:g}", {
-        "speed_controller.feedforward": "none", "speed_controller.discretization": method,
-        "speed_controller.Ts_s": Ts}) for method in METHODS for Ts in Ts_engine]
+    return [
+        _small_step(
+            f"disc-{method}-{Ts:g}",
+            {
+                "speed_controller.feedforward": "none",
+                "speed_controller.discretization": method,
+                "speed_controller.Ts_s": Ts,
+            },
+        )
+        for method in METHODS
+        for Ts in Ts_engine
+    ]
 
 
 @dataclasses.dataclass
@@ -495,9 +615,14 @@ def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, workers=None, 
     for spec in specs:  # every run valid before any runs
         bases[spec.preset].with_overrides(spec.overrides)
     keep = {spec.name for spec in kept}
-    outcomes = run_many({name: base.data for name, base in bases.items()},
-                        [Run(spec.name, spec.preset, spec.overrides, spec.name) for spec in specs],
-                        keep=keep, workers=workers, progress=progress, description="pmsm2dof reproduce")
+    outcomes = run_many(
+        {name: base.data for name, base in bases.items()},
+        [Run(spec.name, spec.preset, spec.overrides, spec.name) for spec in specs],
+        keep=keep,
+        workers=workers,
+        progress=progress,
+        description="pmsm2dof reproduce",
+    )
 
     results, metrics, failures = {}, {}, {}
     for outcome in outcomes:
@@ -511,7 +636,16 @@ def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, workers=None, 
             results[outcome.key] = outcome.result
 
     discretization, continuous = discretization_points(bases[STEP_BASE], Ts_grid, progress=progress)
-    return Studies(bases=bases, overrides=overrides, results=results, metrics=metrics, failures=failures,
-                   sweeps=study_sweeps, discretization=discretization, continuous=continuous,
-                   fine_Ts_s=largest_fine_Ts(bases[STEP_BASE], Ts_grid), n_runs=len(specs),
-                   wall_time_s=time.perf_counter() - start)
+    return Studies(
+        bases=bases,
+        overrides=overrides,
+        results=results,
+        metrics=metrics,
+        failures=failures,
+        sweeps=study_sweeps,
+        discretization=discretization,
+        continuous=continuous,
+        fine_Ts_s=largest_fine_Ts(bases[STEP_BASE], Ts_grid),
+        n_runs=len(specs),
+        wall_time_s=time.perf_counter() - start,
+    )

@@ -250,9 +250,7 @@ def parse_sweep(data, base_dir="."):
         try:
             base.with_overrides(point)
         except ConfigError as exc:
-            raise ConfigError(
-                f"point {index} ({_describe(point)}): {exc.param}", exc.value, exc.valid
-            ) from None
+            raise ConfigError(f"point {index} ({_describe(point)}): {exc.param}", exc.value, exc.valid) from None
     return Sweep(name.strip(), base, axes, draws, seed, rank_by, worst, tuple(points))
 
 
@@ -328,8 +326,12 @@ def _check_key(key, base_data):
         elif isinstance(node, list) and part.isdigit() and int(part) < len(node):
             node = node[int(part)]
         else:
-            raise ConfigError("axes", key, "dotted keys of the base scenario, e.g. 'motor.J_kgm2' "
-                              "or 'reference.0.speed_rpm'" + (f" (no '{part}' here)" if i else ""))
+            raise ConfigError(
+                "axes",
+                key,
+                "dotted keys of the base scenario, e.g. 'motor.J_kgm2' "
+                "or 'reference.0.speed_rpm'" + (f" (no '{part}' here)" if i else ""),
+            )
     if isinstance(node, (dict, list)):
         raise ConfigError("axes", key, "a key holding one value, not a table or list")
 
@@ -375,6 +377,7 @@ def _require_int(param, value, minimum, valid):
 # Result columns
 # ---------------------------------------------------------------------------------------------
 
+
 def metric_columns(data):
     """Names of the metric columns for a scenario's ``data``, in table order.
 
@@ -395,8 +398,10 @@ def _flatten(metrics):
     from ..sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
 
     figures = {}
-    for prefix, steps, names in (("ref", metrics["reference_steps"], REFERENCE_FIGURES),
-                                 ("load", metrics["load_steps"], LOAD_FIGURES)):
+    for prefix, steps, names in (
+        ("ref", metrics["reference_steps"], REFERENCE_FIGURES),
+        ("load", metrics["load_steps"], LOAD_FIGURES),
+    ):
         for i, step in enumerate(steps):
             figures.update({f"{prefix}{i}_{name}": step[name] for name in names})
     figures.update({f"run_{name}": metrics["run"][name] for name in RUN_FIGURES})
@@ -453,8 +458,12 @@ def _prepare_out(out, sweep):
         except (OSError, ValueError, AttributeError):
             old = None
         if old != digest:
-            raise ConfigError("out", str(out), "a new folder, or the folder of an earlier run of this same "
-                              "sweep (it holds the results of a different sweep)")
+            raise ConfigError(
+                "out",
+                str(out),
+                "a new folder, or the folder of an earlier run of this same "
+                "sweep (it holds the results of a different sweep)",
+            )
         return
     if out.exists() and any(out.iterdir()):
         raise ConfigError("out", str(out), "a new or empty folder, or the folder of an earlier run of this sweep")
@@ -463,8 +472,13 @@ def _prepare_out(out, sweep):
     except OSError as exc:
         raise ConfigError("out", str(out), f"a writable folder ({exc.strerror})") from None
     atomic_write(out / "base.toml", sweep.base.to_toml())
-    atomic_write(manifest, json.dumps({"name": sweep.name, "digest": digest, "points": len(sweep.points),
-                                       "keys": list(sweep.keys)}, indent=2) + "\n")
+    atomic_write(
+        manifest,
+        json.dumps(
+            {"name": sweep.name, "digest": digest, "points": len(sweep.points), "keys": list(sweep.keys)}, indent=2
+        )
+        + "\n",
+    )
 
 
 def _parts(out, sweep):
@@ -552,11 +566,21 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
         parts = _parts(out, sweep)
         finished = parts.read()
         done = set() if finished is None else set(int(i) for i in finished["point"])
-        todo = [Run(i, "base", sweep.points[i], f"point {i} ({_describe(sweep.points[i])})")
-                for i in range(len(sweep.points)) if i not in done]
-        run_many({"base": sweep.base.data}, todo, workers=workers, client=client, batch_size=batch_size,
-                 progress=progress, description=sweep.name,
-                 on_batch=lambda outcomes: _save_part(out, sweep, [_row(sweep, o.key, o) for o in outcomes]))
+        todo = [
+            Run(i, "base", sweep.points[i], f"point {i} ({_describe(sweep.points[i])})")
+            for i in range(len(sweep.points))
+            if i not in done
+        ]
+        run_many(
+            {"base": sweep.base.data},
+            todo,
+            workers=workers,
+            client=client,
+            batch_size=batch_size,
+            progress=progress,
+            description=sweep.name,
+            on_batch=lambda outcomes: _save_part(out, sweep, [_row(sweep, o.key, o) for o in outcomes]),
+        )
     table = parts.read().drop_duplicates("point").sort_values("point", ignore_index=True)
     if len(table) != len(sweep.points):
         raise RuntimeError(f"{len(sweep.points) - len(table)} points of the sweep have no stored result")

@@ -79,39 +79,91 @@ def main(argv=None):
 # design and bode (pmsm2dof.analysis, ui.plots.design)
 # ---------------------------------------------------------------------------------------------
 
+
 @cli.command()
 @click.option("--J", "J_kgm2", type=float, required=True, help="inertia [kg m^2], > 0")
 @click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0 (eq 9)")
 @click.option("--zeta", type=float, required=True, help="relative damping of the PI loop, > 0 (eq 9)")
-@click.option("--m", type=float, default=1.0, show_default=True, help="tracking pole factor, Gx = m alpha/(s + m alpha) (eq 10)")
-@click.option("--tau-i", "tau_i_s", type=float, default=0.0, show_default=True, help="current-loop time constant [s] (eq 3)")
+@click.option(
+    "--m", type=float, default=1.0, show_default=True, help="tracking pole factor, Gx = m alpha/(s + m alpha) (eq 10)"
+)
+@click.option(
+    "--tau-i", "tau_i_s", type=float, default=0.0, show_default=True, help="current-loop time constant [s] (eq 3)"
+)
 @click.option("--Ts", "Ts_s", type=float, required=True, help="speed-loop sampling period [s], > 0")
-@click.option("--method", default="tustin", show_default=True,
-              help="discretization (Table 1): forward_euler, backward_euler or tustin")
-@click.option("--feedforward", default="lowpass", show_default=True,
-              help="lowpass (eq 13/15, the paper's 2DOF controller; needs m = 1), none (1DOF PI), "
-                   "no_tau (eq 11 with tau_i = 0) or full (eq 11); for m != 1 choose no_tau or full")
-@click.option("--anti-windup", default="back_calculation", show_default=True,
-              help="none, back_calculation or clamping")
+@click.option(
+    "--method",
+    default="tustin",
+    show_default=True,
+    help="discretization (Table 1): forward_euler, backward_euler or tustin",
+)
+@click.option(
+    "--feedforward",
+    default="lowpass",
+    show_default=True,
+    help="lowpass (eq 13/15, the paper's 2DOF controller; needs m = 1), none (1DOF PI), "
+    "no_tau (eq 11 with tau_i = 0) or full (eq 11); for m != 1 choose no_tau or full",
+)
+@click.option("--anti-windup", default="back_calculation", show_default=True, help="none, back_calculation or clamping")
 @click.option("--Ka", "Ka", type=float, default=None, help="back-calculation gain [(rad/s)/Nm], >= 0 [default: 1/Kp]")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
-@click.option("--emit-c-header", "header", type=click.Path(dir_okay=False), default=None,
-              help="write a C header with the p2d_speed_config_t of this design")
+@click.option(
+    "--emit-c-header",
+    "header",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="write a C header with the p2d_speed_config_t of this design",
+)
 @click.option("--prefix", default="p2d_design", show_default=True, help="C identifier prefix in the header")
 @click.option("--i-max", "i_max_A", type=float, default=None, help="header: current-vector limit [A]")
-@click.option("--pole-pairs", type=int, default=None,
-              help="header: pole pairs p, Te = 1.5 p psi_f iq (the paper's p0, called there the number of poles)")
+@click.option(
+    "--pole-pairs",
+    type=int,
+    default=None,
+    help="header: pole pairs p, Te = 1.5 p psi_f iq (the paper's p0, called there the number of poles)",
+)
 @click.option("--psi-f", "psi_f_Wb", type=float, default=None, help="header: magnet flux linkage [Wb]")
 @click.option("--Ld", "Ld_H", type=float, default=None, help="header: d-axis inductance [H]")
-@click.option("--Lq", "Lq_H", type=float, default=None, help="header: q-axis inductance [H] [default: Ld, surface PMSM]")
-@click.option("--Rs", "Rs_ohm", type=float, default=None,
-              help="header: stator resistance [ohm]; with --Ts-current adds a p2d_current_config_t")
+@click.option(
+    "--Lq", "Lq_H", type=float, default=None, help="header: q-axis inductance [H] [default: Ld, surface PMSM]"
+)
+@click.option(
+    "--Rs",
+    "Rs_ohm",
+    type=float,
+    default=None,
+    help="header: stator resistance [ohm]; with --Ts-current adds a p2d_current_config_t",
+)
 @click.option("--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s]")
-@click.option("--paper-drive", is_flag=True,
-              help="header: take the motor data not given from the paper's drive (the preset "
-                   "paper-condition-1), placeholders rather than your motor's")
-def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, anti_windup, Ka, as_json, header,
-           prefix, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm, Ts_current_s, paper_drive):
+@click.option(
+    "--paper-drive",
+    is_flag=True,
+    help="header: take the motor data not given from the paper's drive (the preset "
+    "paper-condition-1), placeholders rather than your motor's",
+)
+def design(
+    J_kgm2,
+    alpha_radps,
+    zeta,
+    m,
+    tau_i_s,
+    Ts_s,
+    method,
+    feedforward,
+    anti_windup,
+    Ka,
+    as_json,
+    header,
+    prefix,
+    i_max_A,
+    pole_pairs,
+    psi_f_Wb,
+    Ld_H,
+    Lq_H,
+    Rs_ohm,
+    Ts_current_s,
+    paper_drive,
+):
     """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.
 
     With --emit-c-header the header needs the motor data: --i-max, --pole-pairs, --psi-f and
@@ -125,12 +177,16 @@ def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, ant
     from ..analysis.design import design as make_design
 
     if header is not None:
-        motor, sources = _header_motor(dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H,
-                                            Lq_H=Lq_H, Rs_ohm=Rs_ohm), Ts_current_s is not None, paper_drive)
+        motor, sources = _header_motor(
+            dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm),
+            Ts_current_s is not None,
+            paper_drive,
+        )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        d = make_design(J_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward,
-                        anti_windup=anti_windup, Ka=Ka)
+        d = make_design(
+            J_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward, anti_windup=anti_windup, Ka=Ka
+        )
         dd = d.discretize(Ts_s, method)
     for w in caught:
         print(f"pmsm2dof: warning: {_one_line(w.message)}", file=sys.stderr)
@@ -141,8 +197,10 @@ def design(J_kgm2, alpha_radps, zeta, m, tau_i_s, Ts_s, method, feedforward, ant
     if as_json:
         data = dd.as_dict()
         if header is not None:
-            data["header"] = {"path": header, "motor": {name: {"value": motor[name], "source": sources[name]}
-                                                        for name in sources}}
+            data["header"] = {
+                "path": header,
+                "motor": {name: {"value": motor[name], "source": sources[name]} for name in sources},
+            }
         click.echo(json.dumps(data))
         return
     click.echo(_design_table(dd))
@@ -187,8 +245,10 @@ def _header_motor(given, current_loop, paper_drive):
     missing = [name for name in needed if given[name] is None]
     if missing and not paper_drive:
         options = ", ".join(_HEADER_MOTOR[name][0] for name in missing if name != "Lq_H")
-        raise click.UsageError(f"--emit-c-header needs the motor data: {options} missing; give them, or "
-                               "--paper-drive for the paper's drive (placeholders, not your motor)")
+        raise click.UsageError(
+            f"--emit-c-header needs the motor data: {options} missing; give them, or "
+            "--paper-drive for the paper's drive (placeholders, not your motor)"
+        )
     if missing:
         from ..sim.scenario import load_scenario
 
@@ -216,8 +276,10 @@ def _poles_text(poles, unit):
 
 
 def _margins_text(margins, unit):
-    return (f"gain {margins.gain_margin_dB:.4g} dB, phase {margins.phase_margin_deg:.4g} deg"
-            f" (crossover {margins.w_gain_crossover_radps:.4g} {unit})")
+    return (
+        f"gain {margins.gain_margin_dB:.4g} dB, phase {margins.phase_margin_deg:.4g} deg"
+        f" (crossover {margins.w_gain_crossover_radps:.4g} {unit})"
+    )
 
 
 def _overshoot_text(value, missing):
@@ -271,13 +333,22 @@ def _design_table(dd):
 
 @cli.command()
 @click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0")
-@click.option("--m", "m_list", default="1", show_default=True,
-              help="comma-separated values of m (eq 10); other than 1 with --feedforward no_tau or full")
+@click.option(
+    "--m",
+    "m_list",
+    default="1",
+    show_default=True,
+    help="comma-separated values of m (eq 10); other than 1 with --feedforward no_tau or full",
+)
 @click.option("--J", "J_kgm2", type=float, default=0.4, show_default=True, help="inertia [kg m^2] (paper section 4)")
 @click.option("--zeta", type=float, default=0.2887, show_default=True, help="relative damping (paper: Ki = 0.3)")
 @click.option("--tau-i", "tau_i_s", type=float, default=0.05, show_default=True, help="current-loop time constant [s]")
-@click.option("--feedforward", default="lowpass", show_default=True,
-              help="lowpass (eq 13, m = 1), none, no_tau or full (eq 11); Fig. 7 is full with m = 0.2,0.5,1,2")
+@click.option(
+    "--feedforward",
+    default="lowpass",
+    show_default=True,
+    help="lowpass (eq 13, m = 1), none, no_tau or full (eq 11); Fig. 7 is full with m = 0.2,0.5,1,2",
+)
 @click.option("--out", type=click.Path(dir_okay=False), required=True, help="figure file, .png or .svg")
 def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
     """Bode diagram of the tracking response Gx for several m (paper Fig. 7).
@@ -290,9 +361,12 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
         m_values = [float(v) for v in m_list.split(",")]
     except ValueError:
         raise ConfigError("m", m_list, "comma-separated numbers > 0, e.g. 0.2,0.5,1,2") from None
-    save_figure(bode_gx_sweep(alpha_radps, m_values, J_kgm2=J_kgm2, zeta=zeta, tau_i_s=tau_i_s,
-                              feedforward=feedforward), out)
-    click.echo(f"wrote {out}: Bode diagram of Gx, feedforward {feedforward}, m = {', '.join(f'{m:g}' for m in m_values)}")
+    save_figure(
+        bode_gx_sweep(alpha_radps, m_values, J_kgm2=J_kgm2, zeta=zeta, tau_i_s=tau_i_s, feedforward=feedforward), out
+    )
+    click.echo(
+        f"wrote {out}: Bode diagram of Gx, feedforward {feedforward}, m = {', '.join(f'{m:g}' for m in m_values)}"
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -301,10 +375,20 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
 
 
 @cli.command(short_help="Reproduce the paper: figures 7-14, sensitivity studies and the claims table.")
-@click.option("--out", type=click.Path(), default="pmsm2dof-report", show_default=True,
-              help="folder for report.md, report.html, claims.json, the figures and their data")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
-              help="change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)")
+@click.option(
+    "--out",
+    type=click.Path(),
+    default="pmsm2dof-report",
+    show_default=True,
+    help="folder for report.md, report.html, claims.json, the figures and their data",
+)
+@click.option(
+    "--set",
+    "overrides",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)",
+)
 def reproduce(out, overrides):
     """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
 
@@ -325,9 +409,11 @@ def reproduce(out, overrides):
         click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
     counts = ", ".join(f"{sum(c.verdict == v for c in report.claims)} {v}" for v in VERDICTS)
     click.echo(f"{len(report.claims)} claims: {counts}")
-    click.echo(f"{report.studies.n_runs} simulations; wrote report.md, report.html, claims.json and "
-               f"{sum(f.startswith('figures/') for f in report.files)} figure files to {out} "
-               f"in {time.perf_counter() - start:.1f} s")
+    click.echo(
+        f"{report.studies.n_runs} simulations; wrote report.md, report.html, claims.json and "
+        f"{sum(f.startswith('figures/') for f in report.files)} figure files to {out} "
+        f"in {time.perf_counter() - start:.1f} s"
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -337,11 +423,17 @@ def reproduce(out, overrides):
 
 @cli.command()
 @click.argument("scenario", metavar="PRESET_OR_FILE")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE",
-              help="change a scenario key, e.g. --set speed_controller.anti_windup=none or "
-                   "--set reference.0.speed_rpm=300 (repeatable; values are TOML literals)")
-@click.option("--out", type=click.Path(), required=True,
-              help="folder for trace.csv, metrics.json, plot.png and scenario.toml")
+@click.option(
+    "--set",
+    "overrides",
+    multiple=True,
+    metavar="KEY=VALUE",
+    help="change a scenario key, e.g. --set speed_controller.anti_windup=none or "
+    "--set reference.0.speed_rpm=300 (repeatable; values are TOML literals)",
+)
+@click.option(
+    "--out", type=click.Path(), required=True, help="folder for trace.csv, metrics.json, plot.png and scenario.toml"
+)
 def simulate(scenario, overrides, out):
     """Simulate a scenario (see `pmsm2dof presets`) and write its trace, metrics and plot.
 
@@ -396,13 +488,25 @@ def presets(keys):
 
 @cli.command()
 @click.argument("file", type=click.Path(dir_okay=False))
-@click.option("--out", required=True, type=click.Path(file_okay=False),
-              help="output folder; rerun with the same folder to resume an interrupted sweep")
+@click.option(
+    "--out",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="output folder; rerun with the same folder to resume an interrupted sweep",
+)
 @click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
-@click.option("--scheduler", default=None, metavar="ADDRESS",
-              help="run on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)")
-@click.option("--batch-size", type=int, default=None,
-              help="points per task [default: about 4 tasks per worker, at most 50 points]")
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="run on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)",
+)
+@click.option(
+    "--batch-size",
+    type=int,
+    default=None,
+    help="points per task [default: about 4 tasks per worker, at most 50 points]",
+)
 @click.option("--no-figures", is_flag=True, help="write the results table only")
 def sweep(file, out, workers, scheduler, batch_size, no_figures):
     """Run a sweep (grid or Monte Carlo) of a scenario: one row of metrics per point, and figures.
@@ -432,15 +536,24 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
         warnings.simplefilter("always", PartWarning)
         warnings.showwarning = one_line
         try:
-            run = run_sweep(chosen, out, workers=workers, scheduler=scheduler, batch_size=batch_size,
-                            figures=None if no_figures else draw_figures)
+            run = run_sweep(
+                chosen,
+                out,
+                workers=workers,
+                scheduler=scheduler,
+                batch_size=batch_size,
+                figures=None if no_figures else draw_figures,
+            )
         except ConfigError as exc:
-            raise _as_option(exc, {"out": "--out", "workers": "--workers", "scheduler": "--scheduler",
-                                   "batch_size": "--batch-size"}) from None
+            raise _as_option(
+                exc, {"out": "--out", "workers": "--workers", "scheduler": "--scheduler", "batch_size": "--batch-size"}
+            ) from None
     table = run.table
     stopped = table[table["status"] != "ok"]
-    click.echo(f"{chosen.name}: {len(table)} points ({run.computed} simulated, {run.resumed} already done), "
-               f"{len(stopped)} stopped by a SimulationError")
+    click.echo(
+        f"{chosen.name}: {len(table)} points ({run.computed} simulated, {run.resumed} already done), "
+        f"{len(stopped)} stopped by a SimulationError"
+    )
     for _, row in stopped.head(5).iterrows():
         click.echo(f"  point {row['point']}: {row['error']}")
     ranked = table[table[chosen.rank_by].notna()].sort_values(chosen.rank_by, ascending=False)
@@ -457,10 +570,15 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
 
 @cli.command()
 @click.argument("scenario", required=False, metavar="[PRESET_OR_FILE]")
-@click.option("--port", type=int, default=None,
-              help="TCP port; 0 for any free port [default: 8765, or a free one if busy]")
-@click.option("--host", default="127.0.0.1", show_default=True,
-              help="interface to listen on; anything but loopback exposes the tuner to the network")
+@click.option(
+    "--port", type=int, default=None, help="TCP port; 0 for any free port [default: 8765, or a free one if busy]"
+)
+@click.option(
+    "--host",
+    default="127.0.0.1",
+    show_default=True,
+    help="interface to listen on; anything but loopback exposes the tuner to the network",
+)
 @click.option("--no-browser", is_flag=True, help="do not open the page in a browser")
 def tune(scenario, port, host, no_browser):
     """Tune the speed controller in the browser: responses redrawn as the sliders move.

@@ -82,8 +82,12 @@ def bode_gn(d):
     """
     one_dof = dataclasses.replace(d, feedforward="none")
     fig, axes = _figure(2)
-    _bode(axes, [one_dof.GN, d.GN], ["1DOF PI", f"2DOF, feedforward {d.feedforward}"],
-          styles=[{"linewidth": 3.0, "alpha": 0.5}, {"linestyle": "--"}])
+    _bode(
+        axes,
+        [one_dof.GN, d.GN],
+        ["1DOF PI", f"2DOF, feedforward {d.feedforward}"],
+        styles=[{"linewidth": 3.0, "alpha": 0.5}, {"linestyle": "--"}],
+    )
     axes[0].set_title("Load rejection GN(s), load torque [Nm] to speed [rad/s] (eq 8)")
     return fig
 

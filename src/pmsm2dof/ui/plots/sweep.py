@@ -68,8 +68,11 @@ def _heatmap(plt, sweep, grid, table, col, folder):
     cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")  # cells without a value: light gray
     image = ax.imshow(np.ma.masked_invalid(values), origin="lower", aspect="auto", cmap=cmap)
     fig.colorbar(image, ax=ax, label=col)
-    ax.set_xticks(range(n_c), [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in cols_axis.values],
-                  rotation=45 if n_c > 8 else 0)
+    ax.set_xticks(
+        range(n_c),
+        [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in cols_axis.values],
+        rotation=45 if n_c > 8 else 0,
+    )
     ax.set_yticks(range(n_r), [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in rows_axis.values])
     ax.set_xlabel(cols_axis.key)
     ax.set_ylabel(rows_axis.key)
@@ -99,8 +102,13 @@ def _scatter(plt, sweep, table, col, keys, folder):
     for ax, key in zip(axes[0], keys):
         x_all = ok[key].astype(float)
         for cell, part in groups:
-            label = None if cell is None else ", ".join(
-                f"{k.split('.')[-1]}={v}" for k, v in zip(grid, cell if isinstance(cell, tuple) else (cell,)))
+            label = (
+                None
+                if cell is None
+                else ", ".join(
+                    f"{k.split('.')[-1]}={v}" for k, v in zip(grid, cell if isinstance(cell, tuple) else (cell,))
+                )
+            )
             ax.scatter(part[key].astype(float), part[col].astype(float), s=10, alpha=0.6, label=label)
         ax.set_xlabel(key)
         ax.set_ylabel(col)
@@ -110,8 +118,10 @@ def _scatter(plt, sweep, table, col, keys, folder):
         if groups[0][0] is not None:
             ax.legend(fontsize=7)
     n_failed = int((table["status"] != "ok").sum())
-    fig.suptitle(f"{sweep.name}: {col}, {len(ok)} of {len(table)} points"
-                 + (f" ({n_failed} stopped)" if n_failed else ""), fontsize=9)
+    fig.suptitle(
+        f"{sweep.name}: {col}, {len(ok)} of {len(table)} points" + (f" ({n_failed} stopped)" if n_failed else ""),
+        fontsize=9,
+    )
     fig.tight_layout()
     path = folder / f"scatter_{col}.png"
     fig.savefig(path, dpi=110)
@@ -144,9 +154,11 @@ def _worst_traces(plt, sweep, table, folder):
     for _, row in worst.iterrows():
         point = int(row["point"])
         result = simulate(sweep.scenario(point))
-        label = f"#{point}: " + ", ".join(f"{k.split('.')[-1]}={row[k]:.4g}" if _is_numeric([row[k]])
-                                           else f"{k.split('.')[-1]}={row[k]}" for k in sweep.keys)
-        line, = ax_w.plot(result.t_s, result.speed_rpm, label=f"{label} ({sweep.rank_by} {row[sweep.rank_by]:.4g})")
+        label = f"#{point}: " + ", ".join(
+            f"{k.split('.')[-1]}={row[k]:.4g}" if _is_numeric([row[k]]) else f"{k.split('.')[-1]}={row[k]}"
+            for k in sweep.keys
+        )
+        (line,) = ax_w.plot(result.t_s, result.speed_rpm, label=f"{label} ({sweep.rank_by} {row[sweep.rank_by]:.4g})")
         ax_w.plot(result.t_s, result.speed_ref_rpm, "--", color=line.get_color(), linewidth=0.8)
         ax_t.plot(result.t_s, result.torque_ref_Nm, color=line.get_color())
     ax_w.set_ylabel("speed [rpm] (dashed: reference)")

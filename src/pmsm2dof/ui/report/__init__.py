@@ -35,7 +35,7 @@ from ...studies import paper as st
 from ...studies.faults import run_faults
 from .claims import VERDICTS, Claim, compute_claims
 from .figures import fig_faults, figures
-from .render import csv_text, json_value, sensitivity_rows, render_html, render_markdown, report_blocks
+from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
 
 __all__ = ["VERDICTS", "Claim", "Report", "compute_claims", "reproduce", "write_report"]
 
@@ -85,9 +85,10 @@ def write_report(studies, out, progress=False):
     claims = compute_claims(studies)
     made = figures(studies)
     fault_runs = run_faults(studies.overrides)
-    made["faults"] = (*fig_faults(fault_runs),
-                      "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: "
-                      "the reference.")
+    made["faults"] = (
+        *fig_faults(fault_runs),
+        "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: the reference.",
+    )
     files = []
     with staged_dir(out) as tmp:
         images = {}
@@ -109,18 +110,21 @@ def write_report(studies, out, progress=False):
         captions = {stem: caption for stem, (_fig, _data, caption) in made.items()}
         claims_json = {
             "paper": "Wang, Lin, Yang, Fang, Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous Motor "
-                     "Speed Controller",
+            "Speed Controller",
             "pmsm2dof_version": version("pmsm2dof"),
             "overrides": json_value(studies.overrides),
             "verdict_counts": {v: sum(c.verdict == v for c in claims) for v in VERDICTS},
             "claims": [json_value(dataclasses.asdict(c)) for c in claims],
         }
         atomic_write(tmp / "claims.json", json.dumps(claims_json, indent=2, allow_nan=False) + "\n")
-        atomic_write(tmp / "metrics.json", json.dumps({name: studies.metrics[name] for name in studies.results},
-                                                      indent=2, allow_nan=False) + "\n")
+        atomic_write(
+            tmp / "metrics.json",
+            json.dumps({name: studies.metrics[name] for name in studies.results}, indent=2, allow_nan=False) + "\n",
+        )
         atomic_write(tmp / "sensitivity.csv", csv_text(sensitivity_rows(studies)))
-        atomic_write(tmp / "discretization.csv",
-                     csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization]))
+        atomic_write(
+            tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
+        )
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
         blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs)
         atomic_write(tmp / "report.md", render_markdown(blocks))
@@ -159,4 +163,3 @@ def reproduce(out="pmsm2dof-report", overrides=None, points=st.POINTS, progress=
     studies = st.run_studies(overrides, points=points, progress=progress)
     claims, files, wall_time_s = write_report(studies, out, progress=progress)
     return Report(out=Path(out), claims=claims, studies=studies, files=files, wall_time_s=wall_time_s)
-

@@ -88,6 +88,7 @@ class Claim:
 # measurements on the results
 # ---------------------------------------------------------------------------------------------
 
+
 def _value(figure):
     return figure["value"]
 
@@ -169,6 +170,7 @@ def _reference(sweep, label):
 # the claims, in the order of the paper
 # ---------------------------------------------------------------------------------------------
 
+
 def compute_claims(studies):
     """Every claim of the paper, checked against ``studies`` (:func:`pmsm2dof.studies.paper.run_studies`).
 
@@ -177,12 +179,27 @@ def compute_claims(studies):
     list of Claim
     """
     claims = [
-        _claim_gains(studies), _claim_separate(studies), _claim_first_order(studies), _claim_fig7(studies),
-        _claim_lowpass(studies), _claim_ka_range(studies), _claim_unwind(studies), _claim_tustin(studies),
-        _claim_limit_reached(studies), _claim_no_aw_overshoot(studies), _claim_current_reverse(studies),
-        _claim_aw_overshoot(studies), _claim_1dof_load(studies), _claim_c2_tracking(studies),
-        _claim_c2_load(studies), _claim_e1(studies), _claim_e2(studies), _claim_e3(studies),
-        _claim_aw_everywhere(studies), _claim_2dof_everywhere(studies), _claim_implementation(),
+        _claim_gains(studies),
+        _claim_separate(studies),
+        _claim_first_order(studies),
+        _claim_fig7(studies),
+        _claim_lowpass(studies),
+        _claim_ka_range(studies),
+        _claim_unwind(studies),
+        _claim_tustin(studies),
+        _claim_limit_reached(studies),
+        _claim_no_aw_overshoot(studies),
+        _claim_current_reverse(studies),
+        _claim_aw_overshoot(studies),
+        _claim_1dof_load(studies),
+        _claim_c2_tracking(studies),
+        _claim_c2_load(studies),
+        _claim_e1(studies),
+        _claim_e2(studies),
+        _claim_e3(studies),
+        _claim_aw_everywhere(studies),
+        _claim_2dof_everywhere(studies),
+        _claim_implementation(),
     ]
     return [dataclasses.replace(c, id=f"C{k}") for k, c in enumerate(claims, start=1)]
 
@@ -199,14 +216,21 @@ def _claim_gains(studies):
         section="4.1 (eq 9)",
         claim="the PI gains Kp = 0.2 and Ki = 0.3 correspond to alpha = 0.5 (eq 9, J = 0.4 kg m^2)",
         paper="Kp = 0.2, Ki = 0.3, alpha = 0.5 rad/s",
-        measured=(f"eq 9 with J = {sc['J_design_kgm2']:g} kg m^2, alpha = {sc['alpha']:g} rad/s, zeta = "
-                  f"{sc['zeta']:.4g}: Kp = {d.Kp:.4g} Nm/(rad/s), Ki = {d.Ki:.4g} Nm/rad"),
+        measured=(
+            f"eq 9 with J = {sc['J_design_kgm2']:g} kg m^2, alpha = {sc['alpha']:g} rad/s, zeta = "
+            f"{sc['zeta']:.4g}: Kp = {d.Kp:.4g} Nm/(rad/s), Ki = {d.Ki:.4g} Nm/rad"
+        ),
         values={"Kp": d.Kp, "Ki": d.Ki, "zeta": sc["zeta"]},
         verdict=_verdict(ok),
-        reason=("Kp = J alpha holds; the paper does not state zeta, and Ki = 0.3 gives zeta = alpha/2 sqrt(J/Ki) "
-                "= 0.289 (the presets' value); their load rejection is checked with condition 2 of section 4.1"
-                if ok else "the overrides change J, alpha or zeta away from the paper's values"),
-        source="design", evidence="design of the presets (eq 9)")
+        reason=(
+            "Kp = J alpha holds; the paper does not state zeta, and Ki = 0.3 gives zeta = alpha/2 sqrt(J/Ki) "
+            "= 0.289 (the presets' value); their load rejection is checked with condition 2 of section 4.1"
+            if ok
+            else "the overrides change J, alpha or zeta away from the paper's values"
+        ),
+        source="design",
+        evidence="design of the presets (eq 9)",
+    )
 
 
 def _claim_separate(studies):
@@ -222,14 +246,22 @@ def _claim_separate(studies):
         section="3.1 (eq 5, 6), 4.2",
         claim="with Fr, Gx depends on F and Fr but GN on F only: tracking and load rejection are adjusted separately",
         paper="qualitative",
-        measured=(f"m from {sweep.x[0]:g} to {sweep.x[-1]:g}: 10-90 % rise time of the 500 rpm step "
-                  f"{np.nanmax(rise):.2f} .. {np.nanmin(rise):.2f} s, while the dip after the 8 Nm load step "
-                  f"stays {np.nanmin(dip):.2f} .. {np.nanmax(dip):.2f} rpm (spread {spread:.3g} rpm)"),
+        measured=(
+            f"m from {sweep.x[0]:g} to {sweep.x[-1]:g}: 10-90 % rise time of the 500 rpm step "
+            f"{np.nanmax(rise):.2f} .. {np.nanmin(rise):.2f} s, while the dip after the 8 Nm load step "
+            f"stays {np.nanmin(dip):.2f} .. {np.nanmax(dip):.2f} rpm (spread {spread:.3g} rpm)"
+        ),
         values={"rise_time_s": rise.tolist(), "speed_dip_rpm": dip.tolist()},
         verdict=_verdict(ok),
-        reason="" if ok else (f"the load dip changes by {spread:.3g} rpm (> {100 * SAME_RTOL:g} % of the dip) "
-                              f"or the rise time by less than a factor 2 ({ratio:.3g})"),
-        source="simulation", evidence="sensitivity to m (sens_m)")
+        reason=""
+        if ok
+        else (
+            f"the load dip changes by {spread:.3g} rpm (> {100 * SAME_RTOL:g} % of the dip) "
+            f"or the rise time by less than a factor 2 ({ratio:.3g})"
+        ),
+        source="simulation",
+        evidence="sensitivity to m (sens_m)",
+    )
 
 
 def _over_text(value, note):
@@ -238,8 +270,7 @@ def _over_text(value, note):
 
 def _claim_first_order(studies):
     sc = studies.speed_controller()
-    d = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_design_s"],
-               feedforward="full")
+    d = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_design_s"], feedforward="full")
     overshoot_lin = d.overshoot_pct()
     bandwidth = d.bandwidth_radps()
     pole = sc["alpha"]
@@ -250,35 +281,55 @@ def _claim_first_order(studies):
     limit_time = _value(studies.step("e1-2dof-full")["current_limit_time_s"])
     sweep = studies.sweep("m")
     over_m = _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "overshoot_pct")
-    ok = (overshoot_lin < NO_OVERSHOOT_PCT and math.isclose(bandwidth, pole, rel_tol=FIRST_ORDER_RTOL)
-          and over_small is not None
-          and over_small < NO_OVERSHOOT_PCT and rise is not None
-          and math.isclose(rise, rise_eq10, rel_tol=FIRST_ORDER_RTOL))
+    ok = (
+        overshoot_lin < NO_OVERSHOOT_PCT
+        and math.isclose(bandwidth, pole, rel_tol=FIRST_ORDER_RTOL)
+        and over_small is not None
+        and over_small < NO_OVERSHOOT_PCT
+        and rise is not None
+        and math.isclose(rise, rise_eq10, rel_tol=FIRST_ORDER_RTOL)
+    )
     return _claim(
         section="3.3 (eq 10, 11)",
         claim="with the feedforward of eq 11 the tracking is first order, Gx = m alpha / (s + m alpha), "
-              "without the overshoot of the 1DOF PI",
+        "without the overshoot of the 1DOF PI",
         paper="Gx = m alpha / (s + m alpha)",
-        measured=(f"m = 1: linear Gx (eq 6 with eq 11) overshoot {overshoot_lin:.2g} %, -3 dB bandwidth "
-                  f"{bandwidth:.4g} rad/s (m alpha = {pole:.4g}); simulated {st.SMALL_STEP_RPM:g} rpm step: overshoot "
-                  f"{fmt(over_small, 2, '%')}, 10-90 % rise {fmt(rise, 4, 's')} (eq 10: ln 9/(m alpha) = "
-                  f"{rise_eq10:.4g} s); 500 rpm step from rest (at the current limit for {limit_time:.2f} s): "
-                  f"{_over_text(big, note)}; the larger m of the sweep saturate longer and overshoot up to "
-                  f"{np.nanmax(over_m):.1f} % (m = {sweep.x[int(np.nanargmax(over_m))]:g})"),
-        values={"overshoot_linear_pct": overshoot_lin, "bandwidth_radps": bandwidth,
-                "overshoot_small_step_pct": over_small, "rise_time_small_step_s": rise,
-                "overshoot_500rpm_pct": big, "overshoot_m_sweep_pct": over_m.tolist()},
+        measured=(
+            f"m = 1: linear Gx (eq 6 with eq 11) overshoot {overshoot_lin:.2g} %, -3 dB bandwidth "
+            f"{bandwidth:.4g} rad/s (m alpha = {pole:.4g}); simulated {st.SMALL_STEP_RPM:g} rpm step: overshoot "
+            f"{fmt(over_small, 2, '%')}, 10-90 % rise {fmt(rise, 4, 's')} (eq 10: ln 9/(m alpha) = "
+            f"{rise_eq10:.4g} s); 500 rpm step from rest (at the current limit for {limit_time:.2f} s): "
+            f"{_over_text(big, note)}; the larger m of the sweep saturate longer and overshoot up to "
+            f"{np.nanmax(over_m):.1f} % (m = {sweep.x[int(np.nanargmax(over_m))]:g})"
+        ),
+        values={
+            "overshoot_linear_pct": overshoot_lin,
+            "bandwidth_radps": bandwidth,
+            "overshoot_small_step_pct": over_small,
+            "rise_time_small_step_s": rise,
+            "overshoot_500rpm_pct": big,
+            "overshoot_m_sweep_pct": over_m.tolist(),
+        },
         verdict=_verdict(ok),
-        reason=("first order while the current stays below its limit; the paper does not discuss saturated "
-                "tracking with a fast feedforward (large m)") if ok else
-               "the linear or simulated tracking response is not first order (overshoot or rise time off eq 10)",
-        source="design+simulation", evidence="design (eq 6, 11), runs lin-full, e1-2dof-full, sens_m")
+        reason=(
+            "first order while the current stays below its limit; the paper does not discuss saturated "
+            "tracking with a fast feedforward (large m)"
+        )
+        if ok
+        else "the linear or simulated tracking response is not first order (overshoot or rise time off eq 10)",
+        source="design+simulation",
+        evidence="design (eq 6, 11), runs lin-full, e1-2dof-full, sens_m",
+    )
 
 
 def _claim_fig7(studies):
     sc = studies.speed_controller()
-    bandwidths = [design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=m, tau_i_s=sc["tau_i_design_s"],
-                         feedforward="full").bandwidth_radps() for m in FIG7_M]
+    bandwidths = [
+        design(
+            sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=m, tau_i_s=sc["tau_i_design_s"], feedforward="full"
+        ).bandwidth_radps()
+        for m in FIG7_M
+    ]
     sweep = studies.sweep("m")
     rise = _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "rise_time_s")
     bw_up = all(b > a for a, b in zip(bandwidths, bandwidths[1:]))
@@ -287,47 +338,69 @@ def _claim_fig7(studies):
         section="3.3 (Fig. 7)",
         claim="the bandwidth of Gx increases with m (alpha = 0.5, m from 0.2 to 2)",
         paper="increases with m",
-        measured=(f"-3 dB bandwidth of Gx for m = {', '.join(f'{m:g}' for m in FIG7_M)}: "
-                  f"{', '.join(f'{b:.3g}' for b in bandwidths)} rad/s; simulated rise time of the 500 rpm step "
-                  f"falls from {rise[0]:.2f} s (m = {sweep.x[0]:g}) to {rise[-1]:.2f} s (m = {sweep.x[-1]:g})"),
+        measured=(
+            f"-3 dB bandwidth of Gx for m = {', '.join(f'{m:g}' for m in FIG7_M)}: "
+            f"{', '.join(f'{b:.3g}' for b in bandwidths)} rad/s; simulated rise time of the 500 rpm step "
+            f"falls from {rise[0]:.2f} s (m = {sweep.x[0]:g}) to {rise[-1]:.2f} s (m = {sweep.x[-1]:g})"
+        ),
         values={"bandwidth_radps": bandwidths, "rise_time_s": rise.tolist()},
         verdict=_verdict(bw_up and rise_down, bw_up or rise_down),
         reason="" if bw_up and rise_down else "the bandwidth or the simulated rise time is not monotonic in m",
-        source="design+simulation", evidence="fig07_bode_gx, sens_m")
+        source="design+simulation",
+        evidence="fig07_bode_gx, sens_m",
+    )
 
 
 def _claim_lowpass(studies):
     sc = studies.speed_controller()
-    low = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_design_s"],
-                 feedforward="lowpass")
+    low = design(
+        sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_design_s"], feedforward="lowpass"
+    )
     small = studies.step("lin-lowpass")
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc["alpha"]
     over_small = _value(small["overshoot_pct"])
     a, b = studies.results["lin-lowpass"], studies.results["lin-full"]
     diff = float(np.max(np.abs(a.speed_rpm - b.speed_rpm)))
     alpha_tau = sc["alpha"] * sc["tau_i_design_s"]
-    ok = (low.overshoot_pct() < NO_OVERSHOOT_PCT
-          and math.isclose(low.bandwidth_radps(), sc["alpha"], rel_tol=FIRST_ORDER_RTOL)
-          and over_small is not None and over_small < NO_OVERSHOOT_PCT
-          and rise is not None and math.isclose(rise, rise_eq10, rel_tol=FIRST_ORDER_RTOL))
+    ok = (
+        low.overshoot_pct() < NO_OVERSHOOT_PCT
+        and math.isclose(low.bandwidth_radps(), sc["alpha"], rel_tol=FIRST_ORDER_RTOL)
+        and over_small is not None
+        and over_small < NO_OVERSHOOT_PCT
+        and rise is not None
+        and math.isclose(rise, rise_eq10, rel_tol=FIRST_ORDER_RTOL)
+    )
     return _claim(
         section="3.3 (eq 12, 13)",
         claim="when tau_i is very small the feedforward simplifies to the first-order low-pass of eq 13",
         paper=f"tau_i 'very small' (here alpha tau_i = {alpha_tau:.3g})",
-        measured=(f"linear Gx with eq 13: overshoot {low.overshoot_pct():.2g} %, bandwidth "
-                  f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc['alpha']:g}); simulated {st.SMALL_STEP_RPM:g} rpm "
-                  f"step with eq 13: overshoot {fmt(over_small, 2, '%')}, rise {fmt(rise, 4, 's')} (eq 10: "
-                  f"{rise_eq10:.4g} s); it differs from the step with eq 12 by at most "
-                  f"{100 * diff / st.SMALL_STEP_RPM:.2g} % of the step"),
-        values={"overshoot_lowpass_pct": low.overshoot_pct(), "bandwidth_lowpass_radps": low.bandwidth_radps(),
-                "overshoot_small_step_pct": over_small, "rise_time_small_step_s": rise,
-                "max_speed_difference_fraction": diff / st.SMALL_STEP_RPM},
+        measured=(
+            f"linear Gx with eq 13: overshoot {low.overshoot_pct():.2g} %, bandwidth "
+            f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc['alpha']:g}); simulated {st.SMALL_STEP_RPM:g} rpm "
+            f"step with eq 13: overshoot {fmt(over_small, 2, '%')}, rise {fmt(rise, 4, 's')} (eq 10: "
+            f"{rise_eq10:.4g} s); it differs from the step with eq 12 by at most "
+            f"{100 * diff / st.SMALL_STEP_RPM:.2g} % of the step"
+        ),
+        values={
+            "overshoot_lowpass_pct": low.overshoot_pct(),
+            "bandwidth_lowpass_radps": low.bandwidth_radps(),
+            "overshoot_small_step_pct": over_small,
+            "rise_time_small_step_s": rise,
+            "max_speed_difference_fraction": diff / st.SMALL_STEP_RPM,
+        },
         verdict=_verdict(ok),
-        reason=(f"eq 13 keeps the tracking first order without overshoot; neglecting tau_i changes the "
-                f"response by the order of alpha tau_i = {100 * alpha_tau:.2g} % of a step") if ok else
-               (f"with alpha tau_i = {alpha_tau:.3g} the low-pass feedforward no longer gives first-order tracking "
-                f"(overshoot, or bandwidth or rise time more than {100 * FIRST_ORDER_RTOL:g} % off eq 10)"),
-        source="design+simulation", evidence="runs lin-lowpass, lin-full")
+        reason=(
+            f"eq 13 keeps the tracking first order without overshoot; neglecting tau_i changes the "
+            f"response by the order of alpha tau_i = {100 * alpha_tau:.2g} % of a step"
+        )
+        if ok
+        else (
+            f"with alpha tau_i = {alpha_tau:.3g} the low-pass feedforward no longer gives first-order tracking "
+            f"(overshoot, or bandwidth or rise time more than {100 * FIRST_ORDER_RTOL:g} % off eq 10)"
+        ),
+        source="design+simulation",
+        evidence="runs lin-lowpass, lin-full",
+    )
 
 
 def _claim_ka_range(studies):
@@ -342,23 +415,37 @@ def _claim_ka_range(studies):
     settle = studies.series_values(series, "settling_time_s")
     no_aw = studies.figure(_reference(sweep, f"{st.ONE_DOF}, no AW").name, "step", "overshoot_pct")
     ok = bool(np.all(np.isfinite(over[used])) and np.all(over[used] < no_aw))
-    literal_text = (f"; over the literal Kp/3 .. 3 Kp = {Kp / 3:.3g} .. {3 * Kp:.3g} it is "
-                    f"{np.nanmin(over[literal]):.1f} .. {np.nanmax(over[literal]):.1f} %" if literal.any() else "")
+    literal_text = (
+        f"; over the literal Kp/3 .. 3 Kp = {Kp / 3:.3g} .. {3 * Kp:.3g} it is "
+        f"{np.nanmin(over[literal]):.1f} .. {np.nanmax(over[literal]):.1f} %"
+        if literal.any()
+        else ""
+    )
     return _claim(
         section="3.2",
         claim="Ka = 1/Kp generally; it can vary in the range 'Kp/3 ~ 3Kp'",
         paper=f"Ka = 1/Kp = {1 / Kp:.3g}; range read as 1/(3Kp) .. 3/Kp = {1 / (3 * Kp):.3g} .. {3 / Kp:.3g}",
-        measured=(f"1DOF PI, 500 rpm step, Ka from 1/(3Kp) to 3/Kp: overshoot {over[used][0]:.1f} to "
-                  f"{over[used][-1]:.1f} %, 2 % settling {settle[used][0]:.1f} to {settle[used][-1]:.1f} s, against "
-                  f"{no_aw:.1f} % without AW{literal_text}"),
-        values={"overshoot_pct": over[used].tolist(), "settling_time_s": settle[used].tolist(),
-                "overshoot_no_aw_pct": no_aw},
+        measured=(
+            f"1DOF PI, 500 rpm step, Ka from 1/(3Kp) to 3/Kp: overshoot {over[used][0]:.1f} to "
+            f"{over[used][-1]:.1f} %, 2 % settling {settle[used][0]:.1f} to {settle[used][-1]:.1f} s, against "
+            f"{no_aw:.1f} % without AW{literal_text}"
+        ),
+        values={
+            "overshoot_pct": over[used].tolist(),
+            "settling_time_s": settle[used].tolist(),
+            "overshoot_no_aw_pct": no_aw,
+        },
         verdict=_verdict(ok),
-        reason=("Ka multiplies the torque u* and adds to the speed error, so it has the unit of 1/Kp; 'Kp/3 ~ 3Kp' "
-                f"does not contain the default 1/Kp (= {1 / Kp:.3g} with Kp = {Kp:.3g}), and is read as "
-                "1/(3Kp) .. 3/Kp, the default's factor-3 neighbourhood (figure sens_ka)") if ok else
-               "some Ka of the range does not reduce the overshoot below that without AW",
-        source="simulation", evidence="sensitivity to Ka (sens_ka)")
+        reason=(
+            "Ka multiplies the torque u* and adds to the speed error, so it has the unit of 1/Kp; 'Kp/3 ~ 3Kp' "
+            f"does not contain the default 1/Kp (= {1 / Kp:.3g} with Kp = {Kp:.3g}), and is read as "
+            "1/(3Kp) .. 3/Kp, the default's factor-3 neighbourhood (figure sens_ka)"
+        )
+        if ok
+        else "some Ka of the range does not reduce the overshoot below that without AW",
+        source="simulation",
+        evidence="sensitivity to Ka (sens_ka)",
+    )
 
 
 def _claim_unwind(studies):
@@ -370,15 +457,19 @@ def _claim_unwind(studies):
         section="3.3, 4.1",
         claim="with AW the signal u* is soon reduced to zero: the integrator quickly comes out of saturation",
         paper="qualitative",
-        measured=(f"condition 1, 1DOF PI, first step: at the current limit for {limit_time['none']:.2f} s without "
-                  f"AW, {limit_time['back_calculation']:.2f} s with back-calculation, {limit_time['clamping']:.2f} s "
-                  "with clamping; "
-                  f"integrator peak {x_peak['none']:.2f} / {x_peak['back_calculation']:.2f} / "
-                  f"{x_peak['clamping']:.2f} Nm"),
+        measured=(
+            f"condition 1, 1DOF PI, first step: at the current limit for {limit_time['none']:.2f} s without "
+            f"AW, {limit_time['back_calculation']:.2f} s with back-calculation, {limit_time['clamping']:.2f} s "
+            "with clamping; "
+            f"integrator peak {x_peak['none']:.2f} / {x_peak['back_calculation']:.2f} / "
+            f"{x_peak['clamping']:.2f} Nm"
+        ),
         values={"current_limit_time_s": limit_time, "integrator_peak_Nm": x_peak},
         verdict=_verdict(ok),
         reason="" if ok else "back calculation does not shorten the time at the current limit",
-        source="simulation", evidence="runs c1-1dof-*, fig08_speed_aw, fig09_current_aw")
+        source="simulation",
+        evidence="runs c1-1dof-*, fig08_speed_aw, fig09_current_aw",
+    )
 
 
 def _claim_tustin(studies):
@@ -405,12 +496,16 @@ def _claim_tustin(studies):
     if not (best_error and best_loop):
         reason = f"Tustin is {'' if best_error else 'not '}the most faithful discrete PI"
         if not best_loop:
-            reason += (f", but the sampled loop also delays by the ZOH (about Ts/2): in closed loop {names[closest]} "
-                       f"stays closest to the continuous design and {names[max(pm, key=pm.get)]} keeps the most "
-                       "phase margin")
+            reason += (
+                f", but the sampled loop also delays by the ZOH (about Ts/2): in closed loop {names[closest]} "
+                f"stays closest to the continuous design and {names[max(pm, key=pm.get)]} keeps the most "
+                "phase margin"
+            )
             if closest == "backward_euler":
-                reason += ("; the backward-Euler integrator takes the newest error, half a sample ahead of Tustin's "
-                           "average, which offsets part of that delay")
+                reason += (
+                    "; the backward-Euler integrator takes the newest error, half a sample ahead of Tustin's "
+                    "average, which offsets part of that delay"
+                )
         reason += f"; at Ts = {Ts0:g} s the three overshoots differ by {spread0:.2g} pp (figure discretization)"
 
     def listing(d, fmt):
@@ -420,16 +515,24 @@ def _claim_tustin(studies):
         section="3.4 (Table 1)",
         claim="among the discretization methods, Tustin (trapezoidal) usually has better performance",
         paper="Tustin best",
-        measured=(f"at Ts = {Ts:g} s (largest of the study with max(alpha, alpha/2zeta, m alpha) Ts <= 0.1): error of "
-                  f"the discrete PI at the crossover {listing(error, lambda v: f'{100 * v:.2g} %')}; 1DOF step "
-                  f"overshoot off the continuous {cont:.1f} % by {listing(deviation, lambda v: f'{v:.2f} pp')}"
-                  + (f" (engine: {listing(engine, lambda v: f'{v:.2f} %')})" if engine else "")
-                  + f"; phase margin {listing(pm, lambda v: f'{v:.1f} deg')}"),
-        values={"controller_error": error, "overshoot_deviation_pp": deviation, "phase_margin_deg": pm,
-                "engine_overshoot_pct": engine},
+        measured=(
+            f"at Ts = {Ts:g} s (largest of the study with max(alpha, alpha/2zeta, m alpha) Ts <= 0.1): error of "
+            f"the discrete PI at the crossover {listing(error, lambda v: f'{100 * v:.2g} %')}; 1DOF step "
+            f"overshoot off the continuous {cont:.1f} % by {listing(deviation, lambda v: f'{v:.2f} pp')}"
+            + (f" (engine: {listing(engine, lambda v: f'{v:.2f} %')})" if engine else "")
+            + f"; phase margin {listing(pm, lambda v: f'{v:.1f} deg')}"
+        ),
+        values={
+            "controller_error": error,
+            "overshoot_deviation_pp": deviation,
+            "phase_margin_deg": pm,
+            "engine_overshoot_pct": engine,
+        },
         verdict=_verdict(best_error and best_loop, best_error or best_loop),
         reason=reason,
-        source="design+simulation", evidence="discretization study (discretization), runs disc-*")
+        source="design+simulation",
+        evidence="discretization study (discretization), runs disc-*",
+    )
 
 
 def _claim_limit_reached(studies):
@@ -442,12 +545,16 @@ def _claim_limit_reached(studies):
         section="4.1 (cond. 1, Fig. 9)",
         claim="when the step reference comes, iq_cmd quickly rises to the limit and holds on",
         paper="qualitative (limit 7.6 A)",
-        measured=(f"1DOF PI without AW: iq_cmd at the {r.scenario.data['limits']['i_max_A']:g} A limit "
-                  f"{delay * 1000:.0f} ms after the step and held for {hold:.2f} s (2DOF eq 15: {hold2:.2f} s)"),
+        measured=(
+            f"1DOF PI without AW: iq_cmd at the {r.scenario.data['limits']['i_max_A']:g} A limit "
+            f"{delay * 1000:.0f} ms after the step and held for {hold:.2f} s (2DOF eq 15: {hold2:.2f} s)"
+        ),
         values={"delay_s": delay, "hold_s": hold, "hold_2dof_s": hold2},
         verdict=_verdict(ok),
         reason="" if ok else "the command does not reach the limit at once or does not stay there for a second",
-        source="simulation", evidence="runs c1-1dof-none, c1-2dof-none, fig09_current_aw")
+        source="simulation",
+        evidence="runs c1-1dof-none, c1-2dof-none, fig09_current_aw",
+    )
 
 
 def _claim_no_aw_overshoot(studies):
@@ -460,35 +567,59 @@ def _claim_no_aw_overshoot(studies):
         section="4.1 (cond. 1, Fig. 8)",
         claim="without AW the speed overshoots by more than 55 % under the step references",
         paper="> 55 %",
-        measured=(f"1DOF PI without AW: {first:.1f} % at the 500 rpm step, {second:.1f} % at the 200 rpm step "
-                  f"(at the current limit for {limit_second:.2f} s after it); 2DOF eq 15 without AW at the 500 rpm "
-                  "step: "
-                  f"{_over_text(two, note)}"),
+        measured=(
+            f"1DOF PI without AW: {first:.1f} % at the 500 rpm step, {second:.1f} % at the 200 rpm step "
+            f"(at the current limit for {limit_second:.2f} s after it); 2DOF eq 15 without AW at the 500 rpm "
+            "step: "
+            f"{_over_text(two, note)}"
+        ),
         values={"overshoot_first_pct": first, "overshoot_second_pct": second, "overshoot_2dof_pct": two},
         verdict=_verdict(ok, first > 0.0),
-        reason=("the paper does not say which speed controller Fig. 8 shows; its 'iq_cmd quickly rises to the "
-                "limit and holds' and the 16 % with AW fit the PI without feedforward, which Fig. 8 and 9 show "
-                "here next to the 2DOF controller") if ok else
-               "the overshoot without AW is not above 55 % (the torque limit, which sets how long the PI winds "
-               "up, depends on a torque constant the paper does not give: figure sens_torque_limit)",
-        source="simulation", evidence="runs c1-1dof-none, c1-2dof-none, fig08_speed_aw")
+        reason=(
+            "the paper does not say which speed controller Fig. 8 shows; its 'iq_cmd quickly rises to the "
+            "limit and holds' and the 16 % with AW fit the PI without feedforward, which Fig. 8 and 9 show "
+            "here next to the 2DOF controller"
+        )
+        if ok
+        else "the overshoot without AW is not above 55 % (the torque limit, which sets how long the PI winds "
+        "up, depends on a torque constant the paper does not give: figure sens_torque_limit)",
+        source="simulation",
+        evidence="runs c1-1dof-none, c1-2dof-none, fig08_speed_aw",
+    )
 
 
 def _claim_current_reverse(studies):
-    lows = {aw: float(np.min(studies.results[f"c1-1dof-{aw}"].iq_ref_A[
-        _window(studies.results[f"c1-1dof-{aw}"], 0.0, C1_SECOND_STEP_S)])) for aw in st.AW_LABELS}
+    lows = {
+        aw: float(
+            np.min(
+                studies.results[f"c1-1dof-{aw}"].iq_ref_A[
+                    _window(studies.results[f"c1-1dof-{aw}"], 0.0, C1_SECOND_STEP_S)
+                ]
+            )
+        )
+        for aw in st.AW_LABELS
+    }
     ok = lows["none"] < 0.0 and lows["none"] < lows["back_calculation"]
     return _claim(
         section="4.1 (cond. 1, Fig. 9)",
         claim="without AW the current also overshoots and the speed overshoot drives iq_cmd the other way",
         paper="qualitative",
-        measured=(f"lowest iq_cmd after the 500 rpm step (before 5 s), 1DOF PI: {lows['none']:.2f} A without AW, "
-                  f"{lows['back_calculation']:.2f} A with back calculation, {lows['clamping']:.2f} A with clamping"),
+        measured=(
+            f"lowest iq_cmd after the 500 rpm step (before 5 s), 1DOF PI: {lows['none']:.2f} A without AW, "
+            f"{lows['back_calculation']:.2f} A with back calculation, {lows['clamping']:.2f} A with clamping"
+        ),
         values={"iq_cmd_min_A": lows},
         verdict=_verdict(ok, lows["none"] < 0.0),
-        reason="" if ok else ("iq_cmd does not reverse without AW" if lows["none"] >= 0.0 else
-                              "iq_cmd reverses at least as deeply with AW as without"),
-        source="simulation", evidence="runs c1-1dof-*, fig09_current_aw")
+        reason=""
+        if ok
+        else (
+            "iq_cmd does not reverse without AW"
+            if lows["none"] >= 0.0
+            else "iq_cmd reverses at least as deeply with AW as without"
+        ),
+        source="simulation",
+        evidence="runs c1-1dof-*, fig09_current_aw",
+    )
 
 
 def _torque_for(studies, label, level):
@@ -508,26 +639,42 @@ def _claim_aw_overshoot(studies):
         y_none = _along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")
         no_aw_there = float(np.interp(torque, sweep.x, y_none))
         i_max = studies.bases[st.STEP_BASE].data["limits"]["i_max_A"]
-        where = (f"the sweep of the torque limit gives 16 % with AW at about {torque:.2g} Nm (a torque constant of "
-                 f"{torque / i_max:.2g} Nm/A for the 7.6 A limit, against {sweep.marks[0][0] / i_max:.2g} here), "
-                 f"where the overshoot without AW is {no_aw_there:.0f} %"
-                 + (" (> 55 %, as in the paper)" if no_aw_there > 55.0 else ""))
+        where = (
+            f"the sweep of the torque limit gives 16 % with AW at about {torque:.2g} Nm (a torque constant of "
+            f"{torque / i_max:.2g} Nm/A for the 7.6 A limit, against {sweep.marks[0][0] / i_max:.2g} here), "
+            f"where the overshoot without AW is {no_aw_there:.0f} %"
+            + (" (> 55 %, as in the paper)" if no_aw_there > 55.0 else "")
+        )
     else:
         where = "no torque limit of the sweep gives 16 % with AW"
     return _claim(
         section="4.1 (cond. 1, Fig. 8)",
         claim="with AW the integrator leaves saturation quickly and the overshoot is smaller, about 16 %",
         paper="about 16 %",
-        measured=(f"1DOF PI with back-calculation AW: {value:.1f} % (clamping {clamp:.1f} %, no AW {no_aw:.1f} %); "
-                  f"2DOF eq 15 with AW: {two:.1f} %"),
-        values={"overshoot_pct": value, "overshoot_clamping_pct": clamp, "overshoot_no_aw_pct": no_aw,
-                "overshoot_2dof_pct": two, "torque_limit_for_16pct_Nm": torque},
+        measured=(
+            f"1DOF PI with back-calculation AW: {value:.1f} % (clamping {clamp:.1f} %, no AW {no_aw:.1f} %); "
+            f"2DOF eq 15 with AW: {two:.1f} %"
+        ),
+        values={
+            "overshoot_pct": value,
+            "overshoot_clamping_pct": clamp,
+            "overshoot_no_aw_pct": no_aw,
+            "overshoot_2dof_pct": two,
+            "torque_limit_for_16pct_Nm": torque,
+        },
         verdict=_verdict(about, value < no_aw),
-        reason="" if about else "AW does not reduce the overshoot" if value >= no_aw else (
+        reason=""
+        if about
+        else "AW does not reduce the overshoot"
+        if value >= no_aw
+        else (
             "AW reduces the overshoot, but not to 16 %. How much depends on how long the step saturates, i.e. "
             "on the torque the 7.6 A limit allows, 1.5 p psi_f i_max, and the paper gives neither p nor psi_f "
-            f"(nor the 1.5 of its eq 1); {where}"),
-        source="simulation", evidence="runs c1-*, fig08_speed_aw, sens_torque_limit")
+            f"(nor the 1.5 of its eq 1); {where}"
+        ),
+        source="simulation",
+        evidence="runs c1-*, fig08_speed_aw, sens_torque_limit",
+    )
 
 
 def _claim_1dof_load(studies):
@@ -539,8 +686,9 @@ def _claim_1dof_load(studies):
     Kp, _ = pi_gains(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
     dip_c2 = _value(studies.load("c2-1dof")["speed_dip_rpm"])
     e3 = studies.load("e3-1dof")
-    dip, rec, sse, limit_time = (_value(e3[k]) for k in ("speed_dip_rpm", "recovery_time_s",
-                                                         "steady_state_error_rpm", "current_limit_time_s"))
+    dip, rec, sse, limit_time = (
+        _value(e3[k]) for k in ("speed_dip_rpm", "recovery_time_s", "steady_state_error_rpm", "current_limit_time_s")
+    )
     recovered = rec is not None and sse is not None and abs(sse) < 0.005 * speed
     good = recovered and dip <= GOOD_DIP_FRACTION * speed
     if good:
@@ -548,23 +696,34 @@ def _claim_1dof_load(studies):
     elif not recovered:
         reason = "the speed does not come back to the reference within the run"
     else:
-        reason = (f"the integral action rejects the load without steady-state error, but the speed dips by "
-                  f"{100 * dip / speed:.0f} %: with Kp = {Kp:.3g} Nm/(rad/s) a 100 rpm error commands only "
-                  f"{Kp * 100 * math.pi / 30:.2g} Nm, so the integrator must build most of the load, and the "
-                  f"{load:g} Nm load takes {100 * load / torque_max:.0f} % of the {torque_max:.3g} Nm the current "
-                  "limit allows (torque constant not in the paper); the paper gives no number for 'good'")
+        reason = (
+            f"the integral action rejects the load without steady-state error, but the speed dips by "
+            f"{100 * dip / speed:.0f} %: with Kp = {Kp:.3g} Nm/(rad/s) a 100 rpm error commands only "
+            f"{Kp * 100 * math.pi / 30:.2g} Nm, so the integrator must build most of the load, and the "
+            f"{load:g} Nm load takes {100 * load / torque_max:.0f} % of the {torque_max:.3g} Nm the current "
+            "limit allows (torque constant not in the paper); the paper gives no number for 'good'"
+        )
     return _claim(
         section="4.1 (cond. 2, Fig. 10)",
         claim="with the standard PI, Kp = 0.2 and Ki = 0.3, good load-torque rejection is met",
         paper="'good', no number",
-        measured=(f"{load:g} Nm at a steady {speed:g} rpm (experiment 3): dip {dip:.0f} rpm ({100 * dip / speed:.0f} "
-                  f"%), back to 2 % of the dip in {fmt(rec, 3, 's')}, steady-state error {fmt(sse, 2, 'rpm')}, "
-                  f"at the current limit for {fmt(limit_time, 2, 's')}; at 7 s in condition 2, {dip_c2:.0f} rpm"),
-        values={"speed_dip_rpm": dip, "recovery_time_s": rec, "steady_state_error_rpm": sse,
-                "current_limit_time_s": limit_time, "speed_dip_condition_2_rpm": dip_c2},
+        measured=(
+            f"{load:g} Nm at a steady {speed:g} rpm (experiment 3): dip {dip:.0f} rpm ({100 * dip / speed:.0f} "
+            f"%), back to 2 % of the dip in {fmt(rec, 3, 's')}, steady-state error {fmt(sse, 2, 'rpm')}, "
+            f"at the current limit for {fmt(limit_time, 2, 's')}; at 7 s in condition 2, {dip_c2:.0f} rpm"
+        ),
+        values={
+            "speed_dip_rpm": dip,
+            "recovery_time_s": rec,
+            "steady_state_error_rpm": sse,
+            "current_limit_time_s": limit_time,
+            "speed_dip_condition_2_rpm": dip_c2,
+        },
         verdict=_verdict(good, recovered),
         reason=reason,
-        source="simulation", evidence="runs e3-1dof, c2-1dof, fig10_2dof, fig14_exp3_load")
+        source="simulation",
+        evidence="runs e3-1dof, c2-1dof, fig10_2dof, fig14_exp3_load",
+    )
 
 
 def _claim_c2_tracking(studies):
@@ -575,12 +734,16 @@ def _claim_c2_tracking(studies):
         section="4.1 (cond. 2, Fig. 10)",
         claim="with the feedforward of eq 15 the speed-reference tracking becomes better",
         paper="qualitative",
-        measured=(f"overshoot at the 500 rpm / 200 rpm steps: 1DOF PI {o1[0]:.1f} / {o1[1]:.1f} %, "
-                  f"2DOF eq 15 {o2[0]:.1f} / {o2[1]:.1f} %"),
+        measured=(
+            f"overshoot at the 500 rpm / 200 rpm steps: 1DOF PI {o1[0]:.1f} / {o1[1]:.1f} %, "
+            f"2DOF eq 15 {o2[0]:.1f} / {o2[1]:.1f} %"
+        ),
         values={"overshoot_1dof_pct": o1, "overshoot_2dof_pct": o2},
         verdict=_verdict(ok, any(b < a for a, b in zip(o1, o2))),
         reason="" if ok else "the 2DOF controller does not overshoot less at every step",
-        source="simulation", evidence="runs c2-1dof, c2-2dof, fig10_2dof")
+        source="simulation",
+        evidence="runs c2-1dof, c2-2dof, fig10_2dof",
+    )
 
 
 def _claim_c2_load(studies):
@@ -595,11 +758,20 @@ def _claim_c2_load(studies):
         measured=f"dip after the 8 Nm step at 7 s: 1DOF PI {d1:.1f} rpm, 2DOF eq 15 {d2:.1f} rpm",
         values={"speed_dip_1dof_rpm": d1, "speed_dip_2dof_rpm": d2},
         verdict=_verdict(ok),
-        reason=("not worse than the 1DOF PI" + (
-            "; the dips differ because at 7 s the 1DOF response to the 500 rpm step has not settled (from a "
-            "steady speed they are equal: experiment 3)" if ringing else "")) if ok else
-               "the 2DOF controller rejects the load worse than the 1DOF PI",
-        source="simulation", evidence="runs c2-1dof, c2-2dof, fig10_2dof")
+        reason=(
+            "not worse than the 1DOF PI"
+            + (
+                "; the dips differ because at 7 s the 1DOF response to the 500 rpm step has not settled (from a "
+                "steady speed they are equal: experiment 3)"
+                if ringing
+                else ""
+            )
+        )
+        if ok
+        else "the 2DOF controller rejects the load worse than the 1DOF PI",
+        source="simulation",
+        evidence="runs c2-1dof, c2-2dof, fig10_2dof",
+    )
 
 
 def _claim_e1(studies):
@@ -613,14 +785,18 @@ def _claim_e1(studies):
     elif bc >= none:
         reason = "AW does not reduce the overshoot"
     else:
-        reason = (f"AW reduces the overshoot to {bc / none:.2f} of its value (the experiment: {15 / 35:.2f}), but "
-                  "the numbers differ")
+        reason = (
+            f"AW reduces the overshoot to {bc / none:.2f} of its value (the experiment: {15 / 35:.2f}), but "
+            "the numbers differ"
+        )
         if 35.0 < least_no_aw:
-            reason += (f". Without AW no torque limit of the sweep overshoots less than {least_no_aw:.1f} % (the "
-                       f"linear 1DOF PI of eq 4 with eq 2, 3, 9: {studies.continuous[st.ONE_DOF][0]:.1f} %), above "
-                       "the experiment's 35 %: the real drive is damped by what the model leaves out and the paper "
-                       "does not give (friction, the magnetic-powder brake's drag, the torque constant, the gains "
-                       "actually used)")
+            reason += (
+                f". Without AW no torque limit of the sweep overshoots less than {least_no_aw:.1f} % (the "
+                f"linear 1DOF PI of eq 4 with eq 2, 3, 9: {studies.continuous[st.ONE_DOF][0]:.1f} %), above "
+                "the experiment's 35 %: the real drive is damped by what the model leaves out and the paper "
+                "does not give (friction, the magnetic-powder brake's drag, the torque constant, the gains "
+                "actually used)"
+            )
     return _claim(
         section="4.2 (exp. 1, Fig. 12)",
         claim="by the use of AW compensation the overshoot is reduced from 35 % to 15 %",
@@ -629,7 +805,9 @@ def _claim_e1(studies):
         values={"overshoot_no_aw_pct": none, "overshoot_aw_pct": bc},
         verdict=_verdict(both, bc < none),
         reason=reason,
-        source="simulation", evidence="runs e1-1dof-*, fig12_exp1_aw")
+        source="simulation",
+        evidence="runs e1-1dof-*, fig12_exp1_aw",
+    )
 
 
 def _claim_e2(studies):
@@ -644,15 +822,19 @@ def _claim_e2(studies):
     return _claim(
         section="4.2 (exp. 2, Fig. 13)",
         claim="with the 2DOF PI the speed-reference tracking (step up 0 -> 500 rpm, step down 500 -> 200 rpm) "
-              "has improved a lot",
+        "has improved a lot",
         paper="qualitative",
-        measured=(f"step up: overshoot {up[0]:.1f} -> {up[1]:.1f} %, 2 % settling {fmt(up[2], 3, 's')} -> "
-                  f"{fmt(up[3], 3, 's')}; step down: {down[0]:.1f} -> {down[1]:.1f} %, {fmt(down[2], 3, 's')} -> "
-                  f"{fmt(down[3], 3, 's')} (1DOF PI -> 2DOF eq 15; n/a: not settled within the 10 s window)"),
+        measured=(
+            f"step up: overshoot {up[0]:.1f} -> {up[1]:.1f} %, 2 % settling {fmt(up[2], 3, 's')} -> "
+            f"{fmt(up[3], 3, 's')}; step down: {down[0]:.1f} -> {down[1]:.1f} %, {fmt(down[2], 3, 's')} -> "
+            f"{fmt(down[3], 3, 's')} (1DOF PI -> 2DOF eq 15; n/a: not settled within the 10 s window)"
+        ),
         values={"overshoot_pct": [[r[0], r[1]] for r in rows], "settling_time_s": [[r[2], r[3]] for r in rows]},
         verdict=_verdict(ok),
         reason="" if ok else "the 2DOF controller does not overshoot less at both steps",
-        source="simulation", evidence="runs e2-1dof, e2-2dof, fig13_exp2_tracking")
+        source="simulation",
+        evidence="runs e2-1dof, e2-2dof, fig13_exp2_tracking",
+    )
 
 
 def _claim_e3(studies):
@@ -665,14 +847,22 @@ def _claim_e3(studies):
         section="4.2 (exp. 3, Fig. 14)",
         claim="the load-torque rejection of the 2DOF PI remains almost the same as that of the 1DOF PI",
         paper="almost the same",
-        measured=(f"8 Nm at a steady 500 rpm: dip {d1:.2f} rpm (1DOF) and {d2:.2f} rpm (2DOF); the speeds differ by "
-                  f"at most {diff:.2g} rpm over the {a.t_s[-1]:g} s run"),
+        measured=(
+            f"8 Nm at a steady 500 rpm: dip {d1:.2f} rpm (1DOF) and {d2:.2f} rpm (2DOF); the speeds differ by "
+            f"at most {diff:.2g} rpm over the {a.t_s[-1]:g} s run"
+        ),
         values={"speed_dip_1dof_rpm": d1, "speed_dip_2dof_rpm": d2, "max_speed_difference_rpm": diff},
         verdict=_verdict(ok),
-        reason=("the same up to the float32 rounding of the controllers: GN (eq 5, 8) does not contain Fr, and "
-                "at a steady reference the feedforward output is constant, so even the saturated load response "
-                "is the same") if ok else f"the responses differ by more than {100 * SAME_RTOL:g} % of the dip",
-        source="simulation", evidence="runs e3-1dof, e3-2dof, fig14_exp3_load")
+        reason=(
+            "the same up to the float32 rounding of the controllers: GN (eq 5, 8) does not contain Fr, and "
+            "at a steady reference the feedforward output is constant, so even the saturated load response "
+            "is the same"
+        )
+        if ok
+        else f"the responses differ by more than {100 * SAME_RTOL:g} % of the dip",
+        source="simulation",
+        evidence="runs e3-1dof, e3-2dof, fig14_exp3_load",
+    )
 
 
 def _claim_aw_everywhere(studies):
@@ -682,12 +872,17 @@ def _claim_aw_everywhere(studies):
     for label in (f"{st.ONE_DOF}, back-calculation AW", f"{st.ONE_DOF}, clamping"):
         pairs += list(zip(_along(studies, sweep, label, "step", "overshoot_pct"), none))
     sweep = studies.sweep("m")
-    pairs += list(zip(_along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "overshoot_pct"),
-                      _along(studies, sweep, "2DOF eq 11, no AW", "step", "overshoot_pct")))
+    pairs += list(
+        zip(
+            _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "overshoot_pct"),
+            _along(studies, sweep, "2DOF eq 11, no AW", "step", "overshoot_pct"),
+        )
+    )
     for cond in ("c1", "e1"):
         for dof in ("1dof", "2dof"):
-            pairs.append((_overshoot(studies, f"{cond}-{dof}-back_calculation")[0],
-                          _overshoot(studies, f"{cond}-{dof}-none")[0]))
+            pairs.append(
+                (_overshoot(studies, f"{cond}-{dof}-back_calculation")[0], _overshoot(studies, f"{cond}-{dof}-none")[0])
+            )
     pairs = [(aw, no) for aw, no in pairs if math.isfinite(aw) and math.isfinite(no)]
     not_worse = sum(aw <= no + AW_TOLERANCE_PP for aw, no in pairs)
     better = sum(aw < no - AW_TOLERANCE_PP for aw, no in pairs)
@@ -696,16 +891,23 @@ def _claim_aw_everywhere(studies):
         section="5",
         claim="the back-calculation AW compensation can easily solve the windup problem",
         paper="qualitative",
-        measured=(f"over {len(pairs)} pairs of runs with and without AW (conditions 1 and experiment 1, sweeps of "
-                  f"the torque limit and of m): AW is not worse in {not_worse}, better by more than "
-                  f"{AW_TOLERANCE_PP:g} pp in {better} (the others do not saturate long enough to wind up), by up to "
-                  f"{gain:.0f} pp"),
+        measured=(
+            f"over {len(pairs)} pairs of runs with and without AW (conditions 1 and experiment 1, sweeps of "
+            f"the torque limit and of m): AW is not worse in {not_worse}, better by more than "
+            f"{AW_TOLERANCE_PP:g} pp in {better} (the others do not saturate long enough to wind up), by up to "
+            f"{gain:.0f} pp"
+        ),
         values={"pairs": len(pairs), "not_worse": not_worse, "better": better, "largest_reduction_pp": gain},
         verdict=_verdict(not_worse == len(pairs), not_worse >= len(pairs) / 2),
-        reason=("AW helps where the current limit is active long enough for the integrator to wind up; "
-                "elsewhere both are the same") if not_worse == len(pairs) else
-               "AW makes the overshoot worse in some runs",
-        source="simulation", evidence="sens_torque_limit, sens_m, runs c1-*, e1-*")
+        reason=(
+            "AW helps where the current limit is active long enough for the integrator to wind up; "
+            "elsewhere both are the same"
+        )
+        if not_worse == len(pairs)
+        else "AW makes the overshoot worse in some runs",
+        source="simulation",
+        evidence="sens_torque_limit, sens_m, runs c1-*, e1-*",
+    )
 
 
 def _claim_2dof_everywhere(studies):
@@ -727,15 +929,24 @@ def _claim_2dof_everywhere(studies):
         section="5",
         claim="the 2DOF method meets good speed-reference tracking and good load-torque rejection simultaneously",
         paper="qualitative",
-        measured=(f"over the {total} points of the zeta and inertia-error sweeps: the 2DOF controller overshoots "
-                  f"less than the 1DOF PI at {over_better}, and its load dip equals the 1DOF one (within "
-                  f"{100 * SAME_RTOL:g} %) at {same_load} (largest difference {100 * worst_load:.2g} %)"),
-        values={"points": total, "overshoot_better": over_better, "load_same": same_load,
-                "largest_load_difference": worst_load},
+        measured=(
+            f"over the {total} points of the zeta and inertia-error sweeps: the 2DOF controller overshoots "
+            f"less than the 1DOF PI at {over_better}, and its load dip equals the 1DOF one (within "
+            f"{100 * SAME_RTOL:g} %) at {same_load} (largest difference {100 * worst_load:.2g} %)"
+        ),
+        values={
+            "points": total,
+            "overshoot_better": over_better,
+            "load_same": same_load,
+            "largest_load_difference": worst_load,
+        },
         verdict=_verdict(ok, over_better > total / 2),
-        reason=("including a plant inertia from 0.5 to 2 times the design's, where Gx is no longer exactly first "
-                "order") if ok else "at some points the 2DOF controller tracks worse or rejects the load differently",
-        source="simulation", evidence="sens_zeta, sens_inertia")
+        reason=("including a plant inertia from 0.5 to 2 times the design's, where Gx is no longer exactly first order")
+        if ok
+        else "at some points the 2DOF controller tracks worse or rejects the load differently",
+        source="simulation",
+        evidence="sens_zeta, sens_inertia",
+    )
 
 
 def _claim_implementation():
@@ -743,11 +954,13 @@ def _claim_implementation():
         section="5",
         claim="the controller is easily implemented in software and needs no additional hardware or sensor",
         paper="qualitative",
-        measured=("the speed controller simulated here is the float32 C99 code of csrc/ that also builds for the "
-                  "Cortex-M4F; per sample it reads the speed reference and the measured speed only"),
+        measured=(
+            "the speed controller simulated here is the float32 C99 code of csrc/ that also builds for the "
+            "Cortex-M4F; per sample it reads the speed reference and the measured speed only"
+        ),
         values={},
         verdict=VERDICTS[0],
         reason="by construction of the implementation, not a simulation result",
-        source="implementation", evidence="csrc/include/pmsm2dof/speed.h")
-
-
+        source="implementation",
+        evidence="csrc/include/pmsm2dof/speed.h",
+    )

@@ -27,7 +27,6 @@ from .claims import FIG7_M
 PLOT_POINTS = 2500
 
 
-
 class FigureData:
     """The numbers a report figure draws, as named columns: written beside it as CSV.
 
@@ -114,8 +113,14 @@ def _load_steps(axes, result):
     for entry in result.scenario.data["load"]:
         for ax in axes:
             ax.axvline(entry["t_s"], color="C4", lw=0.8, ls="--")
-        axes[0].annotate(f"load {entry['torque_Nm']:g} Nm", (entry["t_s"], axes[0].get_ylim()[0]), fontsize="small",
-                         color="C4", xytext=(3, 3), textcoords="offset points")
+        axes[0].annotate(
+            f"load {entry['torque_Nm']:g} Nm",
+            (entry["t_s"], axes[0].get_ylim()[0]),
+            fontsize="small",
+            color="C4",
+            xytext=(3, 3),
+            textcoords="offset points",
+        )
 
 
 def fig_aw(studies, cond, signal):
@@ -129,8 +134,16 @@ def fig_aw(studies, cond, signal):
         else:
             _current_limit(ax, first)
         for aw, aw_label in st.AW_LABELS.items():
-            _trace(data, ax, studies.results[f"{cond}-{dof}-{aw}"], signal, f"{dof}_{aw}_{signal}", lw=1.3,
-                   label=aw_label, **_AW_STYLE[aw])
+            _trace(
+                data,
+                ax,
+                studies.results[f"{cond}-{dof}-{aw}"],
+                signal,
+                f"{dof}_{aw}_{signal}",
+                lw=1.3,
+                label=aw_label,
+                **_AW_STYLE[aw],
+            )
         ax.set_title(label)
         _finish(ax, "speed [rpm]" if signal == "speed_rpm" else "iq command [A]")
     axes[-1, 0].set_xlabel("time [s]")
@@ -162,13 +175,30 @@ def fig_exp1(studies):
     fig, axes = _figure(1, height=3.2)
     data = FigureData()
     ax = axes[0, 0]
-    _trace(data, ax, studies.results["e1-1dof-none"], "speed_ref_rpm", "speed_ref_rpm", color="k", ls=":", lw=1.0,
-           label="reference")
+    _trace(
+        data,
+        ax,
+        studies.results["e1-1dof-none"],
+        "speed_ref_rpm",
+        "speed_ref_rpm",
+        color="k",
+        ls=":",
+        lw=1.0,
+        label="reference",
+    )
     for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
         for aw in ("none", "back_calculation"):
             style = dict(_DOF_STYLE[dof], ls="-" if aw == "back_calculation" else "--")
-            _trace(data, ax, studies.results[f"e1-{dof}-{aw}"], "speed_rpm", f"{dof}_{aw}_speed_rpm", lw=1.3,
-                   label=f"{label}, {st.AW_LABELS[aw]}", **style)
+            _trace(
+                data,
+                ax,
+                studies.results[f"e1-{dof}-{aw}"],
+                "speed_rpm",
+                f"{dof}_{aw}_speed_rpm",
+                lw=1.3,
+                label=f"{label}, {st.AW_LABELS[aw]}",
+                **style,
+            )
     _finish(ax, "speed [rpm]", "time [s]")
     fig.suptitle("Fig. 12 (experiment 1, simulated): speed responses with and without AW")
     return fig, data
@@ -182,11 +212,34 @@ def fig_exp2(studies):
     data = FigureData()
     for ax, step, (prefix, title) in zip(axes[:, 0], steps, (("up_", "(a) step up"), ("down_", "(b) step down"))):
         t0, t1 = step["t_s"] - 0.5, step["window_end_s"]
-        _trace(data, ax, r1, "speed_ref_rpm", f"{prefix}speed_ref_rpm", prefix, t0, t1, color="k", ls=":", lw=1.0,
-               label="reference")
+        _trace(
+            data,
+            ax,
+            r1,
+            "speed_ref_rpm",
+            f"{prefix}speed_ref_rpm",
+            prefix,
+            t0,
+            t1,
+            color="k",
+            ls=":",
+            lw=1.0,
+            label="reference",
+        )
         for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
-            _trace(data, ax, studies.results[f"e2-{dof}"], "speed_rpm", f"{prefix}{dof}_speed_rpm", prefix, t0, t1,
-                   lw=1.3, label=label, **_DOF_STYLE[dof])
+            _trace(
+                data,
+                ax,
+                studies.results[f"e2-{dof}"],
+                "speed_rpm",
+                f"{prefix}{dof}_speed_rpm",
+                prefix,
+                t0,
+                t1,
+                lw=1.3,
+                label=label,
+                **_DOF_STYLE[dof],
+            )
         ax.set_title(title)
         _finish(ax, "speed [rpm]")
     axes[-1, 0].set_xlabel("time [s]")
@@ -239,15 +292,26 @@ def fig_sweep(studies, sweep):
     for ax, (kind, figure, label) in zip(axes.flat, panels):
         for k, series in enumerate(s for s in sweep.series if s.kind == kind):
             ls = "--" if kind == "load" and k > 0 else "-"
-            ax.plot(data(sweep.x_column, sweep.x),
-                    data(f"{_tag(series.label)}_{figure}", studies.series_values(series, figure)),
-                    marker="o", ms=3.5, ls=ls, color=f"C{k}", label=series.label)
+            ax.plot(
+                data(sweep.x_column, sweep.x),
+                data(f"{_tag(series.label)}_{figure}", studies.series_values(series, figure)),
+                marker="o",
+                ms=3.5,
+                ls=ls,
+                color=f"C{k}",
+                label=series.label,
+            )
         labels = [s.label for s in sweep.series if s.kind == kind]
         for ref_label, run in sweep.references if kind == "step" else ():
             k = next(k for k, label in enumerate(labels) if ref_label.startswith(label))
             value = data(f"{_tag(ref_label)}_{figure}", studies.figure(run.name, "step", figure))[0]
-            ax.axhline(value, color=f"C{k}", lw=1.0, ls=":" if ref_label.endswith(st.AW_LABELS["none"]) else "-.",
-                       label=ref_label)
+            ax.axhline(
+                value,
+                color=f"C{k}",
+                lw=1.0,
+                ls=":" if ref_label.endswith(st.AW_LABELS["none"]) else "-.",
+                label=ref_label,
+            )
         for x, mark in sweep.marks:
             ax.axvline(x, color="grey", lw=0.8, ls="--", label=mark)
         for j, (lo, hi, band) in enumerate(sweep.bands):
@@ -271,30 +335,46 @@ def fig_discretization(studies):
     fig, axes = _figure(2, 2, height=3.0, width=9.0)
     data = FigureData()
     names = {"forward_euler": "forward Euler", "backward_euler": "backward Euler", "tustin": "Tustin"}
-    panels = (("overshoot_pct", "step overshoot [%]"), ("phase_margin_deg", "phase margin [deg]"),
-              ("gain_margin_dB", "gain margin [dB]"), ("controller_error", "|F(z)/F(s) - 1| at crossover"))
+    panels = (
+        ("overshoot_pct", "step overshoot [%]"),
+        ("phase_margin_deg", "phase margin [deg]"),
+        ("gain_margin_dB", "gain margin [dB]"),
+        ("controller_error", "|F(z)/F(s) - 1| at crossover"),
+    )
     for ax, (field, label) in zip(axes.flat, panels):
         for k, method in enumerate(names):
             for controller, ls in ((st.ONE_DOF, "-"), (st.TWO_DOF, "--")):
                 if controller == st.TWO_DOF and field != "overshoot_pct":
                     continue  # the feedforward is outside the loop: same margins and PI
                 pts = [p for p in studies.discretization if p.controller == controller and p.method == method]
-                ax.plot(data("Ts_s", [p.Ts_s for p in pts]),
-                        data(f"{_tag(controller)}_{method}_{field}", [getattr(p, field) for p in pts]),
-                        ls=ls, marker="o", ms=3, color=f"C{k}",
-                        label=names[method] if controller == st.ONE_DOF else None)
+                ax.plot(
+                    data("Ts_s", [p.Ts_s for p in pts]),
+                    data(f"{_tag(controller)}_{method}_{field}", [getattr(p, field) for p in pts]),
+                    ls=ls,
+                    marker="o",
+                    ms=3,
+                    color=f"C{k}",
+                    label=names[method] if controller == st.ONE_DOF else None,
+                )
             if field == "overshoot_pct":
                 engine = [studies.figure(f"disc-{method}-{Ts:g}", "step", "overshoot_pct") for Ts in st.TS_ENGINE_S]
-                ax.plot(data("engine_Ts_s", st.TS_ENGINE_S),
-                        data(f"engine_{_tag(st.ONE_DOF)}_{method}_overshoot_pct", engine),
-                        ls="none", marker="x", ms=8, color=f"C{k}", label="engine" if k == 0 else None)
+                ax.plot(
+                    data("engine_Ts_s", st.TS_ENGINE_S),
+                    data(f"engine_{_tag(st.ONE_DOF)}_{method}_overshoot_pct", engine),
+                    ls="none",
+                    marker="x",
+                    ms=8,
+                    color=f"C{k}",
+                    label="engine" if k == 0 else None,
+                )
         if field == "overshoot_pct":
             for controller, ls in ((st.ONE_DOF, "-"), (st.TWO_DOF, "--")):
                 value = data(f"continuous_{_tag(controller)}_overshoot_pct", studies.continuous[controller][0])[0]
                 ax.axhline(value, color="k", lw=0.8, ls=ls, alpha=0.5)
         elif field == "phase_margin_deg":
-            value = data(f"continuous_{_tag(st.ONE_DOF)}_phase_margin_deg",
-                         studies.continuous[st.ONE_DOF][1].phase_margin_deg)[0]
+            value = data(
+                f"continuous_{_tag(st.ONE_DOF)}_phase_margin_deg", studies.continuous[st.ONE_DOF][1].phase_margin_deg
+            )[0]
             ax.axhline(value, color="k", lw=0.8, alpha=0.5, label="continuous")
         ax.axvline(studies.fine_Ts_s, color="grey", lw=0.8, ls="-.")
         ax.set_xscale("log")
@@ -304,10 +384,11 @@ def fig_discretization(studies):
         ax.set_ylabel(label)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize="xx-small", loc="best")
-    fig.suptitle("Discretization (Table 1): ZOH loop of the design; black: continuous; dash-dot: largest "
-                 "recommended Ts", fontsize="medium")
+    fig.suptitle(
+        "Discretization (Table 1): ZOH loop of the design; black: continuous; dash-dot: largest recommended Ts",
+        fontsize="medium",
+    )
     return fig, data
-
 
 
 def fig_faults(runs):
@@ -323,8 +404,20 @@ def fig_faults(runs):
         t0 = fault_figures(first)["t_s"] - 0.5
         t1 = first.t_s[-1]
         tag = f"{_tag(preset)}_"
-        _trace(data, ax_w, first, "speed_ref_rpm", f"{tag}speed_ref_rpm", tag, t0, t1, color="k", ls=":", lw=1.0,
-               label="reference")
+        _trace(
+            data,
+            ax_w,
+            first,
+            "speed_ref_rpm",
+            f"{tag}speed_ref_rpm",
+            tag,
+            t0,
+            t1,
+            color="k",
+            ls=":",
+            lw=1.0,
+            label="reference",
+        )
         for aw, result in results.items():
             style = dict(lw=1.2, label=st.AW_LABELS[aw], **_AW_STYLE[aw])
             _trace(data, ax_w, result, "speed_rpm", f"{tag}{aw}_speed_rpm", tag, t0, t1, **style)
@@ -338,57 +431,77 @@ def fig_faults(runs):
     return fig, data
 
 
-
-
 def figures(studies):
     """Every figure of the report: ``{stem: (Figure, FigureData, caption)}`` in report order."""
     sc = studies.speed_controller()
     Kp, Ki = pi_gains(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
-    bode = bode_gx_sweep(sc["alpha"], FIG7_M, J_kgm2=sc["J_design_kgm2"], zeta=sc["zeta"],
-                         tau_i_s=sc["tau_i_design_s"], feedforward="full")
+    bode = bode_gx_sweep(
+        sc["alpha"],
+        FIG7_M,
+        J_kgm2=sc["J_design_kgm2"],
+        zeta=sc["zeta"],
+        tau_i_s=sc["tau_i_design_s"],
+        feedforward="full",
+    )
     out = {
         "fig07_bode_gx": (
-            bode, _bode_data(bode),
+            bode,
+            _bode_data(bode),
             f"Fig. 7: Bode diagram of the tracking response Gx (eq 6 with the feedforward of eq 11), alpha = "
-            f"{sc['alpha']:g} rad/s, m from {FIG7_M[0]:g} to {FIG7_M[-1]:g}."),
+            f"{sc['alpha']:g} rad/s, m from {FIG7_M[0]:g} to {FIG7_M[-1]:g}.",
+        ),
         "fig08_speed_aw": (
             *fig_aw(studies, "c1", "speed_rpm"),
             "Fig. 8: simulation condition 1 (500 rpm at 0 s, 200 rpm at 5 s, no load), speed without AW, with "
             "back-calculation AW (Ka = 1/Kp) and with clamping; top: 1DOF PI, bottom: 2DOF with the eq 15 "
-            "feedforward (the presets' controller)."),
+            "feedforward (the presets' controller).",
+        ),
         "fig09_current_aw": (
             *fig_aw(studies, "c1", "iq_ref_A"),
             "Fig. 9: simulation condition 1, the current command iq_cmd of the runs of Fig. 8; dotted: the 7.6 A "
-            "limit."),
+            "limit.",
+        ),
         "fig10_2dof": (
             *fig_2dof(studies, "c2"),
             f"Fig. 10: simulation condition 2 (500 rpm at 0 s, 8 Nm at 7 s, 200 rpm at 10 s), 1DOF PI (Kp = "
             f"{Kp:.3g}, Ki = {Ki:.3g}) against the 2DOF "
-            "controller with the eq 15 feedforward, both with back-calculation AW."),
+            "controller with the eq 15 feedforward, both with back-calculation AW.",
+        ),
         "fig12_exp1_aw": (
             *fig_exp1(studies),
-            "Fig. 12 (experiment 1, simulated): 500 rpm step at 0.5 s, with and without AW."),
+            "Fig. 12 (experiment 1, simulated): 500 rpm step at 0.5 s, with and without AW.",
+        ),
         "fig13_exp2_tracking": (
             *fig_exp2(studies),
             "Fig. 13 (experiment 2, simulated): tracking of (a) the step up 0 -> 500 rpm and (b) the step down "
-            "500 -> 200 rpm, 1DOF PI against 2DOF eq 15."),
+            "500 -> 200 rpm, 1DOF PI against 2DOF eq 15.",
+        ),
         "fig14_exp3_load": (
             *fig_exp3(studies),
             "Fig. 14 (experiment 3, simulated): 8 Nm load step at a steady 500 rpm, speed (top) and current command "
             "iq_cmd (bottom) of the 1DOF PI (wide) and the 2DOF controller (dashed), which coincide: the feedforward "
-            "acts on the reference only; dotted: the 7.6 A limit."),
+            "acts on the reference only; dotted: the 7.6 A limit.",
+        ),
     }
     captions = {
-        "ka": (f"Sensitivity to Ka (1DOF PI and 2DOF eq 15, back-calculation AW, 500 rpm step from rest). Shaded: "
-               f"1/(3Kp) .. 3/Kp, the range used, and the literal Kp/3 .. 3Kp of the paper's text (Kp = {Kp:.3g}); "
-               "dotted: the same step without AW and with clamping."),
-        "m": ("Sensitivity to m with the feedforward of eq 11: the 500 rpm step with and without AW, and the 8 Nm "
-              "load step at 500 rpm, which does not depend on m."),
+        "ka": (
+            f"Sensitivity to Ka (1DOF PI and 2DOF eq 15, back-calculation AW, 500 rpm step from rest). Shaded: "
+            f"1/(3Kp) .. 3/Kp, the range used, and the literal Kp/3 .. 3Kp of the paper's text (Kp = {Kp:.3g}); "
+            "dotted: the same step without AW and with clamping."
+        ),
+        "m": (
+            "Sensitivity to m with the feedforward of eq 11: the 500 rpm step with and without AW, and the 8 Nm "
+            "load step at 500 rpm, which does not depend on m."
+        ),
         "zeta": "Sensitivity to zeta (eq 9): 500 rpm step and 8 Nm load step, 1DOF PI and 2DOF eq 15.",
-        "inertia": ("Sensitivity to an inertia error: the plant's J from 0.5 to 2 times the J the controller is "
-                    "designed for (eq 9, 11), 1DOF PI and 2DOF eq 15."),
-        "torque_limit": ("Sensitivity to the torque the 7.6 A limit allows, 1.5 p psi_f i_max (swept through "
-                         "psi_f; the paper gives no torque constant): 1DOF PI, 500 rpm step, each AW mode."),
+        "inertia": (
+            "Sensitivity to an inertia error: the plant's J from 0.5 to 2 times the J the controller is "
+            "designed for (eq 9, 11), 1DOF PI and 2DOF eq 15."
+        ),
+        "torque_limit": (
+            "Sensitivity to the torque the 7.6 A limit allows, 1.5 p psi_f i_max (swept through "
+            "psi_f; the paper gives no torque constant): 1DOF PI, 500 rpm step, each AW mode."
+        ),
     }
     for sweep in studies.sweeps:
         out[f"sens_{sweep.name}"] = (*fig_sweep(studies, sweep), captions[sweep.name])
@@ -397,7 +510,6 @@ def figures(studies):
         "Discretization study: the design's discrete loop (ZOH plant, python-control) for forward Euler, backward "
         f"Euler and Tustin as Ts grows; overshoot: solid 1DOF PI, dashed 2DOF eq 15, crosses the engine's overshoot "
         f"of a {st.SMALL_STEP_RPM:g} rpm step with the 1DOF PI. The margins and the PI are the same for both "
-        "controllers (the feedforward is outside the loop). Missing points: the discrete loop is unstable.")
+        "controllers (the feedforward is outside the loop). Missing points: the discrete loop is unstable.",
+    )
     return out
-
-

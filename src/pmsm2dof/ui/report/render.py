@@ -36,8 +36,11 @@ def _parameters_table(studies):
         ("zeta", f"{sc['zeta']:.4g}", "from Kp, Ki by eq 9 (not stated)"),
         ("Ka", "1/Kp" if sc["Ka"] is None else f"{sc['Ka']:g}", "paper (3.3)"),
         ("pole pairs p, psi_f", f"{m['pole_pairs']}, {m['psi_f_Wb']:g} Wb", "chosen (not in the paper)"),
-        ("torque constant 1.5 p psi_f", f"{kt:.3g} Nm/A, so {kt * lim['i_max_A']:.3g} Nm at the limit",
-         "follows; the paper's eq 1 omits the 1.5 and calls p0 the number of poles while using it as pole pairs"),
+        (
+            "torque constant 1.5 p psi_f",
+            f"{kt:.3g} Nm/A, so {kt * lim['i_max_A']:.3g} Nm at the limit",
+            "follows; the paper's eq 1 omits the 1.5 and calls p0 the number of poles while using it as pole pairs",
+        ),
         ("Rs, Ld, Lq", f"{m['Rs_ohm']:g} ohm, {m['Ld_H']:g} H, {m['Lq_H']:g} H", "chosen (surface PMSM)"),
         ("u_dc", f"{lim['u_dc_V']:g} V", "chosen"),
         ("friction", f"B = {m['B_Nms']:g}, Coulomb {m['T_coulomb_Nm']:g} Nm", "none, as the paper's model"),
@@ -55,14 +58,19 @@ def sensitivity_rows(studies):
             for x, run in zip(sweep.x, series.runs):
                 rows.append(_metric_row(studies, sweep.name, series, x, run, figures_))
         for label, run in sweep.references:
-            rows.append(_metric_row(studies, sweep.name, st.Series(label, "step", ()), None, run,
-                                    REFERENCE_FIGURES))
+            rows.append(_metric_row(studies, sweep.name, st.Series(label, "step", ()), None, run, REFERENCE_FIGURES))
     return rows
 
 
 def _metric_row(studies, sweep, series, x, run, figures_):
-    row = {"study": sweep, "series": series.label, "kind": series.kind, "x": "" if x is None else x, "run": run.name,
-           "status": "ok" if run.name in studies.metrics else studies.failures.get(run.name, "not run")}
+    row = {
+        "study": sweep,
+        "series": series.label,
+        "kind": series.kind,
+        "x": "" if x is None else x,
+        "run": run.name,
+        "status": "ok" if run.name in studies.metrics else studies.failures.get(run.name, "not run"),
+    }
     for f in figures_:
         value = studies.figure(run.name, series.kind, f)
         row[f] = "" if not math.isfinite(value) else value
@@ -79,21 +87,41 @@ def csv_text(rows):
 
 
 def _discretization_table(studies):
-    header = ("Ts [s]", "method", "1DOF overshoot [%]", "engine, 1DOF [%]", "2DOF overshoot [%]",
-              "gain margin [dB]", "phase margin [deg]", "PI error at crossover")
+    header = (
+        "Ts [s]",
+        "method",
+        "1DOF overshoot [%]",
+        "engine, 1DOF [%]",
+        "2DOF overshoot [%]",
+        "gain margin [dB]",
+        "phase margin [deg]",
+        "PI error at crossover",
+    )
     grid = sorted({p.Ts_s for p in studies.discretization})
     shown = [Ts for Ts in grid if Ts in st.TS_ENGINE_S or Ts in (studies.fine_Ts_s, grid[-1])]
     rows = []
     for Ts in shown:
         for method in ("forward_euler", "backward_euler", "tustin"):
-            p1, p2 = (next(p for p in studies.discretization if p.Ts_s == Ts and p.method == method
-                           and p.controller == label) for label in (st.ONE_DOF, st.TWO_DOF))
+            p1, p2 = (
+                next(p for p in studies.discretization if p.Ts_s == Ts and p.method == method and p.controller == label)
+                for label in (st.ONE_DOF, st.TWO_DOF)
+            )
             if not p1.stable:
                 rows.append((f"{Ts:g}", method, "unstable", "", "", "", "", ""))
                 continue
             engine = studies.figure(f"disc-{method}-{Ts:g}", "step", "overshoot_pct")
-            rows.append((f"{Ts:g}", method, f"{p1.overshoot_pct:.2f}", fmt(engine, 4), f"{p2.overshoot_pct:.2f}",
-                         f"{p1.gain_margin_dB:.1f}", f"{p1.phase_margin_deg:.1f}", f"{p1.controller_error:.2g}"))
+            rows.append(
+                (
+                    f"{Ts:g}",
+                    method,
+                    f"{p1.overshoot_pct:.2f}",
+                    fmt(engine, 4),
+                    f"{p2.overshoot_pct:.2f}",
+                    f"{p1.gain_margin_dB:.1f}",
+                    f"{p1.phase_margin_deg:.1f}",
+                    f"{p1.controller_error:.2g}",
+                )
+            )
     return header, rows
 
 
@@ -112,40 +140,52 @@ def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs
     overrides = ", ".join(f"`{k} = {v!r}`" for k, v in studies.overrides.items())
     blocks = [
         ("h1", "Reproduction of Wang, Lin, Yang, Fang: anti-windup and 2DOF PI speed controller of a PMSM"),
-        ("p", f"Produced by `pmsm2dof reproduce` (pmsm2dof {version('pmsm2dof')}): {studies.n_runs} simulations in "
-              f"the compiled engine, running the float32 C controller that also runs on the MCU{timing}. "
-              + (f"Every preset changed by {overrides}." if overrides else "Presets as shipped.")),
-        ("p", f"Verdicts: {counts['reproduced']} reproduced, {counts['partly']} partly, "
-              f"{counts['not reproduced']} not reproduced, of {len(claims)} claims."),
+        (
+            "p",
+            f"Produced by `pmsm2dof reproduce` (pmsm2dof {version('pmsm2dof')}): {studies.n_runs} simulations in "
+            f"the compiled engine, running the float32 C controller that also runs on the MCU{timing}. "
+            + (f"Every preset changed by {overrides}." if overrides else "Presets as shipped."),
+        ),
+        (
+            "p",
+            f"Verdicts: {counts['reproduced']} reproduced, {counts['partly']} partly, "
+            f"{counts['not reproduced']} not reproduced, of {len(claims)} claims.",
+        ),
         ("h2", "Claims of the paper"),
-        ("p", "One row per claim of sections 3, 4.1, 4.2 and 5. 'Measured' is computed from the simulation "
-              "results (or from the transfer functions for design claims); the verdict rules: 'about x' within "
-              f"{100 * ABOUT_RTOL:g} %, 'the same' within {100 * SAME_RTOL:g} % of the load dip, 'no overshoot' "
-              f"below {NO_OVERSHOOT_PCT:g} %, 'first order' with rise time and bandwidth within "
-              f"{100 * FIRST_ORDER_RTOL:g} % of eq 10. The presets were not tuned to meet any number of the paper."),
+        (
+            "p",
+            "One row per claim of sections 3, 4.1, 4.2 and 5. 'Measured' is computed from the simulation "
+            "results (or from the transfer functions for design claims); the verdict rules: 'about x' within "
+            f"{100 * ABOUT_RTOL:g} %, 'the same' within {100 * SAME_RTOL:g} % of the load dip, 'no overshoot' "
+            f"below {NO_OVERSHOOT_PCT:g} %, 'first order' with rise time and bandwidth within "
+            f"{100 * FIRST_ORDER_RTOL:g} % of eq 10. The presets were not tuned to meet any number of the paper.",
+        ),
         ("table", *_claims_table(claims)),
         ("h2", "What the simulations assume"),
         ("table", *_parameters_table(studies)),
-        ("list", [
-            "Which controller Fig. 8, 9 and 12 show is not stated. The presets run the proposed controller (2DOF "
-            "with the low-pass feedforward of eq 13/15 and back-calculation AW); with m = 1 its tracking is first "
-            "order with time constant 1/alpha, so a step barely saturates and AW hardly matters. The paper's "
-            "'iq_cmd quickly rises to the limit and holds' and its 16 % with AW fit the PI without feedforward; "
-            "the figures show both controllers and the claims use the 1DOF PI for the AW comparison.",
-            f"Ka: the paper gives 'Kp/3 ~ 3Kp' next to the default Ka = 1/Kp. Ka adds u* [Nm] to the speed error "
-            f"[rad/s], so it has the unit of 1/Kp, and with Kp = {Kp:.3g} the literal range "
-            f"{Kp / 3:.3g} .. {3 * Kp:.3g} does not contain the default {1 / Kp:.3g}. The study uses "
-            f"1/(3Kp) .. 3/Kp = {1 / (3 * Kp):.3g} .. {3 / Kp:.3g} (the default's factor-3 neighbourhood) and draws "
-            "the literal range too.",
-            "Fig. 10 and experiments 2 and 3 compare the 1DOF PI (feedforward none) with the 2DOF controller "
-            "(feedforward eq 13 discretized by Tustin, eq 15), both with back-calculation AW, so that only the "
-            "feedforward differs.",
-            "The sensitivity steps run 60 s (one 500 rpm step from rest, preset paper-experiment-1) and the load "
-            "steps 30 s (8 Nm at a steady 500 rpm, preset paper-experiment-3) so that slow designs settle; "
-            "figures of merit as in `pmsm2dof.sim.metrics` (2 % bands; n/a when a response has not settled).",
-            "The experiments of section 4.2 ran on a real drive (with a magnetic-powder brake); here they are "
-            "simulated with the simulation's drive, which is all the paper describes of it.",
-        ]),
+        (
+            "list",
+            [
+                "Which controller Fig. 8, 9 and 12 show is not stated. The presets run the proposed controller (2DOF "
+                "with the low-pass feedforward of eq 13/15 and back-calculation AW); with m = 1 its tracking is first "
+                "order with time constant 1/alpha, so a step barely saturates and AW hardly matters. The paper's "
+                "'iq_cmd quickly rises to the limit and holds' and its 16 % with AW fit the PI without feedforward; "
+                "the figures show both controllers and the claims use the 1DOF PI for the AW comparison.",
+                f"Ka: the paper gives 'Kp/3 ~ 3Kp' next to the default Ka = 1/Kp. Ka adds u* [Nm] to the speed error "
+                f"[rad/s], so it has the unit of 1/Kp, and with Kp = {Kp:.3g} the literal range "
+                f"{Kp / 3:.3g} .. {3 * Kp:.3g} does not contain the default {1 / Kp:.3g}. The study uses "
+                f"1/(3Kp) .. 3/Kp = {1 / (3 * Kp):.3g} .. {3 / Kp:.3g} (the default's factor-3 neighbourhood) and draws "
+                "the literal range too.",
+                "Fig. 10 and experiments 2 and 3 compare the 1DOF PI (feedforward none) with the 2DOF controller "
+                "(feedforward eq 13 discretized by Tustin, eq 15), both with back-calculation AW, so that only the "
+                "feedforward differs.",
+                "The sensitivity steps run 60 s (one 500 rpm step from rest, preset paper-experiment-1) and the load "
+                "steps 30 s (8 Nm at a steady 500 rpm, preset paper-experiment-3) so that slow designs settle; "
+                "figures of merit as in `pmsm2dof.sim.metrics` (2 % bands; n/a when a response has not settled).",
+                "The experiments of section 4.2 ran on a real drive (with a magnetic-powder brake); here they are "
+                "simulated with the simulation's drive, which is all the paper describes of it.",
+            ],
+        ),
         ("h2", "Figures of the paper"),
     ]
     stems = list(figure_captions)
@@ -158,31 +198,47 @@ def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs
             blocks.append(("figure", stem, figure_captions[stem]))
     failed = sorted(studies.failures)
     if failed:
-        blocks.append(("p", "Runs stopped by the engine (gaps in the figures): "
-                            + "; ".join(f"{n}: {studies.failures[n]}" for n in failed)))
+        blocks.append(
+            (
+                "p",
+                "Runs stopped by the engine (gaps in the figures): "
+                + "; ".join(f"{n}: {studies.failures[n]}" for n in failed),
+            )
+        )
     blocks += [
         ("h2", "Discretization study"),
         ("figure", "discretization", figure_captions["discretization"]),
         ("table", *_discretization_table(studies)),
         *_fault_blocks(fault_runs, figure_captions),
         ("h2", "Files"),
-        ("list", ["`claims.json`: the claims table with the measured numbers",
-                  "`metrics.json`: figures of merit of every run of the paper's conditions",
-                  "`sensitivity.csv`, `discretization.csv`: the data of the study figures",
-                  "`figures/*.png`, `figures/*.svg`: the figures",
-                  "`figures/*.csv`: the numbers each figure draws, beside it under the same name (one column per "
-                  "line, named with its unit; a time axis shared by the lines that use it)"]),
+        (
+            "list",
+            [
+                "`claims.json`: the claims table with the measured numbers",
+                "`metrics.json`: figures of merit of every run of the paper's conditions",
+                "`sensitivity.csv`, `discretization.csv`: the data of the study figures",
+                "`figures/*.png`, `figures/*.svg`: the figures",
+                "`figures/*.csv`: the numbers each figure draws, beside it under the same name (one column per "
+                "line, named with its unit; a time axis shared by the lines that use it)",
+            ],
+        ),
     ]
     return blocks
-
 
 
 def _fault_blocks(runs, figure_captions):
     """The report's section on the fault scenarios (no blocks without runs)."""
     if runs is None:
         return []
-    header = ("fault", "anti-windup", "peak speed error [rpm]", "integrator excursion [Nm]", "peak ||i_dq|| [A]",
-              "at the current limit [s]", "recovery [s]")
+    header = (
+        "fault",
+        "anti-windup",
+        "peak speed error [rpm]",
+        "integrator excursion [Nm]",
+        "peak ||i_dq|| [A]",
+        "at the current limit [s]",
+        "recovery [s]",
+    )
     rows = []
     for (preset, aw), result in runs.items():
         if isinstance(result, str):
@@ -190,20 +246,31 @@ def _fault_blocks(runs, figure_captions):
             continue
         f = fault_figures(result)
         recovery = "not within the run" if f["recovery_time_s"] is None else f"{f['recovery_time_s']:.3g}"
-        rows.append((preset, st.AW_LABELS[aw], f"{f['deviation_rpm']:.3g}", f"{f['x_i_excursion_Nm']:.3g}",
-                     f"{f['i_peak_A']:.3g}", f"{f['current_limit_time_s']:.3g}", recovery))
+        rows.append(
+            (
+                preset,
+                st.AW_LABELS[aw],
+                f"{f['deviation_rpm']:.3g}",
+                f"{f['x_i_excursion_Nm']:.3g}",
+                f"{f['i_peak_A']:.3g}",
+                f"{f['current_limit_time_s']:.3g}",
+                recovery,
+            )
+        )
     return [
         ("h2", "Fault scenarios (not in the paper)"),
-        ("p", "How each anti-windup mode of the speed controller behaves when something fails, on the paper's "
-              "drive with the 2DOF controller: the presets `fault-stall`, `fault-dc-link-sag`, `fault-sensor-hold`, "
-              "`fault-sensor-zero` and `fault-sensor-spike` (run one with `pmsm2dof simulate fault-stall --out "
-              "DIR`). Figures from the fault's start (the stall: the jam) to the end of the run; recovery: from the "
-              "fault's end (the stall: the release of the jam) until the speed stays within 2 % of its peak error "
-              "(`pmsm2dof.sim.metrics`)."),
+        (
+            "p",
+            "How each anti-windup mode of the speed controller behaves when something fails, on the paper's "
+            "drive with the 2DOF controller: the presets `fault-stall`, `fault-dc-link-sag`, `fault-sensor-hold`, "
+            "`fault-sensor-zero` and `fault-sensor-spike` (run one with `pmsm2dof simulate fault-stall --out "
+            "DIR`). Figures from the fault's start (the stall: the jam) to the end of the run; recovery: from the "
+            "fault's end (the stall: the release of the jam) until the speed stays within 2 % of its peak error "
+            "(`pmsm2dof.sim.metrics`).",
+        ),
         ("figure", "faults", figure_captions["faults"]),
         ("table", header, rows),
     ]
-
 
 
 def _md_cell(text):
@@ -228,8 +295,7 @@ def render_markdown(blocks):
             lines += ["| " + " | ".join(_md_cell(c) for c in row) + " |" for row in rows]
             lines.append("")
         elif kind == "figure":
-            lines += [f"![{block[1]}](figures/{block[1]}.png)", "",
-                      f"*{block[2]}* ([SVG](figures/{block[1]}.svg))", ""]
+            lines += [f"![{block[1]}](figures/{block[1]}.png)", "", f"*{block[2]}* ([SVG](figures/{block[1]}.svg))", ""]
     return "\n".join(lines)
 
 
@@ -237,11 +303,13 @@ def _inline_html(text):
     return re.sub(r"`([^`]*)`", r"<code>\1</code>", html.escape(str(text), quote=False))
 
 
-_CSS = ("body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;line-height:1.4}"
-        "table{border-collapse:collapse;font-size:0.85em;margin:1em 0}"
-        "td,th{border:1px solid #bbb;padding:4px 6px;vertical-align:top;text-align:left}"
-        "th{background:#eee}img{max-width:100%}figure{margin:1.5em 0}"
-        ".reproduced{background:#e3f5e1}.partly{background:#fff4d6}.not-reproduced{background:#fbe1e1}")
+_CSS = (
+    "body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;line-height:1.4}"
+    "table{border-collapse:collapse;font-size:0.85em;margin:1em 0}"
+    "td,th{border:1px solid #bbb;padding:4px 6px;vertical-align:top;text-align:left}"
+    "th{background:#eee}img{max-width:100%}figure{margin:1.5em 0}"
+    ".reproduced{background:#e3f5e1}.partly{background:#fff4d6}.not-reproduced{background:#fbe1e1}"
+)
 
 
 def render_html(blocks, images):
@@ -249,8 +317,16 @@ def render_html(blocks, images):
 
     ``images`` maps a figure stem to its PNG bytes, embedded as a base64 data URI.
     """
-    parts = ["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
-             f"<title>{html.escape(blocks[0][1])}</title>", f"<style>{_CSS}</style>", "</head>", "<body>"]
+    parts = [
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        f"<title>{html.escape(blocks[0][1])}</title>",
+        f"<style>{_CSS}</style>",
+        "</head>",
+        "<body>",
+    ]
     for block in blocks:
         kind = block[0]
         if kind in ("h1", "h2", "h3"):
@@ -261,8 +337,9 @@ def render_html(blocks, images):
             parts.append("<ul>" + "".join(f"<li>{_inline_html(item)}</li>" for item in block[1]) + "</ul>")
         elif kind == "table":
             header, rows = block[1], block[2]
-            parts.append("<table><thead><tr>" + "".join(f"<th>{_inline_html(h)}</th>" for h in header)
-                         + "</tr></thead><tbody>")
+            parts.append(
+                "<table><thead><tr>" + "".join(f"<th>{_inline_html(h)}</th>" for h in header) + "</tr></thead><tbody>"
+            )
             for row in rows:
                 cls = next((v.replace(" ", "-") for v in VERDICTS if v in row), None)
                 attr = f' class="{cls}"' if cls else ""
@@ -270,8 +347,10 @@ def render_html(blocks, images):
             parts.append("</tbody></table>")
         elif kind == "figure":
             data = base64.b64encode(images[block[1]]).decode("ascii")
-            parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(block[2])}">'
-                         f"<figcaption>{_inline_html(block[2])}</figcaption></figure>")
+            parts.append(
+                f'<figure><img src="data:image/png;base64,{data}" alt="{html.escape(block[2])}">'
+                f"<figcaption>{_inline_html(block[2])}</figcaption></figure>"
+            )
     parts += ["</body>", "</html>", ""]
     return "\n".join(parts)
 
@@ -287,5 +366,3 @@ def json_value(x):
     if isinstance(x, np.integer):
         return int(x)
     return x
-
-

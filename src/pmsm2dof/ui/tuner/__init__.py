@@ -37,8 +37,10 @@ def run_tuner(scenario, host="127.0.0.1", port=None, open_browser=True):
     sock = bind_socket(host, port)
     url = url_of(sock)
     if not is_loopback(host):
-        print(f"pmsm2dof tune: warning: listening on {host}: reachable from the network, without "
-              "authentication", file=sys.stderr)
+        print(
+            f"pmsm2dof tune: warning: listening on {host}: reachable from the network, without authentication",
+            file=sys.stderr,
+        )
     print(f"pmsm2dof tuner for '{scenario.name}' at {url} (Ctrl-C to stop)", flush=True)
     if open_browser:
         webbrowser.open(url)

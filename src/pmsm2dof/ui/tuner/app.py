@@ -65,8 +65,10 @@ def _error(exc):
 async def _body(request):
     media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if media_type != "application/json":
-        raise _NotJSON(f"Content-Type = {media_type or '(none)'!r} is refused: the tuner takes a JSON object "
-                       "of control values, sent as application/json")
+        raise _NotJSON(
+            f"Content-Type = {media_type or '(none)'!r} is refused: the tuner takes a JSON object "
+            "of control values, sent as application/json"
+        )
     try:
         body = await request.json()
     except (json.JSONDecodeError, UnicodeDecodeError):
@@ -124,8 +126,9 @@ def create_app(scenario):
                 filename, media_type, text = await run_in_threadpool(tuner.download, kind, body, ticket)
         except (_NotJSON, ConfigError, SimulationError) as exc:
             return _error(exc)
-        return Response(text, media_type=media_type,
-                        headers={"Content-Disposition": f'attachment; filename="{filename}"'})
+        return Response(
+            text, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
+        )
 
     routes = [
         Route("/", index),

@@ -122,9 +122,10 @@ def limit_spans(t, flags, most=SPANS_MAX):
     spans = np.asarray(saturated_intervals(np.asarray(t), flags), dtype=float).reshape(-1, 2)
     if len(spans) > most:
         gaps = spans[1:, 0] - spans[:-1, 1]
-        cuts = np.sort(np.argsort(gaps, kind="stable")[len(gaps) - (most - 1):])  # the widest gaps stay
-        spans = np.column_stack((np.concatenate(([spans[0, 0]], spans[cuts + 1, 0])),
-                                 np.concatenate((spans[cuts, 1], [spans[-1, 1]]))))
+        cuts = np.sort(np.argsort(gaps, kind="stable")[len(gaps) - (most - 1) :])  # the widest gaps stay
+        spans = np.column_stack(
+            (np.concatenate(([spans[0, 0]], spans[cuts + 1, 0])), np.concatenate((spans[cuts, 1], [spans[-1, 1]])))
+        )
     return spans.tolist()
 
 
@@ -148,8 +149,16 @@ def bode_data(Gx, GN, alpha_radps, Ts_s):
 def design_of(scenario):
     """The :class:`~pmsm2dof.analysis.design.Design` of a scenario's speed controller (eq 9-13)."""
     sc = scenario.data["speed_controller"]
-    return design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=sc["m"], tau_i_s=sc["tau_i_design_s"],
-                  feedforward=sc["feedforward"], anti_windup=sc["anti_windup"], Ka=sc["Ka"])
+    return design(
+        sc["J_design_kgm2"],
+        sc["alpha"],
+        sc["zeta"],
+        m=sc["m"],
+        tau_i_s=sc["tau_i_design_s"],
+        feedforward=sc["feedforward"],
+        anti_windup=sc["anti_windup"],
+        Ka=sc["Ka"],
+    )
 
 
 class Tuner:
@@ -208,14 +217,24 @@ class Tuner:
         t_end = v["simulation.t_end_s"]
 
         def slider(key, label, unit, lo, hi, scale="lin", **extra):
-            return dict(key=key, label=label, unit=unit, kind="slider", min=lo, max=hi, scale=scale,
-                        value=v[key], **extra)
+            return dict(
+                key=key, label=label, unit=unit, kind="slider", min=lo, max=hi, scale=scale, value=v[key], **extra
+            )
 
         def select(key, label, choices, **extra):
             return dict(key=key, label=label, unit="", kind="select", choices=list(choices), value=v[key], **extra)
 
-        experiment = [slider("tuner.J_ratio", "true J / design J", "", 0.25, 4.0, "log",
-                             help=f"design inertia {self._J_design_kgm2:g} kg m^2 stays; the plant's changes")]
+        experiment = [
+            slider(
+                "tuner.J_ratio",
+                "true J / design J",
+                "",
+                0.25,
+                4.0,
+                "log",
+                help=f"design inertia {self._J_design_kgm2:g} kg m^2 stays; the plant's changes",
+            )
+        ]
         notes = []
         for name, value_key, label, unit in SCHEDULES:
             entries = data[name]
@@ -226,10 +245,12 @@ class Tuner:
             else:
                 lo, hi = -torque_max_Nm, torque_max_Nm
             for i in range(min(len(entries), ENTRY_CONTROLS_MAX)):
-                experiment.append(slider(f"{name}.{i}.{value_key}", f"{label} {i + 1}", unit, lo, hi,
-                                         help=f"{name}.{i}.{value_key}"))
-                experiment.append(slider(f"{name}.{i}.t_s", f"{label} {i + 1} at", "s", 0.0, t_end,
-                                         help=f"{name}.{i}.t_s"))
+                experiment.append(
+                    slider(f"{name}.{i}.{value_key}", f"{label} {i + 1}", unit, lo, hi, help=f"{name}.{i}.{value_key}")
+                )
+                experiment.append(
+                    slider(f"{name}.{i}.t_s", f"{label} {i + 1} at", "s", 0.0, t_end, help=f"{name}.{i}.t_s")
+                )
             if len(entries) > ENTRY_CONTROLS_MAX:
                 notes.append(f"{name} entries {ENTRY_CONTROLS_MAX + 1} to {len(entries)} run as the scenario has them")
         t_last = max(v[key] for key in v if key.endswith(".t_s"))
@@ -237,29 +258,65 @@ class Tuner:
         experiment.append(slider("simulation.t_end_s", "simulated time", "s", t_end_min, t_end * 10, "log"))
 
         groups = [
-            {"legend": "PI design (eq 9, 10)", "controls": [
-                slider("speed_controller.alpha", "\u03b1 bandwidth", "rad/s", alpha / 10, alpha * 10, "log"),
-                slider("speed_controller.zeta", "\u03b6 damping", "", 0.1, 2.0, "log"),
-                slider("speed_controller.m", "m tracking pole", "", 0.1, 10.0, "log",
-                       enabled_when=["speed_controller.feedforward", ["no_tau", "full"]],
-                       value_when_disabled=1.0,
-                       help="Gx = m alpha / (s + m alpha) (eq 10); lowpass is m = 1 (eq 13)"),
-                select("speed_controller.feedforward", "feedforward Fr", FEEDFORWARDS,
-                       help="none: 1DOF PI; lowpass: eq 13/15; no_tau: eq 11 with tau_i = 0; full: eq 11"),
-            ]},
-            {"legend": "Anti-windup (Fig. 5)", "controls": [
-                select("speed_controller.anti_windup", "anti-windup", ANTI_WINDUPS),
-                slider("speed_controller.Ka", "Ka", "(rad/s)/Nm", 0.03 / Kp, 30.0 / Kp, "log",
-                       nullable=True, null_label="1/Kp (paper default)", default_position=1.0 / Kp,
-                       enabled_when=["speed_controller.anti_windup", ["back_calculation"]],
-                       value_when_disabled=None),
-            ]},
-            {"legend": "Digital implementation (Table 1)", "controls": [
-                select("speed_controller.discretization", "discretization", METHODS),
-                slider("speed_controller.Ts_s", "Ts speed loop", "s", Ts_cl,
-                       max(1000 * Ts_cl, 10 * v["speed_controller.Ts_s"]), "log", quantum=Ts_cl,
-                       help=f"an integer multiple of the current-loop period {Ts_cl:g} s"),
-            ]},
+            {
+                "legend": "PI design (eq 9, 10)",
+                "controls": [
+                    slider("speed_controller.alpha", "\u03b1 bandwidth", "rad/s", alpha / 10, alpha * 10, "log"),
+                    slider("speed_controller.zeta", "\u03b6 damping", "", 0.1, 2.0, "log"),
+                    slider(
+                        "speed_controller.m",
+                        "m tracking pole",
+                        "",
+                        0.1,
+                        10.0,
+                        "log",
+                        enabled_when=["speed_controller.feedforward", ["no_tau", "full"]],
+                        value_when_disabled=1.0,
+                        help="Gx = m alpha / (s + m alpha) (eq 10); lowpass is m = 1 (eq 13)",
+                    ),
+                    select(
+                        "speed_controller.feedforward",
+                        "feedforward Fr",
+                        FEEDFORWARDS,
+                        help="none: 1DOF PI; lowpass: eq 13/15; no_tau: eq 11 with tau_i = 0; full: eq 11",
+                    ),
+                ],
+            },
+            {
+                "legend": "Anti-windup (Fig. 5)",
+                "controls": [
+                    select("speed_controller.anti_windup", "anti-windup", ANTI_WINDUPS),
+                    slider(
+                        "speed_controller.Ka",
+                        "Ka",
+                        "(rad/s)/Nm",
+                        0.03 / Kp,
+                        30.0 / Kp,
+                        "log",
+                        nullable=True,
+                        null_label="1/Kp (paper default)",
+                        default_position=1.0 / Kp,
+                        enabled_when=["speed_controller.anti_windup", ["back_calculation"]],
+                        value_when_disabled=None,
+                    ),
+                ],
+            },
+            {
+                "legend": "Digital implementation (Table 1)",
+                "controls": [
+                    select("speed_controller.discretization", "discretization", METHODS),
+                    slider(
+                        "speed_controller.Ts_s",
+                        "Ts speed loop",
+                        "s",
+                        Ts_cl,
+                        max(1000 * Ts_cl, 10 * v["speed_controller.Ts_s"]),
+                        "log",
+                        quantum=Ts_cl,
+                        help=f"an integer multiple of the current-loop period {Ts_cl:g} s",
+                    ),
+                ],
+            },
             {"legend": "Experiment", "controls": experiment, "note": "; ".join(notes)},
         ]
         return {"name": self.base.name, "groups": groups}
@@ -279,8 +336,7 @@ class Tuner:
                 raise ConfigError(key, value, "one of the tuner's controls: " + ", ".join(self._initial))
         v = dict(self._initial, **values)
         J_ratio = require_positive("tuner.J_ratio", v.pop("tuner.J_ratio"))
-        v.update({"motor.J_kgm2": J_ratio * self._J_design_kgm2,
-                  "speed_controller.J_design_kgm2": self._J_design_kgm2})
+        v.update({"motor.J_kgm2": J_ratio * self._J_design_kgm2, "speed_controller.J_design_kgm2": self._J_design_kgm2})
         return self.base.with_overrides(v)
 
     @staticmethod
@@ -299,9 +355,12 @@ class Tuner:
         # the engine's integration step: current_loop.Ts_s / ceil(current_loop.Ts_s / dt_s) (pmsm2dof.sim.simulate)
         h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim["dt_s"] * (1.0 - 1e-9)))
         if sim["t_end_s"] > STEPS_MAX * h_s:
-            raise ConfigError("simulation.t_end_s", sim["t_end_s"],
-                              f"<= {STEPS_MAX * h_s:g} s in the tuner: at most {STEPS_MAX:.0e} plant integration "
-                              f"steps of {h_s:g} s per run (pmsm2dof simulate runs longer ones)")
+            raise ConfigError(
+                "simulation.t_end_s",
+                sim["t_end_s"],
+                f"<= {STEPS_MAX * h_s:g} s in the tuner: at most {STEPS_MAX:.0e} plant integration "
+                f"steps of {h_s:g} s per run (pmsm2dof simulate runs longer ones)",
+            )
         n_samples = math.floor(sim["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
         log_every = max(sim["log_every"], -(-n_samples // LOG_ROWS_MAX))
         return scenario.with_overrides({"simulation.log_every": log_every})
@@ -372,8 +431,9 @@ class Tuner:
         dsg = design_of(scenario)
         t = np.asarray(result.t_s)
         u_dq_V = np.hypot(result.ud_V, result.uq_V)
-        traces = {name: _trace(t, getattr(result, name))
-                  for name in ("speed_ref_rpm", "speed_rpm", "iq_ref_A", "id_ref_A")}
+        traces = {
+            name: _trace(t, getattr(result, name)) for name in ("speed_ref_rpm", "speed_rpm", "iq_ref_A", "id_ref_A")
+        }
         traces["u_dq_V"] = _trace(t, u_dq_V)
         traces["u_max_V"] = _trace(t, np.asarray(result.u_dc_V) / math.sqrt(3.0))
         figures = compute_metrics(result)
@@ -388,17 +448,34 @@ class Tuner:
         speed_w = np.asarray(result.speed_rpm)[window]
         ref_w = np.asarray(result.speed_ref_rpm)[window]
         keep = window[np.union1d(minmax_indices(speed_w), minmax_indices(ref_w))]
-        detail = {"t": t[keep].tolist(), "speed_rpm": np.asarray(result.speed_rpm)[keep].tolist(),
-                  "speed_ref_rpm": np.asarray(result.speed_ref_rpm)[keep].tolist(), "t_s": t0_s, "title": title}
+        detail = {
+            "t": t[keep].tolist(),
+            "speed_rpm": np.asarray(result.speed_rpm)[keep].tolist(),
+            "speed_ref_rpm": np.asarray(result.speed_ref_rpm)[keep].tolist(),
+            "t_s": t0_s,
+            "title": title,
+        }
         # everything the Bode plot depends on: computed, and redrawn by the page, when it changes
-        bode_key = json.dumps([dsg.J_kgm2, dsg.alpha_radps, dsg.zeta, dsg.m, dsg.tau_i_s, dsg.feedforward,
-                               data["motor"]["J_kgm2"], data["speed_controller"]["Ts_s"]])
+        bode_key = json.dumps(
+            [
+                dsg.J_kgm2,
+                dsg.alpha_radps,
+                dsg.zeta,
+                dsg.m,
+                dsg.tau_i_s,
+                dsg.feedforward,
+                data["motor"]["J_kgm2"],
+                data["speed_controller"]["Ts_s"],
+            ]
+        )
         log_every = data["simulation"]["log_every"]
         out = {
             "label": _label(data),
             "traces": traces,
-            "spans": {"current": limit_spans(t, at_current_limit(result)),
-                      "voltage": limit_spans(t, at_voltage_limit(result) > 0.0)},
+            "spans": {
+                "current": limit_spans(t, at_current_limit(result)),
+                "voltage": limit_spans(t, at_voltage_limit(result) > 0.0),
+            },
             "detail": detail,
             "bode": self._bode_cached(bode_key),
             "metrics": _metric_rows(figures),
@@ -445,10 +522,19 @@ class Tuner:
         data = scenario.data
         motor, sc, cl = data["motor"], data["speed_controller"], data["current_loop"]
         discrete = design_of(scenario).discretize(sc["Ts_s"], sc["discretization"])
-        return c_header(discrete, i_max_A=data["limits"]["i_max_A"], pole_pairs=motor["pole_pairs"],
-                        psi_f_Wb=motor["psi_f_Wb"], Ld_H=motor["Ld_H"], Lq_H=motor["Lq_H"], Rs_ohm=motor["Rs_ohm"],
-                        Ts_current_s=cl["Ts_s"], current_method=cl["discretization"],
-                        current_anti_windup=cl["anti_windup"], decouple=cl["decouple"])
+        return c_header(
+            discrete,
+            i_max_A=data["limits"]["i_max_A"],
+            pole_pairs=motor["pole_pairs"],
+            psi_f_Wb=motor["psi_f_Wb"],
+            Ld_H=motor["Ld_H"],
+            Lq_H=motor["Lq_H"],
+            Rs_ohm=motor["Rs_ohm"],
+            Ts_current_s=cl["Ts_s"],
+            current_method=cl["discretization"],
+            current_anti_windup=cl["anti_windup"],
+            decouple=cl["decouple"],
+        )
 
 
 def _metric_rows(figures):
@@ -467,8 +553,16 @@ def _metric_rows(figures):
         prefix = part if i is None else f"{part}.{i}"
         for key, label, unit in TABLE_METRICS[part]:
             figure = event[key]
-            rows.append({"key": f"{prefix}.{key}", "group": group, "label": label, "unit": unit,
-                         "value": figure["value"], "reason": figure.get("reason", "")})
+            rows.append(
+                {
+                    "key": f"{prefix}.{key}",
+                    "group": group,
+                    "label": label,
+                    "unit": unit,
+                    "value": figure["value"],
+                    "reason": figure.get("reason", ""),
+                }
+            )
     return rows
 
 
@@ -487,9 +581,11 @@ def _warnings(figures, data):
     if not voltage_s:
         return []
     u_max_V = data["limits"]["u_dc_V"] / math.sqrt(3.0)
-    return [f"Voltage limit: the inverter's range u_dc/\u221a3 = {u_max_V:.4g} V cut the voltage for "
-            f"{voltage_s:.4g} s ({100.0 * voltage_s / run['t_end_s']:.3g} % of the run). There the currents do "
-            "not follow their commands and the design (eq 3, 9) does not hold."]
+    return [
+        f"Voltage limit: the inverter's range u_dc/\u221a3 = {u_max_V:.4g} V cut the voltage for "
+        f"{voltage_s:.4g} s ({100.0 * voltage_s / run['t_end_s']:.3g} % of the run). There the currents do "
+        "not follow their commands and the design (eq 3, 9) does not hold."
+    ]
 
 
 def _slug(name):
@@ -500,5 +596,7 @@ def _label(data):
     sc = data["speed_controller"]
     ka = "1/Kp" if sc["Ka"] is None else f"{sc['Ka']:.4g}"
     J_ratio = data["motor"]["J_kgm2"] / sc["J_design_kgm2"]
-    return (f"\u03b1={sc['alpha']:.4g} \u03b6={sc['zeta']:.4g} m={sc['m']:.4g} Fr {sc['feedforward']}, "
-            f"AW {sc['anti_windup']} Ka={ka}, {sc['discretization']} Ts={sc['Ts_s']:.4g} s, J/Jd={J_ratio:.3g}")
+    return (
+        f"\u03b1={sc['alpha']:.4g} \u03b6={sc['zeta']:.4g} m={sc['m']:.4g} Fr {sc['feedforward']}, "
+        f"AW {sc['anti_windup']} Ka={ka}, {sc['discretization']} Ts={sc['Ts_s']:.4g} s, J/Jd={J_ratio:.3g}"
+    )

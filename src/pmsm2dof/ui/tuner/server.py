@@ -53,7 +53,7 @@ def bind_socket(host="127.0.0.1", port=None):
     except (socket.gaierror, UnicodeError):
         raise ConfigError("host", host, "an address or name of an interface of this machine") from None
     family, _, _, _, sockaddr = infos[0]
-    for candidate in ([DEFAULT_PORT, 0] if port is None else [port]):
+    for candidate in [DEFAULT_PORT, 0] if port is None else [port]:
         sock = socket.socket(family, socket.SOCK_STREAM)
         sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
         try:
@@ -125,14 +125,22 @@ class HostCheck:
             origin = headers.get("origin")
             if not self.accepts(host):
                 shown = ", ".join(f"{n}:{self.port}" for n in sorted(self.names))
-                return await _refuse(send, 421, f"pmsm2dof tuner: Host {host[:100]!r} is not this server "
-                                                f"(it answers to {shown}); open http://127.0.0.1:{self.port}/ "
-                                                "if it listens on loopback")
+                return await _refuse(
+                    send,
+                    421,
+                    f"pmsm2dof tuner: Host {host[:100]!r} is not this server "
+                    f"(it answers to {shown}); open http://127.0.0.1:{self.port}/ "
+                    "if it listens on loopback",
+                )
             if origin is not None:
                 scheme, _, authority = origin.partition("://")
                 if not self.accepts(authority, scheme):
-                    return await _refuse(send, 403, f"pmsm2dof tuner: requests from the page of {origin[:100]!r} "
-                                                    "are refused: only the tuner's own page may use it")
+                    return await _refuse(
+                        send,
+                        403,
+                        f"pmsm2dof tuner: requests from the page of {origin[:100]!r} "
+                        "are refused: only the tuner's own page may use it",
+                    )
         await self.app(scope, receive, send)
 
 
@@ -146,9 +154,13 @@ def _is_address(name):
 
 async def _refuse(send, status, text):
     body = (text + "\n").encode()
-    await send({"type": "http.response.start", "status": status,
-                "headers": [(b"content-type", b"text/plain; charset=utf-8"),
-                            (b"content-length", str(len(body)).encode())]})
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status,
+            "headers": [(b"content-type", b"text/plain; charset=utf-8"), (b"content-length", str(len(body)).encode())],
+        }
+    )
     await send({"type": "http.response.body", "body": body})
 
 
@@ -167,8 +179,9 @@ def make_server(app, sock, host):
     """A uvicorn server for ``app`` behind :func:`host_check` on the bound socket ``sock``, quiet
     except for errors."""
     address, port = sock.getsockname()[:2]
-    config = uvicorn.Config(host_check(app, sock, host), host=address, port=port, log_level="warning",
-                            access_log=False, lifespan="off")
+    config = uvicorn.Config(
+        host_check(app, sock, host), host=address, port=port, log_level="warning", access_log=False, lifespan="off"
+    )
     return uvicorn.Server(config)
 
 
