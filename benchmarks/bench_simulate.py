@@ -118,7 +118,8 @@ def main(argv=None):
         "",
         f"Preset `paper-condition-2` ({t_end_s:g} s simulated), current controller at "
         f"Ts_current = {Ts_current_s * 1e6:g} us, speed controller at "
-        f"{data['speed_controller']['Ts_s'] * 1e3:g} ms, plant by RK4 with dt = {data['simulation']['dt_s'] * 1e6:g} us "
+        f"{data['speed_controller']['Ts_s'] * 1e3:g} ms, plant by RK4 with dt = "
+        f"{data['simulation']['dt_s'] * 1e6:g} us "
         f"(the default, one step per current period), logged every speed sample. Median of {args.runs} runs "
         "after a warm-up run, one core.",
         "",

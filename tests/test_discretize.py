@@ -354,7 +354,8 @@ ANCHOR_ALPHA_TS = 1e-3  # finest alpha Ts that a sample-by-sample simulation cov
 
 
 def gx_continuous(ff, J, alpha, zeta, m, tau):
-    """eq 6 with eq 11 / 13 multiplied through by hand: (Rn s + (Kp s + Ki) Rd) / (Rd (J tau s^3 + J s^2 + Kp s + Ki))."""
+    """eq 6 with eq 11 / 13 multiplied through by hand:
+    (Rn s + (Kp s + Ki) Rd) / (Rd (J tau s^3 + J s^2 + Kp s + Ki))."""
     Kp, Ki = J * alpha, J * alpha**2 / (4 * zeta**2)
     if ff == "none":
         Rn, Rd = np.zeros(1), np.ones(1)

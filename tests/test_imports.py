@@ -37,7 +37,8 @@ def loaded_after(code):
         "import pmsm2dof",
         "from pmsm2dof.ui.cli import main\ntry:\n    main(['--help'])\nexcept SystemExit:\n    pass",
         "from pmsm2dof.ui.cli import main\nmain(['presets'])",
-        "import pmsm2dof\npmsm2dof.simulate, pmsm2dof.load_scenario, pmsm2dof.compute_metrics, pmsm2dof.SpeedController",
+        "import pmsm2dof\n"
+        "pmsm2dof.simulate, pmsm2dof.load_scenario, pmsm2dof.compute_metrics, pmsm2dof.SpeedController",
     ],
 )
 @pytest.mark.slow

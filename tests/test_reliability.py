@@ -262,7 +262,8 @@ def plausible_scenarios(draw):
     """Drives a user could mean, within what the drive can do: loads within 90 % of the torque limit,
     speeds within half the no-load speed, current loops at least 5 samples slow, faults in order,
     and an inertia that the largest torque within the current limit plus the load cannot spin
-    past the no-load speed within the run (a lighter drive that loses its speed reading runs away: a legitimate stop)."""
+    past the no-load speed within the run (a lighter drive that loses its speed reading runs away: a
+    legitimate stop)."""
     p = draw(st.integers(1, 8))
     psi = draw(st.floats(0.02, 0.5))
     Ld = draw(st.floats(1e-4, 0.05))

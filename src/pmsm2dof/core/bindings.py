@@ -27,7 +27,7 @@ __all__ = [
 
 def c_string(pointer: object) -> str:
     """The C string ``pointer`` (``const char *``) as a Python str."""
-    return ffi.string(pointer).decode()  # type: ignore[no-any-return, union-attr]
+    return ffi.string(pointer).decode()
 
 
 def enum_names(ctype: str, prefix: str) -> tuple[str, ...]:

@@ -446,7 +446,7 @@ def _check_relations(data):
             cl["tau_i_s"],
             f">= current_loop.Ts_s = {cl['Ts_s']!r} (the dq current PIs cannot be faster than their sampling)",
         )
-    for name, value_key in (("reference", "speed_rpm"), ("load", "torque_Nm")):
+    for name in ("reference", "load"):
         entries = data[name]
         for i, e in enumerate(entries):
             if e["t_s"] >= sim["t_end_s"]:
@@ -599,7 +599,7 @@ class Scenario:
             return NotImplemented
         return self._data == other._data
 
-    __hash__ = None
+    __hash__ = None  # type: ignore[assignment]  # equal scenarios compare by data, which is mutable
 
     def __repr__(self):
         return f"Scenario({self.name!r})"

@@ -174,7 +174,8 @@ def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs
                 f"Ka: the paper gives 'Kp/3 ~ 3Kp' next to the default Ka = 1/Kp. Ka adds u* [Nm] to the speed error "
                 f"[rad/s], so it has the unit of 1/Kp, and with Kp = {Kp:.3g} the literal range "
                 f"{Kp / 3:.3g} .. {3 * Kp:.3g} does not contain the default {1 / Kp:.3g}. The study uses "
-                f"1/(3Kp) .. 3/Kp = {1 / (3 * Kp):.3g} .. {3 / Kp:.3g} (the default's factor-3 neighbourhood) and draws "
+                f"1/(3Kp) .. 3/Kp = {1 / (3 * Kp):.3g} .. {3 / Kp:.3g} (the default's factor-3 neighbourhood) "
+                "and draws "
                 "the literal range too.",
                 "Fig. 10 and experiments 2 and 3 compare the 1DOF PI (feedforward none) with the 2DOF controller "
                 "(feedforward eq 13 discretized by Tustin, eq 15), both with back-calculation AW, so that only the "

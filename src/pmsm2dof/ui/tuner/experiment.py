@@ -410,7 +410,8 @@ class Tuner:
         id_ref_A, u_dq_V = ||u_dq|| and u_max_V = u_dc / sqrt(3)), ``spans`` (``current`` and
         ``voltage``: the ``[start, end]`` intervals at the current-vector limit and at the
         inverter's voltage range, by :func:`pmsm2dof.sim.metrics.at_current_limit` and
-        :func:`~pmsm2dof.sim.metrics.at_voltage_limit`, as plot.png shades them), ``detail`` (speed and reference around the first load step,
+        :func:`~pmsm2dof.sim.metrics.at_voltage_limit`, as plot.png shades them), ``detail`` (speed
+        and reference around the first load step,
         or without one the last reference step, until the next schedule entry, decimated on
         their own so that the dip keeps its full resolution; its ``t_s`` and ``title``),
         ``bode``, ``metrics`` (list of ``{key, group, label, unit, value, reason}``, key the path
