@@ -414,7 +414,8 @@ def test_discrete_pi_error_matches_table_1_substitutions(claims):
     }  # Table 1
     for method, s in s_of_z.items():
         expected = abs((Kp + Ki / s) / F - 1.0)
-        assert row["values"]["controller_error"][method] == pytest.approx(expected, rel=1e-4), method
+        # abs: the discrete PI is the C controller's, whose float32 coefficients err by a few 6e-8
+        assert row["values"]["controller_error"][method] == pytest.approx(expected, rel=1e-4, abs=3e-7), method
     errors = row["values"]["controller_error"]
     assert errors["tustin"] < errors["forward_euler"] / 10 and errors["tustin"] < errors["backward_euler"] / 10
 
