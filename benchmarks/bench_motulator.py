@@ -65,7 +65,7 @@ MATCHED = {
     "speed_controller.feedforward": "none",
     "speed_controller.anti_windup": "back_calculation",
     "speed_controller.Ka": None,
-    "speed_controller.discretization": "forward_euler",
+    "speed_controller.method": "forward_euler",
     "inverter.computation_delay": True,
     "current_loop.model": "dq_pi",
     "current_loop.decouple": True,
@@ -118,7 +118,7 @@ def motulator_spec(scenario, runs):
     """The situation of ``scenario`` in motulator's terms (SI units, mechanical rad/s)."""
     d = scenario.data
     motor, sc = d["motor"], d["speed_controller"]
-    gains = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], feedforward="none")
+    gains = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], feedforward="none")
     return {
         "n_p": motor["pole_pairs"],
         "R_s": motor["Rs_ohm"],

@@ -51,11 +51,11 @@ def stats(ms):
 def bench_server(name, repeat):
     base = load_scenario(name)
     tuner = Tuner(base)
-    alpha0 = base.data["speed_controller"]["alpha"]
+    alpha0 = base.data["speed_controller"]["alpha_radps"]
     tuner.run({})  # warm-up: imports, first allocation
     total, sim, size = [], [], 0
     for k in range(repeat):
-        values = {"speed_controller.alpha": alpha0 * (1.0 + 0.003 * (k + 1))}
+        values = {"speed_controller.alpha_radps": alpha0 * (1.0 + 0.003 * (k + 1))}
         out = tuner.run(values)
         total.append(out["server_ms"])
         sim.append(1e3 * tuner._evaluate(values)[1].wall_time_s)
@@ -69,7 +69,9 @@ def bench_http(url, alpha0, repeat):
         client.post(url + "api/run", json={})
         for k in range(repeat):
             t0 = time.perf_counter()
-            response = client.post(url + "api/run", json={"speed_controller.alpha": alpha0 * (1.0 - 0.003 * (k + 1))})
+            response = client.post(
+                url + "api/run", json={"speed_controller.alpha_radps": alpha0 * (1.0 - 0.003 * (k + 1))}
+            )
             response.raise_for_status()
             times.append(1e3 * (time.perf_counter() - t0))
     return stats(times)
@@ -78,7 +80,7 @@ def bench_http(url, alpha0, repeat):
 def bench_browser(page, url, repeat):
     page.goto(url)
     page.wait_for_function(IDLE, arg=0, timeout=60000)
-    slider = page.locator('.control[data-key="speed_controller.alpha"] input[type=range]')
+    slider = page.locator('.control[data-key="speed_controller.alpha_radps"] input[type=range]')
     latencies, requests = [], []
     for _ in range(repeat):
         renders = page.evaluate("window.tuner.renderCount")
@@ -122,7 +124,7 @@ def main():
             server, sim, size = bench_server(name, args.repeat)
             base = load_scenario(name)
             with serving_in_thread(create_app(base)) as url:
-                http = bench_http(url, base.data["speed_controller"]["alpha"], args.repeat)
+                http = bench_http(url, base.data["speed_controller"]["alpha_radps"], args.repeat)
                 request_ms, browser_ms = bench_browser(page, url, args.repeat)
             rows.append((name, base.data["simulation"]["t_end_s"], sim, server, size, http, request_ms, browser_ms))
             print(

@@ -35,7 +35,7 @@ def test_steady_speed_error_within_the_load_torque_dead_band(feedforward):
     )
     d = scenario.data
     sc = d["speed_controller"]
-    J, alpha, zeta = sc["J_design_kgm2"], sc["alpha"], sc["zeta"]
+    J, alpha, zeta = sc["J_kgm2"], sc["alpha_radps"], sc["zeta"]
     T_load_Nm = d["load"][-1]["torque_Nm"]
     # eq 9: Ki = J (alpha / (2 zeta))^2
     Ki = J * (alpha / (2.0 * zeta)) ** 2

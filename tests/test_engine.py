@@ -120,7 +120,7 @@ def drive_tree(**sections):
         "limits": {"i_max_A": 10.0, "u_dc_V": 300.0},
         "inverter": {"computation_delay": True},
         "current_loop": {"model": "dq_pi", "tau_i_s": 0.002, "Ts_s": 1e-4},
-        "speed_controller": {"alpha": 20.0, "zeta": 0.7, "Ts_s": 1e-4, "feedforward": "full", "m": 2.0},
+        "speed_controller": {"alpha_radps": 20.0, "zeta": 0.7, "Ts_s": 1e-4, "feedforward": "full", "m": 2.0},
         "simulation": {"t_end_s": 0.15, "speed0_rpm": 300.0},
         "reference": [{"t_s": 0.0, "speed_rpm": 700.0}],
         # a step between samples, then a ramp whose ends fall between samples too
@@ -214,7 +214,7 @@ def test_first_order_multirate_matches_scipy_integration():
     """Eq (3) current loop, speed controller at 10 current periods, current commands replayed."""
     tree = drive_tree(
         current_loop={"model": "first_order", "tau_i_s": 0.002, "Ts_s": 1e-4},
-        speed_controller={"alpha": 20.0, "zeta": 0.7, "Ts_s": 1e-3, "feedforward": "lowpass"},
+        speed_controller={"alpha_radps": 20.0, "zeta": 0.7, "Ts_s": 1e-3, "feedforward": "lowpass"},
         simulation={"t_end_s": 0.3, "speed0_rpm": 300.0},
     )
     result = simulate(Scenario.from_dict(tree))
@@ -323,7 +323,7 @@ def test_steady_state_torque_balances_load_and_friction(model):
                 "motor.B_Nms": B,
                 "motor.T_coulomb_Nm": Tc,
                 "speed_controller.feedforward": "none",
-                "speed_controller.alpha": 5.0,
+                "speed_controller.alpha_radps": 5.0,
                 "speed_controller.zeta": 0.7,
                 "simulation.speed0_rpm": 300.0,
                 "reference": [{"t_s": 0.0, "speed_rpm": 300.0}],

@@ -47,8 +47,8 @@ def drive(result):
     """Design figures of the run's scenario by eq (9), (13), (14) and the torque limit."""
     d = result.scenario.data
     m, sc = d["motor"], d["speed_controller"]
-    Kp = sc["J_design_kgm2"] * sc["alpha"]
-    Ki = sc["J_design_kgm2"] * (sc["alpha"] / (2 * sc["zeta"])) ** 2
+    Kp = sc["J_kgm2"] * sc["alpha_radps"]
+    Ki = sc["J_kgm2"] * (sc["alpha_radps"] / (2 * sc["zeta"])) ** 2
     Ts = sc["Ts_s"]
     return {
         "Kp": Kp,
@@ -57,7 +57,7 @@ def drive(result):
         "Ka": 1.0 / Kp,
         "b_e0": Kp + Ki * Ts / 2,
         "J": m["J_kgm2"],
-        "alpha": sc["alpha"],
+        "alpha": sc["alpha_radps"],
         "i_max": d["limits"]["i_max_A"],
         "T_max": 1.5 * m["pole_pairs"] * m["psi_f_Wb"] * d["limits"]["i_max_A"],
         "w_ref": d["reference"][0]["speed_rpm"] * RADPS_PER_RPM,

@@ -93,7 +93,7 @@ SIMULATE_BAD = [
     # rejected by the controllers or the engine, named by the scenario key
     (["--set", "speed_controller.Ka=1e9"], "speed_controller.Ka"),
     (["--set", "simulation.speed0_rpm=1e6"], "simulation.speed0_rpm"),
-    (["--set", "motor.J_kgm2=1e-300"], "speed_controller.J_design_kgm2"),
+    (["--set", "motor.J_kgm2=1e-300"], "speed_controller.J_kgm2"),
     # a run that stops: an overhauling load beyond the torque limit drives the motor to overspeed
     (["--set", "load.0.torque_Nm=-1000"], "stopped at t ="),
 ]

@@ -284,8 +284,7 @@ def test_measured_values_follow_the_simulations():
     base_studies = run_studies({}, **REDUCED)
     base = {c.id: c for c in compute_claims(base_studies)}
     plant = {
-        c.id: c
-        for c in compute_claims(run_studies({"motor.J_kgm2": 0.5, "speed_controller.J_design_kgm2": 0.4}, **REDUCED))
+        c.id: c for c in compute_claims(run_studies({"motor.J_kgm2": 0.5, "speed_controller.J_kgm2": 0.4}, **REDUCED))
     }
     tuned = {c.id: c for c in compute_claims(run_studies({"speed_controller.zeta": 0.35}, **REDUCED))}
     for cid, claim in base.items():

@@ -47,9 +47,9 @@ def test_preset_holds_the_papers_values(name):
     assert d["current_loop"]["tau_i_s"] == 0.05
     assert d["limits"]["i_max_A"] == 7.6
     sc = d["speed_controller"]
-    assert sc["alpha"] == 0.5
-    Kp = sc["J_design_kgm2"] * sc["alpha"]
-    Ki = sc["J_design_kgm2"] * (sc["alpha"] / (2 * sc["zeta"])) ** 2
+    assert sc["alpha_radps"] == 0.5
+    Kp = sc["J_kgm2"] * sc["alpha_radps"]
+    Ki = sc["J_kgm2"] * (sc["alpha_radps"] / (2 * sc["zeta"])) ** 2
     assert Kp == pytest.approx(0.2, rel=1e-12)
     assert Ki == pytest.approx(0.3, rel=1e-12)
     assert sc["Ka"] is None  # the paper's default 1/Kp (section 3.3)
@@ -130,7 +130,7 @@ def test_round_trip_through_a_file_keeps_defaults_and_derived_values(tmp_path):
     path.write_text(s.to_toml())
     back = load_scenario(path)
     assert back == s
-    assert back.data["speed_controller"]["J_design_kgm2"] == 0.5
+    assert back.data["speed_controller"]["J_kgm2"] == 0.5
     assert back.data["speed_controller"]["Ka"] == 2.5
 
 
@@ -160,7 +160,7 @@ model = "first_order"
 tau_i_s = 0.001
 Ts_s = 0.0001
 [speed_controller]
-alpha = 20
+alpha_radps = 20
 zeta = 0.7
 Ts_s = 0.0005
 [simulation]
@@ -175,16 +175,16 @@ speed_rpm = 100
     assert d["inverter"] == {"computation_delay": False}
     assert d["current_loop"]["decouple"] is True
     assert d["current_loop"]["anti_windup"] == "back_calculation"
-    assert d["current_loop"]["discretization"] == "tustin"
+    assert d["current_loop"]["method"] == "tustin"
     sc = d["speed_controller"]
-    assert (sc["m"], sc["feedforward"], sc["anti_windup"], sc["discretization"]) == (
+    assert (sc["m"], sc["feedforward"], sc["anti_windup"], sc["method"]) == (
         1.0,
         "lowpass",
         "back_calculation",
         "tustin",
     )
     assert sc["Ka"] is None
-    assert sc["J_design_kgm2"] == 0.01 and sc["tau_i_design_s"] == 0.001
+    assert sc["J_kgm2"] == 0.01 and sc["tau_i_s"] == 0.001
     assert d["simulation"]["log_every"] == 1 and d["simulation"]["speed0_rpm"] == 0.0
     assert d["simulation"]["dt_s"] > 0
     assert d["load"] == []
@@ -268,10 +268,10 @@ def test_overrides_append_replace_and_reset():
 def test_derived_defaults_follow_their_source_unless_given():
     base = load_scenario("paper-condition-2")
     s = base.with_overrides({"motor.J_kgm2": 0.6, "current_loop.tau_i_s": 0.02})
-    assert s.data["speed_controller"]["J_design_kgm2"] == 0.6
-    assert s.data["speed_controller"]["tau_i_design_s"] == 0.02
-    s = base.with_overrides({"speed_controller.J_design_kgm2": 0.4, "motor.J_kgm2": 0.8})
-    assert s.data["speed_controller"]["J_design_kgm2"] == 0.4
+    assert s.data["speed_controller"]["J_kgm2"] == 0.6
+    assert s.data["speed_controller"]["tau_i_s"] == 0.02
+    s = base.with_overrides({"speed_controller.J_kgm2": 0.4, "motor.J_kgm2": 0.8})
+    assert s.data["speed_controller"]["J_kgm2"] == 0.4
     assert s.data["motor"]["J_kgm2"] == 0.8
 
 
@@ -318,7 +318,7 @@ def test_scenario_is_immutable():
 @pytest.mark.parametrize(
     "text, expected",
     [
-        ("speed_controller.alpha=0.7", ("speed_controller.alpha", 0.7)),
+        ("speed_controller.alpha_radps=0.7", ("speed_controller.alpha_radps", 0.7)),
         ("simulation.log_every = 10", ("simulation.log_every", 10)),
         ("inverter.computation_delay=true", ("inverter.computation_delay", True)),
         ("speed_controller.feedforward=none", ("speed_controller.feedforward", "none")),
@@ -366,7 +366,7 @@ def test_round_trip_property(J, Rs, alpha, speed, Ka, name, n, delay):
         {
             "motor.J_kgm2": J,
             "motor.Rs_ohm": Rs,
-            "speed_controller.alpha": alpha,
+            "speed_controller.alpha_radps": alpha,
             "reference.1.speed_rpm": speed,
             "speed_controller.Ka": Ka,
             "name": name,
@@ -394,3 +394,34 @@ def test_schema_reference_documents_every_key():
     text = schema_reference()
     for f in SCHEMA:
         assert f.key in text
+
+
+@pytest.mark.parametrize(
+    ("old", "new"),
+    [
+        ("speed_controller.alpha", "speed_controller.alpha_radps"),
+        ("speed_controller.discretization", "speed_controller.method"),
+        ("speed_controller.J_design_kgm2", "speed_controller.J_kgm2"),
+        ("speed_controller.tau_i_design_s", "speed_controller.tau_i_s"),
+        ("current_loop.discretization", "current_loop.method"),
+    ],
+)
+def test_a_renamed_key_is_refused_with_its_new_name(tmp_path, old, new):
+    """docs/conventions.md: scenario keys are the API's argument names; an old file says what to write."""
+    table, leaf = old.split(".")
+    text = load_scenario("paper-condition-1").to_toml()
+    value = '"tustin"' if leaf == "discretization" else "0.5"
+    text = text.replace(f"[{table}]\n", f"[{table}]\n{leaf} = {value}\n", 1)
+    (tmp_path / "old.toml").write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_scenario(tmp_path / "old.toml")
+    assert err.value.param == old
+    assert f"renamed to '{new}'" in str(err.value)
+
+
+def test_conventions_page_lists_every_renamed_key():
+    from pmsm2dof.sim.scenario import RENAMED_KEYS
+
+    page = (Path(__file__).parents[1] / "docs" / "conventions.md").read_text()
+    for old, new in RENAMED_KEYS.items():
+        assert f"| `{old}` | `{new}` |" in page

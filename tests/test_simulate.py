@@ -165,15 +165,15 @@ def test_save_rejects_an_unknown_format(short_run, tmp_path):
         # forward Euler: the feedforward pole 1 - m alpha Ts leaves the unit circle at m alpha Ts >= 2
         (
             {
-                "speed_controller.discretization": "forward_euler",
-                "speed_controller.alpha": 2500.0,
+                "speed_controller.method": "forward_euler",
+                "speed_controller.alpha_radps": 2500.0,
                 "speed_controller.anti_windup": "clamping",
             },
             "speed_controller.Ts_s",
             r"m\*alpha\*Ts_s < 2",
         ),
         # a value float32 cannot hold
-        ({"speed_controller.J_design_kgm2": 1e-50}, "speed_controller.J_design_kgm2", "float32"),
+        ({"speed_controller.J_kgm2": 1e-50}, "speed_controller.J_kgm2", "float32"),
         # 3.6e7 rows of 15 doubles
         ({"simulation.t_end_s": 36000.0}, "simulation.log_every", r">= 3: the log"),
         ({"simulation.dt_s": 1e-12}, "simulation.dt_s", r">= current_loop.Ts_s / 1e\+06"),

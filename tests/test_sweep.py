@@ -53,11 +53,11 @@ tau_i_s = 0.002
 Ts_s = 1e-4
 
 [speed_controller]
-alpha = 50.0
+alpha_radps = 50.0
 zeta = 1.0
 Ts_s = 1e-3
-J_design_kgm2 = 0.01
-tau_i_design_s = 0.002
+J_kgm2 = 0.01
+tau_i_s = 0.002
 
 [simulation]
 t_end_s = 0.6
@@ -73,7 +73,7 @@ torque_Nm = 2.0
 
 GRID_AXES = """
 [axes]
-"speed_controller.alpha" = [25.0, 50.0, 100.0]
+"speed_controller.alpha_radps" = [25.0, 50.0, 100.0]
 "motor.J_kgm2" = { start = 0.005, stop = 0.02, num = 3, scale = "log" }
 """
 
@@ -111,7 +111,7 @@ def test_grid_is_the_product_with_the_first_axis_slowest(base_file):
     # geometric range by hand: start (stop/start)^(k/(num-1))
     inertias = [0.005 * (0.02 / 0.005) ** (k / 2) for k in range(3)]
     expected = [(a, j) for a in alphas for j in inertias]
-    got = [(p["speed_controller.alpha"], p["motor.J_kgm2"]) for p in sw.points]
+    got = [(p["speed_controller.alpha_radps"], p["motor.J_kgm2"]) for p in sw.points]
     assert len(got) == 9
     for (a, j), (ga, gj) in zip(expected, got):
         assert ga == a
@@ -163,7 +163,7 @@ def test_draws_are_reproducible_independent_per_key_and_follow_their_distributio
 def test_grid_times_draws_uses_the_same_draws_in_every_cell(base_file):
     axes = """
     [axes]
-    "speed_controller.alpha" = [25.0, 50.0]
+    "speed_controller.alpha_radps" = [25.0, 50.0]
     "motor.J_kgm2" = { distribution = "uniform", low = 0.008, high = 0.012 }
     """
     sw = sweep_of(base_file, textwrap.dedent(axes), draws=5, seed=1)
@@ -171,7 +171,7 @@ def test_grid_times_draws_uses_the_same_draws_in_every_cell(base_file):
     first = [p["motor.J_kgm2"] for p in sw.points[:5]]
     second = [p["motor.J_kgm2"] for p in sw.points[5:]]
     assert first == second
-    assert [p["speed_controller.alpha"] for p in sw.points] == [25.0] * 5 + [50.0] * 5
+    assert [p["speed_controller.alpha_radps"] for p in sw.points] == [25.0] * 5 + [50.0] * 5
 
 
 def test_plant_inertia_axis_keeps_the_design_inertia_of_the_base(tmp_path):
@@ -180,7 +180,7 @@ def test_plant_inertia_axis_keeps_the_design_inertia_of_the_base(tmp_path):
     for i, J in enumerate((0.2, 0.8)):
         data = sw.scenario(i).data
         assert data["motor"]["J_kgm2"] == J
-        assert data["speed_controller"]["J_design_kgm2"] == 0.4
+        assert data["speed_controller"]["J_kgm2"] == 0.4
 
 
 # ---------------------------------------------------------------------------------------------
@@ -221,13 +221,13 @@ BAD = [
     ({"rank_by": "overshoot"}, "rank_by"),
     ({"worst": -1}, "worst"),
     ({"axes": {"motor.J_kgm2": [0.01, -0.01]}}, "motor.J_kgm2"),
-    ({"axes": {"speed_controller.discretization": ["tustin", "zoh"]}}, "speed_controller.discretization"),
+    ({"axes": {"speed_controller.method": ["tustin", "zoh"]}}, "speed_controller.method"),
 ]
 
 
 @pytest.mark.parametrize("change, param", BAD, ids=[p for _, p in BAD])
 def test_invalid_sweeps_name_the_key(base_file, change, param):
-    data = {"base": base_file.name, "axes": {"speed_controller.alpha": [25.0]}}
+    data = {"base": base_file.name, "axes": {"speed_controller.alpha_radps": [25.0]}}
     data.update(change)
     with pytest.raises(ConfigError) as info:
         parse_sweep(data, base_dir=base_file.parent)
@@ -289,7 +289,7 @@ def test_local_run_equals_single_runs_and_writes_every_output(tmp_path, base_fil
             else:
                 assert row[col] == value, col
     # the axes reach the simulation: a larger plant inertia dips less under the load step
-    dips = table.set_index(["speed_controller.alpha", "motor.J_kgm2"])["load0_speed_dip_rpm"]
+    dips = table.set_index(["speed_controller.alpha_radps", "motor.J_kgm2"])["load0_speed_dip_rpm"]
     for alpha in (25.0, 50.0, 100.0):
         assert dips.loc[alpha].is_monotonic_decreasing
 
@@ -322,11 +322,11 @@ def test_a_diverging_point_is_a_row_with_its_error_and_no_metrics(tmp_path, base
 
 def test_a_value_only_the_engine_rejects_stops_the_sweep_naming_the_point(tmp_path, base_file):
     # finite and > 0 for the schema, but not a float32 for the C controller
-    sw = sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [50.0, 1e39]\n', worst=0)
+    sw = sweep_of(base_file, '[axes]\n"speed_controller.alpha_radps" = [50.0, 1e39]\n', worst=0)
     out = tmp_path / "out"
     with pytest.raises(ConfigError) as info:
         run_sweep(sw, out, workers=1, batch_size=1, progress=False, figures=draw_figures)
-    assert info.value.param == "point 1 (speed_controller.alpha=1e+39): speed_controller.alpha"
+    assert info.value.param == "point 1 (speed_controller.alpha_radps=1e+39): speed_controller.alpha_radps"
     assert [p.name for p in (out / "parts").iterdir()] == ["part-00000000.parquet"]
     assert not (out / "results.parquet").exists()
 
@@ -420,7 +420,9 @@ def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, bas
 
 
 def test_cli_resume_with_a_damaged_part_warns_in_one_line(tmp_path, base_file, capsys):
-    path = write_sweep(tmp_path, 'base = "base.toml"\nworst = 0\n[axes]\n"speed_controller.alpha" = [25.0, 50.0]\n')
+    path = write_sweep(
+        tmp_path, 'base = "base.toml"\nworst = 0\n[axes]\n"speed_controller.alpha_radps" = [25.0, 50.0]\n'
+    )
     out = tmp_path / "out"
     assert main(["sweep", str(path), "--out", str(out), "--workers", "1", "--batch-size", "1", "--no-figures"]) == 0
     capsys.readouterr()
@@ -435,14 +437,14 @@ def test_cli_resume_with_a_damaged_part_warns_in_one_line(tmp_path, base_file, c
 def test_out_folder_of_another_sweep_is_refused(tmp_path, base_file):
     out = tmp_path / "out"
     run_sweep(
-        sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [25.0]\n', worst=0),
+        sweep_of(base_file, '[axes]\n"speed_controller.alpha_radps" = [25.0]\n', worst=0),
         out,
         progress=False,
         figures=draw_figures,
     )
     with pytest.raises(ConfigError, match="different sweep"):
         run_sweep(
-            sweep_of(base_file, '[axes]\n"speed_controller.alpha" = [30.0]\n', worst=0),
+            sweep_of(base_file, '[axes]\n"speed_controller.alpha_radps" = [30.0]\n', worst=0),
             out,
             progress=False,
             figures=draw_figures,
@@ -454,7 +456,7 @@ def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
     distributed = pytest.importorskip("dask.distributed")
     axes = """
     [axes]
-    "speed_controller.alpha" = [25.0, 100.0]
+    "speed_controller.alpha_radps" = [25.0, 100.0]
     "motor.J_kgm2" = { distribution = "log_normal", median = 0.01, sigma = 0.2 }
     """
     sw = sweep_of(base_file, textwrap.dedent(axes), draws=4, seed=5, worst=1)
@@ -483,7 +485,9 @@ def test_dask_cluster_on_loopback_equals_the_local_run(tmp_path, base_file):
 
 @pytest.mark.slow
 def test_cli_runs_a_sweep_and_resumes(tmp_path, base_file, capsys):
-    path = write_sweep(tmp_path, 'base = "base.toml"\nworst = 1\n[axes]\n"speed_controller.alpha" = [25.0, 50.0]\n')
+    path = write_sweep(
+        tmp_path, 'base = "base.toml"\nworst = 1\n[axes]\n"speed_controller.alpha_radps" = [25.0, 50.0]\n'
+    )
     out = tmp_path / "out"
     assert main(["sweep", str(path), "--out", str(out), "--workers", "2"]) == 0
     text = capsys.readouterr().out
@@ -502,7 +506,7 @@ def test_cli_runs_a_sweep_and_resumes(tmp_path, base_file, capsys):
     ],
 )
 def test_cli_bad_options_exit_2_with_one_line_and_no_output(tmp_path, base_file, capsys, args, message):
-    path = write_sweep(tmp_path, 'base = "base.toml"\n[axes]\n"speed_controller.alpha" = [25.0]\n')
+    path = write_sweep(tmp_path, 'base = "base.toml"\n[axes]\n"speed_controller.alpha_radps" = [25.0]\n')
     out = tmp_path / "out"
     assert main(["sweep", str(path), "--out", str(out), *args]) == 2
     err = capsys.readouterr().err

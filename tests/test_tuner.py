@@ -140,7 +140,7 @@ def test_initial_controls_are_the_preset(client, base):
     assert description["name"] == data["name"]
     specs = {c["key"]: c for g in description["groups"] for c in g["controls"]}
     assert set(specs) == set(Tuner(base).keys)
-    assert specs["speed_controller.alpha"]["value"] == data["speed_controller"]["alpha"]
+    assert specs["speed_controller.alpha_radps"]["value"] == data["speed_controller"]["alpha_radps"]
     assert specs["speed_controller.Ka"]["value"] is None
     for name, value_key in (("reference", "speed_rpm"), ("load", "torque_Nm")):
         for i, entry in enumerate(data[name]):
@@ -155,11 +155,11 @@ def test_initial_controls_are_the_preset(client, base):
 
 
 def test_inertia_ratio_changes_the_plant_not_the_design(base):
-    scenario = Tuner(base).scenario({"tuner.J_ratio": 2.0, "speed_controller.alpha": 0.8})
+    scenario = Tuner(base).scenario({"tuner.J_ratio": 2.0, "speed_controller.alpha_radps": 0.8})
     data = scenario.data
     assert data["motor"]["J_kgm2"] == pytest.approx(2.0 * base.data["motor"]["J_kgm2"])
-    assert data["speed_controller"]["J_design_kgm2"] == base.data["motor"]["J_kgm2"]
-    assert data["speed_controller"]["alpha"] == 0.8
+    assert data["speed_controller"]["J_kgm2"] == base.data["motor"]["J_kgm2"]
+    assert data["speed_controller"]["alpha_radps"] == 0.8
     assert data["reference"] == base.data["reference"]
     assert data["load"] == base.data["load"]
 
@@ -220,7 +220,7 @@ def test_settled_load_is_carried_by_the_q_current(client, base):
         load__0__torque_Nm=5.0,
         load__0__t_s=10.0,
         reference__1__speed_rpm=500.0,
-        speed_controller__alpha=1.0,
+        speed_controller__alpha_radps=1.0,
     )
     iq = out["traces"]["iq_ref_A"]["y"][-1]
     assert iq == pytest.approx(5.0 / (1.5 * motor["pole_pairs"] * motor["psi_f_Wb"]), rel=0.01)
@@ -320,14 +320,14 @@ def test_a_run_at_the_bound_logs_at_most_log_rows_max_rows(client):
 
 
 BAD_VALUES = [
-    ("speed_controller.alpha", -1.0),
-    ("speed_controller.alpha", "fast"),
+    ("speed_controller.alpha_radps", -1.0),
+    ("speed_controller.alpha_radps", "fast"),
     ("speed_controller.zeta", 0),
     ("speed_controller.m", 2.0),  # lowpass feedforward is eq (13): m = 1
     ("speed_controller.Ka", -0.5),
     ("speed_controller.feedforward", "bogus"),
     ("speed_controller.anti_windup", True),
-    ("speed_controller.discretization", "zoh"),
+    ("speed_controller.method", "zoh"),
     ("speed_controller.Ts_s", 1.5e-4),  # not an integer multiple of the 1e-4 s current loop
     ("simulation.t_end_s", 1e9),
     ("tuner.J_ratio", 0.0),
@@ -366,10 +366,10 @@ def test_a_run_that_stops_answers_422_with_the_reason(client, base):
 
 def test_non_finite_json_number_is_rejected(client):
     response = client.post(
-        "/api/run", content=b'{"speed_controller.alpha": NaN}', headers={"Content-Type": "application/json"}
+        "/api/run", content=b'{"speed_controller.alpha_radps": NaN}', headers={"Content-Type": "application/json"}
     )
     assert response.status_code == 422
-    assert response.json()["param"] == "speed_controller.alpha"
+    assert response.json()["param"] == "speed_controller.alpha_radps"
 
 
 @pytest.mark.parametrize("body", [b"not json", b"[1, 2]", b'"alpha"'])
@@ -387,7 +387,7 @@ def test_body_that_is_not_an_object_answers_422(client, body):
     "content_type, content",
     [
         ("text/plain", b'{"simulation.t_end_s": 20.0}'),  # a cross-site fetch without preflight
-        ("application/x-www-form-urlencoded", b"speed_controller.alpha=0.6"),  # a cross-site form
+        ("application/x-www-form-urlencoded", b"speed_controller.alpha_radps=0.6"),  # a cross-site form
         ("multipart/form-data; boundary=x", b"--x--\r\n"),
         (None, b"{}"),
     ],
@@ -518,9 +518,11 @@ def test_a_newer_run_of_a_client_supersedes_its_older_one(served, watch):
     """The older run stops between two C calls (it does not run to its end) and answers 409."""
     url, _, app = served
     with ThreadPoolExecutor(1) as pool:
-        older = pool.submit(post_run, url, {"simulation.t_end_s": 1000.0, "speed_controller.alpha": 0.51}, "tab-1")
+        older = pool.submit(
+            post_run, url, {"simulation.t_end_s": 1000.0, "speed_controller.alpha_radps": 0.51}, "tab-1"
+        )
         wait_until(lambda: watch.runs)  # the older run is simulating
-        newer = post_run(url, {"speed_controller.alpha": 0.52}, "tab-1")
+        newer = post_run(url, {"speed_controller.alpha_radps": 0.52}, "tab-1")
         older = older.result()
     assert newer.status_code == 200
     assert older.status_code == 409 and "superseded" in older.json()["error"]
@@ -537,7 +539,7 @@ def test_concurrent_runs_of_one_client_simulate_one_at_a_time(served, watch):
     url, _, _ = served
 
     def send(k):
-        return post_run(url, {"simulation.t_end_s": 600.0, "speed_controller.alpha": 0.53 + 0.01 * k}, "tab-2")
+        return post_run(url, {"simulation.t_end_s": 600.0, "speed_controller.alpha_radps": 0.53 + 0.01 * k}, "tab-2")
 
     with ThreadPoolExecutor(4) as pool:
         first = pool.submit(send, 0)
@@ -553,9 +555,11 @@ def test_concurrent_runs_of_one_client_simulate_one_at_a_time(served, watch):
 def test_two_clients_simulate_side_by_side(served, watch):
     url, _, _ = served
     with ThreadPoolExecutor(2) as pool:
-        first = pool.submit(post_run, url, {"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.61}, "tab-a")
+        first = pool.submit(post_run, url, {"simulation.t_end_s": 800.0, "speed_controller.alpha_radps": 0.61}, "tab-a")
         wait_until(lambda: watch.runs)
-        second = pool.submit(post_run, url, {"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.62}, "tab-b")
+        second = pool.submit(
+            post_run, url, {"simulation.t_end_s": 800.0, "speed_controller.alpha_radps": 0.62}, "tab-b"
+        )
         assert first.result().status_code == 200 and second.result().status_code == 200
     assert watch.peak == 2
 
@@ -570,10 +574,10 @@ def test_a_download_waits_for_the_run_of_its_client_and_is_not_superseded(served
             url + "api/download/trace.csv",
             timeout=120,
             headers=headers,
-            json={"simulation.t_end_s": 800.0, "speed_controller.alpha": 0.71},
+            json={"simulation.t_end_s": 800.0, "speed_controller.alpha_radps": 0.71},
         )
         wait_until(lambda: watch.runs)
-        run_answer = post_run(url, {"speed_controller.alpha": 0.72}, "tab-3")
+        run_answer = post_run(url, {"speed_controller.alpha_radps": 0.72}, "tab-3")
         download = download.result()
     assert download.status_code == 200 and run_answer.status_code == 200
     assert len(download.text.splitlines()) == 4969 + 1  # 800001 samples logged every 161st, and the header
@@ -620,7 +624,7 @@ def test_three_runs_at_the_bound_keep_the_server_memory_small():
 
 def test_scenario_download_loads_back_to_the_run_scenario(client, base, tmp_path):
     values = {
-        "speed_controller.alpha": 0.7,
+        "speed_controller.alpha_radps": 0.7,
         "speed_controller.anti_windup": "clamping",
         "tuner.J_ratio": 1.5,
         "load.0.torque_Nm": -3.0,
@@ -629,7 +633,7 @@ def test_scenario_download_loads_back_to_the_run_scenario(client, base, tmp_path
     assert response.status_code == 200
     assert 'filename="paper-condition-2-tuned.toml"' in response.headers["content-disposition"]
     tree = tomllib.loads(response.text)
-    assert tree["speed_controller"]["alpha"] == 0.7
+    assert tree["speed_controller"]["alpha_radps"] == 0.7
     assert tree["load"] == [{"t_s": 7.0, "torque_Nm": -3.0}]
     path = tmp_path / "tuned.toml"
     path.write_text(response.text)
@@ -639,7 +643,7 @@ def test_scenario_download_loads_back_to_the_run_scenario(client, base, tmp_path
 def test_header_download_holds_the_posted_design(client):
     response = client.post(
         "/api/download/header.h",
-        json={"speed_controller.alpha": 0.75, "speed_controller.discretization": "backward_euler"},
+        json={"speed_controller.alpha_radps": 0.75, "speed_controller.method": "backward_euler"},
     )
     assert response.status_code == 200
     text = response.text

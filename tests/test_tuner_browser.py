@@ -102,12 +102,12 @@ def test_slider_changes_plot_and_table_then_pin_and_compare(page, tmp_path):
 
     # move the bandwidth slider as a person would, with the keyboard
     renders = page.evaluate("window.tuner.renderCount")
-    slider = page.locator('.control[data-key="speed_controller.alpha"] input[type=range]')
+    slider = page.locator('.control[data-key="speed_controller.alpha_radps"] input[type=range]')
     slider.focus()
     for _ in range(150):
         page.keyboard.press("ArrowRight")
     wait_for_render(page, renders)
-    alpha = float(page.locator('input[name="speed_controller.alpha"]').input_value())
+    alpha = float(page.locator('input[name="speed_controller.alpha_radps"]').input_value())
     assert alpha == pytest.approx(0.5 * 10 ** (150 / 1000 * 2), rel=1e-3)  # log slider over 2 decades
     overshoot_after = page.evaluate(PLOTTED_OVERSHOOT_JS)
     table_after, _ = metric_cells(page, OVERSHOOT)
@@ -264,8 +264,8 @@ def test_scenario_and_trace_downloads(page, tmp_path):
     path = tmp_path / info.value.suggested_filename
     info.value.save_as(path)
     scenario = load_scenario(path)
-    shown_alpha = float(page.locator('input[name="speed_controller.alpha"]').input_value())
-    assert scenario.data["speed_controller"]["alpha"] == shown_alpha
+    shown_alpha = float(page.locator('input[name="speed_controller.alpha_radps"]').input_value())
+    assert scenario.data["speed_controller"]["alpha_radps"] == shown_alpha
     shown_aw = page.locator('select[name="speed_controller.anti_windup"]').input_value()
     assert scenario.data["speed_controller"]["anti_windup"] == shown_aw
 

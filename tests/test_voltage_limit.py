@@ -31,7 +31,7 @@ def servo(u_dc_V, speed_rpm, model="dq_pi", delay=False, load_Nm=0.0):
             "inverter.computation_delay": delay,
             "current_loop.model": model,
             "current_loop.tau_i_s": 1e-3,
-            "speed_controller.alpha": 100.0,
+            "speed_controller.alpha_radps": 100.0,
             "speed_controller.zeta": 0.7071,
             "simulation.speed0_rpm": speed_rpm,
             "simulation.t_end_s": 0.2,

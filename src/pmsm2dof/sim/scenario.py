@@ -193,13 +193,13 @@ SCHEMA = (
         choices=ANTI_WINDUPS,
     ),
     Field(
-        "current_loop.discretization",
+        "current_loop.method",
         str,
         "discretization of the current PIs (Table 1)",
         default="tustin",
         choices=METHODS,
     ),
-    Field("speed_controller.alpha", float, "bandwidth alpha [rad/s] of the P loop (eq 9)", gt=0),
+    Field("speed_controller.alpha_radps", float, "bandwidth alpha [rad/s] of the P loop (eq 9)", gt=0),
     Field("speed_controller.zeta", float, "relative damping zeta of the PI loop (eq 9)", gt=0),
     Field("speed_controller.m", float, "tracking pole factor, Gx = m alpha / (s + m alpha) (eq 10)", default=1.0, gt=0),
     Field(
@@ -224,7 +224,7 @@ SCHEMA = (
         ge=0,
     ),
     Field(
-        "speed_controller.discretization",
+        "speed_controller.method",
         str,
         "discretization of the PI and Fr (Table 1, eq 14, 15)",
         default="tustin",
@@ -237,14 +237,14 @@ SCHEMA = (
         gt=0,
     ),
     Field(
-        "speed_controller.J_design_kgm2",
+        "speed_controller.J_kgm2",
         float,
         "inertia the gains are designed for [kg m^2] (eq 9, 11)",
         default=SameAs("motor.J_kgm2"),
         gt=0,
     ),
     Field(
-        "speed_controller.tau_i_design_s",
+        "speed_controller.tau_i_s",
         float,
         "current-loop time constant the full feedforward is designed for [s] (eq 11)",
         default=SameAs("current_loop.tau_i_s"),
@@ -330,8 +330,22 @@ def _short(value):
     return value
 
 
+#: Keys renamed so that scenario keys and API arguments share one spelling (docs/conventions.md):
+#: the old key of a file is refused with its new name.
+RENAMED_KEYS = {
+    "speed_controller.alpha": "speed_controller.alpha_radps",
+    "speed_controller.discretization": "speed_controller.method",
+    "speed_controller.J_design_kgm2": "speed_controller.J_kgm2",
+    "speed_controller.tau_i_design_s": "speed_controller.tau_i_s",
+    "current_loop.discretization": "current_loop.method",
+}
+
+
 def _unknown_key(dotted, value, parent, valid):
     """ConfigError for an unknown key, suggesting the closest valid one."""
+    renamed = RENAMED_KEYS.get(f"{parent}.{dotted.rsplit('.', 1)[-1]}" if parent else dotted)
+    if renamed is not None:
+        raise ConfigError(dotted, _short(value), f"a key renamed to '{renamed}' (same meaning and unit)")
     leaf = dotted.rsplit(".", 1)[-1]
     where = f"[{parent}]" if parent else "the top level"
     prefix = f"{parent}." if parent else ""
@@ -558,7 +572,7 @@ class Scenario:
             ``"speed_controller.anti_windup"``, ``"reference.0.speed_rpm"``; the index one past
             the end appends an entry. A whole table or array may be replaced
             (``{"load": [{"t_s": 1.0, "torque_Nm": 2.0}]}``). ``None`` removes a key, so that its
-            default (for a derived default such as ``J_design_kgm2``, its source key) applies again.
+            default (for a derived default such as ``speed_controller.J_kgm2``, its source key) applies again.
 
         Returns
         -------

@@ -96,11 +96,11 @@ PROGRESS_CHUNKS = 200
 
 #: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
 _SPEED_KEYS = {
-    "J_kgm2": "speed_controller.J_design_kgm2",
-    "alpha_radps": "speed_controller.alpha",
+    "J_kgm2": "speed_controller.J_kgm2",
+    "alpha_radps": "speed_controller.alpha_radps",
     "zeta": "speed_controller.zeta",
     "m": "speed_controller.m",
-    "tau_i_s": "speed_controller.tau_i_design_s",
+    "tau_i_s": "speed_controller.tau_i_s",
     "Ka": "speed_controller.Ka",
     "Ts_s": "speed_controller.Ts_s",
     "i_max_A": "limits.i_max_A",
@@ -108,7 +108,7 @@ _SPEED_KEYS = {
     "Ld_H": "motor.Ld_H",
     "Lq_H": "motor.Lq_H",
     "pole_pairs": "motor.pole_pairs",
-    "method": "speed_controller.discretization",
+    "method": "speed_controller.method",
     "feedforward": "speed_controller.feedforward",
     "anti_windup": "speed_controller.anti_windup",
 }
@@ -121,7 +121,7 @@ _CURRENT_KEYS = {
     "psi_f_Wb": "motor.psi_f_Wb",
     "tau_i_s": "current_loop.tau_i_s",
     "Ts_s": "current_loop.Ts_s",
-    "method": "current_loop.discretization",
+    "method": "current_loop.method",
     "anti_windup": "current_loop.anti_windup",
 }
 
@@ -254,8 +254,8 @@ def simulate(scenario, progress=False):
     ----------
     scenario : Scenario
         A validated scenario (:func:`pmsm2dof.sim.scenario.load_scenario`, ``Scenario.from_dict``).
-        The speed controller is designed (eq 9, 11) for ``speed_controller.J_design_kgm2`` and
-        ``tau_i_design_s``; the plant uses ``motor.J_kgm2`` and ``current_loop.tau_i_s``.
+        The speed controller is designed (eq 9, 11) for ``speed_controller.J_kgm2`` and
+        ``speed_controller.tau_i_s``; the plant uses ``motor.J_kgm2`` and ``current_loop.tau_i_s``.
         ``speed_controller.Ka`` None means the paper's 1/Kp (section 3.3).
     progress : bool
         Show a progress bar on stderr when the run lasts more than a second.
@@ -365,18 +365,18 @@ class Simulation:
         self._faults = _faults(cfg, data["fault"])
 
         s = cfg.speed
-        s.J_kgm2 = sc["J_design_kgm2"]
-        s.alpha_radps = sc["alpha"]
+        s.J_kgm2 = sc["J_kgm2"]
+        s.alpha_radps = sc["alpha_radps"]
         s.zeta = sc["zeta"]
         s.m = sc["m"]
-        s.tau_i_s = sc["tau_i_design_s"]
+        s.tau_i_s = sc["tau_i_s"]
         s.Ts_s = sc["Ts_s"]
         s.i_max_A = limits["i_max_A"]
         s.psi_f_Wb = motor["psi_f_Wb"]
         s.Ld_H = motor["Ld_H"]
         s.Lq_H = motor["Lq_H"]
         s.pole_pairs = motor["pole_pairs"]
-        s.method = METHODS.index(sc["discretization"])
+        s.method = METHODS.index(sc["method"])
         s.feedforward = FEEDFORWARDS.index(sc["feedforward"])
         s.anti_windup = ANTI_WINDUPS.index(sc["anti_windup"])
         if sc["Ka"] is None:
@@ -392,7 +392,7 @@ class Simulation:
         c.psi_f_Wb = s.psi_f_Wb
         c.tau_i_s = cl["tau_i_s"]
         c.Ts_s = cl["Ts_s"]
-        c.method = METHODS.index(cl["discretization"])
+        c.method = METHODS.index(cl["method"])
         c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
         c.decouple = cl["decouple"]
 

@@ -189,8 +189,8 @@ def sweeps(bases, points=POINTS):
         raise ConfigError("points", points, "an integer >= 2")
     step_data = bases[STEP_BASE].data
     sc = step_data["speed_controller"]
-    J_design = sc["J_design_kgm2"]
-    Kp, _ = pi_gains(J_design, sc["alpha"], sc["zeta"])  # eq 9
+    J_design = sc["J_kgm2"]
+    Kp, _ = pi_gains(J_design, sc["alpha_radps"], sc["zeta"])  # eq 9
     out = []
 
     # Ka (Fig. 5): the range the paper gives, read as 1/(3 Kp) .. 3/Kp, and its literal Kp/3 .. 3 Kp
@@ -307,7 +307,7 @@ def sweeps(bases, points=POINTS):
                         make(
                             label,
                             f"inertia-{kind}-{dof}-{i}",
-                            {"motor.J_kgm2": r * J_design, "speed_controller.J_design_kgm2": J_design},
+                            {"motor.J_kgm2": r * J_design, "speed_controller.J_kgm2": J_design},
                         )
                         for i, r in enumerate(ratios)
                     ),
@@ -409,11 +409,11 @@ def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
     designs, continuous = {}, {}
     for label, ff in FEEDFORWARD.items():
         d = design(
-            sc["J_design_kgm2"],
-            sc["alpha"],
+            sc["J_kgm2"],
+            sc["alpha_radps"],
             sc["zeta"],
             m=sc["m"],
-            tau_i_s=sc["tau_i_design_s"],
+            tau_i_s=sc["tau_i_s"],
             feedforward=ff,
             anti_windup=sc["anti_windup"],
             Ka=sc["Ka"],
@@ -451,7 +451,7 @@ def largest_fine_Ts(base, Ts_grid=TS_GRID_S):
     That is ``max(alpha, alpha/(2 zeta), m alpha) Ts <= MAX_W_TS`` (beyond it discretize warns).
     """
     sc = base.data["speed_controller"]
-    w = max(sc["alpha"], sc["alpha"] / (2.0 * sc["zeta"]), sc["m"] * sc["alpha"])
+    w = max(sc["alpha_radps"], sc["alpha_radps"] / (2.0 * sc["zeta"]), sc["m"] * sc["alpha_radps"])
     fine = [Ts for Ts in Ts_grid if w * Ts <= MAX_W_TS]
     return max(fine) if fine else min(Ts_grid)
 
@@ -491,7 +491,7 @@ def discretization_runs(Ts_engine=TS_ENGINE_S):
             f"disc-{method}-{Ts:g}",
             {
                 "speed_controller.feedforward": "none",
-                "speed_controller.discretization": method,
+                "speed_controller.method": method,
                 "speed_controller.Ts_s": Ts,
             },
         )

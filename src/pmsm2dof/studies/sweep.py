@@ -10,7 +10,7 @@ A sweep file (TOML) names a base scenario and the axes along which it varies::
     worst = 3                        # number of worst-case traces drawn (default 3)
 
     [axes]                           # each key is a dotted scenario key
-    "speed_controller.alpha" = [0.25, 0.5, 1.0]                          # a list
+    "speed_controller.alpha_radps" = [0.25, 0.5, 1.0]                          # a list
     "motor.J_kgm2" = { start = 0.2, stop = 1.6, num = 8, scale = "log" } # a range
     "speed_controller.Ka" = { distribution = "log_normal", median = 5.0, sigma = 0.5 }
 
@@ -33,7 +33,7 @@ axis key, so adding or reordering axes does not change the other axes' draws):
 
 The base scenario is frozen with its defaults filled in, so that an axis changes its
 own key only: sweeping the plant inertia ``motor.J_kgm2`` keeps the design inertia
-``speed_controller.J_design_kgm2`` (and ``tau_i_design_s``) of the base, the
+``speed_controller.J_kgm2`` (and ``tau_i_design_s``) of the base, the
 robustness question of the design of eq 9 and 11 against the true plant. An absent
 ``speed_controller.Ka`` stays the paper's 1/Kp of each point's design (section 3.3).
 
@@ -220,7 +220,7 @@ def parse_sweep(data, base_dir="."):
         raise ConfigError("name", name, "a non-empty string")
     base = _load_base(load_scenario, data.get("base"), Path(base_dir))
     # Freeze the defaults: an axis then changes its own key only (motor.J_kgm2 leaves the
-    # design inertia speed_controller.J_design_kgm2 of the base as it was).
+    # design inertia speed_controller.J_kgm2 of the base as it was).
     base = Scenario.from_dict(base.data)
 
     raw_axes = data.get("axes")

@@ -48,7 +48,7 @@ def parse_override(text):
     key, sep, raw = text.partition("=")
     key = key.strip()
     if not sep or not key:
-        raise ConfigError("--set", text, "key=value, e.g. speed_controller.alpha=0.5")
+        raise ConfigError("--set", text, "key=value, e.g. speed_controller.alpha_radps=0.5")
     raw = raw.strip()
     try:
         parsed = tomllib.loads(f"v = {raw}")

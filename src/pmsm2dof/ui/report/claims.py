@@ -210,14 +210,14 @@ def _claim(**fields):
 
 def _claim_gains(studies):
     sc = studies.speed_controller()
-    d = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
+    d = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
     ok = math.isclose(d.Kp, 0.2, rel_tol=1e-6) and math.isclose(d.Ki, 0.3, rel_tol=1e-6)
     return _claim(
         section="4.1 (eq 9)",
         claim="the PI gains Kp = 0.2 and Ki = 0.3 correspond to alpha = 0.5 (eq 9, J = 0.4 kg m^2)",
         paper="Kp = 0.2, Ki = 0.3, alpha = 0.5 rad/s",
         measured=(
-            f"eq 9 with J = {sc['J_design_kgm2']:g} kg m^2, alpha = {sc['alpha']:g} rad/s, zeta = "
+            f"eq 9 with J = {sc['J_kgm2']:g} kg m^2, alpha = {sc['alpha_radps']:g} rad/s, zeta = "
             f"{sc['zeta']:.4g}: Kp = {d.Kp:.4g} Nm/(rad/s), Ki = {d.Ki:.4g} Nm/rad"
         ),
         values={"Kp": d.Kp, "Ki": d.Ki, "zeta": sc["zeta"]},
@@ -270,10 +270,10 @@ def _over_text(value, note):
 
 def _claim_first_order(studies):
     sc = studies.speed_controller()
-    d = design(sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_design_s"], feedforward="full")
+    d = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_s"], feedforward="full")
     overshoot_lin = d.overshoot_pct()
     bandwidth = d.bandwidth_radps()
-    pole = sc["alpha"]
+    pole = sc["alpha_radps"]
     small = studies.step("lin-full")
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / pole
     over_small = _value(small["overshoot_pct"])
@@ -326,7 +326,7 @@ def _claim_fig7(studies):
     sc = studies.speed_controller()
     bandwidths = [
         design(
-            sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=m, tau_i_s=sc["tau_i_design_s"], feedforward="full"
+            sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=m, tau_i_s=sc["tau_i_s"], feedforward="full"
         ).bandwidth_radps()
         for m in FIG7_M
     ]
@@ -353,18 +353,16 @@ def _claim_fig7(studies):
 
 def _claim_lowpass(studies):
     sc = studies.speed_controller()
-    low = design(
-        sc["J_design_kgm2"], sc["alpha"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_design_s"], feedforward="lowpass"
-    )
+    low = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_s"], feedforward="lowpass")
     small = studies.step("lin-lowpass")
-    rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc["alpha"]
+    rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc["alpha_radps"]
     over_small = _value(small["overshoot_pct"])
     a, b = studies.results["lin-lowpass"], studies.results["lin-full"]
     diff = float(np.max(np.abs(a.speed_rpm - b.speed_rpm)))
-    alpha_tau = sc["alpha"] * sc["tau_i_design_s"]
+    alpha_tau = sc["alpha_radps"] * sc["tau_i_s"]
     ok = (
         low.overshoot_pct() < NO_OVERSHOOT_PCT
-        and math.isclose(low.bandwidth_radps(), sc["alpha"], rel_tol=FIRST_ORDER_RTOL)
+        and math.isclose(low.bandwidth_radps(), sc["alpha_radps"], rel_tol=FIRST_ORDER_RTOL)
         and over_small is not None
         and over_small < NO_OVERSHOOT_PCT
         and rise is not None
@@ -376,7 +374,7 @@ def _claim_lowpass(studies):
         paper=f"tau_i 'very small' (here alpha tau_i = {alpha_tau:.3g})",
         measured=(
             f"linear Gx with eq 13: overshoot {low.overshoot_pct():.2g} %, bandwidth "
-            f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc['alpha']:g}); simulated {st.SMALL_STEP_RPM:g} rpm "
+            f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc['alpha_radps']:g}); simulated {st.SMALL_STEP_RPM:g} rpm "
             f"step with eq 13: overshoot {fmt(over_small, 2, '%')}, rise {fmt(rise, 4, 's')} (eq 10: "
             f"{rise_eq10:.4g} s); it differs from the step with eq 12 by at most "
             f"{100 * diff / st.SMALL_STEP_RPM:.2g} % of the step"
@@ -406,7 +404,7 @@ def _claim_lowpass(studies):
 def _claim_ka_range(studies):
     sweep = studies.sweep("ka")
     sc = studies.speed_controller()
-    Kp, _ = pi_gains(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
+    Kp, _ = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
     x = np.array(sweep.x)
     used = (x >= 1.0 / (3.0 * Kp) * (1 - 1e-9)) & (x <= 3.0 / Kp * (1 + 1e-9))
     literal = (x >= Kp / 3.0 * (1 - 1e-9)) & (x <= 3.0 * Kp * (1 + 1e-9)) & ~used
@@ -683,7 +681,7 @@ def _claim_1dof_load(studies):
     load = data["load"][0]["torque_Nm"]
     torque_max = 1.5 * data["motor"]["pole_pairs"] * data["motor"]["psi_f_Wb"] * data["limits"]["i_max_A"]
     sc = data["speed_controller"]
-    Kp, _ = pi_gains(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
+    Kp, _ = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
     dip_c2 = _value(studies.load("c2-1dof")["speed_dip_rpm"])
     e3 = studies.load("e3-1dof")
     dip, rec, sse, limit_time = (

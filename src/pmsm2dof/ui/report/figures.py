@@ -434,13 +434,13 @@ def fig_faults(runs):
 def figures(studies):
     """Every figure of the report: ``{stem: (Figure, FigureData, caption)}`` in report order."""
     sc = studies.speed_controller()
-    Kp, Ki = pi_gains(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
+    Kp, Ki = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
     bode = bode_gx_sweep(
-        sc["alpha"],
+        sc["alpha_radps"],
         FIG7_M,
-        J_kgm2=sc["J_design_kgm2"],
+        J_kgm2=sc["J_kgm2"],
         zeta=sc["zeta"],
-        tau_i_s=sc["tau_i_design_s"],
+        tau_i_s=sc["tau_i_s"],
         feedforward="full",
     )
     out = {
@@ -448,7 +448,7 @@ def figures(studies):
             bode,
             _bode_data(bode),
             f"Fig. 7: Bode diagram of the tracking response Gx (eq 6 with the feedforward of eq 11), alpha = "
-            f"{sc['alpha']:g} rad/s, m from {FIG7_M[0]:g} to {FIG7_M[-1]:g}.",
+            f"{sc['alpha_radps']:g} rad/s, m from {FIG7_M[0]:g} to {FIG7_M[-1]:g}.",
         ),
         "fig08_speed_aw": (
             *fig_aw(studies, "c1", "speed_rpm"),

@@ -27,12 +27,12 @@ def _parameters_table(studies):
     data = studies.bases["paper-condition-1"].data
     m, lim, cl, sc = data["motor"], data["limits"], data["current_loop"], data["speed_controller"]
     kt = 1.5 * m["pole_pairs"] * m["psi_f_Wb"]
-    Kp, Ki = pi_gains(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
+    Kp, Ki = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
     given = [
         ("J", f"{m['J_kgm2']:g} kg m^2", "paper (4.1, 4.2)"),
         ("tau_i", f"{cl['tau_i_s']:g} s", "paper (4.1, 4.2)"),
         ("limit of iq_cmd", f"{lim['i_max_A']:g} A", "paper (4.1, 4.2)"),
-        ("alpha, Kp, Ki", f"{sc['alpha']:g} rad/s, {Kp:.3g}, {Ki:.3g}", "paper (4.1)"),
+        ("alpha, Kp, Ki", f"{sc['alpha_radps']:g} rad/s, {Kp:.3g}, {Ki:.3g}", "paper (4.1)"),
         ("zeta", f"{sc['zeta']:.4g}", "from Kp, Ki by eq 9 (not stated)"),
         ("Ka", "1/Kp" if sc["Ka"] is None else f"{sc['Ka']:g}", "paper (3.3)"),
         ("pole pairs p, psi_f", f"{m['pole_pairs']}, {m['psi_f_Wb']:g} Wb", "chosen (not in the paper)"),
@@ -135,7 +135,7 @@ def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs
     """
     counts = {v: sum(c.verdict == v for c in claims) for v in VERDICTS}
     sc = studies.speed_controller()
-    Kp, _ = pi_gains(sc["J_design_kgm2"], sc["alpha"], sc["zeta"])
+    Kp, _ = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
     timing = f"; {wall_time_s:.1f} s in all" if wall_time_s is not None else ""
     overrides = ", ".join(f"`{k} = {v!r}`" for k, v in studies.overrides.items())
     blocks = [

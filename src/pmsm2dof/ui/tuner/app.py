@@ -11,7 +11,7 @@ Endpoints
 
 A POST body is a JSON object, sent as ``Content-Type: application/json`` (anything else answers
 415: a form of another site cannot post to the tuner without a CORS preflight, which it does
-not grant), mapping control keys (the scenario's dotted keys, e.g. ``speed_controller.alpha``,
+not grant), mapping control keys (the scenario's dotted keys, e.g. ``speed_controller.alpha_radps``,
 and ``tuner.J_ratio``) to values. Bad input (ConfigError) or numerical trouble
 (SimulationError) answers HTTP 422 with ``{"error": message, "param": key}``; the page shows
 the message next to the control.

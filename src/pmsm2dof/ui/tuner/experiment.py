@@ -3,8 +3,8 @@
 The tuner's experiment is the base scenario: every entry of its ``reference`` and ``load``
 schedules, and its faults. The controls are
 
-- scenario keys, applied as overrides of the base scenario (``speed_controller.alpha``,
-  ``zeta``, ``m``, ``Ka``, ``feedforward``, ``anti_windup``, ``discretization``, ``Ts_s``,
+- scenario keys, applied as overrides of the base scenario (``speed_controller.alpha_radps``,
+  ``zeta``, ``m``, ``Ka``, ``feedforward``, ``anti_windup``, ``method``, ``Ts_s``,
   ``simulation.t_end_s``, and ``reference.<i>.t_s``, ``reference.<i>.speed_rpm``,
   ``load.<i>.t_s``, ``load.<i>.torque_Nm`` of the first :data:`ENTRY_CONTROLS_MAX` entries of
   each schedule; later entries run as the scenario has them), and
@@ -61,7 +61,7 @@ ENTRY_CONTROLS_MAX = 6
 #: Most shaded spans a limit gets on the page: beyond, the spans closest together merge.
 SPANS_MAX = 40
 
-SPEED_CONTROLLER_CONTROLS = ("alpha", "zeta", "m", "Ka", "feedforward", "anti_windup", "discretization", "Ts_s")
+SPEED_CONTROLLER_CONTROLS = ("alpha_radps", "zeta", "m", "Ka", "feedforward", "anti_windup", "method", "Ts_s")
 #: Schedules of the experiment: (name, value key, label, unit).
 SCHEDULES = (("reference", "speed_rpm", "reference", "rpm"), ("load", "torque_Nm", "load", "Nm"))
 #: Rows of the metrics table, per part of compute_metrics: (figure key, label, unit).
@@ -150,11 +150,11 @@ def design_of(scenario):
     """The :class:`~pmsm2dof.analysis.design.Design` of a scenario's speed controller (eq 9-13)."""
     sc = scenario.data["speed_controller"]
     return design(
-        sc["J_design_kgm2"],
-        sc["alpha"],
+        sc["J_kgm2"],
+        sc["alpha_radps"],
         sc["zeta"],
         m=sc["m"],
-        tau_i_s=sc["tau_i_design_s"],
+        tau_i_s=sc["tau_i_s"],
         feedforward=sc["feedforward"],
         anti_windup=sc["anti_windup"],
         Ka=sc["Ka"],
@@ -173,7 +173,7 @@ class Tuner:
     def __init__(self, base):
         self.base = base
         data = base.data
-        self._J_design_kgm2 = data["speed_controller"]["J_design_kgm2"]
+        self._J_design_kgm2 = data["speed_controller"]["J_kgm2"]
         self._initial = self._initial_values(data)
         self._cache = collections.OrderedDict()
         self._cache_lock = threading.Lock()
@@ -210,7 +210,7 @@ class Tuner:
         v = self._initial
         data = self.base.data
         motor, limits = data["motor"], data["limits"]
-        alpha = v["speed_controller.alpha"]
+        alpha = v["speed_controller.alpha_radps"]
         Kp = self._J_design_kgm2 * alpha
         Ts_cl = data["current_loop"]["Ts_s"]
         torque_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"]
@@ -261,7 +261,7 @@ class Tuner:
             {
                 "legend": "PI design (eq 9, 10)",
                 "controls": [
-                    slider("speed_controller.alpha", "\u03b1 bandwidth", "rad/s", alpha / 10, alpha * 10, "log"),
+                    slider("speed_controller.alpha_radps", "\u03b1 bandwidth", "rad/s", alpha / 10, alpha * 10, "log"),
                     slider("speed_controller.zeta", "\u03b6 damping", "", 0.1, 2.0, "log"),
                     slider(
                         "speed_controller.m",
@@ -304,7 +304,7 @@ class Tuner:
             {
                 "legend": "Digital implementation (Table 1)",
                 "controls": [
-                    select("speed_controller.discretization", "discretization", METHODS),
+                    select("speed_controller.method", "discretization", METHODS),
                     slider(
                         "speed_controller.Ts_s",
                         "Ts speed loop",
@@ -336,7 +336,7 @@ class Tuner:
                 raise ConfigError(key, value, "one of the tuner's controls: " + ", ".join(self._initial))
         v = dict(self._initial, **values)
         J_ratio = require_positive("tuner.J_ratio", v.pop("tuner.J_ratio"))
-        v.update({"motor.J_kgm2": J_ratio * self._J_design_kgm2, "speed_controller.J_design_kgm2": self._J_design_kgm2})
+        v.update({"motor.J_kgm2": J_ratio * self._J_design_kgm2, "speed_controller.J_kgm2": self._J_design_kgm2})
         return self.base.with_overrides(v)
 
     @staticmethod
@@ -522,7 +522,7 @@ class Tuner:
         """C header of the scenario's speed and current controllers (pmsm2dof.analysis.codegen)."""
         data = scenario.data
         motor, sc, cl = data["motor"], data["speed_controller"], data["current_loop"]
-        discrete = design_of(scenario).discretize(sc["Ts_s"], sc["discretization"])
+        discrete = design_of(scenario).discretize(sc["Ts_s"], sc["method"])
         return c_header(
             discrete,
             i_max_A=data["limits"]["i_max_A"],
@@ -532,7 +532,7 @@ class Tuner:
             Lq_H=motor["Lq_H"],
             Rs_ohm=motor["Rs_ohm"],
             Ts_current_s=cl["Ts_s"],
-            current_method=cl["discretization"],
+            current_method=cl["method"],
             current_anti_windup=cl["anti_windup"],
             decouple=cl["decouple"],
         )
@@ -596,8 +596,8 @@ def _slug(name):
 def _label(data):
     sc = data["speed_controller"]
     ka = "1/Kp" if sc["Ka"] is None else f"{sc['Ka']:.4g}"
-    J_ratio = data["motor"]["J_kgm2"] / sc["J_design_kgm2"]
+    J_ratio = data["motor"]["J_kgm2"] / sc["J_kgm2"]
     return (
-        f"\u03b1={sc['alpha']:.4g} \u03b6={sc['zeta']:.4g} m={sc['m']:.4g} Fr {sc['feedforward']}, "
-        f"AW {sc['anti_windup']} Ka={ka}, {sc['discretization']} Ts={sc['Ts_s']:.4g} s, J/Jd={J_ratio:.3g}"
+        f"\u03b1={sc['alpha_radps']:.4g} \u03b6={sc['zeta']:.4g} m={sc['m']:.4g} Fr {sc['feedforward']}, "
+        f"AW {sc['anti_windup']} Ka={ka}, {sc['method']} Ts={sc['Ts_s']:.4g} s, J/Jd={J_ratio:.3g}"
     )
