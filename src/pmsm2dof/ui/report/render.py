@@ -45,7 +45,7 @@ def _parameters_table(studies):
         ("u_dc", f"{lim['u_dc_V']:g} V", "chosen"),
         ("friction", f"B = {m['B_Nms']:g}, Coulomb {m['T_coulomb_Nm']:g} Nm", "none, as the paper's model"),
         ("current loop", f"{cl['model']}, Ts = {cl['Ts_s']:g} s", "chosen (dq current PIs giving tau_i)"),
-        ("speed loop", f"{sc['discretization']}, Ts = {sc['Ts_s']:g} s", "chosen (eq 14, 15: Tustin)"),
+        ("speed loop", f"{sc['method']}, Ts = {sc['Ts_s']:g} s", "chosen (eq 14, 15: Tustin)"),
     ]
     return ("parameter", "value", "source"), given
 
