@@ -180,6 +180,7 @@ static void cursor_reset(p2d_schedule_cursor_t *c)
     c->v0 = 0.0;
     c->v1 = 0.0;
     c->ramp_s = 0.0;
+    c->t_break_s = -HUGE_VAL;
 }
 
 /* Value of the present segment at t: v0 + (v1 - v0) (t - t0) / ramp during the ramp, v1 after. */
@@ -207,6 +208,7 @@ static void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, do
         c->t0_s = t_entry;
         c->v1 = s->value[c->next];
         c->ramp_s = s->ramp_s[c->next];
+        c->t_break_s = -HUGE_VAL;
         c->next++;
     }
 }
@@ -218,6 +220,20 @@ static double cursor_next_break(const p2d_schedule_cursor_t *c, const p2d_schedu
     double t_ramp_end = c->t0_s + c->ramp_s;
     if (c->ramp_s > 0.0 && t_ramp_end > t_s && t_ramp_end < t_break) t_break = t_ramp_end;
     return t_break;
+}
+
+/*
+ * Enter every entry with t_s[i] <= t and return the first breakpoint after t, as
+ * cursor_advance and cursor_next_break do; between breakpoints both are constant, so that
+ * this is a comparison with the breakpoint known (t_break_s) until t reaches it.
+ */
+static double cursor_break_after(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
+{
+    if (!(t_s < c->t_break_s)) {
+        cursor_advance(c, s, t_s);
+        c->t_break_s = cursor_next_break(c, s, t_s);
+    }
+    return c->t_break_s;
 }
 
 /* ---- faults ------------------------------------------------------------- */
@@ -320,8 +336,7 @@ static void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
         double t_end = t_start_s + (double)(s + 1u) * sim->dt_s;
         while (t < t_end - sim->t_tol_s) {
             double t_break, t_stop, h;
-            cursor_advance(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
-            t_break = cursor_next_break(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
+            t_break = cursor_break_after(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
             /* split the step at a load breakpoint inside it */
             t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
             h = t_stop - t;

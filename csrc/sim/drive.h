@@ -189,11 +189,12 @@ typedef struct {
 
 /* Read position in a schedule; time only moves forward. */
 typedef struct {
-    uint32_t next; /* index of the first entry not yet reached [-] */
-    double t0_s;   /* start of the present segment [s] */
-    double v0;     /* value at the start of the segment [unit of the signal] */
-    double v1;     /* target of the segment [unit of the signal] */
-    double ramp_s; /* ramp duration of the segment [s]; 0: a step */
+    uint32_t next;    /* index of the first entry not yet reached [-] */
+    double t0_s;      /* start of the present segment [s] */
+    double v0;        /* value at the start of the segment [unit of the signal] */
+    double v1;        /* target of the segment [unit of the signal] */
+    double ramp_s;    /* ramp duration of the segment [s]; 0: a step */
+    double t_break_s; /* next time the signal jumps or changes slope, known until then [s]; -HUGE_VAL: unknown */
 } p2d_schedule_cursor_t;
 
 /* Fault kinds: see the comment at the top. */
