@@ -14,6 +14,20 @@
 #define P2D_SIM_TS_MATCH_TOL 1e-6             /* relative mismatch allowed between float and double periods [-] */
 #define P2D_SIM_T_TOL 1e-6                    /* times closer than this many RK4 steps are equal [-] */
 
+/* Inlines a function where the compiler supports it (the plant's RK4 step into its specialised loops). */
+#if defined(__GNUC__)
+#define P2D_SIM_INLINE __attribute__((always_inline)) inline
+#else
+#define P2D_SIM_INLINE inline
+#endif
+
+/* Keeps a function out of line where the compiler supports it. */
+#if defined(__GNUC__)
+#define P2D_SIM_NOINLINE __attribute__((noinline))
+#else
+#define P2D_SIM_NOINLINE
+#endif
+
 typedef struct {
     const char *param; /* configuration field */
     const char *text;  /* valid range, or reason of a stop */
@@ -272,11 +286,11 @@ static double dc_link_V(const p2d_sim_t *sim, double t_s)
 
 /* ---- plant -------------------------------------------------------------- */
 
-/* T_f = B w_m + T_c tanh(w_m / w_c) */
-static double friction_Nm(const p2d_pmsm_t *m, double w_m_radps)
+/* T_f = B w_m + T_c tanh(w_m / w_c); coulomb: T_c > 0 */
+static P2D_SIM_INLINE double friction_Nm(const p2d_pmsm_t *m, bool coulomb, double w_m_radps)
 {
     double T = m->B_Nms * w_m_radps;
-    if (m->T_coulomb_Nm > 0.0) T += m->T_coulomb_Nm * tanh(w_m_radps * m->inv_w_c_s_per_rad);
+    if (coulomb) T += m->T_coulomb_Nm * tanh(w_m_radps * m->inv_w_c_s_per_rad);
     return T;
 }
 
@@ -286,50 +300,72 @@ static double torque_Nm(const p2d_pmsm_t *m, double id_A, double iq_A)
     return iq_A * (m->kt_Nm_per_A + m->c_T_Nm_per_A2 * id_A);
 }
 
+/* A plant state x = (id, iq, w_m), or its time derivative (each field then per second). */
+typedef struct {
+    double id_A;      /* d-axis current [A] */
+    double iq_A;      /* q-axis current [A] */
+    double w_m_radps; /* mechanical speed [rad/s] */
+} p2d_plant_x_t;
+
 /*
- * Time derivative of x = (id, iq, w_m). Inputs a, b: (ud, uq) [V] for DQ_PI,
- * (id_ref, iq_ref) [A] for FIRST_ORDER.
+ * Time derivative of x under the current-loop model `model`. Inputs a, b: (ud, uq) [V] for
+ * DQ_PI, (id_ref, iq_ref) [A] for FIRST_ORDER.
  */
-static void plant_rate(const p2d_sim_t *sim, const double x[3], double a, double b, double T_load_Nm, double dx[3])
+static P2D_SIM_INLINE p2d_plant_x_t plant_rate(const p2d_sim_t *sim, p2d_current_model_t model, bool coulomb,
+                                               p2d_plant_x_t x, double a, double b, double T_load_Nm)
 {
     const p2d_pmsm_t *m = &sim->pmsm;
-    double w_e = m->pole_pairs * x[2];
-    if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
+    p2d_plant_x_t dx;
+    if (model == P2D_CURRENT_DQ_PI) {
+        double w_e = m->pole_pairs * x.w_m_radps;
         /* Ld did/dt = ud - Rs id + w_e Lq iq */
-        dx[0] = (a - m->Rs_ohm * x[0] + w_e * m->Lq_H * x[1]) * m->inv_Ld_per_H;
+        dx.id_A = (a - m->Rs_ohm * x.id_A + w_e * m->Lq_H * x.iq_A) * m->inv_Ld_per_H;
         /* Lq diq/dt = uq - Rs iq - w_e (Ld id + psi_f) */
-        dx[1] = (b - m->Rs_ohm * x[1] - w_e * (m->Ld_H * x[0] + m->psi_f_Wb)) * m->inv_Lq_per_H;
+        dx.iq_A = (b - m->Rs_ohm * x.iq_A - w_e * (m->Ld_H * x.id_A + m->psi_f_Wb)) * m->inv_Lq_per_H;
     } else {
         /* eq 3: tau_i di/dt = i_ref - i */
-        dx[0] = (a - x[0]) * sim->inv_tau_i_per_s;
-        dx[1] = (b - x[1]) * sim->inv_tau_i_per_s;
+        dx.id_A = (a - x.id_A) * sim->inv_tau_i_per_s;
+        dx.iq_A = (b - x.iq_A) * sim->inv_tau_i_per_s;
     }
     /* J dw_m/dt = Te - T_load - B w_m - T_c tanh(w_m / w_c) */
-    dx[2] = (torque_Nm(m, x[0], x[1]) - T_load_Nm - friction_Nm(m, x[2])) * m->inv_J_per_kgm2;
+    dx.w_m_radps =
+        (torque_Nm(m, x.id_A, x.iq_A) - T_load_Nm - friction_Nm(m, coulomb, x.w_m_radps)) * m->inv_J_per_kgm2;
+    return dx;
+}
+
+/* x + c dx */
+static P2D_SIM_INLINE p2d_plant_x_t plant_x_step(p2d_plant_x_t x, double c, p2d_plant_x_t dx)
+{
+    p2d_plant_x_t y;
+    y.id_A = x.id_A + c * dx.id_A;
+    y.iq_A = x.iq_A + c * dx.iq_A;
+    y.w_m_radps = x.w_m_radps + c * dx.w_m_radps;
+    return y;
 }
 
 /* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
-static void rk4_step(p2d_sim_t *sim, double h, double a, double b, double T0_Nm, double dT_dt_Nmps)
+static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, double h, double a,
+                                    double b, double T0_Nm, double dT_dt_Nmps)
 {
     p2d_pmsm_t *m = &sim->pmsm;
-    double x[3] = {m->id_A, m->iq_A, m->w_m_radps};
-    double k1[3], k2[3], k3[3], k4[3], y[3];
-    int i;
-    plant_rate(sim, x, a, b, T0_Nm, k1);
-    for (i = 0; i < 3; ++i) y[i] = x[i] + 0.5 * h * k1[i];
-    plant_rate(sim, y, a, b, T0_Nm + 0.5 * h * dT_dt_Nmps, k2);
-    for (i = 0; i < 3; ++i) y[i] = x[i] + 0.5 * h * k2[i];
-    plant_rate(sim, y, a, b, T0_Nm + 0.5 * h * dT_dt_Nmps, k3);
-    for (i = 0; i < 3; ++i) y[i] = x[i] + h * k3[i];
-    plant_rate(sim, y, a, b, T0_Nm + h * dT_dt_Nmps, k4);
+    p2d_plant_x_t x = {m->id_A, m->iq_A, m->w_m_radps};
+    double h_half = 0.5 * h;
+    p2d_plant_x_t k1 = plant_rate(sim, model, coulomb, x, a, b, T0_Nm);
+    p2d_plant_x_t k2 = plant_rate(sim, model, coulomb, plant_x_step(x, h_half, k1), a, b, T0_Nm + h_half * dT_dt_Nmps);
+    p2d_plant_x_t k3 = plant_rate(sim, model, coulomb, plant_x_step(x, h_half, k2), a, b, T0_Nm + h_half * dT_dt_Nmps);
+    p2d_plant_x_t k4 = plant_rate(sim, model, coulomb, plant_x_step(x, h, k3), a, b, T0_Nm + h * dT_dt_Nmps);
     /* x(t + h) = x(t) + h (k1 + 2 k2 + 2 k3 + k4) / 6 */
-    m->id_A = x[0] + h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0]);
-    m->iq_A = x[1] + h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1]);
-    m->w_m_radps = x[2] + h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2]);
+    m->id_A = x.id_A + h / 6.0 * (k1.id_A + 2.0 * k2.id_A + 2.0 * k3.id_A + k4.id_A);
+    m->iq_A = x.iq_A + h / 6.0 * (k1.iq_A + 2.0 * k2.iq_A + 2.0 * k3.iq_A + k4.iq_A);
+    m->w_m_radps = x.w_m_radps + h / 6.0 * (k1.w_m_radps + 2.0 * k2.w_m_radps + 2.0 * k3.w_m_radps + k4.w_m_radps);
 }
 
-/* Integrate the plant over the current period starting at t_start with the inputs held. */
-static void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
+/*
+ * Integrate the plant over the current period starting at t_start with the inputs held, under
+ * the current-loop model `model`, with Coulomb friction if `coulomb` (constants at each call).
+ */
+static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb,
+                                               double t_start_s, double a, double b)
 {
     for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
         double t = t_start_s + (double)s * sim->dt_s;
@@ -340,8 +376,33 @@ static void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
             /* split the step at a load breakpoint inside it */
             t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
             h = t_stop - t;
-            rk4_step(sim, h, a, b, segment_value(&sim->load, t), segment_slope(&sim->load, t + 0.5 * h));
+            rk4_step(sim, model, coulomb, h, a, b, segment_value(&sim->load, t),
+                     segment_slope(&sim->load, t + 0.5 * h));
             t = t_stop;
+        }
+    }
+}
+
+/*
+ * Integrate the plant over the current period starting at t_start with the inputs held. One
+ * specialised copy of the loop per current-loop model, with and without Coulomb friction (whose
+ * tanh call would otherwise make every RK4 stage save its registers); out of line, so that the
+ * loop of p2d_sim_run keeps its registers too.
+ */
+static P2D_SIM_NOINLINE void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
+{
+    bool coulomb = sim->pmsm.T_coulomb_Nm > 0.0;
+    if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
+        if (coulomb) {
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, t_start_s, a, b);
+        } else {
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, t_start_s, a, b);
+        }
+    } else {
+        if (coulomb) {
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, t_start_s, a, b);
+        } else {
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, t_start_s, a, b);
         }
     }
 }
@@ -499,7 +560,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     m->w_m_radps = cfg->w_m0_radps;
-    T_hold_Nm = friction_Nm(m, cfg->w_m0_radps);
+    T_hold_Nm = friction_Nm(m, m->T_coulomb_Nm > 0.0, cfg->w_m0_radps);
     p2d_speed_reset(&sim->speed, (float)cfg->w_m0_radps, (float)T_hold_Nm);
     p2d_speed_compute(&sim->speed, (float)cfg->w_m0_radps, (float)cfg->w_m0_radps, &so);
     if (so.fault) return P2D_SIM_ERR_W_M0;
