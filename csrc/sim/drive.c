@@ -410,16 +410,39 @@ static P2D_SIM_NOINLINE void plant_advance(p2d_sim_t *sim, double t_start_s, dou
 /* ---- inverter ----------------------------------------------------------- */
 
 /*
+ * The range u_max = u_dc / sqrt(3), and u_inside2 = (1 - 2^-40) u_max^2: a sum of squares
+ * ud^2 + uq^2 below u_inside2 is inside the range whatever the rounding of the sum (< 2^-51
+ * relative; squares that underflow, < 2^-1074 absolute) and of hypot (< 1 ulp), so that
+ * inside_range decides without hypot, as hypot would. u_inside2 is 0 (hypot always) for a range
+ * outside [2^-450, 2^450] V, whose square could underflow or overflow.
+ */
+static void inverter_set_range(p2d_inverter_t *inv, double u_dc_V)
+{
+    double u_max_V = u_dc_V * P2D_SIM_INV_SQRT3;
+    bool square_normal = u_max_V >= 0x1p-450 && u_max_V <= 0x1p450;
+    inv->u_max_V = u_max_V;
+    inv->u_inside2_V2 = square_normal ? u_max_V * u_max_V * (1.0 - 0x1p-40) : 0.0;
+}
+
+/* ud^2 + uq^2 < u_inside2: the vector is inside the range, and hypot(ud, uq) <= u_max. */
+static bool inside_range(const p2d_inverter_t *inv, double ud_V, double uq_V)
+{
+    return ud_V * ud_V + uq_V * uq_V < inv->u_inside2_V2;
+}
+
+/*
  * Scale (*ud, *uq) to ||u|| <= u_max; return true when it was cut. hypot neither underflows nor
  * overflows, so a zero range (a DC link at 0 V) applies exactly zero to any nonzero command, a
  * subnormal one included.
  */
-static bool limit_voltage(double u_max_V, double *ud_V, double *uq_V)
+static bool limit_voltage(const p2d_inverter_t *inv, double *ud_V, double *uq_V)
 {
-    double norm = hypot(*ud_V, *uq_V);
-    if (!(norm > u_max_V)) return false;
-    *ud_V *= u_max_V / norm;
-    *uq_V *= u_max_V / norm;
+    double norm;
+    if (inside_range(inv, *ud_V, *uq_V)) return false;
+    norm = hypot(*ud_V, *uq_V);
+    if (!(norm > inv->u_max_V)) return false;
+    *ud_V *= inv->u_max_V / norm;
+    *uq_V *= inv->u_max_V / norm;
     return true;
 }
 
@@ -436,7 +459,7 @@ static bool inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V
     bool limited;
     *ud_V = ud_cmd_V;
     *uq_V = uq_cmd_V;
-    cmd_limited |= limit_voltage(inv->u_max_V, ud_V, uq_V);
+    cmd_limited |= limit_voltage(inv, ud_V, uq_V);
     if (!inv->delay) {
         inv->ud_V = *ud_V;
         inv->uq_V = *uq_V;
@@ -444,7 +467,7 @@ static bool inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V
     }
     inv->ud_V = inv->ud_next_V;
     inv->uq_V = inv->uq_next_V;
-    limited = limit_voltage(inv->u_max_V, &inv->ud_V, &inv->uq_V) || inv->limited_next;
+    limited = limit_voltage(inv, &inv->ud_V, &inv->uq_V) || inv->limited_next;
     inv->ud_next_V = *ud_V;
     inv->uq_next_V = *uq_V;
     inv->limited_next = cmd_limited;
@@ -534,7 +557,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     m->inv_w_c_s_per_rad =
         1.0 / fmax(P2D_SIM_W_C_MIN_RADPS, P2D_SIM_W_C_PERIODS * cfg->Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
 
-    sim->inverter.u_max_V = cfg->u_dc_V * P2D_SIM_INV_SQRT3;
+    inverter_set_range(&sim->inverter, cfg->u_dc_V);
     sim->inverter.delay = cfg->computation_delay;
     sim->inv_tau_i_per_s = cfg->current_model == P2D_CURRENT_FIRST_ORDER ? 1.0 / cfg->tau_i_s : 0.0;
     sim->dt_s = cfg->Ts_current_s / (double)cfg->substeps;
@@ -648,7 +671,7 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 double ud_cmd_V, uq_cmd_V;
                 /* the DC link of this period sets the inverter's range and the controller's measurement */
                 sim->u_dc_V = dc_link_V(sim, t);
-                sim->inverter.u_max_V = sim->u_dc_V * P2D_SIM_INV_SQRT3;
+                inverter_set_range(&sim->inverter, sim->u_dc_V);
                 p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)sim->pmsm.id_A,
                                     (float)sim->pmsm.iq_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
                                     (float)sim->u_dc_V, &co);
@@ -667,7 +690,8 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 /* the voltage eq 1 needs for the current slopes of eq 3 */
                 pmsm_voltage(&sim->pmsm, (a - sim->pmsm.id_A) * sim->inv_tau_i_per_s,
                              (b - sim->pmsm.iq_A) * sim->inv_tau_i_per_s, &ud_log_V, &uq_log_V);
-                n_limited += hypot(ud_log_V, uq_log_V) > sim->inverter.u_max_V;
+                n_limited += !inside_range(&sim->inverter, ud_log_V, uq_log_V) &&
+                             hypot(ud_log_V, uq_log_V) > sim->inverter.u_max_V;
             }
             if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);
             plant_advance(sim, t, a, b);

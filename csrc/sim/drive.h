@@ -248,13 +248,14 @@ typedef struct {
 
 /* Switching-cycle average inverter with DC-link limit and optional delay. */
 typedef struct {
-    double u_max_V;    /* u_dc / sqrt(3) [V] */
-    bool delay;        /* one-sample computational delay */
-    double ud_V;       /* d-axis voltage applied over the present period [V] */
-    double uq_V;       /* q-axis voltage applied over the present period [V] */
-    double ud_next_V;  /* delay: d-axis command for the next period [V] */
-    double uq_next_V;  /* delay: q-axis command for the next period [V] */
-    bool limited_next; /* delay: the command for the next period was cut to the range */
+    double u_max_V;      /* u_dc / sqrt(3) [V] */
+    double u_inside2_V2; /* squared norms below it are inside u_max for sure: (1 - 2^-40) u_max^2 [V^2] */
+    bool delay;          /* one-sample computational delay */
+    double ud_V;         /* d-axis voltage applied over the present period [V] */
+    double uq_V;         /* q-axis voltage applied over the present period [V] */
+    double ud_next_V;    /* delay: d-axis command for the next period [V] */
+    double uq_next_V;    /* delay: q-axis command for the next period [V] */
+    bool limited_next;   /* delay: the command for the next period was cut to the range */
 } p2d_inverter_t;
 
 /* Everything a simulation needs; rpm never appears here. */
