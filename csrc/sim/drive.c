@@ -668,10 +668,13 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
             p2d_sim_status_t status;
             if (cfg->current_model == P2D_CURRENT_DQ_PI) {
                 p2d_current_output_t co;
-                double ud_cmd_V, uq_cmd_V;
+                double ud_cmd_V, uq_cmd_V, u_dc_V;
                 /* the DC link of this period sets the inverter's range and the controller's measurement */
-                sim->u_dc_V = dc_link_V(sim, t);
-                inverter_set_range(&sim->inverter, sim->u_dc_V);
+                u_dc_V = dc_link_V(sim, t);
+                if (u_dc_V != sim->u_dc_V) {
+                    sim->u_dc_V = u_dc_V;
+                    inverter_set_range(&sim->inverter, u_dc_V);
+                }
                 p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)sim->pmsm.id_A,
                                     (float)sim->pmsm.iq_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
                                     (float)sim->u_dc_V, &co);
