@@ -157,6 +157,60 @@ def test_speed_reversal_through_coulomb_friction_matches_scipy():
     assert np.max(np.abs(x[before, 2] - result.w_m_radps[before])) < 1e-7 * np.max(np.abs(result.w_m_radps))
 
 
+@pytest.mark.parametrize("T_coulomb_Nm", [0.0, 0.3])
+@pytest.mark.parametrize("model", ["dq_pi", "first_order"])
+def test_load_breakpoints_inside_a_period_match_scipy(model, T_coulomb_Nm):
+    """Steps and ramp ends between the RK4 steps, two of them inside one step, a whole ramp inside
+    one current period, a ramp ending on a period boundary; three RK4 steps per current period.
+    Every breakpoint must split the step it falls in: a step integrated across a jump of the load
+    errs by about the jump times the rest of the step over J, 1e3 times the tolerance."""
+    Ts_s = 1e-4
+    current_loop = {"model": model, "tau_i_s": 0.002, "Ts_s": Ts_s}
+    tree = drive_tree(
+        motor={**drive_tree()["motor"], "T_coulomb_Nm": T_coulomb_Nm},
+        current_loop=current_loop,
+        simulation={"t_end_s": 0.1, "speed0_rpm": 300.0, "dt_s": Ts_s / 3},
+        load=[
+            {"t_s": 0.01002, "torque_Nm": 1.5},
+            {"t_s": 0.010045, "torque_Nm": -0.5, "ramp_s": 0.00003},
+            {"t_s": 0.02, "torque_Nm": 1.0, "ramp_s": 0.03001},
+            {"t_s": 0.060031, "torque_Nm": -1.0},
+            {"t_s": 0.060042, "torque_Nm": 0.5},
+            {"t_s": 0.07, "torque_Nm": 0.0, "ramp_s": 0.01},
+        ],
+    )
+    result = simulate(Scenario.from_dict(tree))
+    inputs = (result.ud_V, result.uq_V) if model == "dq_pi" else (result.id_ref_A, result.iq_ref_A)
+    x = replay(result, inputs)
+    assert np.max(np.abs(x[:, 0] - result.id_A)) < 1e-7 * 10.0
+    assert np.max(np.abs(x[:, 1] - result.iq_A)) < 1e-7 * 10.0
+    assert np.max(np.abs(x[:, 2] - result.w_m_radps)) < 1e-7 * np.max(np.abs(result.w_m_radps))
+
+
+def test_voltage_range_decided_as_hypot():
+    """The share of periods beyond the inverter's range is hypot(ud, uq) > u_dc / sqrt(3) exactly,
+    also for vectors within a few ulp of the range (where the engine's shortcut through the sum of
+    squares must hand over to hypot). The first_order drive does not depend on u_dc, so u_dc is
+    set so that chosen rows sit 0, 1 and 2 ulp on either side of the range."""
+    inv_sqrt3 = 0.57735026918962576  # the engine's 1/sqrt(3)
+    current_loop = {"model": "first_order", "tau_i_s": 0.002, "Ts_s": 1e-4}
+    tree = drive_tree(current_loop=current_loop, simulation={"t_end_s": 0.1, "speed0_rpm": 300.0})
+    first = simulate(Scenario.from_dict(tree))
+    norms = np.hypot(first.ud_V, first.uq_V)
+    rows = [int(np.argmax(norms)), int(np.argmin(norms)), len(norms) // 2]
+    for k in rows:
+        u_dc = norms[k] / inv_sqrt3
+        for step in (-2, -1, 0, 1, 2):
+            u_dc_k = u_dc + step * np.spacing(u_dc)
+            r = simulate(Scenario.from_dict({**tree, "limits": {"i_max_A": 10.0, "u_dc_V": u_dc_k}}))
+            np.testing.assert_array_equal(r.ud_V, first.ud_V)
+            beyond = np.hypot(r.ud_V, r.uq_V) > u_dc_k * inv_sqrt3
+            np.testing.assert_array_equal(r.voltage_limited, beyond.astype(float))
+        # the steps straddle the range at row k
+        assert np.hypot(first.ud_V[k], first.uq_V[k]) > (u_dc - 2 * np.spacing(u_dc)) * inv_sqrt3
+        assert np.hypot(first.ud_V[k], first.uq_V[k]) <= (u_dc + 2 * np.spacing(u_dc)) * inv_sqrt3
+
+
 @pytest.mark.parametrize("delay", [False, True])
 def test_loop_feeds_the_controllers_the_sampled_state(delay):
     """The controllers, stepped here by hand from the logged states (speed and current at the same
