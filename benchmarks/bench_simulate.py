@@ -17,11 +17,14 @@ Per engine:
 - the preset ``paper-condition-2`` (15 s: speed step, 8 Nm load step, speed step) with the
   ``dq_pi`` current loop at Ts_current = 100 us, and with the ``first_order`` current loop:
   ``--runs`` timed :func:`pmsm2dof.simulate` calls per round after a warm-up, in wall time and
-  in the process's CPU time (``time.process_time``, which other load on the machine does not
-  inflate), and the C run alone (``Result.wall_time_s``), also as nanoseconds per current period;
+  in the CPU time of the calling thread, which runs the engine too (``time.thread_time``: other
+  load on the machine does not inflate it, nor do other threads, such as the BLAS threads that
+  numpy's first matrix operations leave spinning for a while), and the C run alone
+  (``Result.wall_time_s``), also as nanoseconds per current period;
 - a sweep of 200 points of paper-condition-2 (plant inertia 0.5 to 2 times the design inertia,
   20 values, x alpha from 0.2 to 2 rad/s, 10 values) on 1 and on 2 threads, without figures: runs
-  per second and CPU time per run (simulation, metrics and the Parquet parts);
+  per second and CPU time per run (all threads of the process: simulation, metrics and the
+  Parquet parts);
 - with ``--instructions``: instructions executed in the C run per current period of one
   paper-condition-2 run (valgrind's callgrind, counted from ``p2d_sim_run`` down), a figure that
   other load on the machine does not change.
@@ -80,10 +83,10 @@ def worker_single(model, runs):
     simulate(scenario)
     call, cpu, engine = [], [], []
     for _ in range(runs):
-        start, start_cpu = time.perf_counter(), time.process_time()
+        start, start_cpu = time.perf_counter(), time.thread_time()
         result = simulate(scenario)
         call.append(time.perf_counter() - start)
-        cpu.append(time.process_time() - start_cpu)
+        cpu.append(time.thread_time() - start_cpu)
         engine.append(result.wall_time_s)
     return {"call": call, "cpu": cpu, "engine": engine}
 
@@ -329,7 +332,7 @@ def report(args, labels, data, instr, identity, change, load):
         f"Medians of {args.rounds} rounds x {args.runs} runs after a warm-up run, one core.",
         "",
         "| current loop | engine | simulated s / wall s, whole `simulate()` call (slowest-fastest) | simulated s "
-        "/ CPU s, whole call | simulated s / wall s, C run only | ns per current period (C run) |"
+        "/ CPU s of the calling thread, whole call | simulated s / wall s, C run only | ns per current period (C run) |"
         + (" instructions per current period (C run, callgrind) |" if instr else ""),
         "|---|---|---:|---:|---:|---:|" + ("---:|" if instr else ""),
     ]
