@@ -34,12 +34,16 @@ _EXPORTS = {
     "compute_metrics": "pmsm2dof.sim.metrics",
     "Result": "pmsm2dof.sim.simulate",
     "simulate": "pmsm2dof.sim.simulate",
+    "AutotuneResult": "pmsm2dof.studies.autotune",
+    "Spec": "pmsm2dof.studies.autotune",
+    "autotune": "pmsm2dof.studies.autotune",
 }
 
 __all__ = [
     "ANTI_WINDUPS",
     "FEEDFORWARDS",
     "METHODS",
+    "AutotuneResult",
     "ConfigError",
     "CurrentController",
     "Design",
@@ -49,7 +53,9 @@ __all__ = [
     "SamplingWarning",
     "Scenario",
     "SimulationError",
+    "Spec",
     "SpeedController",
+    "autotune",
     "compute_metrics",
     "design",
     "list_presets",
@@ -65,6 +71,7 @@ if TYPE_CHECKING:
     from .sim.metrics import compute_metrics
     from .sim.scenario import Scenario, list_presets, load_scenario
     from .sim.simulate import Result, simulate
+    from .studies.autotune import AutotuneResult, Spec, autotune
 
 
 def __getattr__(name: str) -> Any:

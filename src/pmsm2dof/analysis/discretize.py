@@ -42,7 +42,7 @@ that distance:
 
 import math
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import control
@@ -341,6 +341,38 @@ def _margins(design, Ts_s, b_e0, Ki_Ts):
     L_nyquist = num[0] / den[0]
     extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []
     return pick_margins(gms, pms, to_z(w_pcs), to_z(w_gcs), extra)
+
+
+def margins_on_plant(design, Ts_s, method, J_plant_kgm2, tau_i_plant_s):
+    """Margins of the C controller of ``design`` on a plant it was not designed for; None if unstable there.
+
+    The PI is realized for ``design`` at ``Ts_s`` with ``method`` (:func:`c_coefficients`); the
+    plant is the ZOH equivalent of ``1 / (J_plant s (tau_i_plant s + 1))`` (eq 2, 3;
+    :func:`plant_w`), such as the true inertia of a drive known only to a range.
+
+    Parameters
+    ----------
+    design : Design
+        The continuous design the controller is configured with.
+    Ts_s : float
+        Sampling period [s], > 0.
+    method : str
+        One of :data:`METHODS`.
+    J_plant_kgm2, tau_i_plant_s : float
+        Inertia [kg m^2] and current-loop time constant [s] of the plant.
+
+    Returns
+    -------
+    Margins or None
+        The margins of ``F(z) G(z)``; None when the discrete feedback loop is unstable
+        (Routh-Hurwitz in the w plane), where margins have no meaning.
+    """
+    pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
+    plant = replace(design, J_kgm2=float(J_plant_kgm2), tau_i_s=float(tau_i_plant_s))
+    L_num, L_den = _loop_w(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
+    if not _hurwitz(np.polyadd(L_den, L_num)):
+        return None
+    return _margins(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
 
 
 def _plant_increments(J_kgm2, tau_i_s, Ts_s):
