@@ -12,9 +12,12 @@ of the true inertia to the design inertia):
 2. then the saturated ones: the candidates left are simulated (the scenario's speed and load
    steps, with the current limit where the scenario drives the drive to it) at the ends and the
    geometric middle of the range, in batches on threads (:func:`pmsm2dof.studies.engine.run_many`);
-3. a coarse grid first (``alpha`` log-spaced up to the stability bound ``alpha < 4 zeta^2 /
-   tau_i`` of eq 8 and the sampling bound of :data:`~pmsm2dof.analysis.discretize.MAX_W_TS`),
-   then a pattern search around the best point with shrinking steps;
+3. for each zeta, the margins give the edge: the largest ``alpha`` whose loop meets them at
+   every inertia ratio (bisection; at most the stability bound ``alpha < 4 zeta^2 / tau_i`` of
+   eq 8 and the sampling bound of :data:`~pmsm2dof.analysis.discretize.MAX_W_TS`); the search
+   runs in the coordinates (zeta, alpha as a fraction of the edge, ``Ka Kp``, m): a coarse grid
+   first, then a pattern search around the best point with shrinking steps, which follows the
+   edge where it bends;
 4. the best design is simulated again at :data:`N_J_CHECK` inertia ratios spread over the range;
    one that fails there is rejected and the next best checked.
 
@@ -47,16 +50,23 @@ from .engine import Outcome, Run, check_options, run_many
 #: Inertia ratios at which the margins are checked, and the best design is simulated again.
 N_J_CHECK = 9
 #: Relative damping of the coarse grid (eq 9).
-ZETA_GRID = (0.35, 0.5, 0.707, 1.0, 1.4)
-#: Bandwidths of the coarse grid per zeta, log-spaced, as fractions of the largest one.
+ZETA_GRID = (0.3, 0.38, 0.48, 0.61, 0.77, 0.98, 1.25, 1.58, 2.0)
+#: Bandwidths of the coarse grid as fractions of the edge (the largest alpha the margins allow).
+ALPHA_FRACTIONS = (1.0, 0.75, 0.5, 0.25, 0.08)
+#: Decades below the stability and sampling bound where the edge is sought (and the grid's
+#: bandwidths lie when no bandwidth meets the margins: then log-spaced, :data:`N_ALPHA`).
 ALPHA_DECADES = 2.5
-N_ALPHA = 11
+N_ALPHA = 7
+#: Bisection steps of the edge (a precision of ``ALPHA_DECADES / 2**EDGE_STEPS`` decades).
+EDGE_STEPS = 10
+#: First step of the pattern search (a factor on zeta, the fraction of the edge, Ka Kp and m).
+STEP_FIRST = 1.25
 #: Back-calculation gain of the coarse grid, ``Ka Kp`` (1 is the paper's Ka = 1/Kp, section 3.3).
 KA_KP_GRID = (0.5, 1.0, 2.0, 4.0)
 #: Tracking pole factors of the coarse grid for the feedforwards of eq 11 (``no_tau``, ``full``).
 M_GRID = (0.5, 1.0, 2.0)
 #: Bounds of the search: zeta, ``Ka Kp`` and m (alpha: :meth:`_Search.alpha_max_radps`).
-ZETA_RANGE = (0.25, 2.0)
+ZETA_RANGE = (0.3, 2.0)
 KA_KP_RANGE = (0.1, 10.0)
 M_RANGE = (0.25, 4.0)
 #: Most rounds of the pattern search around the best point, and its smallest step (a factor).
@@ -454,6 +464,12 @@ def _sig(x: float) -> float:
     return float(f"{x:.4g}")
 
 
+def _sig_down(x: float) -> float:
+    """``x > 0`` rounded down to 4 significant digits (a bandwidth at the edge stays inside it)."""
+    unit = 10.0 ** (math.floor(math.log10(x)) - 3)
+    return float(f"{math.floor(x / unit * (1.0 + 1e-12)) * unit:.4g}")
+
+
 def step_figures(metrics: Mapping[str, Any]) -> dict[str, float]:
     """The figures of one simulated run that the specification bounds.
 
@@ -519,6 +535,14 @@ class _Search:
         self.J_ratios_search = J_ratios(spec.J_range, 3)
         self.bases = {"scenario": data}
         self.margins: dict[tuple[float, float, float], Margins | None] = {}
+        self.edges: dict[tuple[float, float], float | None] = {}
+        self.known: dict[Candidate, tuple[int, Evaluation]] = {}
+        # the ends of the range first: where a margin fails most often
+        self.J_ratios_margins = tuple(
+            sorted(
+                self.J_ratios_checked, key=lambda r: -abs(math.log(r / spec.J_range[0]) * math.log(r / spec.J_range[1]))
+            )
+        )
         self.refused: dict[Candidate, str] = {}
         self.figures: dict[tuple[Candidate, float], RunRecord] = {}
         self.simulated_at: dict[Candidate, list[float]] = {}
@@ -532,8 +556,33 @@ class _Search:
         sampled finely enough (``max(alpha, alpha/(2 zeta), m alpha) Ts <= MAX_W_TS``)."""
         return min(4.0 * zeta**2 / self.tau_i_plant_s, MAX_W_TS / (self.Ts_s * max(1.0, 1.0 / (2.0 * zeta), m)))
 
+    def edge_radps(self, zeta: float, m: float) -> float | None:
+        """The largest bandwidth (at most :meth:`alpha_max_radps`) whose loop meets the margin constraints
+        (stable without them) at every inertia ratio, by bisection on a log scale; None when even
+        ``alpha_max 10**-ALPHA_DECADES`` misses them. The margins fall as alpha grows (the current
+        loop's lag takes a larger share of the phase at the crossover)."""
+        top = self.alpha_max_radps(zeta, m)
+        key = (zeta, top)
+        if key not in self.edges:
+            lo, hi = top * 10.0**-ALPHA_DECADES, top
+            if self.margins_hold(hi, zeta):
+                edge: float | None = hi
+            elif not self.margins_hold(lo, zeta):
+                edge = None
+            else:
+                for _ in range(EDGE_STEPS):
+                    mid = math.sqrt(lo * hi)
+                    lo, hi = (mid, hi) if self.margins_hold(mid, zeta) else (lo, mid)
+                edge = lo
+            self.edges[key] = edge
+        return self.edges[key]
+
+    def scale_radps(self, zeta: float, m: float) -> float:
+        """The bandwidth that the fraction coordinate of the search multiplies: the edge, else the bound."""
+        return self.edge_radps(zeta, m) or self.alpha_max_radps(zeta, m)
+
     def candidate(self, alpha_radps: float, zeta: float, m: float, Ka_Kp: float, ff: str, aw: str) -> Candidate:
-        alpha_radps, zeta = _sig(alpha_radps), _sig(zeta)
+        alpha_radps, zeta = _sig_down(alpha_radps), _sig(zeta)
         m = _sig(m) if ff in ("no_tau", "full") else 1.0
         Kp = self.J_design_kgm2 * alpha_radps
         Ka = _sig(Ka_Kp / Kp if aw == "back_calculation" else 1.0 / Kp)
@@ -550,34 +599,44 @@ class _Search:
         )
 
     def grid(self) -> list[Candidate]:
+        """The coarse grid: zeta, alpha as fractions of the edge, ``Ka Kp``, m, the forms allowed."""
         out = []
         for ff, aw in itertools.product(self.feedforwards, self.anti_windups):
             ms = M_GRID if ff in ("no_tau", "full") else (1.0,)
             kas = KA_KP_GRID if aw == "back_calculation" else (1.0,)
             for zeta, m, Ka_Kp in itertools.product(ZETA_GRID, ms, kas):
-                top = self.alpha_max_radps(zeta, m)
-                for alpha in top * np.logspace(-ALPHA_DECADES, 0.0, N_ALPHA)[:-1]:
-                    out.append(self.candidate(float(alpha), zeta, m, Ka_Kp, ff, aw))
+                edge = self.edge_radps(zeta, m)
+                if edge is None:
+                    alphas = self.alpha_max_radps(zeta, m) * np.logspace(-ALPHA_DECADES, 0.0, N_ALPHA)
+                else:
+                    alphas = edge * np.array(ALPHA_FRACTIONS)
+                out += [self.candidate(float(alpha), zeta, m, Ka_Kp, ff, aw) for alpha in alphas]
         return [c for c in dict.fromkeys(out) if self.in_space(c)]
 
     def neighbours(self, c: Candidate, step: float) -> list[Candidate]:
-        """The candidates one log step ``step`` (a factor > 1) away in alpha, zeta, Ka Kp and m."""
+        """The candidates one log step ``step`` (a factor > 1) away in zeta, the fraction of the edge,
+        Ka Kp and m: a step in zeta moves alpha with the edge."""
         f = (1.0 / step, 1.0, step)
         Ka_Kp = c.Ka * self.J_design_kgm2 * c.alpha_radps
+        fraction = c.alpha_radps / self.scale_radps(c.zeta, c.m)
         ms = f if c.feedforward in ("no_tau", "full") else (1.0,)
         kas = f if c.anti_windup == "back_calculation" else (1.0,)
-        out = [
-            self.candidate(c.alpha_radps * a, c.zeta * z, c.m * mm, Ka_Kp * k, c.feedforward, c.anti_windup)
-            for a, z, mm, k in itertools.product(f, f, ms, kas)
-        ]
-        return [n for n in dict.fromkeys(out) if self.in_space(n)]
+        out = []
+        for z, mm, a, k in itertools.product(f, ms, f, kas):
+            zeta, m = _sig(c.zeta * z), c.m * mm
+            if not ZETA_RANGE[0] <= zeta <= ZETA_RANGE[1]:
+                continue
+            alpha = min(fraction * a, 1.0) * self.scale_radps(zeta, m)
+            out.append(self.candidate(alpha, zeta, m, Ka_Kp * k, c.feedforward, c.anti_windup))
+        return [n for n in dict.fromkeys(out) if n != c and self.in_space(n)]
 
     # -- evaluation --------------------------------------------------------------------------
 
-    def margins_of(self, c: Candidate, J_ratio: float) -> Margins | None:
-        key = (c.alpha_radps, c.zeta, J_ratio)
+    def margins_of(self, alpha_radps: float, zeta: float, J_ratio: float) -> Margins | None:
+        """The margins of the PI (alpha, zeta) on the plant of inertia ratio ``J_ratio``; None: unstable."""
+        key = (alpha_radps, zeta, J_ratio)
         if key not in self.margins:
-            d = make_design(self.J_design_kgm2, c.alpha_radps, c.zeta, tau_i_s=self.tau_i_design_s)
+            d = make_design(self.J_design_kgm2, alpha_radps, zeta, tau_i_s=self.tau_i_design_s)
             self.margins[key] = margins_on_plant(
                 d, self.Ts_s, self.method, J_ratio * self.J_design_kgm2, self.tau_i_plant_s
             )
@@ -604,11 +663,24 @@ class _Search:
                 self.refused[c] = ""
         return self.refused[c]
 
+    def margins_hold(self, alpha_radps: float, zeta: float) -> bool:
+        """Whether the PI (alpha, zeta) is stable and meets the margin constraints at every inertia ratio."""
+        limits = self.spec.constraints()
+        for r in self.J_ratios_margins:
+            margins = self.margins_of(alpha_radps, zeta, r)
+            if margins is None:
+                return False
+            if margins.phase_margin_deg < limits.get("min_phase_margin_deg", -math.inf):
+                return False
+            if margins.gain_margin_dB < limits.get("min_gain_margin_dB", -math.inf):
+                return False
+        return True
+
     def margin_figures(self, c: Candidate) -> tuple[dict[str, float], dict[str, float], str]:
         worst = {"phase_margin_deg": math.inf, "gain_margin_dB": math.inf}
         at = {"phase_margin_deg": self.J_ratios_checked[0], "gain_margin_dB": self.J_ratios_checked[0]}
         for r in self.J_ratios_checked:
-            margins = self.margins_of(c, r)
+            margins = self.margins_of(c.alpha_radps, c.zeta, r)
             if margins is None:
                 return worst, at, f"the discrete loop is unstable at J ratio {r:.4g}"
             for name in MARGIN_FIGURES:
@@ -668,6 +740,13 @@ class _Search:
         self.simulate([(c, r) for c in candidates if self.passes_margins(c) for r in ratios])
 
     def evaluation(self, c: Candidate) -> Evaluation:
+        """What is known of ``c`` (computed again only when it has been simulated at more ratios)."""
+        n_simulated = len(self.simulated_at.get(c, ()))
+        if c not in self.known or self.known[c][0] != n_simulated:
+            self.known[c] = (n_simulated, self._evaluation(c))
+        return self.known[c][1]
+
+    def _evaluation(self, c: Candidate) -> Evaluation:
         worst, at, error = self.margin_figures(c)
         error = error or self.refusal(c)
         simulated = sorted(self.simulated_at.get(c, []))
@@ -765,7 +844,7 @@ def autotune(scenario: Scenario, spec: Spec | None = None, *, workers: int | Non
     search = _Search(scenario, spec, workers)
     search.evaluate(search.grid())
     center = search.best().candidate
-    step = math.sqrt(10.0 ** (ALPHA_DECADES / (N_ALPHA - 1)))
+    step = STEP_FIRST
     for _ in range(REFINE_ROUNDS):
         search.evaluate(search.neighbours(center, step))
         new = search.best().candidate

@@ -1,0 +1,266 @@
+"""The autotuner, checked independently of its search.
+
+Truth: the returned design simulated again (``pmsm2dof.simulate``, ``compute_metrics``) at inertia
+ratios across the range, both ends and seeded random interior points; its margins recomputed in
+the z plane by python-control from the C controller's PI coefficients and the ZOH plant
+(``control.sample_system``), not in the w plane of the analysis module; a physical bound (no step
+settles before the drive reaches the new speed at full torque, ``t >= J dw / T_max``); and a
+brute-force grid, whose best feasible point the autotuner must match or beat.
+"""
+
+import math
+import warnings
+
+import control
+import numpy as np
+import pytest
+
+from pmsm2dof import ConfigError, Scenario, SpeedController, autotune, compute_metrics, simulate
+from pmsm2dof.analysis.design import design
+from pmsm2dof.analysis.discretize import margins_on_plant
+from pmsm2dof.studies.autotune import Candidate, Evaluation, Spec, pareto_front
+
+#: A small servo: 0.6 Nm at the 10 A limit, J = 1e-4 kg m^2; 2000 rpm, 0.3 Nm load, 1000 rpm.
+SERVO = {
+    "name": "test servo",
+    "motor": {
+        "pole_pairs": 4,
+        "Rs_ohm": 0.5,
+        "Ld_H": 5e-4,
+        "Lq_H": 5e-4,
+        "psi_f_Wb": 0.01,
+        "J_kgm2": 1e-4,
+    },
+    "limits": {"i_max_A": 10.0, "u_dc_V": 48.0},
+    "current_loop": {"model": "dq_pi", "tau_i_s": 1e-3, "Ts_s": 1e-4},
+    "speed_controller": {"alpha_radps": 100.0, "zeta": 0.707, "Ts_s": 1e-4},
+    "simulation": {"t_end_s": 0.45},
+    "reference": [{"t_s": 0.0, "speed_rpm": 2000.0}, {"t_s": 0.3, "speed_rpm": 1000.0}],
+    "load": [{"t_s": 0.15, "torque_Nm": 0.3}],
+}
+T_MAX_NM = 1.5 * 4 * 0.01 * 10.0  # Te = 1.5 p psi_f i_max
+J_KGM2 = 1e-4
+TAU_I_S = 1e-3
+TS_S = 1e-4
+
+
+def servo():
+    return Scenario.from_dict(SERVO)
+
+
+def z_margins(keys, J_plant_kgm2):
+    """(phase margin [deg], gain margin [dB], stable) of the realized PI on the ZOH plant, in the z plane."""
+    ctl = SpeedController(
+        J_kgm2=J_KGM2,
+        alpha_radps=keys["alpha_radps"],
+        zeta=keys["zeta"],
+        m=keys["m"],
+        tau_i_s=TAU_I_S,
+        Ka=keys["Ka"],
+        Ts_s=TS_S,
+        i_max_A=10.0,
+        psi_f_Wb=0.01,
+        Ld_H=5e-4,
+        Lq_H=5e-4,
+        pole_pairs=4,
+        feedforward=keys["feedforward"],
+        anti_windup=keys["anti_windup"],
+    )
+    b_e0, Ki_Ts = ctl.coefficients["b_e0"], ctl.coefficients["Ki_Ts"]
+    F = control.tf([b_e0, Ki_Ts - b_e0], [1.0, -1.0], TS_S)
+    G = control.sample_system(control.tf([1.0], [J_plant_kgm2 * TAU_I_S, J_plant_kgm2, 0.0]), TS_S, "zoh")
+    L = F * G
+    stable = bool(np.all(np.abs(control.poles(control.feedback(L, 1))) < 1.0))
+    with warnings.catch_warnings():  # python-control checks its polynomial crossings on the frequency response
+        warnings.filterwarnings("ignore", message="stability_margins: Falling back")
+        gms, pms, _sms, _wpc, _wgc, _wms = control.stability_margins(L, returnall=True)
+    gm = min([g for g in gms if g > 1.0], default=math.inf)
+    return min(pms), 20.0 * math.log10(gm), stable
+
+
+def figures(keys, J_ratio):
+    """Overshoot [%], settling [s] of the reference steps, and load dip per Nm, of one simulation."""
+    run = servo().with_overrides(
+        {f"speed_controller.{k}": v for k, v in keys.items()}
+        | {"motor.J_kgm2": J_ratio * J_KGM2, "speed_controller.J_kgm2": J_KGM2}
+    )
+    metrics = compute_metrics(simulate(run))
+    steps = metrics["reference_steps"]
+    overshoot = max(s["overshoot_pct"]["value"] for s in steps)
+    settling = [s["settling_time_s"]["value"] for s in steps]
+    settling_s = math.inf if None in settling else max(settling)
+    (load,) = metrics["load_steps"]
+    return overshoot, settling_s, load["speed_dip_rpm"]["value"] / 0.3
+
+
+# ---------------------------------------------------------------------------------------------
+# fast: validation, margins, Pareto front
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("max_overshoot_pct", -1.0),
+        ("max_overshoot_pct", math.nan),
+        ("min_phase_margin_deg", 180.0),
+        ("min_gain_margin_dB", -3.0),
+        ("max_settling_s", 0.0),
+        ("max_load_dip_rpm_per_Nm", math.inf),
+        ("max_current_limit_time_s", True),
+        ("max_settling_s", "1"),
+        ("J_range", (2.0, 1.0)),
+        ("J_range", (0.0, 1.0)),
+        ("J_range", (0.1, 100.0)),
+        ("J_range", (1.0,)),
+        ("J_range", "0.5,2"),
+        ("feedforwards", ("lowpass", "fast")),
+        ("feedforwards", ()),
+        ("anti_windups", "clamping"),
+    ],
+)
+def test_spec_rejects_bad_values_naming_the_field(field, value):
+    with pytest.raises(ConfigError) as info:
+        Spec(**{field: value})
+    assert info.value.param == field
+    assert info.value.valid
+
+
+def test_autotune_rejects_what_it_cannot_tune():
+    with pytest.raises(ConfigError) as info:
+        autotune(servo().with_overrides({"load": []}))
+    assert info.value.param == "scenario"
+    with pytest.raises(ConfigError) as info:
+        autotune("paper-condition-2")  # type: ignore[arg-type]
+    assert info.value.param == "scenario"
+    with pytest.raises(ConfigError) as info:
+        autotune(servo(), {"J_range": (0.5, 2.0)})  # type: ignore[arg-type]
+    assert info.value.param == "spec"
+    with pytest.raises(ConfigError) as info:
+        autotune(servo(), workers=0)
+    assert info.value.param == "workers"
+
+
+@pytest.mark.parametrize("J_ratio", [0.3, 1.0, 3.0])
+@pytest.mark.parametrize(("alpha_radps", "zeta"), [(300.0, 0.707), (900.0, 1.2)])
+def test_margins_on_plant_match_the_z_plane(alpha_radps, zeta, J_ratio):
+    keys = {"alpha_radps": alpha_radps, "zeta": zeta, "m": 1.0, "Ka": None}
+    keys |= {"feedforward": "lowpass", "anti_windup": "back_calculation"}
+    d = design(J_KGM2, alpha_radps, zeta, tau_i_s=TAU_I_S)
+    margins = margins_on_plant(d, TS_S, "tustin", J_ratio * J_KGM2, TAU_I_S)
+    pm, gm, stable = z_margins(keys, J_ratio * J_KGM2)
+    assert stable and margins is not None
+    assert margins.phase_margin_deg == pytest.approx(pm, abs=1e-6)
+    assert margins.gain_margin_dB == pytest.approx(gm, abs=1e-6)
+
+
+def test_margins_on_plant_is_none_when_the_loop_is_unstable():
+    # alpha > 4 zeta^2 / tau_i: the continuous loop is unstable (Routh on eq 8), so is the discrete one
+    keys = {"alpha_radps": 2500.0, "zeta": 0.707, "m": 1.0, "Ka": None}
+    keys |= {"feedforward": "lowpass", "anti_windup": "back_calculation"}
+    d = design(J_KGM2, 2500.0, 0.707, tau_i_s=TAU_I_S)
+    assert margins_on_plant(d, TS_S, "tustin", J_KGM2, TAU_I_S) is None
+    assert not z_margins(keys, J_KGM2)[2]
+
+
+def test_pareto_front_keeps_exactly_the_non_dominated():
+    def evaluation(i, iae, dip, pm):
+        worst = {"tracking_iae_rpm_s": iae, "load_dip_rpm_per_Nm": dip, "phase_margin_deg": pm}
+        return Evaluation(Candidate(float(i), 1.0, 1.0, 1.0, "lowpass", "none"), "engine", worst, {}, (1.0,), (), "")
+
+    points = [
+        evaluation(1, 1.0, 5.0, 50.0),
+        evaluation(2, 2.0, 4.0, 50.0),
+        evaluation(3, 2.0, 5.0, 50.0),  # dominated by 1 and 2
+        evaluation(4, 3.0, 6.0, 70.0),  # the most robust
+        evaluation(5, 3.0, 6.0, 60.0),  # dominated by 4
+    ]
+    front = {e.candidate.alpha_radps for e in pareto_front(points)}
+    assert front == {1.0, 2.0, 4.0}
+
+
+# ---------------------------------------------------------------------------------------------
+# slow: the spec re-checked by simulation, an impossible spec, a brute-force grid
+# ---------------------------------------------------------------------------------------------
+
+SPEC = Spec(
+    max_overshoot_pct=5.0,
+    min_phase_margin_deg=45.0,
+    min_gain_margin_dB=6.0,
+    max_settling_s=0.1,
+    J_range=(0.5, 2.0),
+    feedforwards=("lowpass", "none"),
+)
+
+
+@pytest.fixture(scope="module")
+def tuned():
+    return autotune(servo(), SPEC, workers=2)
+
+
+@pytest.mark.slow
+def test_the_spec_holds_across_the_inertia_range(tuned):
+    assert tuned.feasible and tuned.binding is None
+    keys = tuned.speed_controller
+    assert set(keys) == {"alpha_radps", "zeta", "m", "Ka", "feedforward", "anti_windup"}
+    rng = np.random.default_rng(15)
+    ratios = [0.5, 2.0, *np.exp(rng.uniform(math.log(0.5), math.log(2.0), 4))]
+    dips = []
+    for r in ratios:
+        pm, gm, stable = z_margins(keys, r * J_KGM2)
+        assert stable
+        assert pm >= 45.0 and gm >= 6.0, r
+        overshoot, settling_s, dip = figures(keys, r)
+        assert overshoot <= 5.0, r
+        assert settling_s <= 0.1, r
+        dips.append(dip)
+    # the reported worst case is the worst of the ratios it checked: no point of the range is worse
+    assert max(dips) <= tuned.chosen.worst["load_dip_rpm_per_Nm"] * (1.0 + 1e-9)
+
+
+@pytest.mark.slow
+def test_the_result_reproduces_with_set_and_reports_its_search(tuned):
+    rerun = tuned.tuned_scenario()
+    assert rerun.data["speed_controller"] | tuned.speed_controller == rerun.data["speed_controller"]
+    assert tuned.pareto and all(e.stage == "engine" for e in tuned.pareto)
+    assert tuned.chosen.candidate in {e.candidate for e in tuned.evaluations}
+    for e in tuned.rejected:
+        assert e.error or e.violations  # each rejected candidate says why
+        for v in e.violations:
+            limit = getattr(SPEC, v.constraint)
+            assert v.limit == limit and v.miss > 0.0
+    simulated = {(run.candidate, run.J_ratio) for run in tuned.runs}
+    assert {(tuned.chosen.candidate, r) for r in tuned.J_ratios_checked} <= simulated
+
+
+@pytest.mark.slow
+def test_an_impossible_spec_reports_its_binding_constraint():
+    # the 2000 rpm step cannot settle before the drive gets there at full torque: t >= J dw / T_max
+    result = autotune(servo(), Spec(max_settling_s=0.01, J_range=(0.5, 2.0)), workers=2)
+    assert not result.feasible
+    assert result.binding is not None and result.binding.constraint == "max_settling_s"
+    t_min_s = 2.0 * J_KGM2 * 2000.0 * math.pi / 30.0 / T_MAX_NM
+    assert result.binding.value >= 0.98 * t_min_s
+    assert result.binding.miss == pytest.approx(result.binding.value - 0.01)
+    assert result.binding.J_ratio == pytest.approx(2.0)
+
+
+@pytest.mark.slow
+def test_at_least_as_good_as_a_brute_force_grid():
+    spec = Spec(max_overshoot_pct=5.0, J_range=(0.8, 1.25))
+    result = autotune(servo(), spec, workers=2)
+    ratios = np.geomspace(0.8, 1.25, 5)
+    best_dip = math.inf
+    for alpha_radps in (150.0, 300.0, 450.0, 600.0, 800.0):
+        for zeta in (0.5, 0.707, 1.0, 1.4, 1.8):
+            keys = {"alpha_radps": alpha_radps, "zeta": zeta, "m": 1.0, "Ka": 1.0 / (J_KGM2 * alpha_radps)}
+            keys |= {"feedforward": "lowpass", "anti_windup": "back_calculation"}
+            margins = [z_margins(keys, r * J_KGM2) for r in ratios]
+            if not all(stable and pm >= 45.0 and gm >= 6.0 for pm, gm, stable in margins):
+                continue
+            runs = [figures(keys, r) for r in ratios]
+            if all(overshoot <= 5.0 for overshoot, _s, _d in runs):
+                best_dip = min(best_dip, max(dip for _o, _s, dip in runs))
+    assert math.isfinite(best_dip)  # the grid has a feasible point: the comparison means something
+    assert result.feasible
+    assert result.chosen.worst["load_dip_rpm_per_Nm"] <= best_dip
