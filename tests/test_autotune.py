@@ -8,6 +8,7 @@ settles before the drive reaches the new speed at full torque, ``t >= J dw / T_m
 brute-force grid, whose best feasible point the autotuner must match or beat.
 """
 
+import json
 import math
 import warnings
 
@@ -15,10 +16,11 @@ import control
 import numpy as np
 import pytest
 
-from pmsm2dof import ConfigError, Scenario, SpeedController, autotune, compute_metrics, simulate
+from pmsm2dof import ConfigError, Scenario, SpeedController, autotune, compute_metrics, load_scenario, simulate
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.discretize import margins_on_plant
 from pmsm2dof.studies.autotune import Candidate, Evaluation, Spec, pareto_front
+from pmsm2dof.ui.cli import main
 
 #: A small servo: 0.6 Nm at the 10 A limit, J = 1e-4 kg m^2; 2000 rpm, 0.3 Nm load, 1000 rpm.
 SERVO = {
@@ -264,3 +266,92 @@ def test_at_least_as_good_as_a_brute_force_grid():
     assert math.isfinite(best_dip)  # the grid has a feasible point: the comparison means something
     assert result.feasible
     assert result.chosen.worst["load_dip_rpm_per_Nm"] <= best_dip
+
+
+# ---------------------------------------------------------------------------------------------
+# the command line
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.fixture()
+def servo_file(tmp_path):
+    path = tmp_path / "servo.toml"
+    path.write_text(servo().to_toml())
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("args", "must_mention"),
+    [
+        (["--J-range", "2,1"], "--J-range"),
+        (["--J-range", "0.5"], "--J-range"),
+        (["--J-range", "a,b"], "--J-range"),
+        (["--max-overshoot-pct", "-1"], "--max-overshoot-pct"),
+        (["--min-phase-margin-deg", "200"], "--min-phase-margin-deg"),
+        (["--max-settling-s", "nan"], "--max-settling-s"),
+        (["--feedforward", "fast"], "--feedforward"),
+        (["--anti-windup", "clamp"], "--anti-windup"),
+        (["--workers", "0"], "--workers"),
+        (["--set", "load=[]"], "scenario"),
+        (["--set", "motor.J_kgm2=0"], "motor.J_kgm2"),
+        (["--emit-c-header", "missing/dir/x.h"], "--emit-c-header"),
+    ],
+)
+def test_cli_bad_input_is_one_line_exit_2_and_writes_nothing(servo_file, tmp_path, capsys, args, must_mention):
+    code = main(["autotune", servo_file, "--out", str(tmp_path / "out"), *args])
+    out, err = capsys.readouterr()
+    assert code == 2
+    lines = err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("pmsm2dof: error: "), err
+    assert must_mention in lines[0]
+    assert not (tmp_path / "out").exists()
+    assert not list(tmp_path.glob(".out.*"))
+
+
+@pytest.mark.slow
+def test_cli_writes_the_tuned_scenario_tables_figure_and_header(servo_file, tmp_path, capsys):
+    out = tmp_path / "out"
+    header = tmp_path / "servo.h"
+    args = ["autotune", servo_file, "--J-range", "0.5,2", "--max-overshoot-pct", "5", "--max-settling-s", "0.1"]
+    code = main(
+        [*args, "--feedforward", "lowpass", "--feedforward", "none", "--workers", "2", "--json"]
+        + ["--out", str(out), "--emit-c-header", str(header)]
+    )
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    data = json.loads(stdout)
+    assert data["feasible"] is True and data["binding"] is None
+    keys = data["speed_controller"]
+    # the keys are the scenario's: --set speed_controller.KEY=VALUE reproduces the design
+    sets = [a for k, v in keys.items() for a in ("--set", f"speed_controller.{k}={v}")]
+    assert main(["simulate", servo_file, *sets, "--out", str(tmp_path / "sim")]) == 0
+    capsys.readouterr()
+    simulated = json.loads((tmp_path / "sim" / "metrics.json").read_text())
+    assert max(s["overshoot_pct"]["value"] for s in simulated["reference_steps"]) <= 5.0
+    tuned = load_scenario(str(out / "scenario.toml"))
+    assert {k: tuned.data["speed_controller"][k] for k in keys} == keys
+    assert {p.name for p in out.iterdir()} == {
+        "scenario.toml",
+        "autotune.json",
+        "pareto.csv",
+        "pareto.png",
+        "runs.csv",
+        "rejected.csv",
+    }
+    runs = (out / "runs.csv").read_text().splitlines()
+    assert len(runs) == 1 + data["counts"]["runs"]
+    rejected = (out / "rejected.csv").read_text().splitlines()
+    assert rejected[0].split(",")[6:12] == ["stage", "constraint", "limit", "value", "miss", "J_ratio"]
+    assert len(rejected) > 1
+    assert (out / "pareto.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    text = header.read_text()
+    assert f"alpha_radps = {keys['alpha_radps']:g}" in text
+
+
+@pytest.mark.slow
+def test_cli_exits_1_and_names_the_binding_constraint_when_nothing_meets_the_spec(servo_file, capsys):
+    code = main(["autotune", servo_file, "--J-range", "0.5,2", "--max-settling-s", "0.01", "--workers", "2"])
+    stdout, err = capsys.readouterr()
+    assert code == 1, err
+    assert "NO design meets the specification" in stdout
+    assert "binding constraint: max_settling_s" in stdout

@@ -363,8 +363,9 @@ class AutotuneResult:
     evaluations : tuple of Evaluation
         Every candidate of the search, in the order they were generated.
     pareto : tuple of Evaluation
-        The simulated candidates no other one beats on tracking (worst ``tracking_iae_rpm_s``),
-        rejection (worst ``load_dip_rpm_per_Nm``) and robustness (worst ``phase_margin_deg``).
+        The feasible candidates (all simulated ones when none is) no other one beats on tracking
+        (worst ``tracking_iae_rpm_s``), rejection (worst ``load_dip_rpm_per_Nm``) and robustness
+        (worst ``phase_margin_deg``): :func:`pareto_front`.
     runs : tuple of RunRecord
         Every simulation, in the order they ran.
     J_ratios_checked : tuple of float
@@ -420,6 +421,31 @@ class AutotuneResult:
             prefix=prefix,
         )
 
+    def pareto_rows(self) -> list[dict[str, Any]]:
+        """One row per design of the Pareto front: its keys, worst-case figures and whether it is feasible."""
+        return [_keys_and_worst(e) | {"feasible": e.feasible} for e in self.pareto]
+
+    def runs_rows(self) -> list[dict[str, Any]]:
+        """One row per simulation: the candidate's keys, the inertia ratio, its figures or the error."""
+        return [
+            r.candidate.speed_controller()
+            | {"J_ratio": r.J_ratio}
+            | {name: r.figures.get(name) for name in FIGURES if name not in MARGIN_FIGURES}
+            | {"error": r.error, "wall_time_s": r.wall_time_s}
+            for r in self.runs
+        ]
+
+    def rejected_rows(self) -> list[dict[str, Any]]:
+        """One row per constraint a candidate misses (or per candidate that could not be evaluated)."""
+        rows: list[dict[str, Any]] = []
+        blank = {"constraint": "", "limit": None, "value": None, "miss": None, "J_ratio": None}
+        for e in self.rejected:
+            keys: dict[str, Any] = e.candidate.speed_controller() | {"stage": e.stage}
+            if e.error:
+                rows.append(keys | blank | {"error": e.error})
+            rows += [keys | dataclasses.asdict(v) | {"error": ""} for v in e.violations]
+        return rows
+
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: the chosen keys, worst case, binding constraint, Pareto front and counts."""
         simulated = [e for e in self.evaluations if e.stage == "engine"]
@@ -443,11 +469,13 @@ class AutotuneResult:
                 "feasible": sum(e.feasible for e in self.evaluations),
                 "runs": len(self.runs),
             },
-            "pareto": [
-                e.candidate.speed_controller() | _finite(e.worst) | {"feasible": e.feasible} for e in self.pareto
-            ],
+            "pareto": [_keys_and_worst(e) | {"feasible": e.feasible} for e in self.pareto],
             "wall_time_s": self.wall_time_s,
         }
+
+
+def _keys_and_worst(e: Evaluation) -> dict[str, Any]:
+    return e.candidate.speed_controller() | {f"worst_{name}": v for name, v in _finite(e.worst).items()}
 
 
 def _number(x: float) -> float | None:
@@ -780,12 +808,13 @@ class _Search:
 
 
 def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
-    """The simulated, completed evaluations that no other one beats on all of tracking, rejection and robustness.
+    """The designs that no other one beats on all of tracking, rejection and robustness.
 
-    Objectives: worst ``tracking_iae_rpm_s`` (smaller), worst ``load_dip_rpm_per_Nm`` (smaller),
-    worst ``phase_margin_deg`` (larger).
+    Among the feasible evaluations (all the simulated, completed ones when none is feasible):
+    worst ``tracking_iae_rpm_s`` (smaller), worst ``load_dip_rpm_per_Nm`` (smaller), worst
+    ``phase_margin_deg`` (larger). Sorted by the load dip.
     """
-    points = [e for e in evaluations if e.stage == "engine" and not e.error]
+    points = [e for e in evaluations if e.feasible] or [e for e in evaluations if e.stage == "engine" and not e.error]
 
     def objectives(e: Evaluation) -> tuple[float, float, float]:
         return (e.worst["tracking_iae_rpm_s"], e.worst["load_dip_rpm_per_Nm"], -e.worst["phase_margin_deg"])

@@ -58,9 +58,13 @@ def parse_override(text):
 
 
 def main(argv=None):
-    """Entry point of the console script: run the CLI, map user errors to exit status 2."""
+    """Entry point of the console script: run the CLI, map user errors to exit status 2.
+
+    A command ends with another status by raising ``click.exceptions.Exit`` (``autotune``: 1
+    when no design meets the specification).
+    """
     try:
-        cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
+        status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return exc.exit_code
     except click.exceptions.Abort:
@@ -72,7 +76,7 @@ def main(argv=None):
     except (Pmsm2dofError, ValueError, OSError) as exc:
         print(f"pmsm2dof: error: {_one_line(exc)}", file=sys.stderr)
         return 2
-    return 0
+    return status if isinstance(status, int) else 0
 
 
 # ---------------------------------------------------------------------------------------------
@@ -592,3 +596,234 @@ def tune(scenario, port, host, no_browser):
     from .tuner import DEFAULT_PRESET, run_tuner
 
     run_tuner(load_scenario(scenario or DEFAULT_PRESET), host=host, port=port, open_browser=not no_browser)
+
+
+# ---------------------------------------------------------------------------------------------
+# autotune (pmsm2dof.studies.autotune, ui.plots.autotune)
+# ---------------------------------------------------------------------------------------------
+
+#: Spec field or argument of autotune -> its option.
+_AUTOTUNE_OPTIONS = {
+    "max_overshoot_pct": "--max-overshoot-pct",
+    "min_phase_margin_deg": "--min-phase-margin-deg",
+    "min_gain_margin_dB": "--min-gain-margin-dB",
+    "max_settling_s": "--max-settling-s",
+    "max_load_dip_rpm_per_Nm": "--max-load-dip-rpm-per-Nm",
+    "max_current_limit_time_s": "--max-current-limit-time-s",
+    "J_range": "--J-range",
+    "feedforwards": "--feedforward",
+    "anti_windups": "--anti-windup",
+    "workers": "--workers",
+    "out": "--out",
+    "path": "--emit-c-header",
+}
+
+
+def _J_range(text):
+    """``LO,HI`` of --J-range as two floats (the Spec checks their range)."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        return (float(parts[0]), float(parts[1]))
+    except ValueError:
+        raise ConfigError("--J-range", text, "LO,HI: two numbers, true over design inertia, e.g. 0.5,2") from None
+
+
+def _require_writable_file(path):
+    """Raise ConfigError naming --emit-c-header, before any long work, if ``path`` cannot be written."""
+    import os
+    from pathlib import Path
+
+    folder = Path(path).resolve().parent
+    if Path(path).is_dir():
+        raise ConfigError("--emit-c-header", path, "a file path (it is an existing folder)")
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise ConfigError("--emit-c-header", path, "a file in an existing, writable folder")
+
+
+def _csv_text(rows):
+    """``rows`` (dicts with the same keys) as CSV text; None is an empty cell."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    if rows:
+        writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    return buf.getvalue()
+
+
+@cli.command(short_help="Find the anti-windup 2DOF design that rejects loads best within a specification.")
+@click.argument("scenario", metavar="PRESET_OR_FILE")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="change a scenario key first (repeatable)")
+@click.option("--max-overshoot-pct", type=float, default=None, help="largest overshoot of a reference step [%]")
+@click.option("--min-phase-margin-deg", type=float, default=45.0, show_default=True, help="smallest phase margin [deg]")
+@click.option(
+    "--min-gain-margin-dB",
+    "min_gain_margin_dB",
+    type=float,
+    default=6.0,
+    show_default=True,
+    help="smallest gain margin [dB]",
+)
+@click.option("--max-settling-s", type=float, default=None, help="longest settling time (2 %) of a reference step [s]")
+@click.option(
+    "--max-load-dip-rpm-per-Nm",
+    "max_load_dip_rpm_per_Nm",
+    type=float,
+    default=None,
+    help="largest speed dip of a load step per Nm of load change [rpm/Nm]",
+)
+@click.option(
+    "--max-current-limit-time-s", type=float, default=None, help="longest time at the current limit in one step [s]"
+)
+@click.option(
+    "--J-range",
+    "J_range",
+    default="1,1",
+    show_default=True,
+    metavar="LO,HI",
+    help="true inertia over the design inertia speed_controller.J_kgm2: the range the spec must hold over",
+)
+@click.option(
+    "--feedforward",
+    "feedforwards",
+    multiple=True,
+    help="a feedforward form the search may choose: lowpass, none, no_tau, full (repeatable) [default: the scenario's]",
+)
+@click.option(
+    "--anti-windup",
+    "anti_windups",
+    multiple=True,
+    help="an anti-windup the search may choose: none, back_calculation, clamping (repeatable) "
+    "[default: the scenario's]",
+)
+@click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the summary")
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False),
+    default=None,
+    help="folder for scenario.toml (the tuned scenario), autotune.json, pareto.csv, pareto.png, runs.csv, rejected.csv",
+)
+@click.option(
+    "--emit-c-header",
+    "header",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="write a C header with the p2d_speed_config_t of the chosen design and the scenario's motor",
+)
+def autotune(
+    scenario,
+    overrides,
+    max_overshoot_pct,
+    min_phase_margin_deg,
+    min_gain_margin_dB,
+    max_settling_s,
+    max_load_dip_rpm_per_Nm,
+    max_current_limit_time_s,
+    J_range,
+    feedforwards,
+    anti_windups,
+    workers,
+    as_json,
+    out,
+    header,
+):
+    """Autotune the speed controller of a scenario: the smallest worst-case load dip per Nm that
+    meets the specification at every inertia of --J-range, on the scenario's own steps.
+
+    Searches alpha, zeta, m, Ka (and the feedforward and anti-windup forms given) with the
+    analytic margins first, then the simulation engine (current limit and anti-windup included).
+    Prints the chosen speed_controller keys (`--set speed_controller.KEY=VALUE` reproduces
+    them) and their worst case. Exit status 0 when the design meets the specification, 1 when
+    none does (the summary names the binding constraint and the miss), 2 for bad input.
+    """
+    import json
+
+    from ..outputs import atomic_write, require_writable_dir, staged_dir
+    from ..sim.scenario import load_scenario
+    from ..studies.autotune import Spec
+    from ..studies.autotune import autotune as run_autotune
+
+    try:
+        spec = Spec(
+            max_overshoot_pct=max_overshoot_pct,
+            min_phase_margin_deg=min_phase_margin_deg,
+            min_gain_margin_dB=min_gain_margin_dB,
+            max_settling_s=max_settling_s,
+            max_load_dip_rpm_per_Nm=max_load_dip_rpm_per_Nm,
+            max_current_limit_time_s=max_current_limit_time_s,
+            J_range=_J_range(J_range),
+            feedforwards=feedforwards or None,
+            anti_windups=anti_windups or None,
+        )
+        chosen = load_scenario(scenario)
+        changes = dict(parse_override(text) for text in overrides)
+        if changes:
+            chosen = chosen.with_overrides(changes)
+        if out is not None:
+            require_writable_dir(out)
+        if header is not None:
+            _require_writable_file(header)
+        result = run_autotune(chosen, spec, workers=workers)
+        if out is not None:
+            from .plots.autotune import plot_pareto
+
+            with staged_dir(out) as tmp:
+                atomic_write(tmp / "scenario.toml", result.tuned_scenario().to_toml())
+                atomic_write(tmp / "autotune.json", json.dumps(result.as_dict(), indent=2, allow_nan=False) + "\n")
+                atomic_write(tmp / "pareto.csv", _csv_text(result.pareto_rows()))
+                atomic_write(tmp / "runs.csv", _csv_text(result.runs_rows()))
+                atomic_write(tmp / "rejected.csv", _csv_text(result.rejected_rows()))
+                plot_pareto(result, tmp / "pareto.png")
+                if header is not None:
+                    result.write_c_header(header)
+        elif header is not None:
+            result.write_c_header(header)
+    except ConfigError as exc:
+        raise _as_option(exc, _AUTOTUNE_OPTIONS) from None
+    if as_json:
+        click.echo(json.dumps(result.as_dict(), allow_nan=False))
+    else:
+        click.echo(_autotune_summary(result, scenario))
+        written = [f"{out}/" if out is not None else "", header or ""]
+        if any(written):
+            click.echo("wrote " + " and ".join(w for w in written if w))
+    if not result.feasible:
+        raise click.exceptions.Exit(1)
+
+
+def _autotune_summary(result, scenario):
+    """The summary of an autotuning: outcome, chosen keys, worst case, how to reproduce it."""
+    from ..studies.autotune import CONSTRAINTS
+
+    data = result.as_dict()
+    lo, hi = result.spec.J_range
+    counts = data["counts"]
+    lines = [
+        f"{result.scenario.name}: {counts['candidates']} designs ({counts['rejected_by_margins']} rejected by the "
+        f"margins alone), {counts['runs']} simulations over J ratio {lo:g} to {hi:g}, in {result.wall_time_s:.3g} s",
+    ]
+    if result.feasible:
+        lines.append(f"the design below meets the specification ({counts['feasible']} designs did)")
+    else:
+        lines.append("NO design meets the specification; the one below misses it least:")
+        lines += [f"  misses {v.describe()}" for v in result.chosen.violations]
+        if result.chosen.error:
+            lines.append(f"  {result.chosen.error}")
+        if result.binding is not None:
+            lines.append(f"binding constraint: {result.binding.constraint}, missed by {result.binding.miss:.4g}")
+    for key, value in result.speed_controller.items():
+        lines.append(f"  speed_controller.{key} = {value}")
+    lines.append("worst case over the inertia range (J ratio where it occurs):")
+    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {"tracking_iae_rpm_s": "rpm s"}
+    for name, value in data["worst_case"].items():
+        shown = "inf (never settles in its window)" if value is None and name == "settling_time_s" else value
+        shown = "inf" if shown is None else (f"{shown:.4g} {units[name]}" if isinstance(shown, float) else shown)
+        lines.append(f"  {name:<22} {shown}  ({data['worst_J_ratio'][name]:.4g})")
+    sets = " ".join(f"--set speed_controller.{k}={v}" for k, v in result.speed_controller.items())
+    lines.append(f"reproduce: pmsm2dof simulate {scenario} {sets} --out DIR")
+    return "\n".join(lines)

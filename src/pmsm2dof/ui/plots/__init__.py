@@ -1,2 +1,3 @@
-"""Figures: design Bode and step plots (:mod:`.design`), the trace of a run (:mod:`.trace`) and
-the figures of a sweep (:mod:`.sweep`), on matplotlib's Agg canvas."""
+"""Figures: design Bode and step plots (:mod:`.design`), the trace of a run (:mod:`.trace`), the
+figures of a sweep (:mod:`.sweep`) and the Pareto front of an autotuning (:mod:`.autotune`), on
+matplotlib's Agg canvas."""

@@ -1,0 +1,63 @@
+"""The figure of an autotuning: tracking against rejection against robustness.
+
+:func:`plot_pareto` draws every simulated design of :func:`pmsm2dof.studies.autotune.autotune`
+by its worst-case load dip per Nm (rejection) and tracking IAE (tracking) over the inertia
+range, coloured by its worst-case phase margin (robustness); the Pareto front is outlined and
+the chosen design starred. Matplotlib's Agg backend, no display needed.
+"""
+
+import math
+from pathlib import Path
+from typing import Any
+
+from ...studies.autotune import AutotuneResult
+
+
+def plot_pareto(result: AutotuneResult, path: Path | str) -> Path:
+    """Draw the designs of ``result`` into ``path`` (.png or .svg); return the path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    simulated = [e for e in result.evaluations if e.stage == "engine" and not e.error]
+    fig, ax = plt.subplots(figsize=(7.5, 5.0), layout="constrained")
+
+    def xy(evaluations: Any) -> tuple[list[float], list[float]]:
+        return [e.worst["load_dip_rpm_per_Nm"] for e in evaluations], [
+            e.worst["tracking_iae_rpm_s"] for e in evaluations
+        ]
+
+    pm = [e.worst["phase_margin_deg"] for e in simulated]
+    pm = [v if math.isfinite(v) else 90.0 for v in pm]
+    x, y = xy(simulated)
+    marker = ["o" if e.feasible else "x" for e in simulated]
+    for m in ("o", "x"):
+        keep = [i for i, k in enumerate(marker) if k == m]
+        points = ax.scatter(
+            [x[i] for i in keep],
+            [y[i] for i in keep],
+            c=[pm[i] for i in keep],
+            cmap="viridis",
+            vmin=min(pm, default=0.0),
+            vmax=max(pm, default=90.0),
+            marker=m,
+            s=18,
+            label="meets the spec" if m == "o" else "misses the spec",
+        )
+    fig.colorbar(points, ax=ax, label="worst-case phase margin [deg]")
+    fx, fy = xy(result.pareto)
+    ax.scatter(fx, fy, facecolors="none", edgecolors="tab:red", s=70, label="Pareto front")
+    cx, cy = xy([result.chosen])
+    ax.scatter(cx, cy, marker="*", s=250, color="tab:red", edgecolors="black", label="chosen", zorder=5)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("worst-case speed dip per Nm of load [rpm/Nm]")
+    ax.set_ylabel("worst-case tracking IAE [rpm s]")
+    lo, hi = result.spec.J_range
+    ax.set_title(f"{result.scenario.name}: autotune over J ratio {lo:g} to {hi:g}")
+    ax.legend(loc="best", fontsize="small")
+    ax.grid(True, which="both", alpha=0.3)
+    fig.savefig(path)
+    plt.close(fig)
+    return Path(path)
