@@ -50,15 +50,17 @@ from .engine import Outcome, Run, check_options, run_many
 #: Inertia ratios at which the margins are checked, and the best design is simulated again.
 N_J_CHECK = 9
 #: Relative damping of the coarse grid (eq 9).
-ZETA_GRID = (0.3, 0.38, 0.48, 0.61, 0.77, 0.98, 1.25, 1.58, 2.0)
+ZETA_GRID = (0.3, 0.45, 0.67, 1.0, 1.4, 2.0)
 #: Bandwidths of the coarse grid as fractions of the edge (the largest alpha the margins allow).
-ALPHA_FRACTIONS = (1.0, 0.75, 0.5, 0.25, 0.08)
+ALPHA_FRACTIONS = (1.0, 0.7, 0.4, 0.15)
 #: Decades below the stability and sampling bound where the edge is sought (and the grid's
 #: bandwidths lie when no bandwidth meets the margins: then log-spaced, :data:`N_ALPHA`).
 ALPHA_DECADES = 2.5
 N_ALPHA = 7
 #: Bisection steps of the edge (a precision of ``ALPHA_DECADES / 2**EDGE_STEPS`` decades).
 EDGE_STEPS = 10
+#: Factor by which the edge steps down where it misses a margin between the ends of the range.
+EDGE_BACKOFF = 0.97
 #: First step of the pattern search (a factor on zeta, the fraction of the edge, Ka Kp and m).
 STEP_FIRST = 1.25
 #: Back-calculation gain of the coarse grid, ``Ka Kp`` (1 is the paper's Ka = 1/Kp, section 3.3).
@@ -565,12 +567,6 @@ class _Search:
         self.margins: dict[tuple[float, float, float], Margins | None] = {}
         self.edges: dict[tuple[float, float], float | None] = {}
         self.known: dict[Candidate, tuple[int, Evaluation]] = {}
-        # the ends of the range first: where a margin fails most often
-        self.J_ratios_margins = tuple(
-            sorted(
-                self.J_ratios_checked, key=lambda r: -abs(math.log(r / spec.J_range[0]) * math.log(r / spec.J_range[1]))
-            )
-        )
         self.refused: dict[Candidate, str] = {}
         self.figures: dict[tuple[Candidate, float], RunRecord] = {}
         self.simulated_at: dict[Candidate, list[float]] = {}
@@ -586,22 +582,29 @@ class _Search:
 
     def edge_radps(self, zeta: float, m: float) -> float | None:
         """The largest bandwidth (at most :meth:`alpha_max_radps`) whose loop meets the margin constraints
-        (stable without them) at every inertia ratio, by bisection on a log scale; None when even
-        ``alpha_max 10**-ALPHA_DECADES`` misses them. The margins fall as alpha grows (the current
-        loop's lag takes a larger share of the phase at the crossover)."""
+        (stable without them) at every inertia ratio; None when even ``alpha_max 10**-ALPHA_DECADES``
+        misses them.
+
+        The margins fall as alpha grows (the current loop's lag takes a larger share of the phase
+        at the crossover), and over the inertia range they are smallest at its ends (the crossover
+        moves towards the current loop's pole or towards the PI's zero): a bisection on a log scale
+        with the two ends, then the edge checked at every ratio, stepping down where it fails.
+        """
         top = self.alpha_max_radps(zeta, m)
         key = (zeta, top)
         if key not in self.edges:
+            ends = (self.J_ratios_checked[0], self.J_ratios_checked[-1])
             lo, hi = top * 10.0**-ALPHA_DECADES, top
-            if self.margins_hold(hi, zeta):
-                edge: float | None = hi
-            elif not self.margins_hold(lo, zeta):
-                edge = None
-            else:
+            edge: float | None = None
+            if self.margins_hold(hi, zeta, ends):
+                edge = hi
+            elif self.margins_hold(lo, zeta, ends):
                 for _ in range(EDGE_STEPS):
                     mid = math.sqrt(lo * hi)
-                    lo, hi = (mid, hi) if self.margins_hold(mid, zeta) else (lo, mid)
+                    lo, hi = (mid, hi) if self.margins_hold(mid, zeta, ends) else (lo, mid)
                 edge = lo
+            while edge is not None and not self.margins_hold(edge, zeta, self.J_ratios_checked):
+                edge = edge * EDGE_BACKOFF if edge * EDGE_BACKOFF >= top * 10.0**-ALPHA_DECADES else None
             self.edges[key] = edge
         return self.edges[key]
 
@@ -691,10 +694,10 @@ class _Search:
                 self.refused[c] = ""
         return self.refused[c]
 
-    def margins_hold(self, alpha_radps: float, zeta: float) -> bool:
-        """Whether the PI (alpha, zeta) is stable and meets the margin constraints at every inertia ratio."""
+    def margins_hold(self, alpha_radps: float, zeta: float, J_ratios: Sequence[float]) -> bool:
+        """Whether the PI (alpha, zeta) is stable and meets the margin constraints at ``J_ratios``."""
         limits = self.spec.constraints()
-        for r in self.J_ratios_margins:
+        for r in J_ratios:
             margins = self.margins_of(alpha_radps, zeta, r)
             if margins is None:
                 return False
