@@ -51,3 +51,30 @@ def test_design_and_bode_commands_run_as_written(tmp_path, monkeypatch, capsys):
                 written = args[args.index(option) + 1]
                 assert (tmp_path / written).stat().st_size > 0
                 assert written in captured.out  # the command says what it wrote
+
+
+@pytest.mark.slow
+def test_autotune_commands_run_as_written(tmp_path, monkeypatch, capsys):
+    """The Autotune section: each command ends with status 0 (a design meets its spec), writes what it
+    says, and the Python example runs."""
+    import shutil
+
+    commands = [a for a in readme_commands("pmsm2dof") if a[0] == "autotune"]
+    assert len(commands) == 2
+    (tmp_path / "benchmarks").mkdir()
+    shutil.copy(README.parent / "benchmarks" / "small-servo.toml", tmp_path / "benchmarks")
+    monkeypatch.chdir(tmp_path)
+    for args in commands:
+        assert main(args) == 0, args
+        captured = capsys.readouterr()
+        if "--json" in args:
+            data = json.loads(captured.out)
+            assert data["feasible"] and data["worst_case"]["overshoot_pct"] <= 5.0
+        if "--out" in args:
+            out = tmp_path / args[args.index("--out") + 1]
+            assert (out / "scenario.toml").stat().st_size > 0 and (out / "pareto.png").stat().st_size > 0
+        if "--emit-c-header" in args:
+            assert (tmp_path / args[args.index("--emit-c-header") + 1]).stat().st_size > 0
+    (example,) = [b for b in re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S) if "autotune" in b]
+    exec(compile(example, "README.md", "exec"), {})
+    assert "True {'alpha_radps'" in capsys.readouterr().out
