@@ -545,6 +545,27 @@ def J_ratios(J_range: tuple[float, float], n: int) -> tuple[float, ...]:
     return tuple(float(r) for r in np.geomspace(lo, hi, n))
 
 
+def runs_bound(scenario: Scenario, spec: Spec) -> int:
+    """The most simulations :func:`autotune` can make for ``scenario`` and ``spec``: a bound on its work.
+
+    The coarse grid, :data:`REFINE_ROUNDS` rounds of at most 81 neighbours, each at the 3 inertia
+    ratios of the search, and at most :data:`CHECK_MAX` final checks at :data:`N_J_CHECK` ratios.
+    """
+    sc = scenario.data["speed_controller"]
+    forms = list(
+        itertools.product(spec.feedforwards or (sc["feedforward"],), spec.anti_windups or (sc["anti_windup"],))
+    )
+    grid = 0
+    neighbours = 0
+    for ff, aw in forms:
+        n_m = len(M_GRID) if ff in ("no_tau", "full") else 1
+        n_ka = len(KA_KP_GRID) if aw == "back_calculation" else 1
+        grid += len(ZETA_GRID) * max(len(ALPHA_FRACTIONS), N_ALPHA) * n_m * n_ka
+        neighbours = max(neighbours, 9 * (3 if n_m > 1 else 1) * (3 if n_ka > 1 else 1))
+    n_search = len(J_ratios(spec.J_range, 3))
+    return (grid + REFINE_ROUNDS * neighbours) * n_search + CHECK_MAX * len(J_ratios(spec.J_range, N_J_CHECK))
+
+
 class _Search:
     """The state of one autotuning: what is known of each candidate, and the runs made."""
 

@@ -8,6 +8,7 @@ Endpoints
 ``GET /api/controls``              the controls: groups, ranges, choices, values of the base scenario
 ``POST /api/run``                  run the tuner's experiment for the posted control values
 ``POST /api/download/{kind}``      ``scenario.toml``, ``header.h`` or ``trace.csv`` of those values
+``POST /api/suggest``              autotune the experiment of those values for a specification
 
 A POST body is a JSON object, sent as ``Content-Type: application/json`` (anything else answers
 415: a form of another site cannot post to the tuner without a CORS preflight, which it does
@@ -18,11 +19,15 @@ the message next to the control.
 
 A client (the peer address and the page's ``X-Pmsm2dof-Client`` header) runs one simulation at
 a time: a newer run request cancels the older one, which answers 409
-(:mod:`pmsm2dof.ui.tuner.slots`). The Host and Origin checks are the server's
+(:mod:`pmsm2dof.ui.tuner.slots`). A suggestion (``{"values": ..., "spec": ...}``,
+:meth:`~pmsm2dof.ui.tuner.experiment.Tuner.suggest`) runs many simulations on every core: the
+server computes one at a time and answers 429 to another asked meanwhile; its work is bounded
+by :data:`~pmsm2dof.ui.tuner.experiment.SUGGEST_STEPS_MAX`. The Host and Origin checks are the server's
 (:mod:`pmsm2dof.ui.tuner.server`), which knows the address it is bound to.
 """
 
 import json
+import threading
 from importlib import resources
 from pathlib import Path
 
@@ -53,11 +58,22 @@ class _NotJSON(Exception):
     """The request's body is not declared as JSON."""
 
 
+class _Busy(Exception):
+    """A suggestion is being computed: the server computes one at a time."""
+
+    def __init__(self):
+        super().__init__(
+            "a suggestion is being computed (it uses every core): one at a time, ask again when it is done"
+        )
+
+
 def _error(exc):
     if isinstance(exc, _NotJSON):
         return JSONResponse({"error": str(exc), "param": "Content-Type"}, status_code=415)
     if isinstance(exc, Superseded):
         return JSONResponse({"error": str(exc), "param": None}, status_code=409)
+    if isinstance(exc, _Busy):
+        return JSONResponse({"error": str(exc), "param": None}, status_code=429)
     param = exc.param if isinstance(exc, ConfigError) else None
     return JSONResponse({"error": str(exc), "param": param}, status_code=422)
 
@@ -95,10 +111,12 @@ def create_app(scenario):
     -------
     starlette.applications.Starlette
         Its ``state.tuner`` is the :class:`~pmsm2dof.ui.tuner.experiment.Tuner`, its
-        ``state.slots`` the :class:`~pmsm2dof.ui.tuner.slots.ClientSlots` of its clients.
+        ``state.slots`` the :class:`~pmsm2dof.ui.tuner.slots.ClientSlots` of its clients, its
+        ``state.suggesting`` the lock held while a suggestion is computed.
     """
     tuner = Tuner(scenario)
     slots = ClientSlots()
+    suggesting = threading.Lock()
     plotly_js = plotly_js_path()
 
     async def index(request):
@@ -130,15 +148,29 @@ def create_app(scenario):
             text, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
         )
 
+    async def suggest(request):
+        try:
+            body = await _body(request)
+            if not suggesting.acquire(blocking=False):
+                raise _Busy()
+            try:
+                return JSONResponse(await run_in_threadpool(tuner.suggest, body))
+            finally:
+                suggesting.release()
+        except (_NotJSON, _Busy, ConfigError, SimulationError) as exc:
+            return _error(exc)
+
     routes = [
         Route("/", index),
         Route("/vendor/plotly.min.js", vendor_plotly),
         Route("/api/controls", controls),
         Route("/api/run", run, methods=["POST"]),
         Route("/api/download/{kind}", download, methods=["POST"]),
+        Route("/api/suggest", suggest, methods=["POST"]),
         Mount("/static", StaticFiles(directory=STATIC_DIR), name="static"),
     ]
     app = Starlette(routes=routes)
     app.state.tuner = tuner
     app.state.slots = slots
+    app.state.suggesting = suggesting
     return app

@@ -60,6 +60,20 @@ CHUNK_STEPS = 50_000
 ENTRY_CONTROLS_MAX = 6
 #: Most shaded spans a limit gets on the page: beyond, the spans closest together merge.
 SPANS_MAX = 40
+#: Most plant integration steps one suggestion may take over all the simulations the autotuner
+#: can make (:func:`pmsm2dof.studies.autotune.runs_bound` times the steps of one run).
+SUGGEST_STEPS_MAX = 5 * 10**8
+#: The specification a suggestion takes (:class:`pmsm2dof.studies.autotune.Spec` fields; the forms
+#: searched are the experiment's feedforward and anti-windup).
+SUGGEST_SPEC_KEYS = (
+    "max_overshoot_pct",
+    "min_phase_margin_deg",
+    "min_gain_margin_dB",
+    "max_settling_s",
+    "max_load_dip_rpm_per_Nm",
+    "max_current_limit_time_s",
+    "J_range",
+)
 
 SPEED_CONTROLLER_CONTROLS = ("alpha_radps", "zeta", "m", "Ka", "feedforward", "anti_windup", "method", "Ts_s")
 #: Schedules of the experiment: (name, value key, label, unit).
@@ -495,6 +509,69 @@ class Tuner:
         dsg = design(J_design_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward)
         Gx, GN = dsg.on_plant(J_true_kgm2)
         return bode_data(Gx, GN, alpha_radps, Ts_s) | {"key": key}
+
+    # ---- suggest ---------------------------------------------------------------------
+
+    def suggest(self, body):
+        """Autotune the experiment of the posted control values; return the suggestion (JSON-ready dict).
+
+        ``body`` is ``{"values": {control key: value}, "spec": {field: value}}``, the spec's fields
+        those of :data:`SUGGEST_SPEC_KEYS` (``J_range`` as ``[lo, hi]``); the experiment is the
+        scenario of the values (:meth:`scenario`) and its design inertia the base scenario's. Keys:
+        ``feasible``, ``values`` (the chosen ``speed_controller.*`` control values), ``worst_case``
+        and ``worst_J_ratio``, ``violations`` (sentences; empty when feasible), ``binding``,
+        ``counts`` and ``wall_time_s`` (:meth:`pmsm2dof.studies.autotune.AutotuneResult.as_dict`).
+
+        Raises
+        ------
+        ConfigError
+            Naming ``spec.<field>`` or the control key, or ``simulation.t_end_s`` when the search
+            could take more than :data:`SUGGEST_STEPS_MAX` integration steps.
+        """
+        from ...studies.autotune import Spec, autotune, runs_bound
+
+        for key in body:
+            if key not in ("values", "spec"):
+                raise ConfigError(key, body[key], "'values' (the control values) or 'spec' (the specification)")
+        values, fields = body.get("values", {}), body.get("spec", {})
+        for name, given in (("values", values), ("spec", fields)):
+            if not isinstance(given, dict):
+                raise ConfigError(name, given, "a JSON object")
+        for key in fields:
+            if key not in SUGGEST_SPEC_KEYS:
+                raise ConfigError(f"spec.{key}", fields[key], "one of " + ", ".join(SUGGEST_SPEC_KEYS))
+        try:
+            spec = Spec(**fields)
+        except ConfigError as exc:
+            raise ConfigError(f"spec.{exc.param}", exc.value, exc.valid) from None
+        scenario = self.scenario(values)
+        data = scenario.data
+        sim, Ts_cl = data["simulation"], data["current_loop"]["Ts_s"]
+        h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim["dt_s"] * (1.0 - 1e-9)))
+        runs = runs_bound(scenario, spec)
+        if sim["t_end_s"] / h_s * runs > SUGGEST_STEPS_MAX:
+            raise ConfigError(
+                "simulation.t_end_s",
+                sim["t_end_s"],
+                f"<= {SUGGEST_STEPS_MAX / runs * h_s:.3g} s for a suggestion: the search may simulate the "
+                f"experiment {runs} times, at most {SUGGEST_STEPS_MAX:.0e} integration steps of {h_s:g} s in "
+                "all (pmsm2dof autotune runs longer ones)",
+            )
+        start = time.perf_counter()
+        result = autotune(scenario, spec)
+        out = result.as_dict()
+        return {
+            "feasible": result.feasible,
+            "values": {f"speed_controller.{k}": v for k, v in result.speed_controller.items()},
+            "worst_case": out["worst_case"],
+            "worst_J_ratio": out["worst_J_ratio"],
+            "violations": [v.describe() for v in result.chosen.violations]
+            + ([result.chosen.error] if result.chosen.error else []),
+            "binding": out["binding"],
+            "counts": out["counts"],
+            "wall_time_s": out["wall_time_s"],
+            "server_ms": 1e3 * (time.perf_counter() - start),
+        }
 
     # ---- downloads -------------------------------------------------------------------
 

@@ -38,6 +38,7 @@ window.tuner = {
   lastFetchMs: null,   // request sent -> response parsed, for it
   current: null,      // response on screen
   pinned: null,       // pinned response
+  suggestion: null,   // the last suggestion applied
 };
 
 const state = { specs: {}, values: {}, changedAt: 0, inFlight: false, dirty: false, timer: null };
@@ -263,6 +264,54 @@ async function download(kind) {
     showError(null);
   } catch (error) {
     showError(error);
+  }
+}
+
+/* ---- suggest ------------------------------------------------------------------ */
+
+/* Set a control's widgets and value as if the user had moved it. */
+function setControl(key, value) {
+  const spec = state.specs[key];
+  const row = document.querySelector(`.control[data-key="${key}"]`);
+  if (!spec || !row) return;
+  if (spec.kind === "select") {
+    row.querySelector("select").value = value;
+  } else {
+    const range = row.querySelector('input[type="range"]');
+    const box = row.querySelector('input[type="text"]');
+    const check = row.querySelector('input[type="checkbox"]');
+    if (check) check.checked = value === null;
+    if (value !== null) { box.value = fmt(value); range.value = valueToSlider(spec, value); }
+    range.disabled = box.disabled = check ? check.checked : false;
+  }
+  setValue(key, value);
+}
+
+/* Autotune the experiment of the controls for the specification of the form; apply the design. */
+async function suggest() {
+  const button = document.getElementById("suggest-run");
+  const result = document.getElementById("suggest-result");
+  const number = (id) => { const t = document.getElementById(id).value.trim(); return t === "" ? null : Number(t); };
+  const spec = { J_range: [number("suggest-J-lo"), number("suggest-J-hi")] };
+  const overshoot = number("suggest-overshoot");
+  if (overshoot !== null) spec.max_overshoot_pct = overshoot;
+  button.disabled = true;
+  result.textContent = "searching\u2026";
+  try {
+    const response = await postJSON("api/suggest", { values: requestBody(), spec: spec });
+    const s = await response.json();
+    for (const [key, value] of Object.entries(s.values)) setControl(key, value);
+    result.textContent = (s.feasible ? "applied: it meets the specification" :
+      "applied the closest design, which misses " + s.violations.join("; ")) +
+      ` (worst load dip ${fmt(s.worst_case.load_dip_rpm_per_Nm)} rpm/Nm; ${s.counts.runs} simulations in ` +
+      `${s.wall_time_s.toFixed(1)} s)`;
+    window.tuner.suggestion = s;
+    showError(null);
+  } catch (error) {
+    result.textContent = error.status === 429 ? error.message : "";
+    if (error.status !== 429) showError(error);
+  } finally {
+    button.disabled = false;
   }
 }
 
@@ -499,6 +548,7 @@ async function start() {
   document.getElementById("download-toml").addEventListener("click", () => download("scenario.toml"));
   document.getElementById("download-header").addEventListener("click", () => download("header.h"));
   document.getElementById("download-csv").addEventListener("click", () => download("trace.csv"));
+  document.getElementById("suggest-run").addEventListener("click", suggest);
   state.changedAt = performance.now();
   requestRun();
 }
