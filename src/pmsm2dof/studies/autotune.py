@@ -634,6 +634,7 @@ class _Search:
         return self.edge_radps(zeta, m) or self.alpha_max_radps(zeta, m)
 
     def candidate(self, alpha_radps: float, zeta: float, m: float, Ka_Kp: float, ff: str, aw: str) -> Candidate:
+        """The candidate of these values, rounded to 4 digits (alpha down); Ka from ``Ka Kp``."""
         alpha_radps, zeta = _sig_down(alpha_radps), _sig(zeta)
         m = _sig(m) if ff in ("no_tau", "full") else 1.0
         Kp = self.J_design_kgm2 * alpha_radps
@@ -729,6 +730,8 @@ class _Search:
         return True
 
     def margin_figures(self, c: Candidate) -> tuple[dict[str, float], dict[str, float], str]:
+        """Worst margins of ``c`` over the checked inertia ratios, the ratio of each, and why they are
+        missing (the loop is unstable at a ratio) or empty."""
         worst = {"phase_margin_deg": math.inf, "gain_margin_dB": math.inf}
         at = {"phase_margin_deg": self.J_ratios_checked[0], "gain_margin_dB": self.J_ratios_checked[0]}
         for r in self.J_ratios_checked:
@@ -742,14 +745,16 @@ class _Search:
         return worst, at, ""
 
     def passes_margins(self, c: Candidate) -> bool:
-        worst, _at, error = self.margin_figures(c)
+        """Whether ``c`` is worth simulating: the C controller takes it and its margins hold."""
+        worst, at, error = self.margin_figures(c)
         if error or self.refusal(c):
             return False
         return not any(
-            v.constraint in ("min_phase_margin_deg", "min_gain_margin_dB") for v in self.violations(worst, _at)
+            v.constraint in ("min_phase_margin_deg", "min_gain_margin_dB") for v in self.violations(worst, at)
         )
 
     def violations(self, worst: Mapping[str, float], at: Mapping[str, float]) -> tuple[Violation, ...]:
+        """The constraints of the spec that the worst-case figures known miss."""
         out = []
         for name, limit in self.spec.constraints().items():
             figure, sense, _unit = CONSTRAINTS[name]
