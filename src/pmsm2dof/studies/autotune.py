@@ -569,10 +569,11 @@ def runs_bound(scenario: Scenario, spec: Spec) -> int:
 class _Search:
     """The state of one autotuning: what is known of each candidate, and the runs made."""
 
-    def __init__(self, scenario: Scenario, spec: Spec, workers: int | None) -> None:
+    def __init__(self, scenario: Scenario, spec: Spec, workers: int | None, progress: bool) -> None:
         self.scenario = scenario
         self.spec = spec
         self.workers = workers
+        self.progress = progress
         data = scenario.data
         sc = data["speed_controller"]
         self.J_design_kgm2 = sc["J_kgm2"]
@@ -781,7 +782,9 @@ class _Search:
             )
             for i, (c, r) in enumerate(todo)
         ]
-        outcomes: list[Outcome] = run_many(self.bases, runs, workers=self.workers, description="autotune")
+        outcomes: list[Outcome] = run_many(
+            self.bases, runs, workers=self.workers, progress=self.progress, description="autotune"
+        )
         for (c, r), outcome in zip(todo, outcomes):
             figures = step_figures(outcome.metrics) if outcome.metrics is not None else {}
             record = RunRecord(c, r, figures, outcome.error, outcome.wall_time_s)
@@ -857,7 +860,9 @@ def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
     return tuple(sorted(front, key=lambda e: e.worst["load_dip_rpm_per_Nm"]))
 
 
-def autotune(scenario: Scenario, spec: Spec | None = None, *, workers: int | None = None) -> AutotuneResult:
+def autotune(
+    scenario: Scenario, spec: Spec | None = None, *, workers: int | None = None, progress: bool = False
+) -> AutotuneResult:
     """The anti-windup 2DOF design of smallest worst-case load dip that meets ``spec`` (see the module docstring).
 
     Parameters
@@ -871,6 +876,8 @@ def autotune(scenario: Scenario, spec: Spec | None = None, *, workers: int | Non
         6 dB at the design inertia).
     workers : int, optional
         Local threads of the engine, >= 1 (default: all available cores).
+    progress : bool
+        Show a progress bar (stderr) over each batch of simulations.
 
     Returns
     -------
@@ -899,7 +906,7 @@ def autotune(scenario: Scenario, spec: Spec | None = None, *, workers: int | Non
             scenario.name,
             "a scenario with a load step that changes the load torque (the objective is its speed dip per Nm)",
         )
-    search = _Search(scenario, spec, workers)
+    search = _Search(scenario, spec, workers, progress)
     search.evaluate(search.grid())
     center = search.best().candidate
     step = STEP_FIRST

@@ -768,7 +768,7 @@ def autotune(
             require_writable_dir(out)
         if header is not None:
             _require_writable_file(header)
-        result = run_autotune(chosen, spec, workers=workers)
+        result = run_autotune(chosen, spec, workers=workers, progress=True)
         if out is not None:
             from .plots.autotune import plot_pareto
 

@@ -19,6 +19,7 @@ def plot_pareto(result: AutotuneResult, path: Path | str) -> Path:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib import ticker
 
     simulated = [e for e in result.evaluations if e.stage == "engine" and not e.error]
     fig, ax = plt.subplots(figsize=(7.5, 5.0), layout="constrained")
@@ -52,6 +53,9 @@ def plot_pareto(result: AutotuneResult, path: Path | str) -> Path:
     ax.scatter(cx, cy, marker="*", s=250, color="tab:red", edgecolors="black", label="chosen", zorder=5)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    for axis in (ax.xaxis, ax.yaxis):  # plain numbers at 1, 2 and 5 of each decade, never overlapping
+        axis.set_major_formatter(ticker.FuncFormatter(lambda v, _pos: f"{v:g}"))
+        axis.set_minor_formatter(ticker.FuncFormatter(lambda v, _pos: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
     ax.set_xlabel("worst-case speed dip per Nm of load [rpm/Nm]")
     ax.set_ylabel("worst-case tracking IAE [rpm s]")
     lo, hi = result.spec.J_range
