@@ -292,6 +292,8 @@ def servo_file(tmp_path):
         (["--feedforward", "fast"], "--feedforward"),
         (["--anti-windup", "clamp"], "--anti-windup"),
         (["--workers", "0"], "--workers"),
+        (["--workers", "2", "--scheduler", "tcp://127.0.0.1:9"], "--workers"),
+        (["--scheduler", "127.0.0.1:9"], "--scheduler"),
         (["--set", "load=[]"], "scenario"),
         (["--set", "motor.J_kgm2=0"], "motor.J_kgm2"),
         (["--emit-c-header", "missing/dir/x.h"], "--emit-c-header"),
@@ -355,3 +357,17 @@ def test_cli_exits_1_and_names_the_binding_constraint_when_nothing_meets_the_spe
     assert code == 1, err
     assert "NO design meets the specification" in stdout
     assert "binding constraint: max_settling_s" in stdout
+
+
+@pytest.mark.slow
+def test_on_a_dask_cluster_the_search_chooses_what_it_chooses_on_threads():
+    distributed = pytest.importorskip("dask.distributed")
+    spec = Spec(max_overshoot_pct=5.0, J_range=(0.8, 1.25))
+    local = autotune(servo(), spec, workers=2)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, protocol="tcp://", host="127.0.0.1", dashboard_address=None
+    ) as cluster:
+        remote = autotune(servo(), spec, scheduler=cluster.scheduler_address)
+    assert remote.speed_controller == local.speed_controller
+    assert remote.chosen.worst == local.chosen.worst
+    assert len(remote.runs) == len(local.runs)

@@ -11,7 +11,8 @@ of the true inertia to the design inertia):
    eq 2, 3, 9, 14); a candidate that is unstable or misses a margin anywhere is not simulated;
 2. then the saturated ones: the candidates left are simulated (the scenario's speed and load
    steps, with the current limit where the scenario drives the drive to it) at the ends and the
-   geometric middle of the range, in batches on threads (:func:`pmsm2dof.studies.engine.run_many`);
+   geometric middle of the range, in batches on threads or the workers of a Dask cluster
+   (:func:`pmsm2dof.studies.engine.run_many`);
 3. for each zeta, the margins give the edge: the largest ``alpha`` whose loop meets them at
    every inertia ratio (bisection; at most the stability bound ``alpha < 4 zeta^2 / tau_i`` of
    eq 8 and the sampling bound of :data:`~pmsm2dof.analysis.discretize.MAX_W_TS`); the search
@@ -45,7 +46,7 @@ from ..analysis.margins import Margins
 from ..core import ANTI_WINDUPS, FEEDFORWARDS
 from ..errors import ConfigError
 from ..sim.scenario import Scenario
-from .engine import Outcome, Run, check_options, run_many
+from .engine import Outcome, Run, check_options, connect, run_many
 
 #: Inertia ratios at which the margins are checked, and the best design is simulated again.
 N_J_CHECK = 9
@@ -569,10 +570,11 @@ def runs_bound(scenario: Scenario, spec: Spec) -> int:
 class _Search:
     """The state of one autotuning: what is known of each candidate, and the runs made."""
 
-    def __init__(self, scenario: Scenario, spec: Spec, workers: int | None, progress: bool) -> None:
+    def __init__(self, scenario: Scenario, spec: Spec, workers: int | None, client: Any, progress: bool) -> None:
         self.scenario = scenario
         self.spec = spec
         self.workers = workers
+        self.client = client
         self.progress = progress
         data = scenario.data
         sc = data["speed_controller"]
@@ -783,7 +785,7 @@ class _Search:
             for i, (c, r) in enumerate(todo)
         ]
         outcomes: list[Outcome] = run_many(
-            self.bases, runs, workers=self.workers, progress=self.progress, description="autotune"
+            self.bases, runs, workers=self.workers, client=self.client, progress=self.progress, description="autotune"
         )
         for (c, r), outcome in zip(todo, outcomes):
             figures = step_figures(outcome.metrics) if outcome.metrics is not None else {}
@@ -861,7 +863,12 @@ def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
 
 
 def autotune(
-    scenario: Scenario, spec: Spec | None = None, *, workers: int | None = None, progress: bool = False
+    scenario: Scenario,
+    spec: Spec | None = None,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool = False,
 ) -> AutotuneResult:
     """The anti-windup 2DOF design of smallest worst-case load dip that meets ``spec`` (see the module docstring).
 
@@ -875,7 +882,10 @@ def autotune(
         The constraints and the inertia range; default :class:`Spec` () (margins 45 deg and
         6 dB at the design inertia).
     workers : int, optional
-        Local threads of the engine, >= 1 (default: all available cores).
+        Local threads of the engine, >= 1 (default: all available cores). Not with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask distributed scheduler (``tcp://host:port``): the simulations
+        run on its workers, which need pmsm2dof installed (:func:`pmsm2dof.studies.engine.connect`).
     progress : bool
         Show a progress bar (stderr) over each batch of simulations.
 
@@ -889,7 +899,7 @@ def autotune(
     ------
     ConfigError
         ``scenario`` not a Scenario or without a load step, ``spec`` not a Spec, ``workers``
-        out of range.
+        out of range, ``scheduler`` not the address of a running scheduler.
     """
     start = time.perf_counter()
     if not isinstance(scenario, Scenario):
@@ -898,7 +908,7 @@ def autotune(
         spec = Spec()
     if not isinstance(spec, Spec):
         raise ConfigError("spec", type(spec).__name__, "a pmsm2dof Spec")
-    check_options(workers)
+    check_options(workers, scheduler)
     loads = [entry["torque_Nm"] for entry in scenario.data["load"]]
     if not any(b != a for b, a in zip([0.0] + loads, loads)):
         raise ConfigError(
@@ -906,28 +916,29 @@ def autotune(
             scenario.name,
             "a scenario with a load step that changes the load torque (the objective is its speed dip per Nm)",
         )
-    search = _Search(scenario, spec, workers, progress)
-    search.evaluate(search.grid())
-    center = search.best().candidate
-    step = STEP_FIRST
-    for _ in range(REFINE_ROUNDS):
-        search.evaluate(search.neighbours(center, step))
-        new = search.best().candidate
-        if new == center:
-            step = math.sqrt(step)
-            if step < REFINE_STEP_MIN:
+    with connect(scheduler) as client:
+        search = _Search(scenario, spec, workers, client, progress)
+        search.evaluate(search.grid())
+        center = search.best().candidate
+        step = STEP_FIRST
+        for _ in range(REFINE_ROUNDS):
+            search.evaluate(search.neighbours(center, step))
+            new = search.best().candidate
+            if new == center:
+                step = math.sqrt(step)
+                if step < REFINE_STEP_MIN:
+                    break
+            center = new
+        # the best design again over the whole range, until the best one has been checked there
+        checked: set[Candidate] = set()
+        for _ in range(CHECK_MAX):
+            best = search.best()
+            if best.candidate in checked or not best.feasible:
                 break
-        center = new
-    # the best design again over the whole range, until the best one has been checked there
-    checked: set[Candidate] = set()
-    for _ in range(CHECK_MAX):
-        best = search.best()
-        if best.candidate in checked or not best.feasible:
-            break
-        search.evaluate([best.candidate], search.J_ratios_checked)
-        checked.add(best.candidate)
-    held = [e for e in map(search.evaluation, checked) if e.feasible]
-    chosen = min(held, key=_Search.rank) if held else search.best()
+            search.evaluate([best.candidate], search.J_ratios_checked)
+            checked.add(best.candidate)
+        held = [e for e in map(search.evaluation, checked) if e.feasible]
+        chosen = min(held, key=_Search.rank) if held else search.best()
     evaluations = search.evaluations()
     binding = None
     if not chosen.feasible and chosen.violations:

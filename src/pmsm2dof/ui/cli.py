@@ -614,6 +614,7 @@ _AUTOTUNE_OPTIONS = {
     "feedforwards": "--feedforward",
     "anti_windups": "--anti-windup",
     "workers": "--workers",
+    "scheduler": "--scheduler",
     "out": "--out",
     "path": "--emit-c-header",
 }
@@ -701,6 +702,12 @@ def _csv_text(rows):
     "[default: the scenario's]",
 )
 @click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDRESS",
+    help="run the simulations on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)",
+)
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the summary")
 @click.option(
     "--out",
@@ -728,6 +735,7 @@ def autotune(
     feedforwards,
     anti_windups,
     workers,
+    scheduler,
     as_json,
     out,
     header,
@@ -768,7 +776,7 @@ def autotune(
             require_writable_dir(out)
         if header is not None:
             _require_writable_file(header)
-        result = run_autotune(chosen, spec, workers=workers, progress=True)
+        result = run_autotune(chosen, spec, workers=workers, scheduler=scheduler, progress=True)
         if out is not None:
             from .plots.autotune import plot_pareto
 
