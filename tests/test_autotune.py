@@ -371,3 +371,18 @@ def test_on_a_dask_cluster_the_search_chooses_what_it_chooses_on_threads():
     assert remote.speed_controller == local.speed_controller
     assert remote.chosen.worst == local.chosen.worst
     assert len(remote.runs) == len(local.runs)
+
+
+@pytest.mark.slow
+def test_the_forms_of_eq_11_and_clamping_stay_within_the_bound_of_the_work():
+    from pmsm2dof.studies.autotune import runs_bound
+
+    spec = Spec(max_overshoot_pct=5.0, J_range=(0.8, 1.25), feedforwards=("no_tau", "full"), anti_windups=("clamping",))
+    result = autotune(servo(), spec, workers=2)
+    assert len(result.runs) <= runs_bound(servo(), spec)
+    keys = result.speed_controller
+    assert keys["feedforward"] in ("no_tau", "full") and keys["anti_windup"] == "clamping"
+    assert {e.candidate.m for e in result.evaluations} != {1.0}  # m is searched with the feedforwards of eq 11
+    assert result.feasible
+    overshoot, _settling_s, _dip = figures(keys, 1.25)
+    assert overshoot <= 5.0
