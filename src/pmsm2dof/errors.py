@@ -7,6 +7,10 @@ The CLI turns both into one line on stderr and exit status 2.
 """
 
 import math
+from collections.abc import Callable, Collection
+from typing import Any, TypeVar
+
+_T = TypeVar("_T")
 
 
 class Pmsm2dofError(Exception):
@@ -16,7 +20,7 @@ class Pmsm2dofError(Exception):
 class ConfigError(Pmsm2dofError, ValueError):
     """An input parameter is missing, of the wrong type or out of its valid range."""
 
-    def __init__(self, param, value, valid):
+    def __init__(self, param: str, value: object, valid: str) -> None:
         self.param = param
         self.value = value
         self.valid = valid
@@ -27,24 +31,24 @@ class SimulationError(Pmsm2dofError, RuntimeError):
     """The simulation or a numerical computation produced non-finite or absurd values."""
 
 
-def require_positive(param, value):
+def require_positive(param: str, value: Any) -> float:
     """Return ``float(value)`` if it is a finite number > 0, else raise ConfigError."""
     return _require(param, value, lambda v: v > 0, "finite and > 0")
 
 
-def require_nonnegative(param, value):
+def require_nonnegative(param: str, value: Any) -> float:
     """Return ``float(value)`` if it is a finite number >= 0, else raise ConfigError."""
     return _require(param, value, lambda v: v >= 0, "finite and >= 0")
 
 
-def require_choice(param, value, choices):
+def require_choice(param: str, value: _T, choices: Collection[_T]) -> _T:
     """Return ``value`` if it is one of ``choices``, else raise ConfigError."""
     if value not in choices:
         raise ConfigError(param, value, "one of " + ", ".join(repr(c) for c in choices))
     return value
 
 
-def _require(param, value, ok, valid):
+def _require(param: str, value: Any, ok: Callable[[float], bool], valid: str) -> float:
     if isinstance(value, bool):
         raise ConfigError(param, value, valid)
     try:

@@ -8,12 +8,13 @@ import contextlib
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 
 from .errors import ConfigError
 
 
-def _stage(out):
+def _stage(out: Path | str) -> Path:
     """Create and return the temporary sibling folder of ``out``, or raise ConfigError."""
     out = Path(out)
     if out.exists() and not out.is_dir():
@@ -26,13 +27,13 @@ def _stage(out):
         raise ConfigError("out", str(out), f"a writable folder ({exc.strerror})") from None
 
 
-def require_writable_dir(out):
+def require_writable_dir(out: Path | str) -> None:
     """Raise ConfigError now, before any long work, if ``out`` cannot be written as a folder."""
     _stage(out).rmdir()
 
 
 @contextlib.contextmanager
-def staged_dir(out):
+def staged_dir(out: Path | str) -> Iterator[Path]:
     """Yield a temporary folder whose files replace those in ``out`` on success.
 
     On an exception the temporary folder is removed and ``out`` is untouched.
@@ -51,7 +52,7 @@ def staged_dir(out):
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def atomic_write(path, data):
+def atomic_write(path: Path | str, data: bytes | str) -> None:
     """Write ``data`` (bytes or str) to ``path`` through a temporary file and a rename."""
     path = Path(path)
     mode = "wb" if isinstance(data, bytes) else "w"
