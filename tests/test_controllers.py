@@ -2,6 +2,7 @@
 
 import dataclasses
 import math
+import typing
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from pmsm2dof.core import (
     CurrentOutput,
     SpeedController,
     SpeedOutput,
+    bindings,
 )
 from pmsm2dof.core.bindings import lib
 from pmsm2dof.errors import ConfigError
@@ -45,6 +47,13 @@ def test_choice_tuples_are_the_c_enum_values():
     assert [getattr(lib, n) for n in ("P2D_AW_NONE", "P2D_AW_BACK_CALCULATION", "P2D_AW_CLAMPING")] == [
         ANTI_WINDUPS.index(a) for a in ANTI_WINDUPS
     ]
+
+
+def test_literal_types_name_the_choices_read_from_c():
+    # the annotations' Literal types are written by hand; the tuples are read from the C enums
+    assert typing.get_args(bindings.Method) == METHODS
+    assert typing.get_args(bindings.Feedforward) == FEEDFORWARDS
+    assert typing.get_args(bindings.AntiWindup) == ANTI_WINDUPS
 
 
 def test_every_status_code_names_a_parameter_of_the_bindings():

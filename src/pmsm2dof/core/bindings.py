@@ -8,15 +8,22 @@ second time: the choices of the enums (:func:`enum_names`), the fields of the C 
 only module that imports the extension.
 """
 
+from typing import Literal
+
+# the extension has no type information: ``ffi`` (cffi.FFI) and ``lib`` (its compiled library)
+# are typed Any, as are the C objects they return
 from .._core import ffi, lib
 
 __all__ = [
     "ANTI_WINDUPS",
+    "AntiWindup",
     "CURRENT_LOOP_MODELS",
     "FAULT_KINDS",
     "FEEDFORWARDS",
+    "Feedforward",
     "LOG_COLUMNS",
     "METHODS",
+    "Method",
     "c_string",
     "enum_names",
     "ffi",
@@ -27,7 +34,8 @@ __all__ = [
 
 def c_string(pointer: object) -> str:
     """The C string ``pointer`` (``const char *``) as a Python str."""
-    return ffi.string(pointer).decode()
+    text: bytes = ffi.string(pointer)
+    return text.decode()
 
 
 def enum_names(ctype: str, prefix: str) -> tuple[str, ...]:
@@ -40,7 +48,7 @@ def enum_names(ctype: str, prefix: str) -> tuple[str, ...]:
     elements = ffi.typeof(ctype).elements
     if sorted(elements) != list(range(len(elements))):
         raise RuntimeError(f"{ctype}: values {sorted(elements)} are not 0..{len(elements) - 1}")
-    names = []
+    names: list[str] = []
     for value in range(len(elements)):
         name = elements[value]
         if not name.startswith(prefix):
@@ -53,6 +61,12 @@ def struct_fields(ctype: str) -> dict[str, str]:
     """The fields of the C struct ``ctype`` in declaration order: ``{name: C type name}``."""
     return {name: field.type.cname for name, field in ffi.typeof(ctype).fields}
 
+
+# The choices of the enums of the API's arguments as types for the annotations: the same names as the tuples below,
+# which are read from C (tests/test_controllers.py checks that both agree).
+Method = Literal["forward_euler", "backward_euler", "tustin"]
+Feedforward = Literal["none", "lowpass", "no_tau", "full"]
+AntiWindup = Literal["none", "back_calculation", "clamping"]
 
 #: Discretization methods (paper Table 1); the index is the C ``p2d_method_t`` value.
 METHODS = enum_names("p2d_method_t", "P2D_")

@@ -18,17 +18,31 @@ Permanent-Magnet Synchronous Motor Speed Controller".
 import dataclasses
 import math
 import numbers
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import ConfigError
-from .bindings import ANTI_WINDUPS, FEEDFORWARDS, METHODS, c_string, ffi, lib, struct_fields
+from .bindings import (
+    ANTI_WINDUPS,
+    FEEDFORWARDS,
+    METHODS,
+    AntiWindup,
+    Feedforward,
+    Method,
+    c_string,
+    ffi,
+    lib,
+    struct_fields,
+)
 
 #: The choices of each enum type of the C configurations, indexed by their C value.
 _CHOICES = {"p2d_method_t": METHODS, "p2d_feedforward_t": FEEDFORWARDS, "p2d_anti_windup_t": ANTI_WINDUPS}
 
 
-def _float_param(name, value):
+def _float_param(name: str, value: object) -> float:
     """``value`` as a Python float, for a float32 field of a C configuration.
 
     Only the type is checked here; the C init checks the range (it knows it)
@@ -39,7 +53,7 @@ def _float_param(name, value):
     return float(value)
 
 
-def _finite(name, value):
+def _finite(name: str, value: object) -> float:
     """``value`` as a finite Python float, else ConfigError naming ``name``."""
     v = _float_param(name, value)
     if not math.isfinite(v):
@@ -47,14 +61,14 @@ def _finite(name, value):
     return v
 
 
-def _choice_param(name, value, choices):
+def _choice_param(name: str, value: object, choices: Sequence[str]) -> int:
     """Index of the string ``value`` in ``choices`` (the C enum value)."""
     if not isinstance(value, str) or value not in choices:
         raise ConfigError(name, value, "one of " + ", ".join(repr(c) for c in choices))
     return choices.index(value)
 
 
-def _set_fields(cfg, fields, params):
+def _set_fields(cfg: Any, fields: Mapping[str, str], params: Mapping[str, Any]) -> None:
     """Write ``params`` into the C configuration ``cfg``, field by field as its C type asks.
 
     ``fields`` maps a field to its C type (:func:`~pmsm2dof.core.bindings.struct_fields`):
@@ -66,7 +80,7 @@ def _set_fields(cfg, fields, params):
         if ctype == "float":
             setattr(cfg, name, _float_param(name, value))
         elif ctype == "uint32_t":
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= value <= 0xFFFFFFFF:
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) <= 0xFFFFFFFF:
                 raise ConfigError(name, value, "an integer >= 1")
             setattr(cfg, name, int(value))
         elif ctype in _CHOICES:
@@ -77,9 +91,9 @@ def _set_fields(cfg, fields, params):
             setattr(cfg, name, bool(value))
 
 
-def _get_fields(cfg, fields):
+def _get_fields(cfg: Any, fields: Mapping[str, str]) -> dict[str, Any]:
     """The C configuration ``cfg`` as a dict of Python values: floats, ints, enum names, bools."""
-    values = {}
+    values: dict[str, Any] = {}
     for name, ctype in fields.items():
         value = getattr(cfg, name)
         if ctype in _CHOICES:
@@ -90,7 +104,7 @@ def _get_fields(cfg, fields):
     return values
 
 
-def _raise_status(status, given):
+def _raise_status(status: int, given: Mapping[str, Any]) -> None:
     """Raise the ConfigError of a non-zero C status, with the value the user gave.
 
     A value that float32 cannot hold (it overflows to inf or rounds to 0) is
@@ -107,7 +121,7 @@ def _raise_status(status, given):
     raise ConfigError(param, value, valid)
 
 
-def _structured_dtype(ctype, fields):
+def _structured_dtype(ctype: str, fields: Mapping[str, str]) -> np.dtype[np.void]:
     """A numpy dtype with the memory layout of the C struct ``ctype``."""
     return np.dtype(
         {
@@ -119,23 +133,23 @@ def _structured_dtype(ctype, fields):
     )
 
 
-def _as_inputs(names, values):
+def _as_inputs(names: Sequence[str], values: Sequence[npt.ArrayLike]) -> list[npt.NDArray[np.float32]]:
     """Broadcast the inputs of a ``run`` to contiguous 1-D float32 arrays of one length."""
-    arrays = []
+    arrays: list[npt.NDArray[np.float64]] = []
     for name, value in zip(names, values):
         a = np.asarray(value, dtype=np.float64)
         if a.ndim > 1:
             raise ConfigError(name, f"array of shape {a.shape}", "a scalar or a 1-D array")
         arrays.append(a)
     try:
-        arrays = np.broadcast_arrays(*arrays)
+        broadcast = np.broadcast_arrays(*arrays)
     except ValueError:
         shapes = ", ".join(f"{n}: {a.shape}" for n, a in zip(names, arrays))
         raise ConfigError(names[1], shapes, "arrays of equal length (or scalars)") from None
-    return [np.ascontiguousarray(np.atleast_1d(a), dtype=np.float32) for a in arrays]
+    return [np.ascontiguousarray(np.atleast_1d(a), dtype=np.float32) for a in broadcast]
 
 
-def _float_ptr(array):
+def _float_ptr(array: npt.NDArray[np.float32]) -> Any:  # a cffi ``float *``
     return ffi.cast("float *", ffi.from_buffer(array))
 
 
@@ -241,24 +255,24 @@ class SpeedController:
     def __init__(
         self,
         *,
-        J_kgm2,
-        alpha_radps,
-        zeta,
-        m=1.0,
-        tau_i_s=0.0,
-        Ka=None,
-        Ts_s,
-        i_max_A,
-        psi_f_Wb,
-        Ld_H,
-        Lq_H,
-        pole_pairs,
-        method="tustin",
-        feedforward="lowpass",
-        anti_windup="back_calculation",
-    ):
-        self._ctl = ffi.new("p2d_speed_t *")
-        params = dict(
+        J_kgm2: float,
+        alpha_radps: float,
+        zeta: float,
+        m: float = 1.0,
+        tau_i_s: float = 0.0,
+        Ka: float | None = None,
+        Ts_s: float,
+        i_max_A: float,
+        psi_f_Wb: float,
+        Ld_H: float,
+        Lq_H: float,
+        pole_pairs: int,
+        method: Method = "tustin",
+        feedforward: Feedforward = "lowpass",
+        anti_windup: AntiWindup = "back_calculation",
+    ) -> None:
+        self._ctl = ffi.new("p2d_speed_t *")  # cffi ``p2d_speed_t *``
+        params: dict[str, Any] = dict(
             J_kgm2=J_kgm2, alpha_radps=alpha_radps, zeta=zeta, m=m, tau_i_s=tau_i_s, Ka=Ka, Ts_s=Ts_s,
             i_max_A=i_max_A, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, pole_pairs=pole_pairs,
             method=method, feedforward=feedforward, anti_windup=anti_windup,
@@ -270,8 +284,8 @@ class SpeedController:
         self._params = params
 
     @staticmethod
-    def _c_config(params):
-        """The C configuration of ``params``; type errors raise ConfigError."""
+    def _c_config(params: Mapping[str, Any]) -> Any:
+        """The C configuration of ``params`` (a cffi ``p2d_speed_config_t *``); type errors raise ConfigError."""
         cfg = ffi.new("p2d_speed_config_t *")
         _set_fields(cfg, {name: t for name, t in _SPEED_CONFIG_FIELDS.items() if name != "Ka"}, params)
         if params["Ka"] is None:
@@ -281,7 +295,7 @@ class SpeedController:
             cfg.Ka = _float_param("Ka", params["Ka"])
         return cfg
 
-    def set_config(self, **changes):
+    def set_config(self, **changes: Any) -> None:
         """Change parameters atomically, keeping the controller state.
 
         The new configuration is validated and its coefficients computed into the
@@ -300,29 +314,29 @@ class SpeedController:
             _raise_status(status, _given_speed(params, cfg))
         self._params = params
 
-    def reset(self, w_ref_radps=0.0, T_init_Nm=0.0):
+    def reset(self, w_ref_radps: float = 0.0, T_init_Nm: float = 0.0) -> None:
         """Bumpless reset: feedforward at steady state for a constant ``w_ref_radps``,
         integrator such that the output is ``T_init_Nm`` at zero error."""
         lib.p2d_speed_reset(self._ctl, _finite("w_ref_radps", w_ref_radps), _finite("T_init_Nm", T_init_Nm))
 
-    def compute(self, w_ref_radps, w_m_radps):
+    def compute(self, w_ref_radps: float, w_m_radps: float) -> SpeedOutput:
         """The command for this sample [rad/s in]; the state is not changed."""
         out = ffi.new("p2d_speed_output_t *")
         lib.p2d_speed_compute(self._ctl, float(w_ref_radps), float(w_m_radps), out)
         return _speed_output(out)
 
-    def update(self, output, T_applied_Nm):
+    def update(self, output: SpeedOutput, T_applied_Nm: float) -> None:
         """Update the state with the torque actually applied after every limit [Nm]."""
         out = ffi.new("p2d_speed_output_t *", dataclasses.asdict(output))
         lib.p2d_speed_update(self._ctl, out, float(T_applied_Nm))
 
-    def step(self, w_ref_radps, w_m_radps):
+    def step(self, w_ref_radps: float, w_m_radps: float) -> SpeedOutput:
         """:meth:`compute` and :meth:`update` with the controller's own limited torque."""
         out = ffi.new("p2d_speed_output_t *")
         lib.p2d_speed_step(self._ctl, float(w_ref_radps), float(w_m_radps), out)
         return _speed_output(out)
 
-    def run(self, w_ref_radps, w_m_radps):
+    def run(self, w_ref_radps: npt.ArrayLike, w_m_radps: npt.ArrayLike) -> dict[str, npt.NDArray[Any]]:
         """Run :meth:`step` over whole arrays in one C call (``p2d_speed_run``).
 
         Parameters
@@ -352,22 +366,22 @@ class SpeedController:
         return result
 
     @property
-    def Kp(self):
+    def Kp(self) -> float:
         """Proportional gain J alpha [Nm/(rad/s)] (eq 9)."""
-        return self._coef.pi.Kp
+        return float(self._coef.pi.Kp)
 
     @property
-    def Ki(self):
+    def Ki(self) -> float:
         """Integral gain J (alpha / (2 zeta))**2 [Nm/rad] (eq 9)."""
-        return self._coef.pi.Ki
+        return float(self._coef.pi.Ki)
 
     @property
-    def Ka(self):
+    def Ka(self) -> float:
         """Back-calculation gain in use [(rad/s)/Nm] (1/Kp unless given)."""
-        return self._ctl.config.Ka
+        return float(self._ctl.config.Ka)
 
     @property
-    def coefficients(self):
+    def coefficients(self) -> dict[str, float | bool]:
         """The active precomputed coefficients (the C ``p2d_speed_coef_t``, its PI ``pi`` flattened) as a dict."""
         c = self._coef
         coef = _struct_dict(c.pi, "p2d_pi_coef_t")
@@ -375,7 +389,7 @@ class SpeedController:
         return coef
 
     @property
-    def config(self):
+    def config(self) -> dict[str, Any]:
         """The active configuration as float32 values; ``Ka`` is None when it is the default 1/Kp.
 
         ``SpeedController(**ctl.config)`` builds an equal controller.
@@ -386,7 +400,7 @@ class SpeedController:
         return cfg
 
     @property
-    def state(self):
+    def state(self) -> dict[str, float]:
         """Controller state: ``x_Nm``, ``r_prev_radps`` and ``y_ff_prev_Nm``.
 
         ``x_Nm`` is the integrator plus the static feedforward, x = x_i + Fr(0) r[k-1]
@@ -396,35 +410,35 @@ class SpeedController:
         return {"x_Nm": c.x_Nm, "r_prev_radps": c.r_prev_radps, "y_ff_prev_Nm": c.y_ff_prev_Nm}
 
     @property
-    def x_i_Nm(self):
+    def x_i_Nm(self) -> float:
         """Integral of the PI, x_i = x - Fr(0) r[k-1] [Nm] (``p2d_speed_integrator_Nm``)."""
-        return lib.p2d_speed_integrator_Nm(self._ctl)
+        return float(lib.p2d_speed_integrator_Nm(self._ctl))
 
     @property
-    def fault_count(self):
+    def fault_count(self) -> int:
         """Samples rejected so far by the non-finite policy (not cleared by :meth:`reset`)."""
-        return self._ctl.fault_count
+        return int(self._ctl.fault_count)
 
     @property
-    def _coef(self):
+    def _coef(self) -> Any:  # cffi ``p2d_speed_coef_t``
         return self._ctl.coef[self._ctl.active]
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return "SpeedController(" + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
 
 
-def _given_speed(params, cfg):
+def _given_speed(params: Mapping[str, Any], cfg: Any) -> dict[str, Any]:
     """The parameters as the user gave them, for error messages; a default Ka shows its value."""
     if params["Ka"] is None:
         return {**params, "Ka": f"None (default 1/Kp = {cfg.Ka:.6g})"}
-    return params
+    return dict(params)
 
 
-def _speed_output(out):
+def _speed_output(out: Any) -> SpeedOutput:
     return SpeedOutput(**{name: getattr(out, name) for name in _SPEED_OUTPUT_FIELDS})
 
 
-def _struct_dict(cdata, ctype):
+def _struct_dict(cdata: Any, ctype: str) -> dict[str, Any]:
     """The fields of a flat C struct of numbers and bools as a dict."""
     return {name: getattr(cdata, name) for name, _ in ffi.typeof(ctype).fields}
 
@@ -503,18 +517,18 @@ class CurrentController:
     def __init__(
         self,
         *,
-        Rs_ohm,
-        Ld_H,
-        Lq_H,
-        psi_f_Wb,
-        tau_i_s,
-        Ts_s,
-        method="tustin",
-        anti_windup="back_calculation",
-        decouple=True,
-    ):
-        self._ctl = ffi.new("p2d_current_t *")
-        params = dict(
+        Rs_ohm: float,
+        Ld_H: float,
+        Lq_H: float,
+        psi_f_Wb: float,
+        tau_i_s: float,
+        Ts_s: float,
+        method: Method = "tustin",
+        anti_windup: AntiWindup = "back_calculation",
+        decouple: bool = True,
+    ) -> None:
+        self._ctl = ffi.new("p2d_current_t *")  # cffi ``p2d_current_t *``
+        params: dict[str, Any] = dict(
             Rs_ohm=Rs_ohm, Ld_H=Ld_H, Lq_H=Lq_H, psi_f_Wb=psi_f_Wb, tau_i_s=tau_i_s, Ts_s=Ts_s,
             method=method, anti_windup=anti_windup, decouple=decouple,
         )  # fmt: skip
@@ -524,12 +538,12 @@ class CurrentController:
         self._params = params
 
     @staticmethod
-    def _c_config(params):
+    def _c_config(params: Mapping[str, Any]) -> Any:  # cffi ``p2d_current_config_t *``
         cfg = ffi.new("p2d_current_config_t *")
         _set_fields(cfg, _CURRENT_CONFIG_FIELDS, params)
         return cfg
 
-    def set_config(self, **changes):
+    def set_config(self, **changes: Any) -> None:
         """Change parameters atomically, keeping the integrator states.
 
         Invalid parameters raise :class:`ConfigError` and leave the old configuration active.
@@ -545,11 +559,13 @@ class CurrentController:
             _raise_status(status, params)
         self._params = params
 
-    def reset(self):
+    def reset(self) -> None:
         """Clear both integrators."""
         lib.p2d_current_reset(self._ctl)
 
-    def compute(self, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V):
+    def compute(
+        self, id_ref_A: float, iq_ref_A: float, id_A: float, iq_A: float, w_e_radps: float, u_dc_V: float
+    ) -> CurrentOutput:
         """The voltage command for this sample; the state is not changed.
 
         ``w_e_radps`` is the electrical speed, ``u_dc_V`` the measured DC-link voltage.
@@ -560,12 +576,14 @@ class CurrentController:
         )
         return _current_output(out)
 
-    def update(self, output, ud_applied_V, uq_applied_V):
+    def update(self, output: CurrentOutput, ud_applied_V: float, uq_applied_V: float) -> None:
         """Update the integrators with the voltage actually applied [V]."""
         out = ffi.new("p2d_current_output_t *", dataclasses.asdict(output))
         lib.p2d_current_update(self._ctl, out, float(ud_applied_V), float(uq_applied_V))
 
-    def step(self, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V):
+    def step(
+        self, id_ref_A: float, iq_ref_A: float, id_A: float, iq_A: float, w_e_radps: float, u_dc_V: float
+    ) -> CurrentOutput:
         """:meth:`compute` and :meth:`update` with the controller's own limited voltage."""
         out = ffi.new("p2d_current_output_t *")
         lib.p2d_current_step(
@@ -573,7 +591,15 @@ class CurrentController:
         )
         return _current_output(out)
 
-    def run(self, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V):
+    def run(
+        self,
+        id_ref_A: npt.ArrayLike,
+        iq_ref_A: npt.ArrayLike,
+        id_A: npt.ArrayLike,
+        iq_A: npt.ArrayLike,
+        w_e_radps: npt.ArrayLike,
+        u_dc_V: npt.ArrayLike,
+    ) -> dict[str, npt.NDArray[Any]]:
         """Run :meth:`step` over whole arrays in one C call (``p2d_current_run``).
 
         All inputs are 1-D arrays of one length or scalars (broadcast). Returns a
@@ -595,7 +621,7 @@ class CurrentController:
         return result
 
     @property
-    def coefficients(self):
+    def coefficients(self) -> dict[str, Any]:
         """The active coefficients: ``d`` and ``q`` PI dicts, decoupling terms, ``clamping``."""
         c = self._ctl.coef[self._ctl.active]
         coef = _struct_dict(c, "p2d_current_coef_t")
@@ -604,23 +630,23 @@ class CurrentController:
         return coef
 
     @property
-    def config(self):
+    def config(self) -> dict[str, Any]:
         """The active configuration (float32 values); ``CurrentController(**ctl.config)`` rebuilds it."""
         return _get_fields(self._ctl.config, _CURRENT_CONFIG_FIELDS)
 
     @property
-    def state(self):
+    def state(self) -> dict[str, float]:
         """Integrator states ``x_d_V`` and ``x_q_V`` [V]."""
         return {"x_d_V": self._ctl.x_d_V, "x_q_V": self._ctl.x_q_V}
 
     @property
-    def fault_count(self):
+    def fault_count(self) -> int:
         """Samples rejected so far by the non-finite policy."""
-        return self._ctl.fault_count
+        return int(self._ctl.fault_count)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return "CurrentController(" + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
 
 
-def _current_output(out):
+def _current_output(out: Any) -> CurrentOutput:
     return CurrentOutput(**{name: getattr(out, name) for name in _CURRENT_OUTPUT_FIELDS})
