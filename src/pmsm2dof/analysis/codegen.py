@@ -13,13 +13,21 @@ configuration initializes without error.
 """
 
 import re
+from collections.abc import Iterable, Mapping, Sequence
 from importlib.metadata import version
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
+from ..core.bindings import AntiWindup, Method
 from ..errors import ConfigError, require_choice, require_positive
 from ..outputs import atomic_write
+
+if TYPE_CHECKING:
+    from .discretize import DiscreteDesign
 
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
 
@@ -61,7 +69,7 @@ _ENUMS = {
 }
 
 
-def c_float(x):
+def c_float(x: float) -> str:
     """A C float literal (``f`` suffix) with the shortest digits that round-trip ``float32(x)``."""
     if not abs(float(x)) <= float(np.finfo(np.float32).max):
         raise ConfigError("value", x, "finite in float32 (|x| <= 3.4e38)")
@@ -71,11 +79,11 @@ def c_float(x):
     return np.format_float_scientific(f, unique=True, trim="0") + "f"
 
 
-def _c_value(name, value):
+def _c_value(name: str, value: Any) -> str:
     """The C initializer of one configuration field."""
     if name in _ENUMS:
         prefix, _ = _ENUMS[name]
-        return prefix + value.upper()
+        return prefix + str(value).upper()
     if name == "pole_pairs":
         return f"{value}u"
     if name == "decouple":
@@ -83,7 +91,9 @@ def _c_value(name, value):
     return c_float(value)
 
 
-def _initializer(ctype, identifier, config, fields):
+def _initializer(
+    ctype: str, identifier: str, config: Mapping[str, Any], fields: Mapping[str, tuple[str, str]]
+) -> list[str]:
     lines = [f"static const {ctype} {identifier} = {{"]
     for name, (unit, meaning) in fields.items():
         assignment = f"    .{name} = {_c_value(name, config[name])},"
@@ -93,7 +103,9 @@ def _initializer(ctype, identifier, config, fields):
     return lines
 
 
-def speed_config(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H):
+def speed_config(
+    discrete: "DiscreteDesign", *, i_max_A: float, pole_pairs: int, psi_f_Wb: float, Ld_H: float, Lq_H: float
+) -> dict[str, Any]:
     """Keyword arguments of :class:`~pmsm2dof.core.controllers.SpeedController` for a discrete design.
 
     They hold the same values as the ``p2d_speed_config_t`` of the header.
@@ -119,21 +131,21 @@ def speed_config(discrete, *, i_max_A, pole_pairs, psi_f_Wb, Ld_H, Lq_H):
 
 
 def c_header(
-    discrete,
+    discrete: "DiscreteDesign",
     *,
-    i_max_A,
-    pole_pairs,
-    psi_f_Wb,
-    Ld_H,
-    Lq_H,
-    Rs_ohm=None,
-    Ts_current_s=None,
-    current_method=None,
-    current_anti_windup="back_calculation",
-    decouple=True,
-    prefix="p2d_design",
-    motor_sources=None,
-):
+    i_max_A: float,
+    pole_pairs: int,
+    psi_f_Wb: float,
+    Ld_H: float,
+    Lq_H: float,
+    Rs_ohm: float | None = None,
+    Ts_current_s: float | None = None,
+    current_method: Method | None = None,
+    current_anti_windup: AntiWindup = "back_calculation",
+    decouple: bool = True,
+    prefix: str = "p2d_design",
+    motor_sources: Mapping[str, str] | None = None,
+) -> str:
     """The text of a C header configuring the controllers with ``discrete``.
 
     Parameters
@@ -181,7 +193,7 @@ def c_header(
         raise ConfigError("prefix", prefix, "a C identifier: a letter or '_' then letters, digits or '_'")
     speed = speed_config(discrete, i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H)
     speed_ctl = SpeedController(**speed)
-    current = None
+    current: dict[str, Any] | None = None
     if Rs_ohm is not None or Ts_current_s is not None:
         if Rs_ohm is None:
             raise ConfigError("Rs_ohm", Rs_ohm, "finite and > 0 when Ts_current_s is given")
@@ -226,7 +238,13 @@ def c_header(
     return "\n".join(lines)
 
 
-def _record(discrete, speed, speed_ctl, current, motor_sources):
+def _record(
+    discrete: "DiscreteDesign",
+    speed: Mapping[str, Any],
+    speed_ctl: SpeedController,
+    current: Mapping[str, Any] | None,
+    motor_sources: Mapping[str, str],
+) -> list[str]:
     """Comment lines recording the design inputs and the derived values."""
     d = discrete.design
     dm = d.margins()
@@ -283,19 +301,19 @@ def _record(discrete, speed, speed_ctl, current, motor_sources):
     return out
 
 
-def _source(motor_sources, name):
+def _source(motor_sources: Mapping[str, str], name: str) -> str:
     return f" ({motor_sources[name]})" if name in motor_sources else ""
 
 
-def _overshoot_text(value, missing):
+def _overshoot_text(value: float, missing: Mapping[str, str]) -> str:
     return f"{value:.3g} %" if "overshoot_pct" not in missing else f"n/a ({missing['overshoot_pct']})"
 
 
-def _complex_list(values):
+def _complex_list(values: Iterable[complex]) -> str:
     return ", ".join(f"{complex(v).real:.6g}" if complex(v).imag == 0 else f"{complex(v):.6g}" for v in values)
 
 
-def _poly_s(coefficients):
+def _poly_s(coefficients: Sequence[float] | npt.NDArray[np.float64]) -> str:
     """A polynomial in s, highest power first, as text."""
     terms = []
     for power, c in zip(range(len(coefficients) - 1, -1, -1), coefficients):
@@ -305,7 +323,7 @@ def _poly_s(coefficients):
     return " + ".join(terms).replace("+ -", "- ") if terms else "0"
 
 
-def write_c_header(path, discrete, **options):
+def write_c_header(path: Path | str, discrete: "DiscreteDesign", **options: Any) -> Path | str:
     """Write :func:`c_header` of ``discrete`` to ``path`` atomically; return the path.
 
     ``options`` are the keywords of :func:`c_header`.

@@ -23,22 +23,28 @@ analytical PI design of its reference [4].
 import functools
 import math
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 import control
 import numpy as np
+import numpy.typing as npt
 
 from ..core import ANTI_WINDUPS, FEEDFORWARDS, pi_gains
+from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
 from .codegen import write_c_header
-from .discretize import discretize
-from .margins import loop_margins
+from .discretize import DiscreteDesign, discretize
+from .margins import Margins, loop_margins
 from .stepresponse import StepResponse
 
 #: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
 HALF_POWER_DB = 20.0 * math.log10(1.0 / math.sqrt(2.0))
 
 
-def tracking_tf(F, Fr, G):
+def tracking_tf(
+    F: control.TransferFunction, Fr: control.TransferFunction, G: control.TransferFunction
+) -> control.TransferFunction:
     """Reference-to-output transfer function of the 2DOF loop (eq 6), multiplied through.
 
     With ``F = Fn/Fd``, ``Fr = Rn/Rd``, ``G = Gn/Gd``::
@@ -57,7 +63,7 @@ def tracking_tf(F, Fr, G):
 
 
 @functools.lru_cache(maxsize=64)
-def _overshoot(design):
+def _overshoot(design: "Design") -> tuple[float, str]:
     return design.tracking_step().overshoot_pct()
 
 
@@ -98,33 +104,33 @@ class Design:
     zeta: float
     m: float
     tau_i_s: float
-    feedforward: str
-    anti_windup: str
+    feedforward: Feedforward
+    anti_windup: AntiWindup
     Ka: float
     Kp: float
     Ki: float
 
     @property
-    def F(self):
+    def F(self) -> control.TransferFunction:
         """PI feedback ``F(s) = Kp + Ki / s = (Kp s + Ki) / s``."""
         return control.tf([self.Kp, self.Ki], [1.0, 0.0])
 
     @property
-    def Gci(self):
+    def Gci(self) -> control.TransferFunction:
         """Closed current loop ``1 / (tau_i s + 1)`` (eq 3)."""
         return control.tf([1.0], [self.tau_i_s, 1.0])
 
     @property
-    def Gm(self):
+    def Gm(self) -> control.TransferFunction:
         """Mechanics ``1 / (J s)`` from torque [Nm] to speed [rad/s] (eq 2)."""
         return control.tf([1.0], [self.J_kgm2, 0.0])
 
     @property
-    def G(self):
+    def G(self) -> control.TransferFunction:
         """Plant seen by the speed controller, ``Gci Gm`` (eq 2, 3)."""
         return self.Gci * self.Gm
 
-    def fr_polynomials(self):
+    def fr_polynomials(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """Numerator and denominator of ``Fr(s)`` in powers of s, highest first.
 
         eq (11): ``Fr = J alpha (m tau s^2 + (m - 1) s - alpha / (4 zeta^2)) / (s + m alpha)``,
@@ -139,7 +145,7 @@ class Design:
         return num, np.array([1.0, m * self.alpha_radps])
 
     @property
-    def Fr(self):
+    def Fr(self) -> control.TransferFunction:
         """Reference feedforward ``Fr(s)`` (eq 11, 12, 13; 0 for the 1DOF PI).
 
         Improper for ``full`` with ``tau_i > 0`` (a derivative term).
@@ -148,17 +154,17 @@ class Design:
         return control.tf(num, den)
 
     @property
-    def L(self):
+    def L(self) -> control.TransferFunction:
         """Loop gain ``F G``."""
         return self.F * self.G
 
     @property
-    def Gx(self):
+    def Gx(self) -> control.TransferFunction:
         """Reference tracking ``(Fr + F) G / (1 + F G)`` (eq 6), pole-zero cancelled."""
         return self.on_plant(self.J_kgm2)[0]
 
     @property
-    def GN(self):
+    def GN(self) -> control.TransferFunction:
         """Load rejection, from load torque [Nm] to speed [rad/s] (eq 5, 8).
 
         The load acts on the mechanics, between ``Gci`` and ``Gm`` (Fig. 6), so eq (5)
@@ -168,7 +174,7 @@ class Design:
         """
         return self.on_plant(self.J_kgm2)[1]
 
-    def on_plant(self, J_plant_kgm2):
+    def on_plant(self, J_plant_kgm2: float) -> tuple[control.TransferFunction, control.TransferFunction]:
         """``(Gx, GN)`` of this controller on a plant of inertia ``J_plant_kgm2`` [kg m^2].
 
         The controller (``F``, ``Fr``) stays designed for :attr:`J_kgm2`; the plant is
@@ -180,22 +186,23 @@ class Design:
         Gm = control.tf([1.0], [J_plant_kgm2, 0.0])
         return tracking_tf(self.F, self.Fr, self.Gci * Gm).minreal(), -control.feedback(Gm, self.F * self.Gci)
 
-    def closed_loop_poles(self):
+    def closed_loop_poles(self) -> npt.NDArray[np.complex128]:
         """Poles of the feedback loop, roots of ``J tau_i s^3 + J s^2 + Kp s + Ki``.
 
         The feedforward adds its own pole ``-m alpha`` on the reference path only.
         """
-        return control.poles(control.feedback(self.L, 1))
+        poles: npt.NDArray[np.complex128] = control.poles(control.feedback(self.L, 1))
+        return poles
 
-    def bandwidth_radps(self):
+    def bandwidth_radps(self) -> float:
         """Tracking bandwidth [rad/s]: where ``|Gx|`` first falls 3 dB (half power) below DC."""
         return float(control.bandwidth(self.Gx, dbdrop=HALF_POWER_DB))
 
-    def margins(self):
+    def margins(self) -> Margins:
         """Gain and phase margins of the loop gain ``F G``."""
         return loop_margins(self.L)
 
-    def tracking_step(self):
+    def tracking_step(self) -> StepResponse:
         """The unit reference step of the loop (eq 6) as a :class:`~pmsm2dof.analysis.stepresponse.StepResponse`.
 
         States: the torque ``T`` after the current loop (eq 3, absent when tau_i = 0), the
@@ -234,27 +241,27 @@ class Design:
         out[ip] = 1.0 / self.J_kgm2
         return StepResponse.continuous(A, b, out, x0)
 
-    def overshoot_pct(self):
+    def overshoot_pct(self) -> float:
         """Overshoot [%] of the linear unit-step tracking response (eq 6).
 
         NaN when it cannot be computed; :meth:`missing` says why.
         """
         return _overshoot(self)[0]
 
-    def missing(self):
+    def missing(self) -> dict[str, str]:
         """``{figure: reason}`` for each figure of the continuous design that is NaN or infinite."""
         _margins, missing = self.margins().values_and_reasons()
         reason = _overshoot(self)[1]
         return ({"overshoot_pct": reason} if reason else {}) | missing
 
-    def discretize(self, Ts_s, method):
+    def discretize(self, Ts_s: float, method: Method) -> DiscreteDesign:
         """Discrete controller for sampling period ``Ts_s`` [s] (Table 1, eq 14, 15).
 
         See :func:`pmsm2dof.analysis.discretize.discretize`.
         """
         return discretize(self, Ts_s, method)
 
-    def to_c_header(self, path, Ts_s, method, **motor):
+    def to_c_header(self, path: Path | str, Ts_s: float, method: Method, **motor: Any) -> Path | str:
         """Write a C header configuring the speed controller with this design.
 
         See :func:`pmsm2dof.analysis.codegen.write_c_header` for the motor and limit keywords.
@@ -263,8 +270,15 @@ class Design:
 
 
 def design(
-    J_kgm2, alpha_radps, zeta, m=1.0, tau_i_s=0.0, feedforward="lowpass", anti_windup="back_calculation", Ka=None
-):
+    J_kgm2: float,
+    alpha_radps: float,
+    zeta: float,
+    m: float = 1.0,
+    tau_i_s: float = 0.0,
+    feedforward: Feedforward = "lowpass",
+    anti_windup: AntiWindup = "back_calculation",
+    Ka: float | None = None,
+) -> Design:
     """Design the anti-windup 2DOF PI speed controller (paper section 3.3).
 
     Parameters

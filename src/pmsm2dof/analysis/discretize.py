@@ -42,13 +42,16 @@ that distance:
 
 import math
 import warnings
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import control
 import numpy as np
+import numpy.typing as npt
 
 from ..core import METHODS, SpeedController
+from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, require_choice, require_positive
 from .margins import Margins, pick_margins
 from .stepresponse import StepResponse
@@ -58,11 +61,15 @@ if TYPE_CHECKING:
 
 #: Motor data given to the C controller whose coefficients a discretization reads: the PI and
 #: feedforward coefficients do not depend on them (they fill the torque-to-current part only).
-NEUTRAL_MOTOR = {"i_max_A": 1.0, "psi_f_Wb": 1.0, "Ld_H": 1.0, "Lq_H": 1.0, "pole_pairs": 1}
+NEUTRAL_MOTOR: dict[str, Any] = {"i_max_A": 1.0, "psi_f_Wb": 1.0, "Ld_H": 1.0, "Lq_H": 1.0, "pole_pairs": 1}
 #: Largest design frequency times Ts [rad] above which the discretization is too coarse.
 MAX_W_TS = 0.1
 #: The coefficients of ``p2d_speed_coef_t`` a discretization determines.
 COEFFICIENTS = ("b_e0", "Ki_Ts", "Ki_Ka_Ts", "ff_Fr0", "ff_b_dr", "ff_a1", "ff_Kd_per_Ts")
+
+_Vector = npt.NDArray[np.float64]
+#: Coefficients of a polynomial, highest power first (what numpy.polymul returns).
+_Poly = npt.NDArray[np.floating[Any]]
 
 
 class SamplingWarning(UserWarning):
@@ -116,7 +123,7 @@ class DiscreteDesign:
 
     design: "Design"
     Ts_s: float
-    method: str
+    method: Method
     b_e0: float
     Ki_Ts: float
     Ki_Ka_Ts: float
@@ -124,17 +131,17 @@ class DiscreteDesign:
     ff_b_dr: float
     ff_a1: float
     ff_Kd_per_Ts: float
-    poles: tuple
+    poles: tuple[complex, ...]
     overshoot_pct: float
     margins: Margins
-    missing: dict
+    missing: dict[str, str]
     F_z: control.TransferFunction = field(compare=False, repr=False)
     Fr_z: control.TransferFunction = field(compare=False, repr=False)
     G_z: control.TransferFunction = field(compare=False, repr=False)
     L_z: control.TransferFunction = field(compare=False, repr=False)
     Gx_z: control.StateSpace = field(compare=False, repr=False)
 
-    def as_dict(self):
+    def as_dict(self) -> dict[str, Any]:
         """Inputs, continuous and discrete results as plain numbers (JSON-ready).
 
         Complex poles are ``[re, im]`` pairs. A figure that is infinite or cannot be computed
@@ -174,11 +181,11 @@ class DiscreteDesign:
         }
 
 
-def _pairs(values):
+def _pairs(values: Iterable[complex]) -> list[list[float]]:
     return [[complex(v).real, complex(v).imag] for v in values]
 
 
-def _sample(tf_s, Ts_s, method):
+def _sample(tf_s: control.TransferFunction, Ts_s: float, method: str) -> control.TransferFunction:
     """``control.sample_system(tf_s, Ts_s, method)`` computed on unit-scaled coefficients (the ZOH plant).
 
     SciPy trims leading numerator coefficients below an absolute 1e-14, which drops
@@ -200,7 +207,13 @@ def _sample(tf_s, Ts_s, method):
     return control.tf(unit.num[0][0] * (num_scale / den_scale), unit.den[0][0], Ts_s)
 
 
-def c_coefficients(design, Ts_s, method, feedforward=None, anti_windup=None):
+def c_coefficients(
+    design: "Design",
+    Ts_s: float,
+    method: Method,
+    feedforward: Feedforward | None = None,
+    anti_windup: AntiWindup | None = None,
+) -> dict[str, float | bool]:
     """The coefficients ``p2d_speed_init`` computes for ``design`` at ``Ts_s`` with ``method``.
 
     ``feedforward`` and ``anti_windup`` default to the design's. The C controller validates the
@@ -229,12 +242,14 @@ def c_coefficients(design, Ts_s, method, feedforward=None, anti_windup=None):
     return ctl.coefficients
 
 
-def _pi_z(b_e0, Ki_Ts, Ts_s):
+def _pi_z(b_e0: float, Ki_Ts: float, Ts_s: float) -> control.TransferFunction:
     """The realized PI ``(b_e0 + (Ki Ts - b_e0) z^-1) / (1 - z^-1)`` (eq 14 for Tustin)."""
     return control.tf([b_e0, Ki_Ts - b_e0], [1.0, -1.0], Ts_s)
 
 
-def _feedforward_z(ff_Fr0, ff_b_dr, ff_a1, ff_Kd_per_Ts, Ts_s):
+def _feedforward_z(
+    ff_Fr0: float, ff_b_dr: float, ff_a1: float, ff_Kd_per_Ts: float, Ts_s: float
+) -> control.TransferFunction:
     """The realized feedforward ``ff_Fr0 + ff_b_dr (1 - z^-1)/(1 + ff_a1 z^-1) + ff_Kd_per_Ts (1 - z^-1)``."""
     static = control.tf([ff_Fr0], [1.0], Ts_s)
     transient = control.tf([ff_b_dr, -ff_b_dr], [1.0, ff_a1], Ts_s)
@@ -242,7 +257,7 @@ def _feedforward_z(ff_Fr0, ff_b_dr, ff_a1, ff_Kd_per_Ts, Ts_s):
     return static + transient + derivative if ff_Kd_per_Ts != 0.0 else static + transient
 
 
-def plant_w(J_kgm2, tau_i_s, Ts_s):
+def plant_w(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vector, _Vector]:
     """The ZOH plant in the w plane, ``z = (1 + w Ts/2) / (1 - w Ts/2)``: (numerator, denominator).
 
     The ZOH equivalent of ``1 / (J s (tau s + 1))`` is (step invariance)
@@ -266,7 +281,7 @@ def plant_w(J_kgm2, tau_i_s, Ts_s):
     return np.polymul(hold, [kappa, 1.0]), J_kgm2 * np.array([rho, 1.0, 0.0])
 
 
-def _loop_w(design, Ts_s, b_e0, Ki_Ts):
+def _loop_w(design: "Design", Ts_s: float, b_e0: float, Ki_Ts: float) -> tuple[_Poly, _Poly]:
     """Numerator and denominator of the loop gain ``L(w) = F(w) G(w)``.
 
     The realized PI is exactly ``F(w) = Kp' + Ki / w``, ``Kp' = b_e0 - Ki Ts / 2``:
@@ -276,21 +291,21 @@ def _loop_w(design, Ts_s, b_e0, Ki_Ts):
     return np.polymul([b_e0 - 0.5 * Ki_Ts, Ki_Ts / Ts_s], G_num), np.polymul([1.0, 0.0], G_den)
 
 
-def _hurwitz(char):
+def _hurwitz(char: _Poly) -> bool:
     """True when every root of the polynomial ``char`` (degree 2 or 3) has ``Re w < 0`` (Routh-Hurwitz)."""
     if not np.all(char > 0.0):
         return False
-    return len(char) == 3 or char[1] * char[2] > char[0] * char[3]
+    return len(char) == 3 or bool(char[1] * char[2] > char[0] * char[3])
 
 
-def _stable(design, Ts_s, method):
+def _stable(design: "Design", Ts_s: float, method: Method) -> bool:
     """Whether the discrete feedback loop is stable at ``Ts_s`` (Routh-Hurwitz in the w plane)."""
     pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
     L_num, L_den = _loop_w(design, Ts_s, pi["b_e0"], pi["Ki_Ts"])
     return _hurwitz(np.polyadd(L_den, L_num))
 
 
-def _unstable_loop_error(design, Ts_s, method, z_max):
+def _unstable_loop_error(design: "Design", Ts_s: float, method: Method, z_max: float) -> ConfigError:
     """The ConfigError of a discrete loop that is unstable at ``Ts_s``, naming the range that is stable."""
     d = design
     if not d.Kp > d.tau_i_s * d.Ki:
@@ -325,7 +340,7 @@ def _unstable_loop_error(design, Ts_s, method, z_max):
     )
 
 
-def _margins(design, Ts_s, b_e0, Ki_Ts):
+def _margins(design: "Design", Ts_s: float, b_e0: float, Ki_Ts: float) -> Margins:
     """Margins of ``F(z) G(z)``, found by python-control on ``L(w)`` (same gain and phase).
 
     A frequency ``w_w`` of the w plane is ``w_z = (2/Ts) atan(w_w Ts / 2)``; the Nyquist
@@ -335,7 +350,7 @@ def _margins(design, Ts_s, b_e0, Ki_Ts):
     num, den = _loop_w(design, Ts_s, b_e0, Ki_Ts)
     gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(control.tf(num, den), returnall=True)
 
-    def to_z(w):
+    def to_z(w: npt.ArrayLike) -> _Vector:
         return 2.0 / Ts_s * np.arctan(0.5 * Ts_s * np.asarray(w, dtype=float))
 
     L_nyquist = num[0] / den[0]
@@ -343,7 +358,9 @@ def _margins(design, Ts_s, b_e0, Ki_Ts):
     return pick_margins(gms, pms, to_z(w_pcs), to_z(w_gcs), extra)
 
 
-def margins_on_plant(design, Ts_s, method, J_plant_kgm2, tau_i_plant_s):
+def margins_on_plant(
+    design: "Design", Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
+) -> Margins | None:
     """Margins of the C controller of ``design`` on a plant it was not designed for; None if unstable there.
 
     The PI is realized for ``design`` at ``Ts_s`` with ``method`` (:func:`c_coefficients`); the
@@ -375,7 +392,7 @@ def margins_on_plant(design, Ts_s, method, J_plant_kgm2, tau_i_plant_s):
     return _margins(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
 
 
-def _plant_increments(J_kgm2, tau_i_s, Ts_s):
+def _plant_increments(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vector, _Vector, _Vector]:
     """The ZOH plant over one period in increment form: ``(E_p, g_p, c_p)``.
 
     States: the torque ``T`` after the current loop (absent when tau_i = 0) and the momentum
@@ -394,7 +411,16 @@ def _plant_increments(J_kgm2, tau_i_s, Ts_s):
     return E_p, np.array([one_minus_a, tau_i_s * (x + math.expm1(-x))]), np.array([0.0, 1.0 / J_kgm2])
 
 
-def _tracking_increments(design, Ts_s, b_e0, Ki_Ts, ff_Fr0, ff_b_dr, ff_a1, ff_Kd_per_Ts):
+def _tracking_increments(
+    design: "Design",
+    Ts_s: float,
+    b_e0: float,
+    Ki_Ts: float,
+    ff_Fr0: float,
+    ff_b_dr: float,
+    ff_a1: float,
+    ff_Kd_per_Ts: float,
+) -> tuple[_Vector, _Vector, _Vector]:
     """The tracking loop over one period in increment form: ``(E, f, c)`` of a unit reference step.
 
     States: the plant (:func:`_plant_increments`), the PI integral ``q = x[k-1]``, and with a
@@ -429,7 +455,7 @@ def _tracking_increments(design, Ts_s, b_e0, Ki_Ts, ff_Fr0, ff_b_dr, ff_a1, ff_K
     return E, f, c
 
 
-def discretize(design, Ts_s, method):
+def discretize(design: "Design", Ts_s: float, method: Method) -> DiscreteDesign:
     """Discretize ``design`` for the sampling period ``Ts_s`` with ``method`` (Table 1).
 
     Parameters
@@ -476,7 +502,7 @@ def discretize(design, Ts_s, method):
     return discrete_loop(d, Ts_s, method, c_coefficients(d, Ts_s, method))
 
 
-def discrete_loop(design, Ts_s, method, coefficients):
+def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: Mapping[str, float]) -> DiscreteDesign:
     """The discrete loop of ``design`` realized with the controller ``coefficients`` at ``Ts_s``.
 
     :func:`discretize` gives it the coefficients of the C controller; any other set in the same

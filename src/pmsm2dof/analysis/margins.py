@@ -6,9 +6,15 @@ the phase margin the phase it can lose; both are found by python-control
 """
 
 import math
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 
 import control
+import numpy as np
+import numpy.typing as npt
+
+#: Numbers at the crossings: a sequence or a 1-D array (python-control returns arrays).
+_Floats = Sequence[float] | npt.NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -32,7 +38,7 @@ class Margins:
     w_gain_crossover_radps: float
     w_phase_crossover_radps: float
 
-    def values_and_reasons(self):
+    def values_and_reasons(self) -> tuple[dict[str, float | None], dict[str, str]]:
         """The margins as JSON-ready numbers, and the reason of each one that is ``None``.
 
         Returns
@@ -54,7 +60,13 @@ class Margins:
         return {name: (v if math.isfinite(v) else None) for name, v in values.items()}, missing
 
 
-def pick_margins(gains, phases_deg, w_phase_radps, w_gain_radps, extra_crossings=()):
+def pick_margins(
+    gains: _Floats,
+    phases_deg: _Floats,
+    w_phase_radps: _Floats,
+    w_gain_radps: _Floats,
+    extra_crossings: Sequence[tuple[float, float]] = (),
+) -> Margins:
     """The :class:`Margins` of a loop gain from all its -180 deg and unit-gain crossings.
 
     The gain margin is the factor by which the loop gain can grow before the loop goes
@@ -80,7 +92,7 @@ def pick_margins(gains, phases_deg, w_phase_radps, w_gain_radps, extra_crossings
     return Margins(20.0 * math.log10(gm), float(pm), float(w_gc), w_pc)
 
 
-def loop_margins(L):
+def loop_margins(L: control.TransferFunction) -> Margins:
     """Gain and phase margins of the stable continuous loop gain ``L(s)`` (see :func:`pick_margins`)."""
     gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(L, returnall=True)
     return pick_margins(gms, pms, w_pcs, w_gcs)

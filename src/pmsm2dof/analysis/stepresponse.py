@@ -27,8 +27,10 @@ exactly: ``E = A Gamma(dt)``, ``f = Gamma(dt) b``, ``Gamma(t) = int_0^t exp(A s)
 
 import bisect
 import math
+from collections.abc import Callable
 
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg
 from scipy import optimize
 
@@ -44,18 +46,25 @@ MAX_POINTS = 2_000_000
 ROUNDING = 1e-11
 _CHUNK = 1 << 15
 
+_Vector = npt.NDArray[np.float64]
+_Matrix = npt.NDArray[np.float64]
+#: A map ``x -> x + E x + f`` as its ``(E, f)``.
+_Map = tuple[_Matrix, _Vector]
+#: Samples ``start, start + h, ... < stop`` of the grid.
+_Segment = tuple[int, int, int]
 
-def _compose(t1, t2):
+
+def _compose(t1: _Map, t2: _Map) -> _Map:
     """The map ``t1(t2(x))`` of two maps ``x -> x + E x + f`` given as ``(E, f)``."""
     E1, f1 = t1
     E2, f2 = t2
     return E1 + E2 + E1 @ E2, f1 + f2 + E1 @ f2
 
 
-def _power(t, k):
+def _power(t: _Map, k: int) -> _Map:
     """``t`` applied ``k`` times (k >= 0, a Python int of any size)."""
     n = len(t[1])
-    result = (np.zeros((n, n)), np.zeros(n))
+    result: _Map = (np.zeros((n, n)), np.zeros(n))
     while k:
         if k & 1:
             result = _compose(t, result)
@@ -65,13 +74,13 @@ def _power(t, k):
     return result
 
 
-def _apply(t, X):
+def _apply(t: _Map, X: _Matrix) -> _Matrix:
     """``t`` applied to the columns of ``X``."""
     E, f = t
     return X + E @ X + f[:, None]
 
 
-def _orbit(t, x, n):
+def _orbit(t: _Map, x: _Vector, n: int) -> _Matrix:
     """Columns ``t^j(x)``, j = 0 .. n - 1, by doubling."""
     X = x[:, None]
     while X.shape[1] < n:
@@ -80,20 +89,22 @@ def _orbit(t, x, n):
     return X[:, :n]
 
 
-def _log1p(e):
+def _log1p(e: npt.ArrayLike) -> npt.NDArray[np.complex128]:
     """``log(1 + e)`` of complex ``e`` without the rounding of ``1 + e``."""
-    e = np.asarray(e, dtype=complex)
-    real = 0.5 * np.log1p(2.0 * e.real + np.abs(e) ** 2)
-    return real + 1j * np.arctan2(e.imag, 1.0 + e.real)
+    z = np.asarray(e, dtype=complex)
+    real = 0.5 * np.log1p(2.0 * z.real + np.abs(z) ** 2)
+    log: npt.NDArray[np.complex128] = real + 1j * np.arctan2(z.imag, 1.0 + z.real)
+    return log
 
 
-def _gamma(A, t):
+def _gamma(A: _Matrix, t: float) -> _Matrix:
     """``int_0^t exp(A s) ds`` (SciPy ``expm`` of ``[[A, I], [0, 0]] t``)."""
     n = A.shape[0]
     block = np.zeros((2 * n, 2 * n))
     block[:n, :n] = A * t
     block[:n, n:] = np.eye(n) * t
-    return scipy.linalg.expm(block)[:n, n:]
+    exp_block: _Matrix = scipy.linalg.expm(block)
+    return exp_block[:n, n:]
 
 
 class StepResponse:
@@ -113,39 +124,45 @@ class StepResponse:
         Duration of one step [s].
     """
 
-    def __init__(self, E, f, c, x0=None, dt_s=1.0):
+    def __init__(
+        self, E: npt.ArrayLike, f: npt.ArrayLike, c: npt.ArrayLike, x0: npt.ArrayLike | None = None, dt_s: float = 1.0
+    ) -> None:
         self.step = (np.asarray(E, dtype=float), np.asarray(f, dtype=float))
         self.c = np.asarray(c, dtype=float)
         self.x0 = np.zeros(len(self.c)) if x0 is None else np.asarray(x0, dtype=float)
         self.dt_s = float(dt_s)
-        self._A = None
+        # the continuous loop x' = A x + b that the steps sample, if any (:meth:`continuous`)
+        self._A: _Matrix | None = None
+        self._b: _Vector | None = None
 
     @classmethod
-    def continuous(cls, A, b, c, x0=None):
+    def continuous(
+        cls, A: npt.ArrayLike, b: npt.ArrayLike, c: npt.ArrayLike, x0: npt.ArrayLike | None = None
+    ) -> "StepResponse":
         """The loop ``x' = A x + b`` (unit step input), ``y = c x``, sampled exactly.
 
         The step is :data:`THETA` over the fastest rate of ``A``; :meth:`overshoot_pct` then
         refines the peak over continuous time.
         """
-        A = np.asarray(A, dtype=float)
-        fastest = float(np.max(np.abs(np.linalg.eigvals(A)))) if A.size else 0.0
+        A_ = np.asarray(A, dtype=float)
+        fastest = float(np.max(np.abs(np.linalg.eigvals(A_)))) if A_.size else 0.0
         dt_s = THETA / fastest if fastest > 0.0 else 1.0
-        G = _gamma(A, dt_s)
-        response = cls(A @ G, G @ np.asarray(b, dtype=float), c, x0, dt_s)
-        response._A, response._b = A, np.asarray(b, dtype=float)
+        G = _gamma(A_, dt_s)
+        response = cls(A_ @ G, G @ np.asarray(b, dtype=float), c, x0, dt_s)
+        response._A, response._b = A_, np.asarray(b, dtype=float)
         return response
 
-    def rates(self):
+    def rates(self) -> npt.NDArray[np.complex128]:
         """Complex rate of each mode per step, ``log(1 + eig(E))`` (``-inf`` for a pole at z = 0)."""
         with np.errstate(divide="ignore"):
             return _log1p(np.linalg.eigvals(self.step[0]))
 
-    def output(self, k):
+    def output(self, k: int) -> float:
         """``y[k]``, k a Python int >= 0."""
         E, f = _power(self.step, k)
         return float(self.c @ (self.x0 + E @ self.x0 + f))
 
-    def _grid(self, nu):
+    def _grid(self, nu: npt.NDArray[np.complex128]) -> list[_Segment]:
         """Segments ``(start, stop, h)``: samples start, start + h, ... < stop cover the response."""
         sigma = -nu.real
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -164,7 +181,7 @@ class StepResponse:
             start = stop
         return segments
 
-    def overshoot_pct(self):
+    def overshoot_pct(self) -> tuple[float, str]:
         """Overshoot [%] of the step response over its final value, or NaN and the reason.
 
         Returns
@@ -181,7 +198,7 @@ class StepResponse:
                 "1/s), so its step response has no final value"
             )
         segments = self._grid(nu)
-        points = sum(-(-(stop - start) // h) for start, stop, h in segments)
+        points: int = sum(-(-(stop - start) // h) for start, stop, h in segments)
         if points > MAX_POINTS:
             slowest = float(np.min(-nu.real)) / self.dt_s
             return math.nan, (
@@ -207,10 +224,11 @@ class StepResponse:
         # below ROUNDING of the step, the peak is the final value seen through rounding
         return (100.0 * over if over > ROUNDING else 0.0), ""
 
-    def _evaluate(self, segments):
+    def _evaluate(self, segments: list[_Segment]) -> tuple[Callable[[int], int], _Vector]:
         """The outputs on the grid of ``segments``, and the sample ``k`` (a Python int) of an index."""
         x, k_now = self.x0, 0
-        ys, firsts = [], []  # firsts: (index of the first point, its sample, spacing) of each segment
+        ys: list[_Vector] = []
+        firsts: list[_Segment] = []  # firsts: (index of the first point, its sample, spacing) of each segment
         for start, stop, h in segments:
             x = _apply(_power(self.step, start - k_now), x[:, None])[:, 0]
             t_h = _power(self.step, h)
@@ -224,13 +242,13 @@ class StepResponse:
             x, k_now = X[:, -1], start + h * (n - 1)
         offsets = [i for i, _, _ in firsts]
 
-        def k_of(i):
+        def k_of(i: int) -> int:
             i0, start, h = firsts[bisect.bisect_right(offsets, i) - 1]
             return start + h * (i - i0)
 
         return k_of, np.concatenate(ys)
 
-    def _refine(self, lo, hi):
+    def _refine(self, lo: int, hi: int) -> float:
         """The largest output from sample ``lo`` to ``hi``, grid neighbours of a grid maximum.
 
         Between grid neighbours every live mode turns by at most 2 THETA, so the output is
@@ -253,14 +271,15 @@ class StepResponse:
                 m1, m2, y1, y2 = m2, m1, y2, y1
         k_best = max(range(lo, hi + 1), key=self.output)
         y_best = self.output(k_best)
-        if self._A is None:
+        if self._A is None or self._b is None:
             return y_best
+        A, b = self._A, self._b
         E, f = _power(self.step, max(k_best - 1, 0))
         x = self.x0 + E @ self.x0 + f
 
-        def minus_y(t_s):
-            G = _gamma(self._A, t_s)
-            return -float(self.c @ (x + self._A @ G @ x + G @ self._b))
+        def minus_y(t_s: float) -> float:
+            G = _gamma(A, t_s)
+            return -float(self.c @ (x + A @ G @ x + G @ b))
 
         span = (2.0 if k_best > 0 else 1.0) * self.dt_s
         found = optimize.minimize_scalar(minus_y, bounds=(0.0, span), method="bounded", options={"xatol": 1e-10 * span})
