@@ -49,10 +49,20 @@ is ``{"value": x}``. Speeds are in rpm, as in the scenario and the trace.
 """
 
 import math
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import SimulationError
+
+if TYPE_CHECKING:
+    from .simulate import Result
+
+_Vector = npt.NDArray[np.float64]
+#: A figure of merit: ``{"value": x}`` or ``{"value": None, "reason": "..."}``.
+_Figure = dict[str, Any]
 
 #: Settling band, relative to the step (reference) or to the dip (load).
 BAND = 0.02
@@ -86,22 +96,22 @@ STEADY_SPREAD = 0.002
 LIMIT_RTOL = 0.01
 
 
-def _value(x):
+def _value(x: float) -> _Figure:
     return {"value": float(x)}
 
 
-def _missing(reason):
+def _missing(reason: str) -> _Figure:
     return {"value": None, "reason": reason}
 
 
-def _trace(result, name):
+def _trace(result: "Result", name: str) -> _Vector:
     values = np.asarray(getattr(result, name), dtype=float)
     if values.shape != np.shape(result.t_s) or not np.all(np.isfinite(values)):
         raise SimulationError(f"result.{name} must be finite and as long as result.t_s")
     return values
 
 
-def _schedule(entries, key):
+def _schedule(entries: Sequence[Mapping[str, Any]], key: str) -> list[tuple[float, float, float]]:
     """(t_s, value before, value after) of each entry; the value is 0 before the first entry."""
     before = 0.0
     events = []
@@ -111,18 +121,18 @@ def _schedule(entries, key):
     return events
 
 
-def _first_crossing(t, z, level):
+def _first_crossing(t: _Vector, z: _Vector, level: float) -> float | None:
     """First time z rises to ``level`` (z[0] < level), linearly interpolated, or None."""
     above = np.nonzero(z >= level)[0]
     if above.size == 0:
         return None
     k = above[0]
     if k == 0:
-        return t[0]
-    return t[k - 1] + (level - z[k - 1]) / (z[k] - z[k - 1]) * (t[k] - t[k - 1])
+        return float(t[0])
+    return float(t[k - 1] + (level - z[k - 1]) / (z[k] - z[k - 1]) * (t[k] - t[k - 1]))
 
 
-def _entry_into_band(t, dev, band):
+def _entry_into_band(t: _Vector, dev: _Vector, band: float) -> float | None:
     """Time after which ``|dev| <= band`` to the end (interpolated), or None.
 
     None when ``dev`` is not inside the band over the whole final part of the window
@@ -130,16 +140,16 @@ def _entry_into_band(t, dev, band):
     """
     outside = np.nonzero(np.abs(dev) > band)[0]
     if outside.size == 0:
-        return t[0]
+        return float(t[0])
     k = outside[-1]
     if k == len(t) - 1:
         return None
     level = band if dev[k] > band else -band
-    t_in = t[k] + (level - dev[k]) / (dev[k + 1] - dev[k]) * (t[k + 1] - t[k])
+    t_in = float(t[k] + (level - dev[k]) / (dev[k + 1] - dev[k]) * (t[k + 1] - t[k]))
     return t_in if t_in <= t[-1] - STEADY_FRACTION * (t[-1] - t[0]) else None
 
 
-def at_current_limit(result):
+def at_current_limit(result: "Result") -> npt.NDArray[np.bool_]:
     """Whether the drive is at its current limit, sample by sample.
 
     A sample is at the limit when the speed controller's ``saturated`` flag is set or the
@@ -170,10 +180,11 @@ def at_current_limit(result):
         raise SimulationError("result.saturated must be as long as result.t_s")
     i_max = result.scenario.data["limits"]["i_max_A"]
     command = np.hypot(_trace(result, "id_ref_A"), _trace(result, "iq_ref_A"))
-    return saturated | (command >= (1.0 - LIMIT_RTOL) * i_max)
+    at_limit: npt.NDArray[np.bool_] = saturated | (command >= (1.0 - LIMIT_RTOL) * i_max)
+    return at_limit
 
 
-def at_voltage_limit(result):
+def at_voltage_limit(result: "Result") -> _Vector:
     """The share of each sample at the inverter's voltage limit, counted as :func:`at_current_limit` counts.
 
     A sample is at the limit for its whole interval when the applied voltage ``||(ud_V, uq_V)||``
@@ -202,7 +213,7 @@ def at_voltage_limit(result):
     return np.where(at_range, 1.0, share)
 
 
-def _time_where(t, mask, t0, t1):
+def _time_where(t: _Vector, mask: npt.NDArray[np.bool_] | _Vector, t0: float, t1: float) -> float:
     """Time in [t0, t1] where ``mask`` holds; the value of sample k holds over [t[k], t[k+1]).
 
     ``mask`` may also be a share in [0, 1] of each sample's interval (``voltage_limited``).
@@ -212,20 +223,29 @@ def _time_where(t, mask, t0, t1):
     return float(np.sum((ends - starts) * mask[:-1]))
 
 
-def _window(t, t0, t1, *signals):
+def _window(t: _Vector, t0: float, t1: float, *signals: _Vector) -> tuple[_Vector, list[_Vector]]:
     """Sample times in [t0, t1] with both ends included, and the signals interpolated on them."""
     tw = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
     return tw, [np.interp(tw, t, s) for s in signals]
 
 
-def _reference_step(t, speed, ref, limited, t0, t1, before, after):
-    out = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": t1}
+def _reference_step(
+    t: _Vector,
+    speed: _Vector,
+    ref: _Vector,
+    limited: npt.NDArray[np.bool_],
+    t0: float,
+    t1: float,
+    before: float,
+    after: float,
+) -> dict[str, Any]:
+    out: dict[str, Any] = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": t1}
     names = REFERENCE_FIGURES
     if t1 <= t0:
         return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
     tw, (w, r) = _window(t, t0, t1, speed, ref)
     step = after - w[0]
-    result = {}
+    result: dict[str, _Figure] = {}
     if after == before or abs(step) <= 1e-3 * abs(after - before):
         reason = (
             "the reference does not change"
@@ -243,7 +263,7 @@ def _reference_step(t, speed, ref, limited, t0, t1, before, after):
             result["overshoot_pct"] = _missing(f"the speed did not reach the reference before {t1:g} s")
         result["rise_time_s"] = (
             _value(t90 - t10)
-            if t90 is not None
+            if t90 is not None and t10 is not None
             else _missing(f"the speed did not reach 90 % of the step before {t1:g} s")
         )
         result["settling_time_s"] = (
@@ -255,19 +275,28 @@ def _reference_step(t, speed, ref, limited, t0, t1, before, after):
             )
         )
         result["steady_state_error_rpm"] = _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
-    result["iae_rpm_s"] = _value(np.trapezoid(np.abs(r - w), tw))
+    result["iae_rpm_s"] = _value(float(np.trapezoid(np.abs(r - w), tw)))
     result["current_limit_time_s"] = _value(_time_where(t, limited, t0, t1))
     return out | {"speed_at_step_rpm": float(w[0])} | {n: result[n] for n in names}
 
 
-def _load_step(t, speed, ref, limited, t0, t1, before, after):
-    out = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": t1}
+def _load_step(
+    t: _Vector,
+    speed: _Vector,
+    ref: _Vector,
+    limited: npt.NDArray[np.bool_],
+    t0: float,
+    t1: float,
+    before: float,
+    after: float,
+) -> dict[str, Any]:
+    out: dict[str, Any] = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": t1}
     names = LOAD_FIGURES
     if t1 <= t0:
         return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
     tw, (w, r) = _window(t, t0, t1, speed, ref)
     e = r - w
-    result = {}
+    result: dict[str, _Figure] = {}
     if after == before:
         result.update({n: _missing("the load torque does not change") for n in names[:4]})
     else:
@@ -293,14 +322,22 @@ def _load_step(t, speed, ref, limited, t0, t1, before, after):
                 )
             )
             result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
-    result["iae_rpm_s"] = _value(np.trapezoid(np.abs(e), tw))
+    result["iae_rpm_s"] = _value(float(np.trapezoid(np.abs(e), tw)))
     result["current_limit_time_s"] = _value(_time_where(t, limited, t0, t1))
     return out | {n: result[n] for n in names}
 
 
-def _fault(t, speed, ref, limited, fault, t_end_fault, t1):
+def _fault(
+    t: _Vector,
+    speed: _Vector,
+    ref: _Vector,
+    limited: npt.NDArray[np.bool_],
+    fault: Mapping[str, Any],
+    t_end_fault: float,
+    t1: float,
+) -> dict[str, Any]:
     t0 = fault["t_s"]
-    out = {"kind": fault["kind"], "t_s": t0, "end_s": t_end_fault, "window_end_s": t1}
+    out: dict[str, Any] = {"kind": fault["kind"], "t_s": t0, "end_s": t_end_fault, "window_end_s": t1}
     names = FAULT_FIGURES
     if t1 <= t0:
         return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the fault") for n in names}
@@ -333,7 +370,7 @@ def _fault(t, speed, ref, limited, fault, t_end_fault, t1):
     return out | {n: result[n] for n in names}
 
 
-def _steady_state_error(tw, w, target, spread_max):
+def _steady_state_error(tw: _Vector, w: _Vector, target: float, spread_max: float) -> _Figure:
     """``target`` minus the mean of ``w`` over the last part of the window, if ``w`` is steady there."""
     tf, (final,) = _window(tw, tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0]), tw[-1], w)
     spread = float(np.ptp(final))
@@ -345,7 +382,7 @@ def _steady_state_error(tw, w, target, spread_max):
     return _value(target - np.trapezoid(final, tf) / (tf[-1] - tf[0]))
 
 
-def compute_metrics(result):
+def compute_metrics(result: "Result") -> dict[str, Any]:
     """Figures of merit of every reference step and load step of a simulated run.
 
     Parameters
@@ -376,9 +413,9 @@ def compute_metrics(result):
     fault_ends = [f["t_s"] + (Ts_speed if f["kind"] == "sensor_spike" else f["duration_s"]) for f in data["fault"]]
     times = sorted({e[0] for e in ref_events + load_events} | {f["t_s"] for f in data["fault"]})
 
-    def window_end(t0):
+    def window_end(t0: float) -> float:
         later = [x for x in times if x > t0]
-        return min(later[0], t[-1]) if later else t[-1]
+        return float(min(later[0], t[-1]) if later else t[-1])
 
     return {
         "scenario": data["name"],
@@ -391,24 +428,24 @@ def compute_metrics(result):
         ],
         "run": {
             "t_end_s": float(t[-1]),
-            "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
+            "iae_rpm_s": _value(float(np.trapezoid(np.abs(ref - speed), t))),
             "current_limit_time_s": _value(_time_where(t, limited, t[0], t[-1])),
             "voltage_limit_time_s": _voltage_limit_time(result, t),
         },
     }
 
 
-def _voltage_limit_time(result, t):
+def _voltage_limit_time(result: "Result", t: _Vector) -> _Figure:
     if getattr(result, "voltage_limited", None) is None:
         return _missing("the trace has no voltage_limited signal")
     return _value(_time_where(t, at_voltage_limit(result), t[0], t[-1]))
 
 
-def _fmt(figure, unit):
+def _fmt(figure: Mapping[str, Any], unit: str) -> str:
     return "n/a" if figure["value"] is None else f"{figure['value']:.4g} {unit}".rstrip()
 
 
-def summary_lines(metrics):
+def summary_lines(metrics: Mapping[str, Any]) -> list[str]:
     """A few lines of text summarising :func:`compute_metrics` (missing figures shown as n/a)."""
     lines = []
     for s in metrics["reference_steps"]:

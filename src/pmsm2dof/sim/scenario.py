@@ -36,6 +36,7 @@ import os
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, METHODS
 from ..errors import ConfigError
@@ -46,14 +47,17 @@ T_END_MAX_S = 36000.0
 #: Relative tolerance of "speed_controller.Ts_s is an integer multiple of current_loop.Ts_s".
 TS_MULTIPLE_RTOL = 1e-9
 
+#: A scenario as nested tables: ``{key: value, table: {key: value}, array: [{key: value}]}``.
+Tree = dict[str, Any]
+
 
 class _Placeholder:
     """A value shown in error messages by its name, such as ``<missing>``."""
 
-    def __init__(self, text):
+    def __init__(self, text: str) -> None:
         self.text = text
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return self.text
 
 
@@ -89,17 +93,17 @@ class Field:
     ge: float | None = None
     lt: float | None = None
     le: float | None = None
-    choices: tuple = ()
+    choices: tuple[str, ...] = ()
 
     @property
-    def leaf(self):
+    def leaf(self) -> str:
         return self.key.rsplit(".", 1)[-1]
 
     @property
-    def parent(self):
+    def parent(self) -> str:
         return self.key.rsplit(".", 1)[0] if "." in self.key else ""
 
-    def valid_range(self):
+    def valid_range(self) -> str:
         """The valid range in words, as shown in error messages."""
         if self.choices:
             return "one of " + ", ".join(repr(c) for c in self.choices)
@@ -112,7 +116,7 @@ class Field:
         noun = "an integer" if self.kind is int else "a finite number"
         return " ".join([noun, " and ".join(bounds)]) if bounds else noun
 
-    def check(self, dotted, value):
+    def check(self, dotted: str, value: Any) -> Any:
         """Return ``value`` converted to the field's type, or raise ConfigError naming ``dotted``."""
         if self.kind is float:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -126,7 +130,7 @@ class Field:
         elif self.kind is int:
             if isinstance(value, bool) or not isinstance(value, int):
                 raise ConfigError(dotted, value, self.valid_range())
-        elif not isinstance(value, self.kind) or (self.kind is str and not _is_unicode(value)):
+        elif not isinstance(value, self.kind) or (self.kind is str and not _is_unicode(str(value))):
             raise ConfigError(dotted, value, self.valid_range())
         if self.choices and value not in self.choices:
             raise ConfigError(dotted, value, self.valid_range())
@@ -140,7 +144,7 @@ class Field:
         return value
 
 
-def _is_unicode(text):
+def _is_unicode(text: str) -> bool:
     """True if ``text`` can be written as UTF-8 (no lone surrogates)."""
     try:
         text.encode("utf-8")
@@ -317,11 +321,11 @@ _FIELDS = {f.key: f for f in SCHEMA}
 _TABLES = tuple(dict.fromkeys(f.parent for f in SCHEMA if f.parent and not f.parent.endswith("[]")))
 
 
-def _fields_of(parent):
+def _fields_of(parent: str) -> list[Field]:
     return [f for f in SCHEMA if f.parent == parent]
 
 
-def _short(value):
+def _short(value: object) -> object:
     """The value as shown in an error message (tables and arrays are not spelled out)."""
     if isinstance(value, dict):
         return _TABLE
@@ -341,7 +345,7 @@ RENAMED_KEYS = {
 }
 
 
-def _unknown_key(dotted, value, parent, valid):
+def _unknown_key(dotted: str, value: object, parent: str, valid: list[str]) -> None:
     """ConfigError for an unknown key, suggesting the closest valid one."""
     renamed = RENAMED_KEYS.get(f"{parent}.{dotted.rsplit('.', 1)[-1]}" if parent else dotted)
     if renamed is not None:
@@ -363,7 +367,7 @@ def _unknown_key(dotted, value, parent, valid):
     raise ConfigError(dotted, _short(value), f"not a key of {where} ({hint})")
 
 
-def _validate_table(table, parent, prefix):
+def _validate_table(table: Tree, parent: str, prefix: str) -> Tree:
     """Check the keys of one table against the schema; return {leaf: value} of the keys given.
 
     ``parent`` is the schema parent (``"motor"``, ``"reference[]"``), ``prefix`` the dotted
@@ -372,7 +376,7 @@ def _validate_table(table, parent, prefix):
     fields = _fields_of(parent)
     sub = [t for t in _TABLES if "." not in t] + list(ARRAYS) if parent == "" else []
     valid = [f.leaf for f in fields] + sub
-    given = {}
+    given: Tree = {}
     for key, value in table.items():
         dotted = f"{prefix}.{key}" if prefix else key
         if key not in valid:
@@ -389,7 +393,7 @@ def _validate_table(table, parent, prefix):
     return given
 
 
-def _as_table(value, dotted):
+def _as_table(value: object, dotted: str) -> Tree:
     if value is None:
         return {}
     if not isinstance(value, dict):
@@ -397,16 +401,16 @@ def _as_table(value, dotted):
     return value
 
 
-def _validate(tree):
+def _validate(tree: object) -> tuple[Tree, Tree]:
     """Validate a scenario tree; return (given, data): the keys given and all keys resolved."""
-    tree = _as_table(tree, "scenario")
-    given = _validate_table(tree, "", "")
-    for table in _TABLES:
-        values = _validate_table(_as_table(tree.get(table), table), table, table)
+    table = _as_table(tree, "scenario")
+    given = _validate_table(table, "", "")
+    for name in _TABLES:
+        values = _validate_table(_as_table(table.get(name), name), name, name)
         if values:
-            given[table] = values
+            given[name] = values
     for name, (required, what) in ARRAYS.items():
-        entries = tree.get(name)
+        entries = table.get(name)
         if entries is None and not required:
             continue
         valid = f"an array of tables [[{name}]]{' with at least one entry' if required else ''} ({what})"
@@ -417,7 +421,7 @@ def _validate(tree):
                 raise ConfigError(f"{name}.{i}", e, f"a table, one entry of {valid}")
         given[name] = [_validate_table(e, f"{name}[]", f"{name}.{i}") for i, e in enumerate(entries)]
 
-    data = {}
+    data: Tree = {}
     for f in SCHEMA:
         if "[]" in f.key:
             continue
@@ -428,15 +432,15 @@ def _validate(tree):
         node[f.leaf] = source.get(f.leaf, f.default)
     for f in SCHEMA:
         if isinstance(f.default, SameAs) and f.leaf not in given.get(f.parent, {}):
-            table, leaf = f.default.key.split(".")
-            data[f.parent][f.leaf] = data[table][leaf]
+            source_table, source_leaf = f.default.key.split(".")
+            data[f.parent][f.leaf] = data[source_table][source_leaf]
     for name in ARRAYS:
         data[name] = [{f.leaf: e.get(f.leaf, f.default) for f in _fields_of(f"{name}[]")} for e in given.get(name, [])]
     _check_relations(data)
     return given, data
 
 
-def _check_relations(data):
+def _check_relations(data: Tree) -> None:
     """The checks that involve more than one key."""
     sc, cl, sim = data["speed_controller"], data["current_loop"], data["simulation"]
     ratio = sc["Ts_s"] / cl["Ts_s"]
@@ -478,11 +482,11 @@ def _check_relations(data):
     _check_faults(data)
 
 
-def _check_faults(data):
+def _check_faults(data: Tree) -> None:
     """Each fault has the keys its kind uses, acts before t_end and, within its group (DC link or
     speed sensor), does not overlap another; a sensor_spike takes one speed period."""
     sim, Ts_speed = data["simulation"], data["speed_controller"]["Ts_s"]
-    windows = {"dc_link": [], "sensor": []}
+    windows: dict[str, list[tuple[int, tuple[float, float]]]] = {"dc_link": [], "sensor": []}
     for i, f in enumerate(data["fault"]):
         kind = f["kind"]
         if f["t_s"] >= sim["t_end_s"]:
@@ -531,38 +535,44 @@ class Scenario:
     """
 
     __slots__ = ("_given", "_data")
+    _given: Tree  # the keys given, validated
+    _data: Tree  # every key, defaults filled
 
-    def __init__(self, given, data):
+    def __init__(self, given: Tree, data: Tree) -> None:
         object.__setattr__(self, "_given", given)
         object.__setattr__(self, "_data", data)
 
-    def __setattr__(self, name, value):
+    def __setattr__(self, name: str, value: object) -> None:
         raise AttributeError("a Scenario is immutable: use with_overrides()")
 
-    def __reduce__(self):
+    def __reduce__(self) -> tuple[type["Scenario"], tuple[Tree, Tree]]:
         # pickled by its parts (threads and Dask workers of pmsm2dof.studies.engine), not by setattr
         return Scenario, (self._given, self._data)
 
     @classmethod
-    def from_dict(cls, tree):
+    def from_dict(cls, tree: Mapping[str, Any]) -> "Scenario":
         """Validate a nested dict (as read from TOML; ``None`` means absent) into a Scenario."""
         given, data = _validate(copy.deepcopy(tree))
         return cls(given, data)
 
     @property
-    def data(self):
+    def data(self) -> Tree:
         """All keys, validated and with defaults filled (a copy: the scenario never changes)."""
         return copy.deepcopy(self._data)
 
     @property
-    def name(self):
-        return self._data["name"]
+    def name(self) -> str:
+        """The scenario's ``name``."""
+        name: str = self._data["name"]
+        return name
 
     @property
-    def description(self):
-        return self._data["description"]
+    def description(self) -> str:
+        """The scenario's ``description``."""
+        description: str = self._data["description"]
+        return description
 
-    def with_overrides(self, overrides):
+    def with_overrides(self, overrides: Mapping[str, Any]) -> "Scenario":
         """A new scenario with changes applied, validated again; this one is unchanged.
 
         Parameters
@@ -590,12 +600,12 @@ class Scenario:
             _set_dotted(tree, key, copy.deepcopy(value))
         return Scenario.from_dict(tree)
 
-    def to_toml(self):
+    def to_toml(self) -> str:
         """The scenario as TOML text: the keys given, then the defaults as comments.
 
         ``load_scenario`` of the text gives back an equal scenario.
         """
-        lines = []
+        lines: list[str] = []
         lines += _toml_fields(_fields_of(""), self._given, self._data)
         for table in _TABLES:
             lines += ["", f"[{table}]"] + _toml_fields(_fields_of(table), self._given.get(table, {}), self._data[table])
@@ -608,18 +618,19 @@ class Scenario:
                 lines += ["", f"[[{name}]]"] + _toml_fields(fields, given, data)
         return "\n".join(lines) + "\n"
 
-    def __eq__(self, other):
+    def __eq__(self, other: object) -> bool:
         if not isinstance(other, Scenario):
             return NotImplemented
-        return self._data == other._data
+        equal: bool = self._data == other._data
+        return equal
 
     __hash__ = None  # type: ignore[assignment]  # equal scenarios compare by data, which is mutable
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return f"Scenario({self.name!r})"
 
 
-def _toml_value(value):
+def _toml_value(value: object) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (int, float)):
@@ -628,7 +639,7 @@ def _toml_value(value):
     return json.dumps(value, ensure_ascii=False).replace("\x7f", "\\u007f")
 
 
-def _toml_fields(fields, given, data):
+def _toml_fields(fields: list[Field], given: Tree, data: Tree) -> list[str]:
     lines = []
     for f in fields:
         if f.leaf in given:
@@ -642,12 +653,12 @@ def _toml_fields(fields, given, data):
     return lines
 
 
-def _set_dotted(tree, key, value):
+def _set_dotted(tree: Tree, key: object, value: object) -> None:
     """Set ``tree[a][b]...`` for the dotted ``key``, creating tables and appending array entries."""
     parts = key.split(".") if isinstance(key, str) else []
     if not parts or any(not p.strip() for p in parts):
         raise ConfigError("override key", key, "a dotted key such as 'motor.J_kgm2' or 'reference.0.speed_rpm'")
-    node = tree
+    node: Any = tree
     for depth, part in enumerate(parts):
         last = depth == len(parts) - 1
         here = ".".join(parts[: depth + 1])
@@ -679,16 +690,16 @@ def _set_dotted(tree, key, value):
             node = child
 
 
-def _presets_dir():
+def _presets_dir() -> importlib.resources.abc.Traversable:
     return importlib.resources.files("pmsm2dof.sim") / "presets"
 
 
-def list_presets():
+def list_presets() -> list[str]:
     """Names of the scenarios shipped with the package (``pmsm2dof/sim/presets/*.toml``), sorted."""
     return sorted(p.name[: -len(".toml")] for p in _presets_dir().iterdir() if p.name.endswith(".toml"))
 
 
-def load_scenario(name_or_path):
+def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
     """Load and validate a scenario from a preset name or a TOML file.
 
     Parameters
@@ -719,7 +730,7 @@ def load_scenario(name_or_path):
     raise ConfigError("scenario", name, "an existing TOML file or a preset: " + ", ".join(list_presets()))
 
 
-def _from_toml(text, source):
+def _from_toml(text: str, source: str) -> Scenario:
     try:
         tree = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -727,7 +738,7 @@ def _from_toml(text, source):
     return Scenario.from_dict(tree)
 
 
-def schema_reference():
+def schema_reference() -> str:
     """Every scenario key with its type, valid range, default and meaning, as plain text."""
     lines = []
     for f in SCHEMA:

@@ -52,16 +52,21 @@ import dataclasses
 import io
 import math
 import time
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
+import numpy.typing as npt
 
 from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, LOG_COLUMNS, METHODS, pi_gains
 from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, SimulationError
 from ..outputs import atomic_write
-from .scenario import Scenario
+from .scenario import Scenario, Tree
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RPM_PER_RADPS = 30.0 / math.pi
 
@@ -72,9 +77,9 @@ RPM_SIGNALS = {"w_ref_radps": "speed_ref_rpm", "w_m_radps": "speed_rpm", "w_meas
 FLAG_SIGNALS = ("saturated",)
 
 
-def _signal_names(log_columns):
+def _signal_names(log_columns: Iterable[str]) -> tuple[str, ...]:
     """The signals of a :class:`Result`, in order, from the columns of the engine's log."""
-    names = []
+    names: list[str] = []
     for column in log_columns:
         names.append(RPM_SIGNALS.get(column, column))
         if column == "w_m_radps":
@@ -182,43 +187,43 @@ class Result:
     """
 
     #: The signal names, in order: the engine's log columns (p2d_sim_log_name), speeds in rpm.
-    signals: ClassVar[tuple] = _signal_names(LOG_COLUMNS)
+    signals: ClassVar[tuple[str, ...]] = _signal_names(LOG_COLUMNS)
 
     scenario: Scenario
     wall_time_s: float
-    t_s: np.ndarray
-    speed_ref_rpm: np.ndarray
-    speed_rpm: np.ndarray
-    w_m_radps: np.ndarray
-    id_ref_A: np.ndarray
-    iq_ref_A: np.ndarray
-    id_A: np.ndarray
-    iq_A: np.ndarray
-    ud_V: np.ndarray
-    uq_V: np.ndarray
-    torque_Nm: np.ndarray
-    torque_ref_Nm: np.ndarray
-    torque_unsat_Nm: np.ndarray
-    load_Nm: np.ndarray
-    saturated: np.ndarray
-    x_i_Nm: np.ndarray
-    speed_meas_rpm: np.ndarray
-    u_dc_V: np.ndarray
-    voltage_limited: np.ndarray
+    t_s: npt.NDArray[np.float64]
+    speed_ref_rpm: npt.NDArray[np.float64]
+    speed_rpm: npt.NDArray[np.float64]
+    w_m_radps: npt.NDArray[np.float64]
+    id_ref_A: npt.NDArray[np.float64]
+    iq_ref_A: npt.NDArray[np.float64]
+    id_A: npt.NDArray[np.float64]
+    iq_A: npt.NDArray[np.float64]
+    ud_V: npt.NDArray[np.float64]
+    uq_V: npt.NDArray[np.float64]
+    torque_Nm: npt.NDArray[np.float64]
+    torque_ref_Nm: npt.NDArray[np.float64]
+    torque_unsat_Nm: npt.NDArray[np.float64]
+    load_Nm: npt.NDArray[np.float64]
+    saturated: npt.NDArray[np.bool_]
+    x_i_Nm: npt.NDArray[np.float64]
+    speed_meas_rpm: npt.NDArray[np.float64]
+    u_dc_V: npt.NDArray[np.float64]
+    voltage_limited: npt.NDArray[np.float64]
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return (
             f"Result({self.scenario.name!r}, {len(self.t_s)} rows, t = {self.t_s[0]:g}..{self.t_s[-1]:g} s, "
             f"wall {self.wall_time_s:.3g} s)"
         )
 
-    def to_dataframe(self):
+    def to_dataframe(self) -> "pd.DataFrame":
         """The signals as a pandas DataFrame, one column per signal in :attr:`signals` order."""
         import pandas as pd
 
         return pd.DataFrame({name: getattr(self, name) for name in self.signals})
 
-    def save(self, path):
+    def save(self, path: Path | str) -> None:
         """Write the trace to ``path``; the format follows the extension.
 
         ``.csv``: one column per signal with a header row (``saturated`` as 0/1);
@@ -247,7 +252,7 @@ class Result:
             raise ConfigError("path", str(path), "a file name ending in .csv, .npz or .mat")
 
 
-def simulate(scenario, progress=False):
+def simulate(scenario: Scenario, progress: bool = False) -> "Result":
     """Simulate ``scenario`` in the compiled engine and return its :class:`Result`.
 
     Parameters
@@ -314,7 +319,7 @@ class Simulation:
         A value the C controllers or the engine reject, naming the scenario key.
     """
 
-    def __init__(self, data):
+    def __init__(self, data: Tree) -> None:
         self.data = data
         motor, limits, cl, sc, sim = (
             data[k] for k in ("motor", "limits", "current_loop", "speed_controller", "simulation")
@@ -405,13 +410,13 @@ class Simulation:
         self.log = np.zeros((lib.P2D_LOG_COUNT, rows))
         self._log_ptr = ffi.cast("double *", ffi.from_buffer(self.log))
 
-    def advance(self, n_samples):
+    def advance(self, n_samples: int) -> None:
         """Run ``n_samples`` speed-controller samples (one C call, GIL released)."""
         status = lib.p2d_sim_run(self.sim, n_samples, self._log_ptr, self.log.shape[1])
         if status != lib.P2D_SIM_OK:
             self._raise_stop(status)
 
-    def signals(self):
+    def signals(self) -> dict[str, npt.NDArray[Any]]:
         """The log so far as the named arrays of :class:`Result`, rpm at the edge (:data:`RPM_SIGNALS`)."""
         n = self.sim.n_rows
         col = {name: self.log[i, :n] for i, name in enumerate(LOG_COLUMNS)}
@@ -419,7 +424,7 @@ class Simulation:
         if bad:
             first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
             raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = {col['t_s'][first]:.6g} s")
-        signals = {}
+        signals: dict[str, npt.NDArray[Any]] = {}
         for name, values in col.items():
             if name in RPM_SIGNALS:
                 signals[RPM_SIGNALS[name]] = values * RPM_PER_RADPS
@@ -429,17 +434,17 @@ class Simulation:
                 signals[name] = values != 0.0 if name in FLAG_SIGNALS else values
         return signals
 
-    def result(self, scenario, wall_time_s):
+    def result(self, scenario: Scenario, wall_time_s: float) -> Result:
         """The :class:`Result` of the log so far, for ``scenario`` (the one this run was built from)."""
         return Result(scenario=scenario, wall_time_s=wall_time_s, **self.signals())
 
-    def _value(self, key):
-        node = self.data
+    def _value(self, key: str) -> Any:
+        node: Any = self.data
         for part in key.split("."):
             node = node[part]
         return node
 
-    def _raise_config(self, status):
+    def _raise_config(self, status: int) -> None:
         if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER):
             ctl = self.sim.controller_status
             field = c_string(lib.p2d_status_param(ctl))
@@ -462,7 +467,7 @@ class Simulation:
         key = _SIM_KEYS[field]
         raise ConfigError(key, self._value(key), valid)
 
-    def _raise_stop(self, status):
+    def _raise_stop(self, status: int) -> None:
         sim = self.sim
         reason = c_string(lib.p2d_sim_status_text(status))
         if status == lib.P2D_SIM_STOP_OVERSPEED:
@@ -472,7 +477,9 @@ class Simulation:
         raise SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
 
 
-def _schedule(target, entries, value_key, scale):
+def _schedule(
+    target: Any, entries: Sequence[Mapping[str, Any]], value_key: str, scale: float
+) -> list[npt.NDArray[np.float64]]:
     """Fill the C schedule ``target`` from scenario entries; return the arrays it points into."""
     arrays = [
         np.array([e[k] * (scale if k == value_key else 1.0) for e in entries], dtype=np.float64)
@@ -484,7 +491,7 @@ def _schedule(target, entries, value_key, scale):
     return arrays
 
 
-def _faults(cfg, entries):
+def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
     """Fill ``cfg.faults`` from the scenario's ``fault`` entries; return the C array it points to."""
     faults = ffi.new("p2d_fault_t[]", max(1, len(entries)))
     for f, e in zip(faults, entries):
