@@ -8,7 +8,7 @@ second time: the choices of the enums (:func:`enum_names`), the fields of the C 
 only module that imports the extension.
 """
 
-from typing import Literal
+from typing import Literal, cast
 
 # the extension has no type information: ``ffi`` (cffi.FFI) and ``lib`` (its compiled library)
 # are typed Any, as are the C objects they return
@@ -62,18 +62,19 @@ def struct_fields(ctype: str) -> dict[str, str]:
     return {name: field.type.cname for name, field in ffi.typeof(ctype).fields}
 
 
-# The choices of the enums of the API's arguments as types for the annotations: the same names as the tuples below,
-# which are read from C (tests/test_controllers.py checks that both agree).
+# The choices of the enums of the API's arguments as types for the annotations: the names of the
+# tuples below, which are read from C (tests/test_controllers.py checks that both agree, so that
+# the tuples can carry these types).
 Method = Literal["forward_euler", "backward_euler", "tustin"]
 Feedforward = Literal["none", "lowpass", "no_tau", "full"]
 AntiWindup = Literal["none", "back_calculation", "clamping"]
 
 #: Discretization methods (paper Table 1); the index is the C ``p2d_method_t`` value.
-METHODS = enum_names("p2d_method_t", "P2D_")
+METHODS = cast(tuple[Method, ...], enum_names("p2d_method_t", "P2D_"))
 #: 2DOF feedforward forms; the index is the C ``p2d_feedforward_t`` value.
-FEEDFORWARDS = enum_names("p2d_feedforward_t", "P2D_FF_")
+FEEDFORWARDS = cast(tuple[Feedforward, ...], enum_names("p2d_feedforward_t", "P2D_FF_"))
 #: Anti-windup modes (paper section 3.2); the index is the C ``p2d_anti_windup_t`` value.
-ANTI_WINDUPS = enum_names("p2d_anti_windup_t", "P2D_AW_")
+ANTI_WINDUPS = cast(tuple[AntiWindup, ...], enum_names("p2d_anti_windup_t", "P2D_AW_"))
 #: Current-loop models of the engine (``p2d_current_model_t``): the C dq current controllers
 #: driving the electrical model, or the closed loop of eq 3.
 CURRENT_LOOP_MODELS = enum_names("p2d_current_model_t", "P2D_CURRENT_")
