@@ -32,7 +32,7 @@ from typing import Any
 from ..errors import ConfigError, SimulationError
 from ..outputs import atomic_write
 from ..sim.metrics import compute_metrics
-from ..sim.scenario import Scenario
+from ..sim.scenario import Scenario, Tree
 from ..sim.simulate import Result, simulate
 
 #: Most runs per batch when the batch size is automatic.
@@ -60,7 +60,7 @@ class Run:
 
     key: Hashable
     base: str
-    overrides: dict
+    overrides: dict[str, Any]
     label: str = ""
 
 
@@ -83,7 +83,7 @@ class Outcome:
     """
 
     key: Hashable
-    metrics: dict | None
+    metrics: dict[str, Any] | None
     error: str
     wall_time_s: float | None
     result: Result | None = None
@@ -97,7 +97,9 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-def simulate_batch(bases: Mapping[str, dict], runs: Sequence[Run], keep: frozenset = frozenset()) -> list[Outcome]:
+def simulate_batch(
+    bases: Mapping[str, Tree], runs: Sequence[Run], keep: frozenset[Hashable] = frozenset()
+) -> list[Outcome]:
     """Simulate and measure ``runs`` one after the other (in a worker thread or on a Dask worker).
 
     Parameters
@@ -173,7 +175,7 @@ def connect(scheduler: str | None) -> Iterator[Any]:
 
 
 def run_many(
-    bases: Mapping[str, dict],
+    bases: Mapping[str, Tree],
     runs: Sequence[Run],
     *,
     keep: Iterable[Hashable] = (),
@@ -256,13 +258,19 @@ def _batches(runs: Sequence[Run], size: int) -> list[list[Run]]:
     return [list(runs[i : i + size]) for i in range(0, len(runs), size)]
 
 
-def _run_local(bases, batches, keep, workers, finished):
+def _run_local(
+    bases: Mapping[str, Tree],
+    batches: Sequence[list[Run]],
+    keep: frozenset[Hashable],
+    workers: int,
+    finished: Callable[[list[Outcome]], None],
+) -> None:
     """Batches on a thread pool; on any exception or interrupt, pass on what finished and re-raise."""
-    from concurrent.futures import ThreadPoolExecutor, as_completed
+    from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pmsm2dof-study")
     futures = [pool.submit(simulate_batch, bases, batch, keep) for batch in batches]
-    passed = set()
+    passed: set[Future[list[Outcome]]] = set()
     try:
         for fut in as_completed(futures):
             finished(fut.result())
@@ -278,12 +286,18 @@ def _run_local(bases, batches, keep, workers, finished):
     pool.shutdown(wait=True)
 
 
-def _run_dask(client, bases, batches, keep, finished):
+def _run_dask(
+    client: Any,  # a dask.distributed.Client
+    bases: Mapping[str, Tree],
+    batches: Sequence[list[Run]],
+    keep: frozenset[Hashable],
+    finished: Callable[[list[Outcome]], None],
+) -> None:
     """Batches as tasks on a Dask distributed cluster; on any exception or interrupt, pass on what finished."""
     from dask.distributed import as_completed
 
     futures = [client.submit(simulate_batch, bases, batch, keep, pure=False) for batch in batches]
-    passed = set()
+    passed: set[str] = set()
     try:
         for fut in as_completed(futures, loop=client.loop):
             finished(fut.result())
@@ -329,13 +343,15 @@ class PartStore:
         The keys run from 0 to ``n_keys - 1``.
     """
 
-    def __init__(self, folder: Path, frame: Callable[[list[dict]], Any], key_column: str, n_keys: int) -> None:
+    def __init__(
+        self, folder: Path, frame: Callable[[list[dict[str, Any]]], Any], key_column: str, n_keys: int
+    ) -> None:
         self.folder = Path(folder)
         self.frame = frame
         self.key_column = key_column
         self.n_keys = n_keys
 
-    def save(self, rows: list[dict]) -> None:
+    def save(self, rows: list[dict[str, Any]]) -> None:
         """Store the rows of one finished batch as ``part-<first key>.parquet``."""
         buf = io.BytesIO()
         self.frame(rows).to_parquet(buf, index=False)

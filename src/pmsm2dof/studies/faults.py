@@ -5,11 +5,16 @@ sample) run with each anti-windup mode of the speed controller (:func:`run_fault
 :func:`fault_figures` measures what the fault did to the drive.
 """
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 
+from ..core.bindings import AntiWindup
 from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
-from ..sim.scenario import load_scenario
+from ..sim.scenario import Tree, load_scenario
+from ..sim.simulate import Result
 from .engine import Run, run_many
 from .paper import AW_LABELS
 
@@ -17,7 +22,9 @@ from .paper import AW_LABELS
 FAULT_PRESETS = ("fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike")
 
 
-def run_faults(overrides=None, workers=None):
+def run_faults(
+    overrides: Mapping[str, Any] | None = None, workers: int | None = None
+) -> dict[tuple[str, AntiWindup], Result | str | None]:
     """Simulate every fault preset with each anti-windup mode (:func:`pmsm2dof.studies.engine.run_many`).
 
     Returns ``{(preset, anti_windup): Result}`` in the order of :data:`FAULT_PRESETS` and
@@ -25,7 +32,9 @@ def run_faults(overrides=None, workers=None):
     overrides do not apply to the preset or the run stopped. ``workers``: local threads of the
     engine (default: the cores available).
     """
-    runs, bases, todo = {}, {}, []
+    runs: dict[tuple[str, AntiWindup], Result | str | None] = {}
+    bases: dict[str, Tree] = {}
+    todo: list[Run] = []
     for preset in FAULT_PRESETS:
         for aw in AW_LABELS:
             key = f"{preset}-{aw}"
@@ -47,7 +56,7 @@ def run_faults(overrides=None, workers=None):
     return runs
 
 
-def fault_figures(result):
+def fault_figures(result: Result) -> dict[str, float | None]:
     """What a fault did to the drive, from its start (the jam of the stall) to the end of the run.
 
     ``deviation_rpm``: peak of ``|speed_ref - speed|``; ``x_i_excursion_Nm``: peak change of the

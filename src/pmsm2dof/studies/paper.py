@@ -31,15 +31,20 @@ import dataclasses
 import math
 import time
 import warnings
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from ..analysis.design import design
+from ..analysis.design import Design, design
 from ..analysis.discretize import MAX_W_TS, SamplingWarning
-from ..analysis.margins import loop_margins
+from ..analysis.margins import Margins, loop_margins
 from ..core import METHODS, pi_gains
+from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, SimulationError
-from ..sim.scenario import load_scenario
+from ..sim.scenario import Scenario, load_scenario
+from ..sim.simulate import Result
 from .engine import Run, run_many
 
 #: The presets every study starts from.
@@ -63,9 +68,9 @@ SMALL_STEP_RPM = 2.0
 ONE_DOF = "1DOF PI"
 TWO_DOF = "2DOF eq 15"
 #: Feedforward of each controller compared in the paper (section 4.1): eq 13 discretized as eq 15.
-FEEDFORWARD = {ONE_DOF: "none", TWO_DOF: "lowpass"}
+FEEDFORWARD: dict[str, Feedforward] = {ONE_DOF: "none", TWO_DOF: "lowpass"}
 #: Anti-windup modes, as the scenario names them, and as the report labels them.
-AW_LABELS = {"none": "no AW", "back_calculation": "back-calculation AW", "clamping": "clamping"}
+AW_LABELS: dict[AntiWindup, str] = {"none": "no AW", "back_calculation": "back-calculation AW", "clamping": "clamping"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -74,20 +79,20 @@ class RunSpec:
 
     name: str
     preset: str
-    overrides: dict
+    overrides: dict[str, Any]
 
 
-def _controller(label, anti_windup="back_calculation"):
+def _controller(label: str, anti_windup: AntiWindup = "back_calculation") -> dict[str, Any]:
     return {"speed_controller.feedforward": FEEDFORWARD[label], "speed_controller.anti_windup": anti_windup}
 
 
-def paper_runs():
+def paper_runs() -> list[RunSpec]:
     """The runs of the paper's simulation and experimental conditions (section 4), by name.
 
     ``c1``, ``c2``: simulation conditions 1 and 2; ``e1`` to ``e3``: experimental conditions 1 to 3;
     ``1dof`` / ``2dof``: feedforward none / lowpass; the last part is the anti-windup mode.
     """
-    runs = []
+    runs: list[RunSpec] = []
     for cond, preset in (("c1", "paper-condition-1"), ("e1", "paper-experiment-1")):
         for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
             for aw in AW_LABELS:
@@ -105,7 +110,7 @@ class Series:
 
     label: str
     kind: str
-    runs: tuple
+    runs: tuple[RunSpec, ...]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -140,37 +145,37 @@ class Sweep:
     title: str
     x_label: str
     x_column: str
-    x: tuple
-    series: tuple
-    references: tuple = ()
-    marks: tuple = ()
-    bands: tuple = ()
+    x: tuple[float, ...]
+    series: tuple[Series, ...]
+    references: tuple[tuple[str, RunSpec], ...] = ()
+    marks: tuple[tuple[float, str], ...] = ()
+    bands: tuple[tuple[float, float, str], ...] = ()
     log_x: bool = False
 
-    def runs(self):
+    def runs(self) -> list[RunSpec]:
         """Every run of the sweep."""
         return [r for s in self.series for r in s.runs] + [r for _, r in self.references]
 
 
-def _unique(values):
+def _unique(values: Iterable[float]) -> tuple[float, ...]:
     """``values`` sorted, those equal to 12 significant digits taken once (the last of them)."""
     return tuple(sorted({float(f"{v:.12g}"): float(v) for v in values}.values()))
 
 
-def _geom(lo, hi, n, *include):
+def _geom(lo: float, hi: float, n: int, *include: float) -> tuple[float, ...]:
     """``n`` log-spaced values from ``lo`` to ``hi``, with the values ``include`` added (exactly), sorted."""
     return _unique([*np.geomspace(lo, hi, n), *include])
 
 
-def _step(label, name, overrides, anti_windup="back_calculation"):
+def _step(label: str, name: str, overrides: dict[str, Any], anti_windup: AntiWindup = "back_calculation") -> RunSpec:
     return RunSpec(name, STEP_BASE, {"simulation.t_end_s": STEP_T_END_S} | _controller(label, anti_windup) | overrides)
 
 
-def _load(label, name, overrides):
+def _load(label: str, name: str, overrides: dict[str, Any]) -> RunSpec:
     return RunSpec(name, LOAD_BASE, _controller(label) | overrides)
 
 
-def sweeps(bases, points=POINTS):
+def sweeps(bases: Mapping[str, Scenario], points: int = POINTS) -> list[Sweep]:
     """The sensitivity sweeps around the presets ``bases`` (preset name -> Scenario).
 
     Parameters
@@ -352,7 +357,7 @@ def sweeps(bases, points=POINTS):
     return out
 
 
-def _both_controllers(name, values, key):
+def _both_controllers(name: str, values: Sequence[float], key: str) -> tuple[Series, ...]:
     series = []
     for dof, label in (("1dof", ONE_DOF), ("2dof", TWO_DOF)):
         for kind, make in (("step", _step), ("load", _load)):
@@ -375,7 +380,7 @@ class DiscretePoint:
     """
 
     controller: str
-    method: str
+    method: Method
     Ts_s: float
     stable: bool
     overshoot_pct: float
@@ -385,7 +390,9 @@ class DiscretePoint:
     reason: str = ""
 
 
-def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
+def discretization_points(
+    base: Scenario, Ts_grid: Sequence[float] = TS_GRID_S, progress: bool = False
+) -> tuple[list[DiscretePoint], dict[str, tuple[float, Margins, float]]]:
     """The discretization study on the design of scenario ``base`` (Table 1, eq 14, 15).
 
     Parameters
@@ -406,7 +413,8 @@ def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
     for Ts in Ts_grid:
         if not math.isclose(Ts / cl["Ts_s"], round(Ts / cl["Ts_s"]), rel_tol=1e-9):
             raise ConfigError("Ts_s", Ts, f"a multiple of current_loop.Ts_s = {cl['Ts_s']:g} s")
-    designs, continuous = {}, {}
+    designs: dict[str, Design] = {}
+    continuous: dict[str, tuple[float, Margins, float]] = {}
     for label, ff in FEEDFORWARD.items():
         d = design(
             sc["J_kgm2"],
@@ -426,7 +434,7 @@ def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
         from tqdm import tqdm
 
         cases = tqdm(cases, desc="discretization", unit="design")
-    points = []
+    points: list[DiscretePoint] = []
     for label, method, Ts in cases:
         d, w_gc = designs[label], continuous[label][2]
         try:
@@ -445,7 +453,7 @@ def discretization_points(base, Ts_grid=TS_GRID_S, progress=False):
     return points, continuous
 
 
-def largest_fine_Ts(base, Ts_grid=TS_GRID_S):
+def largest_fine_Ts(base: Scenario, Ts_grid: Sequence[float] = TS_GRID_S) -> float:
     """The largest period of ``Ts_grid`` that :mod:`pmsm2dof.analysis.discretize` deems fine for the design.
 
     That is ``max(alpha, alpha/(2 zeta), m alpha) Ts <= MAX_W_TS`` (beyond it discretize warns).
@@ -456,7 +464,7 @@ def largest_fine_Ts(base, Ts_grid=TS_GRID_S):
     return max(fine) if fine else min(Ts_grid)
 
 
-def _small_step(name, overrides):
+def _small_step(name: str, overrides: dict[str, Any]) -> RunSpec:
     """A step of :data:`SMALL_STEP_RPM` from rest at 0.5 s, no load: the current stays below its limit.
 
     From rest rather than at speed, so that the float32 resolution of a large speed reference
@@ -469,7 +477,7 @@ def _small_step(name, overrides):
     )
 
 
-def linear_runs():
+def linear_runs() -> list[RunSpec]:
     """Runs of the 2DOF controller in the linear range (a small step): eq 13 against eq 12 (m = 1).
 
     Named ``lin-lowpass`` and ``lin-full``; their traces are kept.
@@ -480,7 +488,7 @@ def linear_runs():
     ]
 
 
-def discretization_runs(Ts_engine=TS_ENGINE_S):
+def discretization_runs(Ts_engine: Sequence[float] = TS_ENGINE_S) -> list[RunSpec]:
     """Engine runs of the 1DOF PI at a few speed-loop periods: a small step from rest.
 
     The step of :data:`SMALL_STEP_RPM` leaves the current far from its limit, so the loop stays
@@ -529,35 +537,38 @@ class Studies:
         Wall-clock time of all the runs and design computations [s].
     """
 
-    bases: dict
-    overrides: dict
-    results: dict
-    metrics: dict
-    failures: dict
-    sweeps: list
-    discretization: list
-    continuous: dict
+    bases: dict[str, Scenario]
+    overrides: dict[str, Any]
+    results: dict[str, Result]
+    metrics: dict[str, dict[str, Any]]
+    failures: dict[str, str]
+    sweeps: list[Sweep]
+    discretization: list[DiscretePoint]
+    continuous: dict[str, tuple[float, Margins, float]]
     fine_Ts_s: float
     n_runs: int
     wall_time_s: float
 
-    def speed_controller(self):
+    def speed_controller(self) -> dict[str, Any]:
         """The ``speed_controller`` table of the sensitivity base (:data:`STEP_BASE`), as run."""
-        return self.bases[STEP_BASE].data["speed_controller"]
+        table: dict[str, Any] = self.bases[STEP_BASE].data["speed_controller"]
+        return table
 
-    def step(self, name, index=0):
+    def step(self, name: str, index: int = 0) -> dict[str, Any]:
         """Figures of reference step ``index`` of run ``name`` (see :mod:`pmsm2dof.sim.metrics`)."""
-        return self.metrics[name]["reference_steps"][index]
+        figures: dict[str, Any] = self.metrics[name]["reference_steps"][index]
+        return figures
 
-    def load(self, name, index=0):
+    def load(self, name: str, index: int = 0) -> dict[str, Any]:
         """Figures of load step ``index`` of run ``name``."""
-        return self.metrics[name]["load_steps"][index]
+        figures: dict[str, Any] = self.metrics[name]["load_steps"][index]
+        return figures
 
-    def sweep(self, name):
+    def sweep(self, name: str) -> Sweep:
         """The sweep called ``name``."""
         return next(s for s in self.sweeps if s.name == name)
 
-    def figure(self, run_name, kind, figure):
+    def figure(self, run_name: str, kind: str, figure: str) -> float:
         """The value of ``figure`` of the step (kind ``"step"``) or load step (``"load"``) of a sweep run.
 
         NaN when the run stopped or the figure could not be computed (its reason is in
@@ -570,12 +581,18 @@ class Studies:
         value = step[figure]["value"]
         return math.nan if value is None else value
 
-    def series_values(self, series, figure):
+    def series_values(self, series: Series, figure: str) -> npt.NDArray[np.float64]:
         """``figure`` along a series, as a float array (NaN where missing)."""
         return np.array([self.figure(r.name, series.kind, figure) for r in series.runs], dtype=float)
 
 
-def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, workers=None, progress=False):
+def run_studies(
+    overrides: Mapping[str, Any] | None = None,
+    points: int = POINTS,
+    Ts_grid: Sequence[float] = TS_GRID_S,
+    workers: int | None = None,
+    progress: bool = False,
+) -> Studies:
     """Run every simulation and design computation of the reproduction.
 
     Parameters
@@ -624,16 +641,19 @@ def run_studies(overrides=None, points=POINTS, Ts_grid=TS_GRID_S, workers=None, 
         description="pmsm2dof reproduce",
     )
 
-    results, metrics, failures = {}, {}, {}
+    results: dict[str, Result] = {}
+    metrics: dict[str, dict[str, Any]] = {}
+    failures: dict[str, str] = {}
     for outcome in outcomes:
+        name = str(outcome.key)  # the runs are keyed by their names
         if outcome.metrics is None:
-            if outcome.key in keep:
+            if name in keep:
                 raise SimulationError(outcome.error)
-            failures[outcome.key] = outcome.error
+            failures[name] = outcome.error
             continue
-        metrics[outcome.key] = outcome.metrics
-        if outcome.key in keep:
-            results[outcome.key] = outcome.result
+        metrics[name] = outcome.metrics
+        if name in keep and outcome.result is not None:  # a kept run that completed has its result
+            results[name] = outcome.result
 
     discretization, continuous = discretization_points(bases[STEP_BASE], Ts_grid, progress=progress)
     return Studies(

@@ -52,13 +52,24 @@ import math
 import numbers
 import tomllib
 import zlib
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import ConfigError
-from .engine import PartStore, Run, check_options, connect, run_many
+from .engine import Outcome, PartStore, Run, check_options, connect, run_many
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from ..sim.scenario import Scenario, Tree
+
+#: One point of a sweep: ``{dotted key: value}``.
+Point = dict[str, Any]
 
 #: Distribution names and their parameters, in the order of the docstring.
 DISTRIBUTIONS = {
@@ -89,19 +100,22 @@ class Axis:
     """
 
     key: str
-    values: tuple | None
+    values: tuple[Any, ...] | None
     distribution: str | None = None
-    params: dict | None = None
+    params: dict[str, float] | None = None
 
     @property
-    def is_random(self):
+    def is_random(self) -> bool:
         """True for a distribution axis."""
         return self.distribution is not None
 
-    def draw(self, draws, seed):
+    def draw(self, draws: int, seed: int) -> tuple[float, ...]:
         """The ``draws`` values of a distribution axis, reproducible from ``seed`` and the key."""
         rng = np.random.default_rng(np.random.SeedSequence([seed, zlib.crc32(self.key.encode())]))
         p = self.params
+        if p is None:
+            raise ValueError(f"{self.key} is a list or range axis, not a distribution")
+        x: npt.NDArray[np.float64]
         if self.distribution == "uniform":
             x = rng.uniform(p["low"], p["high"], draws)
         elif self.distribution == "normal":
@@ -131,40 +145,40 @@ class Sweep:
     """
 
     name: str
-    base: object
-    axes: tuple
+    base: "Scenario"
+    axes: tuple[Axis, ...]
     draws: int | None
     seed: int | None
     rank_by: str
     worst: int
-    points: tuple
+    points: tuple[Point, ...]
 
     @property
-    def grid_axes(self):
+    def grid_axes(self) -> tuple[Axis, ...]:
         """The list and range axes."""
         return tuple(a for a in self.axes if not a.is_random)
 
     @property
-    def random_axes(self):
+    def random_axes(self) -> tuple[Axis, ...]:
         """The distribution axes."""
         return tuple(a for a in self.axes if a.is_random)
 
     @property
-    def keys(self):
+    def keys(self) -> tuple[str, ...]:
         """The dotted keys of the axes, in file order."""
         return tuple(a.key for a in self.axes)
 
-    def digest(self):
+    def digest(self) -> str:
         """SHA-256 of the base scenario and the points: equal digests mean the same runs."""
         text = json.dumps({"base": self.base.data, "points": self.points}, sort_keys=True, default=str)
         return hashlib.sha256(text.encode()).hexdigest()
 
-    def scenario(self, index):
+    def scenario(self, index: int) -> "Scenario":
         """The scenario of point ``index`` (the base with the point's values)."""
         return self.base.with_overrides(self.points[index])
 
 
-def load_sweep(path):
+def load_sweep(path: Path | str) -> Sweep:
     """Read and validate a sweep file.
 
     Parameters
@@ -194,7 +208,7 @@ def load_sweep(path):
     return parse_sweep(data, base_dir=path.parent)
 
 
-def parse_sweep(data, base_dir="."):
+def parse_sweep(data: Mapping[str, Any], base_dir: Path | str = ".") -> Sweep:
     """Validate a sweep description given as a dict (the parsed TOML).
 
     Parameters
@@ -254,7 +268,7 @@ def parse_sweep(data, base_dir="."):
     return Sweep(name.strip(), base, axes, draws, seed, rank_by, worst, tuple(points))
 
 
-def _load_base(load_scenario, base, base_dir):
+def _load_base(load_scenario: Callable[[str], "Scenario"], base: object, base_dir: Path) -> "Scenario":
     if not isinstance(base, str) or not base.strip():
         raise ConfigError("base", base, "a preset name or the path of a scenario TOML file")
     candidate = base_dir / base
@@ -263,7 +277,7 @@ def _load_base(load_scenario, base, base_dir):
     return load_scenario(base)
 
 
-def _parse_axis(key, spec, base_data):
+def _parse_axis(key: str, spec: object, base_data: "Tree") -> Axis:
     _check_key(key, base_data)
     where = f"axes.{key}"
     if isinstance(spec, list):
@@ -279,7 +293,7 @@ def _parse_axis(key, spec, base_data):
     raise ConfigError(where, spec, "a list, a range {start, stop, num, scale} or a distribution")
 
 
-def _parse_range(key, where, spec):
+def _parse_range(key: str, where: str, spec: Mapping[str, Any]) -> Axis:
     allowed = ("start", "stop", "num", "scale")
     _no_extra_keys(where, spec, allowed)
     start = _require_finite(f"{where}.start", spec.get("start"))
@@ -298,7 +312,7 @@ def _parse_range(key, where, spec):
     return Axis(key, tuple(float(v) for v in values))
 
 
-def _parse_distribution(key, where, spec):
+def _parse_distribution(key: str, where: str, spec: Mapping[str, Any]) -> Axis:
     kind = spec["distribution"]
     if kind not in DISTRIBUTIONS:
         raise ConfigError(f"{where}.distribution", kind, "one of " + ", ".join(repr(d) for d in DISTRIBUTIONS))
@@ -317,9 +331,9 @@ def _parse_distribution(key, where, spec):
     return Axis(key, None, kind, params)
 
 
-def _check_key(key, base_data):
+def _check_key(key: str, base_data: "Tree") -> None:
     """The dotted key must name a value of the scenario (a list element by its index)."""
-    node = base_data
+    node: Any = base_data
     for i, part in enumerate(key.split(".")):
         if isinstance(node, dict) and part in node:
             node = node[part]
@@ -336,14 +350,14 @@ def _check_key(key, base_data):
         raise ConfigError("axes", key, "a key holding one value, not a table or list")
 
 
-def _expand(axes, draws, seed):
+def _expand(axes: Sequence[Axis], draws: int | None, seed: int | None) -> list[Point]:
     """Every point: the grid of list/range axes times the draws of the distribution axes."""
     grid = [a for a in axes if not a.is_random]
     random = [a for a in axes if a.is_random]
-    drawn = {a.key: a.draw(draws, seed) for a in random}
-    n_draws = draws if random else 1
-    points = []
-    for cell in itertools.product(*(a.values for a in grid)):
+    drawn = {a.key: a.draw(cast(int, draws), cast(int, seed)) for a in random}  # given with random axes
+    n_draws = cast(int, draws) if random else 1
+    points: list[Point] = []
+    for cell in itertools.product(*(a.values or () for a in grid)):
         for d in range(n_draws):
             values = dict(zip((a.key for a in grid), cell))
             values.update({a.key: drawn[a.key][d] for a in random})
@@ -351,24 +365,24 @@ def _expand(axes, draws, seed):
     return points
 
 
-def _describe(point):
+def _describe(point: Mapping[str, Any]) -> str:
     return ", ".join(f"{k}={v!r}" for k, v in point.items())
 
 
-def _no_extra_keys(where, spec, allowed):
+def _no_extra_keys(where: str, spec: Mapping[str, Any], allowed: Iterable[str]) -> None:
     for k in spec:
         if k not in allowed:
             raise ConfigError(f"{where}.{k}", spec[k], "not a key here; the keys are " + ", ".join(allowed))
 
 
-def _require_finite(param, value):
+def _require_finite(param: str, value: object) -> float:
     if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
         raise ConfigError(param, value, "a finite number")
     return float(value)
 
 
-def _require_int(param, value, minimum, valid):
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < minimum:
+def _require_int(param: str, value: object, minimum: int, valid: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum:
         raise ConfigError(param, value, valid)
     return int(value)
 
@@ -378,7 +392,7 @@ def _require_int(param, value, minimum, valid):
 # ---------------------------------------------------------------------------------------------
 
 
-def metric_columns(data):
+def metric_columns(data: "Tree") -> list[str]:
     """Names of the metric columns for a scenario's ``data``, in table order.
 
     ``ref{i}_<figure>`` for the i-th entry of ``reference``, ``load{j}_<figure>`` for the j-th
@@ -393,11 +407,11 @@ def metric_columns(data):
     return columns
 
 
-def _flatten(metrics):
+def _flatten(metrics: Mapping[str, Any]) -> tuple[dict[str, Any], str]:
     """The figures of ``compute_metrics`` as ``{column: value or None}`` and the reasons of the None."""
     from ..sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
 
-    figures = {}
+    figures: dict[str, dict[str, Any]] = {}
     for prefix, steps, names in (
         ("ref", metrics["reference_steps"], REFERENCE_FIGURES),
         ("load", metrics["load_steps"], LOAD_FIGURES),
@@ -409,7 +423,7 @@ def _flatten(metrics):
     return {col: fig["value"] for col, fig in figures.items()}, notes
 
 
-def _row(sweep, point, outcome):
+def _row(sweep: Sweep, point: int, outcome: Outcome) -> dict[str, Any]:
     """The results row of one point: ``point``, the axis values, ``status`` (``"ok"`` or
     ``"error"``), ``error`` (the SimulationError message or ""), ``wall_time_s`` of the
     simulation, every metric column and ``notes`` (why a metric is missing). A run that diverges
@@ -425,7 +439,7 @@ def _row(sweep, point, outcome):
     return row
 
 
-def _frame(rows, sweep):
+def _frame(rows: list[dict[str, Any]], sweep: Sweep) -> "pd.DataFrame":
     """Rows as a DataFrame with fixed column order and nullable float metrics."""
     import pandas as pd
 
@@ -444,7 +458,7 @@ MANIFEST = "sweep.json"
 PARTS = "parts"
 
 
-def _prepare_out(out, sweep):
+def _prepare_out(out: Path, sweep: Sweep) -> None:
     """Create ``out`` with the sweep's manifest, or check that it holds the same sweep."""
     from ..outputs import atomic_write
 
@@ -481,12 +495,12 @@ def _prepare_out(out, sweep):
     )
 
 
-def _parts(out, sweep):
+def _parts(out: Path, sweep: Sweep) -> PartStore:
     """The store of the finished points' rows of ``sweep`` in ``out/parts``."""
     return PartStore(out / PARTS, lambda rows: _frame(rows, sweep), "point", len(sweep.points))
 
 
-def _save_part(out, sweep, rows):
+def _save_part(out: Path, sweep: Sweep, rows: list[dict[str, Any]]) -> None:
     """Store the rows of one finished batch of points (``parts/part-<first point>.parquet``)."""
     _parts(out, sweep).save(rows)
 
@@ -509,14 +523,26 @@ class SweepRun:
         The results and figures written.
     """
 
-    table: object
+    table: "pd.DataFrame"
     out: Path
     resumed: int
     computed: int
-    files: tuple
+    files: tuple[Path, ...]
 
 
-def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progress=True, figures=None):
+#: Draws the figures of a finished sweep: ``figures(sweep, table, folder)`` returns their paths.
+FigureWriter = Callable[[Sweep, "pd.DataFrame", Path], Sequence[Path]]
+
+
+def run_sweep(
+    sweep: Sweep,
+    out: Path | str,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    batch_size: int | None = None,
+    progress: bool = True,
+    figures: FigureWriter | None = None,
+) -> SweepRun:
     """Run every point of ``sweep`` not yet finished in ``out``, then write results and figures.
 
     The points run on the engine of :mod:`pmsm2dof.studies.engine`. Each finished batch of
@@ -579,7 +605,8 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
             batch_size=batch_size,
             progress=progress,
             description=sweep.name,
-            on_batch=lambda outcomes: _save_part(out, sweep, [_row(sweep, o.key, o) for o in outcomes]),
+            # the runs are keyed by point index
+            on_batch=lambda outcomes: _save_part(out, sweep, [_row(sweep, cast(int, o.key), o) for o in outcomes]),
         )
     table = parts.read().drop_duplicates("point").sort_values("point", ignore_index=True)
     if len(table) != len(sweep.points):
@@ -588,11 +615,11 @@ def run_sweep(sweep, out, workers=None, scheduler=None, batch_size=None, progres
     return SweepRun(table, out, len(done), len(todo), files)
 
 
-def _write_results(out, sweep, table, figures):
+def _write_results(out: Path, sweep: Sweep, table: "pd.DataFrame", figures: FigureWriter | None) -> tuple[Path, ...]:
     """results.parquet, results.csv and the figures, moved into ``out`` together when all are written."""
     from ..outputs import staged_dir
 
-    drawn = []
+    drawn: Sequence[Path] = []
     with staged_dir(out) as tmp:
         table.to_parquet(tmp / "results.parquet", index=False)
         table.to_csv(tmp / "results.csv", index=False)
