@@ -6,30 +6,37 @@ Every error the user can cause ends as one line on stderr and exit status 2.
 
 import sys
 import tomllib
+from collections.abc import Iterable, Mapping
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from ..errors import ConfigError, Pmsm2dofError
 
+if TYPE_CHECKING:
+    from ..analysis.discretize import DiscreteDesign
+    from ..analysis.margins import Margins
+    from ..core.bindings import AntiWindup, Feedforward, Method
+
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="pmsm2dof")
-def cli():
+def cli() -> None:
     """Design, simulate and deploy the anti-windup 2DOF PI speed controller of a PMSM."""
 
 
-def _one_line(text):
+def _one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
-def _as_option(exc, options):
+def _as_option(exc: ConfigError, options: Mapping[str, str]) -> ConfigError:
     """``exc`` with its parameter named by its command-line option, when it has one in ``options``."""
     if exc.param in options:
         return ConfigError(options[exc.param], exc.value, exc.valid)
     return exc
 
 
-def parse_override(text):
+def parse_override(text: str) -> tuple[str, Any]:
     """Parse one ``--set key=value`` of the command line.
 
     Parameters
@@ -57,7 +64,7 @@ def parse_override(text):
     return (key, parsed["v"]) if list(parsed) == ["v"] else (key, raw)
 
 
-def main(argv=None):
+def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script: run the CLI, map user errors to exit status 2.
 
     A command ends with another status by raising ``click.exceptions.Exit`` (``autotune``: 1
@@ -66,7 +73,7 @@ def main(argv=None):
     try:
         status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
     except click.exceptions.Exit as exc:
-        return exc.exit_code
+        return int(exc.exit_code)
     except click.exceptions.Abort:
         print("pmsm2dof: interrupted", file=sys.stderr)
         return 130
@@ -146,28 +153,28 @@ def main(argv=None):
     "paper-condition-1), placeholders rather than your motor's",
 )
 def design(
-    J_kgm2,
-    alpha_radps,
-    zeta,
-    m,
-    tau_i_s,
-    Ts_s,
-    method,
-    feedforward,
-    anti_windup,
-    Ka,
-    as_json,
-    header,
-    prefix,
-    i_max_A,
-    pole_pairs,
-    psi_f_Wb,
-    Ld_H,
-    Lq_H,
-    Rs_ohm,
-    Ts_current_s,
-    paper_drive,
-):
+    J_kgm2: float,
+    alpha_radps: float,
+    zeta: float,
+    m: float,
+    tau_i_s: float,
+    Ts_s: float,
+    method: "Method",  # any string from the command line: the library validates the choices
+    feedforward: "Feedforward",
+    anti_windup: "AntiWindup",
+    Ka: float | None,
+    as_json: bool,
+    header: str | None,
+    prefix: str,
+    i_max_A: float | None,
+    pole_pairs: int | None,
+    psi_f_Wb: float | None,
+    Ld_H: float | None,
+    Lq_H: float | None,
+    Rs_ohm: float | None,
+    Ts_current_s: float | None,
+    paper_drive: bool,
+) -> None:
     """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.
 
     With --emit-c-header the header needs the motor data: --i-max, --pole-pairs, --psi-f and
@@ -228,7 +235,9 @@ _HEADER_MOTOR = {
 }
 
 
-def _header_motor(given, current_loop, paper_drive):
+def _header_motor(
+    given: Mapping[str, float | None], current_loop: bool, paper_drive: bool
+) -> tuple[dict[str, Any], dict[str, str]]:
     """The motor data of the C header and where each value came from.
 
     Every value is either given, or, with ``paper_drive``, taken from the paper's drive
@@ -242,9 +251,10 @@ def _header_motor(given, current_loop, paper_drive):
     """
     needed = ["i_max_A", "pole_pairs", "psi_f_Wb", "Ld_H", "Lq_H"]
     needed += ["Rs_ohm"] if current_loop or given["Rs_ohm"] is not None else []
-    motor, sources = {}, {}
+    motor: dict[str, Any] = {}
+    sources: dict[str, str] = {}
     if given["Lq_H"] is None and given["Ld_H"] is not None:
-        given = given | {"Lq_H": given["Ld_H"]}
+        given = {**given, "Lq_H": given["Ld_H"]}
         sources["Lq_H"] = "= Ld_H: surface PMSM, --Lq not given"
     missing = [name for name in needed if given[name] is None]
     if missing and not paper_drive:
@@ -268,7 +278,7 @@ def _header_motor(given, current_loop, paper_drive):
     return motor, {name: sources[name] for name in needed}
 
 
-def _poles_text(poles, unit):
+def _poles_text(poles: Iterable[complex], unit: str) -> str:
     """Poles with conjugate pairs shown once as re ± im j."""
     parts = []
     for p in sorted(poles, key=lambda p: (p.real, -p.imag)):
@@ -279,18 +289,18 @@ def _poles_text(poles, unit):
     return ", ".join(parts) + f" {unit}"
 
 
-def _margins_text(margins, unit):
+def _margins_text(margins: "Margins", unit: str) -> str:
     return (
         f"gain {margins.gain_margin_dB:.4g} dB, phase {margins.phase_margin_deg:.4g} deg"
         f" (crossover {margins.w_gain_crossover_radps:.4g} {unit})"
     )
 
 
-def _overshoot_text(value, missing):
+def _overshoot_text(value: float, missing: Mapping[str, str]) -> str:
     return f"{value:.3g} %" if "overshoot_pct" not in missing else f"n/a ({missing['overshoot_pct']})"
 
 
-def _design_table(dd):
+def _design_table(dd: "DiscreteDesign") -> str:
     d = dd.design
     rows = [
         ("Design inputs", None),
@@ -326,7 +336,7 @@ def _design_table(dd):
         ("ff_Kd_per_Ts", f"{dd.ff_Kd_per_Ts:.9g} Nm/(rad/s)"),
     ]
     width = max(len(name) for name, value in rows if value is not None) + 2
-    lines = []
+    lines: list[str] = []
     for name, value in rows:
         if value is None:
             lines.append(("\n" if lines else "") + name)
@@ -354,7 +364,15 @@ def _design_table(dd):
     help="lowpass (eq 13, m = 1), none, no_tau or full (eq 11); Fig. 7 is full with m = 0.2,0.5,1,2",
 )
 @click.option("--out", type=click.Path(dir_okay=False), required=True, help="figure file, .png or .svg")
-def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
+def bode(
+    alpha_radps: float,
+    m_list: str,
+    J_kgm2: float,
+    zeta: float,
+    tau_i_s: float,
+    feedforward: "Feedforward",  # any string from the command line: the library validates it
+    out: str,
+) -> None:
     """Bode diagram of the tracking response Gx for several m (paper Fig. 7).
 
     Fig. 7 of the paper: --feedforward full --m 0.2,0.5,1,2.
@@ -393,7 +411,7 @@ def bode(alpha_radps, m_list, J_kgm2, zeta, tau_i_s, feedforward, out):
     metavar="KEY=VALUE",
     help="change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)",
 )
-def reproduce(out, overrides):
+def reproduce(out: str, overrides: tuple[str, ...]) -> None:
     """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
 
     Runs the paper's conditions on the presets (the float32 C controller in the compiled
@@ -438,7 +456,7 @@ def reproduce(out, overrides):
 @click.option(
     "--out", type=click.Path(), required=True, help="folder for trace.csv, metrics.json, plot.png and scenario.toml"
 )
-def simulate(scenario, overrides, out):
+def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
     """Simulate a scenario (see `pmsm2dof presets`) and write its trace, metrics and plot.
 
     Writes DIR/trace.csv (one column per signal), DIR/metrics.json (the step and load-step
@@ -472,7 +490,7 @@ def simulate(scenario, overrides, out):
 
 @cli.command()
 @click.option("--keys", is_flag=True, help="list every scenario key (type, range, default, meaning) instead")
-def presets(keys):
+def presets(keys: bool) -> None:
     """List the scenarios shipped with pmsm2dof, by name, for `pmsm2dof simulate NAME`."""
     from ..sim.scenario import list_presets, load_scenario, schema_reference
 
@@ -512,7 +530,9 @@ def presets(keys):
     help="points per task [default: about 4 tasks per worker, at most 50 points]",
 )
 @click.option("--no-figures", is_flag=True, help="write the results table only")
-def sweep(file, out, workers, scheduler, batch_size, no_figures):
+def sweep(
+    file: str, out: str, workers: int | None, scheduler: str | None, batch_size: int | None, no_figures: bool
+) -> None:
     """Run a sweep (grid or Monte Carlo) of a scenario: one row of metrics per point, and figures.
 
     FILE is a sweep TOML: a base scenario and axes (lists, ranges or random distributions of
@@ -531,7 +551,7 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
     with warnings.catch_warnings():
         show = warnings.showwarning
 
-        def one_line(message, category, *args, **kwargs):
+        def one_line(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
             if issubclass(category, PartWarning):
                 print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
             else:
@@ -584,7 +604,7 @@ def sweep(file, out, workers, scheduler, batch_size, no_figures):
     help="interface to listen on; anything but loopback exposes the tuner to the network",
 )
 @click.option("--no-browser", is_flag=True, help="do not open the page in a browser")
-def tune(scenario, port, host, no_browser):
+def tune(scenario: str | None, port: int, host: str, no_browser: bool) -> None:
     """Tune the speed controller in the browser: responses redrawn as the sliders move.
 
     Starts from PRESET_OR_FILE (default: paper-condition-2) and serves a local page with

@@ -7,14 +7,19 @@ Frequency and time responses come from python-control.
 
 import dataclasses
 import io
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import control
 import numpy as np
+import numpy.typing as npt
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ...analysis.design import design
+from ...analysis.design import Design, design
+from ...core.bindings import Feedforward
 from ...errors import ConfigError, require_positive
 from ...outputs import atomic_write
 
@@ -23,13 +28,13 @@ FORMATS = {".png": "png", ".svg": "svg"}
 _POINTS = 600
 
 
-def _figure(rows):
+def _figure(rows: int) -> tuple[Figure, list[Axes]]:
     fig = Figure(figsize=(7.0, 2.6 * rows + 0.8), layout="constrained")
     FigureCanvasAgg(fig)
-    return fig, fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0]
+    return fig, list(fig.subplots(rows, 1, sharex=True, squeeze=False)[:, 0])
 
 
-def _omega_radps(systems):
+def _omega_radps(systems: Sequence[control.LTI]) -> npt.NDArray[np.float64]:
     """A log-spaced frequency grid two decades around every pole and zero [rad/s]."""
     corners = np.concatenate([np.abs(np.concatenate([control.poles(s), control.zeros(s)])) for s in systems])
     corners = corners[corners > 0.0]
@@ -37,7 +42,12 @@ def _omega_radps(systems):
     return np.logspace(np.log10(lo) - 2.0, np.log10(hi) + 2.0, _POINTS)
 
 
-def _bode(axes, systems, labels, styles=None):
+def _bode(
+    axes: Sequence[Axes],
+    systems: Sequence[control.LTI],
+    labels: Sequence[str],
+    styles: Sequence[Mapping[str, Any]] | None = None,
+) -> None:
     """Magnitude [dB] and unwrapped phase [deg] of ``systems`` on two axes."""
     omega = _omega_radps(systems)
     for k, (sys, label) in enumerate(zip(systems, labels)):
@@ -53,7 +63,14 @@ def _bode(axes, systems, labels, styles=None):
     axes[0].legend(fontsize="small")
 
 
-def bode_gx_sweep(alpha_radps, m_values, J_kgm2=0.4, zeta=0.2887, tau_i_s=0.05, feedforward="lowpass"):
+def bode_gx_sweep(
+    alpha_radps: float,
+    m_values: Iterable[float],
+    J_kgm2: float = 0.4,
+    zeta: float = 0.2887,
+    tau_i_s: float = 0.05,
+    feedforward: Feedforward = "lowpass",
+) -> Figure:
     """Bode diagram of the tracking response ``Gx`` (eq 6) for several ``m`` (paper Fig. 7).
 
     With the ``full`` feedforward ``Gx = m alpha / (s + m alpha)`` (eq 10) whatever
@@ -65,17 +82,17 @@ def bode_gx_sweep(alpha_radps, m_values, J_kgm2=0.4, zeta=0.2887, tau_i_s=0.05, 
     -------
     matplotlib.figure.Figure
     """
-    m_values = [require_positive("m", m) for m in m_values]
-    if not m_values:
-        raise ConfigError("m", m_values, "at least one value > 0")
-    designs = [design(J_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward) for m in m_values]
+    ms = [require_positive("m", m) for m in m_values]
+    if not ms:
+        raise ConfigError("m", ms, "at least one value > 0")
+    designs = [design(J_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward) for m in ms]
     fig, axes = _figure(2)
-    _bode(axes, [d.Gx for d in designs], [f"m = {m:g}" for m in m_values])
+    _bode(axes, [d.Gx for d in designs], [f"m = {m:g}" for m in ms])
     axes[0].set_title(f"Tracking Gx(s), alpha = {alpha_radps:g} rad/s, feedforward {feedforward} (Fig. 7)")
     return fig
 
 
-def bode_gn(d):
+def bode_gn(d: Design) -> Figure:
     """Bode diagram of the load rejection ``GN`` (eq 5, 8) of the 1DOF PI and of ``d``.
 
     The two curves coincide: the feedforward does not enter ``GN``.
@@ -92,7 +109,7 @@ def bode_gn(d):
     return fig
 
 
-def step_responses(d):
+def step_responses(d: Design) -> Figure:
     """Linear unit-step responses: tracking ``Gx`` (1DOF and 2DOF) and load rejection ``GN``.
 
     Top: speed [rad/s] after a 1 rad/s reference step. Bottom: speed [rad/s]
@@ -116,7 +133,7 @@ def step_responses(d):
     return fig
 
 
-def save_figure(fig, path):
+def save_figure(fig: Figure, path: Path | str) -> Path:
     """Save ``fig`` to ``path`` (``.png`` or ``.svg``) in one atomic write; return the path."""
     path = Path(path)
     fmt = FORMATS.get(path.suffix.lower())

@@ -18,14 +18,21 @@ listed in the figure title; they are never drawn as values.
 """
 
 import math
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ...sim.simulate import simulate
-from ...studies.sweep import metric_columns
+from ...studies.sweep import Axis, Sweep, metric_columns
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
-def _pyplot():
+def _pyplot() -> ModuleType:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -34,17 +41,17 @@ def _pyplot():
     return plt
 
 
-def _is_numeric(values):
+def _is_numeric(values: Iterable[Any]) -> bool:
     return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
 
 
-def draw_figures(sweep, table, folder):
+def draw_figures(sweep: Sweep, table: "pd.DataFrame", folder: Path) -> list[Path]:
     """Draw the figures of ``sweep`` from its results ``table`` into ``folder``; return their paths."""
     folder.mkdir(parents=True, exist_ok=True)
     plt = _pyplot()
     columns = [c for c in metric_columns(sweep.base.data) if table[c].notna().any()]
-    grid = [a for a in sweep.grid_axes if len(a.values) > 1]
-    paths = []
+    grid = [a for a in sweep.grid_axes if len(a.values or ()) > 1]
+    paths: list[Path] = []
     if len(grid) == 2 and not sweep.random_axes:
         paths += [_heatmap(plt, sweep, grid, table, col, folder) for col in columns]
     else:
@@ -58,9 +65,12 @@ def draw_figures(sweep, table, folder):
     return paths
 
 
-def _heatmap(plt, sweep, grid, table, col, folder):
+def _heatmap(
+    plt: ModuleType, sweep: Sweep, grid: Sequence[Axis], table: "pd.DataFrame", col: str, folder: Path
+) -> Path:
     rows_axis, cols_axis = grid
-    n_r, n_c = len(rows_axis.values), len(cols_axis.values)
+    row_values, col_values = rows_axis.values or (), cols_axis.values or ()
+    n_r, n_c = len(row_values), len(col_values)
     # points run with the first axis slowest (axes of one value do not count): point = i * n_c + j
     values = table[col].to_numpy(dtype=float, na_value=np.nan).reshape(n_r, n_c)
     failed = (table["status"] != "ok").to_numpy().reshape(n_r, n_c)
@@ -70,10 +80,10 @@ def _heatmap(plt, sweep, grid, table, col, folder):
     fig.colorbar(image, ax=ax, label=col)
     ax.set_xticks(
         range(n_c),
-        [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in cols_axis.values],
+        [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in col_values],
         rotation=45 if n_c > 8 else 0,
     )
-    ax.set_yticks(range(n_r), [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in rows_axis.values])
+    ax.set_yticks(range(n_r), [f"{v:.3g}" if _is_numeric([v]) else str(v) for v in row_values])
     ax.set_xlabel(cols_axis.key)
     ax.set_ylabel(rows_axis.key)
     for i, j in zip(*np.nonzero(failed)):
@@ -92,11 +102,12 @@ def _heatmap(plt, sweep, grid, table, col, folder):
     return path
 
 
-def _scatter(plt, sweep, table, col, keys, folder):
+def _scatter(plt: ModuleType, sweep: Sweep, table: "pd.DataFrame", col: str, keys: Sequence[str], folder: Path) -> Path:
     ok = table[table[col].notna()]
     # one colour per cell of the grid axes (with more than one value), when there are few
-    grid = [a.key for a in sweep.grid_axes if len(a.values) > 1]
-    n_cells = math.prod(len(a.values) for a in sweep.grid_axes if len(a.values) > 1)
+    multi = [a for a in sweep.grid_axes if len(a.values or ()) > 1]
+    grid = [a.key for a in multi]
+    n_cells = math.prod(len(a.values or ()) for a in multi)
     groups = list(ok.groupby(grid, sort=False)) if grid and n_cells <= 10 else [(None, ok)]
     fig, axes = plt.subplots(1, len(keys), figsize=(4.2 * len(keys), 3.6), squeeze=False)
     for ax, key in zip(axes[0], keys):
@@ -129,7 +140,7 @@ def _scatter(plt, sweep, table, col, keys, folder):
     return path
 
 
-def _histograms(plt, table, columns, folder):
+def _histograms(plt: ModuleType, table: "pd.DataFrame", columns: Sequence[str], folder: Path) -> Path:
     n = len(columns)
     n_cols = min(4, n)
     n_rows = -(-n // n_cols)
@@ -147,7 +158,7 @@ def _histograms(plt, table, columns, folder):
     return path
 
 
-def _worst_traces(plt, sweep, table, folder):
+def _worst_traces(plt: ModuleType, sweep: Sweep, table: "pd.DataFrame", folder: Path) -> Path:
     ranked = table[table[sweep.rank_by].notna()].sort_values(sweep.rank_by, ascending=False)
     worst = ranked.head(sweep.worst)
     fig, (ax_w, ax_t) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)

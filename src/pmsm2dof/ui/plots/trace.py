@@ -8,22 +8,26 @@ shaded in every panel; the voltage panel shows ``||u_dq||`` against the inverter
 (:func:`~pmsm2dof.sim.metrics.at_voltage_limit`).
 """
 
+from pathlib import Path
+
 import numpy as np
+import numpy.typing as npt
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ...sim.metrics import at_current_limit, at_voltage_limit
+from ...sim.simulate import Result
 from .design import save_figure
 
 
-def saturated_intervals(t, saturated):
+def saturated_intervals(t: npt.NDArray[np.float64], saturated: npt.ArrayLike) -> list[tuple[float, float]]:
     """(start, end) of each run of set flags; the flag of sample k holds over [t[k], t[k+1])."""
     flags = np.concatenate(([False], np.asarray(saturated, dtype=bool)[:-1], [False]))
     edges = np.flatnonzero(np.diff(flags.astype(np.int8)))
     return [(t[a], t[b]) for a, b in zip(edges[::2], edges[1::2])]
 
 
-def trace_figure(result):
+def trace_figure(result: Result) -> Figure:
     """A four-panel figure of a run: speed [rpm], dq currents [A], torques and load [Nm], voltage [V].
 
     Parameters
@@ -87,6 +91,6 @@ def trace_figure(result):
     return fig
 
 
-def plot_trace(result, path):
+def plot_trace(result: Result, path: Path | str) -> Path:
     """Draw :func:`trace_figure` of ``result`` into ``path`` (.png or .svg) atomically; return the path."""
     return save_figure(trace_figure(result), path)
