@@ -6,7 +6,7 @@ sample) run with each anti-windup mode of the speed controller (:func:`run_fault
 """
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 
@@ -56,7 +56,18 @@ def run_faults(
     return runs
 
 
-def fault_figures(result: Result) -> dict[str, float | None]:
+class FaultFigures(TypedDict):
+    """What a fault did to the drive (:func:`fault_figures`); None where the metrics have no value."""
+
+    t_s: float
+    deviation_rpm: float
+    x_i_excursion_Nm: float
+    i_peak_A: float
+    current_limit_time_s: float | None
+    recovery_time_s: float | None
+
+
+def fault_figures(result: Result) -> FaultFigures:
     """What a fault did to the drive, from its start (the jam of the stall) to the end of the run.
 
     ``deviation_rpm``: peak of ``|speed_ref - speed|``; ``x_i_excursion_Nm``: peak change of the
