@@ -27,14 +27,18 @@ import dataclasses
 import io
 import json
 import time
+from collections.abc import Iterable, Mapping
 from importlib.metadata import version
 from pathlib import Path
+from typing import Any
+
+from matplotlib.figure import Figure
 
 from ...outputs import atomic_write, require_writable_dir, staged_dir
 from ...studies import paper as st
 from ...studies.faults import run_faults
 from .claims import VERDICTS, Claim, compute_claims
-from .figures import fig_faults, figures
+from .figures import FigureData, fig_faults, figures
 from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
 
 __all__ = ["VERDICTS", "Claim", "Report", "compute_claims", "reproduce", "write_report"]
@@ -57,13 +61,13 @@ class Report:
     """
 
     out: Path
-    claims: list
-    studies: object
-    files: list
+    claims: list[Claim]
+    studies: st.Studies
+    files: list[str]
     wall_time_s: float
 
 
-def write_report(studies, out, progress=False):
+def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -> tuple[list[Claim], list[str], float]:
     """Check the claims on ``studies`` and write the report into ``out``, all or nothing.
 
     Parameters
@@ -89,10 +93,10 @@ def write_report(studies, out, progress=False):
         *fig_faults(fault_runs),
         "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: the reference.",
     )
-    files = []
+    files: list[str] = []
     with staged_dir(out) as tmp:
-        images = {}
-        items = made.items()
+        images: dict[str, bytes] = {}
+        items: Iterable[tuple[str, tuple[Figure, FigureData, str]]] = made.items()
         if progress:
             from tqdm import tqdm
 
@@ -133,7 +137,12 @@ def write_report(studies, out, progress=False):
     return claims, files, studies.wall_time_s + time.perf_counter() - start
 
 
-def reproduce(out="pmsm2dof-report", overrides=None, points=st.POINTS, progress=False):
+def reproduce(
+    out: Path | str = "pmsm2dof-report",
+    overrides: Mapping[str, Any] | None = None,
+    points: int = st.POINTS,
+    progress: bool = False,
+) -> Report:
     """Run the paper reproduction and write the report into ``out``, all or nothing.
 
     Parameters

@@ -14,12 +14,17 @@ Motor Speed Controller" (equation, figure and section numbers are the paper's).
 
 import dataclasses
 import math
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ...analysis.design import design
 from ...core import pi_gains
+from ...core.bindings import Method
 from ...sim.metrics import at_current_limit
+from ...sim.simulate import Result
 from ...studies import paper as st
 
 #: Verdicts, best first.
@@ -77,7 +82,7 @@ class Claim:
     claim: str
     paper: str
     measured: str
-    values: dict
+    values: dict[str, Any]
     verdict: str
     reason: str
     source: str
@@ -89,11 +94,12 @@ class Claim:
 # ---------------------------------------------------------------------------------------------
 
 
-def _value(figure):
+def _value(figure: Mapping[str, Any]) -> Any:
+    """The value of a figure of :mod:`pmsm2dof.sim.metrics`: a float, or None when it is missing."""
     return figure["value"]
 
 
-def _overshoot(studies, run, index=0):
+def _overshoot(studies: st.Studies, run: str, index: int = 0) -> tuple[float, str]:
     """Overshoot [%] of reference step ``index`` of ``run``, and a note.
 
     When the speed approaches the new reference from one side without reaching it before the
@@ -113,13 +119,14 @@ def _overshoot(studies, run, index=0):
     return 100.0 * (peak - 1.0), ""
 
 
-def fmt(x, digits=3, unit=""):
+def fmt(x: float | None, digits: int = 3, unit: str = "") -> str:
+    """``x`` with ``digits`` significant digits and its unit, or ``n/a`` for None or a non-finite value."""
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "n/a"
     return f"{x:.{digits}g}{(' ' + unit) if unit else ''}"
 
 
-def _limit_run(result, t0):
+def _limit_run(result: Result, t0: float) -> tuple[float, float]:
     """(delay, duration) [s] of the first unbroken stretch at the current limit after ``t0``.
 
     At the limit as :func:`pmsm2dof.sim.metrics.at_current_limit` says (the flag, or the command
@@ -135,34 +142,35 @@ def _limit_run(result, t0):
     return float(t[k] - t0), float(end - t[k])
 
 
-def _window(result, t0, t1):
-    return (result.t_s >= t0) & (result.t_s < t1)
+def _window(result: Result, t0: float, t1: float) -> npt.NDArray[np.bool_]:
+    inside: npt.NDArray[np.bool_] = (result.t_s >= t0) & (result.t_s < t1)
+    return inside
 
 
-def _crossing(x, y, level):
+def _crossing(x: npt.ArrayLike, y: npt.ArrayLike, level: float) -> float | None:
     """First x where ``y`` crosses ``level`` (linear interpolation), or None."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    for k in range(len(x) - 1):
-        a, b = y[k] - level, y[k + 1] - level
+    xs, ys = np.asarray(x, float), np.asarray(y, float)
+    for k in range(len(xs) - 1):
+        a, b = ys[k] - level, ys[k + 1] - level
         if math.isfinite(a) and math.isfinite(b) and a * b <= 0.0 and a != b:
-            return float(x[k] + a / (a - b) * (x[k + 1] - x[k]))
+            return float(xs[k] + a / (a - b) * (xs[k + 1] - xs[k]))
     return None
 
 
-def _verdict(ok, partly=False):
+def _verdict(ok: bool | np.bool_, partly: bool | np.bool_ = False) -> str:
     return VERDICTS[0] if ok else (VERDICTS[1] if partly else VERDICTS[2])
 
 
-def _series(sweep, label, kind):
+def _series(sweep: st.Sweep, label: str, kind: str) -> st.Series:
     return next(s for s in sweep.series if s.label == label and s.kind == kind)
 
 
-def _along(studies, sweep, label, kind, figure):
+def _along(studies: st.Studies, sweep: st.Sweep, label: str, kind: str, figure: str) -> npt.NDArray[np.float64]:
     """``figure`` along the series ``label`` of ``kind`` (step or load) of ``sweep`` (NaN where missing)."""
     return studies.series_values(_series(sweep, label, kind), figure)
 
 
-def _reference(sweep, label):
+def _reference(sweep: st.Sweep, label: str) -> st.RunSpec:
     return next(r for lbl, r in sweep.references if lbl == label)
 
 
@@ -171,7 +179,7 @@ def _reference(sweep, label):
 # ---------------------------------------------------------------------------------------------
 
 
-def compute_claims(studies):
+def compute_claims(studies: st.Studies) -> list[Claim]:
     """Every claim of the paper, checked against ``studies`` (:func:`pmsm2dof.studies.paper.run_studies`).
 
     Returns
@@ -204,11 +212,11 @@ def compute_claims(studies):
     return [dataclasses.replace(c, id=f"C{k}") for k, c in enumerate(claims, start=1)]
 
 
-def _claim(**fields):
+def _claim(**fields: Any) -> Claim:
     return Claim(id="", **fields)
 
 
-def _claim_gains(studies):
+def _claim_gains(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
     d = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
     ok = math.isclose(d.Kp, 0.2, rel_tol=1e-6) and math.isclose(d.Ki, 0.3, rel_tol=1e-6)
@@ -233,7 +241,7 @@ def _claim_gains(studies):
     )
 
 
-def _claim_separate(studies):
+def _claim_separate(studies: st.Studies) -> Claim:
     sweep = studies.sweep("m")
     step = _series(sweep, "2DOF eq 11, back-calculation AW", "step")
     load = _series(sweep, "2DOF eq 11, back-calculation AW", "load")
@@ -264,11 +272,11 @@ def _claim_separate(studies):
     )
 
 
-def _over_text(value, note):
+def _over_text(value: float, note: str) -> str:
     return note if note else f"{value:.1f} %"
 
 
-def _claim_first_order(studies):
+def _claim_first_order(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
     d = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_s"], feedforward="full")
     overshoot_lin = d.overshoot_pct()
@@ -322,7 +330,7 @@ def _claim_first_order(studies):
     )
 
 
-def _claim_fig7(studies):
+def _claim_fig7(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
     bandwidths = [
         design(
@@ -351,7 +359,7 @@ def _claim_fig7(studies):
     )
 
 
-def _claim_lowpass(studies):
+def _claim_lowpass(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
     low = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_s"], feedforward="lowpass")
     small = studies.step("lin-lowpass")
@@ -401,7 +409,7 @@ def _claim_lowpass(studies):
     )
 
 
-def _claim_ka_range(studies):
+def _claim_ka_range(studies: st.Studies) -> Claim:
     sweep = studies.sweep("ka")
     sc = studies.speed_controller()
     Kp, _ = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
@@ -446,7 +454,7 @@ def _claim_ka_range(studies):
     )
 
 
-def _claim_unwind(studies):
+def _claim_unwind(studies: st.Studies) -> Claim:
     runs = {aw: studies.results[f"c1-1dof-{aw}"] for aw in st.AW_LABELS}
     limit_time = {aw: _value(studies.step(f"c1-1dof-{aw}", 0)["current_limit_time_s"]) for aw in runs}
     x_peak = {aw: float(np.max(r.x_i_Nm[_window(r, 0.0, C1_SECOND_STEP_S)])) for aw, r in runs.items()}
@@ -470,7 +478,7 @@ def _claim_unwind(studies):
     )
 
 
-def _claim_tustin(studies):
+def _claim_tustin(studies: st.Studies) -> Claim:
     Ts = studies.fine_Ts_s
     points = [p for p in studies.discretization if p.Ts_s == Ts]
     one = {p.method: p for p in points if p.controller == st.ONE_DOF}
@@ -483,8 +491,8 @@ def _claim_tustin(studies):
         name = f"disc-{method}-{Ts:g}"
         if name in studies.metrics:
             engine[method] = studies.figure(name, "step", "overshoot_pct")
-    best_error = min(error, key=error.get) == "tustin"
-    closest = min(deviation, key=deviation.get)
+    best_error = min(error, key=error.__getitem__) == "tustin"
+    closest = min(deviation, key=deviation.__getitem__)
     best_loop = closest == "tustin"
     Ts0 = min(p.Ts_s for p in studies.discretization)
     at_Ts0 = [p.overshoot_pct for p in studies.discretization if p.Ts_s == Ts0 and p.controller == st.ONE_DOF]
@@ -496,7 +504,7 @@ def _claim_tustin(studies):
         if not best_loop:
             reason += (
                 f", but the sampled loop also delays by the ZOH (about Ts/2): in closed loop {names[closest]} "
-                f"stays closest to the continuous design and {names[max(pm, key=pm.get)]} keeps the most "
+                f"stays closest to the continuous design and {names[max(pm, key=pm.__getitem__)]} keeps the most "
                 "phase margin"
             )
             if closest == "backward_euler":
@@ -506,7 +514,7 @@ def _claim_tustin(studies):
                 )
         reason += f"; at Ts = {Ts0:g} s the three overshoots differ by {spread0:.2g} pp (figure discretization)"
 
-    def listing(d, fmt):
+    def listing(d: Mapping[Method, float], fmt: Callable[[float], str]) -> str:
         return ", ".join(f"{names[m]} {fmt(v)}" for m, v in d.items())
 
     return _claim(
@@ -533,7 +541,7 @@ def _claim_tustin(studies):
     )
 
 
-def _claim_limit_reached(studies):
+def _claim_limit_reached(studies: st.Studies) -> Claim:
     r = studies.results["c1-1dof-none"]
     delay, hold = _limit_run(r, 0.0)
     r2 = studies.results["c1-2dof-none"]
@@ -555,7 +563,7 @@ def _claim_limit_reached(studies):
     )
 
 
-def _claim_no_aw_overshoot(studies):
+def _claim_no_aw_overshoot(studies: st.Studies) -> Claim:
     first, _ = _overshoot(studies, "c1-1dof-none", 0)
     second, _ = _overshoot(studies, "c1-1dof-none", 1)
     two, note = _overshoot(studies, "c1-2dof-none", 0)
@@ -586,7 +594,7 @@ def _claim_no_aw_overshoot(studies):
     )
 
 
-def _claim_current_reverse(studies):
+def _claim_current_reverse(studies: st.Studies) -> Claim:
     lows = {
         aw: float(
             np.min(
@@ -620,13 +628,13 @@ def _claim_current_reverse(studies):
     )
 
 
-def _torque_for(studies, label, level):
+def _torque_for(studies: st.Studies, label: str, level: float) -> tuple[float | None, st.Sweep]:
     sweep = studies.sweep("torque_limit")
     y = _along(studies, sweep, label, "step", "overshoot_pct")
     return _crossing(sweep.x, y, level), sweep
 
 
-def _claim_aw_overshoot(studies):
+def _claim_aw_overshoot(studies: st.Studies) -> Claim:
     value, _ = _overshoot(studies, "c1-1dof-back_calculation", 0)
     no_aw, _ = _overshoot(studies, "c1-1dof-none", 0)
     clamp, _ = _overshoot(studies, "c1-1dof-clamping", 0)
@@ -675,7 +683,7 @@ def _claim_aw_overshoot(studies):
     )
 
 
-def _claim_1dof_load(studies):
+def _claim_1dof_load(studies: st.Studies) -> Claim:
     data = studies.bases["paper-condition-2"].data
     speed = data["reference"][0]["speed_rpm"]
     load = data["load"][0]["torque_Nm"]
@@ -724,7 +732,7 @@ def _claim_1dof_load(studies):
     )
 
 
-def _claim_c2_tracking(studies):
+def _claim_c2_tracking(studies: st.Studies) -> Claim:
     o1 = [_overshoot(studies, "c2-1dof", k)[0] for k in (0, 1)]
     o2 = [_overshoot(studies, "c2-2dof", k)[0] for k in (0, 1)]
     ok = all(b < a for a, b in zip(o1, o2))
@@ -744,7 +752,7 @@ def _claim_c2_tracking(studies):
     )
 
 
-def _claim_c2_load(studies):
+def _claim_c2_load(studies: st.Studies) -> Claim:
     d1 = _value(studies.load("c2-1dof")["speed_dip_rpm"])
     d2 = _value(studies.load("c2-2dof")["speed_dip_rpm"])
     ok = d2 <= d1 * (1.0 + 5 * SAME_RTOL)
@@ -772,7 +780,7 @@ def _claim_c2_load(studies):
     )
 
 
-def _claim_e1(studies):
+def _claim_e1(studies: st.Studies) -> Claim:
     none, _ = _overshoot(studies, "e1-1dof-none")
     bc, _ = _overshoot(studies, "e1-1dof-back_calculation")
     both = abs(none - 35.0) <= ABOUT_RTOL * 35.0 and abs(bc - 15.0) <= ABOUT_RTOL * 15.0
@@ -808,7 +816,7 @@ def _claim_e1(studies):
     )
 
 
-def _claim_e2(studies):
+def _claim_e2(studies: st.Studies) -> Claim:
     rows = []
     for k in (0, 1):
         o1, o2 = _overshoot(studies, "e2-1dof", k)[0], _overshoot(studies, "e2-2dof", k)[0]
@@ -835,7 +843,7 @@ def _claim_e2(studies):
     )
 
 
-def _claim_e3(studies):
+def _claim_e3(studies: st.Studies) -> Claim:
     a, b = studies.results["e3-1dof"], studies.results["e3-2dof"]
     d1 = _value(studies.load("e3-1dof")["speed_dip_rpm"])
     d2 = _value(studies.load("e3-2dof")["speed_dip_rpm"])
@@ -863,7 +871,7 @@ def _claim_e3(studies):
     )
 
 
-def _claim_aw_everywhere(studies):
+def _claim_aw_everywhere(studies: st.Studies) -> Claim:
     pairs = []
     sweep = studies.sweep("torque_limit")
     none = _along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")
@@ -908,7 +916,7 @@ def _claim_aw_everywhere(studies):
     )
 
 
-def _claim_2dof_everywhere(studies):
+def _claim_2dof_everywhere(studies: st.Studies) -> Claim:
     over_better = same_load = total = 0
     worst_load = 0.0
     for name in ("zeta", "inertia"):
@@ -947,7 +955,7 @@ def _claim_2dof_everywhere(studies):
     )
 
 
-def _claim_implementation():
+def _claim_implementation() -> Claim:
     return _claim(
         section="5",
         claim="the controller is easily implemented in software and needs no additional hardware or sensor",

@@ -12,12 +12,18 @@ import io
 import itertools
 import math
 import re
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ...core import pi_gains
+from ...core.bindings import AntiWindup
+from ...sim.simulate import Result
 from ...studies import paper as st
 from ...studies.faults import FAULT_PRESETS, fault_figures
 from ..plots.design import bode_gx_sweep
@@ -38,19 +44,19 @@ class FigureData:
     NaN (a figure that could not be computed) is an empty cell.
     """
 
-    def __init__(self):
-        self.columns = {}
+    def __init__(self) -> None:
+        self.columns: dict[str, npt.NDArray[np.float64]] = {}
 
-    def __call__(self, name, values):
+    def __call__(self, name: str, values: npt.ArrayLike) -> npt.NDArray[np.float64]:
         """Record column ``name``; return its values (a float array) to draw."""
-        values = np.atleast_1d(np.asarray(values, dtype=float))
+        array = np.atleast_1d(np.asarray(values, dtype=float))
         known = self.columns.get(name)
-        if known is not None and not np.array_equal(known, values, equal_nan=True):
+        if known is not None and not np.array_equal(known, array, equal_nan=True):
             raise ValueError(f"figure data column {name!r} recorded with two different sets of values")
-        self.columns[name] = values
-        return values
+        self.columns[name] = array
+        return array
 
-    def to_csv(self):
+    def to_csv(self) -> str:
         """The columns as CSV text: a header row, then numbers in their shortest exact form."""
         buf = io.StringIO()
         writer = csv.writer(buf, lineterminator="\n")
@@ -60,40 +66,60 @@ class FigureData:
         return buf.getvalue()
 
 
-def _tag(label):
+def _tag(label: str) -> str:
     """A series label as a column-name prefix: ``"2DOF eq 15, no AW"`` -> ``"2dof_eq_15_no_aw"``."""
     return re.sub(r"[^a-z0-9]+", "_", label.lower()).strip("_")
 
 
-def _figure(rows, cols=1, height=2.6, width=8.0):
+def _figure(rows: int, cols: int = 1, height: float = 2.6, width: float = 8.0) -> tuple[Figure, npt.NDArray[Any]]:
+    """A figure on the Agg canvas and its (rows, cols) array of Axes."""
     fig = Figure(figsize=(width, height * rows + 0.7), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(rows, cols, squeeze=False)
     return fig, axes
 
 
-def _thin(result, name, t0=None, t1=None):
+def _thin(
+    result: Result, name: str, t0: float | None = None, t1: float | None = None
+) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Time and signal ``name`` of ``result`` over [t0, t1), at most :data:`PLOT_POINTS` points."""
     t = result.t_s
-    keep = np.ones(t.shape, bool) if t0 is None else (t >= t0) & (t < t1)
+    keep = np.ones(t.shape, bool) if t0 is None or t1 is None else (t >= t0) & (t < t1)
     idx = np.nonzero(keep)[0]
     idx = idx[:: max(1, math.ceil(idx.size / PLOT_POINTS))]
     return t[idx], getattr(result, name)[idx]
 
 
-def _trace(data, ax, result, name, column, prefix="", t0=None, t1=None, **style):
+def _trace(
+    data: FigureData,
+    ax: Axes,
+    result: Result,
+    name: str,
+    column: str,
+    prefix: str = "",
+    t0: float | None = None,
+    t1: float | None = None,
+    **style: Any,
+) -> None:
     """Draw signal ``name`` of ``result`` against time on ``ax``, recorded as ``column`` and its time axis."""
     t, y = _thin(result, name, t0, t1)
     ax.plot(data(f"{prefix}t_s", t), data(column, y), **style)
 
 
-_AW_STYLE = {"none": {"color": "C3"}, "back_calculation": {"color": "C0"}, "clamping": {"color": "C2", "ls": "--"}}
-_DOF_STYLE = {"1dof": {"color": "C3"}, "2dof": {"color": "C0"}}
+_AW_STYLE: dict[str, dict[str, Any]] = {
+    "none": {"color": "C3"},
+    "back_calculation": {"color": "C0"},
+    "clamping": {"color": "C2", "ls": "--"},
+}
+_DOF_STYLE: dict[str, dict[str, Any]] = {"1dof": {"color": "C3"}, "2dof": {"color": "C0"}}
 #: Two responses equal to the bit: the first wide and pale under the second, dashed.
-_SAME_STYLE = {"1dof": {"color": "C3", "lw": 3.0, "alpha": 0.5}, "2dof": {"color": "C0", "lw": 1.2, "ls": "--"}}
+_SAME_STYLE: dict[str, dict[str, Any]] = {
+    "1dof": {"color": "C3", "lw": 3.0, "alpha": 0.5},
+    "2dof": {"color": "C0", "lw": 1.2, "ls": "--"},
+}
 
 
-def _finish(ax, ylabel, xlabel=None):
+def _finish(ax: Axes, ylabel: str, xlabel: str | None = None) -> None:
     ax.set_ylabel(ylabel)
     if xlabel:
         ax.set_xlabel(xlabel)
@@ -101,14 +127,14 @@ def _finish(ax, ylabel, xlabel=None):
     ax.legend(fontsize="small", loc="best")
 
 
-def _current_limit(ax, result, signs=(1, -1)):
+def _current_limit(ax: Axes, result: Result, signs: Sequence[int] = (1, -1)) -> None:
     """Dotted horizontal lines at the current limit (``+i_max`` and ``-i_max`` by default)."""
     i_max = result.scenario.data["limits"]["i_max_A"]
     for sign in signs:
         ax.axhline(sign * i_max, color="grey", lw=0.8, ls=":")
 
 
-def _load_steps(axes, result):
+def _load_steps(axes: Sequence[Axes], result: Result) -> None:
     """Dashed vertical lines at the load steps of ``result``, labelled on the first axes."""
     for entry in result.scenario.data["load"]:
         for ax in axes:
@@ -123,7 +149,7 @@ def _load_steps(axes, result):
         )
 
 
-def fig_aw(studies, cond, signal):
+def fig_aw(studies: st.Studies, cond: str, signal: str) -> tuple[Figure, FigureData]:
     """Fig. 8 (speed) or 9 (current command) of condition ``cond``: each AW mode, 1DOF and 2DOF."""
     fig, axes = _figure(2)
     data = FigureData()
@@ -152,7 +178,7 @@ def fig_aw(studies, cond, signal):
     return fig, data
 
 
-def fig_2dof(studies, cond):
+def fig_2dof(studies: st.Studies, cond: str) -> tuple[Figure, FigureData]:
     """Fig. 10: condition 2, speed and current command of the 1DOF PI and of the 2DOF controller."""
     fig, axes = _figure(2)
     data = FigureData()
@@ -170,7 +196,7 @@ def fig_2dof(studies, cond):
     return fig, data
 
 
-def fig_exp1(studies):
+def fig_exp1(studies: st.Studies) -> tuple[Figure, FigureData]:
     """Fig. 12: experiment 1, the 500 rpm step with and without AW."""
     fig, axes = _figure(1, height=3.2)
     data = FigureData()
@@ -204,7 +230,7 @@ def fig_exp1(studies):
     return fig, data
 
 
-def fig_exp2(studies):
+def fig_exp2(studies: st.Studies) -> tuple[Figure, FigureData]:
     """Fig. 13: experiment 2, (a) step up and (b) step down, 1DOF PI against 2DOF."""
     r1 = studies.results["e2-1dof"]
     steps = studies.metrics["e2-1dof"]["reference_steps"]
@@ -247,7 +273,7 @@ def fig_exp2(studies):
     return fig, data
 
 
-def fig_exp3(studies):
+def fig_exp3(studies: st.Studies) -> tuple[Figure, FigureData]:
     """Fig. 14: experiment 3, the load step at a steady speed: speed and current command."""
     fig, axes = _figure(2)
     data = FigureData()
@@ -265,7 +291,7 @@ def fig_exp3(studies):
     return fig, data
 
 
-def _bode_data(fig):
+def _bode_data(fig: Figure) -> FigureData:
     """The curves of the Bode figure of Fig. 7 (:func:`pmsm2dof.ui.plots.design.bode_gx_sweep`), recorded as drawn."""
     data = FigureData()
     magnitude, phase = fig.axes[:2]
@@ -281,7 +307,7 @@ _STEP_PANELS = (("overshoot_pct", "overshoot [%]"), ("settling_time_s", "2 % set
 _LOAD_PANELS = (("speed_dip_rpm", "load-step dip [rpm]"), ("recovery_time_s", "load recovery (2 % of dip) [s]"))
 
 
-def fig_sweep(studies, sweep):
+def fig_sweep(studies: st.Studies, sweep: st.Sweep) -> tuple[Figure, FigureData]:
     """A sensitivity figure: overshoot and settling of the step (and dip and recovery of the load step)."""
     has_load = any(s.kind == "load" for s in sweep.series)
     fig, axes = _figure(2 if has_load else 1, 2, height=3.0, width=9.0)
@@ -330,7 +356,7 @@ def fig_sweep(studies, sweep):
     return fig, data
 
 
-def fig_discretization(studies):
+def fig_discretization(studies: st.Studies) -> tuple[Figure, FigureData]:
     """Discretization study: overshoot, margins and controller error against the sampling period."""
     fig, axes = _figure(2, 2, height=3.0, width=9.0)
     data = FigureData()
@@ -391,12 +417,12 @@ def fig_discretization(studies):
     return fig, data
 
 
-def fig_faults(runs):
+def fig_faults(runs: Mapping[tuple[str, AntiWindup], Result | str | None]) -> tuple[Figure, FigureData]:
     """Speed and speed integrator of each fault preset, one line per anti-windup mode."""
     fig, axes = _figure(len(FAULT_PRESETS), 2, height=2.2, width=10.0)
     data = FigureData()
     for (ax_w, ax_x), preset in zip(axes, FAULT_PRESETS):
-        results = {aw: runs[preset, aw] for aw in st.AW_LABELS if not isinstance(runs[preset, aw], str)}
+        results = {aw: run for aw in st.AW_LABELS if isinstance(run := runs[preset, aw], Result)}
         if not results:
             ax_w.set_title(f"{preset}: did not run", fontsize="small")
             continue
@@ -431,7 +457,7 @@ def fig_faults(runs):
     return fig, data
 
 
-def figures(studies):
+def figures(studies: st.Studies) -> dict[str, tuple[Figure, FigureData, str]]:
     """Every figure of the report: ``{stem: (Figure, FigureData, caption)}`` in report order."""
     sc = studies.speed_controller()
     Kp, Ki = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])

@@ -6,24 +6,33 @@ import html
 import io
 import math
 import re
+from collections.abc import Mapping, Sequence
 from importlib.metadata import version
+from typing import Any
 
 import numpy as np
 
 from ...core import pi_gains
+from ...core.bindings import AntiWindup
 from ...sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES
+from ...sim.simulate import Result
 from ...studies import paper as st
 from ...studies.faults import fault_figures
-from .claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, fmt
+from .claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
+
+#: A block of the report: ``(kind, ...)``, see :func:`report_blocks`.
+Block = tuple[Any, ...]
+#: A table: its header and its rows.
+_Table = tuple[tuple[str, ...], list[tuple[Any, ...]]]
 
 
-def _claims_table(claims):
+def _claims_table(claims: Sequence[Claim]) -> _Table:
     header = ("#", "section", "claim", "paper", "measured", "verdict", "reason")
     rows = [(c.id, c.section, c.claim, c.paper, c.measured, c.verdict, c.reason) for c in claims]
     return header, rows
 
 
-def _parameters_table(studies):
+def _parameters_table(studies: st.Studies) -> _Table:
     data = studies.bases["paper-condition-1"].data
     m, lim, cl, sc = data["motor"], data["limits"], data["current_loop"], data["speed_controller"]
     kt = 1.5 * m["pole_pairs"] * m["psi_f_Wb"]
@@ -50,7 +59,8 @@ def _parameters_table(studies):
     return ("parameter", "value", "source"), given
 
 
-def sensitivity_rows(studies):
+def sensitivity_rows(studies: st.Studies) -> list[dict[str, Any]]:
+    """One row per run of the sensitivity sweeps: the study, series, x, run, status and figures."""
     rows = []
     for sweep in studies.sweeps:
         for series in sweep.series:
@@ -62,8 +72,10 @@ def sensitivity_rows(studies):
     return rows
 
 
-def _metric_row(studies, sweep, series, x, run, figures_):
-    row = {
+def _metric_row(
+    studies: st.Studies, sweep: str, series: st.Series, x: float | None, run: st.RunSpec, figures_: Sequence[str]
+) -> dict[str, Any]:
+    row: dict[str, Any] = {
         "study": sweep,
         "series": series.label,
         "kind": series.kind,
@@ -77,7 +89,8 @@ def _metric_row(studies, sweep, series, x, run, figures_):
     return row
 
 
-def csv_text(rows):
+def csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
+    """``rows`` as CSV text, the columns in order of first appearance."""
     columns = list(dict.fromkeys(k for row in rows for k in row))
     buf = io.StringIO()
     writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
@@ -86,7 +99,7 @@ def csv_text(rows):
     return buf.getvalue()
 
 
-def _discretization_table(studies):
+def _discretization_table(studies: st.Studies) -> _Table:
     header = (
         "Ts [s]",
         "method",
@@ -99,7 +112,7 @@ def _discretization_table(studies):
     )
     grid = sorted({p.Ts_s for p in studies.discretization})
     shown = [Ts for Ts in grid if Ts in st.TS_ENGINE_S or Ts in (studies.fine_Ts_s, grid[-1])]
-    rows = []
+    rows: list[tuple[Any, ...]] = []
     for Ts in shown:
         for method in ("forward_euler", "backward_euler", "tustin"):
             p1, p2 = (
@@ -125,7 +138,13 @@ def _discretization_table(studies):
     return header, rows
 
 
-def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs=None):
+def report_blocks(
+    studies: st.Studies,
+    claims: Sequence[Claim],
+    figure_captions: Mapping[str, str],
+    wall_time_s: float | None = None,
+    fault_runs: Mapping[tuple[str, AntiWindup], Result | str | None] | None = None,
+) -> list[Block]:
     """The report as a list of blocks, rendered by :func:`render_markdown` and :func:`render_html`.
 
     ``fault_runs`` (of :func:`run_faults`) adds the section on the fault scenarios.
@@ -227,7 +246,9 @@ def report_blocks(studies, claims, figure_captions, wall_time_s=None, fault_runs
     return blocks
 
 
-def _fault_blocks(runs, figure_captions):
+def _fault_blocks(
+    runs: Mapping[tuple[str, AntiWindup], Result | str | None] | None, figure_captions: Mapping[str, str]
+) -> list[Block]:
     """The report's section on the fault scenarios (no blocks without runs)."""
     if runs is None:
         return []
@@ -240,9 +261,9 @@ def _fault_blocks(runs, figure_captions):
         "at the current limit [s]",
         "recovery [s]",
     )
-    rows = []
+    rows: list[tuple[Any, ...]] = []
     for (preset, aw), result in runs.items():
-        if isinstance(result, str):
+        if not isinstance(result, Result):
             rows.append((preset, st.AW_LABELS[aw], f"did not run: {result}", "", "", "", ""))
             continue
         f = fault_figures(result)
@@ -274,13 +295,13 @@ def _fault_blocks(runs, figure_captions):
     ]
 
 
-def _md_cell(text):
+def _md_cell(text: object) -> str:
     return str(text).replace("|", "\\|").replace("\n", " ")
 
 
-def render_markdown(blocks):
+def render_markdown(blocks: Sequence[Block]) -> str:
     """The report blocks as Markdown (figures as relative links to ``figures/*.png``)."""
-    lines = []
+    lines: list[str] = []
     for block in blocks:
         kind = block[0]
         if kind in ("h1", "h2", "h3"):
@@ -300,7 +321,7 @@ def render_markdown(blocks):
     return "\n".join(lines)
 
 
-def _inline_html(text):
+def _inline_html(text: object) -> str:
     return re.sub(r"`([^`]*)`", r"<code>\1</code>", html.escape(str(text), quote=False))
 
 
@@ -313,7 +334,7 @@ _CSS = (
 )
 
 
-def render_html(blocks, images):
+def render_html(blocks: Sequence[Block], images: Mapping[str, bytes]) -> str:
     """The report blocks as one self-contained HTML page.
 
     ``images`` maps a figure stem to its PNG bytes, embedded as a base64 data URI.
@@ -356,7 +377,7 @@ def render_html(blocks, images):
     return "\n".join(parts)
 
 
-def json_value(x):
+def json_value(x: Any) -> Any:
     """Numbers for JSON: NaN and infinities become null."""
     if isinstance(x, dict):
         return {k: json_value(v) for k, v in x.items()}
