@@ -9,6 +9,7 @@ the endpoints and :mod:`pmsm2dof.ui.tuner.server` for serving.
 import sys
 import webbrowser
 
+from ...sim.scenario import Scenario
 from .app import create_app
 from .server import bind_socket, is_loopback, serve, serving_in_thread, url_of
 
@@ -18,7 +19,7 @@ DEFAULT_PRESET = "paper-condition-2"
 __all__ = ["DEFAULT_PRESET", "create_app", "run_tuner", "serving_in_thread"]
 
 
-def run_tuner(scenario, host="127.0.0.1", port=None, open_browser=True):
+def run_tuner(scenario: Scenario, host: str = "127.0.0.1", port: int | None = None, open_browser: bool = True) -> None:
     """Serve the tuner for ``scenario`` until interrupted.
 
     Parameters

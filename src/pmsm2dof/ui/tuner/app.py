@@ -30,14 +30,17 @@ import json
 import threading
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
+from starlette.requests import Request
 from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
 from ...errors import ConfigError, SimulationError
+from ...sim.scenario import Scenario
 from .experiment import Tuner
 from .slots import ClientSlots, Superseded
 
@@ -46,7 +49,7 @@ STATIC_DIR = Path(__file__).parent / "static"
 CLIENT_HEADER = "X-Pmsm2dof-Client"
 
 
-def plotly_js_path():
+def plotly_js_path() -> Path:
     """Path of ``plotly.min.js`` inside the installed ``plotly`` Python package."""
     path = resources.files("plotly") / "package_data" / "plotly.min.js"
     if not path.is_file():
@@ -61,13 +64,13 @@ class _NotJSON(Exception):
 class _Busy(Exception):
     """A suggestion is being computed: the server computes one at a time."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__(
             "a suggestion is being computed (it uses every core): one at a time, ask again when it is done"
         )
 
 
-def _error(exc):
+def _error(exc: Exception) -> JSONResponse:
     if isinstance(exc, _NotJSON):
         return JSONResponse({"error": str(exc), "param": "Content-Type"}, status_code=415)
     if isinstance(exc, Superseded):
@@ -78,7 +81,7 @@ def _error(exc):
     return JSONResponse({"error": str(exc), "param": param}, status_code=422)
 
 
-async def _body(request):
+async def _body(request: Request) -> dict[str, Any]:
     media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
     if media_type != "application/json":
         raise _NotJSON(
@@ -94,12 +97,12 @@ async def _body(request):
     return body
 
 
-def _client(request):
+def _client(request: Request) -> tuple[str, str]:
     peer = request.client.host if request.client else ""
     return peer, request.headers.get(CLIENT_HEADER, "")
 
 
-def create_app(scenario):
+def create_app(scenario: Scenario) -> Starlette:
     """The tuner application for a base scenario.
 
     Parameters
@@ -119,16 +122,16 @@ def create_app(scenario):
     suggesting = threading.Lock()
     plotly_js = plotly_js_path()
 
-    async def index(request):
+    async def index(request: Request) -> Response:
         return FileResponse(STATIC_DIR / "index.html", headers={"Cache-Control": "no-cache"})
 
-    async def vendor_plotly(request):
+    async def vendor_plotly(request: Request) -> Response:
         return FileResponse(plotly_js, media_type="text/javascript")
 
-    async def controls(request):
+    async def controls(request: Request) -> Response:
         return JSONResponse(tuner.controls())
 
-    async def run(request):
+    async def run(request: Request) -> Response:
         try:
             body = await _body(request)
             with slots.request(_client(request), supersede=True) as ticket:
@@ -136,7 +139,7 @@ def create_app(scenario):
         except (_NotJSON, Superseded, ConfigError, SimulationError) as exc:
             return _error(exc)
 
-    async def download(request):
+    async def download(request: Request) -> Response:
         kind = request.path_params["kind"]
         try:
             body = await _body(request)

@@ -28,16 +28,20 @@ import json
 import math
 import threading
 import time
+from collections.abc import Iterable, Mapping
+from typing import Any
 
 import control
 import numpy as np
+import numpy.typing as npt
 
 from ...analysis.codegen import c_header
-from ...analysis.design import design
+from ...analysis.design import Design, design
 from ...core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ...errors import ConfigError, require_positive
 from ...sim.metrics import at_current_limit, at_voltage_limit, compute_metrics
-from ...sim.simulate import Simulation
+from ...sim.scenario import Scenario, Tree
+from ...sim.simulate import Result, Simulation
 from ..plots.trace import saturated_intervals
 from .slots import Ticket
 
@@ -101,7 +105,7 @@ TABLE_METRICS = {
 }
 
 
-def minmax_indices(y, buckets=DECIMATION_BUCKETS):
+def minmax_indices(y: npt.ArrayLike, buckets: int = DECIMATION_BUCKETS) -> npt.NDArray[np.intp]:
     """Indices of the samples of ``y`` that min-max decimation keeps, sorted.
 
     The samples are split into ``buckets`` consecutive runs of equal length; of each run the
@@ -109,24 +113,24 @@ def minmax_indices(y, buckets=DECIMATION_BUCKETS):
     so at most ``2 * buckets + 2`` remain and the extremes of the whole trace (the overshoot,
     the load dip) are kept exactly. Short traces are kept whole.
     """
-    y = np.asarray(y, dtype=float)
-    n = len(y)
+    values = np.asarray(y, dtype=float)
+    n = len(values)
     if n <= 2 * buckets + 2:
         return np.arange(n)
     width = -(-n // buckets)  # ceil(n / buckets)
-    padded = np.concatenate([y, np.full(width * buckets - n, y[-1])]).reshape(buckets, width)
+    padded = np.concatenate([values, np.full(width * buckets - n, values[-1])]).reshape(buckets, width)
     offsets = np.arange(buckets) * width
     i_min = np.minimum(offsets + np.argmin(padded, axis=1), n - 1)
     i_max = np.minimum(offsets + np.argmax(padded, axis=1), n - 1)
     return np.unique(np.concatenate([[0, n - 1], i_min, i_max]))
 
 
-def _trace(t, y):
+def _trace(t: npt.ArrayLike, y: npt.ArrayLike) -> dict[str, list[float]]:
     keep = minmax_indices(y)
     return {"t": np.asarray(t)[keep].tolist(), "y": np.asarray(y)[keep].tolist()}
 
 
-def limit_spans(t, flags, most=SPANS_MAX):
+def limit_spans(t: npt.ArrayLike, flags: npt.ArrayLike, most: int = SPANS_MAX) -> list[list[float]]:
     """``[start, end]`` of each run of set ``flags`` (the flag of sample k holds over [t[k], t[k+1])).
 
     When there are more than ``most`` runs, those separated by the shortest gaps are merged, so
@@ -143,7 +147,9 @@ def limit_spans(t, flags, most=SPANS_MAX):
     return spans.tolist()
 
 
-def bode_data(Gx, GN, alpha_radps, Ts_s):
+def bode_data(
+    Gx: control.TransferFunction, GN: control.TransferFunction, alpha_radps: float, Ts_s: float
+) -> dict[str, Any]:
     """Magnitude [dB] and unwrapped phase [deg] of ``Gx`` and ``GN`` around ``alpha_radps``.
 
     ``w_nyquist_radps = pi / Ts_s`` marks where the sampled controller stops following the
@@ -151,7 +157,7 @@ def bode_data(Gx, GN, alpha_radps, Ts_s):
     """
     below, above = BODE_DECADES
     w = np.logspace(math.log10(alpha_radps) - below, math.log10(alpha_radps) + above, BODE_POINTS)
-    out = {"w_radps": w.tolist(), "w_nyquist_radps": math.pi / Ts_s}
+    out: dict[str, Any] = {"w_radps": w.tolist(), "w_nyquist_radps": math.pi / Ts_s}
     for name, sys in (("Gx", Gx), ("GN", GN)):
         h = np.asarray(control.frequency_response(sys, w).complex).reshape(-1)
         # a zero of the response on the grid would be -inf dB, which JSON cannot carry
@@ -160,7 +166,7 @@ def bode_data(Gx, GN, alpha_radps, Ts_s):
     return out
 
 
-def design_of(scenario):
+def design_of(scenario: Scenario) -> Design:
     """The :class:`~pmsm2dof.analysis.design.Design` of a scenario's speed controller (eq 9-13)."""
     sc = scenario.data["speed_controller"]
     return design(
@@ -184,18 +190,18 @@ class Tuner:
         Motor, limits, current loop, initial controller settings, schedules, faults and timing.
     """
 
-    def __init__(self, base):
+    def __init__(self, base: Scenario) -> None:
         self.base = base
         data = base.data
         self._J_design_kgm2 = data["speed_controller"]["J_kgm2"]
         self._initial = self._initial_values(data)
-        self._cache = collections.OrderedDict()
+        self._cache: collections.OrderedDict[str, tuple[Scenario, Result]] = collections.OrderedDict()
         self._cache_lock = threading.Lock()
         self._bode_cached = functools.lru_cache(maxsize=CACHED_RUNS)(self._bode_uncached)
 
     # ---- controls -------------------------------------------------------------------
 
-    def _initial_values(self, data):
+    def _initial_values(self, data: Tree) -> dict[str, Any]:
         sc, sim = data["speed_controller"], data["simulation"]
         values = {f"speed_controller.{k}": sc[k] for k in SPEED_CONTROLLER_CONTROLS}
         values["tuner.J_ratio"] = data["motor"]["J_kgm2"] / self._J_design_kgm2
@@ -207,11 +213,11 @@ class Tuner:
         return values
 
     @property
-    def keys(self):
+    def keys(self) -> tuple[str, ...]:
         """The control keys a request may set, in the page's order."""
         return tuple(self._initial)
 
-    def controls(self):
+    def controls(self) -> dict[str, Any]:
         """Description of the page's controls: groups of specs with ranges and initial values.
 
         A spec has ``key``, ``label``, ``unit``, ``kind`` ('slider' or 'select'), ``value``;
@@ -230,12 +236,14 @@ class Tuner:
         torque_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"]
         t_end = v["simulation.t_end_s"]
 
-        def slider(key, label, unit, lo, hi, scale="lin", **extra):
+        def slider(
+            key: str, label: str, unit: str, lo: float, hi: float, scale: str = "lin", **extra: Any
+        ) -> dict[str, Any]:
             return dict(
                 key=key, label=label, unit=unit, kind="slider", min=lo, max=hi, scale=scale, value=v[key], **extra
             )
 
-        def select(key, label, choices, **extra):
+        def select(key: str, label: str, choices: Iterable[str], **extra: Any) -> dict[str, Any]:
             return dict(key=key, label=label, unit="", kind="select", choices=list(choices), value=v[key], **extra)
 
         experiment = [
@@ -249,7 +257,7 @@ class Tuner:
                 help=f"design inertia {self._J_design_kgm2:g} kg m^2 stays; the plant's changes",
             )
         ]
-        notes = []
+        notes: list[str] = []
         for name, value_key, label, unit in SCHEDULES:
             entries = data[name]
             values = [e[value_key] for e in entries]
@@ -337,7 +345,7 @@ class Tuner:
 
     # ---- request -> scenario ---------------------------------------------------------
 
-    def scenario(self, values):
+    def scenario(self, values: Mapping[str, Any]) -> Scenario:
         """The validated scenario of the control ``values`` (missing keys keep their initial value).
 
         Raises
@@ -354,7 +362,7 @@ class Tuner:
         return self.base.with_overrides(v)
 
     @staticmethod
-    def logged(scenario):
+    def logged(scenario: Scenario) -> Scenario:
         """The scenario as the tuner simulates it: ``simulation.log_every`` raised to log at most
         :data:`LOG_ROWS_MAX` rows.
 
@@ -381,7 +389,7 @@ class Tuner:
 
     # ---- runs ------------------------------------------------------------------------
 
-    def _evaluate(self, values, ticket=None):
+    def _evaluate(self, values: Mapping[str, Any], ticket: Ticket | None = None) -> tuple[Scenario, Result]:
         """(scenario, result) of the control values, from a small cache keyed by the values.
 
         ``result.scenario`` is :meth:`logged` of ``scenario``. On a cache miss the simulation
@@ -401,7 +409,7 @@ class Tuner:
         return scenario, result
 
     @staticmethod
-    def _simulate(scenario, ticket):
+    def _simulate(scenario: Scenario, ticket: Ticket) -> Result:
         """:func:`pmsm2dof.simulate` in chunks of about :data:`CHUNK_STEPS` steps, stopping with
         :class:`~pmsm2dof.ui.tuner.slots.Superseded` between two when ``ticket`` is cancelled."""
         run = Simulation(scenario.data)
@@ -417,7 +425,7 @@ class Tuner:
             wall_time_s = time.perf_counter() - start
         return run.result(scenario, wall_time_s)
 
-    def run(self, values, ticket=None):
+    def run(self, values: Mapping[str, Any], ticket: Ticket | None = None) -> dict[str, Any]:
         """Run the experiment; return what the page draws (JSON-ready dict).
 
         Keys: ``traces`` (decimated ``{"t", "y"}`` of speed_ref_rpm, speed_rpm, iq_ref_A,
@@ -484,7 +492,7 @@ class Tuner:
             ]
         )
         log_every = data["simulation"]["log_every"]
-        out = {
+        out: dict[str, Any] = {
             "label": _label(data),
             "traces": traces,
             "spans": {
@@ -504,7 +512,7 @@ class Tuner:
         return out
 
     @staticmethod
-    def _bode_uncached(key):
+    def _bode_uncached(key: str) -> dict[str, Any]:
         J_design_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, J_true_kgm2, Ts_s = json.loads(key)
         dsg = design(J_design_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward)
         Gx, GN = dsg.on_plant(J_true_kgm2)
@@ -575,7 +583,7 @@ class Tuner:
 
     # ---- downloads -------------------------------------------------------------------
 
-    def download(self, kind, values, ticket=None):
+    def download(self, kind: str, values: Mapping[str, Any], ticket: Ticket | None = None) -> tuple[str, str, str]:
         """``(filename, media type, text)`` of a download: scenario.toml, header.h or trace.csv.
 
         The trace is the run the page draws: the rows it logs (:meth:`logged`).
@@ -595,7 +603,7 @@ class Tuner:
         raise ConfigError("download", kind, "one of 'scenario.toml', 'header.h', 'trace.csv'")
 
     @staticmethod
-    def _c_header(scenario):
+    def _c_header(scenario: Scenario) -> str:
         """C header of the scenario's speed and current controllers (pmsm2dof.analysis.codegen)."""
         data = scenario.data
         motor, sc, cl = data["motor"], data["speed_controller"], data["current_loop"]
@@ -615,16 +623,16 @@ class Tuner:
         )
 
 
-def _metric_rows(figures):
+def _metric_rows(figures: Mapping[str, Any]) -> list[dict[str, Any]]:
     """The metrics table: the figures of every reference step, load step and fault in time order,
     then the whole run's; a figure that cannot be computed has ``value`` None and a ``reason``."""
-    parts = []
+    parts: list[tuple[float, str, int | None, str]] = []
     for part in ("reference_steps", "load_steps", "faults"):
-        for i, event in enumerate(figures[part]):
-            parts.append((event["t_s"], part, i, _event_title(part, event)))
+        for k, event in enumerate(figures[part]):
+            parts.append((event["t_s"], part, k, _event_title(part, event)))
     parts.sort(key=lambda p: p[0])  # stable: at equal times references, then loads, then faults
     run = figures["run"]
-    parts.append((None, "run", None, f"whole run (0 to {run['t_end_s']:g} s)"))
+    parts.append((math.inf, "run", None, f"whole run (0 to {run['t_end_s']:g} s)"))
     rows = []
     for _, part, i, group in parts:
         event = figures[part] if i is None else figures[part][i]
@@ -644,7 +652,7 @@ def _metric_rows(figures):
     return rows
 
 
-def _event_title(part, event):
+def _event_title(part: str, event: Mapping[str, Any]) -> str:
     if part == "reference_steps":
         return f"speed reference at {event['t_s']:g} s: {event['from_rpm']:g} \u2192 {event['to_rpm']:g} rpm"
     if part == "load_steps":
@@ -652,7 +660,7 @@ def _event_title(part, event):
     return f"fault {event['kind']} at {event['t_s']:g} s to {event['end_s']:g} s"
 
 
-def _warnings(figures, data):
+def _warnings(figures: Mapping[str, Any], data: Tree) -> list[str]:
     """Sentences the page shows above the metrics: the run left the design's assumptions."""
     run = figures["run"]
     voltage_s = run["voltage_limit_time_s"]["value"]
@@ -666,11 +674,11 @@ def _warnings(figures, data):
     ]
 
 
-def _slug(name):
+def _slug(name: str) -> str:
     return "".join(c if c.isalnum() else "-" for c in name.lower()).strip("-") or "scenario"
 
 
-def _label(data):
+def _label(data: Tree) -> str:
     sc = data["speed_controller"]
     ka = "1/Kp" if sc["Ka"] is None else f"{sc['Ka']:.4g}"
     J_ratio = data["motor"]["J_kgm2"] / sc["J_kgm2"]

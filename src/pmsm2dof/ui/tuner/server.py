@@ -15,9 +15,11 @@ import ipaddress
 import socket
 import threading
 import time
+from collections.abc import Iterable, Iterator
 from urllib.parse import urlsplit
 
 import uvicorn
+from starlette.types import ASGIApp, Receive, Scope, Send
 
 from ...errors import ConfigError
 
@@ -25,7 +27,7 @@ DEFAULT_PORT = 8765
 """Port tried first when none is given; a free one is chosen if it is busy."""
 
 
-def is_loopback(host):
+def is_loopback(host: str) -> bool:
     """True if ``host`` is an address or name of this machine's loopback interface."""
     if host == "localhost":
         return True
@@ -35,7 +37,7 @@ def is_loopback(host):
         return False
 
 
-def bind_socket(host="127.0.0.1", port=None):
+def bind_socket(host: str = "127.0.0.1", port: int | None = None) -> socket.socket:
     """Return a listening TCP socket on ``host``.
 
     Parameters
@@ -71,7 +73,7 @@ def bind_socket(host="127.0.0.1", port=None):
     raise AssertionError("unreachable: port 0 always binds")
 
 
-def url_of(sock):
+def url_of(sock: socket.socket) -> str:
     """The http URL that reaches the server listening on ``sock`` from this machine."""
     host, port = sock.getsockname()[:2]
     if ipaddress.ip_address(host).is_unspecified:  # all interfaces: loopback is one of them
@@ -100,13 +102,13 @@ class HostCheck:
         Accept any IP address as the host too.
     """
 
-    def __init__(self, app, names, port, any_address=False):
+    def __init__(self, app: ASGIApp, names: Iterable[str], port: int, any_address: bool = False) -> None:
         self.app = app
         self.names = frozenset(names)
         self.port = port
         self.any_address = any_address
 
-    def accepts(self, authority, scheme="http"):
+    def accepts(self, authority: str, scheme: str = "http") -> bool:
         """True if ``scheme://authority`` names this server."""
         try:
             parts = urlsplit(f"{scheme}://{authority}")
@@ -118,7 +120,7 @@ class HostCheck:
             return False
         return name in self.names or (self.any_address and _is_address(name))
 
-    async def __call__(self, scope, receive, send):
+    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] == "http":
             headers = {k.decode("latin-1"): v.decode("latin-1") for k, v in scope["headers"]}
             host = headers.get("host", "")
@@ -144,7 +146,7 @@ class HostCheck:
         await self.app(scope, receive, send)
 
 
-def _is_address(name):
+def _is_address(name: str) -> bool:
     try:
         ipaddress.ip_address(name)
     except ValueError:
@@ -152,7 +154,7 @@ def _is_address(name):
     return True
 
 
-async def _refuse(send, status, text):
+async def _refuse(send: Send, status: int, text: str) -> None:
     body = (text + "\n").encode()
     await send(
         {
@@ -164,7 +166,7 @@ async def _refuse(send, status, text):
     await send({"type": "http.response.body", "body": body})
 
 
-def host_check(app, sock, host):
+def host_check(app: ASGIApp, sock: socket.socket, host: str) -> HostCheck:
     """:class:`HostCheck` of ``app`` served on ``sock``, bound for the ``host`` asked for.
 
     Accepted: 127.0.0.1, localhost, the bound address and ``host`` as given (a name of this
@@ -175,7 +177,7 @@ def host_check(app, sock, host):
     return HostCheck(app, names, port, any_address=ipaddress.ip_address(address).is_unspecified)
 
 
-def make_server(app, sock, host):
+def make_server(app: ASGIApp, sock: socket.socket, host: str) -> uvicorn.Server:
     """A uvicorn server for ``app`` behind :func:`host_check` on the bound socket ``sock``, quiet
     except for errors."""
     address, port = sock.getsockname()[:2]
@@ -185,13 +187,15 @@ def make_server(app, sock, host):
     return uvicorn.Server(config)
 
 
-def serve(app, sock, host):
+def serve(app: ASGIApp, sock: socket.socket, host: str) -> None:
     """Serve ``app`` on ``sock``, bound for ``host``, until interrupted (Ctrl-C)."""
     make_server(app, sock, host).run(sockets=[sock])
 
 
 @contextlib.contextmanager
-def serving_in_thread(app, host="127.0.0.1", port=0, timeout_s=10.0):
+def serving_in_thread(
+    app: ASGIApp, host: str = "127.0.0.1", port: int | None = 0, timeout_s: float = 10.0
+) -> Iterator[str]:
     """Run ``app`` in a background thread; yield its URL; stop it on exit.
 
     Used by the browser test and the benchmark.

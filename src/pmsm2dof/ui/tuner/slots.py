@@ -9,6 +9,7 @@ answers HTTP 409.
 
 import contextlib
 import threading
+from collections.abc import Hashable, Iterator
 
 #: How often a request waiting for its client's slot checks whether it was superseded [s].
 SLOT_POLL_S = 0.02
@@ -17,7 +18,7 @@ SLOT_POLL_S = 0.02
 class Superseded(Exception):
     """A newer request of the same client took over: this one's simulation stopped or never started."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         super().__init__("superseded by a newer request of the same client")
 
 
@@ -30,21 +31,21 @@ class Ticket:
         The client's slot; None for a slot of its own (a caller outside the server).
     """
 
-    def __init__(self, slot=None):
+    def __init__(self, slot: "threading.Lock | None" = None) -> None:
         self._slot = threading.Lock() if slot is None else slot
         self._cancelled = threading.Event()
 
-    def cancel(self):
+    def cancel(self) -> None:
         """Mark the request superseded; its simulation stops at the next :meth:`check`."""
         self._cancelled.set()
 
-    def check(self):
+    def check(self) -> None:
         """Raise :class:`Superseded` if a newer request of the client took over."""
         if self._cancelled.is_set():
             raise Superseded()
 
     @contextlib.contextmanager
-    def simulation(self):
+    def simulation(self) -> Iterator["Ticket"]:
         """Hold the client's slot while simulating; give up waiting for it when superseded."""
         while not self._slot.acquire(timeout=SLOT_POLL_S):
             self.check()
@@ -58,21 +59,21 @@ class Ticket:
 class _Client:
     __slots__ = ("slot", "latest", "requests")
 
-    def __init__(self):
+    def __init__(self) -> None:
         self.slot = threading.Lock()
-        self.latest = None
+        self.latest: Ticket | None = None
         self.requests = 0
 
 
 class ClientSlots:
     """The simulation slots of the server's clients; a client is any hashable key."""
 
-    def __init__(self):
+    def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._clients = {}
+        self._clients: dict[Hashable, _Client] = {}
 
     @contextlib.contextmanager
-    def request(self, client, supersede):
+    def request(self, client: Hashable, supersede: bool) -> Iterator[Ticket]:
         """A :class:`Ticket` for one request of ``client``, released on exit.
 
         Parameters
@@ -101,7 +102,7 @@ class ClientSlots:
                 if entry.requests == 0:
                     del self._clients[client]
 
-    def clients(self):
+    def clients(self) -> int:
         """Number of clients with a request being answered."""
         with self._lock:
             return len(self._clients)
