@@ -35,7 +35,7 @@ import dataclasses
 import itertools
 import math
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -44,6 +44,7 @@ from ..analysis.design import design as make_design
 from ..analysis.discretize import MAX_W_TS, c_coefficients, margins_on_plant
 from ..analysis.margins import Margins
 from ..core import ANTI_WINDUPS, FEEDFORWARDS
+from ..core.bindings import AntiWindup, Feedforward
 from ..errors import ConfigError
 from ..sim.scenario import Scenario
 from .engine import Outcome, Run, check_options, connect, run_many
@@ -147,11 +148,11 @@ class Spec:
     max_load_dip_rpm_per_Nm: float | None = None
     max_current_limit_time_s: float | None = None
     J_range: tuple[float, float] = (1.0, 1.0)
-    feedforwards: tuple[str, ...] | None = None
-    anti_windups: tuple[str, ...] | None = None
+    feedforwards: tuple[Feedforward, ...] | None = None
+    anti_windups: tuple[AntiWindup, ...] | None = None
 
     def __post_init__(self) -> None:
-        bounds = {
+        bounds: dict[str, tuple[str, Callable[[float], bool]]] = {
             "max_overshoot_pct": ("a finite number >= 0", lambda v: v >= 0.0),
             "min_phase_margin_deg": ("a finite number >= 0 and < 180", lambda v: 0.0 <= v < 180.0),
             "min_gain_margin_dB": ("a finite number >= 0", lambda v: v >= 0.0),
@@ -229,8 +230,8 @@ class Candidate:
     zeta: float
     m: float
     Ka: float
-    feedforward: str
-    anti_windup: str
+    feedforward: Feedforward
+    anti_windup: AntiWindup
 
     def speed_controller(self) -> dict[str, float | str]:
         """``{key: value}`` of the scenario's ``speed_controller`` table."""
@@ -602,7 +603,7 @@ class _Search:
     def alpha_max_radps(self, zeta: float, m: float) -> float:
         """The largest bandwidth searched: stable (Routh on eq 8: alpha < 4 zeta^2 / tau_i) and
         sampled finely enough (``max(alpha, alpha/(2 zeta), m alpha) Ts <= MAX_W_TS``)."""
-        return min(4.0 * zeta**2 / self.tau_i_plant_s, MAX_W_TS / (self.Ts_s * max(1.0, 1.0 / (2.0 * zeta), m)))
+        return float(min(4.0 * zeta**2 / self.tau_i_plant_s, MAX_W_TS / (self.Ts_s * max(1.0, 1.0 / (2.0 * zeta), m))))
 
     def edge_radps(self, zeta: float, m: float) -> float | None:
         """The largest bandwidth (at most :meth:`alpha_max_radps`) whose loop meets the margin constraints
@@ -636,7 +637,9 @@ class _Search:
         """The bandwidth that the fraction coordinate of the search multiplies: the edge, else the bound."""
         return self.edge_radps(zeta, m) or self.alpha_max_radps(zeta, m)
 
-    def candidate(self, alpha_radps: float, zeta: float, m: float, Ka_Kp: float, ff: str, aw: str) -> Candidate:
+    def candidate(
+        self, alpha_radps: float, zeta: float, m: float, Ka_Kp: float, ff: Feedforward, aw: AntiWindup
+    ) -> Candidate:
         """The candidate of these values, rounded to 4 digits (alpha down); Ka from ``Ka Kp``."""
         alpha_radps, zeta = _sig_down(alpha_radps), _sig(zeta)
         m = _sig(m) if ff in ("no_tau", "full") else 1.0

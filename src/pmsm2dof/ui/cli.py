@@ -6,7 +6,7 @@ Every error the user can cause ends as one line on stderr and exit status 2.
 
 import sys
 import tomllib
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import click
@@ -17,6 +17,7 @@ if TYPE_CHECKING:
     from ..analysis.discretize import DiscreteDesign
     from ..analysis.margins import Margins
     from ..core.bindings import AntiWindup, Feedforward, Method
+    from ..studies.autotune import AutotuneResult
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -640,7 +641,7 @@ _AUTOTUNE_OPTIONS = {
 }
 
 
-def _J_range(text):
+def _J_range(text: str) -> tuple[float, float]:
     """``LO,HI`` of --J-range as two floats (the Spec checks their range)."""
     parts = text.split(",")
     try:
@@ -651,7 +652,7 @@ def _J_range(text):
         raise ConfigError("--J-range", text, "LO,HI: two numbers, true over design inertia, e.g. 0.5,2") from None
 
 
-def _require_writable_file(path):
+def _require_writable_file(path: str) -> None:
     """Raise ConfigError naming --emit-c-header, before any long work, if ``path`` cannot be written."""
     import os
     from pathlib import Path
@@ -663,7 +664,7 @@ def _require_writable_file(path):
         raise ConfigError("--emit-c-header", path, "a file in an existing, writable folder")
 
 
-def _csv_text(rows):
+def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
     """``rows`` (dicts with the same keys) as CSV text; None is an empty cell."""
     import csv
     import io
@@ -743,23 +744,23 @@ def _csv_text(rows):
     help="write a C header with the p2d_speed_config_t of the chosen design and the scenario's motor",
 )
 def autotune(
-    scenario,
-    overrides,
-    max_overshoot_pct,
-    min_phase_margin_deg,
-    min_gain_margin_dB,
-    max_settling_s,
-    max_load_dip_rpm_per_Nm,
-    max_current_limit_time_s,
-    J_range,
-    feedforwards,
-    anti_windups,
-    workers,
-    scheduler,
-    as_json,
-    out,
-    header,
-):
+    scenario: str,
+    overrides: tuple[str, ...],
+    max_overshoot_pct: float | None,
+    min_phase_margin_deg: float | None,
+    min_gain_margin_dB: float | None,
+    max_settling_s: float | None,
+    max_load_dip_rpm_per_Nm: float | None,
+    max_current_limit_time_s: float | None,
+    J_range: str,
+    feedforwards: tuple["Feedforward", ...],  # any strings from the command line: the Spec validates them
+    anti_windups: tuple["AntiWindup", ...],
+    workers: int | None,
+    scheduler: str | None,
+    as_json: bool,
+    out: str | None,
+    header: str | None,
+) -> None:
     """Autotune the speed controller of a scenario: the smallest worst-case load dip per Nm that
     meets the specification at every inertia of --J-range, on the scenario's own steps.
 
@@ -824,7 +825,7 @@ def autotune(
         raise click.exceptions.Exit(1)
 
 
-def _autotune_summary(result, scenario):
+def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     """The summary of an autotuning: outcome, chosen keys, worst case, how to reproduce it."""
     from ..studies.autotune import CONSTRAINTS
 

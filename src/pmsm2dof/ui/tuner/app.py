@@ -151,7 +151,7 @@ def create_app(scenario: Scenario) -> Starlette:
             text, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
         )
 
-    async def suggest(request):
+    async def suggest(request: Request) -> Response:
         try:
             body = await _body(request)
             if not suggesting.acquire(blocking=False):

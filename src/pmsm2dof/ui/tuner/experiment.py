@@ -520,7 +520,7 @@ class Tuner:
 
     # ---- suggest ---------------------------------------------------------------------
 
-    def suggest(self, body):
+    def suggest(self, body: Mapping[str, Any]) -> dict[str, Any]:
         """Autotune the experiment of the posted control values; return the suggestion (JSON-ready dict).
 
         ``body`` is ``{"values": {control key: value}, "spec": {field: value}}``, the spec's fields
