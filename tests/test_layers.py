@@ -20,14 +20,15 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "src" / "pmsm2dof"
-LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
+#: ``lint-imports`` run by this interpreter (a venv with system site-packages has no script of its own).
+LINT_IMPORTS = [sys.executable, "-c", "from importlinter.cli import lint_imports_command; lint_imports_command()"]
 
 
 def lint_imports(source_root):
     """``lint-imports`` with the project's contracts on the package found in ``source_root``."""
     env = dict(os.environ, PYTHONPATH=str(source_root))
     return subprocess.run(
-        [str(LINT_IMPORTS), "--config", str(ROOT / "pyproject.toml"), "--no-cache"],
+        [*LINT_IMPORTS, "--config", str(ROOT / "pyproject.toml"), "--no-cache"],
         cwd=source_root,
         env=env,
         capture_output=True,
