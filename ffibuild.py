@@ -14,10 +14,29 @@ from cffi import FFI
 
 ROOT = Path(__file__).resolve().parent
 CSRC = ROOT / "csrc"
-# status.h first: the other headers use its types
-HEADERS = sorted((CSRC / "include" / "pmsm2dof").glob("*.h"), key=lambda h: (h.name != "status.h", h.name))
-HEADERS += sorted((CSRC / "sim").glob("*.h"))
 SOURCES = sorted((CSRC / "src").glob("*.c")) + sorted((CSRC / "sim").glob("*.c"))
+
+
+def in_include_order(headers):
+    """The headers, each after the public headers it includes: cffi needs every type declared before its use."""
+    by_name = {h.name: h for h in headers}
+    ordered, seen = [], set()
+
+    def visit(header):
+        if header.name not in seen:
+            seen.add(header.name)
+            for name in re.findall(r'^\s*#\s*include\s*"pmsm2dof/([^"]+)"', header.read_text(), flags=re.M):
+                if name in by_name:
+                    visit(by_name[name])
+            ordered.append(header)
+
+    for header in headers:
+        visit(header)
+    return ordered
+
+
+HEADERS = in_include_order(sorted((CSRC / "include" / "pmsm2dof").glob("*.h")))
+HEADERS += sorted((CSRC / "sim").glob("*.h"))
 
 
 def cdef_of(header):

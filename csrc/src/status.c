@@ -15,7 +15,8 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_ERR_M] = {"m", "finite and > 0"},
     [P2D_ERR_M_LOWPASS] = {"m", "exactly 1 with feedforward lowpass (eq 13); use no_tau or full for m != 1"},
     [P2D_ERR_TAU_I] = {"tau_i_s", "finite and >= 0 (speed controller); finite and >= Ts_s (current controller), with "
-                                  "the gains L/tau_i_s and Rs/tau_i_s finite in float32"},
+                                  "the gains L/tau_i_s and Rs/tau_i_s finite in float32; finite and >= 10 Ts_s "
+                                  "(commissioning)"},
     [P2D_ERR_KA] = {"Ka",
                     "finite and >= 0, and Ki*Ka*Ts_s < 2 with back_calculation (stable discrete anti-windup loop)"},
     [P2D_ERR_TS] = {"Ts_s", "finite and > 0"},
@@ -32,6 +33,16 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_ERR_METHOD] = {"method", "forward_euler (0), backward_euler (1) or tustin (2)"},
     [P2D_ERR_FEEDFORWARD] = {"feedforward", "none (0), lowpass (1), no_tau (2) or full (3)"},
     [P2D_ERR_ANTI_WINDUP] = {"anti_windup", "none (0), back_calculation (1) or clamping (2)"},
+    [P2D_ERR_I_TEST] = {"i_test_A", "finite and > 0"},
+    [P2D_ERR_I_SPIN] = {"i_spin_A", "finite and > 0"},
+    [P2D_ERR_I_TRIP] = {"i_trip_A", "finite and >= 1.5 max(i_test_A, i_spin_A)"},
+    [P2D_ERR_T_ALIGN] = {"t_align_s", "finite, >= 20 tau_i_s and <= 2^24 Ts_s"},
+    [P2D_ERR_T_LEVEL] = {"t_level_s", "finite, >= 20 tau_i_s and <= 2^24 Ts_s"},
+    [P2D_ERR_T_INDUCTANCE] = {"t_inductance_s", "finite, >= 64 Ts_s and <= 2^24 Ts_s"},
+    [P2D_ERR_T_RAMP] = {"t_ramp_s", "finite, >= 100 Ts_s and <= 2^24 Ts_s"},
+    [P2D_ERR_T_SPIN] = {"t_spin_s", "finite, >= 20 tau_i_s and <= 2^24 Ts_s"},
+    [P2D_ERR_W_E_SPIN] = {"w_e_spin_radps", "finite, > 0 and <= 0.1 / Ts_s (at least 63 samples per electrical turn)"},
+    [P2D_ERR_VOLTAGE_DELAY] = {"voltage_delay_samples", "0 or 1"},
 };
 
 const char *p2d_status_param(p2d_status_t status)

@@ -35,7 +35,18 @@ typedef enum {
     P2D_ERR_METHOD,      /* method */
     P2D_ERR_FEEDFORWARD, /* feedforward */
     P2D_ERR_ANTI_WINDUP, /* anti_windup */
-    P2D_STATUS_COUNT     /* number of codes, not a code */
+    /* commissioning (commission.h) */
+    P2D_ERR_I_TEST,        /* i_test_A */
+    P2D_ERR_I_SPIN,        /* i_spin_A */
+    P2D_ERR_I_TRIP,        /* i_trip_A */
+    P2D_ERR_T_ALIGN,       /* t_align_s */
+    P2D_ERR_T_LEVEL,       /* t_level_s */
+    P2D_ERR_T_INDUCTANCE,  /* t_inductance_s */
+    P2D_ERR_T_RAMP,        /* t_ramp_s */
+    P2D_ERR_T_SPIN,        /* t_spin_s */
+    P2D_ERR_W_E_SPIN,      /* w_e_spin_radps */
+    P2D_ERR_VOLTAGE_DELAY, /* voltage_delay_samples */
+    P2D_STATUS_COUNT       /* number of codes, not a code */
 } p2d_status_t;
 
 /* Name of the configuration field that a status code rejects ("" for P2D_OK). */
