@@ -1,16 +1,19 @@
 """Bounded fuzzing of the C controllers with libFuzzer under ASan and UBSan.
 
-The targets csrc/fuzz/fuzz_speed.c and csrc/fuzz/fuzz_current.c decode
-random configurations and input sequences and abort on any violated
+The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c and fuzz_commission.c
+decode random configurations and input sequences and abort on any violated
 invariant (output finite and within I_max or u_dc/sqrt(3), integrator bounds
 under back calculation and clamping, atomic parameter updates, no poisoned
-state; see RELIABILITY.md). Each runs for a bounded time from a copy of the
-checked-in seed corpus; the executions are printed (pytest -s shows them).
+state; the commissioning routine's phases, its trip, and estimates that
+match the motor when it ends; see RELIABILITY.md). Each runs for a bounded
+time from a copy of the checked-in seed corpus; the executions are printed
+(pytest -s shows them).
 
-Three mutants of the controllers (the non-finite policy of the update
-removed, clamping that never holds, a voltage limit that is never active)
-show that the invariants catch real faults: each is caught by replaying the
-seed corpus alone.
+Mutants of the controllers and the commissioning routine (the non-finite
+policy of the update removed, clamping that never holds, a voltage limit
+that is never active, no overcurrent trip, a NaN current let through) show
+that the invariants catch real faults: each is caught by replaying the seed
+corpus alone.
 
 P2D_FUZZ_SECONDS sets the time per target (default 25 s).
 """
@@ -70,7 +73,7 @@ def fuzz_build(tmp_path_factory):
             "-DP2D_FUZZ=ON",
             "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
         ],
-        ["cmake", "--build", str(build), "--target", "fuzz_speed", "fuzz_current", "-j", "2"],
+        ["cmake", "--build", str(build), "--target", "fuzz_speed", "fuzz_current", "fuzz_commission", "-j", "2"],
     ):
         result = subprocess.run(command, capture_output=True, text=True)
         assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
@@ -85,7 +88,7 @@ def _stats(stderr):
     return int(runs.group(1)), int(runs.group(2)), int(done.group(3)), int(done.group(2))
 
 
-@pytest.mark.parametrize("target", ["speed", "current"])
+@pytest.mark.parametrize("target", ["speed", "current", "commission"])
 def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
     corpus = tmp_path / "corpus"
     shutil.copytree(CORPUS / target, corpus)
@@ -136,6 +139,18 @@ MUTANTS = {
     ),
     # the voltage-vector limit is never active
     "current_no_limit": ("current", "current.c", [("out->saturated = norm > u_max;", "out->saturated = false;")]),
+    # the commissioning routine never trips: a current that runs away goes on
+    "commission_no_trip": (
+        "commission",
+        "commission.c",
+        [("if (fmaf(id_A, id_A, iq_A * iq_A) > c->config.i_trip_A * c->config.i_trip_A) {", "if (0) {")],
+    ),
+    # a NaN current passes into the commissioning routine
+    "commission_nan_current": (
+        "commission",
+        "commission.c",
+        [("if (!isfinite(id_A) || !isfinite(iq_A) || !isfinite(u_dc_V)) {", "if (!isfinite(u_dc_V)) {")],
+    ),
 }
 
 

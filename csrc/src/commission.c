@@ -22,15 +22,18 @@
 #define P2D_RIPPLE_LOW 0.7f
 #define P2D_RIPPLE_HIGH 1.4f
 #define P2D_RIPPLE_MIN 0.0625f
-#define P2D_SEARCH_PERIODS 32u  /* most periods of the amplitude search */
-#define P2D_SETTLE_PERIODS 2u   /* periods between the search and the averaging */
-#define P2D_U_START 1e-4f       /* first amplitude of PROBE, per unit of u_dc / sqrt(3) */
-#define P2D_U_HEADROOM 0.9f     /* bias plus square wave within 0.9 u_dc / sqrt(3) */
-#define P2D_ZERO_PER_TAU 0.25f  /* zero of the loop before Rs is known: 1 / (4 tau_i) [1/tau_i] */
-#define P2D_RHO_MAX 0.5f        /* Rs G below it: the injection measures L, not Rs */
-#define P2D_ASYMMETRY_MAX 0.05f /* |G_qd - G_dq| / mean(G_dd, G_qq) above it: the rotor moved */
-#define P2D_RS_SPREAD_MAX 0.02f /* |Rs of the early half-windows - Rs of the late ones| / Rs above it: it moved */
-#define P2D_COHERENCE_MIN 0.9f  /* |sum psi_a| / sum |psi_a| below it: the rotor did not follow */
+#define P2D_SEARCH_PERIODS 32u   /* most periods of the amplitude search */
+#define P2D_SETTLE_PERIODS 2u    /* periods between the search and the averaging */
+#define P2D_U_START 1e-4f        /* first amplitude of PROBE, per unit of u_dc / sqrt(3) */
+#define P2D_U_HEADROOM 0.9f      /* bias plus square wave within 0.9 u_dc / sqrt(3) */
+#define P2D_ZERO_PER_TAU 0.25f   /* zero of the loop before Rs is known: 1 / (4 tau_i) [1/tau_i] */
+#define P2D_RHO_MAX 0.5f         /* Rs G below it: the injection measures L, not Rs */
+#define P2D_ASYMMETRY_MAX 0.05f  /* |G_qd - G_dq| / mean(G_dd, G_qq) above it: the rotor moved */
+#define P2D_RS_SPREAD_MAX 0.02f  /* |Rs of the early half-windows - Rs of the late ones| / Rs above it: it moved */
+#define P2D_COHERENCE_MIN 0.9f   /* |sum psi_a| / sum |psi_a| below it: the rotor did not follow */
+#define P2D_ID_R_MIN 0.5f        /* mean id_r / i_spin below it (a load angle beyond 60 degrees): it did not follow */
+#define P2D_PSI_SPREAD_MAX 0.02f /* |psi_f of the late half-window - of the early one| / psi_f above it: it swung */
+#define P2D_SLIP_MAX 0.02f       /* rotor speed off the frame's by more than this share over the window: slip */
 
 /* Stages of an injection test. */
 enum { HF_SEARCH = 0, HF_SETTLE = 1, HF_AVERAGE = 2 };
@@ -50,9 +53,8 @@ static const char *const REASON_TEXT[P2D_REASON_COUNT] = {
     "the rotor moved during a standstill test: a load or cogging torque that i_test_A does not hold still "
     "(raise i_test_A, uncouple the load), or a swing that has not settled (longer t_align_s or t_level_s)",
     "the voltage reached u_dc/sqrt(3) before the flux test's speed: lower w_e_spin_radps or i_spin_A",
-    "the rotor did not follow the I-f frame (it slipped, stalled or is blocked: its back-EMF is below the "
-    "resistive and inverter drops): raise i_spin_A, lengthen t_ramp_s, uncouple the load, or raise "
-    "w_e_spin_radps",
+    "the rotor did not follow the I-f frame steadily (it slipped, stalled, is blocked, or still swung about "
+    "it): raise i_spin_A, lengthen t_ramp_s and t_spin_s, uncouple the load, or raise w_e_spin_radps",
     "the measurement does not determine a parameter: Rs not > 0 (current sensing), an inductance whose "
     "impedance at 1/(4 Ts_s) is not at least twice Rs (sample faster), or psi_f not > 0 (raise w_e_spin_radps)",
 };
@@ -96,7 +98,8 @@ static p2d_status_t commission_lengths(const p2d_commission_config_t *cfg, p2d_l
     if (!p2d_is_positive(cfg->i_test_A)) return P2D_ERR_I_TEST;
     if (!p2d_is_positive(cfg->i_spin_A)) return P2D_ERR_I_SPIN;
     i_big = cfg->i_test_A > cfg->i_spin_A ? cfg->i_test_A : cfg->i_spin_A;
-    if (!isfinite(cfg->i_trip_A) || !(cfg->i_trip_A >= 1.5f * i_big)) return P2D_ERR_I_TRIP;
+    /* the step compares ||i||^2 with i_trip^2: that must be a normal float (neither overflow nor underflow) */
+    if (!isnormal(cfg->i_trip_A * cfg->i_trip_A) || !(cfg->i_trip_A >= 1.5f * i_big)) return P2D_ERR_I_TRIP;
     n_align = samples_of(cfg->t_align_s, cfg->Ts_s, 20.0f * tau_samples);
     if (n_align == 0u) return P2D_ERR_T_ALIGN;
     n_level = samples_of(cfg->t_level_s, cfg->Ts_s, 20.0f * tau_samples);
@@ -165,9 +168,13 @@ static void start_phase(p2d_commission_t *c, p2d_commission_phase_t phase)
     sum_clear(&c->sum_ud_late_V);
     sum_clear(&c->sum_id_late_A);
     sum_clear(&c->sum_psi_Wb);
+    sum_clear(&c->sum_psi_late_Wb);
     sum_clear(&c->sum_psi_d_Wb);
     sum_clear(&c->sum_psi_q_Wb);
+    sum_clear(&c->sum_psi_d_late_Wb);
+    sum_clear(&c->sum_psi_q_late_Wb);
     sum_clear(&c->sum_id_r_A);
+    sum_clear(&c->sum_id_r_late_A);
     if (phase == P2D_PHASE_PROBE || phase == P2D_PHASE_LD || phase == P2D_PHASE_LQ) hf_start(c);
 }
 
@@ -216,6 +223,8 @@ p2d_status_t p2d_commission_init(p2d_commission_t *c, const p2d_commission_confi
     c->rs_spread = 0.0f;
     c->asymmetry = 0.0f;
     c->coherence = 0.0f;
+    c->psi_spread = 0.0f;
+    c->slip = 0.0f;
     c->psi_f_Wb = 0.0f;
     c->fault_count = 0u;
     start_phase(c, P2D_PHASE_PROBE);
@@ -677,7 +686,7 @@ static void error_direction(float theta_rad, float *cos_phi, float *sin_phi)
  *   psi_a = v / (j w_e)                            psi_d = vq / w_e, psi_q = -vd / w_e
  *   id_r = i . psi_a / |psi_a|                     the current along the rotor's d axis
  */
-static void flux_sample(p2d_commission_t *c, float id_A, float iq_A, float ud_V, float uq_V)
+static void flux_sample(p2d_commission_t *c, float id_A, float iq_A, float ud_V, float uq_V, bool late)
 {
     const float w = c->w_e_radps, wLq = w * c->Lq_H;
     float vd, vq, psi_d, psi_q, psi;
@@ -686,27 +695,59 @@ static void flux_sample(p2d_commission_t *c, float id_A, float iq_A, float ud_V,
     psi_d = vq / w;
     psi_q = -vd / w;
     psi = magnitude(psi_d, psi_q);
-    sum_add(&c->sum_psi_Wb, psi);
-    sum_add(&c->sum_psi_d_Wb, psi_d);
-    sum_add(&c->sum_psi_q_Wb, psi_q);
-    if (psi > 0.0f) sum_add(&c->sum_id_r_A, (id_A / psi) * psi_d + (iq_A / psi) * psi_q);
+    sum_add(late ? &c->sum_psi_late_Wb : &c->sum_psi_Wb, psi);
+    sum_add(late ? &c->sum_psi_d_late_Wb : &c->sum_psi_d_Wb, psi_d);
+    sum_add(late ? &c->sum_psi_q_late_Wb : &c->sum_psi_q_Wb, psi_q);
+    if (psi > 0.0f) sum_add(late ? &c->sum_id_r_late_A : &c->sum_id_r_A, (id_A / psi) * psi_d + (iq_A / psi) * psi_q);
 }
 
 /*
- * End of SPIN: the rotor followed (coherence, and a back-EMF w_e mean |psi_a|
- * above the drops Rs i_spin + |u_err| that the estimate subtracts: a blocked
- * or stalled rotor has none), psi_f = mean |psi_a| - (Ld - Lq) mean id_r.
+ * End of SPIN: psi_f = mean |psi_a| - (Ld - Lq) mean id_r, if the rotor
+ * followed the frame. |psi_a| of a sample is w_r / w_e times the active flux,
+ * w_r the rotor's speed, and psi_a turns in the frame at w_e - w_r: the mean
+ * is right when w_r averages to w_e over the window. So:
+ *  - slip: the means of psi_a over the window's early and late halves, whose
+ *    centres are dt = n_mean Ts / 2 apart, point the same way: the angle
+ *    between them, |sin| = |cross| / (|a| |b|), is at most 2 % of w_e dt (the
+ *    rotor's mean speed within 2 % of the frame's; a rotor that slips,
+ *    creeps or stands still turns psi_a round);
+ *  - swing: psi_f of the early half is within 2 % of that of the late half (a
+ *    rotor still swinging about the frame has w_r != w_e over part of a swing);
+ *  - coherence: |sum psi_a| / sum |psi_a| >= 0.9;
+ *  - the current leads psi_a by less than 60 degrees, mean id_r >= i_spin / 2
+ *    (a rotor that follows lags on the stable side of its pull-out; a stalled
+ *    salient one leaves psi_a = ((Ld + Lq) / 2 - Lq) i, still but against the
+ *    current);
+ *  - the back-EMF w_e mean |psi_a| exceeds the drops Rs i_spin + |u_err| that
+ *    the estimate subtracts.
  */
 static p2d_outcome_t flux(p2d_commission_t *c, p2d_commission_reason_t *why)
 {
-    const float n_mean = (float)(c->n_spin - c->n_spin / 2u);
+    const uint32_t n_mean = c->n_spin - c->n_spin / 2u, n_late = n_mean / 2u, n_early = n_mean - n_late;
     const float drops_V = fmaf(c->Rs_ohm, c->config.i_spin_A, fabsf(c->u_err_V));
-    c->coherence = magnitude(c->sum_psi_d_Wb.sum, c->sum_psi_q_Wb.sum) / c->sum_psi_Wb.sum;
-    if (!(c->coherence >= P2D_COHERENCE_MIN) || !(c->w_e_radps * (c->sum_psi_Wb.sum / n_mean) > drops_V)) {
+    const float dL_H = c->Ld_H - c->Lq_H;
+    const float psi_early = fmaf(-dL_H, c->sum_id_r_A.sum / (float)n_early, c->sum_psi_Wb.sum / (float)n_early);
+    const float psi_late = fmaf(-dL_H, c->sum_id_r_late_A.sum / (float)n_late, c->sum_psi_late_Wb.sum / (float)n_late);
+    const float psi_mean_Wb = (c->sum_psi_Wb.sum + c->sum_psi_late_Wb.sum) / (float)n_mean;
+    const float id_r_A = (c->sum_id_r_A.sum + c->sum_id_r_late_A.sum) / (float)n_mean;
+    /* the directions of psi_a's early and late means (unit vectors) */
+    const float a = magnitude(c->sum_psi_d_Wb.sum, c->sum_psi_q_Wb.sum);
+    const float b = magnitude(c->sum_psi_d_late_Wb.sum, c->sum_psi_q_late_Wb.sum);
+    const float ad = c->sum_psi_d_Wb.sum / a, aq = c->sum_psi_q_Wb.sum / a;
+    const float bd = c->sum_psi_d_late_Wb.sum / b, bq = c->sum_psi_q_late_Wb.sum / b;
+    /* sin of the angle psi_a turned by over dt, per w_e dt: the rotor's relative speed error */
+    c->slip = fabsf(ad * bq - aq * bd) / (c->w_e_radps * (0.5f * (float)n_mean * c->config.Ts_s));
+    c->coherence =
+        magnitude(c->sum_psi_d_Wb.sum + c->sum_psi_d_late_Wb.sum, c->sum_psi_q_Wb.sum + c->sum_psi_q_late_Wb.sum) /
+        (psi_mean_Wb * (float)n_mean);
+    c->psi_f_Wb = fmaf(-dL_H, id_r_A, psi_mean_Wb);
+    c->psi_spread = fabsf(psi_late - psi_early) / c->psi_f_Wb;
+    if (!(ad * bd + aq * bq > 0.0f) || !(c->slip <= P2D_SLIP_MAX) || !(c->psi_spread <= P2D_PSI_SPREAD_MAX) ||
+        !(c->coherence >= P2D_COHERENCE_MIN) || !(id_r_A >= P2D_ID_R_MIN * c->config.i_spin_A) ||
+        !(c->w_e_radps * psi_mean_Wb > drops_V)) {
         *why = P2D_REASON_SPEED_NOT_REACHED;
         return FAIL;
     }
-    c->psi_f_Wb = fmaf(-(c->Ld_H - c->Lq_H), c->sum_id_r_A.sum / n_mean, c->sum_psi_Wb.sum / n_mean);
     if (!p2d_is_positive(c->psi_f_Wb)) {
         *why = P2D_REASON_NOT_IDENTIFIABLE;
         return FAIL;
@@ -750,7 +791,10 @@ static p2d_outcome_t phase_spin(p2d_commission_t *c, float id_A, float iq_A, flo
         return FAIL;
     }
     c->w_e_radps = w;
-    if (phase == P2D_PHASE_SPIN && c->k >= n / 2u) flux_sample(c, id_A, iq_A, ud_pi, uq_pi);
+    if (phase == P2D_PHASE_SPIN && c->k >= n / 2u) {
+        /* the averaging window: the second half of SPIN, its early half first */
+        flux_sample(c, id_A, iq_A, ud_pi, uq_pi, c->k >= n / 2u + (n - n / 2u) - (n - n / 2u) / 2u);
+    }
     if (++c->k < n) return RUN;
     return phase == P2D_PHASE_SPIN ? flux(c, why) : NEXT;
 }

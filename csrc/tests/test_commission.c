@@ -30,12 +30,14 @@ typedef struct {
 } motor_t;
 
 typedef struct {
-    double u_dc_V;                    /* DC link [V] */
-    double theta0_rad;                /* initial electrical angle of the rotor [rad] */
-    p2d_commission_phase_t load_from; /* the load acts from the start of this phase on */
-    double T_load_Nm;                 /* load torque [Nm] */
-    int invert_sensing;               /* the measured currents have the wrong sign */
-    long nan_every;                   /* every nan_every-th sample reads a NaN current (0: never) */
+    double u_dc_V;                     /* DC link [V] */
+    double theta0_rad;                 /* initial electrical angle of the rotor [rad] */
+    p2d_commission_phase_t load_from;  /* the load acts from the start of this phase on */
+    double T_load_Nm;                  /* load torque [Nm] */
+    int invert_sensing;                /* the measured currents have the wrong sign */
+    long nan_every;                    /* every nan_every-th sample reads a NaN current (0: never) */
+    p2d_commission_phase_t drive_from; /* from the start of this phase on, the rotor turns at w_drive_e_radps */
+    double w_drive_e_radps;            /* speed of a rotor driven by another machine [rad/s, electrical] */
 } run_options_t;
 
 typedef struct {
@@ -43,6 +45,7 @@ typedef struct {
     double w_m;     /* mechanical speed [rad/s] */
     double theta_e; /* rotor electrical angle [rad] */
     double T_load;  /* load torque now [Nm] */
+    int driven;     /* the speed is held by another machine */
     uint64_t rng;   /* noise generator state */
 } plant_t;
 
@@ -78,7 +81,7 @@ static void derivative(const motor_t *m, const plant_t *s, const double x[4], do
     double Te = 1.5 * m->p * (m->psi_f_Wb * x[1] + (m->Ld_H - m->Lq_H) * x[0] * x[1]);
     dx[0] = (ud - m->Rs_ohm * x[0] + w_e * m->Lq_H * x[1]) / m->Ld_H;
     dx[1] = (uq - m->Rs_ohm * x[1] - w_e * (m->Ld_H * x[0] + m->psi_f_Wb)) / m->Lq_H;
-    dx[2] = (Te - s->T_load - m->B_Nms * x[2]) / m->J_kgm2;
+    dx[2] = s->driven ? 0.0 : (Te - s->T_load - m->B_Nms * x[2]) / m->J_kgm2;
     dx[3] = w_e;
 }
 
@@ -120,7 +123,7 @@ static void measure(const motor_t *m, plant_t *s, double theta_c, float *id, flo
 /* Run the routine against the motor until it ends; the routine's final state into c. */
 static void run(const motor_t *m, const p2d_commission_config_t *cfg, const run_options_t *o, p2d_commission_t *c)
 {
-    plant_t s = {0.0, 0.0, 0.0, o->theta0_rad, 0.0, 0x9e3779b97f4a7c15ull};
+    plant_t s = {0.0, 0.0, 0.0, o->theta0_rad, 0.0, 0, 0x9e3779b97f4a7c15ull};
     double ua_next = 0.0, ub_next = 0.0;
     p2d_commission_output_t out;
     long k = 0;
@@ -136,6 +139,10 @@ static void run(const motor_t *m, const p2d_commission_config_t *cfg, const run_
         if (o->nan_every > 0 && k % o->nan_every == o->nan_every - 1) id = NAN;
         p2d_commission_step(c, id, iq, (float)o->u_dc_V, &out);
         if (c->phase >= o->load_from) s.T_load = o->T_load_Nm;
+        if (c->phase >= o->drive_from && !s.driven) {
+            s.driven = 1;
+            s.w_m = o->w_drive_e_radps / m->p;
+        }
         /* inverse Park at the angle the routine asks for */
         ua = cos(out.theta_e_rad) * out.ud_V - sin(out.theta_e_rad) * out.uq_V;
         ub = sin(out.theta_e_rad) * out.ud_V + cos(out.theta_e_rad) * out.uq_V;
@@ -151,7 +158,7 @@ static void run(const motor_t *m, const p2d_commission_config_t *cfg, const run_
     }
 }
 
-static const run_options_t NOMINAL_RUN = {540.0, 1.0, P2D_PHASE_COUNT, 0.0, 0, 0};
+static const run_options_t NOMINAL_RUN = {540.0, 1.0, P2D_PHASE_COUNT, 0.0, 0, 0, P2D_PHASE_COUNT, 0.0};
 
 /*
  * The paper's drive (presets/paper-condition-2.toml): surface PMSM, Rs = 0.5 ohm,
@@ -212,12 +219,12 @@ static double rel(double estimate, double truth) { return fabs(estimate - truth)
 static void report(const char *name, const p2d_commission_t *c, const motor_t *m)
 {
     printf("%s: %s; Rs %.5g (%+.3f %%), Ld %.5g (%+.3f %%), Lq %.5g (%+.3f %%), psi_f %.5g (%+.3f %%), u_err %.3g V, "
-           "asymmetry %.3g, coherence %.4f\n",
+           "asymmetry %.3g, Rs spread %.3g, coherence %.4f, psi_f spread %.3g, slip %.3g\n",
            name, p2d_commission_phase_name(c->phase), (double)c->Rs_ohm, 100.0 * ((double)c->Rs_ohm / m->Rs_ohm - 1.0),
            (double)c->Ld_H, 100.0 * ((double)c->Ld_H / m->Ld_H - 1.0), (double)c->Lq_H,
            100.0 * ((double)c->Lq_H / m->Lq_H - 1.0), (double)c->psi_f_Wb,
            100.0 * ((double)c->psi_f_Wb / m->psi_f_Wb - 1.0), (double)c->u_err_V, (double)c->asymmetry,
-           (double)c->coherence);
+           (double)c->rs_spread, (double)c->coherence, (double)c->psi_spread, (double)c->slip);
 }
 
 /* Every estimate within tol of the truth, relative */
@@ -264,6 +271,11 @@ static void test_validation(void)
     CHECK(init_with(cfg) == P2D_ERR_I_TRIP);
     cfg.i_trip_A = 4.5f;
     CHECK(init_with(cfg) == P2D_OK);
+    cfg.i_trip_A = 2e19f; /* its square overflows float32 */
+    CHECK(init_with(cfg) == P2D_ERR_I_TRIP);
+    cfg.i_test_A = cfg.i_spin_A = 1e-20f;
+    cfg.i_trip_A = 1e-19f; /* its square is subnormal */
+    CHECK(init_with(cfg) == P2D_ERR_I_TRIP);
     cfg = paper_config();
     cfg.t_align_s = 0.039f; /* < 20 tau_i */
     CHECK(init_with(cfg) == P2D_ERR_T_ALIGN);
@@ -484,6 +496,38 @@ static void test_failures(void)
         run(&m, &cfg, &NOMINAL_RUN, &c);
         expect_failure("locked rotor", &c, P2D_PHASE_SPIN, P2D_REASON_SPEED_NOT_REACHED);
         CHECK(c.coherence < 0.9f);
+    }
+    {
+        /*
+         * a ramp to 300 rad/s in 15 ms asks 1 Nm of a rotor that 1.5 A gives 0.45 Nm: it slips; its
+         * saliency leaves a still, coherent psi_a, but one against the current
+         */
+        motor_t m = servo();
+        p2d_commission_config_t cfg = servo_config();
+        run_options_t o = NOMINAL_RUN;
+        o.u_dc_V = 48.0;
+        m.B_Nms = 0.0;
+        cfg.t_ramp_s = 0.015f;
+        run(&m, &cfg, &o, &c);
+        expect_failure("salient rotor that slips", &c, P2D_PHASE_SPIN, P2D_REASON_SPEED_NOT_REACHED);
+        CHECK(c.coherence > 0.9f);
+    }
+    {
+        /*
+         * from SPIN on another machine holds the rotor at 0.9 w_e_spin: its back-EMF stands still in
+         * magnitude (no swing), turns by only 0.3 rad in the 10 ms window (coherent), and would give
+         * psi_f 10 % low; the slip, 10 % of the frame's speed, stops the routine
+         */
+        motor_t m = servo();
+        p2d_commission_config_t cfg = servo_config();
+        run_options_t o = NOMINAL_RUN;
+        o.u_dc_V = 48.0;
+        o.drive_from = P2D_PHASE_SPIN;
+        o.w_drive_e_radps = 0.9 * 300.0;
+        cfg.t_spin_s = 0.02f;
+        run(&m, &cfg, &o, &c);
+        expect_failure("rotor driven at 0.9 w_e_spin", &c, P2D_PHASE_SPIN, P2D_REASON_SPEED_NOT_REACHED);
+        CHECK(c.slip > 0.05f && c.coherence > 0.9f && c.psi_spread < 0.02f);
     }
     {
         /* 400 rad/s needs 20 V of back-EMF: more than 24 V / sqrt(3) */

@@ -79,11 +79,22 @@
  *              lies on the rotor's d axis with length psi_f + (Ld - Lq) id_r,
  *              id_r the current along it, whatever the load angle:
  *                psi_f = mean |psi_a| - (Ld - Lq) mean id_r.
- *              The rotor follows the frame when the vectors psi_a agree in
- *              direction, |sum psi_a| / sum |psi_a| >= 0.9 ("coherence"; a
- *              rotor that slips turns them round), and when its back-EMF
+ *              |psi_a| of a sample is w_r / w_e times the active flux (w_r
+ *              the rotor's speed) and psi_a turns in the frame at w_e - w_r:
+ *              the mean is right when the rotor followed the frame, w_r
+ *              averaging to w_e over the window. The routine checks that
+ *              the means of psi_a over the window's early and late halves
+ *              point the same way (the rotor's mean speed within 2 % of the
+ *              frame's: a rotor that slips, creeps or stalls turns psi_a
+ *              round), that psi_f of the two halves agrees within 2 % (a
+ *              rotor still swinging about the frame has w_r != w_e over part
+ *              of a swing), that |sum psi_a| / sum |psi_a| >= 0.9
+ *              ("coherence"), that the current leads psi_a by less than 60
+ *              degrees, mean id_r >= i_spin_A / 2 (a rotor that follows lags
+ *              on the stable side of pull-out; a stalled salient one leaves
+ *              a still psi_a against the current), and that the back-EMF
  *              w_e mean |psi_a| exceeds the drops Rs i_spin_A + |u_err| that
- *              the estimate subtracts (a stalled or blocked rotor has none).
+ *              the estimate subtracts; else it stops.
  *              Then the speed is ramped back to zero and the routine ends
  *              (DONE).
  *
@@ -162,7 +173,8 @@ typedef struct {
     float i_test_A;                 /* test current: alignment, upper Rs level (the lower is i_test_A / 2),
                                        bias of the inductance tests, twice the ripple [A], > 0 */
     float i_spin_A;                 /* current of the I-f flux test [A], > 0 */
-    float i_trip_A;                 /* ||i_dq|| above it ends the routine [A], >= 1.5 max(i_test_A, i_spin_A) */
+    float i_trip_A;                 /* ||i_dq|| above it ends the routine [A], >= 1.5 max(i_test_A, i_spin_A),
+                                       i_trip_A^2 a normal float32 */
     float tau_i_s;                  /* time constant of the routine's current loop (eq 3) [s], >= 10 Ts_s */
     float t_align_s;                /* alignment: current ramp, then voltage hold, half each [s], >= 20 tau_i_s */
     float t_level_s;                /* each Rs level: settling, then averaging, half each [s], >= 20 tau_i_s */
@@ -242,21 +254,27 @@ typedef struct {
     float c_dq;         /* LQ: Re(I_d / I_q) [-] */
 
     /* flux test */
-    p2d_sum_t sum_psi_Wb;   /* |psi_a| [Wb] */
-    p2d_sum_t sum_psi_d_Wb; /* d component of psi_a in the frame [Wb] */
-    p2d_sum_t sum_psi_q_Wb; /* q component of psi_a in the frame [Wb] */
-    p2d_sum_t sum_id_r_A;   /* current along psi_a, id_r [A] */
+    p2d_sum_t sum_psi_Wb;        /* |psi_a| over the early half of the averaging window [Wb] */
+    p2d_sum_t sum_psi_late_Wb;   /* |psi_a| over its late half [Wb] */
+    p2d_sum_t sum_psi_d_Wb;      /* d component of psi_a in the frame, early half [Wb] */
+    p2d_sum_t sum_psi_q_Wb;      /* q component of psi_a in the frame, early half [Wb] */
+    p2d_sum_t sum_psi_d_late_Wb; /* d component of psi_a, late half [Wb] */
+    p2d_sum_t sum_psi_q_late_Wb; /* q component of psi_a, late half [Wb] */
+    p2d_sum_t sum_id_r_A;        /* current along psi_a, id_r, early half [A] */
+    p2d_sum_t sum_id_r_late_A;   /* id_r, late half [A] */
 
     /* estimates (valid in DONE; those of the finished phases in FAILED) */
-    float L_probe_H; /* PROBE's inductance: the routine's current loop [H] */
-    float Rs_ohm;    /* stator resistance [ohm] */
-    float u_err_V;   /* inverter voltage error at i_test_A on d [V] */
-    float rs_spread; /* |Rs(late half-windows) - Rs(early ones)| / Rs: the rotor moved when > 0.02 [-] */
-    float Ld_H;      /* d-axis inductance [H] */
-    float Lq_H;      /* q-axis inductance [H] */
-    float asymmetry; /* |G_qd - G_dq| / ((G_dd + G_qq) / 2): rotor moved when > 0.05 [-] */
-    float coherence; /* |sum psi_a| / sum |psi_a| of SPIN: the rotor followed when >= 0.9 [-] */
-    float psi_f_Wb;  /* permanent-magnet flux linkage [Wb] */
+    float L_probe_H;  /* PROBE's inductance: the routine's current loop [H] */
+    float Rs_ohm;     /* stator resistance [ohm] */
+    float u_err_V;    /* inverter voltage error at i_test_A on d [V] */
+    float rs_spread;  /* |Rs(late half-windows) - Rs(early ones)| / Rs: the rotor moved when > 0.02 [-] */
+    float Ld_H;       /* d-axis inductance [H] */
+    float Lq_H;       /* q-axis inductance [H] */
+    float asymmetry;  /* |G_qd - G_dq| / ((G_dd + G_qq) / 2): rotor moved when > 0.05 [-] */
+    float coherence;  /* |sum psi_a| / sum |psi_a| of SPIN: the rotor followed when >= 0.9 [-] */
+    float psi_spread; /* |psi_f(late half-window) - psi_f(early)| / psi_f: the rotor swung when > 0.02 [-] */
+    float slip;       /* SPIN: the rotor's mean speed off the frame's, relative: it slipped when > 0.02 [-] */
+    float psi_f_Wb;   /* permanent-magnet flux linkage [Wb] */
 
     uint32_t fault_count; /* samples rejected by the non-finite policy [-] */
 } p2d_commission_t;
