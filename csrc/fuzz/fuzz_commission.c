@@ -31,9 +31,10 @@
  *  - a current beyond i_trip_A in a running phase ends the routine with
  *    P2D_REASON_OVERCURRENT.
  *  - a routine that ran from its init to DONE within one closed-loop run
- *    (one motor, nothing else in between) measured that motor: Rs, Ld, Lq
- *    and psi_f within 10 % (the forward-Euler motor is the truth to a few
- *    0.1 %). The routine must fail rather than end with a wrong estimate.
+ *    (one motor, nothing else in between) measured that motor within the
+ *    targets of the identification: Rs and Lq within 5 %, Ld within 10 %,
+ *    psi_f within 2 % (the forward-Euler motor is the truth to a few 0.1 %).
+ *    The routine must fail rather than end with a wrong estimate.
  */
 #include "fuzz_common.h"
 
@@ -249,8 +250,8 @@ static void fz_closed_loop(fz_rig_t *rig, fz_reader_t *r)
             return;
         }
         if (whole_run && rig->c.phase == P2D_PHASE_DONE) {
-            FZ_REQUIRE(fabs(rig->c.Rs_ohm / R - 1.0) <= 0.1 && fabs(rig->c.Ld_H / Ld - 1.0) <= 0.1 &&
-                           fabs(rig->c.Lq_H / Lq - 1.0) <= 0.1 && fabs(rig->c.psi_f_Wb / psi_f - 1.0) <= 0.1,
+            FZ_REQUIRE(fabs(rig->c.Rs_ohm / R - 1.0) <= 0.05 && fabs(rig->c.Ld_H / Ld - 1.0) <= 0.1 &&
+                           fabs(rig->c.Lq_H / Lq - 1.0) <= 0.05 && fabs(rig->c.psi_f_Wb / psi_f - 1.0) <= 0.02,
                        "DONE with Rs %g Ld %g Lq %g psi_f %g for a motor of Rs %g Ld %g Lq %g psi_f %g (J %g, "
                        "load %g Nm, u_dc %g V)",
                        (double)rig->c.Rs_ohm, (double)rig->c.Ld_H, (double)rig->c.Lq_H, (double)rig->c.psi_f_Wb, R, Ld,

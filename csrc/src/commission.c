@@ -30,6 +30,7 @@
 #define P2D_RHO_MAX 0.5f         /* Rs G below it: the injection measures L, not Rs */
 #define P2D_ASYMMETRY_MAX 0.05f  /* |G_qd - G_dq| / mean(G_dd, G_qq) above it: the rotor moved */
 #define P2D_RS_SPREAD_MAX 0.02f  /* |Rs of the early half-windows - Rs of the late ones| / Rs above it: it moved */
+#define P2D_UQ_MAX 0.02f         /* |mean uq| / (ud_high - ud_low) of an Rs level above it: the rotor crept */
 #define P2D_COHERENCE_MIN 0.9f   /* |sum psi_a| / sum |psi_a| below it: the rotor did not follow */
 #define P2D_ID_R_MIN 0.5f        /* mean id_r / i_spin below it (a load angle beyond 60 degrees): it did not follow */
 #define P2D_PSI_SPREAD_MAX 0.02f /* |psi_f of the late half-window - of the early one| / psi_f above it: it swung */
@@ -221,6 +222,8 @@ p2d_status_t p2d_commission_init(p2d_commission_t *c, const p2d_commission_confi
     c->Ld_H = 0.0f;
     c->Lq_H = 0.0f;
     c->rs_spread = 0.0f;
+    c->uq_ratio = 0.0f;
+    c->uq_low_V = 0.0f;
     c->asymmetry = 0.0f;
     c->coherence = 0.0f;
     c->psi_spread = 0.0f;
@@ -429,6 +432,24 @@ static float inductance_of(float G_A_per_V, float Rs_ohm, float Ts_s)
     return Ts_s * root / (G_A_per_V * S) * P2D_INV_SQRT2;
 }
 
+/* |mean - level| <= 10 % of the level */
+static bool at_level(float i_A, float level_A) { return fabsf(i_A - level_A) <= P2D_LEVEL_TOL * level_A; }
+
+/*
+ * The q reference of the standstill phases under current control, -g x_q: a
+ * rotor that swings induces a back-EMF that the q integrator x_q takes up
+ * (x_q = Rs iq + e_q at the swing's low frequency), and iq = -g (Rs iq + e_q)
+ * = -g e_q / (1 + g Rs) brakes it with the torque of the machine's own
+ * short circuit, psi_f / Rs per unit of speed, when g Rs >> 1; 0 at rest. The
+ * loop x_q -> iq_ref -> x_q is stable for any g in continuous time; sampled,
+ * its integrator x[k] = (1 - g Ki Ts) x[k-1] + ... needs g Ki Ts < 2:
+ * g = 1 / (4 Ki Ts), Ki = R_zero / tau_i the loop's integral gain.
+ */
+static float damping_gain(const p2d_commission_t *c, float R_zero_ohm)
+{
+    return 0.25f * c->config.tau_i_s / (R_zero_ohm * c->config.Ts_s);
+}
+
 /* PROBE: the square wave on d at zero bias; at its end the first inductance and the current loop. */
 static p2d_outcome_t phase_probe(p2d_commission_t *c, float id_A, float iq_A, float u_lim_V,
                                  p2d_commission_output_t *out, p2d_commission_reason_t *why)
@@ -446,72 +467,63 @@ static p2d_outcome_t phase_probe(p2d_commission_t *c, float id_A, float iq_A, fl
         return FAIL;
     }
     c->L_probe_H = L;
+    c->g_damp_A_per_V = damping_gain(c, P2D_ZERO_PER_TAU * L / c->config.tau_i_s);
     return NEXT;
 }
 
 /*
- * ALIGN: the d current ramped to i_test_A, then the voltage it took held open
- * loop: the mean d voltage over the last quarter of the ramp (a swinging
- * rotor's back-EMF, which the loop's voltage carries, averages out over it;
- * the current there is 7/8 i_test_A on average), q at 0, which a resting
- * aligned rotor needs.
+ * ALIGN: the d current ramped to i_test_A over the first half, held over the
+ * second, the swing damped (damping_gain). The mean of ud over the last eighth,
+ * over that of id, is R_hold = Rs plus the inverter's error per ampere.
  */
-static p2d_outcome_t phase_align(p2d_commission_t *c, float id_A, float iq_A, float u_dc_V, float u_lim_V,
+static p2d_outcome_t phase_align(p2d_commission_t *c, float id_A, float iq_A, float u_dc_V,
                                  p2d_commission_output_t *out, p2d_commission_reason_t *why)
 {
-    const uint32_t n_ramp = c->n_align / 2u, n_mean_from = n_ramp - n_ramp / 4u;
+    const uint32_t n_ramp = c->n_align / 2u, n_check_from = n_ramp - n_ramp / 4u;
+    const uint32_t n_hold_from = c->n_align - c->n_align / 8u;
+    /* id_ref[k] = i_test min(1, (k + 1) / n_ramp) */
+    const float id_ref = c->k < n_ramp ? c->config.i_test_A * ((float)(c->k + 1u) / (float)n_ramp) : c->config.i_test_A;
     bool saturated = false;
-    if (c->k < n_ramp) {
-        /* id_ref[k] = i_test (k + 1) / n_ramp */
-        float id_ref = c->config.i_test_A * ((float)(c->k + 1u) / (float)n_ramp);
-        if (!closed_loop(c, id_ref, 0.0f, id_A, iq_A, u_dc_V, out, &saturated)) return FAIL;
-        if (c->k >= n_mean_from) {
-            sum_add(&c->sum_ud_V, out->ud_V);
-            sum_add(&c->sum_id_A, id_A - id_ref);
-        }
-        if (c->k + 1u == n_ramp) {
-            /* the current followed its ramp: mean error within 20 % of i_test */
-            float n_mean = (float)(n_ramp - n_mean_from);
-            if (saturated || !(fabsf(c->sum_id_A.sum / n_mean) <= P2D_ALIGN_TOL * c->config.i_test_A)) {
-                *why = P2D_REASON_CURRENT_NOT_REACHED;
-                return FAIL;
-            }
-            c->u_hold_d_V = c->sum_ud_V.sum / n_mean;
-            c->u_hold_q_V = 0.0f;
-        }
-    } else {
-        (void)voltage_limited(c->u_hold_d_V, c->u_hold_q_V, u_lim_V, out);
-    }
-    if (++c->k < c->n_align) return RUN;
-    /*
-     * the held voltage holds at least i_test / 4 (about 7/8 i_test, more or less by the back-EMF of a swing
-     * the mean did not cancel; i_trip_A bounds it from above)
-     */
-    if (!(id_A >= 0.25f * c->config.i_test_A)) {
-        *why = P2D_REASON_CURRENT_NOT_REACHED;
+    if (!closed_loop(c, id_ref, -c->g_damp_A_per_V * c->current.x_q_V, id_A, iq_A, u_dc_V, out, &saturated)) {
         return FAIL;
     }
-    /*
-     * the loop continues from the held voltage, its zero now at R_hold / L_probe,
-     * R_hold = u_hold / id >= Rs (it includes the inverter's error), so that
-     * a resistive motor settles in a few tau_i too; never below 1 / (4 tau_i).
-     * The damping of the Rs levels: 1 / R_zero <= 1 / Rs.
-     */
-    {
-        float R_hold = c->u_hold_d_V / id_A, R_zero = P2D_ZERO_PER_TAU * c->L_probe_H / c->config.tau_i_s;
-        if (R_hold > R_zero) R_zero = R_hold;
-        c->g_damp_A_per_V = 1.0f / R_zero;
-        if (!current_loop(c, R_zero, c->L_probe_H) || !isfinite(c->g_damp_A_per_V)) {
-            *why = P2D_REASON_NOT_IDENTIFIABLE;
+    if (c->k >= n_check_from && c->k < n_ramp) sum_add(&c->sum_id_late_A, id_A - id_ref);
+    if (c->k + 1u == n_ramp) {
+        /* the current followed its ramp: mean error over the ramp's last quarter within 20 % of i_test */
+        if (saturated ||
+            !(fabsf(c->sum_id_late_A.sum / (float)(n_ramp - n_check_from)) <= P2D_ALIGN_TOL * c->config.i_test_A)) {
+            *why = P2D_REASON_CURRENT_NOT_REACHED;
             return FAIL;
         }
     }
-    current_loop_from(c, c->u_hold_d_V, c->u_hold_q_V);
+    if (c->k >= n_hold_from) {
+        sum_add(&c->sum_ud_V, out->ud_V);
+        sum_add(&c->sum_id_A, id_A);
+    }
+    if (++c->k < c->n_align) return RUN;
+    /*
+     * the loop's zero now at R_hold / L_probe, R_hold >= Rs, so that a resistive motor settles in a few
+     * tau_i too; never below 1 / (4 tau_i). The integrators keep the voltage they hold.
+     */
+    {
+        const float id_mean = c->sum_id_A.sum / (float)(c->n_align - n_hold_from);
+        const float R_hold = c->sum_ud_V.sum / c->sum_id_A.sum;
+        const float ud_V = c->current.x_d_V, uq_V = c->current.x_q_V;
+        float R_zero = P2D_ZERO_PER_TAU * c->L_probe_H / c->config.tau_i_s;
+        if (saturated || !at_level(id_mean, c->config.i_test_A)) {
+            *why = P2D_REASON_CURRENT_NOT_REACHED;
+            return FAIL;
+        }
+        if (R_hold > R_zero) R_zero = R_hold;
+        if (!current_loop(c, R_zero, c->L_probe_H)) {
+            *why = P2D_REASON_NOT_IDENTIFIABLE;
+            return FAIL;
+        }
+        c->g_damp_A_per_V = damping_gain(c, R_zero);
+        current_loop_from(c, ud_V, uq_V);
+    }
     return NEXT;
 }
-
-/* |mean - level| <= 10 % of the level */
-static bool at_level(float i_A, float level_A) { return fabsf(i_A - level_A) <= P2D_LEVEL_TOL * level_A; }
 
 /* Rs = (ud_high - ud_low) / (id_high - id_low) of mean voltages and currents */
 static float resistance(float ud_low_V, float id_low_A, float ud_high_V, float id_high_A)
@@ -522,11 +534,8 @@ static float resistance(float ud_low_V, float id_low_A, float ud_high_V, float i
 /*
  * RS_LOW, RS_HIGH: the d current at i_test_A / 2 or i_test_A; means of ud,
  * uq, id over the second half, each half of it also on its own. A change of
- * the holding current moves a rotor under load, and under current control
- * nothing damps its swing: the q reference -g x_q, g = g_damp, brakes it
- * with the back-EMF w_e psi_f that the q integrator x_q carries (x_q =
- * Rs iq + back-EMF at steady state, so iq = -g (Rs iq + e) = -g e / (1 + g Rs),
- * and 0 at rest). A swing still going, or a current still settling, would
+ * the holding current moves a rotor under load, its swing damped
+ * (damping_gain). A swing still going, or a current still settling, would
  * enter Rs; then Rs of the early halves of the two windows differs from Rs
  * of the late halves, which a still rotor keeps equal.
  */
@@ -563,6 +572,7 @@ static p2d_outcome_t phase_rs(p2d_commission_t *c, float id_A, float iq_A, float
     }
     if (!high) {
         c->ud_low_V = 0.5f * (ud_early + ud_late);
+        c->uq_low_V = c->sum_uq_V.sum / (float)(n_early + n_late);
         c->id_low_A = 0.5f * (id_early + id_late);
         c->ud_low_early_V = ud_early;
         c->id_low_early_A = id_early;
@@ -583,7 +593,9 @@ static p2d_outcome_t phase_rs(p2d_commission_t *c, float id_A, float iq_A, float
     Rs_late =
         resistance(2.0f * c->ud_low_V - c->ud_low_early_V, 2.0f * c->id_low_A - c->id_low_early_A, ud_late, id_late);
     c->rs_spread = fabsf(Rs_late - Rs_early) / c->Rs_ohm;
-    if (!(c->rs_spread <= P2D_RS_SPREAD_MAX)) {
+    /* the back-EMF of a rotor that creeps or swings, on q (a still rotor needs no q voltage), per volt of Rs */
+    c->uq_ratio = fmaxf(fabsf(c->uq_low_V), fabsf(c->uq_high_V)) / (c->ud_high_V - c->ud_low_V);
+    if (!(c->rs_spread <= P2D_RS_SPREAD_MAX) || !(c->uq_ratio <= P2D_UQ_MAX)) {
         *why = P2D_REASON_ROTOR_MOVED;
         return FAIL;
     }
@@ -832,7 +844,7 @@ void p2d_commission_step(p2d_commission_t *c, float id_A, float iq_A, float u_dc
     } else {
         switch (c->phase) {
         case P2D_PHASE_PROBE: next = phase_probe(c, id_A, iq_A, u_lim, out, &why); break;
-        case P2D_PHASE_ALIGN: next = phase_align(c, id_A, iq_A, u_dc_V, u_lim, out, &why); break;
+        case P2D_PHASE_ALIGN: next = phase_align(c, id_A, iq_A, u_dc_V, out, &why); break;
         case P2D_PHASE_RS_LOW:
         case P2D_PHASE_RS_HIGH: next = phase_rs(c, id_A, iq_A, u_dc_V, out, &why); break;
         case P2D_PHASE_LD:

@@ -219,12 +219,12 @@ static double rel(double estimate, double truth) { return fabs(estimate - truth)
 static void report(const char *name, const p2d_commission_t *c, const motor_t *m)
 {
     printf("%s: %s; Rs %.5g (%+.3f %%), Ld %.5g (%+.3f %%), Lq %.5g (%+.3f %%), psi_f %.5g (%+.3f %%), u_err %.3g V, "
-           "asymmetry %.3g, Rs spread %.3g, coherence %.4f, psi_f spread %.3g, slip %.3g\n",
+           "asymmetry %.3g, Rs spread %.3g, uq ratio %.3g, coherence %.4f, psi_f spread %.3g, slip %.3g\n",
            name, p2d_commission_phase_name(c->phase), (double)c->Rs_ohm, 100.0 * ((double)c->Rs_ohm / m->Rs_ohm - 1.0),
            (double)c->Ld_H, 100.0 * ((double)c->Ld_H / m->Ld_H - 1.0), (double)c->Lq_H,
            100.0 * ((double)c->Lq_H / m->Lq_H - 1.0), (double)c->psi_f_Wb,
            100.0 * ((double)c->psi_f_Wb / m->psi_f_Wb - 1.0), (double)c->u_err_V, (double)c->asymmetry,
-           (double)c->rs_spread, (double)c->coherence, (double)c->psi_spread, (double)c->slip);
+           (double)c->rs_spread, (double)c->uq_ratio, (double)c->coherence, (double)c->psi_spread, (double)c->slip);
 }
 
 /* Every estimate within tol of the truth, relative */
@@ -404,8 +404,8 @@ static void expect_failure(const char *name, const p2d_commission_t *c, p2d_comm
  * diagonal alone would read Ld 4.7 % high (1 / (G_sum + G_diff cos 35 deg)
  * against 1 / (G_sum + G_diff)); the eigenvalues of the admittance matrix
  * give both inductances, and the still rotor keeps the matrix symmetric.
- * With levels of 0.2 s the damping settles both swings in their first half;
- * with levels of 50 ms it does not, the swing's back-EMF would put Rs 24 %
+ * With levels of 0.3 s the damping settles both swings in their first half;
+ * with levels of 50 ms it does not, the swing's back-EMF would put Rs 14 %
  * high, and the early and late half-windows disagree: the routine stops.
  */
 static void test_rotor_under_load(void)
@@ -417,7 +417,7 @@ static void test_rotor_under_load(void)
     o.u_dc_V = 48.0;
     o.load_from = P2D_PHASE_RS_LOW;
     o.T_load_Nm = 0.3 * 1.5 * 4 * 0.05 * 2.0;
-    cfg.t_level_s = 0.2f;
+    cfg.t_level_s = 0.3f;
     run(&m, &cfg, &o, &c);
     report("salient servo under 0.3 kt i_test of load", &c, &m);
     check_estimates(&c, &m, 0.02, 0.02, 0.02, 0.01);
@@ -426,6 +426,30 @@ static void test_rotor_under_load(void)
     run(&m, &cfg, &o, &c);
     expect_failure("the same with 50 ms levels", &c, P2D_PHASE_RS_HIGH, P2D_REASON_ROTOR_MOVED);
     CHECK(c.rs_spread > 0.02f);
+}
+
+/*
+ * A salient servo (Lq = 3 Ld) under 0.2 Nm of load from the start, 90 ms
+ * levels: the rotor creeps towards the equilibrium of each level (42 then
+ * 20 degrees off the frame) through the averaging windows, slowly enough that
+ * Rs of their early and late halves agree within 0.5 %, while its back-EMF
+ * would put Rs 7 % high; the mean q voltage of a still rotor is 0, and its
+ * 3 % of ud_high - ud_low stops the routine.
+ */
+static void test_rotor_creeping_under_load(void)
+{
+    motor_t m = servo();
+    p2d_commission_config_t cfg = servo_config();
+    p2d_commission_t c;
+    run_options_t o = NOMINAL_RUN;
+    m.Lq_H = 12e-3;
+    o.u_dc_V = 48.0;
+    o.load_from = P2D_PHASE_PROBE;
+    o.T_load_Nm = 0.2;
+    cfg.t_level_s = 0.09f;
+    run(&m, &cfg, &o, &c);
+    expect_failure("salient servo creeping under 0.2 Nm", &c, P2D_PHASE_RS_HIGH, P2D_REASON_ROTOR_MOVED);
+    CHECK(c.uq_ratio > 0.02f && c.rs_spread < 0.02f && rel(c.Rs_ohm, m.Rs_ohm) > 0.05);
 }
 
 /* The injection does not depend on the delay: the same motor with and without it */
@@ -611,6 +635,7 @@ int main(void)
     test_paper_drive_real_inverter();
     test_salient_servo();
     test_rotor_under_load();
+    test_rotor_creeping_under_load();
     test_inductance_delay_independent();
     test_failures();
     test_non_finite_policy();

@@ -16,15 +16,17 @@
  *              loop, which then has Kp = L_probe / tau_i and its zero at
  *              1 / (4 tau_i), stable without knowing Rs.
  *   ALIGN      The d current ramped to i_test_A over the first half (the
- *              rotor turns its d axis onto the frame's, angle 0), then the
- *              voltage the loop needed (its mean over the ramp's last
- *              quarter) held open loop over the second half:
- *              the stator then acts as a short circuit for the back-EMF of
- *              the swinging rotor and damps it with the machine's own torque
- *              (about 1.5 p psi_f^2 / Rs per electrical rad/s), which settles
- *              even a frictionless rotor. The loop's zero then moves to
- *              R_hold / L_probe, R_hold = u_hold / id (Rs plus the inverter's
- *              error), if that is higher.
+ *              rotor turns its d axis onto the frame's, angle 0), held over
+ *              the second. A rotor that swings induces a back-EMF that the
+ *              loop's q integrator x_q takes up; the q current reference
+ *              -g x_q brakes the swing with the torque of the machine's own
+ *              short circuit (psi_f / Rs per unit of speed when g Rs >> 1),
+ *              which settles even a frictionless rotor, and is 0 at rest.
+ *              g = tau_i / (4 R_zero Ts) keeps the integrator's own loop
+ *              stable (g Ki Ts = 1/4, Ki = R_zero / tau_i) without knowing
+ *              Rs. The loop's zero then moves to R_hold / L_probe, R_hold =
+ *              ud / id over the last eighth (Rs plus the inverter's error
+ *              per ampere), if that is higher.
  *   RS_LOW,    The d current held at i_test_A / 2, then at i_test_A, under
  *   RS_HIGH    current control: settling over the first half of t_level_s,
  *              averages of ud and id over the second. The inverter's voltage
@@ -33,12 +35,12 @@
  *                Rs = (ud_high - ud_low) / (id_high - id_low)
  *              and u_err = ud_high - Rs id_high is that error at i_test_A.
  *              A rotor under load turns when the holding current changes;
- *              the q current reference -x_q / R_hold (x_q the q integrator,
- *              which carries the swing's back-EMF) damps it. A swing still
- *              going (its back-EMF enters ud) or a current still settling
- *              makes Rs of the early halves of the two averaging windows
- *              differ from Rs of the late halves, which a still rotor keeps
- *              equal: more than 2 % apart, the routine stops.
+ *              the damping of ALIGN settles it. Its back-EMF must not
+ *              enter Rs: a swing still going makes Rs of the early halves
+ *              of the two averaging windows differ from Rs of the late
+ *              halves (more than 2 % apart), a slow creep leaves a mean q
+ *              voltage that a still rotor does not need (above 2 % of
+ *              ud_high - ud_low at either level); either stops the routine.
  *   LD, LQ     The voltage of RS_HIGH held open loop (the rotor stays held
  *              by i_test_A on d, and the phase currents keep their signs, so
  *              the dead-time error stays constant) plus the square wave of
@@ -211,9 +213,9 @@ typedef struct {
     float theta_e_rad;                   /* frame angle at this sample [rad], in [0, 2 pi) */
     float w_e_radps;                     /* frame speed [rad/s] */
     p2d_current_t current;               /* the routine's current loop (closed-loop phases) */
-    float u_hold_d_V;                    /* open-loop d voltage: ALIGN hold, injection bias [V] */
+    float u_hold_d_V;                    /* open-loop d voltage of the injection tests [V] */
     float u_hold_q_V;                    /* open-loop q voltage: injection bias [V] */
-    float g_damp_A_per_V;                /* Rs levels: q current per volt of the q integrator (damping) [A/V] */
+    float g_damp_A_per_V;                /* standstill damping: q current per volt of the q integrator [A/V] */
 
     /* square-wave injection (PROBE, LD, LQ) */
     float hf_U_V;         /* square-wave amplitude [V] */
@@ -240,6 +242,7 @@ typedef struct {
     p2d_sum_t sum_id_late_A; /* d current over the late half of an Rs window [A] */
     p2d_sum_t sum_uq_V;      /* q voltage command over an Rs window [V] */
     float ud_low_V;          /* mean d voltage at i_test_A / 2 [V] */
+    float uq_low_V;          /* mean q voltage at i_test_A / 2 [V] */
     float id_low_A;          /* mean d current at i_test_A / 2 [A] */
     float ud_low_early_V;    /* the same over the early half-window [V] */
     float id_low_early_A;    /* the same over the early half-window [A] */
@@ -268,6 +271,7 @@ typedef struct {
     float Rs_ohm;     /* stator resistance [ohm] */
     float u_err_V;    /* inverter voltage error at i_test_A on d [V] */
     float rs_spread;  /* |Rs(late half-windows) - Rs(early ones)| / Rs: the rotor moved when > 0.02 [-] */
+    float uq_ratio;   /* max |mean uq| of the Rs levels / (ud_high - ud_low): the rotor crept when > 0.02 [-] */
     float Ld_H;       /* d-axis inductance [H] */
     float Lq_H;       /* q-axis inductance [H] */
     float asymmetry;  /* |G_qd - G_dq| / ((G_dd + G_qq) / 2): rotor moved when > 0.05 [-] */
