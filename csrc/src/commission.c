@@ -92,15 +92,16 @@ typedef struct {
 static p2d_status_t commission_lengths(const p2d_commission_config_t *cfg, p2d_lengths_t *len)
 {
     uint32_t n_align, n_level, n_inductance, n_ramp, n_spin;
-    float tau_samples, i_big;
+    float tau_samples, i_big, trip2;
     if (!p2d_is_positive(cfg->Ts_s)) return P2D_ERR_TS;
     tau_samples = cfg->tau_i_s / cfg->Ts_s;
     if (!isfinite(cfg->tau_i_s) || !isfinite(tau_samples) || !(tau_samples >= 10.0f)) return P2D_ERR_TAU_I;
     if (!p2d_is_positive(cfg->i_test_A)) return P2D_ERR_I_TEST;
     if (!p2d_is_positive(cfg->i_spin_A)) return P2D_ERR_I_SPIN;
     i_big = cfg->i_test_A > cfg->i_spin_A ? cfg->i_test_A : cfg->i_spin_A;
-    /* the step compares ||i||^2 with i_trip^2: that must be a normal float (neither overflow nor underflow) */
-    if (!isnormal(cfg->i_trip_A * cfg->i_trip_A) || !(cfg->i_trip_A >= 1.5f * i_big)) return P2D_ERR_I_TRIP;
+    /* the step compares ||i||^2 with i_trip^2: that must be a normal float, in [2^-126, inf) */
+    trip2 = cfg->i_trip_A * cfg->i_trip_A;
+    if (!(trip2 >= 0x1p-126f && trip2 < INFINITY) || !(cfg->i_trip_A >= 1.5f * i_big)) return P2D_ERR_I_TRIP;
     n_align = samples_of(cfg->t_align_s, cfg->Ts_s, 20.0f * tau_samples);
     if (n_align == 0u) return P2D_ERR_T_ALIGN;
     n_level = samples_of(cfg->t_level_s, cfg->Ts_s, 20.0f * tau_samples);
@@ -594,7 +595,8 @@ static p2d_outcome_t phase_rs(p2d_commission_t *c, float id_A, float iq_A, float
         resistance(2.0f * c->ud_low_V - c->ud_low_early_V, 2.0f * c->id_low_A - c->id_low_early_A, ud_late, id_late);
     c->rs_spread = fabsf(Rs_late - Rs_early) / c->Rs_ohm;
     /* the back-EMF of a rotor that creeps or swings, on q (a still rotor needs no q voltage), per volt of Rs */
-    c->uq_ratio = fmaxf(fabsf(c->uq_low_V), fabsf(c->uq_high_V)) / (c->ud_high_V - c->ud_low_V);
+    c->uq_ratio = (fabsf(c->uq_low_V) > fabsf(c->uq_high_V) ? fabsf(c->uq_low_V) : fabsf(c->uq_high_V)) /
+                  (c->ud_high_V - c->ud_low_V);
     if (!(c->rs_spread <= P2D_RS_SPREAD_MAX) || !(c->uq_ratio <= P2D_UQ_MAX)) {
         *why = P2D_REASON_ROTOR_MOVED;
         return FAIL;
