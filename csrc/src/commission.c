@@ -199,6 +199,8 @@ p2d_status_t p2d_commission_init(p2d_commission_t *c, const p2d_commission_confi
     c->reason = P2D_REASON_NONE;
     c->theta_e_rad = 0.0f;
     c->w_e_radps = 0.0f;
+    c->id_prev_A = 0.0f;
+    c->iq_prev_A = 0.0f;
     /* the current loop is designed at the end of PROBE and stepped only after */
     c->current.x_d_V = 0.0f;
     c->current.x_q_V = 0.0f;
@@ -317,6 +319,15 @@ static p2d_outcome_t hf_search(p2d_commission_t *c, float M_A, float U_max_V, p2
 {
     const float target = P2D_RIPPLE_PER_I_TEST * c->config.i_test_A;
     float ratio;
+    if (!(U_max_V > 0.0f)) {
+        *why = P2D_REASON_CURRENT_NOT_REACHED;
+        return FAIL;
+    }
+    if (c->hf_U_V > U_max_V) {
+        /* an amplitude from the test before beyond what this bias leaves would be clipped (its mean moves) */
+        c->hf_U_V = U_max_V;
+        return RUN;
+    }
     if (M_A >= P2D_RIPPLE_LOW * target && M_A <= P2D_RIPPLE_HIGH * target) return NEXT;
     if (c->hf_U_V >= U_max_V && M_A < P2D_RIPPLE_LOW * target) {
         /* the voltage limit: a smaller ripple is still measured, none is not */
@@ -324,7 +335,7 @@ static p2d_outcome_t hf_search(p2d_commission_t *c, float M_A, float U_max_V, p2
         *why = P2D_REASON_CURRENT_NOT_REACHED;
         return FAIL;
     }
-    if (c->hf_periods >= P2D_SEARCH_PERIODS || !(U_max_V > 0.0f)) {
+    if (c->hf_periods >= P2D_SEARCH_PERIODS) {
         *why = P2D_REASON_CURRENT_NOT_REACHED;
         return FAIL;
     }
@@ -337,11 +348,18 @@ static p2d_outcome_t hf_search(p2d_commission_t *c, float M_A, float U_max_V, p2
 
 /*
  * One sample of an injection test: bias (bx, by) held on the injected axis x
- * and the other axis y, plus the square wave +U, -U, -U, +U on x; ix, iy the
- * measured currents. The command goes to *ux, *uy. NEXT when the averaging is
- * complete (its transforms are in the sums).
+ * and the other axis y, plus the square wave +U, -U, -U, +U on x; dix, diy
+ * the measured currents' changes since the previous sample. The command goes
+ * to *ux, *uy. NEXT when the averaging is complete (its transforms are in the
+ * sums).
+ *
+ * The currents enter by their differences di[k] = i[k] - i[k-1]: their
+ * transform at w0 is (e^(j w0 Ts) - 1) = (-1 + j) times that of the currents,
+ * |.| = sqrt(2) (for the signal and for white noise alike), while a drift of
+ * the bias current (a settling, the motor warming) turns into a near constant
+ * that the zero-mean weights cancel instead of leaking into the transform.
  */
-static p2d_outcome_t hf_sample(p2d_commission_t *c, float ix_A, float iy_A, float bx_V, float by_V, float u_lim_V,
+static p2d_outcome_t hf_sample(p2d_commission_t *c, float dix_A, float diy_A, float bx_V, float by_V, float u_lim_V,
                                float *ux_V, float *uy_V, p2d_commission_reason_t *why)
 {
     const uint32_t n = c->hf_n;
@@ -352,10 +370,10 @@ static p2d_outcome_t hf_sample(p2d_commission_t *c, float ix_A, float iy_A, floa
     *ux_V = u.ud_V;
     *uy_V = u.uq_V;
     /* X_c += cos(w0 Ts n) x[k],  X_s += sin(w0 Ts n) x[k], for the currents and the applied voltage */
-    c->hf_ix_c_A += hf_cos(n, ix_A);
-    c->hf_ix_s_A += hf_sin(n, ix_A);
-    c->hf_iy_c_A += hf_cos(n, iy_A);
-    c->hf_iy_s_A += hf_sin(n, iy_A);
+    c->hf_ix_c_A += hf_cos(n, dix_A);
+    c->hf_ix_s_A += hf_sin(n, dix_A);
+    c->hf_iy_c_A += hf_cos(n, diy_A);
+    c->hf_iy_s_A += hf_sin(n, diy_A);
     c->hf_u_c_V += hf_cos(n, u.ud_V);
     c->hf_u_s_V += hf_sin(n, u.ud_V);
     if (n < 3u) {
@@ -367,7 +385,8 @@ static p2d_outcome_t hf_sample(p2d_commission_t *c, float ix_A, float iy_A, floa
     c->hf_periods++;
     if (c->hf_stage == HF_SEARCH) {
         float U_max = P2D_U_HEADROOM * u_lim_V - magnitude(bx_V, by_V);
-        next = hf_search(c, magnitude(c->hf_ix_c_A, c->hf_ix_s_A), U_max, why);
+        /* the ripple peak to peak: the transform of the differences over sqrt(2) */
+        next = hf_search(c, magnitude(c->hf_ix_c_A, c->hf_ix_s_A) * P2D_INV_SQRT2, U_max, why);
         if (next == NEXT) {
             c->hf_stage = HF_SETTLE;
             c->hf_periods = 0u;
@@ -397,15 +416,15 @@ static p2d_outcome_t hf_sample(p2d_commission_t *c, float ix_A, float iy_A, floa
 }
 
 /*
- * The averaged transforms of an injection test: G = |I_x| / |U_x| [A/V] and
- * the cross ratio Re(I_y / I_x) = (I_y . I_x) / |I_x|^2. False if G is not
- * finite and > 0.
+ * The averaged transforms of an injection test: G = |I_x| / |U_x| [A/V]
+ * (|I_x| = |dI_x| / sqrt(2), hf_sample) and the cross ratio Re(I_y / I_x) =
+ * (dI_y . dI_x) / |dI_x|^2. False if G is not finite and > 0.
  */
 static bool hf_admittance(const p2d_commission_t *c, float *G_A_per_V, float *cross)
 {
     float Ix = magnitude(c->sum_ix_c_A.sum, c->sum_ix_s_A.sum);
     float Ux = magnitude(c->sum_u_c_V.sum, c->sum_u_s_V.sum);
-    float G = Ix / Ux;
+    float G = Ix / Ux * P2D_INV_SQRT2;
     /* Re(I_y conj(I_x)) / |I_x|^2, with I_x / |I_x| first so that nothing overflows */
     *cross =
         ((c->sum_iy_c_A.sum / Ix) * (c->sum_ix_c_A.sum / Ix) + (c->sum_iy_s_A.sum / Ix) * (c->sum_ix_s_A.sum / Ix));
@@ -458,7 +477,7 @@ static p2d_outcome_t phase_probe(p2d_commission_t *c, float id_A, float iq_A, fl
     float G, cross, L;
     p2d_outcome_t next;
     if (c->k++ == 0u) c->hf_U_V = P2D_U_START * u_lim_V;
-    next = hf_sample(c, id_A, iq_A, 0.0f, 0.0f, u_lim_V, &out->ud_V, &out->uq_V, why);
+    next = hf_sample(c, id_A - c->id_prev_A, iq_A - c->iq_prev_A, 0.0f, 0.0f, u_lim_V, &out->ud_V, &out->uq_V, why);
     if (next != NEXT) return next;
     /* Rs unknown yet, and small against w0 L: L = Ts / (sqrt(2) G) */
     L = hf_admittance(c, &G, &cross) ? c->config.Ts_s / G * P2D_INV_SQRT2 : 0.0f;
@@ -643,9 +662,11 @@ static p2d_outcome_t phase_inductance(p2d_commission_t *c, float id_A, float iq_
 {
     p2d_outcome_t next;
     if (c->phase == P2D_PHASE_LD) {
-        next = hf_sample(c, id_A, iq_A, c->u_hold_d_V, c->u_hold_q_V, u_lim_V, &out->ud_V, &out->uq_V, why);
+        next = hf_sample(c, id_A - c->id_prev_A, iq_A - c->iq_prev_A, c->u_hold_d_V, c->u_hold_q_V, u_lim_V, &out->ud_V,
+                         &out->uq_V, why);
     } else {
-        next = hf_sample(c, iq_A, id_A, c->u_hold_q_V, c->u_hold_d_V, u_lim_V, &out->uq_V, &out->ud_V, why);
+        next = hf_sample(c, iq_A - c->iq_prev_A, id_A - c->id_prev_A, c->u_hold_q_V, c->u_hold_d_V, u_lim_V, &out->uq_V,
+                         &out->ud_V, why);
     }
     c->k++;
     if (next != NEXT) return next;
@@ -860,6 +881,8 @@ void p2d_commission_step(p2d_commission_t *c, float id_A, float iq_A, float u_dc
             c->fault_count++;
             return;
         }
+        c->id_prev_A = id_A;
+        c->iq_prev_A = iq_A;
     }
     if (next == FAIL) {
         c->failed_phase = c->phase;

@@ -44,11 +44,15 @@
  *   LD, LQ     The voltage of RS_HIGH held open loop (the rotor stays held
  *              by i_test_A on d, and the phase currents keep their signs, so
  *              the dead-time error stays constant) plus the square wave of
- *              PROBE on d, then on q. The discrete Fourier transform at the
- *              injection frequency w0 = pi / (2 Ts) (weights 1, 0, -1, 0: no
- *              trigonometry) of the voltage on the injected axis x and of both
- *              currents, over whole periods, gives the admittance magnitude
- *              G_xx = |I_x| / |U_x| and the cross ratio Re(I_y / I_x). The
+ *              PROBE on d, then on q, its amplitude within what the bias
+ *              leaves of the voltage range. The discrete Fourier transform
+ *              at the injection frequency w0 = pi / (2 Ts) (weights 1, 0,
+ *              -1, 0: no trigonometry) of the voltage on the injected axis x
+ *              and of both currents' sample-to-sample differences (|e^(j w0
+ *              Ts) - 1| = sqrt(2) times the currents', while a drift of the
+ *              bias current turns into a near constant that cancels), over
+ *              whole periods, gives the admittance magnitude G_xx = |I_x| /
+ *              |U_x| and the cross ratio Re(I_y / I_x). The
  *              exact sampled response of an RL branch to a held (zero-order
  *              hold) voltage, i[k+1] = a i[k] + b u[k - n], a = exp(-Rs Ts / L),
  *              b = (1 - a) / Rs, has a magnitude at w0 that does not depend on
@@ -212,6 +216,8 @@ typedef struct {
     uint32_t k;                          /* samples since the present phase started [samples] */
     float theta_e_rad;                   /* frame angle at this sample [rad], in [0, 2 pi) */
     float w_e_radps;                     /* frame speed [rad/s] */
+    float id_prev_A;                     /* d current of the previous sample [A] */
+    float iq_prev_A;                     /* q current of the previous sample [A] */
     p2d_current_t current;               /* the routine's current loop (closed-loop phases) */
     float u_hold_d_V;                    /* open-loop d voltage of the injection tests [V] */
     float u_hold_q_V;                    /* open-loop q voltage: injection bias [V] */
