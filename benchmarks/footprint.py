@@ -72,8 +72,18 @@ def cross_build(build_dir):
     """Configure and build the library and the probe program for the Cortex-M4F."""
     env = dict(os.environ, CFLAGS="-g")
     run(["cmake", "-S", CSRC, "-B", build_dir, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}"], env=env)
-    run(["cmake", "--build", build_dir, "-j2", "--target", "pmsm2dof_controller", "p2d_target_cost",
-         "p2d_commission_cost"])
+    run(
+        [
+            "cmake",
+            "--build",
+            build_dir,
+            "-j2",
+            "--target",
+            "pmsm2dof_controller",
+            "p2d_target_cost",
+            "p2d_commission_cost",
+        ]
+    )
     return build_dir / "target" / "p2d_target_cost"
 
 
@@ -398,21 +408,36 @@ def commission_measure(build_dir, workdir):
     for index, phase in steps:
         first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
         path = pcs[first:end]
-        by_phase.setdefault(phase, []).append(dict(
-            index=index, count=len(path), divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
-            per_function=Counter(where(a) for a in path)))
+        by_phase.setdefault(phase, []).append(
+            dict(
+                index=index,
+                count=len(path),
+                divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
+                per_function=Counter(where(a) for a in path),
+            )
+        )
 
     def flash_of(roots):
         names = sorted(f for f in set().union(*(reachable(calls, r) for r in roots)) if f in funcs)
         return sum(funcs[f][1] for f in names), names
 
     entries = sorted(f for f in funcs if f.startswith("p2d_commission_"))
-    flash = {"p2d_commission_step": flash_of(["p2d_commission_step"]),
-             "p2d_commission_init": flash_of(["p2d_commission_init"]),
-             "the routine (all p2d_commission_*)": flash_of(entries)}
+    flash = {
+        "p2d_commission_step": flash_of(["p2d_commission_step"]),
+        "p2d_commission_init": flash_of(["p2d_commission_init"]),
+        "the routine (all p2d_commission_*)": flash_of(entries),
+    }
     result = next(p[1:] for p in fields if p and p[0] == "result")
-    return dict(by_phase=by_phase, flash=flash, funcs=funcs, sizeof=sizeof, stack=stack, steps=len(steps),
-                result=result, module=module_sizes(build_dir).get("commission"))
+    return dict(
+        by_phase=by_phase,
+        flash=flash,
+        funcs=funcs,
+        sizeof=sizeof,
+        stack=stack,
+        steps=len(steps),
+        result=result,
+        module=module_sizes(build_dir).get("commission"),
+    )
 
 
 PHASE_NAMES = ("probe", "align", "rs_low", "rs_high", "ld", "lq", "ramp_up", "spin", "ramp_down")
@@ -421,7 +446,8 @@ PHASE_NAMES = ("probe", "align", "rs_low", "rs_high", "ld", "lq", "ramp_up", "sp
 def commission_report(m):
     """The markdown section of the commissioning routine."""
     out = [
-        COMMISSION_SECTION, "",
+        COMMISSION_SECTION,
+        "",
         measured_by("python3 benchmarks/footprint.py") + ";",
         f"{tool_version('arm-none-eabi-gcc')}; {tool_version('qemu-system-arm')}; code: {code_version()}.",
         "Flags: `-mcpu=cortex-m4 -mthumb -mfpu=fpv4-sp-d16 -mfloat-abi=hard -O2 -ffp-contract=off`, newlib-nano.",
@@ -430,7 +456,8 @@ def commission_report(m):
         f"samples, the motor emulated in float32 on the target; it ended in phase {int(m['result'][0], 16)}, "
         f"{'DONE' if int(m['result'][0], 16) == 9 else 'not DONE'}): {m['steps']} steps, each counted from the entry "
         "of `p2d_commission_step` to its return, callees included (executed instructions, not cycles; see the "
-        "previous section).", "",
+        "previous section).",
+        "",
         "| phase | steps | instructions per step: median | max | vdiv+vsqrt (max step) | the max step spends most in |",
         "|---|---:|---:|---:|---:|---|",
     ]
@@ -445,21 +472,27 @@ def commission_report(m):
         if worst is None or top["count"] > worst[1]["count"]:
             worst = (name, top)
         spends = ", ".join(f"{f} {n}" for f, n in top["per_function"].most_common(3))
-        out.append(f"| {name} | {len(rows)} | {counts[len(counts) // 2]} | {top['count']} | {top['divides']} "
-                   f"| {spends} |")
+        out.append(
+            f"| {name} | {len(rows)} | {counts[len(counts) // 2]} | {top['count']} | {top['divides']} | {spends} |"
+        )
     name, top = worst
     flash_step = m["flash"]["p2d_commission_step"][0]
-    out += ["",
-            f"- the most expensive step: {top['count']} instructions ({name}, step {top['index']}; the steps that end "
-            "a phase compute its estimates and design the next current loop);",
-            f"- flash reachable from `p2d_commission_step`: {flash_step} bytes; from `p2d_commission_init`: "
-            f"{m['flash']['p2d_commission_init'][0]} bytes; the whole routine, names and texts included: "
-            f"{m['flash']['the routine (all p2d_commission_*)'][0]} bytes (static call graph, newlib included)"
-            + (f"; `commission.c` alone: {m['module'][0]} bytes of text, no data or bss;" if m["module"] else ";"),
-            "- RAM: " + ", ".join(f"`{t}` {s} bytes" for t, s in m["sizeof"].items())
-            + f"; stack of a step: {m['stack']} bytes (painted stack, largest over the run).",
-            "", "Functions reachable from `p2d_commission_step` (bytes): "
-            + ", ".join(f"{f} {m['funcs'][f][1]}" for f in m["flash"]["p2d_commission_step"][1]) + "."]
+    out += [
+        "",
+        f"- the most expensive step: {top['count']} instructions ({name}, step {top['index']}; the steps that end "
+        "a phase compute its estimates and design the next current loop);",
+        f"- flash reachable from `p2d_commission_step`: {flash_step} bytes; from `p2d_commission_init`: "
+        f"{m['flash']['p2d_commission_init'][0]} bytes; the whole routine, names and texts included: "
+        f"{m['flash']['the routine (all p2d_commission_*)'][0]} bytes (static call graph, newlib included)"
+        + (f"; `commission.c` alone: {m['module'][0]} bytes of text, no data or bss;" if m["module"] else ";"),
+        "- RAM: "
+        + ", ".join(f"`{t}` {s} bytes" for t, s in m["sizeof"].items())
+        + f"; stack of a step: {m['stack']} bytes (painted stack, largest over the run).",
+        "",
+        "Functions reachable from `p2d_commission_step` (bytes): "
+        + ", ".join(f"{f} {m['funcs'][f][1]}" for f in m["flash"]["p2d_commission_step"][1])
+        + ".",
+    ]
     return "\n".join(out) + "\n"
 
 

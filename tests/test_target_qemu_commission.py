@@ -22,24 +22,53 @@ import subprocess
 
 import numpy as np
 import pytest
+from test_target_qemu import BUILD_TIMEOUT_S, CSRC, QEMU, QEMU_TIMEOUT_S, TOOLCHAIN, c_value, run, word
 
 from pmsm2dof._core import ffi, lib
-from test_target_qemu import BUILD_TIMEOUT_S, CSRC, QEMU, QEMU_TIMEOUT_S, TOOLCHAIN, c_value, run, word
 
 _MISSING = [t for t in ("cmake", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
 pytestmark = pytest.mark.skipif(
-    bool(_MISSING), reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-    "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)")
+    bool(_MISSING),
+    reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
+    "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
+)
 
 SAMPLE_FIELDS = ("ud_V", "uq_V", "theta_e_rad", "w_e_radps", "id_ref_A", "iq_ref_A", "phase", "fault")
-END_FIELDS = ("phase", "failed_phase", "reason", "fault_count", "L_probe_H", "Rs_ohm", "u_err_V", "Ld_H", "Lq_H",
-              "psi_f_Wb", "rs_spread", "asymmetry", "coherence", "psi_spread", "slip")
+END_FIELDS = (
+    "phase",
+    "failed_phase",
+    "reason",
+    "fault_count",
+    "L_probe_H",
+    "Rs_ohm",
+    "u_err_V",
+    "Ld_H",
+    "Lq_H",
+    "psi_f_Wb",
+    "rs_spread",
+    "asymmetry",
+    "coherence",
+    "psi_spread",
+    "slip",
+)
 
 
 def servo_config(**changes):
     """A commissioning of a small servo that ends within 17200 samples of 100 us."""
-    cfg = dict(Ts_s=1e-4, i_test_A=2.0, i_spin_A=1.5, i_trip_A=4.0, tau_i_s=1e-3, t_align_s=0.05, t_level_s=0.4,
-               t_inductance_s=0.0128, t_ramp_s=0.3, t_spin_s=0.2, w_e_spin_radps=100.0, voltage_delay_samples=0)
+    cfg = dict(
+        Ts_s=1e-4,
+        i_test_A=2.0,
+        i_spin_A=1.5,
+        i_trip_A=4.0,
+        tau_i_s=1e-3,
+        t_align_s=0.05,
+        t_level_s=0.4,
+        t_inductance_s=0.0128,
+        t_ramp_s=0.3,
+        t_spin_s=0.2,
+        w_e_spin_radps=100.0,
+        voltage_delay_samples=0,
+    )
     cfg.update(changes)
     return {k: v if isinstance(v, int) else float(np.float32(v)) for k, v in cfg.items()}
 
@@ -49,11 +78,14 @@ CASES = [
     # a salient servo, noise, two NaN and an infinite sample: DONE
     (servo_config(), dict(Rs=0.8, Ld=4e-3, Lq=8e-3, psi_f=0.05, J=2e-4, B=2e-4, sign=1.0, delay=0), 17200, "done"),
     # a surface motor behind one period of delay: DONE
-    (servo_config(voltage_delay_samples=1),
-     dict(Rs=0.5, Ld=6e-3, Lq=6e-3, psi_f=0.08, J=4e-4, B=4e-4, sign=1.0, delay=1), 17200, "done"),
+    (
+        servo_config(voltage_delay_samples=1),
+        dict(Rs=0.5, Ld=6e-3, Lq=6e-3, psi_f=0.08, J=4e-4, B=4e-4, sign=1.0, delay=1),
+        17200,
+        "done",
+    ),
     # current sensing of the wrong sign: the trip in ALIGN
-    (servo_config(), dict(Rs=0.8, Ld=4e-3, Lq=8e-3, psi_f=0.05, J=2e-4, B=1e-5, sign=-1.0, delay=0), 1500,
-     "failed"),
+    (servo_config(), dict(Rs=0.8, Ld=4e-3, Lq=8e-3, psi_f=0.05, J=2e-4, B=1e-5, sign=-1.0, delay=0), 1500, "failed"),
     # a configuration that init rejects (i_trip below 1.5 i_test)
     (servo_config(i_trip_A=2.5), None, 0, None),
 ]
@@ -92,8 +124,10 @@ def record_inputs(cfg, motor, n, rng):
             ud, uq = cr * u[0] + sr * u[1], -sr * u[0] + cr * u[1]
             w_e = p * w_m
             torque = 1.5 * p * (m["psi_f"] * i_q + (m["Ld"] - m["Lq"]) * i_d * i_q)
-            i_d, i_q = (i_d + h / m["Ld"] * (ud - m["Rs"] * i_d + w_e * m["Lq"] * i_q),
-                        i_q + h / m["Lq"] * (uq - m["Rs"] * i_q - w_e * (m["Ld"] * i_d + m["psi_f"])))
+            i_d, i_q = (
+                i_d + h / m["Ld"] * (ud - m["Rs"] * i_d + w_e * m["Lq"] * i_q),
+                i_q + h / m["Lq"] * (uq - m["Rs"] * i_q - w_e * (m["Ld"] * i_d + m["psi_f"])),
+            )
             w_m += h / m["J"] * (torque - m["B"] * w_m)
             theta += h * w_e
     return rows
@@ -101,17 +135,31 @@ def record_inputs(cfg, motor, n, rng):
 
 def vectors_header(cases, inputs):
     """Text of p2d_commission_vectors.h (see csrc/target/target_commission_vectors.c)."""
-    configs = ",\n".join("{" + ", ".join(f".{k} = {c_value(v)}u" if k == "voltage_delay_samples" else
-                                         f".{k} = {c_value(v)}" for k, v in cfg.items()) + "}"
-                         for cfg, *_ in cases)
+    configs = ",\n".join(
+        "{"
+        + ", ".join(
+            f".{k} = {c_value(v)}u" if k == "voltage_delay_samples" else f".{k} = {c_value(v)}" for k, v in cfg.items()
+        )
+        + "}"
+        for cfg, *_ in cases
+    )
     words = np.concatenate([x.reshape(-1) for x in inputs] + [np.zeros(3, np.float32)]).view(np.uint32)
-    return "\n".join([
-        "/* written by tests/test_target_qemu_commission.py */",
-        f"#define P2D_CVEC_CASES {len(cases)}u",
-        "static const p2d_commission_config_t p2d_cvec_config[P2D_CVEC_CASES] = {", configs, "};",
-        "static const uint32_t p2d_cvec_samples[P2D_CVEC_CASES] = {"
-        + ", ".join(f"{len(x)}u" for x in inputs) + "};",
-        "static const uint32_t p2d_cvec_input[] = {", ",\n".join(f"0x{w:08x}u" for w in words), "};", ""])
+    return "\n".join(
+        [
+            "/* written by tests/test_target_qemu_commission.py */",
+            f"#define P2D_CVEC_CASES {len(cases)}u",
+            "static const p2d_commission_config_t p2d_cvec_config[P2D_CVEC_CASES] = {",
+            configs,
+            "};",
+            "static const uint32_t p2d_cvec_samples[P2D_CVEC_CASES] = {"
+            + ", ".join(f"{len(x)}u" for x in inputs)
+            + "};",
+            "static const uint32_t p2d_cvec_input[] = {",
+            ",\n".join(f"0x{w:08x}u" for w in words),
+            "};",
+            "",
+        ]
+    )
 
 
 def host_run(cfg, x):
@@ -143,15 +191,30 @@ def parse(text):
 
 def test_commissioning_on_qemu_equals_host_to_the_bit(tmp_path):
     rng = np.random.default_rng(20260301)
-    inputs = [record_inputs(cfg, motor, n, rng) if motor else np.zeros((0, 3), np.float32)
-              for cfg, motor, n, _ in CASES]
+    inputs = [
+        record_inputs(cfg, motor, n, rng) if motor else np.zeros((0, 3), np.float32) for cfg, motor, n, _ in CASES
+    ]
     (tmp_path / "p2d_commission_vectors.h").write_text(vectors_header(CASES, inputs))
     build = tmp_path / "build"
-    run(["cmake", "-S", CSRC, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
-         f"-DP2D_COMMISSION_VECTORS_DIR={tmp_path}"])
+    run(
+        [
+            "cmake",
+            "-S",
+            CSRC,
+            "-B",
+            build,
+            f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
+            f"-DP2D_COMMISSION_VECTORS_DIR={tmp_path}",
+        ]
+    )
     run(["cmake", "--build", build, "-j2", "--target", "p2d_commission_vectors"], timeout=BUILD_TIMEOUT_S)
-    done = subprocess.run([*QEMU, "-kernel", str(build / "target" / "p2d_commission_vectors")],
-                          capture_output=True, text=True, timeout=QEMU_TIMEOUT_S, stdin=subprocess.DEVNULL)
+    done = subprocess.run(
+        [*QEMU, "-kernel", str(build / "target" / "p2d_commission_vectors")],
+        capture_output=True,
+        text=True,
+        timeout=QEMU_TIMEOUT_S,
+        stdin=subprocess.DEVNULL,
+    )
     # semihosting output arrives on stderr
     assert done.returncode == 0, done.stderr[-3000:]
     assert done.stderr.splitlines()[-1] == "END"
@@ -166,13 +229,21 @@ def test_commissioning_on_qemu_equals_host_to_the_bit(tmp_path):
             assert status == lib.P2D_ERR_I_TRIP
             continue
         assert status == 0
-        mismatches = [f"case {case} sample {k} {name}: target {t:08x}, host {h:08x}"
-                      for k, row in enumerate(rows) for name, h, t in zip(SAMPLE_FIELDS, row, target_rows[case, k])
-                      if h != t]
-        mismatches += [f"case {case} end {name}: target {t:08x}, host {h:08x}"
-                       for name, h, t in zip(END_FIELDS, end, target_ends[case]) if h != t]
-        assert not mismatches, (f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? rebuild "
-                                "it with pip install -e .):\n" + "\n".join(mismatches[:20]))
+        mismatches = [
+            f"case {case} sample {k} {name}: target {t:08x}, host {h:08x}"
+            for k, row in enumerate(rows)
+            for name, h, t in zip(SAMPLE_FIELDS, row, target_rows[case, k])
+            if h != t
+        ]
+        mismatches += [
+            f"case {case} end {name}: target {t:08x}, host {h:08x}"
+            for name, h, t in zip(END_FIELDS, end, target_ends[case])
+            if h != t
+        ]
+        assert not mismatches, (
+            f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? rebuild "
+            "it with pip install -e .):\n" + "\n".join(mismatches[:20])
+        )
         assert len(rows) == n and all((case, k) in target_rows for k in range(n))
         # the runs went where they were meant to: through every phase to DONE, or to the trip
         assert end[0] == phase_of[ends_in], (case, end)

@@ -214,8 +214,19 @@ CURRENT_SEEDS = {
 }
 
 
-COMMISSION_FIELDS = ("Ts", "tau_i", "i_test", "i_spin", "i_trip", "t_align", "t_level", "t_inductance", "t_ramp",
-                     "t_spin", "w_e_spin")
+COMMISSION_FIELDS = (
+    "Ts",
+    "tau_i",
+    "i_test",
+    "i_spin",
+    "i_trip",
+    "t_align",
+    "t_level",
+    "t_inductance",
+    "t_ramp",
+    "t_spin",
+    "w_e_spin",
+)
 
 
 def commission_config(delay=0, **fields):
@@ -227,11 +238,22 @@ def commission_config(delay=0, **fields):
     return u8(3) + u8(2) + b"".join(fields.get(name, nominal()) for name in COMMISSION_FIELDS) + u8(delay)
 
 
-def commission_closed_loop(n, R=0.5, Ld=0.5, Lq_ratio=0.5, psi_f=0.5, J=0.5, load=0.0, u_dc=0.5, inverted=False,
-                           delayed=False):
+def commission_closed_loop(
+    n, R=0.5, Ld=0.5, Lq_ratio=0.5, psi_f=0.5, J=0.5, load=0.0, u_dc=0.5, inverted=False, delayed=False
+):
     """A closed-loop run; the motor parameters as fractions (0.5: the nominal servo, 0 and 1: a factor 4 off)."""
-    return (u8(CLOSED_LOOP) + u16(n - 1) + fraction(R) + fraction(Ld) + fraction(Lq_ratio) + fraction(psi_f)
-            + fraction(J) + fraction(load) + fraction(u_dc) + u8((1 if inverted else 0) | (2 if delayed else 0)))
+    return (
+        u8(CLOSED_LOOP)
+        + u16(n - 1)
+        + fraction(R)
+        + fraction(Ld)
+        + fraction(Lq_ratio)
+        + fraction(psi_f)
+        + fraction(J)
+        + fraction(load)
+        + fraction(u_dc)
+        + u8((1 if inverted else 0) | (2 if delayed else 0))
+    )
 
 
 def commission_sample(id_, iq, u_dc):
@@ -257,18 +279,25 @@ COMMISSION_SEEDS = {
     # rotor creeps on what the ramp left it while the frame turns, psi_a turns by too little over so short
     # a window to lose its coherence, and the drops it must exceed are nil: only the slip shows that the
     # tiny psi_f is wrong (found by the fuzzer)
-    "creeping_rotor": commission_config(i_spin=raw(1.8e-40), t_ramp=raw(0.0155), t_spin=raw(0.0315),
-                                        w_e_spin=raw(27.0))
+    "creeping_rotor": commission_config(i_spin=raw(1.8e-40), t_ramp=raw(0.0155), t_spin=raw(0.0315), w_e_spin=raw(27.0))
     + commission_closed_loop(8192, J=0.5255, load=0.0078, u_dc=0.5255, delayed=True),
     # the most load and saliency: the rotor moves, or does not follow the I-f frame
     "loaded_salient": commission_config() + commission_closed_loop(16384, Lq_ratio=1.0, load=1.0),
     # NaN and inf inputs in the middle of a run, then the run goes on
-    "nonfinite_mid_run": commission_config() + commission_closed_loop(700)
-    + commission_nonfinite(0, 0) + commission_nonfinite(2, 1) + commission_nonfinite(3, 2)
+    "nonfinite_mid_run": commission_config()
+    + commission_closed_loop(700)
+    + commission_nonfinite(0, 0)
+    + commission_nonfinite(2, 1)
+    + commission_nonfinite(3, 2)
     + commission_closed_loop(16384),
     # a restart mid-run, and a fresh configuration
-    "restart": commission_config() + commission_closed_loop(1500) + u8(6) + commission_closed_loop(3000)
-    + u8(5) + commission_config(Ts=nominal(0.5)) + commission_closed_loop(3000),
+    "restart": commission_config()
+    + commission_closed_loop(1500)
+    + u8(6)
+    + commission_closed_loop(3000)
+    + u8(5)
+    + commission_config(Ts=nominal(0.5))
+    + commission_closed_loop(3000),
     # single samples with odd values: huge currents (the trip), a negative and a zero DC link
     "odd_samples": commission_config()
     + commission_sample(nominal(), nominal(), nominal())
