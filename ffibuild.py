@@ -25,7 +25,7 @@ def in_include_order(headers):
     def visit(header):
         if header.name not in seen:
             seen.add(header.name)
-            for name in re.findall(r'^\s*#\s*include\s*"pmsm2dof/([^"]+)"', header.read_text(), flags=re.M):
+            for name in re.findall(r'^\s*#\s*include\s*"(?:pmsm2dof/)?([^"]+)"', header.read_text(), flags=re.M):
                 if name in by_name:
                     visit(by_name[name])
             ordered.append(header)
@@ -36,7 +36,7 @@ def in_include_order(headers):
 
 
 HEADERS = in_include_order(sorted((CSRC / "include" / "pmsm2dof").glob("*.h")))
-HEADERS += sorted((CSRC / "sim").glob("*.h"))
+HEADERS += in_include_order(sorted((CSRC / "sim").glob("*.h")))
 
 
 def cdef_of(header):
