@@ -156,18 +156,45 @@ class Commissioning:
             "config": self.config,
         }
 
+    def motor_toml(self, pole_pairs: int) -> str:
+        """The identified motor as a motor file (``[motor]`` table) for ``pmsm2dof design --motor``.
+
+        Raises
+        ------
+        SimulationError
+            The run did not end DONE: there is no identified motor to write.
+        """
+        if self.phase != "done":
+            raise SimulationError(f"commissioning failed in {self.failed_phase} ({self.reason}): no motor to write")
+        lines = [
+            f"# identified by the commissioning routine (commission.h) on scenario {self.scenario!r}",
+            "# per phase, amplitude-invariant dq (eq 1)",
+            "[motor]",
+            f"pole_pairs = {pole_pairs}",
+        ]
+        lines += [f"{k} = {self.estimates[k]!r}" for k in ESTIMATES]
+        return "\n".join(lines) + "\n"
+
+    def log_csv(self) -> str:
+        """The log as CSV text, one column per signal (``phase`` as its index in :data:`PHASES`)."""
+        names = list(self.log)
+        rows = np.column_stack([self.log[n] for n in names])
+        lines = [",".join(names)]
+        lines += [",".join(repr(float(v)) for v in row) for row in rows]
+        return "\n".join(lines) + "\n"
+
 
 def _json_float(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def _raise_run_status(status: int, run: Any) -> None:
+def _raise_run_status(status: int, run: Any, cfg: Any) -> None:
     """Raise the ConfigError or SimulationError of a p2d_commission_run* status."""
     param = c_string(lib.p2d_crun_status_param(status))
     text = c_string(lib.p2d_crun_status_text(status))
     if status == lib.P2D_CRUN_ERR_COMMISSIONING:
         field = c_string(lib.p2d_status_param(run.commission_status))
-        value = getattr(run.cfg.commissioning, field) if field else None
+        value = getattr(cfg.commissioning, field) if field else None
         key = _KEY_OF_FIELD.get(field, f"commissioning.{field}")
         raise ConfigError(key, value, c_string(lib.p2d_status_range(run.commission_status)))
     if status >= lib.P2D_CRUN_STOP_NONFINITE:
@@ -220,7 +247,7 @@ def commission(scenario: Scenario, log_every: int = LOG_EVERY) -> Commissioning:
     run = ffi.new("p2d_crun_t *")
     status = lib.p2d_commission_run_init(run, cfg)
     if status != lib.P2D_CRUN_OK:
-        _raise_run_status(status, run)
+        _raise_run_status(status, run, cfg)
 
     Ts = float(cfg.commissioning.Ts_s)
     max_samples = math.ceil(T_MAX_S / Ts)
@@ -238,7 +265,7 @@ def commission(scenario: Scenario, log_every: int = LOG_EVERY) -> Commissioning:
     if status == lib.P2D_CRUN_STOP_TIMEOUT:
         raise SimulationError(f"commissioning did not end within {T_MAX_S:g} s of simulated time")
     if status != lib.P2D_CRUN_OK:
-        _raise_run_status(status, run)
+        _raise_run_status(status, run, cfg)
 
     r = run.routine
     n_rows = int(run.n_rows)
