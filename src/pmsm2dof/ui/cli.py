@@ -154,6 +154,20 @@ def main(argv: list[str] | None = None) -> int:
     help="header: take the motor data not given from the paper's drive (the preset "
     "paper-condition-1), placeholders rather than your motor's",
 )
+@click.option(
+    "--motor",
+    "motor_file",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="identified motor file ([motor] of pmsm2dof commission --out): the header's motor data not given",
+)
+@click.option(
+    "--current-bandwidth",
+    "alpha_c_radps",
+    type=float,
+    default=None,
+    help="with --motor: current loop Kp = L alpha_c, Ki = Rs alpha_c [rad/s]; tau_i = 1/alpha_c (replaces --tau-i)",
+)
 def design(
     J_kgm2: float,
     alpha_radps: float,
@@ -176,6 +190,8 @@ def design(
     Rs_ohm: float | None,
     Ts_current_s: float | None,
     paper_drive: bool,
+    motor_file: str | None,
+    alpha_c_radps: float | None,
 ) -> None:
     """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.
 
@@ -189,20 +205,37 @@ def design(
 
     from ..analysis.design import design as make_design
 
+    with warnings.catch_warnings(record=True) as caught_loop:
+        warnings.simplefilter("always")
+        loop = _identified_current_loop(motor_file, alpha_c_radps, tau_i_s, Ts_current_s)
+    from_file = set()
+    if motor_file is not None:
+        identified = _identified_motor(motor_file)
+        given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
+        from_file = {name for name, value in given.items() if value is None}
+        pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (identified[k] if v is None else v for k, v in given.items())
+    if loop is not None:
+        tau_i_s = loop.tau_i_s
     if header is not None:
         motor, sources = _header_motor(
             dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm),
             Ts_current_s is not None,
             paper_drive,
         )
+        sources |= {name: f"motor file {motor_file}" for name in from_file if name in sources}
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         d = make_design(
             J_kgm2, alpha_radps, zeta, m=m, tau_i_s=tau_i_s, feedforward=feedforward, anti_windup=anti_windup, Ka=Ka
         )
         dd = d.discretize(Ts_s, method)
-    for w in caught:
+    for w in [*caught_loop, *caught]:
         print(f"pmsm2dof: warning: {_one_line(w.message)}", file=sys.stderr)
+    sensitivity = None
+    if loop is not None:
+        from ..analysis.current_loop import speed_margin_sensitivity
+
+        sensitivity = speed_margin_sensitivity(loop, dd.design.Kp, dd.design.Ki, J_kgm2)
     if header is not None:
         from ..analysis.codegen import write_c_header
 
@@ -214,14 +247,73 @@ def design(
                 "path": header,
                 "motor": {name: {"value": motor[name], "source": sources[name]} for name in sources},
             }
+        if loop is not None:
+            data["current_loop"] = loop.as_dict()
+            data["speed_margin_sensitivity"] = sensitivity
         click.echo(json.dumps(data))
         return
     click.echo(_design_table(dd))
+    if loop is not None:
+        click.echo(_current_loop_table(loop, motor_file, sensitivity))
     if header is not None:
         click.echo(f"\nC header written to {header}, with the motor data")
         width = max(len(name) for name in sources)
         for name, source in sources.items():
             click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
+
+
+def _load_motor(motor_file):
+    """The motor file of --motor (pmsm2dof.analysis.current_loop.load_motor)."""
+    from ..analysis.current_loop import load_motor
+
+    try:
+        return load_motor(motor_file)
+    except ConfigError as exc:
+        raise _as_option(exc, {"motor_file": "--motor"}) from None
+
+
+def _identified_motor(motor_file):
+    """The header's motor data from a motor file, as design's keyword arguments."""
+    m = _load_motor(motor_file)
+    return dict(pole_pairs=m.pole_pairs, psi_f_Wb=m.psi_f_Wb, Ld_H=m.Ld_H, Lq_H=m.Lq_H, Rs_ohm=m.Rs_ohm)
+
+
+def _identified_current_loop(motor_file, alpha_c_radps, tau_i_s, Ts_current_s):
+    """The current loop of --motor and --current-bandwidth, or None without --current-bandwidth."""
+    if alpha_c_radps is None:
+        return None
+    if motor_file is None:
+        raise click.UsageError("--current-bandwidth needs --motor FILE (the identified motor)")
+    if tau_i_s != 0.0:
+        raise click.UsageError("--current-bandwidth sets tau_i = 1/alpha_c: give it or --tau-i, not both")
+    from ..analysis.current_loop import design_current_loop
+
+    motor = _load_motor(motor_file)
+    try:
+        return design_current_loop(motor, alpha_c_radps, Ts_current_s)
+    except ConfigError as exc:
+        raise _as_option(exc, {"current_bandwidth": "--current-bandwidth", "Ts_current": "--Ts-current"}) from None
+
+
+def _current_loop_table(loop, motor_file, sensitivity):
+    m = loop.motor
+    lines = [
+        f"\nCurrent loop from {motor_file} (alpha_c = {loop.alpha_c_radps:g} rad/s)",
+        f"  Kp_d = Ld alpha_c          {loop.Kp_d_V_per_A:.6g} V/A",
+        f"  Kp_q = Lq alpha_c          {loop.Kp_q_V_per_A:.6g} V/A",
+        f"  Ki = Rs alpha_c            {loop.Ki_V_per_As:.6g} V/(A s)",
+        f"  tau_i = 1/alpha_c (eq 3)   {loop.tau_i_s:.6g} s",
+        f"  decoupling                 ud += -w_e {m.Lq_H:.6g} iq, uq += w_e ({m.Ld_H:.6g} id + {m.psi_f_Wb:.6g})",
+        "Speed-loop margins if the machine is at the corners of the estimates' intervals",
+        f"  {'Rs_ohm':>10} {'Lq_H':>10} {'psi_f_Wb':>10} {'gain [dB]':>10} {'phase [deg]':>12}",
+    ]
+    for row in sensitivity:
+        gm = "inf" if row["gain_margin_dB"] is None else f"{row['gain_margin_dB']:.4g}"
+        pm = "inf" if row["phase_margin_deg"] is None else f"{row['phase_margin_deg']:.4g}"
+        lines.append(f"  {row['Rs_ohm']:>10.4g} {row['Lq_H']:>10.4g} {row['psi_f_Wb']:>10.4g} {gm:>10} {pm:>12}")
+    if not m.intervals:
+        lines.append(f"  (no intervals in {motor_file}: the estimates only)")
+    return "\n".join(lines)
 
 
 #: The shipped scenario whose motor and current limit --paper-drive fills in.

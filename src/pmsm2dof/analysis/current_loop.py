@@ -1,0 +1,203 @@
+"""The dq current loop designed from an identified motor, and the speed loop's sensitivity to it.
+
+A motor file (written by ``pmsm2dof commission --out``, or by hand) holds the machine per phase
+in the amplitude-invariant dq frame of eq 1::
+
+    [motor]
+    pole_pairs = 4
+    Rs_ohm = 0.8
+    Ld_H = 0.004
+    Lq_H = 0.008
+    psi_f_Wb = 0.05
+    Rs_ohm_ci = [0.78, 0.82]     # optional: 95 % interval of an estimate
+
+:func:`design_current_loop` places the closed current loop of each axis at the bandwidth
+``alpha_c``: the PI ``Kp = L alpha_c``, ``Ki = Rs alpha_c`` cancels the pole ``-Rs/L`` of the
+decoupled axis, so that ``i / i_ref = alpha_c / (s + alpha_c)``, the first-order lag of eq 3 with
+``tau_i = 1 / alpha_c`` (the C controller's ``Kp = L / tau_i``, ``Ki = Rs / tau_i``), and the
+decoupling feedforward ``ud += -w_e Lq iq``, ``uq += w_e (Ld id + psi_f)``.
+
+:func:`speed_margin_sensitivity` gives the speed loop's margins when the true machine sits at
+the corners of the estimates' intervals while the current PIs and the torque constant keep the
+estimates: the q-axis loop ``alpha_c (Lq' s + Rs') / (Lq s^2 + (Rs + alpha_c Lq') s + alpha_c
+Rs')`` (primes: estimates) no longer reduces to eq 3, and a wrong psi_f scales the torque by
+``psi_f / psi_f'`` (surface machine at id = 0, Te = 1.5 p psi_f iq).
+"""
+
+import itertools
+import math
+import tomllib
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import control
+
+from ..errors import ConfigError, require_positive
+from .margins import Margins, loop_margins
+
+__all__ = ["CurrentLoopDesign", "MotorEstimate", "design_current_loop", "load_motor", "speed_margin_sensitivity"]
+
+#: The electrical parameters of a motor file, in the order of eq 1.
+PARAMETERS = ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb")
+
+
+@dataclass(frozen=True)
+class MotorEstimate:
+    """An identified motor: the estimates and, where known, their 95 % intervals ``(low, high)``."""
+
+    pole_pairs: int
+    Rs_ohm: float
+    Ld_H: float
+    Lq_H: float
+    psi_f_Wb: float
+    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+
+def load_motor(path: str | Path) -> MotorEstimate:
+    """Read a motor file (see the module docstring).
+
+    Raises
+    ------
+    ConfigError
+        The file cannot be read or parsed, or a value is missing or out of range (named as
+        ``motor.<key>``).
+    """
+    path = Path(path)
+    try:
+        tree = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ConfigError("motor_file", str(path), f"a readable TOML motor file ({exc})") from None
+    motor = tree.get("motor")
+    if not isinstance(motor, dict):
+        raise ConfigError("motor", motor, f"a [motor] table in {path}")
+    known = {"pole_pairs", *PARAMETERS, *(f"{k}_ci" for k in PARAMETERS)}
+    for key in motor:
+        if key not in known:
+            raise ConfigError(f"motor.{key}", motor[key], "one of " + ", ".join(sorted(known)))
+    p = motor.get("pole_pairs")
+    if isinstance(p, bool) or not isinstance(p, int) or p < 1:
+        raise ConfigError("motor.pole_pairs", p, "an integer >= 1")
+    values = {}
+    intervals = {}
+    for key in PARAMETERS:
+        value = motor.get(key)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"motor.{key}", value, "a finite number > 0")
+        values[key] = require_positive(f"motor.{key}", value)
+        ci = motor.get(f"{key}_ci")
+        if ci is None:
+            continue
+        valid = f"[low, high] with 0 < low <= motor.{key} <= high, finite"
+        if not isinstance(ci, list) or len(ci) != 2 or not all(isinstance(v, (int, float)) for v in ci):
+            raise ConfigError(f"motor.{key}_ci", ci, valid)
+        low, high = float(ci[0]), float(ci[1])
+        if not (math.isfinite(low) and math.isfinite(high) and 0.0 < low <= values[key] <= high):
+            raise ConfigError(f"motor.{key}_ci", ci, valid)
+        intervals[key] = (low, high)
+    return MotorEstimate(pole_pairs=p, intervals=intervals, **values)
+
+
+@dataclass(frozen=True)
+class CurrentLoopDesign:
+    """dq current PIs placed at ``alpha_c`` [rad/s] from an identified motor.
+
+    ``Kp_d_V_per_A = Ld alpha_c``, ``Kp_q_V_per_A = Lq alpha_c``, ``Ki_V_per_As = Rs alpha_c``
+    (both axes), ``tau_i_s = 1 / alpha_c`` (eq 3, for the speed loop's eq 11), and the
+    decoupling coefficients ``Ld_H``, ``Lq_H``, ``psi_f_Wb`` of the feedforward.
+    """
+
+    motor: MotorEstimate
+    alpha_c_radps: float
+    Kp_d_V_per_A: float
+    Kp_q_V_per_A: float
+    Ki_V_per_As: float
+    tau_i_s: float
+
+    def as_dict(self) -> dict[str, object]:
+        """JSON-ready summary."""
+        return {
+            "alpha_c_radps": self.alpha_c_radps,
+            "Kp_d_V_per_A": self.Kp_d_V_per_A,
+            "Kp_q_V_per_A": self.Kp_q_V_per_A,
+            "Ki_V_per_As": self.Ki_V_per_As,
+            "tau_i_s": self.tau_i_s,
+            "decoupling": {
+                "ud_V": "-w_e Lq_H iq_A",
+                "uq_V": "w_e (Ld_H id_A + psi_f_Wb)",
+                "Ld_H": self.motor.Ld_H,
+                "Lq_H": self.motor.Lq_H,
+                "psi_f_Wb": self.motor.psi_f_Wb,
+            },
+        }
+
+
+def design_current_loop(motor: MotorEstimate, alpha_c_radps: float, Ts_s: float | None = None) -> CurrentLoopDesign:
+    """Current PIs of bandwidth ``alpha_c_radps`` for ``motor`` (pole-zero cancellation, eq 3).
+
+    Parameters
+    ----------
+    motor : MotorEstimate
+        The identified machine.
+    alpha_c_radps : float
+        Closed current-loop bandwidth [rad/s], > 0.
+    Ts_s : float, optional
+        Current sampling period [s], > 0. Above ``alpha_c Ts = 0.2`` a warning says that the
+        sampled loop (about 1.5 Ts of delay with PWM) departs from the first-order response.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``current_bandwidth`` (the option) or ``Ts_current``.
+    """
+    alpha_c = require_positive("current_bandwidth", alpha_c_radps)
+    if Ts_s is not None:
+        Ts_s = require_positive("Ts_current", Ts_s)
+        if alpha_c * Ts_s > 0.2:
+            warnings.warn(
+                f"current bandwidth {alpha_c:g} rad/s is above 0.2 / Ts_current = {0.2 / Ts_s:g} rad/s: "
+                "the sampled current loop is slower and less damped than eq 3 assumes",
+                stacklevel=2,
+            )
+    return CurrentLoopDesign(
+        motor=motor,
+        alpha_c_radps=alpha_c,
+        Kp_d_V_per_A=motor.Ld_H * alpha_c,
+        Kp_q_V_per_A=motor.Lq_H * alpha_c,
+        Ki_V_per_As=motor.Rs_ohm * alpha_c,
+        tau_i_s=1.0 / alpha_c,
+    )
+
+
+def current_closed_loop(loop: CurrentLoopDesign, Rs_ohm: float, Lq_H: float) -> control.TransferFunction:
+    """q-axis ``iq / iq_ref`` of the decoupled loop on a true machine ``(Rs_ohm, Lq_H)``.
+
+    The PI ``Kp + Ki / s`` of the estimates on ``1 / (Lq s + Rs)``:
+    ``alpha_c (Lq' s + Rs') / (Lq s^2 + (Rs + alpha_c Lq') s + alpha_c Rs')``; on the
+    estimated machine itself it is ``alpha_c / (s + alpha_c)``.
+    """
+    a, m = loop.alpha_c_radps, loop.motor
+    return control.tf([a * m.Lq_H, a * m.Rs_ohm], [Lq_H, Rs_ohm + a * m.Lq_H, a * m.Rs_ohm])
+
+
+def speed_margin_sensitivity(loop: CurrentLoopDesign, Kp: float, Ki: float, J_kgm2: float) -> list[dict[str, object]]:
+    """Speed-loop margins at every corner of the motor's intervals (and at the estimates).
+
+    The speed PI ``Kp + Ki / s`` (eq 9) drives the q current loop of :func:`current_closed_loop`
+    through the torque ratio ``psi_f / psi_f'`` and ``1 / (J s)``. Parameters without an
+    interval stay at their estimate. Returns one entry per machine: its parameters and margins
+    (``gain_margin_dB``, ``phase_margin_deg``, ``w_gain_crossover_radps``; ``None`` if infinite).
+    """
+    m = loop.motor
+    F = control.tf([Kp, Ki], [1.0, 0.0])
+    Gm = control.tf([1.0], [J_kgm2, 0.0])
+    varied = [k for k in ("Rs_ohm", "Lq_H", "psi_f_Wb") if k in m.intervals]
+    corners = [dict(zip(varied, values)) for values in itertools.product(*(m.intervals[k] for k in varied))]
+    rows = []
+    for corner in [{}, *corners] if varied else [{}]:
+        truth = {k: corner.get(k, getattr(m, k)) for k in ("Rs_ohm", "Lq_H", "psi_f_Wb")}
+        L = F * (truth["psi_f_Wb"] / m.psi_f_Wb) * current_closed_loop(loop, truth["Rs_ohm"], truth["Lq_H"]) * Gm
+        margins: Margins = loop_margins(L)
+        values, _reasons = margins.values_and_reasons()
+        rows.append({"machine": "estimates" if not corner else "interval corner", **truth, **values})
+    return rows
