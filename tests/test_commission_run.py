@@ -50,7 +50,7 @@ def test_ideal_drive_identified_to_half_a_percent(name):
     assert result.phase_time_s["spin"] == pytest.approx(cfg["t_spin_s"], abs=2 * cfg["Ts_s"])
 
 
-@pytest.mark.parametrize("name", [PAPER, str(SERVO)])
+@pytest.mark.parametrize("name", [pytest.param(PAPER, marks=pytest.mark.slow), str(SERVO)])
 def test_real_inverter_and_sensing_within_the_targets(name):
     """Dead time, current noise and a computation delay: every estimate within the issue's targets."""
     result = commission(real_drive(load_scenario(name)))

@@ -42,6 +42,10 @@ LOG_EVERY = 10
 _KEY_OF_FIELD = {"Ts_s": "current_loop.Ts_s", "voltage_delay_samples": "inverter.computation_delay"}
 #: Peak torque of the I-f ramp as a share of the torque i_spin_A gives.
 _RAMP_TORQUE_SHARE = 0.4
+#: Alignment time in periods of the rotor held by i_test_A: the routine damps the swing, and a
+#: rotor still creeping into place fails the Rs levels (4 periods left a third of the random machines
+#: of pmsm2dof.studies.commissioning creeping)
+_ALIGN_PERIODS = 12.0
 #: Back-EMF of the flux test as a share of the voltage range u_dc / sqrt(3).
 _SPIN_EMF_SHARE = 0.2
 
@@ -54,7 +58,7 @@ def commissioning_config(scenario: Scenario) -> dict[str, float | int]:
 
     - ``i_test_A = 0.4 i_max_A``, ``i_spin_A = i_test_A``, ``i_trip_A = 2 max(i_test_A, i_spin_A)``;
     - ``tau_i_s = 20 Ts_s`` (the routine's loop is designed from the inductance it measures first);
-    - ``t_align_s``: four periods of the rotor held by i_test_A on d, whose stiffness is
+    - ``t_align_s``: twelve periods of the rotor held by i_test_A on d, whose stiffness is
       ``1.5 p^2 psi_f i_test_A`` [Nm/rad], at least ``20 tau_i_s``;
     - ``t_level_s = max(50 tau_i_s, 0.05 s)``;
     - ``w_e_spin_radps``: the speed whose back-EMF ``w_e psi_f`` is 0.2 of ``u_dc / sqrt(3)``
@@ -74,7 +78,9 @@ def commissioning_config(scenario: Scenario) -> dict[str, float | int]:
     i_trip = cm["i_trip_A"] if cm["i_trip_A"] is not None else 2.0 * max(i_test, i_spin)
     tau_i = cm["tau_i_s"] if cm["tau_i_s"] is not None else 20.0 * Ts
     w_hold = math.sqrt(1.5 * p * p * psi_f * i_test / J)
-    t_align = cm["t_align_s"] if cm["t_align_s"] is not None else max(4.0 * 2.0 * math.pi / w_hold, 20.0 * tau_i)
+    t_align = (
+        cm["t_align_s"] if cm["t_align_s"] is not None else max(_ALIGN_PERIODS * 2.0 * math.pi / w_hold, 20.0 * tau_i)
+    )
     t_level = cm["t_level_s"] if cm["t_level_s"] is not None else max(50.0 * tau_i, 0.05)
     if cm["w_e_spin_radps"] is not None:
         w_e_spin = cm["w_e_spin_radps"]

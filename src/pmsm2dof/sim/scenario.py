@@ -298,7 +298,7 @@ SCHEMA = (
     Field(
         "commissioning.t_align_s",
         float,
-        "alignment [s]; absent: 4 periods of the rotor held by i_test_A, >= 20 tau_i_s",
+        "alignment [s]; absent: 12 periods of the rotor held by i_test_A, >= 20 tau_i_s",
         default=None,
         gt=0,
     ),
