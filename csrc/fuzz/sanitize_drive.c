@@ -20,7 +20,11 @@
  *   4. a load far beyond the limit that drives the shaft backwards until the
  *      engine stops with P2D_SIM_STOP_OVERSPEED;
  *   5. error paths: NULL, an invalid motor, an invalid controller, a log
- *      buffer too small (P2D_SIM_ERR_LOG_FULL, without writing past it).
+ *      buffer too small (P2D_SIM_ERR_LOG_FULL, without writing past it);
+ *   6. the commissioning run (commission_run.h) of a salient servo with
+ *      dead time, current noise and computation delay, into a log of exactly
+ *      its rows: DONE, every estimate within 5 %; then a log one row short
+ *      (P2D_CRUN_ERR_LOG_FULL) and a rejected routine configuration.
  * Besides the sanitizers' own checks: the status codes, every logged value
  * finite, ||i_ref|| <= i_max (float32 slack), and the recovery of scenario 2.
  */
@@ -29,6 +33,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "commission_run.h"
 #include "drive.h"
 
 #define RADPS_PER_RPM (3.14159265358979323846 / 30.0)
@@ -260,10 +265,79 @@ int main(void)
         free(sim);
     }
 
+    /* 6. commissioning run */
+    {
+        p2d_crun_t *run = malloc(sizeof *run);
+        p2d_crun_config_t cc;
+        const double truth[4] = {0.8, 4e-3, 8e-3, 0.05};
+        uint64_t n, rows;
+        double *clog;
+        memset(&cc, 0, sizeof cc);
+        cc.motor.pole_pairs = 4u;
+        cc.motor.Rs_ohm = truth[0];
+        cc.motor.Ld_H = truth[1];
+        cc.motor.Lq_H = truth[2];
+        cc.motor.psi_f_Wb = truth[3];
+        cc.motor.J_kgm2 = 2e-4;
+        cc.motor.B_Nms = 1e-5;
+        cc.u_dc_V = 48.0;
+        cc.computation_delay = true;
+        cc.substeps = 2u;
+        cc.log_every = 7u;
+        cc.dead_time_V = 0.5;
+        cc.noise_A = 0.02;
+        cc.seed = 3u;
+        cc.theta0_rad = 2.0;
+        cc.commissioning.Ts_s = 1e-4f;
+        cc.commissioning.i_test_A = 2.0f;
+        cc.commissioning.i_spin_A = 1.5f;
+        cc.commissioning.i_trip_A = 4.0f;
+        cc.commissioning.tau_i_s = 1e-3f;
+        cc.commissioning.t_align_s = 0.2f;
+        cc.commissioning.t_level_s = 0.05f;
+        cc.commissioning.t_inductance_s = 0.05f;
+        cc.commissioning.t_ramp_s = 0.5f;
+        cc.commissioning.t_spin_s = 0.5f;
+        cc.commissioning.w_e_spin_radps = 300.0f;
+        cc.commissioning.voltage_delay_samples = 1u;
+        /* the samples of the run, with a buffer large enough, then the same run into exactly its rows */
+        clog = malloc(100000u * P2D_CLOG_COUNT * sizeof *clog);
+        CHECK(p2d_commission_run_init(run, &cc) == P2D_CRUN_OK, "commissioning: init rejected");
+        (void)p2d_commission_run(run, 1000000u, clog, 100000u);
+        n = run->n;
+        rows = (n + cc.log_every - 1u) / cc.log_every;
+        free(clog);
+        clog = malloc(rows * P2D_CLOG_COUNT * sizeof *clog);
+        CHECK(p2d_commission_run_init(run, &cc) == P2D_CRUN_OK, "commissioning: init rejected");
+        CHECK(p2d_commission_run(run, 1000000u, clog, rows) == P2D_CRUN_OK && run->n == n && run->n_rows == rows,
+              "commissioning: status %d, %llu samples", (int)run->status, (unsigned long long)run->n);
+        CHECK(run->routine.phase == P2D_PHASE_DONE && fabs(run->routine.Rs_ohm / truth[0] - 1.0) < 0.05 &&
+                  fabs(run->routine.Ld_H / truth[1] - 1.0) < 0.05 && fabs(run->routine.Lq_H / truth[2] - 1.0) < 0.05 &&
+                  fabs(run->routine.psi_f_Wb / truth[3] - 1.0) < 0.05,
+              "commissioning: phase %d, Rs %g Ld %g Lq %g psi_f %g", (int)run->routine.phase,
+              (double)run->routine.Rs_ohm, (double)run->routine.Ld_H, (double)run->routine.Lq_H,
+              (double)run->routine.psi_f_Wb);
+        for (uint64_t k = 0; k < rows; ++k) {
+            for (uint32_t j = 0; j < P2D_CLOG_COUNT; ++j) {
+                CHECK(isfinite(clog[(uint64_t)j * rows + k]), "commissioning: row %llu column %s",
+                      (unsigned long long)k, p2d_crun_log_name(j));
+            }
+        }
+        CHECK(p2d_commission_run_init(run, &cc) == P2D_CRUN_OK, "commissioning: init rejected");
+        CHECK(p2d_commission_run(run, 1000000u, clog, rows - 1u) == P2D_CRUN_ERR_LOG_FULL && run->n_rows == rows - 1u,
+              "commissioning: a log one row short: status %d", (int)run->status);
+        cc.commissioning.i_trip_A = 2.0f;
+        CHECK(p2d_commission_run_init(run, &cc) == P2D_CRUN_ERR_COMMISSIONING &&
+                  run->commission_status == P2D_ERR_I_TRIP,
+              "commissioning: i_trip_A below 1.5 i_test_A accepted");
+        free(clog);
+        free(run);
+    }
+
     if (failures != 0) {
         fprintf(stderr, "sanitize_drive: %d check(s) failed\n", failures);
         return 1;
     }
-    printf("sanitize_drive: 5 scenarios passed\n");
+    printf("sanitize_drive: 6 scenarios passed\n");
     return 0;
 }
