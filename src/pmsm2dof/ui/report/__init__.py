@@ -17,7 +17,9 @@ and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
 - ``metrics.json`` (figures of merit of the paper runs), ``sensitivity.csv`` and
   ``discretization.csv`` (the data of the study figures);
 - a section on fault scenarios the paper does not treat (the ``fault-*`` presets: a stall, a
-  DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode.
+  DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode;
+- a section on self-commissioning (:mod:`.commissioning`): the C routine identifies the paper's
+  drive and a salient servo, identified against true values and the time of each step.
 
 Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous
 Motor Speed Controller" (equation, figure and section numbers are the paper's).
@@ -38,6 +40,7 @@ from ...outputs import atomic_write, require_writable_dir, staged_dir
 from ...studies import paper as st
 from ...studies.faults import run_faults
 from .claims import VERDICTS, Claim, compute_claims
+from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
 from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
 
@@ -130,7 +133,7 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
             tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
         )
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
-        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs)
+        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, run_commissioning())
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]

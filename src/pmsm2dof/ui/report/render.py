@@ -14,11 +14,13 @@ import numpy as np
 
 from ...core import pi_gains
 from ...core.bindings import AntiWindup
+from ...sim.commission import Commissioning
 from ...sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES
 from ...sim.simulate import Result
 from ...studies import paper as st
 from ...studies.faults import fault_figures
 from .claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
+from .commissioning import commissioning_blocks
 
 #: A block of the report: ``(kind, ...)``, see :func:`report_blocks`.
 Block = tuple[Any, ...]
@@ -144,10 +146,12 @@ def report_blocks(
     figure_captions: Mapping[str, str],
     wall_time_s: float | None = None,
     fault_runs: Mapping[tuple[str, AntiWindup], Result | str | None] | None = None,
+    commissioning_runs: Mapping[tuple[str, str], Commissioning] | None = None,
 ) -> list[Block]:
     """The report as a list of blocks, rendered by :func:`render_markdown` and :func:`render_html`.
 
-    ``fault_runs`` (of :func:`run_faults`) adds the section on the fault scenarios.
+    ``fault_runs`` (of :func:`run_faults`) adds the section on the fault scenarios,
+    ``commissioning_runs`` (of :func:`.commissioning.run_commissioning`) the one on self-commissioning.
 
     Blocks: ``("h1"|"h2"|"h3"|"p", text)``, ``("list", [text])``, ``("table", header, rows)``,
     ``("figure", stem, caption)``. Text may hold `code` spans.
@@ -230,6 +234,7 @@ def report_blocks(
         ("figure", "discretization", figure_captions["discretization"]),
         ("table", *_discretization_table(studies)),
         *_fault_blocks(fault_runs, figure_captions),
+        *commissioning_blocks(commissioning_runs),
         ("h2", "Files"),
         (
             "list",
