@@ -36,6 +36,7 @@ def test_json_and_output_folder(tmp_path, capsys):
     motor = tomllib.loads((out / "motor.toml").read_text())["motor"]
     assert motor["pole_pairs"] == 4
     assert motor["Lq_H"] == pytest.approx(0.008, rel=0.005) and motor["Ld_H"] == pytest.approx(0.004, rel=0.005)
+    assert (out / "plot.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     header = (out / "log.csv").read_text().splitlines()[0]
     assert header.split(",")[:3] == ["t_s", "phase", "id_A"]
 
@@ -45,7 +46,7 @@ def test_a_failed_run_exits_1_and_writes_no_motor(tmp_path, capsys):
     assert main(["commission", SERVO, "--set", "limits.u_dc_V=4", "--out", str(out)]) == 1
     text = capsys.readouterr().out
     assert "failed in probe: current_not_reached" in text
-    assert sorted(p.name for p in out.iterdir()) == ["log.csv", "result.json"]
+    assert sorted(p.name for p in out.iterdir()) == ["log.csv", "plot.png", "result.json"]
 
 
 def test_bad_setting_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys):

@@ -969,7 +969,7 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     "--out",
     type=click.Path(),
     default=None,
-    help="folder for result.json, log.csv and motor.toml (the identified motor, for design --motor)",
+    help="folder for result.json, log.csv, plot.png and motor.toml (the identified motor, for design --motor)",
 )
 def commission(scenario, overrides, as_json, out):
     """Run the C commissioning routine (commission.h) against a scenario's simulated motor.
@@ -984,6 +984,7 @@ def commission(scenario, overrides, as_json, out):
     from ..outputs import atomic_write, staged_dir
     from ..sim.commission import commission as run_commissioning
     from ..sim.scenario import load_scenario
+    from .plots.commission import plot_commission
 
     chosen = load_scenario(scenario)
     changes = dict(parse_override(text) for text in overrides)
@@ -995,6 +996,7 @@ def commission(scenario, overrides, as_json, out):
         with staged_dir(out) as tmp:
             atomic_write(tmp / "result.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
             atomic_write(tmp / "log.csv", result.log_csv())
+            plot_commission(result, tmp / "plot.png")
             if result.phase == "done":
                 atomic_write(tmp / "motor.toml", result.motor_toml(chosen.data["motor"]["pole_pairs"]))
     if as_json:
@@ -1002,7 +1004,7 @@ def commission(scenario, overrides, as_json, out):
     else:
         click.echo(_commission_table(result))
         if out is not None:
-            written = "result.json, log.csv" + (" and motor.toml" if result.phase == "done" else "")
+            written = "result.json, log.csv, plot.png" + (" and motor.toml" if result.phase == "done" else "")
             click.echo(f"wrote {written} to {out}")
     if result.phase != "done":
         raise click.exceptions.Exit(1)
