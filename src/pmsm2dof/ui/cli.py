@@ -15,9 +15,11 @@ import click
 from ..errors import ConfigError, Pmsm2dofError
 
 if TYPE_CHECKING:
+    from ..analysis.current_loop import CurrentLoopDesign, MotorEstimate
     from ..analysis.discretize import DiscreteDesign
     from ..analysis.margins import Margins
     from ..core.bindings import AntiWindup, Feedforward, Method
+    from ..sim.commission import Commissioning
     from ..studies.autotune import AutotuneResult
 
 
@@ -208,12 +210,15 @@ def design(
     with warnings.catch_warnings(record=True) as caught_loop:
         warnings.simplefilter("always")
         loop = _identified_current_loop(motor_file, alpha_c_radps, tau_i_s, Ts_current_s)
-    from_file = set()
+    from_file: set[str] = set()
     if motor_file is not None:
         identified = _identified_motor(motor_file)
         given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
         from_file = {name for name, value in given.items() if value is None}
-        pole_pairs, psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (identified[k] if v is None else v for k, v in given.items())
+        pole_pairs = pole_pairs if pole_pairs is not None else int(identified["pole_pairs"])
+        psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (
+            identified[k] if v is None else v for k, v in given.items() if k != "pole_pairs"
+        )
     if loop is not None:
         tau_i_s = loop.tau_i_s
     if header is not None:
@@ -262,7 +267,7 @@ def design(
             click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
 
 
-def _load_motor(motor_file):
+def _load_motor(motor_file: str) -> "MotorEstimate":
     """The motor file of --motor (pmsm2dof.analysis.current_loop.load_motor)."""
     from ..analysis.current_loop import load_motor
 
@@ -272,13 +277,15 @@ def _load_motor(motor_file):
         raise _as_option(exc, {"motor_file": "--motor"}) from None
 
 
-def _identified_motor(motor_file):
+def _identified_motor(motor_file: str) -> dict[str, float]:
     """The header's motor data from a motor file, as design's keyword arguments."""
     m = _load_motor(motor_file)
     return dict(pole_pairs=m.pole_pairs, psi_f_Wb=m.psi_f_Wb, Ld_H=m.Ld_H, Lq_H=m.Lq_H, Rs_ohm=m.Rs_ohm)
 
 
-def _identified_current_loop(motor_file, alpha_c_radps, tau_i_s, Ts_current_s):
+def _identified_current_loop(
+    motor_file: str | None, alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
+) -> "CurrentLoopDesign | None":
     """The current loop of --motor and --current-bandwidth, or None without --current-bandwidth."""
     if alpha_c_radps is None:
         return None
@@ -295,7 +302,9 @@ def _identified_current_loop(motor_file, alpha_c_radps, tau_i_s, Ts_current_s):
         raise _as_option(exc, {"current_bandwidth": "--current-bandwidth", "Ts_current": "--Ts-current"}) from None
 
 
-def _current_loop_table(loop, motor_file, sensitivity):
+def _current_loop_table(
+    loop: "CurrentLoopDesign", motor_file: str | None, sensitivity: list[dict[str, Any]] | None
+) -> str:
     m = loop.motor
     lines = [
         f"\nCurrent loop from {motor_file} (alpha_c = {loop.alpha_c_radps:g} rad/s)",
@@ -307,7 +316,7 @@ def _current_loop_table(loop, motor_file, sensitivity):
         "Speed-loop margins if the machine is at the corners of the estimates' intervals",
         f"  {'Rs_ohm':>10} {'Lq_H':>10} {'psi_f_Wb':>10} {'gain [dB]':>10} {'phase [deg]':>12}",
     ]
-    for row in sensitivity:
+    for row in sensitivity or []:
         gm = "inf" if row["gain_margin_dB"] is None else f"{row['gain_margin_dB']:.4g}"
         pm = "inf" if row["phase_margin_deg"] is None else f"{row['phase_margin_deg']:.4g}"
         lines.append(f"  {row['Rs_ohm']:>10.4g} {row['Lq_H']:>10.4g} {row['psi_f_Wb']:>10.4g} {gm:>10} {pm:>12}")
@@ -971,7 +980,7 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     default=None,
     help="folder for result.json, log.csv, plot.png and motor.toml (the identified motor, for design --motor)",
 )
-def commission(scenario, overrides, as_json, out):
+def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: str | None) -> None:
     """Run the C commissioning routine (commission.h) against a scenario's simulated motor.
 
     The routine identifies Rs, Ld, Lq and psi_f as on the drive; the table compares them with
@@ -1010,7 +1019,9 @@ def commission(scenario, overrides, as_json, out):
         raise click.exceptions.Exit(1)
 
 
-def _commission_table(result):
+def _commission_table(result: "Commissioning") -> str:
+    from ..sim.commission import TARGETS
+
     units = {"Rs_ohm": "ohm", "Ld_H": "H", "Lq_H": "H", "psi_f_Wb": "Wb"}
     lines = [f"{result.scenario}: commissioning {result.phase}"]
     if result.phase != "done":
@@ -1019,7 +1030,7 @@ def _commission_table(result):
     for key, error in result.errors.items():
         lines.append(
             f"  {key:<9}{result.estimates[key]:>13.6g}{result.truth[key]:>13.6g}"
-            f"{_percent(error):>10}{TARGETS_PCT[key]:>8g}%  [{units[key]}]"
+            f"{_percent(error):>10}{TARGETS[key] * 100:>8g}%  [{units[key]}]"
         )
     lines.append("  step        time [s]")
     for phase, t in result.phase_time_s.items():
@@ -1028,9 +1039,5 @@ def _commission_table(result):
     return "\n".join(lines)
 
 
-def _percent(x):
+def _percent(x: float) -> str:
     return f"{x * 100:.3f}%" if math.isfinite(x) else "n/a"
-
-
-#: Accuracy targets of the identification in percent (pmsm2dof.sim.commission.TARGETS).
-TARGETS_PCT = {"Rs_ohm": 5.0, "Ld_H": 10.0, "Lq_H": 5.0, "psi_f_Wb": 2.0}

@@ -7,6 +7,8 @@ identified against the true Rs, Ld, Lq, psi_f and the time each step took.
 """
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from ...sim.commission import ESTIMATES, TARGETS, Commissioning, commission
 from ...sim.scenario import load_scenario
@@ -28,7 +30,7 @@ def _pct(x: float) -> str:
     return f"{x * 100:+.2f} %" if math.isfinite(x) else "-"
 
 
-def commissioning_blocks(runs: dict[tuple[str, str], Commissioning] | None) -> list[tuple]:
+def commissioning_blocks(runs: Mapping[tuple[str, str], Commissioning] | None) -> list[tuple[Any, ...]]:
     """The report blocks of the section (none without runs)."""
     if runs is None:
         return []
