@@ -46,7 +46,13 @@ typedef enum {
     P2D_ERR_T_SPIN,        /* t_spin_s */
     P2D_ERR_W_E_SPIN,      /* w_e_spin_radps */
     P2D_ERR_VOLTAGE_DELAY, /* voltage_delay_samples */
-    P2D_STATUS_COUNT       /* number of codes, not a code */
+    /* torque filters (filter.h) */
+    P2D_ERR_NOTCH_FREQ,   /* notch_freq_Hz */
+    P2D_ERR_NOTCH_WIDTH,  /* notch_width_Hz */
+    P2D_ERR_NOTCH_DEPTH,  /* notch_depth */
+    P2D_ERR_LOWPASS_FREQ, /* lowpass_freq_Hz */
+    P2D_ERR_LOWPASS_ZETA, /* lowpass_zeta */
+    P2D_STATUS_COUNT      /* number of codes, not a code */
 } p2d_status_t;
 
 /* Name of the configuration field that a status code rejects ("" for P2D_OK). */
