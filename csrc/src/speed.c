@@ -6,16 +6,22 @@
 
 #include <math.h>
 
+#include "biquad.h"
 #include "mtpa.h"
 #include "pi.h"
 
 /* Newton iterations of the MTPA torque-to-current inversion (salient PMSM). */
 #define P2D_MTPA_NEWTON_ITERATIONS 5
 
-/* Validate cfg and compute its coefficients into *c. *c is written only on success. */
-static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_coef_t *c)
+/*
+ * Validate cfg with the torque filters fcfg and compute their coefficients into *c and *f.
+ * They are written only on success.
+ */
+static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, const p2d_filter_config_t *fcfg,
+                                       p2d_speed_coef_t *c, p2d_filter_coef_t *f)
 {
     p2d_speed_coef_t k;
+    p2d_filter_coef_t filter;
     float Kp, Ki, m_eff, tau_eff, p_radps, c_ff, b_dr, a1, A, B, r;
 
     if (!p2d_is_positive(cfg->J_kgm2)) return P2D_ERR_J;
@@ -33,6 +39,11 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     if ((unsigned)cfg->feedforward > (unsigned)P2D_FF_FULL) return P2D_ERR_FEEDFORWARD;
     if ((unsigned)cfg->anti_windup > (unsigned)P2D_AW_CLAMPING) return P2D_ERR_ANTI_WINDUP;
     if (cfg->feedforward == P2D_FF_LOWPASS && cfg->m != 1.0f) return P2D_ERR_M_LOWPASS;
+    {
+        /* the torque filters (filter.h) at the speed loop's Ts */
+        p2d_status_t status = p2d_filter_coefficients(fcfg, cfg->Ts_s, &filter);
+        if (status != P2D_OK) return status;
+    }
 
     /* eq 9: Kp = J alpha, Ki = J (alpha / (2 zeta))^2 */
     Kp = cfg->J_kgm2 * cfg->alpha_radps;
@@ -42,9 +53,16 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     k.pi = p2d_pi_coefficients(Kp, Ki, cfg->Ts_s, cfg->method);
     k.clamping = cfg->anti_windup == P2D_AW_CLAMPING;
     if (cfg->anti_windup == P2D_AW_BACK_CALCULATION) {
-        /* the discrete back-calculation loop x[k] = (1 - Ki Ka Ts) x[k-1] + ... must be stable */
-        if (!p2d_is_nonnegative(cfg->Ka) || !(Ki * cfg->Ka * cfg->Ts_s < 2.0f)) return P2D_ERR_KA;
+        if (!p2d_is_nonnegative(cfg->Ka)) return P2D_ERR_KA;
         k.pi.Ki_Ka_Ts = Ki * cfg->Ka * cfg->Ts_s;
+        /*
+         * the discrete back-calculation loop must be stable: x[k] = (1 - Ki Ka Ts) x[k-1] + ..., or through the
+         * torque filters x[k] = x[k-1] - Ki Ka Ts H(z) x[k-1] + ... (filter.c)
+         */
+        if (p2d_filter_on(&filter) ? k.pi.Ki_Ka_Ts > 0.0f && !p2d_filter_loop_stable(&filter, k.pi.Ki_Ka_Ts)
+                                   : !(k.pi.Ki_Ka_Ts < 2.0f)) {
+            return P2D_ERR_KA;
+        }
     } else if (!p2d_is_nonnegative(cfg->Ka)) {
         return P2D_ERR_KA;
     }
@@ -103,6 +121,8 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
     k.psi_f_Wb = cfg->psi_f_Wb;
     k.dL_H = cfg->Ld_H - cfg->Lq_H;
     k.salient = cfg->Ld_H != cfg->Lq_H;
+    k.filtered = p2d_filter_on(&filter);
+    k.general_step = k.salient || k.filtered;
     k.kt_Nm_per_A = 1.5f * (float)cfg->pole_pairs * cfg->psi_f_Wb;
     k.k_mtpa_Wb_per_sqrt_Nm = 2.0f * sqrtf(fabsf(k.dL_H) / (1.5f * (float)cfg->pole_pairs));
     {
@@ -127,35 +147,55 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, p2d_speed_
         return P2D_ERR_TS; /* only reachable through float overflow of extreme inputs */
     }
     *c = k;
+    *f = filter;
     return P2D_OK;
 }
+
+/* No torque filter: the configuration of init. */
+static const p2d_filter_config_t P2D_NO_FILTER = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f};
 
 p2d_status_t p2d_speed_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
 {
     p2d_status_t status;
     if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
-    status = speed_coefficients(cfg, &ctl->coef[0]);
+    status = speed_coefficients(cfg, &P2D_NO_FILTER, &ctl->coef[0], &ctl->filter_coef[0]);
     if (status != P2D_OK) return status;
     ctl->coef[1] = ctl->coef[0];
+    ctl->filter_coef[1] = ctl->filter_coef[0];
     ctl->active = 0u;
     ctl->config = *cfg;
+    ctl->filter_config = P2D_NO_FILTER;
     ctl->fault_count = 0u;
     p2d_speed_reset(ctl, 0.0f, 0.0f);
     return P2D_OK;
 }
 
-/* The shadow swap of pi.h. */
-p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
+/*
+ * The shadow swap of pi.h for the configuration cfg with the torque filters fcfg; torque
+ * filters switched on start at rest at the command at zero error, x[k-1].
+ */
+static p2d_status_t speed_swap(p2d_speed_t *ctl, const p2d_speed_config_t *cfg, const p2d_filter_config_t *fcfg)
 {
-    p2d_status_t status;
-    uint32_t inactive;
-    if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
-    inactive = p2d_shadow_inactive(ctl->active);
-    status = speed_coefficients(cfg, &ctl->coef[inactive]);
+    const uint32_t inactive = p2d_shadow_inactive(ctl->active);
+    p2d_status_t status = speed_coefficients(cfg, fcfg, &ctl->coef[inactive], &ctl->filter_coef[inactive]);
     if (status != P2D_OK) return status;
+    p2d_filter_switch_on(&ctl->filter_coef[ctl->active], &ctl->filter_coef[inactive], &ctl->filter, ctl->x_Nm);
     ctl->config = *cfg;
+    ctl->filter_config = *fcfg;
     p2d_shadow_activate(&ctl->active, inactive);
     return P2D_OK;
+}
+
+p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
+{
+    if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
+    return speed_swap(ctl, cfg, &ctl->filter_config);
+}
+
+p2d_status_t p2d_speed_set_filter(p2d_speed_t *ctl, const p2d_filter_config_t *cfg)
+{
+    if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
+    return speed_swap(ctl, &ctl->config, cfg);
 }
 
 void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm)
@@ -175,6 +215,7 @@ void p2d_speed_reset(p2d_speed_t *ctl, float w_ref_radps, float T_init_Nm)
     ctl->r_prev_radps = w_ref_radps;
     ctl->y_ff_prev_Nm = 0.0f;
     ctl->x_Nm = x;
+    p2d_filter_rest(&ctl->filter, x);
 }
 
 /* Non-finite policy: zero torque and current, fault raised, so that the update leaves the state alone. */
@@ -186,6 +227,19 @@ static bool fault_output(p2d_speed_output_t *out)
     out->saturated = false;
     out->fault = true;
     return false;
+}
+
+/*
+ * u[k] from e[k], dr[k] = r[k] - r[k-1] and the feedforward transient y[k];
+ * the move dT[k] of the feedforward into *dT_ff.
+ */
+static inline float speed_sum(const p2d_speed_t *ctl, const p2d_speed_coef_t *c, float e, float dr, float y_ff,
+                              float *dT_ff)
+{
+    /* dT[k] = Fr0 dr[k] + y[k] + Kd dr[k] / Ts, the move of T_ff from Fr0 r[k-1] */
+    *dT_ff = fmaf(c->ff_Fr0, dr, fmaf(c->ff_Kd_per_Ts, dr, y_ff));
+    /* u[k] = b_e0 e[k] + x[k-1] + dT[k], x[k-1] = x_i[k-1] + Fr0 r[k-1] */
+    return p2d_pi_output(c->pi, e, ctl->x_Nm + *dT_ff);
 }
 
 /*
@@ -202,12 +256,9 @@ static inline float speed_unlimited(const p2d_speed_t *ctl, const p2d_speed_coef
     dr = w_ref_radps - ctl->r_prev_radps;
     /* feedforward transient: y[k] = b_dr dr[k] - a1 y[k-1] */
     y_ff = fmaf(-c->ff_a1, ctl->y_ff_prev_Nm, c->ff_b_dr * dr);
-    /* dT[k] = Fr0 dr[k] + y[k] + Kd dr[k] / Ts, the move of T_ff from Fr0 r[k-1] */
-    dT_ff = fmaf(c->ff_Fr0, dr, fmaf(c->ff_Kd_per_Ts, dr, y_ff));
+    u = speed_sum(ctl, c, e, dr, y_ff, &dT_ff);
     /* T_ff[k] = Fr0 r[k-1] + dT[k] = Fr0 r[k] + y[k] + Kd dr[k] / Ts */
     T_ff = fmaf(c->ff_Fr0, ctl->r_prev_radps, dT_ff);
-    /* u[k] = b_e0 e[k] + x[k-1] + dT[k], x[k-1] = x_i[k-1] + Fr0 r[k-1] */
-    u = p2d_pi_output(c->pi, e, ctl->x_Nm + dT_ff);
 
     out->w_ref_radps = w_ref_radps;
     out->e_radps = e;
@@ -218,13 +269,21 @@ static inline float speed_unlimited(const p2d_speed_t *ctl, const p2d_speed_coef
 }
 
 /*
- * The torque command of this sample (eq 11-15 and the limit) into out, all but
- * the current vector. Returns false, with the fault output, if u is not finite.
+ * u_f[k] = H(z) u[k], the command through the torque filters, into out->T_unsat_Nm
+ * (returned); the filter states after this sample into *next.
  */
-static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c, float w_ref_radps, float w_m_radps,
-                                p2d_speed_output_t *out)
+static inline float filtered_command(const p2d_speed_t *ctl, float u, p2d_speed_output_t *out, p2d_filter_state_t *next)
 {
-    const float u = speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
+    out->T_unsat_Nm = p2d_filter_output(&ctl->filter_coef[ctl->active], &ctl->filter, u, next);
+    return out->T_unsat_Nm;
+}
+
+/*
+ * The limit of the command u before it (u_f with torque filters) into out.
+ * Returns false, with the fault output, if u is not finite.
+ */
+static inline bool speed_limit(const p2d_speed_coef_t *c, float u, p2d_speed_output_t *out)
+{
     float T_sat = u;
     bool saturated = false;
     /* u_sat = Sat(u): the current-vector limit ||i_dq|| <= I_max as the torque limit T_max */
@@ -238,6 +297,22 @@ static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *
     out->saturated = saturated;
     out->fault = false;
     return true;
+}
+
+/*
+ * The torque command of this sample (eq 11-15, the torque filters and the limit) into
+ * out, all but the current vector. Returns false, with the fault output, if the command
+ * before the limit is not finite.
+ */
+static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c, float w_ref_radps, float w_m_radps,
+                                p2d_speed_output_t *out)
+{
+    float u = speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
+    if (c->filtered) {
+        p2d_filter_state_t next; /* unused: compute does not change the state */
+        u = filtered_command(ctl, u, out, &next);
+    }
+    return speed_limit(c, u, out);
 }
 
 /* Surface PMSM: id = 0, iq = T / (1.5 p psi_f); |iq| <= I_max by the choice of T_max. */
@@ -299,34 +374,79 @@ static bool mtpa_current(const p2d_speed_coef_t *c, p2d_speed_output_t *out)
 }
 
 /* The new state x[k], r[k] and y[k] of out; an x that is not finite is refused (counted, state kept). */
-static inline void speed_store(p2d_speed_t *ctl, const p2d_speed_output_t *out, float x)
+static inline bool speed_store(p2d_speed_t *ctl, const p2d_speed_output_t *out, float x)
 {
     if (!isfinite(x)) {
         /* non-finite policy: an update that would overflow the integrator is refused */
         ctl->fault_count++;
-        return;
+        return false;
     }
     ctl->x_Nm = x;
     ctl->r_prev_radps = out->w_ref_radps;
     ctl->y_ff_prev_Nm = out->y_ff_Nm;
+    return true;
 }
 
-/* The state update with the applied torque T_applied_Nm (finite) of an output that is not a fault. */
-static inline void speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c, const p2d_speed_output_t *out,
+/*
+ * The state update with the applied torque T_applied_Nm (finite) of an output that is not a fault;
+ * false if refused.
+ */
+static inline bool speed_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c, const p2d_speed_output_t *out,
                                    float T_applied_Nm)
 {
     float dx, x;
-    /* integration Ki Ts e[k] + Ki Ka Ts u*[k], u* = u_sat - u with u_sat the torque actually applied */
+    /* integration Ki Ts e[k] + Ki Ka Ts u*[k], u* = u_sat - u with u_sat the torque actually applied (u_f with
+       torque filters: T_unsat_Nm holds it) */
     dx = p2d_pi_integration(c->pi, c->clamping, out->e_radps, T_applied_Nm - out->T_unsat_Nm);
     /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] + Fr0 dr[k]: the static feedforward moves with r, never held */
     x = fmaf(c->ff_Fr0, out->w_ref_radps - ctl->r_prev_radps, ctl->x_Nm + dx);
-    speed_store(ctl, out, x);
+    return speed_store(ctl, out, x);
 }
 
-/* Step of a salient PMSM, after the limit: the MTPA current, then the update. */
-static P2D_NOINLINE void salient_step_end(p2d_speed_t *ctl, p2d_speed_output_t *out)
+/*
+ * The update of a filtered configuration: speed_integrate (its u* = u_sat - u_f), then the
+ * filter states *next; refused whole (counted, nothing written) if either is not finite.
+ */
+static void filtered_integrate(p2d_speed_t *ctl, const p2d_speed_coef_t *c, const p2d_speed_output_t *out,
+                               float T_applied_Nm, const p2d_filter_state_t *next)
+{
+    const p2d_filter_coef_t *f = &ctl->filter_coef[ctl->active];
+    if (!p2d_filter_state_finite(f, next)) {
+        /* non-finite policy: an update that would overflow a filter is refused */
+        ctl->fault_count++;
+        return;
+    }
+    if (speed_integrate(ctl, c, out, T_applied_Nm)) p2d_filter_store(f, &ctl->filter, next);
+}
+
+/*
+ * Step of a filtered configuration, after p2d_speed_step has computed a finite u
+ * (out->T_unsat_Nm) and limited it: the limit is redone on u_f, then the current
+ * vector (MTPA or surface) and the update.
+ */
+static P2D_NOINLINE void filtered_step_end(p2d_speed_t *ctl, p2d_speed_output_t *out)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    p2d_filter_state_t next;
+    if (!speed_limit(c, filtered_command(ctl, out->T_unsat_Nm, out, &next), out) ||
+        (c->salient && !mtpa_current(c, out))) {
+        /* non-finite policy: u_f overflowed, or the MTPA inversion did */
+        ctl->fault_count++;
+        return;
+    }
+    if (!c->salient) surface_current(c, out);
+    filtered_integrate(ctl, c, out, out->T_ref_Nm, &next);
+}
+
+/* Step of a salient PMSM or a filtered configuration, after the limit of u. */
+static P2D_NOINLINE void general_step_end(p2d_speed_t *ctl, p2d_speed_output_t *out)
+{
+    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    if (c->filtered) {
+        filtered_step_end(ctl, out);
+        return;
+    }
+    /* salient PMSM: the MTPA current, then the update */
     if (mtpa_current(c, out)) {
         speed_integrate(ctl, c, out, out->T_ref_Nm);
     } else {
@@ -347,19 +467,29 @@ void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radp
 
 void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm)
 {
+    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
     if (out->fault || !isfinite(T_applied_Nm)) {
         ctl->fault_count++;
         return;
     }
-    speed_integrate(ctl, &ctl->coef[ctl->active], out, T_applied_Nm);
+    if (c->filtered) {
+        p2d_filter_state_t next;
+        float dT_ff;
+        /* u[k] again, rounded as compute rounded it, advances the torque filters */
+        const float u = speed_sum(ctl, c, out->e_radps, out->w_ref_radps - ctl->r_prev_radps, out->y_ff_Nm, &dT_ff);
+        (void)p2d_filter_output(&ctl->filter_coef[ctl->active], &ctl->filter, u, &next);
+        filtered_integrate(ctl, c, out, T_applied_Nm, &next);
+        return;
+    }
+    speed_integrate(ctl, c, out, T_applied_Nm);
 }
 
 /*
  * compute + update with the own command, written out per branch of the limit
  * (the same numbers as compute and update, in fewer instructions). The
- * salient path is a tail call, so the surface path calls nothing and saves no
- * registers. Unlimited (|u| <= T_max, so u is finite), u* = u - u = +0 and the
- * integration is p2d_pi_integration_unlimited.
+ * salient and the filtered paths are a tail call, so the surface path calls
+ * nothing and saves no registers. Unlimited (|u| <= T_max, so u is finite),
+ * u* = u - u = +0 and the integration is p2d_pi_integration_unlimited.
  */
 void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
@@ -371,8 +501,8 @@ void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_sp
         out->T_ref_Nm = u;
         out->saturated = false;
         out->fault = false;
-        if (c->salient) {
-            salient_step_end(ctl, out);
+        if (c->general_step) {
+            general_step_end(ctl, out);
             return;
         }
         surface_current(c, out);
@@ -391,8 +521,8 @@ void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_sp
         out->T_ref_Nm = T_sat;
         out->saturated = true;
         out->fault = false;
-        if (c->salient) {
-            salient_step_end(ctl, out);
+        if (c->general_step) {
+            general_step_end(ctl, out);
             return;
         }
         surface_current(c, out);

@@ -37,6 +37,26 @@
  * is applied as the torque limit T_max_Nm of the MTPA vector of length
  * i_max_A; the command never exceeds i_max_A, also after rounding.
  *
+ * Torque filters (optional, p2d_speed_set_filter; pmsm2dof/filter.h): a
+ * notch and a low-pass on the torque command, inside the anti-windup loop,
+ * before the limit:
+ *   u_f     = H(z) u                                      H = H_notch H_lowpass, sections with f0 > 0
+ *   u_sat   = Sat(u_f)                                    the limit acts on the filtered command
+ *   u*      = u_sat - u_f                                 what the limit (and any later one) removed
+ *   x_i[k]  = x_i[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k]     back calculation sees u_f, clamping the sign of u*
+ * so the output T_unsat_Nm is u_f, and every command the drive gets (T_ref,
+ * the currents) has passed the filters. The filters are linear and run on u
+ * whether the limit is active or not; the back calculation pulls u_f, not u,
+ * back to the limit, and its loop now runs through H: it is stable iff every
+ * root of z - 1 + Ki Ka Ts H(z) is inside the unit circle (checked at init,
+ * exactly: a Routh test in q = (z - 1)/(z + 1), filter.c). p2d_speed_update
+ * recomputes u from the output (e, w_ref, y_ff) and the state, with the
+ * roundings of compute, to advance the filters. Without filters (after
+ * p2d_speed_init, or with both frequencies 0) the controller is the one above,
+ * bit for bit and instruction for instruction. A filter switched on starts at
+ * rest at the command x[k-1] (the output at zero error and constant
+ * reference); p2d_speed_reset puts the filters at rest at T_init_Nm.
+ *
  * Rounding: every fmaf(a, b, c) of the step is rounded once, on the MCU as on
  * the host; build with -ffp-contract=off so that nothing else is fused.
  *
@@ -61,6 +81,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "pmsm2dof/filter.h"
 #include "pmsm2dof/status.h"
 
 #ifdef __cplusplus
@@ -110,6 +131,8 @@ typedef struct {
     float dL_H;                  /* Ld - Lq [H], MTPA */
     bool salient;                /* Ld != Lq: MTPA current split */
     bool clamping;               /* conditional integration */
+    bool filtered;               /* a torque filter is on (filter_coef) */
+    bool general_step;           /* salient or filtered: p2d_speed_step leaves its surface-PMSM path after u */
 } p2d_speed_coef_t;
 
 typedef struct {
@@ -120,6 +143,10 @@ typedef struct {
     float r_prev_radps;        /* reference of the previous sample r[k-1] [rad/s] */
     float y_ff_prev_Nm;        /* feedforward transient y[k-1] [Nm]; 0 at a constant reference */
     uint32_t fault_count;      /* samples rejected by the non-finite policy [-] */
+
+    p2d_filter_coef_t filter_coef[2];  /* torque filters of each coefficient set (a set stays 64 bytes without them) */
+    p2d_filter_config_t filter_config; /* torque filters of the active set */
+    p2d_filter_state_t filter;         /* torque-filter states [Nm] */
 } p2d_speed_t;
 
 /* Result of p2d_speed_compute: the command and what the update needs. */
@@ -128,7 +155,7 @@ typedef struct {
     float e_radps;     /* speed error w_ref - w_m [rad/s] */
     float T_ff_Nm;     /* feedforward torque Fr(z) w_ref [Nm] */
     float y_ff_Nm;     /* transient y[k] of the feedforward: T_ff - Fr0 w_ref - derivative [Nm] */
-    float T_unsat_Nm;  /* u: feedback plus feedforward before the limit [Nm] */
+    float T_unsat_Nm;  /* u: feedback plus feedforward before the limit, through the torque filters if on [Nm] */
     float T_ref_Nm;    /* u_sat: torque of the limited current vector [Nm] */
     float id_ref_A;    /* d-axis current command [A] */
     float iq_ref_A;    /* q-axis current command [A] */
@@ -139,8 +166,18 @@ typedef struct {
 /* Validate cfg and precompute; on error ctl is left unchanged. Resets state. */
 p2d_status_t p2d_speed_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg);
 
-/* Validate cfg into the shadow set and swap it in; state is kept. On error nothing changes. */
+/*
+ * Validate cfg into the shadow set and swap it in; state is kept. On error nothing changes.
+ * The torque filters in force are recomputed for the new Ts_s (and must stay valid).
+ */
 p2d_status_t p2d_speed_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg);
+
+/*
+ * Set the torque filters (filter.h; both frequencies 0: none, as after init) at the
+ * configuration's Ts_s, with the anti-windup loop through them (see above), into the
+ * shadow set and swap it in, as p2d_speed_set_config; state is kept. On error nothing changes.
+ */
+p2d_status_t p2d_speed_set_filter(p2d_speed_t *ctl, const p2d_filter_config_t *cfg);
 
 /*
  * Bumpless reset: the feedforward at its steady state for a constant
