@@ -278,12 +278,19 @@ static void fz_check_output(const p2d_speed_t *ctl, float w_ref, float w_m, cons
     }
     /*
      * the command does not use the static feedforward Fr0 r (the state holds it, speed.h): the
-     * diagnostic T_ff may overflow only where Fr0 r[k-1] or Fr0 r[k] is out of the float32 range
+     * diagnostic T_ff = Fr0 r[k-1] + Fr0 dr + Kd dr + y[k] may overflow only where Fr0 r[k-1] or Fr0 r[k]
+     * is out of the float32 range, or the sum of its terms (a transient y[k] near the range)
      */
-    FZ_REQUIRE(isfinite(out->T_ff_Nm) || fmax(fabs((double)c->ff_Fr0 * (double)ctl->r_prev_radps),
-                                              fabs((double)c->ff_Fr0 * (double)w_ref)) > 0.25 * FLT_MAX,
-               "non-finite T_ff %g without fault (w_ref %g r_prev %g Fr0 %g)", (double)out->T_ff_Nm, (double)w_ref,
-               (double)ctl->r_prev_radps, (double)c->ff_Fr0);
+    FZ_REQUIRE(isfinite(out->T_ff_Nm) ||
+                   fmax(fabs((double)c->ff_Fr0 * (double)ctl->r_prev_radps), fabs((double)c->ff_Fr0 * (double)w_ref)) >
+                       0.25 * FLT_MAX ||
+                   fabs((double)c->ff_Fr0 * (double)ctl->r_prev_radps) +
+                           (fabs((double)c->ff_Fr0) + fabs((double)c->ff_Kd_per_Ts)) *
+                               fabs((double)w_ref - (double)ctl->r_prev_radps) +
+                           fabs((double)out->y_ff_Nm) >
+                       0.5 * FLT_MAX,
+               "non-finite T_ff %g without fault (w_ref %g r_prev %g Fr0 %g y_ff %g)", (double)out->T_ff_Nm,
+               (double)w_ref, (double)ctl->r_prev_radps, (double)c->ff_Fr0, (double)out->y_ff_Nm);
     FZ_REQUIRE(isfinite(out->T_unsat_Nm) && isfinite(out->T_ref_Nm) && isfinite(out->id_ref_A) &&
                    isfinite(out->iq_ref_A) && isfinite(out->e_radps) && isfinite(out->y_ff_Nm),
                "non-finite output without fault: T %g id %g iq %g (w_ref %g w_m %g; T_max %g, salient %d)",
