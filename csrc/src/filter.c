@@ -23,10 +23,9 @@
 static float tan_pi(float u)
 {
     /* (-1)^n pi^(2n+1) / (2n+1)! and (-1)^n pi^(2n) / (2n)! */
-    static const float S[6] = {3.14159265f,  -5.16771278f, 2.55016404f,
-                               -0.599264529f, 0.0821458866f, -0.00737043095f};
-    static const float C[7] = {1.0f, -4.93480220f, 4.05871213f, -1.33526277f, 0.235330630f, -0.0258068914f,
-                               0.00192957431f};
+    static const float S[6] = {3.14159265f, -5.16771278f, 2.55016404f, -0.599264529f, 0.0821458866f, -0.00737043095f};
+    static const float C[7] = {1.0f,         -4.93480220f,   4.05871213f,   -1.33526277f,
+                               0.235330630f, -0.0258068914f, 0.00192957431f};
     const bool reflect = u > 0.25f;
     const float t = reflect ? 0.5f - u : u;
     const float t2 = t * t;
@@ -44,21 +43,20 @@ static bool below_nyquist(float f_Hz, float Ts_s, float *u)
     return p2d_is_positive(f_Hz) && *u > 0.0f && *u < 0.5f;
 }
 
-/* The realized q^2 coefficient 1 - g h (g + k) of the section's denominator (filter.h). */
-static float section_a2(const p2d_biquad_coef_t *s) { return fmaf(-s->g_h, s->k, fmaf(-s->g_h, s->g, 1.0f)); }
-
 /*
  * The section's coefficients are finite, its frequency (g g h) and damping (g h k) normal
- * float32 numbers, and its realized q^2 coefficient within 1e-3 of h (filter.h). The status
- * names the field to blame: `freq` for a frequency too low (g^2 not normal, or the notch's
+ * float32 numbers, and 1 + g (g + k) = 1/h at most 5001: the realized q^2 coefficient
+ * 1 - g h (g + k) then differs from h by at most (1/h - 1) 3 * 2^-24 h < 1e-3 h (three
+ * roundings: g + k or g^2, the sum 1/h, the quotient g h; filter.h). The status names the
+ * field to blame: `freq` for a frequency too low (g^2 not normal, or the notch's
  * k = B_v / g overflowing) or too near the Nyquist frequency (g dominates k while h -> 0),
  * `damping` for a damping too small (g h k not normal) or too large.
  */
-static p2d_status_t section_check(const p2d_biquad_coef_t *s, float h, p2d_status_t freq, p2d_status_t damping)
+static p2d_status_t section_check(const p2d_biquad_coef_t *s, float one_over_h, p2d_status_t freq, p2d_status_t damping)
 {
     if (!isnormal(s->g * s->g) || !isfinite(s->k) || !isfinite(s->c_band)) return freq;
     if (!isnormal(s->g * s->g_h) || !isnormal(s->g_h * s->k)) return damping;
-    if (!(fabsf(section_a2(s) - h) <= 1e-3f * h)) return s->g >= s->k ? freq : damping;
+    if (!(one_over_h <= 5001.0f)) return s->g >= s->k ? freq : damping;
     return P2D_OK;
 }
 
@@ -79,7 +77,7 @@ static p2d_status_t notch_coefficients(const p2d_filter_config_t *cfg, float Ts_
     s->k = B_v / g;
     s->g_h = g / (one_g2 + B_v);
     s->c_band = -(1.0f - d) * s->k;
-    return section_check(s, 1.0f / (one_g2 + B_v), P2D_ERR_NOTCH_FREQ, P2D_ERR_NOTCH_WIDTH);
+    return section_check(s, one_g2 + B_v, P2D_ERR_NOTCH_FREQ, P2D_ERR_NOTCH_WIDTH);
 }
 
 /* Low-pass: g = tan(pi f0 Ts), k = 2 zeta, h = 1 / (1 + g (g + k)), c_band = 0 (filter.h). */
@@ -94,7 +92,7 @@ static p2d_status_t lowpass_coefficients(const p2d_filter_config_t *cfg, float T
     one_g_gk = fmaf(g, g + s->k, 1.0f);
     s->g_h = g / one_g_gk;
     s->c_band = 0.0f;
-    return section_check(s, 1.0f / one_g_gk, P2D_ERR_LOWPASS_FREQ, P2D_ERR_LOWPASS_ZETA);
+    return section_check(s, one_g_gk, P2D_ERR_LOWPASS_FREQ, P2D_ERR_LOWPASS_ZETA);
 }
 
 /* The coefficients of a section that is off. */
@@ -132,7 +130,7 @@ static void section_polynomials(const p2d_biquad_coef_t *s, bool notch, float a[
 {
     a[0] = s->g * s->g_h;
     a[1] = s->g_h * s->k;
-    a[2] = section_a2(s);
+    a[2] = fmaf(-s->g_h, s->k, fmaf(-s->g_h, s->g, 1.0f));
     b[0] = a[0];
     b[1] = notch ? s->g_h * (s->k + s->c_band) : 0.0f;
     b[2] = notch ? a[2] : 0.0f;

@@ -22,6 +22,7 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, const p2d_
 {
     p2d_speed_coef_t k;
     p2d_filter_coef_t filter;
+    p2d_status_t status;
     float Kp, Ki, m_eff, tau_eff, p_radps, c_ff, b_dr, a1, A, B, r;
 
     if (!p2d_is_positive(cfg->J_kgm2)) return P2D_ERR_J;
@@ -39,11 +40,6 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, const p2d_
     if ((unsigned)cfg->feedforward > (unsigned)P2D_FF_FULL) return P2D_ERR_FEEDFORWARD;
     if ((unsigned)cfg->anti_windup > (unsigned)P2D_AW_CLAMPING) return P2D_ERR_ANTI_WINDUP;
     if (cfg->feedforward == P2D_FF_LOWPASS && cfg->m != 1.0f) return P2D_ERR_M_LOWPASS;
-    {
-        /* the torque filters (filter.h) at the speed loop's Ts */
-        p2d_status_t status = p2d_filter_coefficients(fcfg, cfg->Ts_s, &filter);
-        if (status != P2D_OK) return status;
-    }
 
     /* eq 9: Kp = J alpha, Ki = J (alpha / (2 zeta))^2 */
     Kp = cfg->J_kgm2 * cfg->alpha_radps;
@@ -53,16 +49,9 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, const p2d_
     k.pi = p2d_pi_coefficients(Kp, Ki, cfg->Ts_s, cfg->method);
     k.clamping = cfg->anti_windup == P2D_AW_CLAMPING;
     if (cfg->anti_windup == P2D_AW_BACK_CALCULATION) {
-        if (!p2d_is_nonnegative(cfg->Ka)) return P2D_ERR_KA;
+        /* the discrete back-calculation loop x[k] = (1 - Ki Ka Ts) x[k-1] + ... must be stable */
+        if (!p2d_is_nonnegative(cfg->Ka) || !(Ki * cfg->Ka * cfg->Ts_s < 2.0f)) return P2D_ERR_KA;
         k.pi.Ki_Ka_Ts = Ki * cfg->Ka * cfg->Ts_s;
-        /*
-         * the discrete back-calculation loop must be stable: x[k] = (1 - Ki Ka Ts) x[k-1] + ..., or through the
-         * torque filters x[k] = x[k-1] - Ki Ka Ts H(z) x[k-1] + ... (filter.c)
-         */
-        if (p2d_filter_on(&filter) ? k.pi.Ki_Ka_Ts > 0.0f && !p2d_filter_loop_stable(&filter, k.pi.Ki_Ka_Ts)
-                                   : !(k.pi.Ki_Ka_Ts < 2.0f)) {
-            return P2D_ERR_KA;
-        }
     } else if (!p2d_is_nonnegative(cfg->Ka)) {
         return P2D_ERR_KA;
     }
@@ -121,8 +110,6 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, const p2d_
     k.psi_f_Wb = cfg->psi_f_Wb;
     k.dL_H = cfg->Ld_H - cfg->Lq_H;
     k.salient = cfg->Ld_H != cfg->Lq_H;
-    k.filtered = p2d_filter_on(&filter);
-    k.general_step = k.salient || k.filtered;
     k.kt_Nm_per_A = 1.5f * (float)cfg->pole_pairs * cfg->psi_f_Wb;
     k.k_mtpa_Wb_per_sqrt_Nm = 2.0f * sqrtf(fabsf(k.dL_H) / (1.5f * (float)cfg->pole_pairs));
     {
@@ -146,6 +133,14 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, const p2d_
         !p2d_pi_finite(&k.pi)) {
         return P2D_ERR_TS; /* only reachable through float overflow of extreme inputs */
     }
+
+    /* the torque filters (filter.h) at the speed loop's Ts, after every other field */
+    status = p2d_filter_coefficients(fcfg, cfg->Ts_s, &filter);
+    if (status != P2D_OK) return status;
+    k.filtered = p2d_filter_on(&filter);
+    k.general_step = k.salient || k.filtered;
+    /* the back-calculation loop through them, x[k] = x[k-1] - Ki Ka Ts H(z) x[k-1] + ..., must be stable too */
+    if (k.filtered && k.pi.Ki_Ka_Ts > 0.0f && !p2d_filter_loop_stable(&filter, k.pi.Ki_Ka_Ts)) return P2D_ERR_KA;
     *c = k;
     *f = filter;
     return P2D_OK;

@@ -17,8 +17,8 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_ERR_TAU_I] = {"tau_i_s", "finite and >= 0 (speed controller); finite and >= Ts_s (current controller), with "
                                   "the gains L/tau_i_s and Rs/tau_i_s finite in float32; finite and >= 10 Ts_s "
                                   "(commissioning)"},
-    [P2D_ERR_KA] = {"Ka", "finite and >= 0, and with back_calculation a stable discrete anti-windup loop: "
-                          "Ki*Ka*Ts_s < 2, or with torque filters the loop through them stable (speed.h)"},
+    [P2D_ERR_KA] = {"Ka", "finite and >= 0, and Ki*Ka*Ts_s < 2 with back_calculation (stable discrete anti-windup "
+                          "loop; with torque filters, the loop through them stable too, speed.h)"},
     [P2D_ERR_TS] = {"Ts_s", "finite and > 0"},
     [P2D_ERR_TS_UNSTABLE] =
         {"Ts_s", "small enough that every discrete pole stays inside the unit circle (forward-Euler feedforward: "
@@ -45,17 +45,19 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_ERR_W_E_SPIN] = {"w_e_spin_radps", "finite, > 0 and <= 0.1 / Ts_s (at least 63 samples per electrical turn)"},
     [P2D_ERR_VOLTAGE_DELAY] = {"voltage_delay_samples", "0 or 1"},
     [P2D_ERR_NOTCH_FREQ] = {"notch_freq_Hz", "0 (no notch), or finite and > 0, below the Nyquist frequency 1/(2*Ts_s): "
-                                             "notch_freq_Hz*Ts_s between about 1e-19 and 0.495 (nearer to 0.5 "
-                                             "float32 loses the filter)"},
+                                             "notch_freq_Hz*Ts_s between about 1e-19 and 0.4955 (float32)"},
     [P2D_ERR_NOTCH_WIDTH] = {"notch_width_Hz", "finite, > 0 and below 1/(2*Ts_s) (the -3 dB bandwidth of the notch), "
-                                               "with notch_width_Hz*Ts_s above about 1e-37 (float32)"},
+                                               "with notch_width_Hz*Ts_s above about 1e-37, and B = (1 + g^2) "
+                                               "tan(pi*notch_width_Hz*Ts_s)/sqrt(1 - 2*notch_depth^2) at most "
+                                               "5000 - g^2, g = tan(pi*notch_freq_Hz*Ts_s) (float32)"},
     [P2D_ERR_NOTCH_DEPTH] = {"notch_depth", "finite, >= 0 and < 1/sqrt(2) = 0.7071 (the gain at notch_freq_Hz; the "
                                             "width is measured at -3 dB)"},
     [P2D_ERR_LOWPASS_FREQ] = {"lowpass_freq_Hz", "0 (no low-pass), or finite and > 0, below the Nyquist frequency "
-                                                 "1/(2*Ts_s): lowpass_freq_Hz*Ts_s between about 1e-19 and 0.495 "
-                                                 "(nearer to 0.5 float32 loses the filter)"},
-    [P2D_ERR_LOWPASS_ZETA] = {"lowpass_zeta", "finite and > 0 (1/sqrt(2): -3 dB at lowpass_freq_Hz, no peak), within "
-                                              "about 1e-37 .. 1e37 where float32 keeps the filter's damping"},
+                                                 "1/(2*Ts_s): lowpass_freq_Hz*Ts_s between about 1e-19 and 0.4955 "
+                                                 "(float32)"},
+    [P2D_ERR_LOWPASS_ZETA] = {"lowpass_zeta", "finite and > 0 (1/sqrt(2): -3 dB at lowpass_freq_Hz, no peak), with "
+                                              "g (g + 2*lowpass_zeta) at most 5000 and lowpass_zeta*g above about "
+                                              "1e-37, g = tan(pi*lowpass_freq_Hz*Ts_s) (float32)"},
 };
 
 const char *p2d_status_param(p2d_status_t status)

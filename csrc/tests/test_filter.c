@@ -158,16 +158,20 @@ static void test_design_response(void)
     /* the -3 dB points by bisection on either side of the notch */
     for (int i = 0; i < 200; ++i) {
         double mid = 0.5 * (lo + hi);
-        if (gain(&n, mid) > sqrt(0.5)) lo = mid;
-        else hi = mid;
+        if (gain(&n, mid) > sqrt(0.5))
+            lo = mid;
+        else
+            hi = mid;
     }
     w1 = lo;
     lo = w0_Ts;
     hi = PI;
     for (int i = 0; i < 200; ++i) {
         double mid = 0.5 * (lo + hi);
-        if (gain(&n, mid) < sqrt(0.5)) lo = mid;
-        else hi = mid;
+        if (gain(&n, mid) < sqrt(0.5))
+            lo = mid;
+        else
+            hi = mid;
     }
     w2 = lo;
     CHECK_CLOSE((w2 - w1) / (2.0 * PI * Ts), cfg.notch_width_Hz, 1e-6);

@@ -69,8 +69,8 @@ static bool same_output(const p2d_speed_output_t *a, const p2d_speed_output_t *b
     return same_bits(a->w_ref_radps, b->w_ref_radps) && same_bits(a->e_radps, b->e_radps) &&
            same_bits(a->T_ff_Nm, b->T_ff_Nm) && same_bits(a->y_ff_Nm, b->y_ff_Nm) &&
            same_bits(a->T_unsat_Nm, b->T_unsat_Nm) && same_bits(a->T_ref_Nm, b->T_ref_Nm) &&
-           same_bits(a->id_ref_A, b->id_ref_A) && same_bits(a->iq_ref_A, b->iq_ref_A) &&
-           a->saturated == b->saturated && a->fault == b->fault;
+           same_bits(a->id_ref_A, b->id_ref_A) && same_bits(a->iq_ref_A, b->iq_ref_A) && a->saturated == b->saturated &&
+           a->fault == b->fault;
 }
 
 /* The states of two controllers, to the bit. */
@@ -189,9 +189,7 @@ static void test_anti_windup_sees_the_filtered_command(void)
             dr = (double)w_ref - (double)ctl.r_prev_radps;
             p2d_speed_step(&ctl, w_ref, w_m, &out);
             CHECK(!out.fault);
-            CHECK(out.T_ref_Nm == (out.T_unsat_Nm > T_max    ? T_max
-                                   : out.T_unsat_Nm < -T_max ? -T_max
-                                                             : out.T_unsat_Nm));
+            CHECK(out.T_ref_Nm == (out.T_unsat_Nm > T_max ? T_max : out.T_unsat_Nm < -T_max ? -T_max : out.T_unsat_Nm));
             CHECK(out.saturated == (out.T_ref_Nm != out.T_unsat_Nm));
             saturated += out.saturated;
             u_star = (double)out.T_ref_Nm - (double)out.T_unsat_Nm;
@@ -295,8 +293,8 @@ static void test_anti_windup_loop_stability(void)
     p2d_speed_config_t cfg = drive_config(false);
     p2d_filter_config_t f = no_filter();
     /* Ki Ka Ts = 1.5: the anti-windup loop pole at 1 - 1.5 = -0.5 alone */
-    cfg.Ka = 1.5f / (cfg.J_kgm2 * (cfg.alpha_radps / (2.0f * cfg.zeta)) * (cfg.alpha_radps / (2.0f * cfg.zeta)) *
-                     cfg.Ts_s);
+    cfg.Ka =
+        1.5f / (cfg.J_kgm2 * (cfg.alpha_radps / (2.0f * cfg.zeta)) * (cfg.alpha_radps / (2.0f * cfg.zeta)) * cfg.Ts_s);
     CHECK(p2d_speed_init(&ctl, &cfg) == P2D_OK);
     f.lowpass_freq_Hz = 20.0f;
     f.lowpass_zeta = 0.7f;
@@ -306,8 +304,8 @@ static void test_anti_windup_loop_stability(void)
     CHECK(p2d_speed_set_config(&ctl, &cfg) == P2D_OK);
     CHECK(p2d_speed_set_filter(&ctl, &f) == P2D_OK);
     /* and set_config refuses the large Ka while the low-pass is on */
-    cfg.Ka = 1.5f / (cfg.J_kgm2 * (cfg.alpha_radps / (2.0f * cfg.zeta)) * (cfg.alpha_radps / (2.0f * cfg.zeta)) *
-                     cfg.Ts_s);
+    cfg.Ka =
+        1.5f / (cfg.J_kgm2 * (cfg.alpha_radps / (2.0f * cfg.zeta)) * (cfg.alpha_radps / (2.0f * cfg.zeta)) * cfg.Ts_s);
     CHECK(p2d_speed_set_config(&ctl, &cfg) == P2D_ERR_KA);
     /* clamping has no such loop */
     cfg.anti_windup = P2D_AW_CLAMPING;

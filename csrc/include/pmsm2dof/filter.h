@@ -48,7 +48,7 @@
  * (b0 + b1 + b2) / (1 + a1 + a2) are off by about 1e-7 / (w0 Ts)^2 (1 % at
  * f0 = Ts^-1 / 2000), and the damping, in 1 + a2, by about 1e-7 / (zeta w0 Ts).
  * Here the DC gain is exactly 1 (at rest at a constant input x the state is
- * s1 = 0, s2 = x and every output equals x to the bit), and the states hold
+ * s1 = 0, s2 = x and every output equals x exactly), and the states hold
  * the signal (s2) and its scaled rate (s1), not differences of large partial
  * sums. Coming from elsewhere, the float32 recursion settles within its dead
  * band, about ulp(x) / (2 g k) from x, where the state increments round away:
@@ -57,10 +57,11 @@
  * takes up such an offset.
  *
  * Validation: a configuration is accepted only if every coefficient is finite
- * and each realized section holds its design in float32: g g h is a normal
- * number, and the q^2 coefficient 1 - g h (g + k) is within 1e-3 of h (it
- * loses precision as h -> 0, for f0 within about 0.5 % of the Nyquist
- * frequency or an extreme zeta), which makes the section stable.
+ * and each realized section holds its design in float32: g g h and g h k are
+ * normal numbers, and 1 + g (g + k) = 1/h <= 5001, so that the q^2
+ * coefficient 1 - g h (g + k), which loses precision as h -> 0, is within
+ * 1e-3 of h (and positive: the section is stable). That bounds f0 Ts to about
+ * 0.4955 (g <= 70) and the damping to zeta g, B_v <= 2500, 5000.
  *
  * Non-finite policy: a non-finite input or output gives y = 0 with `fault`
  * set, no state update, fault_count incremented. Parameter updates: the shadow

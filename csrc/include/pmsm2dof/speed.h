@@ -48,8 +48,9 @@
  * the currents) has passed the filters. The filters are linear and run on u
  * whether the limit is active or not; the back calculation pulls u_f, not u,
  * back to the limit, and its loop now runs through H: it is stable iff every
- * root of z - 1 + Ki Ka Ts H(z) is inside the unit circle (checked at init,
- * exactly: a Routh test in q = (z - 1)/(z + 1), filter.c). p2d_speed_update
+ * root of z - 1 + Ki Ka Ts H(z) is inside the unit circle (checked by
+ * p2d_speed_set_filter and p2d_speed_set_config, exactly, with a Routh test in
+ * q = (z - 1)/(z + 1), filter.c, besides Ki Ka Ts < 2). p2d_speed_update
  * recomputes u from the output (e, w_ref, y_ff) and the state, with the
  * roundings of compute, to advance the filters. Without filters (after
  * p2d_speed_init, or with both frequencies 0) the controller is the one above,
