@@ -1,17 +1,20 @@
-"""Bounded fuzzing of the C controllers with libFuzzer under ASan and UBSan.
+"""Bounded fuzzing of the C controllers and filters with libFuzzer under ASan and UBSan.
 
-The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c and fuzz_commission.c
-decode random configurations and input sequences and abort on any violated
-invariant (output finite and within I_max or u_dc/sqrt(3), integrator bounds
-under back calculation and clamping, atomic parameter updates, no poisoned
-state; the commissioning routine's phases, its trip, and estimates that
-match the motor when it ends; see RELIABILITY.md). Each runs for a bounded
-time from a copy of the checked-in seed corpus; the executions are printed
-(pytest -s shows them).
+The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c, fuzz_commission.c and
+fuzz_filter.c decode random configurations and input sequences and abort on any
+violated invariant (output finite and within I_max or u_dc/sqrt(3), integrator
+bounds under back calculation and clamping, the anti-windup update through the
+torque filters, atomic parameter updates, filters that realize their design and
+hold a constant input exactly, no poisoned state; the commissioning routine's
+phases, its trip, and estimates that match the motor when it ends; see
+RELIABILITY.md). Each runs for a bounded time from a copy of the checked-in seed
+corpus; the executions are printed (pytest -s shows them).
 
-Mutants of the controllers and the commissioning routine (the non-finite
-policy of the update removed, clamping that never holds, a voltage limit
-that is never active, no overcurrent trip, a NaN current let through) show
+Mutants of the controllers, the torque filters and the commissioning routine
+(the non-finite policy of the update removed, clamping that never holds, a
+voltage limit that is never active, a speed controller that limits the
+unfiltered command, a filter whose overflowing state is not refused, no
+overcurrent trip, a NaN current let through) show
 that the invariants catch real faults: each is caught by replaying the seed
 corpus alone.
 
@@ -73,7 +76,18 @@ def fuzz_build(tmp_path_factory):
             "-DP2D_FUZZ=ON",
             "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
         ],
-        ["cmake", "--build", str(build), "--target", "fuzz_speed", "fuzz_current", "fuzz_commission", "-j", "2"],
+        [
+            "cmake",
+            "--build",
+            str(build),
+            "--target",
+            "fuzz_speed",
+            "fuzz_current",
+            "fuzz_commission",
+            "fuzz_filter",
+            "-j",
+            "2",
+        ],
     ):
         result = subprocess.run(command, capture_output=True, text=True)
         assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
@@ -88,7 +102,7 @@ def _stats(stderr):
     return int(runs.group(1)), int(runs.group(2)), int(done.group(3)), int(done.group(2))
 
 
-@pytest.mark.parametrize("target", ["speed", "current", "commission"])
+@pytest.mark.parametrize("target", ["speed", "current", "commission", "filter"])
 def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
     corpus = tmp_path / "corpus"
     shutil.copytree(CORPUS / target, corpus)
@@ -150,6 +164,18 @@ MUTANTS = {
         "commission",
         "commission.c",
         [("if (!isfinite(id_A) || !isfinite(iq_A) || !isfinite(u_dc_V)) {", "if (!isfinite(u_dc_V)) {")],
+    ),
+    # the speed controller's compute limits the unfiltered command while it reports the filtered one
+    "speed_limit_before_filters": (
+        "speed",
+        "speed.c",
+        [("u = filtered_command(ctl, u, out, &next);", "(void)filtered_command(ctl, u, out, &next);")],
+    ),
+    # an overflow of a filter state is not refused: it poisons the filter
+    "filter_nan_state": (
+        "filter",
+        "filter.c",
+        [("if (!isfinite(y) || !p2d_filter_state_finite(c, &next)) {", "if (!isfinite(y)) {")],
     ),
 }
 

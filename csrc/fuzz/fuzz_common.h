@@ -27,6 +27,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "pmsm2dof/filter.h"
+
 /* Abort (a crash for libFuzzer, which then saves the input) when cond is false. */
 #define FZ_REQUIRE(cond, ...)                                                                                \
     do {                                                                                                     \
@@ -143,5 +145,20 @@ static inline uint32_t fz_enum(fz_reader_t *r, uint32_t n_valid)
 }
 
 static inline bool fz_bits_equal(float a, float b) { return memcmp(&a, &b, sizeof a) == 0; }
+
+/*
+ * The magnitude beyond which one sample of the filter chain c (filter.h) may
+ * overflow float32 when its input and states are at most `magnitude`: every
+ * intermediate of a section is at most about 4 (1 + K)^2 times its input or
+ * states, K the largest of g, k and |c_band| of the sections that are on, and
+ * the low-pass takes the notch's output; 16 (1 + K)^2 covers both.
+ */
+static inline bool fz_filter_may_overflow(const p2d_filter_coef_t *c, double magnitude)
+{
+    double K = 0.0;
+    if (c->has_notch) K = fmax(fmax(K, c->notch.g), fmax(c->notch.k, fabs(c->notch.c_band)));
+    if (c->has_lowpass) K = fmax(fmax(K, c->lowpass.g), c->lowpass.k);
+    return 16.0 * (1.0 + K) * (1.0 + K) * magnitude > 0.5 * FLT_MAX;
+}
 
 #endif /* P2D_FUZZ_COMMON_H */

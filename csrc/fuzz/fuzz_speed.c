@@ -5,7 +5,9 @@
  *
  * The input decodes (fuzz_common.h) to a configuration, valid or not, and
  * then to operations until the bytes run out:
- *   op % 8 in 0..3  one sample: w_ref, w_m and the applied torque drawn at random
+ *   op % 8 in 0..2  one sample: w_ref, w_m and the applied torque drawn at random
+ *   op % 8 == 3     p2d_speed_set_filter with fresh torque filters (a notch, a
+ *                   low-pass, both or none around a 40 Hz resonance)
  *   op % 8 == 4     a closed-loop run of 1..2048 samples on the rigid-body plant
  *                   J_plant dw/dt = T_applied - T_load (forward Euler, double)
  *   op % 8 == 5     set_config with one field of the active configuration redrawn
@@ -42,6 +44,16 @@
  *    With |T_app| <= T_max, |T_ff| <= F and |e| <= E both bounds stay finite for all k.
  *    Each is checked up to a float32 rounding slack of FZ_SUM_SLACK times the
  *    sum of the magnitudes of the terms that enter the update.
+ *  - with torque filters (speed.h): the limit acts on the filtered command,
+ *    T_ref = Sat(T_unsat) with T_unsat = u_f, and the update is
+ *    x[k] = x[k-1] + Ki Ts e + g (T_app - u_f) + Fr0 dr (clamping: the
+ *    integration held while T_app - u_f and e have opposite signs), up to the
+ *    same slack; the contraction bound above does not apply, as the
+ *    anti-windup loop runs through the filters (init checks it is stable).
+ *    set_filter: atomic, the verdict and the coefficients of init followed by
+ *    set_filter, the PI state kept, filter states kept where a section stays
+ *    on and at rest at x[k-1] where one is switched on; reset puts the filters
+ *    at rest at T_init.
  */
 #include "fuzz_common.h"
 
@@ -91,6 +103,22 @@ static void fz_speed_config(fz_reader_t *r, p2d_speed_config_t *cfg)
     cfg->method = (p2d_method_t)fz_enum(r, 3u);
     cfg->feedforward = (p2d_feedforward_t)fz_enum(r, 4u);
     cfg->anti_windup = (p2d_anti_windup_t)fz_enum(r, 3u);
+}
+
+/* Torque filters around a 40 Hz resonance: bit 0 of the shape byte a notch, bit 1 a low-pass. */
+static void fz_filter_config(fz_reader_t *r, p2d_filter_config_t *f)
+{
+    uint8_t shape = fz_u8(r);
+    memset(f, 0, sizeof *f);
+    if (shape & 1u) {
+        f->notch_freq_Hz = fz_float(r, 40.0, true);
+        f->notch_width_Hz = fz_float(r, 15.0, true);
+        f->notch_depth = fz_float(r, 0.05, true);
+    }
+    if (shape & 2u) {
+        f->lowpass_freq_Hz = fz_float(r, 200.0, true);
+        f->lowpass_zeta = fz_float(r, 0.7, true);
+    }
 }
 
 /* A value near the current one (within two or eight decades), or any float. */
@@ -163,13 +191,37 @@ static void fz_check_accepted(const p2d_speed_config_t *cfg, const p2d_speed_coe
         FZ_REQUIRE(c->pi.Ki_Ka_Ts == 0.0f, "Ki Ka Ts = %g without back calculation", (double)c->pi.Ki_Ka_Ts);
     }
     FZ_REQUIRE(c->clamping == (cfg->anti_windup == P2D_AW_CLAMPING), "clamping flag");
+    FZ_REQUIRE(c->general_step == (c->salient || c->filtered), "general_step flag");
+}
+
+/* The torque filters in force are those of filter_config, on exactly when a frequency is not 0. */
+static void fz_check_filter(const p2d_speed_t *ctl)
+{
+    const p2d_filter_coef_t *f = &ctl->filter_coef[ctl->active];
+    const p2d_filter_config_t *cfg = &ctl->filter_config;
+    FZ_REQUIRE(f->has_notch == (cfg->notch_freq_Hz != 0.0f) && f->has_lowpass == (cfg->lowpass_freq_Hz != 0.0f) &&
+                   ctl->coef[ctl->active].filtered == (f->has_notch || f->has_lowpass),
+               "torque filters on: notch %d low-pass %d, filtered %d", (int)f->has_notch, (int)f->has_lowpass,
+               (int)ctl->coef[ctl->active].filtered);
 }
 
 static void fz_check_state_finite(const p2d_speed_t *ctl)
 {
+    const p2d_filter_coef_t *f = &ctl->filter_coef[ctl->active];
     FZ_REQUIRE(isfinite(ctl->x_Nm) && isfinite(ctl->r_prev_radps) && isfinite(ctl->y_ff_prev_Nm),
                "state poisoned: x %g r_prev %g y_ff_prev %g", (double)ctl->x_Nm, (double)ctl->r_prev_radps,
                (double)ctl->y_ff_prev_Nm);
+    FZ_REQUIRE((!f->has_notch || (isfinite(ctl->filter.notch.s1) && isfinite(ctl->filter.notch.s2))) &&
+                   (!f->has_lowpass || (isfinite(ctl->filter.lowpass.s1) && isfinite(ctl->filter.lowpass.s2))),
+               "torque-filter state poisoned");
+}
+
+/* The largest magnitude of the torque-filter states [Nm]. */
+static double fz_filter_magnitude(const p2d_speed_t *ctl)
+{
+    const p2d_filter_state_t *s = &ctl->filter;
+    return fmax(fmax(fabs((double)s->notch.s1), fabs((double)s->notch.s2)),
+                fmax(fabs((double)s->lowpass.s1), fabs((double)s->lowpass.s2)));
 }
 
 /*
@@ -202,6 +254,7 @@ static bool fz_same_controller(const p2d_speed_t *a, const p2d_speed_t *b)
     b_state.x_Nm = a->x_Nm;
     b_state.r_prev_radps = a->r_prev_radps;
     b_state.y_ff_prev_Nm = a->y_ff_prev_Nm;
+    b_state.filter = a->filter;
     for (int k = 0; k < 5; ++k) {
         p2d_speed_output_t oa, ob;
         p2d_speed_compute(a, probes[k][0], probes[k][1], &oa);
@@ -230,19 +283,27 @@ static bool fz_init(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     }
     fz_check_accepted(cfg, &ctl->coef[ctl->active]);
     fz_probe(ctl);
+    FZ_REQUIRE(!ctl->coef[ctl->active].filtered, "init switched a torque filter on");
     FZ_REQUIRE(ctl->x_Nm == 0.0f && ctl->r_prev_radps == 0.0f && ctl->y_ff_prev_Nm == 0.0f && ctl->fault_count == 0u,
                "init did not clear the state: x %g r_prev %g y_ff_prev %g", (double)ctl->x_Nm,
                (double)ctl->r_prev_radps, (double)ctl->y_ff_prev_Nm);
     return true;
 }
 
-/* set_config: atomic, same verdict and coefficients as init, state kept. */
+/* init with cfg, then the torque filters f: the reference for set_config and set_filter. */
+static p2d_status_t fz_init_filtered(p2d_speed_t *fresh, const p2d_speed_config_t *cfg, const p2d_filter_config_t *f)
+{
+    p2d_status_t status = p2d_speed_init(fresh, cfg);
+    return status == P2D_OK ? p2d_speed_set_filter(fresh, f) : status;
+}
+
+/* set_config: atomic, same verdict and coefficients as init (with the torque filters in force), state kept. */
 static void fz_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
 {
     p2d_speed_t before, fresh;
     p2d_status_t status, status_init;
     memcpy(&before, ctl, sizeof before);
-    status_init = p2d_speed_init(&fresh, cfg);
+    status_init = fz_init_filtered(&fresh, cfg, &ctl->filter_config);
     status = p2d_speed_set_config(ctl, cfg);
     FZ_REQUIRE(status == status_init, "set_config status %d, init status %d", (int)status, (int)status_init);
     if (status != P2D_OK) {
@@ -257,8 +318,57 @@ static void fz_set_config(p2d_speed_t *ctl, const p2d_speed_config_t *cfg)
     fz_probe(ctl);
     FZ_REQUIRE(memcmp(&ctl->config, cfg, sizeof *cfg) == 0, "config not stored");
     FZ_REQUIRE(fz_bits_equal(ctl->x_Nm, before.x_Nm) && fz_bits_equal(ctl->r_prev_radps, before.r_prev_radps) &&
-                   fz_bits_equal(ctl->y_ff_prev_Nm, before.y_ff_prev_Nm) && ctl->fault_count == before.fault_count,
+                   fz_bits_equal(ctl->y_ff_prev_Nm, before.y_ff_prev_Nm) && ctl->fault_count == before.fault_count &&
+                   memcmp(&ctl->filter, &before.filter, sizeof ctl->filter) == 0,
                "set_config changed the state");
+}
+
+/* One section's state after set_filter: kept if it was on, at rest at x[k-1] if switched on. */
+static bool fz_section_started(bool was_on, bool is_on, const p2d_biquad_state_t *s, const p2d_biquad_state_t *s0,
+                               float x)
+{
+    if (!is_on) return true;
+    if (was_on) return fz_bits_equal(s->s1, s0->s1) && fz_bits_equal(s->s2, s0->s2);
+    return s->s1 == 0.0f && fz_bits_equal(s->s2, x);
+}
+
+/* set_filter: atomic, the verdict and coefficients of init + set_filter, the PI state kept, bumpless switch-on. */
+static void fz_set_filter(p2d_speed_t *ctl, const p2d_filter_config_t *f)
+{
+    p2d_speed_t before, fresh;
+    const p2d_filter_coef_t *old, *now;
+    p2d_status_t status, status_init;
+    memcpy(&before, ctl, sizeof before);
+    status_init = fz_init_filtered(&fresh, &ctl->config, f);
+    status = p2d_speed_set_filter(ctl, f);
+    FZ_REQUIRE(status == status_init, "set_filter status %d, init + set_filter status %d", (int)status,
+               (int)status_init);
+    if (status != P2D_OK) {
+        fz_check_rejection(status);
+        FZ_REQUIRE(memcmp(ctl, &before, sizeof before) == 0, "rejected set_filter (status %d) wrote", (int)status);
+        return;
+    }
+    FZ_REQUIRE(ctl->active == 1u - before.active && memcmp(&ctl->filter_config, f, sizeof *f) == 0,
+               "set_filter: active %u -> %u, or the configuration not stored", before.active, ctl->active);
+    FZ_REQUIRE(memcmp(&ctl->coef[before.active], &before.coef[before.active], sizeof before.coef[0]) == 0 &&
+                   memcmp(&ctl->filter_coef[before.active], &before.filter_coef[before.active],
+                          sizeof before.filter_coef[0]) == 0,
+               "set_filter wrote the coefficient set in force");
+    fz_check_accepted(&ctl->config, &ctl->coef[ctl->active]);
+    fz_check_filter(ctl);
+    old = &before.filter_coef[before.active];
+    now = &ctl->filter_coef[ctl->active];
+    FZ_REQUIRE(fz_bits_equal(ctl->x_Nm, before.x_Nm) && fz_bits_equal(ctl->r_prev_radps, before.r_prev_radps) &&
+                   fz_bits_equal(ctl->y_ff_prev_Nm, before.y_ff_prev_Nm) && ctl->fault_count == before.fault_count,
+               "set_filter changed the PI state");
+    FZ_REQUIRE(
+        fz_section_started(old->has_notch, now->has_notch, &ctl->filter.notch, &before.filter.notch, before.x_Nm) &&
+            fz_section_started(old->has_lowpass, now->has_lowpass, &ctl->filter.lowpass, &before.filter.lowpass,
+                               before.x_Nm),
+        "set_filter: a section kept on lost its state, or one switched on is not at rest at x = %g",
+        (double)before.x_Nm);
+    FZ_REQUIRE(fz_same_controller(ctl, &fresh), "set_filter and init + set_filter computed different coefficients");
+    fz_probe(ctl);
 }
 
 /* The outputs of one compute. */
@@ -338,10 +448,18 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
         memcpy(&expected, before, sizeof expected);
         expected.fault_count++;
         FZ_REQUIRE(memcmp(ctl, &expected, sizeof expected) == 0, "a rejected update changed the state");
-        /* refused only when a term of x[k-1] + Ki Ts e + g (T_app - T_unsat) + Fr0 dr comes near the float32 range */
+        /*
+         * refused only when a term of x[k-1] + Ki Ts e + g (T_app - T_unsat) + Fr0 dr comes near the float32 range,
+         * or, with torque filters, one of their states or inputs (an overflow of the filters)
+         */
         FZ_REQUIRE(out->fault || !isfinite(T_app) ||
                        fmax(fmax(fmax(fabs(xs0), fabs(kits * e)), fmax(fabs(u_star), fabs(g * u_star))),
-                            fabs(Fr0 * dr)) > 0.25 * FLT_MAX,
+                            fabs(Fr0 * dr)) > 0.25 * FLT_MAX ||
+                       (c->filtered && fz_filter_may_overflow(
+                                           &before->filter_coef[before->active],
+                                           fmax(fmax(fz_filter_magnitude(before), fabs((double)out->T_unsat_Nm)),
+                                                fabs(b * e) + fabs(xs0) + fabs(Fr0 * dr) +
+                                                    fabs((double)c->ff_Kd_per_Ts * dr) + fabs((double)out->y_ff_Nm)))),
                    "update refused a sample whose new state is finite: x %g e %g Ki_Ts %g g %g T_app %g T_unsat %g "
                    "Fr0 dr %g",
                    xs0, e, kits, g, T, (double)out->T_unsat_Nm, Fr0 * dr);
@@ -350,7 +468,16 @@ static void fz_check_update(const p2d_speed_t *before, const p2d_speed_t *ctl, c
     FZ_REQUIRE(!out->fault && isfinite(T_app), "a fault or a non-finite applied torque %g was not counted", T);
     FZ_REQUIRE(ctl->r_prev_radps == out->w_ref_radps && ctl->y_ff_prev_Nm == out->y_ff_Nm,
                "feedforward state not advanced");
-    if (c->pi.Ki_Ka_Ts > 0.0f) {
+    if (c->filtered) {
+        /* x[k] = x[k-1] + Ki Ts e + g u* + Fr0 dr, u* = T_app - u_f; clamping holds the integration (speed.h) */
+        double dx = kits * e + g * u_star;
+        if (c->clamping && ((u_star < 0.0 && e > 0.0) || (u_star > 0.0 && e < 0.0))) dx = 0.0;
+        slack = fz_slack(fabs(xs0) + fabs(kits * e) + g * (fabs(T) + fabs((double)out->T_unsat_Nm)) + fabs(Fr0 * dr) +
+                         fabs(xs1));
+        FZ_REQUIRE(fabs(xs1 - (xs0 + dx + Fr0 * dr)) <= slack,
+                   "filtered update: x %.9g -> %.9g, expected %.9g (e %g T_app %g u_f %g g %g clamping %d)", xs0, xs1,
+                   xs0 + dx + Fr0 * dr, e, T, (double)out->T_unsat_Nm, g, (int)c->clamping);
+    } else if (c->pi.Ki_Ka_Ts > 0.0f) {
         /* x[k] = (1 - g) x[k-1] + (Ki Ts - g b) e + g (T_app - T_ff): a contraction by |1 - g| < 1 */
         double bound = (fabs(kits - g * b) * fabs(e) + g * (fabs(T) + fabs(T_ff))) / (1.0 - fabs(1.0 - g));
         slack = fz_slack(fabs(x0) + fabs(kits * e) + g * (fabs(T) + fabs(b * e) + fabs(x0) + fabs(T_ff)) +
@@ -426,6 +553,9 @@ static void fz_reset(p2d_speed_t *ctl, fz_reader_t *r)
     if (ctl->fault_count == before.fault_count) {
         FZ_REQUIRE(isfinite(w_ref) && isfinite(T_init) && ctl->r_prev_radps == w_ref,
                    "reset(%g, %g) accepted: r_prev %g", (double)w_ref, (double)T_init, (double)ctl->r_prev_radps);
+        FZ_REQUIRE(ctl->filter.notch.s1 == 0.0f && ctl->filter.notch.s2 == T_init && ctl->filter.lowpass.s1 == 0.0f &&
+                       ctl->filter.lowpass.s2 == T_init,
+                   "reset(%g, %g): the torque filters are not at rest at T_init", (double)w_ref, (double)T_init);
     } else {
         FZ_REQUIRE(ctl->fault_count == before.fault_count + 1u && ctl->x_Nm == 0.0f && ctl->r_prev_radps == 0.0f &&
                        ctl->y_ff_prev_Nm == 0.0f,
@@ -449,6 +579,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     while (!fz_done(&r)) {
         uint8_t op = fz_u8(&r);
         switch (op % 8u) {
+        case 3: {
+            p2d_filter_config_t f;
+            fz_filter_config(&r, &f);
+            fz_set_filter(&rig.ctl, &f);
+            break;
+        }
         case 4: fz_closed_loop(&rig, &r); break;
         case 5:
             fz_speed_config_mutated(&r, &rig.ctl.config, &cfg);

@@ -1,10 +1,12 @@
-"""Write the seed corpus of the fuzz targets (csrc/fuzz/corpus/{speed,current,commission}).
+"""Write the seed corpus of the fuzz targets (csrc/fuzz/corpus/{speed,current,commission,filter}).
 
 Each seed is a byte string in the input format decoded by fuzz_common.h,
-fuzz_speed.c, fuzz_current.c and fuzz_commission.c: a configuration, then operations. The seeds
-start the fuzzer from meaningful runs (the paper's drive in closed loop, a
-stall beyond the current limit, parameter updates valid and invalid, NaN and
-inf inputs, odd applied commands) instead of from empty inputs.
+fuzz_speed.c, fuzz_current.c, fuzz_commission.c and fuzz_filter.c: a configuration, then
+operations. The seeds start the fuzzer from meaningful runs (the paper's drive
+in closed loop, a stall beyond the current limit, torque filters on a
+saturating drive, parameter updates valid and invalid, NaN and inf inputs, odd
+applied commands, a resonant filter driven into overflow) instead of from empty
+inputs.
 
 Run from the repository root after changing the input format:
 
@@ -21,8 +23,10 @@ CORPUS = Path(__file__).resolve().parent / "corpus"
 RAW, SPECIAL, NEAR = 0, 1, 2
 SPECIAL_INDEX = {"0": 0, "-0": 1, "nan": 2, "-nan": 3, "inf": 4, "-inf": 5, "max": 6, "-max": 7}
 
-# operations (op % 8) of both targets
-SAMPLE, CLOSED_LOOP, SET_MUTATED, SET_FRESH, RESET = 0, 4, 5, 6, 7
+# operations (op % 8) of the speed and current targets; SET_FILTER (speed target only)
+SAMPLE, SET_FILTER, CLOSED_LOOP, SET_MUTATED, SET_FRESH, RESET = 0, 3, 4, 5, 6, 7
+# operations (op % 4) of the filter target; bit 2 of FILTER_SET: one field redrawn
+FILTER_STEP, FILTER_RUN, FILTER_SET, FILTER_RESET = 0, 1, 2, 3
 
 
 def nominal(factor=1.0):
@@ -75,6 +79,21 @@ def speed_sample(w_ref, w_m, mode=0, frac=1.0, applied=b""):
 
 def speed_closed_loop(n, w_ref, T_load, mode=0, frac=1.0, J_mismatch=0.5):
     return u8(CLOSED_LOOP) + u16(n - 1) + w_ref + T_load + u8(mode) + fraction(frac) + fraction(J_mismatch)
+
+
+def filter_config(notch=True, lowpass=True, notch_fields=None, lowpass_fields=None):
+    """Torque or standalone filter configuration (fuzz_speed.c, fuzz_filter.c): shape bits 0 (notch), 1 (low-pass)."""
+    out = u8((1 if notch else 0) | (2 if lowpass else 0))
+    if notch:
+        out += b"".join(notch_fields or (nominal(), nominal(), nominal()))  # f0, width, depth
+    if lowpass:
+        out += b"".join(lowpass_fields or (nominal(), nominal()))  # f0, zeta
+    return out
+
+
+def filter_run(n, amplitude, offset, cycles_per_sample):
+    """A sinusoid of n samples, cycles_per_sample in [0, 0.5] (fuzz_filter.c)."""
+    return u8(FILTER_RUN) + u16(n - 1) + amplitude + offset + fraction(2 * cycles_per_sample)
 
 
 def current_config(surface=False, decouple=True, method=2, anti_windup=1, Rs=nominal(), tau_i=nominal()):
@@ -155,6 +174,100 @@ SPEED_SEEDS = {
     + speed_closed_loop(500, nominal(), nominal(5.0), mode=2, frac=0.1),
     # a configuration init rejects (J < 0)
     "rejected_init": speed_config(J=raw(-0.4)),
+}
+
+SPEED_SEEDS.update(
+    {
+        # the paper's drive with a notch at 40 Hz and a low-pass at 200 Hz: steps that saturate, then back
+        "filtered_paper_drive_saturating": speed_config()
+        + u8(SET_FILTER)
+        + filter_config()
+        + speed_closed_loop(2048, nominal(30.0), nominal())
+        + speed_closed_loop(1500, nominal(-0.5), nominal()),
+        # salient PMSM, clamping, notch only: applied torques scaled and arbitrary
+        "filtered_salient_clamping": speed_config(surface=False, anti_windup=2)
+        + u8(SET_FILTER)
+        + filter_config(lowpass=False)
+        + speed_closed_loop(800, nominal(20.0), nominal(5.0), mode=1, frac=0.5)
+        + speed_sample(nominal(), nominal(0.01), mode=3, applied=special("nan"))
+        + speed_closed_loop(800, nominal(), nominal(), mode=2, frac=0.2),
+        # filter updates: an invalid depth, the low-pass alone, none, a Ts that puts the low-pass above Nyquist
+        "set_filter_switching": speed_config()
+        + u8(SET_FILTER)
+        + filter_config(notch_fields=(nominal(), nominal(), nominal(20.0)))
+        + u8(SET_FILTER)
+        + filter_config(notch=False)
+        + speed_closed_loop(300, nominal(), nominal())
+        + u8(SET_FILTER)
+        + filter_config(notch=False, lowpass=False)
+        + speed_closed_loop(300, nominal(), nominal())
+        + u8(SET_FILTER)
+        + filter_config()
+        + u8(SET_MUTATED)
+        + u8(6)
+        + nominal(10.0)
+        + u8(RESET)
+        + nominal()
+        + nominal()
+        + speed_closed_loop(300, nominal(), nominal()),
+    }
+)
+
+# fuzz_filter.c: Ts, then the configuration (nominal: notch 50 Hz, 20 Hz wide, depth 0.1; low-pass 300 Hz, zeta 0.7)
+FILTER_SEEDS = {
+    # both sections at 1 kHz: sinusoids at the notch, at the low-pass and near Nyquist, a step
+    "notch_lowpass_sines": nominal()
+    + filter_config()
+    + filter_run(2048, nominal(), nominal(0.5), 0.05)
+    + filter_run(1000, nominal(3.0), nominal(-1.0), 0.3)
+    + filter_run(500, nominal(), nominal(), 0.49)
+    + filter_run(500, nominal(0.01), nominal(2.0), 0.0),
+    # a narrow notch near z = 1: 2 Hz, 0.2 Hz wide, at 10 kHz
+    "narrow_notch_10kHz": nominal(0.1)
+    + filter_config(lowpass=False, notch_fields=(nominal(0.04), nominal(0.01), nominal(0.5)))
+    + filter_run(2048, nominal(), nominal(), 2e-4)
+    + u8(FILTER_RESET)
+    + nominal(7.0)
+    + filter_run(2048, nominal(), nominal(7.0), 1e-3),
+    # a resonant low-pass (zeta = 0.01) driven at f0 at 3e38: its states overflow before its output; recovery
+    "resonant_lowpass_overflow": nominal()
+    + filter_config(notch=False, lowpass_fields=(nominal(), nominal(1 / 70)))
+    + filter_run(2048, raw(3e38), nominal(), 0.3)
+    + u8(FILTER_RESET)
+    + special("nan")
+    + filter_run(100, nominal(), nominal(), 0.3),
+    # updates: a field redrawn, the notch off, a fresh invalid configuration, a low-pass above Nyquist
+    "set_config_switching": nominal()
+    + filter_config(notch=False)
+    + filter_run(300, nominal(), nominal(4.0), 0.01)
+    + u8(FILTER_SET)
+    + filter_config()
+    + u8(FILTER_SET | 4)
+    + u8(1)
+    + nominal(3.0)
+    + u8(FILTER_SET | 4)
+    + u8(5)
+    + u8(FILTER_SET)
+    + filter_config(notch_fields=(nominal(), nominal(), raw(0.9)))
+    + u8(FILTER_SET | 4)
+    + u8(3)
+    + nominal(2.0)
+    + filter_run(300, nominal(), nominal(), 0.1),
+    # non-finite and huge samples, resets
+    "non_finite_samples": nominal()
+    + filter_config()
+    + u8(FILTER_STEP)
+    + special("nan")
+    + u8(FILTER_STEP)
+    + special("inf")
+    + u8(FILTER_STEP)
+    + raw(3e38)
+    + u8(FILTER_RESET)
+    + raw(-3e38)
+    + u8(FILTER_STEP)
+    + nominal(),
+    # a sampling period init rejects
+    "rejected_init": raw(-1e-3) + filter_config(),
 }
 
 CURRENT_SEEDS = {
@@ -310,7 +423,12 @@ COMMISSION_SEEDS = {
 
 
 def main():
-    for target, seeds in (("speed", SPEED_SEEDS), ("current", CURRENT_SEEDS), ("commission", COMMISSION_SEEDS)):
+    for target, seeds in (
+        ("speed", SPEED_SEEDS),
+        ("current", CURRENT_SEEDS),
+        ("commission", COMMISSION_SEEDS),
+        ("filter", FILTER_SEEDS),
+    ):
         folder = CORPUS / target
         folder.mkdir(parents=True, exist_ok=True)
         for old in folder.glob("*.bin"):
