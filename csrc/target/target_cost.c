@@ -13,12 +13,17 @@
  * Output lines (semihosting):
  *   sizeof <type> <bytes>
  *   probe <index> <controller> <method> <anti_windup> <feedforward|coupling> <motor> <point> stack <bytes>
- * The index counts the calls of p2d_cost_mark() in order.
+ *   filter_probe <index> <speed|filter> <sections> <motor> <point> stack <bytes>
+ * The index counts the calls of p2d_cost_mark() in order. A filter_probe is a
+ * speed step with torque filters (Tustin, back calculation, lowpass
+ * feedforward) or one p2d_filter_step; its sections are notch, lowpass or
+ * notch+lowpass.
  */
 #include <stdbool.h>
 #include <stdint.h>
 
 #include "pmsm2dof/current.h"
+#include "pmsm2dof/filter.h"
 #include "pmsm2dof/speed.h"
 #include "semihost.h"
 
@@ -147,6 +152,84 @@ static void probe_speed(p2d_method_t method, p2d_anti_windup_t aw, p2d_feedforwa
     probe_end(stack_bytes);
 }
 
+static const char *const SECTIONS[] = {"none", "notch", "lowpass", "notch+lowpass"};
+
+/* Torque filters for a 40 Hz resonance at the speed loop's 1 kHz: bit 0 the notch, bit 1 the low-pass. */
+static p2d_filter_config_t torque_filter(uint32_t sections)
+{
+    p2d_filter_config_t f;
+    f.notch_freq_Hz = (sections & 1u) ? 40.0f : 0.0f;
+    f.notch_width_Hz = 15.0f;
+    f.notch_depth = 0.05f;
+    f.lowpass_freq_Hz = (sections & 2u) ? 200.0f : 0.0f;
+    f.lowpass_zeta = 0.70710678f;
+    return f;
+}
+
+/* End the line of a filter probe. */
+static void filter_probe_line(const char *controller, uint32_t sections, const char *motor, const char *point,
+                              uint32_t stack_bytes)
+{
+    p2d_line_text(&line, "filter_probe ");
+    p2d_line_hex(&line, probe_index++);
+    p2d_line_text(&line, controller);
+    p2d_line_text(&line, " ");
+    p2d_line_text(&line, SECTIONS[sections]);
+    p2d_line_text(&line, " ");
+    p2d_line_text(&line, motor);
+    p2d_line_text(&line, " ");
+    p2d_line_text(&line, point);
+    probe_end(stack_bytes);
+}
+
+/* One speed probe with torque filters (Tustin, back calculation, lowpass feedforward). */
+static void probe_speed_filtered(uint32_t sections, bool salient, bool saturate)
+{
+    p2d_speed_config_t cfg = speed_config(P2D_TUSTIN, P2D_AW_BACK_CALCULATION, P2D_FF_LOWPASS, salient);
+    p2d_filter_config_t f = torque_filter(sections);
+    p2d_speed_t ctl;
+    p2d_speed_output_t out;
+    /* deep into the limit: the filters' step response dips below it at 100 rad/s */
+    float w_ref = saturate ? 1000.0f : 10.0f;
+    float w_m = saturate ? 0.0f : 9.9f;
+    uint32_t sp, stack_bytes;
+
+    if (p2d_speed_init(&ctl, &cfg) != P2D_OK || p2d_speed_set_filter(&ctl, &f) != P2D_OK) p2d_semihost_exit(false);
+    p2d_speed_reset(&ctl, w_ref, 0.0f);
+    for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
+        p2d_speed_step(&ctl, w_ref, w_m, &out);
+    }
+    sp = stack_pointer();
+    stack_paint(sp);
+    p2d_cost_mark();
+    p2d_speed_step(&ctl, w_ref, w_m, &out);
+    stack_bytes = stack_used(sp);
+    if (out.saturated != saturate || out.fault) p2d_semihost_exit(false);
+    filter_probe_line("speed", sections, salient ? "salient" : "surface", saturate ? "saturated" : "unsaturated",
+                      stack_bytes);
+}
+
+/* One p2d_filter_step of the same filters on a signal. */
+static void probe_filter(uint32_t sections)
+{
+    p2d_filter_config_t f = torque_filter(sections);
+    p2d_filter_t flt;
+    p2d_filter_output_t out;
+    uint32_t sp, stack_bytes;
+
+    if (p2d_filter_init(&flt, &f, 1e-3f) != P2D_OK) p2d_semihost_exit(false);
+    for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
+        p2d_filter_step(&flt, (float)k, &out);
+    }
+    sp = stack_pointer();
+    stack_paint(sp);
+    p2d_cost_mark();
+    p2d_filter_step(&flt, 1.5f, &out);
+    stack_bytes = stack_used(sp);
+    if (out.fault) p2d_semihost_exit(false);
+    filter_probe_line("filter", sections, "-", "step", stack_bytes);
+}
+
 /* One current probe, 10 kHz loop of a small drive, unsaturated or saturated voltage. */
 static void probe_current(p2d_anti_windup_t aw, bool decouple, bool saturate)
 {
@@ -195,6 +278,10 @@ int main(void)
     print_sizeof("p2d_current_coef_t", sizeof(p2d_current_coef_t));
     print_sizeof("p2d_current_config_t", sizeof(p2d_current_config_t));
     print_sizeof("p2d_current_output_t", sizeof(p2d_current_output_t));
+    print_sizeof("p2d_filter_t", sizeof(p2d_filter_t));
+    print_sizeof("p2d_filter_coef_t", sizeof(p2d_filter_coef_t));
+    print_sizeof("p2d_filter_config_t", sizeof(p2d_filter_config_t));
+    print_sizeof("p2d_filter_state_t", sizeof(p2d_filter_state_t));
 
     for (int aw = P2D_AW_NONE; aw <= P2D_AW_CLAMPING; ++aw) {
         for (int ff = P2D_FF_NONE; ff <= P2D_FF_FULL; ++ff) {
@@ -210,6 +297,18 @@ int main(void)
     /* salient PMSM: MTPA current split by Newton iterations */
     for (int sat = 0; sat <= 1; ++sat) {
         probe_speed(P2D_TUSTIN, P2D_AW_BACK_CALCULATION, P2D_FF_LOWPASS, true, sat != 0);
+    }
+    /* torque filters: each section alone and both, on the target configuration; both on a salient PMSM */
+    for (uint32_t sections = 1u; sections <= 3u; ++sections) {
+        for (int sat = 0; sat <= 1; ++sat) {
+            probe_speed_filtered(sections, false, sat != 0);
+        }
+    }
+    for (int sat = 0; sat <= 1; ++sat) {
+        probe_speed_filtered(3u, true, sat != 0);
+    }
+    for (uint32_t sections = 1u; sections <= 3u; ++sections) {
+        probe_filter(sections);
     }
     for (int aw = P2D_AW_NONE; aw <= P2D_AW_CLAMPING; ++aw) {
         for (int dec = 0; dec <= 1; ++dec) {
