@@ -97,8 +97,7 @@ static void fz_check_section(const p2d_biquad_coef_t *s, double f0_Hz, double k_
     FZ_REQUIRE(isfinite(g) && isfinite(k) && isfinite(gh) && isfinite(s->c_band), "%s: non-finite coefficient", name);
     FZ_REQUIRE(fabs(g - g_exact) <= 1e-6 * g_exact, "%s: g %.9g against tan(pi f0 Ts) = %.9g", name, g, g_exact);
     FZ_REQUIRE(a0 > 0.0 && a1 > 0.0 && a2 > 0.0, "%s: realized denominator %g %g %g not Hurwitz", name, a0, a1, a2);
-    FZ_REQUIRE(fabs(a2 - h) <= 2e-3 * h, "%s: realized q^2 coefficient %.9g against the designed h %.9g", name, a2,
-               h);
+    FZ_REQUIRE(fabs(a2 - h) <= 2e-3 * h, "%s: realized q^2 coefficient %.9g against the designed h %.9g", name, a2, h);
 }
 
 /* An accepted configuration is in the documented ranges and realizes its design. */
@@ -122,8 +121,8 @@ static void fz_check_accepted(const p2d_filter_t *f)
     if (c->has_lowpass) {
         FZ_REQUIRE(cfg->lowpass_freq_Hz > 0.0f && cfg->lowpass_freq_Hz < nyquist && cfg->lowpass_zeta > 0.0f &&
                        isfinite(cfg->lowpass_zeta),
-                   "accepted low-pass %g Hz, zeta %g at Ts %g", (double)cfg->lowpass_freq_Hz,
-                   (double)cfg->lowpass_zeta, (double)f->Ts_s);
+                   "accepted low-pass %g Hz, zeta %g at Ts %g", (double)cfg->lowpass_freq_Hz, (double)cfg->lowpass_zeta,
+                   (double)f->Ts_s);
         fz_check_section(&c->lowpass, cfg->lowpass_freq_Hz, 2.0 * (double)cfg->lowpass_zeta, f->Ts_s, "low-pass");
     }
 }
@@ -166,8 +165,7 @@ static float fz_step(p2d_filter_t *f, float x)
                    (double)out.y);
         FZ_REQUIRE(!isfinite(x) || fz_filter_may_overflow(&before.coef[before.active],
                                                           fmax(fabs((double)x), fz_state_magnitude(&before))),
-                   "fault on the finite input %g from states of magnitude %g", (double)x,
-                   fz_state_magnitude(&before));
+                   "fault on the finite input %g from states of magnitude %g", (double)x, fz_state_magnitude(&before));
         return 0.0f;
     }
     FZ_REQUIRE(isfinite(out.y) && f->fault_count == before.fault_count && f->x_prev == x, "step y %g", (double)out.y);

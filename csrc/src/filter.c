@@ -45,9 +45,10 @@ static bool below_nyquist(float f_Hz, float Ts_s, float *u)
 
 /*
  * The section's coefficients are finite, its frequency (g g h) and damping (g h k) normal
- * float32 numbers, and 1 + g (g + k) = 1/h at most 5001: the realized q^2 coefficient
- * 1 - g h (g + k) then differs from h by at most (1/h - 1) 3 * 2^-24 h < 1e-3 h (three
- * roundings: g + k or g^2, the sum 1/h, the quotient g h; filter.h). The status names the
+ * float32 numbers, and 1 + g (g + k) = 1/h at most 4001: the realized q^2 coefficient
+ * 1 - g h (g + k) then differs from h by at most (1/h - 1) 4 * 2^-24 h < 1e-3 h (four
+ * roundings: g^2 or g + k, the sum 1/h, the quotient g h, and the notch's k = B_v / g;
+ * filter.h). The status names the
  * field to blame: `freq` for a frequency too low (g^2 not normal, or the notch's
  * k = B_v / g overflowing) or too near the Nyquist frequency (g dominates k while h -> 0),
  * `damping` for a damping too small (g h k not normal) or too large.
@@ -56,7 +57,7 @@ static p2d_status_t section_check(const p2d_biquad_coef_t *s, float one_over_h, 
 {
     if (!isnormal(s->g * s->g) || !isfinite(s->k) || !isfinite(s->c_band)) return freq;
     if (!isnormal(s->g * s->g_h) || !isnormal(s->g_h * s->k)) return damping;
-    if (!(one_over_h <= 5001.0f)) return s->g >= s->k ? freq : damping;
+    if (!(one_over_h <= 4001.0f)) return s->g >= s->k ? freq : damping;
     return P2D_OK;
 }
 

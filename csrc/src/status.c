@@ -45,18 +45,18 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_ERR_W_E_SPIN] = {"w_e_spin_radps", "finite, > 0 and <= 0.1 / Ts_s (at least 63 samples per electrical turn)"},
     [P2D_ERR_VOLTAGE_DELAY] = {"voltage_delay_samples", "0 or 1"},
     [P2D_ERR_NOTCH_FREQ] = {"notch_freq_Hz", "0 (no notch), or finite and > 0, below the Nyquist frequency 1/(2*Ts_s): "
-                                             "notch_freq_Hz*Ts_s between about 1e-19 and 0.4955 (float32)"},
+                                             "notch_freq_Hz*Ts_s between about 1e-19 and 0.495 (float32)"},
     [P2D_ERR_NOTCH_WIDTH] = {"notch_width_Hz", "finite, > 0 and below 1/(2*Ts_s) (the -3 dB bandwidth of the notch), "
                                                "with notch_width_Hz*Ts_s above about 1e-37, and B = (1 + g^2) "
                                                "tan(pi*notch_width_Hz*Ts_s)/sqrt(1 - 2*notch_depth^2) at most "
-                                               "5000 - g^2, g = tan(pi*notch_freq_Hz*Ts_s) (float32)"},
+                                               "4000 - g^2, g = tan(pi*notch_freq_Hz*Ts_s) (float32)"},
     [P2D_ERR_NOTCH_DEPTH] = {"notch_depth", "finite, >= 0 and < 1/sqrt(2) = 0.7071 (the gain at notch_freq_Hz; the "
                                             "width is measured at -3 dB)"},
     [P2D_ERR_LOWPASS_FREQ] = {"lowpass_freq_Hz", "0 (no low-pass), or finite and > 0, below the Nyquist frequency "
-                                                 "1/(2*Ts_s): lowpass_freq_Hz*Ts_s between about 1e-19 and 0.4955 "
+                                                 "1/(2*Ts_s): lowpass_freq_Hz*Ts_s between about 1e-19 and 0.495 "
                                                  "(float32)"},
     [P2D_ERR_LOWPASS_ZETA] = {"lowpass_zeta", "finite and > 0 (1/sqrt(2): -3 dB at lowpass_freq_Hz, no peak), with "
-                                              "g (g + 2*lowpass_zeta) at most 5000 and lowpass_zeta*g above about "
+                                              "g (g + 2*lowpass_zeta) at most 4000 and lowpass_zeta*g above about "
                                               "1e-37, g = tan(pi*lowpass_freq_Hz*Ts_s) (float32)"},
 };
 

@@ -58,10 +58,10 @@
  *
  * Validation: a configuration is accepted only if every coefficient is finite
  * and each realized section holds its design in float32: g g h and g h k are
- * normal numbers, and 1 + g (g + k) = 1/h <= 5001, so that the q^2
+ * normal numbers, and 1 + g (g + k) = 1/h <= 4001, so that the q^2
  * coefficient 1 - g h (g + k), which loses precision as h -> 0, is within
  * 1e-3 of h (and positive: the section is stable). That bounds f0 Ts to about
- * 0.4955 (g <= 70) and the damping to zeta g, B_v <= 2500, 5000.
+ * 0.495 (g <= 63) and the damping to zeta g <= 2000, B_v <= 4000.
  *
  * Non-finite policy: a non-finite input or output gives y = 0 with `fault`
  * set, no state update, fault_count incremented. Parameter updates: the shadow
