@@ -27,8 +27,10 @@ QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-confi
 
 _MISSING = [t for t in ("cmake", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
 pytestmark = pytest.mark.skipif(
-    bool(_MISSING), reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-    "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)")
+    bool(_MISSING),
+    reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
+    "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
+)
 
 SAMPLES = 120
 FILTER_FIELDS = ("notch_freq_Hz", "notch_width_Hz", "notch_depth", "lowpass_freq_Hz", "lowpass_zeta")
@@ -45,11 +47,16 @@ def filter_case(rng, Ts):
     cfg = dict.fromkeys(FILTER_FIELDS, 0.0)
     if sections & 1:
         f0 = nyquist * 10 ** rng.uniform(-4, np.log10(0.98))
-        cfg.update(notch_freq_Hz=f32(f0), notch_width_Hz=f32(min(f0 * 10 ** rng.uniform(-2, 0.5), 0.9 * nyquist)),
-                   notch_depth=f32(rng.uniform(0, 0.7)))
+        cfg.update(
+            notch_freq_Hz=f32(f0),
+            notch_width_Hz=f32(min(f0 * 10 ** rng.uniform(-2, 0.5), 0.9 * nyquist)),
+            notch_depth=f32(rng.uniform(0, 0.7)),
+        )
     if sections & 2:
-        cfg.update(lowpass_freq_Hz=f32(nyquist * 10 ** rng.uniform(-4, np.log10(0.98))),
-                   lowpass_zeta=f32(10 ** rng.uniform(-2, 1)))
+        cfg.update(
+            lowpass_freq_Hz=f32(nyquist * 10 ** rng.uniform(-4, np.log10(0.98))),
+            lowpass_zeta=f32(10 ** rng.uniform(-2, 1)),
+        )
     return cfg
 
 
@@ -64,17 +71,33 @@ def filter_inputs(rng):
 def speed_case(rng, method, aw, salient):
     J, alpha = rng.uniform(0.01, 1.0), rng.uniform(5.0, 100.0)
     Lq = rng.uniform(1e-3, 2e-2)
-    cfg = dict(J_kgm2=f32(J), alpha_radps=f32(alpha), zeta=f32(rng.uniform(0.5, 1.0)), m=1.0, tau_i_s=0.0,
-               Ka=f32(rng.uniform(0.3, 1.0) / (J * alpha)), Ts_s=f32(1e-3), i_max_A=f32(rng.uniform(2.0, 20.0)),
-               psi_f_Wb=f32(rng.uniform(0.05, 0.5)), Ld_H=f32(Lq * 0.6 if salient else Lq), Lq_H=f32(Lq),
-               pole_pairs=int(rng.integers(1, 8)), method=method, feedforward=1, anti_windup=aw)
+    cfg = dict(
+        J_kgm2=f32(J),
+        alpha_radps=f32(alpha),
+        zeta=f32(rng.uniform(0.5, 1.0)),
+        m=1.0,
+        tau_i_s=0.0,
+        Ka=f32(rng.uniform(0.3, 1.0) / (J * alpha)),
+        Ts_s=f32(1e-3),
+        i_max_A=f32(rng.uniform(2.0, 20.0)),
+        psi_f_Wb=f32(rng.uniform(0.05, 0.5)),
+        Ld_H=f32(Lq * 0.6 if salient else Lq),
+        Lq_H=f32(Lq),
+        pole_pairs=int(rng.integers(1, 8)),
+        method=method,
+        feedforward=1,
+        anti_windup=aw,
+    )
     # filters of a drive-train resonance, well above the speed loop (a low-pass near the loop's bandwidth
     # makes the anti-windup loop through it unstable, which set_filter refuses)
     sections = rng.integers(1, 4)
     filt = dict.fromkeys(FILTER_FIELDS, 0.0)
     if sections & 1:
-        filt.update(notch_freq_Hz=f32(rng.uniform(30, 300)), notch_width_Hz=f32(rng.uniform(5, 50)),
-                    notch_depth=f32(rng.uniform(0, 0.5)))
+        filt.update(
+            notch_freq_Hz=f32(rng.uniform(30, 300)),
+            notch_width_Hz=f32(rng.uniform(5, 50)),
+            notch_depth=f32(rng.uniform(0, 0.5)),
+        )
     if sections & 2:
         filt.update(lowpass_freq_Hz=f32(rng.uniform(100, 450)), lowpass_zeta=f32(rng.uniform(0.3, 1.0)))
     return cfg, filt
@@ -101,8 +124,12 @@ def vectors():
     filters = [(filter_case(rng, Ts), Ts) for Ts in rng.choice([1e-4, 5e-4, 1e-3, 1e-2], 40)]
     speed = [speed_case(rng, m, aw, False) for m in range(3) for aw in range(3)]
     speed += [speed_case(rng, 2, aw, True) for aw in range(3)]
-    return dict(filters=filters, filter_in=[filter_inputs(rng) for _ in filters], speed=speed,
-                speed_in=[speed_inputs(rng, cfg) for cfg, _ in speed])
+    return dict(
+        filters=filters,
+        filter_in=[filter_inputs(rng) for _ in filters],
+        speed=speed,
+        speed_in=[speed_inputs(rng, cfg) for cfg, _ in speed],
+    )
 
 
 def words(x):
@@ -110,31 +137,50 @@ def words(x):
 
 
 def c_struct(cfg, enums=()):
-    return "{" + ", ".join(f".{k} = ({enums[k]}){v}" if k in enums else
-                           f".{k} = {v}u" if isinstance(v, int) else f".{k} = {float(v).hex()}f"
-                           for k, v in cfg.items()) + "}"
+    return (
+        "{"
+        + ", ".join(
+            f".{k} = ({enums[k]}){v}"
+            if k in enums
+            else f".{k} = {v}u"
+            if isinstance(v, int)
+            else f".{k} = {float(v).hex()}f"
+            for k, v in cfg.items()
+        )
+        + "}"
+    )
 
 
 def vectors_header(v):
     enums = dict(method="p2d_method_t", feedforward="p2d_feedforward_t", anti_windup="p2d_anti_windup_t")
     speed_in = ",\n".join("{" + ", ".join(words(row) for row in x) + "}" for x in v["speed_in"])
-    return "\n".join([
-        "/* written by tests/test_target_qemu_filter.py */",
-        f"#define P2D_FVEC_SAMPLES {SAMPLES}u",
-        f"#define P2D_FVEC_FILTER_CASES {len(v['filters'])}u",
-        f"#define P2D_FVEC_SPEED_CASES {len(v['speed'])}u",
-        "static const p2d_filter_config_t p2d_fvec_filter_config[P2D_FVEC_FILTER_CASES] = {",
-        ",\n".join(c_struct(cfg) for cfg, _ in v["filters"]), "};",
-        "static const float p2d_fvec_filter_Ts[P2D_FVEC_FILTER_CASES] = {",
-        ", ".join(f"{f32(Ts).hex()}f" for _, Ts in v["filters"]), "};",
-        "static const uint32_t p2d_fvec_filter_input[P2D_FVEC_FILTER_CASES][P2D_FVEC_SAMPLES] = {",
-        ",\n".join(words(x) for x in v["filter_in"]), "};",
-        "static const p2d_speed_config_t p2d_fvec_speed_config[P2D_FVEC_SPEED_CASES] = {",
-        ",\n".join(c_struct(cfg, enums) for cfg, _ in v["speed"]), "};",
-        "static const p2d_filter_config_t p2d_fvec_speed_filter[P2D_FVEC_SPEED_CASES] = {",
-        ",\n".join(c_struct(f) for _, f in v["speed"]), "};",
-        "static const uint32_t p2d_fvec_speed_input[P2D_FVEC_SPEED_CASES][P2D_FVEC_SAMPLES][3] = {",
-        speed_in, "};", ""])
+    return "\n".join(
+        [
+            "/* written by tests/test_target_qemu_filter.py */",
+            f"#define P2D_FVEC_SAMPLES {SAMPLES}u",
+            f"#define P2D_FVEC_FILTER_CASES {len(v['filters'])}u",
+            f"#define P2D_FVEC_SPEED_CASES {len(v['speed'])}u",
+            "static const p2d_filter_config_t p2d_fvec_filter_config[P2D_FVEC_FILTER_CASES] = {",
+            ",\n".join(c_struct(cfg) for cfg, _ in v["filters"]),
+            "};",
+            "static const float p2d_fvec_filter_Ts[P2D_FVEC_FILTER_CASES] = {",
+            ", ".join(f"{f32(Ts).hex()}f" for _, Ts in v["filters"]),
+            "};",
+            "static const uint32_t p2d_fvec_filter_input[P2D_FVEC_FILTER_CASES][P2D_FVEC_SAMPLES] = {",
+            ",\n".join(words(x) for x in v["filter_in"]),
+            "};",
+            "static const p2d_speed_config_t p2d_fvec_speed_config[P2D_FVEC_SPEED_CASES] = {",
+            ",\n".join(c_struct(cfg, enums) for cfg, _ in v["speed"]),
+            "};",
+            "static const p2d_filter_config_t p2d_fvec_speed_filter[P2D_FVEC_SPEED_CASES] = {",
+            ",\n".join(c_struct(f) for _, f in v["speed"]),
+            "};",
+            "static const uint32_t p2d_fvec_speed_input[P2D_FVEC_SPEED_CASES][P2D_FVEC_SAMPLES][3] = {",
+            speed_in,
+            "};",
+            "",
+        ]
+    )
 
 
 def word(x):
@@ -184,8 +230,18 @@ def host_speed(cfg, filt, x):
         for w_ref, w_m, lim in x.tolist():
             lib.p2d_speed_compute(ctl, w_ref, w_m, out)
             lib.p2d_speed_update(ctl, out, limit(out.T_ref_Nm, lim))
-            rows.append([word(out.T_unsat_Nm), word(out.T_ref_Nm), word(out.iq_ref_A), int(out.saturated),
-                         int(out.fault), word(ctl.x_Nm), *state_words(ctl.filter), ctl.fault_count])
+            rows.append(
+                [
+                    word(out.T_unsat_Nm),
+                    word(out.T_ref_Nm),
+                    word(out.iq_ref_A),
+                    int(out.saturated),
+                    int(out.fault),
+                    word(ctl.x_Nm),
+                    *state_words(ctl.filter),
+                    ctl.fault_count,
+                ]
+            )
     return status, rows
 
 
@@ -198,13 +254,27 @@ def target_output(tmp_path_factory, vectors):
     tmp = tmp_path_factory.mktemp("cortex-m4f-filters")
     (tmp / "p2d_target_filter_vectors.h").write_text(vectors_header(vectors))
     build = tmp / "build"
-    for cmd in (["cmake", "-S", CSRC, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
-                 f"-DP2D_TARGET_FILTER_VECTORS_DIR={tmp}"],
-                ["cmake", "--build", build, "-j2", "--target", "p2d_target_filter_vectors"]):
+    for cmd in (
+        [
+            "cmake",
+            "-S",
+            CSRC,
+            "-B",
+            build,
+            f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}",
+            f"-DP2D_TARGET_FILTER_VECTORS_DIR={tmp}",
+        ],
+        ["cmake", "--build", build, "-j2", "--target", "p2d_target_filter_vectors"],
+    ):
         done = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=600)
         assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
-    done = subprocess.run([*QEMU, "-kernel", str(build / "target" / "p2d_target_filter_vectors")],
-                          capture_output=True, text=True, timeout=120, stdin=subprocess.DEVNULL)
+    done = subprocess.run(
+        [*QEMU, "-kernel", str(build / "target" / "p2d_target_filter_vectors")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        stdin=subprocess.DEVNULL,
+    )
     assert done.returncode == 0 and done.stderr.splitlines()[-1] == "END", done.stderr[-3000:]
     out = {}
     for line in done.stderr.splitlines():  # semihosting output arrives on stderr

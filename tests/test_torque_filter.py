@@ -45,6 +45,7 @@ def c_filter(Ts_s, **fields):
 # designs, independent of the C code
 # --------------------------------------------------------------------------------------------
 
+
 def bilinear_prewarped(b_analog, a_analog, f0_Hz, Ts_s):
     """SciPy's bilinear transform with prewarping at f0 (the continuous and discrete responses agree at f0)."""
     w0 = 2 * PI * f0_Hz
@@ -61,8 +62,10 @@ def minus_3dB_band(ba, f0_Hz, Ts_s):
     """(f1, f2): the frequencies on either side of f0 where |H| = 1/sqrt(2)."""
     level = lambda f: gain(ba, f, Ts_s)[0] - np.sqrt(0.5)  # noqa: E731
     nyquist = 0.5 / Ts_s
-    return (optimize.brentq(level, 1e-12 * nyquist, f0_Hz, xtol=1e-14 * nyquist),
-            optimize.brentq(level, f0_Hz, nyquist * (1 - 1e-12), xtol=1e-14 * nyquist))
+    return (
+        optimize.brentq(level, 1e-12 * nyquist, f0_Hz, xtol=1e-14 * nyquist),
+        optimize.brentq(level, f0_Hz, nyquist * (1 - 1e-12), xtol=1e-14 * nyquist),
+    )
 
 
 def designed_notch(f0_Hz, width_Hz, depth, Ts_s):
@@ -70,7 +73,7 @@ def designed_notch(f0_Hz, width_Hz, depth, Ts_s):
     w0 = 2 * PI * f0_Hz
 
     def ba(B):
-        return bilinear_prewarped([1.0, depth * B, w0 ** 2], [1.0, B, w0 ** 2], f0_Hz, Ts_s)
+        return bilinear_prewarped([1.0, depth * B, w0**2], [1.0, B, w0**2], f0_Hz, Ts_s)
 
     def width_error(B):
         f1, f2 = minus_3dB_band(ba(B), f0_Hz, Ts_s)
@@ -82,7 +85,7 @@ def designed_notch(f0_Hz, width_Hz, depth, Ts_s):
 
 def designed_lowpass(f0_Hz, zeta, Ts_s):
     w0 = 2 * PI * f0_Hz
-    return bilinear_prewarped([w0 ** 2], [1.0, 2 * zeta * w0, w0 ** 2], f0_Hz, Ts_s)
+    return bilinear_prewarped([w0**2], [1.0, 2 * zeta * w0, w0**2], f0_Hz, Ts_s)
 
 
 def settling_samples(ba, time_constants=30):
@@ -109,10 +112,10 @@ def measured_gain(f, f_Hz, Ts_s, n_settle, periods=40):
 
 
 NOTCHES = [  # f0 [Hz], width [Hz], depth, Ts [s]
-    (50.0, 20.0, 0.1, 1e-3),     # a coupling resonance at a 1 kHz speed loop
-    (300.0, 40.0, 0.0, 1e-3),    # near the Nyquist frequency, full depth
-    (12.0, 2.0, 0.3, 1e-4),      # a slow belt resonance at 10 kHz: poles near z = 1
-    (2.0, 0.2, 0.05, 1e-4),      # f0 Ts = 2e-4
+    (50.0, 20.0, 0.1, 1e-3),  # a coupling resonance at a 1 kHz speed loop
+    (300.0, 40.0, 0.0, 1e-3),  # near the Nyquist frequency, full depth
+    (12.0, 2.0, 0.3, 1e-4),  # a slow belt resonance at 10 kHz: poles near z = 1
+    (2.0, 0.2, 0.05, 1e-4),  # f0 Ts = 2e-4
 ]
 
 
@@ -176,11 +179,26 @@ def test_step_settles_where_a_float32_direct_form_does_not(f0_Ts):
 # the speed controller's torque filters
 # --------------------------------------------------------------------------------------------
 
+
 def speed_config(**changes):
     J, alpha, zeta = 0.4, 20.0, 0.7
-    cfg = dict(J_kgm2=J, alpha_radps=alpha, zeta=zeta, m=1.0, tau_i_s=0.0, Ka=1 / (J * alpha), Ts_s=1e-3,
-               i_max_A=7.6, psi_f_Wb=0.35, Ld_H=12e-3, Lq_H=12e-3, pole_pairs=4, method=lib.P2D_TUSTIN,
-               feedforward=lib.P2D_FF_LOWPASS, anti_windup=lib.P2D_AW_BACK_CALCULATION)
+    cfg = dict(
+        J_kgm2=J,
+        alpha_radps=alpha,
+        zeta=zeta,
+        m=1.0,
+        tau_i_s=0.0,
+        Ka=1 / (J * alpha),
+        Ts_s=1e-3,
+        i_max_A=7.6,
+        psi_f_Wb=0.35,
+        Ld_H=12e-3,
+        Lq_H=12e-3,
+        pole_pairs=4,
+        method=lib.P2D_TUSTIN,
+        feedforward=lib.P2D_FF_LOWPASS,
+        anti_windup=lib.P2D_AW_BACK_CALCULATION,
+    )
     cfg.update(changes)
     return cfg
 
@@ -195,15 +213,16 @@ def speed_controller(filter_fields=None, **changes):
 
 
 def test_speed_command_is_the_plain_command_through_the_designed_filters():
-    fields = dict(notch_freq_Hz=40.0, notch_width_Hz=15.0, notch_depth=0.05, lowpass_freq_Hz=200.0,
-                  lowpass_zeta=0.70710678)
+    fields = dict(
+        notch_freq_Hz=40.0, notch_width_Hz=15.0, notch_depth=0.05, lowpass_freq_Hz=200.0, lowpass_zeta=0.70710678
+    )
     plain, _ = speed_controller()
     ctl, status = speed_controller(fields)
     assert status == lib.P2D_OK
     rng = np.random.default_rng(7)
     n = 2000
     w_ref = np.repeat(rng.uniform(-3, 3, 8), n // 8).astype(np.float32)
-    w_m = (0.9 * w_ref + 0.2 * np.sin(2 * PI * 40.0 * 1e-3 * np.arange(n)) + 0.02 * rng.standard_normal(n))
+    w_m = 0.9 * w_ref + 0.2 * np.sin(2 * PI * 40.0 * 1e-3 * np.arange(n)) + 0.02 * rng.standard_normal(n)
     u, u_f = np.empty(n), np.empty(n)
     out = ffi.new("p2d_speed_output_t *")
     for k, (r, w) in enumerate(zip(w_ref.tolist(), w_m.astype(np.float32).tolist())):
@@ -256,10 +275,15 @@ def test_anti_windup_loop_stability_agrees_with_the_eigenvalues():
     for _ in range(300):
         fields = {}
         if rng.uniform() < 0.7:
-            fields.update(notch_freq_Hz=f32(10 ** rng.uniform(0, 2.6)), notch_width_Hz=f32(10 ** rng.uniform(-0.5, 2)),
-                          notch_depth=f32(rng.uniform(0, 0.7)))
+            fields.update(
+                notch_freq_Hz=f32(10 ** rng.uniform(0, 2.6)),
+                notch_width_Hz=f32(10 ** rng.uniform(-0.5, 2)),
+                notch_depth=f32(rng.uniform(0, 0.7)),
+            )
         if not fields or rng.uniform() < 0.6:
-            fields.update(lowpass_freq_Hz=f32(10 ** rng.uniform(0, 2.6)), lowpass_zeta=f32(10 ** rng.uniform(-1.5, 0.5)))
+            fields.update(
+                lowpass_freq_Hz=f32(10 ** rng.uniform(0, 2.6)), lowpass_zeta=f32(10 ** rng.uniform(-1.5, 0.5))
+            )
         fields = {k: v for k, v in fields.items() if not (k.endswith("_Hz") and v >= 0.49 / Ts)}
         if not any(k.endswith("freq_Hz") for k in fields):
             continue
