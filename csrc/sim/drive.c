@@ -3,6 +3,7 @@
  * the initial state, the log and the stops.
  */
 #include "drive.h"
+#include "mechanics.h"
 
 #include <math.h>
 
@@ -62,9 +63,15 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
                                       "reading"},
     [P2D_SIM_ERR_SPEED_CONTROLLER] = {"speed", "accepted by p2d_speed_init (see controller_status)"},
     [P2D_SIM_ERR_CURRENT_CONTROLLER] = {"current", "accepted by p2d_current_init (see controller_status)"},
+    [P2D_SIM_ERR_MECHANICS_MODEL] = {"mechanics.model", "rigid (0) or two_mass (1)"},
+    [P2D_SIM_ERR_J_LOAD] = {"mechanics.J_load_kgm2", "finite and > 0 (two_mass)"},
+    [P2D_SIM_ERR_STIFFNESS] = {"mechanics.stiffness_Nm_per_rad", "finite and > 0 (two_mass)"},
+    [P2D_SIM_ERR_DAMPING] = {"mechanics.damping_Nms_per_rad", "finite and >= 0 (two_mass)"},
+    [P2D_SIM_ERR_BACKLASH] = {"mechanics.backlash_rad", "finite and >= 0 (two_mass)"},
+    [P2D_SIM_ERR_FEEDBACK] = {"mechanics.feedback", "motor (0) or load (1)"},
     [P2D_SIM_ERR_LOG_FULL] = {"log_rows", "room for every logged sample"},
     [P2D_SIM_STOP_NONFINITE] = {"", "the plant state became non-finite (NaN or infinite)"},
-    [P2D_SIM_STOP_OVERSPEED] = {"", "the speed exceeds twice the no-load speed of the DC link, "
+    [P2D_SIM_STOP_OVERSPEED] = {"", "the motor or load speed exceeds twice the no-load speed of the DC link, "
                                     "2 u_dc / (sqrt(3) p psi_f)"},
     [P2D_SIM_STOP_OVERCURRENT] = {"", "the current exceeds ten times the larger of the current limit and "
                                       "the short-circuit current psi_f / min(Ld, Lq)"},
@@ -90,6 +97,8 @@ static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
     [P2D_LOG_W_MEAS_RADPS] = "w_meas_radps",
     [P2D_LOG_U_DC_V] = "u_dc_V",
     [P2D_LOG_VOLTAGE_LIMITED] = "voltage_limited",
+    [P2D_LOG_W_LOAD_RADPS] = "w_load_radps",
+    [P2D_LOG_SHAFT_TORQUE_NM] = "shaft_torque_Nm",
 };
 
 const char *p2d_sim_status_param(p2d_sim_status_t status)
@@ -182,7 +191,7 @@ static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
     if (!schedule_valid(&cfg->reference)) return P2D_SIM_ERR_REFERENCE;
     if (!schedule_valid(&cfg->load)) return P2D_SIM_ERR_LOAD;
     if (!faults_valid(cfg)) return P2D_SIM_ERR_FAULTS;
-    return P2D_SIM_OK;
+    return p2d_mechanics_check(&cfg->mechanics);
 }
 
 /* ---- schedules ---------------------------------------------------------- */
@@ -258,7 +267,19 @@ static bool fault_active(const p2d_sim_t *sim, const p2d_fault_t *f, double leng
     return t_s >= f->t_s - sim->t_tol_s && t_s < f->t_s + length_s - sim->t_tol_s;
 }
 
-/* The speed the speed controller reads at t_k: the first active sensor fault's, else w_m. */
+/* The load-side speed: w_L (two_mass), else w_m. */
+static double load_speed_radps(const p2d_sim_t *sim)
+{
+    return sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS ? sim->mechanics.w_load_radps : sim->pmsm.w_m_radps;
+}
+
+/* The speed the sensor measures: w_L with feedback from the load, else w_m. */
+static double sensed_speed_radps(const p2d_sim_t *sim)
+{
+    return sim->cfg.mechanics.feedback == P2D_FEEDBACK_LOAD ? load_speed_radps(sim) : sim->pmsm.w_m_radps;
+}
+
+/* The speed the speed controller reads at t_k: the first active sensor fault's, else the sensed speed. */
 static double speed_reading(const p2d_sim_t *sim, double t_k_s)
 {
     const double Ts_speed_s = (double)sim->cfg.current_per_speed * sim->cfg.Ts_current_s;
@@ -269,7 +290,7 @@ static double speed_reading(const p2d_sim_t *sim, double t_k_s)
         /* a spike is the one speed sample in [t_s, t_s + Ts_speed) */
         if (f->kind == P2D_FAULT_SENSOR_SPIKE && fault_active(sim, f, Ts_speed_s, t_k_s)) return f->value;
     }
-    return sim->pmsm.w_m_radps;
+    return sensed_speed_radps(sim);
 }
 
 /* The DC link over the current period starting at t: value u_dc under the first active sag, else u_dc. */
@@ -300,11 +321,16 @@ static double torque_Nm(const p2d_pmsm_t *m, double id_A, double iq_A)
     return iq_A * (m->kt_Nm_per_A + m->c_T_Nm_per_A2 * id_A);
 }
 
-/* A plant state x = (id, iq, w_m), or its time derivative (each field then per second). */
+/*
+ * A plant state x = (id, iq, w_m, theta, w_L), or its time derivative (each field then per
+ * second); theta and w_L are used by the two-mass train only (two_mass, a constant at each call).
+ */
 typedef struct {
-    double id_A;      /* d-axis current [A] */
-    double iq_A;      /* q-axis current [A] */
-    double w_m_radps; /* mechanical speed [rad/s] */
+    double id_A;         /* d-axis current [A] */
+    double iq_A;         /* q-axis current [A] */
+    double w_m_radps;    /* mechanical speed of the motor [rad/s] */
+    double theta_rad;    /* two_mass: shaft twist theta_M - theta_L [rad] */
+    double w_load_radps; /* two_mass: load-side speed [rad/s] */
 } p2d_plant_x_t;
 
 /*
@@ -312,7 +338,7 @@ typedef struct {
  * DQ_PI, (id_ref, iq_ref) [A] for FIRST_ORDER.
  */
 static P2D_SIM_INLINE p2d_plant_x_t plant_rate(const p2d_sim_t *sim, p2d_current_model_t model, bool coulomb,
-                                               p2d_plant_x_t x, double a, double b, double T_load_Nm)
+                                               bool two_mass, p2d_plant_x_t x, double a, double b, double T_load_Nm)
 {
     const p2d_pmsm_t *m = &sim->pmsm;
     p2d_plant_x_t dx;
@@ -327,44 +353,75 @@ static P2D_SIM_INLINE p2d_plant_x_t plant_rate(const p2d_sim_t *sim, p2d_current
         dx.id_A = (a - x.id_A) * sim->inv_tau_i_per_s;
         dx.iq_A = (b - x.iq_A) * sim->inv_tau_i_per_s;
     }
-    /* J dw_m/dt = Te - T_load - B w_m - T_c tanh(w_m / w_c) */
-    dx.w_m_radps =
-        (torque_Nm(m, x.id_A, x.iq_A) - T_load_Nm - friction_Nm(m, coulomb, x.w_m_radps)) * m->inv_J_per_kgm2;
+    if (two_mass) {
+        double T_s = p2d_shaft_torque_Nm(&sim->mechanics, x.theta_rad, x.w_m_radps - x.w_load_radps);
+        /* J_M dw_m/dt = Te - T_s - B w_m - T_c tanh(w_m / w_c) */
+        dx.w_m_radps = (torque_Nm(m, x.id_A, x.iq_A) - T_s - friction_Nm(m, coulomb, x.w_m_radps)) * m->inv_J_per_kgm2;
+        /* dtheta/dt = w_m - w_L */
+        dx.theta_rad = x.w_m_radps - x.w_load_radps;
+        /* J_L dw_L/dt = T_s - T_load */
+        dx.w_load_radps = (T_s - T_load_Nm) * sim->mechanics.inv_J_load_per_kgm2;
+    } else {
+        /* J dw_m/dt = Te - T_load - B w_m - T_c tanh(w_m / w_c) */
+        dx.w_m_radps =
+            (torque_Nm(m, x.id_A, x.iq_A) - T_load_Nm - friction_Nm(m, coulomb, x.w_m_radps)) * m->inv_J_per_kgm2;
+        dx.theta_rad = 0.0;
+        dx.w_load_radps = 0.0;
+    }
     return dx;
 }
 
-/* x + c dx */
-static P2D_SIM_INLINE p2d_plant_x_t plant_x_step(p2d_plant_x_t x, double c, p2d_plant_x_t dx)
+/* x + c dx (theta and w_L with two_mass, else left as x's) */
+static P2D_SIM_INLINE p2d_plant_x_t plant_x_step(bool two_mass, p2d_plant_x_t x, double c, p2d_plant_x_t dx)
 {
-    p2d_plant_x_t y;
+    p2d_plant_x_t y = x;
     y.id_A = x.id_A + c * dx.id_A;
     y.iq_A = x.iq_A + c * dx.iq_A;
     y.w_m_radps = x.w_m_radps + c * dx.w_m_radps;
+    if (two_mass) {
+        y.theta_rad = x.theta_rad + c * dx.theta_rad;
+        y.w_load_radps = x.w_load_radps + c * dx.w_load_radps;
+    }
     return y;
 }
 
 /* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
-static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, double h, double a,
-                                    double b, double T0_Nm, double dT_dt_Nmps)
+static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool two_mass, double h,
+                                    double a, double b, double T0_Nm, double dT_dt_Nmps)
 {
     p2d_pmsm_t *m = &sim->pmsm;
-    p2d_plant_x_t x = {m->id_A, m->iq_A, m->w_m_radps};
+    p2d_mechanics_t *mech = &sim->mechanics;
+    p2d_plant_x_t x = {m->id_A, m->iq_A, m->w_m_radps, 0.0, 0.0};
     double h_half = 0.5 * h;
-    p2d_plant_x_t k1 = plant_rate(sim, model, coulomb, x, a, b, T0_Nm);
-    p2d_plant_x_t k2 = plant_rate(sim, model, coulomb, plant_x_step(x, h_half, k1), a, b, T0_Nm + h_half * dT_dt_Nmps);
-    p2d_plant_x_t k3 = plant_rate(sim, model, coulomb, plant_x_step(x, h_half, k2), a, b, T0_Nm + h_half * dT_dt_Nmps);
-    p2d_plant_x_t k4 = plant_rate(sim, model, coulomb, plant_x_step(x, h, k3), a, b, T0_Nm + h * dT_dt_Nmps);
+    p2d_plant_x_t k1, k2, k3, k4;
+    if (two_mass) {
+        x.theta_rad = mech->theta_rad;
+        x.w_load_radps = mech->w_load_radps;
+    }
+    k1 = plant_rate(sim, model, coulomb, two_mass, x, a, b, T0_Nm);
+    k2 = plant_rate(sim, model, coulomb, two_mass, plant_x_step(two_mass, x, h_half, k1), a, b,
+                    T0_Nm + h_half * dT_dt_Nmps);
+    k3 = plant_rate(sim, model, coulomb, two_mass, plant_x_step(two_mass, x, h_half, k2), a, b,
+                    T0_Nm + h_half * dT_dt_Nmps);
+    k4 = plant_rate(sim, model, coulomb, two_mass, plant_x_step(two_mass, x, h, k3), a, b, T0_Nm + h * dT_dt_Nmps);
     /* x(t + h) = x(t) + h (k1 + 2 k2 + 2 k3 + k4) / 6 */
     m->id_A = x.id_A + h / 6.0 * (k1.id_A + 2.0 * k2.id_A + 2.0 * k3.id_A + k4.id_A);
     m->iq_A = x.iq_A + h / 6.0 * (k1.iq_A + 2.0 * k2.iq_A + 2.0 * k3.iq_A + k4.iq_A);
     m->w_m_radps = x.w_m_radps + h / 6.0 * (k1.w_m_radps + 2.0 * k2.w_m_radps + 2.0 * k3.w_m_radps + k4.w_m_radps);
+    if (two_mass) {
+        mech->theta_rad =
+            x.theta_rad + h / 6.0 * (k1.theta_rad + 2.0 * k2.theta_rad + 2.0 * k3.theta_rad + k4.theta_rad);
+        mech->w_load_radps =
+            x.w_load_radps +
+            h / 6.0 * (k1.w_load_radps + 2.0 * k2.w_load_radps + 2.0 * k3.w_load_radps + k4.w_load_radps);
+    }
 }
 
 /*
  * Integrate the plant over the current period starting at t_start with the inputs held, under
  * the current-loop model `model`, with Coulomb friction if `coulomb` (constants at each call).
  */
-static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb,
+static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool two_mass,
                                                double t_start_s, double a, double b)
 {
     for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
@@ -376,7 +433,7 @@ static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model
             /* split the step at a load breakpoint inside it */
             t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
             h = t_stop - t;
-            rk4_step(sim, model, coulomb, h, a, b, segment_value(&sim->load, t),
+            rk4_step(sim, model, coulomb, two_mass, h, a, b, segment_value(&sim->load, t),
                      segment_slope(&sim->load, t + 0.5 * h));
             t = t_stop;
         }
@@ -387,22 +444,29 @@ static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model
  * Integrate the plant over the current period starting at t_start with the inputs held. One
  * specialised copy of the loop per current-loop model, with and without Coulomb friction (whose
  * tanh call would otherwise make every RK4 stage save its registers); out of line, so that the
- * loop of p2d_sim_run keeps its registers too.
+ * loop of p2d_sim_run keeps its registers too. The two-mass train has one copy per current-loop
+ * model, with the friction decided at run time.
  */
 static P2D_SIM_NOINLINE void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
 {
     bool coulomb = sim->pmsm.T_coulomb_Nm > 0.0;
-    if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
-        if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, t_start_s, a, b);
+    if (sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS) {
+        if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, coulomb, true, t_start_s, a, b);
         } else {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, coulomb, true, t_start_s, a, b);
+        }
+    } else if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
+        if (coulomb) {
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, false, t_start_s, a, b);
+        } else {
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, false, t_start_s, a, b);
         }
     } else {
         if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, false, t_start_s, a, b);
         } else {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, false, t_start_s, a, b);
         }
     }
 }
@@ -495,6 +559,15 @@ static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
     if (fabs(m->w_m_radps) > sim->w_bound_radps) {
         return stop(sim, P2D_SIM_STOP_OVERSPEED, t_s, fabs(m->w_m_radps), sim->w_bound_radps);
     }
+    if (sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS) {
+        const p2d_mechanics_t *mech = &sim->mechanics;
+        if (!isfinite(mech->theta_rad) || !isfinite(mech->w_load_radps)) {
+            return stop(sim, P2D_SIM_STOP_NONFINITE, t_s, 0.0, 0.0);
+        }
+        if (fabs(mech->w_load_radps) > sim->w_bound_radps) {
+            return stop(sim, P2D_SIM_STOP_OVERSPEED, t_s, fabs(mech->w_load_radps), sim->w_bound_radps);
+        }
+    }
     i2 = m->id_A * m->id_A + m->iq_A * m->iq_A;
     if (i2 > sim->i_bound_A * sim->i_bound_A) {
         return stop(sim, P2D_SIM_STOP_OVERCURRENT, t_s, sqrt(i2), sim->i_bound_A);
@@ -527,6 +600,11 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->cfg = *cfg;
     sim->controller_status = P2D_OK;
     ctl_status = p2d_speed_init(&sim->speed, &cfg->speed);
+    /* the torque filters, if any (p2d_speed_init leaves none) */
+    if (ctl_status == P2D_OK &&
+        (cfg->speed_filter.notch_freq_Hz != 0.0f || cfg->speed_filter.lowpass_freq_Hz != 0.0f)) {
+        ctl_status = p2d_speed_set_filter(&sim->speed, &cfg->speed_filter);
+    }
     if (ctl_status != P2D_OK) {
         sim->controller_status = ctl_status;
         return P2D_SIM_ERR_SPEED_CONTROLLER;
@@ -569,6 +647,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->i_bound_A = P2D_SIM_OVERCURRENT_FACTOR * fmax((double)cfg->speed.i_max_A, mp->psi_f_Wb / L_min_H);
     if (fabs(cfg->w_m0_radps) > sim->w_bound_radps) return P2D_SIM_ERR_W_M0;
 
+    p2d_mechanics_init(&sim->mechanics, &cfg->mechanics, cfg->w_m0_radps);
     cursor_reset(&sim->reference);
     cursor_reset(&sim->load);
     sim->n_current = 0u;
@@ -611,6 +690,14 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     return P2D_SIM_OK;
 }
 
+/* The shaft torque T_s (two_mass), else the load torque T_load_Nm the rigid shaft carries. */
+static double shaft_torque_Nm(const p2d_sim_t *sim, double T_load_Nm)
+{
+    const p2d_mechanics_t *mech = &sim->mechanics;
+    if (sim->cfg.mechanics.model != P2D_MECHANICS_TWO_MASS) return T_load_Nm;
+    return p2d_shaft_torque_Nm(mech, mech->theta_rad, sim->pmsm.w_m_radps - mech->w_load_radps);
+}
+
 /* Write row r (speed sample k at t_k) of the column-major log of log_rows rows. */
 static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double w_ref_radps,
                       const p2d_speed_output_t *so, double ud_V, double uq_V)
@@ -636,6 +723,8 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
     row[P2D_LOG_U_DC_V * log_rows] = sim->u_dc_V;
     row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* counted over the speed period by the loop */
+    row[P2D_LOG_W_LOAD_RADPS * log_rows] = load_speed_radps(sim);
+    row[P2D_LOG_SHAFT_TORQUE_NM * log_rows] = shaft_torque_Nm(sim, row[P2D_LOG_LOAD_NM * log_rows]);
     sim->n_rows++;
 }
 

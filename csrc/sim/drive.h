@@ -10,6 +10,26 @@
  *   Te        = 1.5 p (psi_f iq + (Ld - Lq) id iq)
  *   J dw_m/dt = Te - T_load(t) - B w_m - T_c tanh(w_m / w_c)
  *
+ * Two-mass drive train (mechanics.model = P2D_MECHANICS_TWO_MASS): motor.J_kgm2
+ * is then the motor side J_M alone, coupled to the load inertia J_L by a
+ * shaft of stiffness K, damping D and total play b (dead zone), twist
+ * theta = theta_M - theta_L:
+ *   J_M dw_m/dt  = Te - T_s - B w_m - T_c tanh(w_m / w_c)
+ *   J_L dw_L/dt  = T_s - T_load(t)
+ *   dtheta/dt    = w_m - w_L
+ *   T_s          = K (theta - sign(theta) b/2) + D (w_m - w_L)   |theta| >= b/2 (contact)
+ *                = 0                                             |theta| <  b/2 (in the play)
+ * (the dead-zone model of backlash: M. Nordin, P.-O. Gutman, "Controlling
+ * mechanical systems with backlash - a survey", Automatica 38, 2002). The
+ * friction acts on the motor side, the load torque on the load side. The
+ * speed controller reads w_m (feedback P2D_FEEDBACK_MOTOR) or w_L
+ * (P2D_FEEDBACK_LOAD); the current controller always sees p w_m. Without
+ * play the resonance is at w_r = sqrt(K (J_M + J_L) / (J_M J_L)), the
+ * anti-resonance at w_a = sqrt(K / J_L). The initial state has no twist and
+ * both sides at w_m0. Rigid (the default): one inertia motor.J_kgm2, the
+ * equations above with J_L = 0 folded into it; the log's load speed is w_m
+ * and its shaft torque the load torque.
+ *
  * Coulomb friction T_c is smoothed by tanh over the speed band w_c,
  *   w_c = max(0.01 rad/s, 10 Ts_current T_c / J),
  * so that the friction's linearization around zero speed, a time constant
@@ -144,9 +164,15 @@ typedef enum {
     P2D_SIM_ERR_FAULTS,             /* faults */
     P2D_SIM_ERR_SPEED_CONTROLLER,   /* p2d_speed_init rejected speed: see controller_status */
     P2D_SIM_ERR_CURRENT_CONTROLLER, /* p2d_current_init rejected current: see controller_status */
+    P2D_SIM_ERR_MECHANICS_MODEL,    /* mechanics.model */
+    P2D_SIM_ERR_J_LOAD,             /* mechanics.J_load_kgm2 */
+    P2D_SIM_ERR_STIFFNESS,          /* mechanics.stiffness_Nm_per_rad */
+    P2D_SIM_ERR_DAMPING,            /* mechanics.damping_Nms_per_rad */
+    P2D_SIM_ERR_BACKLASH,           /* mechanics.backlash_rad */
+    P2D_SIM_ERR_FEEDBACK,           /* mechanics.feedback */
     P2D_SIM_ERR_LOG_FULL,           /* the log buffer has no room for the next row */
     P2D_SIM_STOP_NONFINITE,         /* the plant state is NaN or infinite */
-    P2D_SIM_STOP_OVERSPEED,         /* |w_m| beyond twice the no-load speed of the DC link */
+    P2D_SIM_STOP_OVERSPEED,         /* |w_m| or |w_L| beyond twice the no-load speed of the DC link */
     P2D_SIM_STOP_OVERCURRENT,       /* ||i_dq|| beyond ten times max(i_max, short-circuit current) */
     P2D_SIM_STOP_CONTROLLER_FAULT,  /* a controller's non-finite policy engaged */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
@@ -174,6 +200,8 @@ typedef enum {
     P2D_LOG_VOLTAGE_LIMITED, /* share of the current periods of speed sample k whose voltage was
                                 limited to u_dc / sqrt(3) [-] in [0, 1] (first_order: whose
                                 voltage of eq 1 exceeded that range, which eq 3 ignores) */
+    P2D_LOG_W_LOAD_RADPS,    /* load-side speed w_L [rad/s] (rigid: w_m) */
+    P2D_LOG_SHAFT_TORQUE_NM, /* shaft torque T_s [Nm] (rigid: the load torque) */
     P2D_LOG_COUNT            /* number of columns, not a column */
 } p2d_log_column_t;
 
@@ -246,6 +274,38 @@ typedef struct {
     double w_m_radps;         /* state: mechanical speed [rad/s] */
 } p2d_pmsm_t;
 
+/* Mechanical model of the drive train: see the comment at the top. */
+typedef enum {
+    P2D_MECHANICS_RIGID = 0,   /* one inertia, motor.J_kgm2 */
+    P2D_MECHANICS_TWO_MASS = 1 /* motor.J_kgm2 and J_load_kgm2 coupled by an elastic shaft */
+} p2d_mechanics_model_t;
+
+/* The speed the speed controller reads. */
+typedef enum {
+    P2D_FEEDBACK_MOTOR = 0, /* the motor side w_m */
+    P2D_FEEDBACK_LOAD = 1   /* the load side w_L (two_mass; rigid: w_m) */
+} p2d_feedback_t;
+
+/* Parameters of the drive train (TWO_MASS; RIGID uses feedback only). */
+typedef struct {
+    p2d_mechanics_model_t model; /* RIGID or TWO_MASS */
+    double J_load_kgm2;          /* load inertia J_L [kg m^2], > 0 */
+    double stiffness_Nm_per_rad; /* shaft stiffness K [Nm/rad], > 0 */
+    double damping_Nms_per_rad;  /* shaft damping D [Nm s/rad], >= 0 */
+    double backlash_rad;         /* total play b of the dead zone [rad], >= 0 */
+    p2d_feedback_t feedback;     /* speed the speed controller reads */
+} p2d_mechanics_config_t;
+
+/* Drive train (TWO_MASS): coefficients precomputed at init, and the state beyond w_m. */
+typedef struct {
+    double inv_J_load_per_kgm2; /* 1 / J_L [1/(kg m^2)] */
+    double K_Nm_per_rad;        /* stiffness K [Nm/rad] */
+    double D_Nms_per_rad;       /* damping D [Nm s/rad] */
+    double half_backlash_rad;   /* b / 2 [rad] */
+    double theta_rad;           /* state: twist theta_M - theta_L [rad] */
+    double w_load_radps;        /* state: load-side speed w_L [rad/s] */
+} p2d_mechanics_t;
+
 /* Switching-cycle average inverter with DC-link limit and optional delay. */
 typedef struct {
     double u_max_V;      /* u_dc / sqrt(3) [V] */
@@ -276,6 +336,8 @@ typedef struct {
     p2d_current_config_t current;      /* current controller, DQ_PI only */
     const p2d_fault_t *faults;         /* faults, in any order (not copied); DC_LINK_SAG needs DQ_PI */
     uint32_t n_faults;                 /* number of faults; 0: none */
+    p2d_mechanics_config_t mechanics;  /* drive train; all zero: rigid, motor-side feedback */
+    p2d_filter_config_t speed_filter;  /* torque filters of the speed controller (filter.h); all zero: none */
 } p2d_sim_config_t;
 
 typedef struct {
@@ -283,6 +345,7 @@ typedef struct {
     p2d_speed_t speed;               /* speed controller */
     p2d_current_t current;           /* current controller (DQ_PI) */
     p2d_pmsm_t pmsm;                 /* plant */
+    p2d_mechanics_t mechanics;       /* drive train beyond the motor (TWO_MASS) */
     p2d_inverter_t inverter;         /* inverter (DQ_PI) */
     p2d_schedule_cursor_t reference; /* read position in the reference */
     p2d_schedule_cursor_t load;      /* read position in the load */

@@ -6,7 +6,16 @@ read from its headers, :mod:`.controllers` the :class:`SpeedController` and
 :class:`CurrentController` that wrap the deployable C controllers, :mod:`.gains` eq 9.
 """
 
-from .bindings import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, LOG_COLUMNS, METHODS
+from .bindings import (
+    ANTI_WINDUPS,
+    CURRENT_LOOP_MODELS,
+    FAULT_KINDS,
+    FEEDBACKS,
+    FEEDFORWARDS,
+    LOG_COLUMNS,
+    MECHANICS_MODELS,
+    METHODS,
+)
 from .controllers import CurrentController, CurrentOutput, SpeedController, SpeedOutput
 from .gains import pi_gains
 
@@ -14,8 +23,10 @@ __all__ = [
     "ANTI_WINDUPS",
     "CURRENT_LOOP_MODELS",
     "FAULT_KINDS",
+    "FEEDBACKS",
     "FEEDFORWARDS",
     "LOG_COLUMNS",
+    "MECHANICS_MODELS",
     "METHODS",
     "CurrentController",
     "CurrentOutput",

@@ -19,9 +19,11 @@ __all__ = [
     "AntiWindup",
     "CURRENT_LOOP_MODELS",
     "FAULT_KINDS",
+    "FEEDBACKS",
     "FEEDFORWARDS",
     "Feedforward",
     "LOG_COLUMNS",
+    "MECHANICS_MODELS",
     "METHODS",
     "Method",
     "c_string",
@@ -80,5 +82,10 @@ ANTI_WINDUPS = cast(tuple[AntiWindup, ...], enum_names("p2d_anti_windup_t", "P2D
 CURRENT_LOOP_MODELS = enum_names("p2d_current_model_t", "P2D_CURRENT_")
 #: Fault kinds the engine plays (``p2d_fault_kind_t``).
 FAULT_KINDS = enum_names("p2d_fault_kind_t", "P2D_FAULT_")
+#: Drive-train models of the engine (``p2d_mechanics_model_t``): one inertia, or motor and load
+#: coupled by an elastic shaft.
+MECHANICS_MODELS = enum_names("p2d_mechanics_model_t", "P2D_MECHANICS_")
+#: The speed the simulated speed controller reads (``p2d_feedback_t``): motor or load side.
+FEEDBACKS = enum_names("p2d_feedback_t", "P2D_FEEDBACK_")
 #: Names of the columns of the engine's log, with their units (``p2d_sim_log_name``).
 LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))

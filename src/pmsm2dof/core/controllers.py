@@ -161,7 +161,9 @@ _SPEED_OUTPUT_FIELDS = struct_fields("p2d_speed_output_t")
 _SPEED_OUTPUT_DTYPE = _structured_dtype("p2d_speed_output_t", _SPEED_OUTPUT_FIELDS)
 #: The parameters of SpeedController: the fields of p2d_speed_config_t, with their C types.
 _SPEED_CONFIG_FIELDS = struct_fields("p2d_speed_config_t")
-_SPEED_PARAMS = tuple(_SPEED_CONFIG_FIELDS)
+#: The torque filters' parameters (p2d_filter_config_t, csrc/include/pmsm2dof/filter.h); all 0: no filter.
+_FILTER_CONFIG_FIELDS = struct_fields("p2d_filter_config_t")
+_SPEED_PARAMS = tuple(_SPEED_CONFIG_FIELDS) + tuple(_FILTER_CONFIG_FIELDS)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -240,6 +242,14 @@ class SpeedController:
         which requires m = 1; ``"none"``: the 1DOF PI; ``"no_tau"`` or ``"full"``: eq 11,
         for any m.
     anti_windup : {"none", "back_calculation", "clamping"}, default "back_calculation"
+    notch_freq_Hz, notch_width_Hz, notch_depth : float, default 0.0
+        Notch on the torque command (csrc/include/pmsm2dof/filter.h): frequency f0 [Hz] (0: no
+        notch, else < 1/(2 Ts_s)), -3 dB width [Hz] and gain at f0, ``0 <= depth < 1/sqrt(2)``.
+        Tustin prewarped at f0: the discrete notch has exactly the depth at f0 and the width.
+    lowpass_freq_Hz, lowpass_zeta : float, default 0.0
+        Second-order low-pass on the torque command: natural frequency [Hz] (0: none) and damping.
+        The filters run inside the anti-windup loop: the limit acts on the filtered command and
+        ``u* = u_sat - u_f`` drives the back calculation (``T_unsat_Nm`` is then ``u_f``).
 
     Raises
     ------
@@ -270,15 +280,25 @@ class SpeedController:
         method: Method = "tustin",
         feedforward: Feedforward = "lowpass",
         anti_windup: AntiWindup = "back_calculation",
+        notch_freq_Hz: float = 0.0,
+        notch_width_Hz: float = 0.0,
+        notch_depth: float = 0.0,
+        lowpass_freq_Hz: float = 0.0,
+        lowpass_zeta: float = 0.0,
     ) -> None:
         self._ctl = ffi.new("p2d_speed_t *")  # cffi ``p2d_speed_t *``
         params: dict[str, Any] = dict(
             J_kgm2=J_kgm2, alpha_radps=alpha_radps, zeta=zeta, m=m, tau_i_s=tau_i_s, Ka=Ka, Ts_s=Ts_s,
             i_max_A=i_max_A, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, pole_pairs=pole_pairs,
             method=method, feedforward=feedforward, anti_windup=anti_windup,
+            notch_freq_Hz=notch_freq_Hz, notch_width_Hz=notch_width_Hz, notch_depth=notch_depth,
+            lowpass_freq_Hz=lowpass_freq_Hz, lowpass_zeta=lowpass_zeta,
         )  # fmt: skip
         cfg = self._c_config(params)
+        filt = self._c_filter(params)
         status = lib.p2d_speed_init(self._ctl, cfg)
+        if status == lib.P2D_OK and (filt.notch_freq_Hz != 0 or filt.lowpass_freq_Hz != 0):
+            status = lib.p2d_speed_set_filter(self._ctl, filt)
         if status != lib.P2D_OK:
             _raise_status(status, _given_speed(params, cfg))
         self._params = params
@@ -295,6 +315,14 @@ class SpeedController:
             cfg.Ka = _float_param("Ka", params["Ka"])
         return cfg
 
+    @staticmethod
+    def _c_filter(params: dict[str, Any]) -> Any:
+        """The C torque-filter configuration of ``params`` (cffi ``p2d_filter_config_t *``); type
+        errors raise ConfigError."""
+        filt = ffi.new("p2d_filter_config_t *")
+        _set_fields(filt, _FILTER_CONFIG_FIELDS, params)
+        return filt
+
     def set_config(self, **changes: Any) -> None:
         """Change parameters atomically, keeping the controller state.
 
@@ -309,9 +337,14 @@ class SpeedController:
             )
         params = {**self._params, **changes}
         cfg = self._c_config(params)
-        status = lib.p2d_speed_set_config(self._ctl, cfg)
-        if status != lib.P2D_OK:
-            _raise_status(status, _given_speed(params, cfg))
+        filt = self._c_filter(params)
+        # both changes on a copy first, so that a rejected filter leaves the old configuration
+        for ctl in (ffi.new("p2d_speed_t *", self._ctl[0]), self._ctl):
+            status = lib.p2d_speed_set_config(ctl, cfg)
+            if status == lib.P2D_OK:
+                status = lib.p2d_speed_set_filter(ctl, filt)
+            if status != lib.P2D_OK:
+                _raise_status(status, _given_speed(params, cfg))
         self._params = params
 
     def reset(self, w_ref_radps: float = 0.0, T_init_Nm: float = 0.0) -> None:
@@ -395,6 +428,7 @@ class SpeedController:
         ``SpeedController(**ctl.config)`` builds an equal controller.
         """
         cfg = _get_fields(self._ctl.config, _SPEED_CONFIG_FIELDS)
+        cfg.update(_get_fields(self._ctl.filter_config, _FILTER_CONFIG_FIELDS))
         if self._params["Ka"] is None:
             cfg["Ka"] = None
         return cfg

@@ -38,7 +38,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, METHODS
+from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDBACKS, FEEDFORWARDS, MECHANICS_MODELS, METHODS
 from ..errors import ConfigError
 
 #: Longest simulated time of one scenario [s] (ten hours).
@@ -252,6 +252,63 @@ SCHEMA = (
         float,
         "current-loop time constant the full feedforward is designed for [s] (eq 11)",
         default=SameAs("current_loop.tau_i_s"),
+        ge=0,
+    ),
+    # the drive train beyond the rigid load, and the speed controller's torque filters (drive.h, filter.h)
+    Field(
+        "mechanics.model",
+        str,
+        "rigid: one inertia motor.J_kgm2; two_mass: motor.J_kgm2 is the motor side alone, coupled to "
+        "J_load_kgm2 by an elastic shaft; the load torque acts on the load side",
+        default="rigid",
+        choices=MECHANICS_MODELS,
+    ),
+    Field("mechanics.J_load_kgm2", float, "load inertia J_L [kg m^2] (two_mass)", default=None, gt=0),
+    Field("mechanics.stiffness_Nm_per_rad", float, "shaft stiffness K [Nm/rad] (two_mass)", default=None, gt=0),
+    Field("mechanics.damping_Nms_per_rad", float, "shaft damping D [Nm s/rad] (two_mass)", default=0.0, ge=0),
+    Field(
+        "mechanics.backlash_rad",
+        float,
+        "total play b of the shaft, a dead zone of +-b/2 of the twist [rad] (two_mass)",
+        default=0.0,
+        ge=0,
+    ),
+    Field(
+        "mechanics.feedback",
+        str,
+        "the speed the speed controller reads: motor (motor side) or load (load side, two_mass)",
+        default="motor",
+        choices=FEEDBACKS,
+    ),
+    Field(
+        "speed_filter.notch_freq_Hz",
+        float,
+        "notch on the torque command, inside the anti-windup loop: frequency f0 [Hz]; 0: no notch, "
+        "else < 1/(2 speed_controller.Ts_s)",
+        default=0.0,
+        ge=0,
+    ),
+    Field("speed_filter.notch_width_Hz", float, "-3 dB width of the notch [Hz] (notch only)", default=0.0, ge=0),
+    Field(
+        "speed_filter.notch_depth",
+        float,
+        "gain of the notch at f0 [-], < 1/sqrt(2) (0.1: -20 dB; notch only)",
+        default=0.0,
+        ge=0,
+        lt=1 / math.sqrt(2),
+    ),
+    Field(
+        "speed_filter.lowpass_freq_Hz",
+        float,
+        "second-order low-pass on the torque command: natural frequency [Hz]; 0: no low-pass",
+        default=0.0,
+        ge=0,
+    ),
+    Field(
+        "speed_filter.lowpass_zeta",
+        float,
+        "damping of the low-pass [-] (1/sqrt(2): -3 dB at its frequency; low-pass only)",
+        default=0.0,
         ge=0,
     ),
     Field("simulation.t_end_s", float, "simulated time [s]", gt=0, le=T_END_MAX_S),
@@ -505,10 +562,36 @@ def _validate(tree: object) -> tuple[Tree, Tree]:
         if isinstance(f.default, SameAs) and f.leaf not in given.get(f.parent, {}):
             source_table, source_leaf = f.default.key.split(".")
             data[f.parent][f.leaf] = data[source_table][source_leaf]
+    _check_mechanics(data)
+    if data["mechanics"]["model"] == "two_mass" and "J_kgm2" not in given.get("speed_controller", {}):
+        # the eq 9 design on the total inertia of the drive train
+        data["speed_controller"]["J_kgm2"] = data["motor"]["J_kgm2"] + data["mechanics"]["J_load_kgm2"]
     for name in ARRAYS:
         data[name] = [{f.leaf: e.get(f.leaf, f.default) for f in _fields_of(f"{name}[]")} for e in given.get(name, [])]
     _check_relations(data)
     return given, data
+
+
+def _check_mechanics(data: Tree) -> None:
+    """A two-mass train has its load inertia and stiffness; a rigid one none of the two-mass keys;
+    each torque filter has its width/depth or damping when it is on."""
+    mech = data["mechanics"]
+    two_mass_keys = ("J_load_kgm2", "stiffness_Nm_per_rad")
+    for leaf in two_mass_keys:
+        field = _FIELDS[f"mechanics.{leaf}"]
+        if mech["model"] == "two_mass" and mech[leaf] is None:
+            raise ConfigError(
+                f"mechanics.{leaf}", REQUIRED, f"required by model 'two_mass': {field.valid_range()} ({field.doc})"
+            )
+    if mech["model"] == "rigid":
+        for leaf in (*two_mass_keys, "damping_Nms_per_rad", "backlash_rad"):
+            if mech[leaf] not in (None, 0.0):
+                raise ConfigError(f"mechanics.{leaf}", mech[leaf], "absent: model 'rigid' does not use it")
+    filt = data["speed_filter"]
+    for on, leaves in (("notch_freq_Hz", ("notch_width_Hz",)), ("lowpass_freq_Hz", ("lowpass_zeta",))):
+        for leaf in leaves:
+            if filt[on] > 0 and not filt[leaf] > 0:
+                raise ConfigError(f"speed_filter.{leaf}", filt[leaf], f"> 0 with speed_filter.{on} > 0")
 
 
 def _check_relations(data: Tree) -> None:

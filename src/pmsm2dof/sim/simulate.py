@@ -59,7 +59,17 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, LOG_COLUMNS, METHODS, pi_gains
+from ..core import (
+    ANTI_WINDUPS,
+    CURRENT_LOOP_MODELS,
+    FAULT_KINDS,
+    FEEDBACKS,
+    FEEDFORWARDS,
+    LOG_COLUMNS,
+    MECHANICS_MODELS,
+    METHODS,
+    pi_gains,
+)
 from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, SimulationError
 from ..outputs import atomic_write
@@ -72,7 +82,12 @@ RPM_PER_RADPS = 30.0 / math.pi
 
 #: The speeds of the engine's log shown in rpm at the edge, by log column (the others keep their
 #: C names); the mechanical speed is kept in rad/s too.
-RPM_SIGNALS = {"w_ref_radps": "speed_ref_rpm", "w_m_radps": "speed_rpm", "w_meas_radps": "speed_meas_rpm"}
+RPM_SIGNALS = {
+    "w_ref_radps": "speed_ref_rpm",
+    "w_m_radps": "speed_rpm",
+    "w_meas_radps": "speed_meas_rpm",
+    "w_load_radps": "load_speed_rpm",
+}
 #: Log columns that hold a flag (0 or 1), returned as bool arrays.
 FLAG_SIGNALS = ("saturated",)
 
@@ -116,6 +131,11 @@ _SPEED_KEYS = {
     "method": "speed_controller.method",
     "feedforward": "speed_controller.feedforward",
     "anti_windup": "speed_controller.anti_windup",
+    "notch_freq_Hz": "speed_filter.notch_freq_Hz",
+    "notch_width_Hz": "speed_filter.notch_width_Hz",
+    "notch_depth": "speed_filter.notch_depth",
+    "lowpass_freq_Hz": "speed_filter.lowpass_freq_Hz",
+    "lowpass_zeta": "speed_filter.lowpass_zeta",
 }
 
 #: Scenario key of each field that the C current controller init can reject.
@@ -151,6 +171,12 @@ _SIM_KEYS = {
     "reference": "reference",
     "load": "load",
     "faults": "fault",
+    "mechanics.model": "mechanics.model",
+    "mechanics.J_load_kgm2": "mechanics.J_load_kgm2",
+    "mechanics.stiffness_Nm_per_rad": "mechanics.stiffness_Nm_per_rad",
+    "mechanics.damping_Nms_per_rad": "mechanics.damping_Nms_per_rad",
+    "mechanics.backlash_rad": "mechanics.backlash_rad",
+    "mechanics.feedback": "mechanics.feedback",
 }
 
 
@@ -184,6 +210,8 @@ class Result:
     voltage_limited : share of the current periods of the row's speed sample whose voltage was cut
         to the inverter's range ``u_dc / sqrt(3)`` [-], in [0, 1] (``first_order``: whose voltage of
         eq 1 exceeded that range, which eq 3 ignores)
+    load_speed_rpm : load-side speed of the two-mass train [rpm] (rigid: speed_rpm)
+    shaft_torque_Nm : torque the shaft carries from motor to load [Nm] (rigid: load_Nm)
     """
 
     #: The signal names, in order: the engine's log columns (p2d_sim_log_name), speeds in rpm.
@@ -210,6 +238,8 @@ class Result:
     speed_meas_rpm: npt.NDArray[np.float64]
     u_dc_V: npt.NDArray[np.float64]
     voltage_limited: npt.NDArray[np.float64]
+    load_speed_rpm: npt.NDArray[np.float64]
+    shaft_torque_Nm: npt.NDArray[np.float64]
 
     def __repr__(self) -> str:
         return (
@@ -368,6 +398,7 @@ class Simulation:
             _schedule(cfg.load, data["load"], "torque_Nm", 1.0),
         ]
         self._faults = _faults(cfg, data["fault"])
+        _mechanics(cfg, data["mechanics"], data["speed_filter"])
 
         s = cfg.speed
         s.J_kgm2 = sc["J_kgm2"]
@@ -489,6 +520,18 @@ def _schedule(
     if entries:
         target.t_s, target.value, target.ramp_s = (ffi.cast("double *", ffi.from_buffer(a)) for a in arrays)
     return arrays
+
+
+def _mechanics(cfg: Any, mechanics: Mapping[str, Any], speed_filter: Mapping[str, float]) -> None:
+    """Fill the drive train and the speed controller's torque filters of the C configuration ``cfg``."""
+    mech = cfg.mechanics
+    mech.model = MECHANICS_MODELS.index(mechanics["model"])
+    mech.feedback = FEEDBACKS.index(mechanics["feedback"])
+    if mechanics["model"] == "two_mass":
+        for key in ("J_load_kgm2", "stiffness_Nm_per_rad", "damping_Nms_per_rad", "backlash_rad"):
+            setattr(mech, key, mechanics[key])
+    for key, value in speed_filter.items():
+        setattr(cfg.speed_filter, key, value)
 
 
 def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
