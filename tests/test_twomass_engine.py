@@ -274,19 +274,20 @@ def test_stiff_shaft_tends_to_the_rigid_drive():
 
 
 def resonant_scenario(**speed_filter):
-    """Feedback from the load side, a lightly damped shaft (zeta_r = 0.002) at 30 Hz and the eq 9
-    design with alpha = 20 rad/s on the total inertia: the loop's gain peaks above 1 at the resonance."""
+    """Feedback from the load side, the shaft at 30 Hz (zeta_r = 0.02) and the eq 9 design with
+    alpha = 20 rad/s on the total inertia: the loop's gain peaks above 1 at the resonance, a closed-loop
+    pole at |z| = 1.005 (pmsm2dof.analysis.twomass); with the notch its largest pole is at |z| = 0.996."""
     return Scenario.from_dict(
         tree(
             mechanics={
                 "model": "two_mass",
                 "J_load_kgm2": J_L,
                 "stiffness_Nm_per_rad": K,
-                "damping_Nms_per_rad": 0.1 * D,
+                "damping_Nms_per_rad": D,
                 "feedback": "load",
             },
             speed_filter=speed_filter,
-            simulation={"t_end_s": 1.0, "speed0_rpm": 100.0},
+            simulation={"t_end_s": 3.0, "speed0_rpm": 100.0},
             reference=[{"t_s": 0.0, "speed_rpm": 100.0}, {"t_s": 0.1, "speed_rpm": 100.5}],
         )
     )
@@ -294,12 +295,12 @@ def resonant_scenario(**speed_filter):
 
 def test_notch_damps_the_resonance_the_loop_excites():
     plain = simulate(resonant_scenario())
-    notched = simulate(resonant_scenario(notch_freq_Hz=F_R_HZ, notch_width_Hz=15.0, notch_depth=0.05))
-    late = plain.t_s > 0.6
+    notched = simulate(resonant_scenario(notch_freq_Hz=F_R_HZ, notch_width_Hz=20.0, notch_depth=0.05))
+    late = plain.t_s > 2.5
     # without the notch the resonance grows until the current limit holds it: a limit cycle
     assert plain.saturated[late].any() and np.ptp(plain.shaft_torque_Nm[late]) > 100.0
     # with it the half-rpm step settles: no saturation, the shaft torque still within 0.1 Nm
-    assert not notched.saturated.any() and np.ptp(notched.shaft_torque_Nm[late]) < 0.1
+    assert not notched.saturated.any() and np.ptp(notched.shaft_torque_Nm[late]) < 1e-3
 
 
 @pytest.mark.parametrize(

@@ -961,6 +961,10 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
 
 
 # commission (pmsm2dof.sim.commission): the C commissioning routine against a scenario's motor
+
+
+# ---------------------------------------------------------------------------------------------
+# twomass (pmsm2dof.analysis.twomass)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -1041,3 +1045,77 @@ def _commission_table(result: "Commissioning") -> str:
 
 def _percent(x: float) -> str:
     return f"{x * 100:.3f}%" if math.isfinite(x) else "n/a"
+
+
+@click.option("--J-motor", "J_motor_kgm2", type=float, required=True, help="motor-side inertia J_M [kg m^2], > 0")
+@click.option("--J-load", "J_load_kgm2", type=float, required=True, help="load-side inertia J_L [kg m^2], > 0")
+@click.option("--stiffness", "stiffness_Nm_per_rad", type=float, required=True, help="shaft stiffness K [Nm/rad], > 0")
+@click.option(
+    "--damping", "damping_Nms_per_rad", type=float, default=0.0, show_default=True, help="shaft damping [Nm s/rad]"
+)
+@click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s] (eq 9)")
+@click.option("--zeta", type=float, default=0.7, show_default=True, help="relative damping of the PI loop (eq 9)")
+@click.option("--tau-i", "tau_i_s", type=float, default=0.0, show_default=True, help="current-loop time constant [s]")
+@click.option("--Ts", "Ts_s", type=float, required=True, help="speed-loop sampling period [s]")
+@click.option("--feedback", default="motor", show_default=True, help="the speed the controller reads: motor or load")
+@click.option("--notch-freq", "notch_freq_Hz", type=float, default=0.0, help="notch frequency [Hz] (0: none)")
+@click.option("--notch-width", "notch_width_Hz", type=float, default=0.0, help="notch -3 dB width [Hz]")
+@click.option("--notch-depth", "notch_depth", type=float, default=0.0, help="notch gain at its frequency [-]")
+@click.option("--lowpass-freq", "lowpass_freq_Hz", type=float, default=0.0, help="low-pass frequency [Hz] (0: none)")
+@click.option("--lowpass-zeta", "lowpass_zeta", type=float, default=0.0, help="low-pass damping [-]")
+def twomass(
+    J_motor_kgm2,
+    J_load_kgm2,
+    stiffness_Nm_per_rad,
+    damping_Nms_per_rad,
+    alpha_radps,
+    zeta,
+    tau_i_s,
+    Ts_s,
+    feedback,
+    **filters,
+):
+    """The eq 9 design on the total inertia of a two-mass drive train: resonance, margins, poles.
+
+    Prints the resonance and anti-resonance of the train, and for the sampled loop (the C
+    controller's PI, the ZOH plant, the torque filters given) its stability, margins and the
+    closed-loop poles nearest the unit circle.
+    """
+    from ..analysis.design import design
+    from ..analysis.twomass import sampled_loop, two_mass
+
+    options = {
+        "J_motor_kgm2": "--J-motor",
+        "J_load_kgm2": "--J-load",
+        "stiffness_Nm_per_rad": "--stiffness",
+        "damping_Nms_per_rad": "--damping",
+        "alpha_radps": "--alpha",
+        "J_kgm2": "--J-motor",
+        "zeta": "--zeta",
+        "tau_i_s": "--tau-i",
+        "Ts_s": "--Ts",
+        "feedback": "--feedback",
+        **{name: "--" + name.rsplit("_", 1)[0].replace("_", "-") for name in filters},
+        "notch_depth": "--notch-depth",
+        "lowpass_zeta": "--lowpass-zeta",
+    }
+    try:
+        train = two_mass(J_motor_kgm2, J_load_kgm2, stiffness_Nm_per_rad, damping_Nms_per_rad)
+        d = design(train.J_total_kgm2, alpha_radps, zeta, tau_i_s=tau_i_s)
+        loop = sampled_loop(d, train, Ts_s, feedback=feedback, **filters)
+    except ConfigError as exc:
+        raise _as_option(exc, options) from None
+    two_pi = 2.0 * 3.141592653589793
+    click.echo(
+        f"inertia ratio J_L/J_M      {train.inertia_ratio:.4g} (design on J_M + J_L = {train.J_total_kgm2:.4g} kg m^2)"
+    )
+    click.echo(
+        f"resonance                  {train.resonance_radps / two_pi:.4g} Hz (damping {train.resonance_damping:.3g})"
+    )
+    click.echo(f"anti-resonance             {train.antiresonance_radps / two_pi:.4g} Hz")
+    click.echo(f"sampled loop ({feedback} side)  {'stable' if loop.stable else 'UNSTABLE'}")
+    if loop.stable:
+        gm, pm = loop.margins()
+        click.echo(f"margins                    {gm:.3g} dB, {pm:.3g} deg")
+    worst = sorted(loop.poles, key=abs)[-2:]
+    click.echo("poles nearest |z| = 1      " + ", ".join(f"{p:.6g} (|z| = {abs(p):.6f})" for p in worst))
