@@ -8,8 +8,6 @@
 """
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -17,6 +15,7 @@ from test_torque_filter import designed_lowpass, designed_notch
 
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.twomass import filter_tf, sampled_loop, two_mass
+from pmsm2dof.ui.cli import main
 
 J_M, J_L, F_R_HZ, ZETA_R = 0.1, 0.3, 30.0, 0.02
 W_R = 2 * math.pi * F_R_HZ
@@ -64,23 +63,16 @@ def test_sampled_loop_stability_is_the_engines():
     assert sampled_loop(d, train, 1e-3, feedback="motor").stable
 
 
-def run_cli(*args):
-    return subprocess.run([sys.executable, "-m", "pmsm2dof", *args], capture_output=True, text=True, timeout=120)
+def test_cli_twomass_prints_the_analysis(capsys):
+    args = ["twomass", "--J-motor", "0.1", "--J-load", "0.3", "--stiffness", str(K), "--damping", str(D)]
+    assert main([*args, "--alpha", "20", "--tau-i", "2e-3", "--Ts", "1e-3", "--feedback", "load"]) == 0
+    out = capsys.readouterr().out
+    assert "resonance                  30 Hz" in out and "UNSTABLE" in out
 
 
-def test_cli_twomass_prints_the_analysis():
-    done = run_cli(
-        "twomass", "--J-motor", "0.1", "--J-load", "0.3", "--stiffness", str(K), "--damping", str(D),
-        "--alpha", "20", "--tau-i", "2e-3", "--Ts", "1e-3", "--feedback", "load",
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    assert "resonance                  30 Hz" in done.stdout and "UNSTABLE" in done.stdout
-
-
-def test_cli_twomass_bad_input_is_one_line():
-    done = run_cli("twomass", "--J-motor", "0.1", "--J-load", "-1", "--stiffness", "1", "--alpha", "20", "--Ts", "1e-3")
-    assert done.returncode == 2
-    assert done.stderr.strip().splitlines() == [
-        "pmsm2dof: error: --J-load = -1.0 is invalid: valid range is finite and > 0"
-    ]
-    assert done.stdout == ""
+def test_cli_twomass_bad_input_is_one_line(capsys):
+    args = ["twomass", "--J-motor", "0.1", "--J-load", "-1", "--stiffness", "1", "--alpha", "20", "--Ts", "1e-3"]
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    assert captured.err.splitlines() == ["pmsm2dof: error: --J-load = -1.0 is invalid: valid range is finite and > 0"]
+    assert captured.out == ""

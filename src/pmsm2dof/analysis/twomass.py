@@ -201,7 +201,7 @@ def sampled_loop(
     Ts_s = require_positive("Ts_s", Ts_s)
     c = c_coefficients(design, Ts_s, method, anti_windup="none")  # the linear loop: no limit acts
     C = control.ss(control.tf([c["b_e0"], c["Ki_Ts"] - c["b_e0"]], [1.0, -1.0], Ts_s))
-    Gci = control.tf([1.0], [getattr(design, "tau_i_s"), 1.0])
+    Gci = control.tf([1.0], [design.tau_i_s, 1.0])
     P = control.c2d(control.ss(Gci * mechanics.Gm(feedback)), Ts_s, "zoh")
     H = control.ss(filter_tf(Ts_s, **filters))
     L = C * H * P
