@@ -54,7 +54,9 @@ def test_sampled_loop_stability_is_the_engines():
     d = design(J_M + J_L, 20.0, 0.7, tau_i_s=2e-3)
     train = two_mass(J_M, J_L, K, D)
     plain = sampled_loop(d, train, 1e-3, feedback="load")
-    notched = sampled_loop(d, train, 1e-3, feedback="load", notch_freq_Hz=30.0, notch_width_Hz=20.0, notch_depth=0.05)
+    notched = sampled_loop(
+        d, train, 1e-3, feedback="load", filters={"notch_freq_Hz": 30.0, "notch_width_Hz": 20.0, "notch_depth": 0.05}
+    )
     assert not plain.stable and notched.stable
     # the growing mode is the resonance
     growing = max(plain.poles, key=abs)

@@ -24,6 +24,7 @@ loop lose the distance of its poles to z = 1 (see :mod:`.discretize`).
 
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import control
@@ -31,6 +32,7 @@ import numpy as np
 from scipy import signal
 
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
+from .design import Design, design
 from .discretize import c_coefficients
 
 #: The speeds a speed controller can read on a two-mass train (scenario key mechanics.feedback).
@@ -184,26 +186,26 @@ class TwoMassLoop:
 
 
 def sampled_loop(
-    design: "object",
+    d: Design,
     mechanics: TwoMass,
     Ts_s: float,
     method: str = "tustin",
     feedback: str = "motor",
-    **filters: float,
+    filters: Mapping[str, float] | None = None,
 ) -> TwoMassLoop:
-    """The sampled loop of ``design`` (:func:`pmsm2dof.analysis.design.design`) on ``mechanics``.
+    """The sampled loop of the design ``d`` (:func:`pmsm2dof.analysis.design.design`) on ``mechanics``.
 
     The plant is the ZOH equivalent of ``1 / (tau_i s + 1)`` (eq 3, ``design.tau_i_s``) times
     :meth:`TwoMass.Gm` of the side read; the PI is the C controller's (``method``, ``Ts_s``) and
-    the torque filters ``filters`` (:func:`filter_tf` keywords) run inside the loop.
+    the torque filters ``filters`` (the keywords of :func:`filter_tf`; None: no filter) run inside the loop.
     """
     require_choice("feedback", feedback, FEEDBACK_SIDES)
     Ts_s = require_positive("Ts_s", Ts_s)
-    c = c_coefficients(design, Ts_s, method, anti_windup="none")  # the linear loop: no limit acts
+    c = c_coefficients(d, Ts_s, method, anti_windup="none")  # the linear loop: no limit acts
     C = control.ss(control.tf([c["b_e0"], c["Ki_Ts"] - c["b_e0"]], [1.0, -1.0], Ts_s))
-    Gci = control.tf([1.0], [design.tau_i_s, 1.0])
+    Gci = control.tf([1.0], [d.tau_i_s, 1.0])
     P = control.c2d(control.ss(Gci * mechanics.Gm(feedback)), Ts_s, "zoh")
-    H = control.ss(filter_tf(Ts_s, **filters))
+    H = control.ss(filter_tf(Ts_s, **(filters or {})))
     L = C * H * P
     poles = control.feedback(L, 1).poles()
     return TwoMassLoop(mechanics, feedback, Ts_s, L, poles, bool(np.all(np.abs(poles) < 1.0)))
@@ -216,19 +218,18 @@ def largest_stable_alpha(
     Ts_s: float,
     alphas_radps: np.ndarray,
     feedback: str = "motor",
-    **filters: float,
+    filters: Mapping[str, float] | None = None,
 ) -> float:
-    """The largest alpha of ``alphas_radps`` (ascending) below which every alpha gives a stable loop.
+    """The largest alpha of the ascending grid ``alphas_radps`` up to which every alpha of the grid
+    gives a stable sampled loop (eq 9 on the total inertia, :func:`sampled_loop`).
 
-    Each alpha is the eq 9 design on the total inertia (lowpass feedforward: the stable region does
-    not depend on the form, module docstring). NaN if the first alpha is already unstable.
+    The stable region does not depend on the feedforward form (module docstring). NaN if the
+    first alpha is already unstable.
     """
-    from .design import design
-
     best = math.nan
-    for alpha in alphas_radps:
+    for alpha in np.asarray(alphas_radps, dtype=float):
         d = design(mechanics.J_total_kgm2, float(alpha), zeta, tau_i_s=tau_i_s)
-        if not sampled_loop(d, mechanics, Ts_s, feedback=feedback, **filters).stable:
+        if not sampled_loop(d, mechanics, Ts_s, feedback=feedback, filters=filters).stable:
             break
         best = float(alpha)
     return best

@@ -1102,7 +1102,7 @@ def twomass(
     try:
         train = two_mass(J_motor_kgm2, J_load_kgm2, stiffness_Nm_per_rad, damping_Nms_per_rad)
         d = design(train.J_total_kgm2, alpha_radps, zeta, tau_i_s=tau_i_s)
-        loop = sampled_loop(d, train, Ts_s, feedback=feedback, **filters)
+        loop = sampled_loop(d, train, Ts_s, feedback=feedback, filters=filters)
     except ConfigError as exc:
         raise _as_option(exc, options) from None
     two_pi = 2.0 * 3.141592653589793
