@@ -216,20 +216,36 @@ def largest_stable_alpha(
     zeta: float,
     tau_i_s: float,
     Ts_s: float,
-    alphas_radps: np.ndarray,
+    alpha_min_radps: float = 0.1,
+    alpha_max_radps: float = 1000.0,
     feedback: str = "motor",
     filters: Mapping[str, float] | None = None,
+    rtol: float = 0.01,
 ) -> float:
-    """The largest alpha of the ascending grid ``alphas_radps`` up to which every alpha of the grid
-    gives a stable sampled loop (eq 9 on the total inertia, :func:`sampled_loop`).
+    """The alpha [rad/s] where the sampled loop (:func:`sampled_loop`, eq 9 on the total inertia)
+    first loses stability, scanning up from ``alpha_min_radps`` by factors of 2, then bisected
+    (geometrically) to ``rtol``.
 
-    The stable region does not depend on the feedforward form (module docstring). NaN if the
-    first alpha is already unstable.
+    ``alpha_max_radps`` if every alpha scanned is stable, NaN if ``alpha_min_radps`` is not. An
+    unstable band narrower than a factor of 2 can be stepped over. The stable region does not depend
+    on the feedforward form (module docstring).
     """
-    best = math.nan
-    for alpha in np.asarray(alphas_radps, dtype=float):
-        d = design(mechanics.J_total_kgm2, float(alpha), zeta, tau_i_s=tau_i_s)
-        if not sampled_loop(d, mechanics, Ts_s, feedback=feedback, filters=filters).stable:
+
+    def stable(alpha: float) -> bool:
+        d = design(mechanics.J_total_kgm2, alpha, zeta, tau_i_s=tau_i_s)
+        return sampled_loop(d, mechanics, Ts_s, feedback=feedback, filters=filters).stable
+
+    lo = require_positive("alpha_min_radps", alpha_min_radps)
+    if not stable(lo):
+        return math.nan
+    while True:
+        hi = min(2.0 * lo, alpha_max_radps)
+        if not stable(hi):
             break
-        best = float(alpha)
-    return best
+        if hi >= alpha_max_radps:
+            return alpha_max_radps
+        lo = hi
+    while hi / lo > 1.0 + rtol:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if stable(mid) else (lo, mid)
+    return lo

@@ -19,7 +19,9 @@ and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
 - a section on fault scenarios the paper does not treat (the ``fault-*`` presets: a stall, a
   DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode;
 - a section on self-commissioning (:mod:`.commissioning`): the C routine identifies the paper's
-  drive and a salient servo, identified against true values and the time of each step.
+  drive and a salient servo, identified against true values and the time of each step;
+- a section beyond the rigid load (:mod:`.twomass`): the paper's condition 2 on two-mass drive
+  trains, with and without a notch, and the stable region of alpha.
 
 Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous
 Motor Speed Controller" (equation, figure and section numbers are the paper's).
@@ -43,6 +45,7 @@ from .claims import VERDICTS, Claim, compute_claims
 from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
 from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
+from .twomass import fig_stable_region, run_two_mass_study
 
 __all__ = ["VERDICTS", "Claim", "Report", "compute_claims", "reproduce", "write_report"]
 
@@ -96,6 +99,12 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
         *fig_faults(fault_runs),
         "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: the reference.",
     )
+    two_mass = run_two_mass_study(studies.overrides)
+    made["two_mass_region"] = (
+        *fig_stable_region(two_mass),
+        "Largest alpha of a stable sampled loop on two-mass trains of the paper's inertia, against the shaft's "
+        "resonance; dashed: with a notch at the resonance; dotted: the paper's alpha.",
+    )
     files: list[str] = []
     with staged_dir(out) as tmp:
         images: dict[str, bytes] = {}
@@ -133,7 +142,7 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
             tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
         )
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
-        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, run_commissioning())
+        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, run_commissioning(), two_mass)
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]

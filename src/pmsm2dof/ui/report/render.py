@@ -21,6 +21,7 @@ from ...studies import paper as st
 from ...studies.faults import fault_figures
 from .claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
 from .commissioning import commissioning_blocks
+from .twomass import TwoMassStudy, two_mass_blocks
 
 #: A block of the report: ``(kind, ...)``, see :func:`report_blocks`.
 Block = tuple[Any, ...]
@@ -147,11 +148,13 @@ def report_blocks(
     wall_time_s: float | None = None,
     fault_runs: Mapping[tuple[str, AntiWindup], Result | str | None] | None = None,
     commissioning_runs: Mapping[tuple[str, str], Commissioning] | None = None,
+    two_mass: TwoMassStudy | None = None,
 ) -> list[Block]:
     """The report as a list of blocks, rendered by :func:`render_markdown` and :func:`render_html`.
 
     ``fault_runs`` (of :func:`run_faults`) adds the section on the fault scenarios,
-    ``commissioning_runs`` (of :func:`.commissioning.run_commissioning`) the one on self-commissioning.
+    ``commissioning_runs`` (of :func:`.commissioning.run_commissioning`) the one on self-commissioning,
+    ``two_mass`` (of :func:`~pmsm2dof.ui.report.twomass.run_two_mass_study`) the section beyond the rigid load.
 
     Blocks: ``("h1"|"h2"|"h3"|"p", text)``, ``("list", [text])``, ``("table", header, rows)``,
     ``("figure", stem, caption)``. Text may hold `code` spans.
@@ -235,6 +238,7 @@ def report_blocks(
         ("table", *_discretization_table(studies)),
         *_fault_blocks(fault_runs, figure_captions),
         *commissioning_blocks(commissioning_runs),
+        *(two_mass_blocks(two_mass, figure_captions) if two_mass is not None else []),
         ("h2", "Files"),
         (
             "list",
