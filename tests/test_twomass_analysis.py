@@ -1,20 +1,25 @@
-"""pmsm2dof.analysis.twomass and the `pmsm2dof twomass` command against truths from outside them.
+"""pmsm2dof.analysis.twomass, the `pmsm2dof twomass` command and the design header's torque filters
+against truths from outside them.
 
 - the resonance from the eigenvalues of the two-mass state matrix written here from Newton's law;
 - the torque filters against the designs of tests/test_torque_filter.py (the notch's B solved there
   numerically for the discrete -3 dB width);
 - the loop's stability against the engine (tests/test_twomass_engine.py: the load-side loop that
-  the notch stabilizes).
+  the notch stabilizes);
+- the C header with the torque filters, compiled with the library, against the Python controller.
 """
 
 import math
+import subprocess
 
 import numpy as np
 import pytest
+from test_codegen import CFLAGS, CSRC, GCC, N_STEPS, c_array, inputs
 from test_torque_filter import designed_lowpass, designed_notch
 
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.twomass import filter_tf, sampled_loop, two_mass
+from pmsm2dof.core import SpeedController
 from pmsm2dof.ui.cli import main
 
 J_M, J_L, F_R_HZ, ZETA_R = 0.1, 0.3, 30.0, 0.02
@@ -78,3 +83,52 @@ def test_cli_twomass_bad_input_is_one_line(capsys):
     captured = capsys.readouterr()
     assert captured.err.splitlines() == ["pmsm2dof: error: --J-load = -1.0 is invalid: valid range is finite and > 0"]
     assert captured.out == ""
+
+
+FILTERED_PROGRAM = """\
+#include <stdio.h>
+
+#include "notched.h"
+
+{arrays}
+
+int main(void)
+{{
+    p2d_speed_t ctl;
+    p2d_speed_output_t out;
+    int k;
+    if (p2d_speed_init(&ctl, &notched_speed_config) != P2D_OK) return 1;
+    if (p2d_speed_set_filter(&ctl, &notched_speed_filter) != P2D_OK) return 1;
+    for (k = 0; k < {n}; ++k) {{
+        p2d_speed_step(&ctl, w_ref[k], w_m[k], &out);
+        printf("%a %a\\n", (double)out.T_unsat_Nm, (double)out.T_ref_Nm);
+    }}
+    return 0;
+}}
+"""
+
+
+@pytest.mark.skipif(GCC is None, reason="gcc is not installed")
+def test_header_with_torque_filters_compiles_and_matches_python(tmp_path):
+    """The design's C header with a notch and a low-pass, built with the library: the filtered command
+    equals, bit for bit, a SpeedController configured in Python with the same filters."""
+    filters = dict(notch_freq_Hz=30.0, notch_width_Hz=20.0, notch_depth=0.05, lowpass_freq_Hz=150.0, lowpass_zeta=0.7)
+    motor = dict(i_max_A=7.6, pole_pairs=4, psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01)
+    d = design(J_M + J_L, 20.0, 0.7)
+    d.to_c_header(tmp_path / "notched.h", 1e-3, "tustin", prefix="notched", speed_filter=filters, **motor)
+    w_ref, w_m = inputs(N_STEPS)
+    arrays = "\n".join([c_array("w_ref", w_ref), c_array("w_m", w_m)])
+    (tmp_path / "main.c").write_text(FILTERED_PROGRAM.format(arrays=arrays, n=N_STEPS))
+    sources = [str(tmp_path / "main.c"), *sorted(str(p) for p in (CSRC / "src").glob("*.c"))]
+    exe = tmp_path / "run"
+    subprocess.run(
+        [GCC, *CFLAGS, f"-I{CSRC / 'include'}", f"-I{tmp_path}", *sources, "-o", str(exe), "-lm"], check=True
+    )
+    run = subprocess.run([str(exe)], capture_output=True, text=True, timeout=30, check=True)
+    c = np.array([[float.fromhex(v) for v in line.split()] for line in run.stdout.splitlines()])
+    ctl = SpeedController(J_kgm2=J_M + J_L, alpha_radps=20.0, zeta=0.7, Ts_s=1e-3, **motor, **filters)
+    py = ctl.run(w_ref, w_m)
+    np.testing.assert_array_equal(c[:, 0].astype(np.float32), py["T_unsat_Nm"])
+    np.testing.assert_array_equal(c[:, 1].astype(np.float32), py["T_ref_Nm"])
+    plain = SpeedController(J_kgm2=J_M + J_L, alpha_radps=20.0, zeta=0.7, Ts_s=1e-3, **motor).run(w_ref, w_m)
+    assert not np.array_equal(plain["T_unsat_Nm"], py["T_unsat_Nm"])  # the filters act

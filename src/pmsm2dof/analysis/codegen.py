@@ -61,6 +61,14 @@ _CURRENT_FIELDS = {
     "anti_windup": ("", "anti-windup per axis, Ka = 1/Kp"),
     "decouple": ("", "back-EMF and cross-coupling feedforward (eq 1)"),
 }
+# field: (unit, meaning) of p2d_filter_config_t, in declaration order (csrc/include/pmsm2dof/filter.h)
+_FILTER_FIELDS = {
+    "notch_freq_Hz": ("Hz", "notch frequency f0; 0: no notch"),
+    "notch_width_Hz": ("Hz", "-3 dB width of the notch"),
+    "notch_depth": ("-", "gain of the notch at f0"),
+    "lowpass_freq_Hz": ("Hz", "low-pass natural frequency; 0: no low-pass"),
+    "lowpass_zeta": ("-", "low-pass damping"),
+}
 # C enumerator prefix of each choice field
 _ENUMS = {
     "method": ("P2D_", METHODS),
@@ -145,6 +153,7 @@ def c_header(
     decouple: bool = True,
     prefix: str = "p2d_design",
     motor_sources: Mapping[str, str] | None = None,
+    speed_filter: Mapping[str, float] | None = None,
 ) -> str:
     """The text of a C header configuring the controllers with ``discrete``.
 
@@ -179,6 +188,11 @@ def c_header(
     motor_sources : dict, optional
         Where motor values came from, ``{keyword: text}`` (for example a placeholder drive);
         recorded next to each value in the header's comment.
+    speed_filter : dict, optional
+        Torque filters of the speed controller, the fields of ``p2d_filter_config_t``
+        (``notch_freq_Hz``, ``notch_width_Hz``, ``notch_depth``, ``lowpass_freq_Hz``,
+        ``lowpass_zeta``; absent ones 0). Adds ``<prefix>_speed_filter`` for
+        ``p2d_speed_set_filter()``, validated by the C core with the speed configuration.
 
     Returns
     -------
@@ -192,7 +206,15 @@ def c_header(
     if not isinstance(prefix, str) or not _IDENTIFIER.match(prefix):
         raise ConfigError("prefix", prefix, "a C identifier: a letter or '_' then letters, digits or '_'")
     speed = speed_config(discrete, i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H)
-    speed_ctl = SpeedController(**speed)
+    filters: dict[str, float] | None = None
+    if speed_filter:
+        unknown = sorted(set(speed_filter) - set(_FILTER_FIELDS))
+        if unknown:
+            raise ConfigError(
+                unknown[0], speed_filter[unknown[0]], "a field of p2d_filter_config_t: " + ", ".join(_FILTER_FIELDS)
+            )
+        filters = {name: speed_filter.get(name, 0.0) for name in _FILTER_FIELDS}
+    speed_ctl = SpeedController(**speed, **(filters or {}))
     current: dict[str, Any] | None = None
     if Rs_ohm is not None or Ts_current_s is not None:
         if Rs_ohm is None:
@@ -231,6 +253,9 @@ def c_header(
         lines.append('#include "pmsm2dof/current.h"')
     lines += ["", "/* Pass to p2d_speed_init(); the C core computes the coefficients listed above. */"]
     lines += _initializer("p2d_speed_config_t", f"{prefix}_speed_config", speed, _SPEED_FIELDS)
+    if filters is not None:
+        lines += ["", "/* Pass to p2d_speed_set_filter() after p2d_speed_init(): the torque filters (filter.h). */"]
+        lines += _initializer("p2d_filter_config_t", f"{prefix}_speed_filter", filters, _FILTER_FIELDS)
     if current is not None:
         lines += ["", "/* Pass to p2d_current_init(). */"]
         lines += _initializer("p2d_current_config_t", f"{prefix}_current_config", current, _CURRENT_FIELDS)
