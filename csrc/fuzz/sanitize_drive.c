@@ -20,11 +20,15 @@
  *   4. a load far beyond the limit that drives the shaft backwards until the
  *      engine stops with P2D_SIM_STOP_OVERSPEED;
  *   5. error paths: NULL, an invalid motor, an invalid controller, a log
- *      buffer too small (P2D_SIM_ERR_LOG_FULL, without writing past it);
+ *      buffer too small (P2D_SIM_ERR_LOG_FULL, without writing past it), an
+ *      invalid drive train, an invalid torque filter;
  *   6. the commissioning run (commission_run.h) of a salient servo with
  *      dead time, current noise and computation delay, into a log of exactly
  *      its rows: DONE, every estimate within 5 %; then a log one row short
- *      (P2D_CRUN_ERR_LOG_FULL) and a rejected routine configuration.
+ *      (P2D_CRUN_ERR_LOG_FULL) and a rejected routine configuration;
+ *   7. a two-mass train with backlash read on the load side, with a notch and
+ *      a low-pass in the speed controller, a load step: the trace ends at rest
+ *      on the reference with the shaft carrying the load.
  * Besides the sanitizers' own checks: the status codes, every logged value
  * finite, ||i_ref|| <= i_max (float32 slack), and the recovery of scenario 2.
  */
@@ -262,6 +266,16 @@ int main(void)
         CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 10u,
               "log of 10 rows for 11 samples: status %d rows %llu", (int)status, (unsigned long long)sim->n_rows);
         free(small);
+        paper_drive(&cfg);
+        cfg.mechanics.model = P2D_MECHANICS_TWO_MASS;
+        cfg.mechanics.J_load_kgm2 = -0.3;
+        cfg.mechanics.stiffness_Nm_per_rad = 1000.0;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_J_LOAD, "negative load inertia accepted");
+        paper_drive(&cfg);
+        cfg.speed_filter.notch_freq_Hz = 600.0f; /* above the speed loop's Nyquist frequency */
+        cfg.speed_filter.notch_width_Hz = 10.0f;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_SPEED_CONTROLLER && sim->controller_status == P2D_ERR_NOTCH_FREQ,
+              "notch above Nyquist: status %d", (int)sim->controller_status);
         free(sim);
     }
 
@@ -334,10 +348,45 @@ int main(void)
         free(run);
     }
 
+    /* 7. two-mass train with backlash, load-side feedback, notch and low-pass */
+    {
+        static const double ref_t[] = {0.0}, ref_v[] = {300.0 * RADPS_PER_RPM}, ref_r[] = {0.0};
+        static const double load_t[] = {0.5}, load_v[] = {4.0}, load_r[] = {0.0};
+        paper_drive(&cfg);
+        cfg.motor.J_kgm2 = 0.1;
+        cfg.mechanics.model = P2D_MECHANICS_TWO_MASS;
+        cfg.mechanics.J_load_kgm2 = 0.3;
+        cfg.mechanics.stiffness_Nm_per_rad = 2664.8; /* 30 Hz */
+        cfg.mechanics.damping_Nms_per_rad = 0.5655;  /* zeta_r = 0.02 */
+        cfg.mechanics.backlash_rad = 1e-3;
+        cfg.mechanics.feedback = P2D_FEEDBACK_LOAD;
+        cfg.speed.alpha_radps = 5.0f;
+        cfg.speed.zeta = 0.7f;
+        cfg.speed.Ka = p2d_speed_Ka_default(0.4f, 5.0f);
+        cfg.current.tau_i_s = 0.002f;
+        cfg.speed_filter.notch_freq_Hz = 30.0f;
+        cfg.speed_filter.notch_width_Hz = 20.0f;
+        cfg.speed_filter.notch_depth = 0.05f;
+        cfg.speed_filter.lowpass_freq_Hz = 150.0f;
+        cfg.speed_filter.lowpass_zeta = 0.7f;
+        cfg.reference = (p2d_schedule_t){ref_t, ref_v, ref_r, 1u};
+        cfg.load = (p2d_schedule_t){load_t, load_v, load_r, 1u};
+        status = run("two-mass with filters", &cfg, 7500u, 3u, &log, &rows);
+        CHECK(status == P2D_SIM_OK && rows == 7500u, "two-mass with filters: status %d rows %llu", (int)status,
+              (unsigned long long)rows);
+        if (rows == 7500u) {
+            double w_L = cell(log, rows, 7499u, P2D_LOG_W_LOAD_RADPS);
+            double T_s = cell(log, rows, 7499u, P2D_LOG_SHAFT_TORQUE_NM);
+            CHECK(fabs(w_L - ref_v[0]) < 1e-3 * ref_v[0], "two-mass with filters: w_L(7.5 s) = %g rad/s", w_L);
+            CHECK(fabs(T_s - load_v[0]) < 1e-3 * load_v[0], "two-mass with filters: T_s(7.5 s) = %g Nm", T_s);
+        }
+        free(log);
+    }
+
     if (failures != 0) {
         fprintf(stderr, "sanitize_drive: %d check(s) failed\n", failures);
         return 1;
     }
-    printf("sanitize_drive: 6 scenarios passed\n");
+    printf("sanitize_drive: 7 scenarios passed\n");
     return 0;
 }
