@@ -71,8 +71,8 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_ERR_FEEDBACK] = {"mechanics.feedback", "motor (0) or load (1)"},
     [P2D_SIM_ERR_LOG_FULL] = {"log_rows", "room for every logged sample"},
     [P2D_SIM_STOP_NONFINITE] = {"", "the plant state became non-finite (NaN or infinite)"},
-    [P2D_SIM_STOP_OVERSPEED] = {"", "the motor or load speed exceeds twice the no-load speed of the DC link, "
-                                    "2 u_dc / (sqrt(3) p psi_f)"},
+    [P2D_SIM_STOP_OVERSPEED] = {"", "the speed exceeds twice the no-load speed of the DC link, "
+                                    "2 u_dc / (sqrt(3) p psi_f) (two_mass: on the motor or the load side)"},
     [P2D_SIM_STOP_OVERCURRENT] = {"", "the current exceeds ten times the larger of the current limit and "
                                       "the short-circuit current psi_f / min(Ld, Lq)"},
     [P2D_SIM_STOP_CONTROLLER_FAULT] = {"", "a controller's output became non-finite (non-finite policy)"},
