@@ -13,6 +13,10 @@ reference and load torque schedules of a run (section 4.1)::
     t_s = 0.0
     speed_rpm = 500.0
 
+An optional ``[mechanics]`` table makes the load a two-mass drive train (the paper's conclusion:
+motor and load inertia coupled by an elastic shaft), and ``[speed_filter]`` puts a notch and a
+low-pass on the speed controller's torque command; both absent, the drive is the paper's.
+
 Optional ``[[fault]]`` entries make the simulator play a fault: a DC-link sag over a window, or a
 speed-sensor reading held, zero or wrong for one sample (see :data:`pmsm2dof.core.FAULT_KINDS`).
 

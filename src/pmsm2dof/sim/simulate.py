@@ -37,6 +37,15 @@ Initial state
     In steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
     load; the reference and load schedules apply from t = 0 (entries at t = 0 are steps at 0).
 
+Drive train
+    ``[mechanics]``: ``rigid`` (the default, one inertia ``motor.J_kgm2``) or ``two_mass``, the
+    motor side ``motor.J_kgm2`` coupled to ``mechanics.J_load_kgm2`` by a shaft of stiffness,
+    damping and play (a dead zone); the load torque acts on the load side, the friction on the
+    motor side, and the speed controller reads the side ``mechanics.feedback`` names
+    (``csrc/sim/drive.h`` has the equations). ``load_speed_rpm`` and ``shaft_torque_Nm`` of the
+    :class:`Result` show the load side. ``[speed_filter]``: the speed controller's torque filters
+    (a notch and a low-pass inside its anti-windup loop, ``csrc/include/pmsm2dof/filter.h``).
+
 Coulomb friction
     ``T_coulomb_Nm tanh(w_m / w_c)`` with ``w_c = max(0.01 rad/s, 10 Ts_current T_c / J)``:
     smooth, with no stiction (a load below T_c lets the shaft creep slowly instead of holding).
