@@ -50,7 +50,10 @@ def trace_figure(result: Result) -> Figure:
     fig.suptitle(result.scenario.name)
 
     ax_w.plot(t, result.speed_ref_rpm, "k--", lw=1.0, label="reference")
-    ax_w.plot(t, result.speed_rpm, lw=1.4, label="speed")
+    two_mass = result.scenario.data["mechanics"]["model"] == "two_mass"
+    ax_w.plot(t, result.speed_rpm, lw=1.4, label="motor speed" if two_mass else "speed")
+    if two_mass:
+        ax_w.plot(t, result.load_speed_rpm, lw=1.0, color="C2", label="load speed")
     ax_w.set_ylabel("speed [rpm]")
 
     ax_i.plot(t, result.iq_ref_A, "--", lw=1.0, color="C0", label="iq command")
@@ -65,6 +68,8 @@ def trace_figure(result: Result) -> Figure:
     ax_T.plot(t, result.torque_ref_Nm, "--", lw=1.0, color="C2", label="limited command u_sat")
     ax_T.plot(t, result.torque_Nm, lw=1.4, color="C0", label="electromagnetic Te")
     ax_T.plot(t, result.load_Nm, lw=1.4, color="C4", label="load")
+    if two_mass:
+        ax_T.plot(t, result.shaft_torque_Nm, lw=1.0, color="C5", label="shaft")
     ax_T.set_ylabel("torque [Nm]")
 
     ax_u.plot(t, np.hypot(result.ud_V, result.uq_V), lw=1.4, color="C0", label="||u_dq||")
