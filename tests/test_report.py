@@ -192,7 +192,7 @@ def test_unwritable_out_fails_before_any_run(tmp_path, capsys, monkeypatch):
 # ---------------------------------------------------------------------------------------------
 
 #: How the figure data columns end: a unit, or the name of a dimensionless quantity.
-UNIT_ENDINGS = ("_s", "_rpm", "_A", "_Nm", "_pct", "_dB", "_deg", "_radps", "_radps_per_Nm", "_controller_error")
+UNIT_ENDINGS = ("_s", "_rpm", "_A", "_Nm", "_pct", "_dB", "_deg", "_radps", "_radps_per_Nm", "_controller_error", "_Hz")
 DIMENSIONLESS = ("m", "zeta", "J_over_J_design")
 
 
