@@ -321,3 +321,18 @@ def test_bad_mechanics_and_filters_name_their_key(sections, key):
     with pytest.raises(ConfigError) as err:
         simulate(Scenario.from_dict(tree(**sections)))
     assert err.value.param == key
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("feedforward, m", [("none", 1.0), ("lowpass", 1.0), ("no_tau", 2.0), ("full", 2.0)])
+def test_stability_does_not_depend_on_the_feedforward_form(feedforward, m):
+    """Fr lies outside the loop (eq 6): every form leaves the resonance unstable without the notch and
+    stable with it (the stable region of pmsm2dof.analysis.twomass holds for each form)."""
+    form = {"speed_controller.feedforward": feedforward, "speed_controller.m": m}
+    plain = simulate(resonant_scenario().with_overrides(form))
+    notched = simulate(
+        resonant_scenario(notch_freq_Hz=F_R_HZ, notch_width_Hz=20.0, notch_depth=0.05).with_overrides(form)
+    )
+    late = plain.t_s > 2.5
+    assert np.ptp(plain.shaft_torque_Nm[late]) > 100.0
+    assert np.ptp(notched.shaft_torque_Nm[late]) < 1e-3
