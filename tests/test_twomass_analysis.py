@@ -18,7 +18,7 @@ from test_codegen import CFLAGS, CSRC, GCC, N_STEPS, c_array, inputs
 from test_torque_filter import designed_lowpass, designed_notch
 
 from pmsm2dof.analysis.design import design
-from pmsm2dof.analysis.twomass import filter_tf, sampled_loop, two_mass
+from pmsm2dof.analysis.twomass import filter_tf, largest_stable_alpha, sampled_loop, two_mass
 from pmsm2dof.core import SpeedController
 from pmsm2dof.ui.cli import main
 
@@ -132,3 +132,27 @@ def test_header_with_torque_filters_compiles_and_matches_python(tmp_path):
     np.testing.assert_array_equal(c[:, 1].astype(np.float32), py["T_ref_Nm"])
     plain = SpeedController(J_kgm2=J_M + J_L, alpha_radps=20.0, zeta=0.7, Ts_s=1e-3, **motor).run(w_ref, w_m)
     assert not np.array_equal(plain["T_unsat_Nm"], py["T_unsat_Nm"])  # the filters act
+
+
+def test_a_stiff_shaft_has_the_rigid_drives_bound():
+    """The largest stable alpha of a very stiff train equals the rigid loop's, decided by the w-plane
+    Routh test of pmsm2dof.analysis.discretize (another code path), and lies below the continuous
+    bound 4 zeta^2 / tau_i of eq 9 with the current loop (Routh on J tau_i s^3 + J s^2 + Kp s + Ki)."""
+    from pmsm2dof.errors import ConfigError
+
+    zeta, tau_i, Ts = 0.2887, 0.05, 1e-3
+
+    def rigid_stable(alpha):
+        try:
+            design(0.4, alpha, zeta, tau_i_s=tau_i).discretize(Ts, "tustin")
+        except ConfigError:
+            return False
+        return True
+
+    lo, hi = 1.0, 4 * zeta**2 / tau_i
+    assert rigid_stable(lo) and not rigid_stable(hi)
+    while hi / lo > 1.0 + 1e-4:
+        mid = math.sqrt(lo * hi)
+        lo, hi = (mid, hi) if rigid_stable(mid) else (lo, mid)
+    stiff = two_mass(0.1, 0.3, 1e7, 10.0)
+    assert largest_stable_alpha(stiff, zeta, tau_i, Ts, rtol=1e-4) == pytest.approx(lo, rel=1e-3)
