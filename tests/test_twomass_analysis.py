@@ -156,3 +156,22 @@ def test_a_stiff_shaft_has_the_rigid_drives_bound():
         lo, hi = (mid, hi) if rigid_stable(mid) else (lo, mid)
     stiff = two_mass(0.1, 0.3, 1e7, 10.0)
     assert largest_stable_alpha(stiff, zeta, tau_i, Ts, rtol=1e-4) == pytest.approx(lo, rel=1e-3)
+
+
+def test_cli_region_refuses_other_formats_and_writes_nothing(tmp_path, capsys):
+    args = ["twomass", "--J-motor", "0.1", "--J-load", "0.3", "--stiffness", str(K), "--alpha", "20", "--Ts", "1e-3"]
+    assert main([*args, "--region", str(tmp_path / "region.pdf")]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"pmsm2dof: error: --region = '{tmp_path / 'region.pdf'}' is invalid: valid range is a file name ending "
+        "in .png or .svg"
+    ]
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_cli_region_draws_the_stable_region(tmp_path, capsys):
+    args = ["twomass", "--J-motor", "0.1", "--J-load", "0.3", "--stiffness", str(K), "--damping", str(D)]
+    args += ["--alpha", "20", "--tau-i", "2e-3", "--Ts", "1e-3", "--feedback", "load"]
+    assert main([*args, "--region", str(tmp_path / "region.svg")]) == 0
+    assert (tmp_path / "region.svg").read_text().lstrip().startswith("<?xml")
+    assert [p.name for p in tmp_path.iterdir()] == ["region.svg"]

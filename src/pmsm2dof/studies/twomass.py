@@ -40,15 +40,25 @@ LATE_S = 2.0
 NOTCH_WIDTH_SHARE, NOTCH_DEPTH = 0.5, 0.05
 
 
-def train_overrides(f_r_Hz: float, feedback: str, notch: bool, ratio: float = J_LOAD_KGM2 / J_MOTOR_KGM2) -> dict:
-    """Scenario overrides: a two-mass train of 0.4 kg m^2 with load/motor inertia ``ratio`` and its
-    resonance at ``f_r_Hz`` (damping :data:`RESONANCE_DAMPING`), read on ``feedback``; with ``notch``
-    a notch at the resonance. The speed controller stays designed for the total inertia."""
-    J_total = J_MOTOR_KGM2 + J_LOAD_KGM2
+def train_overrides(
+    f_r_Hz: float,
+    feedback: str,
+    notch: bool,
+    ratio: float = J_LOAD_KGM2 / J_MOTOR_KGM2,
+    J_total_kgm2: float = J_MOTOR_KGM2 + J_LOAD_KGM2,
+    resonance_damping: float = RESONANCE_DAMPING,
+    notch_width_share: float = NOTCH_WIDTH_SHARE,
+    notch_depth: float = NOTCH_DEPTH,
+) -> dict:
+    """Scenario overrides: a two-mass train of ``J_total_kgm2`` with load/motor inertia ``ratio`` and
+    its resonance at ``f_r_Hz`` (damping ratio ``resonance_damping``), read on ``feedback``; with
+    ``notch`` a notch at the resonance, ``notch_width_share`` of it wide and ``notch_depth`` deep. The
+    speed controller stays designed for the total inertia."""
+    J_total = J_total_kgm2
     J_M, J_L = J_total / (1.0 + ratio), J_total * ratio / (1.0 + ratio)
     w_r = 2.0 * math.pi * f_r_Hz
     K = w_r**2 * J_M * J_L / J_total
-    D = 2.0 * RESONANCE_DAMPING * w_r * J_M * J_L / J_total
+    D = 2.0 * resonance_damping * w_r * J_M * J_L / J_total
     overrides: dict[str, Any] = {
         "motor.J_kgm2": J_M,
         "mechanics.model": "two_mass",
@@ -60,8 +70,8 @@ def train_overrides(f_r_Hz: float, feedback: str, notch: bool, ratio: float = J_
     if notch:
         overrides |= {
             "speed_filter.notch_freq_Hz": f_r_Hz,
-            "speed_filter.notch_width_Hz": NOTCH_WIDTH_SHARE * f_r_Hz,
-            "speed_filter.notch_depth": NOTCH_DEPTH,
+            "speed_filter.notch_width_Hz": notch_width_share * f_r_Hz,
+            "speed_filter.notch_depth": notch_depth,
         }
     return overrides
 
@@ -146,18 +156,20 @@ def stable_region(
     notch: bool = False,
     alpha_min_radps: float = 0.1,
     alpha_max_radps: float = 1000.0,
+    **shape: float,
 ) -> np.ndarray:
     """Largest stable alpha [rad/s] over ``ratios`` (J_L/J_M, rows) and ``resonances_Hz`` (columns).
 
-    The trains have the paper's total inertia; the eq 9 design is on it; ``notch`` puts the notch of
-    :func:`train_overrides` at each resonance. Each value is
+    The trains are those of :func:`train_overrides` (``shape``: its keywords ``J_total_kgm2``,
+    ``resonance_damping``, ``notch_width_share``, ``notch_depth``; default the paper's total inertia);
+    the eq 9 design is on the total inertia; ``notch`` puts the notch at each resonance. Each value is
     :func:`pmsm2dof.analysis.twomass.largest_stable_alpha` between ``alpha_min_radps`` and
     ``alpha_max_radps``, to 1 %.
     """
     region = np.full((len(ratios), len(resonances_Hz)), math.nan)
     for i, ratio in enumerate(ratios):
         for j, f_r in enumerate(resonances_Hz):
-            o = train_overrides(f_r, feedback, notch, ratio)
+            o = train_overrides(f_r, feedback, notch, ratio, **shape)
             train = two_mass(
                 o["motor.J_kgm2"],
                 o["mechanics.J_load_kgm2"],

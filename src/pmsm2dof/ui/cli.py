@@ -1063,6 +1063,14 @@ def _percent(x: float) -> str:
 @click.option("--notch-depth", "notch_depth", type=float, default=0.0, help="notch gain at its frequency [-]")
 @click.option("--lowpass-freq", "lowpass_freq_Hz", type=float, default=0.0, help="low-pass frequency [Hz] (0: none)")
 @click.option("--lowpass-zeta", "lowpass_zeta", type=float, default=0.0, help="low-pass damping [-]")
+@click.option(
+    "--region",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="also draw the stable region (.png or .svg): the largest stable alpha against the resonance, "
+    "resonance/10 .. 10x, for inertia ratios around J_L/J_M, with and without a notch at the resonance "
+    "(the --notch-* width share and depth, else half the resonance wide and 0.05 deep); takes tens of seconds",
+)
 def twomass(
     J_motor_kgm2,
     J_load_kgm2,
@@ -1073,6 +1081,7 @@ def twomass(
     tau_i_s,
     Ts_s,
     feedback,
+    region,
     **filters,
 ):
     """The eq 9 design on the total inertia of a two-mass drive train: resonance, margins, poles.
@@ -1098,11 +1107,14 @@ def twomass(
         **{name: "--" + name.rsplit("_", 1)[0].replace("_", "-") for name in filters},
         "notch_depth": "--notch-depth",
         "lowpass_zeta": "--lowpass-zeta",
+        "region": "--region",
     }
     try:
         train = two_mass(J_motor_kgm2, J_load_kgm2, stiffness_Nm_per_rad, damping_Nms_per_rad)
         d = design(train.J_total_kgm2, alpha_radps, zeta, tau_i_s=tau_i_s)
         loop = sampled_loop(d, train, Ts_s, feedback=feedback, filters=filters)
+        if region is not None and not region.lower().endswith((".png", ".svg")):
+            raise ConfigError("region", region, "a file name ending in .png or .svg")
     except ConfigError as exc:
         raise _as_option(exc, options) from None
     two_pi = 2.0 * 3.141592653589793
@@ -1119,3 +1131,47 @@ def twomass(
         click.echo(f"margins                    {gm:.3g} dB, {pm:.3g} deg")
     worst = sorted(loop.poles, key=abs)[-2:]
     click.echo("poles nearest |z| = 1      " + ", ".join(f"{p:.6g} (|z| = {abs(p):.6f})" for p in worst))
+    if region is not None:
+        _write_region(region, train, d, Ts_s, filters)
+        click.echo(f"wrote the stable region to {region}")
+
+
+def _write_region(path, train, d, Ts_s, filters):
+    """The stable-region figure of ``pmsm2dof twomass --region`` (written whole or not at all)."""
+    import io
+
+    import numpy as np
+
+    from ..outputs import atomic_write
+    from ..studies.twomass import FEEDBACKS, stable_region
+    from .report.twomass import TwoMassStudy, fig_stable_region
+
+    f_r = train.resonance_radps / (2.0 * np.pi)
+    ratios = tuple(sorted({train.inertia_ratio, train.inertia_ratio / 3.0, 3.0 * train.inertia_ratio}))
+    resonances = tuple(float(f) for f in np.geomspace(f_r / 10.0, 10.0 * f_r, 9))
+    notch = filters["notch_freq_Hz"] > 0.0
+    shape = dict(
+        J_total_kgm2=train.J_total_kgm2,
+        resonance_damping=train.resonance_damping,
+        notch_width_share=filters["notch_width_Hz"] / filters["notch_freq_Hz"] if notch else 0.5,
+        notch_depth=filters["notch_depth"] if notch else 0.05,
+    )
+    regions = {
+        (fb, with_notch): stable_region(
+            ratios if fb == "motor" else ratios[:1],
+            resonances,
+            zeta=d.zeta,
+            tau_i_s=d.tau_i_s,
+            Ts_s=Ts_s,
+            feedback=fb,
+            notch=with_notch,
+            **shape,
+        )
+        for fb in FEEDBACKS
+        for with_notch in (False, True)
+    }
+    study = TwoMassStudy([], regions, d.alpha_radps, d.zeta, d.tau_i_s, Ts_s, ratios, resonances)
+    fig, _data = fig_stable_region(study)
+    buf = io.BytesIO()
+    fig.savefig(buf, format=path.rsplit(".", 1)[-1].lower(), dpi=110)
+    atomic_write(path, buf.getvalue())

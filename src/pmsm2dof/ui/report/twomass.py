@@ -23,8 +23,8 @@ REGION_RESONANCES_HZ = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
 class TwoMassStudy:
     """The runs, their rows and the stable regions of the section.
 
-    ``regions[(feedback, notch)]``: the largest stable alpha [rad/s] over
-    :data:`REGION_RATIOS` (rows) and :data:`REGION_RESONANCES_HZ` (columns).
+    ``regions[(feedback, notch)]``: the largest stable alpha [rad/s] over ``ratios`` (rows; the load
+    side: the first ratio alone, it does not depend on it) and ``resonances_Hz`` (columns).
     """
 
     rows: list
@@ -33,6 +33,8 @@ class TwoMassStudy:
     zeta: float
     tau_i_s: float
     Ts_s: float
+    ratios: tuple = REGION_RATIOS
+    resonances_Hz: tuple = REGION_RESONANCES_HZ
 
 
 def run_two_mass_study(overrides: Mapping[str, Any] | None = None) -> TwoMassStudy:
@@ -62,16 +64,16 @@ def fig_stable_region(study: TwoMassStudy) -> tuple[Figure, FigureData]:
     """Largest stable alpha against the resonance: motor side (one line per inertia ratio) and load side."""
     fig, axes = _figure(1, 2, height=3.2, width=10.0)
     data = FigureData()
-    f_r = data("resonance_Hz", REGION_RESONANCES_HZ)
+    f_r = data("resonance_Hz", study.resonances_Hz)
     for ax, fb in zip(axes[0], tm.FEEDBACKS):
-        ratios = REGION_RATIOS if fb == "motor" else REGION_RATIOS[:1]
+        ratios = study.ratios if fb == "motor" else study.ratios[:1]
         for notch, ls in ((False, "-"), (True, "--")):
             region = study.regions[fb, notch]
             for i, ratio in enumerate(ratios):
                 name = f"{fb}_ratio_{ratio:g}_{'notch' if notch else 'plain'}_alpha_max_radps"
                 label = (f"J_L/J_M = {ratio:g}" if fb == "motor" else "any J_L/J_M") + (", notch" if notch else "")
                 ax.loglog(f_r, data(name, region[i]), ls=ls, color=f"C{i}", marker=".", label=label)
-        ax.axhline(study.alpha_radps, color="k", ls=":", lw=1.0, label=f"paper's alpha = {study.alpha_radps:g} rad/s")
+        ax.axhline(study.alpha_radps, color="k", ls=":", lw=1.0, label=f"design alpha = {study.alpha_radps:g} rad/s")
         ax.set_title(f"speed read on the {fb} side", fontsize="small", loc="left")
         ax.set_xlabel("shaft resonance [Hz]")
         ax.grid(True, which="both", alpha=0.3)
@@ -119,8 +121,8 @@ def two_mass_blocks(study: TwoMassStudy, figure_captions: Mapping[str, str]) -> 
         )
     limit = float(np.nanmax(study.regions["motor", False]))
     load, load_notch = study.regions["load", False][0], study.regions["load", True][0]
-    below = [f for f, a in zip(REGION_RESONANCES_HZ, load) if not a > study.alpha_radps]
-    helped = [f for f, a, n in zip(REGION_RESONANCES_HZ, load, load_notch) if n > a]
+    below = [f for f, a in zip(study.resonances_Hz, load) if not a > study.alpha_radps]
+    helped = [f for f, a, n in zip(study.resonances_Hz, load, load_notch) if n > a]
     findings = (
         f"With the paper's tau_i = {study.tau_i_s:g} s the current loop bounds alpha to about {limit:.3g} rad/s "
         "whatever the shaft, and read on the motor side (collocated) the shaft hardly lowers that bound: there "
