@@ -16,7 +16,7 @@ import re
 from collections.abc import Iterable, Mapping, Sequence
 from importlib.metadata import version
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -214,7 +214,7 @@ def c_header(
                 unknown[0], speed_filter[unknown[0]], "a field of p2d_filter_config_t: " + ", ".join(_FILTER_FIELDS)
             )
         filters = {name: speed_filter.get(name, 0.0) for name in _FILTER_FIELDS}
-    speed_ctl = SpeedController(**speed, **(filters or {}))
+    speed_ctl = SpeedController(**speed, **cast(dict[str, Any], filters or {}))
     current: dict[str, Any] | None = None
     if Rs_ohm is not None or Ts_current_s is not None:
         if Rs_ohm is None:

@@ -29,8 +29,10 @@ from dataclasses import dataclass
 
 import control
 import numpy as np
+import numpy.typing as npt
 from scipy import signal
 
+from ..core.bindings import Method
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
 from .design import Design, design
 from .discretize import c_coefficients
@@ -143,7 +145,7 @@ def _in_band(param: str, value: float, nyquist_Hz: float) -> float:
     return v
 
 
-def _prewarped(b: list, a: list, w0: float, g: float, Ts_s: float) -> control.TransferFunction:
+def _prewarped(b: list[float], a: list[float], w0: float, g: float, Ts_s: float) -> control.TransferFunction:
     bz, az = signal.bilinear(b, a, fs=w0 / (2.0 * g))
     return control.tf(bz, az, Ts_s)
 
@@ -169,13 +171,13 @@ class TwoMassLoop:
     feedback: str
     Ts_s: float
     L: control.StateSpace
-    poles: np.ndarray
+    poles: npt.NDArray[np.complex128]
     stable: bool
 
     @property
-    def poles_s(self) -> np.ndarray:
+    def poles_s(self) -> npt.NDArray[np.complex128]:
         """The closed-loop poles mapped to s, ``ln(z) / Ts`` [1/s]."""
-        return np.log(self.poles.astype(complex)) / self.Ts_s
+        return np.asarray(np.log(self.poles.astype(complex)) / self.Ts_s, dtype=np.complex128)
 
     def margins(self) -> tuple[float, float]:
         """(gain margin [dB], phase margin [deg]) of the loop gain (python-control); inf when there is no crossing."""
@@ -189,7 +191,7 @@ def sampled_loop(
     d: Design,
     mechanics: TwoMass,
     Ts_s: float,
-    method: str = "tustin",
+    method: Method = "tustin",
     feedback: str = "motor",
     filters: Mapping[str, float] | None = None,
 ) -> TwoMassLoop:
@@ -207,7 +209,7 @@ def sampled_loop(
     P = control.c2d(control.ss(Gci * mechanics.Gm(feedback)), Ts_s, "zoh")
     H = control.ss(filter_tf(Ts_s, **(filters or {})))
     L = C * H * P
-    poles = control.feedback(L, 1).poles()
+    poles = np.asarray(control.feedback(L, 1).poles(), dtype=np.complex128)
     return TwoMassLoop(mechanics, feedback, Ts_s, L, poles, bool(np.all(np.abs(poles) < 1.0)))
 
 

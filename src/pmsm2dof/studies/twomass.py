@@ -34,6 +34,9 @@ RESONANCE_DAMPING = 0.02
 FEEDBACKS = ("motor", "load")
 #: The alphas of the study, as factors of the preset's [-].
 ALPHA_FACTORS = (1.0, 10.0)
+#: A run of the study: (resonance [Hz] or None for the rigid drive, the side read or "rigid",
+#: the factor of the preset's alpha, with the notch).
+Case = tuple[float | None, str, float, bool]
 #: The end of a run over which the remaining shaft oscillation is measured [s].
 LATE_S = 2.0
 #: The notch at the resonance: -3 dB width as a share of its frequency, and its depth [-].
@@ -49,7 +52,7 @@ def train_overrides(
     resonance_damping: float = RESONANCE_DAMPING,
     notch_width_share: float = NOTCH_WIDTH_SHARE,
     notch_depth: float = NOTCH_DEPTH,
-) -> dict:
+) -> dict[str, Any]:
     """Scenario overrides: a two-mass train of ``J_total_kgm2`` with load/motor inertia ``ratio`` and
     its resonance at ``f_r_Hz`` (damping ratio ``resonance_damping``), read on ``feedback``; with
     ``notch`` a notch at the resonance, ``notch_width_share`` of it wide and ``notch_depth`` deep. The
@@ -76,7 +79,7 @@ def train_overrides(
     return overrides
 
 
-def run_two_mass(overrides: Mapping[str, Any] | None = None, workers: int | None = None) -> dict[tuple, Result | str]:
+def run_two_mass(overrides: Mapping[str, Any] | None = None, workers: int | None = None) -> dict[Case, Result | str]:
     """Simulate the study (module docstring) and the rigid drive at each alpha.
 
     Returns ``{(f_r_Hz, feedback, alpha_factor, notch): Result}``, with ``(None, "rigid",
@@ -85,7 +88,7 @@ def run_two_mass(overrides: Mapping[str, Any] | None = None, workers: int | None
     """
     base = load_scenario(PRESET).with_overrides(dict(overrides or {}))
     alpha = base.data["speed_controller"]["alpha_radps"]
-    cases: list[tuple] = [(None, "rigid", a, False) for a in ALPHA_FACTORS]
+    cases: list[Case] = [(None, "rigid", a, False) for a in ALPHA_FACTORS]
     cases += [
         (f_r, fb, a, notch)
         for f_r in RESONANCES_HZ
@@ -93,7 +96,7 @@ def run_two_mass(overrides: Mapping[str, Any] | None = None, workers: int | None
         for a in ALPHA_FACTORS
         for notch in (False, True)
     ]
-    runs: dict[tuple, Result | str] = {}
+    runs: dict[Case, Result | str] = {}
     bases, todo = {}, []
     for i, (f_r, fb, a, notch) in enumerate(cases):
         change: dict[str, Any] = {"speed_controller.alpha_radps": a * alpha}
@@ -113,7 +116,7 @@ def run_two_mass(overrides: Mapping[str, Any] | None = None, workers: int | None
     return runs
 
 
-def two_mass_rows(runs: Mapping[tuple, Result | str]) -> list[dict]:
+def two_mass_rows(runs: Mapping[Case, Result | str]) -> list[dict[str, Any]]:
     """One row per run of :func:`run_two_mass`: the figures the report's table shows.
 
     ``overshoot_pct`` of the 500 rpm step and ``load_dip_rpm`` of the 8 Nm step

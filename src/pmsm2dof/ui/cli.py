@@ -16,8 +16,10 @@ from ..errors import ConfigError, Pmsm2dofError
 
 if TYPE_CHECKING:
     from ..analysis.current_loop import CurrentLoopDesign, MotorEstimate
+    from ..analysis.design import Design
     from ..analysis.discretize import DiscreteDesign
     from ..analysis.margins import Margins
+    from ..analysis.twomass import TwoMass
     from ..core.bindings import AntiWindup, Feedforward, Method
     from ..sim.commission import Commissioning
     from ..studies.autotune import AutotuneResult
@@ -1072,18 +1074,18 @@ def _percent(x: float) -> str:
     "(the --notch-* width share and depth, else half the resonance wide and 0.05 deep); takes tens of seconds",
 )
 def twomass(
-    J_motor_kgm2,
-    J_load_kgm2,
-    stiffness_Nm_per_rad,
-    damping_Nms_per_rad,
-    alpha_radps,
-    zeta,
-    tau_i_s,
-    Ts_s,
-    feedback,
-    region,
-    **filters,
-):
+    J_motor_kgm2: float,
+    J_load_kgm2: float,
+    stiffness_Nm_per_rad: float,
+    damping_Nms_per_rad: float,
+    alpha_radps: float,
+    zeta: float,
+    tau_i_s: float,
+    Ts_s: float,
+    feedback: str,
+    region: str | None,
+    **filters: float,
+) -> None:
     """The eq 9 design on the total inertia of a two-mass drive train: resonance, margins, poles.
 
     Prints the resonance and anti-resonance of the train, and for the sampled loop (the C
@@ -1136,7 +1138,7 @@ def twomass(
         click.echo(f"wrote the stable region to {region}")
 
 
-def _write_region(path, train, d, Ts_s, filters):
+def _write_region(path: str, train: "TwoMass", d: "Design", Ts_s: float, filters: Mapping[str, float]) -> None:
     """The stable-region figure of ``pmsm2dof twomass --region`` (written whole or not at all)."""
     import io
 

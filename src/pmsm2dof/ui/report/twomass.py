@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from matplotlib.figure import Figure
 
 from ...studies import twomass as tm
@@ -27,14 +28,14 @@ class TwoMassStudy:
     side: the first ratio alone, it does not depend on it) and ``resonances_Hz`` (columns).
     """
 
-    rows: list
-    regions: dict
+    rows: list[dict[str, Any]]
+    regions: dict[tuple[str, bool], npt.NDArray[np.float64]]
     alpha_radps: float
     zeta: float
     tau_i_s: float
     Ts_s: float
-    ratios: tuple = REGION_RATIOS
-    resonances_Hz: tuple = REGION_RESONANCES_HZ
+    ratios: tuple[float, ...] = REGION_RATIOS
+    resonances_Hz: tuple[float, ...] = REGION_RESONANCES_HZ
 
 
 def run_two_mass_study(overrides: Mapping[str, Any] | None = None) -> TwoMassStudy:
@@ -87,7 +88,7 @@ def _num(value: object, digits: int = 3) -> str:
     return "n/a" if value is None else f"{value:.{digits}g}"
 
 
-def two_mass_blocks(study: TwoMassStudy, figure_captions: Mapping[str, str]) -> list:
+def two_mass_blocks(study: TwoMassStudy, figure_captions: Mapping[str, str]) -> list[tuple[Any, ...]]:
     """The section's blocks (:func:`pmsm2dof.ui.report.render.report_blocks`)."""
     header = (
         "shaft resonance [Hz]",
