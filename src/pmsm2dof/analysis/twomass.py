@@ -32,13 +32,11 @@ import numpy as np
 import numpy.typing as npt
 from scipy import signal
 
+from ..core import FEEDBACKS
 from ..core.bindings import Method
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
 from .design import Design, design
 from .discretize import c_coefficients
-
-#: The speeds a speed controller can read on a two-mass train (scenario key mechanics.feedback).
-FEEDBACK_SIDES = ("motor", "load")
 
 
 @dataclass(frozen=True)
@@ -81,7 +79,7 @@ class TwoMass:
 
     def Gm(self, feedback: str = "motor") -> control.TransferFunction:
         """Speed of the motor or load side per torque [rad/s / Nm] (module docstring)."""
-        require_choice("feedback", feedback, FEEDBACK_SIDES)
+        require_choice("feedback", feedback, FEEDBACKS)
         JM, JL, K, D = self.J_motor_kgm2, self.J_load_kgm2, self.stiffness_Nm_per_rad, self.damping_Nms_per_rad
         num = [JL, D, K] if feedback == "motor" else [D, K]
         return control.tf(num, np.polymul([1.0, 0.0], [JM * JL, D * (JM + JL), K * (JM + JL)]))
@@ -201,7 +199,7 @@ def sampled_loop(
     :meth:`TwoMass.Gm` of the side read; the PI is the C controller's (``method``, ``Ts_s``) and
     the torque filters ``filters`` (the keywords of :func:`filter_tf`; None: no filter) run inside the loop.
     """
-    require_choice("feedback", feedback, FEEDBACK_SIDES)
+    require_choice("feedback", feedback, FEEDBACKS)
     Ts_s = require_positive("Ts_s", Ts_s)
     c = c_coefficients(d, Ts_s, method, anti_windup="none")  # the linear loop: no limit acts
     C = control.ss(control.tf([c["b_e0"], c["Ki_Ts"] - c["b_e0"]], [1.0, -1.0], Ts_s))

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.twomass import largest_stable_alpha, two_mass
+from ..core import FEEDBACKS
 from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import load_scenario
@@ -30,8 +31,6 @@ J_MOTOR_KGM2, J_LOAD_KGM2 = 0.1, 0.3
 RESONANCES_HZ = (2.0, 5.0, 20.0)
 #: Damping ratio of the shaft's resonance [-] (a steel coupling: a few per cent).
 RESONANCE_DAMPING = 0.02
-#: The speed the controller reads.
-FEEDBACKS = ("motor", "load")
 #: The alphas of the study, as factors of the preset's [-].
 ALPHA_FACTORS = (1.0, 10.0)
 #: A run of the study: (resonance [Hz] or None for the rigid drive, the side read or "rigid",

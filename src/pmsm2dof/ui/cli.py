@@ -1144,8 +1144,9 @@ def _write_region(path: str, train: "TwoMass", d: "Design", Ts_s: float, filters
 
     import numpy as np
 
+    from ..core import FEEDBACKS
     from ..outputs import atomic_write
-    from ..studies.twomass import FEEDBACKS, stable_region
+    from ..studies.twomass import stable_region
     from .report.twomass import TwoMassStudy, fig_stable_region
 
     f_r = train.resonance_radps / (2.0 * np.pi)

@@ -12,6 +12,7 @@ import numpy as np
 import numpy.typing as npt
 from matplotlib.figure import Figure
 
+from ...core import FEEDBACKS
 from ...studies import twomass as tm
 from .figures import FigureData, _figure
 
@@ -55,7 +56,7 @@ def run_two_mass_study(overrides: Mapping[str, Any] | None = None) -> TwoMassStu
             feedback=fb,
             notch=notch,
         )
-        for fb in tm.FEEDBACKS
+        for fb in FEEDBACKS
         for notch in (False, True)
     }
     return TwoMassStudy(rows, regions, sc["alpha_radps"], sc["zeta"], data["current_loop"]["tau_i_s"], sc["Ts_s"])
@@ -66,7 +67,7 @@ def fig_stable_region(study: TwoMassStudy) -> tuple[Figure, FigureData]:
     fig, axes = _figure(1, 2, height=3.2, width=10.0)
     data = FigureData()
     f_r = data("resonance_Hz", study.resonances_Hz)
-    for ax, fb in zip(axes[0], tm.FEEDBACKS):
+    for ax, fb in zip(axes[0], FEEDBACKS):
         ratios = study.ratios if fb == "motor" else study.ratios[:1]
         for notch, ls in ((False, "-"), (True, "--")):
             region = study.regions[fb, notch]
