@@ -962,11 +962,8 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     return "\n".join(lines)
 
 
-# commission (pmsm2dof.sim.commission): the C commissioning routine against a scenario's motor
-
-
 # ---------------------------------------------------------------------------------------------
-# twomass (pmsm2dof.analysis.twomass)
+# commission (pmsm2dof.sim.commission): the C commissioning routine against a scenario's motor
 # ---------------------------------------------------------------------------------------------
 
 
@@ -1049,6 +1046,12 @@ def _percent(x: float) -> str:
     return f"{x * 100:.3f}%" if math.isfinite(x) else "n/a"
 
 
+# ---------------------------------------------------------------------------------------------
+# twomass (pmsm2dof.analysis.twomass)
+# ---------------------------------------------------------------------------------------------
+
+
+@cli.command()
 @click.option("--J-motor", "J_motor_kgm2", type=float, required=True, help="motor-side inertia J_M [kg m^2], > 0")
 @click.option("--J-load", "J_load_kgm2", type=float, required=True, help="load-side inertia J_L [kg m^2], > 0")
 @click.option("--stiffness", "stiffness_Nm_per_rad", type=float, required=True, help="shaft stiffness K [Nm/rad], > 0")
