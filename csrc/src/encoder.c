@@ -10,25 +10,25 @@
 #define P2D_TWO_PI 6.28318530717958648f /* 2 pi */
 
 /*
- * The bilinear image p = (2 - x) / (2 + x) of the pole s = -w, x = w Ts in (0, 2]
- * (pole in [0, 1)), written as 1 - p = 2 x / (2 + x), which keeps its relative
- * precision for small x. Returns false if x is out of range or float32 rounds
- * 1 - p to 0 (the pole onto 1).
+ * The bilinear image p = (2 - x) / (2 + x) of the pole s = -w, x = w Ts in
+ * [1e-3, 2] (pole in [0, 1)), and 1 - p, rounded so that p + (1 - p) = 1
+ * exactly: 1 - p and 1 - (1 - p) are exact by Sterbenz's lemma where they
+ * are >= 1/2, and the second subtraction makes the pair consistent where the
+ * first rounded. Returns false if x is out of range.
  */
-static bool bilinear_pole(float w_radps, float Ts_s, float *p, float *one_minus_p)
+static bool bilinear_pole(float w_radps, float Ts_s, float *pole, float *one_minus_pole)
 {
     const float x = w_radps * Ts_s;
-    if (!p2d_is_positive(w_radps) || !(x > 0.0f && x <= 2.0f)) return false;
-    *p = (2.0f - x) / (2.0f + x);
-    *one_minus_p = 2.0f * x / (2.0f + x);
-    return *p < 1.0f && *one_minus_p > 0.0f;
+    if (!p2d_is_positive(w_radps) || !(x >= 1e-3f && x <= 2.0f)) return false;
+    *one_minus_pole = 1.0f - (2.0f - x) / (2.0f + x);
+    *pole = 1.0f - *one_minus_pole;
+    return true;
 }
 
 /* Validate cfg and compute its coefficients into *c. *c is written only on success. */
 static p2d_status_t encoder_coefficients(const p2d_encoder_config_t *cfg, p2d_encoder_coef_t *c)
 {
     p2d_encoder_coef_t k;
-    float p, one_minus_p;
 
     if (!p2d_is_positive(cfg->Ts_s)) return P2D_ERR_TS;
     if (cfg->counts_per_rev < 1u) return P2D_ERR_ENC_COUNTS_PER_REV;
@@ -38,27 +38,28 @@ static p2d_status_t encoder_coefficients(const p2d_encoder_config_t *cfg, p2d_en
     /* w_res = 2 pi / (counts_per_rev Ts): one count per period */
     k.w_res_radps = P2D_TWO_PI / ((float)cfg->counts_per_rev * cfg->Ts_s);
     k.counts_per_radps = 1.0f / k.w_res_radps;
-    if (!p2d_is_positive(k.w_res_radps) || !p2d_is_positive(k.counts_per_radps)) return P2D_ERR_ENC_COUNTS_PER_REV;
     k.counter_mask = cfg->counter_bits == 32u ? 0xffffffffu : (1u << cfg->counter_bits) - 1u;
     k.counter_half = 1u << (cfg->counter_bits - 1u);
+    /* the largest measurable speed w_res 2^(bits-1) must be finite too */
+    if (!p2d_is_positive(k.w_res_radps) || !p2d_is_positive(k.counts_per_radps) ||
+        !isfinite(k.w_res_radps * (float)k.counter_half)) {
+        return P2D_ERR_ENC_COUNTS_PER_REV;
+    }
     k.estimator = cfg->estimator;
 
     if (cfg->estimator == P2D_ESTIMATOR_PLL) {
-        if (!bilinear_pole(cfg->bandwidth_radps, cfg->Ts_s, &p, &one_minus_p)) return P2D_ERR_ENC_BANDWIDTH;
-        /* speed gain w_res (1 - p)^2 and angle residual factor p^2 (encoder.h) */
-        k.pll_gain_radps_per_count = k.w_res_radps * (one_minus_p * one_minus_p);
-        k.pll_pole2 = p * p;
-        if (!p2d_is_positive(k.pll_gain_radps_per_count)) return P2D_ERR_ENC_BANDWIDTH;
+        if (!bilinear_pole(cfg->bandwidth_radps, cfg->Ts_s, &k.pll_pole, &k.pll_one_minus_pole))
+            return P2D_ERR_ENC_BANDWIDTH;
     } else {
-        k.pll_gain_radps_per_count = 0.0f;
-        k.pll_pole2 = 0.0f;
+        k.pll_pole = 0.0f;
+        k.pll_one_minus_pole = 1.0f;
     }
 
     if (cfg->lowpass_radps == 0.0f) {
         /* no filter: y = 0 y[k-1] + 1 w[k] = w[k] exactly */
         k.lowpass_pole = 0.0f;
-        k.lowpass_gain = 1.0f;
-    } else if (!bilinear_pole(cfg->lowpass_radps, cfg->Ts_s, &k.lowpass_pole, &k.lowpass_gain)) {
+        k.lowpass_one_minus_pole = 1.0f;
+    } else if (!bilinear_pole(cfg->lowpass_radps, cfg->Ts_s, &k.lowpass_pole, &k.lowpass_one_minus_pole)) {
         return P2D_ERR_ENC_LOWPASS;
     }
     *c = k;
@@ -95,14 +96,17 @@ p2d_status_t p2d_encoder_set_config(p2d_encoder_t *enc, const p2d_encoder_config
 
 void p2d_encoder_reset(p2d_encoder_t *enc, uint32_t count, float w_m_radps)
 {
-    if (!isfinite(w_m_radps)) {
-        /* non-finite policy: start from rest instead, count the fault */
+    /* v = w / w_res [count per period] */
+    float v = w_m_radps * enc->coef[enc->active].counts_per_radps;
+    if (!(fabsf(v) <= (float)enc->coef[enc->active].counter_half)) {
+        /* non-finite policy (NaN, inf, or beyond the measurable range): start from rest, count the fault */
         enc->fault_count++;
         w_m_radps = 0.0f;
+        v = 0.0f;
     }
     enc->count_prev = count;
     enc->theta_err_counts = 0.0f;
-    enc->w_pll_radps = w_m_radps;
+    enc->v_pll_counts = v;
     enc->w_lowpass_radps = w_m_radps;
 }
 
@@ -111,7 +115,7 @@ void p2d_encoder_step(p2d_encoder_t *enc, uint32_t count, p2d_encoder_output_t *
     const p2d_encoder_coef_t *c = &enc->coef[enc->active];
     uint32_t d;
     int32_t dn;
-    float w, e;
+    float e, r, v, w, y;
 
     /* dn[k] = (n[k] - n[k-1]) mod 2^bits, read in [-2^(bits-1), 2^(bits-1)) (unsigned arithmetic wraps mod 2^32) */
     d = (count - enc->count_prev) & c->counter_mask;
@@ -119,21 +123,37 @@ void p2d_encoder_step(p2d_encoder_t *enc, uint32_t count, p2d_encoder_output_t *
     enc->count_prev = count;
 
     if (c->estimator == P2D_ESTIMATOR_PLL) {
-        /* e[k] = dn[k] - (theta_hat[k-1] - theta[k-1]) - w[k-1] / w_res   [count] */
-        e = (float)dn - enc->theta_err_counts - enc->w_pll_radps * c->counts_per_radps;
+        /* e[k] = dn[k] - (theta_hat[k-1] - theta[k-1]) - v[k-1]   [count] */
+        e = (float)dn - enc->theta_err_counts - enc->v_pll_counts;
         /* theta_hat[k] - theta[k] = -p^2 e[k] */
-        enc->theta_err_counts = -c->pll_pole2 * e;
-        /* w[k] = w[k-1] + w_res (1 - p)^2 e[k] */
-        w = fmaf(c->pll_gain_radps_per_count, e, enc->w_pll_radps);
-        enc->w_pll_radps = w;
+        r = -(c->pll_pole * (c->pll_pole * e));
+        /* v[k] = v[k-1] + (1 - p)^2 e[k] */
+        v = fmaf(c->pll_one_minus_pole, c->pll_one_minus_pole * e, enc->v_pll_counts);
+        /* w[k] = w_res v[k] */
+        w = c->w_res_radps * v;
     } else {
+        r = enc->theta_err_counts;
+        v = enc->v_pll_counts;
         /* w[k] = w_res dn[k] */
         w = c->w_res_radps * (float)dn;
     }
     /* y[k] = q y[k-1] + (1 - q) w[k] */
-    enc->w_lowpass_radps = fmaf(c->lowpass_pole, enc->w_lowpass_radps, c->lowpass_gain * w);
+    y = fmaf(c->lowpass_pole, enc->w_lowpass_radps, c->lowpass_one_minus_pole * w);
 
     out->dn_counts = dn;
+    /* y is finite only if w, v, e and r are (1 - q, 1 - p > 0) */
+    if (!(fabsf(y) < INFINITY)) {
+        /* non-finite policy: hold the last measured speed, keep the state, count the fault */
+        out->w_raw_radps = enc->w_lowpass_radps;
+        out->w_m_radps = enc->w_lowpass_radps;
+        out->fault = true;
+        enc->fault_count++;
+        return;
+    }
+    enc->theta_err_counts = r;
+    enc->v_pll_counts = v;
+    enc->w_lowpass_radps = y;
     out->w_raw_radps = w;
-    out->w_m_radps = enc->w_lowpass_radps;
+    out->w_m_radps = y;
+    out->fault = false;
 }

@@ -408,15 +408,14 @@ static inline float torque_per_iq(const p2d_speed_coef_t *c, float id_A)
 }
 
 /*
- * The torque limit at the d-axis current id_A in [-i_max, 0]: the largest torque of a vector
- * with ||i_dq|| <= i_max and id <= id_A. Surface PMSM: kt sqrt(i_max^2 - id^2). Salient: T_max
- * where the MTPA vector of length i_max has id <= id_A, else the point (id_A, sqrt(i_max^2 - id^2))
- * of the circle (torque is unimodal along it), and 0 where the torque per iq is not positive.
+ * The torque limit at the d-axis current id_A in [-i_max, 0] with the q current iq_max_A that
+ * remains: the largest torque of a vector with ||i_dq|| <= i_max and id <= id_A. Surface PMSM:
+ * kt iq_max. Salient: T_max where the MTPA vector of length i_max has id <= id_A, else the point
+ * (id_A, iq_max) of the circle (the torque is unimodal along it), 0 where the torque per iq is not
+ * positive.
  */
-static float fw_torque_limit(const p2d_speed_coef_t *c, float id_A)
+static float fw_torque_limit(const p2d_speed_coef_t *c, float id_A, float iq_max_A)
 {
-    /* iq_max = sqrt((i_max + id) (i_max - id)): i_max + id >= 0 is exact near id = -i_max, where i_max^2 - id^2 cancels */
-    const float iq_max_A = p2d_sqrt_nonnegative((c->i_max_A + id_A) * (c->i_max_A - id_A));
     float T_lim;
     if (!c->salient) {
         T_lim = c->kt_Nm_per_A * iq_max_A;
@@ -429,22 +428,31 @@ static float fw_torque_limit(const p2d_speed_coef_t *c, float id_A)
     return T_lim < c->T_max_Nm ? T_lim : c->T_max_Nm;
 }
 
-/* Salient PMSM with the bound id <= id_A: the MTPA vector if its id is below it, else (id_A, T / (1.5 p (psi_f + dL id_A))). */
-static void fw_salient_current(const p2d_speed_coef_t *c, float id_A, p2d_speed_output_t *out)
+/*
+ * The current vector of the limited torque out->T_ref_Nm under the bound id <= id_A: the MTPA
+ * vector where its id is already below (salient PMSM), else (id_A, T / (1.5 p (psi_f + dL id_A))),
+ * iq within iq_max_A (T / k rounds above it only by an ulp, or by more where k is subnormal).
+ */
+static void fw_current(const p2d_speed_coef_t *c, float id_A, float iq_max_A, p2d_speed_output_t *out)
 {
-    float k_T;
-    if (!mtpa_current(c, out) || out->id_ref_A <= id_A) return;
-    k_T = torque_per_iq(c, id_A);
+    float k_T, iq;
+    if (c->salient) {
+        if (!mtpa_current(c, out) || out->id_ref_A <= id_A) return;
+        k_T = torque_per_iq(c, id_A);
+    } else {
+        k_T = c->kt_Nm_per_A;
+    }
+    /* iq = T / k_T; the limit is 0 where k_T <= 0, and the torque with it */
+    iq = k_T > 0.0f ? out->T_ref_Nm / k_T : 0.0f;
     out->id_ref_A = id_A;
-    /* the limit is 0 where k_T <= 0: the torque is then 0 as well */
-    out->iq_ref_A = k_T > 0.0f ? out->T_ref_Nm / k_T : 0.0f;
+    out->iq_ref_A = fabsf(iq) <= iq_max_A ? iq : copysignf(iq_max_A, iq);
 }
 
 void p2d_speed_compute_fw(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, float id_fw_A,
                           p2d_speed_output_t *out)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    float id;
+    float id, iq_max;
     if (!isfinite(id_fw_A)) {
         /* non-finite policy: the outputs before the limit for the diagnostics, then the fault output */
         (void)speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
@@ -453,14 +461,10 @@ void p2d_speed_compute_fw(const p2d_speed_t *ctl, float w_ref_radps, float w_m_r
     }
     /* id_fw clamped to [-i_max, 0] */
     id = id_fw_A < 0.0f ? (id_fw_A > -c->i_max_A ? id_fw_A : -c->i_max_A) : 0.0f;
-    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, fw_torque_limit(c, id), out)) return;
-    if (c->salient) {
-        fw_salient_current(c, id, out);
-    } else {
-        /* surface PMSM: id = id_fw, iq = T / kt */
-        out->id_ref_A = id;
-        out->iq_ref_A = out->T_ref_Nm / c->kt_Nm_per_A;
-    }
+    /* iq_max = sqrt((i_max + id) (i_max - id)): i_max + id is exact near id = -i_max, where i_max^2 - id^2 cancels */
+    iq_max = p2d_sqrt_nonnegative((c->i_max_A + id) * (c->i_max_A - id));
+    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, fw_torque_limit(c, id, iq_max), out)) return;
+    fw_current(c, id, iq_max, out);
 }
 
 void p2d_speed_step_fw(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, float id_fw_A, p2d_speed_output_t *out)

@@ -36,10 +36,9 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
                                                       "and > 0 in float32"},
     [P2D_ERR_ENC_COUNTER_BITS] = {"counter_bits", "an integer from 2 to 32"},
     [P2D_ERR_ENC_ESTIMATOR] = {"estimator", "difference (0) or pll (1)"},
-    [P2D_ERR_ENC_BANDWIDTH] = {"bandwidth_radps", "finite, > 0 and bandwidth_radps*Ts_s <= 2 (pll; real discrete "
-                                                  "poles), and not so small that float32 rounds the poles onto 1"},
-    [P2D_ERR_ENC_LOWPASS] = {"lowpass_radps", "0 (no filter), or finite, > 0 and lowpass_radps*Ts_s <= 2, and not "
-                                              "so small that float32 rounds the pole onto 1"},
+    [P2D_ERR_ENC_BANDWIDTH] = {"bandwidth_radps", "finite and 1e-3 <= bandwidth_radps*Ts_s <= 2 (pll: real discrete "
+                                                  "poles, increments above the float32 resolution of the state)"},
+    [P2D_ERR_ENC_LOWPASS] = {"lowpass_radps", "0 (no filter), or finite and 1e-3 <= lowpass_radps*Ts_s <= 2"},
     [P2D_ERR_FW_KP] = {"Kp_A_per_V", "finite and >= 0"},
     [P2D_ERR_FW_KI] = {"Ki_A_per_Vs", "finite and > 0, with Ki_A_per_Vs*Ts_s finite and > 0 in float32"},
     [P2D_ERR_FW_KA] = {"Ka_V_per_A", "finite and >= 0, and Ki_A_per_Vs*Ka_V_per_A*Ts_s < 2 with back_calculation "

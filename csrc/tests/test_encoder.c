@@ -70,7 +70,7 @@ static void test_validation(void)
     cfg = encoder_config(P2D_ESTIMATOR_PLL);
     cfg.estimator = (p2d_estimator_t)2;
     CHECK(init_with(cfg) == P2D_ERR_ENC_ESTIMATOR);
-    /* bandwidth: > 0, w Ts <= 2, and not rounded onto the unit circle */
+    /* bandwidth: 1e-3 <= w Ts <= 2 */
     cfg = encoder_config(P2D_ESTIMATOR_PLL);
     cfg.bandwidth_radps = 0.0f;
     CHECK(init_with(cfg) == P2D_ERR_ENC_BANDWIDTH);
@@ -82,7 +82,9 @@ static void test_validation(void)
     CHECK(init_with(cfg) == P2D_OK);
     cfg.bandwidth_radps = 2001.0f;
     CHECK(init_with(cfg) == P2D_ERR_ENC_BANDWIDTH);
-    cfg.bandwidth_radps = 1e-6f; /* w Ts = 1e-9: the speed gain (1 - p)^2 w_res underflows nothing, but p rounds to 1 */
+    cfg.bandwidth_radps = 1.0f; /* w Ts = 1e-3: the smallest */
+    CHECK(init_with(cfg) == P2D_OK);
+    cfg.bandwidth_radps = 0.99f; /* below: the increments of the state would fall under its float32 resolution */
     CHECK(init_with(cfg) == P2D_ERR_ENC_BANDWIDTH);
     /* the bandwidth is not checked for the difference estimator */
     cfg.estimator = P2D_ESTIMATOR_DIFFERENCE;
@@ -296,17 +298,21 @@ static void test_reset(void)
     p2d_encoder_t enc;
     p2d_encoder_output_t out;
     CHECK(p2d_encoder_init(&enc, &cfg) == P2D_OK);
-    CHECK(enc.count_prev == 0u && enc.w_pll_radps == 0.0f && enc.fault_count == 0u);
+    CHECK(enc.count_prev == 0u && enc.v_pll_counts == 0.0f && enc.fault_count == 0u);
     p2d_encoder_reset(&enc, 40000u, 100.0f);
-    CHECK(enc.w_pll_radps == 100.0f && enc.w_lowpass_radps == 100.0f && enc.theta_err_counts == 0.0f);
+    CHECK(enc.v_pll_counts == 100.0f * enc.coef[enc.active].counts_per_radps && enc.w_lowpass_radps == 100.0f &&
+          enc.theta_err_counts == 0.0f);
     /* 100 rad/s = 159.15 counts per period: the PLL holds its speed if the count advances as predicted */
     p2d_encoder_step(&enc, 40159u, &out);
     CHECK(out.dn_counts == 159);
     CHECK_CLOSE(out.w_m_radps, 100.0, 0.1);
     p2d_encoder_reset(&enc, 3u, NAN);
-    CHECK(enc.fault_count == 1u && enc.w_pll_radps == 0.0f && enc.w_lowpass_radps == 0.0f && enc.count_prev == 3u);
+    CHECK(enc.fault_count == 1u && enc.v_pll_counts == 0.0f && enc.w_lowpass_radps == 0.0f && enc.count_prev == 3u);
     p2d_encoder_reset(&enc, 3u, -INFINITY);
     CHECK(enc.fault_count == 2u);
+    /* finite, but 3e38 rad/s is beyond float32 in counts per period */
+    p2d_encoder_reset(&enc, 3u, 3e38f);
+    CHECK(enc.fault_count == 3u && enc.v_pll_counts == 0.0f && enc.w_lowpass_radps == 0.0f);
 }
 
 /* set_config: atomic, state kept; a rejected one leaves everything as it was. */
@@ -326,10 +332,44 @@ static void test_set_config(void)
     cfg.lowpass_radps = 100.0f;
     CHECK(p2d_encoder_set_config(&enc, &cfg) == P2D_OK);
     CHECK(enc.active == 1u - before.active);
-    CHECK(enc.w_pll_radps == before.w_pll_radps && enc.count_prev == before.count_prev);
+    CHECK(enc.v_pll_counts == before.v_pll_counts && enc.count_prev == before.count_prev);
     CHECK(memcmp(&enc.coef[before.active], &before.coef[before.active], sizeof enc.coef[0]) == 0);
     CHECK(enc.config.bandwidth_radps == 50.0f);
     CHECK(p2d_encoder_set_config(&enc, NULL) == P2D_ERR_NULL);
+}
+
+/*
+ * Non-finite policy of the step: a state far beyond a new configuration's range (a
+ * 32-bit counter at 2^30 counts per period, then a 2-bit counter whose resolution is
+ * near FLT_MAX) overflows the estimate; the output holds the last measured speed, the
+ * state is kept and the fault counted.
+ */
+static void test_step_overflow_holds(void)
+{
+    p2d_encoder_config_t cfg = encoder_config(P2D_ESTIMATOR_PLL);
+    p2d_encoder_t enc, before;
+    p2d_encoder_output_t out;
+    float w_big;
+    cfg.counter_bits = 32u;
+    CHECK(p2d_encoder_init(&enc, &cfg) == P2D_OK);
+    w_big = enc.coef[enc.active].w_res_radps * 1073741824.0f; /* 2^30 counts per period */
+    p2d_encoder_reset(&enc, 0u, w_big);
+    CHECK(enc.fault_count == 0u);
+    cfg.counter_bits = 2u;
+    cfg.counts_per_rev = 1u;
+    cfg.Ts_s = 6.3e-38f; /* w_res = 2 pi / Ts ~ 1e38 rad/s */
+    cfg.bandwidth_radps = 1e-3f / 6.3e-38f;
+    CHECK(p2d_encoder_set_config(&enc, &cfg) == P2D_OK);
+    memcpy(&before, &enc, sizeof enc);
+    p2d_encoder_step(&enc, 1u, &out);
+    CHECK(out.fault && enc.fault_count == 1u);
+    CHECK(out.w_m_radps == w_big && out.w_raw_radps == w_big);
+    CHECK(enc.v_pll_counts == before.v_pll_counts && enc.theta_err_counts == before.theta_err_counts &&
+          enc.w_lowpass_radps == before.w_lowpass_radps && enc.count_prev == 1u);
+    /* a reset in range recovers */
+    p2d_encoder_reset(&enc, 1u, 0.0f);
+    p2d_encoder_step(&enc, 2u, &out);
+    CHECK(!out.fault && isfinite(out.w_m_radps) && enc.fault_count == 1u);
 }
 
 int main(void)
@@ -342,5 +382,6 @@ int main(void)
     test_lowpass();
     test_reset();
     test_set_config();
+    test_step_overflow_holds();
     return check_summary();
 }

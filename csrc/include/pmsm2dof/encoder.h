@@ -14,10 +14,11 @@
  * (one count per period; 60 / (counts_per_rev Ts_s) rpm):
  *   DIFFERENCE  w[k] = w_res dn[k]: the mean speed over the last period, an
  *               integer multiple of w_res (M method).
- *   PLL         a type-2 tracking loop on the counted angle theta[k] (counts),
- *                 e[k]     = theta[k] - theta_hat[k-1] - w[k-1] / w_res    angle error [count]
- *                 theta_hat[k] = theta_hat[k-1] + w[k-1] / w_res + (1 - p^2) e[k]
- *                 w[k]     = w[k-1] + w_res (1 - p)^2 e[k]
+ *   PLL         a type-2 tracking loop on the counted angle theta[k], in counts
+ *               and counts per period (v = w / w_res):
+ *                 e[k]         = theta[k] - theta_hat[k-1] - v[k-1]          angle error [count]
+ *                 theta_hat[k] = theta_hat[k-1] + v[k-1] + (1 - p^2) e[k]
+ *                 v[k]         = v[k-1] + (1 - p)^2 e[k],   w[k] = w_res v[k]
  *               a critically damped loop whose two poles are the bilinear
  *               image of s = -bandwidth_radps:
  *                 p = (2 - bandwidth_radps Ts_s) / (2 + bandwidth_radps Ts_s).
@@ -28,25 +29,33 @@
  *               (-3 dB at about 0.644 w_pll; at low frequencies a delay of
  *               2 / w_pll - Ts_s after the increment, which itself lags the
  *               speed by Ts_s / 2). Unity gain at DC: at constant speed the
- *               estimate settles on the mean speed.
- *               The angle is kept as theta_hat - theta (bounded), never as a
- *               growing float.
+ *               estimate settles on the mean speed. The angle is kept as
+ *               theta_hat - theta (bounded), never as a growing float; p and
+ *               1 - p are stored so that they sum to 1 exactly and the gains
+ *               are applied as products of them, so that float32 keeps the
+ *               double pole (no coefficient rounding splits it).
  * Optional first-order low-pass on the estimate (lowpass_radps > 0), its pole
  * the bilinear image of s = -lowpass_radps:
  *   y[k] = q y[k-1] + (1 - q) w[k],   q = (2 - lowpass_radps Ts_s) / (2 + lowpass_radps Ts_s),
  * unity gain at DC, a low-frequency delay of 1 / lowpass_radps - Ts_s / 2.
  * lowpass_radps = 0: no filter, y[k] = w[k] exactly.
  *
- * The step reads only an integer counter: every output is finite for any
- * sequence of readings (the estimators are stable, their gains finite by
- * validation). Non-finite policy: p2d_encoder_reset with a non-finite speed
- * clears the speed state and counts a fault.
+ * The step reads only an integer counter, and init requires the largest
+ * difference estimate w_res 2^(counter_bits - 1) to be finite: the estimators
+ * are stable, so the outputs stay finite. Non-finite policy: should the new
+ * estimate still not be finite (an overflow, only reachable by switching
+ * parameters while the state is far out of the new range), the output holds
+ * the previous measured speed with `fault` set, the state is not updated (the
+ * reading is taken) and fault_count is incremented; p2d_encoder_reset with a
+ * speed that is not finite or not measurable (|w| > w_res 2^(counter_bits - 1))
+ * starts from rest and counts a fault. The lower bound 1e-3 on the poles'
+ * w Ts keeps their increments above the float32 resolution of the state.
  *
  * Parameter updates: p2d_encoder_set_config validates into the inactive of two
  * coefficient sets and activates it with one aligned 32-bit store (as
- * p2d_speed_set_config); the state (speeds in rad/s) is kept. A change of
- * counts_per_rev or counter_bits while running makes one wrong increment:
- * reset with the present reading after such a change.
+ * p2d_speed_set_config); the state is kept. The PLL's state is in counts
+ * per period: after a change of counts_per_rev, counter_bits or Ts_s while
+ * running, reset with the present reading and speed.
  *
  * Portable C99, float32, no allocation, no global state.
  */
@@ -72,21 +81,21 @@ typedef struct {
     uint32_t counter_bits;     /* width of the hardware counter [bit], 2..32: it wraps at 2^counter_bits */
     float Ts_s;                /* speed period, time between two readings [s], > 0 */
     p2d_estimator_t estimator; /* difference or pll */
-    float bandwidth_radps;     /* PLL pole (double) w_pll [rad/s], 0 < bandwidth_radps Ts_s <= 2; pll only */
-    float lowpass_radps;       /* low-pass pole on the estimate [rad/s], 0 (none) or 0 < lowpass_radps Ts_s <= 2 */
+    float bandwidth_radps;     /* PLL pole (double) w_pll [rad/s], 1e-3 <= bandwidth_radps Ts_s <= 2; pll only */
+    float lowpass_radps;       /* low-pass pole on the estimate [rad/s], 0 (none) or 1e-3 <= lowpass_radps Ts_s <= 2 */
 } p2d_encoder_config_t;
 
 /* Precomputed coefficients: everything the step needs for one Ts. */
 typedef struct {
-    float w_res_radps;              /* speed of one count per period 2 pi / (counts_per_rev Ts_s) [rad/s] */
-    float counts_per_radps;         /* 1 / w_res: counts per period at 1 rad/s [count/(rad/s)] */
-    float pll_gain_radps_per_count; /* PLL speed gain w_res (1 - p)^2 [(rad/s)/count]; 0 for difference */
-    float pll_pole2;                /* PLL p^2: theta_hat - theta = -p^2 e after the step [-] */
-    float lowpass_pole;             /* low-pass pole q [-]; 0 without the filter */
-    float lowpass_gain;             /* low-pass input weight 1 - q [-]; 1 without the filter */
-    uint32_t counter_mask;          /* 2^counter_bits - 1 [count] */
-    uint32_t counter_half;          /* 2^(counter_bits - 1): the first increment read as negative [count] */
-    p2d_estimator_t estimator;      /* difference or pll */
+    float w_res_radps;            /* speed of one count per period 2 pi / (counts_per_rev Ts_s) [rad/s] */
+    float counts_per_radps;       /* 1 / w_res: counts per period at 1 rad/s [count/(rad/s)] */
+    float pll_pole;               /* PLL pole p [-]; 0 for difference */
+    float pll_one_minus_pole;     /* PLL 1 - p [-], p + (1 - p) = 1 exactly; 1 for difference */
+    float lowpass_pole;           /* low-pass pole q [-]; 0 without the filter */
+    float lowpass_one_minus_pole; /* low-pass 1 - q [-], q + (1 - q) = 1 exactly; 1 without the filter */
+    uint32_t counter_mask;        /* 2^counter_bits - 1 [count] */
+    uint32_t counter_half;        /* 2^(counter_bits - 1): the first increment read as negative [count] */
+    p2d_estimator_t estimator;    /* difference or pll */
 } p2d_encoder_coef_t;
 
 typedef struct {
@@ -95,7 +104,7 @@ typedef struct {
     p2d_encoder_config_t config; /* configuration of the active set */
     uint32_t count_prev;         /* counter reading of the previous period n[k-1] [count] */
     float theta_err_counts;      /* PLL: theta_hat[k-1] - theta[k-1] [count] */
-    float w_pll_radps;           /* PLL speed w[k-1] [rad/s] */
+    float v_pll_counts;          /* PLL speed v[k-1] = w[k-1] / w_res [count per period] */
     float w_lowpass_radps;       /* low-pass output y[k-1] [rad/s] */
     uint32_t fault_count;        /* resets refused by the non-finite policy [-] */
 } p2d_encoder_t;
@@ -105,6 +114,7 @@ typedef struct {
     int32_t dn_counts; /* counted increment of this period dn[k] [count] */
     float w_raw_radps; /* estimator output w[k], before the low-pass [rad/s] */
     float w_m_radps;   /* measured speed y[k], after the low-pass (the speed controller's input) [rad/s] */
+    bool fault;        /* non-finite policy engaged: w_raw_radps and w_m_radps hold y[k-1] */
 } p2d_encoder_output_t;
 
 /* Validate cfg and precompute; on error enc is left unchanged. Resets the state with reading 0 and speed 0. */
@@ -115,8 +125,9 @@ p2d_status_t p2d_encoder_set_config(p2d_encoder_t *enc, const p2d_encoder_config
 
 /*
  * Start from the counter reading count (call it before the first step) with
- * the speed estimate and the low-pass at w_m_radps [rad/s]. A non-finite
- * w_m_radps starts them at 0 and counts a fault.
+ * the speed estimate and the low-pass at w_m_radps [rad/s]. A w_m_radps that
+ * is not finite or beyond w_res 2^(counter_bits - 1) starts them at 0 and
+ * counts a fault.
  */
 void p2d_encoder_reset(p2d_encoder_t *enc, uint32_t count, float w_m_radps);
 
