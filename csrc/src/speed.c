@@ -467,6 +467,7 @@ void p2d_speed_compute_fw(const p2d_speed_t *ctl, float w_ref_radps, float w_m_r
     fw_current(c, id, iq_max, out);
 }
 
+/* compute_fw + update with the own command (not written out per branch as p2d_speed_step is). */
 void p2d_speed_step_fw(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, float id_fw_A, p2d_speed_output_t *out)
 {
     p2d_speed_compute_fw(ctl, w_ref_radps, w_m_radps, id_fw_A, out);
