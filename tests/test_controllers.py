@@ -59,7 +59,11 @@ def test_literal_types_name_the_choices_read_from_c():
 def test_every_status_code_names_a_parameter_of_the_bindings():
     import inspect
 
-    names = set(inspect.signature(SpeedController).parameters) | set(inspect.signature(CurrentController).parameters)
+    from pmsm2dof.core import Encoder, FieldWeakening
+
+    names = set()
+    for binding in (SpeedController, CurrentController, Encoder, FieldWeakening):
+        names |= set(inspect.signature(binding).parameters)
     for status in range(2, lib.P2D_STATUS_COUNT):  # after P2D_OK and P2D_ERR_NULL
         from pmsm2dof.core.bindings import ffi
 
