@@ -16,7 +16,8 @@ ROOT = Path(__file__).resolve().parent
 CSRC = ROOT / "csrc"
 # status.h first: the other headers use its types
 HEADERS = sorted((CSRC / "include" / "pmsm2dof").glob("*.h"), key=lambda h: (h.name != "status.h", h.name))
-HEADERS += sorted((CSRC / "sim").glob("*.h"))
+# drive.h last among the engine's headers: it uses the types of the others
+HEADERS += sorted((CSRC / "sim").glob("*.h"), key=lambda h: (h.name == "drive.h", h.name))
 SOURCES = sorted((CSRC / "src").glob("*.c")) + sorted((CSRC / "sim").glob("*.c"))
 
 

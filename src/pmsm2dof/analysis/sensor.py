@@ -27,11 +27,11 @@ import control
 import numpy as np
 import scipy.linalg
 
-from ..core import ESTIMATORS, Encoder
+from ..core import ESTIMATORS, SPEED_SENSOR_MODELS, Encoder
 from ..errors import ConfigError, require_choice, require_nonnegative
 
-#: Speed-sensor models: the true speed sampled, or an encoder's counts.
-SENSOR_MODELS = ("ideal", "encoder")
+#: Speed-sensor models: the true speed sampled, or an encoder's counts (the engine's, read from C).
+SENSOR_MODELS = SPEED_SENSOR_MODELS
 #: How a delay enters the frequency response: exactly, or as its Pade approximant.
 DelayModel = Literal["exact", "pade"]
 DELAY_MODELS: tuple[DelayModel, ...] = ("exact", "pade")

@@ -7,7 +7,16 @@ read from its headers, :mod:`.controllers` the :class:`SpeedController` and
 :class:`Encoder` speed estimators and the :class:`FieldWeakening`, :mod:`.gains` eq 9.
 """
 
-from .bindings import ANTI_WINDUPS, CURRENT_LOOP_MODELS, ESTIMATORS, FAULT_KINDS, FEEDFORWARDS, LOG_COLUMNS, METHODS
+from .bindings import (
+    ANTI_WINDUPS,
+    CURRENT_LOOP_MODELS,
+    ESTIMATORS,
+    FAULT_KINDS,
+    FEEDFORWARDS,
+    LOG_COLUMNS,
+    METHODS,
+    SPEED_SENSOR_MODELS,
+)
 from .controllers import CurrentController, CurrentOutput, SpeedController, SpeedOutput
 from .gains import pi_gains
 from .sensing import Encoder, EncoderOutput, FieldWeakening, FieldWeakeningOutput
@@ -20,6 +29,7 @@ __all__ = [
     "FEEDFORWARDS",
     "LOG_COLUMNS",
     "METHODS",
+    "SPEED_SENSOR_MODELS",
     "CurrentController",
     "CurrentOutput",
     "Encoder",
