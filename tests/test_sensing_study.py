@@ -23,6 +23,8 @@ from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
 from pmsm2dof.studies.sensing import SensorRow, sensor_study, study_table, verdict
+from pmsm2dof.ui.report.render import render_markdown
+from pmsm2dof.ui.report.sensing import sensing_blocks
 
 ROOT = Path(__file__).resolve().parents[1]
 CHAINS = {
@@ -79,6 +81,13 @@ def test_table_and_verdict_follow_the_numbers(rows):
 
     closer = [row("ideal", 68.0, 34.0), row("slow", 40.0, 18.0)]
     assert verdict(closer).startswith("'slow' explains the measured 35 % -> 15 % better")
+
+
+def test_report_section_holds_the_table_and_the_verdict(rows):
+    text = render_markdown(sensing_blocks(rows))
+    assert text.startswith("## Speed measurement (not in the paper)")
+    assert "| encoder 1024, PLL 5 rad/s |" in text and verdict(rows) in text
+    assert sensing_blocks([]) == []
 
 
 def run_cli(*args, cwd):

@@ -36,9 +36,10 @@ static p2d_field_weakening_config_t fw_config(const p2d_sim_field_weakening_conf
     return c;
 }
 
-p2d_sensing_check_t p2d_sensing_check(const p2d_speed_sensor_config_t *speed, const p2d_current_sensor_config_t *current,
-                                      const p2d_sim_field_weakening_config_t *fw, double Ts_current_s,
-                                      float Ts_speed_s, bool dq_pi, p2d_status_t *status)
+p2d_sensing_check_t p2d_sensing_check(const p2d_speed_sensor_config_t *speed,
+                                      const p2d_current_sensor_config_t *current,
+                                      const p2d_sim_field_weakening_config_t *fw, double Ts_current_s, float Ts_speed_s,
+                                      bool dq_pi, p2d_status_t *status)
 {
     p2d_encoder_t enc;
     p2d_field_weakening_t reg;
@@ -91,8 +92,8 @@ static double normal(uint64_t *state)
 /* ---- angle and counts --------------------------------------------------- */
 
 /* Angle and speed at boundary n (t = n Ts_current); before t = 0, theta = w_m0 t at w_m0. */
-static void boundary(const p2d_sim_sensing_t *s, int64_t n, double Ts_current_s, double w_m0_radps,
-                     double *theta_rad, double *w_radps)
+static void boundary(const p2d_sim_sensing_t *s, int64_t n, double Ts_current_s, double w_m0_radps, double *theta_rad,
+                     double *w_radps)
 {
     if (n < 0) {
         *theta_rad = w_m0_radps * (double)n * Ts_current_s;
@@ -124,8 +125,8 @@ static void angle_at(const p2d_sim_sensing_t *s, int64_t n, double f, double Ts_
     f3 = f2 * f;
     *theta_rad = (2.0 * f3 - 3.0 * f2 + 1.0) * th0 + (f3 - 2.0 * f2 + f) * Ts_current_s * w0 +
                  (3.0 * f2 - 2.0 * f3) * th1 + (f3 - f2) * Ts_current_s * w1;
-    *w_radps = (6.0 * f2 - 6.0 * f) * (th0 - th1) / Ts_current_s + (3.0 * f2 - 4.0 * f + 1.0) * w0 +
-               (3.0 * f2 - 2.0 * f) * w1;
+    *w_radps =
+        (6.0 * f2 - 6.0 * f) * (th0 - th1) / Ts_current_s + (3.0 * f2 - 4.0 * f + 1.0) * w0 + (3.0 * f2 - 2.0 * f) * w1;
 }
 
 /* The counter at the angle theta: floor(theta counts_per_rev / (2 pi)) mod 2^32 (the encoder masks its bits). */
@@ -220,8 +221,8 @@ bool p2d_sensing_speed(p2d_sim_sensing_t *s, const p2d_speed_sensor_config_t *sp
     return ok;
 }
 
-void p2d_sensing_currents(p2d_sim_sensing_t *s, const p2d_current_sensor_config_t *current, double id_A,
-                          double iq_A, double theta_e_rad, double *id_meas_A, double *iq_meas_A)
+void p2d_sensing_currents(p2d_sim_sensing_t *s, const p2d_current_sensor_config_t *current, double id_A, double iq_A,
+                          double theta_e_rad, double *id_meas_A, double *iq_meas_A)
 {
     double c = cos(theta_e_rad), sn = sin(theta_e_rad);
     double cb = cos(theta_e_rad - P2D_SENSING_TWO_PI_3), sb = sin(theta_e_rad - P2D_SENSING_TWO_PI_3);

@@ -68,12 +68,12 @@ typedef struct {
 
 /* Current measurement of phases a and b; all zero: exact. */
 typedef struct {
-    double gain_error_a;  /* relative gain error of phase a's sensor [-], > -1 */
-    double gain_error_b;  /* relative gain error of phase b's sensor [-], > -1 */
-    double offset_a_A;    /* offset of phase a's sensor [A], finite */
-    double offset_b_A;    /* offset of phase b's sensor [A], finite */
-    double noise_rms_A;   /* rms of the white Gaussian noise of each sensor [A], >= 0 */
-    uint64_t seed;        /* seed of the noise [-] */
+    double gain_error_a; /* relative gain error of phase a's sensor [-], > -1 */
+    double gain_error_b; /* relative gain error of phase b's sensor [-], > -1 */
+    double offset_a_A;   /* offset of phase a's sensor [A], finite */
+    double offset_b_A;   /* offset of phase b's sensor [A], finite */
+    double noise_rms_A;  /* rms of the white Gaussian noise of each sensor [A], >= 0 */
+    uint64_t seed;       /* seed of the noise [-] */
 } p2d_current_sensor_config_t;
 
 /* Field weakening in the current reference path. */
@@ -108,9 +108,9 @@ typedef struct {
 
 /* Outcome of p2d_sensing_check: the table at fault. */
 typedef enum {
-    P2D_SENSING_VALID = 0,           /* all valid */
-    P2D_SENSING_BAD_SPEED_SENSOR,    /* speed_sensor: model, delay_s, noise_rms_radps or the encoder */
-    P2D_SENSING_BAD_CURRENT_SENSOR,  /* current_sensor: gain errors, offsets, noise, or not dq_pi */
+    P2D_SENSING_VALID = 0,          /* all valid */
+    P2D_SENSING_BAD_SPEED_SENSOR,   /* speed_sensor: model, delay_s, noise_rms_radps or the encoder */
+    P2D_SENSING_BAD_CURRENT_SENSOR, /* current_sensor: gain errors, offsets, noise, or not dq_pi */
     P2D_SENSING_BAD_FIELD_WEAKENING /* field_weakening: the regulator, or not dq_pi */
 } p2d_sensing_check_t;
 
@@ -120,9 +120,10 @@ typedef enum {
  * loop is the dq current controller. *status gets the C library's code of an encoder or
  * regulator that its init rejects (else P2D_OK).
  */
-p2d_sensing_check_t p2d_sensing_check(const p2d_speed_sensor_config_t *speed, const p2d_current_sensor_config_t *current,
-                                      const p2d_sim_field_weakening_config_t *fw, double Ts_current_s,
-                                      float Ts_speed_s, bool dq_pi, p2d_status_t *status);
+p2d_sensing_check_t p2d_sensing_check(const p2d_speed_sensor_config_t *speed,
+                                      const p2d_current_sensor_config_t *current,
+                                      const p2d_sim_field_weakening_config_t *fw, double Ts_current_s, float Ts_speed_s,
+                                      bool dq_pi, p2d_status_t *status);
 
 /*
  * Initialize the state for valid configurations: the encoder reset to the counts at
@@ -146,8 +147,8 @@ bool p2d_sensing_speed(p2d_sim_sensing_t *s, const p2d_speed_sensor_config_t *sp
 void p2d_sensing_record(p2d_sim_sensing_t *s, uint64_t n_current, double theta_m_rad, double w_m_radps);
 
 /* The currents the current controller reads, from the true id, iq and the electrical angle th_e. */
-void p2d_sensing_currents(p2d_sim_sensing_t *s, const p2d_current_sensor_config_t *current, double id_A,
-                          double iq_A, double theta_e_rad, double *id_meas_A, double *iq_meas_A);
+void p2d_sensing_currents(p2d_sim_sensing_t *s, const p2d_current_sensor_config_t *current, double id_A, double iq_A,
+                          double theta_e_rad, double *id_meas_A, double *iq_meas_A);
 
 /*
  * Field weakening at a speed sample: the d-axis current bound from the last voltage command

@@ -33,6 +33,16 @@ Faults
     speed for their decoupling. A stall needs no fault: a load above the torque the current limit
     can give. ``speed_meas_rpm`` and ``u_dc_V`` of the :class:`Result` show what was read and applied.
 
+Measurement and field weakening
+    ``[speed_sensor]``: the speed controller reads the true speed or an encoder's counts (from the
+    rotor angle the engine integrates) through the C estimator of ``encoder.h`` (difference or PLL),
+    a low-pass, a transport delay and seeded noise. ``[current_measurement]``: the current
+    controller reads the phase currents with gain errors, offsets and seeded noise, transformed to
+    dq. ``[field_weakening]``: the voltage-feedback regulator of ``field_weakening.h`` sets the
+    d-axis current at each speed sample from the current controller's voltage command, and the
+    speed controller's torque limit follows the q current that remains (``p2d_speed_step_fw``).
+    The defaults (ideal, exact, off) leave the loop as described above (csrc/sim/sensing.h).
+
 Initial state
     In steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
     load; the reference and load schedules apply from t = 0 (entries at t = 0 are steps at 0).
@@ -205,8 +215,9 @@ class Result:
     load_Nm : load torque [Nm]
     saturated : the current-vector limit is active (bool)
     x_i_Nm : integrator of the speed PI after the sample's update [Nm]
-    speed_meas_rpm : speed reading sampled by the speed controller (differs from speed_rpm only
-        under a sensor fault) [rpm]
+    speed_meas_rpm : speed reading sampled by the speed controller: the ``[speed_sensor]``'s reading
+        (encoder estimate, low-pass, delay, noise; the true speed with the default ideal sensor), or a
+        sensor fault's [rpm]
     u_dc_V : DC-link voltage over the current period that starts at the row (nominal but under a
         DC-link sag) [V]
     voltage_limited : share of the current periods of the row's speed sample whose voltage was cut

@@ -18,7 +18,7 @@ from typing import Any
 
 from ..analysis.design import design
 from ..analysis.sensor import SensorChain
-from ..errors import Pmsm2dofError
+from ..errors import Pmsm2dofError, SimulationError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario, load_scenario
 from ..sim.simulate import simulate
@@ -81,6 +81,14 @@ def _figure(metrics: dict, group: str, name: str) -> float | None:
     return None if value is None else float(value)
 
 
+def _run_figure(scenario: Scenario, group: str, name: str) -> float | None:
+    """A figure of the first step of a run; None when the engine stops the run (a chain that destabilizes it)."""
+    try:
+        return _figure(compute_metrics(simulate(scenario)), group, name)
+    except SimulationError:
+        return None
+
+
 def _margins(scenario: Scenario) -> tuple[float | None, float | None]:
     """Phase and gain margin of the sampled 1DOF loop with the scenario's sensor chain."""
     d = scenario.data
@@ -131,18 +139,15 @@ def sensor_study(
     e3 = load_scenario("paper-experiment-3").with_overrides(base | {"speed_controller.feedforward": "lowpass"})
     rows = []
     for label, chain in chains.items():
-        overshoot = {}
+        overshoot: dict[str, float | None] = {}
         for aw in PAPER_OVERSHOOT_PCT:
             run = e1.with_overrides(dict(chain) | {"speed_controller.anti_windup": aw})
-            overshoot[aw] = _figure(compute_metrics(simulate(run)), "reference_steps", "overshoot_pct")
+            overshoot[aw] = _run_figure(run, "reference_steps", "overshoot_pct")
         loaded = e3.with_overrides(dict(chain))
-        dip = _figure(compute_metrics(simulate(loaded)), "load_steps", "speed_dip_rpm")
+        dip = _run_figure(loaded, "load_steps", "speed_dip_rpm")
         pm, gm = _margins(loaded)
-        distance = (
-            None
-            if None in overshoot.values()
-            else sum(abs(overshoot[aw] - PAPER_OVERSHOOT_PCT[aw]) for aw in PAPER_OVERSHOOT_PCT)
-        )
+        measured = [(v, PAPER_OVERSHOOT_PCT[aw]) for aw, v in overshoot.items() if v is not None]
+        distance = sum(abs(v - paper) for v, paper in measured) if len(measured) == len(overshoot) else None
         rows.append(
             SensorRow(
                 label=label,
