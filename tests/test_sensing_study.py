@@ -19,6 +19,7 @@ import control
 import numpy as np
 import pytest
 
+from pmsm2dof.analysis.sensor import SensorChain
 from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
@@ -60,6 +61,13 @@ def test_ideal_row_is_the_plain_simulation_and_the_plain_sampled_loop(rows):
     F = control.tf([Kp + Ki * Ts / 2, -Kp + Ki * Ts / 2], [1, -1], Ts)
     _gm, pm, *_ = control.stability_margins(F * G)
     assert ideal.phase_margin_deg == pytest.approx(pm, abs=0.05)
+
+
+def test_sensor_chain_of_a_scenario_table():
+    table = load_scenario("paper-experiment-3").with_overrides(CHAINS["encoder 1024, PLL 5 rad/s"]).data
+    chain = SensorChain.from_table(table["speed_sensor"])
+    assert chain == SensorChain(model="encoder", estimator="pll", bandwidth_radps=5.0)
+    assert SensorChain.from_table(load_scenario("paper-experiment-3").data["speed_sensor"]).is_ideal
 
 
 def test_a_lag_in_the_reading_costs_phase_and_raises_the_overshoot(rows):

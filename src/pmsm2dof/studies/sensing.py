@@ -92,14 +92,8 @@ def _run_figure(scenario: Scenario, group: str, name: str) -> float | None:
 def _margins(scenario: Scenario) -> tuple[float | None, float | None]:
     """Phase and gain margin of the sampled 1DOF loop with the scenario's sensor chain."""
     d = scenario.data
-    sc, ss = d["speed_controller"], d["speed_sensor"]
-    chain = SensorChain(
-        model=ss["model"],
-        estimator=ss["estimator"],
-        bandwidth_radps=ss["bandwidth_radps"] or 0.0,
-        lowpass_radps=ss["lowpass_radps"],
-        delay_s=ss["delay_s"],
-    )
+    sc = d["speed_controller"]
+    chain = SensorChain.from_table(d["speed_sensor"])
     loop = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], tau_i_s=sc["tau_i_s"], feedforward="none", sensor=chain)
     try:
         with warnings.catch_warnings():
