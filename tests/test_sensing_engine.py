@@ -271,6 +271,7 @@ def test_field_weakening_settles_at_the_operating_point_of_the_voltage_equations
         ({"speed_sensor.model": "encoder", "speed_sensor.estimator": "pll"}, "speed_sensor.bandwidth_radps"),
         ({"speed_sensor.estimator": "pll", "speed_sensor.bandwidth_radps": 10.0}, "speed_sensor.estimator"),
         ({"speed_sensor.delay_s": 1.0}, "speed_sensor.delay_s"),
+        ({"speed_sensor.model": "encoder", "speed_sensor.bandwidth_radps": 10.0}, "speed_sensor.bandwidth_radps"),
         ({"speed_sensor.counter_bits": 33}, "speed_sensor.counter_bits"),
         ({"speed_sensor.model": "encoder", "speed_sensor.lowpass_radps": 1e6}, "speed_sensor.lowpass_radps"),
         ({"field_weakening.enabled": True}, "field_weakening.Ki_A_per_Vs"),

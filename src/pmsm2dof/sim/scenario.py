@@ -601,6 +601,12 @@ def _check_sensing(data):
         raise ConfigError(
             "speed_sensor.bandwidth_radps", REQUIRED, "required by estimator 'pll': the PLL's double pole [rad/s], > 0"
         )
+    if ss["bandwidth_radps"] is not None and not (ss["model"] == "encoder" and ss["estimator"] == "pll"):
+        raise ConfigError(
+            "speed_sensor.bandwidth_radps",
+            ss["bandwidth_radps"],
+            "absent: only model 'encoder' with estimator 'pll' uses it",
+        )
     if ss["delay_s"] > SENSOR_DELAY_MAX_PERIODS * cl["Ts_s"] * (1.0 + TS_MULTIPLE_RTOL):
         raise ConfigError(
             "speed_sensor.delay_s",
