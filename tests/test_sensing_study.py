@@ -115,6 +115,21 @@ def test_cli_sensors_refuses_a_bad_key_in_one_line_and_writes_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    "setting, key",
+    [
+        ("speed_sensor.model=magnetic", "speed_sensor.model"),
+        ("field_weakening.enabled=true", "field_weakening.Ki_A_per_Vs"),
+        ("current_measurement.noise_A_rms=-1", "current_measurement.noise_A_rms"),
+    ],
+)
+def test_cli_simulate_refuses_a_bad_sensing_key_in_one_line_and_writes_nothing(tmp_path, setting, key):
+    proc = run_cli("simulate", "paper-experiment-3", "--set", setting, "--out", "out", cwd=tmp_path)
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert proc.stderr.count("\n") == 1 and key in proc.stderr and "Traceback" not in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 def readme_section():
     text = (ROOT / "README.md").read_text()
     start = text.index("## Speed sensing, current sensors and field weakening")
