@@ -8,6 +8,10 @@ this study runs experiment 1 (1DOF PI, without and with back-calculation AW) and
 and gain margins of the sampled loop (:meth:`pmsm2dof.analysis.design.Design.discretize` with the
 :class:`~pmsm2dof.analysis.sensor.SensorChain`), so that one can see whether a plausible chain
 brings the simulation closer to the measured 35 % -> 15 % than the exact reading does.
+
+:func:`offset_study` shows what a phase-current sensor's offset does to the same drive: a torque
+ripple at the electrical frequency, measured in the simulation and predicted by the linear current
+loop (:func:`offset_ripple_Nm`).
 """
 
 import dataclasses
@@ -15,6 +19,8 @@ import math
 import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
+
+import numpy as np
 
 from ..analysis.design import design
 from ..analysis.sensor import SensorChain
@@ -161,23 +167,6 @@ def _cell(value: float | None, digits: int = 1) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
 
-def study_table(rows: Sequence[SensorRow]) -> str:
-    """The rows as a Markdown table, the paper's measurement on the first line."""
-    lines = [
-        "| sensor chain | overshoot no AW [%] | overshoot AW [%] | load dip [rpm] | phase margin [deg] "
-        "| gain margin [dB] | distance to 35/15 [%] |",
-        "|---|---:|---:|---:|---:|---:|---:|",
-        f"| paper, measured (section 4.2) | {PAPER_OVERSHOOT_PCT['none']:.0f} | "
-        f"{PAPER_OVERSHOOT_PCT['back_calculation']:.0f} | - | - | - | 0 |",
-    ]
-    for r in rows:
-        lines.append(
-            f"| {r.label} | {_cell(r.overshoot_no_aw_pct)} | {_cell(r.overshoot_aw_pct)} | {_cell(r.dip_rpm)} | "
-            f"{_cell(r.phase_margin_deg)} | {_cell(r.gain_margin_dB)} | {_cell(r.distance_pct)} |"
-        )
-    return "\n".join(lines) + "\n"
-
-
 def verdict(rows: Sequence[SensorRow]) -> str:
     """One sentence: does any chain come closer to the paper's 35 % -> 15 % than the ideal reading?"""
     scored = [r for r in rows if r.distance_pct is not None]
@@ -202,3 +191,99 @@ def verdict(rows: Sequence[SensorRow]) -> str:
         f"({pair(ideal)}, distance {_cell(ideal.distance_pct)} % points): the closest, '{best.label}' "
         f"({pair(best)}), is {_cell(best.distance_pct)} % points away."
     )
+
+
+#: Speeds [rpm] and phase-a offsets [A] (1 % and 5 % of the paper's 7.6 A) of :func:`offset_study`.
+OFFSET_SPEEDS_RPM = (100.0, 500.0)
+OFFSET_CURRENTS_A = (0.076, 0.38)
+#: Simulated time of an offset run, and the start of the window its ripple is measured over [s].
+OFFSET_T_END_S = 4.0
+OFFSET_WINDOW_S = 2.0
+
+
+@dataclasses.dataclass(frozen=True)
+class OffsetRow:
+    """The torque and speed ripple of one phase-a current-sensor offset at one speed.
+
+    Attributes
+    ----------
+    speed_rpm, offset_a_A : float
+        Operating speed [rpm] and offset of phase a's sensor [A].
+    torque_ripple_Nm, speed_ripple_rpm : float
+        Amplitudes at the electrical frequency in the simulation (least-squares fit) [Nm], [rpm].
+    predicted_Nm : float
+        :func:`offset_ripple_Nm` for the drive.
+    """
+
+    speed_rpm: float
+    offset_a_A: float
+    torque_ripple_Nm: float
+    speed_ripple_rpm: float
+    predicted_Nm: float
+
+
+def offset_ripple_Nm(
+    offset_a_A: float, w_e_radps: float, kt_Nm_per_A: float, L_H: float, Rs_ohm: float, tau_i_s: float
+) -> float:
+    """Torque ripple of a phase-a offset on a surface PMSM under the decoupled dq current PI.
+
+    The offset ``I0`` reads as the stator-fixed vector ``2 I0 / sqrt(3)`` (two sensors, c = -a - b),
+    in dq ``E exp(-j w_e t)``. With the PI ``C = (L s + Rs) / (tau_i s)`` and the decoupling, which
+    uses the measured currents, the dq current error is ``E H(-j w_e)`` with
+    ``H(s) = -1 / (tau_i s + 1) + j w_e L tau_i s / ((L s + Rs) (tau_i s + 1))``: the loop follows the
+    reading, and the decoupling adds ``j w_e L`` times the error as a voltage the loop rejects.
+    Returns ``kt 2 I0 / sqrt(3) |H(-j w_e)|`` [Nm].
+    """
+    s = -1j * w_e_radps
+    H = -1.0 / (tau_i_s * s + 1.0) + 1j * w_e_radps * L_H * tau_i_s * s / ((L_H * s + Rs_ohm) * (tau_i_s * s + 1.0))
+    return kt_Nm_per_A * 2.0 * abs(offset_a_A) / math.sqrt(3.0) * abs(H)
+
+
+def _amplitude(t: np.ndarray, y: np.ndarray, w_radps: float) -> float:
+    """Amplitude of the component of y at w (least squares of a + b cos(w t) + c sin(w t))."""
+    basis = np.column_stack([np.ones_like(t), np.cos(w_radps * t), np.sin(w_radps * t)])
+    coef, *_ = np.linalg.lstsq(basis, y, rcond=None)
+    return float(math.hypot(coef[1], coef[2]))
+
+
+def offset_study(overrides: Mapping[str, Any] | None = None) -> list[OffsetRow]:
+    """Experiment 3's drive (2DOF eq 15) at constant speed with a phase-a current-sensor offset.
+
+    Parameters
+    ----------
+    overrides : mapping, optional
+        Scenario keys changed first. The prediction needs a surface PMSM (``Ld = Lq``).
+
+    Returns
+    -------
+    list of OffsetRow
+        For each of :data:`OFFSET_SPEEDS_RPM` and :data:`OFFSET_CURRENTS_A`.
+    """
+    base = load_scenario("paper-experiment-3").with_overrides(dict(overrides or {}))
+    motor, cl = base.data["motor"], base.data["current_loop"]
+    kt = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"]
+    rows = []
+    for rpm in OFFSET_SPEEDS_RPM:
+        for I0 in OFFSET_CURRENTS_A:
+            run = base.with_overrides(
+                {
+                    "simulation.t_end_s": OFFSET_T_END_S,
+                    "simulation.speed0_rpm": rpm,
+                    "reference": [{"t_s": 0.0, "speed_rpm": rpm}],
+                    "load": [],
+                    "current_measurement.offset_a_A": I0,
+                }
+            )
+            r = simulate(run)
+            w_e = motor["pole_pairs"] * rpm * math.pi / 30.0
+            late = r.t_s >= OFFSET_WINDOW_S
+            rows.append(
+                OffsetRow(
+                    speed_rpm=rpm,
+                    offset_a_A=I0,
+                    torque_ripple_Nm=_amplitude(r.t_s[late], r.torque_Nm[late], w_e),
+                    speed_ripple_rpm=_amplitude(r.t_s[late], r.speed_rpm[late], w_e),
+                    predicted_Nm=offset_ripple_Nm(I0, w_e, kt, motor["Ld_H"], motor["Rs_ohm"], cl["tau_i_s"]),
+                )
+            )
+    return rows

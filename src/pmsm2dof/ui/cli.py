@@ -969,24 +969,27 @@ def sensors(overrides, out):
 
     Runs experiment 1 (500 rpm step, 1DOF PI without and with AW) and experiment 3 (8 Nm load
     step, 2DOF) for each sensor chain, prints overshoots, load dip and the sampled loop's margins
-    beside the paper's measured 35 % -> 15 %, and whether a chain explains that measurement
-    better than the exact reading. With --out, writes sensors.md and sensors.csv, all or nothing.
+    beside the paper's measured 35 % -> 15 %, whether a chain explains that measurement better
+    than the exact reading, and the torque ripple of a current-sensor offset (the report's
+    section). With --out, writes sensors.md and sensors.csv (the chains), all or nothing.
     """
     import csv
     import dataclasses
     import io
 
     from ..outputs import atomic_write, staged_dir
-    from ..studies.sensing import sensor_study, study_table, verdict
+    from ..studies.sensing import offset_study, sensor_study
+    from .report.render import render_markdown
+    from .report.sensing import sensing_blocks
 
     changes = dict(parse_override(text) for text in overrides)
     rows = sensor_study(changes)
-    table, conclusion = study_table(rows), verdict(rows)
-    click.echo(table + "\n" + conclusion)
+    text = render_markdown(sensing_blocks(rows, offset_study(changes)))
+    click.echo(text)
     if out is None:
         return
     with staged_dir(out) as tmp:
-        atomic_write(tmp / "sensors.md", f"{table}\n{conclusion}\n")
+        atomic_write(tmp / "sensors.md", text)
         buf = io.StringIO()
         names = [f.name for f in dataclasses.fields(rows[0]) if f.name != "sensor"]
         writer = csv.writer(buf, lineterminator="\n")

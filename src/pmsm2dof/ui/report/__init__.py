@@ -40,7 +40,7 @@ from matplotlib.figure import Figure
 from ...outputs import atomic_write, require_writable_dir, staged_dir
 from ...studies import paper as st
 from ...studies.faults import run_faults
-from ...studies.sensing import sensor_study
+from ...studies.sensing import offset_study, sensor_study
 from .claims import VERDICTS, Claim, compute_claims
 from .figures import FigureData, fig_faults, figures
 from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
@@ -94,6 +94,7 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
     made = figures(studies)
     fault_runs = run_faults(studies.overrides)
     sensor_rows = sensor_study(studies.overrides)
+    offset_rows = offset_study(studies.overrides)
     made["faults"] = (
         *fig_faults(fault_runs),
         "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: the reference.",
@@ -135,7 +136,7 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
             tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
         )
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
-        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, sensor_rows)
+        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, sensor_rows, offset_rows)
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]

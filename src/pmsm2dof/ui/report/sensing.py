@@ -2,7 +2,7 @@
 
 from collections.abc import Sequence
 
-from ...studies.sensing import PAPER_OVERSHOOT_PCT, SensorRow, verdict
+from ...studies.sensing import PAPER_OVERSHOOT_PCT, OffsetRow, SensorRow, verdict
 
 _HEADER = (
     "sensor chain",
@@ -19,8 +19,11 @@ def _cell(value: float | None) -> str:
     return "-" if value is None else f"{value:.1f}"
 
 
-def sensing_blocks(rows: Sequence[SensorRow] | None) -> list[tuple]:
-    """Blocks of the section (see :func:`pmsm2dof.ui.report.render.report_blocks`); none without rows."""
+def sensing_blocks(rows: Sequence[SensorRow] | None, offsets: Sequence[OffsetRow] = ()) -> list[tuple]:
+    """Blocks of the section (see :func:`pmsm2dof.ui.report.render.report_blocks`); none without rows.
+
+    ``offsets`` (of :func:`pmsm2dof.studies.sensing.offset_study`) adds the current-sensor offsets.
+    """
     if not rows:
         return []
     table = [
@@ -60,4 +63,32 @@ def sensing_blocks(rows: Sequence[SensorRow] | None) -> list[tuple]:
         ),
         ("table", _HEADER, table),
         ("p", verdict(rows)),
+        *_offset_blocks(offsets),
+    ]
+
+
+def _offset_blocks(offsets: Sequence[OffsetRow]) -> list[tuple]:
+    if not offsets:
+        return []
+    header = ("speed [rpm]", "phase-a offset [A]", "torque ripple [Nm]", "predicted [Nm]", "speed ripple [rpm]")
+    rows = [
+        (
+            f"{o.speed_rpm:g}",
+            f"{o.offset_a_A:g}",
+            f"{o.torque_ripple_Nm:.3g}",
+            f"{o.predicted_Nm:.3g}",
+            f"{o.speed_ripple_rpm:.3g}",
+        )
+        for o in offsets
+    ]
+    return [
+        (
+            "p",
+            "A current sensor's offset (`[current_measurement]`), on experiment 3's drive at constant speed: the "
+            "offset I0 of phase a reads as a stator-fixed vector 2 I0 / sqrt(3), a torque ripple at the electrical "
+            "frequency. Predicted: the linear dq current loop, whose decoupling uses the measured currents "
+            "(`pmsm2dof.studies.sensing.offset_ripple_Nm`); with the paper's slow current loop (tau_i = 0.05 s) "
+            "the decoupling's share dominates at speed.",
+        ),
+        ("table", header, rows),
     ]
