@@ -14,7 +14,7 @@ import warnings
 import control
 import numpy as np
 import pytest
-from scipy.optimize import brentq
+from scipy.optimize import fsolve
 
 from pmsm2dof import design
 from pmsm2dof.analysis.sensor import SensorChain
@@ -247,22 +247,29 @@ def test_field_weakening_reaches_a_speed_beyond_base_speed_within_voltage_and_cu
     assert np.max(with_fw.speed_rpm) < 4500.0 * 1.02
 
 
-def test_field_weakening_settles_at_the_operating_point_of_the_voltage_equations():
+@pytest.mark.parametrize("Ld_H, Lq_H", [(0.01, 0.01), (0.008, 0.012)])
+def test_field_weakening_settles_at_the_operating_point_of_the_voltage_equations(Ld_H, Lq_H):
+    """Steady state at 4500 rpm and 2 Nm: Te = 1.5 p (psi_f + (Ld - Lq) id) iq and ||u_dq|| of eq 1 at
+    the regulator's 0.95 u_dc / sqrt(3), solved by SciPy; surface and salient PMSM."""
     d = BASE.data
-    m = d["motor"]
-    r = simulate(BASE.with_overrides(FW_DRIVE | FW_ON))
+    m = d["motor"] | {"Ld_H": Ld_H, "Lq_H": Lq_H}
+    r = simulate(BASE.with_overrides(FW_DRIVE | FW_ON | {"motor.Ld_H": Ld_H, "motor.Lq_H": Lq_H}))
     w_e = m["pole_pairs"] * 4500.0 / RPM
-    iq = 2.0 / (1.5 * m["pole_pairs"] * m["psi_f_Wb"])
     u_ref = 0.95 * d["limits"]["u_dc_V"] / math.sqrt(3)
 
-    def margin(id_A):
-        ud = m["Rs_ohm"] * id_A - w_e * m["Lq_H"] * iq
-        uq = m["Rs_ohm"] * iq + w_e * (m["Ld_H"] * id_A + m["psi_f_Wb"])
-        return math.hypot(ud, uq) - u_ref
+    def equations(x):
+        id_A, iq_A = x
+        ud = m["Rs_ohm"] * id_A - w_e * m["Lq_H"] * iq_A
+        uq = m["Rs_ohm"] * iq_A + w_e * (m["Ld_H"] * id_A + m["psi_f_Wb"])
+        torque = 1.5 * m["pole_pairs"] * (m["psi_f_Wb"] + (m["Ld_H"] - m["Lq_H"]) * id_A) * iq_A
+        return [torque - 2.0, math.hypot(ud, uq) - u_ref]
 
-    id_expected = brentq(margin, -d["limits"]["i_max_A"], 0.0)
+    (id_expected, iq_expected), info, ok, msg = fsolve(equations, [-3.0, 1.5], full_output=True, xtol=1e-12)
+    assert ok == 1, msg
+    assert -d["limits"]["i_max_A"] < id_expected < 0
     assert r.id_A[-1] == pytest.approx(id_expected, rel=0.01)
-    assert r.iq_A[-1] == pytest.approx(iq, rel=0.01)
+    assert r.iq_A[-1] == pytest.approx(iq_expected, rel=0.01)
+    assert r.speed_rpm[-1] == pytest.approx(4500.0, abs=0.5)
 
 
 @pytest.mark.parametrize(
