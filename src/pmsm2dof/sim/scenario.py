@@ -316,7 +316,13 @@ SCHEMA = (
         default=0.0,
         ge=0,
     ),
-    Field("speed_sensor.noise_rpm_rms", float, "white Gaussian noise on the reading [rpm rms]", default=0.0, ge=0),
+    Field(
+        "speed_sensor.noise_rpm_rms",
+        float,
+        "white Gaussian noise added to the reading, after the estimator and the low-pass [rpm rms]",
+        default=0.0,
+        ge=0,
+    ),
     Field("speed_sensor.seed", int, "seed of the speed noise", default=0, ge=0, lt=2**64),
     Field(
         "current_measurement.gain_error_a",
