@@ -580,7 +580,14 @@ def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: M
     )
 
 
-def _loop_with_sensor(design, Ts_s, method, c, F_z, Fr_z):
+def _loop_with_sensor(
+    design: "Design",
+    Ts_s: float,
+    method: Method,
+    c: Mapping[str, float],
+    F_z: control.TransferFunction,
+    Fr_z: control.TransferFunction,
+) -> DiscreteDesign:
     """:func:`discrete_loop` for a design whose controller reads a sensor chain (see the module docstring)."""
     d = design
     plant = sampled_plant_blocks(d.J_kgm2, d.tau_i_s, Ts_s, d.sensor)
@@ -605,11 +612,11 @@ def _loop_with_sensor(design, Ts_s, method, c, F_z, Fr_z):
     A, B, C, D = reading.A, reading.B, reading.C, reading.D
     b_e0, Ki_Ts = c["b_e0"], c["Ki_Ts"]
 
-    def L_of_w(w):
+    def L_of_w(w: npt.NDArray[np.float64]) -> npt.NDArray[np.complex128]:
         z = np.exp(1j * np.asarray(w, dtype=float) * Ts_s)
         M = z[:, None, None] * np.eye(len(A)) - A
         P = (C @ np.linalg.solve(M, np.broadcast_to(B, (len(z),) + B.shape)))[:, 0, 0] + D[0, 0]
-        return (b_e0 + (Ki_Ts - b_e0) / z) / (1.0 - 1.0 / z) * P
+        return np.asarray((b_e0 + (Ki_Ts - b_e0) / z) / (1.0 - 1.0 / z) * P, dtype=np.complex128)
 
     L_nyquist = L_of_w(np.array([math.pi / Ts_s]))[0].real
     extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []

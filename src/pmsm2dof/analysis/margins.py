@@ -8,7 +8,7 @@ the crossings of its frequency response (:func:`frequency_margins`).
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 
 import control
@@ -103,7 +103,12 @@ def loop_margins(L: control.TransferFunction) -> Margins:
     return pick_margins(gms, pms, w_pcs, w_gcs)
 
 
-def frequency_margins(L_of_w, w_lo_radps, w_hi_radps, extra_crossings=()):
+def frequency_margins(
+    L_of_w: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.complex128]],
+    w_lo_radps: float,
+    w_hi_radps: float,
+    extra_crossings: Sequence[tuple[float, float]] = (),
+) -> Margins:
     """Margins of a loop gain given by its frequency response ``L_of_w(w)`` (complex, vectorized).
 
     The crossings of ``|L| = 1`` and of the phase ``-180 deg (mod 360)`` are bracketed on a
@@ -118,12 +123,15 @@ def frequency_margins(L_of_w, w_lo_radps, w_hi_radps, extra_crossings=()):
     mag_db = 20.0 * np.log10(np.abs(L))
     phase = np.unwrap(np.angle(L))
 
-    def phase_at(x):
+    def phase_at(x: float) -> float:
         # the phase at x, unwrapped continuously from the nearest grid point
-        i = min(np.searchsorted(w, x), len(w) - 1)
-        return phase[i] + np.angle(L_of_w(np.array([x]))[0] / L[i])
+        i = min(int(np.searchsorted(w, x)), len(w) - 1)
+        return float(phase[i] + np.angle(L_of_w(np.array([x]))[0] / L[i]))
 
-    gains, w_phase, phases, w_gain = [], [], [], []
+    gains: list[float] = []
+    w_phase: list[float] = []
+    phases: list[float] = []
+    w_gain: list[float] = []
     for i in np.flatnonzero(np.diff(np.sign(mag_db)) != 0):
         wc = optimize.brentq(lambda x: 20.0 * np.log10(abs(L_of_w(np.array([x]))[0])), w[i], w[i + 1])
         phases.append(math.degrees(phase_at(wc)) % 360.0 - 180.0)

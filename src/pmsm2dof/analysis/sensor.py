@@ -26,6 +26,7 @@ from typing import Any, Literal
 
 import control
 import numpy as np
+import numpy.typing as npt
 import scipy.linalg
 
 from ..core import ESTIMATORS, SPEED_SENSOR_MODELS, Encoder
@@ -36,6 +37,8 @@ SENSOR_MODELS = SPEED_SENSOR_MODELS
 #: How a delay enters the frequency response: exactly, or as its Pade approximant.
 DelayModel = Literal["exact", "pade"]
 DELAY_MODELS: tuple[DelayModel, ...] = ("exact", "pade")
+#: A real matrix.
+_Matrix = npt.NDArray[np.float64]
 #: Order of the Pade approximant of the delay in rational transfer functions.
 PADE_ORDER = 4
 #: Counts per revolution given to the C estimator whose filter coefficients are read (they do not depend on it).
@@ -66,7 +69,7 @@ class SensorChain:
     lowpass_radps: float = 0.0
     delay_s: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         require_choice("model", self.model, SENSOR_MODELS)
         require_choice("estimator", self.estimator, ESTIMATORS)
         object.__setattr__(self, "bandwidth_radps", require_nonnegative("bandwidth_radps", self.bandwidth_radps))
@@ -93,16 +96,16 @@ class SensorChain:
         )
 
     @property
-    def pll(self):
+    def pll(self) -> bool:
         """The encoder's speed comes from the tracking loop."""
         return self.model == "encoder" and self.estimator == "pll"
 
     @property
-    def is_ideal(self):
+    def is_ideal(self) -> bool:
         """The true speed, sampled without filter or delay: the loop of the paper."""
         return self.model == "ideal" and self.lowpass_radps == 0.0 and self.delay_s == 0.0
 
-    def _filter_factors(self):
+    def _filter_factors(self) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
         """``(numerator, denominator)`` of the rational part of H(s): PLL and low-pass."""
         num, den = np.array([1.0]), np.array([1.0])
         if self.pll:
@@ -112,7 +115,7 @@ class SensorChain:
             num, den = num * self.lowpass_radps, np.polymul(den, [1.0, self.lowpass_radps])
         return num, den
 
-    def H(self, pade_order=PADE_ORDER):
+    def H(self, pade_order: int = PADE_ORDER) -> control.TransferFunction:
         """``H(s)`` from the true to the measured speed, the delay by its Pade approximant of ``pade_order``.
 
         ``pade_order=0`` leaves the delay out: the rational part (PLL and low-pass) alone.
@@ -123,13 +126,13 @@ class SensorChain:
             H = H * control.tf(*control.pade(self.delay_s, pade_order))
         return H
 
-    def frequency_response(self, w_radps):
+    def frequency_response(self, w_radps: npt.ArrayLike) -> npt.NDArray[np.complex128]:
         """``H(j w)`` with the exact delay ``exp(-j w T_d)``."""
         s = 1j * np.asarray(w_radps, dtype=float)
         num, den = self._filter_factors()
-        return np.polyval(num, s) / np.polyval(den, s) * np.exp(-s * self.delay_s)
+        return np.asarray(np.polyval(num, s) / np.polyval(den, s) * np.exp(-s * self.delay_s), dtype=np.complex128)
 
-    def filter_poles(self, Ts_s):
+    def filter_poles(self, Ts_s: float) -> tuple[float, float]:
         """``(p, q)``: the PLL's and the low-pass's discrete poles at ``Ts_s`` as the C estimator computes them.
 
         0 for an absent factor. Raises the C estimator's ConfigError (``bandwidth_radps``,
@@ -147,7 +150,7 @@ class SensorChain:
         c = enc.coefficients
         return float(c["pll_pole"]), float(c["lowpass_pole"])
 
-    def filter_z(self, Ts_s):
+    def filter_z(self, Ts_s: float) -> control.TransferFunction:
         """The sampled filters ``Hf(z)`` (PLL and low-pass) at ``Ts_s``, with the C estimator's poles."""
         p, q = self.filter_poles(Ts_s)
         H = control.tf([1.0], [1.0], Ts_s)
@@ -157,7 +160,7 @@ class SensorChain:
             H = H * control.tf([1.0 - q, 0.0], [1.0, -q], Ts_s)
         return H
 
-    def filter_frequency_response(self, Ts_s, w_radps):
+    def filter_frequency_response(self, Ts_s: float, w_radps: npt.ArrayLike) -> npt.NDArray[np.complex128]:
         """``Hf(exp(j w Ts))`` of the sampled filters."""
         p, q = self.filter_poles(Ts_s)
         z_inv = np.exp(-1j * np.asarray(w_radps, dtype=float) * Ts_s)
@@ -168,7 +171,7 @@ class SensorChain:
             H = H * (1.0 - q) / (1.0 - q * z_inv)
         return H
 
-    def describe(self):
+    def describe(self) -> str:
         """A one-line description, e.g. ``encoder, PLL 200 rad/s, low-pass 500 rad/s, delay 1 ms``."""
         parts = [self.model]
         if self.model == "encoder":
@@ -180,7 +183,7 @@ class SensorChain:
         return ", ".join(parts)
 
 
-def sampled_plant_blocks(J_kgm2, tau_i_s, Ts_s, chain):
+def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: SensorChain) -> list[Any]:
     """The sampled plant and sensor chain as python-control blocks from ``u`` to ``w`` and ``y``.
 
     ``u`` is the torque command held over each period, ``w`` the true speed at ``t_k`` and ``y``
@@ -212,7 +215,7 @@ def sampled_plant_blocks(J_kgm2, tau_i_s, Ts_s, chain):
         B[0, 0] = 1.0 / J_kgm2
     A[n, n - 1] = 1.0
 
-    def over(t_s):
+    def over(t_s: float) -> tuple[_Matrix, _Matrix, _Matrix, _Matrix]:
         """``(Phi, Gamma, M, N)`` of the plant over ``t_s`` and the speed's integral over it."""
         E, G = _zoh(A, B, t_s)
         return E[:n, :n], G[:n], E[n:, :n], G[n:]
@@ -260,7 +263,7 @@ def sampled_plant_blocks(J_kgm2, tau_i_s, Ts_s, chain):
     return [plant, control.ss(reading, inputs="y_0", outputs="y")]
 
 
-def _zoh(A, B, t_s):
+def _zoh(A: _Matrix, B: _Matrix, t_s: float) -> tuple[_Matrix, _Matrix]:
     """``(expm(A t), int_0^t expm(A s) ds B)`` (SciPy ``expm`` of the block matrix)."""
     n, m = B.shape
     block = np.zeros((n + m, n + m))

@@ -13,9 +13,11 @@ Both compute in float32, as on the MCU; every number is the C library's.
 
 import dataclasses
 import numbers
+from collections.abc import Mapping
+from typing import Any
 
 from ..errors import ConfigError
-from .bindings import ffi, lib, struct_fields
+from .bindings import AntiWindup, Method, ffi, lib, struct_fields
 from .controllers import _finite, _get_fields, _raise_status, _set_fields, _struct_dict
 
 _ENCODER_CONFIG_FIELDS = struct_fields("p2d_encoder_config_t")
@@ -26,7 +28,7 @@ _FW_PARAMS = tuple(_FW_CONFIG_FIELDS)
 _FW_OUTPUT_FIELDS = struct_fields("p2d_field_weakening_output_t")
 
 
-def _count(name, value):
+def _count(name: str, value: object) -> int:
     """A counter reading as the C ``uint32_t``: any integer, taken modulo 2**32."""
     if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise ConfigError(name, value, "an integer (the counter reading)")
@@ -79,7 +81,16 @@ class Encoder:
         A parameter out of range (the message names it, the value and the valid range).
     """
 
-    def __init__(self, *, counts_per_rev, counter_bits=32, Ts_s, estimator, bandwidth_radps=200.0, lowpass_radps=0.0):
+    def __init__(
+        self,
+        *,
+        counts_per_rev: int,
+        counter_bits: int = 32,
+        Ts_s: float,
+        estimator: str,
+        bandwidth_radps: float = 200.0,
+        lowpass_radps: float = 0.0,
+    ) -> None:
         self._enc = ffi.new("p2d_encoder_t *")
         params = dict(
             counts_per_rev=counts_per_rev, counter_bits=counter_bits, Ts_s=Ts_s, estimator=estimator,
@@ -91,12 +102,12 @@ class Encoder:
         self._params = params
 
     @staticmethod
-    def _c_config(params):
+    def _c_config(params: Mapping[str, Any]) -> Any:
         cfg = ffi.new("p2d_encoder_config_t *")
         _set_fields(cfg, _ENCODER_CONFIG_FIELDS, params)
         return cfg
 
-    def set_config(self, **changes):
+    def set_config(self, **changes: Any) -> None:
         """Change parameters atomically, keeping the state (the C shadow-set swap)."""
         unknown = sorted(set(changes) - set(_ENCODER_PARAMS))
         if unknown:
@@ -107,33 +118,33 @@ class Encoder:
             _raise_status(status, params)
         self._params = params
 
-    def reset(self, count, w_m_radps=0.0):
+    def reset(self, count: int, w_m_radps: float = 0.0) -> None:
         """Start from the reading ``count`` with the estimate at ``w_m_radps`` [rad/s]."""
         lib.p2d_encoder_reset(self._enc, _count("count", count), _finite("w_m_radps", w_m_radps))
 
-    def step(self, count):
+    def step(self, count: int) -> EncoderOutput:
         """One speed period with the counter reading ``count`` (bits above ``counter_bits`` ignored)."""
         out = ffi.new("p2d_encoder_output_t *")
         lib.p2d_encoder_step(self._enc, _count("count", count), out)
         return EncoderOutput(**{name: getattr(out, name) for name in _ENCODER_OUTPUT_FIELDS})
 
     @property
-    def resolution_radps(self):
+    def resolution_radps(self) -> float:
         """Speed of one count per period, ``2 pi / (counts_per_rev Ts_s)`` [rad/s] (float32)."""
-        return self._coef.w_res_radps
+        return float(self._coef.w_res_radps)
 
     @property
-    def coefficients(self):
+    def coefficients(self) -> dict[str, Any]:
         """The active coefficients (the C ``p2d_encoder_coef_t``) as a dict."""
         return _struct_dict(self._coef, "p2d_encoder_coef_t")
 
     @property
-    def config(self):
+    def config(self) -> dict[str, Any]:
         """The active configuration; ``Encoder(**enc.config)`` rebuilds it."""
         return _get_fields(self._enc.config, _ENCODER_CONFIG_FIELDS)
 
     @property
-    def state(self):
+    def state(self) -> dict[str, float]:
         """``count_prev``, ``theta_err_counts`` (PLL angle residual), ``v_pll_counts``, ``w_lowpass_radps``."""
         e = self._enc
         return {
@@ -144,15 +155,15 @@ class Encoder:
         }
 
     @property
-    def fault_count(self):
+    def fault_count(self) -> int:
         """Steps and resets refused so far by the non-finite policy."""
-        return self._enc.fault_count
+        return int(self._enc.fault_count)
 
     @property
-    def _coef(self):
+    def _coef(self) -> Any:
         return self._enc.coef[self._enc.active]
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return "Encoder(" + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
 
 
@@ -214,15 +225,15 @@ class FieldWeakening:
     def __init__(
         self,
         *,
-        Kp_A_per_V,
-        Ki_A_per_Vs,
-        Ka_V_per_A,
-        Ts_s,
-        voltage_ratio,
-        id_min_A,
-        method="tustin",
-        anti_windup="back_calculation",
-    ):
+        Kp_A_per_V: float,
+        Ki_A_per_Vs: float,
+        Ka_V_per_A: float,
+        Ts_s: float,
+        voltage_ratio: float,
+        id_min_A: float,
+        method: Method = "tustin",
+        anti_windup: AntiWindup = "back_calculation",
+    ) -> None:
         self._fw = ffi.new("p2d_field_weakening_t *")
         params = dict(
             Kp_A_per_V=Kp_A_per_V, Ki_A_per_Vs=Ki_A_per_Vs, Ka_V_per_A=Ka_V_per_A, Ts_s=Ts_s,
@@ -234,12 +245,12 @@ class FieldWeakening:
         self._params = params
 
     @staticmethod
-    def _c_config(params):
+    def _c_config(params: Mapping[str, Any]) -> Any:
         cfg = ffi.new("p2d_field_weakening_config_t *")
         _set_fields(cfg, _FW_CONFIG_FIELDS, params)
         return cfg
 
-    def set_config(self, **changes):
+    def set_config(self, **changes: Any) -> None:
         """Change parameters atomically, keeping the integrator (the C shadow-set swap)."""
         unknown = sorted(set(changes) - set(_FW_PARAMS))
         if unknown:
@@ -252,30 +263,30 @@ class FieldWeakening:
             _raise_status(status, params)
         self._params = params
 
-    def reset(self, id_A=0.0):
+    def reset(self, id_A: float = 0.0) -> None:
         """Bumpless start at the d current ``id_A`` [A], clamped to ``[id_min_A, 0]``."""
         lib.p2d_field_weakening_reset(self._fw, _finite("id_A", id_A))
 
-    def step(self, ud_V, uq_V, u_dc_V):
+    def step(self, ud_V: float, uq_V: float, u_dc_V: float) -> FieldWeakeningOutput:
         """One sample: the current controller's voltage command [V] and the measured DC link [V]."""
         out = ffi.new("p2d_field_weakening_output_t *")
         lib.p2d_field_weakening_step(self._fw, float(ud_V), float(uq_V), float(u_dc_V), out)
         return FieldWeakeningOutput(**{name: getattr(out, name) for name in _FW_OUTPUT_FIELDS})
 
     @property
-    def config(self):
+    def config(self) -> dict[str, Any]:
         """The active configuration; ``FieldWeakening(**fw.config)`` rebuilds it."""
         return _get_fields(self._fw.config, _FW_CONFIG_FIELDS)
 
     @property
-    def x_A(self):
+    def x_A(self) -> float:
         """The integrator x[k-1] [A]."""
-        return self._fw.x_A
+        return float(self._fw.x_A)
 
     @property
-    def fault_count(self):
+    def fault_count(self) -> int:
         """Samples rejected so far by the non-finite policy."""
-        return self._fw.fault_count
+        return int(self._fw.fault_count)
 
-    def __repr__(self):
+    def __repr__(self) -> str:
         return "FieldWeakening(" + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"

@@ -598,7 +598,7 @@ def _check_relations(data: Tree) -> None:
     _check_sensing(data)
 
 
-def _check_sensing(data):
+def _check_sensing(data: Tree) -> None:
     """The speed sensor, current measurement and field weakening against the other tables."""
     ss, cl, fw = data["speed_sensor"], data["current_loop"], data["field_weakening"]
     if ss["model"] == "ideal" and ss["estimator"] == "pll":

@@ -551,7 +551,7 @@ def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
     return faults
 
 
-def _sensing(cfg, data):
+def _sensing(cfg: Any, data: Mapping[str, Any]) -> None:
     """Fill the speed sensor, current measurement and field weakening of ``cfg`` (csrc/sim/sensing.h)."""
     ss, cm, fw = data["speed_sensor"], data["current_measurement"], data["field_weakening"]
     sensor = cfg.sensing.speed_sensor

@@ -73,7 +73,7 @@ class SensorRow:
     """
 
     label: str
-    sensor: dict
+    sensor: dict[str, Any]
     overshoot_no_aw_pct: float | None
     overshoot_aw_pct: float | None
     dip_rpm: float | None
@@ -82,7 +82,7 @@ class SensorRow:
     distance_pct: float | None
 
 
-def _figure(metrics: dict, group: str, name: str) -> float | None:
+def _figure(metrics: dict[str, Any], group: str, name: str) -> float | None:
     value = metrics[group][0][name]["value"]
     return None if value is None else float(value)
 

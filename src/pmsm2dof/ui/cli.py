@@ -964,7 +964,7 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     help="change a scenario key of both experiments first, e.g. --set motor.J_kgm2=0.5 (repeatable)",
 )
 @click.option("--out", type=click.Path(), default=None, help="folder for sensors.md and sensors.csv")
-def sensors(overrides, out):
+def sensors(overrides: tuple[str, ...], out: str | None) -> None:
     """How encoder resolution, estimator, filter, delay and noise change the paper's drive.
 
     Runs experiment 1 (500 rpm step, 1DOF PI without and with AW) and experiment 3 (8 Nm load

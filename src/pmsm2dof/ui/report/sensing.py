@@ -1,6 +1,7 @@
 """The report's section on the speed measurement (not in the paper): :mod:`pmsm2dof.studies.sensing`."""
 
 from collections.abc import Sequence
+from typing import Any
 
 from ...studies.sensing import PAPER_OVERSHOOT_PCT, OffsetRow, SensorRow, verdict
 
@@ -19,7 +20,7 @@ def _cell(value: float | None) -> str:
     return "-" if value is None else f"{value:.1f}"
 
 
-def sensing_blocks(rows: Sequence[SensorRow] | None, offsets: Sequence[OffsetRow] = ()) -> list[tuple]:
+def sensing_blocks(rows: Sequence[SensorRow] | None, offsets: Sequence[OffsetRow] = ()) -> list[tuple[Any, ...]]:
     """Blocks of the section (see :func:`pmsm2dof.ui.report.render.report_blocks`); none without rows.
 
     ``offsets`` (of :func:`pmsm2dof.studies.sensing.offset_study`) adds the current-sensor offsets.
@@ -67,7 +68,7 @@ def sensing_blocks(rows: Sequence[SensorRow] | None, offsets: Sequence[OffsetRow
     ]
 
 
-def _offset_blocks(offsets: Sequence[OffsetRow]) -> list[tuple]:
+def _offset_blocks(offsets: Sequence[OffsetRow]) -> list[tuple[Any, ...]]:
     if not offsets:
         return []
     header = ("speed [rpm]", "phase-a offset [A]", "torque ripple [Nm]", "predicted [Nm]", "speed ripple [rpm]")
