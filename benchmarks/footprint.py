@@ -28,9 +28,12 @@ instructions per step
     The count is checked on ``p2d_speed_Ka_default``, which has no branch: the
     trace must give the number of instructions of its disassembly.
 
-Writes the sections "Footprint and cost on the Cortex-M4F" and "Commissioning
-routine on the Cortex-M4F" of ``benchmarks/results.md`` (other sections are
-kept) and prints them. The commissioning routine is measured over a whole run
+Writes the sections "Footprint and cost on the Cortex-M4F" (speed and current
+controllers, every module), "Footprint of the speed sensing and field weakening
+on the Cortex-M4F" (encoder estimators, field weakening, the speed controller's
+field-weakening entry) and "Commissioning routine on the Cortex-M4F" of
+``benchmarks/results.md`` (other sections are kept) and prints them. The
+commissioning routine is measured over a whole run
 (``csrc/target/target_commission_cost.c``): every step is counted, and the
 steps are summarised by phase, since a step costs more at the end of an
 injection period or of a phase than on an ordinary sample.
@@ -52,6 +55,11 @@ ROOT = Path(__file__).resolve().parents[1]
 CSRC = ROOT / "csrc"
 TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
 SECTION = "## Footprint and cost on the Cortex-M4F"
+SENSING_SECTION = "## Footprint of the speed sensing and field weakening on the Cortex-M4F"
+# the probes of each section, by controller; the entry of a probe is p2d_<controller>_step unless named here
+CONTROLLERS = ("speed", "current")
+SENSING_CONTROLLERS = ("encoder", "field_weakening", "speed_fw")
+ENTRY = {"speed_fw": "p2d_speed_step_fw"}
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
 QEMU_TIMEOUT_S = 120
 # the configuration with the issue's target: <= 60 instructions per step, <= 1 KiB flash
@@ -239,7 +247,7 @@ def measure(build_dir, workdir):
     for probe in probes:
         index = int(probe[1], 16)
         controller = probe[2]
-        entry = funcs[f"p2d_{controller}_step"][0]
+        entry = funcs[ENTRY.get(controller, f"p2d_{controller}_step")][0]
         first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
         path = pcs[first:end]
         rows.append(
@@ -260,9 +268,19 @@ def measure(build_dir, workdir):
 
     flash = {
         root: flash_of(reachable(calls, root))
-        for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init")
+        for root in (
+            "p2d_speed_step",
+            "p2d_speed_init",
+            "p2d_current_step",
+            "p2d_current_init",
+            "p2d_speed_step_fw",
+            "p2d_encoder_step",
+            "p2d_encoder_init",
+            "p2d_field_weakening_step",
+            "p2d_field_weakening_init",
+        )
     }
-    for controller in ("speed", "current"):
+    for controller in ("speed", "current", "encoder", "field_weakening"):
         entries = [f for f in funcs if f.startswith(f"p2d_{controller}_")]
         flash[f"{controller} controller (all p2d_{controller}_*)"] = flash_of(
             set().union(*(reachable(calls, f) for f in entries))
@@ -329,11 +347,13 @@ def report(m):
         "|---|---:|---|",
     ]
     for root, (size, reach) in m["flash"].items():
-        out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+        if not is_sensing(root):
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
     out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
-    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items()]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if not is_sensing(t)]
+    rows = [r for r in m["rows"] if r["key"][0] in CONTROLLERS]
     stack = {}
-    for r in m["rows"]:
+    for r in rows:
         stack[r["key"][0]] = max(stack.get(r["key"][0], 0), r["stack"])
     out += [
         "",
@@ -352,7 +372,7 @@ def report(m):
         "|---|---|---|---|---|---:|---:|---:|",
     ]
     by_key = {}
-    for r in m["rows"]:
+    for r in rows:
         by_key.setdefault(r["key"], {})[r["point"]] = r
     for key, points in by_key.items():
         unsat, sat = points.get("unsaturated"), points.get("saturated")
@@ -493,6 +513,58 @@ def commission_report(m):
         + ", ".join(f"{f} {m['funcs'][f][1]}" for f in m["flash"]["p2d_commission_step"][1])
         + ".",
     ]
+
+
+def is_sensing(name):
+    """Whether a struct, entry or flash row belongs to the speed sensing and field weakening section."""
+    return any(k in name for k in ("encoder", "field_weakening", "_fw"))
+
+
+def report_sensing(m):
+    """The markdown section of the speed sensing and field weakening."""
+    out = [
+        SENSING_SECTION,
+        "",
+        measured_by("python3 benchmarks/footprint.py") + " (the same build and trace as the section above).",
+        "",
+        "Encoder: 10000 counts/rev on a 16-bit timer read at 1 kHz, a step across the timer's wrap "
+        "(csrc/include/pmsm2dof/encoder.h). Field weakening: 10 kHz on a 48 V link, Tustin "
+        "(csrc/include/pmsm2dof/field_weakening.h). `p2d_speed_step_fw`: the speed step of the table above "
+        "(Tustin, back calculation, lowpass feedforward) with id_fw = -4 A of 7.6 A.",
+        "",
+        "### Instructions executed by one step (QEMU trace; callees included)",
+        "",
+        "| entry | configuration | point | instructions | vdiv+vsqrt | stack (bytes) |",
+        "|---|---|---|---:|---:|---:|",
+    ]
+    for r in m["rows"]:
+        controller = r["key"][0]
+        if controller not in SENSING_CONTROLLERS:
+            continue
+        config = " ".join(k for k in r["key"][1:] if k != "-")
+        out.append(
+            f"| `{ENTRY.get(controller, f'p2d_{controller}_step')}` | {config} | {r['point']} | {r['count']} "
+            f"| {r['divides']} | {r['stack']} |"
+        )
+    plain = {r["point"]: r["count"] for r in m["rows"] if r["key"] == TARGET}
+    fw = {r["point"]: r["count"] for r in m["rows"] if r["key"] == ("speed_fw", *TARGET[1:])}
+    out += [
+        "",
+        f"The field-weakening entry costs {fw['unsaturated'] - plain['unsaturated']} (unsaturated) and "
+        f"{fw['saturated'] - plain['saturated']} (saturated) instructions more than `p2d_speed_step` "
+        f"({plain['unsaturated']} / {plain['saturated']}, unchanged): the q current that remains, a square root, "
+        "and the compute/update split.",
+        "",
+        "### Flash reachable from an entry point (static call graph, newlib included, bytes)",
+        "",
+        "| entry | flash | functions |",
+        "|---|---:|---|",
+    ]
+    for root, (size, reach) in m["flash"].items():
+        if is_sensing(root):
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+    out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if is_sensing(t)]
     return "\n".join(out) + "\n"
 
 
@@ -502,12 +574,13 @@ def main(argv=None):
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
         build_dir = (args.build_dir or Path(tmp) / "build").resolve()
-        text = report(measure(build_dir, Path(tmp)))
+        measured = measure(build_dir, Path(tmp))
         commission_text = commission_report(commission_measure(build_dir, Path(tmp)))
+    text, sensing = report(measured), report_sensing(measured)
     write_section(SECTION, text)
+    write_section(SENSING_SECTION, sensing)
     write_section(COMMISSION_SECTION, commission_text)
-    print(text)
-    print(commission_text)
+    print(text + "\n" + sensing + "\n" + commission_text)
     return 0
 
 

@@ -46,7 +46,19 @@ typedef enum {
     P2D_ERR_T_SPIN,        /* t_spin_s */
     P2D_ERR_W_E_SPIN,      /* w_e_spin_radps */
     P2D_ERR_VOLTAGE_DELAY, /* voltage_delay_samples */
-    P2D_STATUS_COUNT       /* number of codes, not a code */
+    /* speed from an encoder (encoder.h) */
+    P2D_ERR_ENC_COUNTS_PER_REV, /* counts_per_rev */
+    P2D_ERR_ENC_COUNTER_BITS,   /* counter_bits */
+    P2D_ERR_ENC_ESTIMATOR,      /* estimator */
+    P2D_ERR_ENC_BANDWIDTH,      /* bandwidth_radps */
+    P2D_ERR_ENC_LOWPASS,        /* lowpass_radps */
+    /* field weakening (field_weakening.h) */
+    P2D_ERR_FW_KP,            /* Kp_A_per_V */
+    P2D_ERR_FW_KI,            /* Ki_A_per_Vs */
+    P2D_ERR_FW_KA,            /* Ka_V_per_A */
+    P2D_ERR_FW_VOLTAGE_RATIO, /* voltage_ratio */
+    P2D_ERR_FW_ID_MIN,        /* id_min_A */
+    P2D_STATUS_COUNT          /* number of codes, not a code */
 } p2d_status_t;
 
 /* Name of the configuration field that a status code rejects ("" for P2D_OK). */

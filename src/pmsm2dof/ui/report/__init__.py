@@ -20,6 +20,9 @@ and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
   DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode;
 - a section on self-commissioning (:mod:`.commissioning`): the C routine identifies the paper's
   drive and a salient servo, identified against true values and the time of each step.
+- a section on the speed measurement (:mod:`pmsm2dof.studies.sensing`): encoder resolution,
+  estimator, filter and delay against overshoot, load dip and margins, and whether a sensor
+  chain explains the experiment's 35 % -> 15 % better than the exact reading.
 
 Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous
 Motor Speed Controller" (equation, figure and section numbers are the paper's).
@@ -39,6 +42,7 @@ from matplotlib.figure import Figure
 from ...outputs import atomic_write, require_writable_dir, staged_dir
 from ...studies import paper as st
 from ...studies.faults import run_faults
+from ...studies.sensing import offset_study, sensor_study
 from .claims import VERDICTS, Claim, compute_claims
 from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
@@ -92,6 +96,8 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
     claims = compute_claims(studies)
     made = figures(studies)
     fault_runs = run_faults(studies.overrides)
+    sensor_rows = sensor_study(studies.overrides)
+    offset_rows = offset_study(studies.overrides)
     made["faults"] = (
         *fig_faults(fault_runs),
         "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: the reference.",
@@ -133,7 +139,16 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
             tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
         )
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
-        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, run_commissioning())
+        blocks = report_blocks(
+            studies,
+            claims,
+            captions,
+            wall_time_s,
+            fault_runs,
+            commissioning_runs=run_commissioning(),
+            sensor_rows=sensor_rows,
+            offset_rows=offset_rows,
+        )
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]
