@@ -1,19 +1,21 @@
-"""Bounded fuzzing of the C controllers with libFuzzer under ASan and UBSan.
+"""Bounded fuzzing of the C controllers and estimator with libFuzzer under ASan and UBSan.
 
-The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c and fuzz_commission.c
-decode random configurations and input sequences and abort on any violated
-invariant (output finite and within I_max or u_dc/sqrt(3), integrator bounds
-under back calculation and clamping, atomic parameter updates, no poisoned
-state; the commissioning routine's phases, its trip, and estimates that
-match the motor when it ends; see RELIABILITY.md). Each runs for a bounded
-time from a copy of the checked-in seed corpus; the executions are printed
-(pytest -s shows them).
+The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c, fuzz_commission.c and
+fuzz_inertia.c decode random configurations and input sequences and abort on
+any violated invariant (output finite and within I_max or u_dc/sqrt(3),
+integrator bounds under back calculation and clamping, atomic parameter
+updates, no poisoned state; the commissioning routine's phases, its trip, and
+estimates that match the motor when it ends; the estimator's covariance within
+its prior and its outputs within their bounds; see RELIABILITY.md). Each runs
+for a bounded time from a copy of the checked-in seed corpus; the executions
+are printed (pytest -s shows them).
 
-Mutants of the controllers and the commissioning routine (the non-finite
-policy of the update removed, clamping that never holds, a voltage limit
-that is never active, no overcurrent trip, a NaN current let through) show
-that the invariants catch real faults: each is caught by replaying the seed
-corpus alone.
+Mutants of the controllers, the commissioning routine and the estimator (the
+non-finite policy of the update removed, clamping that never holds, a voltage
+limit that is never active, no overcurrent trip, a NaN current let through;
+the estimator's non-finite policy removed, its forgetting without the bound of
+the prior, its output without the bound of J_max) show that the invariants
+catch real faults: each is caught by replaying the seed corpus alone.
 
 P2D_FUZZ_SECONDS sets the time per target (default 25 s).
 """
@@ -73,7 +75,7 @@ def fuzz_build(tmp_path_factory):
             "-DP2D_FUZZ=ON",
             "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
         ],
-        ["cmake", "--build", str(build), "--target", "fuzz_speed", "fuzz_current", "fuzz_commission", "-j", "2"],
+        ["cmake", "--build", str(build), "--target", "fuzz_speed", "fuzz_current", "fuzz_commission", "fuzz_inertia", "-j", "2"],
     ):
         result = subprocess.run(command, capture_output=True, text=True)
         assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
@@ -88,7 +90,7 @@ def _stats(stderr):
     return int(runs.group(1)), int(runs.group(2)), int(done.group(3)), int(done.group(2))
 
 
-@pytest.mark.parametrize("target", ["speed", "current", "commission"])
+@pytest.mark.parametrize("target", ["speed", "current", "commission", "inertia"])
 def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
     corpus = tmp_path / "corpus"
     shutil.copytree(CORPUS / target, corpus)
@@ -151,6 +153,15 @@ MUTANTS = {
         "commission.c",
         [("if (!isfinite(id_A) || !isfinite(iq_A) || !isfinite(u_dc_V)) {", "if (!isfinite(u_dc_V)) {")],
     ),
+    # the estimator takes NaN and inf in, and keeps what overflows
+    "inertia_nan_state": ("inertia", "inertia.c", [("if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {", "if (0) {"),
+                                                   ("if (!isfinite(wF) ||", "if (0 && (!isfinite(wF) ||"),
+                                                   ("!isfinite(alpha)) {", "!isfinite(alpha))) {")]),
+    # J is forgotten beyond its prior variance: the covariance winds up without excitation
+    "inertia_windup": ("inertia", "inertia.c", [("if (P * g <= var0) {", "if (1) {")]),
+    # the output of J is not limited to [J_min, J_max]
+    "inertia_no_output_limit": ("inertia", "inertia.c", [("out->J_kgm2 = clamp(J, c->J_min_kgm2, c->J_max_kgm2);",
+                                                          "out->J_kgm2 = J;")]),
 }
 
 

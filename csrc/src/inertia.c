@@ -24,6 +24,27 @@ static bool memory_valid(float memory_s, float Ts_s)
 /* x limited to [lo, hi]; a NaN x stays NaN (the caller refuses it). */
 static inline float clamp(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
+/*
+ * The scale s of one parameter in the time update P <- S P S (inertia.h), for
+ * its variance P before it: s^2 = g (g = 1 / lambda, with sqrt_g and inv_sqrt_g
+ * precomputed), or s^2 = var0 / P where g P would exceed the prior variance
+ * var0, so that the variance never exceeds var0 after it. Returns s, writes
+ * s^2 and 1 / s.
+ */
+static inline float time_scale(float P, float g, float sqrt_g, float inv_sqrt_g, float var0, float *s2, float *inv_s)
+{
+    float s;
+    if (P * g <= var0) {
+        *s2 = g;
+        *inv_s = inv_sqrt_g;
+        return sqrt_g;
+    }
+    *s2 = var0 / P;
+    s = p2d_sqrt_nonnegative(*s2);
+    *inv_s = 1.0f / s;
+    return s;
+}
+
 /* Validate cfg and compute its coefficients into *c. *c is written only on success. */
 static p2d_status_t inertia_coefficients(const p2d_inertia_config_t *cfg, p2d_inertia_coef_t *c)
 {
@@ -154,10 +175,10 @@ static void fault_output(p2d_inertia_t *est, const p2d_inertia_coef_t *c, p2d_in
 void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_inertia_output_t *out)
 {
     const p2d_inertia_coef_t *c = &est->coef[est->active];
-    float T_in, dwF, wF, TF, oneF, phi_J, phi_B, eps, P_L, P_J, is_J, is_B, U_LJ, U_LB, U_JB, D_L, D_J, D_B;
+    float T_in, dwF, wF, TF, oneF, phi_J, phi_B, eps, P_L, P_J, P_B, s2_L, s2_J, s2_B, s_L, s_J, is_L, is_J, is_B;
+    float U_LJ, U_LB, U_JB, D_L, D_J, D_B;
     float f_J, f_B, v_L, v_J, v_B, a_L, a_J, alpha, inv_a_L, inv_a_J, inv_alpha, b_L, b_J, e_n, phi_P_phi;
     float T_load, J, B, nis, var_J;
-    bool forget_J, forget_B;
 
     if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {
         fault_output(est, c, out);
@@ -192,23 +213,26 @@ void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_ine
     /* eps = y - phi' theta = TF - (J phi_J + B phi_B + T_load 1F) */
     eps = TF - fmaf(est->J_kgm2, phi_J, fmaf(est->B_Nms, phi_B, est->T_load_Nm * oneF));
 
-    /* variances before the update: P_LL = D_L + U_LJ^2 D_J + U_LB^2 D_B, P_JJ = D_J + U_JB^2 D_B, P_BB = D_B */
+    /*
+     * Time update P <- S P S + q e_L e_L', S = diag(s_L, s_J, s_B) (inertia.h): the variances before it
+     * P_LL = D_L + U_LJ^2 D_J + U_LB^2 D_B, P_JJ = D_J + U_JB^2 D_B, P_BB = D_B
+     */
     P_L = fmaf(est->U_LJ_per_s2 * est->U_LJ_per_s2, est->D_J_kg2m4,
                fmaf(est->U_LB_per_s * est->U_LB_per_s, est->D_B_N2m2s2, est->D_L_N2m2));
     P_J = fmaf(est->U_JB_s * est->U_JB_s, est->D_B_N2m2s2, est->D_J_kg2m4);
-    /* J and B below their prior variance are forgotten: P <- S P S, S = diag(1, s_J, s_B), s = sqrt(g) or 1 */
-    forget_J = P_J < c->var0_J_kg2m4;
-    forget_B = est->D_B_N2m2s2 < c->var0_B_N2m2s2;
-    is_J = forget_J ? c->inv_s_J : 1.0f;
-    is_B = forget_B ? c->inv_s_J : 1.0f;
-    /* U_ij <- s_i U_ij / s_j (i < j), D_j <- s_j^2 D_j */
-    U_LJ = est->U_LJ_per_s2 * is_J;
-    U_LB = est->U_LB_per_s * is_B;
-    U_JB = forget_J == forget_B ? est->U_JB_s : est->U_JB_s * (forget_J ? c->s_J : c->inv_s_J);
-    D_J = forget_J ? est->D_J_kg2m4 * c->g_J : est->D_J_kg2m4;
-    D_B = forget_B ? est->D_B_N2m2s2 * c->g_J : est->D_B_N2m2s2;
-    /* T_load below its prior variance walks: P <- P + q e_L e_L', that is D_L <- D_L + q (U e_L = e_L) */
-    D_L = P_L < c->var0_L_N2m2 ? est->D_L_N2m2 + c->q_L_N2m2 : est->D_L_N2m2;
+    P_B = est->D_B_N2m2s2;
+    /* J, B: forgetting, s^2 = g; T_load: the random walk P_LL + q (S leaves P_LL alone), s^2 = 1 */
+    s_J = time_scale(P_J, c->g_J, c->s_J, c->inv_s_J, c->var0_J_kg2m4, &s2_J, &is_J);
+    /* T_load comes first and B last in U: only s_L and 1 / s_B enter it */
+    (void)time_scale(P_B, c->g_J, c->s_J, c->inv_s_J, c->var0_B_N2m2s2, &s2_B, &is_B);
+    s_L = time_scale(P_L + c->q_L_N2m2, 1.0f, 1.0f, 1.0f, c->var0_L_N2m2, &s2_L, &is_L);
+    /* U_ij <- s_i U_ij / s_j (i < j); D_L <- s_L^2 (D_L + q) (U e_L = e_L: the walk is D_L + q), D_j <- s_j^2 D_j */
+    U_LJ = est->U_LJ_per_s2 * (s_L * is_J);
+    U_LB = est->U_LB_per_s * (s_L * is_B);
+    U_JB = est->U_JB_s * (s_J * is_B);
+    D_L = (est->D_L_N2m2 + c->q_L_N2m2) * s2_L;
+    D_J = est->D_J_kg2m4 * s2_J;
+    D_B = est->D_B_N2m2s2 * s2_B;
 
     /* Bierman's update of U D U' by the scalar measurement y = phi' theta + e, var(e) = sigma^2 */
     /* f = U' phi (f_L = phi_L = 1F), v = D f */

@@ -38,19 +38,21 @@
  *    positive diagonal D, updated by Bierman's algorithm (G. J. Bierman,
  *    "Factorization Methods for Discrete Sequential Estimation", 1977, ch. V):
  *    P stays positive definite by construction in float32;
- *  - J and B forgotten exponentially (memory J_memory_s): before each update
- *    P <- S P S, S = diag(1, s, s), s^2 = 1 / lambda, lambda = 1 - Ts / J_memory_s;
- *  - T_load a random walk: P <- P + q e_L e_L', q = sigma_T^2 (Ts / load_memory_s)^2,
- *    so that at steady state the gain of T_load is about Ts / load_memory_s: the
- *    estimate follows a load step with a time constant of about load_memory_s.
- *    T_load comes first so that this is D_L += q (the first column of U is
- *    e_L). Forgetting T_load by the congruence of J and B instead would keep
- *    its correlation with B, and with it an error of B that the data hardly
- *    correct (tests/test_inertia.c shows both);
- *  - a parameter whose variance has reached its prior variance is not
- *    forgotten and gets no random walk: without excitation the covariance does
- *    not wind up (P_ii <= prior_ii / lambda or prior_ii + q) and the estimate
- *    is held;
+ *  - a time update before each measurement, P <- S P S + q e_L e_L',
+ *    S = diag(s_L, s_J, s_B): J and B forgotten exponentially (memory
+ *    J_memory_s), s^2 = 1 / lambda, lambda = 1 - Ts / J_memory_s; T_load a
+ *    random walk, q = sigma_T^2 (Ts / load_memory_s)^2, so that at steady state
+ *    the gain of T_load is about Ts / load_memory_s: the estimate follows a
+ *    load step with a time constant of about load_memory_s. T_load comes first
+ *    so that the walk is D_L += q (the first column of U is e_L). Forgetting
+ *    T_load by the congruence of J and B instead would keep its correlation
+ *    with B, and with it an error of B that the data hardly correct;
+ *  - no covariance windup: where the time update would take a variance P_ii
+ *    above its prior variance, s_i^2 = prior_ii / P_ii instead (s_L^2 =
+ *    prior_LL / (P_LL + q)), a congruence too: the variances never exceed the
+ *    prior (up to the rounding of one update), the estimate is held without
+ *    excitation, and a lower prior of a new configuration applies at the
+ *    next sample;
  *  - the prior theta = [0, J0, 0], P = diag(T_load_max^2, J0^2, B_max^2).
  * With eps = y - phi' theta and alpha = phi' P phi + sigma_T^2:
  *   K = P phi / alpha,  theta <- theta + K eps,  P <- P - K phi' P
