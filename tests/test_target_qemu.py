@@ -8,7 +8,8 @@
   every time and the speed loop every 10th time.
 - Golden vectors: input sequences generated here run through the speed and the
   current controller, for every method, feedforward form and anti-windup mode,
-  on QEMU (``-M mps2-an386``, a Cortex-M4F) and on the host through
+  and through the inertia estimator (sampled and period-mean speeds, memories
+  from short to long), on QEMU (``-M mps2-an386``, a Cortex-M4F) and on the host through
   ``pmsm2dof._core`` (the simulation engine). Every float32 output and state
   word must be equal to the bit. Both builds keep a*b+c unfused
   (``-ffp-contract=off``; the x86-64 host has no FMA at the default ISA level),
@@ -101,6 +102,11 @@ SPEED_EXACT = {
     "fault_count",
 }
 CURRENT_EXACT = {"ud_ref_V", "uq_ref_V", "saturated", "fault", "x_d_V", "x_q_V", "fault_count"}
+INERTIA_OUTPUT_FIELDS = ("J_kgm2", "J_sd_kgm2", "B_Nms", "T_load_Nm", "residual_Nm", "residual_sd_Nm", "J_valid",
+                         "updated", "fault")
+INERTIA_STATE_FIELDS = ("T_load_Nm", "J_kgm2", "B_Nms", "U_LJ_per_s2", "U_LB_per_s", "U_JB_s", "D_L_N2m2", "D_J_kg2m4",
+                        "D_B_N2m2s2", "wF_radps", "w0_radps", "TF_Nm", "oneF", "T_prev_Nm", "nis", "primed",
+                        "fault_count")
 
 
 def run(cmd, timeout=BUILD_TIMEOUT_S, **kwargs):
@@ -223,6 +229,34 @@ def current_inputs(rng, cfg):
     return x
 
 
+def inertia_cases(rng):
+    """p2d_inertia_config_t of a small servo, with sampled and period-mean speeds and memories from 5 Ts up."""
+    cases = []
+    for period_mean in (False, True):
+        for J_memory_s, load_memory_s in ((10.0, 0.5), (0.005, 0.005), (1e3, 0.05)):
+            J0 = rng.uniform(0.005, 0.05)
+            cases.append(dict(
+                Ts_s=f32(1e-3), J0_kgm2=f32(J0), J_min_kgm2=f32(J0 / 10), J_max_kgm2=f32(J0 * 10),
+                B_max_Nms=f32(rng.uniform(0.005, 0.05)), T_load_max_Nm=f32(rng.uniform(1.0, 5.0)),
+                sigma_T_Nm=f32(rng.uniform(0.005, 0.1)), J_memory_s=f32(J_memory_s), load_memory_s=f32(load_memory_s),
+                w_f_radps=f32(rng.uniform(10.0, 200.0)), J_rel_sd_max=f32(0.05), speed_is_period_mean=period_mean,
+            ))
+    return cases
+
+
+def inertia_inputs(rng, cfg):
+    """(SAMPLES, 2) float32: speed and torque of a rigid drive J = 2 J0 under torque steps, quantized speed."""
+    J, Ts = 2.0 * cfg["J0_kgm2"], cfg["Ts_s"]
+    T = steps(rng, -cfg["T_load_max_Nm"], cfg["T_load_max_Nm"], segments=8)
+    w = np.concatenate(([0.0], np.cumsum(Ts / J * (T[1:] - 0.3 * cfg["T_load_max_Nm"]))))
+    w = np.round(w / 0.4) * 0.4 + 0.01 * rng.standard_normal(SAMPLES)  # a coarse speed resolution
+    x = np.stack([w, T + 0.02 * rng.standard_normal(SAMPLES)], axis=1).astype(np.float32)
+    x[30, 0] = np.nan  # speed measurement lost
+    x[50, 1] = np.inf  # torque overflow
+    x[70, 0] = 3e38  # an update that overflows
+    return x
+
+
 def c_value(value):
     """Exact C99 initializer of a float32, int or bool value."""
     if isinstance(value, bool):
@@ -232,7 +266,7 @@ def c_value(value):
     return f"{float(value).hex()}f"  # hexadecimal float: exact
 
 
-def vectors_header(speed, speed_in, current, current_in):
+def vectors_header(speed, speed_in, current, current_in, inertia, inertia_in):
     """Text of p2d_target_vectors.h (see csrc/target/target_vectors.c)."""
     speed_enums = dict(method="p2d_method_t", feedforward="p2d_feedforward_t", anti_windup="p2d_anti_windup_t")
 
@@ -246,25 +280,24 @@ def vectors_header(speed, speed_in, current, current_in):
     def words(x):
         return "{" + ",\n".join("{" + ", ".join(f"0x{w:08x}u" for w in row) + "}" for row in x.view(np.uint32)) + "}"
 
-    text = [
-        "/* written by tests/test_target_qemu.py */",
-        f"#define P2D_VEC_SAMPLES {SAMPLES}u",
-        f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
-        f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
-        "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
-        ",\n".join(config(c, speed_enums) for c in speed),
-        "};",
-        "static const uint32_t p2d_vec_speed_input[P2D_VEC_SPEED_CASES][P2D_VEC_SAMPLES][3] = {",
-        ",\n".join(words(x) for x in speed_in),
-        "};",
-        "static const p2d_current_config_t p2d_vec_current_config[P2D_VEC_CURRENT_CASES] = {",
-        ",\n".join(config(c, dict(method="p2d_method_t", anti_windup="p2d_anti_windup_t")) for c in current),
-        "};",
-        "static const uint32_t p2d_vec_current_input[P2D_VEC_CURRENT_CASES][P2D_VEC_SAMPLES][7] = {",
-        ",\n".join(words(x) for x in current_in),
-        "};",
-        "",
-    ]
+    text = ["/* written by tests/test_target_qemu.py */",
+            f"#define P2D_VEC_SAMPLES {SAMPLES}u",
+            f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
+            f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
+            f"#define P2D_VEC_INERTIA_CASES {len(inertia)}u",
+            "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
+            ",\n".join(config(c, speed_enums) for c in speed), "};",
+            "static const uint32_t p2d_vec_speed_input[P2D_VEC_SPEED_CASES][P2D_VEC_SAMPLES][3] = {",
+            ",\n".join(words(x) for x in speed_in), "};",
+            "static const p2d_current_config_t p2d_vec_current_config[P2D_VEC_CURRENT_CASES] = {",
+            ",\n".join(config(c, dict(method="p2d_method_t", anti_windup="p2d_anti_windup_t")) for c in current),
+            "};",
+            "static const uint32_t p2d_vec_current_input[P2D_VEC_CURRENT_CASES][P2D_VEC_SAMPLES][7] = {",
+            ",\n".join(words(x) for x in current_in), "};",
+            "static const p2d_inertia_config_t p2d_vec_inertia_config[P2D_VEC_INERTIA_CASES] = {",
+            ",\n".join(config(c, {}) for c in inertia), "};",
+            "static const uint32_t p2d_vec_inertia_input[P2D_VEC_INERTIA_CASES][P2D_VEC_SAMPLES][2] = {",
+            ",\n".join(words(x) for x in inertia_in), "};", ""]
     return "\n".join(text)
 
 
@@ -273,12 +306,12 @@ def vectors():
     rng = np.random.default_rng(20240615)
     speed = speed_cases(rng)
     current = current_cases(rng)
-    return dict(
-        speed=speed,
-        speed_in=[speed_inputs(rng, c) for c in speed],
-        current=current,
-        current_in=[current_inputs(rng, c) for c in current],
-    )
+    vectors = dict(speed=speed, speed_in=[speed_inputs(rng, c) for c in speed],
+                   current=current, current_in=[current_inputs(rng, c) for c in current])
+    inertia_rng = np.random.default_rng(20261124)  # its own stream: the controllers' vectors stay as they were
+    vectors["inertia"] = inertia_cases(inertia_rng)
+    vectors["inertia_in"] = [inertia_inputs(inertia_rng, c) for c in vectors["inertia"]]
+    return vectors
 
 
 # --------------------------------------------------------------------------------------------
@@ -332,6 +365,19 @@ def host_current(cfg, inputs):
     return status, rows
 
 
+def host_inertia(cfg, inputs):
+    est = ffi.new("p2d_inertia_t *")
+    status = lib.p2d_inertia_init(est, ffi.new("p2d_inertia_config_t *", cfg))
+    rows = []
+    if status == 0:
+        for w_m, T_e in inputs.tolist():
+            out = ffi.new("p2d_inertia_output_t *")
+            lib.p2d_inertia_step(est, w_m, T_e, out)
+            rows.append(([word(out[0], f) for f in INERTIA_OUTPUT_FIELDS],
+                         [word(est[0], f) for f in INERTIA_STATE_FIELDS]))
+    return status, rows
+
+
 # --------------------------------------------------------------------------------------------
 # builds
 # --------------------------------------------------------------------------------------------
@@ -342,8 +388,8 @@ def cross_build(tmp_path_factory, vectors):
     """The csrc cross build: the library, the probe programs and the golden-vector runner."""
     tmp = tmp_path_factory.mktemp("cortex-m4f")
     (tmp / "p2d_target_vectors.h").write_text(
-        vectors_header(vectors["speed"], vectors["speed_in"], vectors["current"], vectors["current_in"])
-    )
+        vectors_header(vectors["speed"], vectors["speed_in"], vectors["current"], vectors["current_in"],
+                       vectors["inertia"], vectors["inertia_in"]))
     build = tmp / "build"
     run(["cmake", "-S", CSRC, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}", f"-DP2D_TARGET_VECTORS_DIR={tmp}"])
     run(["cmake", "--build", build, "-j2"])
@@ -465,7 +511,7 @@ def is_nan(w):
 
 def parse_target_output(text):
     """({tag: {case: status}}, {tag: {(case, k): [words]}}) of target_vectors.c's output."""
-    status, rows = {"S": {}, "C": {}}, {"S": {}, "C": {}}
+    status, rows = {"S": {}, "C": {}, "E": {}}, {"S": {}, "C": {}, "E": {}, "F": {}}
     for line in text.splitlines():
         p = line.split()
         if len(p) == 4 and p[0] == "I":
@@ -515,3 +561,38 @@ def test_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
     )
     # the vectors went through every path of both controllers: unsaturated, saturated, non-finite
     assert min(seen.values()) >= 50, seen
+
+
+@needs_cross
+@needs_qemu
+def test_inertia_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
+    """The estimator's outputs and its whole state, every sample, on QEMU and on the host: equal words.
+
+    Its state is finite by the non-finite policy, so every word must match to the bit; so must the outputs.
+    """
+    elf = cross_build / "target" / "p2d_target_vectors"
+    done = subprocess.run([*QEMU, "-kernel", str(elf)], capture_output=True, text=True, timeout=QEMU_TIMEOUT_S,
+                          stdin=subprocess.DEVNULL)
+    assert done.returncode == 0, done.stderr[-3000:]
+    target_status, target_rows = parse_target_output(done.stderr)
+    mismatches, seen = [], {"updated": 0, "fault": 0, "valid": 0}
+    for c, (cfg, x) in enumerate(zip(vectors["inertia"], vectors["inertia_in"])):
+        status, host_rows = host_inertia(cfg, x)
+        assert status == 0 and target_status["E"][c] == 0, (c, status, target_status["E"].get(c), cfg)
+        for k, (host_out, host_state) in enumerate(host_rows):
+            for tag, fields, host in (("E", INERTIA_OUTPUT_FIELDS, host_out), ("F", INERTIA_STATE_FIELDS, host_state)):
+                row = target_rows[tag][(c, k)]
+                assert len(row) == len(fields), (tag, c, k, row)
+                mismatches += [f"{tag} case {c} sample {k} {name}: target {t:08x}, host {h:08x} ({cfg})"
+                               for name, h, t in zip(fields, host, row) if h != t]
+            named = dict(zip(INERTIA_OUTPUT_FIELDS, host_out))
+            seen["updated"] += named["updated"]
+            seen["fault"] += named["fault"]
+            seen["valid"] += named["J_valid"]
+    assert len(target_rows["E"]) == len(target_rows["F"]) == len(vectors["inertia"]) * SAMPLES
+    assert not mismatches, (f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
+                            "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20]))
+    # the vectors went through updates, faults and valid estimates
+    assert seen["fault"] >= 3 * len(vectors["inertia"]) and seen["updated"] > 50 * len(vectors["inertia"]), seen
+    print(f"\ninertia golden vectors: {len(vectors['inertia'])} cases x {SAMPLES} samples, {seen}")
+    assert seen["valid"] > 0, seen
