@@ -28,9 +28,10 @@ instructions per step
     The count is checked on ``p2d_speed_Ka_default``, which has no branch: the
     trace must give the number of instructions of its disassembly.
 
-Writes the sections "Footprint and cost on the Cortex-M4F" and "Commissioning
-routine on the Cortex-M4F" of ``benchmarks/results.md`` (other sections are
-kept) and prints them. The commissioning routine is measured over a whole run
+Writes the sections "Footprint and cost on the Cortex-M4F" (the controllers),
+"Inertia estimator on the Cortex-M4F" and "Commissioning routine on the
+Cortex-M4F" of ``benchmarks/results.md`` (other sections are kept) and prints
+them. The commissioning routine is measured over a whole run
 (``csrc/target/target_commission_cost.c``): every step is counted, and the
 steps are summarised by phase, since a step costs more at the end of an
 injection period or of a phase than on an ordinary sample.
@@ -52,6 +53,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CSRC = ROOT / "csrc"
 TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
 SECTION = "## Footprint and cost on the Cortex-M4F"
+INERTIA_SECTION = "## Inertia estimator on the Cortex-M4F"
+CONTROLLERS = ("speed", "current")
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
 QEMU_TIMEOUT_S = 120
 # the configuration with the issue's target: <= 60 instructions per step, <= 1 KiB flash
@@ -237,32 +240,26 @@ def measure(build_dir, workdir):
     where = function_of(funcs)
     rows = []
     for probe in probes:
+        # probe <index> <controller> <description...> <point> stack <bytes>
         index = int(probe[1], 16)
         controller = probe[2]
         entry = funcs[f"p2d_{controller}_step"][0]
         first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
         path = pcs[first:end]
-        rows.append(
-            dict(
-                key=tuple(probe[2:7]),
-                point=probe[7],
-                stack=int(probe[9], 16),
-                count=len(path),
-                divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
-                per_function=Counter(where(a) for a in path),
-                path=path,
-            )
-        )
+        rows.append(dict(
+            key=tuple(probe[2:-3]), point=probe[-3], stack=int(probe[-1], 16), count=len(path),
+            divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
+            per_function=Counter(where(a) for a in path), path=path,
+        ))
 
     def flash_of(names):
         names = sorted(f for f in names if f in funcs)
         return sum(funcs[f][1] for f in names), names
 
-    flash = {
-        root: flash_of(reachable(calls, root))
-        for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init")
-    }
-    for controller in ("speed", "current"):
+    flash = {root: flash_of(reachable(calls, root))
+             for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init",
+                          "p2d_inertia_step", "p2d_inertia_init")}
+    for controller in (*CONTROLLERS, "inertia"):
         entries = [f for f in funcs if f.startswith(f"p2d_{controller}_")]
         flash[f"{controller} controller (all p2d_{controller}_*)"] = flash_of(
             set().union(*(reachable(calls, f) for f in entries))
@@ -270,16 +267,10 @@ def measure(build_dir, workdir):
 
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
-    return dict(
-        modules=module_sizes(build_dir),
-        library=library_functions(build_dir),
-        funcs=funcs,
-        sizeof=sizeof,
-        rows=rows,
-        flash=flash,
-        hot=hot,
-        ka_check=ka_disassembled,
-    )
+    inertia_update = [r for r in rows if r["key"] == ("inertia", "sampled") and r["point"] == "update"]
+    inertia_hot = line_costs(elf, inertia_update[0]["path"])
+    return dict(modules=module_sizes(build_dir), library=library_functions(build_dir), funcs=funcs,
+                sizeof=sizeof, rows=rows, flash=flash, hot=hot, inertia_hot=inertia_hot, ka_check=ka_disassembled)
 
 
 def tool_version(cmd):
@@ -329,11 +320,13 @@ def report(m):
         "|---|---:|---|",
     ]
     for root, (size, reach) in m["flash"].items():
-        out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+        if "inertia" not in root:
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
     out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
-    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items()]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if not t.startswith("p2d_inertia")]
+    rows = [r for r in m["rows"] if r["key"][0] in CONTROLLERS]
     stack = {}
-    for r in m["rows"]:
+    for r in rows:
         stack[r["key"][0]] = max(stack.get(r["key"][0], 0), r["stack"])
     out += [
         "",
@@ -352,7 +345,7 @@ def report(m):
         "|---|---|---|---|---|---:|---:|---:|",
     ]
     by_key = {}
-    for r in m["rows"]:
+    for r in rows:
         by_key.setdefault(r["key"], {})[r["point"]] = r
     for key, points in by_key.items():
         unsat, sat = points.get("unsaturated"), points.get("saturated")
@@ -496,18 +489,53 @@ def commission_report(m):
     return "\n".join(out) + "\n"
 
 
+def inertia_report(m):
+    """The markdown section of the inertia estimator (csrc/include/pmsm2dof/inertia.h)."""
+    text, data, bss = m["modules"]["inertia"]
+    out = [
+        INERTIA_SECTION, "",
+        measured_by("python3 benchmarks/footprint.py") + ", with the controllers' section above;",
+        f"same toolchain, flags and code ({code_version()}). The estimator runs once per speed sample: at 1 kHz "
+        "on a 168 MHz Cortex-M4F, 1000 instructions would be about 0.6 % of the core.",
+        "",
+        f"`inertia.c`: {text} bytes of flash, {data} of .data, {bss} of .bss.", "",
+        "| symbol | size (bytes) |", "|---|---:|",
+    ]
+    out += [f"| {sym} | {size} |" for mod, sym, size in m["library"] if mod == "inertia"]
+    out += ["", "Flash reachable from an entry point (static call graph, newlib included):", "",
+            "| entry | flash (bytes) | functions |", "|---|---:|---|"]
+    for root, (size, reach) in m["flash"].items():
+        if "inertia" in root:
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+    out += ["", "| struct | sizeof (bytes) |", "|---|---:|"]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if t.startswith("p2d_inertia")]
+    out += ["", "Instructions executed by one `p2d_inertia_step` (QEMU trace, callees included) and the stack it "
+            "used (painted stack):", "",
+            "| speed input | point | instructions | vdiv+vsqrt | stack (bytes) |", "|---|---|---:|---:|---:|"]
+    points = {"start": "prefilter start (first sample)", "prior": "first update (J at its prior variance)",
+              "update": "update (forgetting)", "fault": "NaN speed (fault)"}
+    for r in m["rows"]:
+        if r["key"][0] == "inertia":
+            out.append(f"| {r['key'][1]} | {points[r['point']]} | {r['count']} | {r['divides']} | {r['stack']} |")
+    out += ["", "Instructions by source line (update, sampled speed):", "",
+            "| instructions | line | source |", "|---:|---|---|"]
+    out += [f"| {n} | {ref} | `{source_line(ref)}` |" for ref, n in m["inertia_hot"]]
+    return "\n".join(out) + "\n"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--build-dir", type=Path, help="cross build directory (default: a temporary one)")
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
         build_dir = (args.build_dir or Path(tmp) / "build").resolve()
-        text = report(measure(build_dir, Path(tmp)))
+        m = measure(build_dir, Path(tmp))
         commission_text = commission_report(commission_measure(build_dir, Path(tmp)))
+    text, inertia_text = report(m), inertia_report(m)
     write_section(SECTION, text)
+    write_section(INERTIA_SECTION, inertia_text)
     write_section(COMMISSION_SECTION, commission_text)
-    print(text)
-    print(commission_text)
+    print(text + "\n" + inertia_text + "\n" + commission_text)
     return 0
 
 

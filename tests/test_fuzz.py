@@ -156,7 +156,7 @@ MUTANTS = {
     # the estimator takes NaN and inf in, and keeps what overflows
     "inertia_nan_state": ("inertia", "inertia.c", [("if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {", "if (0) {"),
                                                    ("if (!isfinite(wF) ||", "if (0 && (!isfinite(wF) ||"),
-                                                   ("!isfinite(alpha)) {", "!isfinite(alpha))) {")]),
+                                                   ("!isfinite(residual_sd)) {", "!isfinite(residual_sd))) {")]),
     # J is forgotten beyond its prior variance: the covariance winds up without excitation
     "inertia_windup": ("inertia", "inertia.c", [("if (P * g <= var0) {", "if (1) {")]),
     # the output of J is not limited to [J_min, J_max]

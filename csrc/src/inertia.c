@@ -178,7 +178,7 @@ void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_ine
     float T_in, dwF, wF, TF, oneF, phi_J, phi_B, eps, P_L, P_J, P_B, s2_L, s2_J, s2_B, s_L, s_J, is_L, is_J, is_B;
     float U_LJ, U_LB, U_JB, D_L, D_J, D_B;
     float f_J, f_B, v_L, v_J, v_B, a_L, a_J, alpha, inv_a_L, inv_a_J, inv_alpha, b_L, b_J, e_n, phi_P_phi;
-    float T_load, J, B, nis, var_J;
+    float T_load, J, B, nis, var_J, residual_sd;
 
     if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {
         fault_output(est, c, out);
@@ -276,6 +276,8 @@ void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_ine
     /* nis <- nis + kappa (eps^2 / (phi' P phi + sigma_F^2) - nis), phi' P phi = f' D f */
     phi_P_phi = fmaf(oneF, v_L, fmaf(f_J, v_J, f_B * v_B));
     nis = fmaf(c->kappa_nis, eps * eps / (phi_P_phi + c->sigma2_F_N2m2) - est->nis, est->nis);
+    /* sqrt(alpha): the predicted spread of eps */
+    residual_sd = p2d_sqrt_nonnegative(alpha);
     /* var(J) = P_JJ max(1, nis) with the updated P, the square of the output sd(J) */
     var_J = fmaf(U_JB * U_JB, D_B, D_J) * (nis > 1.0f ? nis : 1.0f);
 
@@ -283,7 +285,7 @@ void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_ine
     if (!isfinite(wF) || !isfinite(TF) || !isfinite(J) || !isfinite(B) || !isfinite(T_load) || !isfinite(U_LJ) ||
         !isfinite(U_LB) || !isfinite(U_JB) || !(D_L >= P2D_FLT_MIN && D_L < INFINITY) ||
         !(D_J >= P2D_FLT_MIN && D_J < INFINITY) || !(D_B >= P2D_FLT_MIN && D_B < INFINITY) || !isfinite(nis) ||
-        !isfinite(var_J) || !isfinite(eps) || !isfinite(alpha)) {
+        !isfinite(var_J) || !isfinite(eps) || !isfinite(residual_sd)) {
         fault_output(est, c, out);
         return;
     }
@@ -304,6 +306,6 @@ void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_ine
 
     hold_output(est, c, out);
     out->residual_Nm = eps;
-    out->residual_sd_Nm = p2d_sqrt_nonnegative(alpha);
+    out->residual_sd_Nm = residual_sd;
     out->updated = true;
 }
