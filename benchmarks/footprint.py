@@ -259,11 +259,10 @@ def measure(build_dir, workdir):
     flash = {root: flash_of(reachable(calls, root))
              for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init",
                           "p2d_inertia_step", "p2d_inertia_init")}
-    for controller in (*CONTROLLERS, "inertia"):
-        entries = [f for f in funcs if f.startswith(f"p2d_{controller}_")]
-        flash[f"{controller} controller (all p2d_{controller}_*)"] = flash_of(
-            set().union(*(reachable(calls, f) for f in entries))
-        )
+    for module, kind in (("speed", "controller"), ("current", "controller"), ("inertia", "estimator")):
+        entries = [f for f in funcs if f.startswith(f"p2d_{module}_")]
+        flash[f"{module} {kind} (all p2d_{module}_*)"] = flash_of(
+            set().union(*(reachable(calls, f) for f in entries)))
 
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
@@ -517,9 +516,9 @@ def inertia_report(m):
     for r in m["rows"]:
         if r["key"][0] == "inertia":
             out.append(f"| {r['key'][1]} | {points[r['point']]} | {r['count']} | {r['divides']} | {r['stack']} |")
-    out += ["", "Instructions by source line (update, sampled speed):", "",
+    out += ["", "Instructions by source line (update, sampled speed), the 25 costliest lines:", "",
             "| instructions | line | source |", "|---:|---|---|"]
-    out += [f"| {n} | {ref} | `{source_line(ref)}` |" for ref, n in m["inertia_hot"]]
+    out += [f"| {n} | {ref} | `{source_line(ref)}` |" for ref, n in m["inertia_hot"][:25]]
     return "\n".join(out) + "\n"
 
 
