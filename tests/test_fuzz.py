@@ -157,8 +157,8 @@ MUTANTS = {
     "inertia_nan_state": ("inertia", "inertia.c", [("if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {", "if (0) {"),
                                                    ("if (!isfinite(wF) ||", "if (0 && (!isfinite(wF) ||"),
                                                    ("!isfinite(residual_sd)) {", "!isfinite(residual_sd))) {")]),
-    # J is forgotten beyond its prior variance: the covariance winds up without excitation
-    "inertia_windup": ("inertia", "inertia.c", [("if (P * g <= var0) {", "if (1) {")]),
+    # no variance is brought back onto its prior: the covariance winds up without excitation
+    "inertia_windup": ("inertia", "inertia.c", [("if (P <= sd0 * sd0) {", "if (1) {")]),
     # the output of J is not limited to [J_min, J_max]
     "inertia_no_output_limit": ("inertia", "inertia.c", [("out->J_kgm2 = clamp(J, c->J_min_kgm2, c->J_max_kgm2);",
                                                           "out->J_kgm2 = J;")]),

@@ -25,24 +25,21 @@ static bool memory_valid(float memory_s, float Ts_s)
 static inline float clamp(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 
 /*
- * The scale s of one parameter in the time update P <- S P S (inertia.h), for
- * its variance P before it: s^2 = g (g = 1 / lambda, with sqrt_g and inv_sqrt_g
- * precomputed), or s^2 = var0 / P where g P would exceed the prior variance
- * var0, so that the variance never exceeds var0 after it. Returns s, writes
- * s^2 and 1 / s.
+ * The scale s <= 1 that brings a variance P back onto its prior variance sd0^2
+ * by the congruence P <- S P S (inertia.h): 1 where P <= sd0^2, else
+ * sd0 / sqrt(P) (not sqrt(sd0^2 / P), which is subnormal, and imprecise, when
+ * a new configuration lowers the prior by many decades). Returns s, writes 1 / s.
  */
-static inline float time_scale(float P, float g, float sqrt_g, float inv_sqrt_g, float var0, float *s2, float *inv_s)
+static inline float prior_scale(float P, float sd0, float *inv_s)
 {
-    float s;
-    if (P * g <= var0) {
-        *s2 = g;
-        *inv_s = inv_sqrt_g;
-        return sqrt_g;
+    float sqrt_P;
+    if (P <= sd0 * sd0) {
+        *inv_s = 1.0f;
+        return 1.0f;
     }
-    *s2 = var0 / P;
-    s = p2d_sqrt_nonnegative(*s2);
-    *inv_s = 1.0f / s;
-    return s;
+    sqrt_P = p2d_sqrt_nonnegative(P);
+    *inv_s = sqrt_P / sd0;
+    return sd0 / sqrt_P;
 }
 
 /* Validate cfg and compute its coefficients into *c. *c is written only on success. */
@@ -79,9 +76,9 @@ static p2d_status_t inertia_coefficients(const p2d_inertia_config_t *cfg, p2d_in
     /* J and B: lambda = 1 - Ts / J_memory; the variance grows by g = 1 / lambda per sample */
     r_J = cfg->Ts_s / cfg->J_memory_s;
     k.g_J = 1.0f / (1.0f - r_J);
-    k.s_J = p2d_sqrt_nonnegative(k.g_J);
-    k.inv_s_J = 1.0f / k.s_J;
+    k.inv_s_J = 1.0f / p2d_sqrt_nonnegative(k.g_J);
     k.kappa_nis = r_J;
+    k.J0_kgm2 = cfg->J0_kgm2;
     k.J_min_kgm2 = cfg->J_min_kgm2;
     k.J_max_kgm2 = cfg->J_max_kgm2;
     k.B_max_Nms = cfg->B_max_Nms;
@@ -148,8 +145,8 @@ void p2d_inertia_reset(p2d_inertia_t *est, bool keep_estimate)
 static void hold_output(const p2d_inertia_t *est, const p2d_inertia_coef_t *c, p2d_inertia_output_t *out)
 {
     const float J = est->J_kgm2;
-    /* P_JJ = D_J + U_JB^2 D_B */
-    float P_J = fmaf(est->U_JB_s * est->U_JB_s, est->D_B_N2m2s2, est->D_J_kg2m4);
+    /* P_JJ = D_J + U_JB^2 D_B, as (U_JB D_B) U_JB (see the step) */
+    float P_J = fmaf(est->U_JB_s * est->D_B_N2m2s2, est->U_JB_s, est->D_J_kg2m4);
     out->J_kgm2 = clamp(J, c->J_min_kgm2, c->J_max_kgm2);
     /* sd(J) = sqrt(P_JJ max(1, nis)) */
     out->J_sd_kgm2 = p2d_sqrt_nonnegative(P_J * (est->nis > 1.0f ? est->nis : 1.0f));
@@ -175,7 +172,7 @@ static void fault_output(p2d_inertia_t *est, const p2d_inertia_coef_t *c, p2d_in
 void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_inertia_output_t *out)
 {
     const p2d_inertia_coef_t *c = &est->coef[est->active];
-    float T_in, dwF, wF, TF, oneF, phi_J, phi_B, eps, P_L, P_J, P_B, s2_L, s2_J, s2_B, s_L, s_J, is_L, is_J, is_B;
+    float T_in, dwF, wF, TF, oneF, phi_J, phi_B, eps, P_L, P_J, s_L, s_J, s_B, is_L, is_J, is_B;
     float U_LJ, U_LB, U_JB, D_L, D_J, D_B;
     float f_J, f_B, v_L, v_J, v_B, a_L, a_J, alpha, inv_a_L, inv_a_J, inv_alpha, b_L, b_J, e_n, phi_P_phi;
     float T_load, J, B, nis, var_J, residual_sd;
@@ -214,25 +211,15 @@ void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_ine
     eps = TF - fmaf(est->J_kgm2, phi_J, fmaf(est->B_Nms, phi_B, est->T_load_Nm * oneF));
 
     /*
-     * Time update P <- S P S + q e_L e_L', S = diag(s_L, s_J, s_B) (inertia.h): the variances before it
-     * P_LL = D_L + U_LJ^2 D_J + U_LB^2 D_B, P_JJ = D_J + U_JB^2 D_B, P_BB = D_B
+     * Time update P <- S P S + q e_L e_L', S = diag(1, s, s), s^2 = g = 1 / lambda_J: J and B forgotten, T_load a
+     * random walk; U_ij <- s_i U_ij / s_j (i < j), D_j <- s_j^2 D_j, and D_L + q (U e_L = e_L)
      */
-    P_L = fmaf(est->U_LJ_per_s2 * est->U_LJ_per_s2, est->D_J_kg2m4,
-               fmaf(est->U_LB_per_s * est->U_LB_per_s, est->D_B_N2m2s2, est->D_L_N2m2));
-    P_J = fmaf(est->U_JB_s * est->U_JB_s, est->D_B_N2m2s2, est->D_J_kg2m4);
-    P_B = est->D_B_N2m2s2;
-    /* J, B: forgetting, s^2 = g; T_load: the random walk P_LL + q (S leaves P_LL alone), s^2 = 1 */
-    s_J = time_scale(P_J, c->g_J, c->s_J, c->inv_s_J, c->var0_J_kg2m4, &s2_J, &is_J);
-    /* T_load comes first and B last in U: only s_L and 1 / s_B enter it */
-    (void)time_scale(P_B, c->g_J, c->s_J, c->inv_s_J, c->var0_B_N2m2s2, &s2_B, &is_B);
-    s_L = time_scale(P_L + c->q_L_N2m2, 1.0f, 1.0f, 1.0f, c->var0_L_N2m2, &s2_L, &is_L);
-    /* U_ij <- s_i U_ij / s_j (i < j); D_L <- s_L^2 (D_L + q) (U e_L = e_L: the walk is D_L + q), D_j <- s_j^2 D_j */
-    U_LJ = est->U_LJ_per_s2 * (s_L * is_J);
-    U_LB = est->U_LB_per_s * (s_L * is_B);
-    U_JB = est->U_JB_s * (s_J * is_B);
-    D_L = (est->D_L_N2m2 + c->q_L_N2m2) * s2_L;
-    D_J = est->D_J_kg2m4 * s2_J;
-    D_B = est->D_B_N2m2s2 * s2_B;
+    U_LJ = est->U_LJ_per_s2 * c->inv_s_J;
+    U_LB = est->U_LB_per_s * c->inv_s_J;
+    U_JB = est->U_JB_s;
+    D_L = est->D_L_N2m2 + c->q_L_N2m2;
+    D_J = est->D_J_kg2m4 * c->g_J;
+    D_B = est->D_B_N2m2s2 * c->g_J;
 
     /* Bierman's update of U D U' by the scalar measurement y = phi' theta + e, var(e) = sigma^2 */
     /* f = U' phi (f_L = phi_L = 1F), v = D f */
@@ -276,10 +263,31 @@ void p2d_inertia_step(p2d_inertia_t *est, float w_m_radps, float T_e_Nm, p2d_ine
     /* nis <- nis + kappa (eps^2 / (phi' P phi + sigma_F^2) - nis), phi' P phi = f' D f */
     phi_P_phi = fmaf(oneF, v_L, fmaf(f_J, v_J, f_B * v_B));
     nis = fmaf(c->kappa_nis, eps * eps / (phi_P_phi + c->sigma2_F_N2m2) - est->nis, est->nis);
+    /*
+     * No windup: a variance above its prior (a parameter without excitation, which the forgetting or the walk
+     * grew; or the rounding of an ill-conditioned update) goes back onto it by P <- S P S, s_i = sqrt(var0 / P_ii);
+     * P_LL = D_L + U_LJ^2 D_J + U_LB^2 D_B, P_JJ = D_J + U_JB^2 D_B, P_BB = D_B. Each term U^2 D is computed as
+     * (U D) U: U^2 alone underflows or overflows for extreme ratios of the variances, U D never does (|U D| < D
+     * for |U| < 1, |U D| <= U^2 D for |U| >= 1).
+     */
+    P_L = fmaf(U_LJ * D_J, U_LJ, fmaf(U_LB * D_B, U_LB, D_L));
+    P_J = fmaf(U_JB * D_B, U_JB, D_J);
+    if (P_L > c->var0_L_N2m2 || P_J > c->var0_J_kg2m4 || D_B > c->var0_B_N2m2s2) {
+        s_L = prior_scale(P_L, c->T_load_max_Nm, &is_L);
+        s_J = prior_scale(P_J, c->J0_kgm2, &is_J);
+        s_B = prior_scale(D_B, c->B_max_Nms, &is_B);
+        /* U_ij <- s_i U_ij / s_j (i < j), D_j <- s_j^2 D_j (as (D s) s: s^2 alone can be subnormal) */
+        U_LJ = U_LJ * s_L * is_J;
+        U_LB = U_LB * s_L * is_B;
+        U_JB = U_JB * s_J * is_B;
+        D_L = D_L * s_L * s_L;
+        D_J = D_J * s_J * s_J;
+        D_B = D_B * s_B * s_B;
+    }
     /* sqrt(alpha): the predicted spread of eps */
     residual_sd = p2d_sqrt_nonnegative(alpha);
     /* var(J) = P_JJ max(1, nis) with the updated P, the square of the output sd(J) */
-    var_J = fmaf(U_JB * U_JB, D_B, D_J) * (nis > 1.0f ? nis : 1.0f);
+    var_J = fmaf(U_JB * D_B, U_JB, D_J) * (nis > 1.0f ? nis : 1.0f);
 
     /* non-finite policy: an update that overflows, or leaves D outside the normal range, is refused */
     if (!isfinite(wF) || !isfinite(TF) || !isfinite(J) || !isfinite(B) || !isfinite(T_load) || !isfinite(U_LJ) ||

@@ -159,7 +159,7 @@ static void reference_init(reference_t *r, const p2d_inertia_t *est)
     r->nis = 1.0;
 }
 
-/* One sample (inertia.h): the prefilter, forgetting below the prior, the Kalman update. */
+/* One sample (inertia.h): the prefilter, forgetting and walk, the Kalman update, the variances within the prior. */
 static void reference_step(reference_t *r, const p2d_inertia_config_t *cfg, double w, double T)
 {
     const double Ts = cfg->Ts_s, c_f = (double)cfg->w_f_radps * Ts / (1.0 + (double)cfg->w_f_radps * Ts);
@@ -187,15 +187,12 @@ static void reference_step(reference_t *r, const p2d_inertia_config_t *cfg, doub
     phi[2] = r->oneF;
     y = r->TF;
     eps = y - (phi[0] * r->theta[0] + phi[1] * r->theta[1] + phi[2] * r->theta[2]);
-    /* time update P <- S P S + q e_L e_L': s^2 = 1 / lambda_J for J and B, the walk q for T_load, and any
-       variance that would exceed its prior brought back onto it */
+    /* time update P <- S P S + q e_L e_L': s^2 = 1 / lambda_J for J and B, the walk q for T_load */
     q = sigma2 * (Ts / cfg->load_memory_s) * (Ts / cfg->load_memory_s);
-    for (int i = 0; i < 2; ++i)
-        s[i] = r->P[i][i] / lambda_J <= var0[i] ? 1.0 / sqrt(lambda_J) : sqrt(var0[i] / r->P[i][i]);
-    s[2] = r->P[2][2] + q <= var0[2] ? 1.0 : sqrt(var0[2] / (r->P[2][2] + q));
-    r->P[2][2] += q;
+    for (int i = 0; i < 3; ++i) s[i] = i < 2 ? 1.0 / sqrt(lambda_J) : 1.0;
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) r->P[i][j] *= s[i] * s[j];
+    r->P[2][2] += q;
     /* K = P phi / alpha, alpha = phi' P phi + sigma^2; P <- P - P phi phi' P / alpha */
     alpha = sigma2;
     for (int i = 0; i < 3; ++i) {
@@ -206,6 +203,10 @@ static void reference_step(reference_t *r, const p2d_inertia_config_t *cfg, doub
         r->theta[i] += h[i] / alpha * eps;
         for (int j = 0; j < 3; ++j) r->P[i][j] -= h[i] * h[j] / alpha;
     }
+    /* every variance above its prior back onto it: P <- S P S, s_i = sqrt(var0_i / P_ii) */
+    for (int i = 0; i < 3; ++i) s[i] = r->P[i][i] > var0[i] ? sqrt(var0[i] / r->P[i][i]) : 1.0;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) r->P[i][j] *= s[i] * s[j];
     /* nis: eps^2 against phi' P phi + sigma_F^2, sigma_F^2 = sigma^2 c_f / (2 - c_f) */
     r->nis += Ts / cfg->J_memory_s * (eps * eps / (alpha - sigma2 + sigma2 * c_f / (2.0 - c_f)) - r->nis);
 }
@@ -309,7 +310,9 @@ static void test_prior_and_coefficients(void)
     p2d_inertia_t est;
     p2d_inertia_output_t out;
     const p2d_inertia_coef_t *c;
-    const double c_f = 5.0 / 6.0, alpha = 100.0 * 1e-4 * (c_f * c_f) + 4.0 * (c_f * c_f) + 0.0025;
+    /* the first update, from the prior: forgetting g of B, walk q of T_load, then alpha = phi' P phi + sigma^2 */
+    const double c_f = 5.0 / 6.0, g = 1.0 / (1.0 - 1e-4), q = 0.0025 * 2e-3 * 2e-3;
+    const double alpha = 100.0 * 1e-4 * g * (c_f * c_f) + (4.0 + q) * (c_f * c_f) + 0.0025;
     CHECK(p2d_inertia_init(&est, &cfg) == P2D_OK);
     c = &est.coef[est.active];
     CHECK_CLOSE(c->c_f, 0.02 / 1.02, 1e-8);
@@ -340,13 +343,14 @@ static void test_prior_and_coefficients(void)
     CHECK_CLOSE(est.oneF, c_f, 1e-7);
     /* eps = y - (0.02 * 0 + 0 * 10 c_f + 0 c_f) */
     CHECK_CLOSE(out.residual_Nm, c_f * 0.45, 1e-7);
-    /* alpha = phi' P phi + sigma^2 with P the prior: B and T_load are at their prior variance, not forgotten */
     CHECK_CLOSE(out.residual_sd_Nm, sqrt(alpha), 1e-6);
-    /* no acceleration: J and its variance do not move */
-    CHECK(out.J_kgm2 == 0.02f && est.D_J_kg2m4 == 0.02f * 0.02f);
+    /* no acceleration: J does not move */
+    CHECK(out.J_kgm2 == 0.02f);
     /* T_load and B move by K eps, K = P phi / alpha */
-    CHECK_CLOSE(out.T_load_Nm, 4.0 * c_f / alpha * out.residual_Nm, 1e-7);
-    CHECK_CLOSE(out.B_Nms, 10.0 * c_f * 1e-4 / alpha * out.residual_Nm, 1e-9);
+    CHECK_CLOSE(out.T_load_Nm, (4.0 + q) * c_f / alpha * out.residual_Nm, 1e-7);
+    CHECK_CLOSE(out.B_Nms, 10.0 * c_f * 1e-4 * g / alpha * out.residual_Nm, 1e-9);
+    /* and the variance of J, forgotten beyond its prior without information, is back on it */
+    CHECK_CLOSE(est.D_J_kg2m4, 0.02 * 0.02, 1e-6 * 0.02 * 0.02);
 }
 
 /* The U D U' recursion is the covariance-form recursion of the header, sample by sample. */

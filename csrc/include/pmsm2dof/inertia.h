@@ -39,20 +39,21 @@
  *    "Factorization Methods for Discrete Sequential Estimation", 1977, ch. V):
  *    P stays positive definite by construction in float32;
  *  - a time update before each measurement, P <- S P S + q e_L e_L',
- *    S = diag(s_L, s_J, s_B): J and B forgotten exponentially (memory
- *    J_memory_s), s^2 = 1 / lambda, lambda = 1 - Ts / J_memory_s; T_load a
- *    random walk, q = sigma_T^2 (Ts / load_memory_s)^2, so that at steady state
- *    the gain of T_load is about Ts / load_memory_s: the estimate follows a
- *    load step with a time constant of about load_memory_s. T_load comes first
- *    so that the walk is D_L += q (the first column of U is e_L). Forgetting
- *    T_load by the congruence of J and B instead would keep its correlation
- *    with B, and with it an error of B that the data hardly correct;
- *  - no covariance windup: where the time update would take a variance P_ii
- *    above its prior variance, s_i^2 = prior_ii / P_ii instead (s_L^2 =
- *    prior_LL / (P_LL + q)), a congruence too: the variances never exceed the
- *    prior (up to the rounding of one update), the estimate is held without
- *    excitation, and a lower prior of a new configuration applies at the
- *    next sample;
+ *    S = diag(1, s, s): J and B forgotten exponentially (memory J_memory_s),
+ *    s^2 = 1 / lambda, lambda = 1 - Ts / J_memory_s; T_load a random walk,
+ *    q = sigma_T^2 (Ts / load_memory_s)^2, so that at steady state the gain of
+ *    T_load is about Ts / load_memory_s: the estimate follows a load step with
+ *    a time constant of about load_memory_s. T_load comes first so that the
+ *    walk is D_L += q (the first column of U is e_L). Forgetting T_load by the
+ *    congruence of J and B instead would keep its correlation with B, and with
+ *    it an error of B that the data hardly correct;
+ *  - no covariance windup: after each update a variance P_ii above its prior
+ *    variance (grown by the forgetting or the walk without excitation, or by
+ *    the rounding of an update of nearly collinear parameters) is brought back
+ *    onto it by the congruence P <- S P S, s_i^2 = prior_ii / P_ii, which keeps
+ *    U D U' positive definite. So every variance stays within its prior, the
+ *    estimate is held without excitation, and a lower prior of a new
+ *    configuration applies from the next update;
  *  - the prior theta = [0, J0, 0], P = diag(T_load_max^2, J0^2, B_max^2).
  * With eps = y - phi' theta and alpha = phi' P phi + sigma_T^2:
  *   K = P phi / alpha,  theta <- theta + K eps,  P <- P - K phi' P
@@ -138,13 +139,13 @@ typedef struct {
     float var0_B_N2m2s2; /* prior variance of B, B_max^2 [(Nm s/rad)^2] */
     float q_L_N2m2;      /* random walk of T_load per sample, sigma_T^2 (Ts / load_memory)^2 [Nm^2] */
     float g_J;           /* variance growth per sample of J and B, 1 / lambda_J [-] */
-    float s_J;           /* scale of J and B in the forgetting P <- S P S, sqrt(g_J) [-] */
-    float inv_s_J;       /* 1 / s_J [-] */
+    float inv_s_J;       /* 1 / sqrt(g_J): 1 / s of J and B in the forgetting P <- S P S [-] */
     float kappa_nis;     /* weight of one sample in the mean nis, Ts / J_memory [-] */
+    float J0_kgm2;       /* prior standard deviation of J [kg m^2] */
     float J_min_kgm2;    /* lower bound of J [kg m^2] */
     float J_max_kgm2;    /* upper bound of J [kg m^2] */
-    float B_max_Nms;     /* upper bound of B [Nm s/rad] */
-    float T_load_max_Nm; /* bound of |T_load| [Nm] */
+    float B_max_Nms;     /* upper bound of B, and its prior standard deviation [Nm s/rad] */
+    float T_load_max_Nm; /* bound of |T_load|, and its prior standard deviation [Nm] */
     float J_rel_sd_max;  /* validity threshold of sd(J) / J [-] */
 } p2d_inertia_coef_t;
 
