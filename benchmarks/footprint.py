@@ -246,30 +246,52 @@ def measure(build_dir, workdir):
         entry = funcs[f"p2d_{controller}_step"][0]
         first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
         path = pcs[first:end]
-        rows.append(dict(
-            key=tuple(probe[2:-3]), point=probe[-3], stack=int(probe[-1], 16), count=len(path),
-            divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
-            per_function=Counter(where(a) for a in path), path=path,
-        ))
+        rows.append(
+            dict(
+                key=tuple(probe[2:-3]),
+                point=probe[-3],
+                stack=int(probe[-1], 16),
+                count=len(path),
+                divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
+                per_function=Counter(where(a) for a in path),
+                path=path,
+            )
+        )
 
     def flash_of(names):
         names = sorted(f for f in names if f in funcs)
         return sum(funcs[f][1] for f in names), names
 
-    flash = {root: flash_of(reachable(calls, root))
-             for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init",
-                          "p2d_inertia_step", "p2d_inertia_init")}
+    flash = {
+        root: flash_of(reachable(calls, root))
+        for root in (
+            "p2d_speed_step",
+            "p2d_speed_init",
+            "p2d_current_step",
+            "p2d_current_init",
+            "p2d_inertia_step",
+            "p2d_inertia_init",
+        )
+    }
     for module, kind in (("speed", "controller"), ("current", "controller"), ("inertia", "estimator")):
         entries = [f for f in funcs if f.startswith(f"p2d_{module}_")]
-        flash[f"{module} {kind} (all p2d_{module}_*)"] = flash_of(
-            set().union(*(reachable(calls, f) for f in entries)))
+        flash[f"{module} {kind} (all p2d_{module}_*)"] = flash_of(set().union(*(reachable(calls, f) for f in entries)))
 
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
     inertia_update = [r for r in rows if r["key"] == ("inertia", "sampled") and r["point"] == "update"]
     inertia_hot = line_costs(elf, inertia_update[0]["path"])
-    return dict(modules=module_sizes(build_dir), library=library_functions(build_dir), funcs=funcs,
-                sizeof=sizeof, rows=rows, flash=flash, hot=hot, inertia_hot=inertia_hot, ka_check=ka_disassembled)
+    return dict(
+        modules=module_sizes(build_dir),
+        library=library_functions(build_dir),
+        funcs=funcs,
+        sizeof=sizeof,
+        rows=rows,
+        flash=flash,
+        hot=hot,
+        inertia_hot=inertia_hot,
+        ka_check=ka_disassembled,
+    )
 
 
 def tool_version(cmd):
@@ -492,32 +514,54 @@ def inertia_report(m):
     """The markdown section of the inertia estimator (csrc/include/pmsm2dof/inertia.h)."""
     text, data, bss = m["modules"]["inertia"]
     out = [
-        INERTIA_SECTION, "",
+        INERTIA_SECTION,
+        "",
         measured_by("python3 benchmarks/footprint.py") + ", with the controllers' section above;",
         f"same toolchain, flags and code ({code_version()}). The estimator runs once per speed sample: at 1 kHz "
         "on a 168 MHz Cortex-M4F, 1000 instructions would be about 0.6 % of the core.",
         "",
-        f"`inertia.c`: {text} bytes of flash, {data} of .data, {bss} of .bss.", "",
-        "| symbol | size (bytes) |", "|---|---:|",
+        f"`inertia.c`: {text} bytes of flash, {data} of .data, {bss} of .bss.",
+        "",
+        "| symbol | size (bytes) |",
+        "|---|---:|",
     ]
     out += [f"| {sym} | {size} |" for mod, sym, size in m["library"] if mod == "inertia"]
-    out += ["", "Flash reachable from an entry point (static call graph, newlib included):", "",
-            "| entry | flash (bytes) | functions |", "|---|---:|---|"]
+    out += [
+        "",
+        "Flash reachable from an entry point (static call graph, newlib included):",
+        "",
+        "| entry | flash (bytes) | functions |",
+        "|---|---:|---|",
+    ]
     for root, (size, reach) in m["flash"].items():
         if "inertia" in root:
             out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
     out += ["", "| struct | sizeof (bytes) |", "|---|---:|"]
     out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if t.startswith("p2d_inertia")]
-    out += ["", "Instructions executed by one `p2d_inertia_step` (QEMU trace, callees included) and the stack it "
-            "used (painted stack):", "",
-            "| speed input | point | instructions | vdiv+vsqrt | stack (bytes) |", "|---|---|---:|---:|---:|"]
-    points = {"start": "prefilter start (first sample)", "prior": "first update (J at its prior variance)",
-              "update": "update (forgetting)", "fault": "NaN speed (fault)"}
+    out += [
+        "",
+        "Instructions executed by one `p2d_inertia_step` (QEMU trace, callees included) and the stack it "
+        "used (painted stack):",
+        "",
+        "| speed input | point | instructions | vdiv+vsqrt | stack (bytes) |",
+        "|---|---|---:|---:|---:|",
+    ]
+    points = {
+        "start": "prefilter start (first sample)",
+        "prior": "first update (J at its prior variance)",
+        "update": "update (forgetting)",
+        "fault": "NaN speed (fault)",
+    }
     for r in m["rows"]:
         if r["key"][0] == "inertia":
             out.append(f"| {r['key'][1]} | {points[r['point']]} | {r['count']} | {r['divides']} | {r['stack']} |")
-    out += ["", "Instructions by source line (update, sampled speed), the 25 costliest lines:", "",
-            "| instructions | line | source |", "|---:|---|---|"]
+    out += [
+        "",
+        "Instructions by source line (update, sampled speed), the 25 costliest lines:",
+        "",
+        "| instructions | line | source |",
+        "|---:|---|---|",
+    ]
     out += [f"| {n} | {ref} | `{source_line(ref)}` |" for ref, n in m["inertia_hot"][:25]]
     return "\n".join(out) + "\n"
 

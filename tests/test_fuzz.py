@@ -75,7 +75,18 @@ def fuzz_build(tmp_path_factory):
             "-DP2D_FUZZ=ON",
             "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
         ],
-        ["cmake", "--build", str(build), "--target", "fuzz_speed", "fuzz_current", "fuzz_commission", "fuzz_inertia", "-j", "2"],
+        [
+            "cmake",
+            "--build",
+            str(build),
+            "--target",
+            "fuzz_speed",
+            "fuzz_current",
+            "fuzz_commission",
+            "fuzz_inertia",
+            "-j",
+            "2",
+        ],
     ):
         result = subprocess.run(command, capture_output=True, text=True)
         assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
@@ -154,14 +165,23 @@ MUTANTS = {
         [("if (!isfinite(id_A) || !isfinite(iq_A) || !isfinite(u_dc_V)) {", "if (!isfinite(u_dc_V)) {")],
     ),
     # the estimator takes NaN and inf in, and keeps what overflows
-    "inertia_nan_state": ("inertia", "inertia.c", [("if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {", "if (0) {"),
-                                                   ("if (!isfinite(wF) ||", "if (0 && (!isfinite(wF) ||"),
-                                                   ("!isfinite(residual_sd)) {", "!isfinite(residual_sd))) {")]),
+    "inertia_nan_state": (
+        "inertia",
+        "inertia.c",
+        [
+            ("if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {", "if (0) {"),
+            ("if (!isfinite(wF) ||", "if (0 && (!isfinite(wF) ||"),
+            ("!isfinite(residual_sd)) {", "!isfinite(residual_sd))) {"),
+        ],
+    ),
     # no variance is brought back onto its prior: the covariance winds up without excitation
     "inertia_windup": ("inertia", "inertia.c", [("if (P <= sd0 * sd0) {", "if (1) {")]),
     # the output of J is not limited to [J_min, J_max]
-    "inertia_no_output_limit": ("inertia", "inertia.c", [("out->J_kgm2 = clamp(J, c->J_min_kgm2, c->J_max_kgm2);",
-                                                          "out->J_kgm2 = J;")]),
+    "inertia_no_output_limit": (
+        "inertia",
+        "inertia.c",
+        [("out->J_kgm2 = clamp(J, c->J_min_kgm2, c->J_max_kgm2);", "out->J_kgm2 = J;")],
+    ),
 }
 
 

@@ -102,11 +102,36 @@ SPEED_EXACT = {
     "fault_count",
 }
 CURRENT_EXACT = {"ud_ref_V", "uq_ref_V", "saturated", "fault", "x_d_V", "x_q_V", "fault_count"}
-INERTIA_OUTPUT_FIELDS = ("J_kgm2", "J_sd_kgm2", "B_Nms", "T_load_Nm", "residual_Nm", "residual_sd_Nm", "J_valid",
-                         "updated", "fault")
-INERTIA_STATE_FIELDS = ("T_load_Nm", "J_kgm2", "B_Nms", "U_LJ_per_s2", "U_LB_per_s", "U_JB_s", "D_L_N2m2", "D_J_kg2m4",
-                        "D_B_N2m2s2", "wF_radps", "w0_radps", "TF_Nm", "oneF", "T_prev_Nm", "nis", "primed",
-                        "fault_count")
+INERTIA_OUTPUT_FIELDS = (
+    "J_kgm2",
+    "J_sd_kgm2",
+    "B_Nms",
+    "T_load_Nm",
+    "residual_Nm",
+    "residual_sd_Nm",
+    "J_valid",
+    "updated",
+    "fault",
+)
+INERTIA_STATE_FIELDS = (
+    "T_load_Nm",
+    "J_kgm2",
+    "B_Nms",
+    "U_LJ_per_s2",
+    "U_LB_per_s",
+    "U_JB_s",
+    "D_L_N2m2",
+    "D_J_kg2m4",
+    "D_B_N2m2s2",
+    "wF_radps",
+    "w0_radps",
+    "TF_Nm",
+    "oneF",
+    "T_prev_Nm",
+    "nis",
+    "primed",
+    "fault_count",
+)
 
 
 def run(cmd, timeout=BUILD_TIMEOUT_S, **kwargs):
@@ -235,12 +260,22 @@ def inertia_cases(rng):
     for period_mean in (False, True):
         for J_memory_s, load_memory_s in ((10.0, 0.5), (0.005, 0.005), (1e3, 0.05)):
             J0 = rng.uniform(0.005, 0.05)
-            cases.append(dict(
-                Ts_s=f32(1e-3), J0_kgm2=f32(J0), J_min_kgm2=f32(J0 / 10), J_max_kgm2=f32(J0 * 10),
-                B_max_Nms=f32(rng.uniform(0.005, 0.05)), T_load_max_Nm=f32(rng.uniform(1.0, 5.0)),
-                sigma_T_Nm=f32(rng.uniform(0.005, 0.1)), J_memory_s=f32(J_memory_s), load_memory_s=f32(load_memory_s),
-                w_f_radps=f32(rng.uniform(10.0, 200.0)), J_rel_sd_max=f32(0.05), speed_is_period_mean=period_mean,
-            ))
+            cases.append(
+                dict(
+                    Ts_s=f32(1e-3),
+                    J0_kgm2=f32(J0),
+                    J_min_kgm2=f32(J0 / 10),
+                    J_max_kgm2=f32(J0 * 10),
+                    B_max_Nms=f32(rng.uniform(0.005, 0.05)),
+                    T_load_max_Nm=f32(rng.uniform(1.0, 5.0)),
+                    sigma_T_Nm=f32(rng.uniform(0.005, 0.1)),
+                    J_memory_s=f32(J_memory_s),
+                    load_memory_s=f32(load_memory_s),
+                    w_f_radps=f32(rng.uniform(10.0, 200.0)),
+                    J_rel_sd_max=f32(0.05),
+                    speed_is_period_mean=period_mean,
+                )
+            )
     return cases
 
 
@@ -280,24 +315,32 @@ def vectors_header(speed, speed_in, current, current_in, inertia, inertia_in):
     def words(x):
         return "{" + ",\n".join("{" + ", ".join(f"0x{w:08x}u" for w in row) + "}" for row in x.view(np.uint32)) + "}"
 
-    text = ["/* written by tests/test_target_qemu.py */",
-            f"#define P2D_VEC_SAMPLES {SAMPLES}u",
-            f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
-            f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
-            f"#define P2D_VEC_INERTIA_CASES {len(inertia)}u",
-            "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
-            ",\n".join(config(c, speed_enums) for c in speed), "};",
-            "static const uint32_t p2d_vec_speed_input[P2D_VEC_SPEED_CASES][P2D_VEC_SAMPLES][3] = {",
-            ",\n".join(words(x) for x in speed_in), "};",
-            "static const p2d_current_config_t p2d_vec_current_config[P2D_VEC_CURRENT_CASES] = {",
-            ",\n".join(config(c, dict(method="p2d_method_t", anti_windup="p2d_anti_windup_t")) for c in current),
-            "};",
-            "static const uint32_t p2d_vec_current_input[P2D_VEC_CURRENT_CASES][P2D_VEC_SAMPLES][7] = {",
-            ",\n".join(words(x) for x in current_in), "};",
-            "static const p2d_inertia_config_t p2d_vec_inertia_config[P2D_VEC_INERTIA_CASES] = {",
-            ",\n".join(config(c, {}) for c in inertia), "};",
-            "static const uint32_t p2d_vec_inertia_input[P2D_VEC_INERTIA_CASES][P2D_VEC_SAMPLES][2] = {",
-            ",\n".join(words(x) for x in inertia_in), "};", ""]
+    text = [
+        "/* written by tests/test_target_qemu.py */",
+        f"#define P2D_VEC_SAMPLES {SAMPLES}u",
+        f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
+        f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
+        f"#define P2D_VEC_INERTIA_CASES {len(inertia)}u",
+        "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
+        ",\n".join(config(c, speed_enums) for c in speed),
+        "};",
+        "static const uint32_t p2d_vec_speed_input[P2D_VEC_SPEED_CASES][P2D_VEC_SAMPLES][3] = {",
+        ",\n".join(words(x) for x in speed_in),
+        "};",
+        "static const p2d_current_config_t p2d_vec_current_config[P2D_VEC_CURRENT_CASES] = {",
+        ",\n".join(config(c, dict(method="p2d_method_t", anti_windup="p2d_anti_windup_t")) for c in current),
+        "};",
+        "static const uint32_t p2d_vec_current_input[P2D_VEC_CURRENT_CASES][P2D_VEC_SAMPLES][7] = {",
+        ",\n".join(words(x) for x in current_in),
+        "};",
+        "static const p2d_inertia_config_t p2d_vec_inertia_config[P2D_VEC_INERTIA_CASES] = {",
+        ",\n".join(config(c, {}) for c in inertia),
+        "};",
+        "static const uint32_t p2d_vec_inertia_input[P2D_VEC_INERTIA_CASES][P2D_VEC_SAMPLES][2] = {",
+        ",\n".join(words(x) for x in inertia_in),
+        "};",
+        "",
+    ]
     return "\n".join(text)
 
 
@@ -306,8 +349,12 @@ def vectors():
     rng = np.random.default_rng(20240615)
     speed = speed_cases(rng)
     current = current_cases(rng)
-    vectors = dict(speed=speed, speed_in=[speed_inputs(rng, c) for c in speed],
-                   current=current, current_in=[current_inputs(rng, c) for c in current])
+    vectors = dict(
+        speed=speed,
+        speed_in=[speed_inputs(rng, c) for c in speed],
+        current=current,
+        current_in=[current_inputs(rng, c) for c in current],
+    )
     inertia_rng = np.random.default_rng(20261124)  # its own stream: the controllers' vectors stay as they were
     vectors["inertia"] = inertia_cases(inertia_rng)
     vectors["inertia_in"] = [inertia_inputs(inertia_rng, c) for c in vectors["inertia"]]
@@ -373,8 +420,9 @@ def host_inertia(cfg, inputs):
         for w_m, T_e in inputs.tolist():
             out = ffi.new("p2d_inertia_output_t *")
             lib.p2d_inertia_step(est, w_m, T_e, out)
-            rows.append(([word(out[0], f) for f in INERTIA_OUTPUT_FIELDS],
-                         [word(est[0], f) for f in INERTIA_STATE_FIELDS]))
+            rows.append(
+                ([word(out[0], f) for f in INERTIA_OUTPUT_FIELDS], [word(est[0], f) for f in INERTIA_STATE_FIELDS])
+            )
     return status, rows
 
 
@@ -388,8 +436,15 @@ def cross_build(tmp_path_factory, vectors):
     """The csrc cross build: the library, the probe programs and the golden-vector runner."""
     tmp = tmp_path_factory.mktemp("cortex-m4f")
     (tmp / "p2d_target_vectors.h").write_text(
-        vectors_header(vectors["speed"], vectors["speed_in"], vectors["current"], vectors["current_in"],
-                       vectors["inertia"], vectors["inertia_in"]))
+        vectors_header(
+            vectors["speed"],
+            vectors["speed_in"],
+            vectors["current"],
+            vectors["current_in"],
+            vectors["inertia"],
+            vectors["inertia_in"],
+        )
+    )
     build = tmp / "build"
     run(["cmake", "-S", CSRC, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}", f"-DP2D_TARGET_VECTORS_DIR={tmp}"])
     run(["cmake", "--build", build, "-j2"])
@@ -571,8 +626,9 @@ def test_inertia_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vecto
     Its state is finite by the non-finite policy, so every word must match to the bit; so must the outputs.
     """
     elf = cross_build / "target" / "p2d_target_vectors"
-    done = subprocess.run([*QEMU, "-kernel", str(elf)], capture_output=True, text=True, timeout=QEMU_TIMEOUT_S,
-                          stdin=subprocess.DEVNULL)
+    done = subprocess.run(
+        [*QEMU, "-kernel", str(elf)], capture_output=True, text=True, timeout=QEMU_TIMEOUT_S, stdin=subprocess.DEVNULL
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     target_status, target_rows = parse_target_output(done.stderr)
     mismatches, seen = [], {"updated": 0, "fault": 0, "valid": 0}
@@ -583,15 +639,20 @@ def test_inertia_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vecto
             for tag, fields, host in (("E", INERTIA_OUTPUT_FIELDS, host_out), ("F", INERTIA_STATE_FIELDS, host_state)):
                 row = target_rows[tag][(c, k)]
                 assert len(row) == len(fields), (tag, c, k, row)
-                mismatches += [f"{tag} case {c} sample {k} {name}: target {t:08x}, host {h:08x} ({cfg})"
-                               for name, h, t in zip(fields, host, row) if h != t]
+                mismatches += [
+                    f"{tag} case {c} sample {k} {name}: target {t:08x}, host {h:08x} ({cfg})"
+                    for name, h, t in zip(fields, host, row)
+                    if h != t
+                ]
             named = dict(zip(INERTIA_OUTPUT_FIELDS, host_out))
             seen["updated"] += named["updated"]
             seen["fault"] += named["fault"]
             seen["valid"] += named["J_valid"]
     assert len(target_rows["E"]) == len(target_rows["F"]) == len(vectors["inertia"]) * SAMPLES
-    assert not mismatches, (f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
-                            "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20]))
+    assert not mismatches, (
+        f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
+        "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20])
+    )
     # the vectors went through updates, faults and valid estimates
     assert seen["fault"] >= 3 * len(vectors["inertia"]) and seen["updated"] > 50 * len(vectors["inertia"]), seen
     print(f"\ninertia golden vectors: {len(vectors['inertia'])} cases x {SAMPLES} samples, {seen}")

@@ -316,11 +316,32 @@ def inertia_config(period_mean=False, J0=nominal(), J_min=nominal(), J_max=nomin
     return out + nominal() + nominal() + nominal()  # load_memory, w_f, J_rel_sd_max
 
 
-def inertia_closed_loop(n, J=0.5, B=0.5, T_load=nominal(), w_amp=nominal(), T_max=nominal(), alpha=0.4, noise=0.0,
-                        encoder=False, half_period=250):
+def inertia_closed_loop(
+    n,
+    J=0.5,
+    B=0.5,
+    T_load=nominal(),
+    w_amp=nominal(),
+    T_max=nominal(),
+    alpha=0.4,
+    noise=0.0,
+    encoder=False,
+    half_period=250,
+):
     """A closed-loop run; J is the fraction of the range J0/30 .. 30 J0 (0.5: J0)."""
-    return (u8(CLOSED_LOOP) + u16(n - 1) + fraction(J) + fraction(B) + T_load + w_amp + T_max + fraction(alpha)
-            + fraction(noise) + u8(1 if encoder else 0) + u16(half_period - 1))
+    return (
+        u8(CLOSED_LOOP)
+        + u16(n - 1)
+        + fraction(J)
+        + fraction(B)
+        + T_load
+        + w_amp
+        + T_max
+        + fraction(alpha)
+        + fraction(noise)
+        + u8(1 if encoder else 0)
+        + u16(half_period - 1)
+    )
 
 
 def inertia_sample(w_m, T_e):
@@ -329,9 +350,7 @@ def inertia_sample(w_m, T_e):
 
 INERTIA_SEEDS = {
     # a servo at 1 kHz under a square-wave speed reference, J = J0, then J = 3 J0 with torque noise
-    "servo_closed_loop": inertia_config()
-    + inertia_closed_loop(2048)
-    + inertia_closed_loop(2048, J=0.66, noise=0.5),
+    "servo_closed_loop": inertia_config() + inertia_closed_loop(2048) + inertia_closed_loop(2048, J=0.66, noise=0.5),
     # an encoder of 16384 counts per turn, speed as the period mean
     "encoder_period_mean": inertia_config(period_mean=True)
     + inertia_closed_loop(2048, encoder=True, noise=0.3)
@@ -360,14 +379,22 @@ INERTIA_SEEDS = {
     # the speed pairing toggled, reset keeping the estimate, reset to the prior
     "set_config_mid_run": inertia_config()
     + inertia_closed_loop(500)
-    + u8(SET_MUTATED) + u8(7) + nominal(0.1)
+    + u8(SET_MUTATED)
+    + u8(7)
+    + nominal(0.1)
     + inertia_closed_loop(500)
-    + u8(SET_MUTATED) + u8(1) + special("nan")
-    + u8(SET_FRESH) + inertia_config(J_min=raw(0.1))
-    + u8(SET_MUTATED) + u8(11)
-    + u8(RESET) + u8(1)
+    + u8(SET_MUTATED)
+    + u8(1)
+    + special("nan")
+    + u8(SET_FRESH)
+    + inertia_config(J_min=raw(0.1))
+    + u8(SET_MUTATED)
+    + u8(11)
+    + u8(RESET)
+    + u8(1)
     + inertia_closed_loop(500)
-    + u8(RESET) + u8(0)
+    + u8(RESET)
+    + u8(0)
     + inertia_closed_loop(500),
     # a configuration init rejects (J_min = 1 kg m^2 > J0)
     "rejected_init": inertia_config(J_min=raw(1.0)),
