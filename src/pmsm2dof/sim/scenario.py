@@ -13,6 +13,10 @@ reference and load torque schedules of a run (section 4.1)::
     t_s = 0.0
     speed_rpm = 500.0
 
+The motor may be given in datasheet units instead, as a ``[motor.datasheet]`` table (Kt, Ke, line-to-line
+R and L, poles: see :mod:`pmsm2dof.sim.datasheet`); it provides ``pole_pairs``, ``Rs_ohm``, ``Ld_H``,
+``Lq_H`` and ``psi_f_Wb``, which :meth:`Scenario.to_toml` writes as converted.
+
 Optional ``[[fault]]`` entries make the simulator play a fault: a DC-link sag over a window, or a
 speed-sensor reading held, zero or wrong for one sample (see :data:`pmsm2dof.core.FAULT_KINDS`).
 
@@ -40,6 +44,7 @@ from typing import Any
 
 from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, METHODS
 from ..errors import ConfigError
+from .datasheet import motor_from_table
 
 #: Longest simulated time of one scenario [s] (ten hours).
 T_END_MAX_S = 36000.0
@@ -475,6 +480,11 @@ def _as_table(value: object, dotted: str) -> Tree:
 def _validate(tree: object) -> tuple[Tree, Tree]:
     """Validate a scenario tree; return (given, data): the keys given and all keys resolved."""
     table = _as_table(tree, "scenario")
+    motor = table.get("motor")
+    if isinstance(motor, dict) and "datasheet" in motor:
+        # [motor.datasheet]: the model keys converted from datasheet units (pmsm2dof.sim.datasheet)
+        converted = motor_from_table(motor).motor_table()
+        table["motor"] = {**{k: v for k, v in motor.items() if k != "datasheet"}, **converted}
     given = _validate_table(table, "", "")
     for name in _TABLES:
         values = _validate_table(_as_table(table.get(name), name), name, name)

@@ -1041,3 +1041,62 @@ def _commission_table(result: "Commissioning") -> str:
 
 def _percent(x: float) -> str:
     return f"{x * 100:.3f}%" if math.isfinite(x) else "n/a"
+
+
+# ---------------------------------------------------------------------------------------------
+# motor and identify (pmsm2dof.sim.datasheet, sim.logs, studies.identify)
+# ---------------------------------------------------------------------------------------------
+
+
+@cli.command()
+@click.argument("file", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
+def motor(file, as_json):
+    """Print the model parameters of eq 1 of a motor given in datasheet units, with their source.
+
+    FILE is a TOML file (a scenario, or one with only [motor]) whose [motor.datasheet] table gives
+    Kt, Ke, line-to-line R and L, poles (see `pmsm2dof.sim.datasheet`); without it the model keys
+    of [motor] are shown as given. Kt and Ke, when both are given, are checked against each other.
+    """
+    import json
+
+    from ..sim.datasheet import MOTOR_KEYS, load_motor
+
+    with warnings_as_lines():
+        m = load_motor(file)
+    keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + (["i_rated_A"] if m.i_rated_A is not None else [])
+    if as_json:
+        out = {key: getattr(m, key) for key in keys}
+        out["sources"] = m.sources
+        out["notes"] = list(m.notes)
+        click.echo(json.dumps(out, indent=2))
+        return
+    sources = {**m.sources, "kt_Nm_per_A": "1.5 p psi_f (amplitude-invariant dq, eq 1)"}
+    for key in keys:
+        click.echo(f"{key:<12} = {getattr(m, key):<12.6g}  from {sources.get(key, '')}")
+    for note in m.notes:
+        click.echo(f"note: {note}")
+
+
+class warnings_as_lines:
+    """Show the warnings of pmsm2dof raised inside the block as one line each on stderr."""
+
+    def __enter__(self):
+        import warnings
+
+        self._catch = warnings.catch_warnings()
+        self._catch.__enter__()
+        show = warnings.showwarning
+
+        def one_line(message, category, *args, **kwargs):
+            if category.__module__.startswith("pmsm2dof"):
+                print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
+            else:
+                show(message, category, *args, **kwargs)
+
+        warnings.simplefilter("always")
+        warnings.showwarning = one_line
+        return self
+
+    def __exit__(self, *exc):
+        return self._catch.__exit__(*exc)
