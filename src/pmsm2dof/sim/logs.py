@@ -137,7 +137,9 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     except (OSError, ValueError, UnicodeDecodeError, ImportError) as exc:
         raise ConfigError("log", str(path), f"a readable {suffix[1:].upper()} log ({exc})") from None
     except Exception as exc:  # the readers' own parse errors (pandas, pyarrow, zipfile, scipy.io)
-        raise ConfigError("log", str(path), f"a readable {suffix[1:].upper()} log ({type(exc).__name__}: {exc})")
+        raise ConfigError(
+            "log", str(path), f"a readable {suffix[1:].upper()} log ({type(exc).__name__}: {exc})"
+        ) from None
     raise ConfigError("log", str(path), "a file ending in " + ", ".join(FORMATS))
 
 
@@ -212,7 +214,9 @@ def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
         try:
             values = np.asarray(table[name], dtype=float).reshape(-1)
         except (TypeError, ValueError):
-            raise ConfigError(f"column {name}", "non-numeric values", "numbers (NaN or empty for a missing value)")
+            raise ConfigError(
+                f"column {name}", "non-numeric values", "numbers (NaN or empty for a missing value)"
+            ) from None
         if n is not None and values.size != n:
             raise ConfigError(f"column {name}", f"{values.size} rows", f"{n} rows, as the other columns")
         n = values.size
