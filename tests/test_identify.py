@@ -131,3 +131,71 @@ def test_a_log_without_acceleration_says_what_experiment_would_identify_j():
     log = measured_log(simulate(scenario), counts_per_rev=4096, torque_noise_Nm=0.05)
     with pytest.raises(IdentificationError, match="not identifiable.*speed steps or torque pulses.*--plan"):
         identify_mechanics(log, speed_is_period_mean=True)
+
+
+def test_identify_tau_i_of_eq_3_from_the_logged_iq_steps():
+    from pmsm2dof.studies.identify import identify_tau_i
+
+    for tau_i in (1e-3, 5e-3):
+        result = simulate(drive_scenario(0.01, 0.003, 0.3).with_overrides({"current_loop.tau_i_s": tau_i}))
+        log = measured_log(result)
+        log = Log(**{**log.__dict__, "iq_A": result.iq_A, "iq_ref_A": result.iq_ref_A})
+        assert identify_tau_i(log).tau_i_s == pytest.approx(tau_i, rel=1e-4)
+
+
+def _csv_log(tmp_path, J=0.01, B=0.003, Tc=0.3):
+    """A log as a drive writes it: currents, no torque column, speed in a column of its own name."""
+    scenario = drive_scenario(J, B, Tc)
+    result = simulate(scenario)
+    frame = result.to_dataframe()[["t_s", "speed_rpm", "id_A", "iq_A", "iq_ref_A", "speed_ref_rpm"]]
+    frame = frame.rename(columns={"t_s": "time_s", "speed_rpm": "enc_speed_rpm"})
+    path = tmp_path / "run.csv"
+    frame.to_csv(path, index=False)
+    motor = tmp_path / "drive.toml"
+    motor.write_text(scenario.to_toml())
+    return path, motor
+
+
+def test_cli_identify_from_the_currents_writes_the_fit_and_an_identified_scenario(tmp_path, capsys):
+    import json
+
+    from pmsm2dof.core.gains import pi_gains
+    from pmsm2dof.ui.cli import main
+
+    path, motor = _csv_log(tmp_path)
+    out = tmp_path / "out"
+    argv = ["identify", str(path), "--column", "speed=enc_speed_rpm", "--motor", str(motor), "--json"]
+    assert main([*argv, "--out", str(out), "--design", "30,0.7"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["J_kgm2"] == pytest.approx(0.01, rel=0.02)
+    assert report["J_kgm2_ci"][0] < report["J_kgm2"] < report["J_kgm2_ci"][1]
+    assert report["T_coulomb_Nm"] == pytest.approx(0.3, rel=0.15)
+    assert report["tau_i_s"] == pytest.approx(1e-3, rel=1e-3)
+    assert report["n_samples"] > 1000 and report["residual_rms_Nm"] > 0
+    assert report["design"]["Kp"] == pytest.approx(pi_gains(report["J_kgm2"], 30.0, 0.7)[0], rel=1e-12)
+    assert sorted(p.name for p in out.iterdir()) == ["fit.png", "identified.toml", "identify.json", "rows.csv"]
+    identified = load_scenario(out / "identified.toml")
+    assert identified.data["motor"]["J_kgm2"] == report["J_kgm2"]
+    assert identified.data["speed_controller"]["J_kgm2"] == report["J_kgm2"]
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--design", "30"], "--design = '30'"),
+        (["--pole-pairs", "4"], "--pole-pairs = 4 is invalid: valid range is absent when --motor"),
+        (["--window-s", "0.0001"], "--window-s = 0.0001"),
+        (["--column", "speed"], "--column = 'speed'"),
+    ],
+)
+def test_cli_identify_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys, extra, message):
+    from pmsm2dof.ui.cli import main
+
+    path, motor = _csv_log(tmp_path)
+    out = tmp_path / "out"
+    argv = ["identify", str(path), "--column", "speed=enc_speed_rpm", "--motor", str(motor), "--out", str(out)]
+    assert main(argv + extra) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.count("\n") == 1 and message in captured.err
+    assert "Traceback" not in captured.err
+    assert not out.exists()

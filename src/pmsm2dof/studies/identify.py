@@ -334,3 +334,79 @@ def identify_mechanics(
         notes=tuple(notes),
         rows={"t_s": 0.5 * (rows["t0"] + rows["t1"]), "y": y, "fit": X @ theta, "kept": keep},
     )
+
+
+@dataclasses.dataclass(frozen=True)
+class CurrentLoop:
+    """The time constant of the closed current loop (eq 3) identified from a log.
+
+    Attributes
+    ----------
+    tau_i_s : float
+        Time constant [s].
+    tau_i_s_ci : tuple of float
+        Its 95 % interval [s].
+    n_rows : int
+        Log steps used.
+    """
+
+    tau_i_s: float
+    tau_i_s_ci: tuple[float, float]
+    n_rows: int
+
+    def to_json(self) -> dict[str, Any]:
+        return {"tau_i_s": self.tau_i_s, "tau_i_s_ci": list(self.tau_i_s_ci), "n_rows": self.n_rows}
+
+
+def identify_tau_i(log: Log) -> CurrentLoop:
+    """Identify tau_i of eq 3, ``tau_i diq/dt = iq_ref - iq``, from the logged iq and iq_ref.
+
+    Each log step ``k -> k + 1`` with the command held at ``iq_ref[k]`` (the speed controller's
+    output of row k, applied until the next row) obeys, for eq 3 exactly,
+    ``iq[k+1] - iq_ref[k] = exp(-dt_k / tau_i) (iq[k] - iq_ref[k])``; tau_i is the least-squares
+    fit of that relation over the steps where the command is away from the current (the steps
+    after a change of iq_ref), with a Newey-West interval as :func:`identify_mechanics`.
+
+    Raises
+    ------
+    ConfigError
+        The log has no ``iq_ref_A`` or ``iq_A``.
+    IdentificationError
+        Too few steps where iq_ref moves away from iq, or a time constant the log's sampling does
+        not resolve (below a tenth of a step: log faster, or log the current loop's own samples).
+    """
+    if log.iq_A is None or log.iq_ref_A is None:
+        raise ConfigError("log", log.source, "a log with iq_A and iq_ref_A to identify tau_i from")
+    parts = []
+    for s in log.segments():
+        t, iq, ref = log.t_s[s], log.iq_A[s], log.iq_ref_A[s]
+        parts.append((np.diff(t), iq[:-1] - ref[:-1], iq[1:] - ref[:-1]))
+    dt, x, y = (np.concatenate(p) for p in zip(*parts))
+    scale = float(np.max(np.abs(x))) if x.size else 0.0
+    use = np.abs(x) > 0.05 * scale
+    dt, x, y = dt[use], x[use], y[use]
+    if x.size < ROWS_MIN:
+        raise IdentificationError(
+            f"{log.source}: only {x.size} log steps with iq_ref away from iq (at least {ROWS_MIN}): "
+            "log a run with iq steps (torque pulses or speed steps)"
+        )
+    # a = y / x per step, exp(-dt / tau): fit the ratio's log-linear model
+    ratio = float(np.sum(x * y) / np.sum(x * x))
+    dt_med = float(np.median(dt))
+    if not 0.0 < ratio < 1.0 or ratio < math.exp(-10.0):
+        raise IdentificationError(
+            f"{log.source}: tau_i is not resolved by the log's sampling ({dt_med:.3g} s; iq follows iq_ref within "
+            "one step): log the current loop at its own rate"
+        )
+    tau0 = -dt_med / math.log(ratio)
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        return y - np.exp(-dt / p[0]) * x
+
+    fit = scipy.optimize.least_squares(residual, [tau0], x_scale=[tau0], bounds=([tau0 * 1e-3], [tau0 * 1e3]))
+    jac = fit.jac
+    cov = _newey_west(jac, fit.fun)
+    sd = math.sqrt(max(float(cov[0, 0]), 0.0)) * math.sqrt((x.size - 3) / (x.size - 1))
+    q = float(scipy.stats.t.ppf(0.5 + LEVEL / 2, x.size - 1))
+    tau = float(fit.x[0])
+    return CurrentLoop(tau_i_s=tau, tau_i_s_ci=(tau - q * sd, tau + q * sd), n_rows=int(x.size))

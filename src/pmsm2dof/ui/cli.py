@@ -1100,3 +1100,184 @@ class warnings_as_lines:
 
     def __exit__(self, *exc):
         return self._catch.__exit__(*exc)
+
+
+@cli.command()
+@click.argument("log", type=click.Path(dir_okay=False), required=False)
+@click.option(
+    "--column",
+    "column_maps",
+    multiple=True,
+    metavar="SIGNAL=NAME",
+    help="read a signal from another column, e.g. --column speed=enc_speed_rpm (the suffix gives the unit)",
+)
+@click.option("--motor", "motor_file", type=click.Path(dir_okay=False), help="motor TOML (scenario or datasheet)")
+@click.option("--pole-pairs", type=int, default=None, help="pole pairs p (torque from the currents)")
+@click.option("--psi-f-Wb", "psi_f_Wb", type=float, default=None, help="magnet flux linkage [Wb]")
+@click.option("--Ld-H", "Ld_H", type=float, default=None, help="d-axis inductance [H] (default: Lq)")
+@click.option("--Lq-H", "Lq_H", type=float, default=None, help="q-axis inductance [H] (default: Ld)")
+@click.option(
+    "--speed-period-mean",
+    is_flag=True,
+    help="the logged speed is the mean over each sampling period (encoder counts differenced)",
+)
+@click.option("--window-s", type=float, default=None, help="distance of the blocks of a regression row [s]")
+@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
+@click.option(
+    "--out", type=click.Path(file_okay=False), default=None, help="folder for fit.png, rows.csv, identified.toml"
+)
+@click.option(
+    "--design", "design_text", default=None, metavar="ALPHA,ZETA", help="print the eq 9 gains for the J found"
+)
+def identify(
+    log,
+    column_maps,
+    motor_file,
+    pole_pairs,
+    psi_f_Wb,
+    Ld_H,
+    Lq_H,
+    speed_period_mean,
+    window_s,
+    as_json,
+    out,
+    design_text,
+):
+    """Identify the inertia J, viscous friction B and Coulomb friction of a logged run.
+
+    LOG is a CSV, Parquet, NPZ or MAT file with time_s and speed_rpm (or speed_radps) and the
+    torque: torque_Nm, or iq_A (and id_A) with the motor data (--motor FILE or --pole-pairs and
+    --psi-f-Wb). With iq_ref_A in the log, the current loop's tau_i (eq 3) is identified too.
+    Prints each value with its 95 % interval; --out DIR writes fit.png, rows.csv and
+    identified.toml (the --motor scenario with the values found, or a [motor] table).
+    """
+    import json
+
+    from ..core.gains import pi_gains
+    from ..outputs import atomic_write, staged_dir
+    from ..sim.datasheet import load_motor
+    from ..sim.logs import parse_column, read_log
+    from ..studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
+
+    if log is None:
+        raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT)")
+    gains = None
+    if design_text is not None:
+        parts = design_text.split(",")
+        try:
+            alpha_radps, zeta = (float(p) for p in parts)
+        except ValueError:
+            raise ConfigError("--design", design_text, "ALPHA,ZETA: two numbers, e.g. 30,0.7") from None
+        if not (alpha_radps > 0 and zeta > 0 and math.isfinite(alpha_radps) and math.isfinite(zeta)):
+            raise ConfigError("--design", design_text, "ALPHA,ZETA both finite and > 0")
+    if out is not None:
+        from ..outputs import require_writable_dir
+
+        require_writable_dir(out)
+    if motor_file is not None:
+        for option, value in (
+            ("--pole-pairs", pole_pairs),
+            ("--psi-f-Wb", psi_f_Wb),
+            ("--Ld-H", Ld_H),
+            ("--Lq-H", Lq_H),
+        ):
+            if value is not None:
+                raise ConfigError(option, value, "absent when --motor gives the motor")
+    columns = dict(parse_column(text) for text in column_maps)
+    with warnings_as_lines():
+        measured = read_log(log, columns)
+        motor_data = None
+        if motor_file is not None:
+            motor_data = load_motor(motor_file)
+    torque = None
+    if motor_data is not None or pole_pairs is not None or psi_f_Wb is not None:
+        if motor_data is None:
+            if pole_pairs is None or psi_f_Wb is None:
+                missing = "--pole-pairs" if pole_pairs is None else "--psi-f-Wb"
+                raise ConfigError(missing, "<missing>", "given with the other motor options (or --motor FILE)")
+            if pole_pairs < 1 or not (math.isfinite(psi_f_Wb) and psi_f_Wb > 0):
+                bad = ("--pole-pairs", pole_pairs) if pole_pairs < 1 else ("--psi-f-Wb", psi_f_Wb)
+                raise ConfigError(bad[0], bad[1], "> 0")
+            Ld = Ld_H if Ld_H is not None else (Lq_H if Lq_H is not None else 0.0)
+            Lq = Lq_H if Lq_H is not None else Ld
+            torque = torque_from_currents(measured, pole_pairs, psi_f_Wb, Ld, Lq)
+        else:
+            m = motor_data
+            torque = torque_from_currents(measured, m.pole_pairs, m.psi_f_Wb, m.Ld_H, m.Lq_H)
+    try:
+        mech = identify_mechanics(measured, torque_Nm=torque, window_s=window_s, speed_is_period_mean=speed_period_mean)
+    except ConfigError as exc:
+        raise _as_option(exc, {"window_s": "--window-s"}) from None
+    current = None
+    if measured.iq_ref_A is not None and measured.iq_A is not None:
+        try:
+            current = identify_tau_i(measured)
+        except IdentificationError as exc:
+            mech = dataclasses_replace_notes(mech, f"tau_i: {exc}")
+    if design_text is not None:
+        gains = pi_gains(mech.J_kgm2, alpha_radps, zeta)
+    report = mech.to_json()
+    if current is not None:
+        report.update(tau_i_s=current.tau_i_s, tau_i_s_ci=list(current.tau_i_s_ci), tau_i_n_rows=current.n_rows)
+    if gains is not None:
+        report["design"] = {"alpha_radps": alpha_radps, "zeta": zeta, "Kp": gains[0], "Ki": gains[1]}
+    if out is not None:
+        import numpy as np
+
+        from ..sim.scenario import Scenario, load_scenario
+        from .plots.identify import plot_fit
+
+        values = {"motor.J_kgm2": mech.J_kgm2, "motor.B_Nms": max(mech.B_Nms, 0.0)}
+        values["motor.T_coulomb_Nm"] = max(mech.T_coulomb_Nm, 0.0)
+        if current is not None:
+            values["current_loop.tau_i_s"] = current.tau_i_s
+        scenario: Scenario | None = None
+        if motor_file is not None:
+            try:
+                scenario = load_scenario(motor_file)
+            except ConfigError:
+                scenario = None
+        if scenario is not None:
+            text = scenario.with_overrides(values).to_toml()
+        else:
+            lines = [f"# identified from {log} by pmsm2dof identify", "[motor]"]
+            lines += [f"{k.split('.')[1]} = {v!r}" for k, v in values.items() if k.startswith("motor.")]
+            if current is not None:
+                lines += ["", "[current_loop]", f"tau_i_s = {current.tau_i_s!r}"]
+            text = "\n".join(lines) + "\n"
+        with staged_dir(out) as tmp:
+            plot_fit(mech, tmp / "fit.png")
+            rows = mech.rows
+            table = np.column_stack([rows["t_s"], rows["y"], rows["fit"], rows["y"] - rows["fit"], rows["kept"]])
+            body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
+            atomic_write(tmp / "rows.csv", "t_s,torque_mean_Nm,fit_Nm,residual_Nm,kept\n" + body + "\n")
+            atomic_write(tmp / "identified.toml", text)
+            atomic_write(tmp / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
+    if as_json:
+        click.echo(json.dumps(report, indent=2, allow_nan=False))
+        return
+    for name, unit in (("J_kgm2", "kg m^2"), ("B_Nms", "Nm s/rad"), ("T_coulomb_Nm", "Nm")):
+        lo, hi = report[f"{name}_ci"]
+        click.echo(f"{name:<13} = {report[name]:<11.5g} 95 % interval [{lo:.5g}, {hi:.5g}] {unit}")
+    if current is not None:
+        lo, hi = current.tau_i_s_ci
+        click.echo(f"{'tau_i_s':<13} = {current.tau_i_s:<11.5g} 95 % interval [{lo:.5g}, {hi:.5g}] s")
+    click.echo(
+        f"fit: {mech.n_rows} rows of {mech.window_s:.3g} s ({mech.n_samples} samples), "
+        f"residual {mech.residual_rms_Nm:.3g} Nm rms, {mech.n_rows_excluded} rows excluded"
+    )
+    for note in mech.notes:
+        click.echo(f"note: {note}")
+    if gains is not None:
+        click.echo(
+            f"eq 9 with alpha = {alpha_radps:g} rad/s, zeta = {zeta:g}: Kp = {gains[0]:.6g}, Ki = {gains[1]:.6g}"
+        )
+    if out is not None:
+        click.echo(f"wrote fit.png, rows.csv, identified.toml and identify.json to {out}")
+
+
+def dataclasses_replace_notes(mech, note):
+    """``mech`` with one more note."""
+    import dataclasses
+
+    return dataclasses.replace(mech, notes=(*mech.notes, note))
