@@ -268,11 +268,3 @@ def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
         gaps=gaps,
         notes=tuple(notes),
     )
-
-
-def parse_column(text: str) -> tuple[str, str]:
-    """Parse one ``--column signal=name`` of the command line."""
-    signal, sep, name = text.partition("=")
-    if not sep or not signal.strip() or not name.strip():
-        raise ConfigError("--column", text, "signal=name, e.g. speed=enc_speed_rpm")
-    return signal.strip(), name.strip()

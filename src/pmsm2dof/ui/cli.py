@@ -1156,7 +1156,7 @@ def identify(
     from ..core.gains import pi_gains
     from ..outputs import atomic_write, staged_dir
     from ..sim.datasheet import load_motor
-    from ..sim.logs import parse_column, read_log
+    from ..sim.logs import read_log
     from ..studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
 
     if log is None:
@@ -1274,6 +1274,14 @@ def identify(
         )
     if out is not None:
         click.echo(f"wrote fit.png, rows.csv, identified.toml and identify.json to {out}")
+
+
+def parse_column(text):
+    """Parse one ``--column signal=name`` into ``(signal, name)`` for :func:`pmsm2dof.sim.logs.read_log`."""
+    signal, sep, name = text.partition("=")
+    if not sep or not signal.strip() or not name.strip():
+        raise ConfigError("--column", text, "signal=name, e.g. speed=enc_speed_rpm")
+    return signal.strip(), name.strip()
 
 
 def dataclasses_replace_notes(mech, note):
