@@ -1238,7 +1238,8 @@ def identify(
             except ConfigError:
                 scenario = None
         if scenario is not None:
-            text = scenario.with_overrides(values).to_toml()
+            # the drive with the values found, its speed controller designed for the J found (eq 9)
+            text = scenario.with_overrides({**values, "speed_controller.J_kgm2": mech.J_kgm2}).to_toml()
         else:
             lines = [f"# identified from {log} by pmsm2dof identify", "[motor]"]
             lines += [f"{k.split('.')[1]} = {v!r}" for k, v in values.items() if k.startswith("motor.")]
