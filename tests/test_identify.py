@@ -199,3 +199,24 @@ def test_cli_identify_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys,
     assert captured.out == "" and captured.err.count("\n") == 1 and message in captured.err
     assert "Traceback" not in captured.err
     assert not out.exists()
+
+
+def test_a_log_made_by_motulator_gives_its_mechanics():
+    """A log of another simulator (tests/data/make_motulator_logs.py): its controller, its machine
+    model and friction function, a load it does not record; the torque from the logged currents."""
+    from pathlib import Path
+
+    from pmsm2dof.sim.logs import read_log
+    from pmsm2dof.studies.identify import torque_from_currents
+
+    path = Path(__file__).with_name("data") / "motulator_identification.npz"
+    log = read_log(path)
+    truth = np.load(path)
+    m = identify_mechanics(log, torque_Nm=torque_from_currents(log, 4, 0.2, 0.01, 0.01))
+    J, B, Tc = (float(truth[k]) for k in ("true_J_kgm2", "true_B_Nms", "true_T_coulomb_Nm"))
+    assert m.J_kgm2 == pytest.approx(J, rel=0.02)
+    assert m.T_coulomb_Nm == pytest.approx(Tc, rel=0.15)
+    assert m.B_Nms == pytest.approx(B, rel=0.35)
+    for value, (lo, hi) in ((J, m.J_kgm2_ci), (B, m.B_Nms_ci), (Tc, m.T_coulomb_Nm_ci)):
+        assert lo <= value <= hi
+    assert any(a <= 1.55 and b >= 1.75 for a, b in m.excluded_s)  # the load of 1.5 to 1.8 s
