@@ -220,3 +220,29 @@ def test_a_log_made_by_motulator_gives_its_mechanics():
     for value, (lo, hi) in ((J, m.J_kgm2_ci), (B, m.B_Nms_ci), (Tc, m.T_coulomb_Nm_ci)):
         assert lo <= value <= hi
     assert any(a <= 1.55 and b >= 1.75 for a, b in m.excluded_s)  # the load of 1.5 to 1.8 s
+
+
+@pytest.mark.slow
+def test_cli_plan_writes_a_run_within_the_limits_that_identifies_the_drive(tmp_path, capsys):
+    from pathlib import Path
+
+    from pmsm2dof.sim.logs import read_log
+    from pmsm2dof.ui.cli import main
+
+    drive = Path(__file__).resolve().parents[1] / "examples" / "your-motor" / "drive.toml"
+    out = tmp_path / "plan"
+    argv = ["identify", "--plan", "--motor", str(drive), "--speed-max-rpm", "1000", "--i-max-A", "6", "--out"]
+    assert main([*argv, str(out)]) == 0
+    plan = load_scenario(out / "plan.toml")
+    speeds = [e["speed_rpm"] for e in plan.data["reference"]]
+    assert max(abs(s) for s in speeds) == 1000.0 and min(speeds) < 0 < max(speeds)
+    assert plan.data["limits"]["i_max_A"] == 6.0 and plan.data["load"] == []
+    log = read_log(out / "trace.csv")
+    assert np.max(np.hypot(log.id_A, log.iq_A)) <= 6.0 * (1 + 1e-6)
+    truth = plan.data["motor"]["J_kgm2"]
+    assert identify_mechanics(log).J_kgm2 == pytest.approx(truth, rel=0.02)
+    capsys.readouterr()
+    assert main([*argv, str(tmp_path / "bad"), "--speed-max-rpm", "-5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--speed-max-rpm = -5.0" in err
+    assert not (tmp_path / "bad").exists()

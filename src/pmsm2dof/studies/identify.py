@@ -52,6 +52,7 @@ import scipy.stats
 
 from ..errors import ConfigError, Pmsm2dofError
 from ..sim.logs import Log
+from ..sim.scenario import Scenario
 
 #: Rows with a robust residual above this many robust standard deviations are excluded.
 OUTLIER_SIGMAS = 3.5
@@ -410,3 +411,61 @@ def identify_tau_i(log: Log) -> CurrentLoop:
     q = float(scipy.stats.t.ppf(0.5 + LEVEL / 2, x.size - 1))
     tau = float(fit.x[0])
     return CurrentLoop(tau_i_s=tau, tau_i_s_ci=(tau - q * sd, tau + q * sd), n_rows=int(x.size))
+
+
+#: Speed levels of a plan, as fractions of the largest speed: both directions, several speeds
+#: (B against the Coulomb friction), large changes (J).
+PLAN_LEVELS = (1.0, -0.8, 0.6, -1.0, 0.3)
+
+
+def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | None = None) -> Scenario:
+    """A run that identifies the mechanics: speed steps within the limits, as a scenario to simulate and to play.
+
+    The reference visits ``PLAN_LEVELS`` times ``speed_max_rpm`` (both directions, five speeds,
+    changes of up to twice the largest speed: J from the accelerations at the current limit, B and
+    the Coulomb friction from the steady speeds). Each level is held for ``2 t_acc + 8 / alpha``:
+    ``t_acc = J |dw| / T_max`` is the time of the change at the torque of the current limit for the
+    inertia the controller is designed for (the guess), ``8 / alpha`` lets the speed loop settle.
+    The load schedule is removed (a load the drive has stays in the log and is found by the fit).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The drive with the present guess of J (``speed_controller.J_kgm2``).
+    speed_max_rpm : float
+        Largest speed of the plan [rpm], > 0.
+    i_max_A : float, optional
+        Current limit for the experiment [A], > 0 (default: ``limits.i_max_A``).
+
+    Returns
+    -------
+    Scenario
+        With the reference schedule, no load, ``simulation.t_end_s`` one hold after the last step.
+    """
+    if isinstance(speed_max_rpm, bool) or not (isinstance(speed_max_rpm, (int, float)) and speed_max_rpm > 0):
+        raise ConfigError("speed_max_rpm", speed_max_rpm, "a finite number > 0 [rpm]")
+    if not math.isfinite(speed_max_rpm):
+        raise ConfigError("speed_max_rpm", speed_max_rpm, "a finite number > 0 [rpm]")
+    if i_max_A is not None:
+        scenario = scenario.with_overrides({"limits.i_max_A": i_max_A})
+    data = scenario.data
+    motor, sc = data["motor"], data["speed_controller"]
+    T_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
+    levels = [level * speed_max_rpm for level in PLAN_LEVELS]
+    t, previous, reference = 0.05, 0.0, []
+    for rpm in levels:
+        reference.append({"t_s": round(t, 6), "speed_rpm": rpm})
+        t_acc = sc["J_kgm2"] * abs(rpm - previous) * math.pi / 30.0 / T_max_Nm
+        t += 2.0 * t_acc + 8.0 / sc["alpha_radps"]
+        previous = rpm
+    return scenario.with_overrides(
+        {
+            "name": f"{data['name']}: identification plan",
+            "description": f"speed steps within +-{speed_max_rpm:g} rpm for pmsm2dof identify",
+            "reference": reference,
+            "load": [],
+            "fault": [],
+            "simulation.t_end_s": round(t, 6),
+            "simulation.speed0_rpm": 0.0,
+        }
+    )

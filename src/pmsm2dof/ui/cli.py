@@ -1129,6 +1129,11 @@ class warnings_as_lines:
 @click.option(
     "--design", "design_text", default=None, metavar="ALPHA,ZETA", help="print the eq 9 gains for the J found"
 )
+@click.option("--plan", is_flag=True, help="instead: write the run to log (speed steps) for --motor SCENARIO to --out")
+@click.option("--speed-max-rpm", type=float, default=None, help="--plan: largest speed of the steps [rpm]")
+@click.option(
+    "--i-max-A", "i_max_A", type=float, default=None, help="--plan: current limit [A] (default: the scenario's)"
+)
 def identify(
     log,
     column_maps,
@@ -1142,6 +1147,9 @@ def identify(
     as_json,
     out,
     design_text,
+    plan,
+    speed_max_rpm,
+    i_max_A,
 ):
     """Identify the inertia J, viscous friction B and Coulomb friction of a logged run.
 
@@ -1150,6 +1158,10 @@ def identify(
     --psi-f-Wb). With iq_ref_A in the log, the current loop's tau_i (eq 3) is identified too.
     Prints each value with its 95 % interval; --out DIR writes fit.png, rows.csv and
     identified.toml (the --motor scenario with the values found, or a [motor] table).
+
+    With --plan (no LOG): writes to --out the run to play on the drive and log, speed steps
+    within --speed-max-rpm and the current limit for the --motor scenario's J guess: plan.toml
+    (the scenario), its simulation trace.csv and plot.png.
     """
     import json
 
@@ -1159,8 +1171,11 @@ def identify(
     from ..sim.logs import read_log
     from ..studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
 
+    if plan:
+        _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out)
+        return
     if log is None:
-        raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT)")
+        raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT), or --plan")
     gains = None
     if design_text is not None:
         parts = design_text.split(",")
@@ -1275,6 +1290,39 @@ def identify(
         )
     if out is not None:
         click.echo(f"wrote fit.png, rows.csv, identified.toml and identify.json to {out}")
+
+
+def _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out):
+    """``identify --plan``: the experiment as a scenario and its simulation."""
+    from ..outputs import atomic_write, staged_dir
+    from ..sim.scenario import load_scenario
+    from ..sim.simulate import simulate as run_simulation
+    from ..studies.identify import plan_experiment
+    from .plots import trace
+
+    if log is not None:
+        raise ConfigError("LOG", log, "absent with --plan (the plan is what to log)")
+    for option, value in (("--motor", motor_file), ("--speed-max-rpm", speed_max_rpm), ("--out", out)):
+        if value is None:
+            raise ConfigError(option, "<missing>", "given with --plan")
+    try:
+        chosen = plan_experiment(load_scenario(motor_file), speed_max_rpm, i_max_A)
+    except ConfigError as exc:
+        raise _as_option(exc, {"speed_max_rpm": "--speed-max-rpm", "limits.i_max_A": "--i-max-A"}) from None
+    with staged_dir(out) as tmp:
+        result = run_simulation(chosen)
+        result.save(tmp / "trace.csv")
+        trace.plot_trace(result, tmp / "plot.png")
+        atomic_write(tmp / "plan.toml", chosen.to_toml())
+    for entry in chosen.data["reference"]:
+        click.echo(f"  t = {entry['t_s']:8.4g} s: speed reference {entry['speed_rpm']:8.5g} rpm")
+    i_limit = chosen.data["limits"]["i_max_A"]
+    click.echo(
+        f"simulated with J = {chosen.data['speed_controller']['J_kgm2']:g} kg m^2: |speed| <= "
+        f"{abs(result.speed_rpm).max():.5g} rpm, |iq| <= {abs(result.iq_A).max():.4g} A (limit {i_limit:g} A), "
+        f"{result.t_s[-1]:g} s"
+    )
+    click.echo(f"wrote plan.toml, trace.csv and plot.png to {out}: play plan.toml's reference on the drive, log it")
 
 
 def parse_column(text):
