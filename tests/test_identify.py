@@ -156,6 +156,7 @@ def _csv_log(tmp_path, J=0.01, B=0.003, Tc=0.3):
     return path, motor
 
 
+@pytest.mark.slow
 def test_cli_identify_from_the_currents_writes_the_fit_and_an_identified_scenario(tmp_path, capsys):
     import json
 

@@ -24,7 +24,7 @@ void p2d_adapt_torque(p2d_adapt_t *a, double T_e_Nm)
     a->n_T++;
 }
 
-void p2d_adapt_sample(p2d_adapt_t *a, double w_meas_radps, p2d_speed_t *speed)
+void p2d_adapt_sample(p2d_adapt_t *a, double w_meas_radps, double w_ref_radps, bool saturated, p2d_speed_t *speed)
 {
     double J_kgm2;
     /* the first speed sample has no period behind it: the estimator starts at the second */
@@ -33,7 +33,9 @@ void p2d_adapt_sample(p2d_adapt_t *a, double w_meas_radps, p2d_speed_t *speed)
     p2d_inertia_step(&a->est, (float)w_meas_radps, (float)(a->T_sum_Nm / (double)a->n_T), &a->out);
     a->T_sum_Nm = 0.0;
     a->n_T = 0u;
-    if (!a->cfg.adapt_gains || !a->out.J_valid) return;
+    if (!a->cfg.adapt_gains || !a->out.J_valid || saturated || (float)w_ref_radps != speed->r_prev_radps ||
+        !(fabs(w_ref_radps - w_meas_radps) <= a->cfg.e_quiet_radps))
+        return;
     J_kgm2 = (double)a->out.J_kgm2;
     if (fabs(J_kgm2 - a->J_gains_kgm2) > a->cfg.adapt_rel_change * a->J_gains_kgm2) {
         p2d_speed_config_t c = speed->config;

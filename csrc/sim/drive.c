@@ -71,6 +71,7 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_STOP_CONTROLLER_FAULT] = {"", "a controller's output became non-finite (non-finite policy)"},
     [P2D_SIM_ERR_ESTIMATOR] = {"adapt.config", "accepted by p2d_inertia_init (see controller_status)"},
     [P2D_SIM_ERR_ADAPT_REL_CHANGE] = {"adapt.adapt_rel_change", "finite and >= 0"},
+    [P2D_SIM_ERR_E_QUIET] = {"adapt.e_quiet_radps", "finite and >= 0"},
 };
 
 static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
@@ -546,6 +547,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     }
 
     if (cfg->adapt.enabled && !is_nonnegative(cfg->adapt.adapt_rel_change)) return P2D_SIM_ERR_ADAPT_REL_CHANGE;
+    if (cfg->adapt.enabled && !is_nonnegative(cfg->adapt.e_quiet_radps)) return P2D_SIM_ERR_E_QUIET;
     ctl_status = p2d_adapt_init(&sim->adapt, &cfg->adapt, (double)cfg->speed.J_kgm2);
     if (ctl_status != P2D_OK) {
         sim->controller_status = ctl_status;
@@ -593,6 +595,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->stop_bound = 0.0;
     sim->w_meas_radps = cfg->w_m0_radps;
     sim->u_dc_V = cfg->u_dc_V;
+    sim->saturated = false;
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     m->w_m_radps = cfg->w_m0_radps;
@@ -674,11 +677,12 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
         cursor_advance(&sim->reference, &cfg->reference, t_k + sim->t_tol_s);
         w_ref = segment_value(&sim->reference, t_k);
         sim->w_meas_radps = speed_reading(sim, t_k);
-        if (cfg->adapt.enabled) p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, &sim->speed);
+        if (cfg->adapt.enabled) p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, w_ref, sim->saturated, &sim->speed);
         p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
         if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
         sim->id_ref_A = (double)so.id_ref_A;
         sim->iq_ref_A = (double)so.iq_ref_A;
+        sim->saturated = so.saturated;
 
         for (uint32_t j = 0; j < cfg->current_per_speed; ++j) {
             double t = (double)sim->n_current * cfg->Ts_current_s;

@@ -152,6 +152,7 @@ typedef enum {
     P2D_SIM_STOP_CONTROLLER_FAULT,  /* a controller's non-finite policy engaged */
     P2D_SIM_ERR_ESTIMATOR,          /* p2d_inertia_init rejected adapt.config: see controller_status */
     P2D_SIM_ERR_ADAPT_REL_CHANGE,   /* adapt.adapt_rel_change */
+    P2D_SIM_ERR_E_QUIET,            /* adapt.e_quiet_radps */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
@@ -312,6 +313,7 @@ typedef struct {
     double w_meas_radps;             /* last speed reading given to the speed controller [rad/s] */
     double u_dc_V;                   /* DC link over the present current period [V] */
     p2d_adapt_t adapt;               /* inertia estimator beside the speed controller (adapt.h) */
+    bool saturated;                  /* the speed controller's last output was at the current limit */
 } p2d_sim_t;
 
 /* Validate cfg, initialize the controllers and set the initial state. */

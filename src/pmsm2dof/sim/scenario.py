@@ -362,6 +362,14 @@ SCHEMA = (
         ge=0,
     ),
     Field(
+        "estimator.adapt_error_rpm",
+        float,
+        "re-design only at a quiet sample: reference constant, output inside the current limit and "
+        "|speed error| <= this [rpm] (a re-design in a transient disturbs the integrator)",
+        default=5.0,
+        ge=0,
+    ),
+    Field(
         "estimator.J0_kgm2",
         float,
         "initial estimate and prior standard deviation of J [kg m^2]",

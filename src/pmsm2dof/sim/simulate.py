@@ -152,6 +152,7 @@ _SIM_KEYS = {
     "load": "load",
     "faults": "fault",
     "adapt.adapt_rel_change": "estimator.adapt_rel_change",
+    "adapt.e_quiet_radps": "estimator.adapt_error_rpm",
 }
 
 #: Scenario key of each field that the C inertia estimator init can reject (the estimator block).
@@ -547,6 +548,7 @@ def _estimator(cfg, data):
     a.adapt_gains = est["adapt_gains"]
     a.Ka_follows_J = sc["Ka"] is None
     a.adapt_rel_change = est["adapt_rel_change"]
+    a.e_quiet_radps = est["adapt_error_rpm"] / RPM_PER_RADPS
     T_peak_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
     J0 = est["J0_kgm2"]
     derived = {
