@@ -75,3 +75,26 @@ def test_a_bad_estimator_key_is_named():
         simulate(base.with_overrides({"estimator.J_min_kgm2": 1.0}))
     with pytest.raises(ConfigError, match="estimator.J_rel_sd_max"):
         base.with_overrides({"estimator.J_rel_sd_max": 1.5})
+
+
+def test_the_report_section_on_gain_scheduling():
+    from pmsm2dof.studies.adaptation import J_RATIOS, adaptation_figures, run_adaptation
+    from pmsm2dof.ui.report.adaptation import adaptation_blocks, fig_adaptation
+
+    runs = run_adaptation()
+    for ratio in J_RATIOS:
+        f = adaptation_figures(runs, ratio)
+        assert f["J_est_kgm2"] == pytest.approx(0.4 * ratio, rel=0.02)
+        assert f["matched_deviation_rpm"] == 0.0
+        # adapting never makes the response worse than keeping the design
+        assert f["adapted_iae_rpm_s"] <= f["fixed_iae_rpm_s"] * (1 + 1e-9)
+    big = adaptation_figures(runs, 2.0)
+    assert big["J_gains_kgm2"] == pytest.approx(0.8, rel=0.05)
+    assert big["adapted_deviation_rpm"] < 0.5 * big["fixed_deviation_rpm"]
+    blocks = adaptation_blocks(runs)
+    assert blocks[0] == ("h2", "Gain scheduling by the identified inertia (not in the paper)")
+    header, rows = blocks[-1][1], blocks[-1][2]
+    assert len(rows) == len(J_RATIOS) and len(header) == len(rows[0])
+    _fig, data = fig_adaptation(runs)
+    assert "j_ratio_2_0_adapted_speed_rpm" in data.to_csv().splitlines()[0]
+    assert adaptation_blocks(None) == []

@@ -12,6 +12,7 @@ second step, which the adapted controller meets with its new gains.
 
 import numpy as np
 
+from ..errors import ConfigError
 from ..sim.scenario import load_scenario
 from ..sim.simulate import Result
 from .engine import Run, run_many
@@ -40,11 +41,15 @@ def _overrides(ratio: float, mode: str, J_design_kgm2: float) -> dict[str, objec
 def run_adaptation(overrides: dict[str, object] | None = None, workers: int | None = None) -> dict:
     """Simulate every ratio of :data:`J_RATIOS` with each design of :data:`MODES`.
 
-    Returns ``{(ratio, mode): Result}`` (or the error text of a run that stopped).
+    Returns ``{(ratio, mode): Result}``, or the reason instead of a Result when the overrides do
+    not apply or the run stopped.
     """
     base = load_scenario(PRESET)
     if overrides:
-        base = base.with_overrides(overrides)
+        try:
+            base = base.with_overrides(overrides)
+        except ConfigError as exc:
+            return {(ratio, mode): str(exc) for ratio in J_RATIOS for mode in MODES}
     J_design = base.data["speed_controller"]["J_kgm2"]
     bases, todo = {}, []
     for ratio in J_RATIOS:

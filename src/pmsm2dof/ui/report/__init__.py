@@ -19,7 +19,9 @@ and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
 - a section on fault scenarios the paper does not treat (the ``fault-*`` presets: a stall, a
   DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode;
 - a section on self-commissioning (:mod:`.commissioning`): the C routine identifies the paper's
-  drive and a salient servo, identified against true values and the time of each step.
+  drive and a salient servo, identified against true values and the time of each step;
+- a section on gain scheduling by the inertia the online estimator identifies (J of the plant
+  0.5 to 2 times the design's: fixed, adapted and matched designs, :mod:`.adaptation`).
 
 Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous
 Motor Speed Controller" (equation, figure and section numbers are the paper's).
@@ -38,7 +40,10 @@ from matplotlib.figure import Figure
 
 from ...outputs import atomic_write, require_writable_dir, staged_dir
 from ...studies import paper as st
+from ...studies.adaptation import run_adaptation
 from ...studies.faults import run_faults
+from .adaptation import CAPTION as ADAPTATION_CAPTION
+from .adaptation import fig_adaptation
 from .claims import VERDICTS, Claim, compute_claims
 from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
@@ -96,6 +101,8 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
         *fig_faults(fault_runs),
         "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: the reference.",
     )
+    adaptation_runs = run_adaptation(studies.overrides)
+    made["adaptation"] = (*fig_adaptation(adaptation_runs), ADAPTATION_CAPTION)
     files: list[str] = []
     with staged_dir(out) as tmp:
         images: dict[str, bytes] = {}
@@ -133,7 +140,9 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
             tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
         )
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
-        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, run_commissioning())
+        blocks = report_blocks(
+            studies, claims, captions, wall_time_s, fault_runs, run_commissioning(), adaptation_runs
+        )
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]
