@@ -103,3 +103,55 @@ def test_unreadable_files_are_config_errors(tmp_path):
     for name in ("a.parquet", "a.txt", "missing.csv"):
         with pytest.raises(ConfigError, match="log = "):
             read_log(tmp_path / name)
+
+
+def test_compute_metrics_of_a_log_equals_that_of_the_run_it_records(tmp_path):
+    from pmsm2dof.sim.metrics import compute_metrics
+    from pmsm2dof.sim.scenario import load_scenario
+    from pmsm2dof.sim.simulate import simulate
+
+    result = simulate(load_scenario("paper-condition-1"))
+    result.save(tmp_path / "run.csv")
+    log = read_log(tmp_path / "run.csv")
+    of_log = compute_metrics(log, i_max_A=7.6)
+    of_run = compute_metrics(result)
+    assert len(of_log["reference_steps"]) == len(of_run["reference_steps"]) == 2
+    for mine, theirs in zip(of_log["reference_steps"], of_run["reference_steps"]):
+        assert mine["t_s"] == theirs["t_s"]
+        for key, figure in theirs.items():
+            if isinstance(figure, dict):
+                assert (mine[key]["value"] is None) == (figure["value"] is None), key
+                if figure["value"] is not None:
+                    assert mine[key]["value"] == pytest.approx(figure["value"], rel=1e-9, abs=1e-9), key
+    assert of_log["run"]["iae_rpm_s"]["value"] == pytest.approx(of_run["run"]["iae_rpm_s"]["value"])
+    assert of_log["load_steps"] == [] and of_log["run"]["voltage_limit_time_s"]["value"] is None
+    # the time at the current limit counts the same samples as the run's (no clamping chatter here)
+    limit = of_run["run"]["current_limit_time_s"]["value"]
+    assert of_log["run"]["current_limit_time_s"]["value"] == pytest.approx(limit, abs=2e-3)
+
+
+@pytest.mark.slow
+def test_cli_compare_overlays_a_log_and_its_simulation(tmp_path, capsys):
+    import json
+
+    from pmsm2dof.sim.scenario import load_scenario
+    from pmsm2dof.sim.simulate import simulate
+    from pmsm2dof.ui.cli import main
+
+    scenario = load_scenario("paper-condition-1")
+    heavier = simulate(scenario.with_overrides({"motor.J_kgm2": 0.5, "speed_controller.J_kgm2": 0.4}))
+    heavier.save(tmp_path / "run.csv")
+    out = tmp_path / "cmp"
+    assert main(["compare", str(tmp_path / "run.csv"), "paper-condition-1", "--out", str(out)]) == 0
+    table = json.loads((out / "compare.json").read_text())
+    # the log's drive is 25 % heavier: its speed lags the simulation's on the steps
+    assert table["speed_error_max_rpm"] > 10.0
+    assert sorted(p.name for p in out.iterdir()) == ["compare.json", "compare.png", "simulation.csv"]
+    same = tmp_path / "same"
+    simulate(scenario).save(tmp_path / "same.csv")
+    assert main(["compare", str(tmp_path / "same.csv"), "paper-condition-1", "--out", str(same)]) == 0
+    assert json.loads((same / "compare.json").read_text())["speed_error_max_rpm"] < 1e-9
+    capsys.readouterr()
+    assert main(["compare", str(tmp_path / "run.csv"), "no-such-preset", "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "no-such-preset" in err and not (tmp_path / "bad").exists()

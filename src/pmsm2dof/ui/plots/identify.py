@@ -1,4 +1,4 @@
-"""The figure of an identification: the torque balance of each regression row, fit and residual."""
+"""The figures of a measured log: the identification's fit (rows, residual) and the comparison with a simulation."""
 
 from pathlib import Path
 
@@ -6,6 +6,8 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
+from ...sim.logs import Log
+from ...sim.simulate import Result
 from ...studies.identify import Mechanics
 from .design import save_figure
 
@@ -37,4 +39,28 @@ def plot_fit(mech: Mechanics, path: Path) -> None:
     bottom.set_xlabel("time [s]")
     lim = 4 * float(np.std((y - fit)[kept])) or 1.0
     bottom.set_ylim(-lim, lim)
+    save_figure(fig, path)
+
+
+def plot_compare(log: Log, result: Result, path: Path) -> None:
+    """Overlay a measured log and the simulation of the same reference: speed, iq and the speed error."""
+    fig = Figure(figsize=(9, 7), layout="constrained")
+    FigureCanvasAgg(fig)
+    axes = fig.subplots(3, 1, sharex=True)
+    axes[0].plot(log.t_s, log.speed_rpm, lw=1.2, label=f"log ({Path(log.source).name})")
+    axes[0].plot(result.t_s, result.speed_rpm, lw=1.0, ls="--", label=f"simulation ({result.scenario.name})")
+    if log.speed_ref_rpm is not None:
+        axes[0].plot(log.t_s, log.speed_ref_rpm, color="k", lw=0.8, ls=":", label="reference (log)")
+    axes[0].set_ylabel("speed [rpm]")
+    axes[0].legend(loc="best", fontsize="small")
+    if log.iq_A is not None:
+        axes[1].plot(log.t_s, log.iq_A, lw=1.2, label="log")
+    axes[1].plot(result.t_s, result.iq_A, lw=1.0, ls="--", label="simulation")
+    axes[1].set_ylabel("iq [A]")
+    error = log.speed_rpm - np.interp(log.t_s, result.t_s, result.speed_rpm)
+    axes[2].plot(log.t_s, error, lw=1.0)
+    axes[2].set_ylabel("log - simulation [rpm]")
+    axes[2].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
     save_figure(fig, path)
