@@ -37,7 +37,7 @@ def test_the_guide_runs_as_written_and_identifies_the_drive(tmp_path, monkeypatc
     shutil.copytree(ROOT / "examples" / "your-motor", tmp_path / "examples" / "your-motor")
     monkeypatch.chdir(tmp_path)
     commands = guide_commands()
-    assert [c[0] for c in commands] == ["motor", "simulate", "identify", "design", "simulate"]
+    assert [c[0] for c in commands] == ["motor", "identify", "simulate", "identify", "design", "simulate"]
     for args in commands:
         assert main(args) == 0, args
     out = capsys.readouterr().out
@@ -48,7 +48,8 @@ def test_the_guide_runs_as_written_and_identifies_the_drive(tmp_path, monkeypatc
     assert report["T_coulomb_Nm"] == pytest.approx(truth["T_coulomb_Nm"], rel=0.15)
     assert report["B_Nms"] == pytest.approx(truth["B_Nms"], rel=0.35)
     # the design's J is the identified one, rounded as the guide writes it
-    design_J = float(commands[3][commands[3].index("--J") + 1])
+    assert load_scenario(tmp_path / "plan" / "plan.toml").data["reference"]
+    design_J = float(commands[4][commands[4].index("--J") + 1])
     assert design_J == pytest.approx(report["J_kgm2"], rel=0.01)
     assert "p2d_speed_config_t" in (tmp_path / "speed_config.h").read_text()
     identified = load_scenario(tmp_path / "ident" / "identified.toml")
