@@ -247,3 +247,21 @@ def test_cli_plan_writes_a_run_within_the_limits_that_identifies_the_drive(tmp_p
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--speed-max-rpm = -5.0" in err
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_log_with_gaps_and_missing_rows_is_identified_across_its_segments(tmp_path):
+    """Rows removed (a gap of 0.1 s, scattered NaN rows): nothing is differenced across a hole."""
+    from pmsm2dof.sim.logs import read_log
+
+    J, B, Tc = 0.01, 0.003, 0.3
+    result = simulate(drive_scenario(J, B, Tc))
+    frame = result.to_dataframe()[["t_s", "speed_rpm", "torque_Nm"]]
+    frame = frame[(frame["t_s"] < 1.0) | (frame["t_s"] > 1.1)].copy()
+    frame.loc[frame.index[::97], "torque_Nm"] = np.nan
+    frame.to_csv(tmp_path / "holes.csv", index=False)
+    log = read_log(tmp_path / "holes.csv")
+    assert len(log.segments()) == 2 and log.rows_dropped > 20
+    m = identify_mechanics(log)
+    assert m.J_kgm2 == pytest.approx(J, rel=0.02)
+    assert m.T_coulomb_Nm == pytest.approx(Tc, rel=0.15)
+    assert m.B_Nms == pytest.approx(B, rel=0.35)
