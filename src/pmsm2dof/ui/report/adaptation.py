@@ -88,7 +88,9 @@ def adaptation_blocks(runs: dict | None) -> list[tuple[Any, ...]]:
             "`estimator.adapt_error_rpm`); and the design for the true J. Figures over the reference step "
             f"{STEP_INDEX} (from its time to the end of the run): the IAE of each design and its peak distance "
             "from the matched response. Where the drive never becomes quiet before that step (the smaller "
-            "inertias, on this slow loop), the gains stay those of the design.",
+            "inertias, on this slow loop), the gains stay those of the design. The runs have no load: the "
+            "estimate of the load follows a step with the time constant `estimator.load_memory_s`, and a large "
+            "load step during a speed transient is meanwhile taken partly for a change of J (see the README).",
         ),
         ("figure", "adaptation", CAPTION),
         ("table", header, rows),
