@@ -249,7 +249,7 @@ class Result:
     def save(self, path: Path | str) -> None:
         """Write the trace to ``path``; the format follows the extension.
 
-        ``.csv``: one column per signal with a header row (``saturated`` as 0/1);
+        ``.csv``: one column per signal with a header row (the flags ``saturated`` and ``J_valid`` as 0/1);
         ``.npz`` (numpy) and ``.mat`` (MATLAB, ``scipy.io.savemat``): one array per signal
         and ``scenario_toml``, the scenario as TOML text. The file is written completely or
         not at all.
@@ -259,7 +259,8 @@ class Result:
         arrays = {name: getattr(self, name) for name in self.signals}
         if suffix == ".csv":
             frame = self.to_dataframe()
-            frame["saturated"] = frame["saturated"].astype(np.int8)
+            for flag in FLAG_SIGNALS:
+                frame[flag] = frame[flag].astype(np.int8)
             atomic_write(path, frame.to_csv(index=False))
         elif suffix == ".npz":
             buf = io.BytesIO()

@@ -4,11 +4,12 @@ Each sub-command lives next to the module it drives and is registered here.
 Every error the user can cause ends as one line on stderr and exit status 2.
 """
 
+import contextlib
 import math
 import sys
 import tomllib
-from collections.abc import Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, TextIO
 
 import click
 
@@ -21,6 +22,7 @@ if TYPE_CHECKING:
     from ..core.bindings import AntiWindup, Feedforward, Method
     from ..sim.commission import Commissioning
     from ..studies.autotune import AutotuneResult
+    from ..studies.identify import Mechanics
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -1051,7 +1053,7 @@ def _percent(x: float) -> str:
 @cli.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
-def motor(file, as_json):
+def motor(file: str, as_json: bool) -> None:
     """Print the model parameters of eq 1 of a motor given in datasheet units, with their source.
 
     FILE is a TOML file (a scenario, or one with only [motor]) whose [motor.datasheet] table gives
@@ -1078,28 +1080,30 @@ def motor(file, as_json):
         click.echo(f"note: {note}")
 
 
-class warnings_as_lines:
+@contextlib.contextmanager
+def warnings_as_lines() -> Iterator[None]:
     """Show the warnings of pmsm2dof raised inside the block as one line each on stderr."""
+    import warnings
 
-    def __enter__(self):
-        import warnings
-
-        self._catch = warnings.catch_warnings()
-        self._catch.__enter__()
+    with warnings.catch_warnings():
         show = warnings.showwarning
 
-        def one_line(message, category, *args, **kwargs):
+        def one_line(
+            message: Warning | str,
+            category: type[Warning],
+            filename: str,
+            lineno: int,
+            file: TextIO | None = None,
+            line: str | None = None,
+        ) -> None:
             if category.__module__.startswith("pmsm2dof"):
                 print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
             else:
-                show(message, category, *args, **kwargs)
+                show(message, category, filename, lineno, file, line)
 
         warnings.simplefilter("always")
         warnings.showwarning = one_line
-        return self
-
-    def __exit__(self, *exc):
-        return self._catch.__exit__(*exc)
+        yield
 
 
 @cli.command()
@@ -1135,22 +1139,22 @@ class warnings_as_lines:
     "--i-max-A", "i_max_A", type=float, default=None, help="--plan: current limit [A] (default: the scenario's)"
 )
 def identify(
-    log,
-    column_maps,
-    motor_file,
-    pole_pairs,
-    psi_f_Wb,
-    Ld_H,
-    Lq_H,
-    speed_period_mean,
-    window_s,
-    as_json,
-    out,
-    design_text,
-    plan,
-    speed_max_rpm,
-    i_max_A,
-):
+    log: str | None,
+    column_maps: tuple[str, ...],
+    motor_file: str | None,
+    pole_pairs: int | None,
+    psi_f_Wb: float | None,
+    Ld_H: float | None,
+    Lq_H: float | None,
+    speed_period_mean: bool,
+    window_s: float | None,
+    as_json: bool,
+    out: str | None,
+    design_text: str | None,
+    plan: bool,
+    speed_max_rpm: float | None,
+    i_max_A: float | None,
+) -> None:
     """Identify the inertia J, viscous friction B and Coulomb friction of a logged run.
 
     LOG is a CSV, Parquet, NPZ or MAT file with time_s and speed_rpm (or speed_radps) and the
@@ -1303,7 +1307,7 @@ def identify(
     help="read a signal from another column, e.g. --column speed=enc_speed_rpm",
 )
 @click.option("--out", type=click.Path(file_okay=False), required=True, help="folder for the figure and the table")
-def compare(log, scenario, column_maps, out):
+def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> None:
     """Overlay a measured LOG and the simulation of SCENARIO (the same reference and load).
 
     Writes DIR/compare.png (speed, iq and their difference), DIR/compare.json (RMS and largest
@@ -1363,7 +1367,9 @@ def compare(log, scenario, column_maps, out):
     click.echo(f"wrote compare.png, compare.json and simulation.csv to {out}")
 
 
-def _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out):
+def _identify_plan(
+    log: str | None, motor_file: str | None, speed_max_rpm: float | None, i_max_A: float | None, out: str | None
+) -> None:
     """``identify --plan``: the experiment as a scenario and its simulation."""
     from ..outputs import atomic_write, staged_dir
     from ..sim.scenario import load_scenario
@@ -1373,9 +1379,9 @@ def _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out):
 
     if log is not None:
         raise ConfigError("LOG", log, "absent with --plan (the plan is what to log)")
-    for option, value in (("--motor", motor_file), ("--speed-max-rpm", speed_max_rpm), ("--out", out)):
-        if value is None:
-            raise ConfigError(option, "<missing>", "given with --plan")
+    if motor_file is None or speed_max_rpm is None or out is None:
+        missing = "--motor" if motor_file is None else "--speed-max-rpm" if speed_max_rpm is None else "--out"
+        raise ConfigError(missing, "<missing>", "given with --plan")
     try:
         chosen = plan_experiment(load_scenario(motor_file), speed_max_rpm, i_max_A)
     except ConfigError as exc:
@@ -1396,7 +1402,7 @@ def _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out):
     click.echo(f"wrote plan.toml, trace.csv and plot.png to {out}: play plan.toml's reference on the drive, log it")
 
 
-def parse_column(text):
+def parse_column(text: str) -> tuple[str, str]:
     """Parse one ``--column signal=name`` into ``(signal, name)`` for :func:`pmsm2dof.sim.logs.read_log`."""
     signal, sep, name = text.partition("=")
     if not sep or not signal.strip() or not name.strip():
@@ -1404,7 +1410,7 @@ def parse_column(text):
     return signal.strip(), name.strip()
 
 
-def dataclasses_replace_notes(mech, note):
+def dataclasses_replace_notes(mech: "Mechanics", note: str) -> "Mechanics":
     """``mech`` with one more note."""
     import dataclasses
 
