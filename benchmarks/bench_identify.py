@@ -50,9 +50,7 @@ def main():
         t_load = float(rng.uniform(0.1, 2.4))
         load = [{"t_s": t_load, "torque_Nm": float(rng.uniform(-2, 2))}, {"t_s": t_load + 0.2, "torque_Nm": 0.0}]
         cpr = int(rng.choice([1024, 4096, 16384]))
-        log = measured_log(
-            simulate(drive_scenario(J, B, Tc, load)), cpr, float(rng.uniform(0.0, 0.1)), seed=i
-        )
+        log = measured_log(simulate(drive_scenario(J, B, Tc, load)), cpr, float(rng.uniform(0.0, 0.1)), seed=i)
         start = time.process_time()
         m = identify_mechanics(log, speed_is_period_mean=True)
         cpu.append(time.process_time() - start)

@@ -287,11 +287,14 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
     if missing:
         raise ConfigError(f"motor.{missing[0]}", "<missing>", "a [motor.datasheet] table or every model key of [motor]")
     values = {key: motor[key] for key in MOTOR_KEYS}
-    from .scenario import SCHEMA, Field
-
-    fields: dict[str, Field] = {f.key: f for f in SCHEMA}
-    for key in MOTOR_KEYS:
-        values[key] = fields[f"motor.{key}"].check(f"motor.{key}", values[key])
+    p = values["pole_pairs"]
+    if isinstance(p, bool) or not isinstance(p, int) or not 1 <= p <= 1000:
+        raise ConfigError("motor.pole_pairs", p, "an integer >= 1 and <= 1000")
+    for key in MOTOR_KEYS[1:]:
+        v = values[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
+            raise ConfigError(f"motor.{key}", v, "a finite number > 0")
+        values[key] = float(v)
     return MotorParameters(
         **values,
         i_rated_A=None,
