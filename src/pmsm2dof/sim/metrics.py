@@ -468,7 +468,7 @@ def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
 
     def window_end(t0: float) -> float:
         later = [x for x in times if x > t0]
-        return min(later[0], t[-1]) if later else t[-1]
+        return float(min(later[0], t[-1]) if later else t[-1])
 
     limit_time = _value(_time_where(t, limited, t[0], t[-1])) if i_max_A is not None else _missing("no i_max_A")
     return {

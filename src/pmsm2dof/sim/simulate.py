@@ -539,7 +539,7 @@ def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
     return faults
 
 
-def _estimator(cfg, data):
+def _estimator(cfg: Any, data: Mapping[str, Any]) -> None:
     """The estimator block of the engine's configuration (``[estimator]``, csrc/sim/adapt.h)."""
     est, sc, motor = data["estimator"], data["speed_controller"], data["motor"]
     a = cfg.adapt

@@ -10,6 +10,8 @@ design for the true J (the reference). :func:`adaptation_figures` compares the r
 second step, which the adapted controller meets with its new gains.
 """
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from ..errors import ConfigError
@@ -38,7 +40,9 @@ def _overrides(ratio: float, mode: str, J_design_kgm2: float) -> dict[str, objec
     return overrides
 
 
-def run_adaptation(overrides: dict[str, object] | None = None, workers: int | None = None) -> dict:
+def run_adaptation(
+    overrides: dict[str, object] | None = None, workers: int | None = None
+) -> dict[tuple[float, str], Result | str]:
     """Simulate every ratio of :data:`J_RATIOS` with each design of :data:`MODES`.
 
     Returns ``{(ratio, mode): Result}``, or the reason instead of a Result when the overrides do
@@ -58,29 +62,32 @@ def run_adaptation(overrides: dict[str, object] | None = None, workers: int | No
             bases[key] = base.with_overrides(_overrides(ratio, mode, J_design)).data
             todo.append(Run(key, key, {}, key))
     outcomes = {o.key: o for o in run_many(bases, todo, keep=[r.key for r in todo], workers=workers)}
-    runs = {}
+    runs: dict[tuple[float, str], Result | str] = {}
     for ratio in J_RATIOS:
         for mode in MODES:
             o = outcomes[f"{ratio}-{mode}"]
-            runs[ratio, mode] = o.result if o.metrics is not None else o.error
+            runs[ratio, mode] = o.result if o.metrics is not None and o.result is not None else o.error
     return runs
 
 
-def adaptation_figures(runs: dict, ratio: float) -> dict[str, float | None]:
+def adaptation_figures(runs: Mapping[tuple[float, str], Result | str], ratio: float) -> dict[str, float | None]:
     """Figures of one ratio: the step's IAE of each design, their peak deviation from the matched
     response over the step, the final estimate of J and when it first became valid."""
-    results = {mode: runs[ratio, mode] for mode in MODES}
-    matched = results["matched"]
     out: dict[str, float | None] = {}
-    if any(isinstance(r, str) for r in results.values()):
-        return out
+    results: dict[str, Result] = {}
+    for mode in MODES:
+        run = runs[ratio, mode]
+        if isinstance(run, str):
+            return out
+        results[mode] = run
+    matched = results["matched"]
     t0 = matched.scenario.data["reference"][STEP_INDEX]["t_s"]
     step = matched.t_s >= t0
     for mode, r in results.items():
         err = np.abs(r.speed_ref_rpm[step] - r.speed_rpm[step])
         out[f"{mode}_iae_rpm_s"] = float(np.trapezoid(err, r.t_s[step]))
         out[f"{mode}_deviation_rpm"] = float(np.max(np.abs(r.speed_rpm[step] - matched.speed_rpm[step])))
-    adapted: Result = results["adapted"]
+    adapted = results["adapted"]
     valid = np.flatnonzero(adapted.J_valid)
     out["J_est_kgm2"] = float(adapted.J_est_kgm2[-1])
     out["J_gains_kgm2"] = float(adapted.J_gains_kgm2[-1])

@@ -133,7 +133,8 @@ def torque_from_currents(log: Log, pole_pairs: int, psi_f_Wb: float, Ld_H: float
         raise ConfigError("log", log.source, "a log with iq_A (or torque_Nm) to compute the torque from")
     iq = log.iq_A
     id_ = log.id_A if log.id_A is not None else np.zeros_like(iq)
-    return 1.5 * pole_pairs * (psi_f_Wb * iq + (Ld_H - Lq_H) * id_ * iq)
+    torque: np.ndarray = 1.5 * pole_pairs * (psi_f_Wb * iq + (Ld_H - Lq_H) * id_ * iq)
+    return torque
 
 
 def _cumtrapz(t: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -144,7 +145,8 @@ def _cumtrapz(t: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def _block_means(x: np.ndarray, starts: np.ndarray, m: int) -> np.ndarray:
     c = np.concatenate(([0.0], np.cumsum(x)))
-    return (c[starts + m] - c[starts]) / m
+    means: np.ndarray = (c[starts + m] - c[starts]) / m
+    return means
 
 
 def _rows(t: np.ndarray, w: np.ndarray, T: np.ndarray, n: int, m: int, w_zero: float) -> dict[str, np.ndarray]:
@@ -183,7 +185,8 @@ def _newey_west(X: np.ndarray, e: np.ndarray) -> np.ndarray:
         G = Xe[lag:].T @ Xe[:-lag]
         S += (1.0 - lag / (lags + 1.0)) * (G + G.T)
     inv = np.linalg.inv(X.T @ X)
-    return inv @ S @ inv * n / (n - X.shape[1])
+    cov: np.ndarray = inv @ S @ inv * n / (n - X.shape[1])
+    return cov
 
 
 def _merge(windows: list[tuple[float, float]]) -> tuple[tuple[float, float], ...]:
@@ -402,7 +405,8 @@ def identify_tau_i(log: Log) -> CurrentLoop:
     tau0 = -dt_med / math.log(ratio)
 
     def residual(p: np.ndarray) -> np.ndarray:
-        return y - np.exp(-dt / p[0]) * x
+        r: np.ndarray = y - np.exp(-dt / p[0]) * x
+        return r
 
     fit = scipy.optimize.least_squares(residual, [tau0], x_scale=[tau0], bounds=([tau0 * 1e-3], [tau0 * 1e3]))
     jac = fit.jac

@@ -1338,7 +1338,7 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
         result = run_simulation(chosen)
         error = measured.speed_rpm[inside] - np.interp(measured.t_s[inside], result.t_s, result.speed_rpm)
         i_max = chosen.data["limits"]["i_max_A"]
-        table = {
+        table: dict[str, Any] = {
             "log": str(log),
             "scenario": chosen.name,
             "speed_error_rms_rpm": float(np.sqrt(np.mean(error**2))),

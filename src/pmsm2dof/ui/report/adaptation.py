@@ -5,14 +5,16 @@ to the design's, the response of the fixed design, of the design adapted by the 
 (``estimator.adapt_gains``) and of the design for the true J.
 """
 
+from collections.abc import Mapping
 from typing import Any
 
 from matplotlib.figure import Figure
 
+from ...sim.simulate import Result
 from ...studies.adaptation import J_RATIOS, MODES, PRESET, STEP_INDEX, adaptation_figures
 from .figures import FigureData, _figure, _finish, _tag, _trace
 
-_STYLE = {
+_STYLE: dict[str, dict[str, Any]] = {
     "fixed": {"color": "C3", "lw": 1.2},
     "adapted": {"color": "C0", "lw": 1.2},
     "matched": {"color": "k", "lw": 1.0, "ls": ":"},
@@ -25,7 +27,7 @@ CAPTION = (
 )
 
 
-def fig_adaptation(runs: dict) -> tuple[Figure, FigureData]:
+def fig_adaptation(runs: Mapping[tuple[float, str], Result | str]) -> tuple[Figure, FigureData]:
     """Speed of each design, one panel per J ratio."""
     fig, axes = _figure(len(J_RATIOS), 1, height=1.9, width=8.0)
     data = FigureData()
@@ -44,7 +46,7 @@ def fig_adaptation(runs: dict) -> tuple[Figure, FigureData]:
     return fig, data
 
 
-def adaptation_blocks(runs: dict | None) -> list[tuple[Any, ...]]:
+def adaptation_blocks(runs: Mapping[tuple[float, str], Result | str] | None) -> list[tuple[Any, ...]]:
     """The section's blocks (none without runs)."""
     if runs is None:
         return []
