@@ -341,7 +341,6 @@ SCHEMA = (
     ),
     Field("commissioning.noise_A", float, "standard deviation of each measured phase current [A]", default=0.0, ge=0),
     Field("commissioning.seed", int, "seed of the current-measurement noise", default=1, ge=0, le=2**63),
-
     Field(
         "estimator.enabled",
         bool,

@@ -140,9 +140,7 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
             tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
         )
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
-        blocks = report_blocks(
-            studies, claims, captions, wall_time_s, fault_runs, run_commissioning(), adaptation_runs
-        )
+        blocks = report_blocks(studies, claims, captions, wall_time_s, fault_runs, run_commissioning(), adaptation_runs)
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]
