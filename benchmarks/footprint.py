@@ -28,10 +28,12 @@ instructions per step
     The count is checked on ``p2d_speed_Ka_default``, which has no branch: the
     trace must give the number of instructions of its disassembly.
 
-Writes the sections "Footprint and cost on the Cortex-M4F" (the controllers),
-"Inertia estimator on the Cortex-M4F" and "Commissioning routine on the
-Cortex-M4F" of ``benchmarks/results.md`` (other sections are kept) and prints
-them. The commissioning routine is measured over a whole run
+Writes the sections "Footprint and cost on the Cortex-M4F" (speed and current
+controllers, every module), "Footprint of the speed sensing and field weakening
+on the Cortex-M4F" (encoder estimators, field weakening, the speed controller's
+field-weakening entry), "Inertia estimator on the Cortex-M4F" and
+"Commissioning routine on the Cortex-M4F" of ``benchmarks/results.md`` (other
+sections are kept) and prints them. The commissioning routine is measured over a whole run
 (``csrc/target/target_commission_cost.c``): every step is counted, and the
 steps are summarised by phase, since a step costs more at the end of an
 injection period or of a phase than on an ordinary sample.
@@ -54,7 +56,11 @@ CSRC = ROOT / "csrc"
 TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
 SECTION = "## Footprint and cost on the Cortex-M4F"
 INERTIA_SECTION = "## Inertia estimator on the Cortex-M4F"
+SENSING_SECTION = "## Footprint of the speed sensing and field weakening on the Cortex-M4F"
+# the probes of each section, by controller; the entry of a probe is p2d_<controller>_step unless named here
 CONTROLLERS = ("speed", "current")
+SENSING_CONTROLLERS = ("encoder", "field_weakening", "speed_fw")
+ENTRY = {"speed_fw": "p2d_speed_step_fw"}
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
 QEMU_TIMEOUT_S = 120
 # the configuration with the issue's target: <= 60 instructions per step, <= 1 KiB flash
@@ -243,7 +249,7 @@ def measure(build_dir, workdir):
         # probe <index> <controller> <description...> <point> stack <bytes>
         index = int(probe[1], 16)
         controller = probe[2]
-        entry = funcs[f"p2d_{controller}_step"][0]
+        entry = funcs[ENTRY.get(controller, f"p2d_{controller}_step")][0]
         first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
         path = pcs[first:end]
         rows.append(
@@ -271,11 +277,20 @@ def measure(build_dir, workdir):
             "p2d_current_init",
             "p2d_inertia_step",
             "p2d_inertia_init",
+            "p2d_speed_step_fw",
+            "p2d_encoder_step",
+            "p2d_encoder_init",
+            "p2d_field_weakening_step",
+            "p2d_field_weakening_init",
         )
     }
-    for module, kind in (("speed", "controller"), ("current", "controller"), ("inertia", "estimator")):
-        entries = [f for f in funcs if f.startswith(f"p2d_{module}_")]
-        flash[f"{module} {kind} (all p2d_{module}_*)"] = flash_of(set().union(*(reachable(calls, f) for f in entries)))
+    for controller in ("speed", "current", "encoder", "field_weakening"):
+        entries = [f for f in funcs if f.startswith(f"p2d_{controller}_")]
+        flash[f"{controller} controller (all p2d_{controller}_*)"] = flash_of(
+            set().union(*(reachable(calls, f) for f in entries))
+        )
+    entries = [f for f in funcs if f.startswith("p2d_inertia_")]
+    flash["inertia estimator (all p2d_inertia_*)"] = flash_of(set().union(*(reachable(calls, f) for f in entries)))
 
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
@@ -341,10 +356,10 @@ def report(m):
         "|---|---:|---|",
     ]
     for root, (size, reach) in m["flash"].items():
-        if "inertia" not in root:
+        if not is_sensing(root) and "inertia" not in root:
             out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
     out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
-    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if not t.startswith("p2d_inertia")]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if not is_sensing(t) and not t.startswith("p2d_inertia")]
     rows = [r for r in m["rows"] if r["key"][0] in CONTROLLERS]
     stack = {}
     for r in rows:
@@ -507,6 +522,58 @@ def commission_report(m):
         + ", ".join(f"{f} {m['funcs'][f][1]}" for f in m["flash"]["p2d_commission_step"][1])
         + ".",
     ]
+
+
+def is_sensing(name):
+    """Whether a struct, entry or flash row belongs to the speed sensing and field weakening section."""
+    return any(k in name for k in ("encoder", "field_weakening", "_fw"))
+
+
+def report_sensing(m):
+    """The markdown section of the speed sensing and field weakening."""
+    out = [
+        SENSING_SECTION,
+        "",
+        measured_by("python3 benchmarks/footprint.py") + " (the same build and trace as the section above).",
+        "",
+        "Encoder: 10000 counts/rev on a 16-bit timer read at 1 kHz, a step across the timer's wrap "
+        "(csrc/include/pmsm2dof/encoder.h). Field weakening: 10 kHz on a 48 V link, Tustin "
+        "(csrc/include/pmsm2dof/field_weakening.h). `p2d_speed_step_fw`: the speed step of the table above "
+        "(Tustin, back calculation, lowpass feedforward) with id_fw = -4 A of 7.6 A.",
+        "",
+        "### Instructions executed by one step (QEMU trace; callees included)",
+        "",
+        "| entry | configuration | point | instructions | vdiv+vsqrt | stack (bytes) |",
+        "|---|---|---|---:|---:|---:|",
+    ]
+    for r in m["rows"]:
+        controller = r["key"][0]
+        if controller not in SENSING_CONTROLLERS:
+            continue
+        config = " ".join(k for k in r["key"][1:] if k != "-")
+        out.append(
+            f"| `{ENTRY.get(controller, f'p2d_{controller}_step')}` | {config} | {r['point']} | {r['count']} "
+            f"| {r['divides']} | {r['stack']} |"
+        )
+    plain = {r["point"]: r["count"] for r in m["rows"] if r["key"] == TARGET}
+    fw = {r["point"]: r["count"] for r in m["rows"] if r["key"] == ("speed_fw", *TARGET[1:])}
+    out += [
+        "",
+        f"The field-weakening entry costs {fw['unsaturated'] - plain['unsaturated']} (unsaturated) and "
+        f"{fw['saturated'] - plain['saturated']} (saturated) instructions more than `p2d_speed_step` "
+        f"({plain['unsaturated']} / {plain['saturated']}, unchanged): the q current that remains, a square root, "
+        "and the compute/update split.",
+        "",
+        "### Flash reachable from an entry point (static call graph, newlib included, bytes)",
+        "",
+        "| entry | flash | functions |",
+        "|---|---:|---|",
+    ]
+    for root, (size, reach) in m["flash"].items():
+        if is_sensing(root):
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+    out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if is_sensing(t)]
     return "\n".join(out) + "\n"
 
 
@@ -572,13 +639,14 @@ def main(argv=None):
     args = parser.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
         build_dir = (args.build_dir or Path(tmp) / "build").resolve()
-        m = measure(build_dir, Path(tmp))
+        measured = measure(build_dir, Path(tmp))
         commission_text = commission_report(commission_measure(build_dir, Path(tmp)))
-    text, inertia_text = report(m), inertia_report(m)
+    text, sensing, inertia_text = report(measured), report_sensing(measured), inertia_report(measured)
     write_section(SECTION, text)
+    write_section(SENSING_SECTION, sensing)
     write_section(INERTIA_SECTION, inertia_text)
     write_section(COMMISSION_SECTION, commission_text)
-    print(text + "\n" + inertia_text + "\n" + commission_text)
+    print(text + "\n" + sensing + "\n" + inertia_text + "\n" + commission_text)
     return 0
 
 

@@ -1,21 +1,24 @@
 """Bounded fuzzing of the C controllers and estimator with libFuzzer under ASan and UBSan.
 
-The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c, fuzz_commission.c and
-fuzz_inertia.c decode random configurations and input sequences and abort on
-any violated invariant (output finite and within I_max or u_dc/sqrt(3),
-integrator bounds under back calculation and clamping, atomic parameter
-updates, no poisoned state; the commissioning routine's phases, its trip, and
-estimates that match the motor when it ends; the estimator's covariance within
-its prior and its outputs within their bounds; see RELIABILITY.md). Each runs
-for a bounded time from a copy of the checked-in seed corpus; the executions
-are printed (pytest -s shows them).
+The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c, fuzz_commission.c,
+fuzz_encoder.c, fuzz_field_weakening.c and fuzz_inertia.c decode random
+configurations and input sequences and abort on any violated invariant (output
+finite and within I_max or u_dc/sqrt(3), integrator bounds under back
+calculation and clamping, counter increments and estimator bounds, atomic
+parameter updates, no poisoned state; the commissioning routine's phases, its
+trip, and estimates that match the motor when it ends; the inertia estimator's
+covariance within its prior and its outputs within their bounds; see
+RELIABILITY.md). Each runs for a bounded time from a copy of the checked-in
+seed corpus; the executions are printed (pytest -s shows them).
 
-Mutants of the controllers, the commissioning routine and the estimator (the
+Mutants of the controllers, the estimators and the commissioning routine (the
 non-finite policy of the update removed, clamping that never holds, a voltage
-limit that is never active, no overcurrent trip, a NaN current let through;
-the estimator's non-finite policy removed, its forgetting without the bound of
-the prior, its output without the bound of J_max) show that the invariants
-catch real faults: each is caught by replaying the seed corpus alone.
+limit that is never active, no overcurrent trip, a NaN current let through, an
+encoder increment read unsigned, an unlimited field-weakening current, a
+field-weakening torque limit that ignores the d current; the inertia
+estimator's non-finite policy removed, its forgetting without the bound of the
+prior, its output without the bound of J_max) show that the invariants catch
+real faults: each is caught by replaying the seed corpus alone.
 
 P2D_FUZZ_SECONDS sets the time per target (default 25 s).
 """
@@ -36,6 +39,7 @@ CSRC = ROOT / "csrc"
 CORPUS = CSRC / "fuzz" / "corpus"
 FUZZ_SECONDS = int(os.environ.get("P2D_FUZZ_SECONDS", "25"))
 SANITIZE = ["-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all", "-g", "-O1"]
+TARGETS = ("speed", "current", "commission", "encoder", "field_weakening", "inertia")
 
 
 def _libfuzzer_missing(tmp_path):
@@ -75,18 +79,7 @@ def fuzz_build(tmp_path_factory):
             "-DP2D_FUZZ=ON",
             "-DCMAKE_BUILD_TYPE=RelWithDebInfo",
         ],
-        [
-            "cmake",
-            "--build",
-            str(build),
-            "--target",
-            "fuzz_speed",
-            "fuzz_current",
-            "fuzz_commission",
-            "fuzz_inertia",
-            "-j",
-            "2",
-        ],
+        ["cmake", "--build", str(build), "--target", *(f"fuzz_{t}" for t in TARGETS), "-j", "2"],
     ):
         result = subprocess.run(command, capture_output=True, text=True)
         assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
@@ -101,7 +94,7 @@ def _stats(stderr):
     return int(runs.group(1)), int(runs.group(2)), int(done.group(3)), int(done.group(2))
 
 
-@pytest.mark.parametrize("target", ["speed", "current", "commission", "inertia"])
+@pytest.mark.parametrize("target", TARGETS)
 def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
     corpus = tmp_path / "corpus"
     shutil.copytree(CORPUS / target, corpus)
@@ -181,6 +174,20 @@ MUTANTS = {
         "inertia",
         "inertia.c",
         [("out->J_kgm2 = clamp(J, c->J_min_kgm2, c->J_max_kgm2);", "out->J_kgm2 = J;")],
+    ),
+    # the counter increment is not read as a signed number: a step back wraps to a huge forward one
+    "encoder_no_wrap": (
+        "encoder",
+        "encoder.c",
+        [("dn = d >= c->counter_half ? -(int32_t)(c->counter_mask - d) - 1 : (int32_t)d;", "dn = (int32_t)d;")],
+    ),
+    # the field weakening's output is not limited to [id_min, 0]
+    "field_weakening_no_limit": ("field_weakening", "field_weakening.c", [("id = id_limited(c, v);", "id = v;")]),
+    # the speed controller's field-weakening entry keeps the full torque limit: the current leaves the circle
+    "speed_fw_full_limit": (
+        "field_weakening",
+        "speed.c",
+        [("fw_torque_limit(c, id, iq_max), out)", "c->T_max_Nm, out)")],
     ),
 }
 

@@ -69,6 +69,13 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_STOP_OVERCURRENT] = {"", "the current exceeds ten times the larger of the current limit and "
                                       "the short-circuit current psi_f / min(Ld, Lq)"},
     [P2D_SIM_STOP_CONTROLLER_FAULT] = {"", "a controller's output became non-finite (non-finite policy)"},
+    [P2D_SIM_ERR_SPEED_SENSOR] = {"speed_sensor", "model ideal (0) or encoder (1), finite delay_s in [0, 2046 "
+                                                  "Ts_current_s], finite noise_rms_radps >= 0, an encoder "
+                                                  "accepted by p2d_encoder_init (see controller_status)"},
+    [P2D_SIM_ERR_CURRENT_SENSOR] = {"current_sensor", "finite gain errors > -1, finite offsets, finite "
+                                                      "noise_rms_A >= 0; all 0 with first_order"},
+    [P2D_SIM_ERR_FIELD_WEAKENING] = {"field_weakening", "disabled with first_order; a regulator accepted by "
+                                                        "p2d_field_weakening_init (see controller_status)"},
     [P2D_SIM_ERR_ESTIMATOR] = {"adapt.config", "accepted by p2d_inertia_init (see controller_status)"},
     [P2D_SIM_ERR_ADAPT_REL_CHANGE] = {"adapt.adapt_rel_change", "finite and >= 0"},
     [P2D_SIM_ERR_E_QUIET] = {"adapt.e_quiet_radps", "finite and >= 0"},
@@ -265,8 +272,8 @@ static bool fault_active(const p2d_sim_t *sim, const p2d_fault_t *f, double leng
     return t_s >= f->t_s - sim->t_tol_s && t_s < f->t_s + length_s - sim->t_tol_s;
 }
 
-/* The speed the speed controller reads at t_k: the first active sensor fault's, else w_m. */
-static double speed_reading(const p2d_sim_t *sim, double t_k_s)
+/* The speed the speed controller reads at t_k: the first active sensor fault's, else the sensor's reading. */
+static double speed_reading(const p2d_sim_t *sim, double t_k_s, double w_sensor_radps)
 {
     const double Ts_speed_s = (double)sim->cfg.current_per_speed * sim->cfg.Ts_current_s;
     for (uint32_t i = 0; i < sim->cfg.n_faults; ++i) {
@@ -276,7 +283,7 @@ static double speed_reading(const p2d_sim_t *sim, double t_k_s)
         /* a spike is the one speed sample in [t_s, t_s + Ts_speed) */
         if (f->kind == P2D_FAULT_SENSOR_SPIKE && fault_active(sim, f, Ts_speed_s, t_k_s)) return f->value;
     }
-    return sim->pmsm.w_m_radps;
+    return w_sensor_radps;
 }
 
 /* The DC link over the current period starting at t: value u_dc under the first active sag, else u_dc. */
@@ -351,8 +358,8 @@ static P2D_SIM_INLINE p2d_plant_x_t plant_x_step(p2d_plant_x_t x, double c, p2d_
 }
 
 /* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
-static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, double h, double a,
-                                    double b, double T0_Nm, double dT_dt_Nmps)
+static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool angle, double h,
+                                    double a, double b, double T0_Nm, double dT_dt_Nmps)
 {
     p2d_pmsm_t *m = &sim->pmsm;
     p2d_plant_x_t x = {m->id_A, m->iq_A, m->w_m_radps};
@@ -365,13 +372,15 @@ static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, b
     m->id_A = x.id_A + h / 6.0 * (k1.id_A + 2.0 * k2.id_A + 2.0 * k3.id_A + k4.id_A);
     m->iq_A = x.iq_A + h / 6.0 * (k1.iq_A + 2.0 * k2.iq_A + 2.0 * k3.iq_A + k4.iq_A);
     m->w_m_radps = x.w_m_radps + h / 6.0 * (k1.w_m_radps + 2.0 * k2.w_m_radps + 2.0 * k3.w_m_radps + k4.w_m_radps);
+    /* RK4 of dtheta/dt = w_m over the stages above: theta + h w_m + h^2 (k1 + k2 + k3) / 6 (speed rates) */
+    if (angle) m->theta_m_rad += h * x.w_m_radps + h * h / 6.0 * (k1.w_m_radps + k2.w_m_radps + k3.w_m_radps);
 }
 
 /*
  * Integrate the plant over the current period starting at t_start with the inputs held, under
  * the current-loop model `model`, with Coulomb friction if `coulomb` (constants at each call).
  */
-static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb,
+static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool angle,
                                                double t_start_s, double a, double b)
 {
     for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
@@ -383,7 +392,7 @@ static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model
             /* split the step at a load breakpoint inside it */
             t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
             h = t_stop - t;
-            rk4_step(sim, model, coulomb, h, a, b, segment_value(&sim->load, t),
+            rk4_step(sim, model, coulomb, angle, h, a, b, segment_value(&sim->load, t),
                      segment_slope(&sim->load, t + 0.5 * h));
             t = t_stop;
         }
@@ -399,17 +408,20 @@ static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model
 static P2D_SIM_NOINLINE void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
 {
     bool coulomb = sim->pmsm.T_coulomb_Nm > 0.0;
-    if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
+    if (sim->sensing.angle) {
+        /* with the rotor angle (sensing.h): one generic copy */
+        plant_advance_model(sim, sim->cfg.current_model, coulomb, true, t_start_s, a, b);
+    } else if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
         if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, false, t_start_s, a, b);
         } else {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, false, t_start_s, a, b);
         }
     } else {
         if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, false, t_start_s, a, b);
         } else {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, false, t_start_s, a, b);
         }
     }
 }
@@ -526,6 +538,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     p2d_sim_status_t status;
     p2d_status_t ctl_status;
     p2d_speed_output_t so;
+    p2d_sensing_check_t sensing;
     double T_hold_Nm, L_min_H;
 
     if (sim == 0 || cfg == 0) return P2D_SIM_ERR_NULL;
@@ -544,6 +557,15 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
             sim->controller_status = ctl_status;
             return P2D_SIM_ERR_CURRENT_CONTROLLER;
         }
+    }
+    sensing =
+        p2d_sensing_check(&cfg->sensing.speed_sensor, &cfg->sensing.current_sensor, &cfg->sensing.field_weakening,
+                          cfg->Ts_current_s, cfg->speed.Ts_s, cfg->current_model == P2D_CURRENT_DQ_PI, &ctl_status);
+    if (sensing != P2D_SENSING_VALID) {
+        sim->controller_status = ctl_status;
+        return sensing == P2D_SENSING_BAD_SPEED_SENSOR     ? P2D_SIM_ERR_SPEED_SENSOR
+               : sensing == P2D_SENSING_BAD_CURRENT_SENSOR ? P2D_SIM_ERR_CURRENT_SENSOR
+                                                           : P2D_SIM_ERR_FIELD_WEAKENING;
     }
 
     if (cfg->adapt.enabled && !is_nonnegative(cfg->adapt.adapt_rel_change)) return P2D_SIM_ERR_ADAPT_REL_CHANGE;
@@ -599,6 +621,9 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     m->w_m_radps = cfg->w_m0_radps;
+    m->theta_m_rad = 0.0;
+    p2d_sensing_init(&sim->sensing, &cfg->sensing.speed_sensor, &cfg->sensing.current_sensor,
+                     &cfg->sensing.field_weakening, cfg->speed.Ts_s, cfg->w_m0_radps);
     T_hold_Nm = friction_Nm(m, m->T_coulomb_Nm > 0.0, cfg->w_m0_radps);
     p2d_speed_reset(&sim->speed, (float)cfg->w_m0_radps, (float)T_hold_Nm);
     p2d_speed_compute(&sim->speed, (float)cfg->w_m0_radps, (float)cfg->w_m0_radps, &so);
@@ -669,16 +694,28 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
         double t_k = (double)sim->n_current * cfg->Ts_current_s;
         bool log_row = sim->n_speed % cfg->log_every == 0u;
         uint32_t n_limited = 0u; /* current periods of this speed sample at the voltage limit */
-        double w_ref;
+        double w_ref, w_sensor;
         p2d_speed_output_t so;
         if (log_row && (log == 0 || sim->n_rows >= log_rows)) return P2D_SIM_ERR_LOG_FULL;
 
         /* speed sample k: reference and speed reading sampled at t_k */
         cursor_advance(&sim->reference, &cfg->reference, t_k + sim->t_tol_s);
         w_ref = segment_value(&sim->reference, t_k);
-        sim->w_meas_radps = speed_reading(sim, t_k);
+        if (!p2d_sensing_speed(&sim->sensing, &cfg->sensing.speed_sensor, sim->n_current, cfg->Ts_current_s,
+                               cfg->w_m0_radps, sim->pmsm.theta_m_rad, sim->pmsm.w_m_radps, &w_sensor)) {
+            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
+        }
+        sim->w_meas_radps = speed_reading(sim, t_k, w_sensor);
         if (cfg->adapt.enabled) p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, w_ref, sim->saturated, &sim->speed);
-        p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
+        if (cfg->sensing.field_weakening.enabled) {
+            float id_fw_A;
+            if (!p2d_sensing_field_weakening(&sim->sensing, sim->u_dc_V, &id_fw_A)) {
+                return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
+            }
+            p2d_speed_step_fw(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, id_fw_A, &so);
+        } else {
+            p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
+        }
         if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
         sim->id_ref_A = (double)so.id_ref_A;
         sim->iq_ref_A = (double)so.iq_ref_A;
@@ -690,17 +727,23 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
             p2d_sim_status_t status;
             if (cfg->current_model == P2D_CURRENT_DQ_PI) {
                 p2d_current_output_t co;
-                double ud_cmd_V, uq_cmd_V, u_dc_V;
+                double ud_cmd_V, uq_cmd_V, u_dc_V, id_meas_A = sim->pmsm.id_A, iq_meas_A = sim->pmsm.iq_A;
                 /* the DC link of this period sets the inverter's range and the controller's measurement */
                 u_dc_V = dc_link_V(sim, t);
                 if (u_dc_V != sim->u_dc_V) {
                     sim->u_dc_V = u_dc_V;
                     inverter_set_range(&sim->inverter, u_dc_V);
                 }
-                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)sim->pmsm.id_A,
-                                    (float)sim->pmsm.iq_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
+                if (sim->sensing.current_sensor) {
+                    p2d_sensing_currents(&sim->sensing, &cfg->sensing.current_sensor, sim->pmsm.id_A, sim->pmsm.iq_A,
+                                         sim->pmsm.pole_pairs * sim->pmsm.theta_m_rad, &id_meas_A, &iq_meas_A);
+                }
+                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)id_meas_A,
+                                    (float)iq_meas_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
                                     (float)sim->u_dc_V, &co);
                 if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
+                sim->sensing.ud_unsat_V = co.ud_unsat_V;
+                sim->sensing.uq_unsat_V = co.uq_unsat_V;
                 n_limited += inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, co.saturated,
                                             &ud_cmd_V, &uq_cmd_V);
                 /* the integrators learn the command the inverter accepted */
@@ -723,6 +766,7 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                 p2d_adapt_torque(&sim->adapt, torque_Nm(&sim->pmsm, sim->pmsm.id_A, sim->pmsm.iq_A));
             plant_advance(sim, t, a, b);
             sim->n_current++;
+            p2d_sensing_record(&sim->sensing, sim->n_current, sim->pmsm.theta_m_rad, sim->pmsm.w_m_radps);
             status = check_state(sim, (double)sim->n_current * cfg->Ts_current_s);
             if (status != P2D_SIM_OK) return status;
         }

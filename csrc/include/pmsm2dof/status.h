@@ -46,6 +46,18 @@ typedef enum {
     P2D_ERR_T_SPIN,        /* t_spin_s */
     P2D_ERR_W_E_SPIN,      /* w_e_spin_radps */
     P2D_ERR_VOLTAGE_DELAY, /* voltage_delay_samples */
+    /* speed from an encoder (encoder.h) */
+    P2D_ERR_ENC_COUNTS_PER_REV, /* counts_per_rev */
+    P2D_ERR_ENC_COUNTER_BITS,   /* counter_bits */
+    P2D_ERR_ENC_ESTIMATOR,      /* estimator */
+    P2D_ERR_ENC_BANDWIDTH,      /* bandwidth_radps */
+    P2D_ERR_ENC_LOWPASS,        /* lowpass_radps */
+    /* field weakening (field_weakening.h) */
+    P2D_ERR_FW_KP,            /* Kp_A_per_V */
+    P2D_ERR_FW_KI,            /* Ki_A_per_Vs */
+    P2D_ERR_FW_KA,            /* Ka_V_per_A */
+    P2D_ERR_FW_VOLTAGE_RATIO, /* voltage_ratio */
+    P2D_ERR_FW_ID_MIN,        /* id_min_A */
     /* inertia estimator (inertia.h) */
     P2D_ERR_J0,           /* J0_kgm2 */
     P2D_ERR_J_MIN,        /* J_min_kgm2 */

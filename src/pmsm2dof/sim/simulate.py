@@ -33,6 +33,16 @@ Faults
     speed for their decoupling. A stall needs no fault: a load above the torque the current limit
     can give. ``speed_meas_rpm`` and ``u_dc_V`` of the :class:`Result` show what was read and applied.
 
+Measurement and field weakening
+    ``[speed_sensor]``: the speed controller reads the true speed or an encoder's counts (from the
+    rotor angle the engine integrates) through the C estimator of ``encoder.h`` (difference or PLL),
+    a low-pass, a transport delay and seeded noise. ``[current_measurement]``: the current
+    controller reads the phase currents with gain errors, offsets and seeded noise, transformed to
+    dq. ``[field_weakening]``: the voltage-feedback regulator of ``field_weakening.h`` sets the
+    d-axis current at each speed sample from the current controller's voltage command, and the
+    speed controller's torque limit follows the q current that remains (``p2d_speed_step_fw``).
+    The defaults (ideal, exact, off) leave the loop as described above (csrc/sim/sensing.h).
+
 Initial state
     In steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
     load; the reference and load schedules apply from t = 0 (entries at t = 0 are steps at 0).
@@ -59,7 +69,17 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import numpy.typing as npt
 
-from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDFORWARDS, LOG_COLUMNS, METHODS, pi_gains
+from ..core import (
+    ANTI_WINDUPS,
+    CURRENT_LOOP_MODELS,
+    ESTIMATORS,
+    FAULT_KINDS,
+    FEEDFORWARDS,
+    LOG_COLUMNS,
+    METHODS,
+    SPEED_SENSOR_MODELS,
+    pi_gains,
+)
 from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, SimulationError
 from ..outputs import atomic_write
@@ -130,6 +150,21 @@ _CURRENT_KEYS = {
     "anti_windup": "current_loop.anti_windup",
 }
 
+#: Scenario key of each field that the C encoder (speed_sensor) or field weakening init can reject.
+_SENSING_KEYS = {
+    "counts_per_rev": "speed_sensor.counts_per_rev",
+    "counter_bits": "speed_sensor.counter_bits",
+    "estimator": "speed_sensor.estimator",
+    "bandwidth_radps": "speed_sensor.bandwidth_radps",
+    "lowpass_radps": "speed_sensor.lowpass_radps",
+    "Ts_s": "speed_controller.Ts_s",
+    "Kp_A_per_V": "field_weakening.Kp_A_per_V",
+    "Ki_A_per_Vs": "field_weakening.Ki_A_per_Vs",
+    "Ka_V_per_A": "field_weakening.Ka_V_per_A",
+    "voltage_ratio": "field_weakening.voltage_ratio",
+    "id_min_A": "field_weakening.id_min_A",
+}
+
 #: Scenario key of each field that p2d_sim_init can reject (p2d_sim_status_param).
 _SIM_KEYS = {
     "motor.pole_pairs": "motor.pole_pairs",
@@ -153,6 +188,9 @@ _SIM_KEYS = {
     "faults": "fault",
     "adapt.adapt_rel_change": "estimator.adapt_rel_change",
     "adapt.e_quiet_radps": "estimator.adapt_error_rpm",
+    "speed_sensor": "speed_sensor",
+    "current_sensor": "current_measurement",
+    "field_weakening": "field_weakening",
 }
 
 #: Scenario key of each field that the C inertia estimator init can reject (the estimator block).
@@ -196,8 +234,9 @@ class Result:
     load_Nm : load torque [Nm]
     saturated : the current-vector limit is active (bool)
     x_i_Nm : integrator of the speed PI after the sample's update [Nm]
-    speed_meas_rpm : speed reading sampled by the speed controller (differs from speed_rpm only
-        under a sensor fault) [rpm]
+    speed_meas_rpm : speed reading sampled by the speed controller: the ``[speed_sensor]``'s reading
+        (encoder estimate, low-pass, delay, noise; the true speed with the default ideal sensor), or a
+        sensor fault's [rpm]
     u_dc_V : DC-link voltage over the current period that starts at the row (nominal but under a
         DC-link sag) [V]
     voltage_limited : share of the current periods of the row's speed sample whose voltage was cut
@@ -424,6 +463,7 @@ class Simulation:
         c.method = METHODS.index(cl["method"])
         c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
         c.decouple = cl["decouple"]
+        _sensing(cfg, data)
 
         _estimator(cfg, data)
 
@@ -471,6 +511,10 @@ class Simulation:
         return node
 
     def _raise_config(self, status: int) -> None:
+        if status in (lib.P2D_SIM_ERR_SPEED_SENSOR, lib.P2D_SIM_ERR_FIELD_WEAKENING) and self.sim.controller_status:
+            ctl = self.sim.controller_status
+            key = _SENSING_KEYS[c_string(lib.p2d_status_param(ctl))]
+            raise ConfigError(key, self._value(key), c_string(lib.p2d_status_range(ctl)))
         if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER, lib.P2D_SIM_ERR_ESTIMATOR):
             ctl = self.sim.controller_status
             field = c_string(lib.p2d_status_param(ctl))
@@ -569,3 +613,35 @@ def _estimator(cfg: Any, data: Mapping[str, Any]) -> None:
     c.J_memory_s = est["J_memory_s"]
     c.J_rel_sd_max = est["J_rel_sd_max"]
     c.speed_is_period_mean = est["speed_is_period_mean"]
+
+
+def _sensing(cfg: Any, data: Mapping[str, Any]) -> None:
+    """Fill the speed sensor, current measurement and field weakening of ``cfg`` (csrc/sim/sensing.h)."""
+    ss, cm, fw = data["speed_sensor"], data["current_measurement"], data["field_weakening"]
+    sensor = cfg.sensing.speed_sensor
+    sensor.model = SPEED_SENSOR_MODELS.index(ss["model"])
+    sensor.encoder.counts_per_rev = ss["counts_per_rev"]
+    sensor.encoder.counter_bits = ss["counter_bits"]
+    sensor.encoder.estimator = ESTIMATORS.index(ss["estimator"])
+    sensor.encoder.bandwidth_radps = 0.0 if ss["bandwidth_radps"] is None else ss["bandwidth_radps"]
+    sensor.encoder.lowpass_radps = ss["lowpass_radps"]
+    sensor.delay_s = ss["delay_s"]
+    sensor.noise_rms_radps = ss["noise_rpm_rms"] / RPM_PER_RADPS
+    sensor.seed = ss["seed"]
+    meas = cfg.sensing.current_sensor
+    for key in ("gain_error_a", "gain_error_b", "offset_a_A", "offset_b_A", "seed"):
+        setattr(meas, key, cm[key])
+    meas.noise_rms_A = cm["noise_A_rms"]
+    cfg.sensing.field_weakening.enabled = fw["enabled"]
+    if fw["enabled"]:
+        reg = cfg.sensing.field_weakening.config
+        Ts_s = data["speed_controller"]["Ts_s"]
+        reg.Kp_A_per_V = fw["Kp_A_per_V"]
+        reg.Ki_A_per_Vs = fw["Ki_A_per_Vs"]
+        # absent: Ki Ka Ts = 1, the back-calculation's own time constant one sample
+        reg.Ka_V_per_A = 1.0 / (fw["Ki_A_per_Vs"] * Ts_s) if fw["Ka_V_per_A"] is None else fw["Ka_V_per_A"]
+        reg.Ts_s = Ts_s
+        reg.voltage_ratio = fw["voltage_ratio"]
+        reg.id_min_A = -data["limits"]["i_max_A"] if fw["id_min_A"] is None else fw["id_min_A"]
+        reg.method = METHODS.index("tustin")
+        reg.anti_windup = ANTI_WINDUPS.index("back_calculation")
