@@ -522,6 +522,7 @@ def commission_report(m):
         + ", ".join(f"{f} {m['funcs'][f][1]}" for f in m["flash"]["p2d_commission_step"][1])
         + ".",
     ]
+    return "\n".join(out) + "\n"
 
 
 def is_sensing(name):
