@@ -1,22 +1,24 @@
-"""Bounded fuzzing of the C controllers with libFuzzer under ASan and UBSan.
+"""Bounded fuzzing of the C controllers and estimator with libFuzzer under ASan and UBSan.
 
 The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c, fuzz_commission.c,
-fuzz_encoder.c and fuzz_field_weakening.c decode random configurations and
-input sequences and abort on any violated invariant (output finite and within
-I_max or u_dc/sqrt(3), integrator bounds under back calculation and clamping,
-counter increments and estimator bounds, atomic parameter updates, no poisoned
-state; the commissioning routine's phases, its trip, and estimates that match
-the motor when it ends; see RELIABILITY.md). Each runs for a bounded time from
-a copy of the checked-in seed corpus; the executions are printed (pytest -s
-shows them).
+fuzz_encoder.c, fuzz_field_weakening.c and fuzz_inertia.c decode random
+configurations and input sequences and abort on any violated invariant (output
+finite and within I_max or u_dc/sqrt(3), integrator bounds under back
+calculation and clamping, counter increments and estimator bounds, atomic
+parameter updates, no poisoned state; the commissioning routine's phases, its
+trip, and estimates that match the motor when it ends; the inertia estimator's
+covariance within its prior and its outputs within their bounds; see
+RELIABILITY.md). Each runs for a bounded time from a copy of the checked-in
+seed corpus; the executions are printed (pytest -s shows them).
 
 Mutants of the controllers, the estimators and the commissioning routine (the
 non-finite policy of the update removed, clamping that never holds, a voltage
 limit that is never active, no overcurrent trip, a NaN current let through, an
 encoder increment read unsigned, an unlimited field-weakening current, a
-field-weakening torque limit that ignores the d current) show that the
-invariants catch real faults: each is caught by replaying the seed corpus
-alone.
+field-weakening torque limit that ignores the d current; the inertia
+estimator's non-finite policy removed, its forgetting without the bound of the
+prior, its output without the bound of J_max) show that the invariants catch
+real faults: each is caught by replaying the seed corpus alone.
 
 P2D_FUZZ_SECONDS sets the time per target (default 25 s).
 """
@@ -40,7 +42,7 @@ FUZZ_SECONDS = int(os.environ.get("P2D_FUZZ_SECONDS", "25"))
 #: finding is replayed by the same seed); P2D_FUZZ_SEED=0 lets libFuzzer pick one, for exploration.
 FUZZ_SEED = int(os.environ.get("P2D_FUZZ_SEED", "1"))
 SANITIZE = ["-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all", "-g", "-O1"]
-TARGETS = ("speed", "current", "commission", "encoder", "field_weakening")
+TARGETS = ("speed", "current", "commission", "encoder", "field_weakening", "inertia")
 
 
 def _libfuzzer_missing(tmp_path):
@@ -158,6 +160,24 @@ MUTANTS = {
         "commission",
         "commission.c",
         [("if (!isfinite(id_A) || !isfinite(iq_A) || !isfinite(u_dc_V)) {", "if (!isfinite(u_dc_V)) {")],
+    ),
+    # the estimator takes NaN and inf in, and keeps what overflows
+    "inertia_nan_state": (
+        "inertia",
+        "inertia.c",
+        [
+            ("if (!isfinite(w_m_radps) || !isfinite(T_e_Nm)) {", "if (0) {"),
+            ("if (!isfinite(wF) ||", "if (0 && (!isfinite(wF) ||"),
+            ("!isfinite(residual_sd)) {", "!isfinite(residual_sd))) {"),
+        ],
+    ),
+    # no variance is brought back onto its prior: the covariance winds up without excitation
+    "inertia_windup": ("inertia", "inertia.c", [("if (P <= sd0 * sd0) {", "if (1) {")]),
+    # the output of J is not limited to [J_min, J_max]
+    "inertia_no_output_limit": (
+        "inertia",
+        "inertia.c",
+        [("out->J_kgm2 = clamp(J, c->J_min_kgm2, c->J_max_kgm2);", "out->J_kgm2 = J;")],
     ),
     # the counter increment is not read as a signed number: a step back wraps to a huge forward one
     "encoder_no_wrap": (

@@ -8,8 +8,9 @@
   every time and the speed loop every 10th time.
 - Golden vectors: input sequences generated here run through the speed and the
   current controller, for every method, feedforward form and anti-windup mode,
-  the speed controller's field-weakening entry, the encoder speed estimators
-  and the field weakening, on QEMU (``-M mps2-an386``, a Cortex-M4F) and on the host through
+  the speed controller's field-weakening entry, the encoder speed estimators,
+  the field weakening and the inertia estimator (sampled and period-mean speeds,
+  memories from short to long), on QEMU (``-M mps2-an386``, a Cortex-M4F) and on the host through
   ``pmsm2dof._core`` (the simulation engine). Every float32 output and state
   word must be equal to the bit. Both builds keep a*b+c unfused
   (``-ffp-contract=off``; the x86-64 host has no FMA at the default ISA level),
@@ -117,6 +118,36 @@ FW_FIELDS = ("u_ref_V", "e_V", "id_unsat_A", "id_ref_A", "active", "at_id_min", 
 # the encoder reads integers only: every word is finite and must match; the field weakening holds its state finite
 ENCODER_EXACT = set(ENCODER_FIELDS)
 FW_EXACT = {"id_ref_A", "active", "at_id_min", "fault", "x_A", "fault_count"}
+INERTIA_OUTPUT_FIELDS = (
+    "J_kgm2",
+    "J_sd_kgm2",
+    "B_Nms",
+    "T_load_Nm",
+    "residual_Nm",
+    "residual_sd_Nm",
+    "J_valid",
+    "updated",
+    "fault",
+)
+INERTIA_STATE_FIELDS = (
+    "T_load_Nm",
+    "J_kgm2",
+    "B_Nms",
+    "U_LJ_per_s2",
+    "U_LB_per_s",
+    "U_JB_s",
+    "D_L_N2m2",
+    "D_J_kg2m4",
+    "D_B_N2m2s2",
+    "wF_radps",
+    "w0_radps",
+    "TF_Nm",
+    "oneF",
+    "T_prev_Nm",
+    "nis",
+    "primed",
+    "fault_count",
+)
 
 
 def run(cmd, timeout=BUILD_TIMEOUT_S, **kwargs):
@@ -239,6 +270,31 @@ def current_inputs(rng, cfg):
     return x
 
 
+def inertia_cases(rng):
+    """p2d_inertia_config_t of a small servo, with sampled and period-mean speeds and memories from 5 Ts up."""
+    cases = []
+    for period_mean in (False, True):
+        for J_memory_s, load_memory_s in ((10.0, 0.5), (0.005, 0.005), (1e3, 0.05)):
+            J0 = rng.uniform(0.005, 0.05)
+            cases.append(
+                dict(
+                    Ts_s=f32(1e-3),
+                    J0_kgm2=f32(J0),
+                    J_min_kgm2=f32(J0 / 10),
+                    J_max_kgm2=f32(J0 * 10),
+                    B_max_Nms=f32(rng.uniform(0.005, 0.05)),
+                    T_load_max_Nm=f32(rng.uniform(1.0, 5.0)),
+                    sigma_T_Nm=f32(rng.uniform(0.005, 0.1)),
+                    J_memory_s=f32(J_memory_s),
+                    load_memory_s=f32(load_memory_s),
+                    w_f_radps=f32(rng.uniform(10.0, 200.0)),
+                    J_rel_sd_max=f32(0.05),
+                    speed_is_period_mean=period_mean,
+                )
+            )
+    return cases
+
+
 def encoder_cases():
     """p2d_encoder_config_t of each estimator, counter width and low-pass (10000-count encoder at 1 kHz and others)."""
 
@@ -293,6 +349,19 @@ def fw_cases(rng):
     return cases
 
 
+def inertia_inputs(rng, cfg):
+    """(SAMPLES, 2) float32: speed and torque of a rigid drive J = 2 J0 under torque steps, quantized speed."""
+    J, Ts = 2.0 * cfg["J0_kgm2"], cfg["Ts_s"]
+    T = steps(rng, -cfg["T_load_max_Nm"], cfg["T_load_max_Nm"], segments=8)
+    w = np.concatenate(([0.0], np.cumsum(Ts / J * (T[1:] - 0.3 * cfg["T_load_max_Nm"]))))
+    w = np.round(w / 0.4) * 0.4 + 0.01 * rng.standard_normal(SAMPLES)  # a coarse speed resolution
+    x = np.stack([w, T + 0.02 * rng.standard_normal(SAMPLES)], axis=1).astype(np.float32)
+    x[30, 0] = np.nan  # speed measurement lost
+    x[50, 1] = np.inf  # torque overflow
+    x[70, 0] = 3e38  # an update that overflows
+    return x
+
+
 def fw_inputs(rng):
     """(SAMPLES, 3) float32: ud, uq (magnitude steps around the range of the DC link), u_dc."""
     norm = steps(rng, 5.0, 45.0)
@@ -327,6 +396,7 @@ def c_value(value):
 def vectors_header(v):
     """Text of p2d_target_vectors.h (see csrc/target/target_vectors.c) for the vectors v."""
     speed, speed_in, current, current_in = v["speed"], v["speed_in"], v["current"], v["current_in"]
+    inertia, inertia_in = v["inertia"], v["inertia_in"]
     speed_enums = dict(method="p2d_method_t", feedforward="p2d_feedforward_t", anti_windup="p2d_anti_windup_t")
 
     def config(cfg, enums):
@@ -344,6 +414,7 @@ def vectors_header(v):
         f"#define P2D_VEC_SAMPLES {SAMPLES}u",
         f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
         f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
+        f"#define P2D_VEC_INERTIA_CASES {len(inertia)}u",
         "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
         ",\n".join(config(c, speed_enums) for c in speed),
         "};",
@@ -373,6 +444,12 @@ def vectors_header(v):
         "static const uint32_t p2d_vec_fw_input[P2D_VEC_FW_CASES][P2D_VEC_SAMPLES][3] = {",
         ",\n".join(words(x) for x in v["fw_in"]),
         "};",
+        "static const p2d_inertia_config_t p2d_vec_inertia_config[P2D_VEC_INERTIA_CASES] = {",
+        ",\n".join(config(c, {}) for c in inertia),
+        "};",
+        "static const uint32_t p2d_vec_inertia_input[P2D_VEC_INERTIA_CASES][P2D_VEC_SAMPLES][2] = {",
+        ",\n".join(words(x) for x in inertia_in),
+        "};",
         "",
     ]
     return "\n".join(text)
@@ -395,6 +472,9 @@ def vectors():
     v["encoder_in"] = [encoder_inputs(rng, c) for c in v["encoder"]]
     v["fw"] = fw_cases(rng)
     v["fw_in"] = [fw_inputs(rng) for _ in v["fw"]]
+    inertia_rng = np.random.default_rng(20261124)  # its own stream: the controllers' vectors stay as they were
+    v["inertia"] = inertia_cases(inertia_rng)
+    v["inertia_in"] = [inertia_inputs(inertia_rng, c) for c in v["inertia"]]
     return v
 
 
@@ -484,6 +564,20 @@ def host_current(cfg, inputs):
             lib.p2d_current_compute(ctl, id_ref, iq_ref, id_, iq, w_e, u_dc, out)
             lib.p2d_current_update(ctl, out, limit(out.ud_ref_V, lim), limit(out.uq_ref_V, lim))
             rows.append([word(out[0], f) for f in CURRENT_FIELDS[:8]] + [word(ctl[0], f) for f in CURRENT_FIELDS[8:]])
+    return status, rows
+
+
+def host_inertia(cfg, inputs):
+    est = ffi.new("p2d_inertia_t *")
+    status = lib.p2d_inertia_init(est, ffi.new("p2d_inertia_config_t *", cfg))
+    rows = []
+    if status == 0:
+        for w_m, T_e in inputs.tolist():
+            out = ffi.new("p2d_inertia_output_t *")
+            lib.p2d_inertia_step(est, w_m, T_e, out)
+            rows.append(
+                ([word(out[0], f) for f in INERTIA_OUTPUT_FIELDS], [word(est[0], f) for f in INERTIA_STATE_FIELDS])
+            )
     return status, rows
 
 
@@ -618,7 +712,7 @@ def is_nan(w):
 
 def parse_target_output(text):
     """({tag: {case: status}}, {tag: {(case, k): [words]}}) of target_vectors.c's output."""
-    status, rows = {t: {} for t in "SCFEW"}, {t: {} for t in "SCFEW"}
+    status, rows = {t: {} for t in "SCFEWJ"}, {t: {} for t in "SCFEWJK"}
     for line in text.splitlines():
         p = line.split()
         if len(p) == 4 and p[0] == "I":
@@ -692,3 +786,44 @@ def path_of(tag, row):
     if tag == "W":
         return "fault" if row["fault"] else "at_id_min" if row["at_id_min"] else "weakening" if row["active"] else "off"
     return "fault" if row["fault"] else "saturated" if row["saturated"] else "unsaturated"
+
+
+@needs_cross
+@needs_qemu
+def test_inertia_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
+    """The estimator's outputs and its whole state, every sample, on QEMU and on the host: equal words.
+
+    Its state is finite by the non-finite policy, so every word must match to the bit; so must the outputs.
+    """
+    elf = cross_build / "target" / "p2d_target_vectors"
+    done = subprocess.run(
+        [*QEMU, "-kernel", str(elf)], capture_output=True, text=True, timeout=QEMU_TIMEOUT_S, stdin=subprocess.DEVNULL
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    target_status, target_rows = parse_target_output(done.stderr)
+    mismatches, seen = [], {"updated": 0, "fault": 0, "valid": 0}
+    for c, (cfg, x) in enumerate(zip(vectors["inertia"], vectors["inertia_in"])):
+        status, host_rows = host_inertia(cfg, x)
+        assert status == 0 and target_status["J"][c] == 0, (c, status, target_status["J"].get(c), cfg)
+        for k, (host_out, host_state) in enumerate(host_rows):
+            for tag, fields, host in (("J", INERTIA_OUTPUT_FIELDS, host_out), ("K", INERTIA_STATE_FIELDS, host_state)):
+                row = target_rows[tag][(c, k)]
+                assert len(row) == len(fields), (tag, c, k, row)
+                mismatches += [
+                    f"{tag} case {c} sample {k} {name}: target {t:08x}, host {h:08x} ({cfg})"
+                    for name, h, t in zip(fields, host, row)
+                    if h != t
+                ]
+            named = dict(zip(INERTIA_OUTPUT_FIELDS, host_out))
+            seen["updated"] += named["updated"]
+            seen["fault"] += named["fault"]
+            seen["valid"] += named["J_valid"]
+    assert len(target_rows["J"]) == len(target_rows["K"]) == len(vectors["inertia"]) * SAMPLES
+    assert not mismatches, (
+        f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
+        "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20])
+    )
+    # the vectors went through updates, faults and valid estimates
+    assert seen["fault"] >= 3 * len(vectors["inertia"]) and seen["updated"] > 50 * len(vectors["inertia"]), seen
+    print(f"\ninertia golden vectors: {len(vectors['inertia'])} cases x {SAMPLES} samples, {seen}")
+    assert seen["valid"] > 0, seen

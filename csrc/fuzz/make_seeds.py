@@ -1,7 +1,7 @@
-"""Write the seed corpus of the fuzz targets (csrc/fuzz/corpus/{speed,current,commission}).
+"""Write the seed corpus of the fuzz targets (csrc/fuzz/corpus/<target>, one folder per target).
 
-Each seed is a byte string in the input format decoded by fuzz_common.h,
-fuzz_speed.c, fuzz_current.c and fuzz_commission.c: a configuration, then operations. The seeds
+Each seed is a byte string in the input format decoded by fuzz_common.h and the
+fuzz_<target>.c of each target of main(): a configuration, then operations. The seeds
 start the fuzzer from meaningful runs (the paper's drive in closed loop, a
 stall beyond the current limit, parameter updates valid and invalid, NaN and
 inf inputs, odd applied commands) instead of from empty inputs.
@@ -456,6 +456,98 @@ FIELD_WEAKENING_SEEDS = {
 }
 
 
+def inertia_config(period_mean=False, J0=nominal(), J_min=nominal(), J_max=nominal(), J_memory=nominal()):
+    """Inertia estimator configuration around J0 = 0.01 kg m^2 (fuzz_inertia.c)."""
+    out = u8(1 if period_mean else 0) + nominal() + J0 + J_min + J_max  # Ts, J0, J_min, J_max
+    out += nominal() + nominal() + nominal() + J_memory  # B_max, T_load_max, sigma_T, J_memory
+    return out + nominal() + nominal() + nominal()  # load_memory, w_f, J_rel_sd_max
+
+
+def inertia_closed_loop(
+    n,
+    J=0.5,
+    B=0.5,
+    T_load=nominal(),
+    w_amp=nominal(),
+    T_max=nominal(),
+    alpha=0.4,
+    noise=0.0,
+    encoder=False,
+    half_period=250,
+):
+    """A closed-loop run; J is the fraction of the range J0/30 .. 30 J0 (0.5: J0)."""
+    return (
+        u8(CLOSED_LOOP)
+        + u16(n - 1)
+        + fraction(J)
+        + fraction(B)
+        + T_load
+        + w_amp
+        + T_max
+        + fraction(alpha)
+        + fraction(noise)
+        + u8(1 if encoder else 0)
+        + u16(half_period - 1)
+    )
+
+
+def inertia_sample(w_m, T_e):
+    return u8(SAMPLE) + w_m + T_e
+
+
+INERTIA_SEEDS = {
+    # a servo at 1 kHz under a square-wave speed reference, J = J0, then J = 3 J0 with torque noise
+    "servo_closed_loop": inertia_config() + inertia_closed_loop(2048) + inertia_closed_loop(2048, J=0.66, noise=0.5),
+    # an encoder of 16384 counts per turn, speed as the period mean
+    "encoder_period_mean": inertia_config(period_mean=True)
+    + inertia_closed_loop(2048, encoder=True, noise=0.3)
+    + inertia_closed_loop(2048, J=0.3, encoder=True),
+    # the drive at rest for 3 x 2048 samples with a J memory of 0.1 s: J is never excited
+    "low_excitation": inertia_config(J_memory=nominal(0.01))
+    + inertia_closed_loop(2048, T_load=raw(0.0), w_amp=raw(1e-4), half_period=1000)
+    + inertia_closed_loop(2048, T_load=raw(0.0), w_amp=raw(1e-4), half_period=1000)
+    + inertia_closed_loop(2048, T_load=raw(0.0), w_amp=raw(1e-4), half_period=1000),
+    # a drive 30 times heavier than J0 with J_max = J0, after a NaN, an inf and an overflow
+    "beyond_J_max": inertia_config(J_max=nominal(0.1))
+    + inertia_closed_loop(2048, J=1.0, T_max=nominal(20.0))
+    + inertia_sample(special("nan"), nominal())
+    + inertia_sample(nominal(), special("-inf"))
+    + inertia_sample(raw(3e38), nominal())
+    + inertia_closed_loop(1000, J=1.0, T_max=nominal(20.0)),
+    # non-finite and huge inputs, between samples of a drive
+    "nan_inputs": inertia_config()
+    + inertia_closed_loop(300)
+    + inertia_sample(special("nan"), nominal())
+    + inertia_sample(nominal(), special("inf"))
+    + inertia_sample(special("max"), special("-max"))
+    + inertia_sample(raw(3e38), raw(-3e38))
+    + inertia_closed_loop(300),
+    # parameter updates mid-run: J memory x0.1 (valid), J0 NaN (refused), a fresh invalid config,
+    # the speed pairing toggled, reset keeping the estimate, reset to the prior
+    "set_config_mid_run": inertia_config()
+    + inertia_closed_loop(500)
+    + u8(SET_MUTATED)
+    + u8(7)
+    + nominal(0.1)
+    + inertia_closed_loop(500)
+    + u8(SET_MUTATED)
+    + u8(1)
+    + special("nan")
+    + u8(SET_FRESH)
+    + inertia_config(J_min=raw(0.1))
+    + u8(SET_MUTATED)
+    + u8(11)
+    + u8(RESET)
+    + u8(1)
+    + inertia_closed_loop(500)
+    + u8(RESET)
+    + u8(0)
+    + inertia_closed_loop(500),
+    # a configuration init rejects (J_min = 1 kg m^2 > J0)
+    "rejected_init": inertia_config(J_min=raw(1.0)),
+}
+
+
 def main():
     for target, seeds in (
         ("speed", SPEED_SEEDS),
@@ -463,6 +555,7 @@ def main():
         ("commission", COMMISSION_SEEDS),
         ("encoder", ENCODER_SEEDS),
         ("field_weakening", FIELD_WEAKENING_SEEDS),
+        ("inertia", INERTIA_SEEDS),
     ):
         folder = CORPUS / target
         folder.mkdir(parents=True, exist_ok=True)

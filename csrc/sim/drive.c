@@ -76,6 +76,9 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
                                                       "noise_rms_A >= 0; all 0 with first_order"},
     [P2D_SIM_ERR_FIELD_WEAKENING] = {"field_weakening", "disabled with first_order; a regulator accepted by "
                                                         "p2d_field_weakening_init (see controller_status)"},
+    [P2D_SIM_ERR_ESTIMATOR] = {"adapt.config", "accepted by p2d_inertia_init (see controller_status)"},
+    [P2D_SIM_ERR_ADAPT_REL_CHANGE] = {"adapt.adapt_rel_change", "finite and >= 0"},
+    [P2D_SIM_ERR_E_QUIET] = {"adapt.e_quiet_radps", "finite and >= 0"},
 };
 
 static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
@@ -97,6 +100,10 @@ static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
     [P2D_LOG_W_MEAS_RADPS] = "w_meas_radps",
     [P2D_LOG_U_DC_V] = "u_dc_V",
     [P2D_LOG_VOLTAGE_LIMITED] = "voltage_limited",
+    [P2D_LOG_J_EST_KGM2] = "J_est_kgm2",
+    [P2D_LOG_J_VALID] = "J_valid",
+    [P2D_LOG_T_LOAD_EST_NM] = "T_load_est_Nm",
+    [P2D_LOG_J_GAINS_KGM2] = "J_gains_kgm2",
 };
 
 const char *p2d_sim_status_param(p2d_sim_status_t status)
@@ -561,6 +568,14 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
                                                            : P2D_SIM_ERR_FIELD_WEAKENING;
     }
 
+    if (cfg->adapt.enabled && !is_nonnegative(cfg->adapt.adapt_rel_change)) return P2D_SIM_ERR_ADAPT_REL_CHANGE;
+    if (cfg->adapt.enabled && !is_nonnegative(cfg->adapt.e_quiet_radps)) return P2D_SIM_ERR_E_QUIET;
+    ctl_status = p2d_adapt_init(&sim->adapt, &cfg->adapt, (double)cfg->speed.J_kgm2);
+    if (ctl_status != P2D_OK) {
+        sim->controller_status = ctl_status;
+        return P2D_SIM_ERR_ESTIMATOR;
+    }
+
     mp = &cfg->motor;
     m = &sim->pmsm;
     m->pole_pairs = (double)mp->pole_pairs;
@@ -602,6 +617,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->stop_bound = 0.0;
     sim->w_meas_radps = cfg->w_m0_radps;
     sim->u_dc_V = cfg->u_dc_V;
+    sim->saturated = false;
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     m->w_m_radps = cfg->w_m0_radps;
@@ -661,6 +677,10 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
     row[P2D_LOG_U_DC_V * log_rows] = sim->u_dc_V;
     row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* counted over the speed period by the loop */
+    row[P2D_LOG_J_EST_KGM2 * log_rows] = (double)sim->adapt.out.J_kgm2;
+    row[P2D_LOG_J_VALID * log_rows] = sim->adapt.out.J_valid ? 1.0 : 0.0;
+    row[P2D_LOG_T_LOAD_EST_NM * log_rows] = (double)sim->adapt.out.T_load_Nm;
+    row[P2D_LOG_J_GAINS_KGM2 * log_rows] = sim->adapt.J_gains_kgm2;
     sim->n_rows++;
 }
 
@@ -686,6 +706,7 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
             return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
         }
         sim->w_meas_radps = speed_reading(sim, t_k, w_sensor);
+        if (cfg->adapt.enabled) p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, w_ref, sim->saturated, &sim->speed);
         if (cfg->sensing.field_weakening.enabled) {
             float id_fw_A;
             if (!p2d_sensing_field_weakening(&sim->sensing, sim->u_dc_V, &id_fw_A)) {
@@ -698,6 +719,7 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
         if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
         sim->id_ref_A = (double)so.id_ref_A;
         sim->iq_ref_A = (double)so.iq_ref_A;
+        sim->saturated = so.saturated;
 
         for (uint32_t j = 0; j < cfg->current_per_speed; ++j) {
             double t = (double)sim->n_current * cfg->Ts_current_s;
@@ -740,6 +762,8 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                              hypot(ud_log_V, uq_log_V) > sim->inverter.u_max_V;
             }
             if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);
+            if (cfg->adapt.enabled)
+                p2d_adapt_torque(&sim->adapt, torque_Nm(&sim->pmsm, sim->pmsm.id_A, sim->pmsm.iq_A));
             plant_advance(sim, t, a, b);
             sim->n_current++;
             p2d_sensing_record(&sim->sensing, sim->n_current, sim->pmsm.theta_m_rad, sim->pmsm.w_m_radps);

@@ -113,6 +113,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "adapt.h"
 #include "pmsm2dof/current.h"
 #include "pmsm2dof/speed.h"
 #include "pmsm2dof/status.h"
@@ -161,6 +162,9 @@ typedef enum {
     P2D_SIM_ERR_SPEED_SENSOR,       /* speed_sensor (an encoder init's code in controller_status) */
     P2D_SIM_ERR_CURRENT_SENSOR,     /* current_sensor */
     P2D_SIM_ERR_FIELD_WEAKENING,    /* field_weakening (the regulator init's code in controller_status) */
+    P2D_SIM_ERR_ESTIMATOR,          /* p2d_inertia_init rejected adapt.config: see controller_status */
+    P2D_SIM_ERR_ADAPT_REL_CHANGE,   /* adapt.adapt_rel_change */
+    P2D_SIM_ERR_E_QUIET,            /* adapt.e_quiet_radps */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
@@ -186,6 +190,10 @@ typedef enum {
     P2D_LOG_VOLTAGE_LIMITED, /* share of the current periods of speed sample k whose voltage was
                                 limited to u_dc / sqrt(3) [-] in [0, 1] (first_order: whose
                                 voltage of eq 1 exceeded that range, which eq 3 ignores) */
+    P2D_LOG_J_EST_KGM2,      /* inertia estimator (adapt.h): estimate of J after sample k [kg m^2] */
+    P2D_LOG_J_VALID,         /* 1 when the estimate of J is valid (p2d_inertia_output_t), else 0 [-] */
+    P2D_LOG_T_LOAD_EST_NM,   /* estimate of the load torque T_load [Nm] */
+    P2D_LOG_J_GAINS_KGM2,    /* J the speed controller's gains are designed for at sample k [kg m^2] */
     P2D_LOG_COUNT            /* number of columns, not a column */
 } p2d_log_column_t;
 
@@ -290,6 +298,7 @@ typedef struct {
     const p2d_fault_t *faults;         /* faults, in any order (not copied); DC_LINK_SAG needs DQ_PI */
     uint32_t n_faults;                 /* number of faults; 0: none */
     p2d_sim_sensing_config_t sensing;  /* speed sensor, current sensors, field weakening (sensing.h); 0: none */
+    p2d_adapt_config_t adapt;          /* inertia estimator and gain scheduling (adapt.h); off when zero */
 } p2d_sim_config_t;
 
 typedef struct {
@@ -318,6 +327,8 @@ typedef struct {
     double w_meas_radps;             /* last speed reading given to the speed controller [rad/s] */
     double u_dc_V;                   /* DC link over the present current period [V] */
     p2d_sim_sensing_t sensing;       /* speed sensor, current measurement and field weakening (sensing.h) */
+    p2d_adapt_t adapt;               /* inertia estimator beside the speed controller (adapt.h) */
+    bool saturated;                  /* the speed controller's last output was at the current limit */
 } p2d_sim_t;
 
 /* Validate cfg, initialize the controllers and set the initial state. */

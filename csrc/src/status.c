@@ -57,6 +57,19 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
                                      "(stable discrete anti-windup loop)"},
     [P2D_ERR_FW_VOLTAGE_RATIO] = {"voltage_ratio", "finite, > 0 and <= 1 (share of u_dc/sqrt(3))"},
     [P2D_ERR_FW_ID_MIN] = {"id_min_A", "finite and < 0"},
+    [P2D_ERR_J0] = {"J0_kgm2", "finite and > 0, with J0_kgm2^2 a normal float32 (about 1.1e-19 to 1.8e19 kg m^2)"},
+    [P2D_ERR_J_MIN] = {"J_min_kgm2", "finite, > 0 and <= J0_kgm2"},
+    [P2D_ERR_J_MAX] = {"J_max_kgm2", "finite and >= J0_kgm2"},
+    [P2D_ERR_B_MAX] = {"B_max_Nms",
+                       "finite and > 0, with B_max_Nms^2 a normal float32 (about 1.1e-19 to 1.8e19 Nm s/rad)"},
+    [P2D_ERR_T_LOAD_MAX] = {"T_load_max_Nm",
+                            "finite and > 0, with T_load_max_Nm^2 a normal float32 (about 1.1e-19 to 1.8e19 Nm)"},
+    [P2D_ERR_SIGMA_T] = {"sigma_T_Nm",
+                         "finite and > 0, with sigma_T_Nm^2 a normal float32 (about 1.1e-19 to 1.8e19 Nm)"},
+    [P2D_ERR_J_MEMORY] = {"J_memory_s", "finite, >= 2*Ts_s and <= 1e6*Ts_s"},
+    [P2D_ERR_LOAD_MEMORY] = {"load_memory_s", "finite, >= 2*Ts_s and <= 1e6*Ts_s"},
+    [P2D_ERR_W_F] = {"w_f_radps", "finite and > 0, with w_f_radps*Ts_s >= 1e-6"},
+    [P2D_ERR_J_REL_SD_MAX] = {"J_rel_sd_max", "finite, > 0 and < 1"},
 };
 
 const char *p2d_status_param(p2d_status_t status)

@@ -4,8 +4,8 @@
  *
  * - the size of every controller struct, as the target compiler lays it out;
  * - one p2d_speed_step / p2d_current_step (and p2d_encoder_step,
- *   p2d_field_weakening_step, p2d_speed_step_fw) per configuration and operating
- *   point, each right after a call of p2d_cost_mark(), so that an instruction
+ *   p2d_field_weakening_step, p2d_speed_step_fw, p2d_inertia_step) per configuration
+ *   and operating point, each right after a call of p2d_cost_mark(), so that an instruction
  *   trace of QEMU (-singlestep -d exec,nochain) can count the instructions
  *   executed from the entry of that step to its return;
  * - the stack that step used, by painting the free stack below SP with a
@@ -16,14 +16,17 @@
  *   probe <index> <controller> <method> <anti_windup> <feedforward|coupling> <motor> <point> stack <bytes>
  * (encoder: probe <index> encoder - - <estimator> <lowpass|no_lowpass> <point> stack <bytes>;
  * controller speed_fw is p2d_speed_step_fw)
+ *   probe <index> inertia <speed input> <point> stack <bytes>
  * The index counts the calls of p2d_cost_mark() in order.
  */
+#include <math.h>
 #include <stdbool.h>
 #include <stdint.h>
 
 #include "pmsm2dof/current.h"
 #include "pmsm2dof/encoder.h"
 #include "pmsm2dof/field_weakening.h"
+#include "pmsm2dof/inertia.h"
 #include "pmsm2dof/speed.h"
 #include "semihost.h"
 
@@ -294,6 +297,58 @@ static void probe_field_weakening(p2d_anti_windup_t aw, float u_norm_V, bool act
     probe_end(stack_bytes);
 }
 
+/*
+ * One estimator probe on a servo at 1 kHz (J = 0.01 kg m^2, 2 Nm), at a point:
+ *   start      the first sample (the prefilter starts)
+ *   prior      the first update, J still at its prior variance (the time update scales it back onto the prior)
+ *   update     an update 200 samples into an accelerating run (forgetting)
+ *   fault      a NaN speed
+ */
+static void probe_inertia(bool period_mean, const char *point)
+{
+    p2d_inertia_config_t cfg;
+    p2d_inertia_t est;
+    p2d_inertia_output_t out;
+    uint32_t sp, stack_bytes, warmup = 0u;
+    float w = 0.0f, T = 0.5f;
+
+    cfg.Ts_s = 1e-3f;
+    cfg.J0_kgm2 = 0.02f;
+    cfg.J_min_kgm2 = 0.002f;
+    cfg.J_max_kgm2 = 0.2f;
+    cfg.B_max_Nms = 0.01f;
+    cfg.T_load_max_Nm = 2.0f;
+    cfg.sigma_T_Nm = 0.05f;
+    cfg.J_memory_s = 10.0f;
+    cfg.load_memory_s = 0.5f;
+    cfg.w_f_radps = 20.0f;
+    cfg.J_rel_sd_max = 0.05f;
+    cfg.speed_is_period_mean = period_mean;
+    if (p2d_inertia_init(&est, &cfg) != P2D_OK) p2d_semihost_exit(false);
+    if (point[0] == 'p') warmup = 1u;
+    if (point[0] == 'u' || point[0] == 'f') warmup = 200u;
+    for (uint32_t k = 0u; k < warmup; ++k) {
+        /* a torque square wave on J = 0.01 kg m^2 */
+        T = (k / 50u) % 2u ? -0.5f : 1.5f;
+        p2d_inertia_step(&est, w, T, &out);
+        w += 1e-3f / 0.01f * (T - 0.2f);
+    }
+    if (point[0] == 'f') w = NAN;
+    sp = stack_pointer();
+    stack_paint(sp);
+    p2d_cost_mark();
+    p2d_inertia_step(&est, w, T, &out);
+    stack_bytes = stack_used(sp);
+    if (out.fault != (point[0] == 'f') || out.updated != (point[0] == 'p' || point[0] == 'u')) {
+        p2d_semihost_exit(false);
+    }
+
+    probe_begin("inertia ");
+    p2d_line_text(&line, period_mean ? "period_mean " : "sampled ");
+    p2d_line_text(&line, point);
+    probe_end(stack_bytes);
+}
+
 int main(void)
 {
     print_sizeof("p2d_speed_t", sizeof(p2d_speed_t));
@@ -312,6 +367,10 @@ int main(void)
     print_sizeof("p2d_field_weakening_coef_t", sizeof(p2d_field_weakening_coef_t));
     print_sizeof("p2d_field_weakening_config_t", sizeof(p2d_field_weakening_config_t));
     print_sizeof("p2d_field_weakening_output_t", sizeof(p2d_field_weakening_output_t));
+    print_sizeof("p2d_inertia_t", sizeof(p2d_inertia_t));
+    print_sizeof("p2d_inertia_coef_t", sizeof(p2d_inertia_coef_t));
+    print_sizeof("p2d_inertia_config_t", sizeof(p2d_inertia_config_t));
+    print_sizeof("p2d_inertia_output_t", sizeof(p2d_inertia_output_t));
 
     for (int aw = P2D_AW_NONE; aw <= P2D_AW_CLAMPING; ++aw) {
         for (int ff = P2D_FF_NONE; ff <= P2D_FF_FULL; ++ff) {
@@ -349,6 +408,11 @@ int main(void)
         probe_field_weakening((p2d_anti_windup_t)aw, 26.5f, true, false, "weakening");
         probe_field_weakening((p2d_anti_windup_t)aw, 60.0f, true, true, "at_id_min");
     }
+    probe_inertia(false, "start");
+    probe_inertia(false, "prior");
+    probe_inertia(false, "update");
+    probe_inertia(true, "update");
+    probe_inertia(false, "fault");
     p2d_line_text(&line, "END");
     p2d_line_flush(&line);
     p2d_semihost_exit(true);

@@ -58,7 +58,18 @@ typedef enum {
     P2D_ERR_FW_KA,            /* Ka_V_per_A */
     P2D_ERR_FW_VOLTAGE_RATIO, /* voltage_ratio */
     P2D_ERR_FW_ID_MIN,        /* id_min_A */
-    P2D_STATUS_COUNT          /* number of codes, not a code */
+    /* inertia estimator (inertia.h) */
+    P2D_ERR_J0,           /* J0_kgm2 */
+    P2D_ERR_J_MIN,        /* J_min_kgm2 */
+    P2D_ERR_J_MAX,        /* J_max_kgm2 */
+    P2D_ERR_B_MAX,        /* B_max_Nms */
+    P2D_ERR_T_LOAD_MAX,   /* T_load_max_Nm */
+    P2D_ERR_SIGMA_T,      /* sigma_T_Nm */
+    P2D_ERR_J_MEMORY,     /* J_memory_s */
+    P2D_ERR_LOAD_MEMORY,  /* load_memory_s */
+    P2D_ERR_W_F,          /* w_f_radps */
+    P2D_ERR_J_REL_SD_MAX, /* J_rel_sd_max */
+    P2D_STATUS_COUNT      /* number of codes, not a code */
 } p2d_status_t;
 
 /* Name of the configuration field that a status code rejects ("" for P2D_OK). */

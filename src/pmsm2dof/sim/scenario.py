@@ -13,6 +13,10 @@ reference and load torque schedules of a run (section 4.1)::
     t_s = 0.0
     speed_rpm = 500.0
 
+The motor may be given in datasheet units instead, as a ``[motor.datasheet]`` table (Kt, Ke, line-to-line
+R and L, poles: see :mod:`pmsm2dof.sim.datasheet`); it provides ``pole_pairs``, ``Rs_ohm``, ``Ld_H``,
+``Lq_H`` and ``psi_f_Wb``, which :meth:`Scenario.to_toml` writes as converted.
+
 Optional ``[[fault]]`` entries make the simulator play a fault: a DC-link sag over a window, or a
 speed-sensor reading held, zero or wrong for one sample (see :data:`pmsm2dof.core.FAULT_KINDS`).
 
@@ -48,6 +52,7 @@ from ..core import (
     SPEED_SENSOR_MODELS,
 )
 from ..errors import ConfigError
+from .datasheet import motor_from_table
 
 #: Longest simulated time of one scenario [s] (ten hours).
 T_END_MAX_S = 36000.0
@@ -451,6 +456,92 @@ SCHEMA = (
         default=None,
         lt=0,
     ),
+    Field(
+        "estimator.enabled",
+        bool,
+        "run the online inertia estimator of the C library (pmsm2dof/inertia.h) beside the speed controller",
+        default=False,
+    ),
+    Field(
+        "estimator.adapt_gains",
+        bool,
+        "gain scheduling: re-design the speed controller (eq 9) for the estimated J once it is valid",
+        default=False,
+    ),
+    Field(
+        "estimator.adapt_rel_change",
+        float,
+        "re-design when the estimate has moved by more than this fraction of the J of the present gains",
+        default=0.05,
+        ge=0,
+    ),
+    Field(
+        "estimator.adapt_error_rpm",
+        float,
+        "re-design only at a quiet sample: reference constant, output inside the current limit and "
+        "|speed error| <= this [rpm] (a re-design in a transient disturbs the integrator)",
+        default=5.0,
+        ge=0,
+    ),
+    Field(
+        "estimator.J0_kgm2",
+        float,
+        "initial estimate and prior standard deviation of J [kg m^2]",
+        default=SameAs("speed_controller.J_kgm2"),
+        gt=0,
+    ),
+    Field("estimator.J_min_kgm2", float, "smallest plausible J [kg m^2]; absent: J0_kgm2 / 10", default=None, gt=0),
+    Field("estimator.J_max_kgm2", float, "largest plausible J [kg m^2]; absent: 10 J0_kgm2", default=None, gt=0),
+    Field(
+        "estimator.B_max_Nms",
+        float,
+        "largest plausible viscous friction [Nm s/rad]; absent: the peak torque 1.5 p psi_f i_max_A per 100 rad/s",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.T_load_max_Nm",
+        float,
+        "largest plausible |load torque| [Nm]; absent: the peak torque 1.5 p psi_f i_max_A",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.sigma_T_Nm",
+        float,
+        "standard deviation of the torque input's noise [Nm]; absent: 1 % of the peak torque",
+        default=None,
+        gt=0,
+    ),
+    Field("estimator.J_memory_s", float, "memory of the estimates of J and B [s]", default=10.0, gt=0),
+    Field(
+        "estimator.load_memory_s",
+        float,
+        "time constant of the load estimate after a load step [s]; absent: 1 / speed_controller.alpha_radps",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.w_f_radps",
+        float,
+        "bandwidth of the prefilter of speed and torque [rad/s]; absent: 0.2 / speed_controller.Ts_s",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.J_rel_sd_max",
+        float,
+        "J is valid (and used by adapt_gains) once its standard deviation is below this fraction",
+        default=0.05,
+        gt=0,
+        lt=1,
+    ),
+    Field(
+        "estimator.speed_is_period_mean",
+        bool,
+        "the speed reading is the mean over the speed period (encoder counts differenced)",
+        default=False,
+    ),
     Field("reference[].t_s", float, "time of the reference change [s], 0 <= t_s < simulation.t_end_s", ge=0),
     Field("reference[].speed_rpm", float, "new speed reference [rpm]"),
     Field(
@@ -590,6 +681,11 @@ def _as_table(value: object, dotted: str) -> Tree:
 def _validate(tree: object) -> tuple[Tree, Tree]:
     """Validate a scenario tree; return (given, data): the keys given and all keys resolved."""
     table = _as_table(tree, "scenario")
+    motor = table.get("motor")
+    if isinstance(motor, dict) and "datasheet" in motor:
+        # [motor.datasheet]: the model keys converted from datasheet units (pmsm2dof.sim.datasheet)
+        converted = motor_from_table(motor).motor_table()
+        table["motor"] = {**{k: v for k, v in motor.items() if k != "datasheet"}, **converted}
     given = _validate_table(table, "", "")
     for name in _TABLES:
         values = _validate_table(_as_table(table.get(name), name), name, name)

@@ -94,7 +94,7 @@ RPM_PER_RADPS = 30.0 / math.pi
 #: C names); the mechanical speed is kept in rad/s too.
 RPM_SIGNALS = {"w_ref_radps": "speed_ref_rpm", "w_m_radps": "speed_rpm", "w_meas_radps": "speed_meas_rpm"}
 #: Log columns that hold a flag (0 or 1), returned as bool arrays.
-FLAG_SIGNALS = ("saturated",)
+FLAG_SIGNALS = ("saturated", "J_valid")
 
 
 def _signal_names(log_columns: Iterable[str]) -> tuple[str, ...]:
@@ -186,10 +186,29 @@ _SIM_KEYS = {
     "reference": "reference",
     "load": "load",
     "faults": "fault",
+    "adapt.adapt_rel_change": "estimator.adapt_rel_change",
+    "adapt.e_quiet_radps": "estimator.adapt_error_rpm",
     "speed_sensor": "speed_sensor",
     "current_sensor": "current_measurement",
     "field_weakening": "field_weakening",
 }
+
+#: Scenario key of each field that the C inertia estimator init can reject (the estimator block).
+_ESTIMATOR_KEYS = {
+    name: f"estimator.{name}"
+    for name in (
+        "J0_kgm2",
+        "J_min_kgm2",
+        "J_max_kgm2",
+        "B_max_Nms",
+        "T_load_max_Nm",
+        "sigma_T_Nm",
+        "J_memory_s",
+        "load_memory_s",
+        "w_f_radps",
+        "J_rel_sd_max",
+    )
+} | {"Ts_s": "speed_controller.Ts_s"}
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
@@ -249,6 +268,10 @@ class Result:
     speed_meas_rpm: npt.NDArray[np.float64]
     u_dc_V: npt.NDArray[np.float64]
     voltage_limited: npt.NDArray[np.float64]
+    J_est_kgm2: npt.NDArray[np.float64]
+    J_valid: npt.NDArray[np.bool_]
+    T_load_est_Nm: npt.NDArray[np.float64]
+    J_gains_kgm2: npt.NDArray[np.float64]
 
     def __repr__(self) -> str:
         return (
@@ -265,7 +288,7 @@ class Result:
     def save(self, path: Path | str) -> None:
         """Write the trace to ``path``; the format follows the extension.
 
-        ``.csv``: one column per signal with a header row (``saturated`` as 0/1);
+        ``.csv``: one column per signal with a header row (the flags ``saturated`` and ``J_valid`` as 0/1);
         ``.npz`` (numpy) and ``.mat`` (MATLAB, ``scipy.io.savemat``): one array per signal
         and ``scenario_toml``, the scenario as TOML text. The file is written completely or
         not at all.
@@ -275,7 +298,8 @@ class Result:
         arrays = {name: getattr(self, name) for name in self.signals}
         if suffix == ".csv":
             frame = self.to_dataframe()
-            frame["saturated"] = frame["saturated"].astype(np.int8)
+            for flag in FLAG_SIGNALS:
+                frame[flag] = frame[flag].astype(np.int8)
             atomic_write(path, frame.to_csv(index=False))
         elif suffix == ".npz":
             buf = io.BytesIO()
@@ -441,6 +465,8 @@ class Simulation:
         c.decouple = cl["decouple"]
         _sensing(cfg, data)
 
+        _estimator(cfg, data)
+
         self.cfg = cfg
         self.sim = ffi.new("p2d_sim_t *")
         status = lib.p2d_sim_init(self.sim, cfg)
@@ -489,11 +515,15 @@ class Simulation:
             ctl = self.sim.controller_status
             key = _SENSING_KEYS[c_string(lib.p2d_status_param(ctl))]
             raise ConfigError(key, self._value(key), c_string(lib.p2d_status_range(ctl)))
-        if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER):
+        if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER, lib.P2D_SIM_ERR_ESTIMATOR):
             ctl = self.sim.controller_status
             field = c_string(lib.p2d_status_param(ctl))
             valid = c_string(lib.p2d_status_range(ctl))
-            keys = _SPEED_KEYS if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER else _CURRENT_KEYS
+            keys = {
+                lib.P2D_SIM_ERR_SPEED_CONTROLLER: _SPEED_KEYS,
+                lib.P2D_SIM_ERR_CURRENT_CONTROLLER: _CURRENT_KEYS,
+                lib.P2D_SIM_ERR_ESTIMATOR: _ESTIMATOR_KEYS,
+            }[status]
             key = keys[field]
             value = self._value(key)
             if key == "speed_controller.Ka":
@@ -505,6 +535,8 @@ class Simulation:
                 )
                 if value is None:
                     value = f"None (default 1/Kp = {s.Ka:.6g})"
+            elif value is None:
+                value = f"None (derived: {getattr(self.cfg.adapt.config, field):.6g})"
             raise ConfigError(key, value, valid)
         field = c_string(lib.p2d_sim_status_param(status))
         valid = c_string(lib.p2d_sim_status_text(status))
@@ -549,6 +581,38 @@ def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
     cfg.faults = faults
     cfg.n_faults = len(entries)
     return faults
+
+
+def _estimator(cfg: Any, data: Mapping[str, Any]) -> None:
+    """The estimator block of the engine's configuration (``[estimator]``, csrc/sim/adapt.h)."""
+    est, sc, motor = data["estimator"], data["speed_controller"], data["motor"]
+    a = cfg.adapt
+    a.enabled = est["enabled"]
+    if not est["enabled"]:
+        return
+    a.adapt_gains = est["adapt_gains"]
+    a.Ka_follows_J = sc["Ka"] is None
+    a.adapt_rel_change = est["adapt_rel_change"]
+    a.e_quiet_radps = est["adapt_error_rpm"] / RPM_PER_RADPS
+    T_peak_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
+    J0 = est["J0_kgm2"]
+    derived = {
+        "J_min_kgm2": J0 / 10.0,
+        "J_max_kgm2": 10.0 * J0,
+        "B_max_Nms": T_peak_Nm / 100.0,
+        "T_load_max_Nm": T_peak_Nm,
+        "sigma_T_Nm": 0.01 * T_peak_Nm,
+        "load_memory_s": 1.0 / sc["alpha_radps"],
+        "w_f_radps": 0.2 / sc["Ts_s"],
+    }
+    c = a.config
+    c.Ts_s = sc["Ts_s"]
+    c.J0_kgm2 = J0
+    for key, value in derived.items():
+        setattr(c, key, value if est[key] is None else est[key])
+    c.J_memory_s = est["J_memory_s"]
+    c.J_rel_sd_max = est["J_rel_sd_max"]
+    c.speed_is_period_mean = est["speed_is_period_mean"]
 
 
 def _sensing(cfg: Any, data: Mapping[str, Any]) -> None:

@@ -19,10 +19,12 @@ and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
 - a section on fault scenarios the paper does not treat (the ``fault-*`` presets: a stall, a
   DC-link sag, speed-sensor hold, zero and spike) run with each anti-windup mode;
 - a section on self-commissioning (:mod:`.commissioning`): the C routine identifies the paper's
-  drive and a salient servo, identified against true values and the time of each step.
+  drive and a salient servo, identified against true values and the time of each step;
 - a section on the speed measurement (:mod:`pmsm2dof.studies.sensing`): encoder resolution,
   estimator, filter and delay against overshoot, load dip and margins, and whether a sensor
-  chain explains the experiment's 35 % -> 15 % better than the exact reading.
+  chain explains the experiment's 35 % -> 15 % better than the exact reading;
+- a section on gain scheduling by the inertia the online estimator identifies (J of the plant
+  0.5 to 2 times the design's: fixed, adapted and matched designs, :mod:`.adaptation`).
 
 Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous
 Motor Speed Controller" (equation, figure and section numbers are the paper's).
@@ -41,8 +43,11 @@ from matplotlib.figure import Figure
 
 from ...outputs import atomic_write, require_writable_dir, staged_dir
 from ...studies import paper as st
+from ...studies.adaptation import run_adaptation
 from ...studies.faults import run_faults
 from ...studies.sensing import offset_study, sensor_study
+from .adaptation import CAPTION as ADAPTATION_CAPTION
+from .adaptation import fig_adaptation
 from .claims import VERDICTS, Claim, compute_claims
 from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
@@ -102,6 +107,8 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
         *fig_faults(fault_runs),
         "Fault scenarios: speed (left) and speed integrator (right) with each anti-windup mode; dotted: the reference.",
     )
+    adaptation_runs = run_adaptation(studies.overrides)
+    made["adaptation"] = (*fig_adaptation(adaptation_runs), ADAPTATION_CAPTION)
     files: list[str] = []
     with staged_dir(out) as tmp:
         images: dict[str, bytes] = {}
@@ -148,6 +155,7 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
             commissioning_runs=run_commissioning(),
             sensor_rows=sensor_rows,
             offset_rows=offset_rows,
+            adaptation_runs=adaptation_runs,
         )
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
