@@ -89,6 +89,8 @@ sphinx_gallery_conf = {
     "write_computation_times": False,
     "remove_config_comments": True,
     "within_subsection_order": "FileNameSortKey",
+    # pyplot's figures and the package's own (pmsm2dof.ui.plots returns Figure objects outside pyplot)
+    "image_scrapers": ("matplotlib", "gallery_figures.scrape"),
 }
 
 # Figures of the tuning guide, drawn by the package at build time
