@@ -93,9 +93,10 @@ sphinx_gallery_conf = {
     "image_scrapers": ("matplotlib", "gallery_figures.scrape"),
 }
 
-# Figures of the tuning guide, drawn by the package at build time
+# Figures of the tuning guide (docs/figures/*.py), drawn by the package at build time
+plot_basedir = str(DOCS)
 plot_include_source = False
-plot_html_show_source_link = False
+plot_html_show_source_link = True
 plot_html_show_formats = False
 plot_formats = [("png", 110)]
 

@@ -8,8 +8,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export MPLBACKEND=Agg
 # The source folder is the repository root (docs/conf.py says which files are pages), so the site's
-# start page is site/docs/index.html; site/index.html leads there.
-python3 -m sphinx -b html -W --keep-going -q -c docs -d .docs-cache/doctrees . site "$@"
+# start page is site/docs/index.html; site/index.html leads there. -E reads every page again (a figure
+# script or a header is not a dependency Sphinx tracks); the gallery and the figures rerun only when changed.
+python3 -m sphinx -b html -E -W --keep-going -q -c docs -d .docs-cache/doctrees . site "$@"
 cat > site/index.html <<'HTML'
 <!DOCTYPE html>
 <meta charset="utf-8">
