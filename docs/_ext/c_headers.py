@@ -30,7 +30,8 @@ HEADERS = Path(__file__).resolve().parents[2] / "csrc" / "include" / "pmsm2dof"
 PRELUDE = "typedef int bool; typedef unsigned int uint32_t; typedef int int32_t; typedef unsigned char uint8_t;\n"
 COMMENT = re.compile(r"/\*.*?\*/", re.S)
 CPLUSPLUS = re.compile(r"#ifdef __cplusplus.*?#endif", re.S)
-UNIT = re.compile(r"\[[^\]]+\]")
+# a unit in brackets, "[Nm]", "[-]": not an index such as x[k-1], whose bracket follows a name
+UNIT = re.compile(r"(?<![\w\]])\[[^\]]+\]")
 logger = logging.getLogger(__name__)
 
 

@@ -5,7 +5,11 @@ import matplotlib.pyplot as plt
 import pmsm2dof
 
 base = pmsm2dof.load_scenario("paper-condition-1").with_overrides(
-    {"speed_controller.feedforward": "none", "simulation.t_end_s": 12.0, "reference": [{"t_s": 0.0, "speed_rpm": 500.0}]}
+    {
+        "speed_controller.feedforward": "none",
+        "simulation.t_end_s": 12.0,
+        "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
+    }
 )
 Kp = pmsm2dof.design(J_kgm2=0.4, alpha_radps=0.5, zeta=0.2887).Kp
 fig, ax = plt.subplots(figsize=(9, 3.4))

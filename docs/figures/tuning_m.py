@@ -9,7 +9,11 @@ import pmsm2dof
 fig, (ax_lin, ax_sim) = plt.subplots(1, 2, figsize=(9, 3.4))
 t_s = np.linspace(0, 12, 1200)
 base = pmsm2dof.load_scenario("paper-condition-1").with_overrides(
-    {"speed_controller.feedforward": "full", "simulation.t_end_s": 12.0, "reference": [{"t_s": 0.0, "speed_rpm": 500.0}]}
+    {
+        "speed_controller.feedforward": "full",
+        "simulation.t_end_s": 12.0,
+        "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
+    }
 )
 for m in (0.5, 1.0, 2.0, 4.0):
     d = pmsm2dof.design(J_kgm2=0.4, alpha_radps=0.5, zeta=0.2887, m=m, tau_i_s=0.05, feedforward="full")
