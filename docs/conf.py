@@ -21,8 +21,8 @@ ROOT = DOCS.parent
 sys.path.insert(0, str(DOCS / "_ext"))
 
 project = "pmsm2dof"
-author = "the pmsm2dof authors"
-copyright = "the pmsm2dof authors, MIT license"
+author = "the pmsm2dof developers"
+copyright = "2026 the pmsm2dof developers, MIT license"
 release = version = package_version("pmsm2dof")
 
 root_doc = "docs/index"
