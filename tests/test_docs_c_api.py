@@ -20,17 +20,18 @@ import c_headers  # noqa: E402
 
 from pmsm2dof.core.bindings import ffi  # noqa: E402
 
-HEADERS = sorted((ROOT / "csrc" / "include" / "pmsm2dof").glob("*.h"))
+HEADERS = c_headers.public_headers()
 
 
 def page_of(paths):
-    """The reST of the C API page for ``paths`` (status.h first when parsing, as the directive does)."""
-    ast = c_headers.parse_headers(sorted(paths, key=lambda p: (p.name != "status.h", p.name)))
-    return "\n".join("\n".join(c_headers.rst_of(c_headers.Header(p, ast))) for p in paths)
+    """The reST of the C API page for ``paths``, given in an order where each follows the types it uses."""
+    ast = c_headers.parse_headers(paths)
+    return "\n".join("\n".join(c_headers.rst_of(c_headers.Header(p, ast))) for p in sorted(paths))
 
 
 def test_every_public_function_is_on_the_page_with_its_comment():
     page = page_of(HEADERS)
+    assert sorted(HEADERS) == sorted((ROOT / "csrc" / "include" / "pmsm2dof").glob("*.h"))
     names = set()
     for header in HEADERS:
         code = re.sub(r"/\*.*?\*/", "", header.read_text(), flags=re.S)

@@ -13,6 +13,7 @@ fields read here differ from those of the compiled extension ``pmsm2dof._core``.
 """
 
 import re
+import sys
 import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,7 +26,8 @@ from sphinx.util import logging
 from sphinx.util.docutils import SphinxDirective
 from sphinx.util.nodes import nested_parse_with_titles
 
-HEADERS = Path(__file__).resolve().parents[2] / "csrc" / "include" / "pmsm2dof"
+ROOT = Path(__file__).resolve().parents[2]
+HEADERS = ROOT / "csrc" / "include" / "pmsm2dof"
 # The types the headers take from <stdint.h> and <stdbool.h>, for pycparser (which reads no system header)
 PRELUDE = "typedef int bool; typedef unsigned int uint32_t; typedef int int32_t; typedef unsigned char uint8_t;\n"
 COMMENT = re.compile(r"/\*.*?\*/", re.S)
@@ -84,8 +86,16 @@ def blank(text):
     return "\n".join("" if line.lstrip().startswith("#") else line for line in text.splitlines())
 
 
+def public_headers():
+    """The public headers in the order ffibuild.py gives them to cffi (each after the types it uses)."""
+    sys.path.insert(0, str(ROOT))
+    import ffibuild
+
+    return [path for path in ffibuild.HEADERS if path.parent == HEADERS]
+
+
 def parse_headers(paths):
-    """The declarations of all the headers, parsed together in the order ffibuild.py gives them to cffi."""
+    """The declarations of the headers ``paths``, parsed together in the order given."""
     source = PRELUDE + "".join(f'# 1 "{path.name}"\n{blank(path.read_text())}\n' for path in paths)
     return c_parser.CParser().parse(source, filename="prelude")
 
@@ -210,8 +220,7 @@ class CHeaders(SphinxDirective):
     has_content = False
 
     def run(self):
-        # status.h (the shared types) first, as ffibuild.py orders them
-        paths = sorted(HEADERS.glob("*.h"), key=lambda path: (path.name != "status.h", path.name))
+        paths = public_headers()
         for path in paths:
             self.env.note_dependency(str(path))
         ast = parse_headers(paths)
