@@ -129,7 +129,7 @@ class Header:
 
     def _at(self, node):
         """The header and line of ``node``, for a warning."""
-        return (str(self.path), node.coord.line)
+        return f"{self.path}:{node.coord.line}"
 
     def _item(self, node, generate):
         where = f"{self.name}:{node.coord.line}"
