@@ -39,6 +39,7 @@ extensions = [
     "numpydoc",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
+    "sphinx_click",
     "matplotlib.sphinxext.plot_directive",
     "c_headers",
 ]
@@ -100,5 +101,19 @@ plot_html_show_source_link = True
 plot_html_show_formats = False
 plot_formats = [("png", 110)]
 
+# "--feedforward" is an option, not a dash: no typographic quotes and dashes
+smartquotes = False
+
 html_theme = "furo"
 html_title = "pmsm2dof"
+
+
+def terminal_text(app, ctx, lines):
+    """The command line's help texts are written for a terminal: a ``*`` in them is no reST emphasis (the
+    ``**Required**`` that sphinx-click adds is)."""
+    lines[:] = [line.replace("*", r"\*").replace(r"\*\*Required\*\*", "**Required**") for line in lines]
+
+
+def setup(app):
+    for part in ("description", "options", "arguments", "epilog"):
+        app.connect(f"sphinx-click-process-{part}", terminal_text)
