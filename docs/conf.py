@@ -57,14 +57,15 @@ autosummary_ignore_module_all = True
 
 def defined_in(name, module):
     """The module that defines the public name ``name`` of ``module``: a class's or function's own, else (data
-    carry no ``__module__``) the module below ``module`` whose source documents it with a ``#:`` comment."""
+    carry no ``__module__``) the module below ``module`` whose source documents it with a ``#:`` comment, else
+    ``module``."""
     obj = getattr(importlib.import_module(module), name)
     if isinstance(obj, type | types.FunctionType):
         return obj.__module__
     for holder in sorted(m for m in sys.modules if m.startswith(module)):
         if ("", name) in ModuleAnalyzer.for_module(holder).find_attr_docs():
             return holder
-    raise ValueError(f"{module}.{name}: no module documents it with a #: comment")
+    return module
 
 
 # relative to the package: autosummary refuses the current module's own name in its items
