@@ -62,7 +62,7 @@ def defined_in(name, module):
     obj = getattr(importlib.import_module(module), name)
     if isinstance(obj, type | types.FunctionType):
         return obj.__module__
-    for holder in sorted(m for m in sys.modules if m.startswith(module)):
+    for holder in sorted(m for m in sys.modules if m == module or m.startswith(module + ".")):
         if ("", name) in ModuleAnalyzer.for_module(holder).find_attr_docs():
             return holder
     return module
