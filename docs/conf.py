@@ -86,6 +86,8 @@ sphinx_gallery_conf = {
     "gallery_dirs": str(DOCS / "gallery"),
     "filename_pattern": r"/plot_",
     "abort_on_example_error": True,
+    # every build runs every example: one unchanged may still break on a change of the package
+    "run_stale_examples": True,
     "download_all_examples": False,
     "show_memory": False,
     "write_computation_times": False,

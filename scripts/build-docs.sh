@@ -8,8 +8,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export MPLBACKEND=Agg
 # The source folder is the repository root (docs/conf.py says which files are pages), so the site's
-# start page is site/docs/index.html; site/index.html leads there. -E reads every page again (a figure
-# script or a header is not a dependency Sphinx tracks); the gallery and the figures rerun only when changed.
+# start page is site/docs/index.html; site/index.html leads there. Every build reads every page again
+# (-E: a header or a figure script is not a dependency Sphinx tracks), runs every example of the gallery
+# and draws every figure (the plot directive redraws only for a changed script, so its cache goes): an
+# unchanged example or figure can still break on a change of the package.
+rm -rf .docs-cache/plot_directive
 python3 -m sphinx -b html -E -W --keep-going -q -c docs -d .docs-cache/doctrees . site "$@"
 cat > site/index.html <<'HTML'
 <!DOCTYPE html>
