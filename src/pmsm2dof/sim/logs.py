@@ -2,9 +2,9 @@
 
 A log has one column per signal, found by its unit-suffixed name (the suffix gives the unit):
 
-===========  ===========================================  =======================
-signal       accepted column names                         attribute of the Log
-===========  ===========================================  =======================
+===========  =============================================  =======================
+signal       accepted column names                          attribute of the Log
+===========  =============================================  =======================
 time         ``time_s``, ``t_s``, ``time_ms``, ``time_us``  ``t_s`` [s]
 speed        ``speed_rpm``, ``speed_radps``                 ``speed_rpm``, ``w_m_radps``
 speed_ref    ``speed_ref_rpm``, ``speed_ref_radps``         ``speed_ref_rpm``
@@ -13,7 +13,7 @@ iq_ref       ``iq_ref_A`` (or ``_mA``)                      ``iq_ref_A``
 torque       ``torque_Nm``                                  ``torque_Nm``
 ud, uq       ``ud_V``, ``uq_V``                             ``ud_V``, ``uq_V``
 u_dc         ``u_dc_V``                                     ``u_dc_V``
-===========  ===========================================  =======================
+===========  =============================================  =======================
 
 Time and speed are required, the others optional (absent: ``None``). Another column name is
 mapped to a signal by ``columns={"speed": "enc_speed_rpm"}`` (``--column speed=enc_speed_rpm``);
