@@ -11,34 +11,37 @@ pmsm2dof takes SI units, per-phase values and the amplitude-invariant dq transfo
 (``Te = 1.5 p (psi_f iq + (Ld - Lq) id iq)``, see the conventions page).
 """
 
-import math
 import tempfile
 from pathlib import Path
 
 import pmsm2dof
+from pmsm2dof.sim.datasheet import convert_datasheet
 from pmsm2dof.ui.plots.trace import trace_figure
 
 # %%
 # The motor's data
 # ----------------
 # Datasheets give line-to-line resistance and inductance, a torque constant per RMS ampere and
-# RMS currents. The conversion to per-phase, amplitude-invariant values is written out here.
-#
-# .. note:: This block is where a datasheet-units helper of pmsm2dof will take the datasheet's
-#    figures directly; until then convert as below.
+# RMS currents. :func:`pmsm2dof.sim.datasheet.convert_datasheet` converts them to per-phase,
+# amplitude-invariant values and says where each one came from (``pmsm2dof motor FILE`` does the
+# same for a ``[motor.datasheet]`` table; a scenario can hold that table instead of the values).
 
-pole_pairs = 4
-R_line_ohm, L_line_H = 1.8, 7.2e-3  # line to line
-kt_Nm_per_Arms = 0.80  # torque per RMS phase ampere
-I_max_Arms = 9.0  # peak rating of the drive, RMS
+motor = convert_datasheet(
+    {
+        "poles": 8,
+        "R_ohm": 1.8,  # line to line
+        "L_H": 7.2e-3,  # line to line, surface PMSM
+        "Kt_Nm_per_A": 0.80,  # per RMS phase ampere
+        "I_rated_A": 9.0,  # peak rating of the drive, RMS
+    }
+)
+for name, source in motor.sources.items():
+    print(f"{name:>10}: {source}")
+pole_pairs, Rs_ohm, Ld_H, Lq_H, psi_f_Wb = (motor.pole_pairs, motor.Rs_ohm, motor.Ld_H, motor.Lq_H, motor.psi_f_Wb)
+assert motor.i_rated_A is not None
+i_max_A = motor.i_rated_A  # dq amplitude = phase peak
 J_motor_kgm2 = 1.2e-4
-
-Rs_ohm = R_line_ohm / 2  # star: two phases in series
-Ld_H = Lq_H = L_line_H / 2  # surface PMSM
-i_max_A = I_max_Arms * math.sqrt(2)  # dq amplitude = phase peak
-psi_f_Wb = kt_Nm_per_Arms / (math.sqrt(2) * 1.5 * pole_pairs)  # Te = 1.5 p psi_f iq, iq = sqrt(2) I_rms
 J_kgm2 = 4 * J_motor_kgm2  # motor plus a load of three times its inertia
-print(f"Rs = {Rs_ohm} ohm, Ld = Lq = {Ld_H} H, psi_f = {psi_f_Wb:.4g} Wb, i_max = {i_max_A:.3g} A")
 
 # %%
 # Design
