@@ -28,7 +28,10 @@ instructions per step
     The count is checked on ``p2d_speed_Ka_default``, which has no branch: the
     trace must give the number of instructions of its disassembly.
 
-Writes the sections "Footprint and cost on the Cortex-M4F", "Commissioning
+Writes the sections "Footprint and cost on the Cortex-M4F" (speed and current
+controllers, every module), "Footprint of the speed sensing and field weakening
+on the Cortex-M4F" (encoder estimators, field weakening, the speed controller's
+field-weakening entry), "Inertia estimator on the Cortex-M4F", "Commissioning
 routine on the Cortex-M4F" and "Torque filters on the Cortex-M4F" of
 ``benchmarks/results.md`` (other sections are kept) and prints them. The
 commissioning routine is measured over a whole run
@@ -56,6 +59,12 @@ CSRC = ROOT / "csrc"
 TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
 SECTION = "## Footprint and cost on the Cortex-M4F"
 FILTER_SECTION = "## Torque filters on the Cortex-M4F"
+INERTIA_SECTION = "## Inertia estimator on the Cortex-M4F"
+SENSING_SECTION = "## Footprint of the speed sensing and field weakening on the Cortex-M4F"
+# the probes of each section, by controller; the entry of a probe is p2d_<controller>_step unless named here
+CONTROLLERS = ("speed", "current")
+SENSING_CONTROLLERS = ("encoder", "field_weakening", "speed_fw")
+ENTRY = {"speed_fw": "p2d_speed_step_fw"}
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
 QEMU_TIMEOUT_S = 120
 # the configuration with the issue's target: <= 60 instructions per step, <= 1 KiB flash
@@ -242,16 +251,17 @@ def measure(build_dir, workdir):
     where = function_of(funcs)
     rows = []
     for probe in probes:
+        # probe <index> <controller> <description...> <point> stack <bytes>
         index = int(probe[1], 16)
         controller = probe[2]
-        entry = funcs[f"p2d_{controller}_step"][0]
+        entry = funcs[ENTRY.get(controller, f"p2d_{controller}_step")][0]
         first, end = call_in_trace(pcs, entry, marks[index], mnemonic)
         path = pcs[first:end]
         rows.append(
             dict(
-                key=tuple(probe[2:7]),
-                point=probe[7],
-                stack=int(probe[9], 16),
+                key=tuple(probe[2:-3]),
+                point=probe[-3],
+                stack=int(probe[-1], 16),
                 count=len(path),
                 divides=sum(mnemonic[a] in ("vdiv.f32", "vsqrt.f32") for a in path),
                 per_function=Counter(where(a) for a in path),
@@ -284,13 +294,27 @@ def measure(build_dir, workdir):
 
     flash = {
         root: flash_of(reachable(calls, root))
-        for root in ("p2d_speed_step", "p2d_speed_init", "p2d_current_step", "p2d_current_init")
+        for root in (
+            "p2d_speed_step",
+            "p2d_speed_init",
+            "p2d_current_step",
+            "p2d_current_init",
+            "p2d_inertia_step",
+            "p2d_inertia_init",
+            "p2d_speed_step_fw",
+            "p2d_encoder_step",
+            "p2d_encoder_init",
+            "p2d_field_weakening_step",
+            "p2d_field_weakening_init",
+        )
     }
-    for controller in ("speed", "current"):
+    for controller in ("speed", "current", "encoder", "field_weakening"):
         entries = [f for f in funcs if f.startswith(f"p2d_{controller}_")]
         flash[f"{controller} controller (all p2d_{controller}_*)"] = flash_of(
             set().union(*(reachable(calls, f) for f in entries))
         )
+    entries = [f for f in funcs if f.startswith("p2d_inertia_")]
+    flash["inertia estimator (all p2d_inertia_*)"] = flash_of(set().union(*(reachable(calls, f) for f in entries)))
 
     filter_flash = {
         root: flash_of(reachable(calls, root))
@@ -298,6 +322,8 @@ def measure(build_dir, workdir):
     }
     target_rows = [r for r in rows if r["key"] == TARGET]
     hot = line_costs(elf, [a for r in target_rows if r["point"] == "unsaturated" for a in r["path"]])
+    inertia_update = [r for r in rows if r["key"] == ("inertia", "sampled") and r["point"] == "update"]
+    inertia_hot = line_costs(elf, inertia_update[0]["path"])
     return dict(
         modules=module_sizes(build_dir),
         library=library_functions(build_dir),
@@ -306,6 +332,7 @@ def measure(build_dir, workdir):
         rows=rows,
         flash=flash,
         hot=hot,
+        inertia_hot=inertia_hot,
         ka_check=ka_disassembled,
         filter_rows=filter_rows,
         filter_flash=filter_flash,
@@ -359,11 +386,13 @@ def report(m):
         "|---|---:|---|",
     ]
     for root, (size, reach) in m["flash"].items():
-        out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+        if not is_sensing(root) and "inertia" not in root:
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
     out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
-    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items()]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if not is_sensing(t) and not t.startswith("p2d_inertia")]
+    rows = [r for r in m["rows"] if r["key"][0] in CONTROLLERS]
     stack = {}
-    for r in m["rows"]:
+    for r in rows:
         stack[r["key"][0]] = max(stack.get(r["key"][0], 0), r["stack"])
     out += [
         "",
@@ -382,7 +411,7 @@ def report(m):
         "|---|---|---|---|---|---:|---:|---:|",
     ]
     by_key = {}
-    for r in m["rows"]:
+    for r in rows:
         by_key.setdefault(r["key"], {})[r["point"]] = r
     for key, points in by_key.items():
         unsat, sat = points.get("unsaturated"), points.get("saturated")
@@ -526,6 +555,115 @@ def commission_report(m):
     return "\n".join(out) + "\n"
 
 
+def is_sensing(name):
+    """Whether a struct, entry or flash row belongs to the speed sensing and field weakening section."""
+    return any(k in name for k in ("encoder", "field_weakening", "_fw"))
+
+
+def report_sensing(m):
+    """The markdown section of the speed sensing and field weakening."""
+    out = [
+        SENSING_SECTION,
+        "",
+        measured_by("python3 benchmarks/footprint.py") + " (the same build and trace as the section above).",
+        "",
+        "Encoder: 10000 counts/rev on a 16-bit timer read at 1 kHz, a step across the timer's wrap "
+        "(csrc/include/pmsm2dof/encoder.h). Field weakening: 10 kHz on a 48 V link, Tustin "
+        "(csrc/include/pmsm2dof/field_weakening.h). `p2d_speed_step_fw`: the speed step of the table above "
+        "(Tustin, back calculation, lowpass feedforward) with id_fw = -4 A of 7.6 A.",
+        "",
+        "### Instructions executed by one step (QEMU trace; callees included)",
+        "",
+        "| entry | configuration | point | instructions | vdiv+vsqrt | stack (bytes) |",
+        "|---|---|---|---:|---:|---:|",
+    ]
+    for r in m["rows"]:
+        controller = r["key"][0]
+        if controller not in SENSING_CONTROLLERS:
+            continue
+        config = " ".join(k for k in r["key"][1:] if k != "-")
+        out.append(
+            f"| `{ENTRY.get(controller, f'p2d_{controller}_step')}` | {config} | {r['point']} | {r['count']} "
+            f"| {r['divides']} | {r['stack']} |"
+        )
+    plain = {r["point"]: r["count"] for r in m["rows"] if r["key"] == TARGET}
+    fw = {r["point"]: r["count"] for r in m["rows"] if r["key"] == ("speed_fw", *TARGET[1:])}
+    out += [
+        "",
+        f"The field-weakening entry costs {fw['unsaturated'] - plain['unsaturated']} (unsaturated) and "
+        f"{fw['saturated'] - plain['saturated']} (saturated) instructions more than `p2d_speed_step` "
+        f"({plain['unsaturated']} / {plain['saturated']}, unchanged): the q current that remains, a square root, "
+        "and the compute/update split.",
+        "",
+        "### Flash reachable from an entry point (static call graph, newlib included, bytes)",
+        "",
+        "| entry | flash | functions |",
+        "|---|---:|---|",
+    ]
+    for root, (size, reach) in m["flash"].items():
+        if is_sensing(root):
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+    out += ["", "### RAM", "", "| struct | sizeof (bytes) |", "|---|---:|"]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if is_sensing(t)]
+    return "\n".join(out) + "\n"
+
+
+def inertia_report(m):
+    """The markdown section of the inertia estimator (csrc/include/pmsm2dof/inertia.h)."""
+    text, data, bss = m["modules"]["inertia"]
+    out = [
+        INERTIA_SECTION,
+        "",
+        measured_by("python3 benchmarks/footprint.py") + ", with the controllers' section above;",
+        f"same toolchain, flags and code ({code_version()}). The estimator runs once per speed sample: at 1 kHz "
+        "on a 168 MHz Cortex-M4F, 1000 instructions would be about 0.6 % of the core.",
+        "",
+        f"`inertia.c`: {text} bytes of flash, {data} of .data, {bss} of .bss.",
+        "",
+        "| symbol | size (bytes) |",
+        "|---|---:|",
+    ]
+    out += [f"| {sym} | {size} |" for mod, sym, size in m["library"] if mod == "inertia"]
+    out += [
+        "",
+        "Flash reachable from an entry point (static call graph, newlib included):",
+        "",
+        "| entry | flash (bytes) | functions |",
+        "|---|---:|---|",
+    ]
+    for root, (size, reach) in m["flash"].items():
+        if "inertia" in root:
+            out.append(f"| {root} | {size} | " + ", ".join(f"{f} {m['funcs'][f][1]}" for f in reach) + " |")
+    out += ["", "| struct | sizeof (bytes) |", "|---|---:|"]
+    out += [f"| {t} | {s} |" for t, s in m["sizeof"].items() if t.startswith("p2d_inertia")]
+    out += [
+        "",
+        "Instructions executed by one `p2d_inertia_step` (QEMU trace, callees included) and the stack it "
+        "used (painted stack):",
+        "",
+        "| speed input | point | instructions | vdiv+vsqrt | stack (bytes) |",
+        "|---|---|---:|---:|---:|",
+    ]
+    points = {
+        "start": "prefilter start (first sample)",
+        "prior": "first update (J at its prior variance)",
+        "update": "update (forgetting)",
+        "fault": "NaN speed (fault)",
+    }
+    for r in m["rows"]:
+        if r["key"][0] == "inertia":
+            out.append(f"| {r['key'][1]} | {points[r['point']]} | {r['count']} | {r['divides']} | {r['stack']} |")
+    out += [
+        "",
+        "Instructions by source line (update, sampled speed), the 25 costliest lines:",
+        "",
+        "| instructions | line | source |",
+        "|---:|---|---|",
+    ]
+    out += [f"| {n} | {ref} | `{source_line(ref)}` |" for ref, n in m["inertia_hot"][:25]]
+    return "\n".join(out) + "\n"
+
+
 def filter_report(m):
     """The markdown section of the torque filters (filter.h and p2d_speed_set_filter)."""
     plain = {r["point"]: r["count"] for r in m["rows"] if r["key"] == TARGET}
@@ -580,14 +718,15 @@ def main(argv=None):
     with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
         build_dir = (args.build_dir or Path(tmp) / "build").resolve()
         measured = measure(build_dir, Path(tmp))
-        text, filters = report(measured), filter_report(measured)
         commission_text = commission_report(commission_measure(build_dir, Path(tmp)))
+    text, sensing, inertia_text = report(measured), report_sensing(measured), inertia_report(measured)
+    filters = filter_report(measured)
     write_section(SECTION, text)
+    write_section(SENSING_SECTION, sensing)
+    write_section(INERTIA_SECTION, inertia_text)
     write_section(COMMISSION_SECTION, commission_text)
     write_section(FILTER_SECTION, filters)
-    print(text)
-    print(commission_text)
-    print(filters)
+    print(text + "\n" + sensing + "\n" + inertia_text + "\n" + commission_text + "\n" + filters)
     return 0
 
 

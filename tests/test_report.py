@@ -110,6 +110,12 @@ class _Page(HTMLParser):
             self.errors.append(tag)
 
 
+def test_report_has_the_speed_measurement_section(report_dir):
+    text = (report_dir / "report.md").read_text(encoding="utf-8")
+    assert "## Speed measurement (not in the paper)" in text
+    assert "| paper, measured (section 4.2) | 35 | 15 |" in text
+
+
 def test_html_parses_and_every_image_is_embedded_or_exists(report_dir):
     page = _Page()
     page.feed((report_dir / "report.html").read_text(encoding="utf-8"))

@@ -8,7 +8,9 @@
   every time and the speed loop every 10th time.
 - Golden vectors: input sequences generated here run through the speed and the
   current controller, for every method, feedforward form and anti-windup mode,
-  on QEMU (``-M mps2-an386``, a Cortex-M4F) and on the host through
+  the speed controller's field-weakening entry, the encoder speed estimators,
+  the field weakening and the inertia estimator (sampled and period-mean speeds,
+  memories from short to long), on QEMU (``-M mps2-an386``, a Cortex-M4F) and on the host through
   ``pmsm2dof._core`` (the simulation engine). Every float32 output and state
   word must be equal to the bit. Both builds keep a*b+c unfused
   (``-ffp-contract=off``; the x86-64 host has no FMA at the default ISA level),
@@ -101,6 +103,51 @@ SPEED_EXACT = {
     "fault_count",
 }
 CURRENT_EXACT = {"ud_ref_V", "uq_ref_V", "saturated", "fault", "x_d_V", "x_q_V", "fault_count"}
+ENCODER_FIELDS = (
+    "dn_counts",
+    "w_raw_radps",
+    "w_m_radps",
+    "fault",
+    "count_prev",
+    "theta_err_counts",
+    "v_pll_counts",
+    "w_lowpass_radps",
+    "fault_count",
+)
+FW_FIELDS = ("u_ref_V", "e_V", "id_unsat_A", "id_ref_A", "active", "at_id_min", "fault", "x_A", "fault_count")
+# the encoder reads integers only: every word is finite and must match; the field weakening holds its state finite
+ENCODER_EXACT = set(ENCODER_FIELDS)
+FW_EXACT = {"id_ref_A", "active", "at_id_min", "fault", "x_A", "fault_count"}
+INERTIA_OUTPUT_FIELDS = (
+    "J_kgm2",
+    "J_sd_kgm2",
+    "B_Nms",
+    "T_load_Nm",
+    "residual_Nm",
+    "residual_sd_Nm",
+    "J_valid",
+    "updated",
+    "fault",
+)
+INERTIA_STATE_FIELDS = (
+    "T_load_Nm",
+    "J_kgm2",
+    "B_Nms",
+    "U_LJ_per_s2",
+    "U_LB_per_s",
+    "U_JB_s",
+    "D_L_N2m2",
+    "D_J_kg2m4",
+    "D_B_N2m2s2",
+    "wF_radps",
+    "w0_radps",
+    "TF_Nm",
+    "oneF",
+    "T_prev_Nm",
+    "nis",
+    "primed",
+    "fault_count",
+)
 
 
 def run(cmd, timeout=BUILD_TIMEOUT_S, **kwargs):
@@ -223,6 +270,120 @@ def current_inputs(rng, cfg):
     return x
 
 
+def inertia_cases(rng):
+    """p2d_inertia_config_t of a small servo, with sampled and period-mean speeds and memories from 5 Ts up."""
+    cases = []
+    for period_mean in (False, True):
+        for J_memory_s, load_memory_s in ((10.0, 0.5), (0.005, 0.005), (1e3, 0.05)):
+            J0 = rng.uniform(0.005, 0.05)
+            cases.append(
+                dict(
+                    Ts_s=f32(1e-3),
+                    J0_kgm2=f32(J0),
+                    J_min_kgm2=f32(J0 / 10),
+                    J_max_kgm2=f32(J0 * 10),
+                    B_max_Nms=f32(rng.uniform(0.005, 0.05)),
+                    T_load_max_Nm=f32(rng.uniform(1.0, 5.0)),
+                    sigma_T_Nm=f32(rng.uniform(0.005, 0.1)),
+                    J_memory_s=f32(J_memory_s),
+                    load_memory_s=f32(load_memory_s),
+                    w_f_radps=f32(rng.uniform(10.0, 200.0)),
+                    J_rel_sd_max=f32(0.05),
+                    speed_is_period_mean=period_mean,
+                )
+            )
+    return cases
+
+
+def encoder_cases():
+    """p2d_encoder_config_t of each estimator, counter width and low-pass (10000-count encoder at 1 kHz and others)."""
+
+    def case(counts_per_rev, counter_bits, estimator, bandwidth_radps, lowpass_radps):
+        return dict(
+            counts_per_rev=counts_per_rev,
+            counter_bits=counter_bits,
+            Ts_s=f32(1e-3),
+            estimator=estimator,
+            bandwidth_radps=f32(bandwidth_radps),
+            lowpass_radps=f32(lowpass_radps),
+        )
+
+    return [
+        case(10000, 16, 0, 200.0, 0.0),
+        case(8192, 12, 0, 200.0, 300.0),
+        case(10000, 16, 1, 200.0, 0.0),
+        case(4096, 32, 1, 1000.0, 500.0),
+        case(4, 2, 1, 2000.0, 0.0),
+        case(100000, 32, 1, 3.0, 1.5),
+    ]
+
+
+def encoder_inputs(rng, cfg):
+    """(SAMPLES,) uint32 counter readings of a trajectory whose speed steps within the measurable range."""
+    w_max = 0.4 * np.pi * 2 ** cfg["counter_bits"] / (cfg["counts_per_rev"] * 1e-3)
+    w = steps(rng, -min(w_max, 600.0), min(w_max, 600.0))
+    theta = rng.uniform(0, 2 * np.pi) + np.cumsum(w) * 1e-3
+    counts = np.floor(theta * cfg["counts_per_rev"] / (2 * np.pi)).astype(np.int64)
+    offset = int(rng.integers(0, 2 ** cfg["counter_bits"]))
+    return ((counts + offset) % 2 ** cfg["counter_bits"]).astype(np.uint32)
+
+
+def fw_cases(rng):
+    """One p2d_field_weakening_config_t per method x anti-windup (a 48 V servo at 10 kHz)."""
+    cases = []
+    for method in range(METHOD):
+        for aw in range(ANTI_WINDUP):
+            Ki = rng.uniform(20.0, 200.0)
+            cases.append(
+                dict(
+                    Kp_A_per_V=f32(rng.uniform(0.0, 0.05)),
+                    Ki_A_per_Vs=f32(Ki),
+                    Ka_V_per_A=f32(rng.uniform(0.1, 1.5e4 / Ki)),
+                    Ts_s=f32(1e-4),
+                    voltage_ratio=f32(rng.uniform(0.8, 1.0)),
+                    id_min_A=f32(-rng.uniform(2.0, 20.0)),
+                    method=method,
+                    anti_windup=aw,
+                )
+            )
+    return cases
+
+
+def inertia_inputs(rng, cfg):
+    """(SAMPLES, 2) float32: speed and torque of a rigid drive J = 2 J0 under torque steps, quantized speed."""
+    J, Ts = 2.0 * cfg["J0_kgm2"], cfg["Ts_s"]
+    T = steps(rng, -cfg["T_load_max_Nm"], cfg["T_load_max_Nm"], segments=8)
+    w = np.concatenate(([0.0], np.cumsum(Ts / J * (T[1:] - 0.3 * cfg["T_load_max_Nm"]))))
+    w = np.round(w / 0.4) * 0.4 + 0.01 * rng.standard_normal(SAMPLES)  # a coarse speed resolution
+    x = np.stack([w, T + 0.02 * rng.standard_normal(SAMPLES)], axis=1).astype(np.float32)
+    x[30, 0] = np.nan  # speed measurement lost
+    x[50, 1] = np.inf  # torque overflow
+    x[70, 0] = 3e38  # an update that overflows
+    return x
+
+
+def fw_inputs(rng):
+    """(SAMPLES, 3) float32: ud, uq (magnitude steps around the range of the DC link), u_dc."""
+    norm = steps(rng, 5.0, 45.0)
+    angle = rng.uniform(0.5, 2.5, SAMPLES)
+    x = np.stack([norm * np.cos(angle), norm * np.sin(angle), steps(rng, 30.0, 60.0)], axis=1).astype(np.float32)
+    x[30, 0] = np.nan  # voltage command lost
+    x[50, 2] = np.nan  # DC-link measurement lost
+    x[51, 1] = np.inf
+    x[60, 0] = 1e20  # ||u_dq||^2 overflows
+    x[70, 2] = -5.0  # negative DC link: 0 V range
+    return x
+
+
+def speed_fw_inputs(rng, cfg):
+    """(SAMPLES, 4) float32: w_ref, w_m, id_fw (from beyond -i_max to above 0), torque limit of the applied command."""
+    x = speed_inputs(rng, cfg)
+    id_fw = steps(rng, -1.2 * cfg["i_max_A"], 0.2 * cfg["i_max_A"]).astype(np.float32)
+    id_fw[40] = np.nan  # field-weakening current lost
+    id_fw[41] = -np.inf
+    return np.insert(x, 2, id_fw, axis=1)
+
+
 def c_value(value):
     """Exact C99 initializer of a float32, int or bool value."""
     if isinstance(value, bool):
@@ -232,8 +393,10 @@ def c_value(value):
     return f"{float(value).hex()}f"  # hexadecimal float: exact
 
 
-def vectors_header(speed, speed_in, current, current_in):
-    """Text of p2d_target_vectors.h (see csrc/target/target_vectors.c)."""
+def vectors_header(v):
+    """Text of p2d_target_vectors.h (see csrc/target/target_vectors.c) for the vectors v."""
+    speed, speed_in, current, current_in = v["speed"], v["speed_in"], v["current"], v["current_in"]
+    inertia, inertia_in = v["inertia"], v["inertia_in"]
     speed_enums = dict(method="p2d_method_t", feedforward="p2d_feedforward_t", anti_windup="p2d_anti_windup_t")
 
     def config(cfg, enums):
@@ -251,6 +414,7 @@ def vectors_header(speed, speed_in, current, current_in):
         f"#define P2D_VEC_SAMPLES {SAMPLES}u",
         f"#define P2D_VEC_SPEED_CASES {len(speed)}u",
         f"#define P2D_VEC_CURRENT_CASES {len(current)}u",
+        f"#define P2D_VEC_INERTIA_CASES {len(inertia)}u",
         "static const p2d_speed_config_t p2d_vec_speed_config[P2D_VEC_SPEED_CASES] = {",
         ",\n".join(config(c, speed_enums) for c in speed),
         "};",
@@ -263,6 +427,29 @@ def vectors_header(speed, speed_in, current, current_in):
         "static const uint32_t p2d_vec_current_input[P2D_VEC_CURRENT_CASES][P2D_VEC_SAMPLES][7] = {",
         ",\n".join(words(x) for x in current_in),
         "};",
+        "static const uint32_t p2d_vec_speed_fw_input[P2D_VEC_SPEED_CASES][P2D_VEC_SAMPLES][4] = {",
+        ",\n".join(words(x) for x in v["speed_fw_in"]),
+        "};",
+        f"#define P2D_VEC_ENCODER_CASES {len(v['encoder'])}u",
+        "static const p2d_encoder_config_t p2d_vec_encoder_config[P2D_VEC_ENCODER_CASES] = {",
+        ",\n".join(config(c, dict(estimator="p2d_estimator_t")) for c in v["encoder"]),
+        "};",
+        "static const uint32_t p2d_vec_encoder_input[P2D_VEC_ENCODER_CASES][P2D_VEC_SAMPLES] = {",
+        ",\n".join("{" + ", ".join(f"0x{w:08x}u" for w in x.tolist()) + "}" for x in v["encoder_in"]),
+        "};",
+        f"#define P2D_VEC_FW_CASES {len(v['fw'])}u",
+        "static const p2d_field_weakening_config_t p2d_vec_fw_config[P2D_VEC_FW_CASES] = {",
+        ",\n".join(config(c, dict(method="p2d_method_t", anti_windup="p2d_anti_windup_t")) for c in v["fw"]),
+        "};",
+        "static const uint32_t p2d_vec_fw_input[P2D_VEC_FW_CASES][P2D_VEC_SAMPLES][3] = {",
+        ",\n".join(words(x) for x in v["fw_in"]),
+        "};",
+        "static const p2d_inertia_config_t p2d_vec_inertia_config[P2D_VEC_INERTIA_CASES] = {",
+        ",\n".join(config(c, {}) for c in inertia),
+        "};",
+        "static const uint32_t p2d_vec_inertia_input[P2D_VEC_INERTIA_CASES][P2D_VEC_SAMPLES][2] = {",
+        ",\n".join(words(x) for x in inertia_in),
+        "};",
         "",
     ]
     return "\n".join(text)
@@ -273,12 +460,22 @@ def vectors():
     rng = np.random.default_rng(20240615)
     speed = speed_cases(rng)
     current = current_cases(rng)
-    return dict(
+    v = dict(
         speed=speed,
         speed_in=[speed_inputs(rng, c) for c in speed],
         current=current,
         current_in=[current_inputs(rng, c) for c in current],
     )
+    # drawn after the vectors above, which stay as they were
+    v["speed_fw_in"] = [speed_fw_inputs(rng, c) for c in speed]
+    v["encoder"] = encoder_cases()
+    v["encoder_in"] = [encoder_inputs(rng, c) for c in v["encoder"]]
+    v["fw"] = fw_cases(rng)
+    v["fw_in"] = [fw_inputs(rng) for _ in v["fw"]]
+    inertia_rng = np.random.default_rng(20261124)  # its own stream: the controllers' vectors stay as they were
+    v["inertia"] = inertia_cases(inertia_rng)
+    v["inertia_in"] = [inertia_inputs(inertia_rng, c) for c in v["inertia"]]
+    return v
 
 
 # --------------------------------------------------------------------------------------------
@@ -292,7 +489,7 @@ def word(cdata, field):
     if isinstance(value, bool):
         return int(value)
     if isinstance(value, int):
-        return value
+        return value & 0xFFFFFFFF  # int32 as its two's complement word
     return int(ffi.cast("uint32_t *", ffi.addressof(cdata, field))[0])
 
 
@@ -319,6 +516,44 @@ def host_speed(cfg, inputs):
     return status, rows
 
 
+def host_speed_fw(cfg, inputs):
+    ctl = ffi.new("p2d_speed_t *")
+    status = lib.p2d_speed_init(ctl, ffi.new("p2d_speed_config_t *", cfg))
+    rows = []
+    if status == 0:
+        for w_ref, w_m, id_fw, lim in inputs.tolist():
+            out = ffi.new("p2d_speed_output_t *")
+            lib.p2d_speed_compute_fw(ctl, w_ref, w_m, id_fw, out)
+            lib.p2d_speed_update(ctl, out, limit(out.T_ref_Nm, lim))
+            rows.append([word(out[0], f) for f in SPEED_FIELDS[:10]] + [word(ctl[0], f) for f in SPEED_FIELDS[10:]])
+    return status, rows
+
+
+def host_encoder(cfg, readings):
+    enc = ffi.new("p2d_encoder_t *")
+    status = lib.p2d_encoder_init(enc, ffi.new("p2d_encoder_config_t *", cfg))
+    rows = []
+    if status == 0:
+        lib.p2d_encoder_reset(enc, int(readings[0]), 0.0)
+        for count in readings.tolist():
+            out = ffi.new("p2d_encoder_output_t *")
+            lib.p2d_encoder_step(enc, count, out)
+            rows.append([word(out[0], f) for f in ENCODER_FIELDS[:4]] + [word(enc[0], f) for f in ENCODER_FIELDS[4:]])
+    return status, rows
+
+
+def host_fw(cfg, inputs):
+    fw = ffi.new("p2d_field_weakening_t *")
+    status = lib.p2d_field_weakening_init(fw, ffi.new("p2d_field_weakening_config_t *", cfg))
+    rows = []
+    if status == 0:
+        for ud, uq, u_dc in inputs.tolist():
+            out = ffi.new("p2d_field_weakening_output_t *")
+            lib.p2d_field_weakening_step(fw, ud, uq, u_dc, out)
+            rows.append([word(out[0], f) for f in FW_FIELDS[:7]] + [word(fw[0], f) for f in FW_FIELDS[7:]])
+    return status, rows
+
+
 def host_current(cfg, inputs):
     ctl = ffi.new("p2d_current_t *")
     status = lib.p2d_current_init(ctl, ffi.new("p2d_current_config_t *", cfg))
@@ -332,6 +567,20 @@ def host_current(cfg, inputs):
     return status, rows
 
 
+def host_inertia(cfg, inputs):
+    est = ffi.new("p2d_inertia_t *")
+    status = lib.p2d_inertia_init(est, ffi.new("p2d_inertia_config_t *", cfg))
+    rows = []
+    if status == 0:
+        for w_m, T_e in inputs.tolist():
+            out = ffi.new("p2d_inertia_output_t *")
+            lib.p2d_inertia_step(est, w_m, T_e, out)
+            rows.append(
+                ([word(out[0], f) for f in INERTIA_OUTPUT_FIELDS], [word(est[0], f) for f in INERTIA_STATE_FIELDS])
+            )
+    return status, rows
+
+
 # --------------------------------------------------------------------------------------------
 # builds
 # --------------------------------------------------------------------------------------------
@@ -341,9 +590,7 @@ def host_current(cfg, inputs):
 def cross_build(tmp_path_factory, vectors):
     """The csrc cross build: the library, the probe programs and the golden-vector runner."""
     tmp = tmp_path_factory.mktemp("cortex-m4f")
-    (tmp / "p2d_target_vectors.h").write_text(
-        vectors_header(vectors["speed"], vectors["speed_in"], vectors["current"], vectors["current_in"])
-    )
+    (tmp / "p2d_target_vectors.h").write_text(vectors_header(vectors))
     build = tmp / "build"
     run(["cmake", "-S", CSRC, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={TOOLCHAIN}", f"-DP2D_TARGET_VECTORS_DIR={tmp}"])
     run(["cmake", "--build", build, "-j2"])
@@ -465,7 +712,7 @@ def is_nan(w):
 
 def parse_target_output(text):
     """({tag: {case: status}}, {tag: {(case, k): [words]}}) of target_vectors.c's output."""
-    status, rows = {"S": {}, "C": {}}, {"S": {}, "C": {}}
+    status, rows = {t: {} for t in "SCFEWJ"}, {t: {} for t in "SCFEWJK"}
     for line in text.splitlines():
         p = line.split()
         if len(p) == 4 and p[0] == "I":
@@ -488,10 +735,13 @@ def test_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
     target_status, target_rows = parse_target_output(done.stderr)
 
     mismatches = []
-    seen = {(tag, path): 0 for tag in "SC" for path in ("unsaturated", "saturated", "fault")}
+    seen = {}
     for tag, cases, inputs, host, fields, exact in (
         ("S", vectors["speed"], vectors["speed_in"], host_speed, SPEED_FIELDS, SPEED_EXACT),
         ("C", vectors["current"], vectors["current_in"], host_current, CURRENT_FIELDS, CURRENT_EXACT),
+        ("F", vectors["speed"], vectors["speed_fw_in"], host_speed_fw, SPEED_FIELDS, SPEED_EXACT),
+        ("E", vectors["encoder"], vectors["encoder_in"], host_encoder, ENCODER_FIELDS, ENCODER_EXACT),
+        ("W", vectors["fw"], vectors["fw_in"], host_fw, FW_FIELDS, FW_EXACT),
     ):
         for c, (cfg, x) in enumerate(zip(cases, inputs)):
             status, host_rows = host(cfg, x)
@@ -499,19 +749,81 @@ def test_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
             for k, host_row in enumerate(host_rows):
                 row = target_rows[tag][(c, k)]
                 assert len(row) == len(fields), (tag, c, k, row)
-                named = dict(zip(fields, row))
-                seen[tag, "fault" if named["fault"] else "saturated" if named["saturated"] else "unsaturated"] += 1
+                path = (tag, path_of(tag, dict(zip(fields, row))))
+                seen[path] = seen.get(path, 0) + 1
                 for name, h, t in zip(fields, host_row, row):
                     if h == t:
                         continue
                     if name not in exact and is_nan(h) and is_nan(t):
                         continue  # NaN payloads may differ (Arm and x86 default NaNs)
                     mismatches.append(f"{tag} case {c} sample {k} {name}: target {t:08x}, host {h:08x} ({cfg})")
-    assert len(target_rows["S"]) == len(vectors["speed"]) * SAMPLES
-    assert len(target_rows["C"]) == len(vectors["current"]) * SAMPLES
+    for tag, cases in (("S", "speed"), ("C", "current"), ("F", "speed"), ("E", "encoder"), ("W", "fw")):
+        assert len(target_rows[tag]) == len(vectors[cases]) * SAMPLES, tag
     assert not mismatches, (
         f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
         "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20])
     )
-    # the vectors went through every path of both controllers: unsaturated, saturated, non-finite
-    assert min(seen.values()) >= 50, seen
+    # the vectors went through every path: unsaturated, saturated, non-finite (speed, current, field-weakening
+    # entry); both directions of the counter; field weakening off, weakening, at id_min and faulted
+    assert set(seen) == set(PATHS), seen
+    assert min(seen.values()) >= 20, seen
+
+
+PATHS = [(t, p) for t in "SCF" for p in ("unsaturated", "saturated", "fault")] + [
+    ("E", "forward"),
+    ("E", "backward"),
+    ("W", "off"),
+    ("W", "weakening"),
+    ("W", "at_id_min"),
+    ("W", "fault"),
+]
+
+
+def path_of(tag, row):
+    """The path of the controller that gave the row of words (PATHS)."""
+    if tag == "E":
+        return "backward" if row["dn_counts"] & 0x80000000 else "forward"
+    if tag == "W":
+        return "fault" if row["fault"] else "at_id_min" if row["at_id_min"] else "weakening" if row["active"] else "off"
+    return "fault" if row["fault"] else "saturated" if row["saturated"] else "unsaturated"
+
+
+@needs_cross
+@needs_qemu
+def test_inertia_golden_vectors_on_qemu_equal_host_to_the_bit(cross_build, vectors):
+    """The estimator's outputs and its whole state, every sample, on QEMU and on the host: equal words.
+
+    Its state is finite by the non-finite policy, so every word must match to the bit; so must the outputs.
+    """
+    elf = cross_build / "target" / "p2d_target_vectors"
+    done = subprocess.run(
+        [*QEMU, "-kernel", str(elf)], capture_output=True, text=True, timeout=QEMU_TIMEOUT_S, stdin=subprocess.DEVNULL
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    target_status, target_rows = parse_target_output(done.stderr)
+    mismatches, seen = [], {"updated": 0, "fault": 0, "valid": 0}
+    for c, (cfg, x) in enumerate(zip(vectors["inertia"], vectors["inertia_in"])):
+        status, host_rows = host_inertia(cfg, x)
+        assert status == 0 and target_status["J"][c] == 0, (c, status, target_status["J"].get(c), cfg)
+        for k, (host_out, host_state) in enumerate(host_rows):
+            for tag, fields, host in (("J", INERTIA_OUTPUT_FIELDS, host_out), ("K", INERTIA_STATE_FIELDS, host_state)):
+                row = target_rows[tag][(c, k)]
+                assert len(row) == len(fields), (tag, c, k, row)
+                mismatches += [
+                    f"{tag} case {c} sample {k} {name}: target {t:08x}, host {h:08x} ({cfg})"
+                    for name, h, t in zip(fields, host, row)
+                    if h != t
+                ]
+            named = dict(zip(INERTIA_OUTPUT_FIELDS, host_out))
+            seen["updated"] += named["updated"]
+            seen["fault"] += named["fault"]
+            seen["valid"] += named["J_valid"]
+    assert len(target_rows["J"]) == len(target_rows["K"]) == len(vectors["inertia"]) * SAMPLES
+    assert not mismatches, (
+        f"{len(mismatches)} words differ (is pmsm2dof._core older than csrc/src? "
+        "rebuild it with pip install -e .):\n" + "\n".join(mismatches[:20])
+    )
+    # the vectors went through updates, faults and valid estimates
+    assert seen["fault"] >= 3 * len(vectors["inertia"]) and seen["updated"] > 50 * len(vectors["inertia"]), seen
+    print(f"\ninertia golden vectors: {len(vectors['inertia'])} cases x {SAMPLES} samples, {seen}")
+    assert seen["valid"] > 0, seen

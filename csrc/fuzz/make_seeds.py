@@ -1,12 +1,11 @@
-"""Write the seed corpus of the fuzz targets (csrc/fuzz/corpus/{speed,current,commission,filter}).
+"""Write the seed corpus of the fuzz targets (csrc/fuzz/corpus/<target>, one folder per target).
 
-Each seed is a byte string in the input format decoded by fuzz_common.h,
-fuzz_speed.c, fuzz_current.c, fuzz_commission.c and fuzz_filter.c: a configuration, then
-operations. The seeds start the fuzzer from meaningful runs (the paper's drive
-in closed loop, a stall beyond the current limit, torque filters on a
-saturating drive, parameter updates valid and invalid, NaN and inf inputs, odd
-applied commands, a resonant filter driven into overflow) instead of from empty
-inputs.
+Each seed is a byte string in the input format decoded by fuzz_common.h and the
+fuzz_<target>.c of each target of main(): a configuration, then operations. The seeds
+start the fuzzer from meaningful runs (the paper's drive in closed loop, a
+stall beyond the current limit, torque filters on a saturating drive, parameter
+updates valid and invalid, NaN and inf inputs, odd applied commands, a resonant
+filter driven into overflow) instead of from empty inputs.
 
 Run from the repository root after changing the input format:
 
@@ -422,11 +421,253 @@ COMMISSION_SEEDS = {
 }
 
 
+def encoder_config(estimator=1, lowpass=True, cpr=10000, bits_byte=0, Ts=nominal()):
+    """Encoder configuration: cpr counts per revolution (1..65536); bits_byte 0 (16 bits), 1 (32 bits), or b
+    with b % 3 == 2 (2 + b % 31 bits); PLL (estimator 1) or difference (0); low-pass at its nominal 300 rad/s
+    or none."""
+    return (
+        u8(0 if lowpass else 1)
+        + u8(0)
+        + u16(cpr - 1)
+        + u8(bits_byte)
+        + Ts
+        + u8(estimator)
+        + nominal()
+        + (nominal() if lowpass else b"")
+    )
+
+
+def encoder_steps(increments):
+    """Readings of the previous one plus each signed increment (op 0)."""
+    return b"".join(u8(0) + struct.pack("<h", d) for d in increments)
+
+
+def encoder_trajectory(n, w_end):
+    return u8(CLOSED_LOOP) + u16(n - 1) + w_end
+
+
+def fw_config(method=2, anti_windup=1, Ka=nominal(), id_min=nominal()):
+    """Field-weakening configuration (Kp, Ki, Ka, Ts, voltage_ratio, id_min at their nominal values)."""
+    return nominal() + nominal() + Ka + nominal() + nominal() + id_min + u8(method) + u8(anti_windup)
+
+
+def fw_speed_config(shape=0):
+    """Speed controller of the field-weakening target; shape % 3: surface, Ld < Lq, Ld > Lq; shape // 3 % 3: AW."""
+    return u8(shape) + nominal() + nominal() + nominal() + nominal() + nominal()  # J, alpha, i_max, psi_f, Ld
+
+
+def fw_sample(ud, uq, u_dc):
+    return u8(SAMPLE) + ud + uq + u_dc
+
+
+def fw_speed_sample(w_ref, w_m, id_fw, mode=0, applied=b""):
+    return u8(3 + 8 * mode) + w_ref + w_m + id_fw + applied
+
+
+def fw_closed_run(n, w_e, w_ref=nominal(), u_dc=nominal()):
+    return u8(CLOSED_LOOP) + u16(n - 1) + w_e + w_ref + u_dc
+
+
+ENCODER_SEEDS = {
+    # 10000 counts/rev, 16-bit timer, PLL at 200 rad/s with a low-pass: a ramp to 100 rad/s, then to -150 rad/s
+    "pll_lowpass_ramps": encoder_config()
+    + encoder_trajectory(2048, nominal())
+    + encoder_trajectory(2048, nominal(-1.5)),
+    # difference estimator on a 32-bit counter: increments across the wrap, the largest ones
+    "difference_32bit_wrap": encoder_config(estimator=0, lowpass=False, bits_byte=1)
+    + u8(7)
+    + struct.pack("<I", 0xFFFFFF00)
+    + nominal()
+    + encoder_steps([300, 300, -1000, 32767, -32768, 0, 1])
+    + u8(3)
+    + struct.pack("<I", 0x7FFFFFFF)
+    + u8(3)
+    + struct.pack("<I", 0xFFFFFFFF),
+    # a 12-bit counter, PLL without filter, a deadbeat bandwidth (w Ts = 2) then a slow one, then the difference
+    "pll_12bit_bandwidth_changes": encoder_config(lowpass=False, bits_byte=41, cpr=8192)
+    + encoder_trajectory(500, nominal(1.2))
+    + u8(SET_MUTATED)
+    + u8(4)
+    + nominal(10.0)
+    + encoder_trajectory(500, nominal(0.3))
+    + u8(SET_MUTATED)
+    + u8(4)
+    + nominal(0.01)
+    + encoder_trajectory(500, nominal(-0.3))
+    + u8(SET_MUTATED)
+    + u8(3)
+    + u8(0)
+    + encoder_trajectory(300, nominal()),
+    # resets at finite, NaN and overflowing speeds; a rejected fresh configuration (Ts NaN)
+    "resets_and_rejections": encoder_config()
+    + u8(RESET)
+    + struct.pack("<I", 40000)
+    + nominal()
+    + encoder_steps([159, 159, 160])
+    + u8(RESET)
+    + struct.pack("<I", 3)
+    + special("nan")
+    + u8(RESET)
+    + struct.pack("<I", 3)
+    + raw(3e38)
+    + u8(SET_FRESH)
+    + encoder_config(Ts=special("nan"))
+    + encoder_steps([5, -5]),
+    # a configuration init rejects (bandwidth w Ts = 10 > 2)
+    "rejected_init": u8(0) + u8(0) + u16(9999) + u8(0) + nominal() + u8(1) + nominal(50.0) + nominal(),
+}
+
+FIELD_WEAKENING_SEEDS = {
+    # surface PMSM of a 48 V servo, Tustin back calculation: above base speed, then far above (id at id_min), back
+    "surface_backcalc_speed_sweep": fw_config()
+    + fw_speed_config(3)
+    + fw_closed_run(2000, nominal())
+    + fw_closed_run(2000, nominal(4.0))
+    + fw_closed_run(2000, nominal(0.2)),
+    # salient (Ld < Lq), clamping: field-weakening entry with ids inside, at and beyond -i_max, positive, NaN
+    "salient_clamping_entry": fw_config(anti_windup=2)
+    + fw_speed_config(1 + 3 * 2)
+    + fw_closed_run(1000, nominal(1.5))
+    + fw_speed_sample(nominal(), nominal(0.1), nominal(-0.5))
+    + fw_speed_sample(nominal(10.0), nominal(0.1), nominal(-3.0))
+    + fw_speed_sample(nominal(10.0), nominal(0.1), nominal(-1.5), mode=1, applied=fraction(0.5))
+    + fw_speed_sample(nominal(), nominal(0.1), nominal(0.5), mode=2, applied=special("nan"))
+    + fw_speed_sample(nominal(), nominal(0.1), special("nan")),
+    # Ld > Lq: the bound id <= id_fw overrides the positive MTPA current
+    "reverse_saliency": fw_config(method=1)
+    + fw_speed_config(2)
+    + fw_closed_run(1500, nominal(2.0))
+    + fw_speed_sample(nominal(10.0), nominal(0.1), nominal(-2.9)),
+    # non-finite and overflowing voltages, negative DC link, resets, parameter updates valid and not
+    "faults_and_updates": fw_config(method=0, anti_windup=1)
+    + fw_speed_config(0)
+    + fw_sample(nominal(), nominal(), nominal())
+    + fw_sample(special("nan"), nominal(), nominal())
+    + fw_sample(nominal(), nominal(), special("inf"))
+    + fw_sample(raw(1e20), raw(1e20), nominal())
+    + fw_sample(nominal(), nominal(), nominal(-1.0))
+    + u8(RESET)
+    + nominal(-2.0)
+    + nominal()
+    + nominal()
+    + u8(RESET)
+    + special("nan")
+    + nominal()
+    + nominal()
+    + u8(SET_MUTATED)
+    + u8(1)
+    + nominal(5.0)
+    + u8(SET_MUTATED)
+    + u8(4)
+    + nominal(2.0)
+    + u8(SET_FRESH)
+    + fw_config(Ka=nominal(10.0))
+    + fw_closed_run(500, nominal(3.0)),
+    # a configuration init rejects (id_min > 0)
+    "rejected_init": fw_config(id_min=nominal(-1.0)) + fw_speed_config(0),
+}
+
+
+def inertia_config(period_mean=False, J0=nominal(), J_min=nominal(), J_max=nominal(), J_memory=nominal()):
+    """Inertia estimator configuration around J0 = 0.01 kg m^2 (fuzz_inertia.c)."""
+    out = u8(1 if period_mean else 0) + nominal() + J0 + J_min + J_max  # Ts, J0, J_min, J_max
+    out += nominal() + nominal() + nominal() + J_memory  # B_max, T_load_max, sigma_T, J_memory
+    return out + nominal() + nominal() + nominal()  # load_memory, w_f, J_rel_sd_max
+
+
+def inertia_closed_loop(
+    n,
+    J=0.5,
+    B=0.5,
+    T_load=nominal(),
+    w_amp=nominal(),
+    T_max=nominal(),
+    alpha=0.4,
+    noise=0.0,
+    encoder=False,
+    half_period=250,
+):
+    """A closed-loop run; J is the fraction of the range J0/30 .. 30 J0 (0.5: J0)."""
+    return (
+        u8(CLOSED_LOOP)
+        + u16(n - 1)
+        + fraction(J)
+        + fraction(B)
+        + T_load
+        + w_amp
+        + T_max
+        + fraction(alpha)
+        + fraction(noise)
+        + u8(1 if encoder else 0)
+        + u16(half_period - 1)
+    )
+
+
+def inertia_sample(w_m, T_e):
+    return u8(SAMPLE) + w_m + T_e
+
+
+INERTIA_SEEDS = {
+    # a servo at 1 kHz under a square-wave speed reference, J = J0, then J = 3 J0 with torque noise
+    "servo_closed_loop": inertia_config() + inertia_closed_loop(2048) + inertia_closed_loop(2048, J=0.66, noise=0.5),
+    # an encoder of 16384 counts per turn, speed as the period mean
+    "encoder_period_mean": inertia_config(period_mean=True)
+    + inertia_closed_loop(2048, encoder=True, noise=0.3)
+    + inertia_closed_loop(2048, J=0.3, encoder=True),
+    # the drive at rest for 3 x 2048 samples with a J memory of 0.1 s: J is never excited
+    "low_excitation": inertia_config(J_memory=nominal(0.01))
+    + inertia_closed_loop(2048, T_load=raw(0.0), w_amp=raw(1e-4), half_period=1000)
+    + inertia_closed_loop(2048, T_load=raw(0.0), w_amp=raw(1e-4), half_period=1000)
+    + inertia_closed_loop(2048, T_load=raw(0.0), w_amp=raw(1e-4), half_period=1000),
+    # a drive 30 times heavier than J0 with J_max = J0, after a NaN, an inf and an overflow
+    "beyond_J_max": inertia_config(J_max=nominal(0.1))
+    + inertia_closed_loop(2048, J=1.0, T_max=nominal(20.0))
+    + inertia_sample(special("nan"), nominal())
+    + inertia_sample(nominal(), special("-inf"))
+    + inertia_sample(raw(3e38), nominal())
+    + inertia_closed_loop(1000, J=1.0, T_max=nominal(20.0)),
+    # non-finite and huge inputs, between samples of a drive
+    "nan_inputs": inertia_config()
+    + inertia_closed_loop(300)
+    + inertia_sample(special("nan"), nominal())
+    + inertia_sample(nominal(), special("inf"))
+    + inertia_sample(special("max"), special("-max"))
+    + inertia_sample(raw(3e38), raw(-3e38))
+    + inertia_closed_loop(300),
+    # parameter updates mid-run: J memory x0.1 (valid), J0 NaN (refused), a fresh invalid config,
+    # the speed pairing toggled, reset keeping the estimate, reset to the prior
+    "set_config_mid_run": inertia_config()
+    + inertia_closed_loop(500)
+    + u8(SET_MUTATED)
+    + u8(7)
+    + nominal(0.1)
+    + inertia_closed_loop(500)
+    + u8(SET_MUTATED)
+    + u8(1)
+    + special("nan")
+    + u8(SET_FRESH)
+    + inertia_config(J_min=raw(0.1))
+    + u8(SET_MUTATED)
+    + u8(11)
+    + u8(RESET)
+    + u8(1)
+    + inertia_closed_loop(500)
+    + u8(RESET)
+    + u8(0)
+    + inertia_closed_loop(500),
+    # a configuration init rejects (J_min = 1 kg m^2 > J0)
+    "rejected_init": inertia_config(J_min=raw(1.0)),
+}
+
+
 def main():
     for target, seeds in (
         ("speed", SPEED_SEEDS),
         ("current", CURRENT_SEEDS),
         ("commission", COMMISSION_SEEDS),
+        ("encoder", ENCODER_SEEDS),
+        ("field_weakening", FIELD_WEAKENING_SEEDS),
+        ("inertia", INERTIA_SEEDS),
         ("filter", FILTER_SEEDS),
     ):
         folder = CORPUS / target

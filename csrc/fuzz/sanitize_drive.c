@@ -26,7 +26,13 @@
  *      dead time, current noise and computation delay, into a log of exactly
  *      its rows: DONE, every estimate within 5 %; then a log one row short
  *      (P2D_CRUN_ERR_LOG_FULL) and a rejected routine configuration;
- *   7. a two-mass train with backlash read on the load side, with a notch and
+ *   7. measurement and field weakening (sensing.h): an encoder on a 16-bit
+ *      counter read by the PLL with a low-pass, a fractional delay, speed and
+ *      current noise, phase-current gain errors and offsets, and field
+ *      weakening from 3000 to 4500 rpm with a light inertia (the speed must
+ *      reach 4500 rpm); the longest delay the history holds (2045.5 current
+ *      periods: the ring of angles wraps many times); and their error paths;
+ *   8. a two-mass train with backlash read on the load side, with a notch and
  *      a low-pass in the speed controller, a load step: the trace ends at rest
  *      on the reference with the shaft carrying the load.
  * Besides the sanitizers' own checks: the status codes, every logged value
@@ -348,7 +354,85 @@ int main(void)
         free(run);
     }
 
-    /* 7. two-mass train with backlash, load-side feedback, notch and low-pass */
+    /* 7. encoder, PLL, delay, noise, current sensors, field weakening above base speed */
+    {
+        static const double ref_t[] = {0.0}, ref_v[] = {4500.0 * RADPS_PER_RPM}, ref_r[] = {0.0};
+        static const double load_t[] = {0.0}, load_v[] = {2.0}, load_r[] = {0.0};
+        p2d_sim_t *sim = malloc(sizeof *sim);
+        paper_drive(&cfg);
+        cfg.motor.J_kgm2 = 0.01;
+        cfg.w_m0_radps = 3000.0 * RADPS_PER_RPM;
+        cfg.speed.J_kgm2 = 0.01f;
+        cfg.speed.alpha_radps = 20.0f;
+        cfg.speed.zeta = 0.7f;
+        cfg.speed.Ka = p2d_speed_Ka_default(0.01f, 20.0f);
+        cfg.current.tau_i_s = 0.002f;
+        cfg.current.decouple = true;
+        cfg.reference = (p2d_schedule_t){ref_t, ref_v, ref_r, 1u};
+        cfg.load = (p2d_schedule_t){load_t, load_v, load_r, 1u};
+        cfg.sensing.speed_sensor.model = P2D_SPEED_SENSOR_ENCODER;
+        cfg.sensing.speed_sensor.encoder.counts_per_rev = 4096u;
+        cfg.sensing.speed_sensor.encoder.counter_bits = 16u;
+        cfg.sensing.speed_sensor.encoder.estimator = P2D_ESTIMATOR_PLL;
+        cfg.sensing.speed_sensor.encoder.bandwidth_radps = 400.0f;
+        cfg.sensing.speed_sensor.encoder.lowpass_radps = 1000.0f;
+        cfg.sensing.speed_sensor.delay_s = 2.5 * cfg.Ts_current_s;
+        cfg.sensing.speed_sensor.noise_rms_radps = 0.5;
+        cfg.sensing.speed_sensor.seed = 12345u;
+        cfg.sensing.current_sensor.gain_error_a = 0.02;
+        cfg.sensing.current_sensor.gain_error_b = -0.01;
+        cfg.sensing.current_sensor.offset_a_A = 0.05;
+        cfg.sensing.current_sensor.offset_b_A = -0.03;
+        cfg.sensing.current_sensor.noise_rms_A = 0.01;
+        cfg.sensing.current_sensor.seed = 99u;
+        cfg.sensing.field_weakening.enabled = true;
+        cfg.sensing.field_weakening.config.Kp_A_per_V = 0.0f;
+        cfg.sensing.field_weakening.config.Ki_A_per_Vs = 3.0f;
+        cfg.sensing.field_weakening.config.Ka_V_per_A = 1.0f / (3.0f * 1e-3f);
+        cfg.sensing.field_weakening.config.voltage_ratio = 0.95f;
+        cfg.sensing.field_weakening.config.id_min_A = -7.6f;
+        cfg.sensing.field_weakening.config.method = P2D_TUSTIN;
+        cfg.sensing.field_weakening.config.anti_windup = P2D_AW_BACK_CALCULATION;
+        status = run("sensing and field weakening", &cfg, 3000u, 3u, &log, &rows);
+        CHECK(status == P2D_SIM_OK && rows == 3000u, "sensing and field weakening: status %d rows %llu", (int)status,
+              (unsigned long long)rows);
+        if (rows == 3000u) {
+            double w = cell(log, rows, 2999u, P2D_LOG_W_M_RADPS);
+            CHECK(fabs(w - ref_v[0]) < 0.01 * ref_v[0], "sensing and field weakening: w_m(3 s) = %g rad/s, ref %g", w,
+                  ref_v[0]);
+            CHECK(cell(log, rows, 2999u, P2D_LOG_ID_REF_A) < -1.0, "sensing and field weakening: id_ref %g",
+                  cell(log, rows, 2999u, P2D_LOG_ID_REF_A));
+        }
+        free(log);
+        /* error paths */
+        cfg.sensing.speed_sensor.delay_s = 2047.0 * cfg.Ts_current_s;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_SPEED_SENSOR, "a delay beyond the history accepted");
+        cfg.sensing.speed_sensor.delay_s = 0.0;
+        cfg.sensing.speed_sensor.encoder.bandwidth_radps = 1e6f;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_SPEED_SENSOR && sim->controller_status == P2D_ERR_ENC_BANDWIDTH,
+              "PLL bandwidth beyond 2/Ts: controller_status %d", (int)sim->controller_status);
+        cfg.sensing.speed_sensor.encoder.bandwidth_radps = 400.0f;
+        cfg.sensing.current_sensor.gain_error_b = -1.0;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_CURRENT_SENSOR, "a gain error of -1 accepted");
+        cfg.sensing.current_sensor.gain_error_b = 0.0;
+        cfg.sensing.field_weakening.config.id_min_A = 0.0f;
+        CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_ERR_FIELD_WEAKENING && sim->controller_status == P2D_ERR_FW_ID_MIN,
+              "id_min_A = 0 accepted: controller_status %d", (int)sim->controller_status);
+        /* the longest delay the history holds, on the paper's slow loop: the ring wraps 14 times */
+        paper_drive(&cfg);
+        cfg.reference = (p2d_schedule_t){ref_t, ref_v, ref_r, 1u};
+        cfg.sensing.speed_sensor.model = P2D_SPEED_SENSOR_ENCODER;
+        cfg.sensing.speed_sensor.encoder.counts_per_rev = 4096u;
+        cfg.sensing.speed_sensor.encoder.counter_bits = 16u;
+        cfg.sensing.speed_sensor.delay_s = 2045.5 * cfg.Ts_current_s;
+        status = run("longest delay", &cfg, 3000u, 2u, &log, &rows);
+        CHECK(status == P2D_SIM_OK && rows == 3000u, "longest delay: status %d rows %llu", (int)status,
+              (unsigned long long)rows);
+        free(log);
+        free(sim);
+    }
+
+    /* 8. two-mass train with backlash, load-side feedback, notch and low-pass */
     {
         static const double ref_t[] = {0.0}, ref_v[] = {300.0 * RADPS_PER_RPM}, ref_r[] = {0.0};
         static const double load_t[] = {0.5}, load_v[] = {4.0}, load_r[] = {0.0};
@@ -387,6 +471,6 @@ int main(void)
         fprintf(stderr, "sanitize_drive: %d check(s) failed\n", failures);
         return 1;
     }
-    printf("sanitize_drive: 7 scenarios passed\n");
+    printf("sanitize_drive: 8 scenarios passed\n");
     return 0;
 }

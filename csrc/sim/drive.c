@@ -76,6 +76,16 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_STOP_OVERCURRENT] = {"", "the current exceeds ten times the larger of the current limit and "
                                       "the short-circuit current psi_f / min(Ld, Lq)"},
     [P2D_SIM_STOP_CONTROLLER_FAULT] = {"", "a controller's output became non-finite (non-finite policy)"},
+    [P2D_SIM_ERR_SPEED_SENSOR] = {"speed_sensor", "model ideal (0) or encoder (1), finite delay_s in [0, 2046 "
+                                                  "Ts_current_s], finite noise_rms_radps >= 0, an encoder "
+                                                  "accepted by p2d_encoder_init (see controller_status)"},
+    [P2D_SIM_ERR_CURRENT_SENSOR] = {"current_sensor", "finite gain errors > -1, finite offsets, finite "
+                                                      "noise_rms_A >= 0; all 0 with first_order"},
+    [P2D_SIM_ERR_FIELD_WEAKENING] = {"field_weakening", "disabled with first_order; a regulator accepted by "
+                                                        "p2d_field_weakening_init (see controller_status)"},
+    [P2D_SIM_ERR_ESTIMATOR] = {"adapt.config", "accepted by p2d_inertia_init (see controller_status)"},
+    [P2D_SIM_ERR_ADAPT_REL_CHANGE] = {"adapt.adapt_rel_change", "finite and >= 0"},
+    [P2D_SIM_ERR_E_QUIET] = {"adapt.e_quiet_radps", "finite and >= 0"},
 };
 
 static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
@@ -97,6 +107,10 @@ static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
     [P2D_LOG_W_MEAS_RADPS] = "w_meas_radps",
     [P2D_LOG_U_DC_V] = "u_dc_V",
     [P2D_LOG_VOLTAGE_LIMITED] = "voltage_limited",
+    [P2D_LOG_J_EST_KGM2] = "J_est_kgm2",
+    [P2D_LOG_J_VALID] = "J_valid",
+    [P2D_LOG_T_LOAD_EST_NM] = "T_load_est_Nm",
+    [P2D_LOG_J_GAINS_KGM2] = "J_gains_kgm2",
     [P2D_LOG_W_LOAD_RADPS] = "w_load_radps",
     [P2D_LOG_SHAFT_TORQUE_NM] = "shaft_torque_Nm",
 };
@@ -273,14 +287,29 @@ static double load_speed_radps(const p2d_sim_t *sim)
     return sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS ? sim->mechanics.w_load_radps : sim->pmsm.w_m_radps;
 }
 
-/* The speed the sensor measures: w_L with feedback from the load, else w_m. */
+/* The speed the speed sensor measures: w_L with feedback from the load, else w_m. */
 static double sensed_speed_radps(const p2d_sim_t *sim)
 {
     return sim->cfg.mechanics.feedback == P2D_FEEDBACK_LOAD ? load_speed_radps(sim) : sim->pmsm.w_m_radps;
 }
 
-/* The speed the speed controller reads at t_k: the first active sensor fault's, else the sensed speed. */
-static double speed_reading(const p2d_sim_t *sim, double t_k_s)
+/*
+ * The angle the speed sensor measures: theta_L = theta_M - theta (0 at t = 0, as the twist) with
+ * feedback from the load of a two-mass train, else theta_m.
+ */
+static double sensed_angle_rad(const p2d_sim_t *sim)
+{
+    if (sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS && sim->cfg.mechanics.feedback == P2D_FEEDBACK_LOAD) {
+        return sim->pmsm.theta_m_rad - sim->mechanics.theta_rad;
+    }
+    return sim->pmsm.theta_m_rad;
+}
+
+/*
+ * The speed the speed controller reads at t_k: the first active sensor fault's, else the sensor's
+ * reading w_sensor_radps (of the sensed side).
+ */
+static double speed_reading(const p2d_sim_t *sim, double t_k_s, double w_sensor_radps)
 {
     const double Ts_speed_s = (double)sim->cfg.current_per_speed * sim->cfg.Ts_current_s;
     for (uint32_t i = 0; i < sim->cfg.n_faults; ++i) {
@@ -290,7 +319,7 @@ static double speed_reading(const p2d_sim_t *sim, double t_k_s)
         /* a spike is the one speed sample in [t_s, t_s + Ts_speed) */
         if (f->kind == P2D_FAULT_SENSOR_SPIKE && fault_active(sim, f, Ts_speed_s, t_k_s)) return f->value;
     }
-    return sensed_speed_radps(sim);
+    return w_sensor_radps;
 }
 
 /* The DC link over the current period starting at t: value u_dc under the first active sag, else u_dc. */
@@ -386,8 +415,8 @@ static P2D_SIM_INLINE p2d_plant_x_t plant_x_step(bool two_mass, p2d_plant_x_t x,
 }
 
 /* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
-static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool two_mass, double h,
-                                    double a, double b, double T0_Nm, double dT_dt_Nmps)
+static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool two_mass, bool angle,
+                                    double h, double a, double b, double T0_Nm, double dT_dt_Nmps)
 {
     p2d_pmsm_t *m = &sim->pmsm;
     p2d_mechanics_t *mech = &sim->mechanics;
@@ -415,14 +444,17 @@ static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, b
             x.w_load_radps +
             h / 6.0 * (k1.w_load_radps + 2.0 * k2.w_load_radps + 2.0 * k3.w_load_radps + k4.w_load_radps);
     }
+    /* RK4 of dtheta/dt = w_m over the stages above: theta + h w_m + h^2 (k1 + k2 + k3) / 6 (speed rates) */
+    if (angle) m->theta_m_rad += h * x.w_m_radps + h * h / 6.0 * (k1.w_m_radps + k2.w_m_radps + k3.w_m_radps);
 }
 
 /*
  * Integrate the plant over the current period starting at t_start with the inputs held, under
- * the current-loop model `model`, with Coulomb friction if `coulomb` (constants at each call).
+ * the current-loop model `model`, with Coulomb friction if `coulomb`, the two-mass train if
+ * `two_mass` and the rotor angle if `angle` (constants at each call).
  */
 static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool two_mass,
-                                               double t_start_s, double a, double b)
+                                               bool angle, double t_start_s, double a, double b)
 {
     for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
         double t = t_start_s + (double)s * sim->dt_s;
@@ -433,7 +465,7 @@ static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model
             /* split the step at a load breakpoint inside it */
             t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
             h = t_stop - t;
-            rk4_step(sim, model, coulomb, two_mass, h, a, b, segment_value(&sim->load, t),
+            rk4_step(sim, model, coulomb, two_mass, angle, h, a, b, segment_value(&sim->load, t),
                      segment_slope(&sim->load, t + 0.5 * h));
             t = t_stop;
         }
@@ -445,28 +477,32 @@ static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model
  * specialised copy of the loop per current-loop model, with and without Coulomb friction (whose
  * tanh call would otherwise make every RK4 stage save its registers); out of line, so that the
  * loop of p2d_sim_run keeps its registers too. The two-mass train has one copy per current-loop
- * model, with the friction decided at run time.
+ * model, with the friction and the angle decided at run time; a rigid one with the rotor angle
+ * one generic copy.
  */
 static P2D_SIM_NOINLINE void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
 {
     bool coulomb = sim->pmsm.T_coulomb_Nm > 0.0;
     if (sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS) {
         if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, coulomb, true, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, coulomb, true, sim->sensing.angle, t_start_s, a, b);
         } else {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, coulomb, true, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, coulomb, true, sim->sensing.angle, t_start_s, a, b);
         }
+    } else if (sim->sensing.angle) {
+        /* with the rotor angle (sensing.h): one generic copy */
+        plant_advance_model(sim, sim->cfg.current_model, coulomb, false, true, t_start_s, a, b);
     } else if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
         if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, false, false, t_start_s, a, b);
         } else {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, false, false, t_start_s, a, b);
         }
     } else {
         if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, false, false, t_start_s, a, b);
         } else {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, false, t_start_s, a, b);
+            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, false, false, t_start_s, a, b);
         }
     }
 }
@@ -592,6 +628,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     p2d_sim_status_t status;
     p2d_status_t ctl_status;
     p2d_speed_output_t so;
+    p2d_sensing_check_t sensing;
     double T_hold_Nm, L_min_H;
 
     if (sim == 0 || cfg == 0) return P2D_SIM_ERR_NULL;
@@ -615,6 +652,23 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
             sim->controller_status = ctl_status;
             return P2D_SIM_ERR_CURRENT_CONTROLLER;
         }
+    }
+    sensing =
+        p2d_sensing_check(&cfg->sensing.speed_sensor, &cfg->sensing.current_sensor, &cfg->sensing.field_weakening,
+                          cfg->Ts_current_s, cfg->speed.Ts_s, cfg->current_model == P2D_CURRENT_DQ_PI, &ctl_status);
+    if (sensing != P2D_SENSING_VALID) {
+        sim->controller_status = ctl_status;
+        return sensing == P2D_SENSING_BAD_SPEED_SENSOR     ? P2D_SIM_ERR_SPEED_SENSOR
+               : sensing == P2D_SENSING_BAD_CURRENT_SENSOR ? P2D_SIM_ERR_CURRENT_SENSOR
+                                                           : P2D_SIM_ERR_FIELD_WEAKENING;
+    }
+
+    if (cfg->adapt.enabled && !is_nonnegative(cfg->adapt.adapt_rel_change)) return P2D_SIM_ERR_ADAPT_REL_CHANGE;
+    if (cfg->adapt.enabled && !is_nonnegative(cfg->adapt.e_quiet_radps)) return P2D_SIM_ERR_E_QUIET;
+    ctl_status = p2d_adapt_init(&sim->adapt, &cfg->adapt, (double)cfg->speed.J_kgm2);
+    if (ctl_status != P2D_OK) {
+        sim->controller_status = ctl_status;
+        return P2D_SIM_ERR_ESTIMATOR;
     }
 
     mp = &cfg->motor;
@@ -659,9 +713,13 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->stop_bound = 0.0;
     sim->w_meas_radps = cfg->w_m0_radps;
     sim->u_dc_V = cfg->u_dc_V;
+    sim->saturated = false;
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     m->w_m_radps = cfg->w_m0_radps;
+    m->theta_m_rad = 0.0;
+    p2d_sensing_init(&sim->sensing, &cfg->sensing.speed_sensor, &cfg->sensing.current_sensor,
+                     &cfg->sensing.field_weakening, cfg->speed.Ts_s, cfg->w_m0_radps);
     T_hold_Nm = friction_Nm(m, m->T_coulomb_Nm > 0.0, cfg->w_m0_radps);
     p2d_speed_reset(&sim->speed, (float)cfg->w_m0_radps, (float)T_hold_Nm);
     p2d_speed_compute(&sim->speed, (float)cfg->w_m0_radps, (float)cfg->w_m0_radps, &so);
@@ -723,6 +781,10 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
     row[P2D_LOG_U_DC_V * log_rows] = sim->u_dc_V;
     row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* counted over the speed period by the loop */
+    row[P2D_LOG_J_EST_KGM2 * log_rows] = (double)sim->adapt.out.J_kgm2;
+    row[P2D_LOG_J_VALID * log_rows] = sim->adapt.out.J_valid ? 1.0 : 0.0;
+    row[P2D_LOG_T_LOAD_EST_NM * log_rows] = (double)sim->adapt.out.T_load_Nm;
+    row[P2D_LOG_J_GAINS_KGM2 * log_rows] = sim->adapt.J_gains_kgm2;
     row[P2D_LOG_W_LOAD_RADPS * log_rows] = load_speed_radps(sim);
     row[P2D_LOG_SHAFT_TORQUE_NM * log_rows] = shaft_torque_Nm(sim, row[P2D_LOG_LOAD_NM * log_rows]);
     sim->n_rows++;
@@ -738,18 +800,32 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
         double t_k = (double)sim->n_current * cfg->Ts_current_s;
         bool log_row = sim->n_speed % cfg->log_every == 0u;
         uint32_t n_limited = 0u; /* current periods of this speed sample at the voltage limit */
-        double w_ref;
+        double w_ref, w_sensor;
         p2d_speed_output_t so;
         if (log_row && (log == 0 || sim->n_rows >= log_rows)) return P2D_SIM_ERR_LOG_FULL;
 
         /* speed sample k: reference and speed reading sampled at t_k */
         cursor_advance(&sim->reference, &cfg->reference, t_k + sim->t_tol_s);
         w_ref = segment_value(&sim->reference, t_k);
-        sim->w_meas_radps = speed_reading(sim, t_k);
-        p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
+        if (!p2d_sensing_speed(&sim->sensing, &cfg->sensing.speed_sensor, sim->n_current, cfg->Ts_current_s,
+                               cfg->w_m0_radps, sensed_angle_rad(sim), sensed_speed_radps(sim), &w_sensor)) {
+            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
+        }
+        sim->w_meas_radps = speed_reading(sim, t_k, w_sensor);
+        if (cfg->adapt.enabled) p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, w_ref, sim->saturated, &sim->speed);
+        if (cfg->sensing.field_weakening.enabled) {
+            float id_fw_A;
+            if (!p2d_sensing_field_weakening(&sim->sensing, sim->u_dc_V, &id_fw_A)) {
+                return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
+            }
+            p2d_speed_step_fw(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, id_fw_A, &so);
+        } else {
+            p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
+        }
         if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
         sim->id_ref_A = (double)so.id_ref_A;
         sim->iq_ref_A = (double)so.iq_ref_A;
+        sim->saturated = so.saturated;
 
         for (uint32_t j = 0; j < cfg->current_per_speed; ++j) {
             double t = (double)sim->n_current * cfg->Ts_current_s;
@@ -757,17 +833,23 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
             p2d_sim_status_t status;
             if (cfg->current_model == P2D_CURRENT_DQ_PI) {
                 p2d_current_output_t co;
-                double ud_cmd_V, uq_cmd_V, u_dc_V;
+                double ud_cmd_V, uq_cmd_V, u_dc_V, id_meas_A = sim->pmsm.id_A, iq_meas_A = sim->pmsm.iq_A;
                 /* the DC link of this period sets the inverter's range and the controller's measurement */
                 u_dc_V = dc_link_V(sim, t);
                 if (u_dc_V != sim->u_dc_V) {
                     sim->u_dc_V = u_dc_V;
                     inverter_set_range(&sim->inverter, u_dc_V);
                 }
-                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)sim->pmsm.id_A,
-                                    (float)sim->pmsm.iq_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
+                if (sim->sensing.current_sensor) {
+                    p2d_sensing_currents(&sim->sensing, &cfg->sensing.current_sensor, sim->pmsm.id_A, sim->pmsm.iq_A,
+                                         sim->pmsm.pole_pairs * sim->pmsm.theta_m_rad, &id_meas_A, &iq_meas_A);
+                }
+                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)id_meas_A,
+                                    (float)iq_meas_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
                                     (float)sim->u_dc_V, &co);
                 if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
+                sim->sensing.ud_unsat_V = co.ud_unsat_V;
+                sim->sensing.uq_unsat_V = co.uq_unsat_V;
                 n_limited += inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, co.saturated,
                                             &ud_cmd_V, &uq_cmd_V);
                 /* the integrators learn the command the inverter accepted */
@@ -786,8 +868,11 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
                              hypot(ud_log_V, uq_log_V) > sim->inverter.u_max_V;
             }
             if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);
+            if (cfg->adapt.enabled)
+                p2d_adapt_torque(&sim->adapt, torque_Nm(&sim->pmsm, sim->pmsm.id_A, sim->pmsm.iq_A));
             plant_advance(sim, t, a, b);
             sim->n_current++;
+            p2d_sensing_record(&sim->sensing, sim->n_current, sensed_angle_rad(sim), sensed_speed_radps(sim));
             status = check_state(sim, (double)sim->n_current * cfg->Ts_current_s);
             if (status != P2D_SIM_OK) return status;
         }

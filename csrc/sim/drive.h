@@ -93,6 +93,14 @@
  * The sensor faults act on the speed the speed controller samples only; the
  * current controllers keep the true electrical speed for their decoupling.
  *
+ * Measurement and field weakening (cfg.sensing, sensing.h): the speed sensor
+ * (ideal or an encoder read by the C estimator, low-pass, delay, noise) gives
+ * the reading the sensor faults act on; the current controller reads the
+ * phase-current sensors' errors transformed to dq; the field weakening sets
+ * the d-axis current bound of p2d_speed_step_fw at each speed sample. The
+ * rotor angle is integrated only when one of them needs it; with cfg.sensing
+ * all zero the loop is the one described above.
+ *
  * Log: one row for every log_every-th speed sample, starting with sample 0,
  * in a column-major buffer of P2D_LOG_COUNT columns of log_rows doubles
  * (column c of row r at log[c * log_rows + r]), so that every signal is a
@@ -125,9 +133,11 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "adapt.h"
 #include "pmsm2dof/current.h"
 #include "pmsm2dof/speed.h"
 #include "pmsm2dof/status.h"
+#include "sensing.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -175,6 +185,12 @@ typedef enum {
     P2D_SIM_STOP_OVERSPEED,         /* |w_m| or |w_L| beyond twice the no-load speed of the DC link */
     P2D_SIM_STOP_OVERCURRENT,       /* ||i_dq|| beyond ten times max(i_max, short-circuit current) */
     P2D_SIM_STOP_CONTROLLER_FAULT,  /* a controller's non-finite policy engaged */
+    P2D_SIM_ERR_SPEED_SENSOR,       /* speed_sensor (an encoder init's code in controller_status) */
+    P2D_SIM_ERR_CURRENT_SENSOR,     /* current_sensor */
+    P2D_SIM_ERR_FIELD_WEAKENING,    /* field_weakening (the regulator init's code in controller_status) */
+    P2D_SIM_ERR_ESTIMATOR,          /* p2d_inertia_init rejected adapt.config: see controller_status */
+    P2D_SIM_ERR_ADAPT_REL_CHANGE,   /* adapt.adapt_rel_change */
+    P2D_SIM_ERR_E_QUIET,            /* adapt.e_quiet_radps */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
@@ -200,6 +216,10 @@ typedef enum {
     P2D_LOG_VOLTAGE_LIMITED, /* share of the current periods of speed sample k whose voltage was
                                 limited to u_dc / sqrt(3) [-] in [0, 1] (first_order: whose
                                 voltage of eq 1 exceeded that range, which eq 3 ignores) */
+    P2D_LOG_J_EST_KGM2,      /* inertia estimator (adapt.h): estimate of J after sample k [kg m^2] */
+    P2D_LOG_J_VALID,         /* 1 when the estimate of J is valid (p2d_inertia_output_t), else 0 [-] */
+    P2D_LOG_T_LOAD_EST_NM,   /* estimate of the load torque T_load [Nm] */
+    P2D_LOG_J_GAINS_KGM2,    /* J the speed controller's gains are designed for at sample k [kg m^2] */
     P2D_LOG_W_LOAD_RADPS,    /* load-side speed w_L [rad/s] (rigid: w_m) */
     P2D_LOG_SHAFT_TORQUE_NM, /* shaft torque T_s [Nm] (rigid: the load torque) */
     P2D_LOG_COUNT            /* number of columns, not a column */
@@ -272,6 +292,7 @@ typedef struct {
     double id_A;              /* state: d-axis current [A] */
     double iq_A;              /* state: q-axis current [A] */
     double w_m_radps;         /* state: mechanical speed [rad/s] */
+    double theta_m_rad;       /* state: rotor angle, 0 at t = 0, integrated when sensing.angle [rad] */
 } p2d_pmsm_t;
 
 /* Mechanical model of the drive train: see the comment at the top. */
@@ -336,6 +357,8 @@ typedef struct {
     p2d_current_config_t current;      /* current controller, DQ_PI only */
     const p2d_fault_t *faults;         /* faults, in any order (not copied); DC_LINK_SAG needs DQ_PI */
     uint32_t n_faults;                 /* number of faults; 0: none */
+    p2d_sim_sensing_config_t sensing;  /* speed sensor, current sensors, field weakening (sensing.h); 0: none */
+    p2d_adapt_config_t adapt;          /* inertia estimator and gain scheduling (adapt.h); off when zero */
     p2d_mechanics_config_t mechanics;  /* drive train; all zero: rigid, motor-side feedback */
     p2d_filter_config_t speed_filter;  /* torque filters of the speed controller (filter.h); all zero: none */
 } p2d_sim_config_t;
@@ -366,6 +389,9 @@ typedef struct {
     double stop_bound;               /* bound it crossed (same unit) */
     double w_meas_radps;             /* last speed reading given to the speed controller [rad/s] */
     double u_dc_V;                   /* DC link over the present current period [V] */
+    p2d_sim_sensing_t sensing;       /* speed sensor, current measurement and field weakening (sensing.h) */
+    p2d_adapt_t adapt;               /* inertia estimator beside the speed controller (adapt.h) */
+    bool saturated;                  /* the speed controller's last output was at the current limit */
 } p2d_sim_t;
 
 /* Validate cfg, initialize the controllers and set the initial state. */

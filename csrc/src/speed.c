@@ -274,18 +274,18 @@ static inline float filtered_command(const p2d_speed_t *ctl, float u, p2d_speed_
 }
 
 /*
- * The limit of the command u before it (u_f with torque filters) into out.
+ * The limit T_lim_Nm of the command u before it (u_f with torque filters) into out.
  * Returns false, with the fault output, if u is not finite.
  */
-static inline bool speed_limit(const p2d_speed_coef_t *c, float u, p2d_speed_output_t *out)
+static inline bool speed_limit(float T_lim_Nm, float u, p2d_speed_output_t *out)
 {
     float T_sat = u;
     bool saturated = false;
-    /* u_sat = Sat(u): the current-vector limit ||i_dq|| <= I_max as the torque limit T_max */
-    if (!(fabsf(u) <= c->T_max_Nm)) {
+    /* u_sat = Sat(u): the current-vector limit ||i_dq|| <= I_max as the torque limit T_lim (T_max, or less) */
+    if (!(fabsf(u) <= T_lim_Nm)) {
         /* the limit is active, or u is NaN or inf */
         if (!(fabsf(u) < INFINITY)) return fault_output(out);
-        T_sat = u > 0.0f ? c->T_max_Nm : -c->T_max_Nm;
+        T_sat = u > 0.0f ? T_lim_Nm : -T_lim_Nm;
         saturated = true;
     }
     out->T_ref_Nm = T_sat;
@@ -300,14 +300,14 @@ static inline bool speed_limit(const p2d_speed_coef_t *c, float u, p2d_speed_out
  * before the limit is not finite.
  */
 static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *c, float w_ref_radps, float w_m_radps,
-                                p2d_speed_output_t *out)
+                                float T_lim_Nm, p2d_speed_output_t *out)
 {
     float u = speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
     if (c->filtered) {
         p2d_filter_state_t next; /* unused: compute does not change the state */
         u = filtered_command(ctl, u, out, &next);
     }
-    return speed_limit(c, u, out);
+    return speed_limit(T_lim_Nm, u, out);
 }
 
 /* Surface PMSM: id = 0, iq = T / (1.5 p psi_f); |iq| <= I_max by the choice of T_max. */
@@ -423,7 +423,7 @@ static P2D_NOINLINE void filtered_step_end(p2d_speed_t *ctl, p2d_speed_output_t 
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
     p2d_filter_state_t next;
-    if (!speed_limit(c, filtered_command(ctl, out->T_unsat_Nm, out, &next), out) ||
+    if (!speed_limit(c->T_max_Nm, filtered_command(ctl, out->T_unsat_Nm, out, &next), out) ||
         (c->salient && !mtpa_current(c, out))) {
         /* non-finite policy: u_f overflowed, or the MTPA inversion did */
         ctl->fault_count++;
@@ -452,7 +452,7 @@ static P2D_NOINLINE void general_step_end(p2d_speed_t *ctl, p2d_speed_output_t *
 void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
-    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, out)) return;
+    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, c->T_max_Nm, out)) return;
     if (c->salient) {
         (void)mtpa_current(c, out);
     } else {
@@ -523,6 +523,80 @@ void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_sp
         surface_current(c, out);
         speed_integrate(ctl, c, out, T_sat);
     }
+}
+
+/* 1.5 p (psi_f + (Ld - Lq) id) [Nm/A]: the torque per q-axis current at the d-axis current id_A */
+static inline float torque_per_iq(const p2d_speed_coef_t *c, float id_A)
+{
+    /* 1.5 p = kt / psi_f */
+    return (c->kt_Nm_per_A / c->psi_f_Wb) * fmaf(c->dL_H, id_A, c->psi_f_Wb);
+}
+
+/*
+ * The torque limit at the d-axis current id_A in [-i_max, 0] with the q current iq_max_A that
+ * remains: the largest torque of a vector with ||i_dq|| <= i_max and id <= id_A. Surface PMSM:
+ * kt iq_max. Salient: T_max where the MTPA vector of length i_max has id <= id_A, else the point
+ * (id_A, iq_max) of the circle (the torque is unimodal along it), 0 where the torque per iq is not
+ * positive.
+ */
+static float fw_torque_limit(const p2d_speed_coef_t *c, float id_A, float iq_max_A)
+{
+    float T_lim;
+    if (!c->salient) {
+        T_lim = c->kt_Nm_per_A * iq_max_A;
+    } else if (p2d_mtpa_id_of_norm_A(c->i_max_A, c->psi_f_Wb, c->dL_H) <= id_A) {
+        return c->T_max_Nm;
+    } else {
+        T_lim = torque_per_iq(c, id_A) * iq_max_A;
+        if (!(T_lim > 0.0f)) return 0.0f;
+    }
+    return T_lim < c->T_max_Nm ? T_lim : c->T_max_Nm;
+}
+
+/*
+ * The current vector of the limited torque out->T_ref_Nm under the bound id <= id_A: the MTPA
+ * vector where its id is already below (salient PMSM), else (id_A, T / (1.5 p (psi_f + dL id_A))),
+ * iq within iq_max_A (T / k rounds above it only by an ulp, or by more where k is subnormal).
+ */
+static void fw_current(const p2d_speed_coef_t *c, float id_A, float iq_max_A, p2d_speed_output_t *out)
+{
+    float k_T, iq;
+    if (c->salient) {
+        if (!mtpa_current(c, out) || out->id_ref_A <= id_A) return;
+        k_T = torque_per_iq(c, id_A);
+    } else {
+        k_T = c->kt_Nm_per_A;
+    }
+    /* iq = T / k_T; the limit is 0 where k_T <= 0, and the torque with it */
+    iq = k_T > 0.0f ? out->T_ref_Nm / k_T : 0.0f;
+    out->id_ref_A = id_A;
+    out->iq_ref_A = fabsf(iq) <= iq_max_A ? iq : copysignf(iq_max_A, iq);
+}
+
+void p2d_speed_compute_fw(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, float id_fw_A,
+                          p2d_speed_output_t *out)
+{
+    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    float id, iq_max;
+    if (!isfinite(id_fw_A)) {
+        /* non-finite policy: the outputs before the limit for the diagnostics, then the fault output */
+        (void)speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
+        (void)fault_output(out);
+        return;
+    }
+    /* id_fw clamped to [-i_max, 0] */
+    id = id_fw_A < 0.0f ? (id_fw_A > -c->i_max_A ? id_fw_A : -c->i_max_A) : 0.0f;
+    /* iq_max = sqrt((i_max + id) (i_max - id)): i_max + id is exact near id = -i_max, where i_max^2 - id^2 cancels */
+    iq_max = p2d_sqrt_nonnegative((c->i_max_A + id) * (c->i_max_A - id));
+    if (!speed_torque(ctl, c, w_ref_radps, w_m_radps, fw_torque_limit(c, id, iq_max), out)) return;
+    fw_current(c, id, iq_max, out);
+}
+
+/* compute_fw + update with the own command (not written out per branch as p2d_speed_step is). */
+void p2d_speed_step_fw(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, float id_fw_A, p2d_speed_output_t *out)
+{
+    p2d_speed_compute_fw(ctl, w_ref_radps, w_m_radps, id_fw_A, out);
+    p2d_speed_update(ctl, out, out->T_ref_Nm);
 }
 
 float p2d_speed_integrator_Nm(const p2d_speed_t *ctl)

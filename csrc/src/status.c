@@ -44,6 +44,32 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_ERR_T_SPIN] = {"t_spin_s", "finite, >= 20 tau_i_s and <= 2^24 Ts_s"},
     [P2D_ERR_W_E_SPIN] = {"w_e_spin_radps", "finite, > 0 and <= 0.1 / Ts_s (at least 63 samples per electrical turn)"},
     [P2D_ERR_VOLTAGE_DELAY] = {"voltage_delay_samples", "0 or 1"},
+    [P2D_ERR_ENC_COUNTS_PER_REV] = {"counts_per_rev", "an integer >= 1, with 2*pi/(counts_per_rev*Ts_s) finite "
+                                                      "and > 0 in float32"},
+    [P2D_ERR_ENC_COUNTER_BITS] = {"counter_bits", "an integer from 2 to 32"},
+    [P2D_ERR_ENC_ESTIMATOR] = {"estimator", "difference (0) or pll (1)"},
+    [P2D_ERR_ENC_BANDWIDTH] = {"bandwidth_radps", "finite and 1e-3 <= bandwidth_radps*Ts_s <= 2 (pll: real discrete "
+                                                  "poles, increments above the float32 resolution of the state)"},
+    [P2D_ERR_ENC_LOWPASS] = {"lowpass_radps", "0 (no filter), or finite and 1e-3 <= lowpass_radps*Ts_s <= 2"},
+    [P2D_ERR_FW_KP] = {"Kp_A_per_V", "finite and >= 0"},
+    [P2D_ERR_FW_KI] = {"Ki_A_per_Vs", "finite and > 0, with Ki_A_per_Vs*Ts_s finite and > 0 in float32"},
+    [P2D_ERR_FW_KA] = {"Ka_V_per_A", "finite and >= 0, and Ki_A_per_Vs*Ka_V_per_A*Ts_s < 2 with back_calculation "
+                                     "(stable discrete anti-windup loop)"},
+    [P2D_ERR_FW_VOLTAGE_RATIO] = {"voltage_ratio", "finite, > 0 and <= 1 (share of u_dc/sqrt(3))"},
+    [P2D_ERR_FW_ID_MIN] = {"id_min_A", "finite and < 0"},
+    [P2D_ERR_J0] = {"J0_kgm2", "finite and > 0, with J0_kgm2^2 a normal float32 (about 1.1e-19 to 1.8e19 kg m^2)"},
+    [P2D_ERR_J_MIN] = {"J_min_kgm2", "finite, > 0 and <= J0_kgm2"},
+    [P2D_ERR_J_MAX] = {"J_max_kgm2", "finite and >= J0_kgm2"},
+    [P2D_ERR_B_MAX] = {"B_max_Nms",
+                       "finite and > 0, with B_max_Nms^2 a normal float32 (about 1.1e-19 to 1.8e19 Nm s/rad)"},
+    [P2D_ERR_T_LOAD_MAX] = {"T_load_max_Nm",
+                            "finite and > 0, with T_load_max_Nm^2 a normal float32 (about 1.1e-19 to 1.8e19 Nm)"},
+    [P2D_ERR_SIGMA_T] = {"sigma_T_Nm",
+                         "finite and > 0, with sigma_T_Nm^2 a normal float32 (about 1.1e-19 to 1.8e19 Nm)"},
+    [P2D_ERR_J_MEMORY] = {"J_memory_s", "finite, >= 2*Ts_s and <= 1e6*Ts_s"},
+    [P2D_ERR_LOAD_MEMORY] = {"load_memory_s", "finite, >= 2*Ts_s and <= 1e6*Ts_s"},
+    [P2D_ERR_W_F] = {"w_f_radps", "finite and > 0, with w_f_radps*Ts_s >= 1e-6"},
+    [P2D_ERR_J_REL_SD_MAX] = {"J_rel_sd_max", "finite, > 0 and < 1"},
     [P2D_ERR_NOTCH_FREQ] = {"notch_freq_Hz", "0 (no notch), or finite and > 0, below the Nyquist frequency 1/(2*Ts_s): "
                                              "notch_freq_Hz*Ts_s between about 1e-19 and 0.495 (float32)"},
     [P2D_ERR_NOTCH_WIDTH] = {"notch_width_Hz", "finite, > 0 and below 1/(2*Ts_s) (the -3 dB bandwidth of the notch), "

@@ -24,6 +24,9 @@ _EXPORTS = {
     "METHODS": "pmsm2dof.core",
     "CurrentController": "pmsm2dof.core",
     "SpeedController": "pmsm2dof.core",
+    "Encoder": "pmsm2dof.core",
+    "FieldWeakening": "pmsm2dof.core",
+    "SensorChain": "pmsm2dof.analysis.sensor",
     "Design": "pmsm2dof.analysis.design",
     "design": "pmsm2dof.analysis.design",
     "DiscreteDesign": "pmsm2dof.analysis.discretize",
@@ -48,10 +51,13 @@ __all__ = [
     "CurrentController",
     "Design",
     "DiscreteDesign",
+    "Encoder",
+    "FieldWeakening",
     "Pmsm2dofError",
     "Result",
     "SamplingWarning",
     "Scenario",
+    "SensorChain",
     "SimulationError",
     "Spec",
     "SpeedController",
@@ -66,7 +72,8 @@ __all__ = [
 if TYPE_CHECKING:
     from .analysis.design import Design, design
     from .analysis.discretize import DiscreteDesign, SamplingWarning
-    from .core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, SpeedController
+    from .analysis.sensor import SensorChain
+    from .core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, CurrentController, Encoder, FieldWeakening, SpeedController
     from .errors import ConfigError, Pmsm2dofError, SimulationError
     from .sim.metrics import compute_metrics
     from .sim.scenario import Scenario, list_presets, load_scenario

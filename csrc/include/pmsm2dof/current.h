@@ -78,8 +78,13 @@ typedef struct {
     bool fault;       /* non-finite policy engaged: outputs are zero */
 } p2d_current_output_t;
 
+/* Validate cfg and precompute; on error ctl is left unchanged. Resets state. */
 p2d_status_t p2d_current_init(p2d_current_t *ctl, const p2d_current_config_t *cfg);
+
+/* Validate cfg into the shadow set and swap it in; state is kept. On error nothing changes. */
 p2d_status_t p2d_current_set_config(p2d_current_t *ctl, const p2d_current_config_t *cfg);
+
+/* Clear both integrators (zero voltage at zero error); the fault counter is kept. */
 void p2d_current_reset(p2d_current_t *ctl);
 
 /* Compute the voltage command; w_e_radps is the electrical speed, u_dc_V the measured DC link. */

@@ -198,6 +198,24 @@ void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_a
 /* compute + update with the controller's own limited torque. */
 void p2d_speed_step(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, p2d_speed_output_t *out);
 
+/*
+ * Field weakening (field_weakening.h): compute with the upper bound id_fw_A [A] on the d-axis
+ * current that a field-weakening controller demands, clamped to [-i_max_A, 0]. The current
+ * vector is (id_fw, T / (1.5 p (psi_f + (Ld - Lq) id_fw))), or the MTPA vector where its id is
+ * already <= id_fw (surface PMSM: id = id_fw, iq = T / kt). The torque limit follows the q-axis
+ * current that remains, so that ||i_dq|| <= i_max_A up to float32 rounding:
+ *   T_lim = 1.5 p (psi_f + (Ld - Lq) id_fw) sqrt(i_max^2 - id_fw^2)   (surface: kt sqrt(i_max^2 - id_fw^2)),
+ * or T_max where the MTPA vector of length i_max_A has id <= id_fw; u_sat = Sat(u) with T_lim,
+ * so the anti-windup sees the reduced limit. With id_fw_A = 0 the outputs are those of
+ * p2d_speed_compute, to the bit, for a surface PMSM and for Ld < Lq (a machine with Ld > Lq
+ * keeps id <= 0). A non-finite id_fw_A engages the non-finite policy (zero torque and current).
+ */
+void p2d_speed_compute_fw(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, float id_fw_A,
+                          p2d_speed_output_t *out);
+
+/* compute_fw + update with the own command. */
+void p2d_speed_step_fw(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, float id_fw_A, p2d_speed_output_t *out);
+
 /* The integral of the PI, x_i[k-1] = x[k-1] - Fr0 r[k-1] [Nm] (rounded once). */
 float p2d_speed_integrator_Nm(const p2d_speed_t *ctl);
 

@@ -46,6 +46,29 @@ typedef enum {
     P2D_ERR_T_SPIN,        /* t_spin_s */
     P2D_ERR_W_E_SPIN,      /* w_e_spin_radps */
     P2D_ERR_VOLTAGE_DELAY, /* voltage_delay_samples */
+    /* speed from an encoder (encoder.h) */
+    P2D_ERR_ENC_COUNTS_PER_REV, /* counts_per_rev */
+    P2D_ERR_ENC_COUNTER_BITS,   /* counter_bits */
+    P2D_ERR_ENC_ESTIMATOR,      /* estimator */
+    P2D_ERR_ENC_BANDWIDTH,      /* bandwidth_radps */
+    P2D_ERR_ENC_LOWPASS,        /* lowpass_radps */
+    /* field weakening (field_weakening.h) */
+    P2D_ERR_FW_KP,            /* Kp_A_per_V */
+    P2D_ERR_FW_KI,            /* Ki_A_per_Vs */
+    P2D_ERR_FW_KA,            /* Ka_V_per_A */
+    P2D_ERR_FW_VOLTAGE_RATIO, /* voltage_ratio */
+    P2D_ERR_FW_ID_MIN,        /* id_min_A */
+    /* inertia estimator (inertia.h) */
+    P2D_ERR_J0,           /* J0_kgm2 */
+    P2D_ERR_J_MIN,        /* J_min_kgm2 */
+    P2D_ERR_J_MAX,        /* J_max_kgm2 */
+    P2D_ERR_B_MAX,        /* B_max_Nms */
+    P2D_ERR_T_LOAD_MAX,   /* T_load_max_Nm */
+    P2D_ERR_SIGMA_T,      /* sigma_T_Nm */
+    P2D_ERR_J_MEMORY,     /* J_memory_s */
+    P2D_ERR_LOAD_MEMORY,  /* load_memory_s */
+    P2D_ERR_W_F,          /* w_f_radps */
+    P2D_ERR_J_REL_SD_MAX, /* J_rel_sd_max */
     /* torque filters (filter.h) */
     P2D_ERR_NOTCH_FREQ,   /* notch_freq_Hz */
     P2D_ERR_NOTCH_WIDTH,  /* notch_width_Hz */

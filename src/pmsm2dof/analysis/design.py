@@ -15,6 +15,11 @@ so that the loop ``J s^2 + Kp s + Ki`` (tau_i = 0) has natural frequency
 ``Gx = m alpha / (s + m alpha)``, while the load rejection ``GN`` (eq 5, 8)
 stays that of the PI alone.
 
+The speed the controller reads passes through a sensor chain ``H(s)`` (estimator, filter,
+delay; :mod:`pmsm2dof.analysis.sensor`), which closes the loop as ``1 + F G H``: the loop gain
+is ``L = F G H``, the tracking ``Gx = (Fr + F) G / (1 + F G H)`` and the load rejection
+``GN = -Gm / (1 + F Gci Gm H)``. With the default ideal sensor ``H = 1``, the paper's loop.
+
 Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for
 Permanent-Magnet Synchronous Motor Speed Controller"; eq (9) follows the
 analytical PI design of its reference [4].
@@ -35,7 +40,8 @@ from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
 from .codegen import write_c_header
 from .discretize import DiscreteDesign, discretize
-from .margins import Margins, loop_margins
+from .margins import Margins, frequency_margins, loop_margins
+from .sensor import DELAY_MODELS, DelayModel, SensorChain
 from .stepresponse import StepResponse
 
 #: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
@@ -97,6 +103,8 @@ class Design:
         Proportional gain ``J alpha`` [Nm/(rad/s)] (eq 9).
     Ki : float
         Integral gain ``J (alpha / (2 zeta))^2`` [Nm/rad] (eq 9).
+    sensor : SensorChain
+        The speed measurement in the loop (ideal by default).
     """
 
     J_kgm2: float
@@ -109,6 +117,7 @@ class Design:
     Ka: float
     Kp: float
     Ki: float
+    sensor: SensorChain = SensorChain()
 
     @property
     def F(self) -> control.TransferFunction:
@@ -154,9 +163,16 @@ class Design:
         return control.tf(num, den)
 
     @property
+    def H(self) -> control.TransferFunction:
+        """Sensor chain ``H(s)`` from the true to the measured speed, its delay as a Pade approximant."""
+        return self.sensor.H()
+
+    @property
     def L(self) -> control.TransferFunction:
-        """Loop gain ``F G``."""
-        return self.F * self.G
+        """Loop gain ``F G H`` (``F G`` with the ideal sensor), the delay as a Pade approximant."""
+        if self.sensor.is_ideal:
+            return self.F * self.G
+        return self.F * self.G * self.H
 
     @property
     def Gx(self) -> control.TransferFunction:
@@ -181,10 +197,15 @@ class Design:
         ``Gm = 1 / (J_plant s)``, ``G = Gci Gm`` (eq 2, 3). ``Gx = (Fr + F) G / (1 + F G)`` (eq 6,
         by :func:`tracking_tf`, pole-zero cancelled) and ``GN = -Gm / (1 + F Gci Gm)`` (eq 5
         with the load at the mechanics, eq 8). With ``J_plant_kgm2 == J_kgm2`` these are
-        :attr:`Gx` and :attr:`GN`.
+        :attr:`Gx` and :attr:`GN`. With a sensor chain the feedback reads ``H`` times the speed:
+        ``Gx = (Fr + F) G / (1 + F G H)``, ``GN = -Gm / (1 + F Gci Gm H)``.
         """
         Gm = control.tf([1.0], [J_plant_kgm2, 0.0])
-        return tracking_tf(self.F, self.Fr, self.Gci * Gm).minreal(), -control.feedback(Gm, self.F * self.Gci)
+        if self.sensor.is_ideal:
+            return tracking_tf(self.F, self.Fr, self.Gci * Gm).minreal(), -control.feedback(Gm, self.F * self.Gci)
+        G = self.Gci * Gm
+        Gx = ((self.Fr + self.F) * control.feedback(G, self.F * self.H)).minreal()
+        return Gx, -control.feedback(Gm, self.F * self.Gci * self.H)
 
     def closed_loop_poles(self) -> npt.NDArray[np.complex128]:
         """Poles of the feedback loop, roots of ``J tau_i s^3 + J s^2 + Kp s + Ki``.
@@ -198,12 +219,101 @@ class Design:
         """Tracking bandwidth [rad/s]: where ``|Gx|`` first falls 3 dB (half power) below DC."""
         return float(control.bandwidth(self.Gx, dbdrop=HALF_POWER_DB))
 
-    def margins(self) -> Margins:
-        """Gain and phase margins of the loop gain ``F G``."""
-        return loop_margins(self.L)
+    def margins(self, delay: DelayModel = "exact") -> Margins:
+        """Gain and phase margins of the loop gain ``F G H``.
+
+        ``delay``: ``"exact"`` evaluates the sensor's delay as ``exp(-j w T)`` in the frequency
+        response (:func:`~pmsm2dof.analysis.margins.frequency_margins`); ``"pade"`` uses its Pade
+        approximant (:data:`~pmsm2dof.analysis.sensor.PADE_ORDER`), as :attr:`L` does.
+        """
+        require_choice("delay", delay, DELAY_MODELS)
+        if self.sensor.delay_s == 0.0 or delay == "pade":
+            return loop_margins(self.L)
+        F, G = self.F, self.G
+
+        def L_of_w(w: npt.NDArray[np.float64]) -> npt.NDArray[np.complex128]:
+            s = 1j * w
+            return np.asarray(
+                np.polyval(F.num[0][0], s) / np.polyval(F.den[0][0], s)
+                * np.polyval(G.num[0][0], s) / np.polyval(G.den[0][0], s)
+                * self.sensor.frequency_response(w)
+            )  # fmt: skip
+
+        w_scale = self._frequencies()
+        return frequency_margins(L_of_w, 1e-3 * min(w_scale), 1e3 * max(w_scale))
+
+    def phase_margin_deg(self, delay: DelayModel = "exact") -> float:
+        """The phase margin [deg] of ``F G H`` alone, faster than :meth:`margins` with an exact delay.
+
+        A delay leaves ``|L|`` as it is: at each gain crossover ``w_c`` of the rational part it
+        takes ``w_c T`` of phase, so the margin is the smallest ``PM_i - w_c,i T`` over them.
+        """
+        require_choice("delay", delay, DELAY_MODELS)
+        if self.sensor.delay_s == 0.0 or delay == "pade":
+            return self.margins(delay).phase_margin_deg
+        rational = self.F * self.G * self.sensor.H(pade_order=0)
+        _gms, pms, _sms, _w_pcs, w_gcs, _w_sms = control.stability_margins(rational, returnall=True)
+        if not len(pms):
+            return math.inf
+        return float(min(pm - math.degrees(w * self.sensor.delay_s) for pm, w in zip(pms, w_gcs)))
+
+    def _frequencies(self) -> list[float]:
+        """The characteristic frequencies of the loop [rad/s]: design, current loop, sensor."""
+        w = [self.alpha_radps, self.alpha_radps / (2.0 * self.zeta)]
+        w += [1.0 / self.tau_i_s] if self.tau_i_s > 0.0 else []
+        w += [self.sensor.bandwidth_radps] if self.sensor.pll else []
+        w += [self.sensor.lowpass_radps] if self.sensor.lowpass_radps > 0.0 else []
+        w += [1.0 / self.sensor.delay_s] if self.sensor.delay_s > 0.0 else []
+        return w
+
+    def max_alpha_for_phase_margin(self, phase_margin_deg: float, delay: DelayModel = "exact") -> float:
+        """The largest ``alpha`` [rad/s] whose loop keeps ``phase_margin_deg`` with this sensor chain.
+
+        With ``zeta``, ``tau_i`` and the sensor kept, the phase margin of ``F G H`` depends on
+        ``alpha`` alone (not on J: ``F`` scales with J, ``G`` with 1/J). Without lag in the loop
+        it is the margin of ``zeta`` at every alpha; each lag (current loop, filter, PLL, delay)
+        takes phase at the crossover, more as alpha grows. The largest alpha is found by
+        bisection on ``log alpha``.
+
+        Raises
+        ------
+        ConfigError
+            ``phase_margin_deg`` out of (0, 180), or above what ``zeta`` allows at any alpha
+            (the margin of the lag-free loop).
+        """
+        target = require_positive("phase_margin_deg", phase_margin_deg)
+        if not target < 180.0:
+            raise ConfigError("phase_margin_deg", phase_margin_deg, "finite, > 0 and < 180")
+
+        def pm(alpha: float) -> float:
+            d = design(self.J_kgm2, alpha, self.zeta, tau_i_s=self.tau_i_s, feedforward="none", sensor=self.sensor)
+            return d.phase_margin_deg(delay)
+
+        # the lag-free loop: the margin of zeta, the most any alpha can reach
+        lag_free = design(self.J_kgm2, 1.0, self.zeta, feedforward="none").margins().phase_margin_deg
+        if not target < lag_free:
+            raise ConfigError(
+                "phase_margin_deg",
+                phase_margin_deg,
+                f"< {lag_free:.4g} deg, the margin of the loop without lag at zeta = {self.zeta:g} (raise zeta)",
+            )
+        lo = 1e-6 * min(self._frequencies()[2:] or [self.alpha_radps])
+        hi = 1e3 * max(self._frequencies())
+        if pm(lo) < target:
+            lo = hi  # the margin is reached nowhere below; keep shrinking
+            while pm(lo) < target:
+                lo *= 1e-3
+        for _ in range(80):
+            mid = math.sqrt(lo * hi)
+            lo, hi = (mid, hi) if pm(mid) >= target else (lo, mid)
+            if hi / lo < 1.0 + 1e-9:
+                break
+        return lo
 
     def tracking_step(self) -> StepResponse:
         """The unit reference step of the loop (eq 6) as a :class:`~pmsm2dof.analysis.stepresponse.StepResponse`.
+
+        With a sensor chain, :meth:`_tracking_step_with_sensor`.
 
         States: the torque ``T`` after the current loop (eq 3, absent when tau_i = 0), the
         momentum ``p = J w`` (eq 2), the PI integral ``q`` and the feedforward state ``v``,
@@ -214,6 +324,8 @@ class Design:
 
         The derivative of the step reaches the current loop as an impulse: ``T(0+) = Kd / tau_i``.
         """
+        if not self.sensor.is_ideal:
+            return self._tracking_step_with_sensor()
         fr_num, fr_den = self.fr_polynomials()
         has_ff = self.feedforward != "none"
         (Kd, D), c = np.polydiv(fr_num, fr_den) if has_ff else ((0.0, 0.0), np.zeros(1))
@@ -240,6 +352,28 @@ class Design:
         out = np.zeros(n)
         out[ip] = 1.0 / self.J_kgm2
         return StepResponse.continuous(A, b, out, x0)
+
+    def _tracking_step_with_sensor(self) -> StepResponse:
+        """The unit reference step of the loop that reads ``H`` times the speed (delay: Pade).
+
+        The blocks (python-control ``interconnect``): ``u = F (r - y) + Fr' r + u_d``, the current
+        loop, the mechanics and ``y = H w``, with ``Fr = Kd s + Fr'`` (``Fr'`` proper); the
+        derivative of the step enters as the impulse ``Kd`` on ``u_d``, the initial state ``Kd b_d``.
+        """
+        fr_num, fr_den = self.fr_polynomials()
+        (Kd, D), c = np.polydiv(fr_num, fr_den) if self.feedforward != "none" else ((0.0, 0.0), np.zeros(1))
+        Fr_proper = control.tf([D, D * fr_den[-1] + c[-1]], fr_den) if self.feedforward != "none" else 0.0 * self.F
+        blocks = [
+            control.ss(self.F, inputs="e", outputs="u_fb"),
+            control.ss(Fr_proper, inputs="r", outputs="u_ff"),
+            control.summing_junction(["u_fb", "u_ff", "u_d"], "u"),
+            control.ss(self.G, inputs="u", outputs="w"),
+            control.ss(self.H, inputs="w", outputs="y"),
+            control.summing_junction(["r", "-y"], "e"),
+        ]
+        loop = control.interconnect(blocks, inplist=["r", "u_d"], outlist=["w"])
+        A, B, C = loop.A, loop.B, loop.C
+        return StepResponse.continuous(A, B[:, 0], C[0], Kd * B[:, 1])
 
     def overshoot_pct(self) -> float:
         """Overshoot [%] of the linear unit-step tracking response (eq 6).
@@ -278,6 +412,7 @@ def design(
     feedforward: Feedforward = "lowpass",
     anti_windup: AntiWindup = "back_calculation",
     Ka: float | None = None,
+    sensor: SensorChain | None = None,
 ) -> Design:
     """Design the anti-windup 2DOF PI speed controller (paper section 3.3).
 
@@ -302,6 +437,8 @@ def design(
         Integrator anti-windup (section 3.2).
     Ka : float, optional
         Back-calculation gain [(rad/s)/Nm], >= 0; default ``1 / Kp`` (section 3.3).
+    sensor : SensorChain, optional
+        The speed measurement (estimator, filter, delay) in the loop; default the ideal sensor.
 
     Returns
     -------
@@ -328,4 +465,8 @@ def design(
         )
     Kp, Ki = pi_gains(J_kgm2, alpha_radps, zeta)  # eq 9
     Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
-    return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki)
+    if sensor is None:
+        sensor = SensorChain()
+    elif not isinstance(sensor, SensorChain):
+        raise ConfigError("sensor", sensor, "a SensorChain")
+    return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki, sensor)

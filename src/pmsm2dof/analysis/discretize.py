@@ -38,12 +38,22 @@ that distance:
   frequency maps back as ``w_z = (2/Ts) atan(w_w Ts/2)``);
 - the tracking step response from the realized difference equations in increment form
   (:class:`~pmsm2dof.analysis.stepresponse.StepResponse`).
+
+With a sensor chain (:class:`~pmsm2dof.analysis.sensor.SensorChain`: encoder estimator,
+filters, delay) the controller reads the measured speed of
+:func:`~pmsm2dof.analysis.sensor.sampled_plant_blocks`, the plant sampled exactly at fractions of
+a period; the loop is assembled in z by python-control (``interconnect``), its poles are the
+eigenvalues of the closed loop and its margins are found on the frequency response of
+``F(z)`` times the plant-to-reading chain on the unit circle
+(:func:`~pmsm2dof.analysis.margins.frequency_margins`). This is meant for sensor chains of
+practical drives; the w-plane forms above, which keep a loop with ``alpha Ts`` of 1e-6 exact,
+serve the ideal sensor.
 """
 
 import math
 import warnings
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import control
@@ -53,7 +63,8 @@ import numpy.typing as npt
 from ..core import METHODS, SpeedController
 from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, require_choice, require_positive
-from .margins import Margins, pick_margins
+from .margins import Margins, frequency_margins, pick_margins
+from .sensor import sampled_plant_blocks
 from .stepresponse import StepResponse
 
 if TYPE_CHECKING:
@@ -159,6 +170,7 @@ class DiscreteDesign:
             "tau_i_s": d.tau_i_s,
             "feedforward": d.feedforward,
             "anti_windup": d.anti_windup,
+            "sensor": asdict(d.sensor),
             "Ts_s": self.Ts_s,
             "method": self.method,
             "Kp": d.Kp,
@@ -537,6 +549,8 @@ def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: M
         Fr_z = control.tf([0.0], [1.0], Ts_s)
     else:
         Fr_z = _feedforward_z(c["ff_Fr0"], c["ff_b_dr"], c["ff_a1"], c["ff_Kd_per_Ts"], Ts_s)
+    if not d.sensor.is_ideal:
+        return _loop_with_sensor(d, Ts_s, method, c, F_z, Fr_z)
 
     # feedback loop in the w plane: 1 + F(w) G(w) = 0, stable when Re w < 0
     L_num, L_den = _loop_w(d, Ts_s, b_e0, Ki_Ts)
@@ -563,4 +577,69 @@ def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: M
         G_z=G_z,
         L_z=F_z * G_z,
         Gx_z=control.ss(np.eye(len(f)) + E, f[:, None], out[None, :], 0.0, Ts_s),
+    )
+
+
+def _loop_with_sensor(
+    design: "Design",
+    Ts_s: float,
+    method: Method,
+    c: Mapping[str, float],
+    F_z: control.TransferFunction,
+    Fr_z: control.TransferFunction,
+) -> DiscreteDesign:
+    """:func:`discrete_loop` for a design whose controller reads a sensor chain (see the module docstring)."""
+    d = design
+    plant = sampled_plant_blocks(d.J_kgm2, d.tau_i_s, Ts_s, d.sensor)
+    blocks = plant + [
+        control.ss(F_z, inputs="e", outputs="u_fb"),
+        control.ss(Fr_z, inputs="r", outputs="u_ff"),
+        control.summing_junction(["u_fb", "u_ff"], "u"),
+        control.summing_junction(["r", "-y"], "e"),
+    ]
+    closed = control.interconnect(blocks, inplist=["r"], outlist=["w"], dt=Ts_s)
+    poles = np.linalg.eigvals(closed.A)
+    z_max = float(np.max(np.abs(poles)))
+    if not z_max < 1.0:
+        raise ConfigError(
+            "Ts_s",
+            Ts_s,
+            f"a period at which the discrete loop reading the sensor chain ({d.sensor.describe()}) is stable: at "
+            f"Ts_s = {Ts_s:g} s its largest closed-loop pole has |z| = {z_max:.6g} (see the continuous margins, "
+            "and Design.max_alpha_for_phase_margin)",
+        )
+    reading = control.interconnect(plant, inplist=["u"], outlist=["y"], ignore_outputs=["w"], dt=Ts_s)
+    A, B, C, D = reading.A, reading.B, reading.C, reading.D
+    b_e0, Ki_Ts = c["b_e0"], c["Ki_Ts"]
+
+    def L_of_w(w: npt.NDArray[np.float64]) -> npt.NDArray[np.complex128]:
+        z = np.exp(1j * np.asarray(w, dtype=float) * Ts_s)
+        M = z[:, None, None] * np.eye(len(A)) - A
+        P = (C @ np.linalg.solve(M, np.broadcast_to(B, (len(z),) + B.shape)))[:, 0, 0] + D[0, 0]
+        return np.asarray((b_e0 + (Ki_Ts - b_e0) / z) / (1.0 - 1.0 / z) * P, dtype=np.complex128)
+
+    L_nyquist = L_of_w(np.array([math.pi / Ts_s]))[0].real
+    extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []
+    w_lo = 1e-3 * min(d._frequencies())
+    margins = frequency_margins(L_of_w, w_lo, (1.0 - 1e-9) * math.pi / Ts_s, extra) if w_lo < math.pi / Ts_s else None
+    if margins is None:
+        margins = Margins(math.nan, math.nan, math.nan, math.nan)
+    overshoot, reason = StepResponse(
+        closed.A - np.eye(len(closed.A)), closed.B[:, 0], closed.C[0], dt_s=Ts_s
+    ).overshoot_pct()
+    G_z = _sample(d.G, Ts_s, "zoh")
+    return DiscreteDesign(
+        design=d,
+        Ts_s=Ts_s,
+        method=method,
+        **c,
+        poles=tuple(complex(p) for p in poles),
+        overshoot_pct=overshoot,
+        margins=margins,
+        missing=({"overshoot_pct": reason} if reason else {}) | margins.values_and_reasons()[1],
+        F_z=F_z,
+        Fr_z=Fr_z,
+        G_z=G_z,
+        L_z=control.tf(F_z * control.ss(reading)),
+        Gx_z=closed,
     )

@@ -2,19 +2,24 @@
 
 The gain margin is the factor by which the loop gain can grow before the loop goes unstable,
 the phase margin the phase it can lose; both are found by python-control
-(``stability_margins``) on the crossings of the loop gain.
+(``stability_margins``) on the crossings of the loop gain, or, for a loop gain that is not a
+rational function (an exact delay ``exp(-s T)``, a sampled loop evaluated factor by factor), on
+the crossings of its frequency response (:func:`frequency_margins`).
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 
 import control
 import numpy as np
 import numpy.typing as npt
+from scipy import optimize
 
 #: Numbers at the crossings: a sequence or a 1-D array (python-control returns arrays).
 _Floats = Sequence[float] | npt.NDArray[np.float64]
+#: Points per decade of the grid on which :func:`frequency_margins` looks for crossings.
+GRID_PER_DECADE = 400
 
 
 @dataclass(frozen=True)
@@ -96,3 +101,46 @@ def loop_margins(L: control.TransferFunction) -> Margins:
     """Gain and phase margins of the stable continuous loop gain ``L(s)`` (see :func:`pick_margins`)."""
     gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(L, returnall=True)
     return pick_margins(gms, pms, w_pcs, w_gcs)
+
+
+def frequency_margins(
+    L_of_w: Callable[[npt.NDArray[np.float64]], npt.NDArray[np.complex128]],
+    w_lo_radps: float,
+    w_hi_radps: float,
+    extra_crossings: Sequence[tuple[float, float]] = (),
+) -> Margins:
+    """Margins of a loop gain given by its frequency response ``L_of_w(w)`` (complex, vectorized).
+
+    The crossings of ``|L| = 1`` and of the phase ``-180 deg (mod 360)`` are bracketed on a
+    logarithmic grid from ``w_lo_radps`` to ``w_hi_radps`` (:data:`GRID_PER_DECADE` points per
+    decade, the phase unwrapped along it) and refined by Brent's method; the margins are then
+    picked as :func:`pick_margins` does. The grid must span the crossings (a delay adds a
+    phase crossing every ``2 pi / T`` rad/s: all below ``w_hi_radps`` are found).
+    """
+    n = max(int(GRID_PER_DECADE * math.log10(w_hi_radps / w_lo_radps)), 2)
+    w = np.geomspace(w_lo_radps, w_hi_radps, n)
+    L = L_of_w(w)
+    mag_db = 20.0 * np.log10(np.abs(L))
+    phase = np.unwrap(np.angle(L))
+
+    def phase_at(x: float) -> float:
+        # the phase at x, unwrapped continuously from the nearest grid point
+        i = min(int(np.searchsorted(w, x)), len(w) - 1)
+        return float(phase[i] + np.angle(L_of_w(np.array([x]))[0] / L[i]))
+
+    gains: list[float] = []
+    w_phase: list[float] = []
+    phases: list[float] = []
+    w_gain: list[float] = []
+    for i in np.flatnonzero(np.diff(np.sign(mag_db)) != 0):
+        wc = optimize.brentq(lambda x: 20.0 * np.log10(abs(L_of_w(np.array([x]))[0])), w[i], w[i + 1])
+        phases.append(math.degrees(phase_at(wc)) % 360.0 - 180.0)
+        w_gain.append(wc)
+    # the phase crossings: phase + 180 deg through a multiple of 360 deg
+    turns = (phase + math.pi) / (2.0 * math.pi)
+    for i in np.flatnonzero(np.floor(turns[1:]) != np.floor(turns[:-1])):
+        k = max(math.floor(turns[i]), math.floor(turns[i + 1]))
+        wp = optimize.brentq(lambda x, k=k: (phase_at(x) + math.pi) / (2.0 * math.pi) - k, w[i], w[i + 1])
+        gains.append(1.0 / abs(L_of_w(np.array([wp]))[0]))
+        w_phase.append(wp)
+    return pick_margins(gains, phases, w_phase, w_gain, extra_crossings)

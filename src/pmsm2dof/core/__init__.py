@@ -3,33 +3,43 @@
 The lowest layer of pmsm2dof (above :mod:`pmsm2dof.errors` and :mod:`pmsm2dof.outputs`): it
 imports nothing of the other layers. :mod:`.bindings` holds the compiled library and the names
 read from its headers, :mod:`.controllers` the :class:`SpeedController` and
-:class:`CurrentController` that wrap the deployable C controllers, :mod:`.gains` eq 9.
+:class:`CurrentController` that wrap the deployable C controllers, :mod:`.sensing` the
+:class:`Encoder` speed estimators and the :class:`FieldWeakening`, :mod:`.gains` eq 9.
 """
 
 from .bindings import (
     ANTI_WINDUPS,
     CURRENT_LOOP_MODELS,
+    ESTIMATORS,
     FAULT_KINDS,
     FEEDBACKS,
     FEEDFORWARDS,
     LOG_COLUMNS,
     MECHANICS_MODELS,
     METHODS,
+    SPEED_SENSOR_MODELS,
 )
 from .controllers import CurrentController, CurrentOutput, SpeedController, SpeedOutput
 from .gains import pi_gains
+from .sensing import Encoder, EncoderOutput, FieldWeakening, FieldWeakeningOutput
 
 __all__ = [
     "ANTI_WINDUPS",
     "CURRENT_LOOP_MODELS",
+    "ESTIMATORS",
     "FAULT_KINDS",
     "FEEDBACKS",
     "FEEDFORWARDS",
     "LOG_COLUMNS",
     "MECHANICS_MODELS",
     "METHODS",
+    "SPEED_SENSOR_MODELS",
     "CurrentController",
     "CurrentOutput",
+    "Encoder",
+    "EncoderOutput",
+    "FieldWeakening",
+    "FieldWeakeningOutput",
     "SpeedController",
     "SpeedOutput",
     "pi_gains",

@@ -18,6 +18,7 @@ __all__ = [
     "ANTI_WINDUPS",
     "AntiWindup",
     "CURRENT_LOOP_MODELS",
+    "ESTIMATORS",
     "FAULT_KINDS",
     "FEEDBACKS",
     "FEEDFORWARDS",
@@ -26,6 +27,7 @@ __all__ = [
     "MECHANICS_MODELS",
     "METHODS",
     "Method",
+    "SPEED_SENSOR_MODELS",
     "c_string",
     "enum_names",
     "ffi",
@@ -77,6 +79,10 @@ METHODS = cast(tuple[Method, ...], enum_names("p2d_method_t", "P2D_"))
 FEEDFORWARDS = cast(tuple[Feedforward, ...], enum_names("p2d_feedforward_t", "P2D_FF_"))
 #: Anti-windup modes (paper section 3.2); the index is the C ``p2d_anti_windup_t`` value.
 ANTI_WINDUPS = cast(tuple[AntiWindup, ...], enum_names("p2d_anti_windup_t", "P2D_AW_"))
+#: Speed estimators of an encoder (``p2d_estimator_t``): count differencing or a tracking PLL.
+ESTIMATORS = enum_names("p2d_estimator_t", "P2D_ESTIMATOR_")
+#: Speed-sensor models of the engine (``p2d_speed_sensor_model_t``): the true speed, or an encoder's counts.
+SPEED_SENSOR_MODELS = enum_names("p2d_speed_sensor_model_t", "P2D_SPEED_SENSOR_")
 #: Current-loop models of the engine (``p2d_current_model_t``): the C dq current controllers
 #: driving the electrical model, or the closed loop of eq 3.
 CURRENT_LOOP_MODELS = enum_names("p2d_current_model_t", "P2D_CURRENT_")

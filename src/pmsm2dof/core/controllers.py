@@ -27,6 +27,7 @@ import numpy.typing as npt
 from ..errors import ConfigError
 from .bindings import (
     ANTI_WINDUPS,
+    ESTIMATORS,
     FEEDFORWARDS,
     METHODS,
     AntiWindup,
@@ -39,7 +40,12 @@ from .bindings import (
 )
 
 #: The choices of each enum type of the C configurations, indexed by their C value.
-_CHOICES = {"p2d_method_t": METHODS, "p2d_feedforward_t": FEEDFORWARDS, "p2d_anti_windup_t": ANTI_WINDUPS}
+_CHOICES = {
+    "p2d_method_t": METHODS,
+    "p2d_feedforward_t": FEEDFORWARDS,
+    "p2d_anti_windup_t": ANTI_WINDUPS,
+    "p2d_estimator_t": ESTIMATORS,
+}
 
 
 def _float_param(name: str, value: object) -> float:
@@ -367,6 +373,22 @@ class SpeedController:
         """:meth:`compute` and :meth:`update` with the controller's own limited torque."""
         out = ffi.new("p2d_speed_output_t *")
         lib.p2d_speed_step(self._ctl, float(w_ref_radps), float(w_m_radps), out)
+        return _speed_output(out)
+
+    def compute_fw(self, w_ref_radps: float, w_m_radps: float, id_fw_A: float) -> SpeedOutput:
+        """:meth:`compute` with the d-axis current bound ``id_fw_A`` [A] of a field weakening.
+
+        The torque limit follows the q-axis current that remains, ``sqrt(i_max^2 - id^2)``
+        (``p2d_speed_compute_fw``, csrc/include/pmsm2dof/speed.h); the state is not changed.
+        """
+        out = ffi.new("p2d_speed_output_t *")
+        lib.p2d_speed_compute_fw(self._ctl, float(w_ref_radps), float(w_m_radps), float(id_fw_A), out)
+        return _speed_output(out)
+
+    def step_fw(self, w_ref_radps: float, w_m_radps: float, id_fw_A: float) -> SpeedOutput:
+        """:meth:`compute_fw` and :meth:`update` with the controller's own limited torque."""
+        out = ffi.new("p2d_speed_output_t *")
+        lib.p2d_speed_step_fw(self._ctl, float(w_ref_radps), float(w_m_radps), float(id_fw_A), out)
         return _speed_output(out)
 
     def run(self, w_ref_radps: npt.ArrayLike, w_m_radps: npt.ArrayLike) -> dict[str, npt.NDArray[Any]]:

@@ -31,7 +31,7 @@ PHASES = tuple(c_string(lib.p2d_commission_phase_name(i)) for i in range(lib.P2D
 REASONS = enum_names("p2d_commission_reason_t", "P2D_REASON_")
 #: The identified quantities, as named in the scenario's ``[motor]`` table and the C routine.
 ESTIMATES = ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb")
-#: Accuracy targets of the identification (issue 20): |estimate / truth - 1| at most this.
+#: Accuracy targets of the identification (issue 20): ``|estimate / truth - 1|`` at most this.
 TARGETS = {"Rs_ohm": 0.05, "Ld_H": 0.10, "Lq_H": 0.05, "psi_f_Wb": 0.02}
 
 #: Longest simulated commissioning [s]; a run that does not end within it stops.

@@ -55,7 +55,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from ..errors import SimulationError
+from ..errors import ConfigError, SimulationError
+from .logs import Log
 
 if TYPE_CHECKING:
     from .simulate import Result
@@ -382,15 +383,22 @@ def _steady_state_error(tw: _Vector, w: _Vector, target: float, spread_max: floa
     return _value(target - np.trapezoid(final, tf) / (tf[-1] - tf[0]))
 
 
-def compute_metrics(result: "Result") -> dict[str, Any]:
-    """Figures of merit of every reference step and load step of a simulated run.
+def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dict[str, Any]:
+    """Figures of merit of every reference step and load step of a simulated run or a measured log.
 
     Parameters
     ----------
-    result : Result
+    result : Result or Log
         A run of :func:`pmsm2dof.simulate`: arrays ``t_s``, ``speed_rpm``, ``speed_ref_rpm``,
         ``saturated``, ``id_ref_A``, ``iq_ref_A`` and the ``scenario`` whose ``reference`` and
-        ``load`` schedules are measured.
+        ``load`` schedules are measured. Or a measured :class:`~pmsm2dof.sim.logs.Log` with
+        ``speed_ref_rpm``: each change of the logged reference by more than 1 % of its range is a
+        reference step, and so is its first row when the speed there is that far from the
+        reference (a log does not know its loads; a ramp counts as its steps); the time at
+        the current limit counts the samples whose ``||(id_A, iq_A)||`` (``iq_ref_A`` when logged)
+        is within 1 % of ``i_max_A``, and is missing without it; no voltage figure.
+    i_max_A : float, optional
+        Log only: the drive's current limit [A].
 
     Returns
     -------
@@ -400,6 +408,8 @@ def compute_metrics(result: "Result") -> dict[str, Any]:
         each figure is ``{"value": x}`` or ``{"value": None, "reason": "..."}`` (see the module
         docstring for the definitions).
     """
+    if isinstance(result, Log):
+        return _log_metrics(result, i_max_A)
     t = np.asarray(result.t_s, dtype=float)
     if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
         raise SimulationError("result.t_s must hold at least two finite, increasing times")
@@ -431,6 +441,48 @@ def compute_metrics(result: "Result") -> dict[str, Any]:
             "iae_rpm_s": _value(float(np.trapezoid(np.abs(ref - speed), t))),
             "current_limit_time_s": _value(_time_where(t, limited, t[0], t[-1])),
             "voltage_limit_time_s": _voltage_limit_time(result, t),
+        },
+    }
+
+
+def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
+    """:func:`compute_metrics` of a measured log: its steps from the logged reference."""
+    if log.speed_ref_rpm is None:
+        raise ConfigError("log", log.source, "a log with speed_ref_rpm to measure its reference steps")
+    t, speed, ref = log.t_s, log.speed_rpm, log.speed_ref_rpm
+    tol = 0.01 * max(float(np.ptp(ref)), float(np.max(np.abs(ref))), 1e-12)
+    jumps = np.flatnonzero(np.abs(np.diff(ref)) > tol) + 1
+    ref_events = [(float(t[k]), float(ref[k - 1]), float(ref[k])) for k in jumps]
+    if abs(ref[0] - speed[0]) > tol:
+        # a log that starts with the reference away from the speed: a step at its first row
+        ref_events.insert(0, (float(t[0]), float(speed[0]), float(ref[0])))
+    if i_max_A is None:
+        limited = np.zeros(t.shape, bool)
+    else:
+        iq = log.iq_ref_A if log.iq_ref_A is not None else log.iq_A
+        if iq is None:
+            raise ConfigError("log", log.source, "a log with iq_A or iq_ref_A to count the time at the current limit")
+        i_d = log.id_A if log.id_A is not None else np.zeros_like(iq)
+        limited = np.hypot(i_d, iq) >= (1.0 - LIMIT_RTOL) * i_max_A
+    times = [e[0] for e in ref_events]
+
+    def window_end(t0: float) -> float:
+        later = [x for x in times if x > t0]
+        return float(min(later[0], t[-1]) if later else t[-1])
+
+    limit_time = _value(_time_where(t, limited, t[0], t[-1])) if i_max_A is not None else _missing("no i_max_A")
+    return {
+        "scenario": log.source,
+        "reference_steps": [
+            _reference_step(t, speed, ref, limited, t0, window_end(t0), b, a) for t0, b, a in ref_events
+        ],
+        "load_steps": [],
+        "faults": [],
+        "run": {
+            "t_end_s": float(t[-1]),
+            "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
+            "current_limit_time_s": limit_time,
+            "voltage_limit_time_s": _missing("a log has no voltage_limited signal"),
         },
     }
 

@@ -13,6 +13,10 @@ reference and load torque schedules of a run (section 4.1)::
     t_s = 0.0
     speed_rpm = 500.0
 
+The motor may be given in datasheet units instead, as a ``[motor.datasheet]`` table (Kt, Ke, line-to-line
+R and L, poles: see :mod:`pmsm2dof.sim.datasheet`); it provides ``pole_pairs``, ``Rs_ohm``, ``Ld_H``,
+``Lq_H`` and ``psi_f_Wb``, which :meth:`Scenario.to_toml` writes as converted.
+
 An optional ``[mechanics]`` table makes the load a two-mass drive train (the paper's conclusion:
 motor and load inertia coupled by an elastic shaft), and ``[speed_filter]`` puts a notch and a
 low-pass on the speed controller's torque command; both absent, the drive is the paper's.
@@ -42,11 +46,25 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..core import ANTI_WINDUPS, CURRENT_LOOP_MODELS, FAULT_KINDS, FEEDBACKS, FEEDFORWARDS, MECHANICS_MODELS, METHODS
+from ..core import (
+    ANTI_WINDUPS,
+    CURRENT_LOOP_MODELS,
+    ESTIMATORS,
+    FAULT_KINDS,
+    FEEDBACKS,
+    FEEDFORWARDS,
+    MECHANICS_MODELS,
+    METHODS,
+    SPEED_SENSOR_MODELS,
+)
 from ..errors import ConfigError
+from .datasheet import motor_from_table
 
 #: Longest simulated time of one scenario [s] (ten hours).
 T_END_MAX_S = 36000.0
+
+#: Longest delay of the speed reading in current periods (the engine's P2D_SIM_HISTORY - 2).
+SENSOR_DELAY_MAX_PERIODS = 2046
 
 #: Relative tolerance of "speed_controller.Ts_s is an integer multiple of current_loop.Ts_s".
 TS_MULTIPLE_RTOL = 1e-9
@@ -397,6 +415,196 @@ SCHEMA = (
     ),
     Field("commissioning.noise_A", float, "standard deviation of each measured phase current [A]", default=0.0, ge=0),
     Field("commissioning.seed", int, "seed of the current-measurement noise", default=1, ge=0, le=2**63),
+    # ---- the drive as it is measured, and field weakening (speed_sensor, current_measurement, field_weakening)
+    Field(
+        "speed_sensor.model",
+        str,
+        "what the speed controller reads: ideal (the true speed) or encoder (counts read by the C estimator)",
+        default="ideal",
+        choices=SPEED_SENSOR_MODELS,
+    ),
+    Field(
+        "speed_sensor.counts_per_rev", int, "encoder counts per revolution (4 x lines)", default=4096, ge=1, le=2**24
+    ),
+    Field("speed_sensor.counter_bits", int, "width of the encoder's hardware counter [bit]", default=32, ge=2, le=32),
+    Field(
+        "speed_sensor.estimator",
+        str,
+        "encoder speed estimator: difference (counts over one speed period) or pll (type-2 tracking loop)",
+        default="difference",
+        choices=ESTIMATORS,
+    ),
+    Field(
+        "speed_sensor.bandwidth_radps",
+        float,
+        "PLL double pole w_pll [rad/s], 1e-3 <= w_pll speed_controller.Ts_s <= 2 (estimator pll)",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "speed_sensor.lowpass_radps",
+        float,
+        "first-order low-pass on the estimate [rad/s], 0: none, else 1e-3 <= it speed_controller.Ts_s <= 2",
+        default=0.0,
+        ge=0,
+    ),
+    Field(
+        "speed_sensor.delay_s",
+        float,
+        f"transport delay of the reading [s], at most {SENSOR_DELAY_MAX_PERIODS} current_loop.Ts_s",
+        default=0.0,
+        ge=0,
+    ),
+    Field(
+        "speed_sensor.noise_rpm_rms",
+        float,
+        "white Gaussian noise added to the reading, after the estimator and the low-pass [rpm rms]",
+        default=0.0,
+        ge=0,
+    ),
+    Field("speed_sensor.seed", int, "seed of the speed noise", default=0, ge=0, lt=2**64),
+    Field(
+        "current_measurement.gain_error_a",
+        float,
+        "relative gain error of the phase-a current sensor [-] (measured = (1 + gain_error) i + offset + noise)",
+        default=0.0,
+        gt=-1,
+    ),
+    Field(
+        "current_measurement.gain_error_b", float, "relative gain error of the phase-b sensor [-]", default=0.0, gt=-1
+    ),
+    Field("current_measurement.offset_a_A", float, "offset of the phase-a current sensor [A]", default=0.0),
+    Field("current_measurement.offset_b_A", float, "offset of the phase-b current sensor [A]", default=0.0),
+    Field(
+        "current_measurement.noise_A_rms",
+        float,
+        "white Gaussian noise of each phase current sensor [A rms]",
+        default=0.0,
+        ge=0,
+    ),
+    Field("current_measurement.seed", int, "seed of the current noise", default=0, ge=0, lt=2**64),
+    Field(
+        "field_weakening.enabled",
+        bool,
+        "voltage-feedback field weakening in the current reference path (dq_pi)",
+        default=False,
+    ),
+    Field(
+        "field_weakening.Ki_A_per_Vs",
+        float,
+        "integral gain of the PI on the voltage margin [A/(V s)]; crossover about Ki w_e Ld (required when enabled)",
+        default=None,
+        gt=0,
+    ),
+    Field("field_weakening.Kp_A_per_V", float, "proportional gain of that PI [A/V]", default=0.0, ge=0),
+    Field(
+        "field_weakening.Ka_V_per_A",
+        float,
+        "back-calculation gain [V/A]; absent: 1 / (Ki speed_controller.Ts_s)",
+        default=None,
+        ge=0,
+    ),
+    Field(
+        "field_weakening.voltage_ratio",
+        float,
+        "the voltage command is held at voltage_ratio u_dc/sqrt(3) [-]",
+        default=0.95,
+        gt=0,
+        le=1,
+    ),
+    Field(
+        "field_weakening.id_min_A",
+        float,
+        "most negative d-axis current [A]; absent: -limits.i_max_A",
+        default=None,
+        lt=0,
+    ),
+    Field(
+        "estimator.enabled",
+        bool,
+        "run the online inertia estimator of the C library (pmsm2dof/inertia.h) beside the speed controller",
+        default=False,
+    ),
+    Field(
+        "estimator.adapt_gains",
+        bool,
+        "gain scheduling: re-design the speed controller (eq 9) for the estimated J once it is valid",
+        default=False,
+    ),
+    Field(
+        "estimator.adapt_rel_change",
+        float,
+        "re-design when the estimate has moved by more than this fraction of the J of the present gains",
+        default=0.05,
+        ge=0,
+    ),
+    Field(
+        "estimator.adapt_error_rpm",
+        float,
+        "re-design only at a quiet sample: reference constant, output inside the current limit and "
+        "|speed error| <= this [rpm] (a re-design in a transient disturbs the integrator)",
+        default=5.0,
+        ge=0,
+    ),
+    Field(
+        "estimator.J0_kgm2",
+        float,
+        "initial estimate and prior standard deviation of J [kg m^2]",
+        default=SameAs("speed_controller.J_kgm2"),
+        gt=0,
+    ),
+    Field("estimator.J_min_kgm2", float, "smallest plausible J [kg m^2]; absent: J0_kgm2 / 10", default=None, gt=0),
+    Field("estimator.J_max_kgm2", float, "largest plausible J [kg m^2]; absent: 10 J0_kgm2", default=None, gt=0),
+    Field(
+        "estimator.B_max_Nms",
+        float,
+        "largest plausible viscous friction [Nm s/rad]; absent: the peak torque 1.5 p psi_f i_max_A per 100 rad/s",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.T_load_max_Nm",
+        float,
+        "largest plausible |load torque| [Nm]; absent: the peak torque 1.5 p psi_f i_max_A",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.sigma_T_Nm",
+        float,
+        "standard deviation of the torque input's noise [Nm]; absent: 1 % of the peak torque",
+        default=None,
+        gt=0,
+    ),
+    Field("estimator.J_memory_s", float, "memory of the estimates of J and B [s]", default=10.0, gt=0),
+    Field(
+        "estimator.load_memory_s",
+        float,
+        "time constant of the load estimate after a load step [s]; absent: 1 / speed_controller.alpha_radps",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.w_f_radps",
+        float,
+        "bandwidth of the prefilter of speed and torque [rad/s]; absent: 0.2 / speed_controller.Ts_s",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "estimator.J_rel_sd_max",
+        float,
+        "J is valid (and used by adapt_gains) once its standard deviation is below this fraction",
+        default=0.05,
+        gt=0,
+        lt=1,
+    ),
+    Field(
+        "estimator.speed_is_period_mean",
+        bool,
+        "the speed reading is the mean over the speed period (encoder counts differenced)",
+        default=False,
+    ),
     Field("reference[].t_s", float, "time of the reference change [s], 0 <= t_s < simulation.t_end_s", ge=0),
     Field("reference[].speed_rpm", float, "new speed reference [rpm]"),
     Field(
@@ -536,6 +744,11 @@ def _as_table(value: object, dotted: str) -> Tree:
 def _validate(tree: object) -> tuple[Tree, Tree]:
     """Validate a scenario tree; return (given, data): the keys given and all keys resolved."""
     table = _as_table(tree, "scenario")
+    motor = table.get("motor")
+    if isinstance(motor, dict) and "datasheet" in motor:
+        # [motor.datasheet]: the model keys converted from datasheet units (pmsm2dof.sim.datasheet)
+        converted = motor_from_table(motor).motor_table()
+        table["motor"] = {**{k: v for k, v in motor.items() if k != "datasheet"}, **converted}
     given = _validate_table(table, "", "")
     for name in _TABLES:
         values = _validate_table(_as_table(table.get(name), name), name, name)
@@ -638,6 +851,44 @@ def _check_relations(data: Tree) -> None:
                         f"({earliest!r}): entries sorted by time, ramps not overlapping",
                     )
     _check_faults(data)
+    _check_sensing(data)
+
+
+def _check_sensing(data: Tree) -> None:
+    """The speed sensor, current measurement and field weakening against the other tables."""
+    ss, cl, fw = data["speed_sensor"], data["current_loop"], data["field_weakening"]
+    if ss["model"] == "ideal" and ss["estimator"] == "pll":
+        raise ConfigError("speed_sensor.estimator", "pll", "'difference' with model 'ideal' (a PLL reads counts)")
+    if ss["model"] == "encoder" and ss["estimator"] == "pll" and ss["bandwidth_radps"] is None:
+        raise ConfigError(
+            "speed_sensor.bandwidth_radps", REQUIRED, "required by estimator 'pll': the PLL's double pole [rad/s], > 0"
+        )
+    if ss["bandwidth_radps"] is not None and not (ss["model"] == "encoder" and ss["estimator"] == "pll"):
+        raise ConfigError(
+            "speed_sensor.bandwidth_radps",
+            ss["bandwidth_radps"],
+            "absent: only model 'encoder' with estimator 'pll' uses it",
+        )
+    if ss["delay_s"] > SENSOR_DELAY_MAX_PERIODS * cl["Ts_s"] * (1.0 + TS_MULTIPLE_RTOL):
+        raise ConfigError(
+            "speed_sensor.delay_s",
+            ss["delay_s"],
+            f"<= {SENSOR_DELAY_MAX_PERIODS} current_loop.Ts_s = {SENSOR_DELAY_MAX_PERIODS * cl['Ts_s']:g} s",
+        )
+    cm = data["current_measurement"]
+    measured = any(cm[k] != 0.0 for k in ("gain_error_a", "gain_error_b", "offset_a_A", "offset_b_A", "noise_A_rms"))
+    if measured and cl["model"] != "dq_pi":
+        raise ConfigError(
+            "current_loop.model", cl["model"], "'dq_pi' with a [current_measurement] error (eq 3 measures nothing)"
+        )
+    if fw["enabled"]:
+        if cl["model"] != "dq_pi":
+            raise ConfigError(
+                "current_loop.model", cl["model"], "'dq_pi' with field_weakening.enabled (eq 3 has no voltage)"
+            )
+        if fw["Ki_A_per_Vs"] is None:
+            field = _FIELDS["field_weakening.Ki_A_per_Vs"]
+            raise ConfigError("field_weakening.Ki_A_per_Vs", REQUIRED, f"required when enabled: {field.valid_range()}")
 
 
 def _check_faults(data: Tree) -> None:

@@ -33,6 +33,16 @@ Faults
     speed for their decoupling. A stall needs no fault: a load above the torque the current limit
     can give. ``speed_meas_rpm`` and ``u_dc_V`` of the :class:`Result` show what was read and applied.
 
+Measurement and field weakening
+    ``[speed_sensor]``: the speed controller reads the true speed or an encoder's counts (from the
+    rotor angle the engine integrates) through the C estimator of ``encoder.h`` (difference or PLL),
+    a low-pass, a transport delay and seeded noise. ``[current_measurement]``: the current
+    controller reads the phase currents with gain errors, offsets and seeded noise, transformed to
+    dq. ``[field_weakening]``: the voltage-feedback regulator of ``field_weakening.h`` sets the
+    d-axis current at each speed sample from the current controller's voltage command, and the
+    speed controller's torque limit follows the q current that remains (``p2d_speed_step_fw``).
+    The defaults (ideal, exact, off) leave the loop as described above (csrc/sim/sensing.h).
+
 Initial state
     In steady state at ``simulation.speed0_rpm`` with the reference equal to it and no
     load; the reference and load schedules apply from t = 0 (entries at t = 0 are steps at 0).
@@ -71,12 +81,14 @@ import numpy.typing as npt
 from ..core import (
     ANTI_WINDUPS,
     CURRENT_LOOP_MODELS,
+    ESTIMATORS,
     FAULT_KINDS,
     FEEDBACKS,
     FEEDFORWARDS,
     LOG_COLUMNS,
     MECHANICS_MODELS,
     METHODS,
+    SPEED_SENSOR_MODELS,
     pi_gains,
 )
 from ..core.bindings import c_string, ffi, lib
@@ -98,7 +110,7 @@ RPM_SIGNALS = {
     "w_load_radps": "load_speed_rpm",
 }
 #: Log columns that hold a flag (0 or 1), returned as bool arrays.
-FLAG_SIGNALS = ("saturated",)
+FLAG_SIGNALS = ("saturated", "J_valid")
 
 
 def _signal_names(log_columns: Iterable[str]) -> tuple[str, ...]:
@@ -159,6 +171,21 @@ _CURRENT_KEYS = {
     "anti_windup": "current_loop.anti_windup",
 }
 
+#: Scenario key of each field that the C encoder (speed_sensor) or field weakening init can reject.
+_SENSING_KEYS = {
+    "counts_per_rev": "speed_sensor.counts_per_rev",
+    "counter_bits": "speed_sensor.counter_bits",
+    "estimator": "speed_sensor.estimator",
+    "bandwidth_radps": "speed_sensor.bandwidth_radps",
+    "lowpass_radps": "speed_sensor.lowpass_radps",
+    "Ts_s": "speed_controller.Ts_s",
+    "Kp_A_per_V": "field_weakening.Kp_A_per_V",
+    "Ki_A_per_Vs": "field_weakening.Ki_A_per_Vs",
+    "Ka_V_per_A": "field_weakening.Ka_V_per_A",
+    "voltage_ratio": "field_weakening.voltage_ratio",
+    "id_min_A": "field_weakening.id_min_A",
+}
+
 #: Scenario key of each field that p2d_sim_init can reject (p2d_sim_status_param).
 _SIM_KEYS = {
     "motor.pole_pairs": "motor.pole_pairs",
@@ -180,6 +207,11 @@ _SIM_KEYS = {
     "reference": "reference",
     "load": "load",
     "faults": "fault",
+    "adapt.adapt_rel_change": "estimator.adapt_rel_change",
+    "adapt.e_quiet_radps": "estimator.adapt_error_rpm",
+    "speed_sensor": "speed_sensor",
+    "current_sensor": "current_measurement",
+    "field_weakening": "field_weakening",
     "mechanics.model": "mechanics.model",
     "mechanics.J_load_kgm2": "mechanics.J_load_kgm2",
     "mechanics.stiffness_Nm_per_rad": "mechanics.stiffness_Nm_per_rad",
@@ -187,6 +219,23 @@ _SIM_KEYS = {
     "mechanics.backlash_rad": "mechanics.backlash_rad",
     "mechanics.feedback": "mechanics.feedback",
 }
+
+#: Scenario key of each field that the C inertia estimator init can reject (the estimator block).
+_ESTIMATOR_KEYS = {
+    name: f"estimator.{name}"
+    for name in (
+        "J0_kgm2",
+        "J_min_kgm2",
+        "J_max_kgm2",
+        "B_max_Nms",
+        "T_load_max_Nm",
+        "sigma_T_Nm",
+        "J_memory_s",
+        "load_memory_s",
+        "w_f_radps",
+        "J_rel_sd_max",
+    )
+} | {"Ts_s": "speed_controller.Ts_s"}
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
@@ -212,8 +261,9 @@ class Result:
     load_Nm : load torque [Nm]
     saturated : the current-vector limit is active (bool)
     x_i_Nm : integrator of the speed PI after the sample's update [Nm]
-    speed_meas_rpm : speed reading sampled by the speed controller (differs from speed_rpm only
-        under a sensor fault) [rpm]
+    speed_meas_rpm : speed reading sampled by the speed controller: the ``[speed_sensor]``'s reading
+        (encoder estimate, low-pass, delay, noise; the true speed with the default ideal sensor), or a
+        sensor fault's [rpm]
     u_dc_V : DC-link voltage over the current period that starts at the row (nominal but under a
         DC-link sag) [V]
     voltage_limited : share of the current periods of the row's speed sample whose voltage was cut
@@ -247,6 +297,10 @@ class Result:
     speed_meas_rpm: npt.NDArray[np.float64]
     u_dc_V: npt.NDArray[np.float64]
     voltage_limited: npt.NDArray[np.float64]
+    J_est_kgm2: npt.NDArray[np.float64]
+    J_valid: npt.NDArray[np.bool_]
+    T_load_est_Nm: npt.NDArray[np.float64]
+    J_gains_kgm2: npt.NDArray[np.float64]
     load_speed_rpm: npt.NDArray[np.float64]
     shaft_torque_Nm: npt.NDArray[np.float64]
 
@@ -265,7 +319,7 @@ class Result:
     def save(self, path: Path | str) -> None:
         """Write the trace to ``path``; the format follows the extension.
 
-        ``.csv``: one column per signal with a header row (``saturated`` as 0/1);
+        ``.csv``: one column per signal with a header row (the flags ``saturated`` and ``J_valid`` as 0/1);
         ``.npz`` (numpy) and ``.mat`` (MATLAB, ``scipy.io.savemat``): one array per signal
         and ``scenario_toml``, the scenario as TOML text. The file is written completely or
         not at all.
@@ -275,7 +329,8 @@ class Result:
         arrays = {name: getattr(self, name) for name in self.signals}
         if suffix == ".csv":
             frame = self.to_dataframe()
-            frame["saturated"] = frame["saturated"].astype(np.int8)
+            for flag in FLAG_SIGNALS:
+                frame[flag] = frame[flag].astype(np.int8)
             atomic_write(path, frame.to_csv(index=False))
         elif suffix == ".npz":
             buf = io.BytesIO()
@@ -440,6 +495,9 @@ class Simulation:
         c.method = METHODS.index(cl["method"])
         c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
         c.decouple = cl["decouple"]
+        _sensing(cfg, data)
+
+        _estimator(cfg, data)
 
         self.cfg = cfg
         self.sim = ffi.new("p2d_sim_t *")
@@ -485,11 +543,19 @@ class Simulation:
         return node
 
     def _raise_config(self, status: int) -> None:
-        if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER):
+        if status in (lib.P2D_SIM_ERR_SPEED_SENSOR, lib.P2D_SIM_ERR_FIELD_WEAKENING) and self.sim.controller_status:
+            ctl = self.sim.controller_status
+            key = _SENSING_KEYS[c_string(lib.p2d_status_param(ctl))]
+            raise ConfigError(key, self._value(key), c_string(lib.p2d_status_range(ctl)))
+        if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER, lib.P2D_SIM_ERR_ESTIMATOR):
             ctl = self.sim.controller_status
             field = c_string(lib.p2d_status_param(ctl))
             valid = c_string(lib.p2d_status_range(ctl))
-            keys = _SPEED_KEYS if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER else _CURRENT_KEYS
+            keys = {
+                lib.P2D_SIM_ERR_SPEED_CONTROLLER: _SPEED_KEYS,
+                lib.P2D_SIM_ERR_CURRENT_CONTROLLER: _CURRENT_KEYS,
+                lib.P2D_SIM_ERR_ESTIMATOR: _ESTIMATOR_KEYS,
+            }[status]
             key = keys[field]
             value = self._value(key)
             if key == "speed_controller.Ka":
@@ -501,6 +567,8 @@ class Simulation:
                 )
                 if value is None:
                     value = f"None (default 1/Kp = {s.Ka:.6g})"
+            elif value is None:
+                value = f"None (derived: {getattr(self.cfg.adapt.config, field):.6g})"
             raise ConfigError(key, value, valid)
         field = c_string(lib.p2d_sim_status_param(status))
         valid = c_string(lib.p2d_sim_status_text(status))
@@ -557,3 +625,67 @@ def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
     cfg.faults = faults
     cfg.n_faults = len(entries)
     return faults
+
+
+def _estimator(cfg: Any, data: Mapping[str, Any]) -> None:
+    """The estimator block of the engine's configuration (``[estimator]``, csrc/sim/adapt.h)."""
+    est, sc, motor = data["estimator"], data["speed_controller"], data["motor"]
+    a = cfg.adapt
+    a.enabled = est["enabled"]
+    if not est["enabled"]:
+        return
+    a.adapt_gains = est["adapt_gains"]
+    a.Ka_follows_J = sc["Ka"] is None
+    a.adapt_rel_change = est["adapt_rel_change"]
+    a.e_quiet_radps = est["adapt_error_rpm"] / RPM_PER_RADPS
+    T_peak_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
+    J0 = est["J0_kgm2"]
+    derived = {
+        "J_min_kgm2": J0 / 10.0,
+        "J_max_kgm2": 10.0 * J0,
+        "B_max_Nms": T_peak_Nm / 100.0,
+        "T_load_max_Nm": T_peak_Nm,
+        "sigma_T_Nm": 0.01 * T_peak_Nm,
+        "load_memory_s": 1.0 / sc["alpha_radps"],
+        "w_f_radps": 0.2 / sc["Ts_s"],
+    }
+    c = a.config
+    c.Ts_s = sc["Ts_s"]
+    c.J0_kgm2 = J0
+    for key, value in derived.items():
+        setattr(c, key, value if est[key] is None else est[key])
+    c.J_memory_s = est["J_memory_s"]
+    c.J_rel_sd_max = est["J_rel_sd_max"]
+    c.speed_is_period_mean = est["speed_is_period_mean"]
+
+
+def _sensing(cfg: Any, data: Mapping[str, Any]) -> None:
+    """Fill the speed sensor, current measurement and field weakening of ``cfg`` (csrc/sim/sensing.h)."""
+    ss, cm, fw = data["speed_sensor"], data["current_measurement"], data["field_weakening"]
+    sensor = cfg.sensing.speed_sensor
+    sensor.model = SPEED_SENSOR_MODELS.index(ss["model"])
+    sensor.encoder.counts_per_rev = ss["counts_per_rev"]
+    sensor.encoder.counter_bits = ss["counter_bits"]
+    sensor.encoder.estimator = ESTIMATORS.index(ss["estimator"])
+    sensor.encoder.bandwidth_radps = 0.0 if ss["bandwidth_radps"] is None else ss["bandwidth_radps"]
+    sensor.encoder.lowpass_radps = ss["lowpass_radps"]
+    sensor.delay_s = ss["delay_s"]
+    sensor.noise_rms_radps = ss["noise_rpm_rms"] / RPM_PER_RADPS
+    sensor.seed = ss["seed"]
+    meas = cfg.sensing.current_sensor
+    for key in ("gain_error_a", "gain_error_b", "offset_a_A", "offset_b_A", "seed"):
+        setattr(meas, key, cm[key])
+    meas.noise_rms_A = cm["noise_A_rms"]
+    cfg.sensing.field_weakening.enabled = fw["enabled"]
+    if fw["enabled"]:
+        reg = cfg.sensing.field_weakening.config
+        Ts_s = data["speed_controller"]["Ts_s"]
+        reg.Kp_A_per_V = fw["Kp_A_per_V"]
+        reg.Ki_A_per_Vs = fw["Ki_A_per_Vs"]
+        # absent: Ki Ka Ts = 1, the back-calculation's own time constant one sample
+        reg.Ka_V_per_A = 1.0 / (fw["Ki_A_per_Vs"] * Ts_s) if fw["Ka_V_per_A"] is None else fw["Ka_V_per_A"]
+        reg.Ts_s = Ts_s
+        reg.voltage_ratio = fw["voltage_ratio"]
+        reg.id_min_A = -data["limits"]["i_max_A"] if fw["id_min_A"] is None else fw["id_min_A"]
+        reg.method = METHODS.index("tustin")
+        reg.anti_windup = ANTI_WINDUPS.index("back_calculation")

@@ -78,7 +78,7 @@ DISTRIBUTIONS = {
     "log_normal": ("median", "sigma"),
 }
 SCALES = ("linear", "log")
-#: Default ranking metric of the worst cases: the integral of |speed reference - speed| over the run.
+#: Default ranking metric of the worst cases: the integral of ``|speed reference - speed|`` over the run.
 DEFAULT_RANK_BY = "run_iae_rpm_s"
 _TOP_KEYS = ("name", "base", "draws", "seed", "rank_by", "worst", "axes")
 

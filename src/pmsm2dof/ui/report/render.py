@@ -19,8 +19,11 @@ from ...sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES
 from ...sim.simulate import Result
 from ...studies import paper as st
 from ...studies.faults import fault_figures
+from ...studies.sensing import OffsetRow, SensorRow
+from .adaptation import adaptation_blocks
 from .claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
 from .commissioning import commissioning_blocks
+from .sensing import sensing_blocks
 from .twomass import TwoMassStudy, two_mass_blocks
 
 #: A block of the report: ``(kind, ...)``, see :func:`report_blocks`.
@@ -148,12 +151,18 @@ def report_blocks(
     wall_time_s: float | None = None,
     fault_runs: Mapping[tuple[str, AntiWindup], Result | str | None] | None = None,
     commissioning_runs: Mapping[tuple[str, str], Commissioning] | None = None,
+    sensor_rows: Sequence[SensorRow] | None = None,
+    offset_rows: Sequence[OffsetRow] = (),
+    adaptation_runs: dict[tuple[float, str], Result | str] | None = None,
     two_mass: TwoMassStudy | None = None,
 ) -> list[Block]:
     """The report as a list of blocks, rendered by :func:`render_markdown` and :func:`render_html`.
 
     ``fault_runs`` (of :func:`run_faults`) adds the section on the fault scenarios,
     ``commissioning_runs`` (of :func:`.commissioning.run_commissioning`) the one on self-commissioning,
+    ``sensor_rows`` (of :func:`pmsm2dof.studies.sensing.sensor_study`) the one on the speed measurement,
+    with ``offset_rows`` (:func:`pmsm2dof.studies.sensing.offset_study`);
+    ``adaptation_runs`` (of :func:`pmsm2dof.studies.adaptation.run_adaptation`) the one on gain scheduling;
     ``two_mass`` (of :func:`~pmsm2dof.ui.report.twomass.run_two_mass_study`) the section beyond the rigid load.
 
     Blocks: ``("h1"|"h2"|"h3"|"p", text)``, ``("list", [text])``, ``("table", header, rows)``,
@@ -238,6 +247,8 @@ def report_blocks(
         ("table", *_discretization_table(studies)),
         *_fault_blocks(fault_runs, figure_captions),
         *commissioning_blocks(commissioning_runs),
+        *sensing_blocks(sensor_rows, offset_rows),
+        *adaptation_blocks(adaptation_runs),
         *(two_mass_blocks(two_mass, figure_captions) if two_mass is not None else []),
         ("h2", "Files"),
         (
