@@ -295,6 +295,16 @@ static inline bool speed_limit(float T_lim_Nm, float u, p2d_speed_output_t *out)
 }
 
 /*
+ * u_f[k] = H(z) u[k] into out->T_unsat_Nm (returned), the filter states left as they are; out of
+ * line, so that the unfiltered compute keeps no filter state on its stack.
+ */
+static P2D_NOINLINE float filtered_compute(const p2d_speed_t *ctl, float u, p2d_speed_output_t *out)
+{
+    p2d_filter_state_t next; /* unused: compute does not change the state */
+    return filtered_command(ctl, u, out, &next);
+}
+
+/*
  * The torque command of this sample (eq 11-15, the torque filters and the limit) into
  * out, all but the current vector. Returns false, with the fault output, if the command
  * before the limit is not finite.
@@ -303,10 +313,7 @@ static inline bool speed_torque(const p2d_speed_t *ctl, const p2d_speed_coef_t *
                                 float T_lim_Nm, p2d_speed_output_t *out)
 {
     float u = speed_unlimited(ctl, c, w_ref_radps, w_m_radps, out);
-    if (c->filtered) {
-        p2d_filter_state_t next; /* unused: compute does not change the state */
-        u = filtered_command(ctl, u, out, &next);
-    }
+    if (c->filtered) u = filtered_compute(ctl, u, out);
     return speed_limit(T_lim_Nm, u, out);
 }
 
@@ -460,6 +467,22 @@ void p2d_speed_compute(const p2d_speed_t *ctl, float w_ref_radps, float w_m_radp
     }
 }
 
+/*
+ * The update of a filtered configuration with the applied torque T_applied_Nm (finite) of an
+ * output that is not a fault; out of line, so that the unfiltered update stays small enough to
+ * be inlined (p2d_speed_step_fw).
+ */
+static P2D_NOINLINE void filtered_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm)
+{
+    const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
+    p2d_filter_state_t next;
+    float dT_ff;
+    /* u[k] again, rounded as compute rounded it, advances the torque filters */
+    const float u = speed_sum(ctl, c, out->e_radps, out->w_ref_radps - ctl->r_prev_radps, out->y_ff_Nm, &dT_ff);
+    (void)p2d_filter_output(&ctl->filter_coef[ctl->active], &ctl->filter, u, &next);
+    filtered_integrate(ctl, c, out, T_applied_Nm, &next);
+}
+
 void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_applied_Nm)
 {
     const p2d_speed_coef_t *c = &ctl->coef[ctl->active];
@@ -468,12 +491,7 @@ void p2d_speed_update(p2d_speed_t *ctl, const p2d_speed_output_t *out, float T_a
         return;
     }
     if (c->filtered) {
-        p2d_filter_state_t next;
-        float dT_ff;
-        /* u[k] again, rounded as compute rounded it, advances the torque filters */
-        const float u = speed_sum(ctl, c, out->e_radps, out->w_ref_radps - ctl->r_prev_radps, out->y_ff_Nm, &dT_ff);
-        (void)p2d_filter_output(&ctl->filter_coef[ctl->active], &ctl->filter, u, &next);
-        filtered_integrate(ctl, c, out, T_applied_Nm, &next);
+        filtered_update(ctl, out, T_applied_Nm);
         return;
     }
     speed_integrate(ctl, c, out, T_applied_Nm);
