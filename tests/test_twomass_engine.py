@@ -8,7 +8,9 @@
   two-mass plant, the C controller's realized PI and feedforward, and the torque filters designed
   with SciPy (bilinear, prewarped) from their continuous prototypes;
 - the rigid default: a stiff shaft tends to the rigid drive, and a notch damps a resonance that the
-  loop excites without it.
+  loop excites without it;
+- an encoder counts the angle of the side fed back: the readings of a difference estimator sum to
+  the angle integrated here from the logged speed of that side (and not of the other).
 """
 
 import math
@@ -336,3 +338,51 @@ def test_stability_does_not_depend_on_the_feedforward_form(feedforward, m):
     late = plain.t_s > 2.5
     assert np.ptp(plain.shaft_torque_Nm[late]) > 100.0
     assert np.ptp(notched.shaft_torque_Nm[late]) < 1e-3
+
+
+@pytest.mark.parametrize(
+    ("feedback", "delay_s"), [("load", 0.0), ("motor", 0.0), ("load", 2.5e-4)], ids=["load", "motor", "load-delayed"]
+)
+def test_encoder_counts_the_angle_of_the_fed_back_side(feedback, delay_s):
+    # A difference estimator's readings telescope: Ts sum_{k=1..j} w_meas[k] is the count of the
+    # angle at t_j - delay from the one at -delay, within one count. The angle of each side is integrated here from the
+    # logged speeds (trapezoids, interpolated to t - delay); a load step twists the shaft by
+    # T_load / K, 250 counts at 2^20 counts/rev, so only the fed-back side's angle fits.
+    counts_per_rev, T_load_Nm = 2**20, 4.0
+    result = simulate(
+        Scenario.from_dict(
+            tree(
+                speed_controller={"alpha_radps": 5.0, "zeta": 0.7, "Ts_s": 1e-3},
+                mechanics={
+                    "model": "two_mass",
+                    "J_load_kgm2": J_L,
+                    "stiffness_Nm_per_rad": K,
+                    "damping_Nms_per_rad": D,
+                    "feedback": feedback,
+                },
+                speed_sensor={
+                    "model": "encoder",
+                    "counts_per_rev": counts_per_rev,
+                    "estimator": "difference",
+                    "delay_s": delay_s,
+                },
+                load=[{"t_s": 0.1, "torque_Nm": T_load_Nm}],
+            )
+        )
+    )
+    t, Ts = result.t_s, 1e-3
+    assert np.allclose(np.diff(t), Ts)
+    counted = Ts * np.cumsum(result.speed_meas_rpm[1:] * RADPS_PER_RPM)
+
+    def angle(speed_rpm):
+        w = speed_rpm * RADPS_PER_RPM
+        theta = np.concatenate([[0.0], np.cumsum(0.5 * Ts * (w[:-1] + w[1:]))])
+        # from theta(-delay) = -w(0) delay: before t = 0 the drive turns at its initial speed
+        return np.interp(t[1:] - delay_s, t, theta) + w[0] * delay_s
+
+    own, other = (result.load_speed_rpm, result.speed_rpm)[:: 1 if feedback == "load" else -1]
+    twist = T_load_Nm / K
+    late = t[1:] > 0.4
+    one_count = 2 * math.pi / counts_per_rev
+    assert np.max(np.abs(counted - angle(own))) < one_count + 0.02 * twist
+    assert np.min(np.abs(counted - angle(other))[late]) > 0.8 * twist
