@@ -593,7 +593,7 @@ def report_sensing(m):
         f"The field-weakening entry costs {fw['unsaturated'] - plain['unsaturated']} (unsaturated) and "
         f"{fw['saturated'] - plain['saturated']} (saturated) instructions more than `p2d_speed_step` "
         f"({plain['unsaturated']} / {plain['saturated']}, unchanged): the q current that remains, a square root, "
-        "and the compute/update split.",
+        "the compute/update split and the tests of the torque filters (the entry runs them when configured).",
         "",
         "### Flash reachable from an entry point (static call graph, newlib included, bytes)",
         "",
