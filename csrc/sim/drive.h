@@ -23,7 +23,9 @@
  * mechanical systems with backlash - a survey", Automatica 38, 2002). The
  * friction acts on the motor side, the load torque on the load side. The
  * speed controller reads w_m (feedback P2D_FEEDBACK_MOTOR) or w_L
- * (P2D_FEEDBACK_LOAD); the current controller always sees p w_m. Without
+ * (P2D_FEEDBACK_LOAD) through the speed sensor of sensing.h, whose encoder then
+ * counts the load angle theta_L = theta_M - theta; the current controller
+ * always sees p w_m and the electrical angle p theta_M. Without
  * play the resonance is at w_r = sqrt(K (J_M + J_L) / (J_M J_L)), the
  * anti-resonance at w_a = sqrt(K / J_L). The initial state has no twist and
  * both sides at w_m0. Rigid (the default): one inertia motor.J_kgm2, the

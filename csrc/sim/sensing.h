@@ -15,7 +15,9 @@
  * A delayed reading interpolates the angle and speed stored at the current-period boundaries
  * by the cubic Hermite polynomial of theta_m through its values and slopes w_m there (the speed
  * is its derivative): exact for a delay that is a multiple of Ts_current; delay_s is at most
- * (P2D_SIM_HISTORY - 2) Ts_current.
+ * (P2D_SIM_HISTORY - 2) Ts_current. With the load side fed back (a two-mass train, drive.h),
+ * the sensor reads the load angle theta_L = theta_m - theta (the twist, 0 at t = 0) and the
+ * load speed w_L instead of theta_m and w_m.
  *
  * Current measurement: the phase currents of the amplitude-invariant transform,
  *   ia = id cos(th_e) - iq sin(th_e),  ib = id cos(th_e - 2 pi/3) - iq sin(th_e - 2 pi/3),

@@ -298,7 +298,7 @@ SCHEMA = (
     Field(
         "mechanics.feedback",
         str,
-        "the speed the speed controller reads: motor (motor side) or load (load side, two_mass)",
+        "the side the speed sensor reads for the speed controller: motor or load (load side, two_mass)",
         default="motor",
         choices=FEEDBACKS,
     ),
