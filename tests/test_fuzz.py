@@ -169,7 +169,12 @@ MUTANTS = {
     "speed_limit_before_filters": (
         "speed",
         "speed.c",
-        [("u = filtered_command(ctl, u, out, &next);", "(void)filtered_command(ctl, u, out, &next);")],
+        [
+            (
+                "if (c->filtered) u = filtered_compute(ctl, u, out);",
+                "if (c->filtered) (void)filtered_compute(ctl, u, out);",
+            )
+        ],
     ),
     # an overflow of a filter state is not refused: it poisons the filter
     "filter_nan_state": (
