@@ -199,6 +199,7 @@ def run_cli(*args):
     return subprocess.run([sys.executable, "-m", "pmsm2dof", *args], capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow  # a fresh interpreter per CLI call
 def test_cli_design_reports_the_sensor_chain_and_the_largest_alpha():
     done = run_cli(
         "design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--tau-i", "0.05", "--Ts", "1e-3",
@@ -218,6 +219,7 @@ def test_cli_design_reports_the_sensor_chain_and_the_largest_alpha():
     assert table.returncode == 0 and "ideal, delay 20 ms (exact delay in the margins)" in table.stdout
 
 
+@pytest.mark.slow  # a fresh interpreter per CLI call
 def test_cli_design_bad_sensor_input_is_one_line_and_status_2():
     done = run_cli("design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--Ts", "1e-3", "--sensor-lowpass",
                    "-3")  # fmt: skip

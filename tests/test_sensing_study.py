@@ -126,6 +126,7 @@ def run_cli(*args, cwd):
     )
 
 
+@pytest.mark.slow  # a fresh interpreter per CLI call
 def test_cli_sensors_refuses_a_bad_key_in_one_line_and_writes_nothing(tmp_path):
     proc = run_cli("sensors", "--set", "speed_sensor.counts_per_rev=0", "--out", "out", cwd=tmp_path)
     assert proc.returncode == 2
@@ -134,6 +135,7 @@ def test_cli_sensors_refuses_a_bad_key_in_one_line_and_writes_nothing(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow  # a fresh interpreter per CLI call
 @pytest.mark.parametrize(
     "setting, key",
     [

@@ -27,11 +27,15 @@ from test_target_qemu import BUILD_TIMEOUT_S, CSRC, QEMU, QEMU_TIMEOUT_S, TOOLCH
 from pmsm2dof._core import ffi, lib
 
 _MISSING = [t for t in ("cmake", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
-pytestmark = pytest.mark.skipif(
-    bool(_MISSING),
-    reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-    "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
-)
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        bool(_MISSING),
+        reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
+        "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
+    ),
+]
 
 SAMPLE_FIELDS = ("ud_V", "uq_V", "theta_e_rad", "w_e_radps", "id_ref_A", "iq_ref_A", "phase", "fault")
 END_FIELDS = (
