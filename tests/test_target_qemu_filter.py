@@ -26,11 +26,15 @@ TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
 QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
 
 _MISSING = [t for t in ("cmake", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
-pytestmark = pytest.mark.skipif(
-    bool(_MISSING),
-    reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-    "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
-)
+#: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(
+        bool(_MISSING),
+        reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
+        "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
+    ),
+]
 
 SAMPLES = 120
 FILTER_FIELDS = ("notch_freq_Hz", "notch_width_Hz", "notch_depth", "lowpass_freq_Hz", "lowpass_zeta")

@@ -115,7 +115,7 @@ NOTCHES = [  # f0 [Hz], width [Hz], depth, Ts [s]
     (50.0, 20.0, 0.1, 1e-3),  # a coupling resonance at a 1 kHz speed loop
     (300.0, 40.0, 0.0, 1e-3),  # near the Nyquist frequency, full depth
     (12.0, 2.0, 0.3, 1e-4),  # a slow belt resonance at 10 kHz: poles near z = 1
-    (2.0, 0.2, 0.05, 1e-4),  # f0 Ts = 2e-4
+    pytest.param(2.0, 0.2, 0.05, 1e-4, marks=pytest.mark.slow),  # f0 Ts = 2e-4 (a long response: slow)
 ]
 
 
