@@ -10,8 +10,6 @@
 #define P2D_CRUN_SQRT3 1.7320508075688772        /* sqrt(3) */
 #define P2D_CRUN_TWO_PI 6.283185307179586        /* 2 pi */
 #define P2D_CRUN_PI 3.141592653589793            /* pi */
-#define P2D_CRUN_W_C_MIN_RADPS 0.01              /* smallest friction smoothing band (drive.h) [rad/s] */
-#define P2D_CRUN_W_C_PERIODS 10.0                /* friction time constant J w_c / T_c in current periods [-] */
 #define P2D_CRUN_SEED_ZERO 0x9e3779b97f4a7c15ull /* xorshift64* state used for seed 0 (a zero state stays 0) */
 
 /* the log's phase_start array holds one entry per phase */
@@ -109,24 +107,7 @@ p2d_crun_status_t p2d_commission_run_init(p2d_crun_t *run, const p2d_crun_config
 
     run->cfg = *cfg;
     m = &run->pmsm;
-    m->pole_pairs = (double)mp->pole_pairs;
-    m->Rs_ohm = mp->Rs_ohm;
-    m->Ld_H = mp->Ld_H;
-    m->Lq_H = mp->Lq_H;
-    m->psi_f_Wb = mp->psi_f_Wb;
-    m->inv_Ld_per_H = 1.0 / mp->Ld_H;
-    m->inv_Lq_per_H = 1.0 / mp->Lq_H;
-    m->inv_J_per_kgm2 = 1.0 / mp->J_kgm2;
-    m->kt_Nm_per_A = 1.5 * m->pole_pairs * mp->psi_f_Wb;
-    m->c_T_Nm_per_A2 = 1.5 * m->pole_pairs * (mp->Ld_H - mp->Lq_H);
-    m->B_Nms = mp->B_Nms;
-    m->T_coulomb_Nm = mp->T_coulomb_Nm;
-    /* w_c = max(w_c_min, 10 Ts T_c / J), as drive.h */
-    m->inv_w_c_s_per_rad = 1.0 / fmax(P2D_CRUN_W_C_MIN_RADPS, P2D_CRUN_W_C_PERIODS * (double)cfg->commissioning.Ts_s *
-                                                                  mp->T_coulomb_Nm / mp->J_kgm2);
-    m->id_A = 0.0;
-    m->iq_A = 0.0;
-    m->w_m_radps = 0.0;
+    p2d_pmsm_setup(m, mp, (double)cfg->commissioning.Ts_s);
     run->theta_e_rad = wrap_pi(cfg->theta0_rad - P2D_CRUN_PI) + P2D_CRUN_PI;
     run->dt_s = (double)cfg->commissioning.Ts_s / (double)cfg->substeps;
     run->ua_next_V = 0.0;

@@ -621,6 +621,29 @@ static void pmsm_voltage(const p2d_pmsm_t *m, double did_dt, double diq_dt, doub
     *uq_V = m->Rs_ohm * m->iq_A + m->Lq_H * diq_dt + w_e * (m->Ld_H * m->id_A + m->psi_f_Wb);
 }
 
+void p2d_pmsm_setup(p2d_pmsm_t *m, const p2d_pmsm_params_t *mp, double Ts_current_s)
+{
+    m->pole_pairs = (double)mp->pole_pairs;
+    m->Rs_ohm = mp->Rs_ohm;
+    m->Ld_H = mp->Ld_H;
+    m->Lq_H = mp->Lq_H;
+    m->psi_f_Wb = mp->psi_f_Wb;
+    m->inv_Ld_per_H = 1.0 / mp->Ld_H;
+    m->inv_Lq_per_H = 1.0 / mp->Lq_H;
+    m->inv_J_per_kgm2 = 1.0 / mp->J_kgm2;
+    m->kt_Nm_per_A = 1.5 * m->pole_pairs * mp->psi_f_Wb;
+    m->c_T_Nm_per_A2 = 1.5 * m->pole_pairs * (mp->Ld_H - mp->Lq_H);
+    m->B_Nms = mp->B_Nms;
+    m->T_coulomb_Nm = mp->T_coulomb_Nm;
+    /* w_c = max(w_c_min, 10 Ts_current T_c / J): friction time constant J w_c / T_c >= 10 Ts_current */
+    m->inv_w_c_s_per_rad =
+        1.0 / fmax(P2D_SIM_W_C_MIN_RADPS, P2D_SIM_W_C_PERIODS * Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
+    m->id_A = 0.0;
+    m->iq_A = 0.0;
+    m->w_m_radps = 0.0;
+    m->theta_m_rad = 0.0;
+}
+
 p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 {
     const p2d_pmsm_params_t *mp;
@@ -673,21 +696,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 
     mp = &cfg->motor;
     m = &sim->pmsm;
-    m->pole_pairs = (double)mp->pole_pairs;
-    m->Rs_ohm = mp->Rs_ohm;
-    m->Ld_H = mp->Ld_H;
-    m->Lq_H = mp->Lq_H;
-    m->psi_f_Wb = mp->psi_f_Wb;
-    m->inv_Ld_per_H = 1.0 / mp->Ld_H;
-    m->inv_Lq_per_H = 1.0 / mp->Lq_H;
-    m->inv_J_per_kgm2 = 1.0 / mp->J_kgm2;
-    m->kt_Nm_per_A = 1.5 * m->pole_pairs * mp->psi_f_Wb;
-    m->c_T_Nm_per_A2 = 1.5 * m->pole_pairs * (mp->Ld_H - mp->Lq_H);
-    m->B_Nms = mp->B_Nms;
-    m->T_coulomb_Nm = mp->T_coulomb_Nm;
-    /* w_c = max(w_c_min, 10 Ts_current T_c / J): friction time constant J w_c / T_c >= 10 Ts_current */
-    m->inv_w_c_s_per_rad =
-        1.0 / fmax(P2D_SIM_W_C_MIN_RADPS, P2D_SIM_W_C_PERIODS * cfg->Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
+    p2d_pmsm_setup(m, mp, cfg->Ts_current_s);
 
     inverter_set_range(&sim->inverter, cfg->u_dc_V);
     sim->inverter.delay = cfg->computation_delay;

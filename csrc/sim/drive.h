@@ -396,6 +396,13 @@ typedef struct {
     bool saturated;                  /* the speed controller's last output was at the current limit */
 } p2d_sim_t;
 
+/*
+ * Precompute the plant's coefficients from validated motor parameters (friction smoothing band
+ * w_c = max(0.01 rad/s, 10 Ts_current T_c / J)) and set its state to rest. Used by p2d_sim_init
+ * and by the commissioning run (commission_run.h).
+ */
+void p2d_pmsm_setup(p2d_pmsm_t *m, const p2d_pmsm_params_t *mp, double Ts_current_s);
+
 /* Validate cfg, initialize the controllers and set the initial state. */
 p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg);
 
