@@ -298,10 +298,11 @@ static float fz_speed_sample(fz_fw_rig_t *rig, fz_reader_t *r, unsigned mode, fl
     if (out.id_ref_A == id_bound && (!c->salient || id_bound < 0.0f)) {
         /*
          * on the bound (and not the MTPA vector, whose inversion is the speed controller's and
-         * checked there), the current gives the torque: 1.5 p (psi_f + dL id) iq = T_ref (away from subnormals)
+         * checked there), the current gives the torque: 1.5 p (psi_f + dL id) iq = T_ref (away from subnormals:
+         * a subnormal T_ref, e.g. 2.8e-44 Nm, holds a few bits, and one rounding of iq moves it by several %)
          */
         double k_T = 1.5 * before.config.pole_pairs * ((double)before.config.psi_f_Wb + (double)c->dL_H * id_bound);
-        FZ_REQUIRE(k_T < 1e-30 || fabs((double)out.T_ref_Nm / k_T) < 1e-30 ||
+        FZ_REQUIRE(k_T < 1e-30 || fabsf(out.T_ref_Nm) < FLT_MIN || fabs((double)out.T_ref_Nm / k_T) < 1e-30 ||
                        fabs(k_T * (double)out.iq_ref_A - (double)out.T_ref_Nm) <= 1e-5 * fabs((double)out.T_ref_Nm),
                    "the current (%g, %g) gives %g Nm, not T_ref %g (psi_f %g Ld %g Lq %g i_max %g id_fw %g)",
                    (double)out.id_ref_A, (double)out.iq_ref_A, k_T * (double)out.iq_ref_A, (double)out.T_ref_Nm,

@@ -12,6 +12,7 @@ Run from the repository root after changing the input format:
     python3 csrc/fuzz/make_seeds.py
 """
 
+import base64
 import math
 import struct
 from pathlib import Path
@@ -518,6 +519,14 @@ ENCODER_SEEDS = {
 }
 
 FIELD_WEAKENING_SEEDS = {
+    # found by the fuzzer: a subnormal torque reference (2.8e-44 Nm) on a current circle of 1.1e-19 A, where
+    # one rounding of iq moves the torque it gives by 1 % (the torque invariant holds away from subnormals)
+    "subnormal_torque_on_the_circle": base64.b64decode(
+        "AgAAAAACAAAAAAIAAAAAAgAAAAACAAAIAAIAvLy8vLy8vLwAAAACAAAAAAABAAAgAAAAABb//xUAAHwCAP7//////wECAAAAAgAA"
+        "AAD+///////9+wAAAAIAAAAAAQQAAAQAAOx4rWAA7HitYAIAAAAAAAIAAAAAAgAAAAACAAABAAcCAAEEAAAEAADseK1gAOx4rWAC"
+        "AAAAAAACAAAAAAIAAAAAAgAAAQAHAkQTAQACAAAAAAIAAAAABwECAAAAAgAAAAACAAAAAAUBAgTPBwIAAAAAAgAAAAACAAAAAATP"
+        "BwKIJgAAAgAAAAACAAAAAAQAAAAA"
+    ),
     # surface PMSM of a 48 V servo, Tustin back calculation: above base speed, then far above (id at id_min), back
     "surface_backcalc_speed_sweep": fw_config()
     + fw_speed_config(3)
