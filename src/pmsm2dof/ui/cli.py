@@ -1228,6 +1228,17 @@ def warnings_as_lines() -> Iterator[None]:
 @click.option(
     "--design", "design_text", default=None, metavar="ALPHA,ZETA", help="print the eq 9 gains for the J found"
 )
+@click.option(
+    "--electrical",
+    is_flag=True,
+    help="instead: Rs, Ld, Lq, psi_f (eq 1) from id_A, iq_A, ud_V, uq_V (needs --pole-pairs)",
+)
+@click.option(
+    "--voltage-delay-samples",
+    type=int,
+    default=0,
+    help="--electrical: the logged voltage applies this many samples after its row",
+)
 @click.option("--plan", is_flag=True, help="instead: write the run to log (speed steps) for --motor SCENARIO to --out")
 @click.option("--speed-max-rpm", type=float, default=None, help="--plan: largest speed of the steps [rpm]")
 @click.option(
@@ -1246,6 +1257,8 @@ def identify(
     as_json: bool,
     out: str | None,
     design_text: str | None,
+    electrical: bool,
+    voltage_delay_samples: int,
     plan: bool,
     speed_max_rpm: float | None,
     i_max_A: float | None,
@@ -1261,6 +1274,11 @@ def identify(
     With --plan (no LOG): writes to --out the run to play on the drive and log, speed steps
     within --speed-max-rpm and the current limit for the --motor scenario's J guess: plan.toml
     (the scenario), its simulation trace.csv and plot.png.
+
+    With --electrical --pole-pairs P: Rs, Ld, Lq and psi_f (per phase, amplitude-invariant dq,
+    eq 1) from id_A, iq_A, ud_V, uq_V and the speed, each with its 95 % interval; --out DIR
+    writes fit.png (measured vs model voltages), residuals.csv, motor.toml (for design --motor)
+    and identify.json.
     """
     import json
 
@@ -1275,6 +1293,9 @@ def identify(
         return
     if log is None:
         raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT), or --plan")
+    if electrical:
+        _identify_electrical(log, column_maps, pole_pairs, voltage_delay_samples, as_json, out)
+        return
     gains = None
     if design_text is not None:
         parts = design_text.split(",")
@@ -1389,6 +1410,63 @@ def identify(
         )
     if out is not None:
         click.echo(f"wrote fit.png, rows.csv, identified.toml and identify.json to {out}")
+
+
+def _identify_electrical(
+    log: str,
+    column_maps: tuple[str, ...],
+    pole_pairs: int | None,
+    voltage_delay_samples: int,
+    as_json: bool,
+    out: str | None,
+) -> None:
+    """``identify --electrical``: Rs, Ld, Lq, psi_f of eq 1 (pmsm2dof.studies.electrical)."""
+    import json
+
+    import numpy as np
+
+    from ..outputs import atomic_write, staged_dir
+    from ..sim.logs import read_log
+    from ..studies.electrical import PARAMETERS, identify_electrical
+
+    if pole_pairs is None or pole_pairs < 1:
+        raise ConfigError("--pole-pairs", "<missing>" if pole_pairs is None else pole_pairs, "an integer >= 1")
+    if not 0 <= voltage_delay_samples <= 100:
+        raise ConfigError("--voltage-delay-samples", voltage_delay_samples, "an integer in [0, 100]")
+    if out is not None:
+        from ..outputs import require_writable_dir
+
+        require_writable_dir(out)
+    columns = dict(parse_column(text) for text in column_maps)
+    with warnings_as_lines():
+        measured = read_log(log, columns)
+    fit = identify_electrical(measured, pole_pairs, voltage_delay_samples=voltage_delay_samples)
+    report = fit.to_json()
+    if out is not None:
+        from .plots.identify import plot_electrical_fit
+
+        rows = fit.rows
+        names = ["t_s", "ud_V", "ud_fit_V", "uq_V", "uq_fit_V"]
+        table = np.column_stack([rows[n] for n in names])
+        body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
+        with staged_dir(out) as tmp:
+            plot_electrical_fit(fit, tmp / "fit.png")
+            atomic_write(tmp / "residuals.csv", ",".join(names) + "\n" + body + "\n")
+            atomic_write(tmp / "motor.toml", fit.motor_toml(pole_pairs, log))
+            atomic_write(tmp / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
+    if as_json:
+        click.echo(json.dumps(report, indent=2, allow_nan=False))
+        return
+    units = {"Rs_ohm": "ohm", "Ld_H": "H", "Lq_H": "H", "psi_f_Wb": "Wb"}
+    for name in PARAMETERS:
+        lo, hi = fit.ci[name]
+        click.echo(f"{name:<9} = {report[name]:<11.5g} 95 % interval [{lo:.5g}, {hi:.5g}] {units[name]}")
+    click.echo(
+        f"fit: {fit.n_windows} windows ({fit.n_samples} samples), residual {fit.residual_rms_V:.3g} V rms "
+        "(per phase, amplitude-invariant dq, eq 1)"
+    )
+    if out is not None:
+        click.echo(f"wrote fit.png, residuals.csv, motor.toml and identify.json to {out}")
 
 
 @cli.command()

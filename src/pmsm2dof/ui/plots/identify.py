@@ -8,6 +8,7 @@ from matplotlib.figure import Figure
 
 from ...sim.logs import Log
 from ...sim.simulate import Result
+from ...studies.electrical import Electrical
 from ...studies.identify import Mechanics
 from .design import save_figure
 
@@ -39,6 +40,33 @@ def plot_fit(mech: Mechanics, path: Path) -> None:
     bottom.set_xlabel("time [s]")
     lim = 4 * float(np.std((y - fit)[kept])) or 1.0
     bottom.set_ylim(-lim, lim)
+    save_figure(fig, path)
+
+
+def plot_electrical_fit(fit: Electrical, path: Path) -> None:
+    """Draw the window-mean voltages of :func:`~pmsm2dof.studies.electrical.identify_electrical`, log vs eq 1.
+
+    Top: ud, middle: uq (measured and the model with the parameters found), bottom: residuals [V].
+    """
+    fig = Figure(figsize=(9, 7), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_d, ax_q, ax_e = fig.subplots(3, 1, sharex=True)
+    rows = fit.rows
+    t = rows["t_s"]
+    for ax, axis in ((ax_d, "d"), (ax_q, "q")):
+        ax.plot(t, rows[f"u{axis}_V"], ".", ms=3, label=f"u{axis} window mean (log)")
+        ax.plot(t, rows[f"u{axis}_fit_V"], "-", lw=1, label=f"u{axis} of eq 1 (fit)")
+        ax.set_ylabel(f"u{axis} [V]")
+        ax.legend(loc="best", fontsize="small")
+        ax_e.plot(t, rows[f"u{axis}_V"] - rows[f"u{axis}_fit_V"], ".", ms=3, label=f"u{axis}")
+    ax_d.set_title(
+        f"Rs = {fit.Rs_ohm:.4g} ohm, Ld = {fit.Ld_H:.4g} H, Lq = {fit.Lq_H:.4g} H, psi_f = {fit.psi_f_Wb:.4g} Wb "
+        f"({fit.n_windows} windows)"
+    )
+    ax_e.axhline(0.0, color="k", lw=0.5)
+    ax_e.set_ylabel("residual [V]")
+    ax_e.set_xlabel("time [s]")
+    ax_e.legend(loc="best", fontsize="small")
     save_figure(fig, path)
 
 
