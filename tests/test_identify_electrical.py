@@ -5,10 +5,13 @@ currents with extra seeded sensor noise, so the fit sees the errors in variables
 """
 
 import json
+import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from test_readme_commands import readme_commands
 
 from pmsm2dof.sim.logs import read_log
 from pmsm2dof.sim.scenario import load_scenario
@@ -17,6 +20,7 @@ from pmsm2dof.studies.electrical import PARAMETERS, identify_electrical
 from pmsm2dof.studies.identify import IdentificationError
 from pmsm2dof.ui.cli import cli, main
 
+ROOT = Path(__file__).resolve().parents[1]
 SERVO = "examples/commissioning/servo-salient.toml"
 COLUMNS = ("t_s", "speed_rpm", "id_A", "iq_A", "ud_V", "uq_V")
 HEADER = "time_s,speed_rpm,id_A,iq_A,ud_V,uq_V"
@@ -135,3 +139,22 @@ def test_intervals_cover_truth_on_random_machines(tmp_path):
     assert total >= 4 * 90
     print(f"coverage {covered}/{total}, worst relative errors {worst}")
     assert covered / total >= 0.9, f"{covered}/{total}"
+
+
+@pytest.mark.slow
+def test_readme_commands_identify_the_servo_within_the_targets(tmp_path, monkeypatch, capsys):
+    """README 'No datasheet': the simulate and identify --electrical commands, run as written."""
+    commands = readme_commands("pmsm2dof")
+    simulate_args = next(a for a in commands if a[0] == "simulate" and SERVO in a)
+    identify_args = next(a for a in commands if a[0] == "identify" and "--electrical" in a)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "examples" / "commissioning").mkdir(parents=True)
+    (tmp_path / SERVO).write_text((ROOT / SERVO).read_text())
+    assert main(simulate_args) == 0
+    assert main(identify_args) == 0
+    capsys.readouterr()
+    out = tmp_path / identify_args[identify_args.index("--out") + 1]
+    found = json.loads((out / "identify.json").read_text())
+    truth = tomllib.loads((ROOT / SERVO).read_text())["motor"]
+    for name in PARAMETERS:
+        assert abs(found[name] / truth[name] - 1) < TARGETS[name], name
