@@ -32,10 +32,10 @@ nominal parameters (``Kp = L alpha_c``, ``Ki = Rs alpha_c``, ``alpha_c`` default
 
     u_d = Kp_d e_d + x_d - w_e Lq i_q,   u_q = Kp_q e_q + x_q + w_e (Ld i_d + psi_f),
 
-gives ``u_ref`` (logged as ``ud_V``, ``uq_V``). Anti-windup by back-calculation with a gain of one
-sample: the controller knows the inverter's limit, ``u_lim = u_ref`` scaled to the circle
-``|u| <= u_dc / sqrt(3)``, and ``x_{k+1} = x_k + Ki Ts e_k + (u_lim - u_ref)``, so that a clipped
-period removes its excess from the integrator.
+gives ``u_ref`` (logged as ``ud_V``, ``uq_V``). Anti-windup by back-calculation with the gain
+``Ka = 1 / Kp`` of each axis (the project's convention for the speed loop, Fig. 5 of the paper): the
+controller knows the inverter's limit, ``u_lim = u_ref`` scaled to the circle ``|u| <= u_dc / sqrt(3)``,
+and ``x_{k+1} = x_k + Ki Ts (e_k + (u_lim - u_ref) / Kp)`` (forward Euler).
 
 Inverter: the reference of sample k is turned into the stator frame at
 ``theta_e(t_k) + angle_lead_samples w_e(t_k) Ts``, clipped to the circle (``voltage_limited`` = 1
@@ -46,9 +46,10 @@ changes sign within a period is not modelled; a zero current gives no error); th
 (amplitude-invariant inverse Clarke) less ``dead_time_V sign(i_x)`` go back to the stator-frame
 vector (Clarke), which drops their common mode as an isolated neutral does.
 
-Cost: the per-period ``solve_ivp`` calls, about 0.15 to 0.2 ms a period (4000 periods of 100 us in
-0.6 s for a linear salient machine at constant speed, 0.85 s with saturation, dead time, noise and
-a speed ramp), measured on one core of a shared 2-core machine.
+Cost: the per-period ``solve_ivp`` calls, 0.15 to 0.35 ms a period, growing with the angle the
+rotor turns in a period (4000 periods of 100 us: 0.56 s at w_e Ts = 0.06 rad, 0.87 s with
+saturation, dead time, noise and a speed ramp to w_e Ts = 0.13 rad, 1.3 s at w_e Ts = 0.42 rad),
+measured on one core of a shared 2-core machine. No faster scheme is needed.
 """
 
 import math
@@ -261,9 +262,9 @@ def simulate_log(
         u_abs = math.hypot(u_d, u_q)
         limited = u_abs > u_max
         scale = u_max / u_abs if limited else 1.0
-        # back-calculation: x_{k+1} = x_k + Ki Ts e_k + (u_lim - u_ref)
-        x_d += Ki * Ts_s * e_d + (scale - 1.0) * u_d
-        x_q += Ki * Ts_s * e_q + (scale - 1.0) * u_q
+        # back-calculation, Ka = 1 / Kp: x_{k+1} = x_k + Ki Ts (e_k + (u_lim - u_ref) / Kp)
+        x_d += Ki * Ts_s * (e_d + (scale - 1.0) * u_d / Kp_d)
+        x_q += Ki * Ts_s * (e_q + (scale - 1.0) * u_q / Kp_q)
 
         # to the stator frame at theta_e(t_k) + X w_e Ts, clipped to the linear range
         angle = theta + angle_lead_samples * w_e * Ts_s
