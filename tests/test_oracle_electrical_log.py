@@ -47,16 +47,18 @@ def run(machine=SALIENT, *, t_end_s=0.1, speed=SPEED_RPM, i_ref=(-3.0, 8.0), u_d
     )
 
 
-def period_map(machine, w_e, Ts):
+def period_map(machine, w_e, Ts, stator_hold=True):
     """The exact map over one period of z = [psi_d, psi_q, u_d, u_q, 1] for a linear machine at a
-    constant speed: eq 1 with the rotor-frame voltage of a held stator-frame vector, du/dt = -j w_e u."""
+    constant speed: eq 1 with the rotor-frame voltage of a held stator-frame vector, du/dt = -j w_e u
+    (``stator_hold``), or of a held rotor-frame vector, du/dt = 0."""
+    w_u = w_e if stator_hold else 0.0
     Rs, Ld, Lq, psi_f = machine.Rs_ohm, machine.Ld_H, machine.Lq_H, machine.psi_f_Wb
     A = np.array(
         [
             [-Rs / Ld, w_e, 1.0, 0.0, Rs * psi_f / Ld],  # d psi_d = u_d - Rs (psi_d - psi_f) / Ld + w_e psi_q
             [-w_e, -Rs / Lq, 0.0, 1.0, 0.0],  # d psi_q = u_q - Rs psi_q / Lq - w_e psi_d
-            [0.0, 0.0, 0.0, w_e, 0.0],
-            [0.0, 0.0, -w_e, 0.0, 0.0],
+            [0.0, 0.0, 0.0, w_u, 0.0],
+            [0.0, 0.0, -w_u, 0.0, 0.0],
             [0.0, 0.0, 0.0, 0.0, 0.0],
         ]
     )
@@ -67,7 +69,7 @@ def complex_of(log, d_key, q_key):
     return log[d_key] + 1j * log[q_key]
 
 
-@pytest.mark.parametrize("lead, delay", [(0.0, 0), (0.5, 0), (1.5, 1)])
+@pytest.mark.parametrize("lead, delay", [(0.0, 0), (0.5, 0), (1.5, 1), (None, 0), (None, 1)])
 def test_steady_state_is_the_periodic_solution_of_eq1(lead, delay):
     log = run(angle_lead_samples=lead, voltage_delay_samples=delay)
     id_ref, iq_ref = -3.0, 8.0
@@ -75,20 +77,21 @@ def test_steady_state_is_the_periodic_solution_of_eq1(lead, delay):
     assert log["iq_true_A"][-1] == pytest.approx(iq_ref, abs=1e-9)
     # the rotor-frame voltage U0 at the start of the period that makes the sampled currents periodic
     m = SALIENT
-    Phi = period_map(m, W_E, TS)
+    Phi = period_map(m, W_E, TS, stator_hold=lead is not None)
     psi0 = np.array([m.Ld_H * id_ref + m.psi_f_Wb, m.Lq_H * iq_ref])
     U0 = np.linalg.solve(Phi[:2, 2:4], psi0 - Phi[:2, :2] @ psi0 - Phi[:2, 4])
-    u_ref = complex(*U0) * np.exp(-1j * (lead - delay) * W_E * TS)
+    # a stator-frame hold starts the period at u_ref exp(j (X - d) w_e Ts); a rotor-frame hold at u_ref
+    u_ref = complex(*U0) * (1.0 if lead is None else np.exp(-1j * (lead - delay) * W_E * TS))
     assert log["ud_V"][-1] == pytest.approx(u_ref.real, rel=1e-8)
     assert log["uq_V"][-1] == pytest.approx(u_ref.imag, rel=1e-8)
 
 
-@pytest.mark.parametrize("lead, delay", [(0.0, 0), (0.5, 0), (1.5, 1), (2.0, 1)])
+@pytest.mark.parametrize("lead, delay", [(0.0, 0), (0.5, 0), (1.5, 1), (2.0, 1), (None, 0), (None, 1)])
 def test_mean_applied_voltage_is_the_reference_times_sinc_and_rotation(lead, delay):
     log = run(t_end_s=0.02, angle_lead_samples=lead, voltage_delay_samples=delay, i_ref=lambda t: (-3.0, 8.0 + 40 * t))
     assert not log["voltage_limited"].any()
     x = W_E * TS
-    factor = math.sin(x / 2) / (x / 2) * np.exp(1j * (lead - delay - 0.5) * x)
+    factor = 1.0 if lead is None else math.sin(x / 2) / (x / 2) * np.exp(1j * (lead - delay - 0.5) * x)
     u_ref = complex_of(log, "ud_V", "uq_V")
     u_mean = complex_of(log, "ud_mean_V", "uq_mean_V")
     # every period, the transient included (the reference of row k applies over period k + d)
@@ -112,7 +115,7 @@ def test_phasor_equations_of_eq1_hold_for_the_period_means():
     assert abs(log["iq_true_A"][-1] - i_q) > 1e-3
 
 
-@pytest.mark.parametrize("lead, delay", [(0.5, 0), (1.5, 1)])
+@pytest.mark.parametrize("lead, delay", [(0.5, 0), (1.5, 1), (None, 1)])
 def test_transient_follows_the_exact_period_map(lead, delay):
     """Every sampled current of a run with current steps against the expm map, period by period."""
     m = SALIENT
@@ -123,16 +126,22 @@ def test_transient_follows_the_exact_period_map(lead, delay):
         i_ref=lambda t: (-3.0 if t > 0.004 else 0.0, 8.0 if t > 0.001 else 2.0),
         theta_e0_rad=0.7,
     )
-    Phi = period_map(m, W_E, TS)
+    Phi = period_map(m, W_E, TS, stator_hold=lead is not None)
     n = len(log["time_s"])
     theta = 0.7 + W_E * TS * np.arange(n)
-    u_stator = complex_of(log, "ud_V", "uq_V") * np.exp(1j * (theta + lead * W_E * TS))
+    # the held vector of each reference, in the frame it is held in
+    u_held = complex_of(log, "ud_V", "uq_V")
+    if lead is not None:
+        u_held = u_held * np.exp(1j * (theta + lead * W_E * TS))
     psi = np.array([m.psi_f_Wb, 0.0])
     for k in range(n):
         i_d, i_q = (psi[0] - m.psi_f_Wb) / m.Ld_H, psi[1] / m.Lq_H
         assert log["id_true_A"][k] == pytest.approx(i_d, abs=1e-7)
         assert log["iq_true_A"][k] == pytest.approx(i_q, abs=1e-7)
-        u0 = u_stator[k - delay] * np.exp(-1j * theta[k]) if k >= delay else 0.0
+        if k < delay:
+            u0 = 0.0
+        else:
+            u0 = u_held[k - delay] * (1.0 if lead is None else np.exp(-1j * theta[k]))
         psi = (Phi @ np.array([psi[0], psi[1], u0.real, u0.imag, 1.0]))[:2]
 
 
@@ -283,3 +292,15 @@ def test_bad_arguments_are_named(kwargs, name):
         simulate_log(SALIENT, **(args | kwargs))
     with pytest.raises(ValueError, match="Lq_H"):
         Machine(0.3, 1e-3, -1e-3, 0.05, 4)
+
+
+def test_angle_is_the_integral_of_a_piecewise_linear_speed():
+    """theta_e = theta_0 + p 2 pi / 60 int speed_rpm dt, integrated by hand for a ramp then a hold."""
+    t_ramp, top_rpm = 0.004, 6000.0
+    log = run(t_end_s=0.01, speed=lambda t: top_rpm * min(t, t_ramp) / t_ramp, theta_e0_rad=0.3)
+    t = log["time_s"]
+    turns = np.where(t < t_ramp, top_rpm * t**2 / (2 * t_ramp), top_rpm * (t - t_ramp / 2))
+    theta = 0.3 + SALIENT.pole_pairs * RADPS_PER_RPM * turns
+    np.testing.assert_allclose(np.exp(1j * log["theta_e_rad"]), np.exp(1j * theta), atol=1e-9)
+    assert np.all((0.0 <= log["theta_e_rad"]) & (log["theta_e_rad"] < 2 * math.pi))
+    np.testing.assert_array_equal(log["speed_rpm"], top_rpm * np.minimum(t, t_ramp) / t_ramp)
