@@ -28,7 +28,7 @@ and of the currents, and the energies of the power balance, are states of the in
 
 Controller, at each sample ``t_k = k Ts``: the currents are sampled (the true currents plus seeded
 Gaussian noise ``noise_A`` rms per axis: what is logged), a dq PI with decoupling tuned with the
-nominal parameters (``Kp = L alpha_c``, ``Ki = Rs alpha_c``, ``alpha_c`` default 0.1 rad / Ts),
+nominal, unsaturated parameters (``Kp = L alpha_c``, ``Ki = Rs alpha_c``, ``alpha_c`` default 0.1 rad / Ts),
 
     u_d = Kp_d e_d + x_d - w_e Lq i_q,   u_q = Kp_q e_q + x_q + w_e (Ld i_d + psi_f),
 
@@ -43,11 +43,13 @@ at row k where it was), and applied over ``[t_{k+d}, t_{k+d+1})`` with ``d = vol
 (zero voltage before the first reference arrives). With ``angle_lead_samples=None`` the clipped
 reference is held in the rotor frame instead (the convention of pmsm2dof's engine).
 
-Dead time, by the standard approximation: the sign of each phase current at the start of the
-period, held over the period (a current that changes sign within a period is not modelled; a
-zero current gives no error). Each phase voltage (amplitude-invariant inverse Clarke of the
-vector) is short by ``dead_time_V sign(i_x)``; the Clarke transform of these errors, which drops
-their common mode as an isolated neutral does, is the stator-frame hexagon vector
+Dead time, by the standard average-voltage approximation (Choi and Sul, "Inverter output voltage
+synthesis using novel dead time compensation", IEEE Trans. Power Electronics, 1996): the sign of
+each phase current at the start of the period, held over the period (a current that changes sign
+within a period is not modelled; a zero current gives no error). Each phase voltage
+(amplitude-invariant inverse Clarke of the vector) is short by ``dead_time_V sign(i_x)``; the
+Clarke transform of these errors, which drops their common mode as an isolated neutral does, is
+the stator-frame hexagon vector
 
     e_alphabeta = -(2/3) dead_time_V sum_{x = a, b, c} sign(i_x) exp(j 2 pi n_x / 3),  n = 0, 1, 2,
 
@@ -74,6 +76,11 @@ SQRT3 = math.sqrt(3.0)
 CSV_COLUMNS = ("time_s", "speed_rpm", "id_A", "iq_A", "ud_V", "uq_V")
 
 
+def _check_positive(name, value):
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"{name} = {value!r}: must be finite and > 0")
+
+
 @dataclass(frozen=True)
 class Machine:
     """A PMSM's electrical parameters (per phase, amplitude-invariant dq).
@@ -85,7 +92,7 @@ class Machine:
     psi_f_Wb : magnet flux linkage [Wb]
     pole_pairs : p
     sat_q : q-axis saturation strength [-], 0 for a linear machine
-    psi_q_sat_Wb : the q flux at which ``i_q`` has grown by ``sat_q`` over the linear law [Wb]
+    psi_q_sat_Wb : the q flux at which ``i_q`` is ``1 + sat_q`` times the linear law's [Wb]
     """
 
     Rs_ohm: float
@@ -98,9 +105,7 @@ class Machine:
 
     def __post_init__(self):
         for name in ("Rs_ohm", "Ld_H", "Lq_H", "psi_q_sat_Wb"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} = {value!r}: must be finite and > 0")
+            _check_positive(name, getattr(self, name))
         if not (math.isfinite(self.psi_f_Wb) and self.psi_f_Wb >= 0.0):
             raise ValueError(f"psi_f_Wb = {self.psi_f_Wb!r}: must be finite and >= 0")
         if not (math.isfinite(self.sat_q) and self.sat_q >= 0.0):
@@ -130,11 +135,6 @@ class Machine:
         """``d psi_q / d i_q`` at ``iq_A`` [H]: ``Lq / (1 + 3 sat_q (psi_q / psi_q_sat)^2)``."""
         psi_q = self.psi_q_from_iq(iq_A)
         return self.Lq_H / (1.0 + 3.0 * self.sat_q * (psi_q / self.psi_q_sat_Wb) ** 2)
-
-
-def _check_positive(name, value):
-    if not (math.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name} = {value!r}: must be finite and > 0")
 
 
 def simulate_log(
