@@ -28,27 +28,37 @@ and of the currents, and the energies of the power balance, are states of the in
 
 Controller, at each sample ``t_k = k Ts``: the currents are sampled (the true currents plus seeded
 Gaussian noise ``noise_A`` rms per axis: what is logged), a dq PI with decoupling tuned with the
-nominal parameters (``Kp = L alpha_c``, ``Ki = Rs alpha_c``, ``alpha_c`` default 0.1 rad / Ts),
+nominal, unsaturated parameters (``Kp = L alpha_c``, ``Ki = Rs alpha_c``, ``alpha_c`` default 0.1 rad / Ts),
 
     u_d = Kp_d e_d + x_d - w_e Lq i_q,   u_q = Kp_q e_q + x_q + w_e (Ld i_d + psi_f),
 
-gives ``u_ref`` (logged as ``ud_V``, ``uq_V``). Anti-windup by back-calculation with a gain of one
-sample: the controller knows the inverter's limit, ``u_lim = u_ref`` scaled to the circle
-``|u| <= u_dc / sqrt(3)``, and ``x_{k+1} = x_k + Ki Ts e_k + (u_lim - u_ref)``, so that a clipped
-period removes its excess from the integrator.
+gives ``u_ref`` (logged as ``ud_V``, ``uq_V``). Anti-windup by back-calculation with the gain
+``Ka = 1 / Kp`` of each axis (the project's convention for the speed loop, Fig. 5 of the paper): the
+controller knows the inverter's limit, ``u_lim = u_ref`` scaled to the circle ``|u| <= u_dc / sqrt(3)``,
+and ``x_{k+1} = x_k + Ki Ts (e_k + (u_lim - u_ref) / Kp)`` (forward Euler).
 
 Inverter: the reference of sample k is turned into the stator frame at
 ``theta_e(t_k) + angle_lead_samples w_e(t_k) Ts``, clipped to the circle (``voltage_limited`` = 1
 at row k where it was), and applied over ``[t_{k+d}, t_{k+d+1})`` with ``d = voltage_delay_samples``
-(zero voltage before the first reference arrives). Dead time uses the standard approximation: the
-sign of each phase current at the start of the period, held over the period (a current that
-changes sign within a period is not modelled; a zero current gives no error); the phase voltages
-(amplitude-invariant inverse Clarke) less ``dead_time_V sign(i_x)`` go back to the stator-frame
-vector (Clarke), which drops their common mode as an isolated neutral does.
+(zero voltage before the first reference arrives). With ``angle_lead_samples=None`` the clipped
+reference is held in the rotor frame instead (the convention of pmsm2dof's engine).
 
-Cost: the per-period ``solve_ivp`` calls, about 0.15 to 0.2 ms a period (4000 periods of 100 us in
-0.6 s for a linear salient machine at constant speed, 0.85 s with saturation, dead time, noise and
-a speed ramp), measured on one core of a shared 2-core machine.
+Dead time, by the standard average-voltage approximation (Choi and Sul, "Inverter output voltage
+synthesis using novel dead time compensation", IEEE Trans. Power Electronics, 1996): the sign of
+each phase current at the start of the period, held over the period (a current that changes sign
+within a period is not modelled; a zero current gives no error). Each phase voltage
+(amplitude-invariant inverse Clarke of the vector) is short by ``dead_time_V sign(i_x)``; the
+Clarke transform of these errors, which drops their common mode as an isolated neutral does, is
+the stator-frame hexagon vector
+
+    e_alphabeta = -(2/3) dead_time_V sum_{x = a, b, c} sign(i_x) exp(j 2 pi n_x / 3),  n = 0, 1, 2,
+
+4/3 dead_time_V long when no phase current is zero, added to the held vector in either mode.
+
+Cost: the per-period ``solve_ivp`` calls, 0.15 to 0.35 ms a period, growing with the angle the
+rotor turns in a period (4000 periods of 100 us: 0.56 s at w_e Ts = 0.06 rad, 0.87 s with
+saturation, dead time, noise and a speed ramp to w_e Ts = 0.13 rad, 1.3 s at w_e Ts = 0.42 rad),
+measured on one core of a shared 2-core machine. No faster scheme is needed.
 """
 
 import math
@@ -66,6 +76,11 @@ SQRT3 = math.sqrt(3.0)
 CSV_COLUMNS = ("time_s", "speed_rpm", "id_A", "iq_A", "ud_V", "uq_V")
 
 
+def _check_positive(name, value):
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"{name} = {value!r}: must be finite and > 0")
+
+
 @dataclass(frozen=True)
 class Machine:
     """A PMSM's electrical parameters (per phase, amplitude-invariant dq).
@@ -77,7 +92,7 @@ class Machine:
     psi_f_Wb : magnet flux linkage [Wb]
     pole_pairs : p
     sat_q : q-axis saturation strength [-], 0 for a linear machine
-    psi_q_sat_Wb : the q flux at which ``i_q`` has grown by ``sat_q`` over the linear law [Wb]
+    psi_q_sat_Wb : the q flux at which ``i_q`` is ``1 + sat_q`` times the linear law's [Wb]
     """
 
     Rs_ohm: float
@@ -90,9 +105,7 @@ class Machine:
 
     def __post_init__(self):
         for name in ("Rs_ohm", "Ld_H", "Lq_H", "psi_q_sat_Wb"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} = {value!r}: must be finite and > 0")
+            _check_positive(name, getattr(self, name))
         if not (math.isfinite(self.psi_f_Wb) and self.psi_f_Wb >= 0.0):
             raise ValueError(f"psi_f_Wb = {self.psi_f_Wb!r}: must be finite and >= 0")
         if not (math.isfinite(self.sat_q) and self.sat_q >= 0.0):
@@ -124,11 +137,6 @@ class Machine:
         return self.Lq_H / (1.0 + 3.0 * self.sat_q * (psi_q / self.psi_q_sat_Wb) ** 2)
 
 
-def _check_positive(name, value):
-    if not (math.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name} = {value!r}: must be finite and > 0")
-
-
 def simulate_log(
     machine: Machine,
     *,
@@ -138,7 +146,7 @@ def simulate_log(
     i_ref_A: Callable[[float], tuple[float, float]],
     u_dc_V: float,
     voltage_delay_samples: int = 0,
-    angle_lead_samples: float = 0.5,
+    angle_lead_samples: float | None = 0.5,
     dead_time_V: float = 0.0,
     noise_A: float = 0.0,
     seed: int = 0,
@@ -156,7 +164,10 @@ def simulate_log(
     i_ref_A : callable t_s -> (id_ref, iq_ref) [A], read at each sample
     u_dc_V : DC-link voltage [V]; the linear range is |u| <= u_dc / sqrt(3)
     voltage_delay_samples : 0 or 1, periods between a reference and the period it applies over
-    angle_lead_samples : X, the reference is turned to the stator frame at theta_e + X w_e Ts
+    angle_lead_samples : float or None
+        X: the reference is turned to the stator frame at theta_e + X w_e Ts and held there.
+        None: the (clipped) reference is held in the rotor frame over its period, as pmsm2dof's
+        engine does (the dead-time error stays a stator-frame vector).
     dead_time_V : per-phase voltage error [V], phase voltage = reference - dead_time_V sign(i_x)
     noise_A : rms Gaussian noise added to each measured current [A]
     seed : seed of the noise
@@ -181,7 +192,7 @@ def simulate_log(
     _check_positive("u_dc_V", u_dc_V)
     if voltage_delay_samples not in (0, 1):
         raise ValueError(f"voltage_delay_samples = {voltage_delay_samples!r}: must be 0 or 1")
-    if not math.isfinite(angle_lead_samples):
+    if angle_lead_samples is not None and not math.isfinite(angle_lead_samples):
         raise ValueError(f"angle_lead_samples = {angle_lead_samples!r}: must be finite")
     for name, value in (("dead_time_V", dead_time_V), ("noise_A", noise_A)):
         if not (math.isfinite(value) and value >= 0.0):
@@ -210,13 +221,13 @@ def simulate_log(
     def currents(psi_d, psi_q):
         return (psi_d - psi_f) / Ld, psi_q / Lq * (1.0 + k_sat * psi_q * psi_q)
 
-    def rhs(t, y, theta_k, u_alpha, u_beta):
+    def rhs(t, y, theta_k, u_rotor_d, u_rotor_q, u_alpha, u_beta):
         psi_d, psi_q, phi = y[0], y[1], y[2]
         theta = theta_k + phi
         c, s = math.cos(theta), math.sin(theta)
-        # u_dq = u_alphabeta exp(-j theta_e)
-        u_d = u_alpha * c + u_beta * s
-        u_q = -u_alpha * s + u_beta * c
+        # u_dq = u_rotor + u_alphabeta exp(-j theta_e)
+        u_d = u_rotor_d + u_alpha * c + u_beta * s
+        u_q = u_rotor_q - u_alpha * s + u_beta * c
         i_d, i_q = currents(psi_d, psi_q)
         w_e = p * RADPS_PER_RPM * speed_rpm(t)
         return [
@@ -245,7 +256,8 @@ def simulate_log(
     x_d = x_q = 0.0  # PI integrators [V]
     psi_d, psi_q, theta = psi_f, 0.0, theta_e0_rad  # zero current at t = 0
     energies = np.zeros(3)
-    pending = [(0.0, 0.0)] * voltage_delay_samples  # stator-frame vectors not yet applied [V]
+    # voltages not yet applied: (rotor-frame d, q, stator-frame alpha, beta) [V]
+    pending = [(0.0, 0.0, 0.0, 0.0)] * voltage_delay_samples
     for k in range(n_rows):
         t_k = k * Ts_s
         speed_k = float(speed_rpm(t_k))
@@ -261,25 +273,28 @@ def simulate_log(
         u_abs = math.hypot(u_d, u_q)
         limited = u_abs > u_max
         scale = u_max / u_abs if limited else 1.0
-        # back-calculation: x_{k+1} = x_k + Ki Ts e_k + (u_lim - u_ref)
-        x_d += Ki * Ts_s * e_d + (scale - 1.0) * u_d
-        x_q += Ki * Ts_s * e_q + (scale - 1.0) * u_q
+        # back-calculation, Ka = 1 / Kp: x_{k+1} = x_k + Ki Ts (e_k + (u_lim - u_ref) / Kp)
+        x_d += Ki * Ts_s * (e_d + (scale - 1.0) * u_d / Kp_d)
+        x_q += Ki * Ts_s * (e_q + (scale - 1.0) * u_q / Kp_q)
 
-        # to the stator frame at theta_e(t_k) + X w_e Ts, clipped to the linear range
-        angle = theta + angle_lead_samples * w_e * Ts_s
-        ca, sa = math.cos(angle), math.sin(angle)
-        pending.append((scale * (u_d * ca - u_q * sa), scale * (u_d * sa + u_q * ca)))
-        u_alpha, u_beta = pending.pop(0)
+        if angle_lead_samples is None:
+            pending.append((scale * u_d, scale * u_q, 0.0, 0.0))
+        else:
+            # to the stator frame at theta_e(t_k) + X w_e Ts, clipped to the linear range
+            angle = theta + angle_lead_samples * w_e * Ts_s
+            ca, sa = math.cos(angle), math.sin(angle)
+            pending.append((0.0, 0.0, scale * (u_d * ca - u_q * sa), scale * (u_d * sa + u_q * ca)))
+        u_rotor_d, u_rotor_q, u_alpha, u_beta = pending.pop(0)
 
         if dead_time_V > 0.0:
             # phase currents at the start of the period (inverse Clarke of i_dq exp(j theta_e))
             c, s = math.cos(theta), math.sin(theta)
             i_alpha, i_beta = i_d * c - i_q * s, i_d * s + i_q * c
             i_abc = (i_alpha, -0.5 * i_alpha + 0.5 * SQRT3 * i_beta, -0.5 * i_alpha - 0.5 * SQRT3 * i_beta)
-            u_abc = (u_alpha, -0.5 * u_alpha + 0.5 * SQRT3 * u_beta, -0.5 * u_alpha - 0.5 * SQRT3 * u_beta)
-            u_a, u_b, u_c = (u - dead_time_V * float(np.sign(i)) for u, i in zip(u_abc, i_abc))
-            # amplitude-invariant Clarke
-            u_alpha, u_beta = (2.0 * u_a - u_b - u_c) / 3.0, (u_b - u_c) / SQRT3
+            # the phase voltages' errors -dead_time_V sign(i_x), by the amplitude-invariant Clarke
+            e_a, e_b, e_c = (-dead_time_V * float(np.sign(i)) for i in i_abc)
+            u_alpha += (2.0 * e_a - e_b - e_c) / 3.0
+            u_beta += (e_b - e_c) / SQRT3
 
         row = {
             "time_s": t_k,
@@ -310,7 +325,7 @@ def simulate_log(
             method="DOP853",
             rtol=1e-10,
             atol=atol,
-            args=(theta, u_alpha, u_beta),
+            args=(theta, u_rotor_d, u_rotor_q, u_alpha, u_beta),
         )
         if sol.status != 0 or not np.all(np.isfinite(sol.y[:, -1])):
             raise RuntimeError(f"the period at t = {t_k:g} s did not integrate: {sol.message}")
