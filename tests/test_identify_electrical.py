@@ -58,7 +58,8 @@ SURFACE = {"Rs_ohm": 0.5, "Ld_H": 5e-3, "Lq_H": 5e-3, "psi_f_Wb": 0.06}
 def test_estimates_within_targets(tmp_path, motor, delay):
     result = write_log(tmp_path / "log.csv", motor, delay=delay)
     assert np.ptp(result.id_A) >= 0.2 * 5.0  # id moves by at least 20 % of the rated current (i_max 5 A)
-    fit = identify_electrical(read_log(tmp_path / "log.csv"), 4, voltage_delay_samples=int(delay))
+    # the engine logs the voltage applied over the period that starts at the row, after its computation delay
+    fit = identify_electrical(read_log(tmp_path / "log.csv"), 4, voltage_delay_samples=0)
     for name in PARAMETERS:
         assert abs(getattr(fit, name) / motor[name] - 1) < TARGETS[name], name
 
@@ -93,8 +94,13 @@ def test_cli_json_and_out(tmp_path):
         "fit.png",
         "identify.json",
         "motor.toml",
+        "ranges.csv",
         "residuals.csv",
     ]
+    # the run spans 0 to 5 A: three current ranges, each range's Ld within the target where it is determined
+    assert len(report["ranges"]) == 3 and sum(r["n_windows"] for r in report["ranges"]) == report["n_windows"]
+    assert all(abs(r["Ld_H"] / SALIENT["Ld_H"] - 1) < TARGETS["Ld_H"] for r in report["ranges"] if r["Ld_H"])
+    assert report["n_samples_voltage_limited"] is None and report["n_windows_voltage_limited"] == 0
     design = runner.invoke(
         cli,
         ["design", "--J", "2e-4", "--alpha", "50", "--zeta", "0.7", "--Ts", "1e-3"]
@@ -126,7 +132,7 @@ def test_intervals_cover_truth_on_random_machines(tmp_path):
         delay = bool(rng.integers(2))
         write_log(tmp_path / "log.csv", motor, delay=delay, seed=i)
         try:
-            fit = identify_electrical(read_log(tmp_path / "log.csv"), 4, voltage_delay_samples=int(delay))
+            fit = identify_electrical(read_log(tmp_path / "log.csv"), 4)
         except IdentificationError as exc:
             assert "id spans" in str(exc)  # a machine whose run barely enters field weakening
             continue

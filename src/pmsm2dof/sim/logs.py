@@ -13,6 +13,9 @@ iq_ref       ``iq_ref_A`` (or ``_mA``)                      ``iq_ref_A``
 torque       ``torque_Nm``                                  ``torque_Nm``
 ud, uq       ``ud_V``, ``uq_V``                             ``ud_V``, ``uq_V``
 u_dc         ``u_dc_V``                                     ``u_dc_V``
+voltage      ``voltage_limited`` (no unit: a share [0, 1]   ``voltage_limited``
+limited      of the row's periods whose voltage the
+             inverter cut, or 0/1, as the engine logs it)
 ===========  =============================================  =======================
 
 Time and speed are required, the others optional (absent: ``None``). Another column name is
@@ -52,6 +55,7 @@ SIGNALS: dict[str, tuple[dict[str, float], bool]] = {
     "ud": ({"V": 1.0}, False),
     "uq": ({"V": 1.0}, False),
     "u_dc": ({"V": 1.0}, False),
+    "voltage_limited": ({"": 1.0}, False),
 }
 
 #: Default column base names of the signals (the unit suffix follows): time is also ``t``.
@@ -82,6 +86,9 @@ class Log:
         ``(t_before_s, t_after_s)`` of each gap.
     notes : tuple of str
         What was found and done, one line each.
+    voltage_limited : ndarray or None
+        Share of the row's periods whose voltage the inverter cut to its range [-] (0 or 1 in a
+        log that flags each period), or None.
     """
 
     source: str
@@ -100,6 +107,7 @@ class Log:
     rows_dropped: int
     gaps: tuple[tuple[float, float], ...]
     notes: tuple[str, ...]
+    voltage_limited: np.ndarray | None = None
 
     @property
     def dt_s(self) -> float:
@@ -146,7 +154,7 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
 def _unit_factor(signal: str, column: str) -> float:
     units, _ = SIGNALS[signal]
     for unit, factor in units.items():
-        if column.endswith("_" + unit):
+        if not unit or column.endswith("_" + unit):
             return factor
     raise ConfigError(
         f"column {signal}",
@@ -166,7 +174,7 @@ def _find_columns(names: list[str], columns: Mapping[str, str]) -> dict[str, str
                 raise ConfigError(f"column {signal}", columns[signal], "a column of the log: " + ", ".join(names))
             found[signal] = columns[signal]
             continue
-        candidates = [f"{base}_{unit}" for base in _BASES.get(signal, (signal,)) for unit in units]
+        candidates = [f"{base}_{unit}".rstrip("_") for base in _BASES.get(signal, (signal,)) for unit in units]
         hits = [c for c in candidates if c in names]
         if len(hits) > 1:
             raise ConfigError(f"column {signal}", hits, f"one column for {signal} (map one with --column)")
@@ -267,4 +275,5 @@ def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
         rows_dropped=dropped,
         gaps=gaps,
         notes=tuple(notes),
+        voltage_limited=raw.get("voltage_limited"),
     )

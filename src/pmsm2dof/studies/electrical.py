@@ -19,7 +19,47 @@ the current noise in the differences shrinks by ``sqrt(M)`` (the errors-in-varia
 and Lq stays small). The voltage is held over the sample period that starts at its time (a
 zero-order hold: its running integral is a sum of rectangles); a log that records the voltage
 computed at a sample and applied ``d`` periods later (``voltage_delay_samples``) is shifted by
-``d`` samples first. Currents and speed are integrated by trapezoids.
+``d`` samples first. Currents and speed are integrated by trapezoids. pmsm2dof's own engine logs
+the dq voltage applied over the period that starts at the row, after its computation delay
+(``inverter.computation_delay``): its logs take ``voltage_delay_samples = 0`` (given 1, the fit
+pairs each voltage with the currents one period late: +2.7 % on Lq of a surface servo).
+
+Rotation of the rotor frame within a period (``angle_lead_samples = X``): a drive turns the
+logged rotor-frame reference ``u`` into the stator frame with the angle of its row's sample plus
+``X w_e Ts`` and the inverter holds that stator-frame vector over the period it applies in (``d``
+periods after the row), while the rotor turns on. With ``theta(t) = theta_k + w_e (t - t_k)`` and
+``t = t_k + d Ts + tau``, ``tau`` in ``[0, Ts)``, the rotor-frame voltage over that period is::
+
+    u_r(tau) = u exp(j (theta_k + X w_e Ts)) exp(-j theta(t)) = u exp(j (X w_e Ts - w_e (d Ts + tau)))
+
+and its mean over the period (``(1/Ts) int_0^Ts exp(-j w_e tau) dtau = exp(-j w_e Ts/2)
+sin(w_e Ts/2) / (w_e Ts/2)``)::
+
+    mean u_r = u exp(j w_e Ts (X - d - 1/2)) sinc(w_e Ts / 2),     sinc(x) = sin(x) / x
+
+with ``w_e`` the mean speed over the period; the integral over the period is ``Ts`` times it. ``X =
+d + 1/2`` compensates the rotation but for the sinc gain; without the option (None) the logged
+voltage is the rotor-frame voltage over its period, as the engine holds it.
+
+Dead time (``dead_time = True``): each phase applies its reference minus ``dead_time_V
+sign(i_phase)``. The fundamental of that square wave, in amplitude-invariant dq, is the current's
+direction times ``4/pi dead_time_V`` (the six-step wave's first harmonic, e.g. J.-W. Choi and
+S.-K. Sul, "Inverter output voltage synthesis using novel dead time compensation", IEEE Trans.
+Power Electron. 11(2), 1996), so the logged reference is eq 1 plus::
+
+    u_dq = ... + (4/pi) dead_time_V i_dq / |i_dq|
+
+a fifth regressor (the hexagon's sixth harmonic averages out where the current turns, and at a
+fixed angle between 9 % below and 5 % above the fundamental). It separates from ``Rs i`` only where ``|i_dq|``
+takes different values (``Rs |i| + 4/pi dead_time_V`` is one line): a log whose windows' ``|i_dq|``
+span less than :data:`DEAD_TIME_SPAN` is refused naming ``dead_time_V``.
+
+Voltage limit: where the inverter cut the reference to its range, the logged reference is not the
+applied voltage. Windows that touch such a period are left out: the periods flagged by the log's
+``voltage_limited`` column, and those whose ``|u_dq|`` reaches ``u_dc / sqrt(3)`` within
+:data:`VOLTAGE_MARGIN` (the DC link from ``u_dc_V`` or the log's ``u_dc_V`` column). Without
+either, a reference that a drive logged after its own limit shows as ``|u_dq|`` stuck at its
+largest value in many samples: the result then carries a note.
 
 Fit: the d and q rows of all windows together, by instrumental variables: the logged currents'
 noise enters the regressors (errors in variables: least squares would be biased by it, and its
@@ -30,6 +70,14 @@ Statistical Institute 22, 1954: instruments from a second, independent measureme
 the Newey-West covariance (Newey and West, Econometrica 55(3), 1987) of the per-window scores
 (the d and q rows of one window share their noise, neighbouring windows share a block), so
 that correlated residuals do not give intervals too narrow.
+
+Current ranges: a saturating machine's inductances fall with the current, and one fit averages
+them. A second fit, with the same instruments and covariance, keeps Rs, psi_f (and dead_time_V)
+common and gives Ld and Lq one column per range of the windows' mean ``|i_dq|`` (ranges of equal
+window counts). Its estimates lie between the incremental inductance (which the current
+differences see) and the apparent one (which the speed terms see) of the range. By default the log
+gets :data:`AUTO_RANGES` ranges when its windows' current magnitudes (5th to 95th percentile)
+span more than a factor :data:`AUTO_SPAN`, else one (no range table).
 
 Identifiability: a parameter whose relative standard deviation exceeds :data:`REL_SD_MAX` is not
 reported: :class:`~pmsm2dof.studies.identify.IdentificationError` names it and the experiment that
@@ -47,14 +95,41 @@ from ..errors import ConfigError
 from ..sim.logs import Log
 from .identify import LEVEL, IdentificationError, _block_means, _cumtrapz
 
-#: The identified parameters, in the order of the regressors.
+#: The identified parameters of eq 1, in the order of the regressors.
 PARAMETERS = ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb")
+
+#: The dead-time voltage per phase [V], the fifth regressor with ``dead_time = True``.
+DEAD_TIME = "dead_time_V"
 
 #: A parameter is reported when its standard deviation is below this share of its value.
 REL_SD_MAX = 0.05
 
-#: Fewest windows of a fit.
+#: Fewest windows of a fit (and of a current range).
 WINDOWS_MIN = 12
+
+#: A period is at the voltage limit when its |u_dq| reaches u_dc / sqrt(3) times (1 - this).
+VOLTAGE_MARGIN = 0.02
+
+#: Without a limit source: |u_dq| within this share of its largest value at STUCK_SAMPLES samples or more
+#: is the signature of a reference logged after the drive's own limit.
+STUCK_TOLERANCE = 1e-3
+STUCK_SAMPLES = 20
+
+#: Default current ranges: AUTO_RANGES when the windows' |i_dq| (5th to 95th percentile) span more than AUTO_SPAN.
+AUTO_RANGES = 3
+AUTO_SPAN = 2.0
+
+#: The per-range note needs the lowest- and highest-current ranges this far apart (relative), beyond their intervals.
+SATURATION_MIN = 0.05
+
+#: The dead-time term needs the windows' |i_dq| (10th to 90th percentile) to span at least this factor.
+DEAD_TIME_SPAN = 1.5
+
+#: Most current ranges.
+RANGES_MAX = 10
+
+#: Largest |angle_lead_samples|.
+ANGLE_LEAD_MAX = 10.0
 
 #: What each parameter needs from the log, for the message when it is not identifiable.
 _NEEDS = {
@@ -67,6 +142,38 @@ _NEEDS = {
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
+class CurrentRange:
+    """Ld and Lq fitted over the windows whose mean |i_dq| lies in one range.
+
+    Attributes
+    ----------
+    i_low_A, i_high_A : float
+        Smallest and largest window-mean |i_dq| of the range [A].
+    n_windows : int
+        Windows in the range.
+    Ld_H, Lq_H : float or None
+        The range's inductances [H], None where the range does not determine them (relative standard
+        deviation beyond :data:`REL_SD_MAX`).
+    ci : dict
+        ``Ld_H``/``Lq_H`` -> 95 % interval, for those determined.
+    """
+
+    i_low_A: float
+    i_high_A: float
+    n_windows: int
+    Ld_H: float | None
+    Lq_H: float | None
+    ci: dict[str, tuple[float, float]]
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"i_low_A": self.i_low_A, "i_high_A": self.i_high_A, "n_windows": self.n_windows}
+        for name in ("Ld_H", "Lq_H"):
+            out[name] = getattr(self, name)
+            out[f"{name}_ci"] = list(self.ci[name]) if name in self.ci else None
+        return out
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
 class Electrical:
     """Rs, Ld, Lq and psi_f of eq 1 found in a log, with their 95 % intervals.
 
@@ -74,6 +181,8 @@ class Electrical:
     ----------
     Rs_ohm, Ld_H, Lq_H, psi_f_Wb : float
         Per-phase resistance [ohm], dq inductances [H], magnet flux linkage [Wb] (amplitude-invariant dq).
+    dead_time_V : float or None
+        Per-phase dead-time voltage [V] (``dead_time = True``), else None.
     ci : dict
         Parameter -> its 95 % interval.
     residual_rms_V : float
@@ -82,6 +191,14 @@ class Electrical:
         Log samples the windows span.
     n_windows : int
         Windows (each gives a d and a q row).
+    n_samples_voltage_limited : int or None
+        Voltage samples at the inverter's limit (None: the log gives no limit source).
+    n_windows_voltage_limited : int
+        Windows left out because they touch such a sample.
+    ranges : tuple of CurrentRange
+        The fit per current range (empty with one range).
+    notes : tuple of str
+        What the fit found about the log, one line each.
     rows : dict
         Per row ``t_s``, measured and model window-mean voltages ``ud_V``, ``ud_fit_V``, ``uq_V``, ``uq_fit_V``.
     """
@@ -90,18 +207,32 @@ class Electrical:
     Ld_H: float
     Lq_H: float
     psi_f_Wb: float
+    dead_time_V: float | None
     ci: dict[str, tuple[float, float]]
     residual_rms_V: float
     n_samples: int
     n_windows: int
+    n_samples_voltage_limited: int | None
+    n_windows_voltage_limited: int
+    ranges: tuple[CurrentRange, ...]
+    notes: tuple[str, ...]
     rows: dict[str, np.ndarray]
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {}
-        for name in PARAMETERS:
-            out[name] = getattr(self, name)
-            out[f"{name}_ci"] = list(self.ci[name])
-        out.update(residual_V=self.residual_rms_V, n_samples=self.n_samples, n_windows=self.n_windows)
+        for name in (*PARAMETERS, DEAD_TIME):
+            if name in self.ci:
+                out[name] = getattr(self, name)
+                out[f"{name}_ci"] = list(self.ci[name])
+        out.update(
+            residual_V=self.residual_rms_V,
+            n_samples=self.n_samples,
+            n_windows=self.n_windows,
+            n_samples_voltage_limited=self.n_samples_voltage_limited,
+            n_windows_voltage_limited=self.n_windows_voltage_limited,
+            ranges=[r.to_json() for r in self.ranges],
+            notes=list(self.notes),
+        )
         return out
 
     def motor_toml(self, pole_pairs: int, source: str) -> str:
@@ -110,39 +241,70 @@ class Electrical:
             f"# identified from {source} by pmsm2dof identify --electrical",
             "# per phase, amplitude-invariant dq (eq 1)",
         ]
+        if self.dead_time_V is not None:
+            lo, hi = self.ci[DEAD_TIME]
+            lines.append(f"# inverter dead-time voltage per phase: {self.dead_time_V:.4g} V [{lo:.4g}, {hi:.4g}]")
+        for r in self.ranges:
+            found = ", ".join(
+                f"{name} = {value:.4g}" for name in ("Ld_H", "Lq_H") if (value := getattr(r, name)) is not None
+            )
+            lines.append(f"# |i_dq| {r.i_low_A:.3g} to {r.i_high_A:.3g} A: {found or 'not determined'}")
         lines += ["[motor]", f"pole_pairs = {pole_pairs}"]
         lines += [f"{name} = {getattr(self, name)!r}" for name in PARAMETERS]
-        lines += [f"{name}_ci = [{lo!r}, {hi!r}]" for name, (lo, hi) in self.ci.items()]
+        lines += [f"{name}_ci = [{lo!r}, {hi!r}]" for name, (lo, hi) in self.ci.items() if name in PARAMETERS]
         return "\n".join(lines) + "\n"
 
 
-def _window_rows(
-    t: np.ndarray, i_d: np.ndarray, i_q: np.ndarray, u_d: np.ndarray, u_q: np.ndarray, w_e: np.ndarray, n: int, m: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Regressors and window-mean voltages of one segment: (X_d, y_d, X_q, y_q, t0)."""
-    starts = np.arange(0, len(t) - n - m + 1, n)
+@dataclasses.dataclass(frozen=True)
+class _Rows:
+    """The windows of one segment: regressors of the d and q rows, window-mean voltages, instruments."""
+
+    X_d: np.ndarray
+    y_d: np.ndarray
+    X_q: np.ndarray
+    y_q: np.ndarray
+    Z_d: np.ndarray
+    Z_q: np.ndarray
+    t0_s: np.ndarray
+    i_mean_A: np.ndarray
+
+
+def _regressors(
+    t: np.ndarray,
+    i_d: np.ndarray,
+    i_q: np.ndarray,
+    u_d: np.ndarray,
+    u_q: np.ndarray,
+    w_e: np.ndarray,
+    a: np.ndarray,
+    n: int,
+    m: int,
+    dead_time: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Regressors and window-mean voltages of the windows starting at ``a``: (X_d, y_d, X_q, y_q)."""
+    b = a + n
     dt = np.diff(t)
-    # zero-order hold: u[k] applies over [t[k], t[k+1])
-    F_ud = np.concatenate(([0.0], np.cumsum(u_d[:-1] * dt)))
-    F_uq = np.concatenate(([0.0], np.cumsum(u_q[:-1] * dt)))
-    F = {
-        "id": _cumtrapz(t, i_d),
-        "iq": _cumtrapz(t, i_q),
-        "wid": _cumtrapz(t, w_e * i_d),
-        "wiq": _cumtrapz(t, w_e * i_q),
-        "w": _cumtrapz(t, w_e),
-    }
-    a, b = starts, starts + n
 
     def diff(x: np.ndarray) -> np.ndarray:
         out: np.ndarray = _block_means(x, b, m) - _block_means(x, a, m)
         return out
 
+    def integral(x: np.ndarray) -> np.ndarray:
+        return diff(_cumtrapz(t, x))
+
     span = diff(t)
-    zero = np.zeros_like(span)
-    X_d = np.column_stack([diff(F["id"]), diff(i_d), -diff(F["wiq"]), zero]) / span[:, None]
-    X_q = np.column_stack([diff(F["iq"]), diff(F["wid"]), diff(i_q), diff(F["w"])]) / span[:, None]
-    return X_d, diff(F_ud) / span, X_q, diff(F_uq) / span, t[a]
+    # zero-order hold: u[k] applies over [t[k], t[k+1])
+    y_d = diff(np.concatenate(([0.0], np.cumsum(u_d[:-1] * dt)))) / span
+    y_q = diff(np.concatenate(([0.0], np.cumsum(u_q[:-1] * dt)))) / span
+    cols_d = [integral(i_d), diff(i_d), -integral(w_e * i_q), np.zeros_like(span)]
+    cols_q = [integral(i_q), integral(w_e * i_d), diff(i_q), integral(w_e)]
+    if dead_time:
+        # the fundamental of the per-phase dead-time error: (4/pi) dead_time_V i_dq / |i_dq|
+        magnitude = np.hypot(i_d, i_q)
+        inverse = np.divide(1.0, magnitude, out=np.zeros_like(magnitude), where=magnitude > 0)
+        cols_d.append(4.0 / math.pi * integral(i_d * inverse))
+        cols_q.append(4.0 / math.pi * integral(i_q * inverse))
+    return np.column_stack(cols_d) / span[:, None], y_d, np.column_stack(cols_q) / span[:, None], y_q
 
 
 def _keep(x: np.ndarray, parity: int) -> np.ndarray:
@@ -156,8 +318,157 @@ def _keep(x: np.ndarray, parity: int) -> np.ndarray:
     return out
 
 
+def _rotor_frame_mean(
+    u_d: np.ndarray, u_q: np.ndarray, w_e: np.ndarray, Ts_s: float, lead: float, delay: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """The mean rotor-frame voltage over each period of a stator-frame hold (module docstring).
+
+    ``u[k] exp(j w_e Ts (X - d - 1/2)) sinc(w_e Ts / 2)``, ``w_e`` the mean of the speeds at the period's ends.
+    """
+    w = 0.5 * (w_e[:-1] + w_e[1:])
+    half = 0.5 * w * Ts_s
+    # numpy's sinc is sin(pi x) / (pi x)
+    factor = np.exp(1j * w * Ts_s * (lead - delay - 0.5)) * np.sinc(half / math.pi)
+    u = (u_d[:-1] + 1j * u_q[:-1]) * factor
+    # the last sample's voltage applies beyond the log: the hold never integrates it
+    return np.append(u.real, u_d[-1]), np.append(u.imag, u_q[-1])
+
+
+def _limited(log: Log, rows_u: np.ndarray, u_d: np.ndarray, u_q: np.ndarray, u_dc_V: float | None) -> np.ndarray | None:
+    """Which logged voltages are at the inverter's limit, or None when the log gives no source."""
+    flags: np.ndarray | None = None
+    if log.voltage_limited is not None:
+        flags = log.voltage_limited[rows_u] > 0
+    u_dc = None if u_dc_V is None else np.full(rows_u.size, u_dc_V)
+    if u_dc is None and log.u_dc_V is not None:
+        u_dc = log.u_dc_V[rows_u]
+    if u_dc is not None:
+        at_limit = np.hypot(u_d, u_q) >= u_dc / math.sqrt(3.0) * (1.0 - VOLTAGE_MARGIN)
+        flags = at_limit if flags is None else flags | at_limit
+    return flags
+
+
+def _iv_fit(
+    rows: _Rows, X_d: np.ndarray, X_q: np.ndarray, Z_d: np.ndarray, Z_q: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Instrumental-variable fit of the d and q rows with Newey-West intervals over the windows.
+
+    Returns
+    -------
+    theta, sd, residuals, t quantile of the 95 % interval. A column the rows do not excite (the
+    largest component of the direction of the smallest singular value, dropped until the rest is
+    well conditioned) gets NaN and an infinite standard deviation.
+    """
+    k, p = X_d.shape
+    X = np.vstack([X_d, X_q])
+    y = np.concatenate([rows.y_d, rows.y_q])
+    Z = np.vstack([Z_d, Z_q])
+    # column scales: the rank test does not depend on units
+    scale = np.sqrt(np.sum(X**2, axis=0))
+    scale[scale == 0] = 1.0
+    kept = list(range(p))
+    while True:
+        _, singular, vt = np.linalg.svd(X[:, kept] / scale[kept], full_matrices=False)
+        if singular[-1] > 1e-9 * singular[0] or len(kept) == 1:
+            break
+        del kept[int(np.argmax(np.abs(vt[-1])))]
+    theta = np.full(p, np.nan)
+    sd = np.full(p, np.inf)
+    ZX = Z[:, kept].T @ X[:, kept]
+    theta[kept] = np.linalg.solve(ZX, Z[:, kept].T @ y)
+    e = y - X[:, kept] @ theta[kept]
+    # Newey-West over the windows: the score of a window is its d row's plus its q row's
+    scores = Z_d[:, kept] * e[:k, None] + Z_q[:, kept] * e[k:, None]
+    lags = max(2, math.ceil(4.0 * (k / 100.0) ** (2.0 / 9.0)))
+    S = scores.T @ scores
+    for lag in range(1, min(lags, k - 1) + 1):
+        G = scores[lag:].T @ scores[:-lag]
+        S += (1.0 - lag / (lags + 1.0)) * (G + G.T)
+    dof = 2 * k - len(kept)
+    inv = np.linalg.inv(ZX)
+    cov = inv @ S @ inv.T * (2 * k) / dof
+    sd[kept] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return theta, sd, e, float(scipy.stats.t.ppf(0.5 + LEVEL / 2.0, dof))
+
+
+def _determined(value: float, sd: float) -> bool:
+    return bool(np.isfinite(sd) and sd < REL_SD_MAX * abs(value))
+
+
+def _fit_ranges(rows: _Rows, n_ranges: int, n_common: int) -> tuple[CurrentRange, ...]:
+    """Ld and Lq per range of the window-mean |i_dq|, the other parameters common (module docstring)."""
+    edges = np.quantile(rows.i_mean_A, np.linspace(0.0, 1.0, n_ranges + 1))
+    index = np.clip(np.searchsorted(edges[1:-1], rows.i_mean_A, side="right"), 0, n_ranges - 1)
+    counts = np.bincount(index, minlength=n_ranges)
+    if counts.min() < WINDOWS_MIN:
+        raise IdentificationError(
+            f"{n_ranges} current ranges leave {int(counts.min())} windows in one, at least {WINDOWS_MIN} needed: "
+            "fewer ranges or a longer log"
+        )
+    member = index[:, None] == np.arange(n_ranges)[None, :]
+    common = [0, 3, *range(4, n_common)]
+
+    def split(M: np.ndarray) -> np.ndarray:
+        return np.column_stack([M[:, common], M[:, [1]] * member, M[:, [2]] * member])
+
+    theta, sd, _, q = _iv_fit(rows, split(rows.X_d), split(rows.X_q), split(rows.Z_d), split(rows.Z_q))
+    out = []
+    base = len(common)
+    for r in range(n_ranges):
+        values: dict[str, float | None] = {}
+        ci: dict[str, tuple[float, float]] = {}
+        for name, col in (("Ld_H", base + r), ("Lq_H", base + n_ranges + r)):
+            if _determined(theta[col], sd[col]):
+                values[name] = float(theta[col])
+                ci[name] = (float(theta[col] - q * sd[col]), float(theta[col] + q * sd[col]))
+            else:
+                values[name] = None
+        inside = rows.i_mean_A[index == r]
+        out.append(
+            CurrentRange(
+                i_low_A=float(inside.min()),
+                i_high_A=float(inside.max()),
+                n_windows=int(inside.size),
+                Ld_H=values["Ld_H"],
+                Lq_H=values["Lq_H"],
+                ci=ci,
+            )
+        )
+    return tuple(out)
+
+
+def _saturation_notes(ranges: tuple[CurrentRange, ...]) -> list[str]:
+    """A note per inductance whose lowest- and highest-current ranges differ beyond their intervals and by
+    more than :data:`SATURATION_MIN`."""
+    notes = []
+    for name, axis in (("Ld_H", "Ld"), ("Lq_H", "Lq")):
+        found = [r for r in ranges if getattr(r, name) is not None]
+        if len(found) < 2:
+            continue
+        low, high = found[0], found[-1]
+        (lo_a, hi_a), (lo_b, hi_b) = low.ci[name], high.ci[name]
+        a, b = getattr(low, name), getattr(high, name)
+        if (hi_b < lo_a or hi_a < lo_b) and abs(b / a - 1.0) > SATURATION_MIN:
+            change = f"{axis} {'falls' if b < a else 'rises'} from {a * 1e3:.4g} to {b * 1e3:.4g} mH over |i_dq| "
+            change += f"{low.i_low_A:.3g} to {high.i_high_A:.3g} A"
+            notes.append(
+                f"the machine saturates: {change}"
+                if b < a
+                else f"{change}: not saturation, check the log's conventions"
+            )
+    return notes
+
+
 def identify_electrical(
-    log: Log, pole_pairs: int, voltage_delay_samples: int = 0, window_samples: int | None = None
+    log: Log,
+    pole_pairs: int,
+    voltage_delay_samples: int = 0,
+    *,
+    angle_lead_samples: float | None = None,
+    dead_time: bool = False,
+    u_dc_V: float | None = None,
+    current_ranges: int | None = None,
+    window_samples: int | None = None,
 ) -> Electrical:
     """Rs, Ld, Lq and psi_f of eq 1 from a log with id_A, iq_A, ud_V, uq_V and the speed.
 
@@ -169,6 +480,17 @@ def identify_electrical(
         Pole pairs p (w_e = p w_m).
     voltage_delay_samples : int
         The logged voltage applies this many samples after its row (0: over the period that starts at it).
+    angle_lead_samples : float or None
+        X: the drive turns the logged reference into the stator frame at the row's angle plus ``X w_e Ts`` and
+        the inverter holds that vector over its period (module docstring); None: the logged voltage is the
+        rotor-frame voltage over its period.
+    dead_time : bool
+        Fit the inverter's dead-time voltage per phase ``dead_time_V`` [V] with Rs (needs two current levels).
+    u_dc_V : float or None
+        DC-link voltage [V]: periods with ``|u_dq| >= u_dc / sqrt(3) (1 - VOLTAGE_MARGIN)`` are at the limit
+        (default: the log's ``u_dc_V`` column, if any).
+    current_ranges : int or None
+        Ranges of the window-mean |i_dq| for the per-range Ld and Lq (1: none; None: automatic, module docstring).
     window_samples : int or None
         Distance N of the two blocks of a row [samples] (default: rows / 960, at least 8); blocks N/2 long.
 
@@ -186,6 +508,14 @@ def identify_electrical(
         raise ConfigError("pole_pairs", pole_pairs, "an integer >= 1")
     if voltage_delay_samples < 0 or voltage_delay_samples > 100:
         raise ConfigError("voltage_delay_samples", voltage_delay_samples, "an integer in [0, 100]")
+    if angle_lead_samples is not None and not abs(angle_lead_samples) <= ANGLE_LEAD_MAX:
+        raise ConfigError(
+            "angle_lead_samples", angle_lead_samples, f"a number in [-{ANGLE_LEAD_MAX:g}, {ANGLE_LEAD_MAX:g}]"
+        )
+    if u_dc_V is not None and not (math.isfinite(u_dc_V) and u_dc_V > 0):
+        raise ConfigError("u_dc_V", u_dc_V, "a finite voltage > 0 [V]")
+    if current_ranges is not None and not 1 <= current_ranges <= RANGES_MAX:
+        raise ConfigError("current_ranges", current_ranges, f"an integer in [1, {RANGES_MAX}]")
     n_total = len(log.t_s)
     if window_samples is None:
         window_samples = max(8, n_total // 960)
@@ -194,8 +524,9 @@ def identify_electrical(
     n, m = window_samples, max(1, window_samples // 2)
     d = voltage_delay_samples
     assert log.id_A is not None and log.iq_A is not None and log.ud_V is not None and log.uq_V is not None
-    blocks: list[tuple[np.ndarray, ...]] = []
-    n_used = 0
+    blocks: list[_Rows] = []
+    n_used = n_flagged = n_dropped = stuck = 0
+    has_limit_source = False
     for seg in log.segments():
         idx = np.arange(seg.start, seg.stop)
         if idx.size <= d + n + m:
@@ -203,68 +534,104 @@ def identify_electrical(
         # the voltage applied over the period that starts at row k was logged at row k - d
         rows_u = idx[: idx.size - d]
         rows_x = idx[d:]
-        n_used += rows_x.size
         t = log.t_s[rows_x]
         w_e = pole_pairs * log.w_m_radps[rows_x]
         i_d, i_q = log.id_A[rows_x], log.iq_A[rows_x]
         u_d, u_q = log.ud_V[rows_u], log.uq_V[rows_u]
+        flags = _limited(log, rows_u, u_d, u_q, u_dc_V)
+        if angle_lead_samples is not None:
+            u_d, u_q = _rotor_frame_mean(u_d, u_q, w_e, log.dt_s, angle_lead_samples, d)
+        a = np.arange(0, len(t) - n - m + 1, n)
+        keep = np.ones(a.size, dtype=bool)
+        if flags is None:
+            magnitude = np.hypot(log.ud_V[rows_u], log.uq_V[rows_u])
+            stuck += int(np.count_nonzero(magnitude >= (1.0 - STUCK_TOLERANCE) * np.max(magnitude)))
+        else:
+            has_limit_source = True
+            n_flagged += int(np.count_nonzero(flags))
+            # a window integrates the voltages of its samples a .. b + m - 2
+            count = np.concatenate(([0], np.cumsum(flags)))
+            keep = count[a + n + m - 1] - count[a] == 0
+            n_dropped += int(np.count_nonzero(~keep))
+            a = a[keep]
+        if a.size == 0:
+            continue
+        n_used += rows_x.size
+        magnitude_sum = np.concatenate(([0.0], np.cumsum(np.hypot(i_d, i_q))))
         # split-sample instruments: regressors from the even samples' currents, instruments from the odd ones'
-        even = _window_rows(t, _keep(i_d, 0), _keep(i_q, 0), u_d, u_q, w_e, n, m)
-        odd = _window_rows(t, _keep(i_d, 1), _keep(i_q, 1), u_d, u_q, w_e, n, m)
-        blocks.append((*even, odd[0], odd[2]))
-    if not blocks:
+        X_d, y_d, X_q, y_q = _regressors(t, _keep(i_d, 0), _keep(i_q, 0), u_d, u_q, w_e, a, n, m, dead_time)
+        Z_d, _, Z_q, _ = _regressors(t, _keep(i_d, 1), _keep(i_q, 1), u_d, u_q, w_e, a, n, m, dead_time)
+        i_mean = (magnitude_sum[a + n + m] - magnitude_sum[a]) / (n + m)
+        blocks.append(_Rows(X_d, y_d, X_q, y_q, Z_d, Z_q, t[a], i_mean))
+    if not blocks and not n_dropped:
         raise IdentificationError(f"the log is too short for windows of {n + m} samples ({n_total} rows)")
-    X_d, y_d, X_q, y_q, t0, Z_d, Z_q = (np.concatenate([blk[i] for blk in blocks]) for i in range(7))
-    k = len(y_d)
+    k = sum(len(blk.y_d) for blk in blocks)
     if k < WINDOWS_MIN:
-        raise IdentificationError(f"{k} windows of {n + m} samples, at least {WINDOWS_MIN} needed: a longer log")
-    X = np.vstack([X_d, X_q])
-    y = np.concatenate([y_d, y_q])
-    # column scales: the rank test does not depend on units
-    scale = np.sqrt(np.sum(X**2, axis=0))
-    scale[scale == 0] = 1.0
-    Z = np.vstack([Z_d, Z_q])
-    ZX = Z.T @ X
-    theta = np.linalg.lstsq(ZX, Z.T @ y, rcond=None)[0]
-    e = y - X @ theta
-    # Newey-West over the windows: the score of a window is its d row's plus its q row's
-    scores = Z_d * e[:k, None] + Z_q * e[k:, None]
-    lags = max(2, math.ceil(4.0 * (k / 100.0) ** (2.0 / 9.0)))
-    S = scores.T @ scores
-    for lag in range(1, min(lags, k - 1) + 1):
-        G = scores[lag:].T @ scores[:-lag]
-        S += (1.0 - lag / (lags + 1.0)) * (G + G.T)
-    _, singular, vt = np.linalg.svd(X / scale, full_matrices=False)
-    if singular[-1] <= 1e-9 * singular[0]:
-        # the direction the log does not excite: its largest component is the parameter to blame
-        sd = np.zeros(4)
-        sd[int(np.argmax(np.abs(vt[-1])))] = np.inf
-    else:
-        inv = np.linalg.inv(ZX)
-        cov = inv @ S @ inv.T * (2 * k) / (2 * k - 4)
-        sd = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    for name, value, s in zip(PARAMETERS, theta, sd, strict=True):
-        if not (np.isfinite(s) and s < REL_SD_MAX * abs(value)):
+        limited = f" ({n_dropped} windows touch the {n_flagged} samples at the voltage limit)" if n_dropped else ""
+        raise IdentificationError(
+            f"{k} windows of {n + m} samples{limited}, at least {WINDOWS_MIN} needed: "
+            + (
+                "a run that stays within the inverter's voltage range (lower speed or current)"
+                if n_dropped
+                else "a longer log"
+            )
+        )
+    rows = _Rows(*(np.concatenate([getattr(blk, f.name) for blk in blocks]) for f in dataclasses.fields(_Rows)))
+    i_low, i_high = np.percentile(rows.i_mean_A, [10, 90])
+    if dead_time and not i_high >= DEAD_TIME_SPAN * i_low:
+        raise IdentificationError(
+            f"{DEAD_TIME} is not identifiable with Rs from this log (window |i_dq| {i_low:.3g} to {i_high:.3g} A, "
+            f"10th to 90th percentile, less than a factor {DEAD_TIME_SPAN:g}): Rs |i| and the dead-time voltage "
+            "separate only where |i_dq| takes different values; it needs a log with two current levels (e.g. DC "
+            "currents at a third of and at the rated current), or a fit without the dead-time term"
+        )
+    theta, sd, e, q = _iv_fit(rows, rows.X_d, rows.X_q, rows.Z_d, rows.Z_q)
+    names = (*PARAMETERS, DEAD_TIME) if dead_time else PARAMETERS
+    if dead_time and not (_determined(theta[0], sd[0]) and np.isfinite(sd[4])):
+        raise IdentificationError(
+            f"{DEAD_TIME} is not identifiable with Rs from this log: Rs {theta[0]:.4g} +- {sd[0]:.3g} ohm, "
+            f"{DEAD_TIME} {theta[4]:.4g} +- {sd[4]:.3g} V; it needs a log with two current levels held long "
+            "enough (e.g. DC currents at a third of and at the rated current), or a fit without the dead-time term"
+        )
+    for name, value, s in zip(PARAMETERS, theta, sd, strict=False):
+        if not _determined(value, s):
             spread = {"Ld_H": ("id", log.id_A), "Lq_H": ("iq", log.iq_A)}
             moved = ""
             if name in spread:
                 sig, x = spread[name]
                 moved = f" ({sig} spans {np.ptp(x):.3g} A)"
+            left_out = f" ({n_dropped} windows at the voltage limit left out)" if n_dropped else ""
             raise IdentificationError(
-                f"{name} is not identifiable from this log{moved}: estimate {value:.4g}, standard deviation "
-                f"{s:.3g}; it needs a log where {_NEEDS[name]}"
+                f"{name} is not identifiable from this log{moved}{left_out}: estimate {value:.4g}, standard "
+                f"deviation {s:.3g}; it needs a log where {_NEEDS[name]}"
             )
-    q = float(scipy.stats.t.ppf(0.5 + LEVEL / 2.0, 2 * k - 4))
-    ci = {name: (float(v - q * s), float(v + q * s)) for name, v, s in zip(PARAMETERS, theta, sd, strict=True)}
-    rows = {"t_s": t0, "ud_V": y_d, "ud_fit_V": X_d @ theta, "uq_V": y_q, "uq_fit_V": X_q @ theta}
+    ci = {name: (float(v - q * s), float(v + q * s)) for name, v, s in zip(names, theta, sd, strict=True)}
+    notes = []
+    if not has_limit_source and stuck >= STUCK_SAMPLES:
+        notes.append(
+            f"|u_dq| sits at its largest value in {stuck} samples: if the drive logged its reference "
+            "after its own voltage limit, those windows are not its applied voltage; give the DC-link voltage "
+            "(u_dc_V) or a voltage_limited column to leave them out"
+        )
+    if current_ranges is None:
+        lo, hi = np.percentile(rows.i_mean_A, [5, 95])
+        current_ranges = AUTO_RANGES if hi > AUTO_SPAN * lo and k >= AUTO_RANGES * WINDOWS_MIN else 1
+    ranges = _fit_ranges(rows, current_ranges, len(names)) if current_ranges > 1 else ()
+    notes += _saturation_notes(ranges)
+    fitted = {"ud_fit_V": rows.X_d @ theta, "uq_fit_V": rows.X_q @ theta}
     return Electrical(
         Rs_ohm=float(theta[0]),
         Ld_H=float(theta[1]),
         Lq_H=float(theta[2]),
         psi_f_Wb=float(theta[3]),
+        dead_time_V=float(theta[4]) if dead_time else None,
         ci=ci,
         residual_rms_V=float(np.sqrt(np.mean(e**2))),
         n_samples=n_used,
         n_windows=k,
-        rows=rows,
+        n_samples_voltage_limited=n_flagged if has_limit_source else None,
+        n_windows_voltage_limited=n_dropped,
+        ranges=ranges,
+        notes=tuple(notes),
+        rows={"t_s": rows.t0_s, "ud_V": rows.y_d, "uq_V": rows.y_q, **fitted},
     )

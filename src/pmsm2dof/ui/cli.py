@@ -1239,6 +1239,36 @@ def warnings_as_lines() -> Iterator[None]:
     default=0,
     help="--electrical: the logged voltage applies this many samples after its row",
 )
+@click.option(
+    "--angle-lead-samples",
+    type=float,
+    default=None,
+    metavar="X",
+    help="--electrical: the drive holds the stator-frame voltage over a period, turned at the row's angle plus "
+    "X w_e Ts (0.5: mid-period; 1.5 with --voltage-delay-samples 1: delay compensation); default: the logged "
+    "voltage is the rotor-frame voltage over its period",
+)
+@click.option(
+    "--dead-time",
+    is_flag=True,
+    help="--electrical: fit the inverter's dead-time voltage per phase dead_time_V [V] with Rs "
+    "(needs two current levels)",
+)
+@click.option(
+    "--u-dc-V",
+    "u_dc_V",
+    type=float,
+    default=None,
+    help="--electrical: DC-link voltage [V]; windows where |u_dq| reaches u_dc/sqrt(3) are left out "
+    "(default: the log's u_dc_V column; a voltage_limited column is always used)",
+)
+@click.option(
+    "--current-ranges",
+    type=int,
+    default=None,
+    help="--electrical: Ld and Lq per range of |i_dq| (1: none; default: 3 when the log's currents span "
+    "more than a factor 2, else 1)",
+)
 @click.option("--plan", is_flag=True, help="instead: write the run to log (speed steps) for --motor SCENARIO to --out")
 @click.option("--speed-max-rpm", type=float, default=None, help="--plan: largest speed of the steps [rpm]")
 @click.option(
@@ -1259,6 +1289,10 @@ def identify(
     design_text: str | None,
     electrical: bool,
     voltage_delay_samples: int,
+    angle_lead_samples: float | None,
+    dead_time: bool,
+    u_dc_V: float | None,
+    current_ranges: int | None,
     plan: bool,
     speed_max_rpm: float | None,
     i_max_A: float | None,
@@ -1278,7 +1312,9 @@ def identify(
     With --electrical --pole-pairs P: Rs, Ld, Lq and psi_f (per phase, amplitude-invariant dq,
     eq 1) from id_A, iq_A, ud_V, uq_V and the speed, each with its 95 % interval; --out DIR
     writes fit.png (measured vs model voltages), residuals.csv, motor.toml (for design --motor)
-    and identify.json.
+    and identify.json (and ranges.csv with the fit per current range). Windows at the inverter's
+    voltage limit (a voltage_limited column, or |u_dq| at u_dc/sqrt(3) with --u-dc-V or a
+    u_dc_V column) are left out.
     """
     import json
 
@@ -1293,9 +1329,19 @@ def identify(
         return
     if log is None:
         raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT), or --plan")
+    options = {
+        "--voltage-delay-samples": voltage_delay_samples or None,
+        "--angle-lead-samples": angle_lead_samples,
+        "--dead-time": dead_time or None,
+        "--u-dc-V": u_dc_V,
+        "--current-ranges": current_ranges,
+    }
     if electrical:
-        _identify_electrical(log, column_maps, pole_pairs, voltage_delay_samples, as_json, out)
+        _identify_electrical(log, column_maps, pole_pairs, options, as_json, out)
         return
+    for option, value in options.items():
+        if value is not None:
+            raise ConfigError(option, value, "given only with --electrical")
     gains = None
     if design_text is not None:
         parts = design_text.split(",")
@@ -1416,7 +1462,7 @@ def _identify_electrical(
     log: str,
     column_maps: tuple[str, ...],
     pole_pairs: int | None,
-    voltage_delay_samples: int,
+    options: dict[str, Any],
     as_json: bool,
     out: str | None,
 ) -> None:
@@ -1427,12 +1473,24 @@ def _identify_electrical(
 
     from ..outputs import atomic_write, staged_dir
     from ..sim.logs import read_log
-    from ..studies.electrical import PARAMETERS, identify_electrical
+    from ..studies.electrical import ANGLE_LEAD_MAX, DEAD_TIME, PARAMETERS, RANGES_MAX, identify_electrical
 
     if pole_pairs is None or pole_pairs < 1:
         raise ConfigError("--pole-pairs", "<missing>" if pole_pairs is None else pole_pairs, "an integer >= 1")
+    voltage_delay_samples = options["--voltage-delay-samples"] or 0
+    angle_lead_samples = options["--angle-lead-samples"]
+    u_dc_V = options["--u-dc-V"]
+    current_ranges = options["--current-ranges"]
     if not 0 <= voltage_delay_samples <= 100:
         raise ConfigError("--voltage-delay-samples", voltage_delay_samples, "an integer in [0, 100]")
+    if angle_lead_samples is not None and not abs(angle_lead_samples) <= ANGLE_LEAD_MAX:
+        raise ConfigError(
+            "--angle-lead-samples", angle_lead_samples, f"a number in [-{ANGLE_LEAD_MAX:g}, {ANGLE_LEAD_MAX:g}]"
+        )
+    if u_dc_V is not None and not (math.isfinite(u_dc_V) and u_dc_V > 0):
+        raise ConfigError("--u-dc-V", u_dc_V, "a finite voltage > 0 [V]")
+    if current_ranges is not None and not 1 <= current_ranges <= RANGES_MAX:
+        raise ConfigError("--current-ranges", current_ranges, f"an integer in [1, {RANGES_MAX}]")
     if out is not None:
         from ..outputs import require_writable_dir
 
@@ -1440,8 +1498,24 @@ def _identify_electrical(
     columns = dict(parse_column(text) for text in column_maps)
     with warnings_as_lines():
         measured = read_log(log, columns)
-    fit = identify_electrical(measured, pole_pairs, voltage_delay_samples=voltage_delay_samples)
+    fit = identify_electrical(
+        measured,
+        pole_pairs,
+        voltage_delay_samples=voltage_delay_samples,
+        angle_lead_samples=angle_lead_samples,
+        dead_time=bool(options["--dead-time"]),
+        u_dc_V=u_dc_V,
+        current_ranges=current_ranges,
+    )
     report = fit.to_json()
+    range_names = ["i_low_A", "i_high_A", "n_windows", "Ld_H", "Ld_H_low", "Ld_H_high", "Lq_H", "Lq_H_low", "Lq_H_high"]
+
+    def range_row(r: dict[str, Any]) -> list[float]:
+        row = [r["i_low_A"], r["i_high_A"], r["n_windows"]]
+        for name in ("Ld_H", "Lq_H"):
+            row += [math.nan, math.nan, math.nan] if r[name] is None else [r[name], *r[f"{name}_ci"]]
+        return row
+
     if out is not None:
         from .plots.identify import plot_electrical_fit
 
@@ -1449,24 +1523,49 @@ def _identify_electrical(
         names = ["t_s", "ud_V", "ud_fit_V", "uq_V", "uq_fit_V"]
         table = np.column_stack([rows[n] for n in names])
         body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
+        ranges = "".join(",".join(f"{v:.9g}" for v in range_row(r)) + "\n" for r in report["ranges"])
         with staged_dir(out) as tmp:
             plot_electrical_fit(fit, tmp / "fit.png")
             atomic_write(tmp / "residuals.csv", ",".join(names) + "\n" + body + "\n")
+            if fit.ranges:
+                atomic_write(tmp / "ranges.csv", ",".join(range_names) + "\n" + ranges)
             atomic_write(tmp / "motor.toml", fit.motor_toml(pole_pairs, log))
             atomic_write(tmp / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
     if as_json:
         click.echo(json.dumps(report, indent=2, allow_nan=False))
         return
-    units = {"Rs_ohm": "ohm", "Ld_H": "H", "Lq_H": "H", "psi_f_Wb": "Wb"}
-    for name in PARAMETERS:
-        lo, hi = fit.ci[name]
-        click.echo(f"{name:<9} = {report[name]:<11.5g} 95 % interval [{lo:.5g}, {hi:.5g}] {units[name]}")
+    units = {"Rs_ohm": "ohm", "Ld_H": "H", "Lq_H": "H", "psi_f_Wb": "Wb", DEAD_TIME: "V per phase"}
+    for name in (*PARAMETERS, DEAD_TIME):
+        if name in fit.ci:
+            lo, hi = fit.ci[name]
+            click.echo(f"{name:<11} = {report[name]:<11.5g} 95 % interval [{lo:.5g}, {hi:.5g}] {units[name]}")
     click.echo(
         f"fit: {fit.n_windows} windows ({fit.n_samples} samples), residual {fit.residual_rms_V:.3g} V rms "
         "(per phase, amplitude-invariant dq, eq 1)"
     )
+    if fit.n_samples_voltage_limited is not None:
+        click.echo(
+            f"voltage limit: {fit.n_samples_voltage_limited} samples at the limit, "
+            f"{fit.n_windows_voltage_limited} windows that touch them left out"
+        )
+    if fit.ranges:
+        click.echo("per current range (Rs, psi_f common):")
+        click.echo(f"  {'|i_dq| [A]':<15} {'Ld [mH]':<24} {'Lq [mH]':<24} windows")
+
+        def cell(r: dict[str, Any], name: str) -> str:
+            if r[name] is None:
+                return "not determined"
+            lo, hi = r[f"{name}_ci"]
+            return f"{r[name] * 1e3:.4g} [{lo * 1e3:.4g}, {hi * 1e3:.4g}]"
+
+        for r in report["ranges"]:
+            span = f"{r['i_low_A']:.3g} to {r['i_high_A']:.3g}"
+            click.echo(f"  {span:<15} {cell(r, 'Ld_H'):<24} {cell(r, 'Lq_H'):<24} {r['n_windows']}")
+    for note in fit.notes:
+        click.echo(f"note: {note}")
     if out is not None:
-        click.echo(f"wrote fit.png, residuals.csv, motor.toml and identify.json to {out}")
+        written = "fit.png, residuals.csv, " + ("ranges.csv, " if fit.ranges else "")
+        click.echo(f"wrote {written}motor.toml and identify.json to {out}")
 
 
 @cli.command()

@@ -46,11 +46,15 @@ def plot_fit(mech: Mechanics, path: Path) -> None:
 def plot_electrical_fit(fit: Electrical, path: Path) -> None:
     """Draw the window-mean voltages of :func:`~pmsm2dof.studies.electrical.identify_electrical`, log vs eq 1.
 
-    Top: ud, middle: uq (measured and the model with the parameters found), bottom: residuals [V].
+    Left: ud, uq (measured and the model with the parameters found) and the residuals [V]. With a fit per
+    current range, right: Ld and Lq of each range with their 95 % intervals against |i_dq| [A].
     """
-    fig = Figure(figsize=(9, 7), layout="constrained")
+    fig = Figure(figsize=(13 if fit.ranges else 9, 7), layout="constrained")
     FigureCanvasAgg(fig)
-    ax_d, ax_q, ax_e = fig.subplots(3, 1, sharex=True)
+    grid = fig.add_gridspec(3, 2 if fit.ranges else 1, width_ratios=[2, 1] if fit.ranges else [1])
+    ax_d = fig.add_subplot(grid[0, 0])
+    ax_q = fig.add_subplot(grid[1, 0], sharex=ax_d)
+    ax_e = fig.add_subplot(grid[2, 0], sharex=ax_d)
     rows = fit.rows
     t = rows["t_s"]
     for ax, axis in ((ax_d, "d"), (ax_q, "q")):
@@ -67,6 +71,22 @@ def plot_electrical_fit(fit: Electrical, path: Path) -> None:
     ax_e.set_ylabel("residual [V]")
     ax_e.set_xlabel("time [s]")
     ax_e.legend(loc="best", fontsize="small")
+    if fit.ranges:
+        ax_l = fig.add_subplot(grid[:, 1])
+        for name, axis, whole in (("Ld_H", "Ld", fit.Ld_H), ("Lq_H", "Lq", fit.Lq_H)):
+            found = [r for r in fit.ranges if getattr(r, name) is not None]
+            mid = np.array([0.5 * (r.i_low_A + r.i_high_A) for r in found])
+            value = np.array([getattr(r, name) for r in found]) * 1e3
+            lo = value - np.array([r.ci[name][0] for r in found]) * 1e3
+            hi = np.array([r.ci[name][1] for r in found]) * 1e3 - value
+            width = np.array([[0.5 * (r.i_high_A - r.i_low_A)] * 2 for r in found]).T.reshape(2, -1)
+            line = ax_l.errorbar(mid, value, xerr=width, yerr=[lo, hi], fmt="o", capsize=3, label=f"{axis} per range")
+            ax_l.axhline(whole * 1e3, color=line[0].get_color(), ls=":", lw=1, label=f"{axis} whole log")
+        ax_l.set_xlabel("window-mean |i_dq| [A]")
+        ax_l.set_ylabel("inductance [mH]")
+        ax_l.set_title("per current range (95 % intervals)")
+        ax_l.legend(loc="best", fontsize="small")
+        ax_l.grid(True, alpha=0.3)
     save_figure(fig, path)
 
 
