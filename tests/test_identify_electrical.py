@@ -164,3 +164,6 @@ def test_readme_commands_identify_the_servo_within_the_targets(tmp_path, monkeyp
     truth = tomllib.loads((ROOT / SERVO).read_text())["motor"]
     for name in PARAMETERS:
         assert abs(found[name] / truth[name] - 1) < TARGETS[name], name
+    # the engine logs the applied voltage: its periods at the limit (field weakening, where id moves) are kept
+    assert found["n_samples_voltage_limited"] > 0 and found["n_windows_voltage_limited"] == 0
+    assert any("samples at the voltage limit kept" in note for note in found["notes"])

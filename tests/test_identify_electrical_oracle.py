@@ -143,11 +143,19 @@ def test_voltage_limit_biases_the_fit_and_exclusion_removes_it(clipped):
     with pytest.raises(IdentificationError, match="Rs_ohm is not identifiable"):
         identify_electrical(bare, 4)
     n_limited = int(log["voltage_limited"].sum())
-    for fit in (identify_electrical(bare, 4, u_dc_V=64.0), identify_electrical(read_log(folder / "full.csv"), 4)):
+    # the oracle's drive turns its reference at the mid-period angle: angle_lead_samples 0.5 says the log holds
+    # references, so the columns' flags leave windows out
+    full = read_log(folder / "full.csv")
+    for fit in (identify_electrical(bare, 4, u_dc_V=64.0), identify_electrical(full, 4, angle_lead_samples=0.5)):
         assert_targets_and_coverage(fit)
         assert fit.n_samples_voltage_limited >= n_limited and fit.n_windows_voltage_limited > 0
     # the columns flag exactly the clipped references
-    assert identify_electrical(read_log(folder / "flags.csv"), 4).n_samples_voltage_limited == n_limited
+    flags = read_log(folder / "flags.csv")
+    assert identify_electrical(flags, 4, angle_lead_samples=0.5).n_samples_voltage_limited == n_limited
+    # taken as applied voltages (the default convention) the clipped references are kept: the misfit is refused,
+    # and the message names the samples kept and the options that say the log holds references
+    with pytest.raises(IdentificationError, match=f"{n_limited} samples at the voltage limit kept.*angle_lead"):
+        identify_electrical(flags, 4)
     with pytest.raises(IdentificationError, match="windows touch the .* samples at the voltage limit"):
         identify_electrical(bare, 4, u_dc_V=2.0)
     with pytest.raises(IdentificationError, match=r"Ld_H is not identifiable .*windows at the voltage limit left out"):
@@ -208,6 +216,7 @@ def test_no_saturation_note_on_a_linear_machine(dead_time_log):
 def test_cli_new_options_text_json_and_out(clipped, tmp_path):
     _, folder = clipped
     args = ["identify", str(folder / "full.csv"), "--electrical", "--pole-pairs", "4", "--current-ranges", "2"]
+    args += ["--angle-lead-samples", "0.5"]
     runner = CliRunner()
     text = runner.invoke(cli, [*args, "--dead-time"])
     assert text.exit_code == 0, text.output

@@ -54,12 +54,17 @@ fixed angle between 9 % below and 5 % above the fundamental). It separates from 
 takes different values (``Rs |i| + 4/pi dead_time_V`` is one line): a log whose windows' ``|i_dq|``
 span less than :data:`DEAD_TIME_SPAN` is refused naming ``dead_time_V``.
 
-Voltage limit: where the inverter cut the reference to its range, the logged reference is not the
-applied voltage. Windows that touch such a period are left out: the periods flagged by the log's
-``voltage_limited`` column, and those whose ``|u_dq|`` reaches ``u_dc / sqrt(3)`` within
-:data:`VOLTAGE_MARGIN` (the DC link from ``u_dc_V`` or the log's ``u_dc_V`` column). Without
-either, a reference that a drive logged after its own limit shows as ``|u_dq|`` stuck at its
-largest value in many samples: the result then carries a note.
+Voltage limit: where the inverter cut the reference to its range, a logged reference is not the
+applied voltage. The logged voltage is a reference when the log says it applies later or turns in
+the stator frame (``voltage_delay_samples > 0`` or ``angle_lead_samples`` given) or when
+``u_dc_V`` is given; then the windows that touch a period at the limit are left out: the periods
+flagged by the log's ``voltage_limited`` column, and those whose ``|u_dq|`` reaches ``u_dc /
+sqrt(3)`` within :data:`VOLTAGE_MARGIN` (the DC link from ``u_dc_V`` or the log's ``u_dc_V``
+column). Otherwise the logged voltage is the one applied (the default convention, and pmsm2dof's
+engine logs): periods at the limit are counted and kept, since they are what the machine saw (and,
+in field weakening, where ``id`` moves). Without a limit source, a reference that a drive logged
+after its own limit shows as ``|u_dq|`` stuck at its largest value in many samples: the result then
+carries a note.
 
 Fit: the d and q rows of all windows together, by instrumental variables: the logged currents'
 noise enters the regressors (errors in variables: least squares would be biased by it, and its
@@ -194,7 +199,7 @@ class Electrical:
     n_samples_voltage_limited : int or None
         Voltage samples at the inverter's limit (None: the log gives no limit source).
     n_windows_voltage_limited : int
-        Windows left out because they touch such a sample.
+        Windows left out because they touch such a sample (none where the logged voltage is the applied one).
     ranges : tuple of CurrentRange
         The fit per current range (empty with one range).
     notes : tuple of str
@@ -527,6 +532,8 @@ def identify_electrical(
     blocks: list[_Rows] = []
     n_used = n_flagged = n_dropped = stuck = 0
     has_limit_source = False
+    # a logged reference is not the applied voltage where the inverter cut it (module docstring)
+    logged_reference = d > 0 or angle_lead_samples is not None or u_dc_V is not None
     for seg in log.segments():
         idx = np.arange(seg.start, seg.stop)
         if idx.size <= d + n + m:
@@ -542,18 +549,18 @@ def identify_electrical(
         if angle_lead_samples is not None:
             u_d, u_q = _rotor_frame_mean(u_d, u_q, w_e, log.dt_s, angle_lead_samples, d)
         a = np.arange(0, len(t) - n - m + 1, n)
-        keep = np.ones(a.size, dtype=bool)
         if flags is None:
             magnitude = np.hypot(log.ud_V[rows_u], log.uq_V[rows_u])
             stuck += int(np.count_nonzero(magnitude >= (1.0 - STUCK_TOLERANCE) * np.max(magnitude)))
         else:
             has_limit_source = True
             n_flagged += int(np.count_nonzero(flags))
-            # a window integrates the voltages of its samples a .. b + m - 2
-            count = np.concatenate(([0], np.cumsum(flags)))
-            keep = count[a + n + m - 1] - count[a] == 0
-            n_dropped += int(np.count_nonzero(~keep))
-            a = a[keep]
+            if logged_reference:
+                # a window integrates the voltages of its samples a .. b + m - 2
+                count = np.concatenate(([0], np.cumsum(flags)))
+                keep = count[a + n + m - 1] - count[a] == 0
+                n_dropped += int(np.count_nonzero(~keep))
+                a = a[keep]
         if a.size == 0:
             continue
         n_used += rows_x.size
@@ -601,6 +608,11 @@ def identify_electrical(
                 sig, x = spread[name]
                 moved = f" ({sig} spans {np.ptp(x):.3g} A)"
             left_out = f" ({n_dropped} windows at the voltage limit left out)" if n_dropped else ""
+            if has_limit_source and not logged_reference and n_flagged:
+                left_out = (
+                    f" ({n_flagged} samples at the voltage limit kept as applied voltages: if the log holds the "
+                    "controller's reference, give voltage_delay_samples, angle_lead_samples or u_dc_V)"
+                )
             raise IdentificationError(
                 f"{name} is not identifiable from this log{moved}{left_out}: estimate {value:.4g}, standard "
                 f"deviation {s:.3g}; it needs a log where {_NEEDS[name]}"
@@ -612,6 +624,12 @@ def identify_electrical(
             f"|u_dq| sits at its largest value in {stuck} samples: if the drive logged its reference "
             "after its own voltage limit, those windows are not its applied voltage; give the DC-link voltage "
             "(u_dc_V) or a voltage_limited column to leave them out"
+        )
+    if has_limit_source and not logged_reference and n_flagged:
+        notes.append(
+            f"{n_flagged} samples at the voltage limit kept: the logged voltage is taken as the voltage applied "
+            "over its period (voltage_delay_samples 0, no angle_lead_samples, no u_dc_V); if the log holds the "
+            "controller's reference, give one of them to leave those windows out"
         )
     if current_ranges is None:
         lo, hi = np.percentile(rows.i_mean_A, [5, 95])
