@@ -52,9 +52,10 @@ def test_the_log_excites_every_parameter(motulator_log):
 
 def test_identify_electrical_meets_the_targets_on_a_motulator_log(tmp_path, capsys, motulator_log):
     """motulator applies the reference one period after its sample (voltage_delay_samples = 1), turned into the
-    stator frame with the angle advanced by 1.5 w_e Ts, which the fit as it is takes for the rotor-frame
-    voltage over that period: exact on the period mean up to sinc(w_e Ts / 2) (0.23 % at 4500 rpm)."""
-    report = identify(tmp_path, capsys, motulator_log, "--voltage-delay-samples", "1")
+    stator frame with the angle advanced by 1.5 w_e Ts and held there over the period (angle_lead_samples = 1.5):
+    the log's own convention, as its script reads it in motulator's source."""
+    delay, lead = str(int(motulator_log["voltage_delay_samples"])), str(float(motulator_log["angle_lead_samples"]))
+    report = identify(tmp_path, capsys, motulator_log, "--voltage-delay-samples", delay, "--angle-lead-samples", lead)
     for name, target in TARGETS.items():
         truth = float(motulator_log[f"true_{name}"])
         assert abs(report[name] / truth - 1.0) < target, (name, report[name], truth)
