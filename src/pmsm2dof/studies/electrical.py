@@ -135,28 +135,28 @@ REL_SD_MAX = 0.05
 #: Fewest windows of a fit (and of a current range).
 WINDOWS_MIN = 12
 
-#: A period is at the voltage limit when its |u_dq| reaches u_dc / sqrt(3) times (1 - this).
+#: A period is at the voltage limit when its ``|u_dq|`` reaches u_dc / sqrt(3) times (1 - this).
 VOLTAGE_MARGIN = 0.02
 
-#: Without a limit source: |u_dq| within this share of its largest value at STUCK_SAMPLES samples or more
+#: Without a limit source: ``|u_dq|`` within this share of its largest value at STUCK_SAMPLES samples or more
 #: is the signature of a reference logged after the drive's own limit.
 STUCK_TOLERANCE = 1e-3
 STUCK_SAMPLES = 20
 
-#: Default current ranges: AUTO_RANGES when the windows' |i_dq| (5th to 95th percentile) span more than AUTO_SPAN.
+#: Default current ranges: AUTO_RANGES when the windows' ``|i_dq|`` (5th to 95th percentile) span more than AUTO_SPAN.
 AUTO_RANGES = 3
 AUTO_SPAN = 2.0
 
 #: The per-range note needs the lowest- and highest-current ranges this far apart (relative), beyond their intervals.
 SATURATION_MIN = 0.05
 
-#: The dead-time term needs the windows' |i_dq| (10th to 90th percentile) to span at least this factor.
+#: The dead-time term needs the windows' ``|i_dq|`` (10th to 90th percentile) to span at least this factor.
 DEAD_TIME_SPAN = 1.5
 
 #: Most current ranges.
 RANGES_MAX = 10
 
-#: Largest |angle_lead_samples|.
+#: Largest ``|angle_lead_samples|``.
 ANGLE_LEAD_MAX = 10.0
 
 #: What each parameter needs from the log, for the message when it is not identifiable.
@@ -171,12 +171,12 @@ _NEEDS = {
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class CurrentRange:
-    """Ld and Lq fitted over the windows whose mean |i_dq| lies in one range.
+    """Ld and Lq fitted over the windows whose mean ``|i_dq|`` lies in one range.
 
     Attributes
     ----------
     i_low_A, i_high_A : float
-        Smallest and largest window-mean |i_dq| of the range [A].
+        Smallest and largest window-mean ``|i_dq|`` of the range [A].
     n_windows : int
         Windows in the range.
     Ld_H, Lq_H : float or None
@@ -658,7 +658,7 @@ def identify_electrical(
         DC-link voltage [V]: periods with ``|u_dq| >= u_dc / sqrt(3) (1 - VOLTAGE_MARGIN)`` are at the limit
         (default: the log's ``u_dc_V`` column, if any).
     current_ranges : int or None
-        Ranges of the window-mean |i_dq| for the per-range Ld and Lq (1: none; None: automatic, module docstring).
+        Ranges of the window-mean ``|i_dq|`` for the per-range Ld and Lq (1: none; None: automatic, module docstring).
     window_samples : int or None
         Distance N of the two blocks of a row [samples] (default: rows / 960, at least 8); blocks N/2 long.
 

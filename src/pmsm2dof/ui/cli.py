@@ -1259,14 +1259,14 @@ def warnings_as_lines() -> Iterator[None]:
     "u_dc_V",
     type=float,
     default=None,
-    help="--electrical: DC-link voltage [V]; windows where |u_dq| reaches u_dc/sqrt(3) are left out "
+    help="--electrical: DC-link voltage [V]; windows where the voltage magnitude reaches u_dc/sqrt(3) are left out "
     "(default: the log's u_dc_V column; a voltage_limited column is always used)",
 )
 @click.option(
     "--current-ranges",
     type=int,
     default=None,
-    help="--electrical: Ld and Lq per range of |i_dq| (1: none; default: 3 when the log's currents span "
+    help="--electrical: Ld and Lq per range of the current magnitude (1: none; default: 3 when the log's currents span "
     "more than a factor 2, else 1)",
 )
 @click.option("--plan", is_flag=True, help="instead: write the run to log (speed steps) for --motor SCENARIO to --out")
@@ -1312,9 +1312,10 @@ def identify(
     With --electrical --pole-pairs P: Rs, Ld, Lq and psi_f (per phase, amplitude-invariant dq,
     eq 1) from id_A, iq_A, ud_V, uq_V and the speed, each with its 95 % interval; --out DIR
     writes fit.png (measured vs model voltages), residuals.csv, motor.toml (for design --motor)
-    and identify.json (and ranges.csv with the fit per current range). Windows at the inverter's
-    voltage limit (a voltage_limited column, or |u_dq| at u_dc/sqrt(3) with --u-dc-V or a
-    u_dc_V column) are left out.
+    and identify.json (and ranges.csv with the fit per current range). When the log holds the
+    controller's references (--voltage-delay-samples >= 1, --angle-lead-samples or --u-dc-V), windows
+    at the inverter's voltage limit (a voltage_limited column, or a voltage magnitude at u_dc/sqrt(3)
+    from --u-dc-V or a u_dc_V column) are left out; a log of applied voltages keeps them.
     """
     import json
 

@@ -47,7 +47,7 @@ def plot_electrical_fit(fit: Electrical, path: Path) -> None:
     """Draw the window-mean voltages of :func:`~pmsm2dof.studies.electrical.identify_electrical`, log vs eq 1.
 
     Left: ud, uq (measured and the model with the parameters found) and the residuals [V]. With a fit per
-    current range, right: Ld and Lq of each range with their 95 % intervals against |i_dq| [A].
+    current range, right: Ld and Lq of each range with their 95 % intervals against ``|i_dq|`` [A].
     """
     fig = Figure(figsize=(13 if fit.ranges else 9, 7), layout="constrained")
     FigureCanvasAgg(fig)
