@@ -14,9 +14,8 @@
 #define P2D_PI_3 1.04719755119659775f      /* pi / 3: the sectors of the phase-current signs */
 #define P2D_MAX_SAMPLES 16777216.0f        /* 2^24: phase lengths stay exact in float32 */
 
-/* Relative tolerance of a current level (Rs levels), and of the current at the end of the alignment ramp. */
+/* Relative tolerance of a current level (end of the alignment, Rs levels). */
 #define P2D_LEVEL_TOL 0.1f
-#define P2D_ALIGN_TOL 0.2f
 /* Injection: ripple i_test / 2 peak to peak, accepted within [0.7, 1.4] of it; at the voltage limit down to 1/16. */
 #define P2D_RIPPLE_PER_I_TEST 0.5f
 #define P2D_RIPPLE_LOW 0.7f
@@ -499,22 +498,13 @@ static p2d_outcome_t phase_probe(p2d_commission_t *c, float id_A, float iq_A, fl
 static p2d_outcome_t phase_align(p2d_commission_t *c, float id_A, float iq_A, float u_dc_V,
                                  p2d_commission_output_t *out, p2d_commission_reason_t *why)
 {
-    const uint32_t n_ramp = c->n_align / 2u, n_check_from = n_ramp - n_ramp / 4u;
+    const uint32_t n_ramp = c->n_align / 2u;
     const uint32_t n_hold_from = c->n_align - c->n_align / 8u;
     /* id_ref[k] = i_test min(1, (k + 1) / n_ramp) */
     const float id_ref = c->k < n_ramp ? c->config.i_test_A * ((float)(c->k + 1u) / (float)n_ramp) : c->config.i_test_A;
     bool saturated = false;
     if (!closed_loop(c, id_ref, -c->g_damp_A_per_V * c->current.x_q_V, id_A, iq_A, u_dc_V, out, &saturated)) {
         return FAIL;
-    }
-    if (c->k >= n_check_from && c->k < n_ramp) sum_add(&c->sum_id_late_A, id_A - id_ref);
-    if (c->k + 1u == n_ramp) {
-        /* the current followed its ramp: mean error over the ramp's last quarter within 20 % of i_test */
-        if (saturated ||
-            !(fabsf(c->sum_id_late_A.sum / (float)(n_ramp - n_check_from)) <= P2D_ALIGN_TOL * c->config.i_test_A)) {
-            *why = P2D_REASON_CURRENT_NOT_REACHED;
-            return FAIL;
-        }
     }
     if (c->k >= n_hold_from) {
         sum_add(&c->sum_ud_V, out->ud_V);
@@ -652,7 +642,8 @@ static p2d_outcome_t inductances(p2d_commission_t *c, p2d_commission_reason_t *w
         *why = P2D_REASON_NOT_IDENTIFIABLE;
         return FAIL;
     }
-    current_loop_from(c, c->u_hold_d_V, c->u_hold_q_V);
+    /* RAMP_UP feeds u_err forward, along d at the frame's angle 0: the integrators hold the rest, Rs id_high */
+    current_loop_from(c, c->u_hold_d_V - c->u_err_V, c->u_hold_q_V);
     return NEXT;
 }
 

@@ -243,7 +243,7 @@ typedef struct {
 
     /* alignment and Rs levels */
     p2d_sum_t sum_ud_V;      /* d voltage command: end of the ALIGN ramp; early half of an Rs window [V] */
-    p2d_sum_t sum_id_A;      /* d current error (ALIGN), d current (early half of an Rs window) [A] */
+    p2d_sum_t sum_id_A;      /* d current: end of the ALIGN hold; early half of an Rs window [A] */
     p2d_sum_t sum_ud_late_V; /* d voltage command over the late half of an Rs window [V] */
     p2d_sum_t sum_id_late_A; /* d current over the late half of an Rs window [A] */
     p2d_sum_t sum_uq_V;      /* q voltage command over an Rs window [V] */

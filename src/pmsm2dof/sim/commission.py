@@ -46,6 +46,20 @@ _RAMP_TORQUE_SHARE = 0.4
 #: rotor still creeping into place fails the Rs levels (4 periods left a third of the random machines
 #: of pmsm2dof.studies.commissioning creeping)
 _ALIGN_PERIODS = 12.0
+#: Largest test current, by default, as a share of psi_f / (Lq - Ld): a d current on the frame's d
+#: axis holds the rotor with the stiffness 1.5 p^2 i_d (psi_f - (Lq - Ld) i_d) [Nm/rad], which the
+#: reluctance torque of a salient rotor turns negative above psi_f / (Lq - Ld): the rotor then
+#: rests off the frame, where a change of the current moves it
+_RELUCTANCE_SHARE = 0.5
+#: Alignment time in time constants of the damped rotor's creep into place, psi_f / (Rs i_test_A):
+#: the damping of the routine is the machine's own short circuit, which overdamps a machine whose
+#: psi_f^2 / Rs is large against sqrt(stiffness J); its rotor then creeps, without swinging, at a
+#: speed that falls by e over that time
+_ALIGN_CREEP_TIMES = 8.0
+#: Length of each Rs level in time constants Ld / Rs: the mean d voltage of a half-window holds
+#: Ld (id_end - id_start) / t, the current noise's change over it, against Rs times the step of
+#: i_test_A / 2; a window short against Ld / Rs lets it pass the 2 % of the rs_spread check
+_LEVEL_TIME_CONSTANTS = 5.0
 #: Back-EMF of the flux test as a share of the voltage range u_dc / sqrt(3).
 _SPIN_EMF_SHARE = 0.2
 
@@ -73,15 +87,27 @@ def commissioning_config(scenario: Scenario) -> dict[str, float | int]:
     motor, cm = data["motor"], data["commissioning"]
     Ts = data["current_loop"]["Ts_s"]
     p, psi_f, J = motor["pole_pairs"], motor["psi_f_Wb"], motor["J_kgm2"]
-    i_test = cm["i_test_A"] if cm["i_test_A"] is not None else 0.4 * data["limits"]["i_max_A"]
+    dL = motor["Lq_H"] - motor["Ld_H"]
+    i_test = cm["i_test_A"]
+    if i_test is None:
+        i_test = 0.4 * data["limits"]["i_max_A"]
+        if dL > 0.0:
+            i_test = min(i_test, _RELUCTANCE_SHARE * psi_f / dL)
     i_spin = cm["i_spin_A"] if cm["i_spin_A"] is not None else i_test
     i_trip = cm["i_trip_A"] if cm["i_trip_A"] is not None else 2.0 * max(i_test, i_spin)
     tau_i = cm["tau_i_s"] if cm["tau_i_s"] is not None else 20.0 * Ts
-    w_hold = math.sqrt(1.5 * p * p * psi_f * i_test / J)
+    w_hold = math.sqrt(1.5 * p * p * i_test * max(psi_f - dL * i_test, 0.5 * psi_f) / J)
+    t_creep = psi_f / (motor["Rs_ohm"] * i_test)
     t_align = (
-        cm["t_align_s"] if cm["t_align_s"] is not None else max(_ALIGN_PERIODS * 2.0 * math.pi / w_hold, 20.0 * tau_i)
+        cm["t_align_s"]
+        if cm["t_align_s"] is not None
+        else max(_ALIGN_PERIODS * 2.0 * math.pi / w_hold, _ALIGN_CREEP_TIMES * t_creep, 20.0 * tau_i)
     )
-    t_level = cm["t_level_s"] if cm["t_level_s"] is not None else max(50.0 * tau_i, 0.05)
+    t_level = (
+        cm["t_level_s"]
+        if cm["t_level_s"] is not None
+        else max(50.0 * tau_i, 0.05, _LEVEL_TIME_CONSTANTS * motor["Ld_H"] / motor["Rs_ohm"])
+    )
     if cm["w_e_spin_radps"] is not None:
         w_e_spin = cm["w_e_spin_radps"]
     else:
