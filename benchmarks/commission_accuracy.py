@@ -42,14 +42,15 @@ def main(argv=None):
             "",
             summary_table(rows),
             "",
-            "Every run ended DONE within the targets or FAILED with its step and reason. Most failures are "
-            "`rs_high: rotor_moved`: a rotor still creeping into alignment when the Rs levels start (light "
-            "friction, the routine's damping slow); the routine refuses to return its Rs then. A longer "
-            "`commissioning.t_align_s` recovers most (24 periods instead of 12: 77 of 100 done on the ideal "
-            "drive). Open: on a light rotor with a strong magnet the q injection moves the rotor, whose "
-            "inertia adds -1.5 p^2 psi_f^2 / (J w0) to the q reactance; Lq comes out low by about that "
-            "share (5.6 % on one random machine with 24 periods of alignment, Lq/Ld 1.18, J 6e-5 kg m^2, "
-            "psi_f 0.29 Wb), and the symmetry check does not see it (see RELIABILITY.md).",
+            "Every run ended DONE or FAILED with its step and reason; every DONE is within the targets but "
+            "for Lq on light rotors with strong magnets. The defaults that commissioning_config derives size "
+            "the alignment for the overdamped creep (at least 8 psi_f / (Rs i_test)) and keep i_test below "
+            "the reluctance limit psi_f / (Lq - Ld), which ended most `rs_high: rotor_moved` failures (66 of "
+            "100 done on the ideal drive before). Open: on a light rotor with a strong magnet the q injection "
+            "moves the rotor, whose inertia adds -1.5 p^2 psi_f^2 / (J w0) to the q reactance at w0 = pi / "
+            "(2 Ts); Lq comes out low by about 0.85 of that share, and the symmetry check does not see it. "
+            "Four random machines (psi_f 0.22 to 0.29 Wb on J 1.7e-5 to 6.2e-5 kg m^2) end DONE with Lq "
+            "5.6 % to 36 % low (predicted 6.8 % to 41 %); see RELIABILITY.md.",
             "",
         ]
     )
