@@ -70,11 +70,15 @@ def commissioning_config(scenario: Scenario) -> dict[str, float | int]:
     Given keys of ``[commissioning]`` are taken as they are; absent ones are derived from the
     scenario as a commissioning engineer would from the motor's rough data:
 
-    - ``i_test_A = 0.4 i_max_A``, ``i_spin_A = i_test_A``, ``i_trip_A = 2 max(i_test_A, i_spin_A)``;
+    - ``i_test_A = 0.4 i_max_A``, on a salient rotor at most ``0.5 psi_f / (Lq - Ld)`` (beyond
+      ``psi_f / (Lq - Ld)`` the d-axis alignment is unstable: the reluctance torque wins);
+      ``i_spin_A = i_test_A``, ``i_trip_A = 2 max(i_test_A, i_spin_A)``;
     - ``tau_i_s = 20 Ts_s`` (the routine's loop is designed from the inductance it measures first);
-    - ``t_align_s``: twelve periods of the rotor held by i_test_A on d, whose stiffness is
-      ``1.5 p^2 psi_f i_test_A`` [Nm/rad], at least ``20 tau_i_s``;
-    - ``t_level_s = max(50 tau_i_s, 0.05 s)``;
+    - ``t_align_s``: the longest of twelve periods of the rotor held by i_test_A on d, whose
+      stiffness is ``1.5 p^2 i_test_A (psi_f - (Lq - Ld) i_test_A)`` [Nm/rad] (at least half the
+      magnet's), eight time constants ``psi_f / (Rs i_test_A)`` of the overdamped creep, and
+      ``20 tau_i_s``;
+    - ``t_level_s = max(50 tau_i_s, 0.05 s, 5 Ld / Rs)``;
     - ``w_e_spin_radps``: the speed whose back-EMF ``w_e psi_f`` is 0.2 of ``u_dc / sqrt(3)``
       (at most ``0.1 / Ts_s``);
     - ``t_ramp_s``: the S ramp to that speed whose peak acceleration needs 0.4 of the torque
