@@ -349,7 +349,7 @@ SCHEMA = (
     Field(
         "commissioning.i_test_A",
         float,
-        "test current of alignment, Rs and inductance tests [A]; absent: 0.4 limits.i_max_A",
+        "test current of alignment, Rs and inductance tests [A]; absent: 0.4 limits.i_max_A, at most 0.5 psi_f / (Lq - Ld)",
         default=None,
         gt=0,
     ),
@@ -377,11 +377,11 @@ SCHEMA = (
     Field(
         "commissioning.t_align_s",
         float,
-        "alignment [s]; absent: 12 periods of the rotor held by i_test_A, >= 20 tau_i_s",
+        "alignment [s]; absent: 12 periods of the rotor held by i_test_A, >= 8 psi_f / (Rs i_test_A) and 20 tau_i_s",
         default=None,
         gt=0,
     ),
-    Field("commissioning.t_level_s", float, "each Rs level [s]; absent: max(50 tau_i_s, 0.05 s)", default=None, gt=0),
+    Field("commissioning.t_level_s", float, "each Rs level [s]; absent: max(50 tau_i_s, 0.05 s, 5 Ld / Rs)", default=None, gt=0),
     Field("commissioning.t_inductance_s", float, "averaging of each injection test [s]", default=0.05, gt=0),
     Field(
         "commissioning.t_ramp_s",
