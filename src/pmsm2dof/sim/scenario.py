@@ -349,7 +349,8 @@ SCHEMA = (
     Field(
         "commissioning.i_test_A",
         float,
-        "test current of alignment, Rs and inductance tests [A]; absent: 0.4 limits.i_max_A, at most 0.5 psi_f / (Lq - Ld)",
+        "test current of alignment, Rs and inductance tests [A]; "
+        "absent: 0.4 limits.i_max_A, at most 0.5 psi_f / (Lq - Ld)",
         default=None,
         gt=0,
     ),
@@ -381,7 +382,13 @@ SCHEMA = (
         default=None,
         gt=0,
     ),
-    Field("commissioning.t_level_s", float, "each Rs level [s]; absent: max(50 tau_i_s, 0.05 s, 5 Ld / Rs)", default=None, gt=0),
+    Field(
+        "commissioning.t_level_s",
+        float,
+        "each Rs level [s]; absent: max(50 tau_i_s, 0.05 s, 5 Ld / Rs)",
+        default=None,
+        gt=0,
+    ),
     Field("commissioning.t_inductance_s", float, "averaging of each injection test [s]", default=0.05, gt=0),
     Field(
         "commissioning.t_ramp_s",
