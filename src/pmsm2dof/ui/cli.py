@@ -1474,24 +1474,10 @@ def _identify_electrical(
 
     from ..outputs import atomic_write, staged_dir
     from ..sim.logs import read_log
-    from ..studies.electrical import ANGLE_LEAD_MAX, DEAD_TIME, PARAMETERS, RANGES_MAX, identify_electrical
+    from ..studies.electrical import DEAD_TIME, PARAMETERS, identify_electrical
 
     if pole_pairs is None or pole_pairs < 1:
         raise ConfigError("--pole-pairs", "<missing>" if pole_pairs is None else pole_pairs, "an integer >= 1")
-    voltage_delay_samples = options["--voltage-delay-samples"] or 0
-    angle_lead_samples = options["--angle-lead-samples"]
-    u_dc_V = options["--u-dc-V"]
-    current_ranges = options["--current-ranges"]
-    if not 0 <= voltage_delay_samples <= 100:
-        raise ConfigError("--voltage-delay-samples", voltage_delay_samples, "an integer in [0, 100]")
-    if angle_lead_samples is not None and not abs(angle_lead_samples) <= ANGLE_LEAD_MAX:
-        raise ConfigError(
-            "--angle-lead-samples", angle_lead_samples, f"a number in [-{ANGLE_LEAD_MAX:g}, {ANGLE_LEAD_MAX:g}]"
-        )
-    if u_dc_V is not None and not (math.isfinite(u_dc_V) and u_dc_V > 0):
-        raise ConfigError("--u-dc-V", u_dc_V, "a finite voltage > 0 [V]")
-    if current_ranges is not None and not 1 <= current_ranges <= RANGES_MAX:
-        raise ConfigError("--current-ranges", current_ranges, f"an integer in [1, {RANGES_MAX}]")
     if out is not None:
         from ..outputs import require_writable_dir
 
@@ -1499,15 +1485,19 @@ def _identify_electrical(
     columns = dict(parse_column(text) for text in column_maps)
     with warnings_as_lines():
         measured = read_log(log, columns)
-    fit = identify_electrical(
-        measured,
-        pole_pairs,
-        voltage_delay_samples=voltage_delay_samples,
-        angle_lead_samples=angle_lead_samples,
-        dead_time=bool(options["--dead-time"]),
-        u_dc_V=u_dc_V,
-        current_ranges=current_ranges,
-    )
+    try:
+        fit = identify_electrical(
+            measured,
+            pole_pairs,
+            voltage_delay_samples=options["--voltage-delay-samples"] or 0,
+            angle_lead_samples=options["--angle-lead-samples"],
+            dead_time=bool(options["--dead-time"]),
+            u_dc_V=options["--u-dc-V"],
+            current_ranges=options["--current-ranges"],
+        )
+    except ConfigError as exc:
+        # the library names its arguments; the user typed options
+        raise _as_option(exc, {name[2:].replace("-", "_"): name for name in options}) from None
     report = fit.to_json()
     range_names = ["i_low_A", "i_high_A", "n_windows", "Ld_H", "Ld_H_low", "Ld_H_high", "Lq_H", "Lq_H_low", "Lq_H_high"]
 
