@@ -24,8 +24,10 @@ its forgetting without the bound of the prior, its output without the bound of
 J_max) show that the invariants catch real faults: each is caught by replaying
 the seed corpus alone.
 
-Each target executes a fixed number of inputs from libFuzzer seed 1 (FUZZ_RUNS); P2D_FUZZ_SECONDS=N fuzzes
-for N seconds per target instead.
+Each target executes a fixed number of inputs from libFuzzer seed 1 (FUZZ_RUNS) without comparison tracing
+(-use_cmp=0: the operands libFuzzer records include addresses, which address-space randomisation changes from
+run to run, so with it two runs from one seed diverge); every run then executes the same inputs.
+P2D_FUZZ_SECONDS=N fuzzes for N seconds per target instead, with comparison tracing.
 """
 
 import os
@@ -113,17 +115,20 @@ def _stats(stderr):
     return int(runs.group(1)), int(runs.group(2)), int(done.group(3)), int(done.group(2))
 
 
-@pytest.mark.parametrize("target", TARGETS)
-def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
+def _bounded(runs):
+    """libFuzzer's options for ``runs`` executions that every run repeats (module docstring)."""
+    return [f"-runs={runs}", "-use_cmp=0"]
+
+
+def _fuzz(fuzz_build, target, tmp_path, bound):
+    """Run one target on a copy of its seed corpus, within ``bound`` (libFuzzer options)."""
     corpus = tmp_path / "corpus"
     shutil.copytree(CORPUS / target, corpus)
-    seeds = len(list(corpus.iterdir()))
-    assert seeds > 0
-    result = subprocess.run(
+    return subprocess.run(
         [
             str(fuzz_build / f"fuzz_{target}"),
             str(corpus),
-            f"-max_total_time={FUZZ_SECONDS}" if FUZZ_SECONDS else f"-runs={FUZZ_RUNS[target]}",
+            *bound,
             f"-seed={FUZZ_SEED}",
             "-timeout=30",
             "-rss_limit_mb=2048",
@@ -134,6 +139,14 @@ def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
         text=True,
         timeout=4 * int(FUZZ_SECONDS or 60) + 120,
     )
+
+
+@pytest.mark.parametrize("target", TARGETS)
+def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
+    seeds = len(list((CORPUS / target).iterdir()))
+    assert seeds > 0
+    bound = [f"-max_total_time={FUZZ_SECONDS}"] if FUZZ_SECONDS else _bounded(FUZZ_RUNS[target])
+    result = _fuzz(fuzz_build, target, tmp_path, bound)
     assert result.returncode == 0, f"fuzz_{target} found a failure:\n" + result.stderr[-6000:]
     executions, seconds, rate, units = _stats(result.stderr)
     print(
@@ -141,6 +154,18 @@ def test_fuzz_target_bounded_run(fuzz_build, target, tmp_path):
         f"corpus {seeds} seeds -> {units} units"
     )
     assert executions > seeds
+
+
+def test_bounded_runs_repeat_exactly(fuzz_build, tmp_path):
+    """Two bounded runs of one target from one seed reach the same coverage, features and corpus: CI executes
+    the inputs a local run executed (the commissioning target, whose state machine branches most)."""
+    finals = []
+    for run in ("a", "b"):
+        (tmp_path / run).mkdir()
+        result = _fuzz(fuzz_build, "commission", tmp_path / run, _bounded(3000))
+        assert result.returncode == 0, result.stderr[-3000:]
+        finals.append(re.search(r"^#\d+\s+DONE\s+(cov: \d+ ft: \d+ corp: \d+/\S+)", result.stderr, re.M).group(1))
+    assert finals[0] == finals[1]
 
 
 # name: (fuzz target, controller source, [(original text, mutated text), ...])
