@@ -394,6 +394,15 @@ COMMISSION_SEEDS = {
     # tiny psi_f is wrong (found by the fuzzer)
     "creeping_rotor": commission_config(i_spin=raw(1.8e-40), t_ramp=raw(0.0155), t_spin=raw(0.0315), w_e_spin=raw(27.0))
     + commission_closed_loop(8192, J=0.5255, load=0.0078, u_dc=0.5255, delayed=True),
+    # a light rotor (J 6.4e-5) with a small magnet after a fast ramp (15.5 ms to 67 rad/s) still swings about
+    # the I-f frame through the flux test's window, 1.5 swings that end 0.6 rad from where they began: its mean
+    # speed is 5.6 % below the frame's, |psi_a| and psi_f with it, while the window's halves look alike; the
+    # angle psi_a turns by over the window measures that speed (found by the fuzzer)
+    "swinging_light_rotor": commission_config(i_spin=raw(1.03795648), t_ramp=raw(0.0155), w_e_spin=raw(67.2036057))
+    + commission_closed_loop(
+        13557, R=0.0935679, Ld=0.0901950, Lq_ratio=0.0899527, psi_f=0.0901950, J=0.0901961, load=0.00816358,
+        u_dc=0.00099049
+    ),
     # the most load and saliency: the rotor moves, or does not follow the I-f frame
     "loaded_salient": commission_config() + commission_closed_loop(16384, Lq_ratio=1.0, load=1.0),
     # NaN and inf inputs in the middle of a run, then the run goes on

@@ -176,6 +176,8 @@ static void start_phase(p2d_commission_t *c, p2d_commission_phase_t phase)
     sum_clear(&c->sum_psi_q_late_Wb);
     sum_clear(&c->sum_id_r_A);
     sum_clear(&c->sum_id_r_late_A);
+    sum_clear(&c->sum_turn_rad);
+    sum_clear(&c->sum_turn_late_rad);
     if (phase == P2D_PHASE_PROBE || phase == P2D_PHASE_LD || phase == P2D_PHASE_LQ) hf_start(c);
 }
 
@@ -230,6 +232,8 @@ p2d_status_t p2d_commission_init(p2d_commission_t *c, const p2d_commission_confi
     c->coherence = 0.0f;
     c->psi_spread = 0.0f;
     c->slip = 0.0f;
+    c->psi_d_prev_Wb = 0.0f;
+    c->psi_q_prev_Wb = 0.0f;
     c->psi_f_Wb = 0.0f;
     c->fault_count = 0u;
     start_phase(c, P2D_PHASE_PROBE);
@@ -711,34 +715,57 @@ static void error_direction(float theta_rad, float *cos_phi, float *sin_phi)
  *   v = u - Rs i - j w_e Lq i                      vd = ud - Rs id + w_e Lq iq, vq = uq - Rs iq - w_e Lq id
  *   psi_a = v / (j w_e)                            psi_d = vq / w_e, psi_q = -vd / w_e
  *   id_r = i . psi_a / |psi_a|                     the current along the rotor's d axis
+ *   dphi = psi_a[k-1] x psi_a[k] / (|psi_a[k-1]| |psi_a[k]|)
+ *                                                  sin of the angle psi_a turned by since the previous sample,
+ *                                                  the angle itself within (w_r - w_e)^2 Ts^2 / 6 of it
+ * summed into the window's half (early or late) when window is set.
  */
-static void flux_sample(p2d_commission_t *c, float id_A, float iq_A, float ud_V, float uq_V, bool late)
+static void flux_sample(p2d_commission_t *c, float id_A, float iq_A, float ud_V, float uq_V, bool window, bool late)
 {
     const float w = c->w_e_radps, wLq = w * c->Lq_H;
+    const float prev = magnitude(c->psi_d_prev_Wb, c->psi_q_prev_Wb);
     float vd, vq, psi_d, psi_q, psi;
     vd = fmaf(wLq, iq_A, fmaf(-c->Rs_ohm, id_A, ud_V));
     vq = fmaf(-wLq, id_A, fmaf(-c->Rs_ohm, iq_A, uq_V));
     psi_d = vq / w;
     psi_q = -vd / w;
     psi = magnitude(psi_d, psi_q);
-    sum_add(late ? &c->sum_psi_late_Wb : &c->sum_psi_Wb, psi);
-    sum_add(late ? &c->sum_psi_d_late_Wb : &c->sum_psi_d_Wb, psi_d);
-    sum_add(late ? &c->sum_psi_q_late_Wb : &c->sum_psi_q_Wb, psi_q);
-    if (psi > 0.0f) sum_add(late ? &c->sum_id_r_late_A : &c->sum_id_r_A, (id_A / psi) * psi_d + (iq_A / psi) * psi_q);
+    if (window) {
+        sum_add(late ? &c->sum_psi_late_Wb : &c->sum_psi_Wb, psi);
+        sum_add(late ? &c->sum_psi_d_late_Wb : &c->sum_psi_d_Wb, psi_d);
+        sum_add(late ? &c->sum_psi_q_late_Wb : &c->sum_psi_q_Wb, psi_q);
+        if (psi > 0.0f) {
+            sum_add(late ? &c->sum_id_r_late_A : &c->sum_id_r_A, (id_A / psi) * psi_d + (iq_A / psi) * psi_q);
+        }
+        if (psi > 0.0f && prev > 0.0f) {
+            sum_add(late ? &c->sum_turn_late_rad : &c->sum_turn_rad,
+                    (c->psi_d_prev_Wb / prev) * (psi_q / psi) - (c->psi_q_prev_Wb / prev) * (psi_d / psi));
+        }
+    }
+    c->psi_d_prev_Wb = psi_d;
+    c->psi_q_prev_Wb = psi_q;
 }
 
 /*
- * End of SPIN: psi_f = mean |psi_a| - (Ld - Lq) mean id_r, if the rotor
- * followed the frame. |psi_a| of a sample is w_r / w_e times the active flux,
- * w_r the rotor's speed, and psi_a turns in the frame at w_e - w_r: the mean
- * is right when w_r averages to w_e over the window. So:
- *  - slip: the means of psi_a over the window's early and late halves, whose
- *    centres are dt = n_mean Ts / 2 apart, point the same way: the angle
- *    between them, |sin| = |cross| / (|a| |b|), is at most 2 % of w_e dt (the
- *    rotor's mean speed within 2 % of the frame's; a rotor that slips,
- *    creeps or stands still turns psi_a round);
- *  - swing: psi_f of the early half is within 2 % of that of the late half (a
- *    rotor still swinging about the frame has w_r != w_e over part of a swing);
+ * End of SPIN: psi_f from the active flux, if the rotor followed the frame.
+ * psi_a of a sample is w_r / w_e times the active flux, on the rotor's d
+ * axis, plus the terms of the currents' changes (Lq di/dt + e^(j delta) (Ld -
+ * Lq) did_r/dt) / (j w_e) that average out; w_r the rotor's speed, delta its
+ * angle in the frame, which psi_a's turns track: over a half-window of n
+ * samples,
+ *   mean w_r / w_e = 1 + sum dphi / (w_e n Ts) = 1 + s,
+ * exact whatever the rotor did within it (a swing about the frame that does
+ * not end where it began leaves s != 0 however alike the halves look). So,
+ * for each half,
+ *   psi_f,half = mean |psi_a| / (1 + s) - (Ld - Lq) mean id_r,
+ * and psi_f their mean weighted by their lengths; the routine stops
+ * (speed_not_reached) unless:
+ *  - slip: |s| of the whole window <= 2 %: the rotor followed the frame (a
+ *    rotor that slips, creeps or stands still turns psi_a round); the
+ *    correction 1 / (1 + s) removes its first order, 2 % bounds what the
+ *    rotor's speed and flux co-varying within the window leave;
+ *  - the means of psi_a over the two halves point the same way;
+ *  - swing: psi_f of the early half within 2 % of that of the late half;
  *  - coherence: |sum psi_a| / sum |psi_a| >= 0.9;
  *  - the current leads psi_a by less than 60 degrees, mean id_r >= i_spin / 2
  *    (a rotor that follows lags on the stable side of its pull-out; a stalled
@@ -752,8 +779,15 @@ static p2d_outcome_t flux(p2d_commission_t *c, p2d_commission_reason_t *why)
     const uint32_t n_mean = c->n_spin - c->n_spin / 2u, n_late = n_mean / 2u, n_early = n_mean - n_late;
     const float drops_V = fmaf(c->Rs_ohm, c->config.i_spin_A, fabsf(c->u_err_V));
     const float dL_H = c->Ld_H - c->Lq_H;
-    const float psi_early = fmaf(-dL_H, c->sum_id_r_A.sum / (float)n_early, c->sum_psi_Wb.sum / (float)n_early);
-    const float psi_late = fmaf(-dL_H, c->sum_id_r_late_A.sum / (float)n_late, c->sum_psi_late_Wb.sum / (float)n_late);
+    const float wTs = c->w_e_radps * c->config.Ts_s;
+    /* 1 + s = mean w_r / w_e of each half */
+    const float r_early = 1.0f + c->sum_turn_rad.sum / (wTs * (float)n_early);
+    const float r_late = 1.0f + c->sum_turn_late_rad.sum / (wTs * (float)n_late);
+    /* psi_f,half = mean |psi_a| / (1 + s) - (Ld - Lq) mean id_r */
+    const float psi_early =
+        fmaf(-dL_H, c->sum_id_r_A.sum / (float)n_early, c->sum_psi_Wb.sum / ((float)n_early * r_early));
+    const float psi_late =
+        fmaf(-dL_H, c->sum_id_r_late_A.sum / (float)n_late, c->sum_psi_late_Wb.sum / ((float)n_late * r_late));
     const float psi_mean_Wb = (c->sum_psi_Wb.sum + c->sum_psi_late_Wb.sum) / (float)n_mean;
     const float id_r_A = (c->sum_id_r_A.sum + c->sum_id_r_late_A.sum) / (float)n_mean;
     /* the directions of psi_a's early and late means (unit vectors) */
@@ -761,12 +795,13 @@ static p2d_outcome_t flux(p2d_commission_t *c, p2d_commission_reason_t *why)
     const float b = magnitude(c->sum_psi_d_late_Wb.sum, c->sum_psi_q_late_Wb.sum);
     const float ad = c->sum_psi_d_Wb.sum / a, aq = c->sum_psi_q_Wb.sum / a;
     const float bd = c->sum_psi_d_late_Wb.sum / b, bq = c->sum_psi_q_late_Wb.sum / b;
-    /* sin of the angle psi_a turned by over dt, per w_e dt: the rotor's relative speed error */
-    c->slip = fabsf(ad * bq - aq * bd) / (c->w_e_radps * (0.5f * (float)n_mean * c->config.Ts_s));
+    /* |s| of the window: |sum dphi| / (w_e n_mean Ts) */
+    c->slip = fabsf(c->sum_turn_rad.sum + c->sum_turn_late_rad.sum) / (wTs * (float)n_mean);
     c->coherence =
         magnitude(c->sum_psi_d_Wb.sum + c->sum_psi_d_late_Wb.sum, c->sum_psi_q_Wb.sum + c->sum_psi_q_late_Wb.sum) /
         (psi_mean_Wb * (float)n_mean);
-    c->psi_f_Wb = fmaf(-dL_H, id_r_A, psi_mean_Wb);
+    /* the halves' estimates weighted by their lengths */
+    c->psi_f_Wb = ((float)n_early * psi_early + (float)n_late * psi_late) / (float)n_mean;
     c->psi_spread = fabsf(psi_late - psi_early) / c->psi_f_Wb;
     if (!(ad * bd + aq * bq > 0.0f) || !(c->slip <= P2D_SLIP_MAX) || !(c->psi_spread <= P2D_PSI_SPREAD_MAX) ||
         !(c->coherence >= P2D_COHERENCE_MIN) || !(id_r_A >= P2D_ID_R_MIN * c->config.i_spin_A) ||
@@ -817,9 +852,9 @@ static p2d_outcome_t phase_spin(p2d_commission_t *c, float id_A, float iq_A, flo
         return FAIL;
     }
     c->w_e_radps = w;
-    if (phase == P2D_PHASE_SPIN && c->k >= n / 2u) {
-        /* the averaging window: the second half of SPIN, its early half first */
-        flux_sample(c, id_A, iq_A, ud_pi, uq_pi, c->k >= n / 2u + (n - n / 2u) - (n - n / 2u) / 2u);
+    if (phase == P2D_PHASE_SPIN) {
+        /* the averaging window: the second half of SPIN, its early half first; psi_a of every sample for dphi */
+        flux_sample(c, id_A, iq_A, ud_pi, uq_pi, c->k >= n / 2u, c->k >= n / 2u + (n - n / 2u) - (n - n / 2u) / 2u);
     }
     if (++c->k < n) return RUN;
     return phase == P2D_PHASE_SPIN ? flux(c, why) : NEXT;

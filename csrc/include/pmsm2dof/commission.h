@@ -86,15 +86,19 @@
  *              id_r the current along it, whatever the load angle:
  *                psi_f = mean |psi_a| - (Ld - Lq) mean id_r.
  *              |psi_a| of a sample is w_r / w_e times the active flux (w_r
- *              the rotor's speed) and psi_a turns in the frame at w_e - w_r:
- *              the mean is right when the rotor followed the frame, w_r
- *              averaging to w_e over the window. The routine checks that
- *              the means of psi_a over the window's early and late halves
- *              point the same way (the rotor's mean speed within 2 % of the
- *              frame's: a rotor that slips, creeps or stalls turns psi_a
- *              round), that psi_f of the two halves agrees within 2 % (a
- *              rotor still swinging about the frame has w_r != w_e over part
- *              of a swing), that |sum psi_a| / sum |psi_a| >= 0.9
+ *              the rotor's speed) and psi_a turns in the frame at w_r - w_e:
+ *              summed sample by sample over a half-window of n samples, the
+ *              angle it turns through gives the rotor's mean speed exactly,
+ *              mean w_r / w_e = 1 + s, s = sum dphi / (w_e n Ts), whatever
+ *              the rotor did within it (a swing that ends away from where it
+ *              began leaves s != 0 however alike the halves look); mean
+ *              |psi_a| of each half is divided by its 1 + s. The routine
+ *              checks that |s| of the window is at most 2 % (a rotor that
+ *              slips, creeps or stalls turns psi_a round), that the means of
+ *              psi_a over the window's early and late halves point the same
+ *              way, that psi_f of the two halves agrees within 2 % (a rotor
+ *              still swinging about the frame), that |sum psi_a| / sum
+ *              |psi_a| >= 0.9
  *              ("coherence"), that the current leads psi_a by less than 60
  *              degrees, mean id_r >= i_spin_A / 2 (a rotor that follows lags
  *              on the stable side of pull-out; a stalled salient one leaves
@@ -271,6 +275,10 @@ typedef struct {
     p2d_sum_t sum_psi_q_late_Wb; /* q component of psi_a, late half [Wb] */
     p2d_sum_t sum_id_r_A;        /* current along psi_a, id_r, early half [A] */
     p2d_sum_t sum_id_r_late_A;   /* id_r, late half [A] */
+    p2d_sum_t sum_turn_rad;      /* angle psi_a turned by in the frame over the early half, (w_r - w_e) dt [rad] */
+    p2d_sum_t sum_turn_late_rad; /* the same over the late half [rad] */
+    float psi_d_prev_Wb;         /* d component of psi_a at the previous SPIN sample [Wb] */
+    float psi_q_prev_Wb;         /* q component of psi_a at the previous SPIN sample [Wb] */
 
     /* estimates (valid in DONE; those of the finished phases in FAILED) */
     float L_probe_H;  /* PROBE's inductance: the routine's current loop [H] */
@@ -283,7 +291,7 @@ typedef struct {
     float asymmetry;  /* |G_qd - G_dq| / ((G_dd + G_qq) / 2): rotor moved when > 0.05 [-] */
     float coherence;  /* |sum psi_a| / sum |psi_a| of SPIN: the rotor followed when >= 0.9 [-] */
     float psi_spread; /* |psi_f(late half-window) - psi_f(early)| / psi_f: the rotor swung when > 0.02 [-] */
-    float slip;       /* SPIN: the rotor's mean speed off the frame's, relative: it slipped when > 0.02 [-] */
+    float slip;       /* |mean w_r - w_e| / w_e over the averaging window: it did not follow when > 0.02 [-] */
     float psi_f_Wb;   /* permanent-magnet flux linkage [Wb] */
 
     uint32_t fault_count; /* samples rejected by the non-finite policy [-] */
