@@ -400,8 +400,14 @@ COMMISSION_SEEDS = {
     # angle psi_a turns by over the window measures that speed (found by the fuzzer)
     "swinging_light_rotor": commission_config(i_spin=raw(1.03795648), t_ramp=raw(0.0155), w_e_spin=raw(67.2036057))
     + commission_closed_loop(
-        13557, R=0.0935679, Ld=0.0901950, Lq_ratio=0.0899527, psi_f=0.0901950, J=0.0901961, load=0.00816358,
-        u_dc=0.00099049
+        13557,
+        R=0.0935679,
+        Ld=0.0901950,
+        Lq_ratio=0.0899527,
+        psi_f=0.0901950,
+        J=0.0901961,
+        load=0.00816358,
+        u_dc=0.00099049,
     ),
     # the most load and saliency: the rotor moves, or does not follow the I-f frame
     "loaded_salient": commission_config() + commission_closed_loop(16384, Lq_ratio=1.0, load=1.0),
