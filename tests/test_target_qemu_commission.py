@@ -17,25 +17,27 @@ Without the cross toolchain, cmake or qemu-system-arm the test is skipped with t
 """
 
 import math
-import shutil
 import subprocess
 
 import numpy as np
 import pytest
-from test_target_qemu import BUILD_TIMEOUT_S, CSRC, QEMU, QEMU_TIMEOUT_S, TOOLCHAIN, c_value, run, word
+from test_target_qemu import (
+    BUILD_TIMEOUT_S,
+    CSRC,
+    QEMU,
+    QEMU_TIMEOUT_S,
+    TOOLCHAIN,
+    c_value,
+    needs_cross,
+    needs_qemu,
+    run,
+    word,
+)
 
 from pmsm2dof._core import ffi, lib
 
-_MISSING = [t for t in ("cmake", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
 #: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
-pytestmark = [
-    pytest.mark.slow,
-    pytest.mark.skipif(
-        bool(_MISSING),
-        reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-        "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
-    ),
-]
+pytestmark = [pytest.mark.slow, needs_cross, needs_qemu]
 
 SAMPLE_FIELDS = ("ud_V", "uq_V", "theta_e_rad", "w_e_radps", "id_ref_A", "iq_ref_A", "phase", "fault")
 END_FIELDS = (

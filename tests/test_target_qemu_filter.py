@@ -11,30 +11,16 @@ near the Nyquist frequency and inputs with steps, sinusoids, NaN, inf and 3e38.
 Only NaN payloads may differ (Arm and x86 default NaNs), and only in T_unsat.
 """
 
-import shutil
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
+from test_target_qemu import CSRC, QEMU, TOOLCHAIN, needs_cross, needs_qemu
 
 from pmsm2dof._core import ffi, lib
 
-ROOT = Path(__file__).resolve().parents[1]
-CSRC = ROOT / "csrc"
-TOOLCHAIN = CSRC / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
-QEMU = ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-semihosting-config", "enable=on,target=native"]
-
-_MISSING = [t for t in ("cmake", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
 #: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
-pytestmark = [
-    pytest.mark.slow,
-    pytest.mark.skipif(
-        bool(_MISSING),
-        reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-        "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
-    ),
-]
+pytestmark = [pytest.mark.slow, needs_cross, needs_qemu]
 
 SAMPLES = 120
 FILTER_FIELDS = ("notch_freq_Hz", "notch_width_Hz", "notch_depth", "lowpass_freq_Hz", "lowpass_zeta")
