@@ -366,7 +366,8 @@ static bool list_ready(p2d_xcp_t *x, uint32_t index)
     uint32_t sample = 0;
     if (!(l->flags & LIST_MODE_SET) || l->odt_count == 0u) return false;
     for (uint32_t j = 0; j < l->odt_count; ++j) {
-        uint32_t dto = 1u + l->odts[j].payload_bytes + ((j == 0u && (l->flags & LIST_TIMESTAMP)) ? TIMESTAMP_BYTES : 0u);
+        uint32_t dto =
+            1u + l->odts[j].payload_bytes + ((j == 0u && (l->flags & LIST_TIMESTAMP)) ? TIMESTAMP_BYTES : 0u);
         if (dto > x->config.max_dto) return false;
         sample += QUEUE_LENGTH_BYTES + dto;
     }
@@ -500,7 +501,7 @@ static void cmd_get_status(p2d_xcp_t *x)
     uint8_t *r = x->response;
     r[1] = x->daq_running ? 0x40u : 0u; /* DAQ_RUNNING */
     r[2] = x->locked;
-    r[3] = 0;       /* state number */
+    r[3] = 0;        /* state number */
     put16(r + 4, 0); /* session configuration id */
     respond(x, 6);
 }
@@ -804,8 +805,7 @@ static void cmd_set_daq_ptr(p2d_xcp_t *x, const uint8_t *cmd)
     uint16_t list = get16(cmd + 2);
     uint8_t odt = cmd[4], entry = cmd[5];
     x->daq_ptr_valid = 0;
-    if (list >= x->daq_list_count || odt >= lists(x)[list].odt_count ||
-        entry >= lists(x)[list].odts[odt].entry_count) {
+    if (list >= x->daq_list_count || odt >= lists(x)[list].odt_count || entry >= lists(x)[list].odts[odt].entry_count) {
         fail(x, ERR_OUT_OF_RANGE);
         return;
     }
@@ -1118,7 +1118,8 @@ bool p2d_xcp_link_check(p2d_xcp_t *x)
     if (x == NULL) return false;
     now = x->config.clock(x->config.user);
     lock(x);
-    if (x->connected && x->config.link_timeout_ticks > 0u && now - x->last_command_ticks > x->config.link_timeout_ticks) {
+    if (x->connected && x->config.link_timeout_ticks > 0u &&
+        now - x->last_command_ticks > x->config.link_timeout_ticks) {
         x->link_silent = 1;
     }
     silent = x->link_silent != 0u;

@@ -36,20 +36,20 @@ typedef struct {
 } cal_t;
 
 typedef struct {
-    uint32_t now;        /* the clock [ticks] */
-    int32_t verdict;     /* what the commit callback answers */
-    int commits;         /* calls of the commit callback */
-    uint16_t segment;    /* its last segment */
-    cal_t page;          /* its last page */
-    int depth;           /* lock depth now */
-    int depth_max;       /* deepest lock */
-    int locks;           /* lock calls */
-    uint8_t meas[32];    /* measurement segment */
-    cal_t cal;           /* calibration segment */
-    uint8_t top[16];     /* measurement segment at the top of the address space */
-    cal_t shadow;        /* shadow page */
-    uint8_t daq[512];    /* DAQ memory */
-    uint8_t queue[128];  /* DTO queue */
+    uint32_t now;       /* the clock [ticks] */
+    int32_t verdict;    /* what the commit callback answers */
+    int commits;        /* calls of the commit callback */
+    uint16_t segment;   /* its last segment */
+    cal_t page;         /* its last page */
+    int depth;          /* lock depth now */
+    int depth_max;      /* deepest lock */
+    int locks;          /* lock calls */
+    uint8_t meas[32];   /* measurement segment */
+    cal_t cal;          /* calibration segment */
+    uint8_t top[16];    /* measurement segment at the top of the address space */
+    cal_t shadow;       /* shadow page */
+    uint8_t daq[512];   /* DAQ memory */
+    uint8_t queue[128]; /* DTO queue */
     p2d_xcp_segment_t segments[3];
     p2d_xcp_event_t events[2];
     p2d_xcp_config_t cfg;
@@ -143,10 +143,10 @@ static size_t cmd(rig_t *r, const uint8_t *packet, size_t len)
     return r->out_len;
 }
 
-#define CMD(r, ...)                                          \
-    do {                                                     \
-        const uint8_t packet_[] = {__VA_ARGS__};             \
-        (void)cmd((r), packet_, sizeof packet_);             \
+#define CMD(r, ...)                              \
+    do {                                         \
+        const uint8_t packet_[] = {__VA_ARGS__}; \
+        (void)cmd((r), packet_, sizeof packet_); \
     } while (0)
 
 static size_t take(rig_t *r)
@@ -155,11 +155,14 @@ static size_t take(rig_t *r)
     return r->out_len;
 }
 
-static int out_is(const rig_t *r, const uint8_t *bytes, size_t n) { return r->out_len == n && memcmp(r->out, bytes, n) == 0; }
+static int out_is(const rig_t *r, const uint8_t *bytes, size_t n)
+{
+    return r->out_len == n && memcmp(r->out, bytes, n) == 0;
+}
 
-#define OUT_IS(r, ...)                                                      \
-    do {                                                                    \
-        const uint8_t expect_[] = {__VA_ARGS__};                            \
+#define OUT_IS(r, ...)                                                                                    \
+    do {                                                                                                  \
+        const uint8_t expect_[] = {__VA_ARGS__};                                                          \
         check_record(out_is((r), expect_, sizeof expect_), "response " #__VA_ARGS__, __FILE__, __LINE__); \
     } while (0)
 
@@ -186,14 +189,14 @@ static void test_init_validation(void)
     memset(long_text, 'a', sizeof long_text - 1);
     long_text[sizeof long_text - 1] = '\0';
 
-#define REJECTS(field_change, code)                                          \
-    do {                                                                     \
-        rig_config(&r);                                                      \
-        field_change;                                                        \
-        memset(&r.x, 0xA5, sizeof r.x);                                      \
-        memcpy(&before, &r.x, sizeof before);                                \
-        CHECK(p2d_xcp_init(&r.x, &r.cfg) == (code));                         \
-        CHECK(memcmp(&before, &r.x, sizeof before) == 0);                    \
+#define REJECTS(field_change, code)                       \
+    do {                                                  \
+        rig_config(&r);                                   \
+        field_change;                                     \
+        memset(&r.x, 0xA5, sizeof r.x);                   \
+        memcpy(&before, &r.x, sizeof before);             \
+        CHECK(p2d_xcp_init(&r.x, &r.cfg) == (code));      \
+        CHECK(memcmp(&before, &r.x, sizeof before) == 0); \
     } while (0)
 
     rig_config(&r);
@@ -536,8 +539,8 @@ static void test_daq_info(void)
     CMD(&r, 0xFF, 0x00);
     /* dynamic, prescaler, timestamps; MAX_DAQ: lists that fit in 512 bytes; 2 events; MIN_DAQ 0; key byte */
     CMD(&r, 0xDA);
-    CHECK(r.out_len == 8 && r.out[0] == RES && r.out[1] == 0x13 && r.out[4] == 2 && r.out[5] == 0 &&
-          r.out[6] == 0 && r.out[7] == 0x30 && (r.out[2] | r.out[3] << 8) >= 512 / 32);
+    CHECK(r.out_len == 8 && r.out[0] == RES && r.out[1] == 0x13 && r.out[4] == 2 && r.out[5] == 0 && r.out[6] == 0 &&
+          r.out[7] == 0x30 && (r.out[2] | r.out[3] << 8) >= 512 / 32);
     /* granularity 1, largest entry MAX_DTO - 1, no STIM, 4-byte timestamps in unit 1 us (3), 1 tick */
     CMD(&r, 0xD9);
     OUT_IS(&r, RES, 1, 15, 1, 0, 0x34, 1, 0);
@@ -773,8 +776,8 @@ static void test_can(void)
     frame[1] = 0x00;
     CHECK(p2d_xcp_can_pad(frame, 2, 8, 0x55) == 8 && frame[1] == 0x00 && frame[2] == 0x55 && frame[7] == 0x55 &&
           frame[8] == 0xFF);
-    CHECK(p2d_xcp_can_dlc(0) == 0 && p2d_xcp_can_dlc(8) == 8 && p2d_xcp_can_dlc(12) == 9 &&
-          p2d_xcp_can_dlc(48) == 14 && p2d_xcp_can_dlc(64) == 15 && p2d_xcp_can_dlc(10) == 0xFF);
+    CHECK(p2d_xcp_can_dlc(0) == 0 && p2d_xcp_can_dlc(8) == 8 && p2d_xcp_can_dlc(12) == 9 && p2d_xcp_can_dlc(48) == 14 &&
+          p2d_xcp_can_dlc(64) == 15 && p2d_xcp_can_dlc(10) == 0xFF);
 }
 
 static void test_guard(void)

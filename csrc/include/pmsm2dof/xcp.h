@@ -89,33 +89,33 @@ extern "C" {
 /* Status of p2d_xcp_init and p2d_xcp_guard_init: each code names one configuration field. */
 typedef enum {
     P2D_XCP_OK = 0,
-    P2D_XCP_ERR_NULL,              /* a pointer argument is NULL */
-    P2D_XCP_ERR_SEGMENTS,          /* segments, segment_count */
-    P2D_XCP_ERR_SEGMENT_MEMORY,    /* segments[i].memory */
-    P2D_XCP_ERR_SEGMENT_SIZE,      /* segments[i].size_bytes */
-    P2D_XCP_ERR_SEGMENT_ACCESS,    /* segments[i].access */
-    P2D_XCP_ERR_SEGMENT_OVERLAP,   /* segments[i].address */
-    P2D_XCP_ERR_SHADOW,            /* shadow, shadow_bytes */
-    P2D_XCP_ERR_COMMIT,            /* commit */
-    P2D_XCP_ERR_EVENTS,            /* events, event_count */
-    P2D_XCP_ERR_EVENT_NAME,        /* events[i].name */
-    P2D_XCP_ERR_EVENT_CYCLE_UNIT,  /* events[i].cycle_unit */
-    P2D_XCP_ERR_DAQ_MEMORY,        /* daq_memory, daq_memory_bytes */
-    P2D_XCP_ERR_QUEUE,             /* queue, queue_bytes */
-    P2D_XCP_ERR_MAX_CTO,           /* max_cto */
-    P2D_XCP_ERR_MAX_DTO,           /* max_dto */
-    P2D_XCP_ERR_CLOCK,             /* clock */
-    P2D_XCP_ERR_TIMESTAMP_UNIT,    /* timestamp_unit */
-    P2D_XCP_ERR_TIMESTAMP_TICKS,   /* timestamp_ticks */
-    P2D_XCP_ERR_LOCK,              /* lock, unlock */
-    P2D_XCP_ERR_PROTECTION,        /* protected_resources */
-    P2D_XCP_ERR_KEY,               /* key */
-    P2D_XCP_ERR_SEED_BYTES,        /* seed_bytes */
-    P2D_XCP_ERR_ID,                /* id */
-    P2D_XCP_ERR_GUARD_TS,          /* Ts_s (guard) */
-    P2D_XCP_ERR_GUARD_RAMP,        /* ramp_radps_per_s */
-    P2D_XCP_ERR_GUARD_HOLD,        /* hold_s */
-    P2D_XCP_STATUS_COUNT           /* number of codes, not a code */
+    P2D_XCP_ERR_NULL,             /* a pointer argument is NULL */
+    P2D_XCP_ERR_SEGMENTS,         /* segments, segment_count */
+    P2D_XCP_ERR_SEGMENT_MEMORY,   /* segments[i].memory */
+    P2D_XCP_ERR_SEGMENT_SIZE,     /* segments[i].size_bytes */
+    P2D_XCP_ERR_SEGMENT_ACCESS,   /* segments[i].access */
+    P2D_XCP_ERR_SEGMENT_OVERLAP,  /* segments[i].address */
+    P2D_XCP_ERR_SHADOW,           /* shadow, shadow_bytes */
+    P2D_XCP_ERR_COMMIT,           /* commit */
+    P2D_XCP_ERR_EVENTS,           /* events, event_count */
+    P2D_XCP_ERR_EVENT_NAME,       /* events[i].name */
+    P2D_XCP_ERR_EVENT_CYCLE_UNIT, /* events[i].cycle_unit */
+    P2D_XCP_ERR_DAQ_MEMORY,       /* daq_memory, daq_memory_bytes */
+    P2D_XCP_ERR_QUEUE,            /* queue, queue_bytes */
+    P2D_XCP_ERR_MAX_CTO,          /* max_cto */
+    P2D_XCP_ERR_MAX_DTO,          /* max_dto */
+    P2D_XCP_ERR_CLOCK,            /* clock */
+    P2D_XCP_ERR_TIMESTAMP_UNIT,   /* timestamp_unit */
+    P2D_XCP_ERR_TIMESTAMP_TICKS,  /* timestamp_ticks */
+    P2D_XCP_ERR_LOCK,             /* lock, unlock */
+    P2D_XCP_ERR_PROTECTION,       /* protected_resources */
+    P2D_XCP_ERR_KEY,              /* key */
+    P2D_XCP_ERR_SEED_BYTES,       /* seed_bytes */
+    P2D_XCP_ERR_ID,               /* id */
+    P2D_XCP_ERR_GUARD_TS,         /* Ts_s (guard) */
+    P2D_XCP_ERR_GUARD_RAMP,       /* ramp_radps_per_s */
+    P2D_XCP_ERR_GUARD_HOLD,       /* hold_s */
+    P2D_XCP_STATUS_COUNT          /* number of codes, not a code */
 } p2d_xcp_status_t;
 
 /* Name of the configuration field that a status code rejects ("" for P2D_XCP_OK). */
@@ -201,44 +201,44 @@ typedef struct {
     uint8_t link_silent;         /* 1 once the connected master was silent for link_timeout_ticks (read) */
     uint32_t last_command_ticks; /* clock at the last command received [ticks] */
     /* memory transfer address */
-    uint32_t mta;             /* XCP address of the next UPLOAD or DOWNLOAD */
-    const char *mta_text;     /* or text of GET_ID or GET_DAQ_EVENT_INFO being read, NULL if none */
-    uint32_t mta_text_bytes;  /* its bytes left [bytes] */
+    uint32_t mta;            /* XCP address of the next UPLOAD or DOWNLOAD */
+    const char *mta_text;    /* or text of GET_ID or GET_DAQ_EVENT_INFO being read, NULL if none */
+    uint32_t mta_text_bytes; /* its bytes left [bytes] */
     /* seed and key */
-    uint8_t seed[32];         /* the last seed sent */
-    uint8_t key[32];          /* the key received so far */
-    uint8_t seed_resource;    /* resource of the last GET_SEED, 0: no unlock under way */
-    uint8_t key_bytes;        /* announced length of the key [bytes] */
-    uint8_t key_received;     /* key bytes received [bytes] */
-    uint32_t seed_state;      /* xorshift state of the seeds */
+    uint8_t seed[32];      /* the last seed sent */
+    uint8_t key[32];       /* the key received so far */
+    uint8_t seed_resource; /* resource of the last GET_SEED, 0: no unlock under way */
+    uint8_t key_bytes;     /* announced length of the key [bytes] */
+    uint8_t key_received;  /* key bytes received [bytes] */
+    uint32_t seed_state;   /* xorshift state of the seeds */
     /* calibration */
-    uint8_t commit_state;          /* 0 none, 1 requested, 2 in the callback */
-    uint16_t commit_segment;       /* segment of the waiting write */
-    uint8_t commit_bytes;          /* length of the waiting DOWNLOAD [bytes] */
-    int32_t commit_status;         /* the commit callback's code of the last rejection (read) */
-    uint32_t commits_applied;      /* pages taken into force (read) */
-    uint32_t commits_rejected;     /* pages rejected (read) */
+    uint8_t commit_state;      /* 0 none, 1 requested, 2 in the callback */
+    uint16_t commit_segment;   /* segment of the waiting write */
+    uint8_t commit_bytes;      /* length of the waiting DOWNLOAD [bytes] */
+    int32_t commit_status;     /* the commit callback's code of the last rejection (read) */
+    uint32_t commits_applied;  /* pages taken into force (read) */
+    uint32_t commits_rejected; /* pages rejected (read) */
     /* the response to the last command */
-    uint8_t response[256];    /* PID and data; an UPLOAD longer than one packet is cut on taking */
-    uint16_t response_bytes;  /* its length [bytes], 0: none waiting */
-    uint16_t response_taken;  /* bytes of it already handed out [bytes] */
+    uint8_t response[256];   /* PID and data; an UPLOAD longer than one packet is cut on taking */
+    uint16_t response_bytes; /* its length [bytes], 0: none waiting */
+    uint16_t response_taken; /* bytes of it already handed out [bytes] */
     /* DAQ */
-    void *daq_lists;          /* the lists, at the start of daq_memory */
-    uint16_t daq_list_count;  /* lists allocated */
-    uint16_t odt_count;       /* ODTs allocated, all lists */
-    uint32_t daq_used_bytes;  /* daq_memory in use [bytes] */
-    uint8_t daq_alloc_step;   /* 0 after FREE_DAQ, 1 after ALLOC_DAQ, 2 after ALLOC_ODT, 3 after ALLOC_ODT_ENTRY */
-    uint8_t daq_running;      /* 1 while any list runs */
-    uint16_t daq_ptr_list;    /* SET_DAQ_PTR: list */
-    uint8_t daq_ptr_odt;      /* ODT */
-    uint8_t daq_ptr_entry;    /* entry written by the next WRITE_DAQ */
-    uint8_t daq_ptr_valid;    /* 1 after a valid SET_DAQ_PTR */
+    void *daq_lists;         /* the lists, at the start of daq_memory */
+    uint16_t daq_list_count; /* lists allocated */
+    uint16_t odt_count;      /* ODTs allocated, all lists */
+    uint32_t daq_used_bytes; /* daq_memory in use [bytes] */
+    uint8_t daq_alloc_step;  /* 0 after FREE_DAQ, 1 after ALLOC_DAQ, 2 after ALLOC_ODT, 3 after ALLOC_ODT_ENTRY */
+    uint8_t daq_running;     /* 1 while any list runs */
+    uint16_t daq_ptr_list;   /* SET_DAQ_PTR: list */
+    uint8_t daq_ptr_odt;     /* ODT */
+    uint8_t daq_ptr_entry;   /* entry written by the next WRITE_DAQ */
+    uint8_t daq_ptr_valid;   /* 1 after a valid SET_DAQ_PTR */
     /* DTO queue: packets as a 2-byte length and the packet, in a ring */
-    uint32_t queue_head;      /* next byte written */
-    uint32_t queue_tail;      /* next byte read */
-    uint32_t queue_used;      /* bytes in the queue [bytes] */
-    uint32_t dtos_sent;       /* DTOs handed to the transport (read) */
-    uint32_t dtos_lost;       /* samples of a DAQ list dropped for want of room in the queue (read) */
+    uint32_t queue_head; /* next byte written */
+    uint32_t queue_tail; /* next byte read */
+    uint32_t queue_used; /* bytes in the queue [bytes] */
+    uint32_t dtos_sent;  /* DTOs handed to the transport (read) */
+    uint32_t dtos_lost;  /* samples of a DAQ list dropped for want of room in the queue (read) */
 } p2d_xcp_t;
 
 /* Validate cfg and start the slave disconnected, with no DAQ list. On error x is untouched. */
@@ -272,14 +272,14 @@ bool p2d_xcp_link_check(p2d_xcp_t *x);
  * (idle line) to resynchronise.
  */
 typedef struct {
-    bool checksum;           /* a checksum byte ends each frame (SxI CHECKSUM_BYTE) */
-    uint16_t tx_counter;     /* CTR of the next frame sent */
-    uint8_t rx_header[4];    /* header being received */
-    uint16_t rx_length;      /* LEN of the frame being received [bytes] */
-    uint16_t rx_count;       /* bytes of the frame received so far, header included [bytes] */
-    uint8_t rx_sum;          /* sum of its bytes so far, modulo 256 */
-    uint8_t packet[255];     /* the last complete packet */
-    uint32_t rx_errors;      /* frames dropped (read) */
+    bool checksum;        /* a checksum byte ends each frame (SxI CHECKSUM_BYTE) */
+    uint16_t tx_counter;  /* CTR of the next frame sent */
+    uint8_t rx_header[4]; /* header being received */
+    uint16_t rx_length;   /* LEN of the frame being received [bytes] */
+    uint16_t rx_count;    /* bytes of the frame received so far, header included [bytes] */
+    uint8_t rx_sum;       /* sum of its bytes so far, modulo 256 */
+    uint8_t packet[255];  /* the last complete packet */
+    uint32_t rx_errors;   /* frames dropped (read) */
 } p2d_xcp_frame_t;
 
 void p2d_xcp_frame_init(p2d_xcp_frame_t *f, bool checksum);
