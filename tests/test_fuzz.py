@@ -54,13 +54,14 @@ FUZZ_RUNS = {
     "field_weakening": 48_000,
     "inertia": 60_000,
     "filter": 110_000,
+    "xcp": 50_000,
 }
 #: Exploration instead: P2D_FUZZ_SECONDS=N fuzzes each target for N seconds (with P2D_FUZZ_SEED=0, from a seed
 #: libFuzzer picks).
 FUZZ_SECONDS = os.environ.get("P2D_FUZZ_SECONDS")
 FUZZ_SEED = int(os.environ.get("P2D_FUZZ_SEED", "1"))
 SANITIZE = ["-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all", "-g", "-O1"]
-TARGETS = ("speed", "current", "commission", "encoder", "field_weakening", "inertia", "filter")
+TARGETS = ("speed", "current", "commission", "encoder", "field_weakening", "inertia", "filter", "xcp")
 
 
 def _libfuzzer_missing(tmp_path):
@@ -251,7 +252,44 @@ MUTANTS = {
         "speed.c",
         [("fw_torque_limit(c, id, iq_max), out)", "c->T_max_Nm, out)")],
     ),
+    # the XCP slave takes an access that starts in a segment for inside it, wherever it ends
+    "xcp_past_segment_end": (
+        "xcp",
+        "xcp.c",
+        [
+            (
+                "address - s->address < s->size_bytes && n <= s->size_bytes - (address - s->address)",
+                "address - s->address < s->size_bytes",
+            )
+        ],
+    ),
+    # a DOWNLOAD lands in the calibration segment at once, not on the shadow page
+    "xcp_download_without_commit": (
+        "xcp",
+        "xcp.c",
+        [
+            (
+                "memcpy((uint8_t *)x->config.shadow + (x->mta - s->address), cmd + 2, n);",
+                "memcpy((uint8_t *)s->memory + (x->mta - s->address), cmd + 2, n);",
+            )
+        ],
+    ),
+    # a page the commit callback rejected is copied into the segment all the same
+    "xcp_rejected_page_applied": (
+        "xcp",
+        "xcp.c",
+        [
+            (
+                "if (code == 0) {\n        memcpy(s->memory, x->config.shadow, s->size_bytes);",
+                "memcpy(s->memory, x->config.shadow, s->size_bytes);\n    if (code == 0) {",
+            )
+        ],
+    ),
 }
+
+#: How a mutant is caught: a violated invariant of the target, or AddressSanitizer at a read or write of the guard
+#: bytes around a segment (poisoned: "use-after-poison").
+CAUGHT_BY = {"xcp_past_segment_end": "AddressSanitizer: use-after-poison"}
 
 
 @pytest.mark.parametrize("mutant", sorted(MUTANTS))
@@ -292,4 +330,5 @@ def test_fuzz_invariants_catch_a_mutant(mutant, tmp_path):
     result = subprocess.run(
         [str(binary), f"-artifact_prefix={tmp_path}/", *seeds], capture_output=True, text=True, timeout=120
     )
-    assert result.returncode != 0 and "pmsm2dof fuzz invariant violated" in result.stderr, result.stderr[-3000:]
+    caught_by = CAUGHT_BY.get(mutant, "pmsm2dof fuzz invariant violated")
+    assert result.returncode != 0 and caught_by in result.stderr, result.stderr[-3000:]

@@ -683,6 +683,131 @@ INERTIA_SEEDS = {
     "rejected_init": inertia_config(J_min=raw(1.0)),
 }
 
+# operations (op % 8) of the XCP target (fuzz_xcp.c)
+XCP_CMD, XCP_CMD_NEAR, XCP_STREAM, XCP_EVENT, XCP_CALIBRATE, XCP_TAKE, XCP_CLOCK = 0, 2, 3, 4, 5, 6, 7
+
+
+def xcp_config(cto=247, dto=100, queue=255, daq=255, options=0, seed=3):
+    """max_cto = 8 + cto % 248, max_dto = 8 + 2 dto, queue max_dto + 2 + 4 queue, DAQ memory 1 + 8 daq bytes;
+    options: bit 0 calibration and bit 1 DAQ under seed and key, bit 2 an A2L name, bit 3 framing checksum."""
+    return bytes([cto, dto, queue, daq, options, seed, 0, 0])
+
+
+def xcp(*packet):
+    """A command packet."""
+    return u8(XCP_CMD) + u8(len(packet)) + bytes(packet)
+
+
+def xcp_near(pid, *fields, segment=0, offset=0):
+    """A command whose address (bytes 4..7) the target sets to segment's address + offset."""
+    packet = bytes([pid, *fields]).ljust(4, b"\0") + bytes([segment, offset & 0xFF, 0, 0])
+    return u8(XCP_CMD_NEAR) + u8(len(packet)) + packet
+
+
+def xcp_stream(*packets, checksum=False, corrupt=False):
+    """Packets framed with the LEN/CTR header (and the checksum byte), fed to the receiver byte by byte."""
+    stream = b""
+    for counter, packet in enumerate(packets):
+        frame = struct.pack("<HH", len(packet), counter) + bytes(packet)
+        if checksum:
+            frame += u8((sum(frame) + (1 if corrupt else 0)) & 0xFF)
+        stream += frame
+    return u8(XCP_STREAM) + u8(len(stream)) + stream
+
+
+def xcp_ops(*ops):
+    return b"".join(u8(op) + bytes(args) for op, *args in ops)
+
+
+CONNECT = xcp(0xFF, 0)
+TAKE = u8(XCP_TAKE)
+DAQ_SETUP = (
+    xcp(0xD6)
+    + xcp(0xD5, 0, 2, 0)
+    + xcp(0xD4, 0, 0, 0, 2)
+    + xcp(0xD4, 0, 1, 0, 1)
+    + xcp(0xD3, 0, 0, 0, 0, 2)
+    + xcp(0xD3, 0, 0, 0, 1, 1)
+    + xcp(0xD3, 0, 1, 0, 0, 1)
+    + xcp(0xE2, 0, 0, 0, 0, 0)
+    + xcp_near(0xE1, 0xFF, 4, 0, segment=0, offset=0)
+    + xcp_near(0xE1, 0xFF, 4, 0, segment=1, offset=0)
+    + xcp(0xE2, 0, 0, 0, 1, 0)
+    + xcp_near(0xE1, 0xFF, 8, 0, segment=2, offset=0)
+    + xcp(0xE2, 0, 1, 0, 0, 0)
+    + xcp_near(0xE1, 0xFF, 4, 0, segment=0, offset=36)
+    + xcp(0xE0, 0x10, 0, 0, 0, 0, 1, 0)
+    + xcp(0xE0, 0x00, 1, 0, 1, 0, 3, 0)
+    + xcp(0xDE, 1, 0, 0)
+    + xcp(0xDE, 2, 1, 0)
+    + xcp(0xDD, 1)
+    + TAKE
+)
+DAQ_RUN = (
+    xcp_ops((XCP_EVENT, 0), (XCP_EVENT, 1), (XCP_EVENT, 1), (XCP_CLOCK, 50, 0), (XCP_EVENT, 1), (XCP_EVENT, 0))
+    + TAKE
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=4)
+    + xcp(0xF0, 4, 1, 2, 3, 4)
+    + xcp_ops((XCP_EVENT, 0), (XCP_CALIBRATE, 1), (XCP_EVENT, 0))
+    + TAKE
+    + xcp(0xDD, 0)
+    + TAKE
+)
+
+XCP_SEEDS = {
+    # identification, uploads inside, across and beyond the segments, slave block mode
+    "connect_upload": xcp_config()
+    + CONNECT
+    + xcp(0xFD)
+    + xcp(0xFA, 0)
+    + xcp(0xF5, 4)
+    + xcp_near(0xF6, 0, 0, 0, segment=0, offset=0)
+    + xcp(0xF5, 255)
+    + xcp_near(0xF4, 40, 0, 0, segment=0, offset=0)
+    + xcp_near(0xF4, 2, 0, 0, segment=2, offset=7)
+    + xcp_near(0xF4, 4, 0, 0, segment=1, offset=-2)
+    + TAKE,
+    # downloads accepted, rejected, write protected, across the edge of the calibration segment
+    "calibrate": xcp_config(cto=0)
+    + CONNECT
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=0)
+    + xcp(0xF0, 4, 1, 2, 3, 4)
+    + xcp_ops((XCP_CALIBRATE, 1))
+    + TAKE
+    + xcp(0xF0, 4, 5, 6, 7, 8)
+    + xcp_ops((XCP_CALIBRATE, 0))
+    + TAKE
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=10)
+    + xcp(0xF0, 4, 1, 2, 3, 4)
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=-1)
+    + xcp(0xF0, 2, 1, 2)
+    + TAKE,
+    # dynamic DAQ lists on both events, sampled while a calibration write lands, then stopped
+    "daq": xcp_config() + CONNECT + DAQ_SETUP + DAQ_RUN,
+    # the same with CAN-sized packets (MAX_CTO 8, MAX_DTO 8) and a small queue
+    "daq_can": xcp_config(cto=0, dto=0, queue=4) + CONNECT + DAQ_SETUP + DAQ_RUN,
+    # both resources locked: refused, unlocked with the right key, a wrong key ends the session
+    "seed_key": xcp_config(options=3)
+    + CONNECT
+    + xcp(0xF0, 1, 0)
+    + xcp(0xF8, 0, 1)
+    + xcp(0xF7, 1, 0)
+    + xcp(0xF8, 0, 4)
+    + xcp(0xF7, 1, 1)
+    + xcp(0xFD)
+    + CONNECT
+    + xcp(0xDA)
+    + TAKE,
+    # framed packets with checksums, one corrupt, on the byte stream
+    "stream": xcp_config(options=8)
+    + xcp_stream([0xFF, 0], [0xFD], checksum=True)
+    + xcp_stream([0xFD], checksum=True, corrupt=True)
+    + xcp_stream([0xFA, 1], [0xF5, 8], checksum=True)
+    + TAKE,
+    # a master silent beyond the link timeout, then back
+    "watchdog": xcp_config() + CONNECT + xcp_ops((XCP_CLOCK, 0xF4, 1), (XCP_CLOCK, 0xF4, 1)) + xcp(0xFD) + TAKE,
+}
+
 
 def main():
     for target, seeds in (
@@ -693,6 +818,7 @@ def main():
         ("field_weakening", FIELD_WEAKENING_SEEDS),
         ("inertia", INERTIA_SEEDS),
         ("filter", FILTER_SEEDS),
+        ("xcp", XCP_SEEDS),
     ):
         folder = CORPUS / target
         folder.mkdir(parents=True, exist_ok=True)

@@ -415,7 +415,9 @@ static void sample_list(p2d_xcp_t *x, const xcp_list_t *l, uint32_t now)
         head[1] = (uint8_t)(dto >> 8);
         head[QUEUE_LENGTH_BYTES] = (uint8_t)(l->first_pid + j);
         queue_put(x, head, head_bytes);
-        for (uint32_t k = 0; k < o->entry_count; ++k) queue_put(x, o->entries[k].source, o->entries[k].size_bytes);
+        for (uint32_t k = 0; k < o->entry_count; ++k) {
+            if (o->entries[k].size_bytes > 0u) queue_put(x, o->entries[k].source, o->entries[k].size_bytes);
+        }
     }
 }
 

@@ -689,6 +689,25 @@ static void test_daq_sampling(void)
     CHECK(r.depth == 0 && r.depth_max == 1);
 }
 
+/* an ODT entry allocated but never written adds nothing to the DTO */
+static void test_daq_unwritten_entry(void)
+{
+    rig_t r;
+    rig_init(&r);
+    CMD(&r, 0xFF, 0x00);
+    CMD(&r, 0xD5, 0, 1, 0);
+    CMD(&r, 0xD4, 0, 0, 0, 1);
+    CMD(&r, 0xD3, 0, 0, 0, 0, 3);
+    CMD(&r, 0xE2, 0, 0, 0, 0, 1); /* the middle entry only */
+    CMD(&r, 0xE1, 0xFF, 2, 0, 0x02, 0x10, 0, 0);
+    CMD(&r, 0xE0, 0x00, 0, 0, 1, 0, 1, 0);
+    CMD(&r, 0xDE, 1, 0, 0);
+    OUT_IS(&r, RES, 0);
+    p2d_xcp_event(&r.x, 1);
+    take(&r);
+    OUT_IS(&r, 0, 0x12, 0x13);
+}
+
 static void test_link_watchdog(void)
 {
     rig_t r;
@@ -834,6 +853,7 @@ int main(void)
     test_daq_info();
     test_daq_sequence();
     test_daq_sampling();
+    test_daq_unwritten_entry();
     test_link_watchdog();
     test_framing();
     test_can();

@@ -42,17 +42,17 @@
 #define LOST_ADDRESS 0x00030000u
 
 typedef struct {
-    uint32_t sample;            /* speed samples since start */
-    uint32_t current_count;     /* current events since start */
-    float w_ref_radps;          /* reference applied (after the guard) [rad/s] */
-    float w_m_radps;            /* speed of the stand-in drive [rad/s] */
-    uint32_t command_sample;    /* sample of the last command received */
-    uint32_t trip_sample;       /* sample at which the guard left ARMED (0: never) */
-    uint32_t stop_sample;       /* sample at which the guard disabled the power stage (0: never) */
-    uint32_t silent_samples;    /* trip_sample - command_sample at the trip: the silence that tripped it */
-    uint8_t power_on;           /* 1 while the power stage may be on */
-    uint8_t guard_state;        /* p2d_xcp_guard_state_t */
-    uint16_t commits_rejected;  /* calibration pages rejected */
+    uint32_t sample;           /* speed samples since start */
+    uint32_t current_count;    /* current events since start */
+    float w_ref_radps;         /* reference applied (after the guard) [rad/s] */
+    float w_m_radps;           /* speed of the stand-in drive [rad/s] */
+    uint32_t command_sample;   /* sample of the last command received */
+    uint32_t trip_sample;      /* sample at which the guard left ARMED (0: never) */
+    uint32_t stop_sample;      /* sample at which the guard disabled the power stage (0: never) */
+    uint32_t silent_samples;   /* trip_sample - command_sample at the trip: the silence that tripped it */
+    uint8_t power_on;          /* 1 while the power stage may be on */
+    uint8_t guard_state;       /* p2d_xcp_guard_state_t */
+    uint16_t commits_rejected; /* calibration pages rejected */
 } drive_meas_t;
 
 typedef struct {
@@ -239,8 +239,7 @@ static int configure(app_t *a)
     memset(&c, 0, sizeof c);
     a->segments[0] = (p2d_xcp_segment_t){MEAS_ADDRESS, &a->meas, sizeof a->meas, P2D_XCP_MEASUREMENT};
     a->segments[1] = (p2d_xcp_segment_t){CAL_ADDRESS, &a->cal, sizeof a->cal, P2D_XCP_CALIBRATION};
-    a->segments[2] = (p2d_xcp_segment_t){LOST_ADDRESS, &a->xcp.dtos_lost, sizeof a->xcp.dtos_lost,
-                                         P2D_XCP_MEASUREMENT};
+    a->segments[2] = (p2d_xcp_segment_t){LOST_ADDRESS, &a->xcp.dtos_lost, sizeof a->xcp.dtos_lost, P2D_XCP_MEASUREMENT};
     a->events[0] = (p2d_xcp_event_t){"current", (uint8_t)(a->opt.period_us / 10), 4, 2};
     a->events[1] = (p2d_xcp_event_t){"speed", (uint8_t)(a->opt.period_us * a->opt.speed_divider / 100), 5, 1};
     c.segments = a->segments;
@@ -304,9 +303,9 @@ int main(int argc, char **argv)
     a.opt.lifetime_s = option(argc, argv, "--lifetime-s", 60);
     for (int i = 1; i < argc; ++i) a.opt.protect |= strcmp(argv[i], "--protect") == 0;
     if (a.opt.period_us < 100 || a.opt.period_us > 2550 || a.opt.speed_divider < 1 || a.opt.speed_divider > 100 ||
-        a.opt.period_us * a.opt.speed_divider > 25500 || a.opt.link_timeout_ms < 0 || a.opt.queue_bytes < 16 || a.opt.queue_bytes > (1L << 24) ||
-        a.opt.lifetime_s < 1 || a.opt.lifetime_s > 3600 || a.opt.max_cto < 0 || a.opt.max_cto > 255 ||
-        a.opt.max_dto < 0 || a.opt.max_dto > 65531) {
+        a.opt.period_us * a.opt.speed_divider > 25500 || a.opt.link_timeout_ms < 0 || a.opt.queue_bytes < 16 ||
+        a.opt.queue_bytes > (1L << 24) || a.opt.lifetime_s < 1 || a.opt.lifetime_s > 3600 || a.opt.max_cto < 0 ||
+        a.opt.max_cto > 255 || a.opt.max_dto < 0 || a.opt.max_dto > 65531) {
         fprintf(stderr, "xcp_tcp_slave: an option is out of range (see the file's comment)\n");
         return 2;
     }
