@@ -49,9 +49,8 @@ def string_bytes(obj):
 
 def symbols(obj):
     """(name, size) of the object's symbols, largest first."""
-    listing = subprocess.run(
-        ["arm-none-eabi-nm", "--size-sort", "--reverse-sort", "-S", str(obj)], capture_output=True, text=True, check=True
-    ).stdout
+    command = ["arm-none-eabi-nm", "--size-sort", "--reverse-sort", "-S", str(obj)]
+    listing = subprocess.run(command, capture_output=True, text=True, check=True).stdout
     return [(m.group(2), int(m.group(1), 16)) for m in re.finditer(r"^\S+ (\S+) \w (\S+)$", listing, re.M)]
 
 

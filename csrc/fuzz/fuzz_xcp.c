@@ -86,7 +86,7 @@ static uint8_t fz_u8(fz_reader_t *r)
 }
 
 typedef struct {
-    uint8_t *block[SEGMENTS];    /* guard | segment | guard */
+    uint8_t *block[SEGMENTS];     /* guard | segment | guard */
     uint8_t expect[SEGMENTS][40]; /* what each segment must hold */
     p2d_xcp_segment_t segments[SEGMENTS];
     p2d_xcp_event_t events[2];
@@ -98,7 +98,7 @@ typedef struct {
     uint32_t now;
     int32_t verdict;
     int depth, depth_max;
-    bool accepted;            /* the last commit call accepted */
+    bool accepted; /* the last commit call accepted */
     uint8_t max_cto;
 } fz_rig_t;
 
@@ -241,8 +241,8 @@ static bool fz_setup(fz_rig_t *r, fz_reader_t *in)
     c.timestamp_unit = 3;
     c.timestamp_ticks = 1;
     c.link_timeout_ticks = 1000;
-    c.protected_resources = (uint8_t)(((options & 1u) ? P2D_XCP_RESOURCE_CALPAG : 0u) |
-                                      ((options & 2u) ? P2D_XCP_RESOURCE_DAQ : 0u));
+    c.protected_resources =
+        (uint8_t)(((options & 1u) ? P2D_XCP_RESOURCE_CALPAG : 0u) | ((options & 2u) ? P2D_XCP_RESOURCE_DAQ : 0u));
     c.seed_bytes = (uint8_t)(1u + seed % (c.max_cto - 2u < 32u ? c.max_cto - 2u : 32u));
     c.id = "fuzz";
     c.a2l_name = (options & 4u) ? "fuzz_a2l" : NULL;
