@@ -6,7 +6,6 @@
 #include "pmsm2dof/xcp.h"
 
 #include <math.h>
-#include <string.h>
 
 /* Packet identifiers of the slave's packets. */
 enum { PID_RES = 0xFF, PID_ERR = 0xFE };
@@ -102,31 +101,41 @@ typedef union {
 
 static void lock(const p2d_xcp_t *x)
 {
-    if (x->config.lock != NULL) x->config.lock(x->config.user);
+    if (x->config.lock != 0) x->config.lock(x->config.user);
 }
 
 static void unlock(const p2d_xcp_t *x)
 {
-    if (x->config.unlock != NULL) x->config.unlock(x->config.user);
+    if (x->config.unlock != 0) x->config.unlock(x->config.user);
 }
 
-static uint16_t get16(const uint8_t *p)
+/* n bytes from src to dst, not overlapping. The library calls nothing outside <math.h>; the compiler would turn
+   a plain loop into a call of memcpy, hence the volatile destination. */
+static void copy_bytes(uint8_t *dst, const uint8_t *src, uint32_t n)
 {
-    uint16_t v;
-    memcpy(&v, p, sizeof v);
+    volatile uint8_t *d = dst;
+    for (uint32_t i = 0; i < n; ++i) d[i] = src[i];
+}
+
+/* n bytes of value at dst (as copy_bytes, not memset) */
+static void fill_bytes(uint8_t *dst, uint8_t value, uint32_t n)
+{
+    volatile uint8_t *d = dst;
+    for (uint32_t i = 0; i < n; ++i) d[i] = value;
+}
+
+/* An n-byte number (n <= 4) in the slave's byte order, the order CONNECT reports. */
+static uint32_t get(const p2d_xcp_t *x, const uint8_t *p, uint32_t n)
+{
+    uint32_t v = 0;
+    for (uint32_t i = 0; i < n; ++i) v |= (uint32_t)p[x->byte_order ? n - 1u - i : i] << (8u * i);
     return v;
 }
 
-static uint32_t get32(const uint8_t *p)
+static void put(const p2d_xcp_t *x, uint8_t *p, uint32_t v, uint32_t n)
 {
-    uint32_t v;
-    memcpy(&v, p, sizeof v);
-    return v;
+    for (uint32_t i = 0; i < n; ++i) p[x->byte_order ? n - 1u - i : i] = (uint8_t)(v >> (8u * i));
 }
-
-static void put16(uint8_t *p, uint16_t v) { memcpy(p, &v, sizeof v); }
-
-static void put32(uint8_t *p, uint32_t v) { memcpy(p, &v, sizeof v); }
 
 /* Length of a text of at most TEXT_MAX_BYTES + 1 characters (the init checks TEXT_MAX_BYTES). */
 static uint32_t text_bytes(const char *s)
@@ -188,10 +197,10 @@ const char *p2d_xcp_status_range(p2d_xcp_status_t status)
 static p2d_xcp_status_t check_segments(const p2d_xcp_config_t *c)
 {
     uint32_t largest_calibration = 0;
-    if (c->segments == NULL || c->segment_count == 0u) return P2D_XCP_ERR_SEGMENTS;
+    if (c->segments == 0 || c->segment_count == 0u) return P2D_XCP_ERR_SEGMENTS;
     for (uint32_t i = 0; i < c->segment_count; ++i) {
         const p2d_xcp_segment_t *s = &c->segments[i];
-        if (s->memory == NULL) return P2D_XCP_ERR_SEGMENT_MEMORY;
+        if (s->memory == 0) return P2D_XCP_ERR_SEGMENT_MEMORY;
         if (s->size_bytes == 0u || s->size_bytes - 1u > UINT32_MAX - s->address) return P2D_XCP_ERR_SEGMENT_SIZE;
         if (s->access != P2D_XCP_MEASUREMENT && s->access != P2D_XCP_CALIBRATION) return P2D_XCP_ERR_SEGMENT_ACCESS;
         for (uint32_t j = 0; j < i; ++j) {
@@ -206,8 +215,8 @@ static p2d_xcp_status_t check_segments(const p2d_xcp_config_t *c)
         }
     }
     if (largest_calibration > 0u) {
-        if (c->shadow == NULL || c->shadow_bytes < largest_calibration) return P2D_XCP_ERR_SHADOW;
-        if (c->commit == NULL) return P2D_XCP_ERR_COMMIT;
+        if (c->shadow == 0 || c->shadow_bytes < largest_calibration) return P2D_XCP_ERR_SHADOW;
+        if (c->commit == 0) return P2D_XCP_ERR_COMMIT;
     }
     return P2D_XCP_OK;
 }
@@ -215,16 +224,16 @@ static p2d_xcp_status_t check_segments(const p2d_xcp_config_t *c)
 static p2d_xcp_status_t check_daq(const p2d_xcp_config_t *c)
 {
     if (c->event_count == 0u) return P2D_XCP_OK;
-    if (c->events == NULL) return P2D_XCP_ERR_EVENTS;
+    if (c->events == 0) return P2D_XCP_ERR_EVENTS;
     for (uint32_t i = 0; i < c->event_count; ++i) {
         const p2d_xcp_event_t *e = &c->events[i];
-        if (e->name == NULL || e->name[0] == '\0' || text_bytes(e->name) > TEXT_MAX_BYTES) {
+        if (e->name == 0 || e->name[0] == '\0' || text_bytes(e->name) > TEXT_MAX_BYTES) {
             return P2D_XCP_ERR_EVENT_NAME;
         }
         if (e->cycle_unit > 9u) return P2D_XCP_ERR_EVENT_CYCLE_UNIT;
     }
-    if (c->daq_memory == NULL || c->daq_memory_bytes == 0u) return P2D_XCP_ERR_DAQ_MEMORY;
-    if (c->queue == NULL || c->queue_bytes < (uint32_t)c->max_dto + QUEUE_LENGTH_BYTES) return P2D_XCP_ERR_QUEUE;
+    if (c->daq_memory == 0 || c->daq_memory_bytes == 0u) return P2D_XCP_ERR_DAQ_MEMORY;
+    if (c->queue == 0 || c->queue_bytes < (uint32_t)c->max_dto + QUEUE_LENGTH_BYTES) return P2D_XCP_ERR_QUEUE;
     return P2D_XCP_OK;
 }
 
@@ -236,36 +245,37 @@ static p2d_xcp_status_t check_config(const p2d_xcp_config_t *c)
     if (c->max_dto < 8u || c->max_dto > 65531u) return P2D_XCP_ERR_MAX_DTO;
     status = check_daq(c);
     if (status != P2D_XCP_OK) return status;
-    if (c->clock == NULL) return P2D_XCP_ERR_CLOCK;
+    if (c->clock == 0) return P2D_XCP_ERR_CLOCK;
     if (c->timestamp_unit > 9u) return P2D_XCP_ERR_TIMESTAMP_UNIT;
     if (c->timestamp_ticks == 0u) return P2D_XCP_ERR_TIMESTAMP_TICKS;
-    if ((c->lock == NULL) != (c->unlock == NULL)) return P2D_XCP_ERR_LOCK;
+    if ((c->lock == 0) != (c->unlock == 0)) return P2D_XCP_ERR_LOCK;
     if ((c->protected_resources & ~(unsigned)(P2D_XCP_RESOURCE_CALPAG | P2D_XCP_RESOURCE_DAQ)) != 0u) {
         return P2D_XCP_ERR_PROTECTION;
     }
     if (c->protected_resources != 0u) {
-        if (c->key == NULL) return P2D_XCP_ERR_KEY;
+        if (c->key == 0) return P2D_XCP_ERR_KEY;
         if (c->seed_bytes == 0u || c->seed_bytes > P2D_XCP_KEY_MAX_BYTES || c->seed_bytes > c->max_cto - 2u) {
             return P2D_XCP_ERR_SEED_BYTES;
         }
     }
-    if (c->id == NULL || text_bytes(c->id) > TEXT_MAX_BYTES) return P2D_XCP_ERR_ID;
-    if (c->a2l_name != NULL && text_bytes(c->a2l_name) > TEXT_MAX_BYTES) return P2D_XCP_ERR_ID;
+    if (c->id == 0 || text_bytes(c->id) > TEXT_MAX_BYTES) return P2D_XCP_ERR_ID;
+    if (c->a2l_name != 0 && text_bytes(c->a2l_name) > TEXT_MAX_BYTES) return P2D_XCP_ERR_ID;
     return P2D_XCP_OK;
 }
 
 p2d_xcp_status_t p2d_xcp_init(p2d_xcp_t *x, const p2d_xcp_config_t *cfg)
 {
-    const uint16_t one = 1;
-    uint8_t first_byte;
+    const union {
+        uint16_t word;
+        uint8_t bytes[2];
+    } probe = {1};
     p2d_xcp_status_t status;
-    if (x == NULL || cfg == NULL) return P2D_XCP_ERR_NULL;
+    if (x == 0 || cfg == 0) return P2D_XCP_ERR_NULL;
     status = check_config(cfg);
     if (status != P2D_XCP_OK) return status;
-    memset(x, 0, sizeof *x);
-    x->config = *cfg;
-    memcpy(&first_byte, &one, 1);
-    x->byte_order = (uint8_t)(first_byte == 1u ? 0u : 1u);
+    fill_bytes((uint8_t *)x, 0, (uint32_t)sizeof *x);
+    copy_bytes((uint8_t *)&x->config, (const uint8_t *)cfg, (uint32_t)sizeof *cfg);
+    x->byte_order = (uint8_t)(probe.bytes[0] == 1u ? 0u : 1u);
     x->seed_state = 0x9E3779B9u;
     return P2D_XCP_OK;
 }
@@ -289,28 +299,28 @@ static void fail(p2d_xcp_t *x, uint8_t code)
 
 /* ---------------------------------------------------------------- memory */
 
-/* The segment that holds all of [address, address + n), n >= 1, or NULL. */
+/* The segment that holds all of [address, address + n), n >= 1, or NULL (0). */
 static const p2d_xcp_segment_t *find_segment(const p2d_xcp_t *x, uint32_t address, uint32_t n, uint16_t *index)
 {
     for (uint16_t i = 0; i < x->config.segment_count; ++i) {
         const p2d_xcp_segment_t *s = &x->config.segments[i];
         if (address - s->address < s->size_bytes && n <= s->size_bytes - (address - s->address)) {
-            if (index != NULL) *index = i;
+            if (index != 0) *index = i;
             return s;
         }
     }
-    return NULL;
+    return 0;
 }
 
 /* The n bytes at an XCP address, read from their segment into out; false (and ERR_ACCESS_DENIED) if none holds them. */
 static bool read_memory(p2d_xcp_t *x, uint32_t address, uint32_t n, uint8_t *out)
 {
-    const p2d_xcp_segment_t *s = find_segment(x, address, n, NULL);
-    if (s == NULL) {
+    const p2d_xcp_segment_t *s = find_segment(x, address, n, 0);
+    if (s == 0) {
         fail(x, ERR_ACCESS_DENIED);
         return false;
     }
-    memcpy(out, (const uint8_t *)s->memory + (address - s->address), n);
+    copy_bytes(out, (const uint8_t *)s->memory + (address - s->address), n);
     return true;
 }
 
@@ -318,7 +328,7 @@ static bool read_memory(p2d_xcp_t *x, uint32_t address, uint32_t n, uint8_t *out
 
 static xcp_list_t *lists(const p2d_xcp_t *x) { return (xcp_list_t *)x->daq_lists; }
 
-/* bytes of daq_memory, aligned for the tables, or NULL when they do not fit */
+/* bytes of daq_memory, aligned for the tables, or NULL (0) when they do not fit */
 static void *daq_alloc(p2d_xcp_t *x, uint32_t count, uint32_t size)
 {
     uint8_t *base = (uint8_t *)x->config.daq_memory;
@@ -327,9 +337,9 @@ static void *daq_alloc(p2d_xcp_t *x, uint32_t count, uint32_t size)
     uint32_t start = x->daq_used_bytes + (misalign != 0u ? align - misalign : 0u);
     uint32_t room = start <= x->config.daq_memory_bytes ? x->config.daq_memory_bytes - start : 0u;
     void *p;
-    if (count > room / size) return NULL;
+    if (count > room / size) return 0;
     p = base + start;
-    memset(p, 0, (size_t)count * size);
+    fill_bytes((uint8_t *)p, 0, count * size);
     x->daq_used_bytes = start + count * size;
     return p;
 }
@@ -383,8 +393,8 @@ static void queue_put(p2d_xcp_t *x, const uint8_t *bytes, uint32_t n)
 {
     uint32_t first = x->config.queue_bytes - x->queue_head;
     if (first > n) first = n;
-    memcpy(x->config.queue + x->queue_head, bytes, first);
-    memcpy(x->config.queue, bytes + first, n - first);
+    copy_bytes(x->config.queue + x->queue_head, bytes, first);
+    copy_bytes(x->config.queue, bytes + first, n - first);
     x->queue_head = (x->queue_head + n) % x->config.queue_bytes;
     x->queue_used += n;
 }
@@ -393,8 +403,8 @@ static void queue_get(p2d_xcp_t *x, uint8_t *bytes, uint32_t n)
 {
     uint32_t first = x->config.queue_bytes - x->queue_tail;
     if (first > n) first = n;
-    memcpy(bytes, x->config.queue + x->queue_tail, first);
-    memcpy(bytes + first, x->config.queue, n - first);
+    copy_bytes(bytes, x->config.queue + x->queue_tail, first);
+    copy_bytes(bytes + first, x->config.queue, n - first);
     x->queue_tail = (x->queue_tail + n) % x->config.queue_bytes;
     x->queue_used -= n;
 }
@@ -407,7 +417,7 @@ static void sample_list(p2d_xcp_t *x, const xcp_list_t *l, uint32_t now)
         uint8_t head[QUEUE_LENGTH_BYTES + 1u + TIMESTAMP_BYTES];
         uint32_t head_bytes = QUEUE_LENGTH_BYTES + 1u, dto = 1u + o->payload_bytes;
         if (j == 0u && (l->flags & LIST_TIMESTAMP)) {
-            put32(head + head_bytes, now);
+            put(x, head + head_bytes, now, 4);
             head_bytes += TIMESTAMP_BYTES;
             dto += TIMESTAMP_BYTES;
         }
@@ -424,7 +434,7 @@ static void sample_list(p2d_xcp_t *x, const xcp_list_t *l, uint32_t now)
 void p2d_xcp_event(p2d_xcp_t *x, uint16_t event)
 {
     uint32_t now;
-    if (x == NULL) return;
+    if (x == 0) return;
     now = x->config.clock(x->config.user);
     lock(x);
     if (x->daq_running) {
@@ -443,10 +453,10 @@ void p2d_xcp_event(p2d_xcp_t *x, uint16_t event)
     unlock(x);
 }
 
-size_t p2d_xcp_take(p2d_xcp_t *x, uint8_t *packet, size_t capacity)
+uint32_t p2d_xcp_take(p2d_xcp_t *x, uint8_t *packet, uint32_t capacity)
 {
-    size_t n = 0;
-    if (x == NULL || packet == NULL || capacity < x->config.max_cto || capacity < x->config.max_dto) return 0;
+    uint32_t n = 0;
+    if (x == 0 || packet == 0 || capacity < x->config.max_cto || capacity < x->config.max_dto) return 0;
     lock(x);
     if (x->response_bytes > 0u) {
         uint32_t data = (uint32_t)x->config.max_cto - 1u, left = (uint32_t)x->response_bytes - x->response_taken;
@@ -458,7 +468,7 @@ size_t p2d_xcp_take(p2d_xcp_t *x, uint8_t *packet, size_t capacity)
         }
         if (left > data) left = data;
         packet[0] = x->response[0];
-        memcpy(packet + 1, x->response + x->response_taken, left);
+        copy_bytes(packet + 1, x->response + x->response_taken, left);
         x->response_taken = (uint16_t)(x->response_taken + left);
         n = 1u + left;
         if (x->response_taken >= x->response_bytes) {
@@ -468,7 +478,7 @@ size_t p2d_xcp_take(p2d_xcp_t *x, uint8_t *packet, size_t capacity)
     } else if (x->queue_used > 0u) {
         uint8_t length[QUEUE_LENGTH_BYTES];
         queue_get(x, length, QUEUE_LENGTH_BYTES);
-        n = (size_t)length[0] | (size_t)length[1] << 8;
+        n = (uint32_t)length[0] | (uint32_t)length[1] << 8;
         queue_get(x, packet, (uint32_t)n);
         x->dtos_sent++;
     }
@@ -488,11 +498,11 @@ static void cmd_connect(p2d_xcp_t *x, const uint8_t *cmd)
     x->connected = 1;
     x->locked = x->config.protected_resources;
     x->seed_resource = 0;
-    x->mta_text = NULL;
+    x->mta_text = 0;
     r[1] = (uint8_t)(P2D_XCP_RESOURCE_CALPAG | (x->config.event_count > 0u ? P2D_XCP_RESOURCE_DAQ : 0u));
     r[2] = (uint8_t)(0x80u | 0x40u | x->byte_order); /* OPTIONAL (GET_COMM_MODE_INFO), SLAVE_BLOCK_MODE, AG BYTE */
     r[3] = x->config.max_cto;
-    put16(r + 4, x->config.max_dto);
+    put(x, r + 4, x->config.max_dto, 2);
     r[6] = 1; /* protocol layer version */
     r[7] = 1; /* transport layer version */
     respond(x, 8);
@@ -503,16 +513,16 @@ static void cmd_get_status(p2d_xcp_t *x)
     uint8_t *r = x->response;
     r[1] = x->daq_running ? 0x40u : 0u; /* DAQ_RUNNING */
     r[2] = x->locked;
-    r[3] = 0;        /* state number */
-    put16(r + 4, 0); /* session configuration id */
+    r[3] = 0;            /* state number */
+    put(x, r + 4, 0, 2); /* session configuration id */
     respond(x, 6);
 }
 
 static void cmd_get_comm_mode_info(p2d_xcp_t *x)
 {
     uint8_t *r = x->response;
-    memset(r + 1, 0, 6); /* no master block mode, no interleaved mode */
-    r[7] = 0x10;         /* driver version 1.0 */
+    fill_bytes(r + 1, 0, 6); /* no master block mode, no interleaved mode */
+    r[7] = 0x10;             /* driver version 1.0 */
     respond(x, 8);
 }
 
@@ -526,13 +536,13 @@ static void set_mta_text(p2d_xcp_t *x, const char *text, uint32_t bytes)
 static void cmd_get_id(p2d_xcp_t *x, const uint8_t *cmd)
 {
     uint8_t *r = x->response;
-    const char *text = cmd[1] == 0u ? x->config.id : (cmd[1] == 1u ? x->config.a2l_name : NULL);
-    uint32_t bytes = text != NULL ? text_bytes(text) : 0u;
+    const char *text = cmd[1] == 0u ? x->config.id : (cmd[1] == 1u ? x->config.a2l_name : 0);
+    uint32_t bytes = text != 0 ? text_bytes(text) : 0u;
     set_mta_text(x, text, bytes);
     r[1] = 0; /* the text is read by UPLOAD */
     r[2] = 0;
     r[3] = 0;
-    put32(r + 4, bytes);
+    put(x, r + 4, bytes, 4);
     respond(x, 8);
 }
 
@@ -567,7 +577,7 @@ static void cmd_get_seed(p2d_xcp_t *x, const uint8_t *cmd)
     x->key_bytes = 0;
     x->key_received = 0;
     r[1] = x->config.seed_bytes;
-    memcpy(r + 2, x->seed, x->config.seed_bytes);
+    copy_bytes(r + 2, x->seed, x->config.seed_bytes);
     respond(x, (uint16_t)(2u + x->config.seed_bytes));
 }
 
@@ -578,12 +588,12 @@ static void disconnect(p2d_xcp_t *x)
     x->seed_resource = 0;
 }
 
-static void cmd_unlock(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
+static void cmd_unlock(p2d_xcp_t *x, const uint8_t *cmd, uint32_t len)
 {
     uint8_t expected[P2D_XCP_KEY_MAX_BYTES];
     uint32_t remaining = cmd[1], chunk = (uint32_t)len - 2u, expected_bytes;
     uint8_t difference = 0;
-    memset(expected, 0, sizeof expected);
+    fill_bytes(expected, 0, (uint32_t)sizeof expected);
     if (x->seed_resource == 0u) {
         fail(x, ERR_SEQUENCE);
         return;
@@ -606,7 +616,7 @@ static void cmd_unlock(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
         fail(x, ERR_CMD_SYNTAX);
         return;
     }
-    memcpy(x->key + x->key_received, cmd + 2, chunk);
+    copy_bytes(x->key + x->key_received, cmd + 2, chunk);
     x->key_received = (uint8_t)(x->key_received + chunk);
     if (x->key_received == x->key_bytes) {
         expected_bytes = x->config.key(x->config.user, x->seed_resource, x->seed, x->config.seed_bytes, expected);
@@ -631,23 +641,23 @@ static void cmd_upload(p2d_xcp_t *x, uint32_t address, uint32_t n, bool from_mta
         fail(x, ERR_OUT_OF_RANGE);
         return;
     }
-    if (from_mta && x->mta_text != NULL) {
+    if (from_mta && x->mta_text != 0) {
         if (n > x->mta_text_bytes) {
             fail(x, ERR_OUT_OF_RANGE);
             return;
         }
-        memcpy(x->response + 1, x->mta_text, n);
+        copy_bytes(x->response + 1, (const uint8_t *)x->mta_text, n);
         x->mta_text += n;
         x->mta_text_bytes -= n;
     } else {
         if (!read_memory(x, address, n, x->response + 1)) return;
         x->mta = address + n;
-        x->mta_text = NULL;
+        x->mta_text = 0;
     }
     respond(x, (uint16_t)(1u + n));
 }
 
-static void cmd_download(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
+static void cmd_download(p2d_xcp_t *x, const uint8_t *cmd, uint32_t len)
 {
     uint32_t n = cmd[1];
     uint16_t index = 0;
@@ -664,8 +674,8 @@ static void cmd_download(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
         fail(x, ERR_CMD_SYNTAX);
         return;
     }
-    s = x->mta_text == NULL ? find_segment(x, x->mta, n, &index) : NULL;
-    if (s == NULL) {
+    s = x->mta_text == 0 ? find_segment(x, x->mta, n, &index) : 0;
+    if (s == 0) {
         fail(x, ERR_ACCESS_DENIED);
         return;
     }
@@ -674,8 +684,8 @@ static void cmd_download(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
         return;
     }
     /* the shadow page: the segment with the new bytes; in force after p2d_xcp_calibrate */
-    memcpy(x->config.shadow, s->memory, s->size_bytes);
-    memcpy((uint8_t *)x->config.shadow + (x->mta - s->address), cmd + 2, n);
+    copy_bytes((uint8_t *)x->config.shadow, (const uint8_t *)s->memory, s->size_bytes);
+    copy_bytes((uint8_t *)x->config.shadow + (x->mta - s->address), cmd + 2, n);
     x->commit_segment = index;
     x->commit_bytes = (uint8_t)n;
     x->commit_state = 1;
@@ -687,8 +697,8 @@ static void cmd_get_daq_processor_info(p2d_xcp_t *x)
     uint8_t *r = x->response;
     uint32_t max_daq = x->config.daq_memory_bytes / (uint32_t)sizeof(xcp_list_t);
     r[1] = 0x01u | 0x02u | 0x10u; /* DAQ_CONFIG_TYPE dynamic, PRESCALER_SUPPORTED, TIMESTAMP_SUPPORTED */
-    put16(r + 2, (uint16_t)(max_daq > 0xFFFFu ? 0xFFFFu : max_daq));
-    put16(r + 4, x->config.event_count);
+    put(x, r + 2, (uint16_t)(max_daq > 0xFFFFu ? 0xFFFFu : max_daq), 2);
+    put(x, r + 4, x->config.event_count, 2);
     r[6] = 0;     /* MIN_DAQ: no predefined lists */
     r[7] = 0x30u; /* DAQ_KEY_BYTE: absolute ODT number, one address extension for all, default optimisation */
     respond(x, 8);
@@ -703,14 +713,14 @@ static void cmd_get_daq_resolution_info(p2d_xcp_t *x)
     r[3] = 1; /* STIM: none */
     r[4] = 0;
     r[5] = (uint8_t)((unsigned)x->config.timestamp_unit << 4 | 0x04u); /* 4-byte timestamps, not fixed */
-    put16(r + 6, x->config.timestamp_ticks);
+    put(x, r + 6, x->config.timestamp_ticks, 2);
     respond(x, 8);
 }
 
 static void cmd_get_daq_event_info(p2d_xcp_t *x, const uint8_t *cmd)
 {
     uint8_t *r = x->response;
-    uint16_t index = get16(cmd + 2);
+    uint16_t index = (uint16_t)get(x, cmd + 2, 2);
     const p2d_xcp_event_t *e;
     if (index >= x->config.event_count) {
         fail(x, ERR_OUT_OF_RANGE);
@@ -729,14 +739,14 @@ static void cmd_get_daq_event_info(p2d_xcp_t *x, const uint8_t *cmd)
 
 static void cmd_alloc_daq(p2d_xcp_t *x, const uint8_t *cmd)
 {
-    uint16_t count = get16(cmd + 2);
+    uint16_t count = (uint16_t)get(x, cmd + 2, 2);
     void *p;
     if (x->daq_alloc_step != 0u) {
         fail(x, ERR_SEQUENCE);
         return;
     }
     p = daq_alloc(x, count, (uint32_t)sizeof(xcp_list_t));
-    if (p == NULL) {
+    if (p == 0) {
         fail(x, ERR_MEMORY_OVERFLOW);
         return;
     }
@@ -748,7 +758,7 @@ static void cmd_alloc_daq(p2d_xcp_t *x, const uint8_t *cmd)
 
 static void cmd_alloc_odt(p2d_xcp_t *x, const uint8_t *cmd)
 {
-    uint16_t list = get16(cmd + 2);
+    uint16_t list = (uint16_t)get(x, cmd + 2, 2);
     uint8_t count = cmd[4];
     xcp_list_t *l;
     if (x->daq_alloc_step != 1u && x->daq_alloc_step != 2u) {
@@ -765,7 +775,7 @@ static void cmd_alloc_odt(p2d_xcp_t *x, const uint8_t *cmd)
         return;
     }
     if ((uint32_t)x->odt_count + count > ODT_COUNT_MAX ||
-        (l->odts = (xcp_odt_t *)daq_alloc(x, count, (uint32_t)sizeof(xcp_odt_t))) == NULL) {
+        (l->odts = (xcp_odt_t *)daq_alloc(x, count, (uint32_t)sizeof(xcp_odt_t))) == 0) {
         fail(x, ERR_MEMORY_OVERFLOW);
         return;
     }
@@ -777,7 +787,7 @@ static void cmd_alloc_odt(p2d_xcp_t *x, const uint8_t *cmd)
 
 static void cmd_alloc_odt_entry(p2d_xcp_t *x, const uint8_t *cmd)
 {
-    uint16_t list = get16(cmd + 2);
+    uint16_t list = (uint16_t)get(x, cmd + 2, 2);
     uint8_t odt = cmd[4], count = cmd[5];
     xcp_odt_t *o;
     if (x->daq_alloc_step != 2u && x->daq_alloc_step != 3u) {
@@ -793,7 +803,7 @@ static void cmd_alloc_odt_entry(p2d_xcp_t *x, const uint8_t *cmd)
         fail(x, ERR_SEQUENCE);
         return;
     }
-    if ((o->entries = (xcp_entry_t *)daq_alloc(x, count, (uint32_t)sizeof(xcp_entry_t))) == NULL) {
+    if ((o->entries = (xcp_entry_t *)daq_alloc(x, count, (uint32_t)sizeof(xcp_entry_t))) == 0) {
         fail(x, ERR_MEMORY_OVERFLOW);
         return;
     }
@@ -804,7 +814,7 @@ static void cmd_alloc_odt_entry(p2d_xcp_t *x, const uint8_t *cmd)
 
 static void cmd_set_daq_ptr(p2d_xcp_t *x, const uint8_t *cmd)
 {
-    uint16_t list = get16(cmd + 2);
+    uint16_t list = (uint16_t)get(x, cmd + 2, 2);
     uint8_t odt = cmd[4], entry = cmd[5];
     x->daq_ptr_valid = 0;
     if (list >= x->daq_list_count || odt >= lists(x)[list].odt_count || entry >= lists(x)[list].odts[odt].entry_count) {
@@ -824,7 +834,7 @@ static void cmd_set_daq_ptr(p2d_xcp_t *x, const uint8_t *cmd)
 
 static void cmd_write_daq(p2d_xcp_t *x, const uint8_t *cmd)
 {
-    uint32_t size = cmd[2], address = get32(cmd + 4);
+    uint32_t size = cmd[2], address = get(x, cmd + 4, 4);
     const p2d_xcp_segment_t *s;
     xcp_list_t *l;
     xcp_odt_t *o;
@@ -844,8 +854,8 @@ static void cmd_write_daq(p2d_xcp_t *x, const uint8_t *cmd)
         fail(x, ERR_OUT_OF_RANGE); /* past the ODT's end, a bit offset, a size, an address extension */
         return;
     }
-    s = find_segment(x, address, size, NULL);
-    if (s == NULL) {
+    s = find_segment(x, address, size, 0);
+    if (s == 0) {
         fail(x, ERR_ACCESS_DENIED);
         return;
     }
@@ -863,7 +873,7 @@ static void cmd_write_daq(p2d_xcp_t *x, const uint8_t *cmd)
 
 static void cmd_set_daq_list_mode(p2d_xcp_t *x, const uint8_t *cmd)
 {
-    uint16_t list = get16(cmd + 2), event = get16(cmd + 4);
+    uint16_t list = (uint16_t)get(x, cmd + 2, 2), event = (uint16_t)get(x, cmd + 4, 2);
     xcp_list_t *l;
     if (list >= x->daq_list_count || (cmd[1] & ~0x10u) != 0u || event >= x->config.event_count || cmd[6] == 0u) {
         fail(x, ERR_OUT_OF_RANGE); /* only the TIMESTAMP bit; DAQ direction, no PID_OFF; prescaler >= 1 */
@@ -888,7 +898,7 @@ static void start_list(xcp_list_t *l)
 
 static void cmd_start_stop_daq_list(p2d_xcp_t *x, const uint8_t *cmd)
 {
-    uint16_t list = get16(cmd + 2);
+    uint16_t list = (uint16_t)get(x, cmd + 2, 2);
     xcp_list_t *l;
     if (list >= x->daq_list_count || cmd[1] > 2u) {
         fail(x, ERR_OUT_OF_RANGE);
@@ -945,7 +955,7 @@ static void cmd_start_stop_synch(p2d_xcp_t *x, const uint8_t *cmd)
 static void cmd_free_daq(p2d_xcp_t *x)
 {
     stop_all(x);
-    x->daq_lists = NULL;
+    x->daq_lists = 0;
     x->daq_list_count = 0;
     x->odt_count = 0;
     x->daq_used_bytes = 0;
@@ -960,7 +970,7 @@ static void cmd_get_daq_clock(p2d_xcp_t *x)
     r[1] = 0; /* legacy format: no trigger information */
     r[2] = 0;
     r[3] = 0;
-    put32(r + 4, x->config.clock(x->config.user));
+    put(x, r + 4, x->config.clock(x->config.user), 4);
     respond(x, 8);
 }
 
@@ -1000,7 +1010,7 @@ static uint32_t command_bytes(uint8_t pid)
 /* Whether a command belongs to the DAQ resource (seed and key). */
 static bool is_daq_command(uint8_t pid) { return pid <= CMD_SET_DAQ_PTR && pid >= CMD_ALLOC_ODT_ENTRY; }
 
-static void dispatch(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
+static void dispatch(p2d_xcp_t *x, const uint8_t *cmd, uint32_t len)
 {
     uint8_t pid = cmd[0];
     uint32_t shortest = command_bytes(pid);
@@ -1033,8 +1043,8 @@ static void dispatch(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
             fail(x, ERR_OUT_OF_RANGE); /* address extension */
             break;
         }
-        x->mta = get32(cmd + 4);
-        x->mta_text = NULL;
+        x->mta = get(x, cmd + 4, 4);
+        x->mta_text = 0;
         respond(x, 1);
         break;
     case CMD_UPLOAD: cmd_upload(x, x->mta, cmd[1], true); break;
@@ -1043,7 +1053,7 @@ static void dispatch(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
             fail(x, ERR_OUT_OF_RANGE);
             break;
         }
-        cmd_upload(x, get32(cmd + 4), cmd[1], false);
+        cmd_upload(x, get(x, cmd + 4, 4), cmd[1], false);
         break;
     case CMD_DOWNLOAD: cmd_download(x, cmd, len); break;
     case CMD_GET_DAQ_CLOCK: cmd_get_daq_clock(x); break;
@@ -1062,10 +1072,10 @@ static void dispatch(p2d_xcp_t *x, const uint8_t *cmd, size_t len)
     }
 }
 
-void p2d_xcp_command(p2d_xcp_t *x, const uint8_t *packet, size_t len)
+void p2d_xcp_command(p2d_xcp_t *x, const uint8_t *packet, uint32_t len)
 {
     uint32_t now;
-    if (x == NULL || packet == NULL || len == 0u) return;
+    if (x == 0 || packet == 0 || len == 0u) return;
     now = x->config.clock(x->config.user);
     lock(x);
     if (x->connected || packet[0] == CMD_CONNECT) { /* not connected: silent but for CONNECT */
@@ -1087,7 +1097,7 @@ p2d_xcp_commit_t p2d_xcp_calibrate(p2d_xcp_t *x)
 {
     const p2d_xcp_segment_t *s;
     int32_t code;
-    if (x == NULL) return P2D_XCP_COMMIT_NONE;
+    if (x == 0) return P2D_XCP_COMMIT_NONE;
     lock(x);
     if (x->commit_state != 1u) {
         unlock(x);
@@ -1099,7 +1109,7 @@ p2d_xcp_commit_t p2d_xcp_calibrate(p2d_xcp_t *x)
     code = x->config.commit(x->config.user, x->commit_segment, x->config.shadow);
     lock(x);
     if (code == 0) {
-        memcpy(s->memory, x->config.shadow, s->size_bytes);
+        copy_bytes((uint8_t *)s->memory, (const uint8_t *)x->config.shadow, s->size_bytes);
         x->mta += x->commit_bytes;
         x->commits_applied++;
         respond(x, 1);
@@ -1117,7 +1127,7 @@ bool p2d_xcp_link_check(p2d_xcp_t *x)
 {
     uint32_t now;
     bool silent;
-    if (x == NULL) return false;
+    if (x == 0) return false;
     now = x->config.clock(x->config.user);
     lock(x);
     if (x->connected && x->config.link_timeout_ticks > 0u &&
@@ -1133,22 +1143,22 @@ bool p2d_xcp_link_check(p2d_xcp_t *x)
 
 void p2d_xcp_frame_init(p2d_xcp_frame_t *f, bool checksum)
 {
-    if (f == NULL) return;
-    memset(f, 0, sizeof *f);
+    if (f == 0) return;
+    fill_bytes((uint8_t *)f, 0, (uint32_t)sizeof *f);
     f->checksum = checksum;
 }
 
 void p2d_xcp_frame_rx_reset(p2d_xcp_frame_t *f)
 {
-    if (f == NULL) return;
+    if (f == 0) return;
     f->rx_count = 0;
     f->rx_sum = 0;
 }
 
-size_t p2d_xcp_frame_rx(p2d_xcp_frame_t *f, uint8_t byte)
+uint32_t p2d_xcp_frame_rx(p2d_xcp_frame_t *f, uint8_t byte)
 {
     uint32_t header = P2D_XCP_FRAME_HEADER_BYTES;
-    if (f == NULL) return 0;
+    if (f == 0) return 0;
     if (f->rx_count < header) {
         f->rx_header[f->rx_count++] = byte;
         f->rx_sum = (uint8_t)(f->rx_sum + byte);
@@ -1175,18 +1185,18 @@ size_t p2d_xcp_frame_rx(p2d_xcp_frame_t *f, uint8_t byte)
     return f->rx_length;
 }
 
-size_t p2d_xcp_frame_tx(p2d_xcp_frame_t *f, uint8_t *frame, size_t len)
+uint32_t p2d_xcp_frame_tx(p2d_xcp_frame_t *f, uint8_t *frame, uint32_t len)
 {
-    size_t n = P2D_XCP_FRAME_HEADER_BYTES + len;
+    uint32_t n = P2D_XCP_FRAME_HEADER_BYTES + len;
     uint8_t sum = 0;
-    if (f == NULL || frame == NULL || len == 0u || len > 0xFFFFu - P2D_XCP_FRAME_HEADER_BYTES) return 0;
+    if (f == 0 || frame == 0 || len == 0u || len > 0xFFFFu - P2D_XCP_FRAME_HEADER_BYTES) return 0;
     frame[0] = (uint8_t)(len & 0xFFu);
     frame[1] = (uint8_t)(len >> 8);
     frame[2] = (uint8_t)(f->tx_counter & 0xFFu);
     frame[3] = (uint8_t)(f->tx_counter >> 8);
     f->tx_counter++;
     if (!f->checksum) return n;
-    for (size_t i = 0; i < n; ++i) sum = (uint8_t)(sum + frame[i]);
+    for (uint32_t i = 0; i < n; ++i) sum = (uint8_t)(sum + frame[i]);
     frame[n] = sum;
     return n + 1u;
 }
@@ -1196,9 +1206,9 @@ size_t p2d_xcp_frame_tx(p2d_xcp_frame_t *f, uint8_t *frame, size_t len)
 /* the data lengths of CAN FD above 8 bytes */
 static const uint8_t CAN_FD_BYTES[7] = {12, 16, 20, 24, 32, 48, 64};
 
-size_t p2d_xcp_can_length(size_t len, size_t min_bytes)
+uint32_t p2d_xcp_can_length(uint32_t len, uint32_t min_bytes)
 {
-    size_t need = len > min_bytes ? len : min_bytes;
+    uint32_t need = len > min_bytes ? len : min_bytes;
     if (len == 0u || need > 64u) return 0;
     if (need <= 8u) return need;
     for (uint32_t i = 0; i < sizeof CAN_FD_BYTES; ++i) {
@@ -1207,15 +1217,15 @@ size_t p2d_xcp_can_length(size_t len, size_t min_bytes)
     return 0;
 }
 
-size_t p2d_xcp_can_pad(uint8_t *frame, size_t len, size_t min_bytes, uint8_t fill)
+uint32_t p2d_xcp_can_pad(uint8_t *frame, uint32_t len, uint32_t min_bytes, uint8_t fill)
 {
-    size_t n = p2d_xcp_can_length(len, min_bytes);
-    if (frame == NULL || n == 0u) return 0;
-    memset(frame + len, fill, n - len);
+    uint32_t n = p2d_xcp_can_length(len, min_bytes);
+    if (frame == 0 || n == 0u) return 0;
+    fill_bytes(frame + len, fill, n - len);
     return n;
 }
 
-uint8_t p2d_xcp_can_dlc(size_t data_bytes)
+uint8_t p2d_xcp_can_dlc(uint32_t data_bytes)
 {
     if (data_bytes <= 8u) return (uint8_t)data_bytes;
     for (uint32_t i = 0; i < sizeof CAN_FD_BYTES; ++i) {
@@ -1229,7 +1239,7 @@ uint8_t p2d_xcp_can_dlc(size_t data_bytes)
 p2d_xcp_status_t p2d_xcp_guard_init(p2d_xcp_guard_t *g, const p2d_xcp_guard_config_t *cfg)
 {
     float step;
-    if (g == NULL || cfg == NULL) return P2D_XCP_ERR_NULL;
+    if (g == 0 || cfg == 0) return P2D_XCP_ERR_NULL;
     if (!isfinite(cfg->Ts_s) || !(cfg->Ts_s > 0.0f)) return P2D_XCP_ERR_GUARD_TS;
     step = cfg->ramp_radps_per_s * cfg->Ts_s;
     if (!isfinite(cfg->ramp_radps_per_s) || !(cfg->ramp_radps_per_s > 0.0f) || !isfinite(step) || !(step > 0.0f)) {
@@ -1238,11 +1248,12 @@ p2d_xcp_status_t p2d_xcp_guard_init(p2d_xcp_guard_t *g, const p2d_xcp_guard_conf
     if (!isfinite(cfg->hold_s) || !(cfg->hold_s >= 0.0f) || cfg->hold_s / cfg->Ts_s > 16777216.0f) {
         return P2D_XCP_ERR_GUARD_HOLD;
     }
-    memset(g, 0, sizeof *g);
     g->config = *cfg;
     g->ramp_step_radps = step;
     g->hold_samples = (uint32_t)(cfg->hold_s / cfg->Ts_s + 0.5f);
     g->state = P2D_XCP_GUARD_ARMED;
+    g->w_ref_radps = 0.0f;
+    g->hold_count = 0;
     return P2D_XCP_OK;
 }
 
@@ -1250,14 +1261,14 @@ float p2d_xcp_guard_step(p2d_xcp_guard_t *g, bool silent, float w_cmd_radps, boo
 {
     float magnitude;
     bool on = true;
-    if (g == NULL) {
-        if (power_on != NULL) *power_on = false;
+    if (g == 0) {
+        if (power_on != 0) *power_on = false;
         return 0.0f;
     }
     if (g->state == P2D_XCP_GUARD_ARMED) {
         if (!silent) {
             g->w_ref_radps = w_cmd_radps;
-            if (power_on != NULL) *power_on = true;
+            if (power_on != 0) *power_on = true;
             return w_cmd_radps;
         }
         g->state = P2D_XCP_GUARD_RAMPING;
@@ -1282,13 +1293,13 @@ float p2d_xcp_guard_step(p2d_xcp_guard_t *g, bool silent, float w_cmd_radps, boo
         break;
     default: on = false; break;
     }
-    if (power_on != NULL) *power_on = on;
+    if (power_on != 0) *power_on = on;
     return g->w_ref_radps;
 }
 
 void p2d_xcp_guard_reset(p2d_xcp_guard_t *g)
 {
-    if (g == NULL) return;
+    if (g == 0) return;
     g->state = P2D_XCP_GUARD_ARMED;
     g->hold_count = 0;
 }

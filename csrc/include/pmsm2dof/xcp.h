@@ -74,7 +74,6 @@
 #define PMSM2DOF_XCP_H
 
 #include <stdbool.h>
-#include <stddef.h>
 #include <stdint.h>
 
 #ifdef __cplusplus
@@ -245,7 +244,7 @@ typedef struct {
 p2d_xcp_status_t p2d_xcp_init(p2d_xcp_t *x, const p2d_xcp_config_t *cfg);
 
 /* Process one command packet (len bytes, PID first) and queue its response. */
-void p2d_xcp_command(p2d_xcp_t *x, const uint8_t *packet, size_t len);
+void p2d_xcp_command(p2d_xcp_t *x, const uint8_t *packet, uint32_t len);
 
 /* Sample the DAQ lists bound to event number `event` (call it in that event's interrupt). */
 void p2d_xcp_event(p2d_xcp_t *x, uint16_t event);
@@ -255,7 +254,7 @@ p2d_xcp_commit_t p2d_xcp_calibrate(p2d_xcp_t *x);
 
 /* The next packet to send (response first, then DTOs), copied to packet; returns its length, 0: none.
    capacity must hold max_cto and max_dto bytes. */
-size_t p2d_xcp_take(p2d_xcp_t *x, uint8_t *packet, size_t capacity);
+uint32_t p2d_xcp_take(p2d_xcp_t *x, uint8_t *packet, uint32_t capacity);
 
 /* The watchdog: true when the connected master has been silent for more than link_timeout_ticks. Latched
    until the next command; call it at least once per clock wrap (every speed sample). */
@@ -285,25 +284,25 @@ typedef struct {
 void p2d_xcp_frame_init(p2d_xcp_frame_t *f, bool checksum);
 
 /* One received byte; returns the length of a packet complete in f->packet (valid until the next call), else 0. */
-size_t p2d_xcp_frame_rx(p2d_xcp_frame_t *f, uint8_t byte);
+uint32_t p2d_xcp_frame_rx(p2d_xcp_frame_t *f, uint8_t byte);
 
 /* Forget a partly received frame. */
 void p2d_xcp_frame_rx_reset(p2d_xcp_frame_t *f);
 
 /* Frame a packet of len bytes placed at frame + P2D_XCP_FRAME_HEADER_BYTES: writes the header in front of it
    and the checksum (if any) after it; returns the frame's length [bytes]. */
-size_t p2d_xcp_frame_tx(p2d_xcp_frame_t *f, uint8_t *frame, size_t len);
+uint32_t p2d_xcp_frame_tx(p2d_xcp_frame_t *f, uint8_t *frame, uint32_t len);
 
 /* XCP on CAN: one packet per frame. The data length of the frame for a packet of len bytes: the smallest CAN
    data length (0..8, then CAN FD 12, 16, 20, 24, 32, 48, 64) that holds max(len, min_bytes); min_bytes 8 or the
    CAN FD MAX_DLC when the bus requires full frames (XCP MAX_DLC_REQUIRED), else 0. Returns 0 when len is 0 or
    either is above 64. p2d_xcp_can_pad fills frame[len .. that length) with fill and returns the length. */
-size_t p2d_xcp_can_length(size_t len, size_t min_bytes);
-size_t p2d_xcp_can_pad(uint8_t *frame, size_t len, size_t min_bytes, uint8_t fill);
+uint32_t p2d_xcp_can_length(uint32_t len, uint32_t min_bytes);
+uint32_t p2d_xcp_can_pad(uint8_t *frame, uint32_t len, uint32_t min_bytes, uint8_t fill);
 
 /* The DLC code of a CAN (FD) data length: 0..8 as is, 12 -> 9, 16 -> 10, 20 -> 11, 24 -> 12, 32 -> 13,
    48 -> 14, 64 -> 15; 0xFF for a length that no DLC codes. */
-uint8_t p2d_xcp_can_dlc(size_t data_bytes);
+uint8_t p2d_xcp_can_dlc(uint32_t data_bytes);
 
 /*
  * The drive's reaction to a silent master (link guard), once per speed sample:
