@@ -151,7 +151,13 @@ typedef enum {
     P2D_XCP_RESOURCE_DAQ = 0x04     /* data acquisition (the DAQ commands) */
 } p2d_xcp_resource_t;
 
-/* Integrator's configuration. The arrays and buffers stay owned by the caller and must outlive the slave. */
+/*
+ * Integrator's configuration. The arrays and buffers stay owned by the caller and must outlive the slave.
+ * commit(user, segment, page): validate and apply a calibration segment's new page (the whole segment);
+ * return 0 when accepted, else the integrator's code (e.g. a p2d_status_t), and then nothing may have
+ * changed. key(user, resource, seed, n, key): write the key of the n-byte seed for a resource to key
+ * (P2D_XCP_KEY_MAX_BYTES) and return its length, 0 for none.
+ */
 typedef struct {
     const p2d_xcp_segment_t *segments; /* the memory the master may reach */
     uint16_t segment_count;            /* 1..65535 */
@@ -160,26 +166,22 @@ typedef struct {
     const p2d_xcp_event_t *events;     /* the events, numbered from 0 in p2d_xcp_event */
     uint16_t event_count;              /* 0..65535 (0: no DAQ) */
     void *daq_memory;                  /* DAQ lists, ODTs and entries, allocated by ALLOC_* */
-    uint32_t daq_memory_bytes;         /* size of daq_memory [bytes] (about 16 per list, 8 per ODT and per entry) */
-    uint8_t *queue;                    /* the DTO queue (each DTO costs its length + 2 bytes) */
-    uint32_t queue_bytes;              /* size of queue [bytes], >= max_dto + 2 */
-    uint8_t max_cto;                   /* longest command or response packet [bytes], 8..255 (8 on CAN) */
-    uint16_t max_dto;                  /* longest DAQ packet [bytes], 8..65531 */
-    uint8_t timestamp_unit;            /* XCP time unit of a clock tick, 0..9 (0 = 1 ns, 3 = 1 us) */
-    uint16_t timestamp_ticks;          /* one clock tick = timestamp_ticks * unit, >= 1 */
-    uint32_t link_timeout_ticks;       /* watchdog: longest silence of a connected master [ticks]; 0: off */
-    uint8_t protected_resources;       /* P2D_XCP_RESOURCE_* bits locked until UNLOCK; 0: none */
-    uint8_t seed_bytes;                /* length of a seed, 1..min(32, max_cto - 2) (with protection) */
-    const char *id;                    /* GET_ID type 0: identification text (e.g. firmware and build) */
-    const char *a2l_name;              /* GET_ID type 1: A2L file name without path and extension, or NULL */
-    void *user;                        /* passed to every callback */
-    /* free-running 32-bit clock of the timestamps and the watchdog [ticks]; wraps */
-    uint32_t (*clock)(void *user);
-    /* validate and apply a calibration segment's new page (the whole segment); 0: accepted, else rejected
-       (the integrator's code, e.g. a p2d_status_t) and nothing may have changed */
-    int32_t (*commit)(void *user, uint16_t segment, const void *page);
-    /* the key of a seed for a resource, written to key (P2D_XCP_KEY_MAX_BYTES); returns its length, 0: none */
-    uint8_t (*key)(void *user, uint8_t resource, const uint8_t *seed, uint8_t seed_bytes, uint8_t *key);
+    uint32_t daq_memory_bytes;     /* size of daq_memory [bytes] (32-bit MCU: 20 per list, 12 per ODT, 8 per entry) */
+    uint8_t *queue;                /* the DTO queue (each DTO costs its length + 2 bytes) */
+    uint32_t queue_bytes;          /* size of queue [bytes], >= max_dto + 2 */
+    uint8_t max_cto;               /* longest command or response packet [bytes], 8..255 (8 on CAN) */
+    uint16_t max_dto;              /* longest DAQ packet [bytes], 8..65531 */
+    uint8_t timestamp_unit;        /* XCP time unit of a clock tick, 0..9 (0 = 1 ns, 3 = 1 us) */
+    uint16_t timestamp_ticks;      /* one clock tick = timestamp_ticks * unit, >= 1 */
+    uint32_t link_timeout_ticks;   /* watchdog: longest silence of a connected master [ticks]; 0: off */
+    uint8_t protected_resources;   /* P2D_XCP_RESOURCE_* bits locked until UNLOCK; 0: none */
+    uint8_t seed_bytes;            /* length of a seed, 1..min(32, max_cto - 2) (with protection) */
+    const char *id;                /* GET_ID type 0: identification text (e.g. firmware and build) */
+    const char *a2l_name;          /* GET_ID type 1: A2L file name without path and extension, or NULL */
+    void *user;                    /* passed to every callback */
+    uint32_t (*clock)(void *user); /* free-running 32-bit clock of timestamps and watchdog [ticks]; wraps */
+    int32_t (*commit)(void *user, uint16_t segment, const void *page); /* validate and apply (above) */
+    uint8_t (*key)(void *user, uint8_t resource, const uint8_t *seed, uint8_t n, uint8_t *key); /* (above) */
     void (*lock)(void *user);   /* enter the section shared with the other contexts, or NULL */
     void (*unlock)(void *user); /* leave it, or NULL */
 } p2d_xcp_config_t;
@@ -193,7 +195,7 @@ typedef enum {
 
 /* The slave. All fields are private to xcp.c except the counters marked "read". */
 typedef struct {
-    p2d_xcp_config_t config;
+    p2d_xcp_config_t config;     /* the integrator's configuration */
     uint8_t byte_order;          /* 0: little endian (Intel), 1: big endian (Motorola), as found at init */
     uint8_t connected;           /* 1 between CONNECT and DISCONNECT */
     uint8_t locked;              /* P2D_XCP_RESOURCE_* bits now locked */
@@ -281,6 +283,7 @@ typedef struct {
     uint32_t rx_errors;   /* frames dropped (read) */
 } p2d_xcp_frame_t;
 
+/* Start a link with no frame received and CTR 0; checksum: a checksum byte ends each frame both ways. */
 void p2d_xcp_frame_init(p2d_xcp_frame_t *f, bool checksum);
 
 /* One received byte; returns the length of a packet complete in f->packet (valid until the next call), else 0. */
@@ -296,8 +299,10 @@ uint32_t p2d_xcp_frame_tx(p2d_xcp_frame_t *f, uint8_t *frame, uint32_t len);
 /* XCP on CAN: one packet per frame. The data length of the frame for a packet of len bytes: the smallest CAN
    data length (0..8, then CAN FD 12, 16, 20, 24, 32, 48, 64) that holds max(len, min_bytes); min_bytes 8 or the
    CAN FD MAX_DLC when the bus requires full frames (XCP MAX_DLC_REQUIRED), else 0. Returns 0 when len is 0 or
-   either is above 64. p2d_xcp_can_pad fills frame[len .. that length) with fill and returns the length. */
+   either is above 64. */
 uint32_t p2d_xcp_can_length(uint32_t len, uint32_t min_bytes);
+
+/* Pad a packet of len bytes at frame to its CAN data length (p2d_xcp_can_length) with fill; returns that length. */
 uint32_t p2d_xcp_can_pad(uint8_t *frame, uint32_t len, uint32_t min_bytes, uint8_t fill);
 
 /* The DLC code of a CAN (FD) data length: 0..8 as is, 12 -> 9, 16 -> 10, 20 -> 11, 24 -> 12, 32 -> 13,
@@ -322,6 +327,7 @@ typedef struct {
     float hold_s;           /* zero reference before the power stage is disabled [s], finite, >= 0, <= 2^24 Ts_s */
 } p2d_xcp_guard_config_t;
 
+/* States of the link guard (above). */
 typedef enum {
     P2D_XCP_GUARD_ARMED = 0,
     P2D_XCP_GUARD_RAMPING = 1,
@@ -329,15 +335,17 @@ typedef enum {
     P2D_XCP_GUARD_STOPPED = 3
 } p2d_xcp_guard_state_t;
 
+/* The link guard: its configuration, precomputed steps and state. */
 typedef struct {
-    p2d_xcp_guard_config_t config;
-    float ramp_step_radps;       /* ramp_radps_per_s Ts_s: the reference's change per sample [rad/s] */
-    uint32_t hold_samples;       /* round(hold_s / Ts_s) [samples] */
-    p2d_xcp_guard_state_t state; /* see above */
-    float w_ref_radps;           /* the reference of the last sample [rad/s] */
-    uint32_t hold_count;         /* samples held so far [samples] */
+    p2d_xcp_guard_config_t config; /* as given to p2d_xcp_guard_init */
+    float ramp_step_radps;         /* ramp_radps_per_s Ts_s: the reference's change per sample [rad/s] */
+    uint32_t hold_samples;         /* round(hold_s / Ts_s) [samples] */
+    p2d_xcp_guard_state_t state;   /* see above */
+    float w_ref_radps;             /* the reference of the last sample [rad/s] */
+    uint32_t hold_count;           /* samples held so far [samples] */
 } p2d_xcp_guard_t;
 
+/* Validate cfg and arm the guard (state ARMED, reference 0). On error g is untouched. */
 p2d_xcp_status_t p2d_xcp_guard_init(p2d_xcp_guard_t *g, const p2d_xcp_guard_config_t *cfg);
 
 /* One speed sample: silent from p2d_xcp_link_check, w_cmd_radps the master's reference. Returns the reference to
