@@ -1,7 +1,7 @@
 """Sphinx extension: the C API page, made from the public headers' own comments.
 
 The directive ``.. c-headers::`` documents every header of ``csrc/include/pmsm2dof`` (a new header
-appears by itself) with Sphinx's C domain: the header's opening comment, then each enum, struct and
+appears by itself) with Sphinx's C domain: the header's opening comment, then each enum, struct, callback type and
 function in the order of the header, each with the comment the header gives it. The declarations
 are read by pycparser (the parser cffi uses for the same headers), the comments by their line: a
 block comment on the lines just above a declaration documents it, a comment that starts on the line
@@ -153,6 +153,12 @@ class Header:
                     logger.warning(f"field {node.name}.{decl.name}: no [unit] in its comment", location=self._at(decl))
                 members.append((text, comment))
             return Item("struct", node.name, node.name, self._above(node.coord.line), members)
+        if isinstance(node, c_ast.Typedef) and isinstance(getattr(node.type, "type", None), c_ast.FuncDecl):
+            # a callback type: its name, then its comment and, as a formula line, its declaration
+            comment = self._above(node.coord.line)
+            if not comment:
+                logger.warning(f"type {node.name} has no comment above it", location=self._at(node))
+            return Item("type", node.name, node.name, f"{comment}\n  {generate.visit(node)}")
         if isinstance(node, c_ast.Decl) and isinstance(node.type, c_ast.FuncDecl):
             comment = self._above(node.coord.line)
             if not comment:
@@ -204,7 +210,7 @@ def rst_of(header):
     """The reStructuredText of one header's section."""
     lines = [f"``{header.name}``", "-" * (len(header.name) + 4), "", ".. code-block:: text", ""]
     lines += indent(header.intro, 3) + [""]
-    directive = {"enum": "c:enum", "struct": "c:struct", "function": "c:function"}
+    directive = {"enum": "c:enum", "struct": "c:struct", "function": "c:function", "type": "c:type"}
     member = {"enum": "c:enumerator", "struct": "c:member"}
     for item in header.items:
         lines += [f".. {directive[item.kind]}:: {item.declaration}", ""]

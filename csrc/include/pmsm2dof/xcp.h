@@ -151,13 +151,20 @@ typedef enum {
     P2D_XCP_RESOURCE_DAQ = 0x04     /* data acquisition (the DAQ commands) */
 } p2d_xcp_resource_t;
 
-/*
- * Integrator's configuration. The arrays and buffers stay owned by the caller and must outlive the slave.
- * commit(user, segment, page): validate and apply a calibration segment's new page (the whole segment);
- * return 0 when accepted, else the integrator's code (e.g. a p2d_status_t), and then nothing may have
- * changed. key(user, resource, seed, n, key): write the key of the n-byte seed for a resource to key
- * (P2D_XCP_KEY_MAX_BYTES) and return its length, 0 for none.
- */
+/* The integrator's free-running 32-bit clock of the timestamps and the watchdog [ticks]; it wraps. */
+typedef uint32_t (*p2d_xcp_clock_fn)(void *user);
+
+/* Validate and apply a calibration segment's new page (the whole segment): 0 when accepted, else the
+   integrator's code (e.g. a p2d_status_t), and then nothing may have changed. */
+typedef int32_t (*p2d_xcp_commit_fn)(void *user, uint16_t segment, const void *page);
+
+/* Write the key of the n-byte seed for a resource to key (P2D_XCP_KEY_MAX_BYTES); return its length, 0: none. */
+typedef uint8_t (*p2d_xcp_key_fn)(void *user, uint8_t resource, const uint8_t *seed, uint8_t n, uint8_t *key);
+
+/* Enter or leave the section the slave shares with the other contexts (interrupts, threads). */
+typedef void (*p2d_xcp_lock_fn)(void *user);
+
+/* Integrator's configuration. The arrays and buffers stay owned by the caller and must outlive the slave. */
 typedef struct {
     const p2d_xcp_segment_t *segments; /* the memory the master may reach */
     uint16_t segment_count;            /* 1..65535 */
@@ -166,24 +173,24 @@ typedef struct {
     const p2d_xcp_event_t *events;     /* the events, numbered from 0 in p2d_xcp_event */
     uint16_t event_count;              /* 0..65535 (0: no DAQ) */
     void *daq_memory;                  /* DAQ lists, ODTs and entries, allocated by ALLOC_* */
-    uint32_t daq_memory_bytes;     /* size of daq_memory [bytes] (32-bit MCU: 20 per list, 12 per ODT, 8 per entry) */
-    uint8_t *queue;                /* the DTO queue (each DTO costs its length + 2 bytes) */
-    uint32_t queue_bytes;          /* size of queue [bytes], >= max_dto + 2 */
-    uint8_t max_cto;               /* longest command or response packet [bytes], 8..255 (8 on CAN) */
-    uint16_t max_dto;              /* longest DAQ packet [bytes], 8..65531 */
-    uint8_t timestamp_unit;        /* XCP time unit of a clock tick, 0..9 (0 = 1 ns, 3 = 1 us) */
-    uint16_t timestamp_ticks;      /* one clock tick = timestamp_ticks * unit, >= 1 */
-    uint32_t link_timeout_ticks;   /* watchdog: longest silence of a connected master [ticks]; 0: off */
-    uint8_t protected_resources;   /* P2D_XCP_RESOURCE_* bits locked until UNLOCK; 0: none */
-    uint8_t seed_bytes;            /* length of a seed, 1..min(32, max_cto - 2) (with protection) */
-    const char *id;                /* GET_ID type 0: identification text (e.g. firmware and build) */
-    const char *a2l_name;          /* GET_ID type 1: A2L file name without path and extension, or NULL */
-    void *user;                    /* passed to every callback */
-    uint32_t (*clock)(void *user); /* free-running 32-bit clock of timestamps and watchdog [ticks]; wraps */
-    int32_t (*commit)(void *user, uint16_t segment, const void *page); /* validate and apply (above) */
-    uint8_t (*key)(void *user, uint8_t resource, const uint8_t *seed, uint8_t n, uint8_t *key); /* (above) */
-    void (*lock)(void *user);   /* enter the section shared with the other contexts, or NULL */
-    void (*unlock)(void *user); /* leave it, or NULL */
+    uint32_t daq_memory_bytes;   /* size of daq_memory [bytes] (32-bit MCU: 20 per list, 12 per ODT, 8 per entry) */
+    uint8_t *queue;              /* the DTO queue (each DTO costs its length + 2 bytes) */
+    uint32_t queue_bytes;        /* size of queue [bytes], >= max_dto + 2 */
+    uint8_t max_cto;             /* longest command or response packet [bytes], 8..255 (8 on CAN) */
+    uint16_t max_dto;            /* longest DAQ packet [bytes], 8..65531 */
+    uint8_t timestamp_unit;      /* XCP time unit of a clock tick, 0..9 (0 = 1 ns, 3 = 1 us) */
+    uint16_t timestamp_ticks;    /* one clock tick = timestamp_ticks * unit, >= 1 */
+    uint32_t link_timeout_ticks; /* watchdog: longest silence of a connected master [ticks]; 0: off */
+    uint8_t protected_resources; /* P2D_XCP_RESOURCE_* bits locked until UNLOCK; 0: none */
+    uint8_t seed_bytes;          /* length of a seed, 1..min(32, max_cto - 2) (with protection) */
+    const char *id;              /* GET_ID type 0: identification text (e.g. firmware and build) */
+    const char *a2l_name;        /* GET_ID type 1: A2L file name without path and extension, or NULL */
+    void *user;                  /* passed to every callback */
+    p2d_xcp_clock_fn clock;      /* the clock of timestamps and watchdog */
+    p2d_xcp_commit_fn commit;    /* validates and applies calibration pages; NULL without calibration */
+    p2d_xcp_key_fn key;          /* computes keys; NULL without protected resources */
+    p2d_xcp_lock_fn lock;        /* enters the shared section, or NULL (every call in one context) */
+    p2d_xcp_lock_fn unlock;      /* leaves it, or NULL */
 } p2d_xcp_config_t;
 
 /* What p2d_xcp_calibrate did. */
