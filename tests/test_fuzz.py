@@ -269,8 +269,8 @@ MUTANTS = {
         "xcp.c",
         [
             (
-                "memcpy((uint8_t *)x->config.shadow + (x->mta - s->address), cmd + 2, n);",
-                "memcpy((uint8_t *)s->memory + (x->mta - s->address), cmd + 2, n);",
+                "copy_bytes((uint8_t *)x->config.shadow + (x->mta - s->address), cmd + 2, n);",
+                "copy_bytes((uint8_t *)s->memory + (x->mta - s->address), cmd + 2, n);",
             )
         ],
     ),
@@ -280,8 +280,10 @@ MUTANTS = {
         "xcp.c",
         [
             (
-                "if (code == 0) {\n        memcpy(s->memory, x->config.shadow, s->size_bytes);",
-                "memcpy(s->memory, x->config.shadow, s->size_bytes);\n    if (code == 0) {",
+                "if (code == 0) {\n        copy_bytes((uint8_t *)s->memory, (const uint8_t *)x->config.shadow, "
+                "s->size_bytes);",
+                "copy_bytes((uint8_t *)s->memory, (const uint8_t *)x->config.shadow, s->size_bytes);\n"
+                "    if (code == 0) {",
             )
         ],
     ),
