@@ -16,6 +16,8 @@ import click
 from ..errors import ConfigError, Pmsm2dofError
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from ..analysis.current_loop import CurrentLoopDesign, MotorEstimate
     from ..analysis.design import Design
     from ..analysis.discretize import DiscreteDesign
@@ -628,6 +630,9 @@ def reproduce(out: str, overrides: tuple[str, ...]) -> None:
     report = run_reproduction(out, overrides=changes, progress=True)
     for claim in report.claims:
         click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
+    for name, metrics in report.studies.metrics.items():
+        for warning in metrics["warnings"]:
+            click.echo(f"  WARNING: run {name}: {warning}")
     counts = ", ".join(f"{sum(c.verdict == v for c in report.claims)} {v}" for v in VERDICTS)
     click.echo(f"{len(report.claims)} claims: {counts}")
     click.echo(
@@ -660,14 +665,17 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
 
     Writes DIR/trace.csv (one column per signal), DIR/metrics.json (the step and load-step
     figures; a figure that cannot be computed is null with its reason), DIR/plot.png and
-    DIR/scenario.toml (the scenario as run), all or nothing.
+    DIR/scenario.toml (the scenario as run), all or nothing. A design whose sampled loop is
+    unstable (the check `pmsm2dof design` refuses it by) and a current command that chatters
+    are run all the same, and named first in the summary and in metrics.json's warnings.
     """
     import json
 
     from ..outputs import atomic_write, staged_dir
-    from ..sim.metrics import compute_metrics, summary_lines
+    from ..sim.metrics import summary_lines
     from ..sim.scenario import load_scenario
     from ..sim.simulate import simulate as run_simulation
+    from ..studies.loopcheck import measure
     from .plots import trace
 
     chosen = load_scenario(scenario)
@@ -676,7 +684,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
         chosen = chosen.with_overrides(changes)
     with staged_dir(out) as tmp:
         result = run_simulation(chosen, progress=True)
-        metrics = compute_metrics(result)
+        metrics = measure(result)
         result.save(tmp / "trace.csv")
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         trace.plot_trace(result, tmp / "plot.png")
@@ -779,11 +787,32 @@ def sweep(
     )
     for _, row in stopped.head(5).iterrows():
         click.echo(f"  point {row['point']}: {row['error']}")
+    _sweep_warnings(table)
     ranked = table[table[chosen.rank_by].notna()].sort_values(chosen.rank_by, ascending=False)
     for _, row in ranked.head(chosen.worst).iterrows():
         values = ", ".join(f"{key}={row[key]}" for key in chosen.keys)
         click.echo(f"  worst {chosen.rank_by} = {row[chosen.rank_by]:.4g} at point {row['point']}: {values}")
     click.echo(f"wrote results.parquet, results.csv and {len(run.files) - 2} figures to {out}")
+
+
+def _sweep_warnings(table: "pd.DataFrame") -> None:
+    """Name the points whose sampled loop is unstable or whose current command chatters (the first five)."""
+    from ..sim.metrics import CHATTER_SHARE_MAX
+
+    unstable = table["sampled_loop_z_max"] >= 1.0
+    chatter = table["run_chatter_share"] > CHATTER_SHARE_MAX
+    flagged = table[(unstable | chatter).fillna(False)]
+    if flagged.empty:
+        return
+    click.echo(
+        f"  WARNING: {int(unstable.fillna(False).sum())} points with an unstable sampled loop (|z| >= 1), "
+        f"{int(chatter.fillna(False).sum())} whose current command chatters: their figures describe a limit cycle"
+    )
+    for _, row in flagged.head(5).iterrows():
+        click.echo(
+            f"  point {row['point']}: largest closed-loop pole |z| = {row['sampled_loop_z_max']:.4g}, "
+            f"chatter share {row['run_chatter_share']:.3g}"
+        )
 
 
 # ---------------------------------------------------------------------------------------------
