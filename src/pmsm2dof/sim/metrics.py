@@ -3,16 +3,17 @@
 For every entry of the scenario's ``reference`` and ``load`` schedules, the response is measured
 in its *window*: from the entry's time ``t_s`` to the last logged sample before the next *event*
 (or to the end of the trace). The events are the entries of either schedule that change the
-reference or the load, in any order and at any spacing, and the starts of the faults. A sample at the time of the next event (within the engine's time
-tolerance, ``csrc/sim/drive.c``) already shows it: its reference is the new one, so that a load
-step removed 50 ms before a speed reversal would otherwise count the reversal as its dip. An
-entry that repeats the value before it changes no input of the loop, so the response of the
-event before goes on through it: it is no boundary (its own figures are missing, "does not
-change"). The figures are taken relative to what is commanded in the window (the reference
-there, for a load step). A window that holds no sample after its event has every figure
-missing; one whose last :data:`STEADY_FRACTION` holds fewer than :data:`STEADY_SAMPLES_MIN`
-samples has no settling, recovery or steady-state figure (a steady state cannot be told from
-fewer); each says why. The figures are those used to compare the controllers in the paper's section 4
+reference or the load, in any order and at any spacing, and the starts of the faults. A sample
+at the time of the next event (within the engine's time tolerance, ``csrc/sim/drive.c``) already
+shows it: its reference is the new one, so that a load step removed 50 ms before a speed
+reversal would otherwise count the reversal as its dip. An entry that repeats the value before
+it changes no input of the loop, so the response of the event before goes on through it: it is
+no boundary (its own figures are missing, "does not change"). The figures are taken relative to
+what is commanded in the window (the reference there, for a load step). A window that holds no
+sample after its event has every figure missing; one whose last :data:`STEADY_FRACTION` holds
+fewer than :data:`STEADY_SAMPLES_MIN` samples has no settling, recovery or steady-state figure
+(a steady state cannot be told from fewer); each says why. The figures are those used to
+compare the controllers in the paper's section 4
 (overshoot of Fig. 8, 12, tracking of Fig. 10, 13, load rejection of Fig. 14):
 
 Reference step, from the speed ``w0`` at ``t_s`` to the new reference ``r`` (step ``D = r - w0``):
@@ -33,6 +34,8 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 ``e = speed_ref - speed`` taken in the direction the load pushes (``sign(dT) e``):
 
 - ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
+  missing when the speed is still more than 2 % of the last reference step away from its
+  reference at ``t_s`` (a load that steps during a reversal: the error is the reversal's);
 - ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the deviation (the same
   rule): the dip, or ``|e|`` at ``t_s`` when that is larger (a load that falls while the speed is
   still far from its reference, as when an overload that stalled the drive is released);
@@ -368,6 +371,7 @@ def _load_step(
     span: _Span,
     before: float,
     after: float,
+    last_reference: tuple[float, float] | None,
 ) -> dict[str, Any]:
     t0 = span.t0
     out: dict[str, Any] = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": span.t_end or t0}
@@ -386,10 +390,18 @@ def _load_step(
         k = int(np.argmax(d))
         dip = float(d[k])
         deviation = max(dip, abs(float(e[0])))
+        unsettled = last_reference is not None and abs(e[0]) > BAND * last_reference[1]
         if deviation <= 0.0:
             result.update({n: _missing("the speed did not give way to the load") for n in names[:4]})
         else:
-            if dip > 0.0:
+            if unsettled:
+                assert last_reference is not None
+                reason = (
+                    f"the speed is {abs(e[0]):.4g} rpm from its reference at the load step, more than 2 % of the "
+                    f"reference step at {last_reference[0]:g} s: its dip cannot be told from that step's response"
+                )
+                result.update({n: _missing(reason) for n in names[:2]})
+            elif dip > 0.0:
                 result["speed_dip_rpm"] = _value(dip)
                 result["dip_time_s"] = _value(tw[k] - t0)
             else:
@@ -486,6 +498,14 @@ def _fault_ends(data: Mapping[str, Any]) -> list[float]:
     """The end of each fault: a sensor_spike lasts one speed-controller period."""
     Ts_speed = data["speed_controller"]["Ts_s"]
     return [f["t_s"] + (Ts_speed if f["kind"] == "sensor_spike" else f["duration_s"]) for f in data["fault"]]
+
+
+def _last_reference(
+    ref_events: Sequence[tuple[float, float, float]], t0: float, tol: float
+) -> tuple[float, float] | None:
+    """(time, size) of the last change of the reference at or before ``t0``, or None."""
+    changes = [(t, abs(a - b)) for t, b, a in ref_events if a != b and t <= t0 + tol]
+    return changes[-1] if changes else None
 
 
 def _next_event(times: Sequence[float], t0: float, tol: float) -> float | None:
@@ -621,7 +641,10 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     return {
         "scenario": data["name"],
         "reference_steps": [_reference_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
-        "load_steps": [_load_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in load_events],
+        "load_steps": [
+            _load_step(t, speed, ref, limited, span(t0), b, a, _last_reference(ref_events, t0, tol))
+            for t0, b, a in load_events
+        ],
         "faults": [
             _fault(t, speed, ref, limited, f, end, span(end)) for f, end in zip(data["fault"], _fault_ends(data))
         ],
