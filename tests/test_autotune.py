@@ -166,8 +166,8 @@ def test_margins_on_plant_is_none_when_the_loop_is_unstable():
 
 
 def test_pareto_front_keeps_exactly_the_non_dominated():
-    def evaluation(i, iae, dip, pm):
-        worst = {"tracking_iae_rpm_s": iae, "load_dip_rpm_per_Nm": dip, "phase_margin_deg": pm}
+    def evaluation(i, iae, load_iae, pm):
+        worst = {"tracking_iae_rpm_s": iae, "load_iae_rpm_s_per_Nm": load_iae, "phase_margin_deg": pm}
         return Evaluation(Candidate(float(i), 1.0, 1.0, 1.0, "lowpass", "none"), "engine", worst, {}, (1.0,), (), "")
 
     points = [

@@ -34,8 +34,8 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 ``e = speed_ref - speed`` taken in the direction the load pushes (``sign(dT) e``):
 
 - ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
-  missing when the speed is still more than 2 % of the last reference step away from its
-  reference at ``t_s`` (a load that steps during a reversal: the error is the reversal's);
+  missing when that error is largest at ``t_s`` itself (a load taken off during a reversal:
+  the error is the reversal's, and the load adds nothing to it);
 - ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the deviation (the same
   rule): the dip, or ``|e|`` at ``t_s`` when that is larger (a load that falls while the speed is
   still far from its reference, as when an overload that stalled the drive is released);
@@ -371,7 +371,6 @@ def _load_step(
     span: _Span,
     before: float,
     after: float,
-    last_reference: tuple[float, float] | None,
 ) -> dict[str, Any]:
     t0 = span.t0
     out: dict[str, Any] = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": span.t_end or t0}
@@ -390,15 +389,13 @@ def _load_step(
         k = int(np.argmax(d))
         dip = float(d[k])
         deviation = max(dip, abs(float(e[0])))
-        unsettled = last_reference is not None and abs(e[0]) > BAND * last_reference[1]
         if deviation <= 0.0:
             result.update({n: _missing("the speed did not give way to the load") for n in names[:4]})
         else:
-            if unsettled:
-                assert last_reference is not None
+            if dip > 0.0 and k == 0:
                 reason = (
-                    f"the speed is {abs(e[0]):.4g} rpm from its reference at the load step, more than 2 % of the "
-                    f"reference step at {last_reference[0]:g} s: its dip cannot be told from that step's response"
+                    f"the speed error in the direction of the load is largest at the step itself ({dip:.4g} rpm, the "
+                    "response to what came before): the load adds no dip of its own"
                 )
                 result.update({n: _missing(reason) for n in names[:2]})
             elif dip > 0.0:
@@ -498,14 +495,6 @@ def _fault_ends(data: Mapping[str, Any]) -> list[float]:
     """The end of each fault: a sensor_spike lasts one speed-controller period."""
     Ts_speed = data["speed_controller"]["Ts_s"]
     return [f["t_s"] + (Ts_speed if f["kind"] == "sensor_spike" else f["duration_s"]) for f in data["fault"]]
-
-
-def _last_reference(
-    ref_events: Sequence[tuple[float, float, float]], t0: float, tol: float
-) -> tuple[float, float] | None:
-    """(time, size) of the last change of the reference at or before ``t0``, or None."""
-    changes = [(t, abs(a - b)) for t, b, a in ref_events if a != b and t <= t0 + tol]
-    return changes[-1] if changes else None
 
 
 def _next_event(times: Sequence[float], t0: float, tol: float) -> float | None:
@@ -641,10 +630,7 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     return {
         "scenario": data["name"],
         "reference_steps": [_reference_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
-        "load_steps": [
-            _load_step(t, speed, ref, limited, span(t0), b, a, _last_reference(ref_events, t0, tol))
-            for t0, b, a in load_events
-        ],
+        "load_steps": [_load_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in load_events],
         "faults": [
             _fault(t, speed, ref, limited, f, end, span(end)) for f, end in zip(data["fault"], _fault_ends(data))
         ],

@@ -857,6 +857,7 @@ _AUTOTUNE_OPTIONS = {
     "min_gain_margin_dB": "--min-gain-margin-dB",
     "max_settling_s": "--max-settling-s",
     "max_load_dip_rpm_per_Nm": "--max-load-dip-rpm-per-Nm",
+    "max_recovery_s": "--max-recovery-s",
     "max_current_limit_time_s": "--max-current-limit-time-s",
     "J_range": "--J-range",
     "feedforwards": "--feedforward",
@@ -919,6 +920,9 @@ def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
 )
 @click.option("--max-settling-s", type=float, default=None, help="longest settling time (2 %) of a reference step [s]")
 @click.option(
+    "--max-recovery-s", type=float, default=None, help="longest recovery time (2 % of the dip) of a load step [s]"
+)
+@click.option(
     "--max-load-dip-rpm-per-Nm",
     "max_load_dip_rpm_per_Nm",
     type=float,
@@ -977,6 +981,7 @@ def autotune(
     min_phase_margin_deg: float | None,
     min_gain_margin_dB: float | None,
     max_settling_s: float | None,
+    max_recovery_s: float | None,
     max_load_dip_rpm_per_Nm: float | None,
     max_current_limit_time_s: float | None,
     J_range: str,
@@ -988,14 +993,18 @@ def autotune(
     out: str | None,
     header: str | None,
 ) -> None:
-    """Autotune the speed controller of a scenario: the smallest worst-case load dip per Nm that
-    meets the specification at every inertia of --J-range, on the scenario's own steps.
+    """Autotune the speed controller of a scenario: the smallest worst-case load IAE per Nm (the
+    dip and the recovery from it) that meets the specification at every inertia of --J-range, on
+    the scenario's own steps.
 
     Searches alpha, zeta, m, Ka (and the feedforward and anti-windup forms given) with the
     analytic margins first, then the simulation engine (current limit and anti-windup included).
     Prints the chosen speed_controller keys (`--set speed_controller.KEY=VALUE` reproduces
-    them) and their worst case. Exit status 0 when the design meets the specification, 1 when
-    none does (the summary names the binding constraint and the miss), 2 for bad input.
+    them) and their worst case. A candidate whose current command chatters is rejected; the
+    summary says when the chosen design lies on a bound of the search, and when the scenario's
+    own design has an unstable sampled loop. Exit status 0 when the design meets the
+    specification, 1 when none does (the summary names the binding constraint and the miss), 2
+    for bad input.
     """
     import json
 
@@ -1011,6 +1020,7 @@ def autotune(
             min_gain_margin_dB=min_gain_margin_dB,
             max_settling_s=max_settling_s,
             max_load_dip_rpm_per_Nm=max_load_dip_rpm_per_Nm,
+            max_recovery_s=max_recovery_s,
             max_current_limit_time_s=max_current_limit_time_s,
             J_range=_J_range(J_range),
             feedforwards=feedforwards or None,
@@ -1063,6 +1073,8 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
         f"{result.scenario.name}: {counts['candidates']} designs ({counts['rejected_by_margins']} rejected by the "
         f"margins alone), {counts['runs']} simulations over J ratio {lo:g} to {hi:g}, in {result.wall_time_s:.3g} s",
     ]
+    if result.scenario_loop["warning"]:
+        lines.append(f"WARNING: the scenario as given: {result.scenario_loop['warning']}")
     if result.feasible:
         lines.append(f"the design below meets the specification ({counts['feasible']} designs did)")
     else:
@@ -1075,11 +1087,18 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     for key, value in result.speed_controller.items():
         lines.append(f"  speed_controller.{key} = {value}")
     lines.append("worst case over the inertia range (J ratio where it occurs):")
-    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {"tracking_iae_rpm_s": "rpm s"}
+    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {
+        "tracking_iae_rpm_s": "rpm s",
+        "load_iae_rpm_s_per_Nm": "rpm s/Nm",
+        "chatter_share": "",
+    }
     for name, value in data["worst_case"].items():
         shown = "inf (never settles in its window)" if value is None and name == "settling_time_s" else value
-        shown = "inf" if shown is None else (f"{shown:.4g} {units[name]}" if isinstance(shown, float) else shown)
+        if isinstance(shown, float):
+            shown = f"{shown:.4g} {units[name]}".rstrip()
+        shown = "inf" if shown is None else shown
         lines.append(f"  {name:<22} {shown}  ({data['worst_J_ratio'][name]:.4g})")
+    lines += [f"NOTE: {sentence}" for sentence in result.on_bounds]
     sets = " ".join(f"--set speed_controller.{k}={v}" for k, v in result.speed_controller.items())
     lines.append(f"reproduce: pmsm2dof simulate {scenario} {sets} --out DIR")
     return "\n".join(lines)

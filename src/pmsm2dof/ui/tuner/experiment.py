@@ -76,6 +76,7 @@ SUGGEST_SPEC_KEYS = (
     "min_gain_margin_dB",
     "max_settling_s",
     "max_load_dip_rpm_per_Nm",
+    "max_recovery_s",
     "max_current_limit_time_s",
     "J_range",
 )
