@@ -13,8 +13,8 @@ import itertools
 
 import numpy as np
 import pytest
-from oracles import small_servo
 
+from oracles import small_servo
 from pmsm2dof.sim.metrics import compute_metrics, summary_lines
 from pmsm2dof.sim.simulate import simulate
 

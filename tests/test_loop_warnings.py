@@ -19,8 +19,8 @@ import math
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from oracles import small_servo
 
+from oracles import small_servo
 from pmsm2dof.sim.metrics import CHATTER_D2, CHATTER_SHARE_MAX, chatter, summary_lines
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
@@ -74,7 +74,9 @@ def test_simulate_warns_and_does_not_refuse(tmp_path):
     path = tmp_path / "servo.toml"
     path.write_text(scenario().to_toml())
     out = tmp_path / "run"
-    r = CliRunner().invoke(cli, ["simulate", str(path), "--set", "speed_controller.alpha_radps=3000", "--out", str(out)])
+    r = CliRunner().invoke(
+        cli, ["simulate", str(path), "--set", "speed_controller.alpha_radps=3000", "--out", str(out)]
+    )
     assert r.exit_code == 0, r.output
     lines = r.output.splitlines()
     assert "UNSTABLE SAMPLED LOOP" in lines[1] and "CHATTER" in lines[2]  # before any figure
