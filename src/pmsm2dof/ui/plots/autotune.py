@@ -10,21 +10,31 @@ backend, no display needed.
 
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ...studies.autotune import OBJECTIVE, AutotuneResult
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 
 def plot_pareto(result: AutotuneResult, path: Path | str) -> Path:
-    """Draw the designs of ``result`` into ``path`` (.png or .svg); return the path."""
-    import matplotlib
+    """Draw :func:`pareto_figure` of ``result`` into ``path`` (.png or .svg); return the path."""
+    fig = pareto_figure(result)
+    fig.savefig(path)
+    return Path(path)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def pareto_figure(result: AutotuneResult) -> "Figure":
+    """The designs of ``result`` (see the module docstring), on the Agg canvas."""
     from matplotlib import ticker
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
 
     simulated = [e for e in result.evaluations if e.stage == "engine" and not e.error]
-    fig, ax = plt.subplots(figsize=(7.5, 5.0), layout="constrained")
+    fig = Figure(figsize=(7.5, 5.0), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
 
     def xy(evaluations: Any) -> tuple[list[float], list[float]]:
         return [e.worst[OBJECTIVE] for e in evaluations], [e.worst["tracking_iae_rpm_s"] for e in evaluations]
@@ -63,6 +73,4 @@ def plot_pareto(result: AutotuneResult, path: Path | str) -> Path:
     ax.set_title(f"{result.scenario.name}: autotune over J ratio {lo:g} to {hi:g}")
     ax.legend(loc="best", fontsize="small")
     ax.grid(True, which="both", alpha=0.3)
-    fig.savefig(path)
-    plt.close(fig)
-    return Path(path)
+    return fig
