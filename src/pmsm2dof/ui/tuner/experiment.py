@@ -533,7 +533,8 @@ class Tuner:
         scenario of the values (:meth:`scenario`) and its design inertia the base scenario's. Keys:
         ``feasible``, ``values`` (the chosen ``speed_controller.*`` control values), ``worst_case``
         and ``worst_J_ratio``, ``violations`` (sentences; empty when feasible), ``binding``,
-        ``counts`` and ``wall_time_s`` (:meth:`pmsm2dof.studies.autotune.AutotuneResult.as_dict`).
+        ``on_bounds`` (sentences: the bounds of the search the design lies on), ``counts`` and
+        ``wall_time_s`` (:meth:`pmsm2dof.studies.autotune.AutotuneResult.as_dict`).
 
         Raises
         ------
@@ -581,6 +582,7 @@ class Tuner:
             "violations": [v.describe() for v in result.chosen.violations]
             + ([result.chosen.error] if result.chosen.error else []),
             "binding": out["binding"],
+            "on_bounds": out["on_bounds"],
             "counts": out["counts"],
             "wall_time_s": out["wall_time_s"],
             "server_ms": 1e3 * (time.perf_counter() - start),
