@@ -398,7 +398,7 @@ def test_the_forms_of_eq_11_and_clamping_stay_within_the_bound_of_the_work():
     assert keys["feedforward"] in ("no_tau", "full") and keys["anti_windup"] == "clamping"
     assert {e.candidate.m for e in result.evaluations} != {1.0}  # m is searched with the feedforwards of eq 11
     assert result.feasible
-    overshoot, _settling_s, _dip = figures(keys, 1.25)
+    overshoot, _settling_s, _dip, _iae = figures(keys, 1.25)
     assert overshoot <= 5.0
 
 
