@@ -404,6 +404,37 @@ def margins_on_plant(
     return _margins(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
 
 
+def sampled_loop_poles(
+    design: "Design", Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
+) -> tuple[tuple[complex, ...], bool]:
+    """Poles of the sampled feedback loop of the C controller of ``design`` on a plant, and whether it is stable.
+
+    The check :func:`discretize` makes before it accepts a design (the controller realized at
+    ``Ts_s`` with ``method``, :func:`c_coefficients`; the ZOH plant of eq 2, 3,
+    ``1 / (J_plant s (tau_i_plant s + 1))``; the design's sensor chain), here on any plant and
+    without refusing: the plant of the design itself, or the scenario's true one. Stable is
+    decided as :func:`discretize` decides it (Routh-Hurwitz in the w plane, exact near ``z = 1``;
+    with a sensor chain, the eigenvalues of the closed loop inside the unit circle).
+
+    Returns
+    -------
+    (tuple of complex, bool)
+        The closed-loop poles in z, and whether every one lies inside the unit circle.
+    """
+    pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
+    plant = replace(design, J_kgm2=float(J_plant_kgm2), tau_i_s=float(tau_i_plant_s))
+    if design.sensor.is_ideal:
+        L_num, L_den = _loop_w(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
+        char_w = np.polyadd(L_den, L_num)
+        poles_w = np.roots(char_w)
+        poles = (1.0 + 0.5 * Ts_s * poles_w) / (1.0 - 0.5 * Ts_s * poles_w)
+        return tuple(complex(p) for p in poles), _hurwitz(char_w)
+    F_z = _pi_z(pi["b_e0"], pi["Ki_Ts"], Ts_s)
+    _reading, closed = _closed_loop_with_sensor(plant, Ts_s, F_z, control.tf([0.0], [1.0], Ts_s))
+    poles = np.linalg.eigvals(closed.A)
+    return tuple(complex(p) for p in poles), bool(np.max(np.abs(poles)) < 1.0)
+
+
 def _plant_increments(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vector, _Vector, _Vector]:
     """The ZOH plant over one period in increment form: ``(E_p, g_p, c_p)``.
 
@@ -580,6 +611,21 @@ def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: M
     )
 
 
+def _closed_loop_with_sensor(
+    design: "Design", Ts_s: float, F_z: control.TransferFunction, Fr_z: control.TransferFunction
+) -> tuple[list[Any], control.StateSpace]:
+    """The sampled plant-to-reading blocks of ``design`` (its J, tau_i and sensor chain) and the closed
+    loop from ``r`` to ``w`` with the PI ``F_z`` and the feedforward ``Fr_z``."""
+    plant = sampled_plant_blocks(design.J_kgm2, design.tau_i_s, Ts_s, design.sensor)
+    blocks = plant + [
+        control.ss(F_z, inputs="e", outputs="u_fb"),
+        control.ss(Fr_z, inputs="r", outputs="u_ff"),
+        control.summing_junction(["u_fb", "u_ff"], "u"),
+        control.summing_junction(["r", "-y"], "e"),
+    ]
+    return plant, control.interconnect(blocks, inplist=["r"], outlist=["w"], dt=Ts_s)
+
+
 def _loop_with_sensor(
     design: "Design",
     Ts_s: float,
@@ -590,14 +636,7 @@ def _loop_with_sensor(
 ) -> DiscreteDesign:
     """:func:`discrete_loop` for a design whose controller reads a sensor chain (see the module docstring)."""
     d = design
-    plant = sampled_plant_blocks(d.J_kgm2, d.tau_i_s, Ts_s, d.sensor)
-    blocks = plant + [
-        control.ss(F_z, inputs="e", outputs="u_fb"),
-        control.ss(Fr_z, inputs="r", outputs="u_ff"),
-        control.summing_junction(["u_fb", "u_ff"], "u"),
-        control.summing_junction(["r", "-y"], "e"),
-    ]
-    closed = control.interconnect(blocks, inplist=["r"], outlist=["w"], dt=Ts_s)
+    plant, closed = _closed_loop_with_sensor(d, Ts_s, F_z, Fr_z)
     poles = np.linalg.eigvals(closed.A)
     z_max = float(np.max(np.abs(poles)))
     if not z_max < 1.0:

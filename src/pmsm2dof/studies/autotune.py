@@ -2,9 +2,13 @@
 
 :func:`autotune` searches the speed-controller keys of a scenario (``alpha_radps``, ``zeta``,
 ``m``, ``Ka``, and the ``feedforward`` and ``anti_windup`` forms the :class:`Spec` allows) for
-the smallest worst-case speed dip per Nm of load on the scenario's own load steps, such that
-every constraint of the :class:`Spec` holds at every inertia of the range ``J_range`` (the ratio
-of the true inertia to the design inertia):
+the smallest worst-case integral of the absolute speed error per Nm of load (IAE) on the
+scenario's own load steps, such that every constraint of the :class:`Spec` holds at every
+inertia of the range ``J_range`` (the ratio of the true inertia to the design inertia). The IAE
+holds the depth of the dip and the time the speed takes to recover: the dip alone rewards a
+large ``Kp`` and leaves the integral action free, so that zeta would run to the top of its range
+with a slow recovery (for a response that does not overshoot, the IAE is ``dT / Ki``, with
+``Ki = J (alpha / (2 zeta))^2`` of eq 9). ``max_recovery_s`` bounds the recovery itself.
 
 1. linear constraints first: the gain and phase margins of the C controller's discrete loop on
    the true plant at each inertia ratio (:func:`pmsm2dof.analysis.discretize.margins_on_plant`,
@@ -22,13 +26,22 @@ of the true inertia to the design inertia):
 4. the best design is simulated again at :data:`N_J_CHECK` inertia ratios spread over the range;
    one that fails there is rejected and the next best checked.
 
+A candidate whose current command chatters in a simulation (``chatter_share`` above
+:data:`pmsm2dof.sim.metrics.CHATTER_SHARE_MAX`: a limit cycle, whatever its figures) is rejected.
+When the chosen design lies on a bound of the search (:data:`ZETA_RANGE`, :data:`KA_KP_RANGE`,
+:data:`M_RANGE`, or the stability and sampling bound of alpha), :attr:`AutotuneResult.on_bounds`
+says so: the best design may lie beyond it. The scenario's own design is checked as
+``pmsm2dof design`` checks it (:func:`pmsm2dof.studies.loopcheck.sampled_loop`), and a warning
+given when its sampled loop is unstable.
+
 When no candidate meets the specification the result says so (``feasible`` False): the design
 returned is the one that misses it least, and :attr:`AutotuneResult.binding` names the
 constraint it misses most and by how much.
 
 The worst-case figures are those of :func:`pmsm2dof.sim.metrics.compute_metrics` (rpm), taken
 over the reference steps (overshoot, settling time, tracking IAE), the load steps (speed dip
-divided by the load change) and both (longest time at the current limit in one step window).
+and IAE divided by the load change, recovery time) and both (longest time at the current limit
+in one step window), and the run (chatter).
 """
 
 import dataclasses
@@ -46,8 +59,10 @@ from ..analysis.margins import Margins
 from ..core import ANTI_WINDUPS, FEEDFORWARDS
 from ..core.bindings import AntiWindup, Feedforward
 from ..errors import ConfigError
+from ..sim.metrics import CHATTER_SHARE_MAX
 from ..sim.scenario import Scenario
 from .engine import Outcome, Run, check_options, connect, run_many
+from .loopcheck import sampled_loop
 
 #: Inertia ratios at which the margins are checked, and the best design is simulated again.
 N_J_CHECK = 9
@@ -88,6 +103,7 @@ CONSTRAINTS = {
     "min_gain_margin_dB": ("gain_margin_dB", "min", "dB"),
     "max_settling_s": ("settling_time_s", "max", "s"),
     "max_load_dip_rpm_per_Nm": ("load_dip_rpm_per_Nm", "max", "rpm/Nm"),
+    "max_recovery_s": ("load_recovery_s", "max", "s"),
     "max_current_limit_time_s": ("current_limit_time_s", "max", "s"),
 }
 #: Worst-case figures of a design over the inertia range; "min" ones are worst at their smallest.
@@ -97,9 +113,14 @@ FIGURES = {
     "overshoot_pct": "max",
     "settling_time_s": "max",
     "load_dip_rpm_per_Nm": "max",
+    "load_iae_rpm_s_per_Nm": "max",
+    "load_recovery_s": "max",
     "current_limit_time_s": "max",
     "tracking_iae_rpm_s": "max",
+    "chatter_share": "max",
 }
+#: The figure the search minimises (worst case over the inertia range).
+OBJECTIVE = "load_iae_rpm_s_per_Nm"
 MARGIN_FIGURES = ("phase_margin_deg", "gain_margin_dB")
 
 
@@ -123,6 +144,8 @@ class Spec:
         Longest settling time (2 % band) of any reference step [s], > 0.
     max_load_dip_rpm_per_Nm : float, optional
         Largest speed dip of any load step per Nm of load change [rpm/Nm], > 0.
+    max_recovery_s : float, optional
+        Longest recovery time (2 % of the dip) of any load step [s], > 0.
     max_current_limit_time_s : float, optional
         Longest time at the current limit within one step window [s], >= 0.
     J_range : (float, float)
@@ -146,6 +169,7 @@ class Spec:
     min_gain_margin_dB: float | None = 6.0
     max_settling_s: float | None = None
     max_load_dip_rpm_per_Nm: float | None = None
+    max_recovery_s: float | None = None
     max_current_limit_time_s: float | None = None
     J_range: tuple[float, float] = (1.0, 1.0)
     feedforwards: tuple[Feedforward, ...] | None = None
@@ -158,6 +182,7 @@ class Spec:
             "min_gain_margin_dB": ("a finite number >= 0", lambda v: v >= 0.0),
             "max_settling_s": ("a finite number > 0", lambda v: v > 0.0),
             "max_load_dip_rpm_per_Nm": ("a finite number > 0", lambda v: v > 0.0),
+            "max_recovery_s": ("a finite number > 0", lambda v: v > 0.0),
             "max_current_limit_time_s": ("a finite number >= 0", lambda v: v >= 0.0),
         }
         for name, (valid, ok) in bounds.items():
@@ -360,7 +385,7 @@ class AutotuneResult:
     feasible : bool
         True when the chosen design meets the whole specification over the inertia range.
     chosen : Evaluation
-        The best design: the smallest worst-case load dip per Nm among the feasible ones; when
+        The best design: the smallest worst case of :data:`OBJECTIVE` among the feasible ones; when
         none is feasible, the one with the smallest :meth:`Evaluation.total_miss`.
     binding : Violation or None
         When no design is feasible: the constraint the chosen design misses most (normalized).
@@ -368,7 +393,7 @@ class AutotuneResult:
         Every candidate of the search, in the order they were generated.
     pareto : tuple of Evaluation
         The feasible candidates (all simulated ones when none is) no other one beats on tracking
-        (worst ``tracking_iae_rpm_s``), rejection (worst ``load_dip_rpm_per_Nm``) and robustness
+        (worst ``tracking_iae_rpm_s``), rejection (worst :data:`OBJECTIVE`) and robustness
         (worst ``phase_margin_deg``): :func:`pareto_front`.
     runs : tuple of RunRecord
         Every simulation, in the order they ran.
@@ -376,6 +401,10 @@ class AutotuneResult:
         The inertia ratios of the margins and of the final check of the chosen design.
     wall_time_s : float
         Wall time of the search [s].
+    on_bounds : tuple of str
+        One sentence per bound of the search the chosen design lies on (:func:`bounds_reached`).
+    scenario_loop : dict
+        :func:`pmsm2dof.studies.loopcheck.sampled_loop` of the scenario's own design.
     """
 
     scenario: Scenario
@@ -388,6 +417,8 @@ class AutotuneResult:
     runs: tuple[RunRecord, ...]
     J_ratios_checked: tuple[float, ...]
     wall_time_s: float
+    on_bounds: tuple[str, ...] = ()
+    scenario_loop: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     @property
     def speed_controller(self) -> dict[str, float | str]:
@@ -474,6 +505,9 @@ class AutotuneResult:
                 "runs": len(self.runs),
             },
             "pareto": [_keys_and_worst(e) | {"feasible": e.feasible} for e in self.pareto],
+            "objective": OBJECTIVE,
+            "on_bounds": list(self.on_bounds),
+            "scenario_sampled_loop": self.scenario_loop,
             "wall_time_s": self.wall_time_s,
         }
 
@@ -503,19 +537,25 @@ def _sig_down(x: float) -> float:
 
 
 def step_figures(metrics: Mapping[str, Any]) -> dict[str, float]:
-    """The figures of one simulated run that the specification bounds.
+    """The figures of one simulated run that the specification bounds and the search minimises.
 
     From :func:`pmsm2dof.sim.metrics.compute_metrics`: over the reference steps that change the
     reference, the largest ``overshoot_pct`` (0 when the speed has not reached the reference in
     the window: no overshoot), the longest ``settling_time_s`` (``inf`` when it does not settle
     in the window) and the sum of their ``iae_rpm_s`` (``tracking_iae_rpm_s``); over the load
-    steps that change the load, the largest ``speed_dip_rpm`` divided by the change
-    (``load_dip_rpm_per_Nm``); over both, the longest ``current_limit_time_s``.
+    steps that change the load, the largest ``speed_dip_rpm`` and ``iae_rpm_s`` divided by the
+    change (``load_dip_rpm_per_Nm``, ``load_iae_rpm_s_per_Nm``) and the longest
+    ``recovery_time_s`` (``load_recovery_s``), each ``inf`` when it is missing (the speed did not
+    recover in the window, or was still following a reference step when the load stepped); over
+    both, the longest ``current_limit_time_s``; the run's ``chatter_share`` (``inf`` when the log
+    cannot tell it).
     """
     figures = {
         "overshoot_pct": 0.0,
         "settling_time_s": 0.0,
         "load_dip_rpm_per_Nm": 0.0,
+        "load_iae_rpm_s_per_Nm": 0.0,
+        "load_recovery_s": 0.0,
         "current_limit_time_s": 0.0,
         "tracking_iae_rpm_s": 0.0,
     }
@@ -533,9 +573,18 @@ def step_figures(metrics: Mapping[str, Any]) -> dict[str, float]:
         figures["tracking_iae_rpm_s"] += step["iae_rpm_s"]["value"]
     for step in metrics["load_steps"]:
         change = abs(step["to_Nm"] - step["from_Nm"])
-        dip = step["speed_dip_rpm"]["value"]
-        if change > 0.0 and dip is not None:
-            figures["load_dip_rpm_per_Nm"] = max(figures["load_dip_rpm_per_Nm"], dip / change)
+        if change == 0.0:
+            continue
+        for name, key, per_Nm in (
+            ("load_dip_rpm_per_Nm", "speed_dip_rpm", True),
+            ("load_iae_rpm_s_per_Nm", "iae_rpm_s", True),
+            ("load_recovery_s", "recovery_time_s", False),
+        ):
+            value = step[key]["value"]
+            value = math.inf if value is None else (value / change if per_Nm else value)
+            figures[name] = max(figures[name], value)
+    chatter = metrics["run"]["chatter_share"]["value"]
+    figures["chatter_share"] = math.inf if chatter is None else chatter
     return figures
 
 
@@ -782,7 +831,9 @@ class _Search:
                 key=i,
                 base="scenario",
                 overrides=c.overrides()
-                | {"motor.J_kgm2": r * self.J_design_kgm2, "speed_controller.J_kgm2": self.J_design_kgm2},
+                # every sample logged: a chattering command shows from one sample to the next
+                | {"motor.J_kgm2": r * self.J_design_kgm2, "speed_controller.J_kgm2": self.J_design_kgm2}
+                | {"simulation.log_every": 1},
                 label=f"autotune candidate {c.speed_controller()} at J ratio {r:.4g}",
             )
             for i, (c, r) in enumerate(todo)
@@ -825,6 +876,13 @@ class _Search:
             for name, value in record.figures.items():
                 if name not in worst or value > worst[name]:
                     worst[name], at[name] = value, r
+        if worst["chatter_share"] > CHATTER_SHARE_MAX:
+            chatters = (
+                f"the current command chatters at J ratio {at['chatter_share']:.4g} "
+                f"({100 * worst['chatter_share']:.3g} % of the samples, more than {100 * CHATTER_SHARE_MAX:g} %): "
+                "a limit cycle"
+            )
+            return Evaluation(c, "engine", worst, at, tuple(simulated), (), chatters)
         return Evaluation(c, "engine", worst, at, tuple(simulated), self.violations(worst, at), "")
 
     def evaluations(self) -> list[Evaluation]:
@@ -832,9 +890,9 @@ class _Search:
 
     @staticmethod
     def rank(e: Evaluation) -> tuple[float, float, float]:
-        """Feasible first, by worst-case load dip per Nm; then by :meth:`Evaluation.total_miss`."""
+        """Feasible first, by the worst case of :data:`OBJECTIVE`; then by :meth:`Evaluation.total_miss`."""
         if e.feasible:
-            return (0.0, 0.0, e.worst["load_dip_rpm_per_Nm"])
+            return (0.0, 0.0, e.worst[OBJECTIVE])
         return (1.0, *e.total_miss())
 
     def best(self) -> Evaluation:
@@ -844,17 +902,52 @@ class _Search:
         return min(simulated or pool, key=self.rank)
 
 
+def bounds_reached(search: "_Search", c: Candidate) -> tuple[str, ...]:
+    """The bounds of the search that the candidate ``c`` lies on, one sentence each.
+
+    ``zeta`` at an end of :data:`ZETA_RANGE`; ``alpha`` at :meth:`_Search.alpha_max_radps`, the
+    stability and sampling bound (the margins' edge below it is a constraint, not a bound);
+    ``m`` at an end of :data:`M_RANGE` (feedforwards ``no_tau``, ``full``); ``Ka Kp`` at an end of
+    :data:`KA_KP_RANGE` (back calculation). Within the rounding of the keys to 4 digits.
+    """
+
+    def at(value: float, lo: float, hi: float) -> str:
+        return "lower" if value <= lo * 1.001 else "upper" if value >= hi * 0.999 else ""
+
+    out = []
+    checks = [("zeta", c.zeta, ZETA_RANGE)]
+    if c.feedforward in ("no_tau", "full"):
+        checks.append(("m", c.m, M_RANGE))
+    if c.anti_windup == "back_calculation":
+        checks.append(("Ka Kp", c.Ka * search.J_design_kgm2 * c.alpha_radps, KA_KP_RANGE))
+    for name, value, (lo, hi) in checks:
+        side = at(value, lo, hi)
+        if side:
+            out.append(
+                f"{name} = {value:.4g} is at the {side} bound of the search ({lo:g} to {hi:g}): the best design "
+                "may lie beyond it"
+            )
+    alpha_max = search.alpha_max_radps(c.zeta, c.m)
+    if c.alpha_radps >= alpha_max * 0.999:
+        out.append(
+            f"alpha_radps = {c.alpha_radps:.4g} is at the bound of the search, {alpha_max:.4g} rad/s "
+            "(stability alpha < 4 zeta^2 / tau_i, or sampling max(alpha, alpha/(2 zeta), m alpha) Ts <= "
+            f"{MAX_W_TS:g})"
+        )
+    return tuple(out)
+
+
 def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
     """The designs that no other one beats on all of tracking, rejection and robustness.
 
     Among the feasible evaluations (all the simulated, completed ones when none is feasible):
-    worst ``tracking_iae_rpm_s`` (smaller), worst ``load_dip_rpm_per_Nm`` (smaller), worst
-    ``phase_margin_deg`` (larger). Sorted by the load dip.
+    worst ``tracking_iae_rpm_s`` (smaller), worst :data:`OBJECTIVE` (smaller), worst
+    ``phase_margin_deg`` (larger). Sorted by the objective.
     """
     points = [e for e in evaluations if e.feasible] or [e for e in evaluations if e.stage == "engine" and not e.error]
 
     def objectives(e: Evaluation) -> tuple[float, float, float]:
-        return (e.worst["tracking_iae_rpm_s"], e.worst["load_dip_rpm_per_Nm"], -e.worst["phase_margin_deg"])
+        return (e.worst["tracking_iae_rpm_s"], e.worst[OBJECTIVE], -e.worst["phase_margin_deg"])
 
     values = [objectives(e) for e in points]
     front = []
@@ -862,7 +955,7 @@ def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
         dominated = any(all(x <= y for x, y in zip(b, a)) and b != a for j, b in enumerate(values) if j != i)
         if not dominated:
             front.append(points[i])
-    return tuple(sorted(front, key=lambda e: e.worst["load_dip_rpm_per_Nm"]))
+    return tuple(sorted(front, key=lambda e: e.worst[OBJECTIVE]))
 
 
 def autotune(
@@ -873,7 +966,7 @@ def autotune(
     scheduler: str | None = None,
     progress: bool = False,
 ) -> AutotuneResult:
-    """The anti-windup 2DOF design of smallest worst-case load dip that meets ``spec`` (see the module docstring).
+    """The anti-windup 2DOF design of smallest worst-case load IAE per Nm that meets ``spec`` (module docstring).
 
     Parameters
     ----------
@@ -957,4 +1050,6 @@ def autotune(
         runs=tuple(search.runs),
         J_ratios_checked=search.J_ratios_checked,
         wall_time_s=time.perf_counter() - start,
+        on_bounds=bounds_reached(search, chosen.candidate),
+        scenario_loop=sampled_loop(scenario.data),
     )

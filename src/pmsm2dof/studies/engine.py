@@ -2,7 +2,8 @@
 
 A study is a list of :class:`Run`: a base scenario, named in a mapping of bases, changed by
 overrides. :func:`run_many` simulates them and measures each one
-(:func:`pmsm2dof.sim.metrics.compute_metrics`), in batches:
+(:func:`pmsm2dof.studies.loopcheck.measure`: the figures of
+:func:`pmsm2dof.sim.metrics.compute_metrics` and the sampled-loop stability check), in batches:
 
 - on local threads (:func:`default_workers` by default): the compiled engine releases the GIL
   for the whole simulation, so the threads run on all cores;
@@ -31,9 +32,9 @@ from typing import Any
 
 from ..errors import ConfigError, SimulationError
 from ..outputs import atomic_write
-from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario, Tree
 from ..sim.simulate import Result, simulate
+from .loopcheck import measure
 
 #: Most runs per batch when the batch size is automatic.
 BATCH_SIZE_MAX = 50
@@ -73,7 +74,7 @@ class Outcome:
     key : hashable
         The :attr:`Run.key`.
     metrics : dict or None
-        :func:`~pmsm2dof.sim.metrics.compute_metrics` of the run; None when it stopped.
+        :func:`~pmsm2dof.studies.loopcheck.measure` of the run; None when it stopped.
     error : str
         The message of the SimulationError that stopped the run; empty when it completed.
     wall_time_s : float or None
@@ -121,7 +122,7 @@ def simulate_batch(
     for run in runs:
         try:
             result = simulate(scenarios[run.base].with_overrides(run.overrides))
-            metrics = compute_metrics(result)
+            metrics = measure(result)
         except ConfigError as exc:
             if not run.label:
                 raise

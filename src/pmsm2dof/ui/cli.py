@@ -16,6 +16,8 @@ import click
 from ..errors import ConfigError, Pmsm2dofError
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from ..analysis.current_loop import CurrentLoopDesign, MotorEstimate
     from ..analysis.design import Design
     from ..analysis.discretize import DiscreteDesign
@@ -628,6 +630,9 @@ def reproduce(out: str, overrides: tuple[str, ...]) -> None:
     report = run_reproduction(out, overrides=changes, progress=True)
     for claim in report.claims:
         click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
+    for name, metrics in report.studies.metrics.items():
+        for warning in metrics["warnings"]:
+            click.echo(f"  WARNING: run {name}: {warning}")
     counts = ", ".join(f"{sum(c.verdict == v for c in report.claims)} {v}" for v in VERDICTS)
     click.echo(f"{len(report.claims)} claims: {counts}")
     click.echo(
@@ -660,14 +665,17 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
 
     Writes DIR/trace.csv (one column per signal), DIR/metrics.json (the step and load-step
     figures; a figure that cannot be computed is null with its reason), DIR/plot.png and
-    DIR/scenario.toml (the scenario as run), all or nothing.
+    DIR/scenario.toml (the scenario as run), all or nothing. A design whose sampled loop is
+    unstable (the check `pmsm2dof design` refuses it by) and a current command that chatters
+    are run all the same, and named first in the summary and in metrics.json's warnings.
     """
     import json
 
     from ..outputs import atomic_write, staged_dir
-    from ..sim.metrics import compute_metrics, summary_lines
+    from ..sim.metrics import summary_lines
     from ..sim.scenario import load_scenario
     from ..sim.simulate import simulate as run_simulation
+    from ..studies.loopcheck import measure
     from .plots import trace
 
     chosen = load_scenario(scenario)
@@ -676,7 +684,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
         chosen = chosen.with_overrides(changes)
     with staged_dir(out) as tmp:
         result = run_simulation(chosen, progress=True)
-        metrics = compute_metrics(result)
+        metrics = measure(result)
         result.save(tmp / "trace.csv")
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         trace.plot_trace(result, tmp / "plot.png")
@@ -779,11 +787,32 @@ def sweep(
     )
     for _, row in stopped.head(5).iterrows():
         click.echo(f"  point {row['point']}: {row['error']}")
+    _sweep_warnings(table)
     ranked = table[table[chosen.rank_by].notna()].sort_values(chosen.rank_by, ascending=False)
     for _, row in ranked.head(chosen.worst).iterrows():
         values = ", ".join(f"{key}={row[key]}" for key in chosen.keys)
         click.echo(f"  worst {chosen.rank_by} = {row[chosen.rank_by]:.4g} at point {row['point']}: {values}")
     click.echo(f"wrote results.parquet, results.csv and {len(run.files) - 2} figures to {out}")
+
+
+def _sweep_warnings(table: "pd.DataFrame") -> None:
+    """Name the points whose sampled loop is unstable or whose current command chatters (the first five)."""
+    from ..sim.metrics import CHATTER_SHARE_MAX
+
+    unstable = table["sampled_loop_z_max"] >= 1.0
+    chatter = table["run_chatter_share"] > CHATTER_SHARE_MAX
+    flagged = table[(unstable | chatter).fillna(False)]
+    if flagged.empty:
+        return
+    click.echo(
+        f"  WARNING: {int(unstable.fillna(False).sum())} points with an unstable sampled loop (|z| >= 1), "
+        f"{int(chatter.fillna(False).sum())} whose current command chatters: their figures describe a limit cycle"
+    )
+    for _, row in flagged.head(5).iterrows():
+        click.echo(
+            f"  point {row['point']}: largest closed-loop pole |z| = {row['sampled_loop_z_max']:.4g}, "
+            f"chatter share {row['run_chatter_share']:.3g}"
+        )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -828,6 +857,7 @@ _AUTOTUNE_OPTIONS = {
     "min_gain_margin_dB": "--min-gain-margin-dB",
     "max_settling_s": "--max-settling-s",
     "max_load_dip_rpm_per_Nm": "--max-load-dip-rpm-per-Nm",
+    "max_recovery_s": "--max-recovery-s",
     "max_current_limit_time_s": "--max-current-limit-time-s",
     "J_range": "--J-range",
     "feedforwards": "--feedforward",
@@ -890,6 +920,9 @@ def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
 )
 @click.option("--max-settling-s", type=float, default=None, help="longest settling time (2 %) of a reference step [s]")
 @click.option(
+    "--max-recovery-s", type=float, default=None, help="longest recovery time (2 % of the dip) of a load step [s]"
+)
+@click.option(
     "--max-load-dip-rpm-per-Nm",
     "max_load_dip_rpm_per_Nm",
     type=float,
@@ -948,6 +981,7 @@ def autotune(
     min_phase_margin_deg: float | None,
     min_gain_margin_dB: float | None,
     max_settling_s: float | None,
+    max_recovery_s: float | None,
     max_load_dip_rpm_per_Nm: float | None,
     max_current_limit_time_s: float | None,
     J_range: str,
@@ -959,14 +993,18 @@ def autotune(
     out: str | None,
     header: str | None,
 ) -> None:
-    """Autotune the speed controller of a scenario: the smallest worst-case load dip per Nm that
-    meets the specification at every inertia of --J-range, on the scenario's own steps.
+    """Autotune the speed controller of a scenario: the smallest worst-case load IAE per Nm (the
+    dip and the recovery from it) that meets the specification at every inertia of --J-range, on
+    the scenario's own steps.
 
     Searches alpha, zeta, m, Ka (and the feedforward and anti-windup forms given) with the
     analytic margins first, then the simulation engine (current limit and anti-windup included).
     Prints the chosen speed_controller keys (`--set speed_controller.KEY=VALUE` reproduces
-    them) and their worst case. Exit status 0 when the design meets the specification, 1 when
-    none does (the summary names the binding constraint and the miss), 2 for bad input.
+    them) and their worst case. A candidate whose current command chatters is rejected; the
+    summary says when the chosen design lies on a bound of the search, and when the scenario's
+    own design has an unstable sampled loop. Exit status 0 when the design meets the
+    specification, 1 when none does (the summary names the binding constraint and the miss), 2
+    for bad input.
     """
     import json
 
@@ -982,6 +1020,7 @@ def autotune(
             min_gain_margin_dB=min_gain_margin_dB,
             max_settling_s=max_settling_s,
             max_load_dip_rpm_per_Nm=max_load_dip_rpm_per_Nm,
+            max_recovery_s=max_recovery_s,
             max_current_limit_time_s=max_current_limit_time_s,
             J_range=_J_range(J_range),
             feedforwards=feedforwards or None,
@@ -1034,6 +1073,8 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
         f"{result.scenario.name}: {counts['candidates']} designs ({counts['rejected_by_margins']} rejected by the "
         f"margins alone), {counts['runs']} simulations over J ratio {lo:g} to {hi:g}, in {result.wall_time_s:.3g} s",
     ]
+    if result.scenario_loop["warning"]:
+        lines.append(f"WARNING: the scenario as given: {result.scenario_loop['warning']}")
     if result.feasible:
         lines.append(f"the design below meets the specification ({counts['feasible']} designs did)")
     else:
@@ -1046,11 +1087,18 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     for key, value in result.speed_controller.items():
         lines.append(f"  speed_controller.{key} = {value}")
     lines.append("worst case over the inertia range (J ratio where it occurs):")
-    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {"tracking_iae_rpm_s": "rpm s"}
+    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {
+        "tracking_iae_rpm_s": "rpm s",
+        "load_iae_rpm_s_per_Nm": "rpm s/Nm",
+        "chatter_share": "",
+    }
     for name, value in data["worst_case"].items():
         shown = "inf (never settles in its window)" if value is None and name == "settling_time_s" else value
-        shown = "inf" if shown is None else (f"{shown:.4g} {units[name]}" if isinstance(shown, float) else shown)
+        if isinstance(shown, float):
+            shown = f"{shown:.4g} {units[name]}".rstrip()
+        shown = "inf" if shown is None else shown
         lines.append(f"  {name:<22} {shown}  ({data['worst_J_ratio'][name]:.4g})")
+    lines += [f"NOTE: {sentence}" for sentence in result.on_bounds]
     sets = " ".join(f"--set speed_controller.{k}={v}" for k, v in result.speed_controller.items())
     lines.append(f"reproduce: pmsm2dof simulate {scenario} {sets} --out DIR")
     return "\n".join(lines)

@@ -12,8 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from ...sim.metrics import at_current_limit, at_voltage_limit
 from ...sim.simulate import Result
@@ -39,7 +41,9 @@ def trace_figure(result: Result) -> Figure:
     -------
     matplotlib.figure.Figure
         On the Agg canvas. The current panel shows the limit ``+-limits.i_max_A``; shaded spans
-        mark the samples where the current-vector limit is active. The voltage panel shows
+        mark the samples where the current-vector limit is active. The torque panel is scaled to
+        the torques applied (limited command, ``Te``, load): a controller output beyond them is
+        clipped, its range in the legend. The voltage panel shows
         ``||u_dq||`` and the range ``u_dc / sqrt(3)``, with the samples at the voltage limit shaded.
     """
     t = result.t_s
@@ -64,12 +68,15 @@ def trace_figure(result: Result) -> Figure:
         ax_i.axhline(sign * i_max, color="grey", lw=0.8, ls=":")
     ax_i.set_ylabel("current [A]")
 
-    ax_T.plot(t, result.torque_unsat_Nm, ":", lw=1.0, color="C3", label="controller output u")
+    (u_line,) = ax_T.plot(t, result.torque_unsat_Nm, ":", lw=1.0, color="C3", label="controller output u")
     ax_T.plot(t, result.torque_ref_Nm, "--", lw=1.0, color="C2", label="limited command u_sat")
     ax_T.plot(t, result.torque_Nm, lw=1.4, color="C0", label="electromagnetic Te")
     ax_T.plot(t, result.load_Nm, lw=1.4, color="C4", label="load")
+    applied = [result.torque_ref_Nm, result.torque_Nm, result.load_Nm]
     if two_mass:
         ax_T.plot(t, result.shaft_torque_Nm, lw=1.0, color="C5", label="shaft")
+        applied.append(result.shaft_torque_Nm)
+    _clip_to_applied(ax_T, u_line, np.asarray(result.torque_unsat_Nm), applied)
     ax_T.set_ylabel("torque [Nm]")
 
     ax_u.plot(t, np.hypot(result.ud_V, result.uq_V), lw=1.4, color="C0", label="||u_dq||")
@@ -94,6 +101,24 @@ def trace_figure(result: Result) -> Figure:
         ax_u.legend(fontsize="small", loc="best")
     ax_u.set_xlim(t[0], t[-1])
     return fig
+
+
+def _clip_to_applied(
+    ax: Axes, u_line: Line2D, u: npt.NDArray[np.float64], applied: list[npt.NDArray[np.float64]]
+) -> None:
+    """Scale the torque panel to the torques the drive applies (limited command, Te, load), 10 % beyond.
+
+    The controller output before the limit may be orders of magnitude larger (a windup, a gain
+    designed for the wrong inertia): drawn to its own scale it would flatten ``Te`` and the load
+    to a line. It is then clipped at the panel's edge, its range given in its legend entry.
+    """
+    values = np.concatenate([np.asarray(a, dtype=float) for a in applied])
+    lo, hi = float(np.min(values)), float(np.max(values))
+    pad = 0.1 * (hi - lo) if hi > lo else 0.1 * max(abs(hi), 1e-9)
+    lo, hi = lo - pad, hi + pad
+    if np.min(u) < lo or np.max(u) > hi:
+        ax.set_ylim(lo, hi)
+        u_line.set_label(f"controller output u (clipped; {np.min(u):.3g} to {np.max(u):.3g} Nm)")
 
 
 def plot_trace(result: Result, path: Path | str) -> Path:
