@@ -21,10 +21,14 @@ The checks, with ``p``, ``psi_f``, ``Ld``, ``Lq`` of ``[motor]``:
   weakening (skipped when ``field_weakening.enabled``);
 - load: a load torque above the peak torque the current limit gives, the largest torque of eq 1 at
   ``||i_dq|| = limits.i_max_A`` (:func:`peak_torque_Nm`): the drive cannot hold it, it stalls and
-  the load turns it backwards.
+  the load turns it backwards;
+- speed sensor: an encoder read by the difference estimator resolves ``60 / (counts Ts)`` rpm;
+  coarser than :data:`STEADY_SPREAD` of the smallest reference step, the speed dithers by about
+  that and the step figures finer than it read n/a.
 """
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 from ..errors import Pmsm2dofWarning
@@ -39,6 +43,9 @@ J_DESIGN_RATIO_MAX = 10.0
 I_RATED_RATIO_MAX = 5.0
 #: Relative margin of the current limit over the motor's peak current before it is reported [-].
 I_PEAK_RTOL = 0.1
+#: The spread of the speed the step figures allow for a steady state, as a share of the step
+#: (:mod:`pmsm2dof.sim.metrics`): a speed resolution coarser than it leaves them n/a [-].
+STEADY_SPREAD = 0.002
 
 RPM_PER_RADPS = 30.0 / math.pi
 
@@ -47,19 +54,48 @@ class PlausibilityWarning(Pmsm2dofWarning):
     """A valid value that is probably a mistake (see :mod:`pmsm2dof.sim.plausibility`)."""
 
 
-def peak_torque_Nm(i_max_A: float, pole_pairs: int, psi_f_Wb: float, Ld_H: float, Lq_H: float) -> float:
-    """The largest torque of eq 1 with ``||i_dq|| = i_max_A`` [Nm]: the MTPA point of the current limit.
+def mtpa_id_A(i_A: float, psi_f_Wb: float, Ld_H: float, Lq_H: float) -> float:
+    """The d current of the largest torque of eq 1 on the circle ``||i_dq|| = i_A`` (MTPA) [A].
 
-    ``Te = 1.5 p iq (psi_f + (Ld - Lq) id)``; on the circle ``||i_dq|| = I`` it is largest where
-    ``dTe/dbeta = 0`` (``id = I cos beta``), ``2 dL I^2 cos^2 beta + psi_f I cos beta - dL I^2 = 0``
-    with ``dL = Ld - Lq``, so ``id = 2 dL I^2 / (psi_f + sqrt(psi_f^2 + 8 dL^2 I^2))`` (0 for a
-    surface PMSM, where the peak torque is ``1.5 p psi_f I``).
+    ``Te = 1.5 p iq (psi_f + (Ld - Lq) id)``; on the circle (``id = I cos beta``) it is largest where
+    ``dTe/dbeta = 0``, ``2 dL I^2 cos^2 beta + psi_f I cos beta - dL I^2 = 0`` with ``dL = Ld - Lq``,
+    so ``id = 2 dL I^2 / (psi_f + sqrt(psi_f^2 + 8 dL^2 I^2))``: 0 for a surface PMSM.
     """
     dL = Ld_H - Lq_H
-    I = i_max_A
-    id_A = 2.0 * dL * I * I / (psi_f_Wb + math.sqrt(psi_f_Wb**2 + 8.0 * dL * dL * I * I))
-    iq_A = math.sqrt(max(I * I - id_A * id_A, 0.0))
-    return 1.5 * pole_pairs * iq_A * (psi_f_Wb + dL * id_A)
+    return 2.0 * dL * i_A * i_A / (psi_f_Wb + math.sqrt(psi_f_Wb**2 + 8.0 * dL * dL * i_A * i_A))
+
+
+def peak_torque_Nm(i_max_A: float, pole_pairs: int, psi_f_Wb: float, Ld_H: float, Lq_H: float) -> float:
+    """The largest torque of eq 1 with ``||i_dq|| = i_max_A`` [Nm], at the MTPA point (:func:`mtpa_id_A`).
+
+    ``1.5 p psi_f i_max`` for a surface PMSM; the C speed controller's torque limit ``T_max`` is the same.
+    """
+    id_A = mtpa_id_A(i_max_A, psi_f_Wb, Ld_H, Lq_H)
+    iq_A = math.sqrt(max(i_max_A * i_max_A - id_A * id_A, 0.0))
+    return 1.5 * pole_pairs * iq_A * (psi_f_Wb + (Ld_H - Lq_H) * id_A)
+
+
+def voltage_limited_speed_radps(u_V: float, i_A: float, motor: Mapping[str, Any]) -> float:
+    """The mechanical speed at which the steady-state voltage of eq 1 at the current ``i_A`` reaches ``u_V`` [rad/s].
+
+    At the MTPA point ``(id, iq)`` of ``||i_dq|| = i_A``, eq 1 with d/dt = 0 gives
+    ``ud = Rs id - w_e Lq iq``, ``uq = Rs iq + w_e (Ld id + psi_f)``; ``||u_dq|| = u`` is the quadratic
+    ``A w_e^2 + 2 B w_e + C = 0`` with ``A = (Lq iq)^2 + (Ld id + psi_f)^2``,
+    ``B = Rs iq (Ld id + psi_f) - Rs id Lq iq``, ``C = Rs^2 i^2 - u^2``, whose positive root is taken;
+    ``i_A = 0`` gives the no-load speed ``u / (p psi_f)``. 0 when ``Rs i_A >= u`` (no speed is left).
+    ``motor`` holds the scenario keys ``pole_pairs``, ``Rs_ohm``, ``Ld_H``, ``Lq_H``, ``psi_f_Wb``.
+    """
+    Rs, Ld, Lq, psi = motor["Rs_ohm"], motor["Ld_H"], motor["Lq_H"], motor["psi_f_Wb"]
+    id_A = mtpa_id_A(i_A, psi, Ld, Lq)
+    iq_A = math.sqrt(max(i_A * i_A - id_A * id_A, 0.0))
+    flux_d = Ld * id_A + psi
+    A = (Lq * iq_A) ** 2 + flux_d**2
+    B = Rs * iq_A * flux_d - Rs * id_A * Lq * iq_A
+    C = Rs * Rs * i_A * i_A - u_V * u_V
+    if C >= 0.0:
+        return 0.0
+    w_e = (-B + math.sqrt(B * B - A * C)) / A
+    return float(w_e / motor["pole_pairs"])
 
 
 def inertia_findings(key: str, J_kgm2: float, J_rotor_kgm2: float | None) -> list[str]:
@@ -140,6 +176,7 @@ def implausible(scenario: Scenario) -> list[str]:
                     f"{limits['u_dc_V']:g} V reaches (u_dc / (sqrt(3) p psi_f)): the drive runs at its voltage "
                     "limit and cannot follow it (field weakening is off)"
                 )
+    found += _sensor_findings(data)
     T_peak = peak_torque_Nm(limits["i_max_A"], motor["pole_pairs"], motor["psi_f_Wb"], motor["Ld_H"], motor["Lq_H"])
     for i, e in enumerate(data["load"]):
         if abs(e["torque_Nm"]) > T_peak:
@@ -149,6 +186,28 @@ def implausible(scenario: Scenario) -> list[str]:
                 "turns it backwards"
             )
     return found
+
+
+def _sensor_findings(data: Mapping[str, Any]) -> list[str]:
+    """An encoder read by the difference estimator whose resolution is coarser than the step figures need."""
+    ss, sc = data["speed_sensor"], data["speed_controller"]
+    if ss["model"] != "encoder" or ss["estimator"] != "difference":
+        return []
+    resolution_rpm = 60.0 / (ss["counts_per_rev"] * sc["Ts_s"])
+    previous, steps = data["simulation"]["speed0_rpm"], []
+    for e in data["reference"]:
+        if e["speed_rpm"] != previous:
+            steps.append(abs(e["speed_rpm"] - previous))
+        previous = e["speed_rpm"]
+    if not steps or resolution_rpm <= STEADY_SPREAD * min(steps):
+        return []
+    return [
+        f"speed_sensor.counts_per_rev = {ss['counts_per_rev']} counted over speed_controller.Ts_s = {sc['Ts_s']:g} s "
+        f"resolves {resolution_rpm:.4g} rpm (60 / (counts Ts), estimator 'difference'), "
+        f"{100 * resolution_rpm / min(steps):.2g} % of the smallest reference step, {min(steps):g} rpm: the speed "
+        f"dithers by about that, and the step figures finer than it (a steady state needs a spread below "
+        f"{100 * STEADY_SPREAD:g} % of the step) read n/a; more counts, a PLL or a low-pass resolve finer"
+    ]
 
 
 def warn_implausible(scenario: Scenario) -> list[str]:

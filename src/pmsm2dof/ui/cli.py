@@ -1683,6 +1683,8 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
         f"{chosen.name} against {log}: speed difference {table['speed_error_rms_rpm']:.4g} rpm rms, "
         f"{table['speed_error_max_rpm']:.4g} rpm at most"
     )
+    for note in measured.notes:
+        click.echo(f"note: {note}")
     if table["log_metrics"] is not None:
         dt = measured.dt_s
         for mine in table["log_metrics"]["reference_steps"]:
@@ -1727,7 +1729,7 @@ def _identify_plan(
     click.echo(
         f"simulated with J = {chosen.data['speed_controller']['J_kgm2']:g} kg m^2: |speed| <= "
         f"{abs(result.speed_rpm).max():.5g} rpm, |iq| <= {abs(result.iq_A).max():.4g} A (limit {i_limit:g} A), "
-        f"{result.t_s[-1]:g} s"
+        f"at the voltage limit {100 * float(result.voltage_limited.mean()):.3g} % of the time, {result.t_s[-1]:g} s"
     )
     click.echo(f"wrote plan.toml, trace.csv and plot.png to {out}: play plan.toml's reference on the drive, log it")
 
