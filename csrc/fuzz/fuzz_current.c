@@ -293,8 +293,8 @@ static void fz_check_output(const fz_current_in_t *in, const p2d_current_output_
         /* a cut uq lies on the circle: |uq_ref| = sqrt(u_max^2 - ud_ref^2) up to rounding */
         FZ_REQUIRE(out->uq_ref_V == out->uq_unsat_V ||
                        fabs(fabs((double)out->uq_ref_V) - uq_room) <= 8.0 * FLT_EPSILON * (double)u_max_f + 0x1p-146,
-                   "uq cut to %.9g, not to the room %.9g that ud_ref %.9g leaves of u_max %.9g",
-                   (double)out->uq_ref_V, uq_room, (double)out->ud_ref_V, (double)u_max_f);
+                   "uq cut to %.9g, not to the room %.9g that ud_ref %.9g leaves of u_max %.9g", (double)out->uq_ref_V,
+                   uq_room, (double)out->ud_ref_V, (double)u_max_f);
     }
 }
 

@@ -9,6 +9,12 @@
 
 #define P2D_INV_SQRT3 0.57735026918962576f /* 1/sqrt(3) */
 #define P2D_SQRT2 1.41421356237309505f     /* sqrt(2) */
+/*
+ * Smallest ud^2 + uq^2 [V^2] whose float32 sum is compared with u_max^2 as is: any square that
+ * underflowed below it (< 2^-126, subnormal or 0) is < 2^-26 of the sum, under its rounding.
+ * Below, or on overflow, the limit is applied the long way, which needs no square.
+ */
+#define P2D_NORM2_MIN_V2 0x1p-100f
 
 /* PI coefficients of one axis with inductance L_H (eq 3: Kp = L/tau_i, Ki = Rs/tau_i; eq 14, Table 1). */
 static p2d_pi_coef_t axis_coefficients(const p2d_current_config_t *cfg, float L_H)
@@ -100,7 +106,7 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
                                               float iq_ref_A, float id_A, float iq_A, float w_e_radps, float u_dc_V,
                                               p2d_current_output_t *out)
 {
-    float ed, eq, ud, uq, u_max, ud_abs, uq_max;
+    float ed, eq, ud, uq, u_max, norm2, ud_abs, uq_max;
 
     ed = id_ref_A - id_A;
     eq = iq_ref_A - iq_A;
@@ -116,6 +122,15 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
     if (!(fabsf(u_dc_V) < INFINITY && fabsf(ud) < INFINITY && fabsf(uq) < INFINITY)) return fault_output(out);
     /* linear range of space-vector modulation: ||u_dq|| <= u_max = u_dc / sqrt(3) */
     u_max = u_dc_V > 0.0f ? u_dc_V * P2D_INV_SQRT3 : 0.0f;
+    out->fault = false;
+    norm2 = fmaf(ud, ud, uq * uq);
+    if (norm2 >= P2D_NORM2_MIN_V2 && norm2 < INFINITY && norm2 <= u_max * u_max) {
+        /* inside the circle, its squares neither overflowed nor lost: the vector as it is, no root */
+        out->ud_ref_V = ud;
+        out->uq_ref_V = uq;
+        out->saturated = false;
+        return true;
+    }
     /* d-axis priority: ud_ref = Sat(ud) within [-u_max, u_max] */
     out->ud_ref_V = ud > u_max ? u_max : (ud < -u_max ? -u_max : ud);
     /*
@@ -126,7 +141,6 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
     uq_max = P2D_SQRT2 * p2d_sqrt_nonnegative(u_max - ud_abs) * p2d_sqrt_nonnegative(0.5f * u_max + 0.5f * ud_abs);
     out->uq_ref_V = uq > uq_max ? uq_max : (uq < -uq_max ? -uq_max : uq);
     out->saturated = out->ud_ref_V != ud || out->uq_ref_V != uq;
-    out->fault = false;
     return true;
 }
 
