@@ -313,3 +313,22 @@ def test_the_kt_ke_warning_is_one_line_without_a_source_path_once_per_command(tm
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1, err
     assert err[0].startswith("pmsm2dof: warning: Kt 0.0404 Nm/A rms gives psi_f") and ".py" not in err[0]
+
+
+def test_ratings_beside_a_datasheet_and_in_a_model_file(tmp_path):
+    """A rating the sheet does not give may stand in [motor]; one it gives may not."""
+    path = tmp_path / "m.toml"
+    path.write_text(
+        "[motor]\ni_peak_A = 20.0\n[motor.datasheet]\npole_pairs = 8\nKt_Nm_per_A = 0.0404\n"
+        'commutation = "block"\nR_ohm = 0.573\nL_H = 0.301e-3\nI_rated_A = 3.29\n'
+    )
+    m = load_motor(path)
+    assert (m.i_peak_A, m.sources["i_peak_A"]) == (20.0, "motor.i_peak_A")
+    assert m.i_rated_A == pytest.approx(3.29 * 2 / math.sqrt(3))
+    path.write_text(path.read_text().replace("i_peak_A = 20.0", "i_rated_A = 4.0"))
+    with pytest.raises(ConfigError, match="motor.i_rated_A = 4.0 is invalid: valid range is absent when"):
+        load_motor(path)
+    path.write_text(
+        "[motor]\npole_pairs = 4\nRs_ohm = 0.5\nLd_H = 0.01\nLq_H = 0.01\npsi_f_Wb = 0.2\nJ_rotor_kgm2 = 1e-4\n"
+    )
+    assert load_motor(path).J_rotor_kgm2 == 1e-4

@@ -423,10 +423,9 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
             raise ConfigError(f"motor.{key}", motor[key], "a key of [motor]: " + ", ".join(known))
     if "datasheet" in motor:
         converted = motor_from_table(motor)
-        ratings = {k: _positive(motor, k) for k in RATING_KEYS if k in motor}
-        return dataclasses.replace(
-            converted, **ratings, sources={**converted.sources, **{k: f"motor.{k}" for k in ratings}}
-        )
+        ratings: dict[str, Any] = {k: _positive(motor, k) for k in RATING_KEYS if k in motor}
+        ratings["sources"] = {**converted.sources, **{k: f"motor.{k}" for k in ratings}}
+        return dataclasses.replace(converted, **ratings)
     missing = [k for k in MOTOR_KEYS if k not in motor]
     if missing:
         raise ConfigError(f"motor.{missing[0]}", "<missing>", "a [motor.datasheet] table or every model key of [motor]")

@@ -593,7 +593,8 @@ def bode(
 
     Fig. 7 of the paper: --feedforward full --m 0.2,0.5,1,2.
     """
-    from .plots.design import bode_gx_sweep, save_figure
+    from .plots.canvas import save_figure
+    from .plots.design import bode_gx_sweep
 
     try:
         m_values = [float(v) for v in m_list.split(",")]
