@@ -1177,7 +1177,12 @@ def _motor_help() -> str:
     """The help of `pmsm2dof motor`: what it prints and every key of [motor.datasheet]."""
     from ..sim.datasheet import DATASHEET_KEYS
 
-    keys = "\n".join(f"  {key}: {doc}" for key, (_, doc) in DATASHEET_KEYS.items())
+    import textwrap
+
+    keys = "\n".join(
+        textwrap.fill(f"{key}: {doc}", width=76, initial_indent="  ", subsequent_indent="      ")
+        for key, (_, doc) in DATASHEET_KEYS.items()
+    )
     return (
         "Print the model parameters of eq 1 of a motor given in datasheet units, with their source.\n\n"
         "FILE is a TOML file (a scenario, one with only [motor], or an identified motor.toml) whose "
