@@ -206,7 +206,9 @@ def main(argv: list[str] | None = None) -> int:
     "motor_file",
     type=click.Path(dir_okay=False),
     default=None,
-    help="identified motor file ([motor] of pmsm2dof commission --out): the header's motor data not given",
+    help="motor file: a scenario, a [motor.datasheet] file or an identified motor.toml (commission --out, identify "
+    "--electrical --out): the header's motor data not given, and the rotor inertia and currents --J and --i-max "
+    "are checked against",
 )
 @click.option(
     "--current-bandwidth",
@@ -1175,9 +1177,9 @@ def _percent(x: float) -> str:
 
 def _motor_help() -> str:
     """The help of `pmsm2dof motor`: what it prints and every key of [motor.datasheet]."""
-    from ..sim.datasheet import DATASHEET_KEYS
-
     import textwrap
+
+    from ..sim.datasheet import DATASHEET_KEYS
 
     keys = "\n".join(
         textwrap.fill(f"{key}: {doc}", width=76, initial_indent="  ", subsequent_indent="      ")
