@@ -126,12 +126,12 @@ def test_sampling_warning_is_one_stderr_line(capsys):
 
 
 BAD = [
-    (["design", "--J", "-0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "J_kgm2"),
-    (["design", "--J", "0.4", "--alpha", "nan", "--zeta", "0.3", "--Ts", "1e-3"], "alpha_radps"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0", "--Ts", "1e-3"], "zeta"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "inf"], "Ts_s"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--tau-i", "-1"], "tau_i_s"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--Ka", "-2"], "Ka"),
+    (["design", "--J", "-0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
+    (["design", "--J", "0.4", "--alpha", "nan", "--zeta", "0.3", "--Ts", "1e-3"], "--alpha"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0", "--Ts", "1e-3"], "--zeta"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "inf"], "--Ts"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--tau-i", "-1"], "--tau-i"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--Ka", "-2"], "--Ka"),
     (
         [
             "design",
@@ -148,7 +148,7 @@ BAD = [
             "--feedforward",
             "lowpass",
         ],
-        "m",
+        "--m",
     ),
     (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--method", "zoh"], "method"),
     (["design", "--J", "heavy", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
@@ -234,9 +234,7 @@ def test_bad_value_in_a_fresh_process_has_no_traceback():
         timeout=120,
     )
     assert run.returncode == 2
-    assert run.stderr.strip().splitlines() == [
-        "pmsm2dof: error: J_kgm2 = 0.0 is invalid: valid range is finite and > 0"
-    ]
+    assert run.stderr.strip().splitlines() == ["pmsm2dof: error: --J = 0.0 is invalid: valid range is finite and > 0"]
 
 
 @pytest.mark.slow

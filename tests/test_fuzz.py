@@ -189,8 +189,12 @@ MUTANTS = {
             )
         ],
     ),
-    # the voltage-vector limit is never active
-    "current_no_limit": ("current", "current.c", [("out->saturated = norm > u_max;", "out->saturated = false;")]),
+    # the voltage limit never cuts the q axis: the vector leaves the circle
+    "current_no_limit": (
+        "current",
+        "current.c",
+        [("out->uq_ref_V = uq > uq_max ? uq_max : (uq < -uq_max ? -uq_max : uq);", "out->uq_ref_V = uq;")],
+    ),
     # the commissioning routine never trips: a current that runs away goes on
     "commission_no_trip": (
         "commission",

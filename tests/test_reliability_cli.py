@@ -155,19 +155,19 @@ DESIGN = ["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e
 
 DESIGN_BAD = [
     (["--feedforward", "bogus"], "feedforward = 'bogus'"),
-    (["--anti-windup", "bogus"], "anti_windup = 'bogus'"),
+    (["--anti-windup", "bogus"], "--anti-windup = 'bogus'"),
     (["--method", "zoh"], "method = 'zoh'"),
     (["--method"], "--method"),
-    (["--Ts", "0"], "Ts_s = 0.0"),
-    (["--Ts", "-1e-3"], "Ts_s = -0.001"),
-    (["--Ts", "1e300"], "Ts_s = "),  # the C controller: not a float32
+    (["--Ts", "0"], "--Ts = 0.0"),
+    (["--Ts", "-1e-3"], "--Ts = -0.001"),
+    (["--Ts", "1e300"], "--Ts = "),  # the C controller: not a float32
     (["--zeta", "-0.5"], "zeta = -0.5"),
-    (["--alpha", "inf"], "alpha_radps = inf"),
-    (["--J", "nan"], "J_kgm2 = nan"),
+    (["--alpha", "inf"], "--alpha = inf"),
+    (["--J", "nan"], "--J = nan"),
     (["--J", "0.4kg"], "--J"),
     (["--m", "0"], "m = 0.0"),
     (["--Ka", "nan"], "Ka = nan"),
-    (["--tau-i", "nan"], "tau_i_s = nan"),
+    (["--tau-i", "nan"], "--tau-i = nan"),
     (["--emit-c-header", "h.h"], "--i-max, --pole-pairs, --psi-f, --Ld missing"),
     (["--emit-c-header", "h.h", "--i-max", "7.6", "--Ld", "0.01"], "--pole-pairs, --psi-f missing"),
     (["--emit-c-header", "h.h", "--paper-drive", "--i-max", "-1"], "i_max_A = -1.0"),

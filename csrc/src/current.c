@@ -8,10 +8,11 @@
 #include "pi.h"
 
 #define P2D_INV_SQRT3 0.57735026918962576f /* 1/sqrt(3) */
+#define P2D_SQRT2 1.41421356237309505f     /* sqrt(2) */
 /*
- * Smallest ud^2 + uq^2 [V^2] whose float32 sum is used as is: any square that
- * underflowed below it (< 2^-126, subnormal or 0) is < 2^-26 of the sum, under
- * its rounding. Below, or on overflow, the norm is taken in the scaled form.
+ * Smallest ud^2 + uq^2 [V^2] whose float32 sum is compared with u_max^2 as is: any square that
+ * underflowed below it (< 2^-126, subnormal or 0) is < 2^-26 of the sum, under its rounding.
+ * Below, or on overflow, the limit is applied the long way, which needs no square.
  */
 #define P2D_NORM2_MIN_V2 0x1p-100f
 
@@ -105,7 +106,7 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
                                               float iq_ref_A, float id_A, float iq_A, float w_e_radps, float u_dc_V,
                                               p2d_current_output_t *out)
 {
-    float ed, eq, ud, uq, u_max, norm2, norm;
+    float ed, eq, ud, uq, u_max, norm2, ud_abs, uq_max;
 
     ed = id_ref_A - id_A;
     eq = iq_ref_A - iq_A;
@@ -118,30 +119,28 @@ static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2
     out->ud_unsat_V = ud;
     out->uq_unsat_V = uq;
     /* u_dc_V is tested itself: a NaN measurement must not pass as a zero voltage limit */
-    if (!(fabsf(u_dc_V) < INFINITY)) return fault_output(out);
-    /* linear range of space-vector modulation: ||u_dq|| <= u_dc / sqrt(3) */
+    if (!(fabsf(u_dc_V) < INFINITY && fabsf(ud) < INFINITY && fabsf(uq) < INFINITY)) return fault_output(out);
+    /* linear range of space-vector modulation: ||u_dq|| <= u_max = u_dc / sqrt(3) */
     u_max = u_dc_V > 0.0f ? u_dc_V * P2D_INV_SQRT3 : 0.0f;
-    norm2 = fmaf(ud, ud, uq * uq);
-    if (norm2 >= P2D_NORM2_MIN_V2 && norm2 < INFINITY) {
-        norm = p2d_sqrt_nonnegative(norm2);
-    } else {
-        /*
-         * ud, uq not finite, or their squares overflow (|u| > 1.8e19 V) or underflow
-         * (|u| < 1e-19 V, and a tiny vector would pass a zero limit):
-         * ||u_dq|| = u_big sqrt((ud/u_big)^2 + (uq/u_big)^2), u_big = max(|ud|, |uq|)
-         */
-        float u_big;
-        if (!(fabsf(ud) < INFINITY && fabsf(uq) < INFINITY)) return fault_output(out);
-        u_big = fabsf(ud) > fabsf(uq) ? fabsf(ud) : fabsf(uq);
-        norm = u_big > 0.0f ? u_big * p2d_sqrt_nonnegative(fmaf(ud / u_big, ud / u_big, (uq / u_big) * (uq / u_big)))
-                            : 0.0f;
-    }
     out->fault = false;
-    out->saturated = norm > u_max;
-    /* scale the vector back onto the limit circle, keeping its direction; the unit
-       vector first, as u_max / norm can be subnormal and lose its precision */
-    out->ud_ref_V = out->saturated ? u_max * (ud / norm) : ud;
-    out->uq_ref_V = out->saturated ? u_max * (uq / norm) : uq;
+    norm2 = fmaf(ud, ud, uq * uq);
+    if (norm2 >= P2D_NORM2_MIN_V2 && norm2 < INFINITY && norm2 <= u_max * u_max) {
+        /* inside the circle, its squares neither overflowed nor lost: the vector as it is, no root */
+        out->ud_ref_V = ud;
+        out->uq_ref_V = uq;
+        out->saturated = false;
+        return true;
+    }
+    /* d-axis priority: ud_ref = Sat(ud) within [-u_max, u_max] */
+    out->ud_ref_V = ud > u_max ? u_max : (ud < -u_max ? -u_max : ud);
+    /*
+     * uq_ref = Sat(uq) within what the circle leaves, |uq| <= sqrt(u_max^2 - ud_ref^2)
+     * = sqrt(2) sqrt(u_max - |ud_ref|) sqrt(u_max/2 + |ud_ref|/2): no square to overflow or underflow
+     */
+    ud_abs = fabsf(out->ud_ref_V);
+    uq_max = P2D_SQRT2 * p2d_sqrt_nonnegative(u_max - ud_abs) * p2d_sqrt_nonnegative(0.5f * u_max + 0.5f * ud_abs);
+    out->uq_ref_V = uq > uq_max ? uq_max : (uq < -uq_max ? -uq_max : uq);
+    out->saturated = out->ud_ref_V != ud || out->uq_ref_V != uq;
     return true;
 }
 

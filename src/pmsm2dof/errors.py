@@ -3,7 +3,8 @@
 Every public entry point raises :class:`ConfigError` (a ``ValueError``) for bad input,
 with a message that names the parameter, its value and the valid range, and
 :class:`SimulationError` when the numbers go wrong (non-finite or physically absurd state).
-The CLI turns both into one line on stderr and exit status 2.
+The CLI turns both into one line on stderr and exit status 2. Valid but doubtful input gives a
+:class:`Pmsm2dofWarning`.
 """
 
 import math
@@ -29,6 +30,13 @@ class ConfigError(Pmsm2dofError, ValueError):
 
 class SimulationError(Pmsm2dofError, RuntimeError):
     """The simulation or a numerical computation produced non-finite or absurd values."""
+
+
+class Pmsm2dofWarning(UserWarning):
+    """Base class of the warnings pmsm2dof gives: a valid input whose result deserves a second look.
+
+    The command line shows each one once per command, as one line on stderr.
+    """
 
 
 def require_positive(param: str, value: Any) -> float:

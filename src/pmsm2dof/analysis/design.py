@@ -105,6 +105,8 @@ class Design:
         Integral gain ``J (alpha / (2 zeta))^2`` [Nm/rad] (eq 9).
     sensor : SensorChain
         The speed measurement in the loop (ideal by default).
+    Ka_default : bool
+        ``Ka`` is the default ``1 / Kp`` (not given): an error it causes names the input it came from.
     """
 
     J_kgm2: float
@@ -118,6 +120,7 @@ class Design:
     Kp: float
     Ki: float
     sensor: SensorChain = SensorChain()
+    Ka_default: bool = False
 
     @property
     def F(self) -> control.TransferFunction:
@@ -464,9 +467,10 @@ def design(
             "feedforward 'no_tau' or 'full' (eq 11)",
         )
     Kp, Ki = pi_gains(J_kgm2, alpha_radps, zeta)  # eq 9
+    Ka_default = Ka is None
     Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
     if sensor is None:
         sensor = SensorChain()
     elif not isinstance(sensor, SensorChain):
         raise ConfigError("sensor", sensor, "a SensorChain")
-    return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki, sensor)
+    return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki, sensor, Ka_default)

@@ -62,7 +62,8 @@ import numpy.typing as npt
 
 from ..core import METHODS, SpeedController
 from ..core.bindings import AntiWindup, Feedforward, Method
-from ..errors import ConfigError, require_choice, require_positive
+from ..core.gains import default_Ka_error
+from ..errors import ConfigError, Pmsm2dofWarning, require_choice, require_positive
 from .margins import Margins, frequency_margins, pick_margins
 from .sensor import sampled_plant_blocks
 from .stepresponse import StepResponse
@@ -83,7 +84,7 @@ _Vector = npt.NDArray[np.float64]
 _Poly = npt.NDArray[np.floating[Any]]
 
 
-class SamplingWarning(UserWarning):
+class SamplingWarning(Pmsm2dofWarning):
     """The sampling period is long for the designed bandwidth: expect discretization effects."""
 
 
@@ -238,19 +239,26 @@ def c_coefficients(
         :attr:`pmsm2dof.core.SpeedController.coefficients` (float32 values).
     """
     d = design
-    ctl = SpeedController(
-        J_kgm2=d.J_kgm2,
-        alpha_radps=d.alpha_radps,
-        zeta=d.zeta,
-        m=d.m,
-        tau_i_s=d.tau_i_s,
-        Ka=d.Ka,
-        Ts_s=Ts_s,
-        method=method,
-        feedforward=feedforward or d.feedforward,
-        anti_windup=anti_windup or d.anti_windup,
-        **NEUTRAL_MOTOR,
-    )
+    try:
+        ctl = SpeedController(
+            J_kgm2=d.J_kgm2,
+            alpha_radps=d.alpha_radps,
+            zeta=d.zeta,
+            m=d.m,
+            tau_i_s=d.tau_i_s,
+            Ka=d.Ka,
+            Ts_s=Ts_s,
+            method=method,
+            feedforward=feedforward or d.feedforward,
+            anti_windup=anti_windup or d.anti_windup,
+            **NEUTRAL_MOTOR,
+        )
+    except ConfigError as exc:
+        if exc.param == "Ka" and d.Ka_default and d.alpha_radps * Ts_s / (4.0 * d.zeta**2) >= 2.0 * (1.0 - 1e-6):
+            # the default 1/Kp made Ki Ka Ts >= 2: name what the caller set
+            names = {name: name for name in ("alpha_radps", "zeta", "Ts_s", "Ka")}
+            raise default_Ka_error(d.J_kgm2, d.alpha_radps, d.zeta, Ts_s, names) from None
+        raise
     return ctl.coefficients
 
 

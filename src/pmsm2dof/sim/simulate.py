@@ -92,9 +92,11 @@ from ..core import (
     pi_gains,
 )
 from ..core.bindings import c_string, ffi, lib
+from ..core.gains import default_Ka_error
 from ..errors import ConfigError, SimulationError
 from ..outputs import atomic_write
-from .scenario import Scenario, Tree
+from .plausibility import peak_torque_Nm
+from .scenario import SCHEMA, SameAs, Scenario, Tree
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -134,6 +136,10 @@ CURRENT_PER_SPEED_MAX = 10**6
 
 #: Number of C calls a run is split into when the progress bar is on.
 PROGRESS_CHUNKS = 200
+
+#: Fewest current periods of a run that gets a progress bar (fewer take well under the bar's 1 s delay: the
+#: engine runs about 5 million per second).
+PROGRESS_PERIODS_MIN = 2 * 10**6
 
 #: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
 _SPEED_KEYS = {
@@ -238,6 +244,24 @@ _ESTIMATOR_KEYS = {
 } | {"Ts_s": "speed_controller.Ts_s"}
 
 
+#: Keys whose absent value the engine takes from another key: key -> (that key, how). An error of the
+#: engine names the key the user set: the SameAs defaults of the schema and the derived defaults of
+#: [estimator] and [field_weakening] (``speed_controller.Ka``, 1/Kp, is named by what makes it fail:
+#: :func:`pmsm2dof.core.gains.default_Ka_error`).
+_SAME_AS = {f.key: f.default.key for f in SCHEMA if isinstance(f.default, SameAs)}
+_SOURCES = {key: (source, source) for key, source in _SAME_AS.items()} | {
+    "estimator.J_min_kgm2": ("estimator.J0_kgm2", "J0_kgm2 / 10"),
+    "estimator.J_max_kgm2": ("estimator.J0_kgm2", "10 J0_kgm2"),
+    "estimator.B_max_Nms": ("limits.i_max_A", "the peak torque 1.5 p psi_f i_max_A per 100 rad/s"),
+    "estimator.T_load_max_Nm": ("limits.i_max_A", "the peak torque 1.5 p psi_f i_max_A"),
+    "estimator.sigma_T_Nm": ("limits.i_max_A", "1 % of the peak torque 1.5 p psi_f i_max_A"),
+    "estimator.load_memory_s": ("speed_controller.alpha_radps", "1 / alpha_radps"),
+    "estimator.w_f_radps": ("speed_controller.Ts_s", "0.2 / Ts_s"),
+    "field_weakening.Ka_V_per_A": ("field_weakening.Ki_A_per_Vs", "1 / (Ki_A_per_Vs speed_controller.Ts_s)"),
+    "field_weakening.id_min_A": ("limits.i_max_A", "-i_max_A"),
+}
+
+
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
 class Result:
     """The trace of one simulation: numpy arrays of equal length, one per signal.
@@ -328,10 +352,12 @@ class Result:
         suffix = path.suffix.lower()
         arrays = {name: getattr(self, name) for name in self.signals}
         if suffix == ".csv":
-            frame = self.to_dataframe()
-            for flag in FLAG_SIGNALS:
-                frame[flag] = frame[flag].astype(np.int8)
-            atomic_write(path, frame.to_csv(index=False))
+            columns = [
+                _csv_column(arrays[name].astype(np.int8) if name in FLAG_SIGNALS else arrays[name])
+                for name in self.signals
+            ]
+            text = "".join(",".join(row) + "\n" for row in zip(*columns))
+            atomic_write(path, ",".join(self.signals) + "\n" + text)
         elif suffix == ".npz":
             buf = io.BytesIO()
             np.savez(buf, scenario_toml=np.array(self.scenario.to_toml()), **arrays)
@@ -346,6 +372,16 @@ class Result:
             raise ConfigError("path", str(path), "a file name ending in .csv, .npz or .mat")
 
 
+def _csv_column(values: npt.NDArray[Any]) -> list[str]:
+    """The texts of a column of the CSV trace: each number as Python writes it (``repr``, the shortest
+    text that reads back the same value), a value that repeats (a schedule, a flag) formatted once."""
+    distinct, index = np.unique(values, return_inverse=True)
+    if 4 * distinct.size < values.size:
+        texts: list[str] = np.array([repr(v) for v in distinct.tolist()], dtype=object)[index].tolist()
+        return texts
+    return list(map(repr, values.tolist()))
+
+
 def simulate(scenario: Scenario, progress: bool = False) -> "Result":
     """Simulate ``scenario`` in the compiled engine and return its :class:`Result`.
 
@@ -357,7 +393,8 @@ def simulate(scenario: Scenario, progress: bool = False) -> "Result":
         ``speed_controller.tau_i_s``; the plant uses ``motor.J_kgm2`` and ``current_loop.tau_i_s``.
         ``speed_controller.Ka`` None means the paper's 1/Kp (section 3.3).
     progress : bool
-        Show a progress bar on stderr when the run lasts more than a second.
+        Show a progress bar on stderr when the run lasts more than a second (runs of fewer than
+        :data:`PROGRESS_PERIODS_MIN` current periods never do, and do not load the bar).
 
     Raises
     ------
@@ -373,7 +410,7 @@ def simulate(scenario: Scenario, progress: bool = False) -> "Result":
     data = scenario.data
     run = Simulation(data)
     start = time.perf_counter()
-    if progress:
+    if progress and run.n_samples * run.current_per_speed >= PROGRESS_PERIODS_MIN:
         from tqdm import tqdm
 
         chunk = max(1, math.ceil(run.n_samples / PROGRESS_CHUNKS))
@@ -419,7 +456,7 @@ class Simulation:
             data[k] for k in ("motor", "limits", "current_loop", "speed_controller", "simulation")
         )
         self.Ts_speed_s = sc["Ts_s"]
-        current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
+        self.current_per_speed = current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
         if current_per_speed > CURRENT_PER_SPEED_MAX:
             raise ConfigError(
                 "speed_controller.Ts_s",
@@ -545,8 +582,10 @@ class Simulation:
     def _raise_config(self, status: int) -> None:
         if status in (lib.P2D_SIM_ERR_SPEED_SENSOR, lib.P2D_SIM_ERR_FIELD_WEAKENING) and self.sim.controller_status:
             ctl = self.sim.controller_status
-            key = _SENSING_KEYS[c_string(lib.p2d_status_param(ctl))]
-            raise ConfigError(key, self._value(key), c_string(lib.p2d_status_range(ctl)))
+            field = c_string(lib.p2d_status_param(ctl))
+            key = _SENSING_KEYS[field]
+            derived = getattr(self.cfg.sensing.field_weakening.config, field, None)
+            raise self._blame(key, c_string(lib.p2d_status_range(ctl)), derived)
         if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER, lib.P2D_SIM_ERR_ESTIMATOR):
             ctl = self.sim.controller_status
             field = c_string(lib.p2d_status_param(ctl))
@@ -557,29 +596,71 @@ class Simulation:
                 lib.P2D_SIM_ERR_ESTIMATOR: _ESTIMATOR_KEYS,
             }[status]
             key = keys[field]
-            value = self._value(key)
-            if key == "speed_controller.Ka":
-                s = self.cfg.speed
+            if key != "speed_controller.Ka":
+                derived = getattr(self.cfg.adapt.config, field, None) if status == lib.P2D_SIM_ERR_ESTIMATOR else None
+                raise self._blame(key, valid, derived)
+            s = self.cfg.speed
+            sc = self.data["speed_controller"]
+            if sc["Ka"] is not None:
                 _, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
                 valid = (
                     f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
                     f"{2.0 / (Ki * s.Ts_s):.6g} (Ki = {Ki:.6g} by eq 9)"
                 )
-                if value is None:
-                    value = f"None (default 1/Kp = {s.Ka:.6g})"
-            elif value is None:
-                value = f"None (derived: {getattr(self.cfg.adapt.config, field):.6g})"
-            raise ConfigError(key, value, valid)
+                raise ConfigError(key, sc["Ka"], valid)
+            if s.alpha_radps * s.Ts_s / (4.0 * s.zeta**2) >= 2.0 * (1.0 - 1e-6):
+                # the default 1/Kp made Ki Ka Ts >= 2: name what the user set
+                names = {name: f"speed_controller.{name}" for name in ("alpha_radps", "zeta", "Ts_s", "Ka")}
+                raise default_Ka_error(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], sc["Ts_s"], names)
+            raise ConfigError(
+                "speed_filter",
+                "<table>",
+                f"filters through which the back-calculation loop with the default Ka = 1/Kp = {s.Ka:.6g} "
+                "(speed_controller.Ka absent) is stable; or give speed_controller.Ka smaller",
+            )
         field = c_string(lib.p2d_sim_status_param(status))
         valid = c_string(lib.p2d_sim_status_text(status))
-        key = _SIM_KEYS[field]
-        raise ConfigError(key, self._value(key), valid)
+        raise self._blame(_SIM_KEYS[field], valid)
+
+    def _blame(self, key: str, valid: str, derived: float | None = None) -> ConfigError:
+        """The ConfigError of ``key``, or, when ``key`` was absent and took its value from another key
+        (:data:`_SOURCES`: the defaults the engine derives), of that key: the input the user set.
+
+        ``derived`` is the value the engine derived for a key absent from the data (None in it).
+        """
+        value = self._value(key)
+        source = _SOURCES.get(key)
+        if source is not None:
+            origin, how = source
+            is_default = value is None if key not in _SAME_AS else value == self._value(origin)
+            if is_default:
+                shown = value if value is not None else derived
+                return ConfigError(
+                    origin,
+                    self._value(origin),
+                    f"a value that makes {key} (when not given, {how} = {shown:.6g}) valid: {valid}",
+                )
+        return ConfigError(key, value, valid)
 
     def _raise_stop(self, status: int) -> None:
         sim = self.sim
         reason = c_string(lib.p2d_sim_status_text(status))
         if status == lib.P2D_SIM_STOP_OVERSPEED:
             reason += f": |speed| = {sim.stop_value * RPM_PER_RADPS:.6g} rpm > {sim.stop_bound * RPM_PER_RADPS:.6g} rpm"
+            motor, i_max_A = self.data["motor"], self.data["limits"]["i_max_A"]
+            T_peak = peak_torque_Nm(i_max_A, motor["pole_pairs"], motor["psi_f_Wb"], motor["Ld_H"], motor["Lq_H"])
+            over = [
+                (i, e)
+                for i, e in enumerate(self.data["load"])
+                if e["t_s"] <= sim.t_stop_s and abs(e["torque_Nm"]) > T_peak
+            ]
+            if over:
+                i, e = over[-1]
+                reason = (
+                    f"the load load.{i}.torque_Nm = {e['torque_Nm']:.6g} Nm is above the peak torque {T_peak:.4g} "
+                    f"Nm that limits.i_max_A = {i_max_A:g} A gives: it stalled the drive and turned it backwards "
+                    f"({reason})"
+                )
         elif status == lib.P2D_SIM_STOP_OVERCURRENT:
             reason += f": ||i_dq|| = {sim.stop_value:.6g} A > {sim.stop_bound:.6g} A"
         raise SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")

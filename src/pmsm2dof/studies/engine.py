@@ -30,7 +30,7 @@ from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Seq
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, SimulationError
+from ..errors import ConfigError, Pmsm2dofWarning, SimulationError
 from ..outputs import atomic_write
 from ..sim.scenario import Scenario, Tree
 from ..sim.simulate import Result, simulate
@@ -321,7 +321,7 @@ def one_line(exc: BaseException) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-class PartWarning(UserWarning):
+class PartWarning(Pmsm2dofWarning):
     """A stored part of an earlier run cannot be used: it is deleted and its rows computed again."""
 
 

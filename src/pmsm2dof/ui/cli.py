@@ -13,12 +13,12 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import click
 
-from ..errors import ConfigError, Pmsm2dofError
+from ..errors import ConfigError, Pmsm2dofError, Pmsm2dofWarning
 
 if TYPE_CHECKING:
     import pandas as pd
 
-    from ..analysis.current_loop import CurrentLoopDesign, MotorEstimate
+    from ..analysis.current_loop import CurrentLoopDesign
     from ..analysis.design import Design
     from ..analysis.discretize import DiscreteDesign
     from ..analysis.margins import Margins
@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     from ..analysis.twomass import TwoMass
     from ..core.bindings import AntiWindup, Feedforward, Method
     from ..sim.commission import Commissioning
+    from ..sim.datasheet import MotorParameters
     from ..studies.autotune import AutotuneResult
     from ..studies.identify import Mechanics
 
@@ -78,11 +79,14 @@ def parse_override(text: str) -> tuple[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script: run the CLI, map user errors to exit status 2.
 
+    The warnings of pmsm2dof are shown once each, as one line on stderr (:func:`warnings_as_lines`).
+
     A command ends with another status by raising ``click.exceptions.Exit`` (``autotune``: 1
     when no design meets the specification).
     """
     try:
-        status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
+        with warnings_as_lines():
+            status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return int(exc.exit_code)
     except click.exceptions.Abort:
@@ -204,7 +208,9 @@ def main(argv: list[str] | None = None) -> int:
     "motor_file",
     type=click.Path(dir_okay=False),
     default=None,
-    help="identified motor file ([motor] of pmsm2dof commission --out): the header's motor data not given",
+    help="motor file: a scenario, a [motor.datasheet] file or an identified motor.toml (commission --out, identify "
+    "--electrical --out): the header's motor data not given, and the rotor inertia and currents --J and --i-max "
+    "are checked against",
 )
 @click.option(
     "--current-bandwidth",
@@ -262,39 +268,53 @@ def design(
 
     from ..analysis.design import design as make_design
     from ..analysis.sensor import SensorChain
+    from ..sim.plausibility import PlausibilityWarning, current_findings, inertia_findings
 
-    with warnings.catch_warnings(record=True) as caught_loop:
-        warnings.simplefilter("always")
-        loop = _identified_current_loop(motor_file, alpha_c_radps, tau_i_s, Ts_current_s)
-    from_file: set[str] = set()
-    if motor_file is not None:
-        identified = _identified_motor(motor_file)
-        given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
-        from_file = {name for name, value in given.items() if value is None}
-        pole_pairs = pole_pairs if pole_pairs is not None else int(identified["pole_pairs"])
-        psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (
-            identified[k] if v is None else v for k, v in given.items() if k != "pole_pairs"
-        )
-    if loop is not None:
-        tau_i_s = loop.tau_i_s
-    if header is not None:
-        motor, sources = _header_motor(
-            dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm),
-            Ts_current_s is not None,
-            paper_drive,
-        )
-        sources |= {name: f"motor file {motor_file}" for name in from_file if name in sources}
-    options = {
-        "model": "--sensor",
-        "estimator": "--estimator",
-        "bandwidth_radps": "--sensor-bandwidth",
-        "lowpass_radps": "--sensor-lowpass",
-        "delay_s": "--sensor-delay",
-        "delay": "--delay",
-        "phase_margin_deg": "--phase-margin",
-    }
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with _held_warnings():
+        file_motor = None if motor_file is None else _load_motor(motor_file)
+        loop = _identified_current_loop(file_motor, alpha_c_radps, tau_i_s, Ts_current_s)
+        from_file: set[str] = set()
+        if file_motor is not None:
+            given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
+            # Rs only for the current controller's header (--Ts-current)
+            from_file = {name for name, value in given.items() if value is None and (name != "Rs_ohm" or Ts_current_s)}
+            pole_pairs = pole_pairs if pole_pairs is not None else file_motor.pole_pairs
+            psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (
+                getattr(file_motor, k) if k in from_file else v for k, v in given.items() if k != "pole_pairs"
+            )
+            findings = inertia_findings("--J", J_kgm2, file_motor.J_rotor_kgm2)
+            if i_max_A is not None:
+                findings += current_findings("--i-max", i_max_A, file_motor.i_rated_A, file_motor.i_peak_A)
+            for text in findings:
+                warnings.warn(f"{text} (motor file {motor_file})", PlausibilityWarning, stacklevel=1)
+        if loop is not None:
+            tau_i_s = loop.tau_i_s
+        if header is not None:
+            motor, sources = _header_motor(
+                dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm),
+                Ts_current_s is not None,
+                paper_drive,
+            )
+            sources |= {name: f"motor file {motor_file}" for name in from_file if name in sources}
+        options = {
+            "J_kgm2": "--J",
+            "alpha_radps": "--alpha",
+            "zeta": "--zeta",
+            "m": "--m",
+            "tau_i_s": "--tau-i",
+            "Ts_s": "--Ts",
+            "Ka": "--Ka",
+            "method": "--method",
+            "feedforward": "--feedforward",
+            "anti_windup": "--anti-windup",
+            "model": "--sensor",
+            "estimator": "--estimator",
+            "bandwidth_radps": "--sensor-bandwidth",
+            "lowpass_radps": "--sensor-lowpass",
+            "delay_s": "--sensor-delay",
+            "delay": "--delay",
+            "phase_margin_deg": "--phase-margin",
+        }
         try:
             sensor = SensorChain(
                 model=sensor_model,
@@ -321,8 +341,6 @@ def design(
             dd = d.discretize(Ts_s, method)
         except ConfigError as exc:
             raise _as_option(exc, options) from None
-    for w in [*caught_loop, *caught]:
-        print(f"pmsm2dof: warning: {_one_line(w.message)}", file=sys.stderr)
     sensitivity = None
     if loop is not None:
         from ..analysis.current_loop import speed_margin_sensitivity
@@ -363,37 +381,38 @@ def design(
             click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
 
 
-def _load_motor(motor_file: str) -> "MotorEstimate":
-    """The motor file of --motor (pmsm2dof.analysis.current_loop.load_motor)."""
-    from ..analysis.current_loop import load_motor
+def _load_motor(motor_file: str) -> "MotorParameters":
+    """The motor of --motor: a scenario, a datasheet motor file or an identified motor.toml."""
+    from ..sim.datasheet import load_motor
 
     try:
         return load_motor(motor_file)
     except ConfigError as exc:
-        raise _as_option(exc, {"motor_file": "--motor"}) from None
-
-
-def _identified_motor(motor_file: str) -> dict[str, float]:
-    """The header's motor data from a motor file, as design's keyword arguments."""
-    m = _load_motor(motor_file)
-    return dict(pole_pairs=m.pole_pairs, psi_f_Wb=m.psi_f_Wb, Ld_H=m.Ld_H, Lq_H=m.Lq_H, Rs_ohm=m.Rs_ohm)
+        raise _as_option(exc, {"motor file": "--motor"}) from None
 
 
 def _identified_current_loop(
-    motor_file: str | None, alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
+    motor: "MotorParameters | None", alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
 ) -> "CurrentLoopDesign | None":
     """The current loop of --motor and --current-bandwidth, or None without --current-bandwidth."""
     if alpha_c_radps is None:
         return None
-    if motor_file is None:
+    if motor is None:
         raise click.UsageError("--current-bandwidth needs --motor FILE (the identified motor)")
     if tau_i_s != 0.0:
         raise click.UsageError("--current-bandwidth sets tau_i = 1/alpha_c: give it or --tau-i, not both")
-    from ..analysis.current_loop import design_current_loop
+    from ..analysis.current_loop import MotorEstimate, design_current_loop
 
-    motor = _load_motor(motor_file)
+    estimate = MotorEstimate(
+        pole_pairs=motor.pole_pairs,
+        Rs_ohm=motor.Rs_ohm,
+        Ld_H=motor.Ld_H,
+        Lq_H=motor.Lq_H,
+        psi_f_Wb=motor.psi_f_Wb,
+        intervals=motor.intervals,
+    )
     try:
-        return design_current_loop(motor, alpha_c_radps, Ts_current_s)
+        return design_current_loop(estimate, alpha_c_radps, Ts_current_s)
     except ConfigError as exc:
         raise _as_option(exc, {"current_bandwidth": "--current-bandwidth", "Ts_current": "--Ts-current"}) from None
 
@@ -578,7 +597,8 @@ def bode(
 
     Fig. 7 of the paper: --feedforward full --m 0.2,0.5,1,2.
     """
-    from .plots.design import bode_gx_sweep, save_figure
+    from .plots.canvas import save_figure
+    from .plots.design import bode_gx_sweep
 
     try:
         m_values = [float(v) for v in m_list.split(",")]
@@ -673,6 +693,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
 
     from ..outputs import atomic_write, staged_dir
     from ..sim.metrics import summary_lines
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from ..sim.simulate import simulate as run_simulation
     from ..studies.loopcheck import measure
@@ -689,6 +710,8 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         trace.plot_trace(result, tmp / "plot.png")
         atomic_write(tmp / "scenario.toml", chosen.to_toml())
+    # after the run: an input the engine refuses, or a run that stops, is one line (its error) alone
+    warn_implausible(chosen)
     click.echo(f"{chosen.name}: {result.t_s[-1]:g} s simulated in {result.wall_time_s:.3g} s")
     for line in summary_lines(metrics):
         click.echo(f"  {line}")
@@ -750,11 +773,13 @@ def sweep(
     """
     import warnings
 
+    from ..sim.plausibility import warn_implausible
     from ..studies.engine import PartWarning
     from ..studies.sweep import load_sweep, run_sweep
     from .plots.sweep import draw_figures
 
     chosen = load_sweep(file)
+    warn_implausible(chosen.base)
     with warnings.catch_warnings():
         show = warnings.showwarning
 
@@ -840,10 +865,13 @@ def tune(scenario: str | None, port: int, host: str, no_browser: bool) -> None:
     the inertia error and the speed and load steps; downloads the scenario (TOML), the
     C header of the design and the trace (CSV).
     """
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from .tuner import DEFAULT_PRESET, run_tuner
 
-    run_tuner(load_scenario(scenario or DEFAULT_PRESET), host=host, port=port, open_browser=not no_browser)
+    chosen = load_scenario(scenario or DEFAULT_PRESET)
+    warn_implausible(chosen)
+    run_tuner(chosen, host=host, port=port, open_browser=not no_browser)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1009,6 +1037,7 @@ def autotune(
     import json
 
     from ..outputs import atomic_write, require_writable_dir, staged_dir
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from ..studies.autotune import Spec
     from ..studies.autotune import autotune as run_autotune
@@ -1030,6 +1059,7 @@ def autotune(
         changes = dict(parse_override(text) for text in overrides)
         if changes:
             chosen = chosen.with_overrides(changes)
+        warn_implausible(chosen)
         if out is not None:
             require_writable_dir(out)
         if header is not None:
@@ -1193,41 +1223,86 @@ def _percent(x: float) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-@cli.command()
+def _motor_help() -> str:
+    """The help of `pmsm2dof motor`: what it prints and every key of [motor.datasheet]."""
+    import textwrap
+
+    from ..sim.datasheet import DATASHEET_KEYS
+
+    keys = "\n".join(
+        textwrap.fill(f"{key}: {doc}", width=76, initial_indent="  ", subsequent_indent="      ")
+        for key, (_, doc) in DATASHEET_KEYS.items()
+    )
+    return (
+        "Print the model parameters of eq 1 of a motor given in datasheet units, with their source.\n\n"
+        "FILE is a TOML file (a scenario, one with only [motor], or an identified motor.toml) whose "
+        "[motor.datasheet] table gives the datasheet's values; without it the model keys of [motor] are shown "
+        "as given. Kt and Ke (or Kv), when both are given, are checked against each other. With [limits] "
+        "u_dc_V in the file, the no-load speed the DC link allows is shown too.\n\n"
+        "\b\nKeys of [motor.datasheet] (pmsm2dof.sim.datasheet):\n" + keys
+    )
+
+
+@cli.command(help=_motor_help(), short_help="The per-phase model of a motor given in datasheet units.")
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
 def motor(file: str, as_json: bool) -> None:
-    """Print the model parameters of eq 1 of a motor given in datasheet units, with their source.
-
-    FILE is a TOML file (a scenario, or one with only [motor]) whose [motor.datasheet] table gives
-    Kt, Ke, line-to-line R and L, poles (see `pmsm2dof.sim.datasheet`); without it the model keys
-    of [motor] are shown as given. Kt and Ke, when both are given, are checked against each other.
-    """
     import json
+    from pathlib import Path
 
-    from ..sim.datasheet import MOTOR_KEYS, load_motor
+    from ..sim.datasheet import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
 
-    with warnings_as_lines():
-        m = load_motor(file)
-    keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + (["i_rated_A"] if m.i_rated_A is not None else [])
+    m = load_motor(file)
+    keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + [key for key in RATING_KEYS if getattr(m, key) is not None]
+    sources = {**m.sources, "kt_Nm_per_A": "1.5 p psi_f (amplitude-invariant dq, eq 1)"}
+    limits = tomllib.loads(Path(file).read_text(encoding="utf-8")).get("limits")
+    u_dc = limits.get("u_dc_V") if isinstance(limits, dict) else None
+    extra: dict[str, float] = {}
+    notes = list(m.notes)
+    if isinstance(u_dc, (int, float)) and not isinstance(u_dc, bool) and math.isfinite(u_dc) and u_dc > 0:
+        extra["no_load_rpm"] = no_load_speed_radps(u_dc, m.pole_pairs, m.psi_f_Wb) * 30.0 / math.pi
+        sources["no_load_rpm"] = f"u_dc / (sqrt(3) p psi_f) at limits.u_dc_V = {u_dc:g} V (space-vector modulation)"
+        if m.commutation == "block":
+            # block: the mean DC-side back-EMF kM w_m meets u_dc, kM = (3 sqrt(3)/pi) p psi_f (pmsm2dof.sim.datasheet)
+            notes.append(
+                f"block commutation reaches u_dc / kM = {extra['no_load_rpm'] * math.pi / 3.0:.5g} rpm at no load, "
+                "pi/3 times more (the datasheet's no-load speed is this, less the drop of the no-load current)"
+            )
     if as_json:
-        out = {key: getattr(m, key) for key in keys}
-        out["sources"] = m.sources
-        out["notes"] = list(m.notes)
+        out: dict[str, Any] = {key: getattr(m, key) for key in keys} | extra
+        out["sources"] = {key: sources[key] for key in (*keys, *extra)}
+        out["notes"] = notes
         click.echo(json.dumps(out, indent=2))
         return
-    sources = {**m.sources, "kt_Nm_per_A": "1.5 p psi_f (amplitude-invariant dq, eq 1)"}
-    for key in keys:
-        click.echo(f"{key:<12} = {getattr(m, key):<12.6g}  from {sources.get(key, '')}")
-    for note in m.notes:
+    values = {key: getattr(m, key) for key in keys} | extra
+    for key, value in values.items():
+        click.echo(f"{key:<12} = {value:<12.6g}  from {sources.get(key, '')}")
+    for note in notes:
         click.echo(f"note: {note}")
 
 
 @contextlib.contextmanager
-def warnings_as_lines() -> Iterator[None]:
-    """Show the warnings of pmsm2dof raised inside the block as one line each on stderr."""
+def _held_warnings() -> Iterator[None]:
+    """Hold the warnings raised inside the block; give them again only when it ends without an error."""
     import warnings
 
+    with warnings.catch_warnings(record=True) as held:
+        warnings.simplefilter("always")
+        yield
+    for w in held:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+@contextlib.contextmanager
+def warnings_as_lines() -> Iterator[None]:
+    """Show each warning of pmsm2dof raised inside the block once, as one line on stderr.
+
+    A :class:`~pmsm2dof.errors.Pmsm2dofWarning` whose text was shown already (a scenario converted
+    again for every run of a study, say) is not repeated; other warnings are shown as Python shows them.
+    """
+    import warnings
+
+    shown: set[str] = set()
     with warnings.catch_warnings():
         show = warnings.showwarning
 
@@ -1239,12 +1314,13 @@ def warnings_as_lines() -> Iterator[None]:
             file: TextIO | None = None,
             line: str | None = None,
         ) -> None:
-            if category.__module__.startswith("pmsm2dof"):
-                print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
-            else:
+            if not issubclass(category, Pmsm2dofWarning):
                 show(message, category, filename, lineno, file, line)
+            elif (text := _one_line(message)) not in shown:
+                shown.add(text)
+                print(f"pmsm2dof: warning: {text}", file=sys.stderr)
 
-        warnings.simplefilter("always")
+        warnings.filterwarnings("always", category=Pmsm2dofWarning)
         warnings.showwarning = one_line
         yield
 
@@ -1414,11 +1490,10 @@ def identify(
             if value is not None:
                 raise ConfigError(option, value, "absent when --motor gives the motor")
     columns = dict(parse_column(text) for text in column_maps)
-    with warnings_as_lines():
-        measured = read_log(log, columns)
-        motor_data = None
-        if motor_file is not None:
-            motor_data = load_motor(motor_file)
+    measured = read_log(log, columns)
+    motor_data = None
+    if motor_file is not None:
+        motor_data = load_motor(motor_file)
     torque = None
     if motor_data is not None or pole_pairs is not None or psi_f_Wb is not None:
         if motor_data is None:
@@ -1531,8 +1606,7 @@ def _identify_electrical(
 
         require_writable_dir(out)
     columns = dict(parse_column(text) for text in column_maps)
-    with warnings_as_lines():
-        measured = read_log(log, columns)
+    measured = read_log(log, columns)
     try:
         fit = identify_electrical(
             measured,
@@ -1632,14 +1706,14 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
     from ..outputs import atomic_write, staged_dir
     from ..sim.logs import read_log
     from ..sim.metrics import compute_metrics
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from ..sim.simulate import simulate as run_simulation
     from .plots.identify import plot_compare
 
     columns = dict(parse_column(text) for text in column_maps)
-    with warnings_as_lines():
-        measured = read_log(log, columns)
-        chosen = load_scenario(scenario)
+    measured = read_log(log, columns)
+    chosen = load_scenario(scenario)
     inside = (measured.t_s >= 0.0) & (measured.t_s <= chosen.data["simulation"]["t_end_s"])
     if np.count_nonzero(inside) < 2:
         raise ConfigError(
@@ -1660,10 +1734,13 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
         plot_compare(measured, result, tmp / "compare.png")
         atomic_write(tmp / "compare.json", json.dumps(table, indent=2, allow_nan=False) + "\n")
         result.save(tmp / "simulation.csv")
+    warn_implausible(chosen)
     click.echo(
         f"{chosen.name} against {log}: speed difference {table['speed_error_rms_rpm']:.4g} rpm rms, "
         f"{table['speed_error_max_rpm']:.4g} rpm at most"
     )
+    for note in measured.notes:
+        click.echo(f"note: {note}")
     if table["log_metrics"] is not None:
         dt = measured.dt_s
         for mine in table["log_metrics"]["reference_steps"]:
@@ -1708,7 +1785,7 @@ def _identify_plan(
     click.echo(
         f"simulated with J = {chosen.data['speed_controller']['J_kgm2']:g} kg m^2: |speed| <= "
         f"{abs(result.speed_rpm).max():.5g} rpm, |iq| <= {abs(result.iq_A).max():.4g} A (limit {i_limit:g} A), "
-        f"{result.t_s[-1]:g} s"
+        f"at the voltage limit {100 * float(result.voltage_limited.mean()):.3g} % of the time, {result.t_s[-1]:g} s"
     )
     click.echo(f"wrote plan.toml, trace.csv and plot.png to {out}: play plan.toml's reference on the drive, log it")
 

@@ -19,14 +19,23 @@ from matplotlib.lines import Line2D
 
 from ...sim.metrics import at_current_limit, at_voltage_limit
 from ...sim.simulate import Result
-from .design import save_figure
+from .canvas import DPI, decimate_lines, save_figure
 
 
-def saturated_intervals(t: npt.NDArray[np.float64], saturated: npt.ArrayLike) -> list[tuple[float, float]]:
-    """(start, end) of each run of set flags; the flag of sample k holds over [t[k], t[k+1])."""
+def saturated_intervals(
+    t: npt.NDArray[np.float64], saturated: npt.ArrayLike, min_gap_s: float = 0.0
+) -> list[tuple[float, float]]:
+    """(start, end) of each run of set flags; the flag of sample k holds over [t[k], t[k+1]).
+
+    Runs separated by less than ``min_gap_s`` are one (a gap narrower than a pixel is not drawn).
+    """
     flags = np.concatenate(([False], np.asarray(saturated, dtype=bool)[:-1], [False]))
     edges = np.flatnonzero(np.diff(flags.astype(np.int8)))
-    return [(t[a], t[b]) for a, b in zip(edges[::2], edges[1::2])]
+    starts, ends = t[edges[::2]], t[edges[1::2]]
+    if starts.size:
+        join = np.concatenate(([False], starts[1:] - ends[:-1] < min_gap_s))
+        starts, ends = starts[~join], ends[np.concatenate((~join[1:], [True]))]
+    return list(zip(starts.tolist(), ends.tolist()))
 
 
 def trace_figure(result: Result) -> Figure:
@@ -45,10 +54,14 @@ def trace_figure(result: Result) -> Figure:
         the torques applied (limited command, ``Te``, load): a controller output beyond them is
         clipped, its range in the legend. The voltage panel shows
         ``||u_dq||`` and the range ``u_dc / sqrt(3)``, with the samples at the voltage limit shaded.
+        A trace longer than the image is wide is drawn from the points that matter per pixel column
+        (:func:`~pmsm2dof.ui.plots.canvas.decimate`: peaks kept).
     """
     t = result.t_s
     i_max = result.scenario.data["limits"]["i_max_A"]
-    fig = Figure(figsize=(8.0, 9.5), layout="constrained")
+    # fixed margins: a layout engine measures every text once more for each figure (half of savefig)
+    fig = Figure(figsize=(8.0, 9.5))
+    fig.subplots_adjust(left=0.1, right=0.98, bottom=0.055, top=0.95, hspace=0.1)
     FigureCanvasAgg(fig)
     ax_w, ax_i, ax_T, ax_u = fig.subplots(4, 1, sharex=True, height_ratios=(1.0, 1.0, 1.0, 0.7))
     fig.suptitle(result.scenario.name)
@@ -84,10 +97,11 @@ def trace_figure(result: Result) -> Figure:
     ax_u.set_ylabel("voltage [V]")
     ax_u.set_xlabel("time [s]")
     voltage_limited = at_voltage_limit(result) > 0.0
-    for a, b in saturated_intervals(t, voltage_limited):
+    pixel_s = (t[-1] - t[0]) / (fig.get_figwidth() * DPI)
+    for a, b in saturated_intervals(t, voltage_limited, pixel_s):
         ax_u.axvspan(a, b, color="purple", alpha=0.15, lw=0)
 
-    spans = saturated_intervals(t, at_current_limit(result))
+    spans = saturated_intervals(t, at_current_limit(result), pixel_s)
     for ax in (ax_w, ax_i, ax_T, ax_u):
         for a, b in spans:
             ax.axvspan(a, b, color="orange", alpha=0.15, lw=0)
@@ -100,6 +114,7 @@ def trace_figure(result: Result) -> Figure:
         ax_u.axvspan(np.nan, np.nan, color="purple", alpha=0.15, label="voltage limit active")
         ax_u.legend(fontsize="small", loc="best")
     ax_u.set_xlim(t[0], t[-1])
+    decimate_lines(fig)
     return fig
 
 
