@@ -25,24 +25,31 @@ Permanent-Magnet Synchronous Motor Speed Controller"; eq (9) follows the
 analytical PI design of its reference [4].
 """
 
+from __future__ import annotations
+
 import functools
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import control
 import numpy as np
 import numpy.typing as npt
 
 from ..core import ANTI_WINDUPS, FEEDFORWARDS, pi_gains
 from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
+from ..lazy import lazy_module
 from .codegen import write_c_header
 from .discretize import DiscreteDesign, discretize
 from .margins import Margins, frequency_margins, loop_margins
 from .sensor import DELAY_MODELS, DelayModel, SensorChain
 from .stepresponse import StepResponse
+
+if TYPE_CHECKING:
+    import control
+else:
+    control = lazy_module("control")  # python-control loads on first use (pmsm2dof.lazy)
 
 #: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
 HALF_POWER_DB = 20.0 * math.log10(1.0 / math.sqrt(2.0))
@@ -69,7 +76,7 @@ def tracking_tf(
 
 
 @functools.lru_cache(maxsize=64)
-def _overshoot(design: "Design") -> tuple[float, str]:
+def _overshoot(design: Design) -> tuple[float, str]:
     return design.tracking_step().overshoot_pct()
 
 

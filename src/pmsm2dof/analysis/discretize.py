@@ -50,13 +50,14 @@ practical drives; the w-plane forms above, which keep a loop with ``alpha Ts`` o
 serve the ideal sensor.
 """
 
+from __future__ import annotations
+
 import math
 import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
-import control
 import numpy as np
 import numpy.typing as npt
 
@@ -64,9 +65,15 @@ from ..core import METHODS, SpeedController
 from ..core.bindings import AntiWindup, Feedforward, Method
 from ..core.gains import default_Ka_error
 from ..errors import ConfigError, Pmsm2dofWarning, require_choice, require_positive
+from ..lazy import lazy_module
 from .margins import Margins, frequency_margins, pick_margins
 from .sensor import sampled_plant_blocks
 from .stepresponse import StepResponse
+
+if TYPE_CHECKING:
+    import control
+else:
+    control = lazy_module("control")  # python-control loads on first use (pmsm2dof.lazy)
 
 if TYPE_CHECKING:
     from .design import Design
@@ -133,7 +140,7 @@ class DiscreteDesign:
         integral, feedforward ``y[k-1]`` and ``r[k-1]``).
     """
 
-    design: "Design"
+    design: Design
     Ts_s: float
     method: Method
     b_e0: float
@@ -221,7 +228,7 @@ def _sample(tf_s: control.TransferFunction, Ts_s: float, method: str) -> control
 
 
 def c_coefficients(
-    design: "Design",
+    design: Design,
     Ts_s: float,
     method: Method,
     feedforward: Feedforward | None = None,
@@ -301,7 +308,7 @@ def plant_w(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vector, _Vecto
     return np.polymul(hold, [kappa, 1.0]), J_kgm2 * np.array([rho, 1.0, 0.0])
 
 
-def _loop_w(design: "Design", Ts_s: float, b_e0: float, Ki_Ts: float) -> tuple[_Poly, _Poly]:
+def _loop_w(design: Design, Ts_s: float, b_e0: float, Ki_Ts: float) -> tuple[_Poly, _Poly]:
     """Numerator and denominator of the loop gain ``L(w) = F(w) G(w)``.
 
     The realized PI is exactly ``F(w) = Kp' + Ki / w``, ``Kp' = b_e0 - Ki Ts / 2``:
@@ -318,14 +325,14 @@ def _hurwitz(char: _Poly) -> bool:
     return len(char) == 3 or bool(char[1] * char[2] > char[0] * char[3])
 
 
-def _stable(design: "Design", Ts_s: float, method: Method) -> bool:
+def _stable(design: Design, Ts_s: float, method: Method) -> bool:
     """Whether the discrete feedback loop is stable at ``Ts_s`` (Routh-Hurwitz in the w plane)."""
     pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
     L_num, L_den = _loop_w(design, Ts_s, pi["b_e0"], pi["Ki_Ts"])
     return _hurwitz(np.polyadd(L_den, L_num))
 
 
-def _unstable_loop_error(design: "Design", Ts_s: float, method: Method, z_max: float) -> ConfigError:
+def _unstable_loop_error(design: Design, Ts_s: float, method: Method, z_max: float) -> ConfigError:
     """The ConfigError of a discrete loop that is unstable at ``Ts_s``, naming the range that is stable."""
     d = design
     if not d.Kp > d.tau_i_s * d.Ki:
@@ -360,7 +367,7 @@ def _unstable_loop_error(design: "Design", Ts_s: float, method: Method, z_max: f
     )
 
 
-def _margins(design: "Design", Ts_s: float, b_e0: float, Ki_Ts: float) -> Margins:
+def _margins(design: Design, Ts_s: float, b_e0: float, Ki_Ts: float) -> Margins:
     """Margins of ``F(z) G(z)``, found by python-control on ``L(w)`` (same gain and phase).
 
     A frequency ``w_w`` of the w plane is ``w_z = (2/Ts) atan(w_w Ts / 2)``; the Nyquist
@@ -379,7 +386,7 @@ def _margins(design: "Design", Ts_s: float, b_e0: float, Ki_Ts: float) -> Margin
 
 
 def margins_on_plant(
-    design: "Design", Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
+    design: Design, Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
 ) -> Margins | None:
     """Margins of the C controller of ``design`` on a plant it was not designed for; None if unstable there.
 
@@ -413,7 +420,7 @@ def margins_on_plant(
 
 
 def sampled_loop_poles(
-    design: "Design", Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
+    design: Design, Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
 ) -> tuple[tuple[complex, ...], bool]:
     """Poles of the sampled feedback loop of the C controller of ``design`` on a plant, and whether it is stable.
 
@@ -463,7 +470,7 @@ def _plant_increments(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vect
 
 
 def _tracking_increments(
-    design: "Design",
+    design: Design,
     Ts_s: float,
     b_e0: float,
     Ki_Ts: float,
@@ -506,7 +513,7 @@ def _tracking_increments(
     return E, f, c
 
 
-def discretize(design: "Design", Ts_s: float, method: Method) -> DiscreteDesign:
+def discretize(design: Design, Ts_s: float, method: Method) -> DiscreteDesign:
     """Discretize ``design`` for the sampling period ``Ts_s`` with ``method`` (Table 1).
 
     Parameters
@@ -553,7 +560,7 @@ def discretize(design: "Design", Ts_s: float, method: Method) -> DiscreteDesign:
     return discrete_loop(d, Ts_s, method, c_coefficients(d, Ts_s, method))
 
 
-def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: Mapping[str, float]) -> DiscreteDesign:
+def discrete_loop(design: Design, Ts_s: float, method: Method, coefficients: Mapping[str, float]) -> DiscreteDesign:
     """The discrete loop of ``design`` realized with the controller ``coefficients`` at ``Ts_s``.
 
     :func:`discretize` gives it the coefficients of the C controller; any other set in the same
@@ -620,7 +627,7 @@ def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: M
 
 
 def _closed_loop_with_sensor(
-    design: "Design", Ts_s: float, F_z: control.TransferFunction, Fr_z: control.TransferFunction
+    design: Design, Ts_s: float, F_z: control.TransferFunction, Fr_z: control.TransferFunction
 ) -> tuple[list[Any], control.StateSpace]:
     """The sampled plant-to-reading blocks of ``design`` (its J, tau_i and sensor chain) and the closed
     loop from ``r`` to ``w`` with the PI ``F_z`` and the feedforward ``Fr_z``."""
@@ -635,7 +642,7 @@ def _closed_loop_with_sensor(
 
 
 def _loop_with_sensor(
-    design: "Design",
+    design: Design,
     Ts_s: float,
     method: Method,
     c: Mapping[str, float],

@@ -7,14 +7,22 @@ rational function (an exact delay ``exp(-s T)``, a sampled loop evaluated factor
 the crossings of its frequency response (:func:`frequency_margins`).
 """
 
+from __future__ import annotations
+
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 import numpy.typing as npt
-from scipy import optimize
+
+from ..lazy import lazy_module
+
+if TYPE_CHECKING:
+    import control
+else:
+    control = lazy_module("control")  # python-control loads on first use (pmsm2dof.lazy)
 
 #: Numbers at the crossings: a sequence or a 1-D array (python-control returns arrays).
 _Floats = Sequence[float] | npt.NDArray[np.float64]
@@ -127,6 +135,8 @@ def frequency_margins(
         # the phase at x, unwrapped continuously from the nearest grid point
         i = min(int(np.searchsorted(w, x)), len(w) - 1)
         return float(phase[i] + np.angle(L_of_w(np.array([x]))[0] / L[i]))
+
+    from scipy import optimize  # loaded here: a stability check alone never needs it
 
     gains: list[float] = []
     w_phase: list[float] = []
