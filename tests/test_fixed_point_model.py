@@ -24,8 +24,8 @@ from pmsm2dof.core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from pmsm2dof.core.fixedpoint import FORMATS, GAINS, FixedPointSpeedController
 from pmsm2dof.errors import ConfigError
 
-SETTINGS = settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-SAMPLES = 60
+SETTINGS = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+SAMPLES = 50
 
 
 @st.composite

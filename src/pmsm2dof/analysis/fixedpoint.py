@@ -136,13 +136,15 @@ class Headroom:
 
 @dataclass(frozen=True)
 class Proposal:
-    """A change that brings the dead zone within the target, checked by the C controller.
+    """A change that brings the limit cycles within the amplitude (without one, the dead zone within one
+    speed LSB), checked by the C controller.
 
     Attributes
     ----------
     change : ``Ts_s``, ``torque_full_scale_Nm`` or ``fmt``
     value : the new value
     dead_zone_radps : the largest error the integrator ignores with it [rad/s]
+    limit_cycle_radps : the amplitude of the limit cycles it allows [rad/s]
     feasible : whether the drive can use it
     reason : why, or why not
     """
@@ -150,6 +152,7 @@ class Proposal:
     change: str
     value: float | str
     dead_zone_radps: float
+    limit_cycle_radps: float
     feasible: bool
     reason: str
 
@@ -158,8 +161,8 @@ class Proposal:
 class ScalingReport:
     """The scaling check of one design in one format: see :func:`scaling_check`.
 
-    ``flagged`` is true when the dead zone is wider than one speed LSB (or than the given
-    amplitude), when the limit cycles exceed the given amplitude, or when a state can saturate.
+    ``flagged`` is true when the dead zone is wider than one speed LSB, when the limit cycles exceed
+    the given amplitude, or when a state can saturate.
     """
 
     fmt: Format
@@ -201,16 +204,9 @@ class ScalingReport:
         return None if self.amplitude_radps is None else self.limit_cycle_radps > self.amplitude_radps
 
     @property
-    def target_radps(self) -> float:
-        """The dead zone the proposals aim at: the given amplitude, else one speed LSB."""
-        return self.speed_lsb_radps if self.amplitude_radps is None else self.amplitude_radps
-
-    @property
     def flagged(self) -> bool:
         saturates = any(h.bits < 0 for h in self.headroom if h.signal in STATES)
-        return not self.dead_zone.removed and self.dead_zone.width_radps > self.target_radps or saturates or bool(
-            self.exceeds
-        )
+        return self.dead_zone.width_radps > self.speed_lsb_radps or saturates or bool(self.exceeds)
 
     def text(self) -> str:
         """The report as lines of text, with every number in SI units and in rpm where it is a speed."""
@@ -275,15 +271,17 @@ class ScalingReport:
             note = "" if h.signal in STATES or h.bits >= 0 else " (output only)" if h.signal == "T_ff" else ""
             lines.append(f"    {h.signal:<8} {h.bound_pu:8.3g} full scales, {h.bits:+6.2f} bits: {verdict}{note}")
         if self.proposals:
-            lines.append(
-                f"  to bring the dead zone within {self.target_radps:.4g} rad/s "
-                f"({self.target_radps * RPM_PER_RADPS:.4g} rpm):"
+            goal = (
+                f"the dead zone within one speed LSB ({self.speed_lsb_radps:.4g} rad/s)"
+                if self.amplitude_radps is None
+                else f"the limit cycles within {self.amplitude_radps:.4g} rad/s"
             )
+            lines.append(f"  to bring {goal}:")
             for p in self.proposals:
                 value = p.value if isinstance(p.value, str) else f"{p.value:.4g}"
                 lines.append(
                     f"    {p.change} = {value}: dead zone {p.dead_zone_radps:.4g} rad/s "
-                    f"({p.dead_zone_radps * RPM_PER_RADPS:.4g} rpm); "
+                    f"({p.dead_zone_radps * RPM_PER_RADPS:.4g} rpm), limit cycles {p.limit_cycle_radps:.4g} rad/s; "
                     + ("feasible" if p.feasible else "not feasible")
                     + f" ({p.reason})"
                 )
@@ -365,15 +363,33 @@ def _headroom(
     return tuple(rows)
 
 
-def _dead_zone_with(
+def _ripple(ctl: FixedPointSpeedController, design: "Design", Ts_s: float) -> float:
+    """The swing of the speed error [rad/s] while the output toggles between two adjacent torque LSBs:
+    max(speed LSB, T LSB / b_e0), and the drift Ts T_LSB / J over the sample the toggle waits for."""
+    W_fs, T_fs = ctl.config["speed_full_scale_radps"], ctl.config["torque_full_scale_Nm"]
+    speed_lsb, torque_lsb = math.ldexp(W_fs, -ctl.bits), math.ldexp(T_fs, -ctl.bits)
+    b_e0_phys = ctl.gains["b_e0"] * T_fs / W_fs
+    return max(speed_lsb, torque_lsb / b_e0_phys) + Ts_s * torque_lsb / design.J_kgm2
+
+
+@dataclass(frozen=True)
+class _Figures:
+    """The dead zone and the limit-cycle amplitude [rad/s] of one candidate drive."""
+
+    dead_zone_radps: float
+    limit_cycle_radps: float
+
+
+def _figures_with(
     design: "Design", Ts_s: float, method: Method, fmt: Format, W_fs: float, T_fs: float, T_max: float
-) -> float:
-    """The dead zone [rad/s] of the C controller with these values, inf if it refuses them."""
+) -> _Figures | None:
+    """The figures of the C controller with these values, None if it refuses them."""
     try:
         ctl = _controller(design, Ts_s, method, fmt, W_fs, T_fs, T_max)
     except ConfigError:
-        return math.inf
-    return _dead_zone(ctl, math.ldexp(W_fs, -FRACTIONAL_BITS[fmt])).width_radps
+        return None
+    dead_zone = _dead_zone(ctl, math.ldexp(W_fs, -FRACTIONAL_BITS[fmt])).width_radps
+    return _Figures(dead_zone, dead_zone + _ripple(ctl, design, Ts_s))
 
 
 def _proposals(
@@ -384,66 +400,86 @@ def _proposals(
     W_fs: float,
     T_fs: float,
     T_max: float,
-    target: float,
+    amplitude: float | None,
     T_fs_headroom: float,
 ) -> tuple[Proposal, ...]:
-    """A period, a torque full scale and, in Q15, the Q31 format, that bring the dead zone within ``target``.
+    """A period, a torque full scale and, in Q15, the Q31 format, that bring the limit cycles within
+    ``amplitude`` (without one: the dead zone within one speed LSB).
 
-    The dead zone edge is about ``T_fs 2^-(N+1) / (Ki Ts)``: proportional to T_fs / Ts. Each
-    candidate is checked on the C controller and moved by a factor until it meets the target.
+    The dead zone's edge is about ``T_fs 2^-(N+1) / (Ki Ts)``, proportional to T_fs / Ts: each
+    candidate starts there and is moved by steps of 2^-8 until the C controller meets the target.
     """
     N = FRACTIONAL_BITS[fmt]
+    speed_lsb = math.ldexp(W_fs, -N)
     edge = math.ldexp(T_fs, -(N + 1)) / (design.Ki * Ts_s)
-    proposals = []
-    w_design = max(design.alpha_radps, design.alpha_radps / (2.0 * design.zeta), design.m * design.alpha_radps)
 
-    Ts_new = Ts_s * edge / target
-    dz = _dead_zone_with(design, Ts_new, method, fmt, W_fs, T_fs, T_max)
-    for _ in range(60):
-        if dz <= target:
+    def meets(f: _Figures | None) -> bool:
+        if f is None:
+            return False
+        return f.dead_zone_radps <= speed_lsb if amplitude is None else f.limit_cycle_radps <= amplitude
+
+    # the dead zone to aim at: the amplitude less the ripple of the present drive
+    current = _figures_with(design, Ts_s, method, fmt, W_fs, T_fs, T_max)
+    ripple = 0.0 if current is None else current.limit_cycle_radps - current.dead_zone_radps
+    aim = speed_lsb if amplitude is None else max(amplitude - ripple, 0.5 * amplitude)
+    proposals = []
+
+    Ts_new = Ts_s * edge / aim
+    figures = _figures_with(design, Ts_new, method, fmt, W_fs, T_fs, T_max)
+    for _ in range(200):
+        if meets(figures):
             break
-        Ts_new *= 1.0 + 2.0**-12
-        dz = _dead_zone_with(design, Ts_new, method, fmt, W_fs, T_fs, T_max)
+        Ts_new *= 1.0 + 2.0**-8
+        figures = _figures_with(design, Ts_new, method, fmt, W_fs, T_fs, T_max)
+    w_design = max(design.alpha_radps, design.alpha_radps / (2.0 * design.zeta), design.m * design.alpha_radps)
     coarse = w_design * Ts_new > MAX_W_TS
     proposals.append(
-        Proposal(
+        _proposal(
             "Ts_s",
             Ts_new,
-            dz,
-            not coarse and dz <= target,
+            figures,
+            not coarse and meets(figures),
             f"max(alpha, alpha/(2 zeta), m alpha) Ts = {w_design * Ts_new:.3g}"
             + (f" > {MAX_W_TS}: too coarse for the design" if coarse else f" <= {MAX_W_TS}"),
         )
     )
 
-    T_fs_new = T_fs * target / edge
-    if T_fs_new < T_max:
-        dz = edge * T_fs_new / T_fs  # the C controller refuses a full scale below the limit
-    else:
-        dz = _dead_zone_with(design, Ts_s, method, fmt, W_fs, T_fs_new, T_max)
-        for _ in range(60):
-            if dz <= target:
-                break
-            T_fs_new *= 1.0 - 2.0**-12
-            dz = _dead_zone_with(design, Ts_s, method, fmt, W_fs, T_fs_new, T_max)
+    T_fs_new = T_fs * aim / edge
+    figures = _figures_with(design, Ts_s, method, fmt, W_fs, T_fs_new, T_max)
+    for _ in range(200):
+        if meets(figures) or T_fs_new < T_max:
+            break
+        T_fs_new *= 1.0 - 2.0**-8
+        figures = _figures_with(design, Ts_s, method, fmt, W_fs, T_fs_new, T_max)
     floor_Nm = max(T_max, T_fs_headroom)
+    if figures is None:  # the C controller refuses a full scale below the limit: the edge's proportionality
+        figures = _Figures(edge * T_fs_new / T_fs, edge * T_fs_new / T_fs + ripple * T_fs_new / T_fs)
     proposals.append(
-        Proposal(
+        _proposal(
             "torque_full_scale_Nm",
             T_fs_new,
-            dz,
-            T_fs_new >= floor_Nm and dz <= target,
+            figures,
+            T_fs_new >= floor_Nm and meets(figures),
             f"it must hold the torque limit {T_max:.4g} Nm and the states' headroom, >= {floor_Nm:.4g} Nm",
         )
     )
     if fmt == "q15":
-        dz = _dead_zone_with(design, Ts_s, method, "q31", W_fs, T_fs, T_max)
+        figures = _figures_with(design, Ts_s, method, "q31", W_fs, T_fs, T_max)
         proposals.append(
-            Proposal(
-                "fmt", "q31", dz, dz <= target, "31 more fractional bits in the integrator: int64 arithmetic (Cortex-M3)"
+            _proposal(
+                "fmt",
+                "q31",
+                figures,
+                meets(figures) or amplitude is None and figures is not None,
+                "31 more fractional bits in the integrator: int64 arithmetic (Cortex-M3)",
             )
         )
     return tuple(proposals)
+
+
+def _proposal(change: str, value: float | str, figures: _Figures | None, feasible: bool, reason: str) -> Proposal:
+    f = figures or _Figures(math.inf, math.inf)
+    return Proposal(change, value, f.dead_zone_radps, f.limit_cycle_radps, feasible, reason)
 
 
 def scaling_check(
@@ -509,13 +545,9 @@ def scaling_check(
     speed_lsb, torque_lsb = math.ldexp(W_fs, -N), math.ldexp(T_fs, -N)
     dead_zone = _dead_zone(ctl, speed_lsb)
     headroom = _headroom(exact, T_max / T_fs, step / W_fs, design.anti_windup, T_fs)
-    # the output toggles between two torque LSBs: the speed error swings over max(speed LSB, T LSB / b_e0),
-    # and drifts by Ts T_LSB / J over the sample the toggle waits for
-    b_e0_phys = exact["b_e0"] * T_fs / W_fs
-    ripple = max(speed_lsb, torque_lsb / b_e0_phys) + Ts_s * torque_lsb / design.J_kgm2
-    target = speed_lsb if amplitude is None else amplitude
+    ripple = _ripple(ctl, design, Ts_s)
     T_fs_headroom = max(h.torque_full_scale_min_Nm for h in headroom if h.signal in STATES)
-    needs = not dead_zone.removed and dead_zone.width_radps > target
+    needs = dead_zone.width_radps > speed_lsb if amplitude is None else dead_zone.width_radps + ripple > amplitude
     return ScalingReport(
         fmt=fmt,
         Ts_s=Ts_s,
@@ -532,7 +564,7 @@ def scaling_check(
         amplitude_radps=amplitude,
         headroom=headroom,
         proposals=(
-            _proposals(design, Ts_s, method, fmt, W_fs, T_fs, T_max, target, T_fs_headroom) if needs else ()
+            _proposals(design, Ts_s, method, fmt, W_fs, T_fs, T_max, amplitude, T_fs_headroom) if needs else ()
         ),
     )
 
