@@ -83,8 +83,7 @@ void p2d_speed_q15_reset(p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t T_init
     ctl->r_prev_q15 = w_ref_q15;
 }
 
-void p2d_speed_q15_compute(const p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t w_m_q15,
-                           p2d_speed_q15_output_t *out)
+void p2d_speed_q15_compute(const p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t w_m_q15, p2d_speed_q15_output_t *out)
 {
     const p2d_speed_q15_coef_t *c = &ctl->coef[ctl->active];
     /* e[k] = w_ref[k] - w_m[k], dr[k] = w_ref[k] - r[k-1]: |.| <= 2^16 - 1 */
@@ -96,7 +95,7 @@ void p2d_speed_q15_compute(const p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_
 
     /* y[k] = b_dr dr[k] - a1 y[k-1] = b_dr dr[k] + y[k-1] - (1 + a1) y[k-1] */
     y = p2d_clamp32(q15_mul(c->ff_b_dr, dr) + ctl->y_ff_prev_q15 - q15_mul(c->ff_one_plus_a1, ctl->y_ff_prev_q15),
-                   Q15_SIGNAL_MAX);
+                    Q15_SIGNAL_MAX);
     /* u[k] = b_e0 e[k] + x[k-1] + Fr0 dr[k] + Kd dr[k] / Ts + y[k]: each term < 2^29 + 1, the sum < 2^31 */
     u = p2d_clamp32(q15_mul(c->b_e0, e) + ctl->x_q15 + q15_mul(c->ff_Fr0, dr) + T_d + y, Q15_SIGNAL_MAX);
     /* u_sat = Sat(u): the current-vector limit |iq| <= i_max as the torque limit T_max */

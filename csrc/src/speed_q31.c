@@ -93,8 +93,7 @@ void p2d_speed_q31_reset(p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t T_init
     ctl->r_prev_q31 = w_ref_q31;
 }
 
-void p2d_speed_q31_compute(const p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t w_m_q31,
-                           p2d_speed_q31_output_t *out)
+void p2d_speed_q31_compute(const p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t w_m_q31, p2d_speed_q31_output_t *out)
 {
     const p2d_speed_q31_coef_t *c = &ctl->coef[ctl->active];
     /* e[k] = w_ref[k] - w_m[k], dr[k] = w_ref[k] - r[k-1]: |.| <= 2^32 - 1 */
@@ -108,7 +107,7 @@ void p2d_speed_q31_compute(const p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_
 
     /* y[k] = b_dr dr[k] - a1 y[k-1] = b_dr dr[k] + y[k-1] - (1 + a1) y[k-1] */
     y = p2d_clamp64(q31_mul(c->ff_b_dr, dr) + ctl->y_ff_prev_q31 - q31_mul(c->ff_one_plus_a1, ctl->y_ff_prev_q31),
-                   Q31_SIGNAL_MAX);
+                    Q31_SIGNAL_MAX);
     /* u[k] = b_e0 e[k] + x[k-1] + Fr0 dr[k] + Kd dr[k] / Ts + y[k]: each term < 2^45 + 1 */
     u = p2d_clamp64(q31_mul(c->b_e0, e) + x + q31_mul(c->ff_Fr0, dr) + T_d + y, Q31_SIGNAL_MAX);
     /* u_sat = Sat(u): the current-vector limit |iq| <= i_max as the torque limit T_max */

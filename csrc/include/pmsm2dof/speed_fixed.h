@@ -33,8 +33,10 @@
  *   overflow. Each product term is rounded on its own, then the terms are added.
  * - Every signal and state held within +-(2^(N+1) - 1), two full scales (a
  *   17-bit number in Q15, a 33-bit one in Q31), by saturation: y[k], u[k], T_ff,
- *   u*[k] and the integrator x; e and dr are within it by construction. So every
- *   product fits the accumulator (|m v| < 2^(2N+1)) and nothing overflows.
+ *   u*[k] and the Q15 integrator x; e and dr are within it by construction. So
+ *   every product fits the accumulator (|m v| < 2^(2N+1)) and nothing overflows.
+ *   Every speed-to-torque gain is below 2^13 per unit (init checks it), so each
+ *   product term is below 2^(N+14) and their sums fit too.
  * - Q15: x is held in torque LSBs. Each sample adds R(m_KiTs e, s_KiTs) LSBs,
  *   which is 0 while |Ki Ts e| < 1/2 LSB: a dead zone of the integrator,
  *   |e| < T_fs 2^-(N+1) / (Ki Ts) (the exact edges follow from R), in which a
@@ -43,7 +45,10 @@
  * - Q31: x is held with 31 more fractional bits (x_q62: int64, LSB 2^-62 pu,
  *   range +-2 pu), and init refuses a configuration in which one LSB of error
  *   does not move it (Ki Ts W_fs / T_fs >= 2^-32); its contribution to u is
- *   R(x_q62, 31).
+ *   R(x_q62, 31). Its terms are rounded to its LSB, R(m v, s - 31) (or, for a
+ *   shift below 31, m v 2^(31 - s)), each limited to +-(2^63 - 1), and added one
+ *   at a time with saturation S to that range:
+ *   x = S(S(x + S(R(Ki Ts e) + R(Ki Ka Ts u*))) + R(Fr0 dr)).
  * - The feedforward's pole -a1, near 1 when m alpha Ts is small, is stored as 1 + a1 (= m alpha Ts
  *   with forward Euler), which keeps its distance to 1, the section's time constant, to the
  *   precision of a mantissa; -a1 itself would keep it to 2^-N only.
@@ -86,17 +91,17 @@ typedef struct {
  * gain G [Nm/(rad/s)] is G W_fs / T_fs): what the quantised mantissas and shifts approximate.
  */
 typedef struct {
-    double b_e0;         /* weight of e[k] in u[k], Kp (forward Euler), Kp + Ki Ts (backward), Kp + Ki Ts / 2
+    double b_e0;           /* weight of e[k] in u[k], Kp (forward Euler), Kp + Ki Ts (backward), Kp + Ki Ts / 2
                             (Tustin) (eq 14) [T_fs/W_fs] */
-    double Ki_Ts;        /* integrator increment per unit of error [T_fs/W_fs] */
-    double Ki_Ka_Ts;     /* integrator increment per unit of u*, 0 unless back calculation [-] */
-    double ff_Fr0;       /* feedforward static gain Fr(0) [T_fs/W_fs] */
-    double ff_b_dr;      /* feedforward transient, weight of dr[k] [T_fs/W_fs] */
+    double Ki_Ts;          /* integrator increment per unit of error [T_fs/W_fs] */
+    double Ki_Ka_Ts;       /* integrator increment per unit of u*, 0 unless back calculation [-] */
+    double ff_Fr0;         /* feedforward static gain Fr(0) [T_fs/W_fs] */
+    double ff_b_dr;        /* feedforward transient, weight of dr[k] [T_fs/W_fs] */
     double ff_one_plus_a1; /* feedforward transient: 1 + a1, a1 the weight of -y[k-1] [-] */
-    double ff_Kd_per_Ts; /* FULL derivative term J alpha m tau_i / Ts [T_fs/W_fs] */
-    double iq_per_T;     /* current per torque 1 / (1.5 p psi_f) [I_fs/T_fs] */
-    double T_max;        /* torque limit 1.5 p psi_f i_max_A [T_fs] */
-    double iq_max;       /* current limit i_max_A [I_fs] */
+    double ff_Kd_per_Ts;   /* FULL derivative term J alpha m tau_i / Ts [T_fs/W_fs] */
+    double iq_per_T;       /* current per torque 1 / (1.5 p psi_f) [I_fs/T_fs] */
+    double T_max;          /* torque limit 1.5 p psi_f i_max_A [T_fs] */
+    double iq_max;         /* current limit i_max_A [I_fs] */
 } p2d_speed_fixed_gains_t;
 
 /* A Q15 gain m 2^-s. */
@@ -113,32 +118,32 @@ typedef struct {
 
 /* Precomputed Q15 coefficients (units: LSB of the result per LSB of the operand). */
 typedef struct {
-    p2d_q15_gain_t b_e0;         /* weight of e[k] in u[k] (eq 14) */
-    p2d_q15_gain_t Ki_Ts;        /* integrator increment per unit of error */
-    p2d_q15_gain_t Ki_Ka_Ts;     /* integrator increment per unit of u*; 0 unless back calculation */
-    p2d_q15_gain_t ff_Fr0;       /* feedforward static gain Fr(0) */
-    p2d_q15_gain_t ff_b_dr;      /* feedforward transient, weight of dr[k] */
+    p2d_q15_gain_t b_e0;           /* weight of e[k] in u[k] (eq 14) */
+    p2d_q15_gain_t Ki_Ts;          /* integrator increment per unit of error */
+    p2d_q15_gain_t Ki_Ka_Ts;       /* integrator increment per unit of u*; 0 unless back calculation */
+    p2d_q15_gain_t ff_Fr0;         /* feedforward static gain Fr(0) */
+    p2d_q15_gain_t ff_b_dr;        /* feedforward transient, weight of dr[k] */
     p2d_q15_gain_t ff_one_plus_a1; /* feedforward transient: 1 + a1, a1 the weight of -y[k-1] */
-    p2d_q15_gain_t ff_Kd_per_Ts; /* FULL derivative term */
-    p2d_q15_gain_t iq_per_T;     /* current per torque 1 / kt */
-    int16_t T_max_q15;           /* torque limit [Q15 of T_fs], >= 1 */
-    int16_t iq_max_q15;          /* current limit [Q15 of I_fs], >= 1 */
-    bool clamping;               /* conditional integration */
+    p2d_q15_gain_t ff_Kd_per_Ts;   /* FULL derivative term */
+    p2d_q15_gain_t iq_per_T;       /* current per torque 1 / kt */
+    int16_t T_max_q15;             /* torque limit [Q15 of T_fs], >= 1 */
+    int16_t iq_max_q15;            /* current limit [Q15 of I_fs], >= 1 */
+    bool clamping;                 /* conditional integration */
 } p2d_speed_q15_coef_t;
 
 /* Precomputed Q31 coefficients (units as p2d_speed_q15_coef_t). */
 typedef struct {
-    p2d_q31_gain_t b_e0;         /* weight of e[k] in u[k] (eq 14) */
-    p2d_q31_gain_t Ki_Ts;        /* integrator increment per unit of error */
-    p2d_q31_gain_t Ki_Ka_Ts;     /* integrator increment per unit of u*; 0 unless back calculation */
-    p2d_q31_gain_t ff_Fr0;       /* feedforward static gain Fr(0) */
-    p2d_q31_gain_t ff_b_dr;      /* feedforward transient, weight of dr[k] */
+    p2d_q31_gain_t b_e0;           /* weight of e[k] in u[k] (eq 14) */
+    p2d_q31_gain_t Ki_Ts;          /* integrator increment per unit of error */
+    p2d_q31_gain_t Ki_Ka_Ts;       /* integrator increment per unit of u*; 0 unless back calculation */
+    p2d_q31_gain_t ff_Fr0;         /* feedforward static gain Fr(0) */
+    p2d_q31_gain_t ff_b_dr;        /* feedforward transient, weight of dr[k] */
     p2d_q31_gain_t ff_one_plus_a1; /* feedforward transient: 1 + a1, a1 the weight of -y[k-1] */
-    p2d_q31_gain_t ff_Kd_per_Ts; /* FULL derivative term */
-    p2d_q31_gain_t iq_per_T;     /* current per torque 1 / kt */
-    int32_t T_max_q31;           /* torque limit [Q31 of T_fs], >= 1 */
-    int32_t iq_max_q31;          /* current limit [Q31 of I_fs], >= 1 */
-    bool clamping;               /* conditional integration */
+    p2d_q31_gain_t ff_Kd_per_Ts;   /* FULL derivative term */
+    p2d_q31_gain_t iq_per_T;       /* current per torque 1 / kt */
+    int32_t T_max_q31;             /* torque limit [Q31 of T_fs], >= 1 */
+    int32_t iq_max_q31;            /* current limit [Q31 of I_fs], >= 1 */
+    bool clamping;                 /* conditional integration */
 } p2d_speed_q31_coef_t;
 
 /* The Q15 controller: int16 inputs and outputs, int32 arithmetic. */
@@ -202,8 +207,7 @@ p2d_status_t p2d_speed_q15_set_config(p2d_speed_q15_t *ctl, const p2d_speed_fixe
 void p2d_speed_q15_reset(p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t T_init_q15);
 
 /* Compute the command for this sample; does not change the state. */
-void p2d_speed_q15_compute(const p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t w_m_q15,
-                           p2d_speed_q15_output_t *out);
+void p2d_speed_q15_compute(const p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t w_m_q15, p2d_speed_q15_output_t *out);
 
 /* Update the state with the torque actually applied (after every limit) [Q15 of T_fs]. */
 void p2d_speed_q15_update(p2d_speed_q15_t *ctl, const p2d_speed_q15_output_t *out, int16_t T_applied_q15);
@@ -215,8 +219,7 @@ void p2d_speed_q15_step(p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t w_m_q15
 p2d_status_t p2d_speed_q31_init(p2d_speed_q31_t *ctl, const p2d_speed_fixed_config_t *cfg);
 p2d_status_t p2d_speed_q31_set_config(p2d_speed_q31_t *ctl, const p2d_speed_fixed_config_t *cfg);
 void p2d_speed_q31_reset(p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t T_init_q31);
-void p2d_speed_q31_compute(const p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t w_m_q31,
-                           p2d_speed_q31_output_t *out);
+void p2d_speed_q31_compute(const p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t w_m_q31, p2d_speed_q31_output_t *out);
 void p2d_speed_q31_update(p2d_speed_q31_t *ctl, const p2d_speed_q31_output_t *out, int32_t T_applied_q31);
 void p2d_speed_q31_step(p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t w_m_q31, p2d_speed_q31_output_t *out);
 
