@@ -10,8 +10,8 @@ the proposals against the check of the changed drive.
 import math
 
 import pytest
-from oracles.fixed_point import exact_gains, quantise
 
+from oracles.fixed_point import exact_gains, quantise
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.fixedpoint import scaling_check
 from pmsm2dof.core.bindings import ffi, lib
@@ -42,11 +42,12 @@ def test_the_paper_design_in_q15_is_flagged_with_its_dead_zone():
     at an error of 5.09 rad/s (48.6 rpm): the dead zone, from the quantised gain and the rule."""
     report = paper_check("q15", amplitude_radps=1.0 * RPM)
     assert report.flagged and report.exceeds
-    m, s, _ = quantise(exact_gains(dict(
-        J_kgm2=0.4, alpha_radps=0.5, zeta=ZETA, Ka=1.0, Ts_s=1e-4, speed_full_scale_radps=SCALES["speed_full_scale_radps"],
-        torque_full_scale_Nm=10.0, current_full_scale_A=10.0, method="tustin", feedforward="none",
-        anti_windup="none", m=1.0, tau_i_s=0.0, pole_pairs=4, psi_f_Wb=0.2, i_max_A=7.6,
-    ))["Ki_Ts"], 15)  # fmt: skip
+    drive = dict(
+        J_kgm2=0.4, alpha_radps=0.5, zeta=ZETA, Ka=1.0, Ts_s=1e-4, torque_full_scale_Nm=10.0,
+        speed_full_scale_radps=SCALES["speed_full_scale_radps"], current_full_scale_A=10.0, method="tustin",
+        feedforward="none", anti_windup="none", m=1.0, tau_i_s=0.0, pole_pairs=4, psi_f_Wb=0.2, i_max_A=7.6,
+    )  # fmt: skip
+    m, s, _ = quantise(exact_gains(drive)["Ki_Ts"], 15)
     # R(m e, s) = 0 for -2^(s-1) <= m e < 2^(s-1)
     assert report.dead_zone.high_lsb == math.ceil(2 ** (s - 1) / m) - 1
     assert report.dead_zone.low_lsb == -math.floor(2 ** (s - 1) / m)
@@ -100,8 +101,8 @@ def test_the_headroom_bound_separates_saturating_and_safe_scalings():
     rows = {h.signal: h for h in report.headroom}
     assert rows["x"].bits < 0 and rows["y_ff"].bits < 0
     T_fs_safe = max(rows["x"].torque_full_scale_min_Nm, rows["y_ff"].torque_full_scale_min_Nm) * 1.01
-    assert all(h.bits > 0 for h in paper_check("q15", torque_full_scale_Nm=T_fs_safe, max_reference_step_radps=step).headroom
-               if h.signal in ("x", "y_ff"))  # fmt: skip
+    safe = paper_check("q15", torque_full_scale_Nm=T_fs_safe, max_reference_step_radps=step)
+    assert all(h.bits > 0 for h in safe.headroom if h.signal in ("x", "y_ff"))
     for T_fs, clamps in ((10.0, True), (T_fs_safe, False)):
         ctl = controller("q15", torque_full_scale_Nm=T_fs)
         ctl.reset(T_init=ctl.torque_to_q(T_MAX))  # at rest at the torque limit

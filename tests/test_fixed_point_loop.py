@@ -203,7 +203,9 @@ def residual_bounds(f, q, r_exact, b, Ki_Ts, Ki_Ka_Ts):
     n_u_q = c31 * b * np.abs(e_q) + b * eta_e_q + T_lsb * (1.0 + 2.0**-30)
     n_x_q = c31 * (Ki_Ts * np.abs(e_q) + Ki_Ka_Ts * np.abs(T_q - u_q)) + Ki_Ts * eta_e_q + 2.0**-31 * T_lsb
     # the plant
-    n_w = 2.0**-52 * (np.abs(w_f) + np.abs(w_q) + 2.0 * TS / J * (np.abs(T_f) + np.abs(T_q) + T_LOAD)) + TS / J * 2.0**-53 * np.abs(T_q)
+    n_w = 2.0**-52 * (
+        np.abs(w_f) + np.abs(w_q) + 2.0 * TS / J * (np.abs(T_f) + np.abs(T_q) + T_LOAD)
+    ) + TS / J * 2.0**-53 * np.abs(T_q)
     W_lambda = 8.0 * U32 * T_MAX + T_lsb * (1.0 + 2.0**-30)
     return n_u_f + n_u_q, W_lambda, n_x_f + n_x_q, n_w
 

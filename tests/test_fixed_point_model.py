@@ -18,8 +18,8 @@ from fractions import Fraction
 import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
-from oracles.fixed_point import BITS, Model, exact_gains, quantise
 
+from oracles.fixed_point import BITS, Model, exact_gains, quantise
 from pmsm2dof.core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from pmsm2dof.core.fixedpoint import FORMATS, GAINS, FixedPointSpeedController
 from pmsm2dof.errors import ConfigError
@@ -151,7 +151,9 @@ def test_saturating_sequences_equal_the_integer_model(fmt, data):
     bits = BITS[fmt][0]
     ends = st.sampled_from([-(2**bits), 2**bits - 1])
     ops = data.draw(
-        st.lists(st.tuples(st.sampled_from(["step", "split"]), ends, ends, ends, st.just(1.0)), min_size=40, max_size=40)
+        st.lists(
+            st.tuples(st.sampled_from(["step", "split"]), ends, ends, ends, st.just(1.0)), min_size=40, max_size=40
+        )
     )
     run_against_model(fmt, cfg, ctl, ops)
 

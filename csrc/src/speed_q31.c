@@ -61,7 +61,7 @@ static p2d_status_t q31_coefficients(const p2d_speed_fixed_config_t *cfg, const 
 p2d_status_t p2d_speed_q31_init(p2d_speed_q31_t *ctl, const p2d_speed_fixed_config_t *cfg)
 {
     p2d_status_t status;
-    if (ctl == 0) return P2D_ERR_NULL;
+    if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
     status = q31_coefficients(cfg, 0, &ctl->coef[0]);
     if (status != P2D_OK) return status;
     /* the shadow set equal to the active one, computed again rather than copied (a copy would call memcpy) */
@@ -76,7 +76,7 @@ p2d_status_t p2d_speed_q31_set_config(p2d_speed_q31_t *ctl, const p2d_speed_fixe
 {
     uint32_t inactive;
     p2d_status_t status;
-    if (ctl == 0) return P2D_ERR_NULL;
+    if (ctl == 0 || cfg == 0) return P2D_ERR_NULL;
     inactive = p2d_shadow_inactive(ctl->active);
     status = q31_coefficients(cfg, &ctl->config, &ctl->coef[inactive]);
     if (status != P2D_OK) return status;

@@ -118,7 +118,11 @@ def exact_gains(cfg):
     """
     J, alpha, zeta = f32(cfg["J_kgm2"]), f32(cfg["alpha_radps"]), f32(cfg["zeta"])
     Ts, Ka = f32(cfg["Ts_s"]), f32(cfg["Ka"])
-    W, T_fs, I_fs = f32(cfg["speed_full_scale_radps"]), f32(cfg["torque_full_scale_Nm"]), f32(cfg["current_full_scale_A"])
+    W, T_fs, I_fs = (
+        f32(cfg["speed_full_scale_radps"]),
+        f32(cfg["torque_full_scale_Nm"]),
+        f32(cfg["current_full_scale_A"]),
+    )
     per_unit = W / T_fs
     Kp = J * alpha
     Ki = J * (alpha / (2 * zeta)) ** 2
@@ -146,7 +150,10 @@ def exact_gains(cfg):
             b0, a1 = c * Ts / (2 + p * Ts), -(2 - p * Ts) / (2 + p * Ts)
         # around the static gain c / p: b0 + b1 z^-1 = (c/p)(1 + a1 z^-1) + b_dr (1 - z^-1)
         g.update(
-            ff_Fr0=(D + c / p) * per_unit, ff_b_dr=(b0 - c / p) * per_unit, ff_one_plus_a1=1 + a1, ff_Kd_per_Ts=Kd / Ts * per_unit
+            ff_Fr0=(D + c / p) * per_unit,
+            ff_b_dr=(b0 - c / p) * per_unit,
+            ff_one_plus_a1=1 + a1,
+            ff_Kd_per_Ts=Kd / Ts * per_unit,
         )
     kt = Fraction(3, 2) * cfg["pole_pairs"] * f32(cfg["psi_f_Wb"])
     g.update(iq_per_T=T_fs / (kt * I_fs), T_max=kt * f32(cfg["i_max_A"]) / T_fs, iq_max=f32(cfg["i_max_A"]) / I_fs)

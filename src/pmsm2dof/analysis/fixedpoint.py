@@ -215,18 +215,22 @@ class ScalingReport:
         lines = [
             f"Fixed-point scaling check: {fmt}, Ts = {self.Ts_s:g} s, {self.method}"
             + (" -- FLAGGED" if self.flagged else " -- ok"),
-            f"  speed: 2^{N} = {self.speed_full_scale_radps:.6g} rad/s ({self.speed_full_scale_radps * RPM_PER_RADPS:.6g}"
-            f" rpm), LSB {self.speed_lsb_radps:.4g} rad/s ({self.speed_lsb_radps * RPM_PER_RADPS:.4g} rpm)",
+            f"  speed: 2^{N} = {self.speed_full_scale_radps:.6g} rad/s "
+            f"({self.speed_full_scale_radps * RPM_PER_RADPS:.6g} rpm), LSB {self.speed_lsb_radps:.4g} rad/s "
+            f"({self.speed_lsb_radps * RPM_PER_RADPS:.4g} rpm)",
             f"  torque: 2^{N} = {self.torque_full_scale_Nm:.6g} Nm, LSB {self.torque_lsb_Nm:.4g} Nm; "
             f"limit {self.T_max_Nm:.6g} Nm",
             "  coefficients (per unit; stored as mantissa * 2^-shift):",
-            f"    {'name':<15}{'exact':>14}{'mantissa':>13}{'shift':>6}{'error':>11}"
-            f"   plain {fmt}: counts (error)",
+            f"    {'name':<15}{'exact':>14}{'mantissa':>13}{'shift':>6}{'error':>11}   plain {fmt}: counts (error)",
         ]
         for g in self.gains:
             lines.append(
                 f"    {g.name:<15}{g.exact:>14.7g}{g.mantissa:>13d}{g.shift:>6d}{g.relative_error:>11.2e}"
-                + (f"   {g.plain_counts} ({g.plain_relative_error:+.2e})" if g.plain_counts is not None else "   does not fit")
+                + (
+                    f"   {g.plain_counts} ({g.plain_relative_error:+.2e})"
+                    if g.plain_counts is not None
+                    else "   does not fit"
+                )
             )
         if math.isinf(dz.high_lsb):
             lines.append("  integrator dead zone: Ki Ts rounds to 0, no integral action")
@@ -334,6 +338,7 @@ def _stuck_transient(ctl: FixedPointSpeedController) -> int:
     m, s = ctl.coefficients["ff_one_plus_a1"]
     if m == 0:
         return 0
+    m, s = int(m), int(s)
 
     def moved(y: int) -> int:
         return y - ((m * y + (1 << (s - 1))) >> s)  # y - R(m y, s)
@@ -366,7 +371,7 @@ def _headroom(
 def _ripple(ctl: FixedPointSpeedController, design: "Design", Ts_s: float) -> float:
     """The swing of the speed error [rad/s] while the output toggles between two adjacent torque LSBs:
     max(speed LSB, T LSB / b_e0), and the drift Ts T_LSB / J over the sample the toggle waits for."""
-    W_fs, T_fs = ctl.config["speed_full_scale_radps"], ctl.config["torque_full_scale_Nm"]
+    W_fs, T_fs = float(ctl.config["speed_full_scale_radps"]), float(ctl.config["torque_full_scale_Nm"])
     speed_lsb, torque_lsb = math.ldexp(W_fs, -ctl.bits), math.ldexp(T_fs, -ctl.bits)
     b_e0_phys = ctl.gains["b_e0"] * T_fs / W_fs
     return max(speed_lsb, torque_lsb / b_e0_phys) + Ts_s * torque_lsb / design.J_kgm2
@@ -534,14 +539,16 @@ def scaling_check(
     W_fs = require_positive("speed_full_scale_radps", speed_full_scale_radps)
     T_fs = require_positive("torque_full_scale_Nm", torque_full_scale_Nm)
     T_max = T_fs if T_max_Nm is None else require_positive("T_max_Nm", T_max_Nm)
-    step = 2.0 * W_fs if max_reference_step_radps is None else require_positive(
-        "max_reference_step_radps", max_reference_step_radps
+    step = (
+        2.0 * W_fs
+        if max_reference_step_radps is None
+        else require_positive("max_reference_step_radps", max_reference_step_radps)
     )
     amplitude = None if amplitude_radps is None else require_positive("amplitude_radps", amplitude_radps)
     ctl = _controller(design, Ts_s, method, fmt, W_fs, T_fs, T_max)
     N = FRACTIONAL_BITS[fmt]
     exact, coef = ctl.gains, ctl.coefficients
-    gains = tuple(_quantised(name, exact[name], *coef[name], N) for name in GAINS if name != "iq_per_T")
+    gains = tuple(_quantised(name, exact[name], coef[name], N) for name in GAINS if name != "iq_per_T")
     speed_lsb, torque_lsb = math.ldexp(W_fs, -N), math.ldexp(T_fs, -N)
     dead_zone = _dead_zone(ctl, speed_lsb)
     headroom = _headroom(exact, T_max / T_fs, step / W_fs, design.anti_windup, T_fs)
@@ -563,9 +570,7 @@ def scaling_check(
         float32_dead_zone_radps=0.5 * _ulp_float32(T_max) / (design.Ki * Ts_s),
         amplitude_radps=amplitude,
         headroom=headroom,
-        proposals=(
-            _proposals(design, Ts_s, method, fmt, W_fs, T_fs, T_max, amplitude, T_fs_headroom) if needs else ()
-        ),
+        proposals=(_proposals(design, Ts_s, method, fmt, W_fs, T_fs, T_max, amplitude, T_fs_headroom) if needs else ()),
     )
 
 
@@ -574,7 +579,8 @@ def _ulp_float32(x: float) -> float:
     return math.ldexp(1.0, math.frexp(abs(x))[1] - 24)
 
 
-def _quantised(name: str, exact: float, mantissa: int, shift: int, bits: int) -> QuantisedGain:
+def _quantised(name: str, exact: float, stored_gain: tuple[int, int], bits: int) -> QuantisedGain:
+    mantissa, shift = stored_gain
     stored = math.ldexp(mantissa, -shift)
     plain = round(math.ldexp(exact, bits))
     return QuantisedGain(
@@ -586,4 +592,3 @@ def _quantised(name: str, exact: float, mantissa: int, shift: int, bits: int) ->
         plain_counts=plain if abs(plain) < 2**bits else None,
         plain_relative_error=(math.ldexp(plain, -bits) - exact) / exact if exact != 0 and abs(plain) < 2**bits else 0.0,
     )
-

@@ -15,6 +15,7 @@ Motor Speed Controller".
 """
 
 import dataclasses
+import math
 import numbers
 from collections.abc import Mapping
 from typing import Any, Literal
@@ -259,35 +260,40 @@ feedforward, anti_windup
         F = :data:`INTEGRATOR_EXTRA_BITS`), ``y_ff_prev`` and ``r_prev`` (LSBs of the format)."""
         c, fmt = self._ctl, self._fmt
         x = c.x_q15 if fmt == "q15" else c.x_q62
-        return {"x": int(x), "y_ff_prev": int(getattr(c, f"y_ff_prev_{fmt}")), "r_prev": int(getattr(c, f"r_prev_{fmt}"))}
+        return {
+            "x": int(x),
+            "y_ff_prev": int(getattr(c, f"y_ff_prev_{fmt}")),
+            "r_prev": int(getattr(c, f"r_prev_{fmt}")),
+        }
 
     def speed_to_q(self, w_radps: float) -> int:
         """The speed ``w_radps`` [rad/s] as the nearest integer of the format, saturated to its range."""
-        return self._to_q(w_radps, self._ctl.config.speed_full_scale_radps)
+        return self._to_q(w_radps, float(self._ctl.config.speed_full_scale_radps))
 
     def torque_to_q(self, T_Nm: float) -> int:
         """The torque ``T_Nm`` [Nm] as the nearest integer of the format, saturated to its range."""
-        return self._to_q(T_Nm, self._ctl.config.torque_full_scale_Nm)
+        return self._to_q(T_Nm, float(self._ctl.config.torque_full_scale_Nm))
 
     def _to_q(self, value: float, full_scale: float) -> int:
-        q = round(float(value) / full_scale * 2**self.bits)
-        return max(-(2**self.bits), min(2**self.bits - 1, q))
+        top = 1 << self.bits
+        return max(-top, min(top - 1, round(math.ldexp(float(value) / full_scale, self.bits))))
 
     def speed_from_q(self, w_q: int) -> float:
         """The speed [rad/s] of the integer ``w_q``."""
-        return float(w_q) * self._ctl.config.speed_full_scale_radps / 2**self.bits
+        return math.ldexp(float(w_q) * float(self._ctl.config.speed_full_scale_radps), -self.bits)
 
     def torque_from_q(self, T_q: int) -> float:
         """The torque [Nm] of the integer ``T_q``."""
-        return float(T_q) * self._ctl.config.torque_full_scale_Nm / 2**self.bits
+        return math.ldexp(float(T_q) * float(self._ctl.config.torque_full_scale_Nm), -self.bits)
 
     def current_from_q(self, i_q: int) -> float:
         """The current [A] of the integer ``i_q``."""
-        return float(i_q) * self._ctl.config.current_full_scale_A / 2**self.bits
+        return math.ldexp(float(i_q) * float(self._ctl.config.current_full_scale_A), -self.bits)
 
     def __repr__(self) -> str:
-        return f"FixedPointSpeedController({self._fmt!r}, " + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
+        return (
+            f"FixedPointSpeedController({self._fmt!r}, " + ", ".join(f"{k}={v!r}" for k, v in self.config.items()) + ")"
+        )
 
 
 _OUTPUT_FIELDS = dataclasses.fields(FixedPointOutput)
-
