@@ -60,8 +60,8 @@ def test_every_status_code_names_a_parameter_of_the_bindings():
     import inspect
 
     from pmsm2dof.core import Encoder, FieldWeakening
-    from pmsm2dof.core.fixedpoint import FixedPointSpeedController
     from pmsm2dof.core.bindings import ffi
+    from pmsm2dof.core.fixedpoint import FixedPointSpeedController
     from pmsm2dof.sim.commission import commissioning_config
     from pmsm2dof.sim.scenario import load_scenario
 

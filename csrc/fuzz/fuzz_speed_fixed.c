@@ -24,7 +24,7 @@
  *  - init accepts or rejects; a rejection names a parameter and writes
  *    nothing; p2d_speed_q15_gains (q31) gives the same verdict. An accepted
  *    set: mantissas within 2^N - 1, shifts within 2N + 1, normalised
- *    (|m| >= 2^(N-1)) unless at the largest shift, T_max and iq_max >= 1,
+ *    (|m| >= 2^(N-1)) unless at the largest shift, shifts >= 2, T_max and iq_max >= 1,
  *    and in Q31 one LSB of error moves the integrator.
  *  - compute does not change the controller; e = w_ref - w_m exactly; u, T_ff,
  *    y within +-(2^(N+1) - 1); T_ref = Sat(u) at T_max, saturated iff they
@@ -84,7 +84,8 @@ static bool fz_gain_ok(int64_t m, uint32_t s, uint32_t bits)
 {
     const int64_t top = (int64_t)1 << bits;
     const int64_t a = m < 0 ? -m : m;
-    return a < top && s <= 2u * bits + 1u && (a == 0 ? s == 2u * bits + 1u : (a >= top / 2 || s == 2u * bits + 1u));
+    return a < top && s >= 2u && s <= 2u * bits + 1u &&
+           (a == 0 ? s == 2u * bits + 1u : (a >= top / 2 || s == 2u * bits + 1u));
 }
 
 #define FZ_GAINS_OK(c, bits)                                                      \

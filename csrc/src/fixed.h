@@ -3,7 +3,7 @@
  * fixed-point speed controllers (pmsm2dof/speed_fixed.h) and their shared
  * initialisation.
  *
- * Rounding R(p, s) = floor(p / 2^s + 1/2), round half up, for 0 <= s < the
+ * Rounding R(p, s) = floor(p / 2^s + 1/2), round half up, for 1 <= s < the
  * width of p. A right shift of a negative number is implementation-defined in
  * C and a left shift of one undefined: floor(p / 2^s) is taken as p >> s for
  * p >= 0 and as ~(~p >> s) for p < 0 (~p = -p - 1 >= 0 in two's complement,
@@ -25,16 +25,16 @@ static inline int32_t p2d_floor_shift32(int32_t p, uint32_t s) { return p >= 0 ?
 /* floor(p / 2^s), 0 <= s <= 63 */
 static inline int64_t p2d_floor_shift64(int64_t p, uint32_t s) { return p >= 0 ? p >> s : ~(~p >> s); }
 
-/* R(p, s) = floor(p / 2^s + 1/2), 0 <= s <= 31 */
+/* R(p, s) = floor(p / 2^s + 1/2), 1 <= s <= 31 (every gain's shift is >= 1: p2d_fixed_gain) */
 static inline int32_t p2d_round_shift32(int32_t p, uint32_t s)
 {
-    return s == 0u ? p : p2d_floor_shift32(p2d_floor_shift32(p, s - 1u) + 1, 1u);
+    return p2d_floor_shift32(p2d_floor_shift32(p, s - 1u) + 1, 1u);
 }
 
-/* R(p, s) = floor(p / 2^s + 1/2), 0 <= s <= 63 */
+/* R(p, s) = floor(p / 2^s + 1/2), 1 <= s <= 63 */
 static inline int64_t p2d_round_shift64(int64_t p, uint32_t s)
 {
-    return s == 0u ? p : p2d_floor_shift64(p2d_floor_shift64(p, s - 1u) + 1, 1u);
+    return p2d_floor_shift64(p2d_floor_shift64(p, s - 1u) + 1, 1u);
 }
 
 /* v limited to [-limit, limit] */
@@ -66,7 +66,8 @@ static inline int64_t p2d_scale_sat64(int64_t p, uint32_t n)
 /*
  * The gain g as m 2^-s with |m| <= 2^bits - 1 (speed_fixed.h): the largest s <= 2 bits + 1 with
  * |g| 2^s < 2^bits, m = g 2^s rounded to the nearest integer, ties away from zero (and s one
- * less if that rounds up to 2^bits). |g| < 2^(bits - 2) is required (init checks it).
+ * less if that rounds up to 2^bits). |g| < 2^(bits - 2) is required (init checks it), so that
+ * s >= 2.
  */
 void p2d_fixed_gain(double g, uint32_t bits, int32_t *mantissa, uint32_t *shift);
 

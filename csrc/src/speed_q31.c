@@ -32,8 +32,8 @@ static inline int64_t q31_mul(p2d_q31_gain_t g, int64_t v) { return p2d_round_sh
 static inline int64_t q31_mul_x(p2d_q31_gain_t g, int64_t v)
 {
     const int64_t p = q31_product(g, v);
-    return g.shift >= Q31_X_EXTRA_BITS ? p2d_round_shift64(p, g.shift - Q31_X_EXTRA_BITS)
-                                       : p2d_scale_sat64(p, Q31_X_EXTRA_BITS - g.shift);
+    return g.shift > Q31_X_EXTRA_BITS ? p2d_round_shift64(p, g.shift - Q31_X_EXTRA_BITS)
+                                      : p2d_scale_sat64(p, Q31_X_EXTRA_BITS - g.shift);
 }
 
 /* Validate cfg and compute its coefficients into *c (written only on success). */

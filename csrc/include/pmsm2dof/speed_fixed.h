@@ -46,7 +46,7 @@
  *   range +-2 pu), and init refuses a configuration in which one LSB of error
  *   does not move it (Ki Ts W_fs / T_fs >= 2^-32); its contribution to u is
  *   R(x_q62, 31). Its terms are rounded to its LSB, R(m v, s - 31) (or, for a
- *   shift below 31, m v 2^(31 - s)), each limited to +-(2^63 - 1), and added one
+ *   shift of 31 or less, m v 2^(31 - s)), each limited to +-(2^63 - 1), and added one
  *   at a time with saturation S to that range:
  *   x = S(S(x + S(R(Ki Ts e) + R(Ki Ka Ts u*))) + R(Fr0 dr)).
  * - The feedforward's pole -a1, near 1 when m alpha Ts is small, is stored as 1 + a1 (= m alpha Ts
@@ -107,13 +107,13 @@ typedef struct {
 /* A Q15 gain m 2^-s. */
 typedef struct {
     int16_t mantissa; /* m [-], |m| <= 2^15 - 1 */
-    uint16_t shift;   /* s [-], 0..31 */
+    uint16_t shift;   /* s [-], 2..31 */
 } p2d_q15_gain_t;
 
 /* A Q31 gain m 2^-s. */
 typedef struct {
     int32_t mantissa; /* m [-], |m| <= 2^31 - 1 */
-    uint32_t shift;   /* s [-], 0..63 */
+    uint32_t shift;   /* s [-], 2..63 */
 } p2d_q31_gain_t;
 
 /* Precomputed Q15 coefficients (units: LSB of the result per LSB of the operand). */

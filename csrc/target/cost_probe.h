@@ -1,0 +1,31 @@
+/*
+ * The cost probes' instruments, shared by the probe programs that
+ * benchmarks/footprint.py traces on QEMU (target_cost.c,
+ * target_commission_cost.c, target_fixed_cost.c):
+ * - p2d_cost_mark(), called right before a measured step, marks it in an
+ *   instruction trace (-singlestep -d exec,nochain): the step's instructions
+ *   run from its entry to the return address of its call;
+ * - the stack a call uses: paint the free stack below SP with a pattern
+ *   before the call, find the lowest word overwritten after it.
+ */
+#ifndef P2D_COST_PROBE_H
+#define P2D_COST_PROBE_H
+
+#include <stdint.h>
+
+/* Painted words below SP (2 KiB). */
+#define P2D_STACK_PAINT_WORDS 512u
+
+/* Marks the next step call in the instruction trace (out of line, does nothing). */
+void p2d_cost_mark(void);
+
+/* The stack pointer. */
+uint32_t p2d_stack_pointer(void);
+
+/* Fill the free stack below sp with the pattern. */
+void p2d_stack_paint(uint32_t sp);
+
+/* Bytes below sp overwritten since p2d_stack_paint(sp). */
+uint32_t p2d_stack_used(uint32_t sp);
+
+#endif /* P2D_COST_PROBE_H */
