@@ -191,10 +191,12 @@ typedef struct {
 } p2d_speed_q31_output_t;
 
 /*
- * Validate cfg for the Q15 (Q31) controller, as p2d_speed_q15_init (p2d_speed_q31_init) does, and
- * compute its gains before quantisation into *gains (written only on success).
+ * Validate cfg for the Q15 controller, as p2d_speed_q15_init does, and compute its gains before
+ * quantisation into *gains (written only on success).
  */
 p2d_status_t p2d_speed_q15_gains(const p2d_speed_fixed_config_t *cfg, p2d_speed_fixed_gains_t *gains);
+
+/* The same for the Q31 controller (p2d_speed_q31_init's validation). */
 p2d_status_t p2d_speed_q31_gains(const p2d_speed_fixed_config_t *cfg, p2d_speed_fixed_gains_t *gains);
 
 /* Validate cfg and precompute; on error ctl is left unchanged. Resets the state. */
@@ -215,12 +217,22 @@ void p2d_speed_q15_update(p2d_speed_q15_t *ctl, const p2d_speed_q15_output_t *ou
 /* compute + update with the controller's own limited torque. */
 void p2d_speed_q15_step(p2d_speed_q15_t *ctl, int16_t w_ref_q15, int16_t w_m_q15, p2d_speed_q15_output_t *out);
 
-/* The Q31 controller: as the Q15 functions above. */
+/* Validate cfg and precompute; on error ctl is left unchanged. Resets the state. */
 p2d_status_t p2d_speed_q31_init(p2d_speed_q31_t *ctl, const p2d_speed_fixed_config_t *cfg);
+
+/* Validate cfg into the shadow set and swap it in; state is kept. On error nothing changes. */
 p2d_status_t p2d_speed_q31_set_config(p2d_speed_q31_t *ctl, const p2d_speed_fixed_config_t *cfg);
+
+/* Bumpless reset: feedforward at rest at the reference w_ref_q31, x = T_init_q31 (the output at zero error). */
 void p2d_speed_q31_reset(p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t T_init_q31);
+
+/* Compute the command for this sample; does not change the state. */
 void p2d_speed_q31_compute(const p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t w_m_q31, p2d_speed_q31_output_t *out);
+
+/* Update the state with the torque actually applied (after every limit) [Q31 of T_fs]. */
 void p2d_speed_q31_update(p2d_speed_q31_t *ctl, const p2d_speed_q31_output_t *out, int32_t T_applied_q31);
+
+/* compute + update with the controller's own limited torque. */
 void p2d_speed_q31_step(p2d_speed_q31_t *ctl, int32_t w_ref_q31, int32_t w_m_q31, p2d_speed_q31_output_t *out);
 
 #ifdef __cplusplus

@@ -57,7 +57,7 @@ class FixedPointOutput:
     y_ff : transient y[k] of the feedforward
     T_unsat : u, feedback plus feedforward before the limit
     T_ref : u_sat, torque of the limited current vector
-    iq_ref : q-axis current command (id = 0, surface PMSM), |iq_ref| within i_max_A
+    iq_ref : q-axis current command (id = 0, surface PMSM), within i_max_A in magnitude
     saturated : the current-vector limit is active
     """
 
