@@ -749,11 +749,11 @@ def fixed_measure(workdir):
         if not lines or lines[-1] != "END":
             raise RuntimeError(f"{core}: probe program did not finish:\n" + "\n".join(lines[-5:]))
         # the counting method, on a function without branches
-        start, size = funcs["p2d_stack_pointer"]
+        start, size = funcs["p2d_cost_mark"]
         disassembled = sum(1 for a in mnemonic if start <= a < start + size and not mnemonic[a].startswith("."))
         first, end = call_in_trace(pcs, start, 0, mnemonic)
         if end - first != disassembled:
-            raise RuntimeError(f"{core}: {end - first} instructions of p2d_stack_pointer traced, {disassembled} in it")
+            raise RuntimeError(f"{core}: {end - first} instructions of p2d_cost_mark traced, {disassembled} in it")
         marks = [i for i, a in enumerate(pcs) if a == funcs["p2d_cost_mark"][0]]
         probes = {}
         for p in (ln.split() for ln in lines if ln.startswith("probe ")):
@@ -788,7 +788,7 @@ def fixed_report(cores):
         "QEMU from the step's entry to its return, callees included (executed instructions, not cycles: on the "
         "M0 a `muls` takes 1 or 32 cycles by the core's build option, on the M3 a taken branch 2 to 4). Without an "
         "FPU the float32 step runs on the compiler's software floating point. The counting method is checked on "
-        "each core: the trace of `p2d_stack_pointer` has as many instructions as its disassembly "
+        "each core: the trace of `p2d_cost_mark` has as many instructions as its disassembly "
         + ", ".join(f"({c['check']} on the {k})" for k, c in cores.items())
         + ".",
         "",

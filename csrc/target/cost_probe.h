@@ -19,13 +19,35 @@
 /* Marks the next step call in the instruction trace (out of line, does nothing). */
 void p2d_cost_mark(void);
 
-/* The stack pointer. */
-uint32_t p2d_stack_pointer(void);
+/* The stack pointer, read in the caller. */
+static inline uint32_t p2d_stack_pointer(void)
+{
+    uint32_t sp;
+    __asm__ volatile("mov %0, sp" : "=r"(sp));
+    return sp;
+}
 
-/* Fill the free stack below sp with the pattern. */
-void p2d_stack_paint(uint32_t sp);
+/* Paint pattern of the free stack. */
+#define P2D_STACK_PATTERN 0xC5A5C5A5u
+
+/* Fill the free stack below sp with the pattern (inline: no frame of its own below sp). */
+static inline void p2d_stack_paint(uint32_t sp)
+{
+    volatile uint32_t *w = (volatile uint32_t *)(uintptr_t)(sp - 4u * P2D_STACK_PAINT_WORDS);
+    for (uint32_t i = 0u; i < P2D_STACK_PAINT_WORDS; ++i) {
+        w[i] = P2D_STACK_PATTERN;
+    }
+}
 
 /* Bytes below sp overwritten since p2d_stack_paint(sp). */
-uint32_t p2d_stack_used(uint32_t sp);
+static inline uint32_t p2d_stack_used(uint32_t sp)
+{
+    volatile const uint32_t *w = (volatile const uint32_t *)(uintptr_t)(sp - 4u * P2D_STACK_PAINT_WORDS);
+    uint32_t i = 0u;
+    while (i < P2D_STACK_PAINT_WORDS && w[i] == P2D_STACK_PATTERN) {
+        ++i;
+    }
+    return 4u * (P2D_STACK_PAINT_WORDS - i);
+}
 
 #endif /* P2D_COST_PROBE_H */

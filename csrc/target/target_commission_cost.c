@@ -27,8 +27,7 @@
 #include "pmsm2dof/commission.h"
 #include "semihost.h"
 
-#define P2D_STACK_PATTERN 0xC5A5C5A5u /* paint pattern */
-#define P2D_MAX_STEPS 20000u          /* a bound on the run */
+#define P2D_MAX_STEPS 20000u /* a bound on the run */
 
 static p2d_line_t line;
 static p2d_commission_t routine;
