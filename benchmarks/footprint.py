@@ -788,9 +788,11 @@ def fixed_report(cores):
         "QEMU from the step's entry to its return, callees included (executed instructions, not cycles: on the "
         "M0 a `muls` takes 1 or 32 cycles by the core's build option, on the M3 a taken branch 2 to 4). Without an "
         "FPU the float32 step runs on the compiler's software floating point. The counting method is checked on "
-        "each core: the trace of `p2d_cost_mark` has as many instructions as its disassembly "
-        + ", ".join(f"({c['check']} on the {k})" for k, c in cores.items())
-        + ".",
+        "each core: the trace of `p2d_cost_mark` has as many instructions as its disassembly ("
+        + ", ".join(f"{c['check']} on the {k}" for k, c in cores.items())
+        + "). Init validates the design by the float controller's rules (`p2d_speed_init`) and computes the "
+        "coefficients in double, on a core without an FPU with the compiler's software floating point: hence its "
+        "flash.",
         "",
         "| core | controller | instructions per step: unsaturated | saturated | stack (bytes) "
         "| flash reachable from the step (bytes) | from init (bytes) |",
