@@ -6,18 +6,24 @@
  *   instruction trace (-singlestep -d exec,nochain): the step's instructions
  *   run from its entry to the return address of its call;
  * - the stack a call uses: paint the free stack below SP with a pattern
- *   before the call, find the lowest word overwritten after it.
+ *   before the call, find the lowest word overwritten after it;
+ * - the size of a struct as the target compiler lays it out, as a line of output.
  */
 #ifndef P2D_COST_PROBE_H
 #define P2D_COST_PROBE_H
 
 #include <stdint.h>
 
+#include "semihost.h"
+
 /* Painted words below SP (2 KiB). */
 #define P2D_STACK_PAINT_WORDS 512u
 
 /* Marks the next step call in the instruction trace (out of line, does nothing). */
 void p2d_cost_mark(void);
+
+/* Write the line "sizeof <type> <bytes>" (bytes in hex). */
+void p2d_cost_sizeof(p2d_line_t *line, const char *type, uint32_t bytes);
 
 /* The stack pointer, read in the caller. */
 static inline uint32_t p2d_stack_pointer(void)

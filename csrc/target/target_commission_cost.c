@@ -41,15 +41,6 @@ static void print_hex(const char *what, uint32_t a, uint32_t b, bool two)
     p2d_line_flush(&line);
 }
 
-static void print_sizeof(const char *type, uint32_t bytes)
-{
-    p2d_line_text(&line, "sizeof ");
-    p2d_line_text(&line, type);
-    p2d_line_text(&line, " ");
-    p2d_line_hex(&line, bytes);
-    p2d_line_flush(&line);
-}
-
 /*
  * A commissioning of a small servo with short phases: 100 us samples,
  * tau_i = 1 ms, 2 A test, 1.5 A spin, the flux test at 100 rad/s.
@@ -81,9 +72,9 @@ int main(void)
     uint32_t sp, n = 0u;
     volatile uint32_t *paint;
 
-    print_sizeof("p2d_commission_t", sizeof(p2d_commission_t));
-    print_sizeof("p2d_commission_config_t", sizeof(p2d_commission_config_t));
-    print_sizeof("p2d_commission_output_t", sizeof(p2d_commission_output_t));
+    p2d_cost_sizeof(&line, "p2d_commission_t", sizeof(p2d_commission_t));
+    p2d_cost_sizeof(&line, "p2d_commission_config_t", sizeof(p2d_commission_config_t));
+    p2d_cost_sizeof(&line, "p2d_commission_output_t", sizeof(p2d_commission_output_t));
     if (p2d_commission_init(&routine, &cfg) != P2D_OK) p2d_semihost_exit(false);
 
     /* the steps run from here, with this stack pointer: paint once, read the high-water mark at the end */

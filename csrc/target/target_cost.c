@@ -41,15 +41,6 @@
 static p2d_line_t line;
 static uint32_t probe_index;
 
-static void print_sizeof(const char *type, uint32_t bytes)
-{
-    p2d_line_text(&line, "sizeof ");
-    p2d_line_text(&line, type);
-    p2d_line_text(&line, " ");
-    p2d_line_hex(&line, bytes);
-    p2d_line_flush(&line);
-}
-
 /* Start the line of the next probe; its description follows. */
 static void probe_begin(const char *controller)
 {
@@ -403,30 +394,30 @@ static void probe_inertia(bool period_mean, const char *point)
 
 int main(void)
 {
-    print_sizeof("p2d_speed_t", sizeof(p2d_speed_t));
-    print_sizeof("p2d_speed_coef_t", sizeof(p2d_speed_coef_t));
-    print_sizeof("p2d_speed_config_t", sizeof(p2d_speed_config_t));
-    print_sizeof("p2d_speed_output_t", sizeof(p2d_speed_output_t));
-    print_sizeof("p2d_current_t", sizeof(p2d_current_t));
-    print_sizeof("p2d_current_coef_t", sizeof(p2d_current_coef_t));
-    print_sizeof("p2d_current_config_t", sizeof(p2d_current_config_t));
-    print_sizeof("p2d_current_output_t", sizeof(p2d_current_output_t));
-    print_sizeof("p2d_encoder_t", sizeof(p2d_encoder_t));
-    print_sizeof("p2d_encoder_coef_t", sizeof(p2d_encoder_coef_t));
-    print_sizeof("p2d_encoder_config_t", sizeof(p2d_encoder_config_t));
-    print_sizeof("p2d_encoder_output_t", sizeof(p2d_encoder_output_t));
-    print_sizeof("p2d_field_weakening_t", sizeof(p2d_field_weakening_t));
-    print_sizeof("p2d_field_weakening_coef_t", sizeof(p2d_field_weakening_coef_t));
-    print_sizeof("p2d_field_weakening_config_t", sizeof(p2d_field_weakening_config_t));
-    print_sizeof("p2d_field_weakening_output_t", sizeof(p2d_field_weakening_output_t));
-    print_sizeof("p2d_inertia_t", sizeof(p2d_inertia_t));
-    print_sizeof("p2d_inertia_coef_t", sizeof(p2d_inertia_coef_t));
-    print_sizeof("p2d_inertia_config_t", sizeof(p2d_inertia_config_t));
-    print_sizeof("p2d_inertia_output_t", sizeof(p2d_inertia_output_t));
-    print_sizeof("p2d_filter_t", sizeof(p2d_filter_t));
-    print_sizeof("p2d_filter_coef_t", sizeof(p2d_filter_coef_t));
-    print_sizeof("p2d_filter_config_t", sizeof(p2d_filter_config_t));
-    print_sizeof("p2d_filter_state_t", sizeof(p2d_filter_state_t));
+    p2d_cost_sizeof(&line, "p2d_speed_t", sizeof(p2d_speed_t));
+    p2d_cost_sizeof(&line, "p2d_speed_coef_t", sizeof(p2d_speed_coef_t));
+    p2d_cost_sizeof(&line, "p2d_speed_config_t", sizeof(p2d_speed_config_t));
+    p2d_cost_sizeof(&line, "p2d_speed_output_t", sizeof(p2d_speed_output_t));
+    p2d_cost_sizeof(&line, "p2d_current_t", sizeof(p2d_current_t));
+    p2d_cost_sizeof(&line, "p2d_current_coef_t", sizeof(p2d_current_coef_t));
+    p2d_cost_sizeof(&line, "p2d_current_config_t", sizeof(p2d_current_config_t));
+    p2d_cost_sizeof(&line, "p2d_current_output_t", sizeof(p2d_current_output_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_t", sizeof(p2d_encoder_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_coef_t", sizeof(p2d_encoder_coef_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_config_t", sizeof(p2d_encoder_config_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_output_t", sizeof(p2d_encoder_output_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_t", sizeof(p2d_field_weakening_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_coef_t", sizeof(p2d_field_weakening_coef_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_config_t", sizeof(p2d_field_weakening_config_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_output_t", sizeof(p2d_field_weakening_output_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_t", sizeof(p2d_inertia_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_coef_t", sizeof(p2d_inertia_coef_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_config_t", sizeof(p2d_inertia_config_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_output_t", sizeof(p2d_inertia_output_t));
+    p2d_cost_sizeof(&line, "p2d_filter_t", sizeof(p2d_filter_t));
+    p2d_cost_sizeof(&line, "p2d_filter_coef_t", sizeof(p2d_filter_coef_t));
+    p2d_cost_sizeof(&line, "p2d_filter_config_t", sizeof(p2d_filter_config_t));
+    p2d_cost_sizeof(&line, "p2d_filter_state_t", sizeof(p2d_filter_state_t));
 
     for (int aw = P2D_AW_NONE; aw <= P2D_AW_CLAMPING; ++aw) {
         for (int ff = P2D_FF_NONE; ff <= P2D_FF_FULL; ++ff) {

@@ -54,15 +54,6 @@ static p2d_speed_fixed_config_t paper_config(void)
     return cfg;
 }
 
-static void print_sizeof(const char *type, uint32_t bytes)
-{
-    p2d_line_text(&line, "sizeof ");
-    p2d_line_text(&line, type);
-    p2d_line_text(&line, " ");
-    p2d_line_hex(&line, bytes);
-    p2d_line_flush(&line);
-}
-
 static void probe_line(const char *controller, bool saturate, uint32_t stack_bytes)
 {
     p2d_line_text(&line, "probe ");
@@ -136,11 +127,11 @@ static void probe_q31(bool saturate)
 
 int main(void)
 {
-    print_sizeof("p2d_speed_t", sizeof(p2d_speed_t));
-    print_sizeof("p2d_speed_q15_t", sizeof(p2d_speed_q15_t));
-    print_sizeof("p2d_speed_q31_t", sizeof(p2d_speed_q31_t));
-    print_sizeof("p2d_speed_q15_output_t", sizeof(p2d_speed_q15_output_t));
-    print_sizeof("p2d_speed_q31_output_t", sizeof(p2d_speed_q31_output_t));
+    p2d_cost_sizeof(&line, "p2d_speed_t", sizeof(p2d_speed_t));
+    p2d_cost_sizeof(&line, "p2d_speed_q15_t", sizeof(p2d_speed_q15_t));
+    p2d_cost_sizeof(&line, "p2d_speed_q31_t", sizeof(p2d_speed_q31_t));
+    p2d_cost_sizeof(&line, "p2d_speed_q15_output_t", sizeof(p2d_speed_q15_output_t));
+    p2d_cost_sizeof(&line, "p2d_speed_q31_output_t", sizeof(p2d_speed_q31_output_t));
     for (int saturate = 0; saturate <= 1; ++saturate) {
         probe_float(saturate != 0);
         probe_q15(saturate != 0);

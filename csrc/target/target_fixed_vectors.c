@@ -52,6 +52,23 @@ static void line_gain(int32_t mantissa, uint32_t shift)
     p2d_line_hex(&line, shift);
 }
 
+/* The coefficient set k of the format fmt (q15, q31) on the line, which it writes out. */
+#define P2D_LINE_COEF(k, fmt)                                               \
+    do {                                                                    \
+        line_gain((k)->b_e0.mantissa, (k)->b_e0.shift);                     \
+        line_gain((k)->Ki_Ts.mantissa, (k)->Ki_Ts.shift);                   \
+        line_gain((k)->Ki_Ka_Ts.mantissa, (k)->Ki_Ka_Ts.shift);             \
+        line_gain((k)->ff_Fr0.mantissa, (k)->ff_Fr0.shift);                 \
+        line_gain((k)->ff_b_dr.mantissa, (k)->ff_b_dr.shift);               \
+        line_gain((k)->ff_one_plus_a1.mantissa, (k)->ff_one_plus_a1.shift); \
+        line_gain((k)->ff_Kd_per_Ts.mantissa, (k)->ff_Kd_per_Ts.shift);     \
+        line_gain((k)->iq_per_T.mantissa, (k)->iq_per_T.shift);             \
+        p2d_line_hex(&line, (uint32_t)(k)->T_max_##fmt);                    \
+        p2d_line_hex(&line, (uint32_t)(k)->iq_max_##fmt);                   \
+        p2d_line_hex(&line, (k)->clamping);                                 \
+        p2d_line_flush(&line);                                              \
+    } while (0)
+
 static void run_q15(uint32_t c)
 {
     p2d_speed_q15_t ctl;
@@ -60,22 +77,8 @@ static void run_q15(uint32_t c)
     line_head("I Q15 ", c, (uint32_t)status);
     p2d_line_flush(&line);
     if (status != P2D_OK) return;
-    {
-        const p2d_speed_q15_coef_t *k = &ctl.coef[ctl.active];
-        line_head("K Q15 ", c, 0u);
-        line_gain(k->b_e0.mantissa, k->b_e0.shift);
-        line_gain(k->Ki_Ts.mantissa, k->Ki_Ts.shift);
-        line_gain(k->Ki_Ka_Ts.mantissa, k->Ki_Ka_Ts.shift);
-        line_gain(k->ff_Fr0.mantissa, k->ff_Fr0.shift);
-        line_gain(k->ff_b_dr.mantissa, k->ff_b_dr.shift);
-        line_gain(k->ff_one_plus_a1.mantissa, k->ff_one_plus_a1.shift);
-        line_gain(k->ff_Kd_per_Ts.mantissa, k->ff_Kd_per_Ts.shift);
-        line_gain(k->iq_per_T.mantissa, k->iq_per_T.shift);
-        p2d_line_hex(&line, (uint32_t)k->T_max_q15);
-        p2d_line_hex(&line, (uint32_t)k->iq_max_q15);
-        p2d_line_hex(&line, k->clamping);
-        p2d_line_flush(&line);
-    }
+    line_head("K Q15 ", c, 0u);
+    P2D_LINE_COEF(&ctl.coef[ctl.active], q15);
     for (uint32_t k = 0u; k < P2D_FV_SAMPLES; ++k) {
         const int16_t *in = p2d_fv_q15[c][k];
         if (in[0] == 2) {
@@ -112,22 +115,8 @@ static void run_q31(uint32_t c)
     line_head("I Q31 ", c, (uint32_t)status);
     p2d_line_flush(&line);
     if (status != P2D_OK) return;
-    {
-        const p2d_speed_q31_coef_t *k = &ctl.coef[ctl.active];
-        line_head("K Q31 ", c, 0u);
-        line_gain(k->b_e0.mantissa, k->b_e0.shift);
-        line_gain(k->Ki_Ts.mantissa, k->Ki_Ts.shift);
-        line_gain(k->Ki_Ka_Ts.mantissa, k->Ki_Ka_Ts.shift);
-        line_gain(k->ff_Fr0.mantissa, k->ff_Fr0.shift);
-        line_gain(k->ff_b_dr.mantissa, k->ff_b_dr.shift);
-        line_gain(k->ff_one_plus_a1.mantissa, k->ff_one_plus_a1.shift);
-        line_gain(k->ff_Kd_per_Ts.mantissa, k->ff_Kd_per_Ts.shift);
-        line_gain(k->iq_per_T.mantissa, k->iq_per_T.shift);
-        p2d_line_hex(&line, (uint32_t)k->T_max_q31);
-        p2d_line_hex(&line, (uint32_t)k->iq_max_q31);
-        p2d_line_hex(&line, k->clamping);
-        p2d_line_flush(&line);
-    }
+    line_head("K Q31 ", c, 0u);
+    P2D_LINE_COEF(&ctl.coef[ctl.active], q31);
     for (uint32_t k = 0u; k < P2D_FV_SAMPLES; ++k) {
         const int32_t *in = p2d_fv_q31[c][k];
         if (in[0] == 2) {
