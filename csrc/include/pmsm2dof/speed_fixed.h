@@ -52,15 +52,16 @@
  * - The feedforward's pole -a1, near 1 when m alpha Ts is small, is stored as 1 + a1 (= m alpha Ts
  *   with forward Euler), which keeps its distance to 1, the section's time constant, to the
  *   precision of a mantissa; -a1 itself would keep it to 2^-N only.
- * - u_sat and iq are rounded and limited: |T_ref| <= T_max_q = floor(T_max 2^N / T_fs)
- *   with T_max = 1.5 p psi_f i_max_A, |iq_ref| <= floor(i_max_A 2^N / I_fs).
+ * - The limits: |T_ref| <= T_max_q = floor(T_max 2^N / T_fs) with T_max = 1.5 p psi_f i_max_A,
+ *   and iq, rounded, limited to |iq_ref| <= floor(i_max_A 2^N / I_fs) (each at most 2^N - 1).
  *
  * Parameter updates: p2d_speed_q15_set_config and p2d_speed_q31_set_config
  * validate the new configuration and compute its coefficients into the
  * inactive of two coefficient sets, then activate it with one aligned 32-bit
  * store (as p2d_speed_set_config); on an invalid configuration nothing changes.
- * The state is kept, so the output at a constant reference does not jump; the
- * full scales must stay as they are (the state is held in their LSBs).
+ * The state is kept, so the output at rest at a constant reference (no
+ * feedforward transient) does not jump; the full scales must stay as they are
+ * (the state is held in their LSBs).
  *
  * Portable C99, no allocation, no global state; the step uses integers only.
  */

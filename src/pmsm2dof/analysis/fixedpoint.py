@@ -267,6 +267,7 @@ class ScalingReport:
             f"  headroom after a reference step of {step:.6g} rad/s ({step * RPM_PER_RADPS:.6g} rpm), "
             f"the format holds {SIGNAL_LIMIT_PU:g} full scales:"
         )
+        lines.append("    e, dr    exact: a difference of two inputs fits two full scales")
         for h in self.headroom:
             if math.isinf(h.bound_pu):
                 lines.append(f"    {h.signal:<8} winds up (no anti-windup): held at the format's limit")
