@@ -1,7 +1,8 @@
 """Bounded fuzzing of the C controllers, filters and estimator with libFuzzer under ASan and UBSan.
 
-The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c, fuzz_commission.c,
-fuzz_encoder.c, fuzz_field_weakening.c, fuzz_inertia.c and fuzz_filter.c decode
+The targets csrc/fuzz/fuzz_speed.c, fuzz_speed_fixed.c (the Q15 and Q31
+controllers), fuzz_current.c, fuzz_commission.c, fuzz_encoder.c,
+fuzz_field_weakening.c, fuzz_inertia.c and fuzz_filter.c decode
 random configurations and input sequences and abort on any violated invariant
 (output finite and within I_max or u_dc/sqrt(3), integrator bounds under back
 calculation and clamping, the anti-windup update through the torque filters,
@@ -9,7 +10,10 @@ counter increments and estimator bounds, atomic parameter updates, filters that
 realize their design and hold a constant input exactly, no poisoned state; the
 commissioning routine's phases, its trip, and estimates that match the motor
 when it ends; the inertia estimator's covariance within its prior and its
-outputs within their bounds; see RELIABILITY.md). Each runs for a bounded time
+outputs within their bounds; the fixed-point controllers' signals within two
+full scales, their integrators' rounding at the dead zone's edges and one LSB
+of Q31 error, and under UBSan no shift of a negative number and no overflow;
+see RELIABILITY.md). Each runs for a bounded time
 from a copy of the checked-in seed corpus; the executions are printed (pytest
 -s shows them).
 
@@ -21,7 +25,9 @@ no overcurrent trip, a NaN current let through, an encoder increment read
 unsigned, an unlimited field-weakening current, a field-weakening torque limit
 that ignores the d current; the inertia estimator's non-finite policy removed,
 its forgetting without the bound of the prior, its output without the bound of
-J_max) show that the invariants catch real faults: each is caught by replaying
+J_max; a Q31 integrator deaf to one LSB of error, a Q15 feedforward transient
+not held within two full scales, Q15 clamping that never holds) show that the
+invariants catch real faults: each is caught by replaying
 the seed corpus alone.
 
 Each target executes a fixed number of inputs from libFuzzer seed 1 (FUZZ_RUNS) without comparison tracing
@@ -48,6 +54,7 @@ CORPUS = CSRC / "fuzz" / "corpus"
 #: whatever the machine's speed (about 15 s each on one x86-64 core of 2026).
 FUZZ_RUNS = {
     "speed": 80_000,
+    "speed_fixed": 20_000,
     "current": 110_000,
     "commission": 18_000,
     "encoder": 100_000,
@@ -61,7 +68,7 @@ FUZZ_RUNS = {
 FUZZ_SECONDS = os.environ.get("P2D_FUZZ_SECONDS")
 FUZZ_SEED = int(os.environ.get("P2D_FUZZ_SEED", "1"))
 SANITIZE = ["-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all", "-g", "-O1"]
-TARGETS = ("speed", "current", "commission", "encoder", "field_weakening", "inertia", "filter", "xcp")
+TARGETS = ("speed", "speed_fixed", "current", "commission", "encoder", "field_weakening", "inertia", "filter", "xcp")
 
 
 def _libfuzzer_missing(tmp_path):
@@ -250,6 +257,29 @@ MUTANTS = {
     ),
     # the field weakening's output is not limited to [id_min, 0]
     "field_weakening_no_limit": ("field_weakening", "field_weakening.c", [("id = id_limited(c, v);", "id = v;")]),
+    # the Q31 controller accepts a scaling whose integrator ignores one LSB of error (a dead zone)
+    "speed_fixed_q31_deaf": (
+        "speed_fixed",
+        "speed_fixed.c",
+        [("if (s > 31u && p2d_round_shift64(m, s - 31u) < 1) return P2D_ERR_SPEED_FULL_SCALE;", "(void)m;")],
+    ),
+    # the Q15 feedforward transient is not held within two full scales
+    "speed_fixed_q15_y_unbounded": (
+        "speed_fixed",
+        "speed_q15.c",
+        [
+            (
+                "q15_mul(c->ff_one_plus_a1, ctl->y_ff_prev_q15),\n                    Q15_SIGNAL_MAX);",
+                "q15_mul(c->ff_one_plus_a1, ctl->y_ff_prev_q15),\n                    4 * Q15_SIGNAL_MAX);",
+            )
+        ],
+    ),
+    # Q15 clamping never holds the integrator
+    "speed_fixed_q15_no_clamping": (
+        "speed_fixed",
+        "speed_q15.c",
+        [("if (c->clamping && ((u_star < 0", "if (c->clamping && u_star < 0 && u_star > 0 && ((u_star < 0")],
+    ),
     # the speed controller's field-weakening entry keeps the full torque limit: the current leaves the circle
     "speed_fw_full_limit": (
         "field_weakening",

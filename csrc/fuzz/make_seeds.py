@@ -61,10 +61,12 @@ def fraction(f):
     return u16(round(f * 65535))
 
 
-def speed_config(surface=True, m=None, method=2, feedforward=1, anti_windup=1, J=nominal(), Ts=nominal()):
+def speed_config(
+    surface=True, m=None, method=2, feedforward=1, anti_windup=1, J=nominal(), Ts=nominal(), zeta=nominal()
+):
     """Speed controller configuration; m None means m = 1 (shape bit 1)."""
     shape = (1 if surface else 0) | (2 if m is None else 0)
-    out = u8(shape) + J + nominal() + nominal()  # J, alpha, zeta
+    out = u8(shape) + J + nominal() + zeta  # J, alpha, zeta
     if m is not None:
         out += m
     out += nominal() + nominal() + Ts + nominal() + nominal() + nominal()  # tau_i, Ka, Ts, i_max, psi_f, Ld
@@ -809,9 +811,81 @@ XCP_SEEDS = {
 }
 
 
+# operations (op % 8) of the fixed-point speed target (fuzz_speed_fixed.c); SAMPLE and the others as above
+FIXED_PROBE = 3
+I32_MIN, I32_MAX = -(2**31), 2**31 - 1
+
+
+def fixed_config(surface=True, T_fs=nominal(), W_fs=nominal(), I_fs=nominal(), **speed):
+    """Fixed-point configuration: its shape byte (bit 0: surface), a speed configuration, the full scales."""
+    return u8(1 if surface else 0) + speed_config(surface=surface, **speed) + T_fs + W_fs + I_fs
+
+
+def i32(v):
+    return struct.pack("<i", v)
+
+
+def fixed_sample(w_ref, w_m, mode=0, applied=0):
+    """One sample of both formats: Q31 integers (Q15 takes their upper halves); mode 0 own T_ref, 1 applied, 2 u."""
+    return u8(SAMPLE + 8 * mode) + i32(w_ref) + i32(w_m) + i32(applied)
+
+
+def fixed_closed_loop(n, w_ref, T_load):
+    return u8(CLOSED_LOOP) + u16(n - 1) + w_ref + T_load
+
+
+# saturating samples at the extremes, reversing, with every applied torque; a constant reference while saturated
+EXTREMES = (
+    fixed_sample(I32_MAX, I32_MIN)
+    + fixed_sample(I32_MAX, I32_MIN)
+    + fixed_sample(I32_MAX, I32_MIN, mode=1, applied=I32_MIN)
+    + fixed_sample(I32_MIN, I32_MAX, mode=1, applied=I32_MAX)
+    + fixed_sample(I32_MIN, I32_MAX)
+    + fixed_sample(I32_MIN, I32_MIN, mode=2)
+    + fixed_sample(0, 1, mode=2)
+    + fixed_sample(0, -1, mode=2)
+    + u8(FIXED_PROBE)
+)
+
+SPEED_FIXED_SEEDS = {
+    # the paper's drive scaled to twice its torque limit: a step under load, the dead-zone probe, a reversal
+    "paper_lowpass_backcalc_load": fixed_config()
+    + fixed_closed_loop(2048, nominal(), nominal())
+    + u8(FIXED_PROBE)
+    + fixed_closed_loop(1500, nominal(-0.5), nominal()),
+    # zeta = 0.5: Fr(0) = -4 full scales per full scale, the feedforward transient at its bound; clamping
+    "extremes_lowpass_clamping": fixed_config(zeta=nominal(0.5), anti_windup=2) + EXTREMES,
+    "extremes_forward_full_backcalc": fixed_config(m=nominal(2.0), method=0, feedforward=3) + EXTREMES,
+    "extremes_backward_notau_none": fixed_config(m=nominal(0.5), method=1, feedforward=2, anti_windup=0) + EXTREMES,
+    "extremes_tustin_none_clamping": fixed_config(feedforward=0, anti_windup=2, W_fs=nominal(50.0)) + EXTREMES,
+    # a speed full scale of 1e-9 rad/s: Ki Ts per unit below 2^-32, which Q31 refuses; Q15 runs with its dead zone
+    "q31_deaf_integrator": fixed_config(W_fs=raw(1e-9)) + EXTREMES + fixed_closed_loop(500, nominal(), nominal()),
+    # updates: a fresh design with the scalings kept, new scalings (refused), resets
+    "set_config_and_reset": fixed_config()
+    + fixed_closed_loop(300, nominal(), nominal())
+    + u8(SET_MUTATED)
+    + speed_config(zeta=nominal(0.7))
+    + u8(1)
+    + fixed_closed_loop(300, nominal(), nominal())
+    + u8(SET_FRESH)
+    + fixed_config(T_fs=nominal(2.0))
+    + u8(RESET)
+    + i32(1 << 20)
+    + i32(-(1 << 24))
+    + fixed_sample(1 << 20, 1 << 20, mode=2)
+    + u8(RESET)
+    + i32(I32_MIN)
+    + i32(I32_MAX)
+    + EXTREMES,
+    # a salient motor: both formats refuse it
+    "rejected_salient": fixed_config(surface=False),
+}
+
+
 def main():
     for target, seeds in (
         ("speed", SPEED_SEEDS),
+        ("speed_fixed", SPEED_FIXED_SEEDS),
         ("current", CURRENT_SEEDS),
         ("commission", COMMISSION_SEEDS),
         ("encoder", ENCODER_SEEDS),

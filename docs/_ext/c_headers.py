@@ -30,8 +30,8 @@ ROOT = Path(__file__).resolve().parents[2]
 HEADERS = ROOT / "csrc" / "include" / "pmsm2dof"
 # The types the headers take from <stdint.h> and <stdbool.h>, for pycparser (which reads no system header)
 PRELUDE = (
-    "typedef int bool; typedef unsigned int uint32_t; typedef int int32_t; typedef unsigned short uint16_t;\n"
-    "typedef unsigned char uint8_t;\n"
+    "typedef int bool; typedef unsigned int uint32_t; typedef int int32_t; typedef unsigned char uint8_t;\n"
+    "typedef short int16_t; typedef unsigned short uint16_t; typedef long long int64_t;\n"
 )
 COMMENT = re.compile(r"/\*.*?\*/", re.S)
 CPLUSPLUS = re.compile(r"#ifdef __cplusplus.*?#endif", re.S)
