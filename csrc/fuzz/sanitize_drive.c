@@ -20,8 +20,8 @@
  *   4. a load far beyond the limit that drives the shaft backwards until the
  *      engine stops with P2D_SIM_STOP_OVERSPEED;
  *   5. error paths: NULL, an invalid motor, an invalid controller, a log
- *      buffer too small (P2D_SIM_ERR_LOG_FULL, without writing past it), an
- *      invalid drive train, an invalid torque filter;
+ *      buffer too small (P2D_SIM_ERR_LOG_FULL before anything runs; then the
+ *      samples it has room for), an invalid drive train, an invalid torque filter;
  *   6. the commissioning run (commission_run.h) of a salient servo with
  *      dead time, current noise and computation delay, into a log of exactly
  *      its rows: DONE, every estimate within 5 %; then a log one row short
@@ -269,8 +269,12 @@ int main(void)
         CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_OK, "valid configuration rejected");
         small = malloc(10u * P2D_LOG_COUNT * sizeof *small);
         status = p2d_sim_run(sim, 11u, small, 10u);
-        CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 10u,
-              "log of 10 rows for 11 samples: status %d rows %llu", (int)status, (unsigned long long)sim->n_rows);
+        CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 0u && sim->n_speed == 0u,
+              "log of 10 rows for 11 samples: status %d rows %llu (nothing runs)", (int)status,
+              (unsigned long long)sim->n_rows);
+        status = p2d_sim_run(sim, 10u, small, 10u);
+        CHECK(status == P2D_SIM_OK && sim->n_rows == 10u, "log of 10 rows for 10 samples: status %d rows %llu",
+              (int)status, (unsigned long long)sim->n_rows);
         free(small);
         paper_drive(&cfg);
         cfg.mechanics.model = P2D_MECHANICS_TWO_MASS;

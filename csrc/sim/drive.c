@@ -7,10 +7,26 @@
 #include <math.h>
 #include <string.h>
 
+#include "plant_inline.h"
+
 #define P2D_SIM_OVERSPEED_FACTOR 2.0    /* overspeed bound in no-load speeds [-] */
 #define P2D_SIM_OVERCURRENT_FACTOR 10.0 /* overcurrent bound in max(i_max, short-circuit current) [-] */
 #define P2D_SIM_TS_MATCH_TOL 1e-6       /* relative mismatch allowed between float and double periods [-] */
 #define P2D_SIM_T_TOL 1e-6              /* times closer than this many RK4 steps are equal [-] */
+
+/* Inlines a function where the compiler supports it (the per-period work into the loop). */
+#if defined(__GNUC__)
+#define P2D_SIM_INLINE __attribute__((always_inline)) inline
+#else
+#define P2D_SIM_INLINE inline
+#endif
+
+/* Keeps a function out of line where the compiler supports it (rare paths, out of the loop's registers). */
+#if defined(__GNUC__)
+#define P2D_SIM_NOINLINE __attribute__((noinline))
+#else
+#define P2D_SIM_NOINLINE
+#endif
 
 typedef struct {
     const char *param; /* configuration field */
@@ -69,6 +85,7 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_ERR_ESTIMATOR] = {"adapt.config", "accepted by p2d_inertia_init (see controller_status)"},
     [P2D_SIM_ERR_ADAPT_REL_CHANGE] = {"adapt.adapt_rel_change", "finite and >= 0"},
     [P2D_SIM_ERR_E_QUIET] = {"adapt.e_quiet_radps", "finite and >= 0"},
+    [P2D_SIM_ERR_LOCKSTEP] = {"sims", "drives of one shape at the same sample (p2d_sim_lockstep)"},
 };
 
 static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
@@ -323,31 +340,6 @@ static double dc_link_V(const p2d_sim_t *sim, double t_s)
     return sim->cfg.u_dc_V;
 }
 
-/* ---- loop --------------------------------------------------------------- */
-
-/*
- * Integrate the plant over the current period starting at t_start with its input held: `substeps`
- * RK4 steps, each split at the load's breakpoints inside it, so that every step sees a load
- * linear in time.
- */
-static void plant_advance(p2d_sim_t *sim, double t_start_s)
-{
-    const double dt_s = sim->plant.dt_s;
-    for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
-        double t = t_start_s + (double)s * dt_s;
-        double t_end = t_start_s + (double)(s + 1u) * dt_s;
-        while (t < t_end - sim->t_tol_s) {
-            double t_break, t_stop, h;
-            t_break = cursor_break_after(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
-            /* split the step at a load breakpoint inside it */
-            t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
-            h = t_stop - t;
-            p2d_plant_advance(&sim->plant, h, segment_value(&sim->load, t), segment_slope(&sim->load, t + 0.5 * h));
-            t = t_stop;
-        }
-    }
-}
-
 static p2d_sim_status_t stop(p2d_sim_t *sim, p2d_sim_status_t status, double t_s, double value, double bound)
 {
     sim->status = status;
@@ -357,7 +349,8 @@ static p2d_sim_status_t stop(p2d_sim_t *sim, p2d_sim_status_t status, double t_s
     return status;
 }
 
-static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
+/* The stop of the state at t, if any: non-finite, overspeed, overcurrent, checked in that order. */
+static P2D_SIM_NOINLINE p2d_sim_status_t state_stop(p2d_sim_t *sim, double t_s)
 {
     const p2d_plant_t *m = &sim->plant;
     double i2;
@@ -380,6 +373,19 @@ static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
         return stop(sim, P2D_SIM_STOP_OVERCURRENT, t_s, sqrt(i2), sim->i_bound_A);
     }
     return P2D_SIM_OK;
+}
+
+/*
+ * state_stop, with the state inside every bound decided by comparisons that NaN fails:
+ * ||i||^2 <= i_bound^2, |w_m| <= w_bound (and |w_L|, theta finite with two_mass).
+ */
+static P2D_SIM_INLINE p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
+{
+    const p2d_plant_t *m = &sim->plant;
+    double i2 = m->id_A * m->id_A + m->iq_A * m->iq_A;
+    bool inside = i2 <= sim->i_bound_A * sim->i_bound_A && fabs(m->w_m_radps) <= sim->w_bound_radps;
+    if (m->two_mass) inside = inside && fabs(m->w_load_radps) <= sim->w_bound_radps && isfinite(m->theta_rad);
+    return inside ? P2D_SIM_OK : state_stop(sim, t_s);
 }
 
 /* The plant's configuration of cfg, with the initial currents id0, iq0. */
@@ -478,6 +484,10 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->w_meas_radps = cfg->w_m0_radps;
     sim->saturated = false;
     sim->current_saturated = false;
+    sim->dc_link_sag = false;
+    for (uint32_t i = 0; i < cfg->n_faults; ++i) sim->dc_link_sag |= cfg->faults[i].kind == P2D_FAULT_DC_LINK_SAG;
+    sim->w_ref_radps = cfg->w_m0_radps;
+    sim->n_limited = 0u;
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     p2d_sensing_init(&sim->sensing, &cfg->sensing.speed_sensor, &cfg->sensing.current_sensor,
@@ -503,17 +513,19 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     return P2D_SIM_OK;
 }
 
-/* Write row r (speed sample k at t_k) of the column-major log of log_rows rows. */
-static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double w_ref_radps,
-                      const p2d_speed_output_t *so, double ud_V, double uq_V)
+/* ---- loop --------------------------------------------------------------- */
+
+/* Write the row of speed sample k at t_k into the column-major log of log_rows rows (at n_rows). */
+static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V, double uq_V)
 {
     const p2d_plant_t *m = &sim->plant;
+    const p2d_speed_output_t *so = &sim->speed_out;
     double *row = log + sim->n_rows;
     double theta_L_rad, w_L_radps;
     cursor_advance(&sim->load, &sim->cfg.load, t_k_s + sim->t_tol_s);
     p2d_plant_load_side(m, &theta_L_rad, &w_L_radps);
     row[P2D_LOG_T_S * log_rows] = t_k_s;
-    row[P2D_LOG_W_REF_RADPS * log_rows] = w_ref_radps;
+    row[P2D_LOG_W_REF_RADPS * log_rows] = sim->w_ref_radps;
     row[P2D_LOG_W_M_RADPS * log_rows] = m->w_m_radps;
     row[P2D_LOG_ID_REF_A * log_rows] = (double)so->id_ref_A;
     row[P2D_LOG_IQ_REF_A * log_rows] = (double)so->iq_ref_A;
@@ -529,7 +541,7 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_X_I_NM * log_rows] = (double)p2d_speed_integrator_Nm(&sim->speed);
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
     row[P2D_LOG_U_DC_V * log_rows] = m->u_dc_V;
-    row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* counted over the speed period by the loop */
+    row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* the share, written at the end of the speed sample */
     row[P2D_LOG_J_EST_KGM2 * log_rows] = (double)sim->adapt.out.J_kgm2;
     row[P2D_LOG_J_VALID * log_rows] = sim->adapt.out.J_valid ? 1.0 : 0.0;
     row[P2D_LOG_T_LOAD_EST_NM * log_rows] = (double)sim->adapt.out.T_load_Nm;
@@ -539,91 +551,469 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     sim->n_rows++;
 }
 
+/*
+ * Speed sample k at t_k: the reference and the speed reading sampled, the estimator, the field
+ * weakening and the speed controller (its output in sim->speed_out).
+ */
+static p2d_sim_status_t speed_sample(p2d_sim_t *sim, double t_k_s)
+{
+    const p2d_sim_config_t *cfg = &sim->cfg;
+    p2d_speed_output_t *so = &sim->speed_out;
+    double w_sensor, theta_s_rad, w_s_radps;
+    cursor_advance(&sim->reference, &cfg->reference, t_k_s + sim->t_tol_s);
+    sim->w_ref_radps = segment_value(&sim->reference, t_k_s);
+    sensed_side(sim, &theta_s_rad, &w_s_radps);
+    if (!p2d_sensing_speed(&sim->sensing, &cfg->sensing.speed_sensor, sim->n_current, cfg->Ts_current_s,
+                           cfg->w_m0_radps, theta_s_rad, w_s_radps, &w_sensor)) {
+        return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
+    }
+    sim->w_meas_radps = speed_reading(sim, t_k_s, w_sensor);
+    if (cfg->adapt.enabled) {
+        p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, sim->w_ref_radps, sim->saturated, &sim->speed);
+    }
+    if (cfg->sensing.field_weakening.enabled) {
+        float id_fw_A;
+        if (!p2d_sensing_field_weakening(&sim->sensing, sim->plant.u_dc_V, &id_fw_A)) {
+            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
+        }
+        p2d_speed_step_fw(&sim->speed, (float)sim->w_ref_radps, (float)sim->w_meas_radps, id_fw_A, so);
+    } else {
+        p2d_speed_step(&sim->speed, (float)sim->w_ref_radps, (float)sim->w_meas_radps, so);
+    }
+    if (so->fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
+    sim->id_ref_A = (double)so->id_ref_A;
+    sim->iq_ref_A = (double)so->iq_ref_A;
+    sim->saturated = so->saturated;
+    sim->n_limited = 0u;
+    return P2D_SIM_OK;
+}
+
+/*
+ * The start of the current period at t = n_current Ts_current: the DC link, the current
+ * controller and the inverter (dq_pi) or eq 3's command (first_order), the log row of the speed
+ * sample (first period, log_row) and the estimator's torque sample.
+ */
+static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, bool first_order, bool log_row,
+                                                    double *log, uint64_t log_rows)
+{
+    const p2d_sim_config_t *cfg = &sim->cfg;
+    p2d_plant_t *m = &sim->plant;
+    if (!first_order) {
+        p2d_current_output_t co;
+        p2d_inverter_output_t io;
+        double id_meas_A = m->id_A, iq_meas_A = m->iq_A;
+        /* the DC link of this period sets the inverter's range and the controller's measurement */
+        if (sim->dc_link_sag) {
+            double u_dc_V = dc_link_V(sim, t_s);
+            if (u_dc_V != m->u_dc_V) p2d_plant_set_dc_link(m, u_dc_V);
+        }
+        if (sim->sensing.current_sensor) p2d_sensing_currents(m, &id_meas_A, &iq_meas_A);
+        p2d_current_compute(&sim->current, sim->speed_out.id_ref_A, sim->speed_out.iq_ref_A, (float)id_meas_A,
+                            (float)iq_meas_A, (float)(m->p * m->w_m_radps), (float)m->u_dc_V, &co);
+        if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_s, 0.0, 0.0);
+        sim->sensing.ud_unsat_V = co.ud_unsat_V;
+        sim->sensing.uq_unsat_V = co.uq_unsat_V;
+        p2d_plant_inverter(m, (double)co.ud_ref_V, (double)co.uq_ref_V, &io);
+        /* the voltage of this period was cut: by the controller or the inverter, now or when it was given */
+        if (cfg->computation_delay) {
+            sim->n_limited += io.applied_limited || sim->current_saturated;
+            sim->current_saturated = co.saturated;
+        } else {
+            sim->n_limited += co.saturated || io.limited;
+        }
+        /* the integrators learn the command the inverter accepted */
+        p2d_current_update(&sim->current, &co, (float)io.ud_V, (float)io.uq_V);
+    } else {
+        sim->n_limited += p2d_plant_command_currents(m, sim->id_ref_A, sim->iq_ref_A);
+    }
+    if (log_row) {
+        double ud_V, uq_V;
+        p2d_plant_applied_voltage(m, &ud_V, &uq_V);
+        log_write(sim, log, log_rows, t_s, ud_V, uq_V);
+    }
+    if (cfg->adapt.enabled) p2d_adapt_torque(&sim->adapt, p2d_plant_torque_Nm(m));
+    return P2D_SIM_OK;
+}
+
+/*
+ * Substep s of the current period starting at t_start: its length h = t_end - t (as the split
+ * steps of plant_advance_split compute it) and the load T0 at its start with the slope dT_dt at
+ * its middle. Valid when the load has no breakpoint inside the period (load_smooth).
+ */
+static P2D_SIM_INLINE void substep(const p2d_sim_t *sim, double t_start_s, uint32_t s, double *h_s, double *T0_Nm,
+                                   double *dT_dt_Nmps)
+{
+    double dt_s = sim->plant.dt_s;
+    double t = t_start_s + (double)s * dt_s, t_end = t_start_s + (double)(s + 1u) * dt_s;
+    *h_s = t_end - t;
+    *T0_Nm = segment_value(&sim->load, t);
+    *dT_dt_Nmps = segment_slope(&sim->load, t + 0.5 * *h_s);
+}
+
+/*
+ * No load breakpoint falls inside the current period starting at t_start, as far as the cursor
+ * knows (its next breakpoint, -HUGE_VAL when unknown): every substep is then one RK4 step with
+ * the load of `substep`, and the cursor needs no advance, as in plant_advance_split.
+ */
+static P2D_SIM_INLINE bool load_smooth(const p2d_sim_t *sim, double t_start_s)
+{
+    double t_end = t_start_s + (double)sim->cfg.substeps * sim->plant.dt_s;
+    return sim->load.t_break_s >= t_end - sim->t_tol_s;
+}
+
+/*
+ * The plant over the current period starting at t_start with its input held: `substeps` RK4
+ * steps, each split at the load's breakpoints inside it, so that every step sees a load linear
+ * in time.
+ */
+static P2D_SIM_NOINLINE void plant_advance_split(p2d_sim_t *sim, double t_start_s)
+{
+    const double dt_s = sim->plant.dt_s;
+    for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
+        double t = t_start_s + (double)s * dt_s;
+        double t_end = t_start_s + (double)(s + 1u) * dt_s;
+        while (t < t_end - sim->t_tol_s) {
+            double t_break, t_stop, h;
+            t_break = cursor_break_after(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
+            /* split the step at a load breakpoint inside it */
+            t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
+            h = t_stop - t;
+            p2d_plant_advance(&sim->plant, h, segment_value(&sim->load, t), segment_slope(&sim->load, t + 0.5 * h));
+            t = t_stop;
+        }
+    }
+}
+
+/* The end of the current period: the time advances, the sensor's history, the checks. */
+static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim)
+{
+    sim->n_current++;
+    if (sim->sensing.history) {
+        double theta_s_rad, w_s_radps;
+        sensed_side(sim, &theta_s_rad, &w_s_radps);
+        p2d_sensing_record(&sim->sensing, sim->n_current, theta_s_rad, w_s_radps);
+    }
+    return check_state(sim, (double)sim->n_current * sim->cfg.Ts_current_s);
+}
+
+/* The end of speed sample k: the share of its current periods at the voltage limit. */
+static void sample_end(p2d_sim_t *sim, bool log_row, double *log, uint64_t log_rows)
+{
+    if (log_row) {
+        log[P2D_LOG_VOLTAGE_LIMITED * log_rows + sim->n_rows - 1u] =
+            (double)sim->n_limited / (double)sim->cfg.current_per_speed;
+    }
+    sim->n_speed++;
+}
+
+/* Rows the log needs for the next n_samples speed samples. */
+static uint64_t rows_needed(const p2d_sim_t *sim, uint64_t n_samples)
+{
+    uint64_t E = sim->cfg.log_every, n0 = sim->n_speed, n1 = sim->n_speed + n_samples;
+    /* samples in [n0, n1) divisible by E: ceil(n1 / E) - ceil(n0 / E) */
+    return (n1 + E - 1u) / E - (n0 + E - 1u) / E;
+}
+
+/*
+ * The RK4 step kinds: one specialised copy of the step for each (current model, Coulomb friction,
+ * drive train), and a lean one of a rigid train without Coulomb friction for a surface PMSM
+ * without viscous friction whose angle no sensor needs (p2d_plant_rk4). Every drive of a
+ * lockstep group has the kind of a lone one: the same copy, the same arithmetic.
+ */
+enum { P2D_KIND_FIRST_ORDER = 1, P2D_KIND_COULOMB = 2, P2D_KIND_TWO_MASS = 4, P2D_KIND_LEAN = 8 };
+
+static uint32_t step_kind(const p2d_sim_t *sim)
+{
+    const p2d_plant_t *m = &sim->plant;
+    bool lean = !m->coulomb && !m->two_mass && m->coef.cT_J == 0.0 && m->coef.B_J_per_s == 0.0 && !sim->sensing.angle;
+    return (m->first_order ? (uint32_t)P2D_KIND_FIRST_ORDER : 0u) | (m->coulomb ? (uint32_t)P2D_KIND_COULOMB : 0u) |
+           (m->two_mass ? (uint32_t)P2D_KIND_TWO_MASS : 0u) | (lean ? (uint32_t)P2D_KIND_LEAN : 0u);
+}
+
+/* One RK4 step of the plant m of the kind given (its input held): the kind's copy of the step. */
+static P2D_SIM_INLINE void step_one(p2d_plant_t *m, uint32_t kind, double h, double T0, double dT)
+{
+    p2d_plant_x_t x = p2d_plant_state(m);
+    const p2d_plant_coef_t *c = &m->coef;
+    switch (kind) {
+    case P2D_KIND_LEAN: x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, false, false, false, true); break;
+    case P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER:
+        x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, true, false, false, true);
+        break;
+    case 0: x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, false, false, false, false); break;
+    case P2D_KIND_FIRST_ORDER: x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, true, false, false, false); break;
+    default: p2d_plant_advance(m, h, T0, dT); return;
+    }
+    p2d_plant_set_state(m, x);
+}
+
+/* ---- lockstep ----------------------------------------------------------- */
+
+/* The plants of a lockstep group: one array per coefficient, state variable and input, one element per drive. */
+typedef struct {
+    double Rs_Ld_per_s[P2D_SIM_LANES];         /* Rs / Ld [1/s] */
+    double Rs_Lq_per_s[P2D_SIM_LANES];         /* Rs / Lq [1/s] */
+    double p_Lq_Ld[P2D_SIM_LANES];             /* p Lq / Ld [-] */
+    double p_Ld_Lq[P2D_SIM_LANES];             /* p Ld / Lq [-] */
+    double p_psi_Lq_A[P2D_SIM_LANES];          /* p psi_f / Lq [A] */
+    double inv_Ld_per_H[P2D_SIM_LANES];        /* 1 / Ld [1/H] */
+    double inv_Lq_per_H[P2D_SIM_LANES];        /* 1 / Lq [1/H] */
+    double kt_J[P2D_SIM_LANES];                /* 1.5 p psi_f / J [rad/s^2 per A] */
+    double cT_J[P2D_SIM_LANES];                /* 1.5 p (Ld - Lq) / J [rad/s^2 per A^2] */
+    double B_J_per_s[P2D_SIM_LANES];           /* B / J [1/s] */
+    double Tc_J_radps2[P2D_SIM_LANES];         /* T_c / J [rad/s^2] */
+    double inv_w_c_s_per_rad[P2D_SIM_LANES];   /* 1 / w_c [s/rad] */
+    double inv_J_per_kgm2[P2D_SIM_LANES];      /* 1 / J [1/(kg m^2)] */
+    double inv_tau_i_per_s[P2D_SIM_LANES];     /* 1 / tau_i [1/s] */
+    double K_Nm_per_rad[P2D_SIM_LANES];        /* K [Nm/rad] */
+    double D_Nms_per_rad[P2D_SIM_LANES];       /* D [Nm s/rad] */
+    double half_backlash_rad[P2D_SIM_LANES];   /* b / 2 [rad] */
+    double inv_J_load_per_kgm2[P2D_SIM_LANES]; /* 1 / J_L [1/(kg m^2)] */
+    double id_A[P2D_SIM_LANES];                /* state: d-axis current [A] */
+    double iq_A[P2D_SIM_LANES];                /* state: q-axis current [A] */
+    double w_m_radps[P2D_SIM_LANES];           /* state: motor speed [rad/s] */
+    double theta_m_rad[P2D_SIM_LANES];         /* state: motor angle [rad] */
+    double theta_rad[P2D_SIM_LANES];           /* state: twist [rad] */
+    double w_load_radps[P2D_SIM_LANES];        /* state: load-side speed [rad/s] */
+    double a_d[P2D_SIM_LANES];                 /* input: ud [V] (eq 3: id_ref [A]) */
+    double a_q[P2D_SIM_LANES];                 /* input: uq [V] (eq 3: iq_ref [A]) */
+    double T0_Nm[P2D_SIM_LANES];               /* load at the start of the step [Nm] */
+    double dT_Nmps[P2D_SIM_LANES];             /* its slope [Nm/s] */
+} p2d_sim_lanes_t;
+
+/* Coefficients of lane l from the plant m. */
+static void lanes_set_coef(p2d_sim_lanes_t *L, uint32_t l, const p2d_plant_coef_t *c)
+{
+    L->Rs_Ld_per_s[l] = c->Rs_Ld_per_s;
+    L->Rs_Lq_per_s[l] = c->Rs_Lq_per_s;
+    L->p_Lq_Ld[l] = c->p_Lq_Ld;
+    L->p_Ld_Lq[l] = c->p_Ld_Lq;
+    L->p_psi_Lq_A[l] = c->p_psi_Lq_A;
+    L->inv_Ld_per_H[l] = c->inv_Ld_per_H;
+    L->inv_Lq_per_H[l] = c->inv_Lq_per_H;
+    L->kt_J[l] = c->kt_J;
+    L->cT_J[l] = c->cT_J;
+    L->B_J_per_s[l] = c->B_J_per_s;
+    L->Tc_J_radps2[l] = c->Tc_J_radps2;
+    L->inv_w_c_s_per_rad[l] = c->inv_w_c_s_per_rad;
+    L->inv_J_per_kgm2[l] = c->inv_J_per_kgm2;
+    L->inv_tau_i_per_s[l] = c->inv_tau_i_per_s;
+    L->K_Nm_per_rad[l] = c->K_Nm_per_rad;
+    L->D_Nms_per_rad[l] = c->D_Nms_per_rad;
+    L->half_backlash_rad[l] = c->half_backlash_rad;
+    L->inv_J_load_per_kgm2[l] = c->inv_J_load_per_kgm2;
+}
+
+/* One RK4 step of every lane (inputs and loads of the arrays), the kind's copy; the compiler vectorises it. */
+static P2D_SIM_INLINE void lanes_step_kind(p2d_sim_lanes_t *L, double h, bool first_order, bool coulomb, bool two_mass,
+                                           bool lean)
+{
+    for (uint32_t l = 0; l < P2D_SIM_LANES; ++l) {
+        p2d_plant_coef_t c = {
+            L->Rs_Ld_per_s[l],
+            L->Rs_Lq_per_s[l],
+            L->p_Lq_Ld[l],
+            L->p_Ld_Lq[l],
+            L->p_psi_Lq_A[l],
+            L->inv_Ld_per_H[l],
+            L->inv_Lq_per_H[l],
+            L->kt_J[l],
+            L->cT_J[l],
+            L->B_J_per_s[l],
+            L->Tc_J_radps2[l],
+            L->inv_w_c_s_per_rad[l],
+            L->inv_J_per_kgm2[l],
+            L->inv_tau_i_per_s[l],
+            L->K_Nm_per_rad[l],
+            L->D_Nms_per_rad[l],
+            L->half_backlash_rad[l],
+            L->inv_J_load_per_kgm2[l],
+        };
+        p2d_plant_x_t x = {L->id_A[l],        L->iq_A[l],      L->w_m_radps[l],
+                           L->theta_m_rad[l], L->theta_rad[l], L->w_load_radps[l]};
+        x = p2d_plant_rk4(&c, x, L->a_d[l], L->a_q[l], h, L->T0_Nm[l], L->dT_Nmps[l], first_order, coulomb, two_mass,
+                          lean);
+        L->id_A[l] = x.id_A;
+        L->iq_A[l] = x.iq_A;
+        L->w_m_radps[l] = x.w_m_radps;
+        L->theta_m_rad[l] = x.theta_m_rad;
+        L->theta_rad[l] = x.theta_rad;
+        L->w_load_radps[l] = x.w_load_radps;
+    }
+}
+
+/* One RK4 step of every lane, the copy of the kind (step_kind) as step_one's. */
+static P2D_SIM_NOINLINE void lanes_step(p2d_sim_lanes_t *L, uint32_t kind, double h)
+{
+    switch (kind) {
+    case P2D_KIND_LEAN: lanes_step_kind(L, h, false, false, false, true); break;
+    case P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER: lanes_step_kind(L, h, true, false, false, true); break;
+    case 0: lanes_step_kind(L, h, false, false, false, false); break;
+    case P2D_KIND_FIRST_ORDER: lanes_step_kind(L, h, true, false, false, false); break;
+    case P2D_KIND_COULOMB: lanes_step_kind(L, h, false, true, false, false); break;
+    case P2D_KIND_FIRST_ORDER | P2D_KIND_COULOMB: lanes_step_kind(L, h, true, true, false, false); break;
+    case P2D_KIND_TWO_MASS: lanes_step_kind(L, h, false, false, true, false); break;
+    case P2D_KIND_TWO_MASS | P2D_KIND_FIRST_ORDER: lanes_step_kind(L, h, true, false, true, false); break;
+    case P2D_KIND_TWO_MASS | P2D_KIND_COULOMB: lanes_step_kind(L, h, false, true, true, false); break;
+    default: lanes_step_kind(L, h, true, true, true, false); break;
+    }
+}
+
+/* The state and input of lane l from the plant m. */
+static P2D_SIM_INLINE void lanes_load(p2d_sim_lanes_t *L, uint32_t l, const p2d_plant_t *m)
+{
+    L->id_A[l] = m->id_A;
+    L->iq_A[l] = m->iq_A;
+    L->w_m_radps[l] = m->w_m_radps;
+    L->theta_m_rad[l] = m->theta_m_rad;
+    L->theta_rad[l] = m->theta_rad;
+    L->w_load_radps[l] = m->w_load_radps;
+    L->a_d[l] = m->a_d;
+    L->a_q[l] = m->a_q;
+}
+
+/* The state of lane l into the plant m. */
+static P2D_SIM_INLINE void lanes_store(const p2d_sim_lanes_t *L, uint32_t l, p2d_plant_t *m)
+{
+    m->id_A = L->id_A[l];
+    m->iq_A = L->iq_A[l];
+    m->w_m_radps = L->w_m_radps[l];
+    m->theta_m_rad = L->theta_m_rad[l];
+    m->theta_rad = L->theta_rad[l];
+    m->w_load_radps = L->w_load_radps[l];
+}
+
+/* Lane l idle (no drive, or one that stopped): a plant at rest with no input and no load, which stays finite. */
+static void lanes_idle(p2d_sim_lanes_t *L, uint32_t l)
+{
+    L->id_A[l] = L->iq_A[l] = L->w_m_radps[l] = L->theta_m_rad[l] = L->theta_rad[l] = L->w_load_radps[l] = 0.0;
+    L->a_d[l] = L->a_q[l] = L->T0_Nm[l] = L->dT_Nmps[l] = 0.0;
+}
+
+/*
+ * n (1 <= n <= lanes) drives of one shape in lockstep over n_samples speed samples; lanes = 1:
+ * the plant stepped in place; lanes = P2D_SIM_LANES: the plants through the arrays of L (lanes
+ * of no drive idle). A drive that stops leaves the group.
+ */
+static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
+                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows)
+{
+    const p2d_sim_config_t *cfg = &sims[0]->cfg;
+    const uint32_t kind = step_kind(sims[0]), substeps = cfg->substeps;
+    const bool first_order = cfg->current_model == P2D_CURRENT_FIRST_ORDER;
+    /* every drive is at the same sample: the time and the log decision are the group's */
+    uint64_t n_current = sims[0]->n_current, n_speed = sims[0]->n_speed;
+    bool active[P2D_SIM_LANES];
+    uint32_t n_active = 0u;
+    for (uint32_t l = 0; l < lanes; ++l) {
+        active[l] = l < n && sims[l]->status == P2D_SIM_OK;
+        n_active += active[l];
+        if (lanes > 1u) {
+            lanes_set_coef(L, l, &sims[l < n ? l : 0u]->plant.coef);
+            lanes_idle(L, l);
+        }
+    }
+    for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed) {
+        const double t_k = (double)n_current * cfg->Ts_current_s;
+        const bool log_row = n_speed % cfg->log_every == 0u;
+        for (uint32_t l = 0; l < n; ++l) {
+            if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {
+                active[l] = false;
+                n_active--;
+                if (lanes > 1u) lanes_idle(L, l);
+            }
+        }
+        for (uint32_t j = 0; j < cfg->current_per_speed && n_active > 0u; ++j, ++n_current) {
+            const double t = (double)n_current * cfg->Ts_current_s;
+            double h = 0.0;
+            bool smooth = true;
+            /* the controllers and the inverters; the plants' states and inputs into the lanes */
+            for (uint32_t l = 0; l < n; ++l) {
+                if (!active[l]) continue;
+                if (period_start(sims[l], t, first_order, log_row && j == 0u, logs[l], log_rows[l]) != P2D_SIM_OK) {
+                    active[l] = false;
+                    n_active--;
+                    if (lanes > 1u) lanes_idle(L, l);
+                    continue;
+                }
+                smooth = smooth && load_smooth(sims[l], t);
+                if (lanes > 1u) {
+                    lanes_load(L, l, &sims[l]->plant);
+                    substep(sims[l], t, 0u, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
+                }
+            }
+            if (!smooth) {
+                /* a load breakpoint inside the period: each drive on its own, its steps split there */
+                for (uint32_t l = 0; l < n; ++l) {
+                    if (active[l]) plant_advance_split(sims[l], t);
+                }
+            } else if (lanes == 1u) {
+                for (uint32_t s = 0; s < substeps; ++s) {
+                    double T0, dT;
+                    substep(sims[0], t, s, &h, &T0, &dT);
+                    step_one(&sims[0]->plant, kind, h, T0, dT);
+                }
+            } else {
+                for (uint32_t s = 0; s < substeps; ++s) {
+                    for (uint32_t l = 0; l < n && s > 0u; ++l) {
+                        if (active[l]) substep(sims[l], t, s, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
+                    }
+                    lanes_step(L, kind, h);
+                }
+            }
+            for (uint32_t l = 0; l < n; ++l) {
+                if (!active[l]) continue;
+                if (lanes > 1u && smooth) lanes_store(L, l, &sims[l]->plant);
+                if (period_end(sims[l]) != P2D_SIM_OK) {
+                    active[l] = false;
+                    n_active--;
+                    if (lanes > 1u) lanes_idle(L, l);
+                }
+            }
+        }
+        for (uint32_t l = 0; l < n; ++l) {
+            if (active[l]) sample_end(sims[l], log_row, logs[l], log_rows[l]);
+        }
+    }
+}
+
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
 {
-    const p2d_sim_config_t *cfg;
-    p2d_plant_t *m;
     if (sim == 0) return P2D_SIM_ERR_NULL;
     if (sim->status != P2D_SIM_OK) return sim->status;
-    cfg = &sim->cfg;
-    m = &sim->plant;
-    for (uint64_t k = 0; k < n_samples; ++k) {
-        double t_k = (double)sim->n_current * cfg->Ts_current_s;
-        bool log_row = sim->n_speed % cfg->log_every == 0u;
-        uint32_t n_limited = 0u; /* current periods of this speed sample at the voltage limit */
-        double w_ref, w_sensor, theta_s_rad, w_s_radps;
-        p2d_speed_output_t so;
-        if (log_row && (log == 0 || sim->n_rows >= log_rows)) return P2D_SIM_ERR_LOG_FULL;
+    if (rows_needed(sim, n_samples) > 0u && (log == 0 || sim->n_rows + rows_needed(sim, n_samples) > log_rows)) {
+        return P2D_SIM_ERR_LOG_FULL;
+    }
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows);
+    return sim->status;
+}
 
-        /* speed sample k: reference and speed reading sampled at t_k */
-        cursor_advance(&sim->reference, &cfg->reference, t_k + sim->t_tol_s);
-        w_ref = segment_value(&sim->reference, t_k);
-        sensed_side(sim, &theta_s_rad, &w_s_radps);
-        if (!p2d_sensing_speed(&sim->sensing, &cfg->sensing.speed_sensor, sim->n_current, cfg->Ts_current_s,
-                               cfg->w_m0_radps, theta_s_rad, w_s_radps, &w_sensor)) {
-            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
-        }
-        sim->w_meas_radps = speed_reading(sim, t_k, w_sensor);
-        if (cfg->adapt.enabled) p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, w_ref, sim->saturated, &sim->speed);
-        if (cfg->sensing.field_weakening.enabled) {
-            float id_fw_A;
-            if (!p2d_sensing_field_weakening(&sim->sensing, m->u_dc_V, &id_fw_A)) {
-                return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
-            }
-            p2d_speed_step_fw(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, id_fw_A, &so);
-        } else {
-            p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
-        }
-        if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
-        sim->id_ref_A = (double)so.id_ref_A;
-        sim->iq_ref_A = (double)so.iq_ref_A;
-        sim->saturated = so.saturated;
+bool p2d_sim_lockstep(const p2d_sim_t *a, const p2d_sim_t *b)
+{
+    const p2d_sim_config_t *x = &a->cfg, *y = &b->cfg;
+    return a->n_speed == b->n_speed && a->n_current == b->n_current && x->Ts_current_s == y->Ts_current_s &&
+           x->current_per_speed == y->current_per_speed && x->substeps == y->substeps && x->log_every == y->log_every &&
+           x->current_model == y->current_model && step_kind(a) == step_kind(b);
+}
 
-        for (uint32_t j = 0; j < cfg->current_per_speed; ++j) {
-            double t = (double)sim->n_current * cfg->Ts_current_s;
-            double ud_log_V, uq_log_V;
-            p2d_sim_status_t status;
-            if (cfg->current_model == P2D_CURRENT_DQ_PI) {
-                p2d_current_output_t co;
-                p2d_inverter_output_t io;
-                double u_dc_V, id_meas_A = m->id_A, iq_meas_A = m->iq_A;
-                /* the DC link of this period sets the inverter's range and the controller's measurement */
-                u_dc_V = dc_link_V(sim, t);
-                if (u_dc_V != m->u_dc_V) p2d_plant_set_dc_link(m, u_dc_V);
-                if (sim->sensing.current_sensor) p2d_sensing_currents(m, &id_meas_A, &iq_meas_A);
-                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)id_meas_A,
-                                    (float)iq_meas_A, (float)(m->p * m->w_m_radps), (float)m->u_dc_V, &co);
-                if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
-                sim->sensing.ud_unsat_V = co.ud_unsat_V;
-                sim->sensing.uq_unsat_V = co.uq_unsat_V;
-                p2d_plant_command(m, (double)co.ud_ref_V, (double)co.uq_ref_V, &io);
-                /* the voltage of this period was cut: by the controller or the inverter, now or when it was given */
-                if (cfg->computation_delay) {
-                    n_limited += io.applied_limited || sim->current_saturated;
-                    sim->current_saturated = co.saturated;
-                } else {
-                    n_limited += co.saturated || io.limited;
-                }
-                /* the integrators learn the command the inverter accepted */
-                p2d_current_update(&sim->current, &co, (float)io.ud_V, (float)io.uq_V);
-            } else {
-                n_limited += p2d_plant_command_currents(m, sim->id_ref_A, sim->iq_ref_A);
-            }
-            p2d_plant_applied_voltage(m, &ud_log_V, &uq_log_V);
-            if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);
-            if (cfg->adapt.enabled) p2d_adapt_torque(&sim->adapt, p2d_plant_torque_Nm(m));
-            plant_advance(sim, t);
-            sim->n_current++;
-            sensed_side(sim, &theta_s_rad, &w_s_radps);
-            p2d_sensing_record(&sim->sensing, sim->n_current, theta_s_rad, w_s_radps);
-            status = check_state(sim, (double)sim->n_current * cfg->Ts_current_s);
-            if (status != P2D_SIM_OK) return status;
+p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint64_t n_samples, double *const *logs,
+                                  const uint64_t *log_rows)
+{
+    p2d_sim_lanes_t L;
+    if (n_sims == 0u) return P2D_SIM_OK;
+    if (sims == 0 || logs == 0 || log_rows == 0) return P2D_SIM_ERR_NULL;
+    for (uint32_t i = 0; i < n_sims; ++i) {
+        if (sims[i] == 0) return P2D_SIM_ERR_NULL;
+        if (!p2d_sim_lockstep(sims[0], sims[i])) return P2D_SIM_ERR_LOCKSTEP;
+        if (rows_needed(sims[i], n_samples) > 0u &&
+            (logs[i] == 0 || sims[i]->n_rows + rows_needed(sims[i], n_samples) > log_rows[i])) {
+            return P2D_SIM_ERR_LOG_FULL;
         }
-        if (log_row) {
-            log[P2D_LOG_VOLTAGE_LIMITED * log_rows + sim->n_rows - 1u] =
-                (double)n_limited / (double)cfg->current_per_speed;
-        }
-        sim->n_speed++;
+    }
+    memset(&L, 0, sizeof L);
+    for (uint32_t i = 0; i < n_sims; i += P2D_SIM_LANES) {
+        uint32_t n = n_sims - i < P2D_SIM_LANES ? n_sims - i : P2D_SIM_LANES;
+        run_group(sims + i, n, P2D_SIM_LANES, &L, n_samples, logs + i, log_rows + i);
     }
     return P2D_SIM_OK;
 }

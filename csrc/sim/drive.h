@@ -105,6 +105,9 @@
 extern "C" {
 #endif
 
+/* Drives per lockstep group of p2d_sim_run_many: two SSE2 vectors of doubles. */
+enum { P2D_SIM_LANES = 4 };
+
 /* Current-loop model. */
 typedef enum {
     P2D_CURRENT_DQ_PI = 0,      /* C current controller + electrical model + inverter */
@@ -153,6 +156,7 @@ typedef enum {
     P2D_SIM_ERR_ESTIMATOR,          /* p2d_inertia_init rejected adapt.config: see controller_status */
     P2D_SIM_ERR_ADAPT_REL_CHANGE,   /* adapt.adapt_rel_change */
     P2D_SIM_ERR_E_QUIET,            /* adapt.e_quiet_radps */
+    P2D_SIM_ERR_LOCKSTEP,           /* p2d_sim_run_many: drives of different shapes (p2d_sim_lockstep) */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
@@ -273,6 +277,10 @@ typedef struct {
     p2d_adapt_t adapt;               /* inertia estimator beside the speed controller (adapt.h) */
     bool saturated;                  /* the speed controller's last output was at the current limit */
     bool current_saturated;          /* delay: the current controller limited the command applied next */
+    bool dc_link_sag;                /* a DC_LINK_SAG fault is configured */
+    p2d_speed_output_t speed_out;    /* the speed controller's output of the present speed sample */
+    double w_ref_radps;              /* the reference it sampled [rad/s] */
+    uint32_t n_limited;              /* current periods of the present speed sample at the voltage limit [-] */
 } p2d_sim_t;
 
 /* Validate cfg, initialize the controllers and set the initial state. */
@@ -281,9 +289,30 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg);
 /*
  * Run n_samples speed samples, appending rows to the column-major log
  * (P2D_LOG_COUNT columns of log_rows doubles, the same buffer on every call). Returns
- * P2D_SIM_OK or the stop code; after a stop every call returns that code.
+ * P2D_SIM_OK or the stop code; after a stop every call returns that code. P2D_SIM_ERR_LOG_FULL
+ * (nothing run) when the log has no room for the rows of the n_samples samples.
  */
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows);
+
+/*
+ * p2d_sim_run of n_sims drives in lockstep, each into its own log (logs[i], log_rows[i] rows):
+ * groups of P2D_SIM_LANES drives share one loop, their plants' states in an array per state
+ * variable, so that the compiler vectorises the plant's RK4 step across the drives. Each
+ * drive's log and state are bit for bit those of p2d_sim_run. The drives must be of one shape
+ * (p2d_sim_lockstep), at the same sample; each ends with its own status (sims[i]->status),
+ * OK or the stop that ended it. Returns P2D_SIM_OK, P2D_SIM_ERR_NULL,
+ * P2D_SIM_ERR_LOCKSTEP (shapes differ; nothing run) or P2D_SIM_ERR_LOG_FULL (a log lacks room;
+ * nothing run).
+ */
+p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint64_t n_samples, double *const *logs,
+                                  const uint64_t *log_rows);
+
+/*
+ * Whether a and b can run in lockstep: both initialized, at the same speed sample, with equal
+ * Ts_current_s, current_per_speed, substeps, log_every, current model, mechanics model and
+ * Coulomb friction (present or not).
+ */
+bool p2d_sim_lockstep(const p2d_sim_t *a, const p2d_sim_t *b);
 
 /* Name of the configuration field a code rejects ("" for OK and stops). */
 const char *p2d_sim_status_param(p2d_sim_status_t status);

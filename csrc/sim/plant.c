@@ -6,6 +6,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "plant_inline.h"
+
 #define P2D_PLANT_INV_SQRT3 0.57735026918962576    /* 1 / sqrt(3) */
 #define P2D_PLANT_TWO_PI 6.283185307179586         /* 2 pi */
 #define P2D_PLANT_TWO_PI_3 2.0943951023931957      /* 2 pi / 3 */
@@ -13,13 +15,6 @@
 #define P2D_PLANT_W_C_MIN_RADPS 0.01               /* narrowest Coulomb smoothing band [rad/s] */
 #define P2D_PLANT_W_C_PERIODS 10.0                 /* friction time constant J w_c / T_c in periods [-] */
 #define P2D_PLANT_GOLDEN_GAMMA 0x9e3779b97f4a7c15u /* splitmix64 increment */
-
-/* Inlines a function where the compiler supports it (the RK4 step into its specialised loops). */
-#if defined(__GNUC__)
-#define P2D_PLANT_INLINE __attribute__((always_inline)) inline
-#else
-#define P2D_PLANT_INLINE inline
-#endif
 
 typedef struct {
     const char *param; /* configuration field */
@@ -127,49 +122,11 @@ void p2d_plant_set_dc_link(p2d_plant_t *plant, double u_dc_V)
     plant->u_inside2_V2 = square_normal ? u_max_V * u_max_V * (1.0 - 0x1p-40) : 0.0;
 }
 
-/* ud^2 + uq^2 < u_inside2: the vector is inside the range, and hypot(ud, uq) <= u_max. */
-static bool inside_range(const p2d_plant_t *plant, double ud_V, double uq_V)
-{
-    return ud_V * ud_V + uq_V * uq_V < plant->u_inside2_V2;
-}
-
-/*
- * Scale (*ud, *uq) to ||u|| <= u_max; return true when it was cut. hypot neither underflows nor
- * overflows, so a zero range (a DC link at 0 V) applies exactly zero to any nonzero command, a
- * subnormal one included.
- */
-static bool limit_voltage(const p2d_plant_t *plant, double *ud_V, double *uq_V)
-{
-    double norm;
-    if (inside_range(plant, *ud_V, *uq_V)) return false;
-    norm = hypot(*ud_V, *uq_V);
-    if (!(norm > plant->u_max_V)) return false;
-    *ud_V *= plant->u_max_V / norm;
-    *uq_V *= plant->u_max_V / norm;
-    return true;
-}
-
 void p2d_plant_command(p2d_plant_t *plant, double ud_V, double uq_V, p2d_inverter_output_t *out)
 {
-    bool limited = limit_voltage(plant, &ud_V, &uq_V), applied_limited = limited;
-    if (!plant->cfg.computation_delay) {
-        plant->a_d = ud_V;
-        plant->a_q = uq_V;
-    } else {
-        /* the previous command, limited again by the range of this period */
-        plant->a_d = plant->ud_next_V;
-        plant->a_q = plant->uq_next_V;
-        applied_limited = limit_voltage(plant, &plant->a_d, &plant->a_q) || plant->limited_next;
-        plant->ud_next_V = ud_V;
-        plant->uq_next_V = uq_V;
-        plant->limited_next = limited;
-    }
-    if (out != 0) {
-        out->ud_V = ud_V;
-        out->uq_V = uq_V;
-        out->limited = limited;
-        out->applied_limited = applied_limited;
-    }
+    p2d_inverter_output_t o;
+    p2d_plant_inverter(plant, ud_V, uq_V, &o);
+    if (out != 0) *out = o;
 }
 
 /* ---- eq 1 and eq 3 ------------------------------------------------------ */
@@ -197,15 +154,15 @@ bool p2d_plant_command_currents(p2d_plant_t *plant, double id_ref_A, double iq_r
     plant->a_d = id_ref_A;
     plant->a_q = iq_ref_A;
     p2d_plant_applied_voltage(plant, &ud_V, &uq_V);
-    return !inside_range(plant, ud_V, uq_V) && hypot(ud_V, uq_V) > plant->u_max_V;
+    return !p2d_plant_inside_range(plant, ud_V, uq_V) && hypot(ud_V, uq_V) > plant->u_max_V;
 }
 
 void p2d_plant_applied_voltage(const p2d_plant_t *plant, double *ud_V, double *uq_V)
 {
     if (plant->first_order) {
         /* the voltage eq 1 needs for the current slopes of eq 3 */
-        eq1_voltage(plant, (plant->a_d - plant->id_A) * plant->inv_tau_i_per_s,
-                    (plant->a_q - plant->iq_A) * plant->inv_tau_i_per_s, ud_V, uq_V);
+        eq1_voltage(plant, (plant->a_d - plant->id_A) * plant->coef.inv_tau_i_per_s,
+                    (plant->a_q - plant->iq_A) * plant->coef.inv_tau_i_per_s, ud_V, uq_V);
         return;
     }
     *ud_V = plant->a_d;
@@ -213,6 +170,35 @@ void p2d_plant_applied_voltage(const p2d_plant_t *plant, double *ud_V, double *u
 }
 
 /* ---- init --------------------------------------------------------------- */
+
+/* The coefficients of the RK4 step for a valid cfg. */
+static p2d_plant_coef_t coefficients(const p2d_plant_config_t *cfg, bool two_mass, bool first_order)
+{
+    const p2d_pmsm_params_t *m = &cfg->motor;
+    const p2d_mechanics_config_t *mech = &cfg->mechanics;
+    double p = (double)m->pole_pairs, inv_J = 1.0 / m->J_kgm2;
+    p2d_plant_coef_t c;
+    c.Rs_Ld_per_s = m->Rs_ohm / m->Ld_H;
+    c.Rs_Lq_per_s = m->Rs_ohm / m->Lq_H;
+    c.p_Lq_Ld = p * m->Lq_H / m->Ld_H;
+    c.p_Ld_Lq = p * m->Ld_H / m->Lq_H;
+    c.p_psi_Lq_A = p * m->psi_f_Wb / m->Lq_H;
+    c.inv_Ld_per_H = 1.0 / m->Ld_H;
+    c.inv_Lq_per_H = 1.0 / m->Lq_H;
+    /* Te / J = iq (1.5 p psi_f + 1.5 p (Ld - Lq) id) / J */
+    c.kt_J = 1.5 * p * m->psi_f_Wb * inv_J;
+    c.cT_J = 1.5 * p * (m->Ld_H - m->Lq_H) * inv_J;
+    c.B_J_per_s = m->B_Nms * inv_J;
+    c.Tc_J_radps2 = m->T_coulomb_Nm * inv_J;
+    c.inv_w_c_s_per_rad = 1.0 / p2d_plant_friction_band_radps(m, cfg->Ts_s);
+    c.inv_J_per_kgm2 = inv_J;
+    c.inv_tau_i_per_s = first_order ? 1.0 / cfg->tau_i_s : 0.0;
+    c.K_Nm_per_rad = two_mass ? mech->stiffness_Nm_per_rad : 0.0;
+    c.D_Nms_per_rad = two_mass ? mech->damping_Nms_per_rad : 0.0;
+    c.half_backlash_rad = two_mass ? 0.5 * mech->backlash_rad : 0.0;
+    c.inv_J_load_per_kgm2 = two_mass ? 1.0 / mech->J_load_kgm2 : 0.0;
+    return c;
+}
 
 p2d_plant_status_t p2d_plant_init(p2d_plant_t *plant, const p2d_plant_config_t *cfg)
 {
@@ -228,15 +214,9 @@ p2d_plant_status_t p2d_plant_init(p2d_plant_t *plant, const p2d_plant_config_t *
     plant->two_mass = cfg->mechanics.model == P2D_MECHANICS_TWO_MASS;
     plant->first_order = cfg->tau_i_s > 0.0;
     plant->p = (double)m->pole_pairs;
-    plant->inv_Ld_per_H = 1.0 / m->Ld_H;
-    plant->inv_Lq_per_H = 1.0 / m->Lq_H;
-    plant->inv_J_per_kgm2 = 1.0 / m->J_kgm2;
     plant->kt_Nm_per_A = 1.5 * plant->p * m->psi_f_Wb;
     plant->c_T_Nm_per_A2 = 1.5 * plant->p * (m->Ld_H - m->Lq_H);
-    plant->inv_w_c_s_per_rad = 1.0 / p2d_plant_friction_band_radps(m, cfg->Ts_s);
-    plant->inv_tau_i_per_s = plant->first_order ? 1.0 / cfg->tau_i_s : 0.0;
-    plant->inv_J_load_per_kgm2 = plant->two_mass ? 1.0 / cfg->mechanics.J_load_kgm2 : 0.0;
-    plant->half_backlash_rad = plant->two_mass ? 0.5 * cfg->mechanics.backlash_rad : 0.0;
+    plant->coef = coefficients(cfg, plant->two_mass, plant->first_order);
     plant->dt_s = cfg->Ts_s / (double)cfg->substeps;
     plant->id_A = cfg->id0_A;
     plant->iq_A = cfg->iq0_A;
@@ -258,135 +238,34 @@ p2d_plant_status_t p2d_plant_init(p2d_plant_t *plant, const p2d_plant_config_t *
 
 /* ---- integration -------------------------------------------------------- */
 
-/* T_f = B w_m + T_c tanh(w_m / w_c); coulomb: T_c > 0 */
-static P2D_PLANT_INLINE double friction_Nm(const p2d_plant_t *plant, bool coulomb, double w_m_radps)
+/* T_f = B w_m + T_c tanh(w_m / w_c) */
+double p2d_plant_friction_Nm(const p2d_plant_t *plant, double w_m_radps)
 {
-    double T = plant->cfg.motor.B_Nms * w_m_radps;
-    if (coulomb) T += plant->cfg.motor.T_coulomb_Nm * tanh(w_m_radps * plant->inv_w_c_s_per_rad);
+    const p2d_pmsm_params_t *m = &plant->cfg.motor;
+    double T = m->B_Nms * w_m_radps;
+    if (plant->coulomb) T += m->T_coulomb_Nm * tanh(w_m_radps * plant->coef.inv_w_c_s_per_rad);
     return T;
 }
 
-/* T_s = K (theta - sign(theta) b/2) + D (w_m - w_L) in contact, 0 in the play |theta| < b/2 */
-static double shaft_torque(const p2d_plant_t *plant, double theta_rad, double w_twist_radps)
+/* One RK4 step with the flags of the plant as constants (a specialised copy per model). */
+P2D_PLANT_INLINE void advance(p2d_plant_t *plant, double h, double T0_Nm, double dT_dt_Nmps, bool first_order,
+                              bool coulomb, bool two_mass)
 {
-    double b_half = plant->half_backlash_rad;
-    if (fabs(theta_rad) < b_half) return 0.0;
-    return plant->cfg.mechanics.stiffness_Nm_per_rad * (theta_rad - copysign(b_half, theta_rad)) +
-           plant->cfg.mechanics.damping_Nms_per_rad * w_twist_radps;
+    p2d_plant_set_state(plant, p2d_plant_rk4(&plant->coef, p2d_plant_state(plant), plant->a_d, plant->a_q, h, T0_Nm,
+                                             dT_dt_Nmps, first_order, coulomb, two_mass, false));
 }
 
-/* A plant state x = (id, iq, w_m, theta, w_L), or its time derivative (each field then per second). */
-typedef struct {
-    double id_A;         /* d-axis current [A] */
-    double iq_A;         /* q-axis current [A] */
-    double w_m_radps;    /* mechanical speed of the motor [rad/s] */
-    double theta_rad;    /* two_mass: shaft twist theta_M - theta_L [rad] */
-    double w_load_radps; /* two_mass: load-side speed [rad/s] */
-} p2d_plant_x_t;
-
-/* Time derivative of x with the held input (a_d, a_q) and the load T_load_Nm. */
-static P2D_PLANT_INLINE p2d_plant_x_t rate(const p2d_plant_t *plant, bool first_order, bool coulomb, bool two_mass,
-                                           p2d_plant_x_t x, double T_load_Nm)
-{
-    const p2d_pmsm_params_t *m = &plant->cfg.motor;
-    p2d_plant_x_t dx;
-    if (!first_order) {
-        double w_e = plant->p * x.w_m_radps;
-        /* Ld did/dt = ud - Rs id + w_e Lq iq */
-        dx.id_A = (plant->a_d - m->Rs_ohm * x.id_A + w_e * m->Lq_H * x.iq_A) * plant->inv_Ld_per_H;
-        /* Lq diq/dt = uq - Rs iq - w_e (Ld id + psi_f) */
-        dx.iq_A = (plant->a_q - m->Rs_ohm * x.iq_A - w_e * (m->Ld_H * x.id_A + m->psi_f_Wb)) * plant->inv_Lq_per_H;
-    } else {
-        /* eq 3: tau_i di/dt = i_ref - i */
-        dx.id_A = (plant->a_d - x.id_A) * plant->inv_tau_i_per_s;
-        dx.iq_A = (plant->a_q - x.iq_A) * plant->inv_tau_i_per_s;
-    }
-    if (two_mass) {
-        double T_s = shaft_torque(plant, x.theta_rad, x.w_m_radps - x.w_load_radps);
-        /* J_M dw_m/dt = Te - T_s - B w_m - T_c tanh(w_m / w_c) */
-        dx.w_m_radps =
-            (torque_Nm(plant, x.id_A, x.iq_A) - T_s - friction_Nm(plant, coulomb, x.w_m_radps)) * plant->inv_J_per_kgm2;
-        /* dtheta/dt = w_m - w_L */
-        dx.theta_rad = x.w_m_radps - x.w_load_radps;
-        /* J_L dw_L/dt = T_s - T_load */
-        dx.w_load_radps = (T_s - T_load_Nm) * plant->inv_J_load_per_kgm2;
-    } else {
-        /* J dw_m/dt = Te - T_load - B w_m - T_c tanh(w_m / w_c) */
-        dx.w_m_radps = (torque_Nm(plant, x.id_A, x.iq_A) - T_load_Nm - friction_Nm(plant, coulomb, x.w_m_radps)) *
-                       plant->inv_J_per_kgm2;
-        dx.theta_rad = 0.0;
-        dx.w_load_radps = 0.0;
-    }
-    return dx;
-}
-
-/* x + c dx (theta and w_L with two_mass, else left as x's) */
-static P2D_PLANT_INLINE p2d_plant_x_t x_step(bool two_mass, p2d_plant_x_t x, double c, p2d_plant_x_t dx)
-{
-    p2d_plant_x_t y = x;
-    y.id_A = x.id_A + c * dx.id_A;
-    y.iq_A = x.iq_A + c * dx.iq_A;
-    y.w_m_radps = x.w_m_radps + c * dx.w_m_radps;
-    if (two_mass) {
-        y.theta_rad = x.theta_rad + c * dx.theta_rad;
-        y.w_load_radps = x.w_load_radps + c * dx.w_load_radps;
-    }
-    return y;
-}
-
-/* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
-static P2D_PLANT_INLINE void rk4_step(p2d_plant_t *plant, bool first_order, bool coulomb, bool two_mass, double h,
-                                      double T0_Nm, double dT_dt_Nmps)
-{
-    p2d_plant_x_t x = {plant->id_A, plant->iq_A, plant->w_m_radps, 0.0, 0.0};
-    double h_half = 0.5 * h;
-    p2d_plant_x_t k1, k2, k3, k4;
-    if (two_mass) {
-        x.theta_rad = plant->theta_rad;
-        x.w_load_radps = plant->w_load_radps;
-    }
-    k1 = rate(plant, first_order, coulomb, two_mass, x, T0_Nm);
-    k2 = rate(plant, first_order, coulomb, two_mass, x_step(two_mass, x, h_half, k1), T0_Nm + h_half * dT_dt_Nmps);
-    k3 = rate(plant, first_order, coulomb, two_mass, x_step(two_mass, x, h_half, k2), T0_Nm + h_half * dT_dt_Nmps);
-    k4 = rate(plant, first_order, coulomb, two_mass, x_step(two_mass, x, h, k3), T0_Nm + h * dT_dt_Nmps);
-    /* x(t + h) = x(t) + h (k1 + 2 k2 + 2 k3 + k4) / 6 */
-    plant->id_A = x.id_A + h / 6.0 * (k1.id_A + 2.0 * k2.id_A + 2.0 * k3.id_A + k4.id_A);
-    plant->iq_A = x.iq_A + h / 6.0 * (k1.iq_A + 2.0 * k2.iq_A + 2.0 * k3.iq_A + k4.iq_A);
-    plant->w_m_radps = x.w_m_radps + h / 6.0 * (k1.w_m_radps + 2.0 * k2.w_m_radps + 2.0 * k3.w_m_radps + k4.w_m_radps);
-    if (two_mass) {
-        plant->theta_rad =
-            x.theta_rad + h / 6.0 * (k1.theta_rad + 2.0 * k2.theta_rad + 2.0 * k3.theta_rad + k4.theta_rad);
-        plant->w_load_radps =
-            x.w_load_radps +
-            h / 6.0 * (k1.w_load_radps + 2.0 * k2.w_load_radps + 2.0 * k3.w_load_radps + k4.w_load_radps);
-    }
-    /* RK4 of dtheta_m/dt = w_m over the stages above: theta + h w_m + h^2 (k1 + k2 + k3) / 6 (speed rates) */
-    plant->theta_m_rad += h * x.w_m_radps + h * h / 6.0 * (k1.w_m_radps + k2.w_m_radps + k3.w_m_radps);
-}
-
-/*
- * One RK4 step per model: a specialised copy for each current-loop model with and without
- * Coulomb friction (whose tanh call would otherwise make every stage save its registers), and
- * one per current-loop model for the two-mass train.
- */
 void p2d_plant_advance(p2d_plant_t *plant, double h_s, double T_load_Nm, double dT_load_Nm_per_s)
 {
+    bool first_order = plant->first_order, coulomb = plant->coulomb;
     if (plant->two_mass) {
-        if (plant->first_order) {
-            rk4_step(plant, true, plant->coulomb, true, h_s, T_load_Nm, dT_load_Nm_per_s);
-        } else {
-            rk4_step(plant, false, plant->coulomb, true, h_s, T_load_Nm, dT_load_Nm_per_s);
-        }
-    } else if (plant->first_order) {
-        if (plant->coulomb) {
-            rk4_step(plant, true, true, false, h_s, T_load_Nm, dT_load_Nm_per_s);
-        } else {
-            rk4_step(plant, true, false, false, h_s, T_load_Nm, dT_load_Nm_per_s);
-        }
-    } else if (plant->coulomb) {
-        rk4_step(plant, false, true, false, h_s, T_load_Nm, dT_load_Nm_per_s);
+        advance(plant, h_s, T_load_Nm, dT_load_Nm_per_s, first_order, coulomb, true);
+    } else if (first_order) {
+        advance(plant, h_s, T_load_Nm, dT_load_Nm_per_s, true, coulomb, false);
+    } else if (coulomb) {
+        advance(plant, h_s, T_load_Nm, dT_load_Nm_per_s, false, true, false);
     } else {
-        rk4_step(plant, false, false, false, h_s, T_load_Nm, dT_load_Nm_per_s);
+        advance(plant, h_s, T_load_Nm, dT_load_Nm_per_s, false, false, false);
     }
 }
 
@@ -418,11 +297,6 @@ void p2d_plant_step_duties(p2d_plant_t *plant, double duty_a, double duty_b, dou
 
 /* ---- what a board reads ------------------------------------------------- */
 
-double p2d_plant_friction_Nm(const p2d_plant_t *plant, double w_m_radps)
-{
-    return friction_Nm(plant, plant->coulomb, w_m_radps);
-}
-
 void p2d_plant_steady_voltage(const p2d_plant_t *plant, double *ud_V, double *uq_V)
 {
     eq1_voltage(plant, 0.0, 0.0, ud_V, uq_V);
@@ -433,7 +307,7 @@ double p2d_plant_torque_Nm(const p2d_plant_t *plant) { return torque_Nm(plant, p
 double p2d_plant_shaft_torque_Nm(const p2d_plant_t *plant, double T_load_Nm)
 {
     if (!plant->two_mass) return T_load_Nm;
-    return shaft_torque(plant, plant->theta_rad, plant->w_m_radps - plant->w_load_radps);
+    return p2d_plant_shaft(&plant->coef, plant->theta_rad, plant->w_m_radps - plant->w_load_radps);
 }
 
 /* ia = id cos(th_e) - iq sin(th_e), ib = id cos(th_e - 2 pi/3) - iq sin(th_e - 2 pi/3) */

@@ -194,41 +194,57 @@ typedef struct {
                              command, cut again by this period's range; else: = limited) */
 } p2d_inverter_output_t;
 
+/* Coefficients of the plant's equations as its RK4 step uses them, precomputed at init. */
+typedef struct {
+    double Rs_Ld_per_s;         /* Rs / Ld [1/s] */
+    double Rs_Lq_per_s;         /* Rs / Lq [1/s] */
+    double p_Lq_Ld;             /* p Lq / Ld [-] */
+    double p_Ld_Lq;             /* p Ld / Lq [-] */
+    double p_psi_Lq_A;          /* p psi_f / Lq [A] */
+    double inv_Ld_per_H;        /* 1 / Ld [1/H] */
+    double inv_Lq_per_H;        /* 1 / Lq [1/H] */
+    double kt_J;                /* 1.5 p psi_f / J [rad/s^2 per A] */
+    double cT_J;                /* 1.5 p (Ld - Lq) / J [rad/s^2 per A^2] */
+    double B_J_per_s;           /* B / J [1/s] */
+    double Tc_J_radps2;         /* T_c / J [rad/s^2] */
+    double inv_w_c_s_per_rad;   /* 1 / w_c, friction smoothing band [s/rad] */
+    double inv_J_per_kgm2;      /* 1 / J (two_mass: 1 / J_M) [1/(kg m^2)] */
+    double inv_tau_i_per_s;     /* 1 / tau_i (eq 3) [1/s] */
+    double K_Nm_per_rad;        /* shaft stiffness K (two_mass) [Nm/rad] */
+    double D_Nms_per_rad;       /* shaft damping D (two_mass) [Nm s/rad] */
+    double half_backlash_rad;   /* b / 2 (two_mass) [rad] */
+    double inv_J_load_per_kgm2; /* 1 / J_L (two_mass) [1/(kg m^2)] */
+} p2d_plant_coef_t;
+
 /*
  * The plant: coefficients precomputed at init, the state, the inverter and the
  * sensors' noise. The state fields may be read; only the functions write them.
  */
 typedef struct {
-    p2d_plant_config_t cfg;     /* configuration */
-    bool coulomb;               /* T_c > 0 [-] */
-    bool two_mass;              /* the two-mass train [-] */
-    bool first_order;           /* the currents follow eq 3 (tau_i_s > 0) [-] */
-    double p;                   /* pole pairs p [-] */
-    double inv_Ld_per_H;        /* 1 / Ld [1/H] */
-    double inv_Lq_per_H;        /* 1 / Lq [1/H] */
-    double inv_J_per_kgm2;      /* 1 / J (two_mass: 1 / J_M) [1/(kg m^2)] */
-    double kt_Nm_per_A;         /* 1.5 p psi_f [Nm/A] */
-    double c_T_Nm_per_A2;       /* 1.5 p (Ld - Lq) [Nm/A^2] */
-    double inv_w_c_s_per_rad;   /* 1 / w_c, friction smoothing band [s/rad] */
-    double inv_tau_i_per_s;     /* 1 / tau_i (first_order) [1/s] */
-    double inv_J_load_per_kgm2; /* 1 / J_L (two_mass) [1/(kg m^2)] */
-    double half_backlash_rad;   /* b / 2 (two_mass) [rad] */
-    double dt_s;                /* RK4 step Ts / substeps [s] */
-    double id_A;                /* state: d-axis current [A] */
-    double iq_A;                /* state: q-axis current [A] */
-    double w_m_radps;           /* state: motor speed [rad/s] */
-    double theta_m_rad;         /* state: motor angle, 0 at t = 0 [rad] */
-    double theta_rad;           /* state: twist theta_M - theta_L (two_mass), 0 at t = 0 [rad] */
-    double w_load_radps;        /* state: load-side speed w_L (two_mass) [rad/s] */
-    double u_dc_V;              /* DC link [V] */
-    double u_max_V;             /* range of the inverter u_dc / sqrt(3) [V] */
-    double u_inside2_V2;        /* squared norms below it are inside u_max for sure [V^2] */
-    double a_d;                 /* input held over the period: ud [V] (eq 3: id_ref [A]) */
-    double a_q;                 /* input held over the period: uq [V] (eq 3: iq_ref [A]) */
-    double ud_next_V;           /* delay: d-axis command for the next period [V] */
-    double uq_next_V;           /* delay: q-axis command for the next period [V] */
-    bool limited_next;          /* delay: the command for the next period was cut to the range [-] */
-    uint64_t current_rng;       /* splitmix64 state of the current sensors' noise [-] */
+    p2d_plant_config_t cfg; /* configuration */
+    p2d_plant_coef_t coef;  /* coefficients of the RK4 step */
+    bool coulomb;           /* T_c > 0 [-] */
+    bool two_mass;          /* the two-mass train [-] */
+    bool first_order;       /* the currents follow eq 3 (tau_i_s > 0) [-] */
+    double p;               /* pole pairs p [-] */
+    double kt_Nm_per_A;     /* 1.5 p psi_f [Nm/A] */
+    double c_T_Nm_per_A2;   /* 1.5 p (Ld - Lq) [Nm/A^2] */
+    double dt_s;            /* RK4 step Ts / substeps [s] */
+    double id_A;            /* state: d-axis current [A] */
+    double iq_A;            /* state: q-axis current [A] */
+    double w_m_radps;       /* state: motor speed [rad/s] */
+    double theta_m_rad;     /* state: motor angle, 0 at t = 0 [rad] */
+    double theta_rad;       /* state: twist theta_M - theta_L (two_mass), 0 at t = 0 [rad] */
+    double w_load_radps;    /* state: load-side speed w_L (two_mass) [rad/s] */
+    double u_dc_V;          /* DC link [V] */
+    double u_max_V;         /* range of the inverter u_dc / sqrt(3) [V] */
+    double u_inside2_V2;    /* squared norms below it are inside u_max for sure [V^2] */
+    double a_d;             /* input held over the period: ud [V] (eq 3: id_ref [A]) */
+    double a_q;             /* input held over the period: uq [V] (eq 3: iq_ref [A]) */
+    double ud_next_V;       /* delay: d-axis command for the next period [V] */
+    double uq_next_V;       /* delay: q-axis command for the next period [V] */
+    bool limited_next;      /* delay: the command for the next period was cut to the range [-] */
+    uint64_t current_rng;   /* splitmix64 state of the current sensors' noise [-] */
 } p2d_plant_t;
 
 /* The friction smoothing band w_c = max(0.01 rad/s, 10 Ts T_c / J) of motor at the period Ts_s [rad/s]. */
