@@ -30,6 +30,15 @@
  *   The speed reference is sampled by the speed controller (0 before the
  *   first entry); the load acts in continuous time.
  *
+ * Lockstep (p2d_sim_run_many): drives of one shape (p2d_sim_lockstep) run
+ * this loop together, P2D_SIM_LANES at a time: each drive's controllers and
+ * inverter in turn, then one RK4 step of all their plants through an array
+ * per state variable, coefficient and input, which the compiler vectorises
+ * across the drives (plant_inline.h's step, the same arithmetic as a lone
+ * drive's: every log is bit for bit that of p2d_sim_run). A period in which
+ * a drive's load has a breakpoint runs each drive on its own; a drive that
+ * stops leaves the group, the others run on.
+ *
  * Initial state: the drive is in steady state at the speed w_m0 before
  * t = 0, with the reference equal to w_m0 and no load: the speed controller is
  * reset bumplessly (p2d_speed_reset) to the torque holding w_m0 against
