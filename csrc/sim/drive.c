@@ -893,8 +893,7 @@ static void lanes_idle(p2d_sim_lanes_t *L, uint32_t l)
 /*
  * n (1 <= n <= lanes) drives of one shape in lockstep over n_samples speed samples; lanes = 1:
  * the plant stepped in place; lanes = P2D_SIM_LANES: the plants through the arrays of L (lanes
- * of no drive idle). A drive that stops leaves the group. The loops run over all lanes (a
- * constant count: unrolled), the inactive ones skipped.
+ * of no drive idle). A drive that stops leaves the group.
  */
 static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
                                      uint64_t n_samples, double *const *logs, const uint64_t *log_rows)
@@ -917,7 +916,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
     for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed) {
         const double t_k = (double)n_current * cfg->Ts_current_s;
         const bool log_row = n_speed % cfg->log_every == 0u;
-        for (uint32_t l = 0; l < lanes; ++l) {
+        for (uint32_t l = 0; l < n; ++l) {
             if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {
                 active[l] = false;
                 n_active--;
@@ -929,7 +928,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
             double h = 0.0;
             bool smooth = true;
             /* the controllers and the inverters; the plants' states and inputs into the lanes */
-            for (uint32_t l = 0; l < lanes; ++l) {
+            for (uint32_t l = 0; l < n; ++l) {
                 if (!active[l]) continue;
                 if (period_start(sims[l], t, first_order, log_row && j == 0u, logs[l], log_rows[l]) != P2D_SIM_OK) {
                     active[l] = false;
@@ -945,7 +944,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
             }
             if (!smooth) {
                 /* a load breakpoint inside the period: each drive on its own, its steps split there */
-                for (uint32_t l = 0; l < lanes; ++l) {
+                for (uint32_t l = 0; l < n; ++l) {
                     if (active[l]) plant_advance_split(sims[l], t);
                 }
             } else if (lanes == 1u) {
@@ -956,13 +955,13 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
                 }
             } else {
                 for (uint32_t s = 0; s < substeps; ++s) {
-                    for (uint32_t l = 0; l < lanes && s > 0u; ++l) {
+                    for (uint32_t l = 0; l < n && s > 0u; ++l) {
                         if (active[l]) substep(sims[l], t, s, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
                     }
                     lanes_step(L, kind, h);
                 }
             }
-            for (uint32_t l = 0; l < lanes; ++l) {
+            for (uint32_t l = 0; l < n; ++l) {
                 if (!active[l]) continue;
                 if (lanes > 1u && smooth) lanes_store(L, l, &sims[l]->plant);
                 if (period_end(sims[l]) != P2D_SIM_OK) {
@@ -972,7 +971,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
                 }
             }
         }
-        for (uint32_t l = 0; l < lanes; ++l) {
+        for (uint32_t l = 0; l < n; ++l) {
             if (active[l]) sample_end(sims[l], log_row, logs[l], log_rows[l]);
         }
     }
