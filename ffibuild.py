@@ -4,7 +4,8 @@ The extension is compiled from the C sources of this repository: the deployable
 controller (``csrc/src``, float32 C99) and the host-only simulation engine
 (``csrc/sim``, double). The C declarations given to cffi are read from the public
 headers themselves (preprocessor lines removed), so there is one declaration of
-each struct and function.
+each struct and function; ``csrc/sim/*_inline.h`` hold static inline code that the
+engine's sources share, and no declarations, so they are left out.
 """
 
 import re
@@ -36,7 +37,7 @@ def in_include_order(headers):
 
 
 HEADERS = in_include_order(sorted((CSRC / "include" / "pmsm2dof").glob("*.h")))
-HEADERS += in_include_order(sorted((CSRC / "sim").glob("*.h")))
+HEADERS += in_include_order(sorted(h for h in (CSRC / "sim").glob("*.h") if not h.name.endswith("_inline.h")))
 
 
 def cdef_of(header):

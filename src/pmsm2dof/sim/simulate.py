@@ -65,6 +65,13 @@ Stops
     with the time and the reason, when the state becomes non-finite, the speed exceeds twice the
     no-load speed ``u_dc / (sqrt(3) p psi_f)``, or the current exceeds ten times the larger of
     ``i_max_A`` and the short-circuit current ``psi_f / min(Ld, Lq)``.
+
+Many runs
+    :func:`simulate_many` runs scenarios of one shape (the same current period, speed period,
+    integration step, log interval, duration, current-loop model, drive train and presence of
+    Coulomb friction) in lockstep: ``P2D_SIM_LANES`` drives share one C loop, their plants' states
+    in an array per state variable, so that the compiler vectorises the RK4 step across them
+    (``p2d_sim_run_many``). Every trace is bit for bit the one :func:`simulate` gives.
 """
 
 import dataclasses
@@ -433,6 +440,81 @@ def simulate(scenario: Scenario, progress: bool = False) -> "Result":
     return run.result(scenario, time.perf_counter() - start)
 
 
+def simulate_many(scenarios: Sequence[Scenario]) -> list["Result | SimulationError"]:
+    """Simulate ``scenarios`` in the compiled engine, those of one shape in lockstep.
+
+    Scenarios of one shape (see the module docstring) run in groups of ``P2D_SIM_LANES`` through one
+    C call each (``p2d_sim_run_many``, the GIL released), the others alone; each trace is bit for
+    bit the :class:`Result` of :func:`simulate`.
+
+    Parameters
+    ----------
+    scenarios : sequence of Scenario
+        Validated scenarios; their logs together may take at most :data:`LOG_BYTES_MAX`.
+
+    Returns
+    -------
+    list
+        In the order of ``scenarios``: the :class:`Result` of each, or the
+        :class:`~pmsm2dof.errors.SimulationError` that stopped it (not raised, so that the others
+        are kept). ``Result.wall_time_s`` is the wall time of its group's C call shared equally
+        among the group's drives.
+
+    Raises
+    ------
+    ConfigError
+        A value the C controllers or the engine reject, naming the scenario key; the logs of all
+        scenarios beyond :data:`LOG_BYTES_MAX`.
+    """
+    for scenario in scenarios:
+        if not isinstance(scenario, Scenario):
+            raise ConfigError(
+                "scenarios", type(scenario).__name__, "pmsm2dof Scenarios (load_scenario or Scenario.from_dict)"
+            )
+    total = sum(log_rows(s.data)[1] * lib.P2D_LOG_COUNT * 8 for s in scenarios)
+    if total > LOG_BYTES_MAX:
+        raise ConfigError(
+            "scenarios",
+            f"{len(scenarios)} scenarios whose logs take {total / 1024**3:.3g} GiB",
+            f"logs of at most {LOG_BYTES_MAX / 1024**3:g} GiB in all: simulate them in smaller groups",
+        )
+    runs = [Simulation(s.data) for s in scenarios]
+    # the engine decides who runs in lockstep (p2d_sim_lockstep): with the first of a group, the same samples
+    groups: list[list[int]] = []
+    for i, run in enumerate(runs):
+        for g in groups:
+            first = runs[g[0]]
+            if first.n_samples == run.n_samples and lib.p2d_sim_lockstep(first.sim, run.sim):
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    outcomes: list[Result | SimulationError | None] = [None] * len(runs)
+    for members in groups:
+        for start in range(0, len(members), lib.P2D_SIM_LANES):
+            chunk = members[start : start + lib.P2D_SIM_LANES]
+            group = [runs[i] for i in chunk]
+            sims = ffi.new("p2d_sim_t *[]", [r.sim for r in group])
+            logs = ffi.new("double *[]", [r._log_ptr for r in group])
+            rows = ffi.new("uint64_t[]", [r.log.shape[1] for r in group])
+            t0 = time.perf_counter()
+            status = lib.p2d_sim_run_many(sims, len(group), group[0].n_samples, logs, rows)
+            wall_s = (time.perf_counter() - t0) / len(group)
+            if status != lib.P2D_SIM_OK:
+                raise RuntimeError(f"p2d_sim_run_many: {c_string(lib.p2d_sim_status_text(status))}")
+            for i, run in zip(chunk, group):
+                stopped = run.sim.status
+                outcomes[i] = run.stop_error(stopped) if stopped != lib.P2D_SIM_OK else run.result(scenarios[i], wall_s)
+    return [o for o in outcomes if o is not None]
+
+
+def log_rows(data: Tree) -> tuple[int, int]:
+    """The speed samples of the scenario data ``data`` and the rows of its log."""
+    sc, sim = data["speed_controller"], data["simulation"]
+    n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
+    return n_samples, -(-n_samples // sim["log_every"])
+
+
 class Simulation:
     """One engine instance: the C configuration built from scenario data, the state and the log.
 
@@ -470,8 +552,7 @@ class Simulation:
                 sim["dt_s"],
                 f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl['Ts_s'] / SUBSTEPS_MAX:g} s",
             )
-        self.n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
-        rows = -(-self.n_samples // sim["log_every"])
+        self.n_samples, rows = log_rows(data)
         if rows * lib.P2D_LOG_COUNT * 8 > LOG_BYTES_MAX:
             least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // LOG_BYTES_MAX)
             raise ConfigError(
@@ -549,7 +630,7 @@ class Simulation:
         """Run ``n_samples`` speed-controller samples (one C call, GIL released)."""
         status = lib.p2d_sim_run(self.sim, n_samples, self._log_ptr, self.log.shape[1])
         if status != lib.P2D_SIM_OK:
-            self._raise_stop(status)
+            raise self.stop_error(status)
 
     def signals(self) -> dict[str, npt.NDArray[Any]]:
         """The log so far as the named arrays of :class:`Result`, rpm at the edge (:data:`RPM_SIGNALS`)."""
@@ -642,7 +723,8 @@ class Simulation:
                 )
         return ConfigError(key, value, valid)
 
-    def _raise_stop(self, status: int) -> None:
+    def stop_error(self, status: int) -> SimulationError:
+        """The SimulationError of the stop ``status`` (a ``P2D_SIM_STOP_*`` code) of this run."""
         sim = self.sim
         reason = c_string(lib.p2d_sim_status_text(status))
         if status == lib.P2D_SIM_STOP_OVERSPEED:
@@ -663,7 +745,7 @@ class Simulation:
                 )
         elif status == lib.P2D_SIM_STOP_OVERCURRENT:
             reason += f": ||i_dq|| = {sim.stop_value:.6g} A > {sim.stop_bound:.6g} A"
-        raise SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
+        return SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
 
 
 def _schedule(
