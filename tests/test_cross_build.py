@@ -111,9 +111,9 @@ def test_plant_sources_include_only_math_stdint_stdbool_string_and_its_header():
             m = re.match(r"\s*#\s*include\s*([<\"])([^>\"]+)[>\"]", line)
             if m:
                 kind, name = m.groups()
-                assert (kind, name) in {("<", h) for h in ALLOWED_SYSTEM_HEADERS | {"string.h"}} | {
-                    ('"', "plant.h")
-                }, f'{path.name} includes {kind}{name}'
+                assert (kind, name) in {("<", h) for h in ALLOWED_SYSTEM_HEADERS | {"string.h"}} | {('"', "plant.h")}, (
+                    f"{path.name} includes {kind}{name}"
+                )
 
 
 @pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
