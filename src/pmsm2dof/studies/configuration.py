@@ -199,7 +199,8 @@ class Configuration:
             tau_i_s=sc["tau_i_s"],
             feedforward=sc["feedforward"],
             anti_windup=sc["anti_windup"],
-            Ka=float(cfg.speed.Ka),
+            # absent: the default 1/Kp as the C library computes it
+            Ka=float(cfg.speed.Ka) if sc["Ka"] is None else sc["Ka"],
         ).discretize(sc["Ts_s"], sc["method"])
         Ts_c, Ts_s = float(cfg.current.Ts_s), float(cfg.speed.Ts_s)
         lines = [f"From: {self.source}" if self.source else f"From the scenario {self.scenario.name!r}.", *self.notes]

@@ -1939,8 +1939,9 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
     from ..studies.firmware import virtual_drive_header
 
     chosen, named = _chosen(scenario, overrides)
-    config = configuration(chosen, source=f"pmsm2dof header {named}")
-    texts = {out: config.c_header(prefix)}
+    with warnings_as_lines():
+        config = configuration(chosen, source=f"pmsm2dof header {named}")
+        texts = {out: config.c_header(prefix)}
     if virtual_drive is not None:
         texts[virtual_drive] = virtual_drive_header(config)
     for path, text in texts.items():
@@ -1989,7 +1990,8 @@ def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, sample
     from ..studies.firmware import build_firmware
 
     chosen, named = _chosen(args[0], overrides)
-    build = build_firmware(chosen, out, source=f"pmsm2dof firmware {named}")
+    with warnings_as_lines():
+        build = build_firmware(chosen, out, source=f"pmsm2dof firmware {named}")
     for name, size in build.sizes.items():
         click.echo(f"  {name:<18} flash {size['text'] + size['data']:>7} B, RAM {size['data'] + size['bss']:>6} B")
     click.echo(f"{chosen.name}: wrote scenario.toml, p2d_config.h, p2d_virtual_drive.h, the ELF and map files to {out}")
