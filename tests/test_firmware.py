@@ -375,7 +375,7 @@ def test_the_instructions_counted_equal_the_instruction_trace(bench, tmp_path):
 def test_the_commands_build_run_and_write_the_engines_format(tmp_path, capsys):
     fw, out = tmp_path / "fw", tmp_path / "run"
     argv = ["firmware", str(SERVO), "--set", "simulation.t_end_s=0.05", "--set", "load=[]", "--out", str(fw)]
-    argv += ["--set", 'reference=[{t_s = 0.0, speed_rpm = 2000.0}]']
+    argv += ["--set", "reference=[{t_s = 0.0, speed_rpm = 2000.0}]"]
     assert main(argv) == 0, capsys.readouterr().err
     assert {p.name for p in fw.iterdir()} == {
         "scenario.toml",

@@ -15,13 +15,12 @@ import subprocess
 import numpy as np
 import pytest
 from test_codegen import CFLAGS, CSRC, GCC, N_STEPS, c_array, inputs
-
-from pmsm2dof.studies.configuration import configuration, design_scenario
 from test_torque_filter import designed_lowpass, designed_notch
 
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.twomass import filter_tf, largest_stable_alpha, sampled_loop, two_mass
 from pmsm2dof.core import SpeedController
+from pmsm2dof.studies.configuration import configuration, design_scenario
 from pmsm2dof.ui.cli import main
 
 J_M, J_L, F_R_HZ, ZETA_R = 0.1, 0.3, 30.0, 0.02

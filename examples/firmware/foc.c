@@ -135,7 +135,6 @@ foc_status_t foc_init(void)
     pole_pairs = (float)p2d_config_speed.pole_pairs;
     signals.J_est_kgm2 = P2D_CONFIG_INERTIA ? p2d_config_inertia.J0_kgm2 : 0.0f;
     signals.J_gains_kgm2 = p2d_config_speed.J_kgm2;
-    foc_start(0.0f, 0.0f);
     return st;
 }
 

@@ -62,19 +62,18 @@ typedef struct {
 } foc_signals_t;
 
 /*
- * Initialize every controller from p2d_config.h, at rest (zero references,
- * zero integrators). Returns the first part rejected; then never start the
- * control interrupt nor the power stage.
+ * Initialize every controller from p2d_config.h. Returns the first part
+ * rejected; then never start the control interrupt nor the power stage.
  */
 foc_status_t foc_init(void);
 
 /*
- * Start at a turning motor instead of at rest (a flying start), before the
- * control interrupt starts: the speed controller bumpless at the speed
- * w_m_radps with the reference there and the output T_Nm [Nm] (p2d_speed_reset),
- * the current integrators at the voltage of the currents that torque needs in
- * steady state, the encoder estimator at that speed. foc_init at rest is
- * foc_start(0, 0).
+ * The state the control starts from, before the control interrupt starts: the
+ * motor at the speed w_m_radps [rad/s] held by the torque T_Nm [Nm] (a drive at
+ * rest: 0, 0; a flying start: the measured speed). The speed controller is set
+ * bumpless there with its reference at w_m_radps (p2d_speed_reset), the current
+ * integrators at the steady-state voltage of the currents that torque needs,
+ * the encoder estimator at that speed, the field weakening at id = 0.
  */
 void foc_start(float w_m_radps, float T_Nm);
 

@@ -54,6 +54,22 @@ DEBIAN_PACKAGES = {
 }
 
 
+#: QEMU for the virtual drive: the MPS2 AN386 board (Cortex-M4F), no monitor or serial port, semihosting
+#: to the working folder, and instruction counting (128 ns of QEMU's clock per instruction: the firmware
+#: counts instructions with SysTick, virtual_target_mps2.c) with WFI jumping to the next interrupt.
+QEMU = (
+    "qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
+    "-icount", "shift=7,sleep=off",
+)  # fmt: skip
+
+#: The virtual core of virtual_target_mps2.c: a 170 MHz Cortex-M4 at 1.5 cycles per instruction.
+CORE_CLOCK_HZ = 170e6
+CYCLES_PER_INSTRUCTION = 1.5
+
+#: Longest current period the virtual board's SysTick holds: 2^24 ticks of 40 ns at 3.2 ticks per instruction [s].
+TS_CURRENT_MAX_S = 2**24 / 3.2 * CYCLES_PER_INSTRUCTION / CORE_CLOCK_HZ
+
+
 def require_tool(program: str) -> str:
     """The path of ``program``, or ToolError naming the Debian package that installs it."""
     path = shutil.which(program)
@@ -84,6 +100,12 @@ def check_virtual_drive(scenario: Scenario) -> None:
     for key in ("delay_s", "noise_rpm_rms"):
         if ss[key] != 0.0:
             raise ConfigError(f"speed_sensor.{key}", ss[key], "0: the virtual board has no delay or noise on the speed")
+    if data["current_loop"]["Ts_s"] > TS_CURRENT_MAX_S:
+        raise ConfigError(
+            "current_loop.Ts_s",
+            data["current_loop"]["Ts_s"],
+            f"<= {TS_CURRENT_MAX_S:.4g} s on the virtual board (the 24-bit SysTick at its instruction clock)",
+        )
 
 
 def virtual_drive_header(config: Configuration) -> str:
@@ -156,21 +178,6 @@ def virtual_drive_header(config: Configuration) -> str:
         arrays=arrays,
     )
 
-
-#: QEMU for the virtual drive: the MPS2 AN386 board (Cortex-M4F), no monitor or serial port, semihosting
-#: to the working folder, and instruction counting (128 ns of QEMU's clock per instruction: the firmware
-#: counts instructions with SysTick, virtual_target_mps2.c) with WFI jumping to the next interrupt.
-QEMU = (
-    "qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
-    "-icount", "shift=7,sleep=off",
-)  # fmt: skip
-
-#: The virtual core of virtual_target_mps2.c: a 170 MHz Cortex-M4 at 1.5 cycles per instruction.
-CORE_CLOCK_HZ = 170e6
-CYCLES_PER_INSTRUCTION = 1.5
-
-#: Longest current period the virtual board's SysTick holds: 2^24 ticks of 40 ns at 3.2 ticks per instruction [s].
-TS_CURRENT_MAX_S = 2**24 / 3.2 * CYCLES_PER_INSTRUCTION / CORE_CLOCK_HZ
 
 #: Most control interrupts of one run on QEMU (about an hour of the machine's time).
 PERIODS_MAX = 10**7

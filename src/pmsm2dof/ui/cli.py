@@ -338,7 +338,9 @@ def design(
     if header is not None:
         from ..studies.configuration import configuration, design_scenario
 
-        notes = tuple(f"{name} = {motor[name]:g}: {source}" for name, source in sources.items())
+        notes = ("Motor data and current loop given to design:",) + tuple(
+            f"  {name:<12} = {motor[name]:g} {_HEADER_MOTOR[name][1]} ({source})" for name, source in sources.items()
+        )
         try:
             config = configuration(design_scenario(dd, **motor), source="pmsm2dof design", notes=notes)
             config.write_header(header, prefix)
