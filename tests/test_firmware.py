@@ -144,6 +144,63 @@ def test_small_servo_20_kHz_2_kHz(bench):
     assert len(result.speed_sample) == ratio * len(result.firmware.t_s)
 
 
+#: The servo with every optional part of the configuration on (benchmarks/firmware_cost.py runs it too).
+EVERY_PART = {
+    "motor.Ld_H": 3e-4,
+    "speed_sensor.model": "encoder",
+    "speed_sensor.estimator": "pll",
+    "speed_sensor.bandwidth_radps": 800.0,
+    "speed_sensor.lowpass_radps": 2000.0,
+    "speed_sensor.counts_per_rev": 2500,
+    "speed_sensor.counter_bits": 16,
+    "speed_filter.notch_freq_Hz": 300.0,
+    "speed_filter.notch_width_Hz": 100.0,
+    "speed_filter.notch_depth": 0.1,
+    "field_weakening.enabled": True,
+    "field_weakening.Ki_A_per_Vs": 50.0,
+    "estimator.enabled": True,
+    "estimator.adapt_gains": True,
+    "estimator.J0_kgm2": 1.2e-4,
+}
+
+
+@needs_tools
+def test_every_part_of_the_configuration(bench):
+    """A salient servo (MTPA), an encoder read by the PLL with a low-pass, a notch, field weakening, the
+    inertia estimator re-designing the gains: the whole 0.2 s."""
+    result = firmware_equals_engine(bench.build(configuration(load_scenario(str(SERVO)).with_overrides(EVERY_PART))))
+    engine = result.engine
+    assert (engine.id_ref_A < -0.1).any()  # MTPA and field weakening drive id
+    assert engine.J_valid.any() and len(np.unique(engine.J_gains_kgm2)) > 1  # the gains were re-designed
+    np.testing.assert_array_equal(result.firmware.J_gains_kgm2 > 0, True)
+    assert np.max(np.abs(result.firmware.J_est_kgm2 - engine.J_est_kgm2)) <= 1e-3 * np.max(engine.J_est_kgm2)
+
+
+@needs_tools
+def test_the_drive_train_and_the_sensors_of_the_plant(bench):
+    """A two-mass train read on the load side, Coulomb friction, a computation delay, current sensors with
+    gain errors, offsets and noise (the same seeded noise as the engine's)."""
+    scenario = load_scenario(str(SERVO)).with_overrides(
+        {
+            **RUN,
+            "mechanics.model": "two_mass",
+            "mechanics.J_load_kgm2": 5e-5,
+            "mechanics.stiffness_Nm_per_rad": 50.0,
+            "mechanics.damping_Nms_per_rad": 1e-3,
+            "mechanics.feedback": "load",
+            "motor.J_kgm2": 5e-5,
+            "motor.T_coulomb_Nm": 0.01,
+            "inverter.computation_delay": True,
+            "current_measurement.gain_error_a": 0.01,
+            "current_measurement.offset_b_A": 0.05,
+            "current_measurement.noise_A_rms": 0.02,
+            "current_measurement.seed": 7,
+        }
+    )
+    result = firmware_equals_engine(bench.build(configuration(scenario)))
+    assert not np.array_equal(result.engine.load_speed_rpm, result.engine.speed_rpm)
+
+
 @needs_tools
 @pytest.mark.parametrize("ratio", range(1, 21))
 def test_every_loop_ratio_runs(bench, ratio):
@@ -169,6 +226,27 @@ def test_a_rejected_configuration_reports_its_diagnostic(bench):
     assert "(exit status 1)" in message
     assert "configuration rejected: speed controller (p2d_config_speed): alpha_radps must be" in message
     assert re.search(r"\(p2d_status_t \d+\)", message), message
+
+
+@needs_tools
+def test_the_porting_stub_reports_a_rejected_configuration_on_its_uart(bench):
+    """firmware.elf (board_stub.c) writes the diagnostic to the MPS2's UART0, then halts with PWM off."""
+    config = configuration(load_scenario(str(SERVO)))
+    bench.write(config, config.c_header().replace(".alpha_radps = 150.0f,", ".alpha_radps = -1.0f,"))
+    run(["cmake", "--build", bench.build_dir, "--target", "firmware"])
+    qemu = subprocess.Popen(
+        ["qemu-system-arm", "-M", "mps2-an386", "-nographic", "-kernel", str(bench.build_dir / "firmware.elf")],
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        out, _ = qemu.communicate(timeout=5)  # board_halt sleeps for good: QEMU does not end by itself
+    except subprocess.TimeoutExpired:
+        qemu.kill()
+        out, _ = qemu.communicate()
+    assert "configuration rejected: speed controller (p2d_config_speed): alpha_radps must be" in out, out
 
 
 @needs_tools

@@ -23,8 +23,9 @@
  *                              board_start_control_interrupt, board_pwm_enable,
  *                              board_wait_for_interrupt, board_halt
  *   control interrupt          board_read_phase_currents, board_read_dc_link_V,
- *   (foc_isr)                  board_read_rotor, board_read_encoder_count,
- *                              board_speed_reference_radps, board_write_duties
+ *   (foc_isr)                  board_read_rotor, board_read_speed_radps,
+ *                              board_read_encoder_count, board_speed_reference_radps,
+ *                              board_write_duties
  */
 #ifndef BOARD_H
 #define BOARD_H
@@ -72,7 +73,17 @@ float board_read_dc_link_V(void);
  */
 void board_read_rotor(float *theta_m_rad, float *w_m_radps);
 
-/* Control interrupt: the encoder's hardware counter latched at the sampling instant [count] (wraps). */
+/*
+ * Control interrupt (speed samples): the speed the speed loop controls, as its
+ * sensor measures it at the sampling instant [rad/s]: the motor's, or the
+ * load's with a sensor on the load side (P2D_CONFIG_ENCODER 0).
+ */
+float board_read_speed_radps(void);
+
+/*
+ * Control interrupt (speed samples): the hardware counter of the speed loop's
+ * encoder latched at the sampling instant [count] (it wraps; P2D_CONFIG_ENCODER 1).
+ */
 uint32_t board_read_encoder_count(void);
 
 /* Control interrupt (speed samples): the speed reference from the application (fieldbus, ...) [rad/s]. */

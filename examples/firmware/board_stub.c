@@ -97,6 +97,12 @@ void board_read_rotor(float *theta_m_rad, float *w_m_radps)
     *w_m_radps = 0.0f;
 }
 
+float board_read_speed_radps(void)
+{
+    /* STUB: the speed loop's sensor (the motor's encoder: the speed board_read_rotor gives) */
+    return 0.0f;
+}
+
 uint32_t board_read_encoder_count(void)
 {
     /* STUB: the encoder timer's counter, latched with the ADC trigger */

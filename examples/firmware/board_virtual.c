@@ -20,10 +20,11 @@
  *   linear over each, as the engine does), and the sensors are latched for t_n+1.
  * This is the engine's sampled-data loop (csrc/sim/drive.h) with the firmware in
  * place of its controllers, so the trace compares with the engine's
- * simulation of the same scenario. The rotor angle the firmware reads is the
- * plant's (an ideal position sensor), as the engine's current loop sees it; an
- * encoder scenario reads the plant's counter besides (p2d_plant_encoder_count)
- * for the speed estimator. Not modelled here (the engine has them): faults, a
+ * simulation of the same scenario. The rotor angle and speed the firmware reads
+ * for its transforms are the motor's (an ideal position sensor), as the engine's
+ * current loop sees them; the speed loop reads the side mechanics.feedback
+ * names (the motor, or the load of a two-mass train), as the speed or, in an
+ * encoder scenario, as the plant's counter (p2d_plant_encoder_count). Not modelled here (the engine has them): faults, a
  * delay or noise on the speed reading, the current loop of eq 3.
  *
  * The trace: a line "pmsm2dof-trace 1 <columns> <name> ..." then one row of
@@ -126,6 +127,7 @@ static uint64_t n_current;                             /* current periods done: 
 static uint64_t n_periods_end;                         /* current periods of the run [-] */
 static float adc_ia_A, adc_ib_A, adc_ic_A, adc_u_dc_V; /* the sensors latched at t_n */
 static float rotor_theta_m_rad, rotor_w_m_radps;       /* the rotor latched at t_n */
+static float sensed_w_radps;                           /* the speed loop's side latched at t_n */
 static uint32_t encoder_count;                         /* the encoder counter latched at t_n */
 static float duty[3];                                  /* the duties written by foc_isr */
 static double w_ref_radps;                             /* reference of the last speed sample [rad/s] */
@@ -204,7 +206,7 @@ static void advance(double t_start_s)
 /* The sensors of the present state, as the board's registers hold them at the sampling instant. */
 static void latch_sensors(void)
 {
-    double ia, ib, ic, theta_m, w_m;
+    double ia, ib, ic, theta_m, w_m, theta_s, w_s;
     if (P2D_VD_CURRENT_SENSOR_ERRORS) {
         p2d_plant_sense_currents(&plant, &ia, &ib);
         ic = -ia - ib;
@@ -220,6 +222,12 @@ static void latch_sensors(void)
     rotor_theta_m_rad = (float)(theta_m < 0.0 ? theta_m + VB_TWO_PI : theta_m);
     rotor_w_m_radps = (float)w_m;
     encoder_count = p2d_plant_encoder_count(&plant);
+    if (p2d_vd_plant.mechanics.feedback == P2D_FEEDBACK_LOAD) {
+        p2d_plant_load_side(&plant, &theta_s, &w_s);
+    } else {
+        w_s = w_m;
+    }
+    sensed_w_radps = (float)w_s;
     /* the application's set point for a speed sample at t_n */
     if (n_current % P2D_VD_CURRENT_PER_SPEED == 0u) {
         w_ref_radps = schedule_value(&reference, (double)n_current * p2d_vd_plant.Ts_s);
@@ -461,6 +469,8 @@ void board_read_rotor(float *theta_m_rad, float *w_m_radps)
     *theta_m_rad = rotor_theta_m_rad;
     *w_m_radps = rotor_w_m_radps;
 }
+
+float board_read_speed_radps(void) { return sensed_w_radps; }
 
 uint32_t board_read_encoder_count(void) { return encoder_count; }
 

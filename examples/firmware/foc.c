@@ -244,7 +244,7 @@ static void inertia_sample(float w_ref_radps, float w_meas_radps)
 }
 
 /* The speed loop: reading, estimator, field weakening, speed controller; sets the current references. */
-static void speed_sample(float w_m_radps)
+static void speed_sample(void)
 {
     p2d_speed_output_t spd;
     float w_ref_radps = board_speed_reference_radps(), w_meas_radps, id_fw_A = 0.0f;
@@ -256,10 +256,10 @@ static void speed_sample(float w_m_radps)
     } else if (p2d_config_encoder.lowpass_radps > 0.0f) {
         const p2d_encoder_coef_t *c = &encoder.coef[encoder.active];
         /* the encoder's low-pass on the speed as measured: y[k] = q y[k-1] + (1 - q) w[k] */
-        w_lowpass_radps = fmaf(c->lowpass_pole, w_lowpass_radps, c->lowpass_one_minus_pole * w_m_radps);
+        w_lowpass_radps = fmaf(c->lowpass_pole, w_lowpass_radps, c->lowpass_one_minus_pole * board_read_speed_radps());
         w_meas_radps = w_lowpass_radps;
     } else {
-        w_meas_radps = w_m_radps;
+        w_meas_radps = board_read_speed_radps();
     }
     if (P2D_CONFIG_INERTIA) inertia_sample(w_ref_radps, w_meas_radps);
     if (P2D_CONFIG_FIELD_WEAKENING) {
@@ -307,7 +307,7 @@ void foc_isr(void)
 
     /* speed loop, every P2D_CONFIG_CURRENT_PER_SPEED-th interrupt */
     signals.speed_sample = tick == 0u;
-    if (tick == 0u) speed_sample(w_m_radps);
+    if (tick == 0u) speed_sample();
     tick = tick + 1u == P2D_CONFIG_CURRENT_PER_SPEED ? 0u : tick + 1u;
 
     /* current loop, every interrupt */
