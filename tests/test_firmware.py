@@ -26,9 +26,9 @@ import numpy as np
 import pytest
 
 from pmsm2dof.analysis.design import design
-from pmsm2dof.errors import ToolError
+from pmsm2dof.errors import SimulationError, ToolError
 from pmsm2dof.sim.scenario import load_scenario
-from pmsm2dof.sim.simulate import Result
+from pmsm2dof.sim.simulate import Result, simulate
 from pmsm2dof.studies.configuration import configuration, design_scenario
 from pmsm2dof.studies.firmware import QEMU, read_trace, run_firmware, virtual_drive_header
 from pmsm2dof.ui.cli import main
@@ -299,6 +299,24 @@ def test_an_interrupt_longer_than_its_period_is_reported(bench):
     assert "virtual drive: the control interrupt overran its period Ts_current at t = 0 us" in str(exc.value)
 
 
+@needs_tools
+def test_the_engines_stops_stop_the_firmwares_run(bench):
+    """A load of -3 Nm drives the servo past twice its no-load speed: the engine stops there, and so does
+    the virtual board, with the engine's reason."""
+    scenario = load_scenario(str(SERVO)).with_overrides(
+        {**RUN, "load": [{"t_s": 0.0, "torque_Nm": -3.0}], "simulation.t_end_s": 0.1}
+    )
+    with pytest.raises(SimulationError) as engine:
+        simulate(scenario)
+    with pytest.raises(SimulationError) as firmware:
+        run_firmware(bench.build(configuration(scenario)))
+    assert "exceeds twice the no-load speed" in str(engine.value)
+    assert "stopped: the speed exceeds twice the no-load speed of the DC link at t = " in str(firmware.value)
+    t_engine = float(re.search(r"stopped at t = (\S+) s", str(engine.value)).group(1))
+    t_firmware = float(re.search(r"at t = (\d+) us", str(firmware.value)).group(1)) * 1e-6
+    assert t_firmware == pytest.approx(t_engine, abs=1e-6)
+
+
 # ----------------------------------------------------------------------------------------------------
 # the header of every command builds into the firmware and runs
 # ----------------------------------------------------------------------------------------------------
@@ -492,3 +510,16 @@ def test_without_the_tools_the_commands_name_the_debian_package(tmp_path, capsys
         err.count("\n") == 1 and "qemu-system-arm is not installed: install the Debian package qemu-system-arm" in err
     )
     assert not (tmp_path / "run").exists()
+
+
+@needs_tools
+def test_the_readme_firmware_commands_run_as_written(tmp_path, monkeypatch, capsys):
+    from test_readme_commands import readme_commands
+
+    commands = [a for a in readme_commands("pmsm2dof") if a[0] == "firmware"]
+    assert [a[1] for a in commands] == ["paper-experiment-1", "run"]
+    monkeypatch.chdir(tmp_path)
+    for args in commands:
+        assert main(args) == 0, capsys.readouterr().err
+    out = tmp_path / commands[1][commands[1].index("--out") + 1]
+    assert json.loads((out / "metrics.json").read_text())["comparison"]["agrees"] is True

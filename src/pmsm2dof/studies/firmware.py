@@ -402,6 +402,12 @@ def run_firmware(folder: Path | str, *, samples: int | None = None) -> FirmwareR
         # semihosting output arrives on stderr
         report = tuple(line for line in done.stderr.splitlines() if line.strip())
         if done.returncode != 0:
+            stopped = [line for line in report if line.startswith("virtual drive: stopped:")]
+            if stopped:
+                # the engine's stops: the scenario's physics, not the tools
+                raise SimulationError(
+                    f"the firmware's run of {scenario.name!r} {stopped[-1][len('virtual drive: ') :]}"
+                )
             raise ToolError(
                 f"the virtual drive failed on QEMU (exit status {done.returncode}): " + " ".join(report[-3:])
             )
