@@ -152,6 +152,7 @@ def report(rows):
         "| run | " + " | ".join(f"{f / 1e6:g} MHz at {r / 1e3:g} kHz: mean / worst" for f, r in PARTS) + " |",
         "|---|" + "---|" * len(PARTS),
     ]
+    notes = []
     for r in rows:
         n = r["run"].instructions.astype(float)
         cells = []
@@ -160,6 +161,19 @@ def report(rows):
             worst = np.max(n) * CYCLES_PER_INSTRUCTION * f_isr / f_cpu
             cells.append(f"{100 * mean:.1f} % / {100 * worst:.1f} %")
         lines.append(f"| {r['name']} | " + " | ".join(cells) + " |")
+        # the speed samples where the gain scheduling re-designed the controller (p2d_speed_set_config)
+        run = r["run"]
+        redesigns = np.flatnonzero(np.diff(run.firmware.J_gains_kgm2) != 0) + 1
+        if len(redesigns):
+            speed = run.instructions[run.speed_sample]
+            others = np.delete(speed, redesigns)
+            notes.append(
+                f"In {r['name']} the longest interrupts ({', '.join(str(int(speed[k])) for k in redesigns)} "
+                f"instructions) are the {len(redesigns)} re-designs of the gain scheduling (`p2d_speed_set_config` "
+                f"in the speed interrupt, as in the engine; a drive can run it from the background loop); the "
+                f"other speed interrupts take at most {int(others.max())}."
+            )
+    lines += ["", *notes] if notes else []
     lines += [
         "",
         "### Agreement with the engine (the same scenario)",
