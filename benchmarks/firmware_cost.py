@@ -61,25 +61,7 @@ RUNS = (
     ),
     (
         "small servo, every part (20 kHz / 2 kHz)",
-        lambda: load_scenario(str(SERVO)).with_overrides(
-            {
-                "motor.Ld_H": 3e-4,
-                "speed_sensor.model": "encoder",
-                "speed_sensor.estimator": "pll",
-                "speed_sensor.bandwidth_radps": 800.0,
-                "speed_sensor.lowpass_radps": 2000.0,
-                "speed_sensor.counts_per_rev": 2500,
-                "speed_sensor.counter_bits": 16,
-                "speed_filter.notch_freq_Hz": 300.0,
-                "speed_filter.notch_width_Hz": 100.0,
-                "speed_filter.notch_depth": 0.1,
-                "field_weakening.enabled": True,
-                "field_weakening.Ki_A_per_Vs": 50.0,
-                "estimator.enabled": True,
-                "estimator.adapt_gains": True,
-                "estimator.J0_kgm2": 1.2e-4,
-            }
-        ),
+        lambda: load_scenario(str(SERVO.parent / "small-servo-every-part.toml")),
         "salient (MTPA), encoder with PLL and low-pass, notch, field weakening, inertia estimator with gain scheduling",
     ),
 )

@@ -25,31 +25,13 @@ ROOT = Path(__file__).resolve().parents[1]
 GCC = shutil.which("gcc")
 SERVO = ROOT / "examples" / "firmware" / "small-servo-20k.toml"
 
-#: A drive that uses every part: an encoder read by the PLL with a low-pass, the inertia estimator with
-#: gain scheduling, a notch, a salient motor, field weakening, an explicit Ka.
-EVERY_PART = {
-    "speed_sensor.model": "encoder",
-    "speed_sensor.estimator": "pll",
-    "speed_sensor.bandwidth_radps": 800.0,
-    "speed_sensor.lowpass_radps": 2000.0,
-    "speed_sensor.counts_per_rev": 2500,
-    "speed_sensor.counter_bits": 16,
-    "estimator.enabled": True,
-    "estimator.adapt_gains": True,
-    "estimator.J0_kgm2": 1.2e-4,
-    "speed_filter.notch_freq_Hz": 300.0,
-    "speed_filter.notch_width_Hz": 100.0,
-    "speed_filter.notch_depth": 0.1,
-    "motor.Ld_H": 3e-4,
-    "field_weakening.enabled": True,
-    "field_weakening.Ki_A_per_Vs": 50.0,
-    "speed_controller.Ka": 3.0,
-}
-
 SCENARIOS = {
     "paper-experiment-1": lambda: load_scenario("paper-experiment-1"),
     "field-weakening": lambda: load_scenario("field-weakening"),
-    "servo, every part": lambda: load_scenario(str(SERVO)).with_overrides(EVERY_PART),
+    "servo, every part": lambda: load_scenario(str(SERVO.parent / "small-servo-every-part.toml")),
+    "paper condition 2, Ka given": lambda: load_scenario("paper-condition-2").with_overrides(
+        {"speed_controller.Ka": 3.0}
+    ),
 }
 
 DUMP = """\
@@ -150,7 +132,7 @@ def test_the_compiled_header_holds_the_engines_configuration_to_the_bit(tmp_path
 def test_every_part_is_on_in_the_drive_that_uses_every_part():
     config = configuration(SCENARIOS["servo, every part"]())
     assert config.switches == dict(
-        ENCODER=True, FIELD_WEAKENING=True, INERTIA=True, ADAPT_GAINS=True, KA_FOLLOWS_J=False
+        ENCODER=True, FIELD_WEAKENING=True, INERTIA=True, ADAPT_GAINS=True, KA_FOLLOWS_J=True
     )
     assert config.engine.cfg.speed_filter.notch_freq_Hz == 300.0
     assert config.encoder.estimator == 1 and config.encoder.Ts_s == np.float32(5e-4)

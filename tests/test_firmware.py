@@ -37,6 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 FIRMWARE = ROOT / "examples" / "firmware"
 TOOLCHAIN = ROOT / "csrc" / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
 SERVO = FIRMWARE / "small-servo-20k.toml"
+EVERY_PART = FIRMWARE / "small-servo-every-part.toml"
 #: A short run of a scenario: 50 ms from a step to 2000 rpm.
 RUN = {"simulation.t_end_s": 0.05, "reference": [{"t_s": 0.0, "speed_rpm": 2000.0}], "load": []}
 BUILD_TIMEOUT_S = 600
@@ -144,31 +145,11 @@ def test_small_servo_20_kHz_2_kHz(bench):
     assert len(result.speed_sample) == ratio * len(result.firmware.t_s)
 
 
-#: The servo with every optional part of the configuration on (benchmarks/firmware_cost.py runs it too).
-EVERY_PART = {
-    "motor.Ld_H": 3e-4,
-    "speed_sensor.model": "encoder",
-    "speed_sensor.estimator": "pll",
-    "speed_sensor.bandwidth_radps": 800.0,
-    "speed_sensor.lowpass_radps": 2000.0,
-    "speed_sensor.counts_per_rev": 2500,
-    "speed_sensor.counter_bits": 16,
-    "speed_filter.notch_freq_Hz": 300.0,
-    "speed_filter.notch_width_Hz": 100.0,
-    "speed_filter.notch_depth": 0.1,
-    "field_weakening.enabled": True,
-    "field_weakening.Ki_A_per_Vs": 50.0,
-    "estimator.enabled": True,
-    "estimator.adapt_gains": True,
-    "estimator.J0_kgm2": 1.2e-4,
-}
-
-
 @needs_tools
 def test_every_part_of_the_configuration(bench):
     """A salient servo (MTPA), an encoder read by the PLL with a low-pass, a notch, field weakening, the
     inertia estimator re-designing the gains: the whole 0.2 s."""
-    result = firmware_equals_engine(bench.build(configuration(load_scenario(str(SERVO)).with_overrides(EVERY_PART))))
+    result = firmware_equals_engine(bench.build(configuration(load_scenario(str(EVERY_PART)))))
     engine = result.engine
     assert (engine.id_ref_A < -0.1).any()  # MTPA and field weakening drive id
     assert engine.J_valid.any() and len(np.unique(engine.J_gains_kgm2)) > 1  # the gains were re-designed
