@@ -1,9 +1,10 @@
 """Exceptions of pmsm2dof.
 
 Every public entry point raises :class:`ConfigError` (a ``ValueError``) for bad input,
-with a message that names the parameter, its value and the valid range, and
-:class:`SimulationError` when the numbers go wrong (non-finite or physically absurd state).
-The CLI turns both into one line on stderr and exit status 2. Valid but doubtful input gives a
+with a message that names the parameter, its value and the valid range,
+:class:`SimulationError` when the numbers go wrong (non-finite or physically absurd state), and
+:class:`ToolError` when an external program is missing or fails.
+The CLI turns each into one line on stderr and exit status 2. Valid but doubtful input gives a
 :class:`Pmsm2dofWarning`.
 """
 
@@ -37,6 +38,10 @@ class Pmsm2dofWarning(UserWarning):
 
     The command line shows each one once per command, as one line on stderr.
     """
+
+
+class ToolError(Pmsm2dofError, RuntimeError):
+    """An external program (cross compiler, CMake, emulator) is missing or failed; the message says what to do."""
 
 
 def require_positive(param: str, value: Any) -> float:

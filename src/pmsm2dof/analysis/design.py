@@ -30,8 +30,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -40,7 +39,6 @@ from ..core import ANTI_WINDUPS, FEEDFORWARDS, pi_gains
 from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
 from ..lazy import lazy_module
-from .codegen import write_c_header
 from .discretize import DiscreteDesign, discretize
 from .margins import Margins, frequency_margins, loop_margins
 from .sensor import DELAY_MODELS, DelayModel, SensorChain
@@ -404,13 +402,6 @@ class Design:
         See :func:`pmsm2dof.analysis.discretize.discretize`.
         """
         return discretize(self, Ts_s, method)
-
-    def to_c_header(self, path: Path | str, Ts_s: float, method: Method, **motor: Any) -> Path | str:
-        """Write a C header configuring the speed controller with this design.
-
-        See :func:`pmsm2dof.analysis.codegen.write_c_header` for the motor and limit keywords.
-        """
-        return write_c_header(path, self.discretize(Ts_s, method), **motor)
 
 
 def design(

@@ -634,21 +634,7 @@ class Simulation:
 
     def signals(self) -> dict[str, npt.NDArray[Any]]:
         """The log so far as the named arrays of :class:`Result`, rpm at the edge (:data:`RPM_SIGNALS`)."""
-        n = self.sim.n_rows
-        col = {name: self.log[i, :n] for i, name in enumerate(LOG_COLUMNS)}
-        bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
-        if bad:
-            first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
-            raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = {col['t_s'][first]:.6g} s")
-        signals: dict[str, npt.NDArray[Any]] = {}
-        for name, values in col.items():
-            if name in RPM_SIGNALS:
-                signals[RPM_SIGNALS[name]] = values * RPM_PER_RADPS
-                if name == "w_m_radps":
-                    signals[name] = values
-            else:
-                signals[name] = values != 0.0 if name in FLAG_SIGNALS else values
-        return signals
+        return log_signals(self.log[:, : self.sim.n_rows])
 
     def result(self, scenario: Scenario, wall_time_s: float) -> Result:
         """The :class:`Result` of the log so far, for ``scenario`` (the one this run was built from)."""
@@ -746,6 +732,33 @@ class Simulation:
         elif status == lib.P2D_SIM_STOP_OVERCURRENT:
             reason += f": ||i_dq|| = {sim.stop_value:.6g} A > {sim.stop_bound:.6g} A"
         return SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
+
+
+def log_signals(log: npt.NDArray[np.float64]) -> dict[str, npt.NDArray[Any]]:
+    """The named arrays of :class:`Result` from a log of the engine's columns (one row per column).
+
+    ``log[i]`` is the column :data:`pmsm2dof.core.LOG_COLUMNS` ``[i]`` (the engine's, or a trace in its
+    format); speeds become rpm at the edge (:data:`RPM_SIGNALS`), flags bool arrays.
+
+    Raises
+    ------
+    SimulationError
+        A value of the log is not finite.
+    """
+    col = {name: log[i] for i, name in enumerate(LOG_COLUMNS)}
+    bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
+    if bad:
+        first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
+        raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = {col['t_s'][first]:.6g} s")
+    signals: dict[str, npt.NDArray[Any]] = {}
+    for name, values in col.items():
+        if name in RPM_SIGNALS:
+            signals[RPM_SIGNALS[name]] = values * RPM_PER_RADPS
+            if name == "w_m_radps":
+                signals[name] = values
+        else:
+            signals[name] = values != 0.0 if name in FLAG_SIGNALS else values
+    return signals
 
 
 def _schedule(

@@ -434,27 +434,14 @@ class AutotuneResult:
         """The scenario with the chosen design."""
         return self.scenario.with_overrides(self.chosen.candidate.overrides())
 
-    def write_c_header(self, path: Any, prefix: str = "p2d_autotune") -> Any:
-        """Write the C header of the chosen design with the scenario's motor data; return the path.
+    def write_c_header(self, path: Any, prefix: str = "p2d_config") -> Any:
+        """Write the C configuration of the tuned scenario; return the path.
 
-        See :func:`pmsm2dof.analysis.codegen.write_c_header` (speed controller only).
+        See :func:`pmsm2dof.studies.configuration.configuration` (the header every command writes).
         """
-        from ..analysis.codegen import write_c_header
+        from .configuration import configuration
 
-        data = self.scenario.data
-        sc, motor = data["speed_controller"], data["motor"]
-        c = self.chosen.candidate
-        d = make_design(sc["J_kgm2"], c.alpha_radps, c.zeta, c.m, sc["tau_i_s"], c.feedforward, c.anti_windup, c.Ka)
-        return write_c_header(
-            path,
-            d.discretize(sc["Ts_s"], sc["method"]),
-            i_max_A=data["limits"]["i_max_A"],
-            pole_pairs=motor["pole_pairs"],
-            psi_f_Wb=motor["psi_f_Wb"],
-            Ld_H=motor["Ld_H"],
-            Lq_H=motor["Lq_H"],
-            prefix=prefix,
-        )
+        return configuration(self.tuned_scenario(), source="pmsm2dof autotune").write_header(path, prefix)
 
     def pareto_rows(self) -> list[dict[str, Any]]:
         """One row per design of the Pareto front: its keys, worst-case figures and whether it is feasible."""

@@ -174,9 +174,9 @@ def main(argv: list[str] | None = None) -> int:
     "header",
     type=click.Path(dir_okay=False),
     default=None,
-    help="write a C header with the p2d_speed_config_t of this design",
+    help="write the C configuration of this design and its motor (as pmsm2dof header: the firmware's p2d_config.h)",
 )
-@click.option("--prefix", default="p2d_design", show_default=True, help="C identifier prefix in the header")
+@click.option("--prefix", default="p2d_config", show_default=True, help="C identifier prefix in the header")
 @click.option("--i-max", "i_max_A", type=float, default=None, help="header: current-vector limit [A]")
 @click.option(
     "--pole-pairs",
@@ -194,9 +194,11 @@ def main(argv: list[str] | None = None) -> int:
     "Rs_ohm",
     type=float,
     default=None,
-    help="header: stator resistance [ohm]; with --Ts-current adds a p2d_current_config_t",
+    help="header: stator resistance [ohm] (the current controller)",
 )
-@click.option("--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s]")
+@click.option(
+    "--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s], Ts / N"
+)
 @click.option(
     "--paper-drive",
     is_flag=True,
@@ -258,10 +260,10 @@ def design(
     the margins, poles, overshoot and the discrete loop include it; --phase-margin reports the
     largest alpha that keeps that margin with it.
 
-    With --emit-c-header the header needs the motor data: --i-max, --pole-pairs, --psi-f and
-    --Ld (--Lq for a salient motor; --Rs with --Ts-current for the current controller), or
-    --paper-drive to take what is not given from the paper's drive. The summary says where
-    each value came from.
+    With --emit-c-header the header (the whole configuration, as `pmsm2dof header` writes it)
+    needs the motor data and the current loop: --i-max, --pole-pairs, --psi-f, --Ld (--Lq for a
+    salient motor), --Rs and --Ts-current (Ts an integer multiple of it), or --paper-drive to
+    take what is not given from the paper's drive. The summary says where each value came from.
     """
     import json
     import warnings
@@ -276,8 +278,7 @@ def design(
         from_file: set[str] = set()
         if file_motor is not None:
             given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
-            # Rs only for the current controller's header (--Ts-current)
-            from_file = {name for name, value in given.items() if value is None and (name != "Rs_ohm" or Ts_current_s)}
+            from_file = {name for name, value in given.items() if value is None}
             pole_pairs = pole_pairs if pole_pairs is not None else file_motor.pole_pairs
             psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (
                 getattr(file_motor, k) if k in from_file else v for k, v in given.items() if k != "pole_pairs"
@@ -291,8 +292,15 @@ def design(
             tau_i_s = loop.tau_i_s
         if header is not None:
             motor, sources = _header_motor(
-                dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm),
-                Ts_current_s is not None,
+                dict(
+                    i_max_A=i_max_A,
+                    pole_pairs=pole_pairs,
+                    psi_f_Wb=psi_f_Wb,
+                    Ld_H=Ld_H,
+                    Lq_H=Lq_H,
+                    Rs_ohm=Rs_ohm,
+                    Ts_current_s=Ts_current_s,
+                ),
                 paper_drive,
             )
             sources |= {name: f"motor file {motor_file}" for name in from_file if name in sources}
@@ -347,9 +355,16 @@ def design(
 
         sensitivity = speed_margin_sensitivity(loop, dd.design.Kp, dd.design.Ki, J_kgm2)
     if header is not None:
-        from ..analysis.codegen import write_c_header
+        from ..studies.configuration import configuration, design_scenario
 
-        write_c_header(header, dd, **motor, Ts_current_s=Ts_current_s, prefix=prefix, motor_sources=sources)
+        notes = ("Motor data and current loop given to design:",) + tuple(
+            f"  {name:<12} = {motor[name]:g} {_HEADER_MOTOR[name][1]} ({source})" for name, source in sources.items()
+        )
+        try:
+            config = configuration(design_scenario(dd, **motor), source="pmsm2dof design", notes=notes)
+            config.write_header(header, prefix)
+        except ConfigError as exc:
+            raise _as_option(exc, _HEADER_KEYS) from None
     if as_json:
         data = dd.as_dict()
         data["continuous"]["margins"], _ = margins.values_and_reasons()
@@ -442,7 +457,7 @@ def _current_loop_table(
 
 #: The shipped scenario whose motor and current limit --paper-drive fills in.
 PAPER_DRIVE_PRESET = "paper-condition-1"
-#: Motor data of the header: keyword -> (option, unit, scenario key).
+#: Motor data and current loop of the header: keyword -> (option, unit, scenario key).
 _HEADER_MOTOR = {
     "i_max_A": ("--i-max", "A", "limits.i_max_A"),
     "pole_pairs": ("--pole-pairs", "", "motor.pole_pairs"),
@@ -450,25 +465,29 @@ _HEADER_MOTOR = {
     "Ld_H": ("--Ld", "H", "motor.Ld_H"),
     "Lq_H": ("--Lq", "H", "motor.Lq_H"),
     "Rs_ohm": ("--Rs", "ohm", "motor.Rs_ohm"),
+    "Ts_current_s": ("--Ts-current", "s", "current_loop.Ts_s"),
+}
+#: Scenario key of the design's header -> its option (studies.configuration.design_scenario).
+_HEADER_KEYS = {key: option for option, _, key in _HEADER_MOTOR.values()} | {
+    "current_loop.tau_i_s": "--tau-i",
+    "speed_controller.tau_i_s": "--tau-i",
+    "speed_controller.Ts_s": "--Ts",
 }
 
 
-def _header_motor(
-    given: Mapping[str, float | None], current_loop: bool, paper_drive: bool
-) -> tuple[dict[str, Any], dict[str, str]]:
-    """The motor data of the C header and where each value came from.
+def _header_motor(given: Mapping[str, float | None], paper_drive: bool) -> tuple[dict[str, Any], dict[str, str]]:
+    """The motor data and current-loop period of the C header and where each value came from.
 
     Every value is either given, or, with ``paper_drive``, taken from the paper's drive
     (:data:`PAPER_DRIVE_PRESET`); ``Lq_H`` not given is ``Ld_H`` (surface PMSM) when ``Ld_H``
-    is given. ``Rs_ohm`` is needed only for the current controller (``current_loop``).
+    is given.
 
     Raises
     ------
     click.UsageError
         Naming the missing options when a value is neither given nor taken from the paper drive.
     """
-    needed = ["i_max_A", "pole_pairs", "psi_f_Wb", "Ld_H", "Lq_H"]
-    needed += ["Rs_ohm"] if current_loop or given["Rs_ohm"] is not None else []
+    needed = list(_HEADER_MOTOR)
     motor: dict[str, Any] = {}
     sources: dict[str, str] = {}
     if given["Lq_H"] is None and given["Ld_H"] is not None:
@@ -478,7 +497,7 @@ def _header_motor(
     if missing and not paper_drive:
         options = ", ".join(_HEADER_MOTOR[name][0] for name in missing if name != "Lq_H")
         raise click.UsageError(
-            f"--emit-c-header needs the motor data: {options} missing; give them, or "
+            f"--emit-c-header needs the motor data and the current loop: {options} missing; give them, or "
             "--paper-drive for the paper's drive (placeholders, not your motor)"
         )
     if missing:
@@ -1153,7 +1172,8 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     "--out",
     type=click.Path(),
     default=None,
-    help="folder for result.json, log.csv, plot.png and motor.toml (the identified motor, for design --motor)",
+    help="folder for result.json, log.csv, plot.png, motor.toml (the identified motor, for design --motor) and "
+    "p2d_config.h (the scenario's controllers for the identified motor)",
 )
 def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: str | None) -> None:
     """Run the C commissioning routine (commission.h) against a scenario's simulated motor.
@@ -1183,15 +1203,27 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
             plot_commission(result, tmp / "plot.png")
             if result.phase == "done":
                 atomic_write(tmp / "motor.toml", result.motor_toml(chosen.data["motor"]["pole_pairs"]))
+                _commissioned_header(chosen, result, tmp / "p2d_config.h")
     if as_json:
         click.echo(json.dumps(summary, allow_nan=False))
     else:
         click.echo(_commission_table(result))
         if out is not None:
-            written = "result.json, log.csv, plot.png" + (" and motor.toml" if result.phase == "done" else "")
+            written = "result.json, log.csv, plot.png" + (
+                ", motor.toml and p2d_config.h" if result.phase == "done" else ""
+            )
             click.echo(f"wrote {written} to {out}")
     if result.phase != "done":
         raise click.exceptions.Exit(1)
+
+
+def _commissioned_header(scenario: Any, result: "Commissioning", path: Any) -> None:
+    """The scenario's controllers configured with the identified motor (studies.configuration)."""
+    from ..studies.configuration import configuration
+
+    identified = scenario.with_overrides({f"motor.{key}": value for key, value in result.estimates.items()})
+    notes = ("The motor's Rs, Ld, Lq and psi_f are those the commissioning identified.",)
+    configuration(identified, source=f"pmsm2dof commission {scenario.name!r}", notes=notes).write_header(path)
 
 
 def _commission_table(result: "Commissioning") -> str:
@@ -1990,3 +2022,146 @@ def _write_region(path: str, train: "TwoMass", d: "Design", Ts_s: float, filters
     buf = io.BytesIO()
     fig.savefig(buf, format=path.rsplit(".", 1)[-1].lower(), dpi=110)
     atomic_write(path, buf.getvalue())
+
+
+# ---------------------------------------------------------------------------------------------
+# header and firmware (pmsm2dof.studies.configuration, studies.firmware, ui.plots.firmware)
+# ---------------------------------------------------------------------------------------------
+
+
+def _chosen(scenario: str, overrides: Sequence[str]) -> tuple[Any, str]:
+    """The scenario of PRESET_OR_FILE with the --set changes, and the command line that names it."""
+    from ..sim.scenario import load_scenario
+
+    chosen = load_scenario(scenario)
+    changes = dict(parse_override(text) for text in overrides)
+    if changes:
+        chosen = chosen.with_overrides(changes)
+    return chosen, " ".join([scenario, *(f"--set {text}" for text in overrides)])
+
+
+@cli.command()
+@click.argument("scenario", metavar="PRESET_OR_FILE")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="change a scenario key (repeatable)")
+@click.option(
+    "--out", type=click.Path(dir_okay=False), required=True, help="the header to write (the firmware's p2d_config.h)"
+)
+@click.option("--prefix", default="p2d_config", show_default=True, help="C identifier prefix of the header")
+@click.option(
+    "--virtual-drive",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="also write the virtual board's header (p2d_virtual_drive.h: the scenario's plant and schedules)",
+)
+def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, virtual_drive: str | None) -> None:
+    """Write the C configuration of a scenario's controllers: the header the firmware includes.
+
+    Speed controller, torque filters, current controller, speed-sensor estimator, field weakening,
+    inertia estimator and the loop rates, as the engine runs them on the scenario (the same shape
+    as design --emit-c-header, autotune --emit-c-header, commission --out and the tuner write).
+    """
+    from ..outputs import atomic_write
+    from ..studies.configuration import configuration
+    from ..studies.firmware import virtual_drive_header
+
+    chosen, named = _chosen(scenario, overrides)
+    with warnings_as_lines():
+        config = configuration(chosen, source=f"pmsm2dof header {named}")
+        texts = {out: config.c_header(prefix)}
+    if virtual_drive is not None:
+        texts[virtual_drive] = virtual_drive_header(config)
+    for path, text in texts.items():
+        atomic_write(path, text)
+    click.echo(
+        f"{chosen.name}: wrote {' and '.join(texts)} (current loop every {config.engine.cfg.Ts_current_s:g} s, "
+        f"speed loop every {config.current_per_speed} current periods)"
+    )
+
+
+@cli.command(short_help="Build the firmware for a scenario, or run it on QEMU against the engine.")
+@click.argument("args", nargs=-1, metavar="PRESET_OR_FILE | run DIR")
+@click.option(
+    "--set", "overrides", multiple=True, metavar="KEY=VALUE", help="build: change a scenario key (repeatable)"
+)
+@click.option(
+    "--out",
+    type=click.Path(file_okay=False),
+    required=True,
+    help="build: the firmware's folder; run: the folder for trace.csv, metrics.json, plot.png, interrupts.csv",
+)
+@click.option("--samples", type=int, default=None, help="run: speed samples to run [default: the scenario's t_end]")
+def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, samples: int | None) -> None:
+    """Build the FOC firmware of examples/firmware for a scenario, or run it closed loop on QEMU.
+
+    `pmsm2dof firmware PRESET_OR_FILE --out DIR` writes DIR/scenario.toml, DIR/p2d_config.h (the
+    controllers), DIR/p2d_virtual_drive.h (the virtual board: the engine's plant, the scenario's
+    reference and load) and cross-builds DIR/virtual_drive.elf and DIR/firmware.elf (the porting stub)
+    for the Cortex-M4F (CMake, arm-none-eabi-gcc).
+
+    `pmsm2dof firmware run DIR --out RUN` runs DIR/virtual_drive.elf on QEMU (mps2-an386), simulates
+    the scenario with the engine and writes RUN/trace.csv (the firmware's trace in the engine's
+    format), RUN/metrics.json (the figures of merit, the agreement with the engine, the instructions
+    per interrupt), RUN/plot.png (the firmware over the engine) and RUN/interrupts.csv. Exit status 1
+    when the firmware's speed or currents differ from the engine's by more than 1e-4 of their step.
+    """
+    if len(args) == 2 and args[0] == "run":
+        if overrides:
+            raise click.UsageError("--set changes a scenario before the build: pmsm2dof firmware SCENARIO --set ...")
+        _firmware_run(args[1], out, samples)
+        return
+    if len(args) != 1:
+        raise click.UsageError("give a scenario (pmsm2dof firmware SCENARIO --out DIR) or run DIR (--out RUN)")
+    if samples is not None:
+        raise click.UsageError("--samples is an option of `pmsm2dof firmware run DIR`")
+    from ..studies.firmware import build_firmware
+
+    chosen, named = _chosen(args[0], overrides)
+    with warnings_as_lines():
+        build = build_firmware(chosen, out, source=f"pmsm2dof firmware {named}")
+    for name, size in build.sizes.items():
+        click.echo(f"  {name:<18} flash {size['text'] + size['data']:>7} B, RAM {size['data'] + size['bss']:>6} B")
+    click.echo(f"{chosen.name}: wrote scenario.toml, p2d_config.h, p2d_virtual_drive.h, the ELF and map files to {out}")
+
+
+def _firmware_run(folder: str, out: str, samples: int | None) -> None:
+    """``pmsm2dof firmware run DIR --out RUN``."""
+    import json
+
+    from ..outputs import atomic_write, require_writable_dir, staged_dir
+    from ..sim.metrics import compute_metrics
+    from ..studies.firmware import run_firmware
+    from .plots.firmware import plot_firmware
+
+    require_writable_dir(out)
+    run = run_firmware(folder, samples=samples)
+    comparison, cost = run.comparison(), run.cost()
+    metrics = {"firmware": compute_metrics(run.firmware), "comparison": comparison, "interrupts": cost}
+    with staged_dir(out) as tmp:
+        run.firmware.save(tmp / "trace.csv")
+        atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
+        plot_firmware(run, tmp / "plot.png")
+        rows = [{"instructions": int(n), "speed_sample": int(s)} for n, s in zip(run.instructions, run.speed_sample)]
+        atomic_write(tmp / "interrupts.csv", _csv_text(rows))
+    t_end = run.firmware.t_s[-1]
+    click.echo(f"{run.scenario.name}: {t_end:g} s on QEMU in {run.wall_time_s:.3g} s of wall time")
+    for group in ("speed", "currents"):
+        c = comparison[group]
+        click.echo(
+            f"  {group:<8} firmware - engine: {c['max_abs_difference']:.3g} at most, "
+            f"{c['relative_to_step']:.3g} of the step {c['step']:.4g}"
+        )
+    for kind in ("current", "speed"):
+        k = cost[kind]
+        if k["interrupts"]:
+            click.echo(f"  {kind:<8} interrupts: {k['interrupts']}, {k['min']} to {k['max']} instructions")
+    click.echo(
+        f"  CPU load on a {cost['core_clock_Hz'] / 1e6:g} MHz Cortex-M4 at {cost['cycles_per_instruction']:g} cycles "
+        f"per instruction: {100 * cost['mean_load']:.3g} % mean, {100 * cost['peak_share_of_period']:.3g} % of a "
+        "period at most"
+    )
+    click.echo(f"wrote trace.csv, metrics.json, plot.png and interrupts.csv to {out}")
+    if not comparison["agrees"]:
+        click.echo(
+            f"the firmware's trace differs from the engine's by more than {comparison['agreement']:g} of the step"
+        )
+        raise click.exceptions.Exit(1)

@@ -35,13 +35,13 @@ import control
 import numpy as np
 import numpy.typing as npt
 
-from ...analysis.codegen import c_header
 from ...analysis.design import Design, design
 from ...core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ...errors import ConfigError, require_positive
 from ...sim.metrics import at_current_limit, at_voltage_limit
 from ...sim.scenario import Scenario, Tree
 from ...sim.simulate import Result, Simulation
+from ...studies.configuration import configuration
 from ...studies.loopcheck import measure
 from ..plots.trace import saturated_intervals
 from .slots import Ticket
@@ -602,8 +602,7 @@ class Tuner:
             scenario = self.scenario(values)
             # the engine's init runs the C controllers' init, which names the scenario key of any
             # value they reject; nothing is simulated
-            Simulation(self.logged(scenario).data)
-            return "pmsm2dof_speed_config.h", "text/x-c", self._c_header(scenario)
+            return "p2d_config.h", "text/x-c", self._c_header(self.logged(scenario))
         if kind == "trace.csv":
             scenario, result = self._evaluate(values, ticket)
             return f"{_slug(scenario.name)}-trace.csv", "text/csv", result.to_dataframe().to_csv(index=False)
@@ -611,23 +610,8 @@ class Tuner:
 
     @staticmethod
     def _c_header(scenario: Scenario) -> str:
-        """C header of the scenario's speed and current controllers (pmsm2dof.analysis.codegen)."""
-        data = scenario.data
-        motor, sc, cl = data["motor"], data["speed_controller"], data["current_loop"]
-        discrete = design_of(scenario).discretize(sc["Ts_s"], sc["method"])
-        return c_header(
-            discrete,
-            i_max_A=data["limits"]["i_max_A"],
-            pole_pairs=motor["pole_pairs"],
-            psi_f_Wb=motor["psi_f_Wb"],
-            Ld_H=motor["Ld_H"],
-            Lq_H=motor["Lq_H"],
-            Rs_ohm=motor["Rs_ohm"],
-            Ts_current_s=cl["Ts_s"],
-            current_method=cl["method"],
-            current_anti_windup=cl["anti_windup"],
-            decouple=cl["decouple"],
-        )
+        """The C configuration of the scenario's controllers (pmsm2dof.studies.configuration)."""
+        return configuration(scenario, source="pmsm2dof tune (the tuner's download)").c_header()
 
 
 def _metric_rows(figures: Mapping[str, Any]) -> list[dict[str, Any]]:
