@@ -2,6 +2,15 @@
  * Drive simulation engine: see drive.h for the model, the sampled-data loop,
  * the initial state, the log and the stops.
  */
+/*
+ * No product and sum contracted into an FMA (C99 7.12.2), in this file and the inline code it
+ * includes: the loop's FMA copy below computes the bits of the baseline one only so (clang honours
+ * the pragma, GCC the attribute of P2D_SIM_FMA_TARGET; ffibuild.py passes -ffp-contract=off too).
+ */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+
 #include "drive.h"
 
 #include <math.h>
@@ -30,7 +39,11 @@
  * the same bits.
  */
 #if defined(__GNUC__) && defined(__x86_64__)
+#if defined(__clang__)
 #define P2D_SIM_FMA_TARGET __attribute__((target("fma")))
+#else
+#define P2D_SIM_FMA_TARGET __attribute__((target("fma"), optimize("fp-contract=off")))
+#endif
 /* The CPU executes FMA (and AVX) instructions. */
 static bool cpu_has_fma(void)
 {
