@@ -240,7 +240,9 @@ def test_the_result_reproduces_with_set_and_reports_its_search(tuned):
     assert tuned.pareto and all(e.stage == "engine" for e in tuned.pareto)
     assert tuned.chosen.candidate in {e.candidate for e in tuned.evaluations}
     for e in tuned.rejected:
-        assert e.error or e.violations  # each rejected candidate says why
+        assert e.error or e.violations or e.stage == "partial"  # each rejected candidate says why
+        if e.stage == "partial" and not e.violations:  # simulated in part: ranks below the chosen one there
+            assert _Search.rank(e) > _Search.rank(tuned.chosen)
         for v in e.violations:
             limit = getattr(SPEC, v.constraint)
             assert v.limit == limit and v.miss > 0.0
@@ -455,3 +457,71 @@ def test_the_chosen_damping_is_inside_the_search_and_the_recovery_bounded(tuned)
     assert not [n for n in tuned.on_bounds if n.startswith("zeta")]
     result = autotune(servo(), Spec(max_recovery_s=1e-3, J_range=(0.5, 2.0)), workers=2)
     assert not result.feasible and result.binding.constraint == "max_recovery_s"
+
+
+# ---------------------------------------------------------------------------------------------
+# the search's shortcuts: margins without python-control, candidates simulated where they matter
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("tau_i_s", [0.0, 1e-3, 0.05])
+def test_margins_on_plants_equal_python_controls_polynomial_method(tau_i_s):
+    """The margins of the loop gain L(w) at many inertias, found together, are those python-control's
+    stability_margins finds on each L(w) as a transfer function (the same crossings, picked alike)."""
+    from dataclasses import replace
+
+    from pmsm2dof.analysis.discretize import _loop_w, c_coefficients, margins_on_plants
+    from pmsm2dof.analysis.margins import pick_margins
+
+    rng = np.random.default_rng(31)
+    for _ in range(12):
+        J = 10.0 ** rng.uniform(-5, 0)
+        tau = tau_i_s if tau_i_s else 0.0
+        alpha = 10.0 ** rng.uniform(-1, 2.3) / max(tau, 1e-3)
+        d = design(J, alpha, rng.uniform(0.3, 2.0), tau_i_s=tau)
+        Ts = 10.0 ** rng.uniform(-5, -3)
+        ratios = np.geomspace(0.3, 3.0, 5)
+        got = margins_on_plants(d, Ts, "tustin", J * ratios, tau)
+        pi = c_coefficients(d, Ts, "tustin", feedforward="none", anti_windup="none")
+        for r, margins in zip(ratios, got):
+            num, den = _loop_w(replace(d, J_kgm2=J * r), Ts, pi["b_e0"], pi["Ki_Ts"])
+            char = np.polyadd(den, num)
+            stable = bool(np.all(np.real(np.roots(char)) < 0.0))
+            assert (margins is not None) == stable
+            if margins is None:
+                continue
+            gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(control.tf(num, den), returnall=True)
+            w_pc = 2.0 / Ts * np.arctan(0.5 * Ts * np.asarray(w_pcs, dtype=float))
+            w_gc = 2.0 / Ts * np.arctan(0.5 * Ts * np.asarray(w_gcs, dtype=float))
+            extra = [(abs(den[0] / num[0]), math.pi / Ts)] if num[0] / den[0] < 0.0 else []
+            want = pick_margins(gms, pms, w_pc, w_gc, extra)
+            for name in ("gain_margin_dB", "phase_margin_deg", "w_gain_crossover_radps", "w_phase_crossover_radps"):
+                a, b = getattr(margins, name), getattr(want, name)
+                assert (math.isnan(a) and math.isnan(b)) or a == pytest.approx(b, rel=1e-7, abs=1e-9), name
+
+
+def test_the_search_chooses_what_it_chooses_when_every_candidate_is_simulated_everywhere(monkeypatch):
+    """The search simulates a new candidate at the largest inertia ratio first and at the others only where
+    it could still be the best (_Search.best): the same choice, the same worst case, as a search that
+    simulates every candidate at every ratio; each partial evaluation's figures bound the complete ones."""
+    spec = Spec(max_overshoot_pct=5.0, J_range=(0.5, 2.0), feedforwards=("lowpass", "none"))
+    lazy = autotune(servo(), spec, workers=2)
+    evaluate = _Search.evaluate
+
+    def everywhere(self, candidates, J_ratios_sim=None):
+        return evaluate(self, candidates, self.J_ratios_search if J_ratios_sim is None else J_ratios_sim)
+
+    monkeypatch.setattr(_Search, "evaluate", everywhere)
+    full = autotune(servo(), spec, workers=2)
+    assert lazy.speed_controller == full.speed_controller and lazy.feasible == full.feasible
+    assert lazy.chosen.worst == full.chosen.worst
+    assert len(lazy.runs) < 0.75 * len(full.runs)
+    complete = {e.candidate: e for e in full.evaluations}
+    partial = [e for e in lazy.evaluations if e.stage == "partial"]
+    assert partial and all(not e.feasible for e in partial)
+    for e in partial:
+        f = complete[e.candidate]
+        assert _Search.rank(e) <= _Search.rank(f)
+        for name, value in e.worst.items():
+            if FIGURES[name] == "max":
+                assert value <= f.worst[name]

@@ -146,3 +146,55 @@ def test_run_many_checks_shapes_and_log_room_before_running():
     rows[1] += 1
     assert lib.p2d_sim_run_many(sims, 2, runs[0].n_samples, logs, rows) == lib.P2D_SIM_OK
     assert np.array_equal(runs[0].log, runs[1].log) and runs[0].sim.n_rows == rows[0]
+
+
+def baseline_isa_logs(scenarios):
+    """The logs of ``scenarios`` through the engine's baseline copy of its loop (p2d_sim_t.fma false): each
+    alone (p2d_sim_run), then all in lockstep groups (p2d_sim_run_many)."""
+    lone, grouped = [], [Simulation(s.data) for s in scenarios]
+    for scenario, run in zip(scenarios, grouped):
+        single = Simulation(scenario.data)
+        single.sim.fma = run.sim.fma = False
+        status = lib.p2d_sim_run(single.sim, single.n_samples, single._log_ptr, single.log.shape[1])
+        lone.append((status, single.log[:, : single.sim.n_rows].copy()))
+    for start in range(0, len(grouped), lib.P2D_SIM_LANES):
+        group = grouped[start : start + lib.P2D_SIM_LANES]
+        sims = ffi.new("p2d_sim_t *[]", [r.sim for r in group])
+        logs = ffi.new("double *[]", [r._log_ptr for r in group])
+        rows = ffi.new("uint64_t[]", [r.log.shape[1] for r in group])
+        assert lib.p2d_sim_run_many(sims, len(group), group[0].n_samples, logs, rows) == lib.P2D_SIM_OK
+    return lone, [(r.sim.status, r.log[:, : r.sim.n_rows].copy()) for r in grouped]
+
+
+@pytest.mark.parametrize(
+    "common",
+    [
+        {},
+        {"inverter.computation_delay": True},
+        {"current_loop.model": "first_order"},
+        {"motor.T_coulomb_Nm": 0.3, "motor.B_Nms": 0.01, "simulation.dt_s": 5e-5},
+        {"motor.Ld_H": 0.006, "motor.Lq_H": 0.012},
+        {"limits.u_dc_V": 60.0, "inverter.computation_delay": True},
+        TWO_MASS | {"mechanics.backlash_rad": 0.002, "mechanics.feedback": "load"},
+        SENSORS,
+    ],
+    ids=["dq_pi", "delay", "first_order", "friction-substeps", "salient", "voltage-limit", "two-mass", "sensors"],
+)
+def test_baseline_copy_of_the_loop_equals_the_fma_copy_to_the_bit(common):
+    """On an x86-64 CPU with FMA the engine runs a copy of its loop compiled for it (the controllers' fmaf as
+    one instruction, the plant in AVX form); the copy for the baseline ISA, which a CPU without FMA runs (and
+    fmaf through libm), gives the same logs to the bit, alone and in lockstep, stops included."""
+    scenarios = [
+        short(**common | {"motor.J_kgm2": common.get("motor.J_kgm2", 0.4) * (0.5 + 0.3 * i)}).with_overrides(
+            {"speed_controller.alpha_radps": 0.3 + 0.2 * i}
+        )
+        for i in range(5)
+    ]
+    reference = []
+    for scenario in scenarios:
+        run = Simulation(scenario.data)
+        status = lib.p2d_sim_run(run.sim, run.n_samples, run._log_ptr, run.log.shape[1])
+        reference.append((status, run.log[:, : run.sim.n_rows].copy()))
+    for logs in baseline_isa_logs(scenarios):
+        for (status, log), (status_ref, log_ref) in zip(logs, reference):
+            assert status == status_ref and log.tobytes() == log_ref.tobytes()

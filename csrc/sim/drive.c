@@ -2,11 +2,21 @@
  * Drive simulation engine: see drive.h for the model, the sampled-data loop,
  * the initial state, the log and the stops.
  */
+/*
+ * No product and sum contracted into an FMA (C99 7.12.2), in this file and the inline code it
+ * includes: the loop's FMA copy below computes the bits of the baseline one only so (clang honours
+ * the pragma, GCC the attribute of P2D_SIM_FMA_TARGET; ffibuild.py passes -ffp-contract=off too).
+ */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+
 #include "drive.h"
 
 #include <math.h>
 #include <string.h>
 
+#include "../src/current_step.h"
 #include "plant_inline.h"
 
 #define P2D_SIM_OVERSPEED_FACTOR 2.0    /* overspeed bound in no-load speeds [-] */
@@ -19,6 +29,29 @@
 #define P2D_SIM_INLINE __attribute__((always_inline)) inline
 #else
 #define P2D_SIM_INLINE inline
+#endif
+
+/*
+ * A copy of the loop for x86-64 CPUs with FMA (and so AVX), chosen at run time: the controllers'
+ * fmaf is then one instruction instead of a call into libm (which spills every SSE register around
+ * it), and the plant's double arithmetic takes the three-operand AVX forms. fmaf rounds once either
+ * way and -ffp-contract=off keeps every other product and sum apart, so that both copies compute
+ * the same bits.
+ */
+#if defined(__GNUC__) && defined(__x86_64__)
+#if defined(__clang__)
+#define P2D_SIM_FMA_TARGET __attribute__((target("fma")))
+#else
+#define P2D_SIM_FMA_TARGET __attribute__((target("fma"), optimize("fp-contract=off")))
+#endif
+/* The CPU executes FMA (and AVX) instructions. */
+static bool cpu_has_fma(void)
+{
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("fma");
+}
+#else
+static bool cpu_has_fma(void) { return false; }
 #endif
 
 /* Keeps a function out of line where the compiler supports it (rare paths, out of the loop's registers). */
@@ -132,6 +165,12 @@ const char *p2d_sim_log_name(uint32_t column)
     if (column >= (uint32_t)P2D_LOG_COUNT) return "";
     return P2D_LOG_NAMES[column];
 }
+
+/*
+ * A count n as a double: the signed conversion, one instruction on x86-64 where the unsigned one
+ * takes a branch; the same value for every count of a run (n < 2^63).
+ */
+static P2D_SIM_INLINE double count_as_double(uint64_t n) { return (double)(int64_t)n; }
 
 static bool is_positive(double x) { return isfinite(x) && x > 0.0; }
 static bool is_nonnegative(double x) { return isfinite(x) && x >= 0.0; }
@@ -257,7 +296,7 @@ static double segment_slope(const p2d_schedule_cursor_t *c, double t_s)
 }
 
 /* Enter every entry with t_s[i] <= t; a new segment starts from the value reached. */
-static void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
+static P2D_SIM_NOINLINE void cursor_enter(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
 {
     while (c->next < s->n && s->t_s[c->next] <= t_s) {
         double t_entry = s->t_s[c->next];
@@ -268,6 +307,12 @@ static void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, do
         c->t_break_s = -HUGE_VAL;
         c->next++;
     }
+}
+
+/* cursor_enter, with the test that finds no entry to enter (most calls) inline. */
+static P2D_SIM_INLINE void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
+{
+    if (c->next < s->n && s->t_s[c->next] <= t_s) cursor_enter(c, s, t_s);
 }
 
 /* First time after t where the signal jumps or changes slope (HUGE_VAL if none). */
@@ -488,6 +533,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     for (uint32_t i = 0; i < cfg->n_faults; ++i) sim->dc_link_sag |= cfg->faults[i].kind == P2D_FAULT_DC_LINK_SAG;
     sim->w_ref_radps = cfg->w_m0_radps;
     sim->n_limited = 0u;
+    sim->fma = cpu_has_fma();
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     p2d_sensing_init(&sim->sensing, &cfg->sensing.speed_sensor, &cfg->sensing.current_sensor,
@@ -601,16 +647,24 @@ static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, 
     if (!first_order) {
         p2d_current_output_t co;
         p2d_inverter_output_t io;
-        double id_meas_A = m->id_A, iq_meas_A = m->iq_A;
+        float id_meas_A = (float)m->id_A, iq_meas_A = (float)m->iq_A;
         /* the DC link of this period sets the inverter's range and the controller's measurement */
         if (sim->dc_link_sag) {
             double u_dc_V = dc_link_V(sim, t_s);
             if (u_dc_V != m->u_dc_V) p2d_plant_set_dc_link(m, u_dc_V);
         }
-        if (sim->sensing.current_sensor) p2d_sensing_currents(m, &id_meas_A, &iq_meas_A);
-        p2d_current_compute(&sim->current, sim->speed_out.id_ref_A, sim->speed_out.iq_ref_A, (float)id_meas_A,
-                            (float)iq_meas_A, (float)(m->p * m->w_m_radps), (float)m->u_dc_V, &co);
-        if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_s, 0.0, 0.0);
+        if (sim->sensing.current_sensor) {
+            double id_A, iq_A;
+            p2d_sensing_currents(m, &id_A, &iq_A);
+            id_meas_A = (float)id_A;
+            iq_meas_A = (float)iq_A;
+        }
+        /* p2d_current_compute, inlined */
+        if (!p2d_current_voltage(&sim->current, &sim->current.coef[sim->current.active], sim->speed_out.id_ref_A,
+                                 sim->speed_out.iq_ref_A, id_meas_A, iq_meas_A, (float)(m->p * m->w_m_radps),
+                                 (float)m->u_dc_V, &co)) {
+            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_s, 0.0, 0.0);
+        }
         sim->sensing.ud_unsat_V = co.ud_unsat_V;
         sim->sensing.uq_unsat_V = co.uq_unsat_V;
         p2d_plant_inverter(m, (double)co.ud_ref_V, (double)co.uq_ref_V, &io);
@@ -621,8 +675,12 @@ static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, 
         } else {
             sim->n_limited += co.saturated || io.limited;
         }
-        /* the integrators learn the command the inverter accepted */
-        p2d_current_update(&sim->current, &co, (float)io.ud_V, (float)io.uq_V);
+        /*
+         * the integrators learn the command the inverter accepted: p2d_current_update, inlined, of an
+         * output that is no fault with a command that is finite (the controller's, at most scaled down)
+         */
+        p2d_current_integrate(&sim->current, &sim->current.coef[sim->current.active], &co, (float)io.ud_V,
+                              (float)io.uq_V);
     } else {
         sim->n_limited += p2d_plant_command_currents(m, sim->id_ref_A, sim->iq_ref_A);
     }
@@ -644,7 +702,9 @@ static P2D_SIM_INLINE void substep(const p2d_sim_t *sim, double t_start_s, uint3
                                    double *dT_dt_Nmps)
 {
     double dt_s = sim->plant.dt_s;
-    double t = t_start_s + (double)s * dt_s, t_end = t_start_s + (double)(s + 1u) * dt_s;
+    /* t_start + s dt and t_start + (s + 1) dt; for s = 0 the same values without the products (0 dt = +0, 1 dt = dt) */
+    double t = s == 0u ? t_start_s : t_start_s + (double)s * dt_s;
+    double t_end = t_start_s + (s == 0u ? dt_s : (double)(s + 1u) * dt_s);
     *h_s = t_end - t;
     *T0_Nm = segment_value(&sim->load, t);
     *dT_dt_Nmps = segment_slope(&sim->load, t + 0.5 * *h_s);
@@ -654,10 +714,11 @@ static P2D_SIM_INLINE void substep(const p2d_sim_t *sim, double t_start_s, uint3
  * No load breakpoint falls inside the current period starting at t_start, as far as the cursor
  * knows (its next breakpoint, -HUGE_VAL when unknown): every substep is then one RK4 step with
  * the load of `substep`, and the cursor needs no advance, as in plant_advance_split.
+ * substeps_dt_s = (double)substeps dt, the period's end t_start + substeps dt.
  */
-static P2D_SIM_INLINE bool load_smooth(const p2d_sim_t *sim, double t_start_s)
+static P2D_SIM_INLINE bool load_smooth(const p2d_sim_t *sim, double t_start_s, double substeps_dt_s)
 {
-    double t_end = t_start_s + (double)sim->cfg.substeps * sim->plant.dt_s;
+    double t_end = t_start_s + substeps_dt_s;
     return sim->load.t_break_s >= t_end - sim->t_tol_s;
 }
 
@@ -693,7 +754,7 @@ static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim)
         sensed_side(sim, &theta_s_rad, &w_s_radps);
         p2d_sensing_record(&sim->sensing, sim->n_current, theta_s_rad, w_s_radps);
     }
-    return check_state(sim, (double)sim->n_current * sim->cfg.Ts_current_s);
+    return check_state(sim, count_as_double(sim->n_current) * sim->cfg.Ts_current_s);
 }
 
 /* The end of speed sample k: the share of its current periods at the voltage limit. */
@@ -843,7 +904,7 @@ static P2D_SIM_INLINE void lanes_step_kind(p2d_sim_lanes_t *L, double h, bool fi
 }
 
 /* One RK4 step of every lane, the copy of the kind (step_kind) as step_one's. */
-static P2D_SIM_NOINLINE void lanes_step(p2d_sim_lanes_t *L, uint32_t kind, double h)
+static P2D_SIM_INLINE void lanes_step_any(p2d_sim_lanes_t *L, uint32_t kind, double h)
 {
     switch (kind) {
     case P2D_KIND_LEAN: lanes_step_kind(L, h, false, false, false, true); break;
@@ -858,6 +919,17 @@ static P2D_SIM_NOINLINE void lanes_step(p2d_sim_lanes_t *L, uint32_t kind, doubl
     default: lanes_step_kind(L, h, true, true, true, false); break;
     }
 }
+
+/* lanes_step_any out of the loop's registers, for the baseline ISA (and P2D_SIM_FMA_TARGET below). */
+static P2D_SIM_NOINLINE void lanes_step(p2d_sim_lanes_t *L, uint32_t kind, double h) { lanes_step_any(L, kind, h); }
+#ifdef P2D_SIM_FMA_TARGET
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void lanes_step_fma(p2d_sim_lanes_t *L, uint32_t kind, double h)
+{
+    lanes_step_any(L, kind, h);
+}
+#else
+#define lanes_step_fma lanes_step
+#endif
 
 /* The state and input of lane l from the plant m. */
 static P2D_SIM_INLINE void lanes_load(p2d_sim_lanes_t *L, uint32_t l, const p2d_plant_t *m)
@@ -896,10 +968,12 @@ static void lanes_idle(p2d_sim_lanes_t *L, uint32_t l)
  * of no drive idle). A drive that stops leaves the group.
  */
 static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
-                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows)
+                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma)
 {
     const p2d_sim_config_t *cfg = &sims[0]->cfg;
     const uint32_t kind = step_kind(sims[0]), substeps = cfg->substeps;
+    /* every drive of a group has the same step dt = Ts_current / substeps */
+    const double substeps_dt_s = (double)substeps * sims[0]->plant.dt_s;
     const bool first_order = cfg->current_model == P2D_CURRENT_FIRST_ORDER;
     /* every drive is at the same sample: the time and the log decision are the group's */
     uint64_t n_current = sims[0]->n_current, n_speed = sims[0]->n_speed;
@@ -914,7 +988,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
         }
     }
     for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed) {
-        const double t_k = (double)n_current * cfg->Ts_current_s;
+        const double t_k = count_as_double(n_current) * cfg->Ts_current_s;
         const bool log_row = n_speed % cfg->log_every == 0u;
         for (uint32_t l = 0; l < n; ++l) {
             if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {
@@ -924,7 +998,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
             }
         }
         for (uint32_t j = 0; j < cfg->current_per_speed && n_active > 0u; ++j, ++n_current) {
-            const double t = (double)n_current * cfg->Ts_current_s;
+            const double t = count_as_double(n_current) * cfg->Ts_current_s;
             double h = 0.0;
             bool smooth = true;
             /* the controllers and the inverters; the plants' states and inputs into the lanes */
@@ -936,7 +1010,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
                     if (lanes > 1u) lanes_idle(L, l);
                     continue;
                 }
-                smooth = smooth && load_smooth(sims[l], t);
+                smooth = smooth && load_smooth(sims[l], t, substeps_dt_s);
                 if (lanes > 1u) {
                     lanes_load(L, l, &sims[l]->plant);
                     substep(sims[l], t, 0u, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
@@ -958,7 +1032,11 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
                     for (uint32_t l = 0; l < n && s > 0u; ++l) {
                         if (active[l]) substep(sims[l], t, s, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
                     }
-                    lanes_step(L, kind, h);
+                    if (fma) {
+                        lanes_step_fma(L, kind, h);
+                    } else {
+                        lanes_step(L, kind, h);
+                    }
                 }
             }
             for (uint32_t l = 0; l < n; ++l) {
@@ -977,6 +1055,37 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
     }
 }
 
+/* run_group of one drive, and of the groups of P2D_SIM_LANES drives of p2d_sim_run_many. */
+static P2D_SIM_NOINLINE void run_lone(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false);
+}
+
+static P2D_SIM_NOINLINE void run_lanes(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L, uint64_t n_samples,
+                                       double *const *logs, const uint64_t *log_rows)
+{
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, false);
+}
+
+#ifdef P2D_SIM_FMA_TARGET
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lone_fma(p2d_sim_t *sim, uint64_t n_samples, double *log,
+                                                             uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true);
+}
+
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lanes_fma(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L,
+                                                              uint64_t n_samples, double *const *logs,
+                                                              const uint64_t *log_rows)
+{
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, true);
+}
+
+#else
+#define run_lone_fma run_lone
+#define run_lanes_fma run_lanes
+#endif
+
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
 {
     if (sim == 0) return P2D_SIM_ERR_NULL;
@@ -984,7 +1093,11 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
     if (rows_needed(sim, n_samples) > 0u && (log == 0 || sim->n_rows + rows_needed(sim, n_samples) > log_rows)) {
         return P2D_SIM_ERR_LOG_FULL;
     }
-    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows);
+    if (sim->fma) {
+        run_lone_fma(sim, n_samples, log, log_rows);
+    } else {
+        run_lone(sim, n_samples, log, log_rows);
+    }
     return sim->status;
 }
 
@@ -1000,10 +1113,12 @@ p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint6
                                   const uint64_t *log_rows)
 {
     p2d_sim_lanes_t L;
+    bool fma = true;
     if (n_sims == 0u) return P2D_SIM_OK;
     if (sims == 0 || logs == 0 || log_rows == 0) return P2D_SIM_ERR_NULL;
     for (uint32_t i = 0; i < n_sims; ++i) {
         if (sims[i] == 0) return P2D_SIM_ERR_NULL;
+        fma = fma && sims[i]->fma;
         if (!p2d_sim_lockstep(sims[0], sims[i])) return P2D_SIM_ERR_LOCKSTEP;
         if (rows_needed(sims[i], n_samples) > 0u &&
             (logs[i] == 0 || sims[i]->n_rows + rows_needed(sims[i], n_samples) > log_rows[i])) {
@@ -1013,7 +1128,11 @@ p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint6
     memset(&L, 0, sizeof L);
     for (uint32_t i = 0; i < n_sims; i += P2D_SIM_LANES) {
         uint32_t n = n_sims - i < P2D_SIM_LANES ? n_sims - i : P2D_SIM_LANES;
-        run_group(sims + i, n, P2D_SIM_LANES, &L, n_samples, logs + i, log_rows + i);
+        if (fma) {
+            run_lanes_fma(sims + i, n, &L, n_samples, logs + i, log_rows + i);
+        } else {
+            run_lanes(sims + i, n, &L, n_samples, logs + i, log_rows + i);
+        }
     }
     return P2D_SIM_OK;
 }

@@ -290,6 +290,8 @@ typedef struct {
     p2d_speed_output_t speed_out;    /* the speed controller's output of the present speed sample */
     double w_ref_radps;              /* the reference it sampled [rad/s] */
     uint32_t n_limited;              /* current periods of the present speed sample at the voltage limit [-] */
+    bool fma;                        /* run the loop's copy for x86-64 CPUs with FMA (p2d_sim_init: whether the CPU
+                                        has it; false: the baseline copy, which computes the same bits) */
 } p2d_sim_t;
 
 /* Validate cfg, initialize the controllers and set the initial state. */

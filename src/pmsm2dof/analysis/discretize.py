@@ -54,7 +54,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
@@ -66,7 +66,7 @@ from ..core.bindings import AntiWindup, Feedforward, Method
 from ..core.gains import default_Ka_error
 from ..errors import ConfigError, Pmsm2dofWarning, require_choice, require_positive
 from ..lazy import lazy_module
-from .margins import Margins, frequency_margins, pick_margins
+from .margins import Margins, frequency_margins, pick_margins, polynomial_crossings
 from .sensor import sampled_plant_blocks
 from .stepresponse import StepResponse
 
@@ -312,10 +312,12 @@ def _loop_w(design: Design, Ts_s: float, b_e0: float, Ki_Ts: float) -> tuple[_Po
     """Numerator and denominator of the loop gain ``L(w) = F(w) G(w)``.
 
     The realized PI is exactly ``F(w) = Kp' + Ki / w``, ``Kp' = b_e0 - Ki Ts / 2``:
-    ``Ki Ts / (z - 1) = Ki Ts (1 - w Ts/2) / (w Ts) = Ki / w - Ki Ts / 2``.
+    ``Ki Ts / (z - 1) = Ki Ts (1 - w Ts/2) / (w Ts) = Ki / w - Ki Ts / 2``. (Products by
+    convolution: every factor's leading coefficient is nonzero, so that numpy.polymul would
+    trim nothing.)
     """
     G_num, G_den = plant_w(design.J_kgm2, design.tau_i_s, Ts_s)
-    return np.polymul([b_e0 - 0.5 * Ki_Ts, Ki_Ts / Ts_s], G_num), np.polymul([1.0, 0.0], G_den)
+    return np.convolve([b_e0 - 0.5 * Ki_Ts, Ki_Ts / Ts_s], G_num), np.convolve([1.0, 0.0], G_den)
 
 
 def _hurwitz(char: _Poly) -> bool:
@@ -368,21 +370,28 @@ def _unstable_loop_error(design: Design, Ts_s: float, method: Method, z_max: flo
 
 
 def _margins(design: Design, Ts_s: float, b_e0: float, Ki_Ts: float) -> Margins:
-    """Margins of ``F(z) G(z)``, found by python-control on ``L(w)`` (same gain and phase).
+    """Margins of ``F(z) G(z)``, found on ``L(w)`` as for a continuous loop (same gain and phase) by the
+    polynomial method of python-control (:func:`~pmsm2dof.analysis.margins.polynomial_crossings`).
 
     A frequency ``w_w`` of the w plane is ``w_z = (2/Ts) atan(w_w Ts / 2)``; the Nyquist
     frequency ``pi/Ts``, ``z = -1``, is ``w = infinity``, where ``L`` is the ratio of the
     leading coefficients (numerator and denominator have the same degree).
     """
-    num, den = _loop_w(design, Ts_s, b_e0, Ki_Ts)
-    gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(control.tf(num, den), returnall=True)
+    return _loop_margins(*_loop_w(design, Ts_s, b_e0, Ki_Ts), Ts_s)[0]
+
+
+def _loop_margins(num: _Poly, den: _Poly, Ts_s: float, scales: Sequence[float] = (1.0,)) -> list[Margins]:
+    """:func:`_margins` of the loop gains ``L(w) = num(w) / (c den(w))`` (:func:`_loop_w`), one per scale ``c``."""
 
     def to_z(w: npt.ArrayLike) -> _Vector:
         return 2.0 / Ts_s * np.arctan(0.5 * Ts_s * np.asarray(w, dtype=float))
 
-    L_nyquist = num[0] / den[0]
-    extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []
-    return pick_margins(gms, pms, to_z(w_pcs), to_z(w_gcs), extra)
+    out = []
+    for c, (gms, pms, w_pcs, w_gcs) in zip(scales, polynomial_crossings(num, den, scales)):
+        L_nyquist = num[0] / (c * den[0])
+        extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []
+        out.append(pick_margins(gms, pms, to_z(w_pcs), to_z(w_gcs), extra))
+    return out
 
 
 def margins_on_plant(
@@ -411,12 +420,25 @@ def margins_on_plant(
         The margins of ``F(z) G(z)``; None when the discrete feedback loop is unstable
         (Routh-Hurwitz in the w plane), where margins have no meaning.
     """
+    return margins_on_plants(design, Ts_s, method, [J_plant_kgm2], tau_i_plant_s)[0]
+
+
+def margins_on_plants(
+    design: Design, Ts_s: float, method: Method, J_plants_kgm2: Sequence[float], tau_i_plant_s: float
+) -> list[Margins | None]:
+    """:func:`margins_on_plant` at each inertia of ``J_plants_kgm2``, computed together.
+
+    The loop gain is inversely proportional to the plant's inertia: its -180 deg crossings are
+    found once (:func:`~pmsm2dof.analysis.margins.polynomial_crossings`), and only the unit-gain
+    crossings once per inertia.
+    """
     pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
-    plant = replace(design, J_kgm2=float(J_plant_kgm2), tau_i_s=float(tau_i_plant_s))
-    L_num, L_den = _loop_w(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
-    if not _hurwitz(np.polyadd(L_den, L_num)):
-        return None
-    return _margins(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
+    unit = replace(design, J_kgm2=1.0, tau_i_s=float(tau_i_plant_s))
+    L_num, L_den = _loop_w(unit, Ts_s, pi["b_e0"], pi["Ki_Ts"])
+    J = [float(J_plant) for J_plant in J_plants_kgm2]
+    stable = [_hurwitz(np.polyadd(J_plant * L_den, L_num)) for J_plant in J]
+    margins = _loop_margins(L_num, L_den, Ts_s, [J_plant for J_plant, ok in zip(J, stable) if ok])
+    return [margins.pop(0) if ok else None for ok in stable]
 
 
 def sampled_loop_poles(

@@ -11,12 +11,16 @@ with a slow recovery (for a response that does not overshoot, the IAE is ``dT / 
 ``Ki = J (alpha / (2 zeta))^2`` of eq 9). ``max_recovery_s`` bounds the recovery itself.
 
 1. linear constraints first: the gain and phase margins of the C controller's discrete loop on
-   the true plant at each inertia ratio (:func:`pmsm2dof.analysis.discretize.margins_on_plant`,
+   the true plant at each inertia ratio (:func:`pmsm2dof.analysis.discretize.margins_on_plants`,
    eq 2, 3, 9, 14); a candidate that is unstable or misses a margin anywhere is not simulated;
 2. then the saturated ones: the candidates left are simulated (the scenario's speed and load
    steps, with the current limit where the scenario drives the drive to it) at the ends and the
    geometric middle of the range, in batches on threads or the workers of a Dask cluster
-   (:func:`pmsm2dof.studies.engine.run_many`);
+   (:func:`pmsm2dof.studies.engine.run_many`): first at the largest inertia, where the worst
+   cases mostly lie, and at the two others only while the candidate could still be the best
+   one; its figures at the ratios simulated bound those over all three (a worst case only
+   grows), so that the search takes the steps it would take with every candidate simulated
+   everywhere, and chooses the same design (``"partial"`` evaluations: the others);
 3. for each zeta, the margins give the edge: the largest ``alpha`` whose loop meets them at
    every inertia ratio (bisection; at most the stability bound ``alpha < 4 zeta^2 / tau_i`` of
    eq 8 and the sampling bound of :data:`~pmsm2dof.analysis.discretize.MAX_W_TS`); the search
@@ -54,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from ..analysis.design import design as make_design
-from ..analysis.discretize import MAX_W_TS, c_coefficients, margins_on_plant
+from ..analysis.discretize import MAX_W_TS, c_coefficients, margins_on_plants
 from ..analysis.margins import Margins
 from ..core import ANTI_WINDUPS, FEEDFORWARDS
 from ..core.bindings import AntiWindup, Feedforward
@@ -91,6 +95,10 @@ M_RANGE = (0.25, 4.0)
 #: Most rounds of the pattern search around the best point, and its smallest step (a factor).
 REFINE_ROUNDS = 12
 REFINE_STEP_MIN = 1.01
+#: Most "partial" candidates :meth:`_Search.best` simulates at the other inertia ratios at a time, those of
+#: best bound first: enough for the engine's threads, few enough that the best of them raises the bar
+#: for the rest.
+COMPLETE_BATCH = 4
 #: Largest number of best designs simulated again over the inertia range.
 CHECK_MAX = 20
 #: Widest inertia range, hi / lo.
@@ -312,7 +320,11 @@ class Evaluation:
     ----------
     candidate : Candidate
     stage : str
-        ``"margins"``: rejected by the analytic margins, never simulated; ``"engine"``: simulated.
+        ``"margins"``: rejected by the analytic margins, never simulated; ``"engine"``: simulated at
+        every inertia ratio of the search (or rejected for good: a simulation stopped, or the
+        current command chattered); ``"partial"``: simulated at some of them only, where it
+        already misses a constraint or ranks below the chosen design (:meth:`_Search.best`), so
+        that the others were not needed.
     worst : dict
         Worst case of each figure of :data:`FIGURES` known at this stage, over the inertia ratios
         checked (the margins at all :data:`N_J_CHECK`, the simulated ones at those simulated).
@@ -337,8 +349,13 @@ class Evaluation:
 
     @property
     def feasible(self) -> bool:
-        """Simulated and meeting every constraint."""
+        """Simulated over the search's inertia ratios and meeting every constraint."""
         return self.stage == "engine" and not self.error and not self.violations
+
+    @property
+    def may_be_feasible(self) -> bool:
+        """Feasible, or simulated at some ratios only and meeting every constraint there."""
+        return self.stage in ("engine", "partial") and not self.error and not self.violations
 
     def total_miss(self) -> tuple[float, float]:
         """How far it misses the specification: (the number of infinite misses, the sum of the finite
@@ -427,7 +444,8 @@ class AutotuneResult:
 
     @property
     def rejected(self) -> tuple[Evaluation, ...]:
-        """The candidates that miss a constraint or could not be evaluated."""
+        """The candidates that miss a constraint, could not be evaluated, or rank below the chosen design at
+        the inertia ratios they were simulated at (``"partial"``)."""
         return tuple(e for e in self.evaluations if not e.feasible)
 
     def tuned_scenario(self) -> Scenario:
@@ -465,6 +483,10 @@ class AutotuneResult:
             keys: dict[str, Any] = e.candidate.speed_controller() | {"stage": e.stage}
             if e.error:
                 rows.append(keys | blank | {"error": e.error})
+            elif not e.violations:
+                ratios = ", ".join(f"{r:.4g}" for r in e.J_ratios_simulated)
+                below = f"its {OBJECTIVE} at J ratio {ratios} already ranks it below the chosen design"
+                rows.append(keys | blank | {"error": below})
             rows += [keys | dataclasses.asdict(v) | {"error": ""} for v in e.violations]
         return rows
 
@@ -488,6 +510,7 @@ class AutotuneResult:
                 "candidates": len(self.evaluations),
                 "rejected_by_margins": sum(e.stage == "margins" for e in self.evaluations),
                 "simulated": len(simulated),
+                "simulated_in_part": sum(e.stage == "partial" for e in self.evaluations),
                 "feasible": sum(e.feasible for e in self.evaluations),
                 "runs": len(self.runs),
             },
@@ -625,7 +648,7 @@ class _Search:
         self.J_ratios_checked = J_ratios(spec.J_range, N_J_CHECK)
         self.J_ratios_search = J_ratios(spec.J_range, 3)
         self.bases = {"scenario": data}
-        self.margins: dict[tuple[float, float, float], Margins | None] = {}
+        self.margins: dict[tuple[float, float], dict[float, Margins | None]] = {}
         self.edges: dict[tuple[float, float], float | None] = {}
         self.known: dict[Candidate, tuple[int, Evaluation]] = {}
         self.refused: dict[Candidate, str] = {}
@@ -728,14 +751,15 @@ class _Search:
     # -- evaluation --------------------------------------------------------------------------
 
     def margins_of(self, alpha_radps: float, zeta: float, J_ratio: float) -> Margins | None:
-        """The margins of the PI (alpha, zeta) on the plant of inertia ratio ``J_ratio``; None: unstable."""
-        key = (alpha_radps, zeta, J_ratio)
+        """The margins of the PI (alpha, zeta) on the plant of inertia ratio ``J_ratio`` (one of
+        :attr:`J_ratios_checked`, all computed together); None: unstable."""
+        key = (alpha_radps, zeta)
         if key not in self.margins:
             d = make_design(self.J_design_kgm2, alpha_radps, zeta, tau_i_s=self.tau_i_design_s)
-            self.margins[key] = margins_on_plant(
-                d, self.Ts_s, self.method, J_ratio * self.J_design_kgm2, self.tau_i_plant_s
-            )
-        return self.margins[key]
+            J_plants = [r * self.J_design_kgm2 for r in self.J_ratios_checked]
+            margins = margins_on_plants(d, self.Ts_s, self.method, J_plants, self.tau_i_plant_s)
+            self.margins[key] = dict(zip(self.J_ratios_checked, margins))
+        return self.margins[key][J_ratio]
 
     def refusal(self, c: Candidate) -> str:
         """Why the C controller refuses ``c`` at the scenario's sampling period; empty when it does not."""
@@ -836,8 +860,10 @@ class _Search:
             self.runs.append(record)
 
     def evaluate(self, candidates: Iterable[Candidate], J_ratios_sim: Sequence[float] | None = None) -> None:
-        """Check the margins of ``candidates``, then simulate those that pass at ``J_ratios_sim``."""
-        ratios = self.J_ratios_search if J_ratios_sim is None else J_ratios_sim
+        """Check the margins of ``candidates``, then simulate those that pass at ``J_ratios_sim``; by default at
+        the largest inertia ratio of the search, where the worst cases mostly lie (:meth:`best` simulates the
+        others where they matter)."""
+        ratios = self.J_ratios_search[-1:] if J_ratios_sim is None else J_ratios_sim
         candidates = list(candidates)
         self.order.update(dict.fromkeys(candidates))
         self.simulate([(c, r) for c in candidates if self.passes_margins(c) for r in ratios])
@@ -855,6 +881,7 @@ class _Search:
         simulated = sorted(self.simulated_at.get(c, []))
         if error or not simulated:
             return Evaluation(c, "margins", worst, at, (), self.violations(worst, at) if not error else (), error)
+        stage = "engine" if set(self.J_ratios_search) <= set(simulated) else "partial"
         for r in simulated:
             record = self.figures[(c, r)]
             if record.error:
@@ -870,23 +897,41 @@ class _Search:
                 "a limit cycle"
             )
             return Evaluation(c, "engine", worst, at, tuple(simulated), (), chatters)
-        return Evaluation(c, "engine", worst, at, tuple(simulated), self.violations(worst, at), "")
+        return Evaluation(c, stage, worst, at, tuple(simulated), self.violations(worst, at), "")
 
     def evaluations(self) -> list[Evaluation]:
         return [self.evaluation(c) for c in self.order]
 
     @staticmethod
     def rank(e: Evaluation) -> tuple[float, float, float]:
-        """Feasible first, by the worst case of :data:`OBJECTIVE`; then by :meth:`Evaluation.total_miss`."""
-        if e.feasible:
+        """Feasible first, by the worst case of :data:`OBJECTIVE`; then by :meth:`Evaluation.total_miss`.
+
+        For a ``"partial"`` evaluation, a bound: its rank over the ratios simulated, which more ratios
+        can only raise (a worst case only grows; a finite miss that becomes infinite moves the rank up).
+        """
+        if e.may_be_feasible:
             return (0.0, 0.0, e.worst[OBJECTIVE])
         return (1.0, *e.total_miss())
 
     def best(self) -> Evaluation:
-        """The best simulated candidate (:meth:`rank`); the best of all when none was simulated."""
-        pool = self.evaluations()
-        simulated = [e for e in pool if e.stage == "engine"]
-        return min(simulated or pool, key=self.rank)
+        """The best simulated candidate (:meth:`rank`); the best of all when none was simulated.
+
+        The same as if every candidate had been simulated at every inertia ratio of the search: a
+        ``"partial"`` candidate whose bound ranks it before the best complete one is simulated at
+        the other ratios (:data:`COMPLETE_BATCH` at a time, best bound first), until the best is complete.
+        """
+        while True:
+            pool = self.evaluations()
+            simulated = [e for e in pool if e.stage in ("engine", "partial")]
+            best = min(simulated or pool, key=self.rank)
+            if best.stage != "partial":
+                return best
+            complete = [self.rank(e) for e in simulated if e.stage == "engine"]
+            bar = min(complete) if complete else None
+            todo = sorted(
+                (e for e in simulated if e.stage == "partial" and (bar is None or self.rank(e) < bar)), key=self.rank
+            )
+            self.simulate([(e.candidate, r) for e in todo[:COMPLETE_BATCH] for r in self.J_ratios_search])
 
 
 def bounds_reached(search: "_Search", c: Candidate) -> tuple[str, ...]:
