@@ -64,7 +64,7 @@ from ..core import METHODS, SpeedController
 from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, require_choice, require_positive
 from .margins import Margins, frequency_margins, pick_margins
-from .sensor import sampled_plant_blocks
+from .sensor import delay_periods, sampled_plant_blocks
 from .stepresponse import StepResponse
 
 if TYPE_CHECKING:
@@ -609,13 +609,17 @@ def _loop_with_sensor(
             "and Design.max_alpha_for_phase_margin)",
         )
     reading = control.interconnect(plant, inplist=["u"], outlist=["y"], ignore_outputs=["w"], dt=Ts_s)
-    A, B, C, D = reading.A, reading.B, reading.C, reading.D
+    # the plant to y_0 (a few states), then the filters and z^-n of the whole periods of delay
+    y_0 = plant[0][1, 0]
+    A, B, C, D = y_0.A, y_0.B, y_0.C, y_0.D
+    n_delay, _lam = delay_periods(d.sensor.delay_s, Ts_s)
     b_e0, Ki_Ts = c["b_e0"], c["Ki_Ts"]
 
     def L_of_w(w: npt.NDArray[np.float64]) -> npt.NDArray[np.complex128]:
         z = np.exp(1j * np.asarray(w, dtype=float) * Ts_s)
         M = z[:, None, None] * np.eye(len(A)) - A
         P = (C @ np.linalg.solve(M, np.broadcast_to(B, (len(z),) + B.shape)))[:, 0, 0] + D[0, 0]
+        P = P * d.sensor.filter_frequency_response(Ts_s, w) * z**-n_delay
         return np.asarray((b_e0 + (Ki_Ts - b_e0) / z) / (1.0 - 1.0 / z) * P, dtype=np.complex128)
 
     L_nyquist = L_of_w(np.array([math.pi / Ts_s]))[0].real

@@ -220,9 +220,7 @@ def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: Sens
         E, G = _zoh(A, B, t_s)
         return E[:n, :n], G[:n], E[n:, :n], G[n:]
 
-    periods = chain.delay_s / Ts_s
-    n_delay = math.floor(periods + 1e-9)
-    lam = periods - n_delay if periods - n_delay > 1e-9 else 0.0
+    n_delay, lam = delay_periods(chain.delay_s, Ts_s)
     Phi, Gamma, M_T, N_T = over(Ts_s)
     C_w = np.zeros((1, n))
     C_w[0, n - 1] = 1.0
@@ -261,6 +259,13 @@ def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: Sens
     if n_delay:
         reading = control.tf([1.0], [1.0] + [0.0] * n_delay, Ts_s) * reading
     return [plant, control.ss(reading, inputs="y_0", outputs="y")]
+
+
+def delay_periods(delay_s: float, Ts_s: float) -> tuple[int, float]:
+    """The delay as ``(n, lam)``: ``delay_s = (n + lam) Ts_s``, ``n`` whole periods and ``0 <= lam < 1``."""
+    periods = delay_s / Ts_s
+    n_delay = math.floor(periods + 1e-9)
+    return n_delay, periods - n_delay if periods - n_delay > 1e-9 else 0.0
 
 
 def _zoh(A: _Matrix, B: _Matrix, t_s: float) -> tuple[_Matrix, _Matrix]:

@@ -8,12 +8,12 @@ import contextlib
 import math
 import sys
 import tomllib
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 import click
 
-from ..errors import ConfigError, Pmsm2dofError
+from ..errors import ConfigError, Pmsm2dofError, Terminated, signals_raise_terminated
 
 if TYPE_CHECKING:
     from ..analysis.current_loop import CurrentLoopDesign, MotorEstimate
@@ -77,22 +77,58 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script: run the CLI, map user errors to exit status 2.
 
     A command ends with another status by raising ``click.exceptions.Exit`` (``autotune``: 1
-    when no design meets the specification).
+    when no design meets the specification). SIGINT ends it with 130, SIGTERM with 143 and
+    SIGHUP with 129 (128 + the signal), after the same cleanup: no staging folder is left.
     """
     try:
-        status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
+        with signals_raise_terminated():
+            status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return int(exc.exit_code)
     except click.exceptions.Abort:
         print("pmsm2dof: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print("pmsm2dof: terminated", file=sys.stderr)
+        return 128 + exc.signum
     except click.ClickException as exc:
         print(f"pmsm2dof: error: {_one_line(exc.format_message())}", file=sys.stderr)
+        return 2
+    except ConfigError as exc:
+        print(f"pmsm2dof: error: {_one_line(_as_cli_error(exc))}", file=sys.stderr)
         return 2
     except (Pmsm2dofError, ValueError, OSError) as exc:
         print(f"pmsm2dof: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     return status if isinstance(status, int) else 0
+
+
+def _as_cli_error(exc: ConfigError) -> ConfigError:
+    """``exc`` of an output folder in the words of the command line (``--out``, ``--force``)."""
+    if exc.param not in ("out", "--out"):
+        return exc
+    return ConfigError("--out", exc.value, exc.valid.replace("force=True", "--force"))
+
+
+def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The ``--out`` folder of a command (``what`` it receives) and ``--force``.
+
+    The folder must be new, empty or hold only the outputs of an earlier run of the same command,
+    which are replaced as a whole (:func:`pmsm2dof.outputs.staged_dir`); ``--force`` writes into
+    a folder holding other files too, and keeps them.
+    """
+    kwargs.setdefault("type", click.Path())
+    help_text = (
+        f"{what}; an existing folder must hold only the outputs of an earlier run of this command, which are replaced"
+    )
+
+    def decorate(f: Callable[..., Any]) -> Callable[..., Any]:
+        f = click.option("--force", is_flag=True, help="write into --out even if it holds other files (they are kept)")(
+            f
+        )
+        return click.option("--out", help=help_text, **kwargs)(f)
+
+    return decorate
 
 
 # ---------------------------------------------------------------------------------------------
@@ -596,12 +632,10 @@ def bode(
 
 
 @cli.command(short_help="Reproduce the paper: figures 7-14, sensitivity studies and the claims table.")
-@click.option(
-    "--out",
-    type=click.Path(),
+@out_option(
+    "folder for report.md, report.html, claims.json, the figures and their data",
     default="pmsm2dof-report",
     show_default=True,
-    help="folder for report.md, report.html, claims.json, the figures and their data",
 )
 @click.option(
     "--set",
@@ -610,7 +644,7 @@ def bode(
     metavar="KEY=VALUE",
     help="change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)",
 )
-def reproduce(out: str, overrides: tuple[str, ...]) -> None:
+def reproduce(out: str, force: bool, overrides: tuple[str, ...]) -> None:
     """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
 
     Runs the paper's conditions on the presets (the float32 C controller in the compiled
@@ -625,7 +659,7 @@ def reproduce(out: str, overrides: tuple[str, ...]) -> None:
 
     start = time.perf_counter()
     changes = dict(parse_override(text) for text in overrides)
-    report = run_reproduction(out, overrides=changes, progress=True)
+    report = run_reproduction(out, overrides=changes, progress=True, force=force)
     for claim in report.claims:
         click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
     counts = ", ".join(f"{sum(c.verdict == v for c in report.claims)} {v}" for v in VERDICTS)
@@ -652,10 +686,8 @@ def reproduce(out: str, overrides: tuple[str, ...]) -> None:
     help="change a scenario key, e.g. --set speed_controller.anti_windup=none or "
     "--set reference.0.speed_rpm=300 (repeatable; values are TOML literals)",
 )
-@click.option(
-    "--out", type=click.Path(), required=True, help="folder for trace.csv, metrics.json, plot.png and scenario.toml"
-)
-def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
+@out_option("folder for trace.csv, metrics.json, plot.png and scenario.toml", required=True)
+def simulate(scenario: str, overrides: tuple[str, ...], out: str, force: bool) -> None:
     """Simulate a scenario (see `pmsm2dof presets`) and write its trace, metrics and plot.
 
     Writes DIR/trace.csv (one column per signal), DIR/metrics.json (the step and load-step
@@ -674,7 +706,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
     changes = dict(parse_override(text) for text in overrides)
     if changes:
         chosen = chosen.with_overrides(changes)
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "simulate", force) as tmp:
         result = run_simulation(chosen, progress=True)
         metrics = compute_metrics(result)
         result.save(tmp / "trace.csv")
@@ -709,12 +741,7 @@ def presets(keys: bool) -> None:
 
 @cli.command()
 @click.argument("file", type=click.Path(dir_okay=False))
-@click.option(
-    "--out",
-    required=True,
-    type=click.Path(file_okay=False),
-    help="output folder; rerun with the same folder to resume an interrupted sweep",
-)
+@out_option("output folder; rerun with the same folder to resume an interrupted sweep", required=True)
 @click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
 @click.option(
     "--scheduler",
@@ -730,15 +757,22 @@ def presets(keys: bool) -> None:
 )
 @click.option("--no-figures", is_flag=True, help="write the results table only")
 def sweep(
-    file: str, out: str, workers: int | None, scheduler: str | None, batch_size: int | None, no_figures: bool
+    file: str,
+    out: str,
+    force: bool,
+    workers: int | None,
+    scheduler: str | None,
+    batch_size: int | None,
+    no_figures: bool,
 ) -> None:
     """Run a sweep (grid or Monte Carlo) of a scenario: one row of metrics per point, and figures.
 
     FILE is a sweep TOML: a base scenario and axes (lists, ranges or random distributions of
     dotted scenario keys); see `pmsm2dof.studies.sweep` for the format. Writes OUT/results.parquet,
     OUT/results.csv and OUT/figures/*.png once every point is done; finished points are kept
-    under OUT/parts, so an interrupted sweep resumes where it stopped (a part damaged since is
-    deleted with a warning and its points run again).
+    under OUT/parts, so an interrupted sweep resumes where it stopped (a part damaged since, which
+    its checksum shows, is deleted with a warning and its points run again). With --force, a
+    folder of another sweep is started again from nothing, and other files in it are kept.
     """
     import warnings
 
@@ -766,10 +800,11 @@ def sweep(
                 scheduler=scheduler,
                 batch_size=batch_size,
                 figures=None if no_figures else draw_figures,
+                force=force,
             )
         except ConfigError as exc:
             raise _as_option(
-                exc, {"out": "--out", "workers": "--workers", "scheduler": "--scheduler", "batch_size": "--batch-size"}
+                exc, {"workers": "--workers", "scheduler": "--scheduler", "batch_size": "--batch-size"}
             ) from None
     table = run.table
     stopped = table[table["status"] != "ok"]
@@ -834,7 +869,6 @@ _AUTOTUNE_OPTIONS = {
     "anti_windups": "--anti-windup",
     "workers": "--workers",
     "scheduler": "--scheduler",
-    "out": "--out",
     "path": "--emit-c-header",
 }
 
@@ -928,11 +962,9 @@ def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
     help="run the simulations on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)",
 )
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the summary")
-@click.option(
-    "--out",
-    type=click.Path(file_okay=False),
+@out_option(
+    "folder for scenario.toml (the tuned scenario), autotune.json, pareto.csv, pareto.png, runs.csv, rejected.csv",
     default=None,
-    help="folder for scenario.toml (the tuned scenario), autotune.json, pareto.csv, pareto.png, runs.csv, rejected.csv",
 )
 @click.option(
     "--emit-c-header",
@@ -957,6 +989,7 @@ def autotune(
     scheduler: str | None,
     as_json: bool,
     out: str | None,
+    force: bool,
     header: str | None,
 ) -> None:
     """Autotune the speed controller of a scenario: the smallest worst-case load dip per Nm that
@@ -970,7 +1003,7 @@ def autotune(
     """
     import json
 
-    from ..outputs import atomic_write, require_writable_dir, staged_dir
+    from ..outputs import atomic_write, check_out, staged_dir
     from ..sim.scenario import load_scenario
     from ..studies.autotune import Spec
     from ..studies.autotune import autotune as run_autotune
@@ -992,14 +1025,14 @@ def autotune(
         if changes:
             chosen = chosen.with_overrides(changes)
         if out is not None:
-            require_writable_dir(out)
+            check_out(out, "autotune", force)
         if header is not None:
             _require_writable_file(header)
         result = run_autotune(chosen, spec, workers=workers, scheduler=scheduler, progress=True)
         if out is not None:
             from .plots.autotune import plot_pareto
 
-            with staged_dir(out) as tmp:
+            with staged_dir(out, "autotune", force) as tmp:
                 atomic_write(tmp / "scenario.toml", result.tuned_scenario().to_toml())
                 atomic_write(tmp / "autotune.json", json.dumps(result.as_dict(), indent=2, allow_nan=False) + "\n")
                 atomic_write(tmp / "pareto.csv", _csv_text(result.pareto_rows()))
@@ -1071,13 +1104,8 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     help="change a scenario key, e.g. --set commissioning.dead_time_V=1.5 (repeatable; values are TOML literals)",
 )
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
-@click.option(
-    "--out",
-    type=click.Path(),
-    default=None,
-    help="folder for result.json, log.csv, plot.png and motor.toml (the identified motor, for design --motor)",
-)
-def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: str | None) -> None:
+@out_option("folder for result.json, log.csv, plot.png and motor.toml (the identified motor, for design --motor)")
+def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: str | None, force: bool) -> None:
     """Run the C commissioning routine (commission.h) against a scenario's simulated motor.
 
     The routine identifies Rs, Ld, Lq and psi_f as on the drive; the table compares them with
@@ -1087,7 +1115,7 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
     """
     import json
 
-    from ..outputs import atomic_write, staged_dir
+    from ..outputs import atomic_write, check_out, staged_dir
     from ..sim.commission import commission as run_commissioning
     from ..sim.scenario import load_scenario
     from .plots.commission import plot_commission
@@ -1096,10 +1124,12 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
     changes = dict(parse_override(text) for text in overrides)
     if changes:
         chosen = chosen.with_overrides(changes)
+    if out is not None:
+        check_out(out, "commission", force)
     result = run_commissioning(chosen)
     summary = result.to_dict()
     if out is not None:
-        with staged_dir(out) as tmp:
+        with staged_dir(out, "commission", force) as tmp:
             atomic_write(tmp / "result.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
             atomic_write(tmp / "log.csv", result.log_csv())
             plot_commission(result, tmp / "plot.png")
@@ -1222,9 +1252,7 @@ def warnings_as_lines() -> Iterator[None]:
 )
 @click.option("--window-s", type=float, default=None, help="distance of the blocks of a regression row [s]")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
-@click.option(
-    "--out", type=click.Path(file_okay=False), default=None, help="folder for fit.png, rows.csv, identified.toml"
-)
+@out_option("folder for fit.png, rows.csv, identified.toml")
 @click.option(
     "--design", "design_text", default=None, metavar="ALPHA,ZETA", help="print the eq 9 gains for the J found"
 )
@@ -1286,6 +1314,7 @@ def identify(
     window_s: float | None,
     as_json: bool,
     out: str | None,
+    force: bool,
     design_text: str | None,
     electrical: bool,
     voltage_delay_samples: int,
@@ -1326,7 +1355,7 @@ def identify(
     from ..studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
 
     if plan:
-        _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out)
+        _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out, force)
         return
     if log is None:
         raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT), or --plan")
@@ -1338,7 +1367,7 @@ def identify(
         "--current-ranges": current_ranges,
     }
     if electrical:
-        _identify_electrical(log, column_maps, pole_pairs, options, as_json, out)
+        _identify_electrical(log, column_maps, pole_pairs, options, as_json, out, force)
         return
     for option, value in options.items():
         if value is not None:
@@ -1353,9 +1382,9 @@ def identify(
         if not (alpha_radps > 0 and zeta > 0 and math.isfinite(alpha_radps) and math.isfinite(zeta)):
             raise ConfigError("--design", design_text, "ALPHA,ZETA both finite and > 0")
     if out is not None:
-        from ..outputs import require_writable_dir
+        from ..outputs import check_out
 
-        require_writable_dir(out)
+        check_out(out, "identify", force)
     if motor_file is not None:
         for option, value in (
             ("--pole-pairs", pole_pairs),
@@ -1428,7 +1457,7 @@ def identify(
             if current is not None:
                 lines += ["", "[current_loop]", f"tau_i_s = {current.tau_i_s!r}"]
             text = "\n".join(lines) + "\n"
-        with staged_dir(out) as tmp:
+        with staged_dir(out, "identify", force) as tmp:
             plot_fit(mech, tmp / "fit.png")
             rows = mech.rows
             table = np.column_stack([rows["t_s"], rows["y"], rows["fit"], rows["y"] - rows["fit"], rows["kept"]])
@@ -1466,6 +1495,7 @@ def _identify_electrical(
     options: dict[str, Any],
     as_json: bool,
     out: str | None,
+    force: bool,
 ) -> None:
     """``identify --electrical``: Rs, Ld, Lq, psi_f of eq 1 (pmsm2dof.studies.electrical)."""
     import json
@@ -1479,9 +1509,9 @@ def _identify_electrical(
     if pole_pairs is None or pole_pairs < 1:
         raise ConfigError("--pole-pairs", "<missing>" if pole_pairs is None else pole_pairs, "an integer >= 1")
     if out is not None:
-        from ..outputs import require_writable_dir
+        from ..outputs import check_out
 
-        require_writable_dir(out)
+        check_out(out, "identify-electrical", force)
     columns = dict(parse_column(text) for text in column_maps)
     with warnings_as_lines():
         measured = read_log(log, columns)
@@ -1515,7 +1545,7 @@ def _identify_electrical(
         table = np.column_stack([rows[n] for n in names])
         body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
         ranges = "".join(",".join(f"{v:.9g}" for v in range_row(r)) + "\n" for r in report["ranges"])
-        with staged_dir(out) as tmp:
+        with staged_dir(out, "identify-electrical", force) as tmp:
             plot_electrical_fit(fit, tmp / "fit.png")
             atomic_write(tmp / "residuals.csv", ",".join(names) + "\n" + body + "\n")
             if fit.ranges:
@@ -1569,8 +1599,8 @@ def _identify_electrical(
     metavar="SIGNAL=NAME",
     help="read a signal from another column, e.g. --column speed=enc_speed_rpm",
 )
-@click.option("--out", type=click.Path(file_okay=False), required=True, help="folder for the figure and the table")
-def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> None:
+@out_option("folder for the figure and the table", required=True)
+def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str, force: bool) -> None:
     """Overlay a measured LOG and the simulation of SCENARIO (the same reference and load).
 
     Writes DIR/compare.png (speed, iq and their difference), DIR/compare.json (RMS and largest
@@ -1597,7 +1627,7 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
         raise ConfigError(
             "LOG", log, f"a log whose time overlaps the scenario's 0 to {chosen.data['simulation']['t_end_s']:g} s"
         )
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "compare", force) as tmp:
         result = run_simulation(chosen)
         error = measured.speed_rpm[inside] - np.interp(measured.t_s[inside], result.t_s, result.speed_rpm)
         i_max = chosen.data["limits"]["i_max_A"]
@@ -1631,7 +1661,12 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
 
 
 def _identify_plan(
-    log: str | None, motor_file: str | None, speed_max_rpm: float | None, i_max_A: float | None, out: str | None
+    log: str | None,
+    motor_file: str | None,
+    speed_max_rpm: float | None,
+    i_max_A: float | None,
+    out: str | None,
+    force: bool,
 ) -> None:
     """``identify --plan``: the experiment as a scenario and its simulation."""
     from ..outputs import atomic_write, staged_dir
@@ -1649,7 +1684,7 @@ def _identify_plan(
         chosen = plan_experiment(load_scenario(motor_file), speed_max_rpm, i_max_A)
     except ConfigError as exc:
         raise _as_option(exc, {"speed_max_rpm": "--speed-max-rpm", "limits.i_max_A": "--i-max-A"}) from None
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "identify-plan", force) as tmp:
         result = run_simulation(chosen)
         result.save(tmp / "trace.csv")
         trace.plot_trace(result, tmp / "plot.png")
@@ -1693,8 +1728,8 @@ def dataclasses_replace_notes(mech: "Mechanics", note: str) -> "Mechanics":
     metavar="KEY=VALUE",
     help="change a scenario key of both experiments first, e.g. --set motor.J_kgm2=0.5 (repeatable)",
 )
-@click.option("--out", type=click.Path(), default=None, help="folder for sensors.md and sensors.csv")
-def sensors(overrides: tuple[str, ...], out: str | None) -> None:
+@out_option("folder for sensors.md and sensors.csv")
+def sensors(overrides: tuple[str, ...], out: str | None, force: bool) -> None:
     """How encoder resolution, estimator, filter, delay and noise change the paper's drive.
 
     Runs experiment 1 (500 rpm step, 1DOF PI without and with AW) and experiment 3 (8 Nm load
@@ -1707,18 +1742,20 @@ def sensors(overrides: tuple[str, ...], out: str | None) -> None:
     import dataclasses
     import io
 
-    from ..outputs import atomic_write, staged_dir
+    from ..outputs import atomic_write, check_out, staged_dir
     from ..studies.sensing import offset_study, sensor_study
     from .report.render import render_markdown
     from .report.sensing import sensing_blocks
 
     changes = dict(parse_override(text) for text in overrides)
+    if out is not None:
+        check_out(out, "sensors", force)
     rows = sensor_study(changes)
     text = render_markdown(sensing_blocks(rows, offset_study(changes)))
     click.echo(text)
     if out is None:
         return
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "sensors", force) as tmp:
         atomic_write(tmp / "sensors.md", text)
         buf = io.StringIO()
         names = [f.name for f in dataclasses.fields(rows[0]) if f.name != "sensor"]
