@@ -26,7 +26,6 @@ Rs')`` (primes: estimates) no longer reduces to eq 3, and a wrong psi_f scales t
 
 import itertools
 import math
-import tomllib
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +33,7 @@ from pathlib import Path
 import control
 
 from ..errors import ConfigError, require_positive
+from ..inputs import read_toml
 from .margins import Margins, loop_margins
 
 __all__ = ["CurrentLoopDesign", "MotorEstimate", "design_current_loop", "load_motor", "speed_margin_sensitivity"]
@@ -64,10 +64,7 @@ def load_motor(path: str | Path) -> MotorEstimate:
         ``motor.<key>``).
     """
     path = Path(path)
-    try:
-        tree = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ConfigError("motor_file", str(path), f"a readable TOML motor file ({exc})") from None
+    tree = read_toml(path, "motor_file")
     motor = tree.get("motor")
     if not isinstance(motor, dict):
         raise ConfigError("motor", motor, f"a [motor] table in {path}")

@@ -403,6 +403,34 @@ class Design:
         return write_c_header(path, self.discretize(Ts_s, method), **motor)
 
 
+#: The normal float32 numbers, the range of the C controller's parameters and gains.
+FLOAT32_MIN = float(np.finfo(np.float32).tiny)
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+
+def _require_float32(param: str, value: object, alternative: str = "") -> float:
+    """``value`` as a float if it is a normal float32 number > 0, else ConfigError naming ``param``."""
+    v = require_positive(param, value)
+    if not FLOAT32_MIN <= v <= FLOAT32_MAX:
+        span = f"a number from {FLOAT32_MIN:.4g} to {FLOAT32_MAX:.4g} (a normal float32, as the C controller computes)"
+        raise ConfigError(param, value, f"{alternative} {span}".strip())
+    return v
+
+
+def _require_float32_gain(gain: str, value: float, factors: dict[str, float]) -> None:
+    """Raise ConfigError, naming the factor farthest from 1, if the gain ``value`` of eq 9 is not a
+    normal float32 number (it overflowed, or came out 0 or subnormal)."""
+    if FLOAT32_MIN <= value <= FLOAT32_MAX:
+        return
+    name = max(factors, key=lambda k: abs(math.log(factors[k])))
+    raise ConfigError(
+        name,
+        factors[name],
+        f"a value that makes {gain} (eq 9) a normal float32 number, {FLOAT32_MIN:.4g} to {FLOAT32_MAX:.4g} "
+        f"(it is {value:.4g} with {', '.join(f'{k} = {v:.4g}' for k, v in factors.items())})",
+    )
+
+
 def design(
     J_kgm2: float,
     alpha_radps: float,
@@ -447,13 +475,18 @@ def design(
     Raises
     ------
     ConfigError
-        For any input out of range, naming the parameter, its value and the valid range.
+        For any input out of range, naming the parameter, its value and the valid range. The
+        numbers (``tau_i_s`` when not 0) and the gains ``Kp`` and ``Ki`` of eq 9 must be normal
+        float32 numbers (:data:`FLOAT32_MIN` to :data:`FLOAT32_MAX`), the range of the C
+        controller that runs the design: no gain comes out infinite, 0 or subnormal.
     """
-    J_kgm2 = require_positive("J_kgm2", J_kgm2)
-    alpha_radps = require_positive("alpha_radps", alpha_radps)
-    zeta = require_positive("zeta", zeta)
-    m = require_positive("m", m)
+    J_kgm2, alpha_radps, zeta, m = (
+        _require_float32(name, value)
+        for name, value in (("J_kgm2", J_kgm2), ("alpha_radps", alpha_radps), ("zeta", zeta), ("m", m))
+    )
     tau_i_s = require_nonnegative("tau_i_s", tau_i_s)
+    if tau_i_s != 0.0:
+        tau_i_s = _require_float32("tau_i_s", tau_i_s, "0, or")
     require_choice("feedforward", feedforward, FEEDFORWARDS)
     require_choice("anti_windup", anti_windup, ANTI_WINDUPS)
     if feedforward == "lowpass" and m != 1.0:
@@ -464,6 +497,10 @@ def design(
             "feedforward 'no_tau' or 'full' (eq 11)",
         )
     Kp, Ki = pi_gains(J_kgm2, alpha_radps, zeta)  # eq 9
+    _require_float32_gain("Kp = J alpha", Kp, {"J_kgm2": J_kgm2, "alpha_radps": alpha_radps})
+    _require_float32_gain(
+        "Ki = J (alpha / (2 zeta))^2", Ki, {"J_kgm2": J_kgm2, "alpha_radps": alpha_radps, "zeta": zeta}
+    )
     Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
     if sensor is None:
         sensor = SensorChain()

@@ -496,13 +496,15 @@ def discretize(design: "Design", Ts_s: float, method: Method) -> DiscreteDesign:
         feedback loop unstable at this ``Ts_s`` (the message gives the periods that are
         stable); ``alpha_radps`` when the continuous loop itself is unstable
         (``alpha tau_i >= 4 zeta^2``, Routh on eq 8's denominator); or ``Ka`` too large for
-        the discrete back-calculation loop ``x[k] = (1 - Ki Ka Ts) x[k-1] + ...``.
+        the discrete back-calculation loop ``x[k] = (1 - Ki Ka Ts) x[k-1] + ...``; the
+        sensor's ``delay_s`` beyond :data:`~pmsm2dof.analysis.sensor.DELAY_PERIODS_MAX` periods.
         A stable design is never refused for a figure of merit: one that cannot be
         computed is NaN, with its reason in ``DiscreteDesign.missing``.
     """
     Ts_s = require_positive("Ts_s", Ts_s)
     require_choice("method", method, METHODS)
     d = design
+    delay_periods(d.sensor.delay_s, Ts_s)  # bounded before any work
     w_design_radps = max(d.alpha_radps, d.alpha_radps / (2.0 * d.zeta), d.m * d.alpha_radps)
     if w_design_radps * Ts_s > MAX_W_TS:
         warnings.warn(

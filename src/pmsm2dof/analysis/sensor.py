@@ -183,6 +183,12 @@ class SensorChain:
         return ", ".join(parts)
 
 
+#: Longest delay of the sampled loop's analysis [periods]: the loop has a state per period of
+#: delay and its step response costs the cube of its order (128 periods: about 1 s, 256: 10 to
+#: 20 s on the development machine). A sensor's delay is a few periods.
+DELAY_PERIODS_MAX = 128
+
+
 def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: SensorChain) -> list[Any]:
     """The sampled plant and sensor chain as python-control blocks from ``u`` to ``w`` and ``y``.
 
@@ -262,8 +268,21 @@ def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: Sens
 
 
 def delay_periods(delay_s: float, Ts_s: float) -> tuple[int, float]:
-    """The delay as ``(n, lam)``: ``delay_s = (n + lam) Ts_s``, ``n`` whole periods and ``0 <= lam < 1``."""
+    """The delay as ``(n, lam)``: ``delay_s = (n + lam) Ts_s``, ``n`` whole periods and ``0 <= lam < 1``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``delay_s`` when it exceeds :data:`DELAY_PERIODS_MAX` periods.
+    """
     periods = delay_s / Ts_s
+    if not periods <= DELAY_PERIODS_MAX:
+        raise ConfigError(
+            "delay_s",
+            delay_s,
+            f"<= {DELAY_PERIODS_MAX} Ts_s = {DELAY_PERIODS_MAX * Ts_s:g} s in the sampled loop's analysis (it has "
+            "one state per period of delay)",
+        )
     n_delay = math.floor(periods + 1e-9)
     return n_delay, periods - n_delay if periods - n_delay > 1e-9 else 0.0
 

@@ -34,13 +34,13 @@ In a scenario, the table ``[motor.datasheet]`` replaces the keys ``motor.pole_pa
 import dataclasses
 import math
 import os
-import tomllib
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
+from ..inputs import read_toml
 
 #: Mechanical speed of 1000 rpm [rad/s].
 W_KRPM_RADPS = 1000.0 * 2.0 * math.pi / 60.0
@@ -274,10 +274,7 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
         An unreadable file, or a motor table with neither a datasheet nor the model keys.
     """
     file = Path(os.fspath(path))
-    try:
-        tree = tomllib.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ConfigError("motor file", str(file), f"a readable UTF-8 TOML file ({exc})") from None
+    tree = read_toml(file, "motor file")
     motor = tree.get("motor")
     if not isinstance(motor, dict):
         raise ConfigError("motor", "<missing>", f"a [motor] table in {file}")

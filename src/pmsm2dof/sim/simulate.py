@@ -68,7 +68,6 @@ Stops
 """
 
 import dataclasses
-import io
 import math
 import time
 from collections.abc import Iterable, Mapping, Sequence
@@ -93,13 +92,15 @@ from ..core import (
 )
 from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, SimulationError
-from ..outputs import atomic_write
+from ..outputs import atomic_file
 from .scenario import Scenario, Tree
 
 if TYPE_CHECKING:
     import pandas as pd
 
 RPM_PER_RADPS = 30.0 / math.pi
+#: Rows of the CSV trace formatted at a time (about 30 MB of text).
+CSV_ROWS_PER_CHUNK = 100_000
 
 #: The speeds of the engine's log shown in rpm at the edge, by log column (the others keep their
 #: C names); the mechanical speed is kept in rad/s too.
@@ -322,26 +323,32 @@ class Result:
         ``.csv``: one column per signal with a header row (the flags ``saturated`` and ``J_valid`` as 0/1);
         ``.npz`` (numpy) and ``.mat`` (MATLAB, ``scipy.io.savemat``): one array per signal
         and ``scenario_toml``, the scenario as TOML text. The file is written completely or
-        not at all.
+        not at all, streamed to the disk (the CSV text :data:`CSV_ROWS_PER_CHUNK` rows at a time),
+        so that the log of a long run is never held twice in memory; a full disk raises a
+        ConfigError naming ``path`` (:func:`pmsm2dof.outputs.atomic_file`).
         """
+        import pandas as pd
+
         path = Path(path)
         suffix = path.suffix.lower()
         arrays = {name: getattr(self, name) for name in self.signals}
         if suffix == ".csv":
-            frame = self.to_dataframe()
-            for flag in FLAG_SIGNALS:
-                frame[flag] = frame[flag].astype(np.int8)
-            atomic_write(path, frame.to_csv(index=False))
+            with atomic_file(path, "w") as f:
+                f.write(",".join(self.signals) + "\n")
+                for start in range(0, len(self.t_s), CSV_ROWS_PER_CHUNK):
+                    rows = slice(start, start + CSV_ROWS_PER_CHUNK)
+                    chunk = pd.DataFrame(
+                        {n: a[rows].astype(np.int8) if n in FLAG_SIGNALS else a[rows] for n, a in arrays.items()}
+                    )
+                    chunk.to_csv(f, header=False, index=False, lineterminator="\n")
         elif suffix == ".npz":
-            buf = io.BytesIO()
-            np.savez(buf, scenario_toml=np.array(self.scenario.to_toml()), **arrays)
-            atomic_write(path, buf.getvalue())
+            with atomic_file(path, "wb") as f:
+                np.savez(f, scenario_toml=np.array(self.scenario.to_toml()), **arrays)
         elif suffix == ".mat":
             import scipy.io
 
-            buf = io.BytesIO()
-            scipy.io.savemat(buf, {"scenario_toml": self.scenario.to_toml(), **arrays}, oned_as="column")
-            atomic_write(path, buf.getvalue())
+            with atomic_file(path, "wb") as f:
+                scipy.io.savemat(f, {"scenario_toml": self.scenario.to_toml(), **arrays}, oned_as="column")
         else:
             raise ConfigError("path", str(path), "a file name ending in .csv, .npz or .mat")
 

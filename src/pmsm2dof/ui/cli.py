@@ -348,11 +348,11 @@ def design(
                 Ka=Ka,
                 sensor=sensor,
             )
+            dd = d.discretize(Ts_s, method)  # first: it bounds the work of the sensor's delay
             margins = d.margins(delay_model)
             alpha_max = (
                 None if phase_margin_deg is None else d.max_alpha_for_phase_margin(phase_margin_deg, delay_model)
             )
-            dd = d.discretize(Ts_s, method)
         except ConfigError as exc:
             raise _as_option(exc, options) from None
     for w in [*caught_loop, *caught]:
@@ -580,6 +580,11 @@ def _design_table(dd: "DiscreteDesign", margins: "Margins", delay_model: str) ->
     return "\n".join(lines)
 
 
+#: Most curves of ``pmsm2dof bode`` (values of --m): each takes about 0.1 s, and a figure with
+#: more is no longer read.
+BODE_CURVES_MAX = 20
+
+
 @cli.command()
 @click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0")
 @click.option(
@@ -587,7 +592,7 @@ def _design_table(dd: "DiscreteDesign", margins: "Margins", delay_model: str) ->
     "m_list",
     default="1",
     show_default=True,
-    help="comma-separated values of m (eq 10); other than 1 with --feedforward no_tau or full",
+    help="comma-separated values of m (eq 10), at most 20; other than 1 with --feedforward no_tau or full",
 )
 @click.option("--J", "J_kgm2", type=float, default=0.4, show_default=True, help="inertia [kg m^2] (paper section 4)")
 @click.option("--zeta", type=float, default=0.2887, show_default=True, help="relative damping (paper: Ki = 0.3)")
@@ -614,6 +619,8 @@ def bode(
     """
     from .plots.design import bode_gx_sweep, save_figure
 
+    if m_list.count(",") >= BODE_CURVES_MAX:
+        raise ConfigError("m", m_list, f"at most {BODE_CURVES_MAX} comma-separated numbers > 0 (one curve each)")
     try:
         m_values = [float(v) for v in m_list.split(",")]
     except ValueError:
