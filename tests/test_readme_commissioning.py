@@ -29,7 +29,13 @@ def test_commands_run_as_written(tmp_path, monkeypatch, capsys):
     first, second, design = guide_commands()
     assert main(first) == 0
     assert "salient servo: commissioning done" in capsys.readouterr().out
-    assert {p.name for p in (tmp_path / "servo-id").iterdir()} == {"result.json", "log.csv", "plot.png", "motor.toml"}
+    assert {p.name for p in (tmp_path / "servo-id").iterdir()} == {
+        ".pmsm2dof-outputs.json",
+        "result.json",
+        "log.csv",
+        "plot.png",
+        "motor.toml",
+    }
     # the paper's drive with a real inverter (dead time, noise, delay): within the targets
     assert main(second) == 0
     summary = json.loads(capsys.readouterr().out)

@@ -42,8 +42,8 @@ class ConfigError(Pmsm2dofError, ValueError):
         self.value = value
         self.valid = valid
         super().__init__(
-            f"{_cut(str(param), PARAM_CHARS_MAX)} = {shorten(value)} is invalid: "
-            f"valid range is {_cut(str(valid), VALID_CHARS_MAX)}"
+            f"{cut_text(str(param), PARAM_CHARS_MAX)} = {shorten(value)} is invalid: "
+            f"valid range is {cut_text(str(valid), VALID_CHARS_MAX)}"
         )
 
 
@@ -60,14 +60,14 @@ def shorten(value: object, limit: int = VALUE_CHARS_MAX) -> str:
     if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 3 * limit:
         return f"<an integer of about {int(value.bit_length() * math.log10(2)) + 1} digits>"
     if isinstance(value, (str, bytes)):
-        return _cut(repr(value), limit)
+        return cut_text(repr(value), limit)
     try:
         # reprlib: a container is shown by its first items, to a few levels, however large
         text = _SHORT_REPR.repr(value)
     except (ValueError, RecursionError):
         size = f" of length {len(value)}" if isinstance(value, Collection) else ""
         return f"<a {type(value).__name__}{size}>"
-    return _cut(text, limit)
+    return cut_text(text, limit)
 
 
 _SHORT_REPR = reprlib.Repr()
@@ -75,7 +75,8 @@ _SHORT_REPR.maxlevel = 3
 _SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = VALUE_CHARS_MAX
 
 
-def _cut(text: str, limit: int) -> str:
+def cut_text(text: str, limit: int) -> str:
+    """``text``, or its beginning and its length when it is longer than ``limit`` characters."""
     if len(text) <= limit:
         return text
     return f"{text[: limit - 20]}... ({len(text)} characters)"
@@ -121,6 +122,22 @@ def require_choice(param: str, value: _T, choices: Collection[_T]) -> _T:
     if not known:
         raise ConfigError(param, value, "one of " + ", ".join(repr(c) for c in choices))
     return value
+
+
+#: The normal float32 numbers: the range of the C controllers' parameters and gains.
+FLOAT32_MIN = 1.1754943508222875e-38
+FLOAT32_MAX = 3.4028234663852886e38
+
+
+def require_float32(param: str, value: Any, zero: bool = False) -> float:
+    """Return ``float(value)`` if it is a normal float32 number > 0 (or 0 with ``zero``), else
+    raise ConfigError: the range in which the C controllers, and the analyses of their loops,
+    compute without overflow or underflow."""
+    v = require_nonnegative(param, value) if zero else require_positive(param, value)
+    if not (FLOAT32_MIN <= v <= FLOAT32_MAX or (zero and v == 0.0)):
+        span = f"a number from {FLOAT32_MIN:.4g} to {FLOAT32_MAX:.4g} (a normal float32, as the C controllers compute)"
+        raise ConfigError(param, value, f"0, or {span}" if zero else span)
+    return v
 
 
 def _require(param: str, value: Any, ok: Callable[[float], bool], valid: str) -> float:

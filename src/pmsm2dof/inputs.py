@@ -96,9 +96,9 @@ def parse_toml(text: str, param: str, source: str) -> dict[str, Any]:
 
 
 def parse_json(data: bytes | str, param: str, source: str = "(JSON)") -> Any:
-    """``data`` parsed as JSON, nested at most :data:`NESTING_MAX` deep, integers of at most
-    :data:`INTEGER_DIGITS_MAX` digits and no ``NaN``/``Infinity`` literals; ConfigError names
-    ``param`` with ``source``."""
+    """``data`` parsed as JSON, nested at most :data:`NESTING_MAX` deep, with integers of at most
+    :data:`INTEGER_DIGITS_MAX` digits; ConfigError names ``param`` with ``source``. ``NaN`` and
+    ``Infinity`` are read as floats, for the validation of the value to name its key."""
     try:
         text = data.decode("utf-8") if isinstance(data, bytes) else data
     except UnicodeDecodeError as exc:
@@ -109,11 +109,8 @@ def parse_json(data: bytes | str, param: str, source: str = "(JSON)") -> Any:
             raise ConfigError(param, source, f"JSON whose integers have at most {INTEGER_DIGITS_MAX} digits")
         return int(digits)
 
-    def constant(name: str) -> float:
-        raise ConfigError(param, source, f"JSON without {name} (not a JSON number)")
-
     try:
-        value = json.loads(text, parse_int=integer, parse_constant=constant)
+        value = json.loads(text, parse_int=integer)
     except json.JSONDecodeError as exc:
         raise ConfigError(param, source, f"valid JSON ({exc.msg} at character {exc.pos})") from None
     except RecursionError:

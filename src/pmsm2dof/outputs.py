@@ -274,8 +274,8 @@ def _signals_deferred() -> Iterator[None]:
     finally:
         for sig, handler in before.items():
             signal.signal(sig, handler)
-        for sig in held[:1]:
-            signal.raise_signal(sig)
+        for signum in held[:1]:
+            signal.raise_signal(signum)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -301,7 +301,7 @@ def atomic_file(path: Path | str, mode: str = "w") -> Iterator[IO[Any]]:
     try:
         # mkstemp creates the file 0600; give it the mode an ordinary open() would
         os.fchmod(fd, 0o666 & ~_umask())
-        with os.fdopen(fd, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as f:
+        with os.fdopen(fd, mode, encoding=None if "b" in mode else "utf-8") as f:
             yield f
         os.replace(tmp, path)
     except OSError as exc:

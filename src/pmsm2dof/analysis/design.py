@@ -37,7 +37,15 @@ import numpy.typing as npt
 
 from ..core import ANTI_WINDUPS, FEEDFORWARDS, pi_gains
 from ..core.bindings import AntiWindup, Feedforward, Method
-from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
+from ..errors import (
+    FLOAT32_MAX,
+    FLOAT32_MIN,
+    ConfigError,
+    require_choice,
+    require_float32,
+    require_nonnegative,
+    require_positive,
+)
 from .codegen import write_c_header
 from .discretize import DiscreteDesign, discretize
 from .margins import Margins, frequency_margins, loop_margins
@@ -199,7 +207,13 @@ class Design:
         with the load at the mechanics, eq 8). With ``J_plant_kgm2 == J_kgm2`` these are
         :attr:`Gx` and :attr:`GN`. With a sensor chain the feedback reads ``H`` times the speed:
         ``Gx = (Fr + F) G / (1 + F G H)``, ``GN = -Gm / (1 + F Gci Gm H)``.
+
+        Raises
+        ------
+        ConfigError
+            ``J_plant_kgm2`` not a normal float32 number > 0 (as the design's inertia).
         """
+        J_plant_kgm2 = require_float32("J_plant_kgm2", J_plant_kgm2)
         Gm = control.tf([1.0], [J_plant_kgm2, 0.0])
         if self.sensor.is_ideal:
             return tracking_tf(self.F, self.Fr, self.Gci * Gm).minreal(), -control.feedback(Gm, self.F * self.Gci)
@@ -403,18 +417,9 @@ class Design:
         return write_c_header(path, self.discretize(Ts_s, method), **motor)
 
 
-#: The normal float32 numbers, the range of the C controller's parameters and gains.
-FLOAT32_MIN = float(np.finfo(np.float32).tiny)
-FLOAT32_MAX = float(np.finfo(np.float32).max)
-
-
-def _require_float32(param: str, value: object, alternative: str = "") -> float:
-    """``value`` as a float if it is a normal float32 number > 0, else ConfigError naming ``param``."""
-    v = require_positive(param, value)
-    if not FLOAT32_MIN <= v <= FLOAT32_MAX:
-        span = f"a number from {FLOAT32_MIN:.4g} to {FLOAT32_MAX:.4g} (a normal float32, as the C controller computes)"
-        raise ConfigError(param, value, f"{alternative} {span}".strip())
-    return v
+#: Shortest sensor delay, relative to the loop's shortest time constant: below about 1e-15
+#: the Pade approximant's coefficients overflow when multiplied with the loop's.
+DELAY_SHARE_MIN = 1e-9
 
 
 def _require_float32_gain(gain: str, value: float, factors: dict[str, float]) -> None:
@@ -477,16 +482,14 @@ def design(
     ConfigError
         For any input out of range, naming the parameter, its value and the valid range. The
         numbers (``tau_i_s`` when not 0) and the gains ``Kp`` and ``Ki`` of eq 9 must be normal
-        float32 numbers (:data:`FLOAT32_MIN` to :data:`FLOAT32_MAX`), the range of the C
-        controller that runs the design: no gain comes out infinite, 0 or subnormal.
+        float32 numbers (:func:`~pmsm2dof.errors.require_float32`), the range of the C controller
+        that runs the design: no gain comes out infinite, 0 or subnormal.
     """
     J_kgm2, alpha_radps, zeta, m = (
-        _require_float32(name, value)
+        require_float32(name, value)
         for name, value in (("J_kgm2", J_kgm2), ("alpha_radps", alpha_radps), ("zeta", zeta), ("m", m))
     )
-    tau_i_s = require_nonnegative("tau_i_s", tau_i_s)
-    if tau_i_s != 0.0:
-        tau_i_s = _require_float32("tau_i_s", tau_i_s, "0, or")
+    tau_i_s = require_float32("tau_i_s", tau_i_s, zero=True)
     require_choice("feedforward", feedforward, FEEDFORWARDS)
     require_choice("anti_windup", anti_windup, ANTI_WINDUPS)
     if feedforward == "lowpass" and m != 1.0:
@@ -506,4 +509,13 @@ def design(
         sensor = SensorChain()
     elif not isinstance(sensor, SensorChain):
         raise ConfigError("sensor", sensor, "a SensorChain")
+    w_fastest_radps = max(alpha_radps, alpha_radps / (2.0 * zeta), m * alpha_radps)
+    if 0.0 < sensor.delay_s < DELAY_SHARE_MIN / w_fastest_radps:
+        raise ConfigError(
+            "delay_s",
+            sensor.delay_s,
+            f"0, or >= {DELAY_SHARE_MIN / w_fastest_radps:.3g} s: {DELAY_SHARE_MIN:g} of the loop's shortest time "
+            "constant 1/max(alpha, alpha/(2 zeta), m alpha) (a shorter delay changes nothing in this loop, and its "
+            "Pade approximant's coefficients overflow)",
+        )
     return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki, sensor)

@@ -30,7 +30,7 @@ import numpy.typing as npt
 import scipy.linalg
 
 from ..core import ESTIMATORS, SPEED_SENSOR_MODELS, Encoder
-from ..errors import ConfigError, require_choice, require_nonnegative
+from ..errors import ConfigError, require_choice, require_float32
 
 #: Speed-sensor models: the true speed sampled, or an encoder's counts (the engine's, read from C).
 SENSOR_MODELS = SPEED_SENSOR_MODELS
@@ -72,9 +72,8 @@ class SensorChain:
     def __post_init__(self) -> None:
         require_choice("model", self.model, SENSOR_MODELS)
         require_choice("estimator", self.estimator, ESTIMATORS)
-        object.__setattr__(self, "bandwidth_radps", require_nonnegative("bandwidth_radps", self.bandwidth_radps))
-        object.__setattr__(self, "lowpass_radps", require_nonnegative("lowpass_radps", self.lowpass_radps))
-        object.__setattr__(self, "delay_s", require_nonnegative("delay_s", self.delay_s))
+        for name in ("bandwidth_radps", "lowpass_radps", "delay_s"):
+            object.__setattr__(self, name, require_float32(name, getattr(self, name), zero=True))
         if self.pll and not self.bandwidth_radps > 0.0:
             raise ConfigError("bandwidth_radps", self.bandwidth_radps, "finite and > 0 with estimator 'pll'")
         if self.model == "ideal" and self.estimator == "pll":

@@ -179,7 +179,7 @@ def _content_bytes(path: Path, suffix: str) -> int:
         import pyarrow.parquet as pq
 
         meta = pq.ParquetFile(path).metadata
-        return 8 * meta.num_rows * meta.num_columns
+        return 8 * int(meta.num_rows) * int(meta.num_columns)
     return path.stat().st_size
 
 

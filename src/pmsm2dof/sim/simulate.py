@@ -91,7 +91,7 @@ from ..core import (
     pi_gains,
 )
 from ..core.bindings import c_string, ffi, lib
-from ..errors import ConfigError, SimulationError
+from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
 from .scenario import Scenario, Tree
 
@@ -512,7 +512,17 @@ class Simulation:
         if status != lib.P2D_SIM_OK:
             self._raise_config(status)
         # column-major: one contiguous array per signal
-        self.log = np.zeros((lib.P2D_LOG_COUNT, rows))
+        try:
+            self.log = np.zeros((lib.P2D_LOG_COUNT, rows))
+        except MemoryError:
+            least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // (LOG_BYTES_MAX // 8))
+            raise ConfigError(
+                "simulation.log_every",
+                sim["log_every"],
+                f"large enough for the log to fit in the memory this process may use: {rows} rows need "
+                f"{format_bytes(rows * lib.P2D_LOG_COUNT * 8)} (log_every >= {least} keeps it below "
+                f"{format_bytes(LOG_BYTES_MAX // 8)})",
+            ) from None
         self._log_ptr = ffi.cast("double *", ffi.from_buffer(self.log))
 
     def advance(self, n_samples: int) -> None:

@@ -261,7 +261,7 @@ def parse_sweep(data: Mapping[str, Any], base_dir: Path | str = ".") -> Sweep:
         raise ConfigError("rank_by", rank_by, "a metric column of the base scenario: " + ", ".join(columns))
     worst = _require_int("worst", data.get("worst", 3), 0, f"an integer >= 0 and <= {WORST_MAX}", WORST_MAX)
 
-    n_points = math.prod(len(a.values or ()) for a in axes if not a.is_random) * (draws if has_random else 1)
+    n_points = math.prod(len(a.values or ()) for a in axes if not a.is_random) * (draws or 1)
     if n_points > POINTS_MAX:
         sizes = " x ".join(
             [str(len(a.values or ())) for a in axes if not a.is_random] + ([f"{draws} draws"] if has_random else [])

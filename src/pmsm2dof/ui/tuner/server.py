@@ -12,6 +12,7 @@ were its own; the browser still sends that name in the ``Host`` header, which is
 import contextlib
 import errno
 import ipaddress
+import signal
 import socket
 import threading
 import time
@@ -188,8 +189,29 @@ def make_server(app: ASGIApp, sock: socket.socket, host: str) -> uvicorn.Server:
 
 
 def serve(app: ASGIApp, sock: socket.socket, host: str) -> None:
-    """Serve ``app`` on ``sock``, bound for ``host``, until interrupted (Ctrl-C)."""
-    make_server(app, sock, host).run(sockets=[sock])
+    """Serve ``app`` on ``sock``, bound for ``host``, until interrupted (Ctrl-C) or terminated.
+
+    SIGINT and SIGTERM stop the server gracefully (uvicorn), SIGHUP too; the signal is then
+    raised again, so that the caller ends as it does on that signal (``pmsm2dof tune``: exit
+    status 130, 143 or 129).
+    """
+    server = make_server(app, sock, host)
+    hangups: list[int] = []
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread and hasattr(signal, "SIGHUP"):
+
+        def hang_up(signum: int, frame: object) -> None:
+            hangups.append(signum)
+            server.should_exit = True
+
+        before = signal.signal(signal.SIGHUP, hang_up)
+    try:
+        server.run(sockets=[sock])
+    finally:
+        if main_thread and hasattr(signal, "SIGHUP"):
+            signal.signal(signal.SIGHUP, before)
+    for signum in hangups[:1]:
+        signal.raise_signal(signum)
 
 
 @contextlib.contextmanager
