@@ -386,10 +386,9 @@ class PartStore:
 
         for path in self.folder.glob(".part-*"):  # the temporary file of a write cut short
             path.unlink(missing_ok=True)
-        columns = list(self.frame([]).columns)
         frames = []
         for path in sorted(self.folder.glob("part-*.parquet")):
-            frame, problem = self._read_part(path, columns)
+            frame, problem = self._read_part(path)
             if frame is not None:
                 frames.append(frame)
                 continue
@@ -410,7 +409,7 @@ class PartStore:
             )
         return pd.concat(frames, ignore_index=True) if frames else None
 
-    def _read_part(self, path: Path, columns: list[str]) -> tuple[Any, str]:
+    def _read_part(self, path: Path) -> tuple[Any, str]:
         """``(frame, "")`` of a sound part, ``(None, what is wrong)`` of another."""
         import pandas as pd
         import pyarrow
@@ -428,7 +427,7 @@ class PartStore:
             frame = pd.read_parquet(io.BytesIO(data))
         except (OSError, ValueError, pyarrow.ArrowException) as exc:
             return None, f"cannot be read ({one_line(exc)})"
-        if list(frame.columns) != columns:
+        if list(frame.columns) != list(self.frame([]).columns):
             return None, "does not hold the columns of this study"
         keys = frame[self.key_column]
         if not len(keys) or not keys.between(0, self.n_keys - 1).all() or int(keys.iloc[0]) != int(name.group(1)):
