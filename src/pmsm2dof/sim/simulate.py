@@ -91,6 +91,7 @@ from ..core import (
     pi_gains,
 )
 from ..core.bindings import c_string, ffi, lib
+from ..core.controllers import float32_note
 from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
 from .scenario import Scenario, Tree
@@ -575,8 +576,27 @@ class Simulation:
             }[status]
             key = keys[field]
             value = self._value(key)
+            valid += float32_note(value)
+            s = self.cfg.speed
+            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "J_kgm2" and not float32_note(value):
+                # a gain of eq 9 overflowed float32: name the factor farthest from 1
+                factors = {"J_kgm2": s.J_kgm2, "alpha_radps": s.alpha_radps, "zeta": 1.0 / s.zeta}
+                field = max(factors, key=lambda k: abs(math.log(factors[k])))
+                key = _SPEED_KEYS[field]
+                value = self._value(key)
+                Kp, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
+                valid = (
+                    f"a value that keeps the gains of eq 9 finite in float32 (Kp = J alpha = {Kp:.4g}, "
+                    f"Ki = J (alpha / (2 zeta))^2 = {Ki:.4g} with J_kgm2 = {s.J_kgm2:g}, alpha_radps = "
+                    f"{s.alpha_radps:g}, zeta = {s.zeta:g})"
+                )
+            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "Ts_s" and not float32_note(value):
+                # the speed controller's refusal of a sound period: its float32 coefficients overflowed
+                valid += (
+                    f" (it is: the controller's float32 coefficients overflow with J_kgm2 = {s.J_kgm2:g}, "
+                    f"alpha_radps = {s.alpha_radps:g} and i_max_A = {s.i_max_A:g})"
+                )
             if key == "speed_controller.Ka":
-                s = self.cfg.speed
                 _, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
                 valid = (
                     f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
