@@ -84,7 +84,8 @@ def test_a_folder_of_another_command_is_not_replaced(tmp_path, capsys):
     before = snapshot(out)
     capsys.readouterr()
     assert main(["commission", SERVO, "--out", str(out)]) == 2
-    assert "an earlier commission" in one_error_line(capsys)
+    err = one_error_line(capsys)
+    assert "an earlier commission" in err and "'metrics.json' (written by pmsm2dof simulate)" in err
     assert snapshot(out) == before
 
 
@@ -192,3 +193,12 @@ def test_check_out_refuses_before_any_work(tmp_path):
         with pytest.raises(ConfigError, match=words):
             check_out(bad, "study")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_a_failed_run_leaves_no_folder_it_created_above_out(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main([*SHORT, "--set", "speed_controller.Ka=1e9", "--out", "a/b/out"]) == 2
+    assert "speed_controller.Ka" in one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
+    check_out("c/d/out", "study")  # the check alone creates nothing either
+    assert list(tmp_path.iterdir()) == []

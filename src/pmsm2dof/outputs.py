@@ -87,26 +87,30 @@ def check_out(out: Path | str, command: str, force: bool = False, own: Iterable[
                 f"a new or empty folder, or one holding only the outputs of an earlier {command} (it holds "
                 f"{foreign}); force=True keeps the other files and writes beside them",
             )
-    _stage(out).rmdir()
+    tmp, created = _stage(out)
+    tmp.rmdir()
+    _remove_created(created)
     return out
 
 
 def first_foreign(out: Path, command: str, own: Iterable[str] = ()) -> str | None:
     """The first file in ``out`` (sorted, depth first) that no earlier ``command`` wrote there,
-    described (``'notes.txt'``, ``'plot.png' (changed since pmsm2dof wrote it)``); None if none."""
-    listed = _own_files(out, command)
+    described (``'notes.txt'``, ``'plot.png' (changed since pmsm2dof simulate wrote it)``,
+    ``'trace.csv' (written by pmsm2dof simulate)``); None if none."""
+    manifest = _manifest(out)
+    writer, listed = manifest if manifest is not None else (None, {})
     patterns = tuple(own)
     for folder, dirs, files in os.walk(out):
         dirs.sort()
         for name in sorted(files) + [d for d in dirs if os.path.islink(os.path.join(folder, d))]:
             path = Path(folder, name)
             rel = path.relative_to(out).as_posix()
-            if rel == MANIFEST and listed is not None:
+            if (rel == MANIFEST and manifest is not None) or _matches(rel, patterns):
                 continue
-            if _matches(rel, patterns):
-                continue
-            if listed is None or rel not in listed:
+            if rel not in listed:
                 return repr(rel)
+            if writer != command:
+                return f"{rel!r} (written by pmsm2dof {writer})"
             if _stamp(path) != listed[rel]:
                 return f"{rel!r} (changed since pmsm2dof {command} wrote it)"
     return None
@@ -122,7 +126,8 @@ def staged_dir(out: Path | str, command: str, force: bool = False, own: Iterable
     On an exception the temporary folder is removed and ``out`` is untouched.
     """
     out = check_out(out, command, force, own)
-    tmp = _stage(out)
+    tmp, created = _stage(out)
+    done = False
     try:
         try:
             yield tmp
@@ -135,8 +140,11 @@ def staged_dir(out: Path | str, command: str, force: bool = False, own: Iterable
         with _signals_deferred():
             check_out(out, command, force, own)  # a file may have appeared during a long run
             _commit(tmp, out, command, force)
+        done = True
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
+        if not done:
+            _remove_created(created)
 
 
 def remove_outputs(out: Path | str, command: str, own: Iterable[str] = ()) -> None:
@@ -157,6 +165,13 @@ def remove_outputs(out: Path | str, command: str, own: Iterable[str] = ()) -> No
 def _own_files(out: Path, command: str) -> dict[str, list[int]] | None:
     """``{relative path: [size, mtime_ns]}`` that the manifest of ``out`` lists for ``command``;
     None when it has no manifest of ``command`` (or a damaged one)."""
+    manifest = _manifest(out)
+    return manifest[1] if manifest is not None and manifest[0] == command else None
+
+
+def _manifest(out: Path) -> tuple[str, dict[str, list[int]]] | None:
+    """The command and the files (``{relative path: [size, mtime_ns]}``) of the manifest of
+    ``out``; None when it has none, or a damaged one."""
     path = out / MANIFEST
     try:
         if not path.is_file() or path.stat().st_size > MANIFEST_BYTES_MAX:
@@ -164,9 +179,14 @@ def _own_files(out: Path, command: str) -> dict[str, list[int]] | None:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
-    if not isinstance(data, dict) or data.get("command") != command or not isinstance(data.get("files"), dict):
+    if (
+        not isinstance(data, dict)
+        or not isinstance(data.get("command"), str)
+        or not isinstance(data.get("files"), dict)
+    ):
         return None
-    return {k: v for k, v in data["files"].items() if isinstance(k, str) and isinstance(v, list)}
+    files = {k: v for k, v in data["files"].items() if isinstance(k, str) and isinstance(v, list)}
+    return data["command"], files
 
 
 def _matches(rel: str, patterns: tuple[str, ...]) -> bool:
@@ -240,17 +260,29 @@ def _unlink(path: Path, out: Path) -> None:
         folder = folder.parent
 
 
-def _stage(out: Path) -> Path:
-    """Create and return the temporary sibling folder of ``out``, or raise ConfigError."""
+def _stage(out: Path) -> tuple[Path, list[Path]]:
+    """Create the temporary sibling folder of ``out`` (and the missing folders above it), or raise
+    ConfigError; return it and the folders above it that this created, deepest first."""
     parent = out.absolute().parent
+    created = [p for p in [parent, *parent.parents] if not p.exists()]
     try:
         parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))
         # mkdtemp creates the folder 0700; renamed into place, it gets the mode mkdir would give
         tmp.chmod(0o777 & ~_umask())
-        return tmp
+        return tmp, created
     except (OSError, RuntimeError) as exc:
+        _remove_created(created)
         raise ConfigError("out", str(out), f"a writable folder ({_reason(exc)})") from None
+
+
+def _remove_created(folders: list[Path]) -> None:
+    """Remove the ``folders`` created for an output that was not written, deepest first, if empty."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            return
 
 
 def _umask() -> int:
