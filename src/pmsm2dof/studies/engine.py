@@ -31,7 +31,7 @@ from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Seq
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, SimulationError
+from ..errors import ConfigError, SimulationError, is_integer
 from ..inputs import read_bytes
 from ..outputs import atomic_write
 from ..sim.metrics import compute_metrics
@@ -147,9 +147,9 @@ def check_options(workers: int | None = None, scheduler: str | None = None, batc
         raise ConfigError("workers", workers, "absent when a scheduler is given (the cluster's workers run the runs)")
     if scheduler is not None and (not isinstance(scheduler, str) or "://" not in scheduler):
         raise ConfigError("scheduler", scheduler, "the address of a Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+    if workers is not None and (not is_integer(workers) or workers < 1):
         raise ConfigError("workers", workers, "an integer >= 1")
-    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1):
+    if batch_size is not None and (not is_integer(batch_size) or batch_size < 1):
         raise ConfigError("batch_size", batch_size, "an integer >= 1")
 
 

@@ -22,7 +22,7 @@ from urllib.parse import urlsplit
 import uvicorn
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from ...errors import ConfigError
+from ...errors import ConfigError, is_integer
 
 DEFAULT_PORT = 8765
 """Port tried first when none is given; a free one is chosen if it is busy."""
@@ -49,8 +49,9 @@ def bind_socket(host: str = "127.0.0.1", port: int | None = None) -> socket.sock
         TCP port; 0 lets the system choose a free one; None tries :data:`DEFAULT_PORT`
         and falls back to a free port when it is busy.
     """
-    if port is not None and (isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535):
+    if port is not None and (not is_integer(port) or not 0 <= port <= 65535):
         raise ConfigError("port", port, "an integer in [0, 65535]")
+    port = None if port is None else int(port)
     try:
         infos = socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)
     except (socket.gaierror, UnicodeError):
