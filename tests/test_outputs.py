@@ -202,3 +202,30 @@ def test_a_failed_run_leaves_no_folder_it_created_above_out(tmp_path, capsys, mo
     assert list(tmp_path.iterdir()) == []
     check_out("c/d/out", "study")  # the check alone creates nothing either
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_device_or_fifo_is_never_replaced_by_a_file(tmp_path):
+    """As root, the rename of a header written to /dev/null would put a file in its place; a FIFO
+    stands for the device here."""
+    os.mkfifo(tmp_path / "fifo.h")
+    for path in (tmp_path / "fifo.h", tmp_path):
+        with pytest.raises(ConfigError, match="a device, a FIFO"):
+            atomic_write(path, "x")
+    assert (tmp_path / "fifo.h").is_fifo() and sorted(p.name for p in tmp_path.iterdir()) == ["fifo.h"]
+    code = main(
+        [
+            "design",
+            "--J",
+            "0.4",
+            "--alpha",
+            "0.5",
+            "--zeta",
+            "0.3",
+            "--Ts",
+            "1e-3",
+            "--paper-drive",
+            "--emit-c-header",
+            str(tmp_path / "fifo.h"),
+        ]
+    )
+    assert code == 2 and (tmp_path / "fifo.h").is_fifo()

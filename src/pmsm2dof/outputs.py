@@ -320,11 +320,15 @@ def atomic_file(path: Path | str, mode: str = "w") -> Iterator[IO[Any]]:
     """Yield a file opened in ``mode`` (``"w"`` or ``"wb"``) whose content replaces ``path`` on success.
 
     The content goes to a temporary sibling that is renamed over ``path`` at the end, so that a
-    failure or an interrupt leaves ``path`` as it was. Written in pieces, a large output (the log
+    failure or an interrupt leaves ``path`` as it was; a ``path`` that is a folder, a device (the
+    rename would replace ``/dev/null``), a FIFO or a socket is refused. Written in pieces, a large output (the log
     of a long run) is never held in memory whole. A full disk raises ConfigError naming ``path``
     with the room there was.
     """
     path = Path(path)
+    if os.path.lexists(path) and not (path.is_file() or path.is_symlink()):
+        # the rename would put a file in the place of a device (/dev/null), a FIFO or a folder
+        raise ConfigError("path", str(path), "a file path (it is a folder, a device, a FIFO or a socket)")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)

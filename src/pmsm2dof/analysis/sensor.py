@@ -183,9 +183,10 @@ class SensorChain:
 
 
 #: Longest delay of the sampled loop's analysis [periods]: the loop has a state per period of
-#: delay and its step response costs the cube of its order (128 periods: about 1 s, 256: 10 to
-#: 20 s on the development machine). A sensor's delay is a few periods.
-DELAY_PERIODS_MAX = 128
+#: delay and its step response costs the cube of its order (256 periods: 1.5 s, 512: 13.5 s on
+#: one core of the development machine, benchmarks/results.md). It covers the engine's 2046
+#: current-loop periods (the scenario's bound) wherever the speed loop runs at least 8 of them.
+DELAY_PERIODS_MAX = 256
 
 
 def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: SensorChain) -> list[Any]:
