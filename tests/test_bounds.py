@@ -1,5 +1,8 @@
 """Every input that sets an amount of work or memory is bounded before the work starts.
 
+The refusals run in one capped subprocess (the fast suite); the runs at a bound, the 2 GiB
+compressed log, the streamed trace and the tuner's 400 MB body in the full suite.
+
 Each probe runs the command in a subprocess whose address space is capped (``resource.setrlimit``)
 at what it holds once its libraries are loaded plus a small budget, and with a timeout: a
 regression that allocates or computes without bound fails here (MemoryError, a traceback, the
@@ -9,25 +12,21 @@ delay that grew a z^-n polynomial to 15 GB, a sweep of 1e9 points, a Bode list o
 long run held twice in memory, and a 400 MB body posted to the tuner.
 """
 
+import json
 import os
 import subprocess
 import sys
 import textwrap
-import time
 import zipfile
 
 import httpx
 import numpy as np
 import pytest
 
-#: Slow: each probe starts an interpreter with the libraries (a few seconds): run by the full suite;
-#: tests/test_no_traceback.py checks the same refusals in this process.
-pytestmark = pytest.mark.slow
-
-#: Runs ``main(argv)`` with the address space capped at what it holds after its imports plus BUDGET_MB.
-CAPPED_MAIN = textwrap.dedent(
+#: Caps the address space at what the process holds after its imports plus BUDGET_MB.
+CAP = textwrap.dedent(
     """
-    import io, os, resource, sys
+    import contextlib, io, json, os, resource, sys, traceback
     import control, matplotlib.pyplot, numpy, pandas, pyarrow.parquet, scipy.io, scipy.signal
     from pmsm2dof.ui.cli import main
 
@@ -36,23 +35,44 @@ CAPPED_MAIN = textwrap.dedent(
     size = int(open("/proc/self/statm").read().split()[0]) * resource.getpagesize()
     budget = int(os.environ["BUDGET_MB"]) * 1024**2
     resource.setrlimit(resource.RLIMIT_AS, (size + budget, size + budget))
-    sys.exit(main(sys.argv[1:]))
+    """
+)
+#: Runs ``main(argv)``, capped (:data:`CAP`), for each argv of the JSON list in argv[1], and prints
+#: ``[[exit status, stderr], ...]`` (an exception escaping main is a status "Traceback: ...").
+CAPPED_MAIN = CAP + textwrap.dedent(
+    """
+    results = []
+    for argv in json.loads(sys.argv[1]):
+        err = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                code = main(argv)
+        except BaseException:
+            code = "Traceback: " + traceback.format_exc()[-1500:]
+        results.append([code, err.getvalue()])
+    print(json.dumps(results))
     """
 )
 
 
-def run_capped(argv, cwd, budget_mb=300, timeout_s=60):
+def run_capped(argvs, cwd, budget_mb=300, timeout_s=300):
+    """``[(exit status, stderr)]`` of ``main(argv)`` for each of ``argvs``, in one capped subprocess."""
     env = dict(os.environ, BUDGET_MB=str(budget_mb), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    start = time.monotonic()
     proc = subprocess.run(
-        [sys.executable, "-c", CAPPED_MAIN, *argv], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout_s
+        [sys.executable, "-c", CAPPED_MAIN, json.dumps(argvs)],
+        cwd=cwd,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=timeout_s,
     )
-    return proc.returncode, proc.stderr, time.monotonic() - start
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return [tuple(r) for r in json.loads(proc.stdout.strip().splitlines()[-1])]
 
 
-def assert_refused(argv, cwd, *words, budget_mb=300):
-    code, err, _ = run_capped(argv, cwd, budget_mb)
-    assert code == 2, err[-2000:]
+def assert_refused(result, *words):
+    code, err = result
+    assert code == 2, err[-2000:] if code != "Traceback" else code
     assert err.count("\n") == 1 and err.startswith("pmsm2dof: error: ") and "Traceback" not in err, err
     for word in words:
         assert word in err, err
@@ -60,66 +80,85 @@ def assert_refused(argv, cwd, *words, budget_mb=300):
 
 
 DESIGN = ["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"]
+SWEEPS = {
+    "num 1e9": ('"motor.J_kgm2" = { start = 0.1, stop = 1.0, num = 1000000000 }', "num = 1000000000"),
+    "3000 x 3000": (
+        '"motor.J_kgm2" = { start = 0.1, stop = 1.0, num = 3000 }\n'
+        '"speed_controller.alpha_radps" = { start = 0.1, stop = 1.0, num = 3000 }',
+        "'3000 x 3000 = 9000000 points'",
+    ),
+    "draws 1e9": ('"motor.J_kgm2" = { distribution = "uniform", low = 0.1, high = 1.0 }', "draws = 1000000000"),
+}
+FILES = [
+    (["motor"], "/dev/zero"),
+    (["motor"], "fifo"),
+    (["motor"], "big.toml"),
+    (["simulate", "--out", "o"], "/dev/zero"),
+    (["commission"], "fifo"),
+    (["sweep", "--out", "o"], "big.toml"),
+]
+#: Every refusal probe, by name: argv.
+PROBES = {
+    **{f"design --sensor-delay {d}": [*DESIGN, "--sensor-delay", d] for d in ("1e6", "10", "0.5", "0.257")},
+    **{f"sweep {name}": ["sweep", f"{name.replace(' ', '_')}.toml", "--out", "out"] for name in SWEEPS},
+    "bode --m 2000 values": ["bode", "--alpha", "0.5", "--m", ",".join(["1"] * 2000), "--out", "f.png"],
+    **{f"{command[0]} {path}": [command[0], path, *command[1:]] for command, path in FILES},
+    "simulate t_end_s = 10000": ["simulate", "paper-condition-2", "--set", "simulation.t_end_s=10000", "--out", "long"],
+}
+
+
+@pytest.fixture(scope="module")
+def refusals(tmp_path_factory):
+    """Each probe's (exit status, stderr), run in one capped subprocess in a folder holding the files
+    they read: a FIFO, a sparse 5 GiB file (no disk used) and the sweep files."""
+    folder = tmp_path_factory.mktemp("probes")
+    os.mkfifo(folder / "fifo")
+    with open(folder / "big.toml", "wb") as f:
+        f.truncate(5 * 1024**3)
+    for name, (axes, _words) in SWEEPS.items():
+        draws = "draws = 1000000000\nseed = 1\n" if "distribution" in axes else ""
+        (folder / f"{name.replace(' ', '_')}.toml").write_text(f'base = "paper-condition-2"\n{draws}[axes]\n{axes}\n')
+    before = sorted(p.name for p in folder.iterdir())
+    results = dict(zip(PROBES, run_capped(list(PROBES.values()), folder)))
+    assert sorted(p.name for p in folder.iterdir()) == before, "a refused command left something behind"
+    return results
 
 
 @pytest.mark.parametrize("delay_s", ["1e6", "10", "0.5", "0.257"])
-def test_design_bounds_the_sensor_delay_in_periods(tmp_path, delay_s):
+def test_design_bounds_the_sensor_delay_in_periods(refusals, delay_s):
     """1e6 s grew to 15 GB, 10 s ran over 5 minutes, 0.5 s asked for 10 GiB of frequency responses."""
-    assert_refused([*DESIGN, "--sensor-delay", delay_s], tmp_path, "--sensor-delay = ", "<= 256 Ts_s = 0.256 s")
+    assert_refused(refusals[f"design --sensor-delay {delay_s}"], "--sensor-delay = ", "<= 256 Ts_s = 0.256 s")
 
 
+@pytest.mark.slow
 def test_design_at_the_delay_bound_runs_within_the_budget(tmp_path):
-    code, err, _ = run_capped([*DESIGN, "--sensor-delay", "0.256"], tmp_path, budget_mb=400, timeout_s=300)
+    ((code, err),) = run_capped([[*DESIGN, "--sensor-delay", "0.256"]], tmp_path, budget_mb=400)
     assert code == 0, err[-2000:]
 
 
-@pytest.mark.parametrize(
-    "axes, words",
-    [
-        ('"motor.J_kgm2" = { start = 0.1, stop = 1.0, num = 1000000000 }', "num = 1000000000"),
-        (
-            '"motor.J_kgm2" = { start = 0.1, stop = 1.0, num = 3000 }\n'
-            '"speed_controller.alpha_radps" = { start = 0.1, stop = 1.0, num = 3000 }',
-            "'3000 x 3000 = 9000000 points'",
-        ),
-        ('"motor.J_kgm2" = { distribution = "uniform", low = 0.1, high = 1.0 }', "draws = 1000000000"),
-    ],
-    ids=["num 1e9", "3000 x 3000", "draws 1e9"],
-)
-def test_sweep_size_is_bounded_before_any_point_is_made(tmp_path, axes, words):
-    (tmp_path / "sweep.toml").write_text(f'base = "paper-condition-2"\ndraws = 1000000000\nseed = 1\n[axes]\n{axes}\n')
-    if "distribution" not in axes:
-        text = (tmp_path / "sweep.toml").read_text().replace("draws = 1000000000\nseed = 1\n", "")
-        (tmp_path / "sweep.toml").write_text(text)
-    assert_refused(["sweep", "sweep.toml", "--out", "out"], tmp_path, words, "100000")
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["sweep.toml"]
+@pytest.mark.parametrize("name", SWEEPS)
+def test_sweep_size_is_bounded_before_any_point_is_made(refusals, name):
+    assert_refused(refusals[f"sweep {name}"], SWEEPS[name][1], "100000")
 
 
-def test_bode_list_is_bounded(tmp_path):
-    m = ",".join(["1"] * 2000)
-    assert_refused(["bode", "--alpha", "0.5", "--m", m, "--out", "f.png"], tmp_path, "at most 20")
+def test_bode_list_is_bounded(refusals):
+    assert_refused(refusals["bode --m 2000 values"], "at most 20")
 
 
-@pytest.mark.parametrize(
-    "command, path",
-    [
-        (["motor"], "/dev/zero"),
-        (["motor"], "fifo"),
-        (["motor"], "big.toml"),
-        (["simulate", "--out", "o"], "/dev/zero"),
-        (["commission"], "fifo"),
-        (["sweep", "--out", "o"], "big.toml"),
-    ],
-)
-def test_input_files_are_regular_and_bounded(tmp_path, command, path):
-    os.mkfifo(tmp_path / "fifo")
-    with open(tmp_path / "big.toml", "wb") as f:  # 5 GB, sparse: no disk used
-        f.truncate(5 * 1024**3)
-    argv = [command[0], path, *command[1:]]
+@pytest.mark.parametrize("command, path", FILES)
+def test_input_files_are_regular_and_bounded(refusals, command, path):
     words = "a file of at most 4 MiB (it has 5 GiB)" if path == "big.toml" else "a regular file (it is a device"
-    assert_refused(argv, tmp_path, words)
+    assert_refused(refusals[f"{command[0]} {path}"], words)
 
 
+def test_the_log_of_a_long_run_that_does_not_fit_is_refused_with_its_size(refusals):
+    """simulation.t_end_s = 10000 (the limit is 36000): its log buffer is refused with its size where
+    it does not fit, instead of a MemoryError."""
+    err = assert_refused(refusals["simulate t_end_s = 10000"], "simulation.log_every = 1", "10000001 rows need")
+    assert "GiB" in err
+
+
+@pytest.mark.slow
 def test_a_compressed_log_is_bounded_by_what_it_holds(tmp_path):
     """A 3 MB NPZ that holds 2.2 GiB of zeros: refused from its headers, before it is inflated."""
     n = 2_300_000_000 // 8
@@ -133,19 +172,8 @@ def test_a_compressed_log_is_bounded_by_what_it_holds(tmp_path):
                 f.write(block)
             f.write(bytes(n * 8 % len(block)))
     assert (tmp_path / "log.npz").stat().st_size < 20 * 1024**2
-    assert_refused(["identify", "log.npz", "--pole-pairs", "4", "--psi-f-Wb", "0.1"], tmp_path, "(it holds 2.14 GiB)")
-
-
-def test_the_log_of_a_long_run_that_does_not_fit_is_refused_with_its_size(tmp_path):
-    """simulation.t_end_s = 10000 (the limit is 36000): its log buffer is refused with its size where
-    it does not fit, instead of a MemoryError."""
-    err = assert_refused(
-        ["simulate", "paper-condition-2", "--set", "simulation.t_end_s=10000", "--out", "out"],
-        tmp_path,
-        "simulation.log_every = 1",
-        "10000001 rows need",
-    )
-    assert "GiB" in err and not (tmp_path / "out").exists()
+    (result,) = run_capped([["identify", "log.npz", "--pole-pairs", "4", "--psi-f-Wb", "0.1"]], tmp_path)
+    assert_refused(result, "(it holds 2.14 GiB)")
 
 
 STREAM_SAVE = textwrap.dedent(
@@ -169,6 +197,7 @@ STREAM_SAVE = textwrap.dedent(
 )
 
 
+@pytest.mark.slow
 def test_the_csv_trace_of_a_long_run_is_streamed_within_a_small_budget(tmp_path):
     """The log (0.9 M rows, about 190 MB) held whole as a DataFrame and a CSV string needs about
     four times that; streamed, a budget of 150 MB above the log is enough."""
@@ -194,7 +223,7 @@ def capped_tuner(tmp_path_factory):
     """The tuner served by a subprocess with 300 MB of address space above its libraries."""
     env = dict(os.environ, BUDGET_MB="300", OPENBLAS_NUM_THREADS="1")
     proc = subprocess.Popen(
-        [sys.executable, "-c", CAPPED_MAIN, *TUNE],
+        [sys.executable, "-c", CAP + "sys.exit(main(sys.argv[1:]))\n", *TUNE],
         cwd=tmp_path_factory.mktemp("tune"),
         env=env,
         stdout=subprocess.PIPE,
@@ -208,6 +237,7 @@ def capped_tuner(tmp_path_factory):
     proc.communicate(timeout=60)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("declared", [True, False], ids=["with its length", "chunked"])
 def test_the_tuner_refuses_a_400_mb_body_without_reading_it_or_echoing_it(capped_tuner, declared):
     url, proc = capped_tuner

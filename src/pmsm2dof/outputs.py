@@ -15,8 +15,8 @@ did not write:
   are moved in, and those of the earlier run that this one did not write again (a ``motor.toml``
   of a commissioning that succeeded, under the ``result.json`` of one that failed) are removed.
 
-A file that runs out of room on its disk is reported with the size it needed and the room
-there was, naming the output.
+A file that runs out of room on its disk is reported naming the output, with how much of it was
+written and the room left; a path that is a device, a FIFO or a folder is never replaced by a file.
 """
 
 import contextlib
