@@ -4,7 +4,10 @@ The extension is compiled from the C sources of this repository: the deployable
 controller (``csrc/src``, float32 C99) and the host-only simulation engine
 (``csrc/sim``, double). The C declarations given to cffi are read from the public
 headers themselves (preprocessor lines removed), so there is one declaration of
-each struct and function.
+each struct and function; ``csrc/sim/*_inline.h`` hold static inline code that the
+engine's sources share, and no declarations, so they are left out. The comment beside each field of
+the configuration structs (``*_config_t``, ``*_params_t``: meaning, unit, range) is compiled in as
+well (``p2d_field_comment``), for the code generator's headers.
 """
 
 import re
@@ -36,7 +39,7 @@ def in_include_order(headers):
 
 
 HEADERS = in_include_order(sorted((CSRC / "include" / "pmsm2dof").glob("*.h")))
-HEADERS += in_include_order(sorted((CSRC / "sim").glob("*.h")))
+HEADERS += in_include_order(sorted(h for h in (CSRC / "sim").glob("*.h") if not h.name.endswith("_inline.h")))
 
 
 def cdef_of(header):
@@ -46,11 +49,51 @@ def cdef_of(header):
     return "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
 
 
+STRUCT = re.compile(r"typedef struct\s*\{(.*?)\}\s*(\w+_(?:config|params)_t)\s*;", re.S)
+FIELD = re.compile(r"^\s*[\w ]*?\s\**(\w+)(?:\[[^\]]*\])?\s*;\s*/\*(.*)$")
+
+
+def field_comments(headers):
+    """{"<struct>.<field>": comment} of the fields of the configuration structs, one line each."""
+    comments = {}
+    for header in headers:
+        for body, struct in STRUCT.findall(header.read_text()):
+            lines = body.splitlines()
+            for i, line in enumerate(lines):
+                m = FIELD.match(line)
+                if m is None:
+                    continue
+                parts = [m.group(2)]
+                while "*/" not in parts[-1] and i + 1 < len(lines):
+                    i += 1
+                    parts.append(lines[i])
+                text = " ".join(p.strip() for p in parts)
+                comments[f"{struct}.{m.group(1)}"] = " ".join(text[: text.index("*/")].split())
+    return comments
+
+
+def c_literal(text):
+    """A C string literal of ASCII text."""
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+COMMENTS = field_comments(HEADERS)
+# p2d_field_comment(2 i) is the name "<struct>.<field>" of entry i, p2d_field_comment(2 i + 1) its comment, then NULL
+COMMENT_TABLE = (
+    "static const char *const p2d_field_comments[] = {\n"
+    + "".join(f"    {c_literal(k)}, {c_literal(v)},\n" for k, v in COMMENTS.items())
+    + "    0};\n"
+    + "const char *p2d_field_comment(uint32_t i)\n"
+    + "{\n    return i < sizeof p2d_field_comments / sizeof p2d_field_comments[0] ? p2d_field_comments[i] : 0;\n}\n"
+)
+
 ffibuilder = FFI()
-ffibuilder.cdef("\n".join(cdef_of(h) for h in HEADERS))
+ffibuilder.cdef("\n".join(cdef_of(h) for h in HEADERS) + "\nconst char *p2d_field_comment(uint32_t i);\n")
 ffibuilder.set_source(
     "pmsm2dof._core",
-    "\n".join(f'#include "{h.relative_to(CSRC / "include") if "include" in h.parts else h.name}"' for h in HEADERS),
+    "\n".join(f'#include "{h.relative_to(CSRC / "include") if "include" in h.parts else h.name}"' for h in HEADERS)
+    + "\n"
+    + COMMENT_TABLE,
     sources=[str(s.relative_to(ROOT)) for s in SOURCES],
     include_dirs=[str(CSRC / "include"), str(CSRC / "sim")],
     # -ffp-contract=off: a*b+c unfused, as on the MCU. -fno-tree-slp-vectorize: the SLP vectorizer

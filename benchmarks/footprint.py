@@ -28,7 +28,12 @@ instructions per step
     The count is checked on ``p2d_speed_Ka_default``, which has no branch: the
     trace must give the number of instructions of its disassembly.
 
-Writes the sections "Footprint and cost on the Cortex-M4F" (speed and current
+With ``--fixed-point``, writes the section "Fixed-point speed controllers on the Cortex-M0 and M3,
+beside float32 on the M4F" only: the float32, Q15 and Q31 speed steps
+(``csrc/target/target_fixed_cost.c``) built for each core with its toolchain file and traced on
+its QEMU machine (mps2-an386, mps2-an385, microbit), in the same way.
+
+Otherwise writes the sections "Footprint and cost on the Cortex-M4F" (speed and current
 controllers, every module), "Footprint of the speed sensing and field weakening
 on the Cortex-M4F" (encoder estimators, field weakening, the speed controller's
 field-weakening entry), "Inertia estimator on the Cortex-M4F", "Commissioning
@@ -40,7 +45,7 @@ steps are summarised by phase, since a step costs more at the end of an
 injection period or of a phase than on an ordinary sample. The torque filters:
 the speed step with a notch and a low-pass on its torque command, and
 ``p2d_filter_step``.
-Usage: ``python3 benchmarks/footprint.py [--build-dir DIR]``.
+Usage: ``python3 benchmarks/footprint.py [--build-dir DIR] [--fixed-point]``.
 """
 
 import argparse
@@ -164,11 +169,12 @@ def reachable(calls, root):
     return seen
 
 
-def trace(elf, workdir):
-    """(program output lines, executed PCs in order) of one run of the ELF on QEMU."""
+def trace(elf, workdir, machine="mps2-an386"):
+    """(program output lines, executed PCs in order) of one run of the ELF on QEMU's ``machine``."""
     log = workdir / "exec.log"
+    qemu = [QEMU[0], "-M", machine, *QEMU[3:]]
     done = subprocess.run(
-        [*QEMU, "-singlestep", "-d", "exec,nochain", "-D", log, "-kernel", elf],
+        [*qemu, "-singlestep", "-d", "exec,nochain", "-D", log, "-kernel", elf],
         capture_output=True,
         text=True,
         timeout=QEMU_TIMEOUT_S,
@@ -711,10 +717,120 @@ def filter_report(m):
     return "\n".join(out) + "\n"
 
 
+FIXED_SECTION = "## Fixed-point speed controllers on the Cortex-M0 and M3, beside float32 on the M4F"
+#: core: (toolchain file, QEMU machine, board)
+FIXED_CORES = {
+    "Cortex-M4F": ("arm-none-eabi-cortex-m4f.cmake", "mps2-an386"),
+    "Cortex-M3": ("arm-none-eabi-cortex-m3.cmake", "mps2-an385"),
+    "Cortex-M0": ("arm-none-eabi-cortex-m0.cmake", "microbit"),
+}
+FIXED_CONTROLLERS = {"speed": "float32", "speed_q15": "Q15", "speed_q31": "Q31"}
+
+
+def _flash(funcs, calls, root):
+    """(bytes, names) of the functions reachable from root (static call graph)."""
+    names = sorted(f for f in reachable(calls, root) if f in funcs)
+    return sum(funcs[f][1] for f in names), names
+
+
+def fixed_measure(workdir):
+    """Instructions, stack and flash of the float32, Q15 and Q31 speed steps on every core
+    (``csrc/target/target_fixed_cost.c``, each core's cross build and QEMU machine)."""
+    cores = {}
+    for core, (toolchain, machine) in FIXED_CORES.items():
+        build = workdir / f"build-{machine}"
+        env = dict(os.environ, CFLAGS="-g")
+        run(["cmake", "-S", CSRC, "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={CSRC / 'cmake' / toolchain}"], env=env)
+        run(["cmake", "--build", build, "-j2", "--target", "p2d_fixed_cost"])
+        elf = build / "target" / "p2d_fixed_cost"
+        funcs = symbols(elf)
+        mnemonic, calls = disassembly(elf)
+        lines, pcs = trace(elf, workdir, machine)
+        if not lines or lines[-1] != "END":
+            raise RuntimeError(f"{core}: probe program did not finish:\n" + "\n".join(lines[-5:]))
+        # the counting method, on a function without branches
+        start, size = funcs["p2d_cost_mark"]
+        disassembled = sum(1 for a in mnemonic if start <= a < start + size and not mnemonic[a].startswith("."))
+        first, end = call_in_trace(pcs, start, 0, mnemonic)
+        if end - first != disassembled:
+            raise RuntimeError(f"{core}: {end - first} instructions of p2d_cost_mark traced, {disassembled} in it")
+        marks = [i for i, a in enumerate(pcs) if a == funcs["p2d_cost_mark"][0]]
+        probes = {}
+        for p in (ln.split() for ln in lines if ln.startswith("probe ")):
+            # probe <index> <controller> <point> stack <bytes>
+            controller, point = p[2], p[3]
+            first, end = call_in_trace(pcs, funcs[f"p2d_{controller}_step"][0], marks[int(p[1], 16)], mnemonic)
+            probes[(controller, point)] = (end - first, int(p[5], 16))
+        cores[core] = dict(
+            machine=machine,
+            probes=probes,
+            sizeof={p[1]: int(p[2], 16) for p in (ln.split() for ln in lines) if p and p[0] == "sizeof"},
+            step_flash={c: _flash(funcs, calls, f"p2d_{c}_step") for c in FIXED_CONTROLLERS},
+            init_flash={c: _flash(funcs, calls, f"p2d_{c}_init") for c in FIXED_CONTROLLERS},
+            check=disassembled,
+        )
+    return cores
+
+
+def fixed_report(cores):
+    """The markdown section of the fixed-point controllers."""
+    out = [
+        FIXED_SECTION,
+        "",
+        measured_by("python3 benchmarks/footprint.py --fixed-point") + ";",
+        f"{tool_version('arm-none-eabi-gcc')}; {tool_version('qemu-system-arm')}; code: {code_version()}.",
+        "Flags: `-mthumb -O2 -ffp-contract=off`, newlib-nano, with `-mcpu=cortex-m4 -mfpu=fpv4-sp-d16 "
+        "-mfloat-abi=hard` (M4F, QEMU mps2-an386), `-mcpu=cortex-m3 -mfloat-abi=soft` (M3, mps2-an385), "
+        "`-mcpu=cortex-m0 -mfloat-abi=soft` (M0, microbit).",
+        "",
+        "One step of the speed controller (`csrc/target/target_fixed_cost.c`: the paper's drive, Tustin, back "
+        "calculation, lowpass feedforward, surface PMSM; fixed point scaled to 1000 rpm and 32 Nm), counted on "
+        "QEMU from the step's entry to its return, callees included (executed instructions, not cycles: on the "
+        "M0 a `muls` takes 1 or 32 cycles by the core's build option, on the M3 a taken branch 2 to 4). Without an "
+        "FPU the float32 step runs on the compiler's software floating point. The counting method is checked on "
+        "each core: the trace of `p2d_cost_mark` has as many instructions as its disassembly ("
+        + ", ".join(f"{c['check']} on the {k}" for k, c in cores.items())
+        + "). Init validates the design by the float controller's rules (`p2d_speed_init`) and computes the "
+        "coefficients in double, on a core without an FPU with the compiler's software floating point: hence its "
+        "flash.",
+        "",
+        "| core | controller | instructions per step: unsaturated | saturated | stack (bytes) "
+        "| flash reachable from the step (bytes) | from init (bytes) |",
+        "|---|---|---:|---:|---:|---:|---:|",
+    ]
+    for core, c in cores.items():
+        for controller, name in FIXED_CONTROLLERS.items():
+            unsat, sat = c["probes"][(controller, "unsaturated")], c["probes"][(controller, "saturated")]
+            out.append(
+                f"| {core} | {name} | {unsat[0]} | {sat[0]} | {max(unsat[1], sat[1])} | "
+                f"{c['step_flash'][controller][0]} | {c['init_flash'][controller][0]} |"
+            )
+    out += ["", "RAM (`sizeof`, the same on every core):", ""]
+    sizes = next(iter(cores.values()))["sizeof"]
+    out += [", ".join(f"`{t}` {s}" for t, s in sizes.items()) + " bytes."]
+    out += ["", "Functions reachable from each fixed-point step (bytes):", ""]
+    for core, c in cores.items():
+        for controller in ("speed_q15", "speed_q31"):
+            size, names = c["step_flash"][controller]
+            out.append(f"- {core}, `p2d_{controller}_step` ({size}): " + ", ".join(names))
+    return "\n".join(out) + "\n"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--build-dir", type=Path, help="cross build directory (default: a temporary one)")
+    parser.add_argument(
+        "--fixed-point",
+        action="store_true",
+        help=f"measure the section {FIXED_SECTION[3:]!r} only (three cross builds, one for each core)",
+    )
     args = parser.parse_args(argv)
+    if args.fixed_point:
+        with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
+            text = fixed_report(fixed_measure(Path(tmp)))
+        write_section(FIXED_SECTION, text)
+        print(text)
+        return 0
     with tempfile.TemporaryDirectory(prefix="p2d-footprint-") as tmp:
         build_dir = (args.build_dir or Path(tmp) / "build").resolve()
         measured = measure(build_dir, Path(tmp))

@@ -92,22 +92,13 @@ for event, names in (
 # %%
 # The C header
 # ------------
-# ``static const`` initializers of ``p2d_speed_config_t`` and ``p2d_current_config_t`` for
-# ``p2d_speed_init`` and ``p2d_current_init`` (the same as ``pmsm2dof design ... --emit-c-header``).
+# The complete configuration of the firmware's controllers for this scenario (speed and current
+# controllers, speed-sensor estimator, loop rates): ``static const`` initializers for
+# ``p2d_speed_init``, ``p2d_current_init``, ... (the same as ``pmsm2dof header SCENARIO --out
+# p2d_config.h``, which the firmware of ``examples/firmware`` includes unchanged).
 
-from pmsm2dof.analysis.codegen import write_c_header  # noqa: E402
+from pmsm2dof.studies.configuration import configuration  # noqa: E402
 
 with tempfile.TemporaryDirectory() as tmp:
-    header = write_c_header(
-        Path(tmp) / "servo_750w.h",
-        dd,
-        i_max_A=i_max_A,
-        pole_pairs=pole_pairs,
-        psi_f_Wb=psi_f_Wb,
-        Ld_H=Ld_H,
-        Lq_H=Lq_H,
-        Rs_ohm=Rs_ohm,
-        Ts_current_s=1e-4,
-        prefix="servo",
-    )
+    header = configuration(scenario, source="examples/plot_5_your_motor.py").write_header(Path(tmp) / "p2d_config.h")
     print(header.read_text())

@@ -19,7 +19,19 @@ import pytest
 from pmsm2dof import ConfigError, Scenario, SpeedController, autotune, compute_metrics, load_scenario, simulate
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.discretize import margins_on_plant
-from pmsm2dof.studies.autotune import Candidate, Evaluation, Spec, pareto_front
+from pmsm2dof.studies.autotune import (
+    FIGURES,
+    KA_KP_RANGE,
+    ZETA_RANGE,
+    Candidate,
+    Evaluation,
+    RunRecord,
+    Spec,
+    _Search,
+    bounds_reached,
+    pareto_front,
+    step_figures,
+)
 from pmsm2dof.ui.cli import main
 
 #: A small servo: 0.6 Nm at the 10 A limit, J = 1e-4 kg m^2; 2000 rpm, 0.3 Nm load, 1000 rpm.
@@ -81,7 +93,7 @@ def z_margins(keys, J_plant_kgm2):
 
 
 def figures(keys, J_ratio):
-    """Overshoot [%], settling [s] of the reference steps, and load dip per Nm, of one simulation."""
+    """Overshoot [%], settling [s] of the reference steps, load dip and IAE per Nm, of one simulation."""
     run = servo().with_overrides(
         {f"speed_controller.{k}": v for k, v in keys.items()}
         | {"motor.J_kgm2": J_ratio * J_KGM2, "speed_controller.J_kgm2": J_KGM2}
@@ -92,7 +104,7 @@ def figures(keys, J_ratio):
     settling = [s["settling_time_s"]["value"] for s in steps]
     settling_s = math.inf if None in settling else max(settling)
     (load,) = metrics["load_steps"]
-    return overshoot, settling_s, load["speed_dip_rpm"]["value"] / 0.3
+    return overshoot, settling_s, load["speed_dip_rpm"]["value"] / 0.3, load["iae_rpm_s"]["value"] / 0.3
 
 
 # ---------------------------------------------------------------------------------------------
@@ -109,6 +121,7 @@ def figures(keys, J_ratio):
         ("min_gain_margin_dB", -3.0),
         ("max_settling_s", 0.0),
         ("max_load_dip_rpm_per_Nm", math.inf),
+        ("max_recovery_s", -0.1),
         ("max_current_limit_time_s", True),
         ("max_settling_s", "1"),
         ("J_range", (2.0, 1.0)),
@@ -166,8 +179,8 @@ def test_margins_on_plant_is_none_when_the_loop_is_unstable():
 
 
 def test_pareto_front_keeps_exactly_the_non_dominated():
-    def evaluation(i, iae, dip, pm):
-        worst = {"tracking_iae_rpm_s": iae, "load_dip_rpm_per_Nm": dip, "phase_margin_deg": pm}
+    def evaluation(i, iae, load_iae, pm):
+        worst = {"tracking_iae_rpm_s": iae, "load_iae_rpm_s_per_Nm": load_iae, "phase_margin_deg": pm}
         return Evaluation(Candidate(float(i), 1.0, 1.0, 1.0, "lowpass", "none"), "engine", worst, {}, (1.0,), (), "")
 
     points = [
@@ -212,7 +225,7 @@ def test_the_spec_holds_across_the_inertia_range(tuned):
         pm, gm, stable = z_margins(keys, r * J_KGM2)
         assert stable
         assert pm >= 45.0 and gm >= 6.0, r
-        overshoot, settling_s, dip = figures(keys, r)
+        overshoot, settling_s, dip, _iae = figures(keys, r)
         assert overshoot <= 5.0, r
         assert settling_s <= 0.1, r
         dips.append(dip)
@@ -227,7 +240,9 @@ def test_the_result_reproduces_with_set_and_reports_its_search(tuned):
     assert tuned.pareto and all(e.stage == "engine" for e in tuned.pareto)
     assert tuned.chosen.candidate in {e.candidate for e in tuned.evaluations}
     for e in tuned.rejected:
-        assert e.error or e.violations  # each rejected candidate says why
+        assert e.error or e.violations or e.stage == "partial"  # each rejected candidate says why
+        if e.stage == "partial" and not e.violations:  # simulated in part: ranks below the chosen one there
+            assert _Search.rank(e) > _Search.rank(tuned.chosen)
         for v in e.violations:
             limit = getattr(SPEC, v.constraint)
             assert v.limit == limit and v.miss > 0.0
@@ -252,7 +267,7 @@ def test_at_least_as_good_as_a_brute_force_grid():
     spec = Spec(max_overshoot_pct=5.0, J_range=(0.8, 1.25))
     result = autotune(servo(), spec, workers=2)
     ratios = np.geomspace(0.8, 1.25, 5)
-    best_dip = math.inf
+    best_iae = math.inf
     for alpha_radps in (150.0, 300.0, 450.0, 600.0, 800.0):
         for zeta in (0.5, 0.707, 1.0, 1.4, 1.8):
             keys = {"alpha_radps": alpha_radps, "zeta": zeta, "m": 1.0, "Ka": 1.0 / (J_KGM2 * alpha_radps)}
@@ -261,11 +276,11 @@ def test_at_least_as_good_as_a_brute_force_grid():
             if not all(stable and pm >= 45.0 and gm >= 6.0 for pm, gm, stable in margins):
                 continue
             runs = [figures(keys, r) for r in ratios]
-            if all(overshoot <= 5.0 for overshoot, _s, _d in runs):
-                best_dip = min(best_dip, max(dip for _o, _s, dip in runs))
-    assert math.isfinite(best_dip)  # the grid has a feasible point: the comparison means something
+            if all(overshoot <= 5.0 for overshoot, _s, _d, _i in runs):
+                best_iae = min(best_iae, max(iae for _o, _s, _d, iae in runs))
+    assert math.isfinite(best_iae)  # the grid has a feasible point: the comparison means something
     assert result.feasible
-    assert result.chosen.worst["load_dip_rpm_per_Nm"] <= best_dip
+    assert result.chosen.worst["load_iae_rpm_s_per_Nm"] <= best_iae
 
 
 # ---------------------------------------------------------------------------------------------
@@ -289,6 +304,7 @@ def servo_file(tmp_path):
         (["--max-overshoot-pct", "-1"], "--max-overshoot-pct"),
         (["--min-phase-margin-deg", "200"], "--min-phase-margin-deg"),
         (["--max-settling-s", "nan"], "--max-settling-s"),
+        (["--max-recovery-s", "0"], "--max-recovery-s"),
         (["--feedforward", "fast"], "--feedforward"),
         (["--anti-windup", "clamp"], "--anti-windup"),
         (["--workers", "0"], "--workers"),
@@ -385,5 +401,128 @@ def test_the_forms_of_eq_11_and_clamping_stay_within_the_bound_of_the_work():
     assert keys["feedforward"] in ("no_tau", "full") and keys["anti_windup"] == "clamping"
     assert {e.candidate.m for e in result.evaluations} != {1.0}  # m is searched with the feedforwards of eq 11
     assert result.feasible
-    overshoot, _settling_s, _dip = figures(keys, 1.25)
+    overshoot, _settling_s, _dip, _iae = figures(keys, 1.25)
     assert overshoot <= 5.0
+
+
+# ---------------------------------------------------------------------------------------------
+# the objective, chattering candidates, the bounds of the search
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("zeta", [1.4, 2.0])
+def test_the_objective_is_the_load_iae_which_for_an_overdamped_response_is_dT_over_Ki(zeta):
+    """The integrator supplies the load: Ki times the integral of the error is dT, so a response whose error
+    keeps its sign has IAE = dT / Ki, Ki = J (alpha / (2 zeta))^2 (eq 9): zeta at the top of the range
+    costs the most integral action, which the dip alone does not see."""
+    alpha = 551.0
+    keys = {"alpha_radps": alpha, "zeta": zeta}
+    run = servo().with_overrides({f"speed_controller.{k}": v for k, v in keys.items()})
+    got = step_figures(compute_metrics(simulate(run)))
+    Ki = J_KGM2 * (alpha / (2.0 * zeta)) ** 2
+    assert got["load_iae_rpm_s_per_Nm"] == pytest.approx(30.0 / math.pi / Ki, rel=0.02)
+    assert got["load_dip_rpm_per_Nm"] < got["load_iae_rpm_s_per_Nm"] / 0.005  # the dip lasts longer than 5 ms
+
+
+def test_a_chattering_candidate_is_rejected():
+    search = _Search(servo(), Spec(min_phase_margin_deg=None, min_gain_margin_dB=None), 1, None, False)
+    c = search.candidate(500.0, 0.7, 1.0, 1.0, "lowpass", "back_calculation")
+    figures = dict.fromkeys(FIGURES, 0.0) | {"chatter_share": 0.3}
+    for name in ("phase_margin_deg", "gain_margin_dB"):
+        del figures[name]
+    search.figures[(c, 1.0)] = RunRecord(c, 1.0, figures, "", 0.01)
+    search.simulated_at[c] = [1.0]
+    e = search.evaluation(c)
+    assert not e.feasible and "chatters" in e.error
+    search.figures[(c, 1.0)] = RunRecord(c, 1.0, figures | {"chatter_share": 0.0}, "", 0.01)
+    search.known.clear()
+    assert search.evaluation(c).feasible
+
+
+def test_a_design_on_a_bound_of_the_search_is_reported():
+    search = _Search(servo(), Spec(), 1, None, False)
+    top = search.candidate(500.0, ZETA_RANGE[1], 1.0, 1.0, "lowpass", "back_calculation")
+    assert any(f"zeta = {ZETA_RANGE[1]:g} is at the upper bound" in n for n in bounds_reached(search, top))
+    inside = search.candidate(500.0, 0.7, 1.0, 1.0, "lowpass", "back_calculation")
+    assert bounds_reached(search, inside) == ()
+    edge = search.candidate(search.alpha_max_radps(0.7, 1.0), 0.7, 1.0, 1.0, "lowpass", "back_calculation")
+    assert any("alpha_radps" in n for n in bounds_reached(search, edge))
+    low_ka = search.candidate(500.0, 0.7, 1.0, KA_KP_RANGE[0], "lowpass", "back_calculation")
+    assert any("Ka Kp" in n and "lower bound" in n for n in bounds_reached(search, low_ka))
+
+
+@pytest.mark.slow
+def test_the_chosen_damping_is_inside_the_search_and_the_recovery_bounded(tuned):
+    """With the dip alone as objective zeta ran to the top of its range (2.0) with a slow recovery."""
+    assert tuned.chosen.candidate.zeta < 0.95 * ZETA_RANGE[1]
+    assert not [n for n in tuned.on_bounds if n.startswith("zeta")]
+    result = autotune(servo(), Spec(max_recovery_s=1e-3, J_range=(0.5, 2.0)), workers=2)
+    assert not result.feasible and result.binding.constraint == "max_recovery_s"
+
+
+# ---------------------------------------------------------------------------------------------
+# the search's shortcuts: margins without python-control, candidates simulated where they matter
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("tau_i_s", [0.0, 1e-3, 0.05])
+def test_margins_on_plants_equal_python_controls_polynomial_method(tau_i_s):
+    """The margins of the loop gain L(w) at many inertias, found together, are those python-control's
+    stability_margins finds on each L(w) as a transfer function (the same crossings, picked alike)."""
+    from dataclasses import replace
+
+    from pmsm2dof.analysis.discretize import _loop_w, c_coefficients, margins_on_plants
+    from pmsm2dof.analysis.margins import pick_margins
+
+    rng = np.random.default_rng(31)
+    for _ in range(12):
+        J = 10.0 ** rng.uniform(-5, 0)
+        tau = tau_i_s if tau_i_s else 0.0
+        alpha = 10.0 ** rng.uniform(-1, 2.3) / max(tau, 1e-3)
+        d = design(J, alpha, rng.uniform(0.3, 2.0), tau_i_s=tau)
+        Ts = 10.0 ** rng.uniform(-5, -3)
+        ratios = np.geomspace(0.3, 3.0, 5)
+        got = margins_on_plants(d, Ts, "tustin", J * ratios, tau)
+        pi = c_coefficients(d, Ts, "tustin", feedforward="none", anti_windup="none")
+        for r, margins in zip(ratios, got):
+            num, den = _loop_w(replace(d, J_kgm2=J * r), Ts, pi["b_e0"], pi["Ki_Ts"])
+            char = np.polyadd(den, num)
+            stable = bool(np.all(np.real(np.roots(char)) < 0.0))
+            assert (margins is not None) == stable
+            if margins is None:
+                continue
+            gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(control.tf(num, den), returnall=True)
+            w_pc = 2.0 / Ts * np.arctan(0.5 * Ts * np.asarray(w_pcs, dtype=float))
+            w_gc = 2.0 / Ts * np.arctan(0.5 * Ts * np.asarray(w_gcs, dtype=float))
+            extra = [(abs(den[0] / num[0]), math.pi / Ts)] if num[0] / den[0] < 0.0 else []
+            want = pick_margins(gms, pms, w_pc, w_gc, extra)
+            for name in ("gain_margin_dB", "phase_margin_deg", "w_gain_crossover_radps", "w_phase_crossover_radps"):
+                a, b = getattr(margins, name), getattr(want, name)
+                assert (math.isnan(a) and math.isnan(b)) or a == pytest.approx(b, rel=1e-7, abs=1e-9), name
+
+
+def test_the_search_chooses_what_it_chooses_when_every_candidate_is_simulated_everywhere(monkeypatch):
+    """The search simulates a new candidate at the largest inertia ratio first and at the others only where
+    it could still be the best (_Search.best): the same choice, the same worst case, as a search that
+    simulates every candidate at every ratio; each partial evaluation's figures bound the complete ones."""
+    spec = Spec(max_overshoot_pct=5.0, J_range=(0.5, 2.0), feedforwards=("lowpass", "none"))
+    lazy = autotune(servo(), spec, workers=2)
+    evaluate = _Search.evaluate
+
+    def everywhere(self, candidates, J_ratios_sim=None):
+        return evaluate(self, candidates, self.J_ratios_search if J_ratios_sim is None else J_ratios_sim)
+
+    monkeypatch.setattr(_Search, "evaluate", everywhere)
+    full = autotune(servo(), spec, workers=2)
+    assert lazy.speed_controller == full.speed_controller and lazy.feasible == full.feasible
+    assert lazy.chosen.worst == full.chosen.worst
+    assert len(lazy.runs) < 0.75 * len(full.runs)
+    complete = {e.candidate: e for e in full.evaluations}
+    partial = [e for e in lazy.evaluations if e.stage == "partial"]
+    assert partial and all(not e.feasible for e in partial)
+    for e in partial:
+        f = complete[e.candidate]
+        assert _Search.rank(e) <= _Search.rank(f)
+        for name, value in e.worst.items():
+            if FIGURES[name] == "max":
+                assert value <= f.worst[name]

@@ -57,15 +57,16 @@ def test_design_json_in_a_fresh_process():
 def test_design_emits_c_header(tmp_path, capsys):
     header = tmp_path / "speed_design.h"
     motor = ["--i-max", "5", "--pole-pairs", "3", "--psi-f", "0.1", "--Ld", "0.002", "--Lq", "0.003"]
+    motor += ["--Rs", "0.5", "--Ts-current", "1e-4", "--tau-i", "0.05"]
     assert main(["design", *PAPER, *motor, "--emit-c-header", str(header), "--prefix", "motor1", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     text = header.read_text()
-    assert "static const p2d_speed_config_t motor1_speed_config" in text
+    assert "static const p2d_speed_config_t motor1_speed = {" in text
     assert ".i_max_A = 5.0f" in text and ".pole_pairs = 3u" in text and ".Lq_H = 0.003f" in text
-    assert "p2d_current_config_t" not in text
+    assert "static const p2d_current_config_t motor1_current = {" in text and ".Rs_ohm = 0.5f" in text
+    assert "#define MOTOR1_CURRENT_PER_SPEED 10u" in text
     assert data["header"]["motor"]["psi_f_Wb"] == {"value": 0.1, "source": "given: --psi-f"}
-    assert main(["design", *PAPER, *motor, "--emit-c-header", str(header), "--Rs", "0.5", "--Ts-current", "1e-4"]) == 0
-    assert "static const p2d_current_config_t p2d_design_current_config" in header.read_text()
+    assert data["header"]["motor"]["Ts_current_s"] == {"value": 1e-4, "source": "given: --Ts-current"}
 
 
 def test_header_without_motor_data_names_what_is_missing(tmp_path, capsys):
@@ -73,7 +74,7 @@ def test_header_without_motor_data_names_what_is_missing(tmp_path, capsys):
     assert main(["design", *PAPER, "--emit-c-header", str(header), "--psi-f", "0.1"]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and captured.err.count("\n") == 1
-    assert "--i-max, --pole-pairs, --Ld missing" in captured.err and "--paper-drive" in captured.err
+    assert "--i-max, --pole-pairs, --Ld, --Rs, --Ts-current missing" in captured.err and "--paper-drive" in captured.err
     assert not any(tmp_path.iterdir())
 
 
@@ -126,12 +127,12 @@ def test_sampling_warning_is_one_stderr_line(capsys):
 
 
 BAD = [
-    (["design", "--J", "-0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "J_kgm2"),
-    (["design", "--J", "0.4", "--alpha", "nan", "--zeta", "0.3", "--Ts", "1e-3"], "alpha_radps"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0", "--Ts", "1e-3"], "zeta"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "inf"], "Ts_s"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--tau-i", "-1"], "tau_i_s"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--Ka", "-2"], "Ka"),
+    (["design", "--J", "-0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
+    (["design", "--J", "0.4", "--alpha", "nan", "--zeta", "0.3", "--Ts", "1e-3"], "--alpha"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0", "--Ts", "1e-3"], "--zeta"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "inf"], "--Ts"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--tau-i", "-1"], "--tau-i"),
+    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--Ka", "-2"], "--Ka"),
     (
         [
             "design",
@@ -148,7 +149,7 @@ BAD = [
             "--feedforward",
             "lowpass",
         ],
-        "m",
+        "--m",
     ),
     (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--method", "zoh"], "method"),
     (["design", "--J", "heavy", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
@@ -194,12 +195,14 @@ SLOW_OR_FINE = [
 def test_slow_or_finely_sampled_designs_are_not_refused(tmp_path, capsys, argv):
     header = tmp_path / "speed.h"
     motor = ["--i-max", "7.6", "--pole-pairs", "4", "--psi-f", "0.2", "--Ld", "0.01"]
+    motor += ["--Rs", "0.5", "--Ts-current", "1e-4"]
+    motor += [] if "--tau-i" in argv else ["--tau-i", "0.05"]  # the header's current loop has eq 3's tau_i
     assert main(["design", *argv, *motor, "--emit-c-header", str(header), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     for part in ("continuous", "discrete"):
         assert data[part]["overshoot_pct"] is not None and "overshoot_pct" not in data[part]["missing"]
     assert max(math.hypot(*p) for p in data["discrete"]["poles_z"]) < 1.0
-    assert "p2d_design_speed_config" in header.read_text()
+    assert "p2d_config_speed" in header.read_text()
 
 
 def test_margins_json_has_gain_margin_in_dB_and_no_infinity(capsys):
@@ -221,7 +224,7 @@ def test_margins_json_has_gain_margin_in_dB_and_no_infinity(capsys):
 def test_bad_header_option_writes_nothing(tmp_path, capsys):
     header = tmp_path / "h.h"
     assert main(["design", *PAPER, "--emit-c-header", str(header), "--paper-drive", "--pole-pairs", "0"]) == 2
-    assert capsys.readouterr().err.startswith("pmsm2dof: error: pole_pairs = 0")
+    assert capsys.readouterr().err.startswith("pmsm2dof: error: --pole-pairs = 0")
     assert not any(tmp_path.iterdir())
 
 
@@ -234,9 +237,7 @@ def test_bad_value_in_a_fresh_process_has_no_traceback():
         timeout=120,
     )
     assert run.returncode == 2
-    assert run.stderr.strip().splitlines() == [
-        "pmsm2dof: error: J_kgm2 = 0.0 is invalid: valid range is finite and > 0"
-    ]
+    assert run.stderr.strip().splitlines() == ["pmsm2dof: error: --J = 0.0 is invalid: valid range is finite and > 0"]
 
 
 @pytest.mark.slow

@@ -1,6 +1,7 @@
-"""C header export: it compiles against csrc/ with the project's -Werror flags, and the
-C controller initialized from it produces the same outputs, bit for bit, as the
-controller configured from Python with the design values written out here.
+"""C header export of a design (pmsm2dof.studies.configuration.design_scenario and
+configuration): it compiles against csrc/ with the project's -Werror flags, and the C
+controllers initialized from it produce the same outputs, bit for bit, as the controllers
+configured from Python with the design values written out here.
 """
 
 import math
@@ -15,8 +16,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from pmsm2dof import CurrentController, SpeedController
-from pmsm2dof.analysis.codegen import c_float, c_header
+from pmsm2dof.analysis.codegen import c_float
 from pmsm2dof.analysis.design import design
+from pmsm2dof.studies.configuration import configuration, design_scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 CSRC = ROOT / "csrc"
@@ -47,7 +49,7 @@ CASES = {
         Ts_s=2e-4,
         method="forward_euler",
         motor=dict(i_max_A=12.0, pole_pairs=3, psi_f_Wb=0.05, Ld_H=0.008, Lq_H=0.02),
-        current=None,
+        current=dict(Rs_ohm=0.8, Ts_current_s=1e-4),
     ),
     "backward_no_tau_explicit_Ka": dict(
         design=dict(
@@ -109,16 +111,16 @@ int main(void)
 {{
     p2d_speed_t ctl;
     p2d_speed_output_t out;
-    p2d_status_t status = p2d_speed_init(&ctl, &{prefix}_speed_config);
+    p2d_status_t status = p2d_speed_init(&ctl, &{prefix}_speed);
     int k;
     if (status != P2D_OK) {{
         printf("init %d\\n", (int)status);
         return 1;
     }}
-    printf("config %.9g %.9g %.9g %.9g %.9g %.9g %.9g\\n", (double){prefix}_speed_config.J_kgm2,
-           (double){prefix}_speed_config.alpha_radps, (double){prefix}_speed_config.zeta,
-           (double){prefix}_speed_config.m, (double){prefix}_speed_config.tau_i_s,
-           (double){prefix}_speed_config.Ka, (double){prefix}_speed_config.Ts_s);
+    printf("config %.9g %.9g %.9g %.9g %.9g %.9g %.9g\\n", (double){prefix}_speed.J_kgm2,
+           (double){prefix}_speed.alpha_radps, (double){prefix}_speed.zeta,
+           (double){prefix}_speed.m, (double){prefix}_speed.tau_i_s,
+           (double){prefix}_speed.Ka, (double){prefix}_speed.Ts_s);
     for (k = 0; k < {n}; ++k) {{
         p2d_speed_step(&ctl, w_ref[k], w_m[k], &out);
         printf("speed %.9g %.9g %.9g %.9g %.9g %d\\n", (double)out.T_ff_Nm, (double)out.T_unsat_Nm,
@@ -133,7 +135,7 @@ CURRENT = """\
     {{
         p2d_current_t cc;
         p2d_current_output_t co;
-        if (p2d_current_init(&cc, &{prefix}_current_config) != P2D_OK) return 1;
+        if (p2d_current_init(&cc, &{prefix}_current) != P2D_OK) return 1;
         for (k = 0; k < {n}; ++k) {{
             p2d_current_step(&cc, id_ref[k], iq_ref[k], id[k], iq[k], w_e[k], u_dc[k], &co);
             printf("current %.9g %.9g %d\\n", (double)co.ud_ref_V, (double)co.uq_ref_V, (int)co.saturated);
@@ -141,18 +143,21 @@ CURRENT = """\
     }}
 """
 
-# a second translation unit including the same header: no clash, no unused-variable warning
+# a second translation unit including the same header: no clash (it uses every constant, as a firmware does)
 SECOND_UNIT = """\
 #include "{header}"
 
 int count_configs(void)
 {{
-    return (int)sizeof({prefix}_speed_config) / (int)sizeof(p2d_speed_config_t){plus_current};
+    return (int)(sizeof {prefix}_speed / sizeof(p2d_speed_config_t) + sizeof {prefix}_speed_filter /
+                 sizeof(p2d_filter_config_t) + sizeof {prefix}_encoder / sizeof(p2d_encoder_config_t) +
+                 sizeof {prefix}_field_weakening / sizeof(p2d_field_weakening_config_t) +
+                 sizeof {prefix}_inertia / sizeof(p2d_inertia_config_t)){plus_current};
 }}
 """
 
 
-def build_and_run(tmp_path, header_text, prefix, with_current):
+def build_and_run(tmp_path, header_text, prefix, with_current=True):
     (tmp_path / f"{prefix}.h").write_text(header_text)
     w_ref, w_m = inputs(N_STEPS)
     arrays = [c_array("w_ref", w_ref), c_array("w_m", w_m)]
@@ -168,10 +173,10 @@ def build_and_run(tmp_path, header_text, prefix, with_current):
             prefix=prefix,
             n=N_STEPS,
             current=current,
-            n_configs=2 if with_current else 1,
+            n_configs=6 if with_current else 5,
         )
     )
-    plus = f" + (int)sizeof({prefix}_current_config) / (int)sizeof(p2d_current_config_t)" if with_current else ""
+    plus = f" + (int)sizeof({prefix}_current) / (int)sizeof(p2d_current_config_t)" if with_current else ""
     (tmp_path / "second.c").write_text(SECOND_UNIT.format(header=f"{prefix}.h", prefix=prefix, plus_current=plus))
     exe = tmp_path / "run"
     sources = [str(tmp_path / "main.c"), str(tmp_path / "second.c")] + sorted(
@@ -192,16 +197,19 @@ def build_and_run(tmp_path, header_text, prefix, with_current):
     return {tag: np.array(v) for tag, v in rows.items()}
 
 
+def header_of(case, prefix):
+    """The header text of a CASES entry: its design and motor through design_scenario and configuration."""
+    dd = design(**case["design"]).discretize(case["Ts_s"], case["method"])
+    return configuration(design_scenario(dd, **case["motor"], **case["current"])).c_header(prefix)
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(GCC is None, reason="gcc is not installed")
 @pytest.mark.parametrize("name", list(CASES))
 def test_header_compiles_and_matches_python_configured_controller(tmp_path, name):
     case = CASES[name]
-    d = design(**case["design"])
     prefix = name + "_cfg"
-    header = tmp_path / f"{prefix}.h"
-    d.to_c_header(header, case["Ts_s"], case["method"], prefix=prefix, **case["motor"], **(case["current"] or {}))
-    result = build_and_run(tmp_path, header.read_text(), prefix, case["current"] is not None)
+    result = build_and_run(tmp_path, header_of(case, prefix), prefix)
 
     # the configuration literals round-trip to the float32 of every design value
     inp = case["design"]
@@ -221,41 +229,37 @@ def test_header_compiles_and_matches_python_configured_controller(tmp_path, name
     np.testing.assert_array_equal(c[:, 5].astype(bool), py["saturated"])
     assert py["saturated"].any() and not py["saturated"].all()  # the sequence exercises the limit
 
-    if case["current"] is not None:
-        cc = CurrentController(
-            Rs_ohm=case["current"]["Rs_ohm"],
-            Ld_H=case["motor"]["Ld_H"],
-            Lq_H=case["motor"]["Lq_H"],
-            psi_f_Wb=case["motor"]["psi_f_Wb"],
-            tau_i_s=inp["tau_i_s"],
-            Ts_s=case["current"]["Ts_current_s"],
-            method=case["method"],
-            anti_windup="back_calculation",
-            decouple=True,
-        )
-        py_c = cc.run(*current_inputs(N_STEPS))
-        np.testing.assert_array_equal(result["current"][:, 0].astype(np.float32), py_c["ud_ref_V"])
-        np.testing.assert_array_equal(result["current"][:, 1].astype(np.float32), py_c["uq_ref_V"])
+    cc = CurrentController(
+        Rs_ohm=case["current"]["Rs_ohm"],
+        Ld_H=case["motor"]["Ld_H"],
+        Lq_H=case["motor"]["Lq_H"],
+        psi_f_Wb=case["motor"]["psi_f_Wb"],
+        tau_i_s=inp["tau_i_s"],
+        Ts_s=case["current"]["Ts_current_s"],
+        method=case["method"],
+        anti_windup="back_calculation",
+        decouple=True,
+    )
+    py_c = cc.run(*current_inputs(N_STEPS))
+    np.testing.assert_array_equal(result["current"][:, 0].astype(np.float32), py_c["ud_ref_V"])
+    np.testing.assert_array_equal(result["current"][:, 1].astype(np.float32), py_c["uq_ref_V"])
 
 
 def test_header_records_every_design_input():
     case = CASES["backward_no_tau_explicit_Ka"]
-    text = c_header(
-        design(**case["design"]).discretize(case["Ts_s"], case["method"]), **case["motor"], **case["current"]
-    )
+    text = header_of(case, "p2d_config")
     recorded = dict(re.findall(r"^ \*   (\w+)\s+= (\S+)", text, flags=re.M))
-    for name, value in {
-        **case["design"],
-        **case["motor"],
-        "Rs_ohm": 0.2,
-        "Ts_s": case["Ts_s"],
-        "method": case["method"],
-    }.items():
+    for name, value in {**case["design"], "Ts_s": case["Ts_s"], "method": case["method"]}.items():
         if isinstance(value, str):
             assert recorded[name] == value, name
         else:
             assert float(recorded[name]) == pytest.approx(value, rel=1e-9), name
-    assert "Ts_s = 5e-05 s" in text  # current loop
+    # the motor and the current loop, exact, in the initializers
+    initialized = dict(re.findall(r"^    \.(\w+) = ([^,]+),", text, flags=re.M))
+    for name in ("i_max_A", "psi_f_Wb", "Ld_H", "Rs_ohm"):
+        assert np.float32(initialized[name].rstrip("f")) == np.float32({**case["motor"], **case["current"]}[name])
+    assert initialized["pole_pairs"] == "5u"
+    assert "Loop rates: current loop 20000 Hz (Ts 5e-05 s), speed loop every 10th interrupt (2000 Hz)" in text
 
 
 C_FLOAT = re.compile(r"-?(\d+\.\d*|\.\d+)(e[+-]?\d+)?f\Z")
@@ -280,24 +284,26 @@ def test_non_finite_literal_is_refused():
     [
         ("prefix", {"prefix": "2fast"}),
         ("prefix", {"prefix": "my-design"}),
-        ("pole_pairs", {"pole_pairs": 0}),
-        ("pole_pairs", {"pole_pairs": 2.5}),
-        ("i_max_A", {"i_max_A": -1.0}),
-        ("psi_f_Wb", {"psi_f_Wb": 0.0}),
-        ("Ld_H", {"Ld_H": math.nan}),
-        ("Ts_current_s", {"Rs_ohm": 0.5}),
-        ("Rs_ohm", {"Ts_current_s": 1e-4}),
-        ("Rs_ohm", {"Rs_ohm": -0.5, "Ts_current_s": 1e-4}),
-        ("tau_i_s", {"Rs_ohm": 0.5, "Ts_current_s": 0.1}),  # current loop: tau_i >= Ts
-        ("current_method", {"Rs_ohm": 0.5, "Ts_current_s": 1e-4, "current_method": "euler"}),
+        ("motor.pole_pairs", {"pole_pairs": 0}),
+        ("motor.pole_pairs", {"pole_pairs": 2.5}),
+        ("limits.i_max_A", {"i_max_A": -1.0}),
+        ("motor.psi_f_Wb", {"psi_f_Wb": 0.0}),
+        ("motor.Ld_H", {"Ld_H": math.nan}),
+        ("motor.Rs_ohm", {"Rs_ohm": -0.5}),
+        ("current_loop.Ts_s", {"Ts_current_s": 0.0}),
+        ("speed_controller.Ts_s", {"Ts_current_s": 3e-4}),  # Ts = 1e-3 is no multiple of it
+        ("current_loop.anti_windup", {"current_anti_windup": "bogus"}),
+        ("current_loop.method", {"current_method": "euler"}),
     ],
 )
 def test_invalid_header_options_leave_no_file(tmp_path, param, options):
-    d = design(0.4, 0.5, 0.2887, tau_i_s=0.05)
-    motor = {"i_max_A": 7.6, "pole_pairs": 4, "psi_f_Wb": 0.2, "Ld_H": 0.01, "Lq_H": 0.01, **options}
+    dd = design(0.4, 0.5, 0.2887, tau_i_s=0.05).discretize(1e-3, "tustin")
+    motor = {"i_max_A": 7.6, "pole_pairs": 4, "psi_f_Wb": 0.2, "Ld_H": 0.01, "Lq_H": 0.01, "Rs_ohm": 0.5}
+    motor |= {"Ts_current_s": 1e-4}
+    prefix = options.pop("prefix", "p2d_config")
     path = tmp_path / "out" / "design.h"
     with pytest.raises(ValueError) as exc:
-        d.to_c_header(path, 1e-3, "tustin", **motor)
+        configuration(design_scenario(dd, **{**motor, **options})).write_header(path, prefix)
     assert str(exc.value).startswith(param + " = ")
     assert not path.exists()
     assert not any(path.parent.glob("*")) if path.parent.exists() else True

@@ -61,11 +61,12 @@ def test_every_status_code_names_a_parameter_of_the_bindings():
 
     from pmsm2dof.core import Encoder, FieldWeakening
     from pmsm2dof.core.bindings import ffi
+    from pmsm2dof.core.fixedpoint import FixedPointSpeedController
     from pmsm2dof.sim.commission import commissioning_config
     from pmsm2dof.sim.scenario import load_scenario
 
     names = set()
-    for binding in (SpeedController, CurrentController, Encoder, FieldWeakening):
+    for binding in (SpeedController, CurrentController, Encoder, FieldWeakening, FixedPointSpeedController):
         names |= set(inspect.signature(binding).parameters)
     # the commissioning routine's settings (commission.h): the fields of a scenario's [commissioning]
     names |= set(commissioning_config(load_scenario("paper-condition-2")))

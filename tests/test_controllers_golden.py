@@ -429,25 +429,32 @@ def test_current_loop_is_first_order(method, w_e_radps):
 
 @pytest.mark.parametrize("anti_windup", ANTI_WINDUPS)
 def test_voltage_limit_holds(anti_windup):
-    """||u_dq|| <= u_dc / sqrt(3) in a run with large steps on the dq model, direction kept."""
+    """||u_dq|| <= u_dc / sqrt(3) in a run with large steps on the dq model, with d-axis priority.
+
+    The limit, written here: ud_sat = Sat(ud) within +-u_max, uq_sat = Sat(uq) within
+    +-sqrt(u_max^2 - ud_sat^2).
+    """
     tau_i, Ts, u_dc = 1e-3, 1e-4, 60.0
     ctl = CurrentController(**RL, tau_i_s=tau_i, Ts_s=Ts, anti_windup=anti_windup)
     Ad, Bd = dq_model_step(f32(Ts), **RL, w_e_radps=300.0)
     x = np.zeros(2)
-    refs = [(0.0, 40.0)] * 100 + [(-20.0, -30.0)] * 100 + [(0.0, 1.0)] * 100
-    saturated = 0
+    refs = [(0.0, 40.0)] * 100 + [(-20.0, -30.0)] * 100 + [(0.0, 1.0)] * 100 + [(60.0, 5.0)] * 100
+    u_max = f32(u_dc) * f32(1 / math.sqrt(3))
+    cut = {"d": 0, "q": 0}
     for id_ref, iq_ref in refs:
         out = ctl.step(id_ref, iq_ref, x[0], x[1], 300.0, u_dc)
         norm = math.hypot(out.ud_ref_V, out.uq_ref_V)
-        assert norm <= f32(u_dc) / math.sqrt(3) * (1 + 1e-6)
-        if out.saturated:
-            saturated += 1
-            assert norm == pytest.approx(u_dc / math.sqrt(3), rel=1e-6)
-            assert math.atan2(out.uq_ref_V, out.ud_ref_V) == pytest.approx(
-                math.atan2(out.uq_unsat_V, out.ud_unsat_V), abs=1e-5
-            )
+        assert norm <= u_max * (1 + 1e-6)
+        ud_sat = min(max(out.ud_unsat_V, -u_max), u_max)
+        room = math.sqrt(max(u_max**2 - ud_sat**2, 0.0))
+        uq_sat = min(max(out.uq_unsat_V, -room), room)
+        assert out.ud_ref_V == pytest.approx(ud_sat, rel=1e-6, abs=1e-6 * u_max)
+        assert out.uq_ref_V == pytest.approx(uq_sat, rel=1e-6, abs=1e-6 * u_max)
+        assert out.saturated == (abs(out.ud_unsat_V) > u_max or abs(out.uq_unsat_V) > room * (1 + 1e-6))
+        cut["d"] += abs(out.ud_unsat_V) > u_max
+        cut["q"] += abs(out.uq_unsat_V) > room
         x = Ad @ x + Bd @ np.array([out.ud_ref_V, out.uq_ref_V, 1.0])
-    assert saturated > 20
+    assert cut["q"] > 20 and cut["d"] > 5
 
 
 @pytest.mark.parametrize("method", METHODS)

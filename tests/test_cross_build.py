@@ -1,4 +1,5 @@
-"""The deployable controller builds for a Cortex-M4F and uses nothing but float math.
+"""The deployable controller builds for a Cortex-M4F and uses nothing but float math; so does
+the drive's plant, in double, for the firmware's virtual motor.
 
 Compiles every csrc/src/*.c with arm-none-eabi-gcc and the project's warning
 flags (-Werror), prints `arm-none-eabi-size` of the objects (so CI logs show
@@ -7,6 +8,11 @@ mutable global state (.data/.bss empty) and call nothing but <math.h> and our
 own functions. The source check (only <math.h>, <stdint.h>, <stdbool.h>, our
 public headers and the internal headers beside the sources are included) needs
 no cross compiler.
+
+The plant of the simulation engine (csrc/sim/plant.c and plant.h) is compiled the same way: the
+firmware example runs it on the target as a virtual motor, from the same source as the engine
+(double precision, soft-float there). It may include <string.h> besides, and call the double
+<math.h> functions, memset and memcpy.
 """
 
 import re
@@ -28,6 +34,12 @@ FLAGS = [
     "-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard", "-O2",
 ]  # fmt: skip
 ALLOWED_SYSTEM_HEADERS = {"math.h", "stdint.h", "stdbool.h"}
+PLANT_SOURCES = [CSRC / "sim" / "plant.c", CSRC / "sim" / "plant.h", CSRC / "sim" / "plant_inline.h"]
+# the double <math.h> functions and the <string.h> copies the plant may call
+PLANT_FUNCTIONS = {
+    "sqrt", "fabs", "fmax", "fmin", "copysign", "hypot", "exp", "log", "sin", "cos", "tanh", "floor", "fmod",
+    "memset", "memcpy",
+}  # fmt: skip
 # <math.h> float functions the controller may call (the FPU or libm provides them)
 MATH_FUNCTIONS = {
     "sqrtf",
@@ -91,3 +103,36 @@ def test_cortex_m4f_build(tmp_path, capsys):
     undefined = set(re.findall(r"^\s+U (\S+)$", nm.stdout, flags=re.M))
     foreign = {s for s in undefined if s not in MATH_FUNCTIONS and not s.startswith(("p2d_", "__aeabi_"))}
     assert not foreign, f"the controller calls outside <math.h>: {sorted(foreign)}"
+
+
+def test_plant_sources_include_only_math_stdint_stdbool_string_and_its_headers():
+    allowed = {f"<{h}>" for h in ALLOWED_SYSTEM_HEADERS | {"string.h"}} | {'"plant.h"', '"plant_inline.h"'}
+    for path in PLANT_SOURCES:
+        for line in path.read_text().splitlines():
+            m = re.match(r"\s*#\s*include\s*([<\"][^>\"]+[>\"])", line)
+            if m:
+                assert m.group(1) in allowed, f"{path.name} includes {m.group(1)}"
+
+
+@pytest.mark.skipif(shutil.which("arm-none-eabi-gcc") is None, reason="arm-none-eabi-gcc is not installed")
+def test_plant_cortex_m4f_build(tmp_path, capsys):
+    """plant.c with -std=c99 and the warnings of the controller (-Wconversion -Wdouble-promotion -Werror)."""
+    obj = tmp_path / "plant.o"
+    cc = subprocess.run(
+        ["arm-none-eabi-gcc", *FLAGS, "-c", str(CSRC / "sim" / "plant.c"), "-o", str(obj)],
+        capture_output=True, text=True,
+    )  # fmt: skip
+    assert cc.returncode == 0, cc.stderr
+    size = subprocess.run(["arm-none-eabi-size", str(obj)], capture_output=True, text=True, cwd=tmp_path)
+    assert size.returncode == 0, size.stderr
+    with capsys.disabled():
+        print("\narm-none-eabi-size of the plant (Cortex-M4F, -O2):\n" + size.stdout.replace(str(tmp_path) + "/", ""))
+    text, data, bss, *_ = size.stdout.splitlines()[1].split()
+    assert int(text) > 0
+    assert int(data) == 0 and int(bss) == 0, f"the plant has mutable global state (.data {data} B, .bss {bss} B)"
+    nm = subprocess.run(["arm-none-eabi-nm", "-u", str(obj)], capture_output=True, text=True)
+    assert nm.returncode == 0, nm.stderr
+    undefined = set(re.findall(r"^\s+U (\S+)$", nm.stdout, flags=re.M))
+    assert {"sin", "cos", "hypot"} <= undefined  # the check sees the calls (the duties' rotation, the inverter)
+    foreign = {s for s in undefined if s not in PLANT_FUNCTIONS and not s.startswith(("p2d_", "__aeabi_"))}
+    assert not foreign, f"the plant calls outside <math.h> and <string.h>: {sorted(foreign)}"

@@ -16,17 +16,24 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from pmsm2dof.analysis.current_loop import (
+    MotorEstimate,
     current_closed_loop,
     design_current_loop,
-    load_motor,
     speed_margin_sensitivity,
 )
 from pmsm2dof.core import CurrentController
 from pmsm2dof.errors import ConfigError
+from pmsm2dof.sim.datasheet import load_motor
 from pmsm2dof.ui.cli import main
 
 SERVO = "[motor]\npole_pairs = 4\nRs_ohm = 0.8\nLd_H = 0.004\nLq_H = 0.008\npsi_f_Wb = 0.05\n"
 INTERVALS = "Rs_ohm_ci = [0.76, 0.84]\nLq_H_ci = [0.0076, 0.0084]\npsi_f_Wb_ci = [0.045, 0.055]\n"
+
+
+def estimate(path):
+    """The identified motor of a motor file, as design --motor reads it."""
+    m = load_motor(path)
+    return MotorEstimate(m.pole_pairs, m.Rs_ohm, m.Ld_H, m.Lq_H, m.psi_f_Wb, m.intervals)
 
 
 @pytest.fixture
@@ -37,7 +44,7 @@ def motor_file(tmp_path):
 
 
 def test_gains_are_those_of_the_shipped_controller(motor_file):
-    loop = design_current_loop(load_motor(motor_file), 2000.0)
+    loop = design_current_loop(estimate(motor_file), 2000.0)
     ctl = CurrentController(Rs_ohm=0.8, Ld_H=0.004, Lq_H=0.008, psi_f_Wb=0.05, tau_i_s=loop.tau_i_s, Ts_s=1e-4)
     coef = ctl.coefficients
     assert loop.Kp_d_V_per_A == pytest.approx(coef["d"]["Kp"], rel=1e-6) == 0.004 * 2000.0
@@ -49,7 +56,7 @@ def test_gains_are_those_of_the_shipped_controller(motor_file):
 @pytest.mark.parametrize(("Rs_ohm", "Lq_H"), [(0.8, 0.008), (0.6, 0.010)])
 def test_closed_current_loop_against_an_integrated_rl_branch(motor_file, Rs_ohm, Lq_H):
     """PI of the estimates on Lq di/dt = u - Rs i (decoupled), unit step, integrated by SciPy."""
-    loop = design_current_loop(load_motor(motor_file), 2000.0)
+    loop = design_current_loop(estimate(motor_file), 2000.0)
     Kp, Ki = loop.Kp_q_V_per_A, loop.Ki_V_per_As
 
     def rhs(_t, x):
@@ -68,7 +75,7 @@ def test_closed_current_loop_against_an_integrated_rl_branch(motor_file, Rs_ohm,
 
 def test_speed_margin_sensitivity_against_a_root_finder(motor_file):
     """Phase margin at each corner: |L(jw)| = 1 found by brentq on the hand-written loop gain."""
-    loop = design_current_loop(load_motor(motor_file), 300.0)
+    loop = design_current_loop(estimate(motor_file), 300.0)
     J, Kp, Ki = 2e-4, 2e-4 * 50.0, 2e-4 * (50.0 / 1.4) ** 2  # eq 9, alpha 50 rad/s, zeta 0.7
     rows = speed_margin_sensitivity(loop, Kp, Ki, J)
     assert len(rows) == 1 + 8 and rows[0]["machine"] == "estimates"
@@ -95,8 +102,8 @@ def test_speed_margin_sensitivity_against_a_root_finder(motor_file):
         (SERVO.replace("Ld_H = 0.004\n", ""), "motor.Ld_H"),
         (SERVO.replace("pole_pairs = 4", "pole_pairs = 0"), "motor.pole_pairs"),
         (SERVO + "Rs_ohm_ci = [0.9, 1.0]\n", "motor.Rs_ohm_ci"),
-        (SERVO + "J_kgm2 = 1.0\n", "motor.J_kgm2"),
-        ("[motor\n", "motor_file"),
+        (SERVO + "Rs = 1.0\n", "motor.Rs"),
+        ("[motor\n", "motor file"),
     ],
 )
 def test_bad_motor_file_names_the_key(tmp_path, text, param):

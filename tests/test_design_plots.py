@@ -7,7 +7,8 @@ import pytest
 from scipy import signal
 
 from pmsm2dof.analysis.design import design
-from pmsm2dof.ui.plots.design import bode_gn, bode_gx_sweep, save_figure, step_responses
+from pmsm2dof.ui.plots.canvas import save_figure
+from pmsm2dof.ui.plots.design import bode_gn, bode_gx_sweep, step_responses
 
 J, ALPHA, ZETA, TAU = 0.4, 0.5, 0.2887, 0.05
 KP, KI = J * ALPHA, J * ALPHA**2 / (4 * ZETA**2)

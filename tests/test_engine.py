@@ -427,7 +427,9 @@ def test_runaway_under_overhauling_load_stops_with_the_time():
         }
     )
     no_load_rpm = 540.0 / math.sqrt(3) / (4 * 0.2) / RADPS_PER_RPM
-    with pytest.raises(SimulationError, match=r"stopped at t = [0-9.]+ s: the speed exceeds twice") as err:
+    # said as the load above the peak torque 1.5 p psi_f i_max = 1.5 * 4 * 0.2 * 7.6 = 9.12 Nm that it is
+    match = r"stopped at t = [0-9.]+ s: the load load.0.torque_Nm = -60 Nm is above the peak torque 9.12 Nm .*twice"
+    with pytest.raises(SimulationError, match=match) as err:
         simulate(scenario)
     t_stop = float(str(err.value).split("t = ")[1].split(" s")[0])
     # after the load step, and no sooner than the load plus the whole torque limit

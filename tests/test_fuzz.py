@@ -1,7 +1,8 @@
 """Bounded fuzzing of the C controllers, filters and estimator with libFuzzer under ASan and UBSan.
 
-The targets csrc/fuzz/fuzz_speed.c, fuzz_current.c, fuzz_commission.c,
-fuzz_encoder.c, fuzz_field_weakening.c, fuzz_inertia.c and fuzz_filter.c decode
+The targets csrc/fuzz/fuzz_speed.c, fuzz_speed_fixed.c (the Q15 and Q31
+controllers), fuzz_current.c, fuzz_commission.c, fuzz_encoder.c,
+fuzz_field_weakening.c, fuzz_inertia.c and fuzz_filter.c decode
 random configurations and input sequences and abort on any violated invariant
 (output finite and within I_max or u_dc/sqrt(3), integrator bounds under back
 calculation and clamping, the anti-windup update through the torque filters,
@@ -9,7 +10,10 @@ counter increments and estimator bounds, atomic parameter updates, filters that
 realize their design and hold a constant input exactly, no poisoned state; the
 commissioning routine's phases, its trip, and estimates that match the motor
 when it ends; the inertia estimator's covariance within its prior and its
-outputs within their bounds; see RELIABILITY.md). Each runs for a bounded time
+outputs within their bounds; the fixed-point controllers' signals within two
+full scales, their integrators' rounding at the dead zone's edges and one LSB
+of Q31 error, and under UBSan no shift of a negative number and no overflow;
+see RELIABILITY.md). Each runs for a bounded time
 from a copy of the checked-in seed corpus; the executions are printed (pytest
 -s shows them).
 
@@ -21,7 +25,9 @@ no overcurrent trip, a NaN current let through, an encoder increment read
 unsigned, an unlimited field-weakening current, a field-weakening torque limit
 that ignores the d current; the inertia estimator's non-finite policy removed,
 its forgetting without the bound of the prior, its output without the bound of
-J_max) show that the invariants catch real faults: each is caught by replaying
+J_max; a Q31 integrator deaf to one LSB of error, a Q15 feedforward transient
+not held within two full scales, Q15 clamping that never holds) show that the
+invariants catch real faults: each is caught by replaying
 the seed corpus alone.
 
 Each target executes a fixed number of inputs from libFuzzer seed 1 (FUZZ_RUNS) without comparison tracing
@@ -48,19 +54,21 @@ CORPUS = CSRC / "fuzz" / "corpus"
 #: whatever the machine's speed (about 15 s each on one x86-64 core of 2026).
 FUZZ_RUNS = {
     "speed": 80_000,
+    "speed_fixed": 20_000,
     "current": 110_000,
     "commission": 18_000,
     "encoder": 100_000,
     "field_weakening": 48_000,
     "inertia": 60_000,
     "filter": 110_000,
+    "xcp": 50_000,
 }
 #: Exploration instead: P2D_FUZZ_SECONDS=N fuzzes each target for N seconds (with P2D_FUZZ_SEED=0, from a seed
 #: libFuzzer picks).
 FUZZ_SECONDS = os.environ.get("P2D_FUZZ_SECONDS")
 FUZZ_SEED = int(os.environ.get("P2D_FUZZ_SEED", "1"))
 SANITIZE = ["-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all", "-g", "-O1"]
-TARGETS = ("speed", "current", "commission", "encoder", "field_weakening", "inertia", "filter")
+TARGETS = ("speed", "speed_fixed", "current", "commission", "encoder", "field_weakening", "inertia", "filter", "xcp")
 
 
 def _libfuzzer_missing(tmp_path):
@@ -188,8 +196,12 @@ MUTANTS = {
             )
         ],
     ),
-    # the voltage-vector limit is never active
-    "current_no_limit": ("current", "current.c", [("out->saturated = norm > u_max;", "out->saturated = false;")]),
+    # the voltage limit never cuts the q axis: the vector leaves the circle
+    "current_no_limit": (
+        "current",
+        "current.c",
+        [("out->uq_ref_V = uq > uq_max ? uq_max : (uq < -uq_max ? -uq_max : uq);", "out->uq_ref_V = uq;")],
+    ),
     # the commissioning routine never trips: a current that runs away goes on
     "commission_no_trip": (
         "commission",
@@ -245,13 +257,75 @@ MUTANTS = {
     ),
     # the field weakening's output is not limited to [id_min, 0]
     "field_weakening_no_limit": ("field_weakening", "field_weakening.c", [("id = id_limited(c, v);", "id = v;")]),
+    # the Q31 controller accepts a scaling whose integrator ignores one LSB of error (a dead zone)
+    "speed_fixed_q31_deaf": (
+        "speed_fixed",
+        "speed_fixed.c",
+        [("if (s > 31u && p2d_round_shift64(m, s - 31u) < 1) return P2D_ERR_SPEED_FULL_SCALE;", "(void)m;")],
+    ),
+    # the Q15 feedforward transient is not held within two full scales
+    "speed_fixed_q15_y_unbounded": (
+        "speed_fixed",
+        "speed_q15.c",
+        [
+            (
+                "q15_mul(c->ff_one_plus_a1, ctl->y_ff_prev_q15),\n                    Q15_SIGNAL_MAX);",
+                "q15_mul(c->ff_one_plus_a1, ctl->y_ff_prev_q15),\n                    4 * Q15_SIGNAL_MAX);",
+            )
+        ],
+    ),
+    # Q15 clamping never holds the integrator
+    "speed_fixed_q15_no_clamping": (
+        "speed_fixed",
+        "speed_q15.c",
+        [("if (c->clamping && ((u_star < 0", "if (c->clamping && u_star < 0 && u_star > 0 && ((u_star < 0")],
+    ),
     # the speed controller's field-weakening entry keeps the full torque limit: the current leaves the circle
     "speed_fw_full_limit": (
         "field_weakening",
         "speed.c",
         [("fw_torque_limit(c, id, iq_max), out)", "c->T_max_Nm, out)")],
     ),
+    # the XCP slave takes an access that starts in a segment for inside it, wherever it ends
+    "xcp_past_segment_end": (
+        "xcp",
+        "xcp.c",
+        [
+            (
+                "address - s->address < s->size_bytes && n <= s->size_bytes - (address - s->address)",
+                "address - s->address < s->size_bytes",
+            )
+        ],
+    ),
+    # a DOWNLOAD lands in the calibration segment at once, not on the shadow page
+    "xcp_download_without_commit": (
+        "xcp",
+        "xcp.c",
+        [
+            (
+                "copy_bytes((uint8_t *)x->config.shadow + (x->mta - s->address), cmd + 2, n);",
+                "copy_bytes((uint8_t *)s->memory + (x->mta - s->address), cmd + 2, n);",
+            )
+        ],
+    ),
+    # a page the commit callback rejected is copied into the segment all the same
+    "xcp_rejected_page_applied": (
+        "xcp",
+        "xcp.c",
+        [
+            (
+                "if (code == 0) {\n        copy_bytes((uint8_t *)s->memory, (const uint8_t *)x->config.shadow, "
+                "s->size_bytes);",
+                "copy_bytes((uint8_t *)s->memory, (const uint8_t *)x->config.shadow, s->size_bytes);\n"
+                "    if (code == 0) {",
+            )
+        ],
+    ),
 }
+
+#: How a mutant is caught: a violated invariant of the target, or AddressSanitizer at a read or write of the guard
+#: bytes around a segment (poisoned: "use-after-poison").
+CAUGHT_BY = {"xcp_past_segment_end": "AddressSanitizer: use-after-poison"}
 
 
 @pytest.mark.parametrize("mutant", sorted(MUTANTS))
@@ -292,4 +366,5 @@ def test_fuzz_invariants_catch_a_mutant(mutant, tmp_path):
     result = subprocess.run(
         [str(binary), f"-artifact_prefix={tmp_path}/", *seeds], capture_output=True, text=True, timeout=120
     )
-    assert result.returncode != 0 and "pmsm2dof fuzz invariant violated" in result.stderr, result.stderr[-3000:]
+    caught_by = CAUGHT_BY.get(mutant, "pmsm2dof fuzz invariant violated")
+    assert result.returncode != 0 and caught_by in result.stderr, result.stderr[-3000:]

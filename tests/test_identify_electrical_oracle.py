@@ -254,6 +254,31 @@ def test_current_ranges_show_the_saturation(tmp_path):
     assert single.ranges == () and single.Lq_H == fit.Lq_H
 
 
+def piled_at_the_limit(t):
+    """iq mostly at a 5 A limit (+- 0.1 A), one 80 ms step in five at 0.8 A; id between 0 and -1 A every 20 ms."""
+    level = 0.8 if int(t / 0.08) % 5 == 0 else 5.0
+    return (-1.0 if int(t / 0.02) % 2 else 0.0), level + (0.1 if int(t / 0.013) % 2 else -0.1)
+
+
+def test_current_ranges_are_wide_and_hold_enough_windows(tmp_path, capsys):
+    """Windows piled at the current limit: equal-count ranges would be slivers of it ("9.98 to 10 A")."""
+    from pmsm2dof.studies.electrical import WINDOWS_MIN
+
+    oracle_log(tmp_path / "log.csv", top_rpm=1000.0, i_ref_A=piled_at_the_limit)
+    log = read_log(tmp_path / "log.csv")
+    for asked in (2, 3, 6):
+        fit = identify_electrical(log, 4, current_ranges=asked)
+        edges = [fit.ranges[0].i_low_A] + [r.i_high_A for r in fit.ranges]
+        span = edges[-1] - edges[0]
+        assert span > 3.0 and 2 <= len(fit.ranges) <= asked
+        assert all(r.n_windows >= WINDOWS_MIN for r in fit.ranges)
+        assert sum(r.n_windows for r in fit.ranges) == fit.n_windows
+        # consecutive ranges share their edges; none narrower than the width asked for
+        assert all(a.i_high_A == b.i_low_A for a, b in zip(fit.ranges, fit.ranges[1:]))
+        assert all(r.i_high_A - r.i_low_A >= span / asked * (1 - 1e-9) for r in fit.ranges)
+        assert (len(fit.ranges) < asked) == any(f"instead of the {asked} asked" in note for note in fit.notes)
+
+
 def test_no_saturation_note_on_a_linear_machine(dead_time_log):
     fit = identify_electrical(dead_time_log, 4, dead_time=True, current_ranges=3)
     assert len(fit.ranges) == 3 and not any("saturates" in note for note in fit.notes)

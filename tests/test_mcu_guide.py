@@ -3,11 +3,14 @@
 The blocks run with ``sh -e``, in order, in a fresh copy of ``csrc/`` and ``examples/`` (so the
 build folders are new), as a user without an active virtual environment runs them: ``PATH``
 holds the ``pmsm2dof`` command of this installation, a ``python3`` that lacks pmsm2dof ahead of
-every other Python, and the system tools (cmake, make, the cross compiler). The guide promises
-the cross-built library, the design header and the firmware image; the firmware's build tree
-must hold no folder that Python could import as ``pmsm2dof`` instead of the package.
+every other Python, and the system tools (cmake, make, the cross compiler, QEMU). The guide
+promises the cross-built library, the configuration headers (of ``pmsm2dof header`` and of
+``design``, the same shape), the firmware image built with that header, and the firmware built for
+a scenario and run closed loop on QEMU in agreement with the engine; the firmware's build tree must
+hold no folder that Python could import as ``pmsm2dof`` instead of the package.
 """
 
+import json
 import os
 import re
 import shutil
@@ -20,7 +23,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 GUIDE = ROOT / "docs" / "mcu.md"
-TOOLS = ("cmake", "make", "arm-none-eabi-gcc", "sh")
+TOOLS = ("cmake", "make", "arm-none-eabi-gcc", "qemu-system-arm", "sh")
 BLOCK_TIMEOUT_S = 600
 
 _MISSING = [t for t in TOOLS if shutil.which(t) is None]
@@ -30,7 +33,7 @@ pytestmark = [
     pytest.mark.skipif(
         bool(_MISSING),
         reason=f"{', '.join(_MISSING)} not installed (Debian: cmake gcc-arm-none-eabi "
-        "libnewlib-arm-none-eabi; scripts/install.sh installs them)",
+        "libnewlib-arm-none-eabi qemu-system-arm; scripts/install.sh installs them)",
     ),
 ]
 
@@ -84,8 +87,15 @@ def test_every_shell_block_of_the_guide_runs_as_written(tmp_path):
         assert proc.returncode == 0, f"{block}\n{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}"
 
     assert (repo / "build-m4f" / "libpmsm2dof_controller.a").is_file()
-    assert "static const p2d_speed_config_t p2d_design_speed_config" in (repo / "p2d_design.h").read_text()
+    shapes = []
+    for header in ("cfg", "cfg-design"):
+        text = (repo / header / "p2d_config.h").read_text()
+        assert "static const p2d_speed_config_t p2d_config_speed = {" in text
+        shapes.append(re.findall(r"^(?:#define (\w+) |static const (\w+) (\w+) = )", text, flags=re.M))
+    assert shapes[0] == shapes[1]
     assert (repo / "build-fw" / "firmware.elf").read_bytes().startswith(b"\x7fELF")
-    generated = (repo / "build-fw" / "generated" / "p2d_design.h").read_text()
-    assert "static const p2d_speed_config_t p2d_design_speed_config" in generated
     assert not [p for p in (repo / "build-fw").rglob("pmsm2dof") if p.is_dir()]
+    assert (repo / "fw-servo" / "virtual_drive.elf").read_bytes().startswith(b"\x7fELF")
+    metrics = json.loads((repo / "run-servo" / "metrics.json").read_text())
+    assert metrics["comparison"]["agrees"] is True
+    assert metrics["interrupts"]["speed"]["interrupts"] == 401

@@ -1,7 +1,7 @@
 """The one engine of many runs (pmsm2dof.studies.engine): what it returns, in which order.
 
 Truth: the same runs simulated and measured one by one with pmsm2dof.simulate and
-compute_metrics, outside the engine.
+measure (compute_metrics and the sampled-loop check), outside the engine.
 """
 
 import pickle
@@ -9,10 +9,10 @@ import pickle
 import pytest
 
 from pmsm2dof.errors import ConfigError, SimulationError
-from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
 from pmsm2dof.studies.engine import Run, check_options, run_many
+from pmsm2dof.studies.loopcheck import measure
 
 SHORT = {"simulation.t_end_s": 12.0}
 RUNS = [
@@ -48,7 +48,7 @@ def test_outcomes_in_the_order_of_the_runs_equal_single_runs(bases, workers, bat
                 simulate(scenario)
             assert outcome.metrics is None and outcome.error == str(stop.value) and outcome.wall_time_s is None
             continue
-        assert outcome.error == "" and outcome.metrics == compute_metrics(simulate(scenario))
+        assert outcome.error == "" and outcome.metrics == measure(simulate(scenario))
         assert (outcome.result is not None) == (run.key == "b")
     assert outcomes[1].result.scenario == bases["e1"].with_overrides(SHORT)
 

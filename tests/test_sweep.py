@@ -355,20 +355,20 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monk
     assert 4 <= len(finished) < 9
 
     simulated = []
-    real_simulate = simulate_module.simulate
+    real_simulate_many = simulate_module.simulate_many
 
-    def counting_simulate(scenario, *args, **kwargs):
-        simulated.append(scenario)
-        return real_simulate(scenario, *args, **kwargs)
+    def counting_simulate_many(scenarios):
+        simulated.extend(scenarios)
+        return real_simulate_many(scenarios)
 
-    monkeypatch.setattr(simulate_module, "simulate", counting_simulate)
+    monkeypatch.setattr(simulate_module, "simulate_many", counting_simulate_many)
     run = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=draw_figures)
     assert run.resumed == len(finished) and run.computed == 9 - len(finished)
     missing = [sw.scenario(i) for i in range(9) if i not in finished]
     assert len(simulated) == len(missing)
     assert all(any(s == m for m in missing) for s in simulated)
 
-    monkeypatch.setattr(simulate_module, "simulate", real_simulate)
+    monkeypatch.setattr(simulate_module, "simulate_many", real_simulate_many)
     fresh = run_sweep(sw, tmp_path / "fresh", workers=1, progress=False, figures=draw_figures).table
     pd.testing.assert_frame_equal(run.table.drop(columns="wall_time_s"), fresh.drop(columns="wall_time_s"))
 
@@ -403,13 +403,13 @@ def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, bas
     lost = {p for name in damaged for p in range(int(name[5:13]), min(int(name[5:13]) + 2, 9))}
 
     simulated = []
-    real_simulate = simulate_module.simulate
+    real_simulate_many = simulate_module.simulate_many
 
-    def counting_simulate(scenario, *args, **kwargs):
-        simulated.append(scenario)
-        return real_simulate(scenario, *args, **kwargs)
+    def counting_simulate_many(scenarios):
+        simulated.extend(scenarios)
+        return real_simulate_many(scenarios)
 
-    monkeypatch.setattr(simulate_module, "simulate", counting_simulate)
+    monkeypatch.setattr(simulate_module, "simulate_many", counting_simulate_many)
     with pytest.warns(PartWarning) as caught:
         run = run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=None)
     messages = [str(w.message) for w in caught]

@@ -222,14 +222,18 @@ def test_downloaded_header_builds_and_initializes_the_controllers(page, tmp_path
     with page.expect_download() as info:
         page.click("#download-header")
     download = info.value
-    assert download.suggested_filename == "pmsm2dof_speed_config.h"
-    download.save_as(tmp_path / "pmsm2dof_speed_config.h")
+    assert download.suggested_filename == "p2d_config.h"
+    download.save_as(tmp_path / "p2d_config.h")
     (tmp_path / "main.c").write_text(
-        '#include "pmsm2dof_speed_config.h"\n'
+        '#include "p2d_config.h"\n'
         "int main(void)\n{\n"
-        "    p2d_speed_t speed;\n    p2d_current_t current;\n"
-        "    if (p2d_speed_init(&speed, &p2d_design_speed_config) != P2D_OK) return 1;\n"
-        "    if (p2d_current_init(&current, &p2d_design_current_config) != P2D_OK) return 2;\n"
+        "    p2d_speed_t speed;\n    p2d_current_t current;\n    p2d_encoder_t encoder;\n"
+        "    if (p2d_speed_init(&speed, &p2d_config_speed) != P2D_OK) return 1;\n"
+        "    if (p2d_current_init(&current, &p2d_config_current) != P2D_OK) return 2;\n"
+        "    if (p2d_encoder_init(&encoder, &p2d_config_encoder) != P2D_OK) return 3;\n"
+        "    if (P2D_CONFIG_FIELD_WEAKENING || P2D_CONFIG_INERTIA) return 4;\n"
+        "    if (p2d_config_speed_filter.notch_freq_Hz != 0.0f) return 5;\n"
+        "    if (p2d_config_field_weakening.Ts_s != 0.0f || p2d_config_inertia.Ts_s != 0.0f) return 6;\n"
         "    return 0;\n}\n"
     )
     sources = sorted(str(p) for p in (ROOT / "csrc" / "src").glob("*.c"))

@@ -20,6 +20,7 @@ from test_torque_filter import designed_lowpass, designed_notch
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.twomass import filter_tf, largest_stable_alpha, sampled_loop, two_mass
 from pmsm2dof.core import SpeedController
+from pmsm2dof.studies.configuration import configuration, design_scenario
 from pmsm2dof.ui.cli import main
 
 J_M, J_L, F_R_HZ, ZETA_R = 0.1, 0.3, 30.0, 0.02
@@ -97,7 +98,7 @@ int main(void)
     p2d_speed_t ctl;
     p2d_speed_output_t out;
     int k;
-    if (p2d_speed_init(&ctl, &notched_speed_config) != P2D_OK) return 1;
+    if (p2d_speed_init(&ctl, &notched_speed) != P2D_OK) return 1;
     if (p2d_speed_set_filter(&ctl, &notched_speed_filter) != P2D_OK) return 1;
     for (k = 0; k < {n}; ++k) {{
         p2d_speed_step(&ctl, w_ref[k], w_m[k], &out);
@@ -114,8 +115,10 @@ def test_header_with_torque_filters_compiles_and_matches_python(tmp_path):
     equals, bit for bit, a SpeedController configured in Python with the same filters."""
     filters = dict(notch_freq_Hz=30.0, notch_width_Hz=20.0, notch_depth=0.05, lowpass_freq_Hz=150.0, lowpass_zeta=0.7)
     motor = dict(i_max_A=7.6, pole_pairs=4, psi_f_Wb=0.2, Ld_H=0.01, Lq_H=0.01)
-    d = design(J_M + J_L, 20.0, 0.7)
-    d.to_c_header(tmp_path / "notched.h", 1e-3, "tustin", prefix="notched", speed_filter=filters, **motor)
+    # tau_i (eq 3) sets the current loop's; the lowpass feedforward does not use it
+    dd = design(J_M + J_L, 20.0, 0.7, tau_i_s=2e-3).discretize(1e-3, "tustin")
+    scenario = design_scenario(dd, **motor, Rs_ohm=0.5, Ts_current_s=1e-4, speed_filter=filters)
+    configuration(scenario).write_header(tmp_path / "notched.h", prefix="notched")
     w_ref, w_m = inputs(N_STEPS)
     arrays = "\n".join([c_array("w_ref", w_ref), c_array("w_m", w_m)])
     (tmp_path / "main.c").write_text(FILTERED_PROGRAM.format(arrays=arrays, n=N_STEPS))

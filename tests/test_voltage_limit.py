@@ -134,3 +134,42 @@ def test_the_trace_plot_shows_the_voltage_and_its_range():
     assert np.array_equal(lines["||u_dq||"].get_ydata(), np.hypot(r.ud_V, r.uq_V))
     assert np.allclose(lines["range u_dc/sqrt(3)"].get_ydata(), 48.0 / SQRT3)
     assert "voltage limit active" in [t.get_text() for t in ax_u.get_legend().get_texts()]
+
+
+def test_at_the_voltage_limit_id_stays_at_its_reference_and_the_speed_is_where_the_circle_says():
+    """The maxon EC 45 flat of examples/ec45-flat asked for 6000 rpm on 24 V (above its 5409 rpm).
+
+    d-axis priority: the d current stays at 0, so the speed settles where the steady state of eq 1
+    with id = 0 reaches the range: ``(w_e Lq iq)^2 + (Rs iq + w_e psi_f)^2 = (u_dc / sqrt(3))^2``
+    with the torque balance ``1.5 p psi_f iq = B w_m + T_load`` (solved here by brentq). Scaling
+    the whole vector instead let id drift to +0.8 A and the speed stop 180 rpm lower.
+    """
+    from pathlib import Path
+
+    from scipy.optimize import brentq
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "ec45-flat" / "drive.toml"
+    s = load_scenario(path).with_overrides(
+        {
+            "reference": [{"t_s": 0.0, "speed_rpm": 6000.0}],
+            "load": [{"t_s": 0.0, "torque_Nm": 0.1}],
+            "simulation.t_end_s": 0.6,
+        }
+    )
+    r = simulate(s)
+    m, u_max = s.data["motor"], s.data["limits"]["u_dc_V"] / SQRT3
+    p, psi_f, Rs, Lq, B = m["pole_pairs"], m["psi_f_Wb"], m["Rs_ohm"], m["Lq_H"], m["B_Nms"]
+
+    def iq_of(w_m):
+        return (0.1 + B * w_m) / (1.5 * p * psi_f)
+
+    def excess(w_m):
+        w_e = p * w_m
+        return math.hypot(w_e * Lq * iq_of(w_m), Rs * iq_of(w_m) + w_e * psi_f) - u_max
+
+    w_m = brentq(excess, 1.0, u_max / (p * psi_f))
+    late = r.t_s > 0.4
+    assert np.all(r.voltage_limited[late] == 1.0)
+    assert np.max(np.abs(r.id_A[late])) < 2e-3
+    assert r.speed_rpm[-1] == pytest.approx(w_m * RPM_PER_RADPS, rel=1e-3)
+    assert r.iq_A[-1] == pytest.approx(iq_of(w_m), rel=1e-3)

@@ -27,8 +27,9 @@
  *  - compute does not change the controller.
  *  - a non-finite input (u_dc included) raises the fault flag; a fault gives a
  *    zero voltage; otherwise the command is finite, ||u_dq|| <= max(u_dc, 0)/sqrt(3)
- *    up to float32 rounding, equal to the unlimited vector when not saturated
- *    and of the same direction (per-axis sign) when saturated.
+ *    up to float32 rounding, equal to the unlimited vector when not saturated;
+ *    with d-axis priority ud_ref = Sat(ud) within +-u_max exactly, and uq_ref
+ *    is uq or, cut, of its sign and on the circle that ud_ref leaves.
  *  - update with a fault or a non-finite applied voltage only counts the
  *    fault; the state stays finite after every call.
  *  - per axis, with g = Ki Ka Ts, b = b_e0 and the decoupling term dec
@@ -277,11 +278,23 @@ static void fz_check_output(const fz_current_in_t *in, const p2d_current_output_
     if (!out->saturated) {
         FZ_REQUIRE(out->ud_ref_V == out->ud_unsat_V && out->uq_ref_V == out->uq_unsat_V,
                    "unsaturated output changed the vector");
-    } else {
-        FZ_REQUIRE((double)out->ud_ref_V * (double)out->ud_unsat_V >= 0.0 &&
-                       (double)out->uq_ref_V * (double)out->uq_unsat_V >= 0.0,
-                   "the limited vector (%g, %g) points away from (%g, %g)", (double)out->ud_ref_V,
-                   (double)out->uq_ref_V, (double)out->ud_unsat_V, (double)out->uq_unsat_V);
+        return;
+    }
+    {
+        /* d-axis priority: ud_ref = Sat(ud) within +-u_max (the controller's float32 u_max), exactly */
+        float u_max_f = in->u_dc_V > 0.0f ? in->u_dc_V * (float)FZ_INV_SQRT3 : 0.0f;
+        float ud_sat = out->ud_unsat_V > u_max_f ? u_max_f : (out->ud_unsat_V < -u_max_f ? -u_max_f : out->ud_unsat_V);
+        double uq_room = sqrt(fmax((double)u_max_f * u_max_f - (double)out->ud_ref_V * out->ud_ref_V, 0.0));
+        FZ_REQUIRE(out->ud_ref_V == ud_sat, "ud_ref %.9g is not Sat(ud %.9g) within +-%.9g", (double)out->ud_ref_V,
+                   (double)out->ud_unsat_V, (double)u_max_f);
+        FZ_REQUIRE((double)out->uq_ref_V * (double)out->uq_unsat_V >= 0.0 &&
+                       fabs((double)out->uq_ref_V) <= fabs((double)out->uq_unsat_V),
+                   "uq_ref %g is not uq %g or a cut of it", (double)out->uq_ref_V, (double)out->uq_unsat_V);
+        /* a cut uq lies on the circle: |uq_ref| = sqrt(u_max^2 - ud_ref^2) up to rounding */
+        FZ_REQUIRE(out->uq_ref_V == out->uq_unsat_V ||
+                       fabs(fabs((double)out->uq_ref_V) - uq_room) <= 8.0 * FLT_EPSILON * (double)u_max_f + 0x1p-146,
+                   "uq cut to %.9g, not to the room %.9g that ud_ref %.9g leaves of u_max %.9g", (double)out->uq_ref_V,
+                   uq_room, (double)out->ud_ref_V, (double)u_max_f);
     }
 }
 

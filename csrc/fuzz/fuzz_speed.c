@@ -56,6 +56,7 @@
  *    at rest at T_init.
  */
 #include "fuzz_common.h"
+#include "fuzz_speed_config.h"
 
 #include "pmsm2dof/speed.h"
 
@@ -64,46 +65,6 @@ typedef struct {
     p2d_speed_t ctl;  /* controller under test */
     double w_m_radps; /* plant speed of the closed-loop runs [rad/s] */
 } fz_speed_rig_t;
-
-/* The paper's default Ka = 1/Kp (section 3.3) when it is a usable nominal value. */
-static double fz_ka_nominal(float J_kgm2, float alpha_radps)
-{
-    float Ka = p2d_speed_Ka_default(J_kgm2, alpha_radps);
-    return (isfinite(Ka) && Ka > 0.0f) ? (double)Ka : 0.1;
-}
-
-static uint32_t fz_pole_pairs(fz_reader_t *r)
-{
-    static const uint32_t odd[6] = {0u, 64u, 255u, 100000u, 0x80000000u, 0xffffffffu};
-    uint8_t b = fz_u8(r);
-    return b < 250u ? 1u + b % 8u : odd[b - 250u];
-}
-
-/*
- * A configuration around a 0.4 kg m^2 drive (the paper's section 4 inertia),
- * alpha = 20 rad/s, Ts = 1 ms. Bit 0 of the shape byte makes it a surface
- * PMSM (Lq = Ld), bit 1 sets m = 1 (so that the lowpass form is valid).
- */
-static void fz_speed_config(fz_reader_t *r, p2d_speed_config_t *cfg)
-{
-    uint8_t shape = fz_u8(r);
-    memset(cfg, 0, sizeof *cfg);
-    cfg->J_kgm2 = fz_float(r, 0.4, false);
-    cfg->alpha_radps = fz_float(r, 20.0, false);
-    cfg->zeta = fz_float(r, 1.0, false);
-    cfg->m = (shape & 2u) ? 1.0f : fz_float(r, 1.0, false);
-    cfg->tau_i_s = fz_float(r, 0.005, false);
-    cfg->Ka = fz_float(r, fz_ka_nominal(cfg->J_kgm2, cfg->alpha_radps), false);
-    cfg->Ts_s = fz_float(r, 1e-3, false);
-    cfg->i_max_A = fz_float(r, 7.6, false);
-    cfg->psi_f_Wb = fz_float(r, 0.2, false);
-    cfg->Ld_H = fz_float(r, 0.01, false);
-    cfg->Lq_H = (shape & 1u) ? cfg->Ld_H : fz_float(r, 0.02, false);
-    cfg->pole_pairs = fz_pole_pairs(r);
-    cfg->method = (p2d_method_t)fz_enum(r, 3u);
-    cfg->feedforward = (p2d_feedforward_t)fz_enum(r, 4u);
-    cfg->anti_windup = (p2d_anti_windup_t)fz_enum(r, 3u);
-}
 
 /* Torque filters around a 40 Hz resonance: bit 0 of the shape byte a notch, bit 1 a low-pass. */
 static void fz_filter_config(fz_reader_t *r, p2d_filter_config_t *f)

@@ -61,10 +61,12 @@ def fraction(f):
     return u16(round(f * 65535))
 
 
-def speed_config(surface=True, m=None, method=2, feedforward=1, anti_windup=1, J=nominal(), Ts=nominal()):
+def speed_config(
+    surface=True, m=None, method=2, feedforward=1, anti_windup=1, J=nominal(), Ts=nominal(), zeta=nominal()
+):
     """Speed controller configuration; m None means m = 1 (shape bit 1)."""
     shape = (1 if surface else 0) | (2 if m is None else 0)
-    out = u8(shape) + J + nominal() + nominal()  # J, alpha, zeta
+    out = u8(shape) + J + nominal() + zeta  # J, alpha, zeta
     if m is not None:
         out += m
     out += nominal() + nominal() + Ts + nominal() + nominal() + nominal()  # tau_i, Ka, Ts, i_max, psi_f, Ld
@@ -683,16 +685,214 @@ INERTIA_SEEDS = {
     "rejected_init": inertia_config(J_min=raw(1.0)),
 }
 
+# operations (op % 8) of the XCP target (fuzz_xcp.c)
+XCP_CMD, XCP_CMD_NEAR, XCP_STREAM, XCP_EVENT, XCP_CALIBRATE, XCP_TAKE, XCP_CLOCK = 0, 2, 3, 4, 5, 6, 7
+
+
+def xcp_config(cto=247, dto=100, queue=255, daq=255, options=0, seed=3):
+    """max_cto = 8 + cto % 248, max_dto = 8 + 2 dto, queue max_dto + 2 + 4 queue, DAQ memory 1 + 8 daq bytes;
+    options: bit 0 calibration and bit 1 DAQ under seed and key, bit 2 an A2L name, bit 3 framing checksum."""
+    return bytes([cto, dto, queue, daq, options, seed, 0, 0])
+
+
+def xcp(*packet):
+    """A command packet."""
+    return u8(XCP_CMD) + u8(len(packet)) + bytes(packet)
+
+
+def xcp_near(pid, *fields, segment=0, offset=0):
+    """A command whose address (bytes 4..7) the target sets to segment's address + offset."""
+    packet = bytes([pid, *fields]).ljust(4, b"\0") + bytes([segment, offset & 0xFF, 0, 0])
+    return u8(XCP_CMD_NEAR) + u8(len(packet)) + packet
+
+
+def xcp_stream(*packets, checksum=False, corrupt=False):
+    """Packets framed with the LEN/CTR header (and the checksum byte), fed to the receiver byte by byte."""
+    stream = b""
+    for counter, packet in enumerate(packets):
+        frame = struct.pack("<HH", len(packet), counter) + bytes(packet)
+        if checksum:
+            frame += u8((sum(frame) + (1 if corrupt else 0)) & 0xFF)
+        stream += frame
+    return u8(XCP_STREAM) + u8(len(stream)) + stream
+
+
+def xcp_ops(*ops):
+    return b"".join(u8(op) + bytes(args) for op, *args in ops)
+
+
+CONNECT = xcp(0xFF, 0)
+TAKE = u8(XCP_TAKE)
+DAQ_SETUP = (
+    xcp(0xD6)
+    + xcp(0xD5, 0, 2, 0)
+    + xcp(0xD4, 0, 0, 0, 2)
+    + xcp(0xD4, 0, 1, 0, 1)
+    + xcp(0xD3, 0, 0, 0, 0, 2)
+    + xcp(0xD3, 0, 0, 0, 1, 1)
+    + xcp(0xD3, 0, 1, 0, 0, 1)
+    + xcp(0xE2, 0, 0, 0, 0, 0)
+    + xcp_near(0xE1, 0xFF, 4, 0, segment=0, offset=0)
+    + xcp_near(0xE1, 0xFF, 4, 0, segment=1, offset=0)
+    + xcp(0xE2, 0, 0, 0, 1, 0)
+    + xcp_near(0xE1, 0xFF, 8, 0, segment=2, offset=0)
+    + xcp(0xE2, 0, 1, 0, 0, 0)
+    + xcp_near(0xE1, 0xFF, 4, 0, segment=0, offset=36)
+    + xcp(0xE0, 0x10, 0, 0, 0, 0, 1, 0)
+    + xcp(0xE0, 0x00, 1, 0, 1, 0, 3, 0)
+    + xcp(0xDE, 1, 0, 0)
+    + xcp(0xDE, 2, 1, 0)
+    + xcp(0xDD, 1)
+    + TAKE
+)
+DAQ_RUN = (
+    xcp_ops((XCP_EVENT, 0), (XCP_EVENT, 1), (XCP_EVENT, 1), (XCP_CLOCK, 50, 0), (XCP_EVENT, 1), (XCP_EVENT, 0))
+    + TAKE
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=4)
+    + xcp(0xF0, 4, 1, 2, 3, 4)
+    + xcp_ops((XCP_EVENT, 0), (XCP_CALIBRATE, 1), (XCP_EVENT, 0))
+    + TAKE
+    + xcp(0xDD, 0)
+    + TAKE
+)
+
+XCP_SEEDS = {
+    # identification, uploads inside, across and beyond the segments, slave block mode
+    "connect_upload": xcp_config()
+    + CONNECT
+    + xcp(0xFD)
+    + xcp(0xFA, 0)
+    + xcp(0xF5, 4)
+    + xcp_near(0xF6, 0, 0, 0, segment=0, offset=0)
+    + xcp(0xF5, 255)
+    + xcp_near(0xF4, 40, 0, 0, segment=0, offset=0)
+    + xcp_near(0xF4, 2, 0, 0, segment=2, offset=7)
+    + xcp_near(0xF4, 4, 0, 0, segment=1, offset=-2)
+    + TAKE,
+    # downloads accepted, rejected, write protected, across the edge of the calibration segment
+    "calibrate": xcp_config(cto=0)
+    + CONNECT
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=0)
+    + xcp(0xF0, 4, 1, 2, 3, 4)
+    + xcp_ops((XCP_CALIBRATE, 1))
+    + TAKE
+    + xcp(0xF0, 4, 5, 6, 7, 8)
+    + xcp_ops((XCP_CALIBRATE, 0))
+    + TAKE
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=10)
+    + xcp(0xF0, 4, 1, 2, 3, 4)
+    + xcp_near(0xF6, 0, 0, 0, segment=1, offset=-1)
+    + xcp(0xF0, 2, 1, 2)
+    + TAKE,
+    # dynamic DAQ lists on both events, sampled while a calibration write lands, then stopped
+    "daq": xcp_config() + CONNECT + DAQ_SETUP + DAQ_RUN,
+    # the same with CAN-sized packets (MAX_CTO 8, MAX_DTO 8) and a small queue
+    "daq_can": xcp_config(cto=0, dto=0, queue=4) + CONNECT + DAQ_SETUP + DAQ_RUN,
+    # both resources locked: refused, unlocked with the right key, a wrong key ends the session
+    "seed_key": xcp_config(options=3)
+    + CONNECT
+    + xcp(0xF0, 1, 0)
+    + xcp(0xF8, 0, 1)
+    + xcp(0xF7, 1, 0)
+    + xcp(0xF8, 0, 4)
+    + xcp(0xF7, 1, 1)
+    + xcp(0xFD)
+    + CONNECT
+    + xcp(0xDA)
+    + TAKE,
+    # framed packets with checksums, one corrupt, on the byte stream
+    "stream": xcp_config(options=8)
+    + xcp_stream([0xFF, 0], [0xFD], checksum=True)
+    + xcp_stream([0xFD], checksum=True, corrupt=True)
+    + xcp_stream([0xFA, 1], [0xF5, 8], checksum=True)
+    + TAKE,
+    # a master silent beyond the link timeout, then back
+    "watchdog": xcp_config() + CONNECT + xcp_ops((XCP_CLOCK, 0xF4, 1), (XCP_CLOCK, 0xF4, 1)) + xcp(0xFD) + TAKE,
+}
+
+
+# operations (op % 8) of the fixed-point speed target (fuzz_speed_fixed.c); SAMPLE and the others as above
+FIXED_PROBE = 3
+I32_MIN, I32_MAX = -(2**31), 2**31 - 1
+
+
+def fixed_config(surface=True, T_fs=nominal(), W_fs=nominal(), I_fs=nominal(), **speed):
+    """Fixed-point configuration: its shape byte (bit 0: surface), a speed configuration, the full scales."""
+    return u8(1 if surface else 0) + speed_config(surface=surface, **speed) + T_fs + W_fs + I_fs
+
+
+def i32(v):
+    return struct.pack("<i", v)
+
+
+def fixed_sample(w_ref, w_m, mode=0, applied=0):
+    """One sample of both formats: Q31 integers (Q15 takes their upper halves); mode 0 own T_ref, 1 applied, 2 u."""
+    return u8(SAMPLE + 8 * mode) + i32(w_ref) + i32(w_m) + i32(applied)
+
+
+def fixed_closed_loop(n, w_ref, T_load):
+    return u8(CLOSED_LOOP) + u16(n - 1) + w_ref + T_load
+
+
+# saturating samples at the extremes, reversing, with every applied torque; a constant reference while saturated
+EXTREMES = (
+    fixed_sample(I32_MAX, I32_MIN)
+    + fixed_sample(I32_MAX, I32_MIN)
+    + fixed_sample(I32_MAX, I32_MIN, mode=1, applied=I32_MIN)
+    + fixed_sample(I32_MIN, I32_MAX, mode=1, applied=I32_MAX)
+    + fixed_sample(I32_MIN, I32_MAX)
+    + fixed_sample(I32_MIN, I32_MIN, mode=2)
+    + fixed_sample(0, 1, mode=2)
+    + fixed_sample(0, -1, mode=2)
+    + u8(FIXED_PROBE)
+)
+
+SPEED_FIXED_SEEDS = {
+    # the paper's drive scaled to twice its torque limit: a step under load, the dead-zone probe, a reversal
+    "paper_lowpass_backcalc_load": fixed_config()
+    + fixed_closed_loop(2048, nominal(), nominal())
+    + u8(FIXED_PROBE)
+    + fixed_closed_loop(1500, nominal(-0.5), nominal()),
+    # zeta = 0.5: Fr(0) = -4 full scales per full scale, the feedforward transient at its bound; clamping
+    "extremes_lowpass_clamping": fixed_config(zeta=nominal(0.5), anti_windup=2) + EXTREMES,
+    "extremes_forward_full_backcalc": fixed_config(m=nominal(2.0), method=0, feedforward=3) + EXTREMES,
+    "extremes_backward_notau_none": fixed_config(m=nominal(0.5), method=1, feedforward=2, anti_windup=0) + EXTREMES,
+    "extremes_tustin_none_clamping": fixed_config(feedforward=0, anti_windup=2, W_fs=nominal(50.0)) + EXTREMES,
+    # a speed full scale of 1e-9 rad/s: Ki Ts per unit below 2^-32, which Q31 refuses; Q15 runs with its dead zone
+    "q31_deaf_integrator": fixed_config(W_fs=raw(1e-9)) + EXTREMES + fixed_closed_loop(500, nominal(), nominal()),
+    # updates: a fresh design with the scalings kept, new scalings (refused), resets
+    "set_config_and_reset": fixed_config()
+    + fixed_closed_loop(300, nominal(), nominal())
+    + u8(SET_MUTATED)
+    + speed_config(zeta=nominal(0.7))
+    + u8(1)
+    + fixed_closed_loop(300, nominal(), nominal())
+    + u8(SET_FRESH)
+    + fixed_config(T_fs=nominal(2.0))
+    + u8(RESET)
+    + i32(1 << 20)
+    + i32(-(1 << 24))
+    + fixed_sample(1 << 20, 1 << 20, mode=2)
+    + u8(RESET)
+    + i32(I32_MIN)
+    + i32(I32_MAX)
+    + EXTREMES,
+    # a salient motor: both formats refuse it
+    "rejected_salient": fixed_config(surface=False),
+}
+
 
 def main():
     for target, seeds in (
         ("speed", SPEED_SEEDS),
+        ("speed_fixed", SPEED_FIXED_SEEDS),
         ("current", CURRENT_SEEDS),
         ("commission", COMMISSION_SEEDS),
         ("encoder", ENCODER_SEEDS),
         ("field_weakening", FIELD_WEAKENING_SEEDS),
         ("inertia", INERTIA_SEEDS),
         ("filter", FILTER_SEEDS),
+        ("xcp", XCP_SEEDS),
     ):
         folder = CORPUS / target
         folder.mkdir(parents=True, exist_ok=True)

@@ -20,8 +20,8 @@
  *   4. a load far beyond the limit that drives the shaft backwards until the
  *      engine stops with P2D_SIM_STOP_OVERSPEED;
  *   5. error paths: NULL, an invalid motor, an invalid controller, a log
- *      buffer too small (P2D_SIM_ERR_LOG_FULL, without writing past it), an
- *      invalid drive train, an invalid torque filter;
+ *      buffer too small (P2D_SIM_ERR_LOG_FULL before anything runs; then the
+ *      samples it has room for), an invalid drive train, an invalid torque filter;
  *   6. the commissioning run (commission_run.h) of a salient servo with
  *      dead time, current noise and computation delay, into a log of exactly
  *      its rows: DONE, every estimate within 5 %; then a log one row short
@@ -34,7 +34,13 @@
  *      periods: the ring of angles wraps many times); and their error paths;
  *   8. a two-mass train with backlash read on the load side, with a notch and
  *      a low-pass in the speed controller, a load step: the trace ends at rest
- *      on the reference with the shaft carrying the load.
+ *      on the reference with the shaft carrying the load;
+ *   9. six drives of condition 1 with different inertias, gains and loads in
+ *      lockstep (p2d_sim_run_many: a full group and a partial one, one drive
+ *      stopping inside its group), each into a log of exactly its rows: every
+ *      log equal to the lone run's, bit for bit; then drives of two shapes
+ *      (P2D_SIM_ERR_LOCKSTEP) and a log one row short (P2D_SIM_ERR_LOG_FULL),
+ *      nothing run.
  * Besides the sanitizers' own checks: the status codes, every logged value
  * finite, ||i_ref|| <= i_max (float32 slack), and the recovery of scenario 2.
  */
@@ -269,8 +275,12 @@ int main(void)
         CHECK(p2d_sim_init(sim, &cfg) == P2D_SIM_OK, "valid configuration rejected");
         small = malloc(10u * P2D_LOG_COUNT * sizeof *small);
         status = p2d_sim_run(sim, 11u, small, 10u);
-        CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 10u,
-              "log of 10 rows for 11 samples: status %d rows %llu", (int)status, (unsigned long long)sim->n_rows);
+        CHECK(status == P2D_SIM_ERR_LOG_FULL && sim->n_rows == 0u && sim->n_speed == 0u,
+              "log of 10 rows for 11 samples: status %d rows %llu (nothing runs)", (int)status,
+              (unsigned long long)sim->n_rows);
+        status = p2d_sim_run(sim, 10u, small, 10u);
+        CHECK(status == P2D_SIM_OK && sim->n_rows == 10u, "log of 10 rows for 10 samples: status %d rows %llu",
+              (int)status, (unsigned long long)sim->n_rows);
         free(small);
         paper_drive(&cfg);
         cfg.mechanics.model = P2D_MECHANICS_TWO_MASS;
@@ -467,10 +477,68 @@ int main(void)
         free(log);
     }
 
+    /* 9. lockstep: six drives, a full group and a partial one, one that stops; then the error paths */
+    {
+        enum { N_MANY = 6 };
+        static const double ref_t[] = {0.0}, ref_v[] = {500.0 * RADPS_PER_RPM}, ref_r[] = {0.0};
+        static double load_t[N_MANY], load_v[N_MANY], load_r[N_MANY];
+        p2d_sim_t *many[N_MANY], *alone = malloc(sizeof *alone);
+        double *many_log[N_MANY], *alone_log;
+        uint64_t many_rows[N_MANY], n = 1500u;
+        size_t bytes = (size_t)(n * (uint64_t)P2D_LOG_COUNT) * sizeof(double);
+        p2d_sim_config_t cfgs[N_MANY];
+        alone_log = malloc(bytes);
+        if (alone == NULL || alone_log == NULL) exit(2);
+        for (int i = 0; i < N_MANY; ++i) {
+            paper_drive(&cfgs[i]);
+            cfgs[i].motor.J_kgm2 = i == 3 ? 0.01 : 0.2 + 0.1 * i;
+            cfgs[i].speed.alpha_radps = 0.3f + 0.2f * (float)i;
+            cfgs[i].speed.Ka = p2d_speed_Ka_default(0.4f, cfgs[i].speed.alpha_radps);
+            load_t[i] = 0.7 + 0.0123 * i;
+            load_v[i] = i == 3 ? -40.0 : 2.0 * i; /* drive 3: a load that runs it away into the overspeed stop */
+            load_r[i] = i == 4 ? 0.0501 : 0.0;    /* drive 4: a ramp whose ends fall inside periods */
+            cfgs[i].reference = (p2d_schedule_t){ref_t, ref_v, ref_r, 1u};
+            cfgs[i].load = (p2d_schedule_t){&load_t[i], &load_v[i], &load_r[i], 1u};
+            many[i] = malloc(sizeof *many[i]);
+            many_log[i] = malloc(bytes);
+            many_rows[i] = n;
+            if (many[i] == NULL || many_log[i] == NULL) exit(2);
+            CHECK(p2d_sim_init(many[i], &cfgs[i]) == P2D_SIM_OK, "lockstep: drive %d rejected", i);
+        }
+        status = p2d_sim_run_many(many, N_MANY, n, many_log, many_rows);
+        CHECK(status == P2D_SIM_OK, "lockstep: status %d", (int)status);
+        CHECK(many[3]->status == P2D_SIM_STOP_OVERSPEED, "lockstep: drive 3 ends with %d", (int)many[3]->status);
+        for (int i = 0; i < N_MANY; ++i) {
+            CHECK(p2d_sim_init(alone, &cfgs[i]) == P2D_SIM_OK, "lockstep: drive %d rejected alone", i);
+            status = p2d_sim_run(alone, n, alone_log, n);
+            CHECK(status == many[i]->status && alone->n_rows == many[i]->n_rows && alone->t_stop_s == many[i]->t_stop_s,
+                  "lockstep: drive %d: status %d alone, %d in lockstep", i, (int)status, (int)many[i]->status);
+            for (uint32_t c = 0; c < (uint32_t)P2D_LOG_COUNT; ++c) {
+                CHECK(memcmp(alone_log + (uint64_t)c * n, many_log[i] + (uint64_t)c * n,
+                             (size_t)alone->n_rows * sizeof(double)) == 0,
+                      "lockstep: drive %d: column %s differs from the lone run", i, p2d_sim_log_name(c));
+            }
+        }
+        for (int i = 0; i < 2; ++i) CHECK(p2d_sim_init(many[i], &cfgs[i]) == P2D_SIM_OK, "lockstep: init %d", i);
+        many[1]->cfg.substeps = 2u;
+        CHECK(p2d_sim_run_many(many, 2u, n, many_log, many_rows) == P2D_SIM_ERR_LOCKSTEP && many[0]->n_speed == 0u,
+              "lockstep: drives of two shapes ran");
+        many[1]->cfg.substeps = 1u;
+        many_rows[1] = n - 1u;
+        CHECK(p2d_sim_run_many(many, 2u, n, many_log, many_rows) == P2D_SIM_ERR_LOG_FULL && many[0]->n_speed == 0u,
+              "lockstep: a short log ran");
+        for (int i = 0; i < N_MANY; ++i) {
+            free(many[i]);
+            free(many_log[i]);
+        }
+        free(alone);
+        free(alone_log);
+    }
+
     if (failures != 0) {
         fprintf(stderr, "sanitize_drive: %d check(s) failed\n", failures);
         return 1;
     }
-    printf("sanitize_drive: 8 scenarios passed\n");
+    printf("sanitize_drive: 9 scenarios passed\n");
     return 0;
 }

@@ -79,10 +79,31 @@ static double sign(double x) { return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0); }
 /* x wrapped to [-pi, pi) */
 static double wrap_pi(double x) { return x - P2D_CRUN_TWO_PI * floor((x + P2D_CRUN_PI) / P2D_CRUN_TWO_PI); }
 
+/* Precompute the motor's coefficients from validated parameters and set it at rest. */
+static void pmsm_setup(p2d_crun_pmsm_t *m, const p2d_pmsm_params_t *mp, double Ts_s)
+{
+    m->pole_pairs = (double)mp->pole_pairs;
+    m->Rs_ohm = mp->Rs_ohm;
+    m->Ld_H = mp->Ld_H;
+    m->Lq_H = mp->Lq_H;
+    m->psi_f_Wb = mp->psi_f_Wb;
+    m->inv_Ld_per_H = 1.0 / mp->Ld_H;
+    m->inv_Lq_per_H = 1.0 / mp->Lq_H;
+    m->inv_J_per_kgm2 = 1.0 / mp->J_kgm2;
+    m->kt_Nm_per_A = 1.5 * m->pole_pairs * mp->psi_f_Wb;
+    m->c_T_Nm_per_A2 = 1.5 * m->pole_pairs * (mp->Ld_H - mp->Lq_H);
+    m->B_Nms = mp->B_Nms;
+    m->T_coulomb_Nm = mp->T_coulomb_Nm;
+    m->inv_w_c_s_per_rad = 1.0 / p2d_plant_friction_band_radps(mp, Ts_s);
+    m->id_A = 0.0;
+    m->iq_A = 0.0;
+    m->w_m_radps = 0.0;
+}
+
 p2d_crun_status_t p2d_commission_run_init(p2d_crun_t *run, const p2d_crun_config_t *cfg)
 {
     const p2d_pmsm_params_t *mp;
-    p2d_pmsm_t *m;
+    p2d_crun_pmsm_t *m;
     p2d_status_t status;
     if (run == NULL || cfg == NULL) return P2D_CRUN_ERR_NULL;
     mp = &cfg->motor;
@@ -107,7 +128,7 @@ p2d_crun_status_t p2d_commission_run_init(p2d_crun_t *run, const p2d_crun_config
 
     run->cfg = *cfg;
     m = &run->pmsm;
-    p2d_pmsm_setup(m, mp, (double)cfg->commissioning.Ts_s);
+    pmsm_setup(m, mp, (double)cfg->commissioning.Ts_s);
     run->theta_e_rad = wrap_pi(cfg->theta0_rad - P2D_CRUN_PI) + P2D_CRUN_PI;
     run->dt_s = (double)cfg->commissioning.Ts_s / (double)cfg->substeps;
     run->ua_next_V = 0.0;
@@ -124,7 +145,7 @@ p2d_crun_status_t p2d_commission_run_init(p2d_crun_t *run, const p2d_crun_config
 /* d/dt of (id, iq, w_m, theta_e) under the stationary-frame voltage (ua, ub) held by the inverter */
 static void derivative(const p2d_crun_t *run, const double x[4], double ua_V, double ub_V, double dx[4])
 {
-    const p2d_pmsm_t *m = &run->pmsm;
+    const p2d_crun_pmsm_t *m = &run->pmsm;
     const double u_dt_V = run->cfg.dead_time_V;
     double c = cos(x[3]), s = sin(x[3]);
     /* the rotor-frame current in alpha beta, and its phase currents (amplitude invariant) */

@@ -9,7 +9,7 @@
  *   Lq diq/dt   = uq - Rs iq - w_e (Ld id + psi_f)
  *   J dw_m/dt   = 1.5 p (psi_f iq + (Ld - Lq) id iq) - T_load - B w_m - T_c tanh(w_m / w_c)
  *   dtheta_e/dt = w_e = p w_m,
- * w_c as in drive.h, integrated by `substeps` RK4 steps per current period.
+ * w_c as in plant.h, integrated by `substeps` RK4 steps per current period.
  * The routine works in its own frame, whose angle it chooses (alignment, I-f):
  * its command (ud, uq) at the angle out.theta_e_rad is turned into the
  * stationary frame (inverse Park), held over the current period (after one
@@ -35,7 +35,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "drive.h"
+#include "plant.h"
 #include "pmsm2dof/commission.h"
 #include "pmsm2dof/status.h"
 
@@ -83,9 +83,29 @@ typedef enum {
     P2D_CLOG_COUNT            /* number of columns, not a column */
 } p2d_clog_column_t;
 
+/* The motor of a commissioning run: its parameters, coefficients precomputed at init, and its state. */
+typedef struct {
+    double pole_pairs;        /* pole pairs p [-] */
+    double Rs_ohm;            /* stator resistance [ohm] */
+    double Ld_H;              /* d-axis inductance [H] */
+    double Lq_H;              /* q-axis inductance [H] */
+    double psi_f_Wb;          /* flux linkage [Wb] */
+    double inv_Ld_per_H;      /* 1 / Ld [1/H] */
+    double inv_Lq_per_H;      /* 1 / Lq [1/H] */
+    double inv_J_per_kgm2;    /* 1 / J [1/(kg m^2)] */
+    double kt_Nm_per_A;       /* 1.5 p psi_f [Nm/A] */
+    double c_T_Nm_per_A2;     /* 1.5 p (Ld - Lq) [Nm/A^2] */
+    double B_Nms;             /* viscous friction [Nm s/rad] */
+    double T_coulomb_Nm;      /* Coulomb friction [Nm] */
+    double inv_w_c_s_per_rad; /* 1 / w_c, friction smoothing band of plant.h [s/rad] */
+    double id_A;              /* state: d-axis current [A] */
+    double iq_A;              /* state: q-axis current [A] */
+    double w_m_radps;         /* state: mechanical speed [rad/s] */
+} p2d_crun_pmsm_t;
+
 /* Everything a commissioning run needs. */
 typedef struct {
-    p2d_pmsm_params_t motor;               /* true plant (drive.h) */
+    p2d_pmsm_params_t motor;               /* true plant (plant.h) */
     double u_dc_V;                         /* DC-link voltage [V], > 0 */
     bool computation_delay;                /* the inverter applies the command one current period later */
     uint32_t substeps;                     /* RK4 steps per current period [-], >= 1 */
@@ -101,7 +121,7 @@ typedef struct {
 typedef struct {
     p2d_crun_config_t cfg;          /* configuration */
     p2d_commission_t routine;       /* the firmware routine under test */
-    p2d_pmsm_t pmsm;                /* plant: parameters and id, iq, w_m (drive.h) */
+    p2d_crun_pmsm_t pmsm;           /* plant: parameters and id, iq, w_m */
     double theta_e_rad;             /* state: rotor electrical angle [rad], in [0, 2 pi) */
     double dt_s;                    /* RK4 step Ts / substeps [s] */
     double ua_next_V;               /* delay: alpha voltage for the next period [V] */

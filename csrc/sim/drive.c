@@ -2,27 +2,59 @@
  * Drive simulation engine: see drive.h for the model, the sampled-data loop,
  * the initial state, the log and the stops.
  */
+/*
+ * No product and sum contracted into an FMA (C99 7.12.2), in this file and the inline code it
+ * includes: the loop's FMA copy below computes the bits of the baseline one only so (clang honours
+ * the pragma, GCC the attribute of P2D_SIM_FMA_TARGET; ffibuild.py passes -ffp-contract=off too).
+ */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
+
 #include "drive.h"
-#include "mechanics.h"
 
 #include <math.h>
+#include <string.h>
 
-#define P2D_SIM_INV_SQRT3 0.57735026918962576 /* 1/sqrt(3) */
-#define P2D_SIM_W_C_MIN_RADPS 0.01            /* narrowest Coulomb smoothing band [rad/s] */
-#define P2D_SIM_W_C_PERIODS 10.0              /* friction time constant J w_c / T_c in current periods [-] */
-#define P2D_SIM_OVERSPEED_FACTOR 2.0          /* overspeed bound in no-load speeds [-] */
-#define P2D_SIM_OVERCURRENT_FACTOR 10.0       /* overcurrent bound in max(i_max, short-circuit current) [-] */
-#define P2D_SIM_TS_MATCH_TOL 1e-6             /* relative mismatch allowed between float and double periods [-] */
-#define P2D_SIM_T_TOL 1e-6                    /* times closer than this many RK4 steps are equal [-] */
+#include "../src/current_step.h"
+#include "plant_inline.h"
 
-/* Inlines a function where the compiler supports it (the plant's RK4 step into its specialised loops). */
+#define P2D_SIM_OVERSPEED_FACTOR 2.0    /* overspeed bound in no-load speeds [-] */
+#define P2D_SIM_OVERCURRENT_FACTOR 10.0 /* overcurrent bound in max(i_max, short-circuit current) [-] */
+#define P2D_SIM_TS_MATCH_TOL 1e-6       /* relative mismatch allowed between float and double periods [-] */
+#define P2D_SIM_T_TOL 1e-6              /* times closer than this many RK4 steps are equal [-] */
+
+/* Inlines a function where the compiler supports it (the per-period work into the loop). */
 #if defined(__GNUC__)
 #define P2D_SIM_INLINE __attribute__((always_inline)) inline
 #else
 #define P2D_SIM_INLINE inline
 #endif
 
-/* Keeps a function out of line where the compiler supports it. */
+/*
+ * A copy of the loop for x86-64 CPUs with FMA (and so AVX), chosen at run time: the controllers'
+ * fmaf is then one instruction instead of a call into libm (which spills every SSE register around
+ * it), and the plant's double arithmetic takes the three-operand AVX forms. fmaf rounds once either
+ * way and -ffp-contract=off keeps every other product and sum apart, so that both copies compute
+ * the same bits.
+ */
+#if defined(__GNUC__) && defined(__x86_64__)
+#if defined(__clang__)
+#define P2D_SIM_FMA_TARGET __attribute__((target("fma")))
+#else
+#define P2D_SIM_FMA_TARGET __attribute__((target("fma"), optimize("fp-contract=off")))
+#endif
+/* The CPU executes FMA (and AVX) instructions. */
+static bool cpu_has_fma(void)
+{
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("fma");
+}
+#else
+static bool cpu_has_fma(void) { return false; }
+#endif
+
+/* Keeps a function out of line where the compiler supports it (rare paths, out of the loop's registers). */
 #if defined(__GNUC__)
 #define P2D_SIM_NOINLINE __attribute__((noinline))
 #else
@@ -86,6 +118,7 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_ERR_ESTIMATOR] = {"adapt.config", "accepted by p2d_inertia_init (see controller_status)"},
     [P2D_SIM_ERR_ADAPT_REL_CHANGE] = {"adapt.adapt_rel_change", "finite and >= 0"},
     [P2D_SIM_ERR_E_QUIET] = {"adapt.e_quiet_radps", "finite and >= 0"},
+    [P2D_SIM_ERR_LOCKSTEP] = {"sims", "drives of one shape at the same sample (p2d_sim_lockstep)"},
 };
 
 static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
@@ -133,6 +166,12 @@ const char *p2d_sim_log_name(uint32_t column)
     return P2D_LOG_NAMES[column];
 }
 
+/*
+ * A count n as a double: the signed conversion, one instruction on x86-64 where the unsigned one
+ * takes a branch; the same value for every count of a run (n < 2^63).
+ */
+static P2D_SIM_INLINE double count_as_double(uint64_t n) { return (double)(int64_t)n; }
+
 static bool is_positive(double x) { return isfinite(x) && x > 0.0; }
 static bool is_nonnegative(double x) { return isfinite(x) && x >= 0.0; }
 
@@ -175,19 +214,10 @@ static bool faults_valid(const p2d_sim_config_t *cfg)
     return true;
 }
 
+/* The engine's own fields (the plant's are validated by p2d_plant_init). */
 static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
 {
-    const p2d_pmsm_params_t *m = &cfg->motor;
     double Ts_speed_s;
-    if (m->pole_pairs < 1u) return P2D_SIM_ERR_POLE_PAIRS;
-    if (!is_positive(m->Rs_ohm)) return P2D_SIM_ERR_RS;
-    if (!is_positive(m->Ld_H)) return P2D_SIM_ERR_LD;
-    if (!is_positive(m->Lq_H)) return P2D_SIM_ERR_LQ;
-    if (!is_positive(m->psi_f_Wb)) return P2D_SIM_ERR_PSI_F;
-    if (!is_positive(m->J_kgm2)) return P2D_SIM_ERR_J;
-    if (!is_nonnegative(m->B_Nms)) return P2D_SIM_ERR_B;
-    if (!is_nonnegative(m->T_coulomb_Nm)) return P2D_SIM_ERR_T_COULOMB;
-    if (!is_positive(cfg->u_dc_V)) return P2D_SIM_ERR_U_DC;
     if ((unsigned)cfg->current_model > (unsigned)P2D_CURRENT_FIRST_ORDER) return P2D_SIM_ERR_CURRENT_MODEL;
     if (cfg->current_model == P2D_CURRENT_FIRST_ORDER && !is_positive(cfg->tau_i_s)) return P2D_SIM_ERR_TAU_I;
     if (!is_positive(cfg->Ts_current_s)) return P2D_SIM_ERR_TS_CURRENT;
@@ -199,13 +229,42 @@ static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
     if (cfg->current_per_speed < 1u || !nearly_equal((double)cfg->speed.Ts_s, Ts_speed_s, P2D_SIM_TS_MATCH_TOL)) {
         return P2D_SIM_ERR_CURRENT_PER_SPEED;
     }
-    if (cfg->substeps < 1u) return P2D_SIM_ERR_SUBSTEPS;
     if (cfg->log_every < 1u) return P2D_SIM_ERR_LOG_EVERY;
-    if (!isfinite(cfg->w_m0_radps)) return P2D_SIM_ERR_W_M0;
     if (!schedule_valid(&cfg->reference)) return P2D_SIM_ERR_REFERENCE;
     if (!schedule_valid(&cfg->load)) return P2D_SIM_ERR_LOAD;
     if (!faults_valid(cfg)) return P2D_SIM_ERR_FAULTS;
-    return p2d_mechanics_check(&cfg->mechanics);
+    return P2D_SIM_OK;
+}
+
+/* The engine's code of a configuration error of the plant. */
+static p2d_sim_status_t plant_error(p2d_plant_status_t status)
+{
+    static const p2d_sim_status_t code[P2D_PLANT_STATUS_COUNT] = {
+        [P2D_PLANT_OK] = P2D_SIM_OK,
+        [P2D_PLANT_ERR_NULL] = P2D_SIM_ERR_NULL,
+        [P2D_PLANT_ERR_POLE_PAIRS] = P2D_SIM_ERR_POLE_PAIRS,
+        [P2D_PLANT_ERR_RS] = P2D_SIM_ERR_RS,
+        [P2D_PLANT_ERR_LD] = P2D_SIM_ERR_LD,
+        [P2D_PLANT_ERR_LQ] = P2D_SIM_ERR_LQ,
+        [P2D_PLANT_ERR_PSI_F] = P2D_SIM_ERR_PSI_F,
+        [P2D_PLANT_ERR_J] = P2D_SIM_ERR_J,
+        [P2D_PLANT_ERR_B] = P2D_SIM_ERR_B,
+        [P2D_PLANT_ERR_T_COULOMB] = P2D_SIM_ERR_T_COULOMB,
+        [P2D_PLANT_ERR_MECHANICS_MODEL] = P2D_SIM_ERR_MECHANICS_MODEL,
+        [P2D_PLANT_ERR_J_LOAD] = P2D_SIM_ERR_J_LOAD,
+        [P2D_PLANT_ERR_STIFFNESS] = P2D_SIM_ERR_STIFFNESS,
+        [P2D_PLANT_ERR_DAMPING] = P2D_SIM_ERR_DAMPING,
+        [P2D_PLANT_ERR_BACKLASH] = P2D_SIM_ERR_BACKLASH,
+        [P2D_PLANT_ERR_FEEDBACK] = P2D_SIM_ERR_FEEDBACK,
+        [P2D_PLANT_ERR_U_DC] = P2D_SIM_ERR_U_DC,
+        [P2D_PLANT_ERR_TS] = P2D_SIM_ERR_TS_CURRENT,
+        [P2D_PLANT_ERR_SUBSTEPS] = P2D_SIM_ERR_SUBSTEPS,
+        [P2D_PLANT_ERR_TAU_I] = P2D_SIM_ERR_TAU_I,
+        [P2D_PLANT_ERR_W_M0] = P2D_SIM_ERR_W_M0,
+        [P2D_PLANT_ERR_I0] = P2D_SIM_ERR_W_M0,
+        [P2D_PLANT_ERR_CURRENT_SENSOR] = P2D_SIM_ERR_CURRENT_SENSOR,
+    };
+    return (unsigned)status < (unsigned)P2D_PLANT_STATUS_COUNT ? code[status] : P2D_SIM_ERR_NULL;
 }
 
 /* ---- schedules ---------------------------------------------------------- */
@@ -237,7 +296,7 @@ static double segment_slope(const p2d_schedule_cursor_t *c, double t_s)
 }
 
 /* Enter every entry with t_s[i] <= t; a new segment starts from the value reached. */
-static void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
+static P2D_SIM_NOINLINE void cursor_enter(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
 {
     while (c->next < s->n && s->t_s[c->next] <= t_s) {
         double t_entry = s->t_s[c->next];
@@ -248,6 +307,12 @@ static void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, do
         c->t_break_s = -HUGE_VAL;
         c->next++;
     }
+}
+
+/* cursor_enter, with the test that finds no entry to enter (most calls) inline. */
+static P2D_SIM_INLINE void cursor_advance(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
+{
+    if (c->next < s->n && s->t_s[c->next] <= t_s) cursor_enter(c, s, t_s);
 }
 
 /* First time after t where the signal jumps or changes slope (HUGE_VAL if none). */
@@ -281,28 +346,14 @@ static bool fault_active(const p2d_sim_t *sim, const p2d_fault_t *f, double leng
     return t_s >= f->t_s - sim->t_tol_s && t_s < f->t_s + length_s - sim->t_tol_s;
 }
 
-/* The load-side speed: w_L (two_mass), else w_m. */
-static double load_speed_radps(const p2d_sim_t *sim)
+/* The speed and angle the speed sensor measures: the load side with feedback from the load, else the motor's. */
+static void sensed_side(const p2d_sim_t *sim, double *theta_rad, double *w_radps)
 {
-    return sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS ? sim->mechanics.w_load_radps : sim->pmsm.w_m_radps;
-}
-
-/* The speed the speed sensor measures: w_L with feedback from the load, else w_m. */
-static double sensed_speed_radps(const p2d_sim_t *sim)
-{
-    return sim->cfg.mechanics.feedback == P2D_FEEDBACK_LOAD ? load_speed_radps(sim) : sim->pmsm.w_m_radps;
-}
-
-/*
- * The angle the speed sensor measures: theta_L = theta_M - theta (0 at t = 0, as the twist) with
- * feedback from the load of a two-mass train, else theta_m.
- */
-static double sensed_angle_rad(const p2d_sim_t *sim)
-{
-    if (sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS && sim->cfg.mechanics.feedback == P2D_FEEDBACK_LOAD) {
-        return sim->pmsm.theta_m_rad - sim->mechanics.theta_rad;
+    if (sim->cfg.mechanics.feedback == P2D_FEEDBACK_LOAD) {
+        p2d_plant_load_side(&sim->plant, theta_rad, w_radps);
+    } else {
+        p2d_plant_rotor(&sim->plant, theta_rad, w_radps);
     }
-    return sim->pmsm.theta_m_rad;
 }
 
 /*
@@ -334,248 +385,6 @@ static double dc_link_V(const p2d_sim_t *sim, double t_s)
     return sim->cfg.u_dc_V;
 }
 
-/* ---- plant -------------------------------------------------------------- */
-
-/* T_f = B w_m + T_c tanh(w_m / w_c); coulomb: T_c > 0 */
-static P2D_SIM_INLINE double friction_Nm(const p2d_pmsm_t *m, bool coulomb, double w_m_radps)
-{
-    double T = m->B_Nms * w_m_radps;
-    if (coulomb) T += m->T_coulomb_Nm * tanh(w_m_radps * m->inv_w_c_s_per_rad);
-    return T;
-}
-
-/* Te = 1.5 p (psi_f iq + (Ld - Lq) id iq) */
-static double torque_Nm(const p2d_pmsm_t *m, double id_A, double iq_A)
-{
-    return iq_A * (m->kt_Nm_per_A + m->c_T_Nm_per_A2 * id_A);
-}
-
-/*
- * A plant state x = (id, iq, w_m, theta, w_L), or its time derivative (each field then per
- * second); theta and w_L are used by the two-mass train only (two_mass, a constant at each call).
- */
-typedef struct {
-    double id_A;         /* d-axis current [A] */
-    double iq_A;         /* q-axis current [A] */
-    double w_m_radps;    /* mechanical speed of the motor [rad/s] */
-    double theta_rad;    /* two_mass: shaft twist theta_M - theta_L [rad] */
-    double w_load_radps; /* two_mass: load-side speed [rad/s] */
-} p2d_plant_x_t;
-
-/*
- * Time derivative of x under the current-loop model `model`. Inputs a, b: (ud, uq) [V] for
- * DQ_PI, (id_ref, iq_ref) [A] for FIRST_ORDER.
- */
-static P2D_SIM_INLINE p2d_plant_x_t plant_rate(const p2d_sim_t *sim, p2d_current_model_t model, bool coulomb,
-                                               bool two_mass, p2d_plant_x_t x, double a, double b, double T_load_Nm)
-{
-    const p2d_pmsm_t *m = &sim->pmsm;
-    p2d_plant_x_t dx;
-    if (model == P2D_CURRENT_DQ_PI) {
-        double w_e = m->pole_pairs * x.w_m_radps;
-        /* Ld did/dt = ud - Rs id + w_e Lq iq */
-        dx.id_A = (a - m->Rs_ohm * x.id_A + w_e * m->Lq_H * x.iq_A) * m->inv_Ld_per_H;
-        /* Lq diq/dt = uq - Rs iq - w_e (Ld id + psi_f) */
-        dx.iq_A = (b - m->Rs_ohm * x.iq_A - w_e * (m->Ld_H * x.id_A + m->psi_f_Wb)) * m->inv_Lq_per_H;
-    } else {
-        /* eq 3: tau_i di/dt = i_ref - i */
-        dx.id_A = (a - x.id_A) * sim->inv_tau_i_per_s;
-        dx.iq_A = (b - x.iq_A) * sim->inv_tau_i_per_s;
-    }
-    if (two_mass) {
-        double T_s = p2d_shaft_torque_Nm(&sim->mechanics, x.theta_rad, x.w_m_radps - x.w_load_radps);
-        /* J_M dw_m/dt = Te - T_s - B w_m - T_c tanh(w_m / w_c) */
-        dx.w_m_radps = (torque_Nm(m, x.id_A, x.iq_A) - T_s - friction_Nm(m, coulomb, x.w_m_radps)) * m->inv_J_per_kgm2;
-        /* dtheta/dt = w_m - w_L */
-        dx.theta_rad = x.w_m_radps - x.w_load_radps;
-        /* J_L dw_L/dt = T_s - T_load */
-        dx.w_load_radps = (T_s - T_load_Nm) * sim->mechanics.inv_J_load_per_kgm2;
-    } else {
-        /* J dw_m/dt = Te - T_load - B w_m - T_c tanh(w_m / w_c) */
-        dx.w_m_radps =
-            (torque_Nm(m, x.id_A, x.iq_A) - T_load_Nm - friction_Nm(m, coulomb, x.w_m_radps)) * m->inv_J_per_kgm2;
-        dx.theta_rad = 0.0;
-        dx.w_load_radps = 0.0;
-    }
-    return dx;
-}
-
-/* x + c dx (theta and w_L with two_mass, else left as x's) */
-static P2D_SIM_INLINE p2d_plant_x_t plant_x_step(bool two_mass, p2d_plant_x_t x, double c, p2d_plant_x_t dx)
-{
-    p2d_plant_x_t y = x;
-    y.id_A = x.id_A + c * dx.id_A;
-    y.iq_A = x.iq_A + c * dx.iq_A;
-    y.w_m_radps = x.w_m_radps + c * dx.w_m_radps;
-    if (two_mass) {
-        y.theta_rad = x.theta_rad + c * dx.theta_rad;
-        y.w_load_radps = x.w_load_radps + c * dx.w_load_radps;
-    }
-    return y;
-}
-
-/* One classical RK4 step of length h; the load is T0 + dT_dt (t - t_start) over the step. */
-static P2D_SIM_INLINE void rk4_step(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool two_mass, bool angle,
-                                    double h, double a, double b, double T0_Nm, double dT_dt_Nmps)
-{
-    p2d_pmsm_t *m = &sim->pmsm;
-    p2d_mechanics_t *mech = &sim->mechanics;
-    p2d_plant_x_t x = {m->id_A, m->iq_A, m->w_m_radps, 0.0, 0.0};
-    double h_half = 0.5 * h;
-    p2d_plant_x_t k1, k2, k3, k4;
-    if (two_mass) {
-        x.theta_rad = mech->theta_rad;
-        x.w_load_radps = mech->w_load_radps;
-    }
-    k1 = plant_rate(sim, model, coulomb, two_mass, x, a, b, T0_Nm);
-    k2 = plant_rate(sim, model, coulomb, two_mass, plant_x_step(two_mass, x, h_half, k1), a, b,
-                    T0_Nm + h_half * dT_dt_Nmps);
-    k3 = plant_rate(sim, model, coulomb, two_mass, plant_x_step(two_mass, x, h_half, k2), a, b,
-                    T0_Nm + h_half * dT_dt_Nmps);
-    k4 = plant_rate(sim, model, coulomb, two_mass, plant_x_step(two_mass, x, h, k3), a, b, T0_Nm + h * dT_dt_Nmps);
-    /* x(t + h) = x(t) + h (k1 + 2 k2 + 2 k3 + k4) / 6 */
-    m->id_A = x.id_A + h / 6.0 * (k1.id_A + 2.0 * k2.id_A + 2.0 * k3.id_A + k4.id_A);
-    m->iq_A = x.iq_A + h / 6.0 * (k1.iq_A + 2.0 * k2.iq_A + 2.0 * k3.iq_A + k4.iq_A);
-    m->w_m_radps = x.w_m_radps + h / 6.0 * (k1.w_m_radps + 2.0 * k2.w_m_radps + 2.0 * k3.w_m_radps + k4.w_m_radps);
-    if (two_mass) {
-        mech->theta_rad =
-            x.theta_rad + h / 6.0 * (k1.theta_rad + 2.0 * k2.theta_rad + 2.0 * k3.theta_rad + k4.theta_rad);
-        mech->w_load_radps =
-            x.w_load_radps +
-            h / 6.0 * (k1.w_load_radps + 2.0 * k2.w_load_radps + 2.0 * k3.w_load_radps + k4.w_load_radps);
-    }
-    /* RK4 of dtheta/dt = w_m over the stages above: theta + h w_m + h^2 (k1 + k2 + k3) / 6 (speed rates) */
-    if (angle) m->theta_m_rad += h * x.w_m_radps + h * h / 6.0 * (k1.w_m_radps + k2.w_m_radps + k3.w_m_radps);
-}
-
-/*
- * Integrate the plant over the current period starting at t_start with the inputs held, under
- * the current-loop model `model`, with Coulomb friction if `coulomb`, the two-mass train if
- * `two_mass` and the rotor angle if `angle` (constants at each call).
- */
-static P2D_SIM_INLINE void plant_advance_model(p2d_sim_t *sim, p2d_current_model_t model, bool coulomb, bool two_mass,
-                                               bool angle, double t_start_s, double a, double b)
-{
-    for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
-        double t = t_start_s + (double)s * sim->dt_s;
-        double t_end = t_start_s + (double)(s + 1u) * sim->dt_s;
-        while (t < t_end - sim->t_tol_s) {
-            double t_break, t_stop, h;
-            t_break = cursor_break_after(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
-            /* split the step at a load breakpoint inside it */
-            t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
-            h = t_stop - t;
-            rk4_step(sim, model, coulomb, two_mass, angle, h, a, b, segment_value(&sim->load, t),
-                     segment_slope(&sim->load, t + 0.5 * h));
-            t = t_stop;
-        }
-    }
-}
-
-/*
- * Integrate the plant over the current period starting at t_start with the inputs held. One
- * specialised copy of the loop per current-loop model, with and without Coulomb friction (whose
- * tanh call would otherwise make every RK4 stage save its registers); out of line, so that the
- * loop of p2d_sim_run keeps its registers too. The two-mass train has one copy per current-loop
- * model, with the friction and the angle decided at run time; a rigid one with the rotor angle
- * one generic copy.
- */
-static P2D_SIM_NOINLINE void plant_advance(p2d_sim_t *sim, double t_start_s, double a, double b)
-{
-    bool coulomb = sim->pmsm.T_coulomb_Nm > 0.0;
-    if (sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS) {
-        if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, coulomb, true, sim->sensing.angle, t_start_s, a, b);
-        } else {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, coulomb, true, sim->sensing.angle, t_start_s, a, b);
-        }
-    } else if (sim->sensing.angle) {
-        /* with the rotor angle (sensing.h): one generic copy */
-        plant_advance_model(sim, sim->cfg.current_model, coulomb, false, true, t_start_s, a, b);
-    } else if (sim->cfg.current_model == P2D_CURRENT_DQ_PI) {
-        if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, true, false, false, t_start_s, a, b);
-        } else {
-            plant_advance_model(sim, P2D_CURRENT_DQ_PI, false, false, false, t_start_s, a, b);
-        }
-    } else {
-        if (coulomb) {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, true, false, false, t_start_s, a, b);
-        } else {
-            plant_advance_model(sim, P2D_CURRENT_FIRST_ORDER, false, false, false, t_start_s, a, b);
-        }
-    }
-}
-
-/* ---- inverter ----------------------------------------------------------- */
-
-/*
- * The range u_max = u_dc / sqrt(3), and u_inside2 = (1 - 2^-40) u_max^2: a sum of squares
- * ud^2 + uq^2 below u_inside2 is inside the range whatever the rounding of the sum (< 2^-51
- * relative; squares that underflow, < 2^-1074 absolute) and of hypot (< 1 ulp), so that
- * inside_range decides without hypot, as hypot would. u_inside2 is 0 (hypot always) for a range
- * outside [2^-450, 2^450] V, whose square could underflow or overflow.
- */
-static void inverter_set_range(p2d_inverter_t *inv, double u_dc_V)
-{
-    double u_max_V = u_dc_V * P2D_SIM_INV_SQRT3;
-    bool square_normal = u_max_V >= 0x1p-450 && u_max_V <= 0x1p450;
-    inv->u_max_V = u_max_V;
-    inv->u_inside2_V2 = square_normal ? u_max_V * u_max_V * (1.0 - 0x1p-40) : 0.0;
-}
-
-/* ud^2 + uq^2 < u_inside2: the vector is inside the range, and hypot(ud, uq) <= u_max. */
-static bool inside_range(const p2d_inverter_t *inv, double ud_V, double uq_V)
-{
-    return ud_V * ud_V + uq_V * uq_V < inv->u_inside2_V2;
-}
-
-/*
- * Scale (*ud, *uq) to ||u|| <= u_max; return true when it was cut. hypot neither underflows nor
- * overflows, so a zero range (a DC link at 0 V) applies exactly zero to any nonzero command, a
- * subnormal one included.
- */
-static bool limit_voltage(const p2d_inverter_t *inv, double *ud_V, double *uq_V)
-{
-    double norm;
-    if (inside_range(inv, *ud_V, *uq_V)) return false;
-    norm = hypot(*ud_V, *uq_V);
-    if (!(norm > inv->u_max_V)) return false;
-    *ud_V *= inv->u_max_V / norm;
-    *uq_V *= inv->u_max_V / norm;
-    return true;
-}
-
-/*
- * Limit the command to ||u|| <= u_dc / sqrt(3) into (*ud, *uq) and apply it now or one period
- * later; a delayed command is limited again by the range of the period it is applied in (which
- * differs only when the DC link sags in between). cmd_limited says that the controller already
- * cut the command to its range. Returns true when the voltage applied over the present period was
- * cut, by the controller or by the inverter, in this period or in the one it was computed in.
- */
-static bool inverter_apply(p2d_inverter_t *inv, double ud_cmd_V, double uq_cmd_V, bool cmd_limited, double *ud_V,
-                           double *uq_V)
-{
-    bool limited;
-    *ud_V = ud_cmd_V;
-    *uq_V = uq_cmd_V;
-    cmd_limited |= limit_voltage(inv, ud_V, uq_V);
-    if (!inv->delay) {
-        inv->ud_V = *ud_V;
-        inv->uq_V = *uq_V;
-        return cmd_limited;
-    }
-    inv->ud_V = inv->ud_next_V;
-    inv->uq_V = inv->uq_next_V;
-    limited = limit_voltage(inv, &inv->ud_V, &inv->uq_V) || inv->limited_next;
-    inv->ud_next_V = *ud_V;
-    inv->uq_next_V = *uq_V;
-    inv->limited_next = cmd_limited;
-    return limited;
-}
-
-/* ---- loop --------------------------------------------------------------- */
-
 static p2d_sim_status_t stop(p2d_sim_t *sim, p2d_sim_status_t status, double t_s, double value, double bound)
 {
     sim->status = status;
@@ -585,9 +394,10 @@ static p2d_sim_status_t stop(p2d_sim_t *sim, p2d_sim_status_t status, double t_s
     return status;
 }
 
-static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
+/* The stop of the state at t, if any: non-finite, overspeed, overcurrent, checked in that order. */
+static P2D_SIM_NOINLINE p2d_sim_status_t state_stop(p2d_sim_t *sim, double t_s)
 {
-    const p2d_pmsm_t *m = &sim->pmsm;
+    const p2d_plant_t *m = &sim->plant;
     double i2;
     if (!isfinite(m->id_A) || !isfinite(m->iq_A) || !isfinite(m->w_m_radps)) {
         return stop(sim, P2D_SIM_STOP_NONFINITE, t_s, 0.0, 0.0);
@@ -595,13 +405,12 @@ static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
     if (fabs(m->w_m_radps) > sim->w_bound_radps) {
         return stop(sim, P2D_SIM_STOP_OVERSPEED, t_s, fabs(m->w_m_radps), sim->w_bound_radps);
     }
-    if (sim->cfg.mechanics.model == P2D_MECHANICS_TWO_MASS) {
-        const p2d_mechanics_t *mech = &sim->mechanics;
-        if (!isfinite(mech->theta_rad) || !isfinite(mech->w_load_radps)) {
+    if (m->two_mass) {
+        if (!isfinite(m->theta_rad) || !isfinite(m->w_load_radps)) {
             return stop(sim, P2D_SIM_STOP_NONFINITE, t_s, 0.0, 0.0);
         }
-        if (fabs(mech->w_load_radps) > sim->w_bound_radps) {
-            return stop(sim, P2D_SIM_STOP_OVERSPEED, t_s, fabs(mech->w_load_radps), sim->w_bound_radps);
+        if (fabs(m->w_load_radps) > sim->w_bound_radps) {
+            return stop(sim, P2D_SIM_STOP_OVERSPEED, t_s, fabs(m->w_load_radps), sim->w_bound_radps);
         }
     }
     i2 = m->id_A * m->id_A + m->iq_A * m->iq_A;
@@ -611,43 +420,45 @@ static p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
     return P2D_SIM_OK;
 }
 
-/* Steady-state voltage of eq 1 for the currents, speed and current slopes given. */
-static void pmsm_voltage(const p2d_pmsm_t *m, double did_dt, double diq_dt, double *ud_V, double *uq_V)
+/*
+ * state_stop, with the state inside every bound decided by comparisons that NaN fails:
+ * ||i||^2 <= i_bound^2, |w_m| <= w_bound (and |w_L|, theta finite with two_mass).
+ */
+static P2D_SIM_INLINE p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
 {
-    double w_e = m->pole_pairs * m->w_m_radps;
-    /* ud = Rs id + Ld did/dt - w_e Lq iq */
-    *ud_V = m->Rs_ohm * m->id_A + m->Ld_H * did_dt - w_e * m->Lq_H * m->iq_A;
-    /* uq = Rs iq + Lq diq/dt + w_e (Ld id + psi_f) */
-    *uq_V = m->Rs_ohm * m->iq_A + m->Lq_H * diq_dt + w_e * (m->Ld_H * m->id_A + m->psi_f_Wb);
+    const p2d_plant_t *m = &sim->plant;
+    double i2 = m->id_A * m->id_A + m->iq_A * m->iq_A;
+    bool inside = i2 <= sim->i_bound_A * sim->i_bound_A && fabs(m->w_m_radps) <= sim->w_bound_radps;
+    if (m->two_mass) inside = inside && fabs(m->w_load_radps) <= sim->w_bound_radps && isfinite(m->theta_rad);
+    return inside ? P2D_SIM_OK : state_stop(sim, t_s);
 }
 
-void p2d_pmsm_setup(p2d_pmsm_t *m, const p2d_pmsm_params_t *mp, double Ts_current_s)
+/* The plant's configuration of cfg, with the initial currents id0, iq0. */
+static p2d_plant_config_t plant_config(const p2d_sim_config_t *cfg, double id0_A, double iq0_A)
 {
-    m->pole_pairs = (double)mp->pole_pairs;
-    m->Rs_ohm = mp->Rs_ohm;
-    m->Ld_H = mp->Ld_H;
-    m->Lq_H = mp->Lq_H;
-    m->psi_f_Wb = mp->psi_f_Wb;
-    m->inv_Ld_per_H = 1.0 / mp->Ld_H;
-    m->inv_Lq_per_H = 1.0 / mp->Lq_H;
-    m->inv_J_per_kgm2 = 1.0 / mp->J_kgm2;
-    m->kt_Nm_per_A = 1.5 * m->pole_pairs * mp->psi_f_Wb;
-    m->c_T_Nm_per_A2 = 1.5 * m->pole_pairs * (mp->Ld_H - mp->Lq_H);
-    m->B_Nms = mp->B_Nms;
-    m->T_coulomb_Nm = mp->T_coulomb_Nm;
-    /* w_c = max(w_c_min, 10 Ts_current T_c / J): friction time constant J w_c / T_c >= 10 Ts_current */
-    m->inv_w_c_s_per_rad =
-        1.0 / fmax(P2D_SIM_W_C_MIN_RADPS, P2D_SIM_W_C_PERIODS * Ts_current_s * mp->T_coulomb_Nm / mp->J_kgm2);
-    m->id_A = 0.0;
-    m->iq_A = 0.0;
-    m->w_m_radps = 0.0;
-    m->theta_m_rad = 0.0;
+    p2d_plant_config_t pc;
+    memset(&pc, 0, sizeof pc);
+    pc.motor = cfg->motor;
+    pc.mechanics = cfg->mechanics;
+    pc.u_dc_V = cfg->u_dc_V;
+    pc.computation_delay = cfg->computation_delay;
+    pc.Ts_s = cfg->Ts_current_s;
+    pc.substeps = cfg->substeps;
+    pc.tau_i_s = cfg->current_model == P2D_CURRENT_FIRST_ORDER ? cfg->tau_i_s : 0.0;
+    pc.w_m0_radps = cfg->w_m0_radps;
+    pc.id0_A = id0_A;
+    pc.iq0_A = iq0_A;
+    pc.current_sensor = cfg->sensing.current_sensor;
+    pc.counts_per_rev = cfg->sensing.speed_sensor.model == P2D_SPEED_SENSOR_ENCODER
+                            ? cfg->sensing.speed_sensor.encoder.counts_per_rev
+                            : 0u;
+    return pc;
 }
 
 p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 {
-    const p2d_pmsm_params_t *mp;
-    p2d_pmsm_t *m;
+    p2d_plant_config_t pc;
+    p2d_plant_t *m;
     p2d_sim_status_t status;
     p2d_status_t ctl_status;
     p2d_speed_output_t so;
@@ -656,6 +467,10 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 
     if (sim == 0 || cfg == 0) return P2D_SIM_ERR_NULL;
     status = config_status(cfg);
+    if (status != P2D_SIM_OK) return status;
+    m = &sim->plant;
+    pc = plant_config(cfg, 0.0, 0.0);
+    status = plant_error(p2d_plant_init(m, &pc));
     if (status != P2D_SIM_OK) return status;
     sim->cfg = *cfg;
     sim->controller_status = P2D_OK;
@@ -694,23 +509,14 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
         return P2D_SIM_ERR_ESTIMATOR;
     }
 
-    mp = &cfg->motor;
-    m = &sim->pmsm;
-    p2d_pmsm_setup(m, mp, cfg->Ts_current_s);
-
-    inverter_set_range(&sim->inverter, cfg->u_dc_V);
-    sim->inverter.delay = cfg->computation_delay;
-    sim->inv_tau_i_per_s = cfg->current_model == P2D_CURRENT_FIRST_ORDER ? 1.0 / cfg->tau_i_s : 0.0;
-    sim->dt_s = cfg->Ts_current_s / (double)cfg->substeps;
-    sim->t_tol_s = P2D_SIM_T_TOL * sim->dt_s;
+    sim->t_tol_s = P2D_SIM_T_TOL * m->dt_s;
     /* twice the no-load speed: 2 u_dc / (sqrt(3) p psi_f) */
-    sim->w_bound_radps = P2D_SIM_OVERSPEED_FACTOR * sim->inverter.u_max_V / (m->pole_pairs * mp->psi_f_Wb);
+    sim->w_bound_radps = P2D_SIM_OVERSPEED_FACTOR * m->u_max_V / (m->p * cfg->motor.psi_f_Wb);
     /* ten times max(i_max, psi_f / min(Ld, Lq)) */
-    L_min_H = fmin(mp->Ld_H, mp->Lq_H);
-    sim->i_bound_A = P2D_SIM_OVERCURRENT_FACTOR * fmax((double)cfg->speed.i_max_A, mp->psi_f_Wb / L_min_H);
+    L_min_H = fmin(cfg->motor.Ld_H, cfg->motor.Lq_H);
+    sim->i_bound_A = P2D_SIM_OVERCURRENT_FACTOR * fmax((double)cfg->speed.i_max_A, cfg->motor.psi_f_Wb / L_min_H);
     if (fabs(cfg->w_m0_radps) > sim->w_bound_radps) return P2D_SIM_ERR_W_M0;
 
-    p2d_mechanics_init(&sim->mechanics, &cfg->mechanics, cfg->w_m0_radps);
     cursor_reset(&sim->reference);
     cursor_reset(&sim->load);
     sim->n_current = 0u;
@@ -721,59 +527,51 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->stop_value = 0.0;
     sim->stop_bound = 0.0;
     sim->w_meas_radps = cfg->w_m0_radps;
-    sim->u_dc_V = cfg->u_dc_V;
     sim->saturated = false;
+    sim->current_saturated = false;
+    sim->dc_link_sag = false;
+    for (uint32_t i = 0; i < cfg->n_faults; ++i) sim->dc_link_sag |= cfg->faults[i].kind == P2D_FAULT_DC_LINK_SAG;
+    sim->w_ref_radps = cfg->w_m0_radps;
+    sim->n_limited = 0u;
+    sim->fma = cpu_has_fma();
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
-    m->w_m_radps = cfg->w_m0_radps;
-    m->theta_m_rad = 0.0;
     p2d_sensing_init(&sim->sensing, &cfg->sensing.speed_sensor, &cfg->sensing.current_sensor,
                      &cfg->sensing.field_weakening, cfg->speed.Ts_s, cfg->w_m0_radps);
-    T_hold_Nm = friction_Nm(m, m->T_coulomb_Nm > 0.0, cfg->w_m0_radps);
+    T_hold_Nm = p2d_plant_friction_Nm(m, cfg->w_m0_radps);
     p2d_speed_reset(&sim->speed, (float)cfg->w_m0_radps, (float)T_hold_Nm);
     p2d_speed_compute(&sim->speed, (float)cfg->w_m0_radps, (float)cfg->w_m0_radps, &so);
     if (so.fault) return P2D_SIM_ERR_W_M0;
     sim->id_ref_A = (double)so.id_ref_A;
     sim->iq_ref_A = (double)so.iq_ref_A;
-    m->id_A = sim->id_ref_A;
-    m->iq_A = sim->iq_ref_A;
-    sim->inverter.ud_V = 0.0;
-    sim->inverter.uq_V = 0.0;
-    sim->inverter.ud_next_V = 0.0;
-    sim->inverter.uq_next_V = 0.0;
-    sim->inverter.limited_next = false;
+    /* the currents equal the command */
+    pc = plant_config(cfg, sim->id_ref_A, sim->iq_ref_A);
+    (void)p2d_plant_init(m, &pc);
     if (cfg->current_model == P2D_CURRENT_DQ_PI) {
         const p2d_current_coef_t *c = &sim->current.coef[sim->current.active];
-        double w_e = m->pole_pairs * m->w_m_radps;
+        double w_e = m->p * m->w_m_radps;
         double ud_V, uq_V;
-        pmsm_voltage(m, 0.0, 0.0, &ud_V, &uq_V);
+        p2d_plant_steady_voltage(m, &ud_V, &uq_V);
         /* integrators: zero error gives ud = x_d - w_e Lq iq, uq = x_q + w_e (Ld id + psi_f) (decoupling) */
         sim->current.x_d_V = (float)(ud_V + w_e * (double)c->Lq_H * m->iq_A);
         sim->current.x_q_V = (float)(uq_V - w_e * ((double)c->Ld_H * m->id_A + (double)c->psi_f_Wb));
-        /* the command applied over the first period under the computation delay */
-        sim->inverter.ud_next_V = ud_V;
-        sim->inverter.uq_next_V = uq_V;
     }
     return P2D_SIM_OK;
 }
 
-/* The shaft torque T_s (two_mass), else the load torque T_load_Nm the rigid shaft carries. */
-static double shaft_torque_Nm(const p2d_sim_t *sim, double T_load_Nm)
-{
-    const p2d_mechanics_t *mech = &sim->mechanics;
-    if (sim->cfg.mechanics.model != P2D_MECHANICS_TWO_MASS) return T_load_Nm;
-    return p2d_shaft_torque_Nm(mech, mech->theta_rad, sim->pmsm.w_m_radps - mech->w_load_radps);
-}
+/* ---- loop --------------------------------------------------------------- */
 
-/* Write row r (speed sample k at t_k) of the column-major log of log_rows rows. */
-static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double w_ref_radps,
-                      const p2d_speed_output_t *so, double ud_V, double uq_V)
+/* Write the row of speed sample k at t_k into the column-major log of log_rows rows (at n_rows). */
+static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V, double uq_V)
 {
-    const p2d_pmsm_t *m = &sim->pmsm;
+    const p2d_plant_t *m = &sim->plant;
+    const p2d_speed_output_t *so = &sim->speed_out;
     double *row = log + sim->n_rows;
+    double theta_L_rad, w_L_radps;
     cursor_advance(&sim->load, &sim->cfg.load, t_k_s + sim->t_tol_s);
+    p2d_plant_load_side(m, &theta_L_rad, &w_L_radps);
     row[P2D_LOG_T_S * log_rows] = t_k_s;
-    row[P2D_LOG_W_REF_RADPS * log_rows] = w_ref_radps;
+    row[P2D_LOG_W_REF_RADPS * log_rows] = sim->w_ref_radps;
     row[P2D_LOG_W_M_RADPS * log_rows] = m->w_m_radps;
     row[P2D_LOG_ID_REF_A * log_rows] = (double)so->id_ref_A;
     row[P2D_LOG_IQ_REF_A * log_rows] = (double)so->iq_ref_A;
@@ -781,115 +579,560 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_IQ_A * log_rows] = m->iq_A;
     row[P2D_LOG_UD_V * log_rows] = ud_V;
     row[P2D_LOG_UQ_V * log_rows] = uq_V;
-    row[P2D_LOG_TORQUE_NM * log_rows] = torque_Nm(m, m->id_A, m->iq_A);
+    row[P2D_LOG_TORQUE_NM * log_rows] = p2d_plant_torque_Nm(m);
     row[P2D_LOG_TORQUE_REF_NM * log_rows] = (double)so->T_ref_Nm;
     row[P2D_LOG_TORQUE_UNSAT_NM * log_rows] = (double)so->T_unsat_Nm;
     row[P2D_LOG_LOAD_NM * log_rows] = segment_value(&sim->load, t_k_s);
     row[P2D_LOG_SATURATED * log_rows] = so->saturated ? 1.0 : 0.0;
     row[P2D_LOG_X_I_NM * log_rows] = (double)p2d_speed_integrator_Nm(&sim->speed);
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
-    row[P2D_LOG_U_DC_V * log_rows] = sim->u_dc_V;
-    row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* counted over the speed period by the loop */
+    row[P2D_LOG_U_DC_V * log_rows] = m->u_dc_V;
+    row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* the share, written at the end of the speed sample */
     row[P2D_LOG_J_EST_KGM2 * log_rows] = (double)sim->adapt.out.J_kgm2;
     row[P2D_LOG_J_VALID * log_rows] = sim->adapt.out.J_valid ? 1.0 : 0.0;
     row[P2D_LOG_T_LOAD_EST_NM * log_rows] = (double)sim->adapt.out.T_load_Nm;
     row[P2D_LOG_J_GAINS_KGM2 * log_rows] = sim->adapt.J_gains_kgm2;
-    row[P2D_LOG_W_LOAD_RADPS * log_rows] = load_speed_radps(sim);
-    row[P2D_LOG_SHAFT_TORQUE_NM * log_rows] = shaft_torque_Nm(sim, row[P2D_LOG_LOAD_NM * log_rows]);
+    row[P2D_LOG_W_LOAD_RADPS * log_rows] = w_L_radps;
+    row[P2D_LOG_SHAFT_TORQUE_NM * log_rows] = p2d_plant_shaft_torque_Nm(m, row[P2D_LOG_LOAD_NM * log_rows]);
     sim->n_rows++;
 }
 
+/*
+ * Speed sample k at t_k: the reference and the speed reading sampled, the estimator, the field
+ * weakening and the speed controller (its output in sim->speed_out).
+ */
+static p2d_sim_status_t speed_sample(p2d_sim_t *sim, double t_k_s)
+{
+    const p2d_sim_config_t *cfg = &sim->cfg;
+    p2d_speed_output_t *so = &sim->speed_out;
+    double w_sensor, theta_s_rad, w_s_radps;
+    cursor_advance(&sim->reference, &cfg->reference, t_k_s + sim->t_tol_s);
+    sim->w_ref_radps = segment_value(&sim->reference, t_k_s);
+    sensed_side(sim, &theta_s_rad, &w_s_radps);
+    if (!p2d_sensing_speed(&sim->sensing, &cfg->sensing.speed_sensor, sim->n_current, cfg->Ts_current_s,
+                           cfg->w_m0_radps, theta_s_rad, w_s_radps, &w_sensor)) {
+        return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
+    }
+    sim->w_meas_radps = speed_reading(sim, t_k_s, w_sensor);
+    if (cfg->adapt.enabled) {
+        p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, sim->w_ref_radps, sim->saturated, &sim->speed);
+    }
+    if (cfg->sensing.field_weakening.enabled) {
+        float id_fw_A;
+        if (!p2d_sensing_field_weakening(&sim->sensing, sim->plant.u_dc_V, &id_fw_A)) {
+            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
+        }
+        p2d_speed_step_fw(&sim->speed, (float)sim->w_ref_radps, (float)sim->w_meas_radps, id_fw_A, so);
+    } else {
+        p2d_speed_step(&sim->speed, (float)sim->w_ref_radps, (float)sim->w_meas_radps, so);
+    }
+    if (so->fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
+    sim->id_ref_A = (double)so->id_ref_A;
+    sim->iq_ref_A = (double)so->iq_ref_A;
+    sim->saturated = so->saturated;
+    sim->n_limited = 0u;
+    return P2D_SIM_OK;
+}
+
+/*
+ * The start of the current period at t = n_current Ts_current: the DC link, the current
+ * controller and the inverter (dq_pi) or eq 3's command (first_order), the log row of the speed
+ * sample (first period, log_row) and the estimator's torque sample.
+ */
+static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, bool first_order, bool log_row,
+                                                    double *log, uint64_t log_rows)
+{
+    const p2d_sim_config_t *cfg = &sim->cfg;
+    p2d_plant_t *m = &sim->plant;
+    if (!first_order) {
+        p2d_current_output_t co;
+        p2d_inverter_output_t io;
+        float id_meas_A = (float)m->id_A, iq_meas_A = (float)m->iq_A;
+        /* the DC link of this period sets the inverter's range and the controller's measurement */
+        if (sim->dc_link_sag) {
+            double u_dc_V = dc_link_V(sim, t_s);
+            if (u_dc_V != m->u_dc_V) p2d_plant_set_dc_link(m, u_dc_V);
+        }
+        if (sim->sensing.current_sensor) {
+            double id_A, iq_A;
+            p2d_sensing_currents(m, &id_A, &iq_A);
+            id_meas_A = (float)id_A;
+            iq_meas_A = (float)iq_A;
+        }
+        /* p2d_current_compute, inlined */
+        if (!p2d_current_voltage(&sim->current, &sim->current.coef[sim->current.active], sim->speed_out.id_ref_A,
+                                 sim->speed_out.iq_ref_A, id_meas_A, iq_meas_A, (float)(m->p * m->w_m_radps),
+                                 (float)m->u_dc_V, &co)) {
+            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_s, 0.0, 0.0);
+        }
+        sim->sensing.ud_unsat_V = co.ud_unsat_V;
+        sim->sensing.uq_unsat_V = co.uq_unsat_V;
+        p2d_plant_inverter(m, (double)co.ud_ref_V, (double)co.uq_ref_V, &io);
+        /* the voltage of this period was cut: by the controller or the inverter, now or when it was given */
+        if (cfg->computation_delay) {
+            sim->n_limited += io.applied_limited || sim->current_saturated;
+            sim->current_saturated = co.saturated;
+        } else {
+            sim->n_limited += co.saturated || io.limited;
+        }
+        /*
+         * the integrators learn the command the inverter accepted: p2d_current_update, inlined, of an
+         * output that is no fault with a command that is finite (the controller's, at most scaled down)
+         */
+        p2d_current_integrate(&sim->current, &sim->current.coef[sim->current.active], &co, (float)io.ud_V,
+                              (float)io.uq_V);
+    } else {
+        sim->n_limited += p2d_plant_command_currents(m, sim->id_ref_A, sim->iq_ref_A);
+    }
+    if (log_row) {
+        double ud_V, uq_V;
+        p2d_plant_applied_voltage(m, &ud_V, &uq_V);
+        log_write(sim, log, log_rows, t_s, ud_V, uq_V);
+    }
+    if (cfg->adapt.enabled) p2d_adapt_torque(&sim->adapt, p2d_plant_torque_Nm(m));
+    return P2D_SIM_OK;
+}
+
+/*
+ * Substep s of the current period starting at t_start: its length h = t_end - t (as the split
+ * steps of plant_advance_split compute it) and the load T0 at its start with the slope dT_dt at
+ * its middle. Valid when the load has no breakpoint inside the period (load_smooth).
+ */
+static P2D_SIM_INLINE void substep(const p2d_sim_t *sim, double t_start_s, uint32_t s, double *h_s, double *T0_Nm,
+                                   double *dT_dt_Nmps)
+{
+    double dt_s = sim->plant.dt_s;
+    /* t_start + s dt and t_start + (s + 1) dt; for s = 0 the same values without the products (0 dt = +0, 1 dt = dt) */
+    double t = s == 0u ? t_start_s : t_start_s + (double)s * dt_s;
+    double t_end = t_start_s + (s == 0u ? dt_s : (double)(s + 1u) * dt_s);
+    *h_s = t_end - t;
+    *T0_Nm = segment_value(&sim->load, t);
+    *dT_dt_Nmps = segment_slope(&sim->load, t + 0.5 * *h_s);
+}
+
+/*
+ * No load breakpoint falls inside the current period starting at t_start, as far as the cursor
+ * knows (its next breakpoint, -HUGE_VAL when unknown): every substep is then one RK4 step with
+ * the load of `substep`, and the cursor needs no advance, as in plant_advance_split.
+ * substeps_dt_s = (double)substeps dt, the period's end t_start + substeps dt.
+ */
+static P2D_SIM_INLINE bool load_smooth(const p2d_sim_t *sim, double t_start_s, double substeps_dt_s)
+{
+    double t_end = t_start_s + substeps_dt_s;
+    return sim->load.t_break_s >= t_end - sim->t_tol_s;
+}
+
+/*
+ * The plant over the current period starting at t_start with its input held: `substeps` RK4
+ * steps, each split at the load's breakpoints inside it, so that every step sees a load linear
+ * in time.
+ */
+static P2D_SIM_NOINLINE void plant_advance_split(p2d_sim_t *sim, double t_start_s)
+{
+    const double dt_s = sim->plant.dt_s;
+    for (uint32_t s = 0; s < sim->cfg.substeps; ++s) {
+        double t = t_start_s + (double)s * dt_s;
+        double t_end = t_start_s + (double)(s + 1u) * dt_s;
+        while (t < t_end - sim->t_tol_s) {
+            double t_break, t_stop, h;
+            t_break = cursor_break_after(&sim->load, &sim->cfg.load, t + sim->t_tol_s);
+            /* split the step at a load breakpoint inside it */
+            t_stop = t_break < t_end - sim->t_tol_s ? t_break : t_end;
+            h = t_stop - t;
+            p2d_plant_advance(&sim->plant, h, segment_value(&sim->load, t), segment_slope(&sim->load, t + 0.5 * h));
+            t = t_stop;
+        }
+    }
+}
+
+/* The end of the current period: the time advances, the sensor's history, the checks. */
+static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim)
+{
+    sim->n_current++;
+    if (sim->sensing.history) {
+        double theta_s_rad, w_s_radps;
+        sensed_side(sim, &theta_s_rad, &w_s_radps);
+        p2d_sensing_record(&sim->sensing, sim->n_current, theta_s_rad, w_s_radps);
+    }
+    return check_state(sim, count_as_double(sim->n_current) * sim->cfg.Ts_current_s);
+}
+
+/* The end of speed sample k: the share of its current periods at the voltage limit. */
+static void sample_end(p2d_sim_t *sim, bool log_row, double *log, uint64_t log_rows)
+{
+    if (log_row) {
+        log[P2D_LOG_VOLTAGE_LIMITED * log_rows + sim->n_rows - 1u] =
+            (double)sim->n_limited / (double)sim->cfg.current_per_speed;
+    }
+    sim->n_speed++;
+}
+
+/* Rows the log needs for the next n_samples speed samples. */
+static uint64_t rows_needed(const p2d_sim_t *sim, uint64_t n_samples)
+{
+    uint64_t E = sim->cfg.log_every, n0 = sim->n_speed, n1 = sim->n_speed + n_samples;
+    /* samples in [n0, n1) divisible by E: ceil(n1 / E) - ceil(n0 / E) */
+    return (n1 + E - 1u) / E - (n0 + E - 1u) / E;
+}
+
+/*
+ * The RK4 step kinds: one specialised copy of the step for each (current model, Coulomb friction,
+ * drive train), and a lean one of a rigid train without Coulomb friction for a surface PMSM
+ * without viscous friction whose angle no sensor needs (p2d_plant_rk4). Every drive of a
+ * lockstep group has the kind of a lone one: the same copy, the same arithmetic.
+ */
+enum { P2D_KIND_FIRST_ORDER = 1, P2D_KIND_COULOMB = 2, P2D_KIND_TWO_MASS = 4, P2D_KIND_LEAN = 8 };
+
+static uint32_t step_kind(const p2d_sim_t *sim)
+{
+    const p2d_plant_t *m = &sim->plant;
+    bool lean = !m->coulomb && !m->two_mass && m->coef.cT_J == 0.0 && m->coef.B_J_per_s == 0.0 && !sim->sensing.angle;
+    return (m->first_order ? (uint32_t)P2D_KIND_FIRST_ORDER : 0u) | (m->coulomb ? (uint32_t)P2D_KIND_COULOMB : 0u) |
+           (m->two_mass ? (uint32_t)P2D_KIND_TWO_MASS : 0u) | (lean ? (uint32_t)P2D_KIND_LEAN : 0u);
+}
+
+/* One RK4 step of the plant m of the kind given (its input held): the kind's copy of the step. */
+static P2D_SIM_INLINE void step_one(p2d_plant_t *m, uint32_t kind, double h, double T0, double dT)
+{
+    p2d_plant_x_t x = p2d_plant_state(m);
+    const p2d_plant_coef_t *c = &m->coef;
+    switch (kind) {
+    case P2D_KIND_LEAN: x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, false, false, false, true); break;
+    case P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER:
+        x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, true, false, false, true);
+        break;
+    case 0: x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, false, false, false, false); break;
+    case P2D_KIND_FIRST_ORDER: x = p2d_plant_rk4(c, x, m->a_d, m->a_q, h, T0, dT, true, false, false, false); break;
+    default: p2d_plant_advance(m, h, T0, dT); return;
+    }
+    p2d_plant_set_state(m, x);
+}
+
+/* ---- lockstep ----------------------------------------------------------- */
+
+/* The plants of a lockstep group: one array per coefficient, state variable and input, one element per drive. */
+typedef struct {
+    double Rs_Ld_per_s[P2D_SIM_LANES];         /* Rs / Ld [1/s] */
+    double Rs_Lq_per_s[P2D_SIM_LANES];         /* Rs / Lq [1/s] */
+    double p_Lq_Ld[P2D_SIM_LANES];             /* p Lq / Ld [-] */
+    double p_Ld_Lq[P2D_SIM_LANES];             /* p Ld / Lq [-] */
+    double p_psi_Lq_A[P2D_SIM_LANES];          /* p psi_f / Lq [A] */
+    double inv_Ld_per_H[P2D_SIM_LANES];        /* 1 / Ld [1/H] */
+    double inv_Lq_per_H[P2D_SIM_LANES];        /* 1 / Lq [1/H] */
+    double kt_J[P2D_SIM_LANES];                /* 1.5 p psi_f / J [rad/s^2 per A] */
+    double cT_J[P2D_SIM_LANES];                /* 1.5 p (Ld - Lq) / J [rad/s^2 per A^2] */
+    double B_J_per_s[P2D_SIM_LANES];           /* B / J [1/s] */
+    double Tc_J_radps2[P2D_SIM_LANES];         /* T_c / J [rad/s^2] */
+    double inv_w_c_s_per_rad[P2D_SIM_LANES];   /* 1 / w_c [s/rad] */
+    double inv_J_per_kgm2[P2D_SIM_LANES];      /* 1 / J [1/(kg m^2)] */
+    double inv_tau_i_per_s[P2D_SIM_LANES];     /* 1 / tau_i [1/s] */
+    double K_Nm_per_rad[P2D_SIM_LANES];        /* K [Nm/rad] */
+    double D_Nms_per_rad[P2D_SIM_LANES];       /* D [Nm s/rad] */
+    double half_backlash_rad[P2D_SIM_LANES];   /* b / 2 [rad] */
+    double inv_J_load_per_kgm2[P2D_SIM_LANES]; /* 1 / J_L [1/(kg m^2)] */
+    double id_A[P2D_SIM_LANES];                /* state: d-axis current [A] */
+    double iq_A[P2D_SIM_LANES];                /* state: q-axis current [A] */
+    double w_m_radps[P2D_SIM_LANES];           /* state: motor speed [rad/s] */
+    double theta_m_rad[P2D_SIM_LANES];         /* state: motor angle [rad] */
+    double theta_rad[P2D_SIM_LANES];           /* state: twist [rad] */
+    double w_load_radps[P2D_SIM_LANES];        /* state: load-side speed [rad/s] */
+    double a_d[P2D_SIM_LANES];                 /* input: ud [V] (eq 3: id_ref [A]) */
+    double a_q[P2D_SIM_LANES];                 /* input: uq [V] (eq 3: iq_ref [A]) */
+    double T0_Nm[P2D_SIM_LANES];               /* load at the start of the step [Nm] */
+    double dT_Nmps[P2D_SIM_LANES];             /* its slope [Nm/s] */
+} p2d_sim_lanes_t;
+
+/* Coefficients of lane l from the plant m. */
+static void lanes_set_coef(p2d_sim_lanes_t *L, uint32_t l, const p2d_plant_coef_t *c)
+{
+    L->Rs_Ld_per_s[l] = c->Rs_Ld_per_s;
+    L->Rs_Lq_per_s[l] = c->Rs_Lq_per_s;
+    L->p_Lq_Ld[l] = c->p_Lq_Ld;
+    L->p_Ld_Lq[l] = c->p_Ld_Lq;
+    L->p_psi_Lq_A[l] = c->p_psi_Lq_A;
+    L->inv_Ld_per_H[l] = c->inv_Ld_per_H;
+    L->inv_Lq_per_H[l] = c->inv_Lq_per_H;
+    L->kt_J[l] = c->kt_J;
+    L->cT_J[l] = c->cT_J;
+    L->B_J_per_s[l] = c->B_J_per_s;
+    L->Tc_J_radps2[l] = c->Tc_J_radps2;
+    L->inv_w_c_s_per_rad[l] = c->inv_w_c_s_per_rad;
+    L->inv_J_per_kgm2[l] = c->inv_J_per_kgm2;
+    L->inv_tau_i_per_s[l] = c->inv_tau_i_per_s;
+    L->K_Nm_per_rad[l] = c->K_Nm_per_rad;
+    L->D_Nms_per_rad[l] = c->D_Nms_per_rad;
+    L->half_backlash_rad[l] = c->half_backlash_rad;
+    L->inv_J_load_per_kgm2[l] = c->inv_J_load_per_kgm2;
+}
+
+/* One RK4 step of every lane (inputs and loads of the arrays), the kind's copy; the compiler vectorises it. */
+static P2D_SIM_INLINE void lanes_step_kind(p2d_sim_lanes_t *L, double h, bool first_order, bool coulomb, bool two_mass,
+                                           bool lean)
+{
+    for (uint32_t l = 0; l < P2D_SIM_LANES; ++l) {
+        p2d_plant_coef_t c = {
+            L->Rs_Ld_per_s[l],
+            L->Rs_Lq_per_s[l],
+            L->p_Lq_Ld[l],
+            L->p_Ld_Lq[l],
+            L->p_psi_Lq_A[l],
+            L->inv_Ld_per_H[l],
+            L->inv_Lq_per_H[l],
+            L->kt_J[l],
+            L->cT_J[l],
+            L->B_J_per_s[l],
+            L->Tc_J_radps2[l],
+            L->inv_w_c_s_per_rad[l],
+            L->inv_J_per_kgm2[l],
+            L->inv_tau_i_per_s[l],
+            L->K_Nm_per_rad[l],
+            L->D_Nms_per_rad[l],
+            L->half_backlash_rad[l],
+            L->inv_J_load_per_kgm2[l],
+        };
+        p2d_plant_x_t x = {L->id_A[l],        L->iq_A[l],      L->w_m_radps[l],
+                           L->theta_m_rad[l], L->theta_rad[l], L->w_load_radps[l]};
+        x = p2d_plant_rk4(&c, x, L->a_d[l], L->a_q[l], h, L->T0_Nm[l], L->dT_Nmps[l], first_order, coulomb, two_mass,
+                          lean);
+        L->id_A[l] = x.id_A;
+        L->iq_A[l] = x.iq_A;
+        L->w_m_radps[l] = x.w_m_radps;
+        L->theta_m_rad[l] = x.theta_m_rad;
+        L->theta_rad[l] = x.theta_rad;
+        L->w_load_radps[l] = x.w_load_radps;
+    }
+}
+
+/* One RK4 step of every lane, the copy of the kind (step_kind) as step_one's. */
+static P2D_SIM_INLINE void lanes_step_any(p2d_sim_lanes_t *L, uint32_t kind, double h)
+{
+    switch (kind) {
+    case P2D_KIND_LEAN: lanes_step_kind(L, h, false, false, false, true); break;
+    case P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER: lanes_step_kind(L, h, true, false, false, true); break;
+    case 0: lanes_step_kind(L, h, false, false, false, false); break;
+    case P2D_KIND_FIRST_ORDER: lanes_step_kind(L, h, true, false, false, false); break;
+    case P2D_KIND_COULOMB: lanes_step_kind(L, h, false, true, false, false); break;
+    case P2D_KIND_FIRST_ORDER | P2D_KIND_COULOMB: lanes_step_kind(L, h, true, true, false, false); break;
+    case P2D_KIND_TWO_MASS: lanes_step_kind(L, h, false, false, true, false); break;
+    case P2D_KIND_TWO_MASS | P2D_KIND_FIRST_ORDER: lanes_step_kind(L, h, true, false, true, false); break;
+    case P2D_KIND_TWO_MASS | P2D_KIND_COULOMB: lanes_step_kind(L, h, false, true, true, false); break;
+    default: lanes_step_kind(L, h, true, true, true, false); break;
+    }
+}
+
+/* lanes_step_any out of the loop's registers, for the baseline ISA (and P2D_SIM_FMA_TARGET below). */
+static P2D_SIM_NOINLINE void lanes_step(p2d_sim_lanes_t *L, uint32_t kind, double h) { lanes_step_any(L, kind, h); }
+#ifdef P2D_SIM_FMA_TARGET
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void lanes_step_fma(p2d_sim_lanes_t *L, uint32_t kind, double h)
+{
+    lanes_step_any(L, kind, h);
+}
+#else
+#define lanes_step_fma lanes_step
+#endif
+
+/* The state and input of lane l from the plant m. */
+static P2D_SIM_INLINE void lanes_load(p2d_sim_lanes_t *L, uint32_t l, const p2d_plant_t *m)
+{
+    L->id_A[l] = m->id_A;
+    L->iq_A[l] = m->iq_A;
+    L->w_m_radps[l] = m->w_m_radps;
+    L->theta_m_rad[l] = m->theta_m_rad;
+    L->theta_rad[l] = m->theta_rad;
+    L->w_load_radps[l] = m->w_load_radps;
+    L->a_d[l] = m->a_d;
+    L->a_q[l] = m->a_q;
+}
+
+/* The state of lane l into the plant m. */
+static P2D_SIM_INLINE void lanes_store(const p2d_sim_lanes_t *L, uint32_t l, p2d_plant_t *m)
+{
+    m->id_A = L->id_A[l];
+    m->iq_A = L->iq_A[l];
+    m->w_m_radps = L->w_m_radps[l];
+    m->theta_m_rad = L->theta_m_rad[l];
+    m->theta_rad = L->theta_rad[l];
+    m->w_load_radps = L->w_load_radps[l];
+}
+
+/* Lane l idle (no drive, or one that stopped): a plant at rest with no input and no load, which stays finite. */
+static void lanes_idle(p2d_sim_lanes_t *L, uint32_t l)
+{
+    L->id_A[l] = L->iq_A[l] = L->w_m_radps[l] = L->theta_m_rad[l] = L->theta_rad[l] = L->w_load_radps[l] = 0.0;
+    L->a_d[l] = L->a_q[l] = L->T0_Nm[l] = L->dT_Nmps[l] = 0.0;
+}
+
+/*
+ * n (1 <= n <= lanes) drives of one shape in lockstep over n_samples speed samples; lanes = 1:
+ * the plant stepped in place; lanes = P2D_SIM_LANES: the plants through the arrays of L (lanes
+ * of no drive idle). A drive that stops leaves the group.
+ */
+static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
+                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma)
+{
+    const p2d_sim_config_t *cfg = &sims[0]->cfg;
+    const uint32_t kind = step_kind(sims[0]), substeps = cfg->substeps;
+    /* every drive of a group has the same step dt = Ts_current / substeps */
+    const double substeps_dt_s = (double)substeps * sims[0]->plant.dt_s;
+    const bool first_order = cfg->current_model == P2D_CURRENT_FIRST_ORDER;
+    /* every drive is at the same sample: the time and the log decision are the group's */
+    uint64_t n_current = sims[0]->n_current, n_speed = sims[0]->n_speed;
+    bool active[P2D_SIM_LANES];
+    uint32_t n_active = 0u;
+    for (uint32_t l = 0; l < lanes; ++l) {
+        active[l] = l < n && sims[l]->status == P2D_SIM_OK;
+        n_active += active[l];
+        if (lanes > 1u) {
+            lanes_set_coef(L, l, &sims[l < n ? l : 0u]->plant.coef);
+            lanes_idle(L, l);
+        }
+    }
+    for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed) {
+        const double t_k = count_as_double(n_current) * cfg->Ts_current_s;
+        const bool log_row = n_speed % cfg->log_every == 0u;
+        for (uint32_t l = 0; l < n; ++l) {
+            if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {
+                active[l] = false;
+                n_active--;
+                if (lanes > 1u) lanes_idle(L, l);
+            }
+        }
+        for (uint32_t j = 0; j < cfg->current_per_speed && n_active > 0u; ++j, ++n_current) {
+            const double t = count_as_double(n_current) * cfg->Ts_current_s;
+            double h = 0.0;
+            bool smooth = true;
+            /* the controllers and the inverters; the plants' states and inputs into the lanes */
+            for (uint32_t l = 0; l < n; ++l) {
+                if (!active[l]) continue;
+                if (period_start(sims[l], t, first_order, log_row && j == 0u, logs[l], log_rows[l]) != P2D_SIM_OK) {
+                    active[l] = false;
+                    n_active--;
+                    if (lanes > 1u) lanes_idle(L, l);
+                    continue;
+                }
+                smooth = smooth && load_smooth(sims[l], t, substeps_dt_s);
+                if (lanes > 1u) {
+                    lanes_load(L, l, &sims[l]->plant);
+                    substep(sims[l], t, 0u, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
+                }
+            }
+            if (!smooth) {
+                /* a load breakpoint inside the period: each drive on its own, its steps split there */
+                for (uint32_t l = 0; l < n; ++l) {
+                    if (active[l]) plant_advance_split(sims[l], t);
+                }
+            } else if (lanes == 1u) {
+                for (uint32_t s = 0; s < substeps; ++s) {
+                    double T0, dT;
+                    substep(sims[0], t, s, &h, &T0, &dT);
+                    step_one(&sims[0]->plant, kind, h, T0, dT);
+                }
+            } else {
+                for (uint32_t s = 0; s < substeps; ++s) {
+                    for (uint32_t l = 0; l < n && s > 0u; ++l) {
+                        if (active[l]) substep(sims[l], t, s, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
+                    }
+                    if (fma) {
+                        lanes_step_fma(L, kind, h);
+                    } else {
+                        lanes_step(L, kind, h);
+                    }
+                }
+            }
+            for (uint32_t l = 0; l < n; ++l) {
+                if (!active[l]) continue;
+                if (lanes > 1u && smooth) lanes_store(L, l, &sims[l]->plant);
+                if (period_end(sims[l]) != P2D_SIM_OK) {
+                    active[l] = false;
+                    n_active--;
+                    if (lanes > 1u) lanes_idle(L, l);
+                }
+            }
+        }
+        for (uint32_t l = 0; l < n; ++l) {
+            if (active[l]) sample_end(sims[l], log_row, logs[l], log_rows[l]);
+        }
+    }
+}
+
+/* run_group of one drive, and of the groups of P2D_SIM_LANES drives of p2d_sim_run_many. */
+static P2D_SIM_NOINLINE void run_lone(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false);
+}
+
+static P2D_SIM_NOINLINE void run_lanes(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L, uint64_t n_samples,
+                                       double *const *logs, const uint64_t *log_rows)
+{
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, false);
+}
+
+#ifdef P2D_SIM_FMA_TARGET
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lone_fma(p2d_sim_t *sim, uint64_t n_samples, double *log,
+                                                             uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true);
+}
+
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lanes_fma(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L,
+                                                              uint64_t n_samples, double *const *logs,
+                                                              const uint64_t *log_rows)
+{
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, true);
+}
+
+#else
+#define run_lone_fma run_lone
+#define run_lanes_fma run_lanes
+#endif
+
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
 {
-    const p2d_sim_config_t *cfg;
     if (sim == 0) return P2D_SIM_ERR_NULL;
     if (sim->status != P2D_SIM_OK) return sim->status;
-    cfg = &sim->cfg;
-    for (uint64_t k = 0; k < n_samples; ++k) {
-        double t_k = (double)sim->n_current * cfg->Ts_current_s;
-        bool log_row = sim->n_speed % cfg->log_every == 0u;
-        uint32_t n_limited = 0u; /* current periods of this speed sample at the voltage limit */
-        double w_ref, w_sensor;
-        p2d_speed_output_t so;
-        if (log_row && (log == 0 || sim->n_rows >= log_rows)) return P2D_SIM_ERR_LOG_FULL;
+    if (rows_needed(sim, n_samples) > 0u && (log == 0 || sim->n_rows + rows_needed(sim, n_samples) > log_rows)) {
+        return P2D_SIM_ERR_LOG_FULL;
+    }
+    if (sim->fma) {
+        run_lone_fma(sim, n_samples, log, log_rows);
+    } else {
+        run_lone(sim, n_samples, log, log_rows);
+    }
+    return sim->status;
+}
 
-        /* speed sample k: reference and speed reading sampled at t_k */
-        cursor_advance(&sim->reference, &cfg->reference, t_k + sim->t_tol_s);
-        w_ref = segment_value(&sim->reference, t_k);
-        if (!p2d_sensing_speed(&sim->sensing, &cfg->sensing.speed_sensor, sim->n_current, cfg->Ts_current_s,
-                               cfg->w_m0_radps, sensed_angle_rad(sim), sensed_speed_radps(sim), &w_sensor)) {
-            return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
+bool p2d_sim_lockstep(const p2d_sim_t *a, const p2d_sim_t *b)
+{
+    const p2d_sim_config_t *x = &a->cfg, *y = &b->cfg;
+    return a->n_speed == b->n_speed && a->n_current == b->n_current && x->Ts_current_s == y->Ts_current_s &&
+           x->current_per_speed == y->current_per_speed && x->substeps == y->substeps && x->log_every == y->log_every &&
+           x->current_model == y->current_model && step_kind(a) == step_kind(b);
+}
+
+p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint64_t n_samples, double *const *logs,
+                                  const uint64_t *log_rows)
+{
+    p2d_sim_lanes_t L;
+    bool fma = true;
+    if (n_sims == 0u) return P2D_SIM_OK;
+    if (sims == 0 || logs == 0 || log_rows == 0) return P2D_SIM_ERR_NULL;
+    for (uint32_t i = 0; i < n_sims; ++i) {
+        if (sims[i] == 0) return P2D_SIM_ERR_NULL;
+        fma = fma && sims[i]->fma;
+        if (!p2d_sim_lockstep(sims[0], sims[i])) return P2D_SIM_ERR_LOCKSTEP;
+        if (rows_needed(sims[i], n_samples) > 0u &&
+            (logs[i] == 0 || sims[i]->n_rows + rows_needed(sims[i], n_samples) > log_rows[i])) {
+            return P2D_SIM_ERR_LOG_FULL;
         }
-        sim->w_meas_radps = speed_reading(sim, t_k, w_sensor);
-        if (cfg->adapt.enabled) p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, w_ref, sim->saturated, &sim->speed);
-        if (cfg->sensing.field_weakening.enabled) {
-            float id_fw_A;
-            if (!p2d_sensing_field_weakening(&sim->sensing, sim->u_dc_V, &id_fw_A)) {
-                return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
-            }
-            p2d_speed_step_fw(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, id_fw_A, &so);
+    }
+    memset(&L, 0, sizeof L);
+    for (uint32_t i = 0; i < n_sims; i += P2D_SIM_LANES) {
+        uint32_t n = n_sims - i < P2D_SIM_LANES ? n_sims - i : P2D_SIM_LANES;
+        if (fma) {
+            run_lanes_fma(sims + i, n, &L, n_samples, logs + i, log_rows + i);
         } else {
-            p2d_speed_step(&sim->speed, (float)w_ref, (float)sim->w_meas_radps, &so);
+            run_lanes(sims + i, n, &L, n_samples, logs + i, log_rows + i);
         }
-        if (so.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k, 0.0, 0.0);
-        sim->id_ref_A = (double)so.id_ref_A;
-        sim->iq_ref_A = (double)so.iq_ref_A;
-        sim->saturated = so.saturated;
-
-        for (uint32_t j = 0; j < cfg->current_per_speed; ++j) {
-            double t = (double)sim->n_current * cfg->Ts_current_s;
-            double a, b, ud_log_V, uq_log_V;
-            p2d_sim_status_t status;
-            if (cfg->current_model == P2D_CURRENT_DQ_PI) {
-                p2d_current_output_t co;
-                double ud_cmd_V, uq_cmd_V, u_dc_V, id_meas_A = sim->pmsm.id_A, iq_meas_A = sim->pmsm.iq_A;
-                /* the DC link of this period sets the inverter's range and the controller's measurement */
-                u_dc_V = dc_link_V(sim, t);
-                if (u_dc_V != sim->u_dc_V) {
-                    sim->u_dc_V = u_dc_V;
-                    inverter_set_range(&sim->inverter, u_dc_V);
-                }
-                if (sim->sensing.current_sensor) {
-                    p2d_sensing_currents(&sim->sensing, &cfg->sensing.current_sensor, sim->pmsm.id_A, sim->pmsm.iq_A,
-                                         sim->pmsm.pole_pairs * sim->pmsm.theta_m_rad, &id_meas_A, &iq_meas_A);
-                }
-                p2d_current_compute(&sim->current, (float)sim->id_ref_A, (float)sim->iq_ref_A, (float)id_meas_A,
-                                    (float)iq_meas_A, (float)(sim->pmsm.pole_pairs * sim->pmsm.w_m_radps),
-                                    (float)sim->u_dc_V, &co);
-                if (co.fault) return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t, 0.0, 0.0);
-                sim->sensing.ud_unsat_V = co.ud_unsat_V;
-                sim->sensing.uq_unsat_V = co.uq_unsat_V;
-                n_limited += inverter_apply(&sim->inverter, (double)co.ud_ref_V, (double)co.uq_ref_V, co.saturated,
-                                            &ud_cmd_V, &uq_cmd_V);
-                /* the integrators learn the command the inverter accepted */
-                p2d_current_update(&sim->current, &co, (float)ud_cmd_V, (float)uq_cmd_V);
-                a = sim->inverter.ud_V;
-                b = sim->inverter.uq_V;
-                ud_log_V = a;
-                uq_log_V = b;
-            } else {
-                a = sim->id_ref_A;
-                b = sim->iq_ref_A;
-                /* the voltage eq 1 needs for the current slopes of eq 3 */
-                pmsm_voltage(&sim->pmsm, (a - sim->pmsm.id_A) * sim->inv_tau_i_per_s,
-                             (b - sim->pmsm.iq_A) * sim->inv_tau_i_per_s, &ud_log_V, &uq_log_V);
-                n_limited += !inside_range(&sim->inverter, ud_log_V, uq_log_V) &&
-                             hypot(ud_log_V, uq_log_V) > sim->inverter.u_max_V;
-            }
-            if (j == 0u && log_row) log_write(sim, log, log_rows, t_k, w_ref, &so, ud_log_V, uq_log_V);
-            if (cfg->adapt.enabled)
-                p2d_adapt_torque(&sim->adapt, torque_Nm(&sim->pmsm, sim->pmsm.id_A, sim->pmsm.iq_A));
-            plant_advance(sim, t, a, b);
-            sim->n_current++;
-            p2d_sensing_record(&sim->sensing, sim->n_current, sensed_angle_rad(sim), sensed_speed_radps(sim));
-            status = check_state(sim, (double)sim->n_current * cfg->Ts_current_s);
-            if (status != P2D_SIM_OK) return status;
-        }
-        if (log_row) {
-            log[P2D_LOG_VOLTAGE_LIMITED * log_rows + sim->n_rows - 1u] =
-                (double)n_limited / (double)cfg->current_per_speed;
-        }
-        sim->n_speed++;
     }
     return P2D_SIM_OK;
 }

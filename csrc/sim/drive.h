@@ -2,62 +2,20 @@
  * pmsm2dof: host-only simulation of the drive of the paper's Fig. 1, in double
  * precision, driven by the deployable float32 controllers of csrc/src.
  *
- * Plant (paper eq 1 in SI units, mechanical speed w_m, electrical w_e = p w_m;
- * the paper's p0 is used as pole pairs, and its torque lacks the factor 1.5 of
- * the amplitude-invariant Park transform used here):
- *   Ld did/dt = ud - Rs id + w_e Lq iq
- *   Lq diq/dt = uq - Rs iq - w_e (Ld id + psi_f)
- *   Te        = 1.5 p (psi_f iq + (Ld - Lq) id iq)
- *   J dw_m/dt = Te - T_load(t) - B w_m - T_c tanh(w_m / w_c)
- *
- * Two-mass drive train (mechanics.model = P2D_MECHANICS_TWO_MASS): motor.J_kgm2
- * is then the motor side J_M alone, coupled to the load inertia J_L by a
- * shaft of stiffness K, damping D and total play b (dead zone), twist
- * theta = theta_M - theta_L:
- *   J_M dw_m/dt  = Te - T_s - B w_m - T_c tanh(w_m / w_c)
- *   J_L dw_L/dt  = T_s - T_load(t)
- *   dtheta/dt    = w_m - w_L
- *   T_s          = K (theta - sign(theta) b/2) + D (w_m - w_L)   |theta| >= b/2 (contact)
- *                = 0                                             |theta| <  b/2 (in the play)
- * (the dead-zone model of backlash: M. Nordin, P.-O. Gutman, "Controlling
- * mechanical systems with backlash - a survey", Automatica 38, 2002). The
- * friction acts on the motor side, the load torque on the load side. The
- * speed controller reads w_m (feedback P2D_FEEDBACK_MOTOR) or w_L
- * (P2D_FEEDBACK_LOAD) through the speed sensor of sensing.h, whose encoder then
- * counts the load angle theta_L = theta_M - theta; the current controller
- * always sees p w_m and the electrical angle p theta_M. Without
- * play the resonance is at w_r = sqrt(K (J_M + J_L) / (J_M J_L)), the
- * anti-resonance at w_a = sqrt(K / J_L). The initial state has no twist and
- * both sides at w_m0. Rigid (the default): one inertia motor.J_kgm2, the
- * equations above with J_L = 0 folded into it; the log's load speed is w_m
- * and its shaft torque the load torque.
- *
- * Coulomb friction T_c is smoothed by tanh over the speed band w_c,
- *   w_c = max(0.01 rad/s, 10 Ts_current T_c / J),
- * so that the friction's linearization around zero speed, a time constant
- * J w_c / T_c >= 10 Ts_current, is always resolved by the integrator (the band
- * depends on the controller period, never on the integration step). Outside
- * the band the friction is T_c sign(w_m). Inside, the model has no stiction: a
- * load smaller than T_c lets the shaft creep at w_c atanh(T_load / T_c)
- * instead of holding it at exactly zero speed. A reversal that crosses the
- * band within one RK4 step integrates the friction jump of 2 T_c coarsely: the
- * speed error it adds is below T_c dt / J.
+ * Plant (plant.h: the PMSM of eq 1, the inverter, the rigid or two-mass drive
+ * train with friction, the load, the current sensors and the encoder): one
+ * p2d_plant_t, the same source the firmware's virtual board runs. The speed
+ * controller reads w_m (feedback P2D_FEEDBACK_MOTOR) or w_L (P2D_FEEDBACK_LOAD)
+ * through the speed sensor of sensing.h, whose encoder then counts the load
+ * angle; the current controller always sees p w_m and the electrical angle
+ * p theta_M. Rigid: the log's load speed is w_m and its shaft torque the load
+ * torque.
  *
  * Current loop, two models:
  *   P2D_CURRENT_DQ_PI        p2d_current_* at Ts_current drives the electrical
- *                            model above through the inverter;
+ *                            model of eq 1 through the inverter (plant.h);
  *   P2D_CURRENT_FIRST_ORDER  eq 3, i = i_ref / (tau_i s + 1) per axis, no
  *                            electrical model and no inverter.
- *
- * Inverter: switching-cycle average model. The dq voltage applied over a
- * current period is the command, held (the modulator is assumed to rotate the
- * vector with the rotor), limited to the linear range of space-vector
- * modulation ||u_dq|| <= u_dc / sqrt(3) by scaling the vector. With the
- * computation delay the command computed at sample n is applied over period
- * n + 1 (one-sample delay of a controller that writes the PWM registers for
- * the next period), limited again by the range of period n + 1; over the
- * first period it applies the steady-state voltage of the initial state,
- * limited to the range.
  *
  * Sampled-data loop, per speed sample k at t_k = k Ts_speed,
  * Ts_speed = current_per_speed Ts_current:
@@ -66,10 +24,20 @@
  *   current controller samples id, iq, w_e and computes the voltage (dq_pi
  *   only), the inverter applies it, and the plant is integrated over
  *   Ts_current by `substeps` classical Runge-Kutta (RK4) steps of
- *   dt = Ts_current / substeps. A load breakpoint (step, start or end of a
- *   ramp) inside a step splits it, so every RK4 step sees a smooth load.
+ *   dt = Ts_current / substeps (p2d_plant_advance). A load breakpoint (step,
+ *   start or end of a ramp) inside a step splits it, so every RK4 step sees a
+ *   smooth load.
  *   The speed reference is sampled by the speed controller (0 before the
  *   first entry); the load acts in continuous time.
+ *
+ * Lockstep (p2d_sim_run_many): drives of one shape (p2d_sim_lockstep) run
+ * this loop together, P2D_SIM_LANES at a time: each drive's controllers and
+ * inverter in turn, then one RK4 step of all their plants through an array
+ * per state variable, coefficient and input, which the compiler vectorises
+ * across the drives (plant_inline.h's step, the same arithmetic as a lone
+ * drive's: every log is bit for bit that of p2d_sim_run). A period in which
+ * a drive's load has a breakpoint runs each drive on its own; a drive that
+ * stops leaves the group, the others run on.
  *
  * Initial state: the drive is in steady state at the speed w_m0 before
  * t = 0, with the reference equal to w_m0 and no load: the speed controller is
@@ -136,6 +104,7 @@
 #include <stdint.h>
 
 #include "adapt.h"
+#include "plant.h"
 #include "pmsm2dof/current.h"
 #include "pmsm2dof/speed.h"
 #include "pmsm2dof/status.h"
@@ -144,6 +113,9 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* Drives per lockstep group of p2d_sim_run_many: two SSE2 vectors of doubles. */
+enum { P2D_SIM_LANES = 4 };
 
 /* Current-loop model. */
 typedef enum {
@@ -193,6 +165,7 @@ typedef enum {
     P2D_SIM_ERR_ESTIMATOR,          /* p2d_inertia_init rejected adapt.config: see controller_status */
     P2D_SIM_ERR_ADAPT_REL_CHANGE,   /* adapt.adapt_rel_change */
     P2D_SIM_ERR_E_QUIET,            /* adapt.e_quiet_radps */
+    P2D_SIM_ERR_LOCKSTEP,           /* p2d_sim_run_many: drives of different shapes (p2d_sim_lockstep) */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
@@ -264,86 +237,9 @@ typedef struct {
                               [rad/s], finite; others: unused */
 } p2d_fault_t;
 
-/* Parameters of the true plant. */
-typedef struct {
-    uint32_t pole_pairs; /* pole pairs p [-], >= 1 */
-    double Rs_ohm;       /* stator resistance [ohm], > 0 */
-    double Ld_H;         /* d-axis inductance [H], > 0 */
-    double Lq_H;         /* q-axis inductance [H], > 0 */
-    double psi_f_Wb;     /* permanent-magnet flux linkage [Wb], > 0 */
-    double J_kgm2;       /* total inertia [kg m^2], > 0 */
-    double B_Nms;        /* viscous friction [Nm s/rad], >= 0 */
-    double T_coulomb_Nm; /* Coulomb friction [Nm], >= 0 */
-} p2d_pmsm_params_t;
-
-/* PMSM and mechanics: coefficients precomputed at init, and the state. */
-typedef struct {
-    double pole_pairs;        /* pole pairs p [-] */
-    double Rs_ohm;            /* stator resistance [ohm] */
-    double Ld_H;              /* d-axis inductance [H] */
-    double Lq_H;              /* q-axis inductance [H] */
-    double psi_f_Wb;          /* flux linkage [Wb] */
-    double inv_Ld_per_H;      /* 1 / Ld [1/H] */
-    double inv_Lq_per_H;      /* 1 / Lq [1/H] */
-    double inv_J_per_kgm2;    /* 1 / J [1/(kg m^2)] */
-    double kt_Nm_per_A;       /* 1.5 p psi_f [Nm/A] */
-    double c_T_Nm_per_A2;     /* 1.5 p (Ld - Lq) [Nm/A^2] */
-    double B_Nms;             /* viscous friction [Nm s/rad] */
-    double T_coulomb_Nm;      /* Coulomb friction [Nm] */
-    double inv_w_c_s_per_rad; /* 1 / w_c, friction smoothing band [s/rad] */
-    double id_A;              /* state: d-axis current [A] */
-    double iq_A;              /* state: q-axis current [A] */
-    double w_m_radps;         /* state: mechanical speed [rad/s] */
-    double theta_m_rad;       /* state: rotor angle, 0 at t = 0, integrated when sensing.angle [rad] */
-} p2d_pmsm_t;
-
-/* Mechanical model of the drive train: see the comment at the top. */
-typedef enum {
-    P2D_MECHANICS_RIGID = 0,   /* one inertia, motor.J_kgm2 */
-    P2D_MECHANICS_TWO_MASS = 1 /* motor.J_kgm2 and J_load_kgm2 coupled by an elastic shaft */
-} p2d_mechanics_model_t;
-
-/* The speed the speed controller reads. */
-typedef enum {
-    P2D_FEEDBACK_MOTOR = 0, /* the motor side w_m */
-    P2D_FEEDBACK_LOAD = 1   /* the load side w_L (two_mass; rigid: w_m) */
-} p2d_feedback_t;
-
-/* Parameters of the drive train (TWO_MASS; RIGID uses feedback only). */
-typedef struct {
-    p2d_mechanics_model_t model; /* RIGID or TWO_MASS */
-    double J_load_kgm2;          /* load inertia J_L [kg m^2], > 0 */
-    double stiffness_Nm_per_rad; /* shaft stiffness K [Nm/rad], > 0 */
-    double damping_Nms_per_rad;  /* shaft damping D [Nm s/rad], >= 0 */
-    double backlash_rad;         /* total play b of the dead zone [rad], >= 0 */
-    p2d_feedback_t feedback;     /* speed the speed controller reads */
-} p2d_mechanics_config_t;
-
-/* Drive train (TWO_MASS): coefficients precomputed at init, and the state beyond w_m. */
-typedef struct {
-    double inv_J_load_per_kgm2; /* 1 / J_L [1/(kg m^2)] */
-    double K_Nm_per_rad;        /* stiffness K [Nm/rad] */
-    double D_Nms_per_rad;       /* damping D [Nm s/rad] */
-    double half_backlash_rad;   /* b / 2 [rad] */
-    double theta_rad;           /* state: twist theta_M - theta_L [rad] */
-    double w_load_radps;        /* state: load-side speed w_L [rad/s] */
-} p2d_mechanics_t;
-
-/* Switching-cycle average inverter with DC-link limit and optional delay. */
-typedef struct {
-    double u_max_V;      /* u_dc / sqrt(3) [V] */
-    double u_inside2_V2; /* squared norms below it are inside u_max for sure: (1 - 2^-40) u_max^2 [V^2] */
-    bool delay;          /* one-sample computational delay */
-    double ud_V;         /* d-axis voltage applied over the present period [V] */
-    double uq_V;         /* q-axis voltage applied over the present period [V] */
-    double ud_next_V;    /* delay: d-axis command for the next period [V] */
-    double uq_next_V;    /* delay: q-axis command for the next period [V] */
-    bool limited_next;   /* delay: the command for the next period was cut to the range */
-} p2d_inverter_t;
-
 /* Everything a simulation needs; rpm never appears here. */
 typedef struct {
-    p2d_pmsm_params_t motor;           /* true plant */
+    p2d_pmsm_params_t motor;           /* true plant (plant.h) */
     double u_dc_V;                     /* DC-link voltage [V], > 0 */
     bool computation_delay;            /* inverter applies the command one current period later */
     p2d_current_model_t current_model; /* DQ_PI or FIRST_ORDER */
@@ -361,7 +257,7 @@ typedef struct {
     uint32_t n_faults;                 /* number of faults; 0: none */
     p2d_sim_sensing_config_t sensing;  /* speed sensor, current sensors, field weakening (sensing.h); 0: none */
     p2d_adapt_config_t adapt;          /* inertia estimator and gain scheduling (adapt.h); off when zero */
-    p2d_mechanics_config_t mechanics;  /* drive train; all zero: rigid, motor-side feedback */
+    p2d_mechanics_config_t mechanics;  /* drive train (plant.h); all zero: rigid, motor-side feedback */
     p2d_filter_config_t speed_filter;  /* torque filters of the speed controller (filter.h); all zero: none */
 } p2d_sim_config_t;
 
@@ -369,13 +265,9 @@ typedef struct {
     p2d_sim_config_t cfg;            /* configuration (the schedules are not copied) */
     p2d_speed_t speed;               /* speed controller */
     p2d_current_t current;           /* current controller (DQ_PI) */
-    p2d_pmsm_t pmsm;                 /* plant */
-    p2d_mechanics_t mechanics;       /* drive train beyond the motor (TWO_MASS) */
-    p2d_inverter_t inverter;         /* inverter (DQ_PI) */
+    p2d_plant_t plant;               /* PMSM, inverter, drive train and current sensors (plant.h) */
     p2d_schedule_cursor_t reference; /* read position in the reference */
     p2d_schedule_cursor_t load;      /* read position in the load */
-    double inv_tau_i_per_s;          /* 1 / tau_i, FIRST_ORDER [1/s] */
-    double dt_s;                     /* RK4 step Ts_current / substeps [s] */
     double t_tol_s;                  /* times closer than this are equal: 1e-6 dt [s] */
     double id_ref_A;                 /* current command held over the speed period [A] */
     double iq_ref_A;                 /* current command held over the speed period [A] */
@@ -390,18 +282,17 @@ typedef struct {
     double stop_value;               /* offending value (|w_m| [rad/s] or ||i_dq|| [A]) */
     double stop_bound;               /* bound it crossed (same unit) */
     double w_meas_radps;             /* last speed reading given to the speed controller [rad/s] */
-    double u_dc_V;                   /* DC link over the present current period [V] */
     p2d_sim_sensing_t sensing;       /* speed sensor, current measurement and field weakening (sensing.h) */
     p2d_adapt_t adapt;               /* inertia estimator beside the speed controller (adapt.h) */
     bool saturated;                  /* the speed controller's last output was at the current limit */
+    bool current_saturated;          /* delay: the current controller limited the command applied next */
+    bool dc_link_sag;                /* a DC_LINK_SAG fault is configured */
+    p2d_speed_output_t speed_out;    /* the speed controller's output of the present speed sample */
+    double w_ref_radps;              /* the reference it sampled [rad/s] */
+    uint32_t n_limited;              /* current periods of the present speed sample at the voltage limit [-] */
+    bool fma;                        /* run the loop's copy for x86-64 CPUs with FMA (p2d_sim_init: whether the CPU
+                                        has it; false: the baseline copy, which computes the same bits) */
 } p2d_sim_t;
-
-/*
- * Precompute the plant's coefficients from validated motor parameters (friction smoothing band
- * w_c = max(0.01 rad/s, 10 Ts_current T_c / J)) and set its state to rest. Used by p2d_sim_init
- * and by the commissioning run (commission_run.h).
- */
-void p2d_pmsm_setup(p2d_pmsm_t *m, const p2d_pmsm_params_t *mp, double Ts_current_s);
 
 /* Validate cfg, initialize the controllers and set the initial state. */
 p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg);
@@ -409,9 +300,30 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg);
 /*
  * Run n_samples speed samples, appending rows to the column-major log
  * (P2D_LOG_COUNT columns of log_rows doubles, the same buffer on every call). Returns
- * P2D_SIM_OK or the stop code; after a stop every call returns that code.
+ * P2D_SIM_OK or the stop code; after a stop every call returns that code. P2D_SIM_ERR_LOG_FULL
+ * (nothing run) when the log has no room for the rows of the n_samples samples.
  */
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows);
+
+/*
+ * p2d_sim_run of n_sims drives in lockstep, each into its own log (logs[i], log_rows[i] rows):
+ * groups of P2D_SIM_LANES drives share one loop, their plants' states in an array per state
+ * variable, so that the compiler vectorises the plant's RK4 step across the drives. Each
+ * drive's log and state are bit for bit those of p2d_sim_run. The drives must be of one shape
+ * (p2d_sim_lockstep), at the same sample; each ends with its own status (sims[i]->status),
+ * OK or the stop that ended it. Returns P2D_SIM_OK, P2D_SIM_ERR_NULL,
+ * P2D_SIM_ERR_LOCKSTEP (shapes differ; nothing run) or P2D_SIM_ERR_LOG_FULL (a log lacks room;
+ * nothing run).
+ */
+p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint64_t n_samples, double *const *logs,
+                                  const uint64_t *log_rows);
+
+/*
+ * Whether a and b can run in lockstep: both initialized, at the same speed sample, with equal
+ * Ts_current_s, current_per_speed, substeps, log_every, current model, mechanics model and
+ * Coulomb friction (present or not).
+ */
+bool p2d_sim_lockstep(const p2d_sim_t *a, const p2d_sim_t *b);
 
 /* Name of the configuration field a code rejects ("" for OK and stops). */
 const char *p2d_sim_status_param(p2d_sim_status_t status);

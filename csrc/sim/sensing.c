@@ -5,12 +5,8 @@
 
 #include <math.h>
 
-#define P2D_SENSING_TWO_PI 6.283185307179586         /* 2 pi */
-#define P2D_SENSING_TWO_PI_3 2.0943951023931957      /* 2 pi / 3 */
-#define P2D_SENSING_INV_SQRT3 0.57735026918962576    /* 1 / sqrt(3) */
-#define P2D_SENSING_COUNTER_RANGE 4294967296.0       /* 2^32 */
-#define P2D_SENSING_WHOLE_TOL 1e-9                   /* a delay this close to whole current periods is whole [-] */
-#define P2D_SENSING_GOLDEN_GAMMA 0x9e3779b97f4a7c15u /* splitmix64 increment */
+#define P2D_SENSING_INV_SQRT3 0.57735026918962576 /* 1 / sqrt(3) */
+#define P2D_SENSING_WHOLE_TOL 1e-9                /* a delay this close to whole current periods is whole [-] */
 
 static bool is_nonnegative(double x) { return isfinite(x) && x >= 0.0; }
 
@@ -54,11 +50,6 @@ p2d_sensing_check_t p2d_sensing_check(const p2d_speed_sensor_config_t *speed,
     if (!is_nonnegative(speed->noise_rms_radps)) return P2D_SENSING_BAD_SPEED_SENSOR;
     *status = p2d_encoder_init(&enc, &ec);
     if (*status != P2D_OK) return P2D_SENSING_BAD_SPEED_SENSOR;
-    if (!(isfinite(current->gain_error_a) && current->gain_error_a > -1.0) ||
-        !(isfinite(current->gain_error_b) && current->gain_error_b > -1.0) || !isfinite(current->offset_a_A) ||
-        !isfinite(current->offset_b_A) || !is_nonnegative(current->noise_rms_A)) {
-        return P2D_SENSING_BAD_CURRENT_SENSOR;
-    }
     measured = current->gain_error_a != 0.0 || current->gain_error_b != 0.0 || current->offset_a_A != 0.0 ||
                current->offset_b_A != 0.0 || current->noise_rms_A != 0.0;
     if (measured && !dq_pi) return P2D_SENSING_BAD_CURRENT_SENSOR;
@@ -68,25 +59,6 @@ p2d_sensing_check_t p2d_sensing_check(const p2d_speed_sensor_config_t *speed,
         if (*status != P2D_OK) return P2D_SENSING_BAD_FIELD_WEAKENING;
     }
     return P2D_SENSING_VALID;
-}
-
-/* ---- noise -------------------------------------------------------------- */
-
-/* splitmix64: the next 64 random bits of the stream *state. */
-static uint64_t splitmix64(uint64_t *state)
-{
-    uint64_t z = (*state += P2D_SENSING_GOLDEN_GAMMA);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9u;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebu;
-    return z ^ (z >> 31);
-}
-
-/* A standard normal number: Box-Muller, sqrt(-2 ln u1) cos(2 pi u2) with u1 in (0, 1], u2 in [0, 1). */
-static double normal(uint64_t *state)
-{
-    double u1 = ((double)(splitmix64(state) >> 11) + 1.0) * 0x1p-53;
-    double u2 = (double)(splitmix64(state) >> 11) * 0x1p-53;
-    return sqrt(-2.0 * log(u1)) * cos(P2D_SENSING_TWO_PI * u2);
 }
 
 /* ---- angle and counts --------------------------------------------------- */
@@ -129,14 +101,6 @@ static void angle_at(const p2d_sim_sensing_t *s, int64_t n, double f, double Ts_
         (6.0 * f2 - 6.0 * f) * (th0 - th1) / Ts_current_s + (3.0 * f2 - 4.0 * f + 1.0) * w0 + (3.0 * f2 - 2.0 * f) * w1;
 }
 
-/* The counter at the angle theta: floor(theta counts_per_rev / (2 pi)) mod 2^32 (the encoder masks its bits). */
-static uint32_t counter_at(uint32_t counts_per_rev, double theta_rad)
-{
-    double n = fmod(floor(theta_rad * (double)counts_per_rev / P2D_SENSING_TWO_PI), P2D_SENSING_COUNTER_RANGE);
-    if (n < 0.0) n += P2D_SENSING_COUNTER_RANGE;
-    return (uint32_t)n;
-}
-
 /* The delay in current periods as whole periods and a fraction; a fraction within 1e-9 of 0 or 1 is 0. */
 static void delay_periods(double delay_s, double Ts_current_s, uint64_t *whole, double *frac)
 {
@@ -167,11 +131,10 @@ void p2d_sensing_init(p2d_sim_sensing_t *s, const p2d_speed_sensor_config_t *spe
     (void)p2d_encoder_init(&s->encoder, &ec);
     /* the previous reading, one speed period before the first: steady state at w_m0 */
     theta_prev = -w_m0_radps * ((double)Ts_speed_s + speed->delay_s);
-    p2d_encoder_reset(&s->encoder, counter_at(ec.counts_per_rev, theta_prev), (float)w_m0_radps);
+    p2d_encoder_reset(&s->encoder, p2d_encoder_counter(ec.counts_per_rev, theta_prev), (float)w_m0_radps);
     s->w_lowpass_radps = (float)w_m0_radps;
     s->w_sensor_radps = w_m0_radps;
     s->speed_rng = speed->seed;
-    s->current_rng = current->seed;
     if (fw->enabled) (void)p2d_field_weakening_init(&s->fw, &fc);
     s->ud_unsat_V = 0.0f;
     s->uq_unsat_V = 0.0f;
@@ -204,7 +167,7 @@ bool p2d_sensing_speed(p2d_sim_sensing_t *s, const p2d_speed_sensor_config_t *sp
     }
     if (speed->model == P2D_SPEED_SENSOR_ENCODER) {
         p2d_encoder_output_t out;
-        p2d_encoder_step(&s->encoder, counter_at(speed->encoder.counts_per_rev, theta), &out);
+        p2d_encoder_step(&s->encoder, p2d_encoder_counter(speed->encoder.counts_per_rev, theta), &out);
         ok = !out.fault;
         y = (double)out.w_m_radps;
     } else if (speed->encoder.lowpass_radps > 0.0f) {
@@ -215,28 +178,17 @@ bool p2d_sensing_speed(p2d_sim_sensing_t *s, const p2d_speed_sensor_config_t *sp
     } else {
         y = w;
     }
-    if (speed->noise_rms_radps > 0.0) y += speed->noise_rms_radps * normal(&s->speed_rng);
+    if (speed->noise_rms_radps > 0.0) y += speed->noise_rms_radps * p2d_normal(&s->speed_rng);
     s->w_sensor_radps = y;
     *w_read_radps = y;
     return ok;
 }
 
-void p2d_sensing_currents(p2d_sim_sensing_t *s, const p2d_current_sensor_config_t *current, double id_A, double iq_A,
-                          double theta_e_rad, double *id_meas_A, double *iq_meas_A)
+void p2d_sensing_currents(p2d_plant_t *plant, double *id_meas_A, double *iq_meas_A)
 {
-    double c = cos(theta_e_rad), sn = sin(theta_e_rad);
-    double cb = cos(theta_e_rad - P2D_SENSING_TWO_PI_3), sb = sin(theta_e_rad - P2D_SENSING_TWO_PI_3);
-    /* ia = id cos(th_e) - iq sin(th_e), ib = id cos(th_e - 2 pi/3) - iq sin(th_e - 2 pi/3) */
-    double ia = id_A * c - iq_A * sn;
-    double ib = id_A * cb - iq_A * sb;
-    double i_alpha, i_beta;
-    /* i' = (1 + gain_error) i + offset + noise */
-    ia = (1.0 + current->gain_error_a) * ia + current->offset_a_A;
-    ib = (1.0 + current->gain_error_b) * ib + current->offset_b_A;
-    if (current->noise_rms_A > 0.0) {
-        ia += current->noise_rms_A * normal(&s->current_rng);
-        ib += current->noise_rms_A * normal(&s->current_rng);
-    }
+    double th_e = plant->p * plant->theta_m_rad, c = cos(th_e), sn = sin(th_e);
+    double ia, ib, i_alpha, i_beta;
+    p2d_plant_sense_currents(plant, &ia, &ib);
     /* i_alpha = ia', i_beta = (ia' + 2 ib') / sqrt(3) (ic' = -ia' - ib') */
     i_alpha = ia;
     i_beta = (ia + 2.0 * ib) * P2D_SENSING_INV_SQRT3;

@@ -19,10 +19,9 @@
  * the sensor reads the load angle theta_L = theta_m - theta (the twist, 0 at t = 0) and the
  * load speed w_L instead of theta_m and w_m.
  *
- * Current measurement: the phase currents of the amplitude-invariant transform,
- *   ia = id cos(th_e) - iq sin(th_e),  ib = id cos(th_e - 2 pi/3) - iq sin(th_e - 2 pi/3),
- * th_e = p theta_m, are read as (1 + gain_error) i + offset + noise per phase sensor (a and b;
- * c = -a - b, as a drive with two sensors computes it) and transformed back,
+ * Current measurement: the phase-current sensors of the plant (plant.h,
+ * p2d_plant_sense_currents) transformed back to dq at the electrical angle
+ * th_e = p theta_m,
  *   i_alpha = ia',  i_beta = (ia' + 2 ib') / sqrt(3),
  *   id' = i_alpha cos(th_e) + i_beta sin(th_e),  iq' = -i_alpha sin(th_e) + i_beta cos(th_e);
  * the current controller reads (id', iq') (dq_pi only). An offset I0 on phase a reads as a
@@ -32,9 +31,7 @@
  * current controller's last voltage command before its limit and the DC link, and the speed
  * controller's p2d_speed_step_fw with that d-axis current (dq_pi only).
  *
- * Noise: splitmix64 (Steele, Lea, Flood, "Fast splittable pseudorandom number generators",
- * OOPSLA 2014) for uniform numbers, the Box-Muller transform for normal ones; one stream per
- * seed, so that a run is reproduced by its seeds.
+ * Noise: p2d_normal of plant.h, one stream per seed, so that a run is reproduced by its seeds.
  */
 #ifndef PMSM2DOF_SIM_SENSING_H
 #define PMSM2DOF_SIM_SENSING_H
@@ -42,6 +39,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "plant.h"
 #include "pmsm2dof/encoder.h"
 #include "pmsm2dof/field_weakening.h"
 #include "pmsm2dof/status.h"
@@ -68,16 +66,6 @@ typedef struct {
     uint64_t seed;                  /* seed of the noise [-] */
 } p2d_speed_sensor_config_t;
 
-/* Current measurement of phases a and b; all zero: exact. */
-typedef struct {
-    double gain_error_a; /* relative gain error of phase a's sensor [-], > -1 */
-    double gain_error_b; /* relative gain error of phase b's sensor [-], > -1 */
-    double offset_a_A;   /* offset of phase a's sensor [A], finite */
-    double offset_b_A;   /* offset of phase b's sensor [A], finite */
-    double noise_rms_A;  /* rms of the white Gaussian noise of each sensor [A], >= 0 */
-    uint64_t seed;       /* seed of the noise [-] */
-} p2d_current_sensor_config_t;
-
 /* Field weakening in the current reference path. */
 typedef struct {
     bool enabled;                        /* false: id_fw = 0 and p2d_speed_step as without it */
@@ -87,7 +75,7 @@ typedef struct {
 /* The three in the engine's configuration; all zero: ideal speed sensor, exact currents, no field weakening. */
 typedef struct {
     p2d_speed_sensor_config_t speed_sensor;           /* what the speed controller reads */
-    p2d_current_sensor_config_t current_sensor;       /* what the current controller reads */
+    p2d_current_sensor_config_t current_sensor;       /* what the current controller reads (plant.h) */
     p2d_sim_field_weakening_config_t field_weakening; /* field weakening in the current reference path */
 } p2d_sim_sensing_config_t;
 
@@ -100,7 +88,6 @@ typedef struct {
     float w_lowpass_radps;                  /* ideal sensor: low-pass output y[k-1] [rad/s] */
     double w_sensor_radps;                  /* last reading of the sensor, before the faults [rad/s] */
     uint64_t speed_rng;                     /* splitmix64 state of the speed noise [-] */
-    uint64_t current_rng;                   /* splitmix64 state of the current noise [-] */
     p2d_field_weakening_t fw;               /* field-weakening regulator */
     float ud_unsat_V;                       /* current controller's last d voltage before its limit [V] */
     float uq_unsat_V;                       /* current controller's last q voltage before its limit [V] */
@@ -112,7 +99,7 @@ typedef struct {
 typedef enum {
     P2D_SENSING_VALID = 0,          /* all valid */
     P2D_SENSING_BAD_SPEED_SENSOR,   /* speed_sensor: model, delay_s, noise_rms_radps or the encoder */
-    P2D_SENSING_BAD_CURRENT_SENSOR, /* current_sensor: gain errors, offsets, noise, or not dq_pi */
+    P2D_SENSING_BAD_CURRENT_SENSOR, /* current_sensor: not exact without dq_pi (its ranges: plant.h) */
     P2D_SENSING_BAD_FIELD_WEAKENING /* field_weakening: the regulator, or not dq_pi */
 } p2d_sensing_check_t;
 
@@ -130,7 +117,7 @@ p2d_sensing_check_t p2d_sensing_check(const p2d_speed_sensor_config_t *speed,
 /*
  * Initialize the state for valid configurations: the encoder reset to the counts at
  * -Ts_speed - delay with the speed w_m0_radps (steady state before t = 0), the regulator at
- * id = 0, the noise streams at their seeds, the history with theta_m(0) = 0.
+ * id = 0, the speed noise at its seed, the history with theta_m(0) = 0.
  */
 void p2d_sensing_init(p2d_sim_sensing_t *s, const p2d_speed_sensor_config_t *speed,
                       const p2d_current_sensor_config_t *current, const p2d_sim_field_weakening_config_t *fw,
@@ -148,9 +135,8 @@ bool p2d_sensing_speed(p2d_sim_sensing_t *s, const p2d_speed_sensor_config_t *sp
 /* Store the angle and speed of boundary n_current (when the history is kept). */
 void p2d_sensing_record(p2d_sim_sensing_t *s, uint64_t n_current, double theta_m_rad, double w_m_radps);
 
-/* The currents the current controller reads, from the true id, iq and the electrical angle th_e. */
-void p2d_sensing_currents(p2d_sim_sensing_t *s, const p2d_current_sensor_config_t *current, double id_A, double iq_A,
-                          double theta_e_rad, double *id_meas_A, double *iq_meas_A);
+/* The dq currents the current controller reads, from the plant's current sensors at its angle. */
+void p2d_sensing_currents(p2d_plant_t *plant, double *id_meas_A, double *iq_meas_A);
 
 /*
  * Field weakening at a speed sample: the d-axis current bound from the last voltage command

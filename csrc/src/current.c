@@ -5,15 +5,8 @@
 
 #include <math.h>
 
+#include "current_step.h"
 #include "pi.h"
-
-#define P2D_INV_SQRT3 0.57735026918962576f /* 1/sqrt(3) */
-/*
- * Smallest ud^2 + uq^2 [V^2] whose float32 sum is used as is: any square that
- * underflowed below it (< 2^-126, subnormal or 0) is < 2^-26 of the sum, under
- * its rounding. Below, or on overflow, the norm is taken in the scaled form.
- */
-#define P2D_NORM2_MIN_V2 0x1p-100f
 
 /* PI coefficients of one axis with inductance L_H (eq 3: Kp = L/tau_i, Ki = Rs/tau_i; eq 14, Table 1). */
 static p2d_pi_coef_t axis_coefficients(const p2d_current_config_t *cfg, float L_H)
@@ -90,81 +83,10 @@ void p2d_current_reset(p2d_current_t *ctl)
     ctl->x_q_V = 0.0f;
 }
 
-/* Non-finite policy: zero voltage, fault raised, so that the update leaves the state alone. */
-static bool fault_output(p2d_current_output_t *out)
-{
-    out->ud_ref_V = 0.0f;
-    out->uq_ref_V = 0.0f;
-    out->saturated = false;
-    out->fault = true;
-    return false;
-}
-
-/* The voltage command of this sample into out; returns !out->fault. Inlined in step, which then saves no registers. */
-static P2D_ALWAYS_INLINE bool current_voltage(const p2d_current_t *ctl, const p2d_current_coef_t *c, float id_ref_A,
-                                              float iq_ref_A, float id_A, float iq_A, float w_e_radps, float u_dc_V,
-                                              p2d_current_output_t *out)
-{
-    float ed, eq, ud, uq, u_max, norm2, norm;
-
-    ed = id_ref_A - id_A;
-    eq = iq_ref_A - iq_A;
-    /* ud[k] = b_e0 ed[k] + xd[k-1] - w_e Lq iq (decoupling, eq 1) */
-    ud = p2d_pi_output(c->d, ed, ctl->x_d_V) - w_e_radps * c->Lq_H * iq_A;
-    /* uq[k] = b_e0 eq[k] + xq[k-1] + w_e (Ld id + psi_f) */
-    uq = p2d_pi_output(c->q, eq, ctl->x_q_V) + w_e_radps * fmaf(c->Ld_H, id_A, c->psi_f_Wb);
-    out->ed_A = ed;
-    out->eq_A = eq;
-    out->ud_unsat_V = ud;
-    out->uq_unsat_V = uq;
-    /* u_dc_V is tested itself: a NaN measurement must not pass as a zero voltage limit */
-    if (!(fabsf(u_dc_V) < INFINITY)) return fault_output(out);
-    /* linear range of space-vector modulation: ||u_dq|| <= u_dc / sqrt(3) */
-    u_max = u_dc_V > 0.0f ? u_dc_V * P2D_INV_SQRT3 : 0.0f;
-    norm2 = fmaf(ud, ud, uq * uq);
-    if (norm2 >= P2D_NORM2_MIN_V2 && norm2 < INFINITY) {
-        norm = p2d_sqrt_nonnegative(norm2);
-    } else {
-        /*
-         * ud, uq not finite, or their squares overflow (|u| > 1.8e19 V) or underflow
-         * (|u| < 1e-19 V, and a tiny vector would pass a zero limit):
-         * ||u_dq|| = u_big sqrt((ud/u_big)^2 + (uq/u_big)^2), u_big = max(|ud|, |uq|)
-         */
-        float u_big;
-        if (!(fabsf(ud) < INFINITY && fabsf(uq) < INFINITY)) return fault_output(out);
-        u_big = fabsf(ud) > fabsf(uq) ? fabsf(ud) : fabsf(uq);
-        norm = u_big > 0.0f ? u_big * p2d_sqrt_nonnegative(fmaf(ud / u_big, ud / u_big, (uq / u_big) * (uq / u_big)))
-                            : 0.0f;
-    }
-    out->fault = false;
-    out->saturated = norm > u_max;
-    /* scale the vector back onto the limit circle, keeping its direction; the unit
-       vector first, as u_max / norm can be subnormal and lose its precision */
-    out->ud_ref_V = out->saturated ? u_max * (ud / norm) : ud;
-    out->uq_ref_V = out->saturated ? u_max * (uq / norm) : uq;
-    return true;
-}
-
-/* The state update with the applied voltages (finite) of an output that is not a fault. */
-static inline void current_integrate(p2d_current_t *ctl, const p2d_current_coef_t *c, const p2d_current_output_t *out,
-                                     float ud_applied_V, float uq_applied_V)
-{
-    /* x[k] = x[k-1] + Ki Ts e[k] + Ki Ka Ts u*[k] per axis, u* = u_sat - u */
-    float x_d = ctl->x_d_V + p2d_pi_integration(c->d, c->clamping, out->ed_A, ud_applied_V - out->ud_unsat_V);
-    float x_q = ctl->x_q_V + p2d_pi_integration(c->q, c->clamping, out->eq_A, uq_applied_V - out->uq_unsat_V);
-    if (!isfinite(x_d) || !isfinite(x_q)) {
-        /* non-finite policy: an update that would overflow an integrator is refused */
-        ctl->fault_count++;
-        return;
-    }
-    ctl->x_d_V = x_d;
-    ctl->x_q_V = x_q;
-}
-
 void p2d_current_compute(const p2d_current_t *ctl, float id_ref_A, float iq_ref_A, float id_A, float iq_A,
                          float w_e_radps, float u_dc_V, p2d_current_output_t *out)
 {
-    (void)current_voltage(ctl, &ctl->coef[ctl->active], id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out);
+    (void)p2d_current_voltage(ctl, &ctl->coef[ctl->active], id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out);
 }
 
 void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out, float ud_applied_V, float uq_applied_V)
@@ -173,7 +95,7 @@ void p2d_current_update(p2d_current_t *ctl, const p2d_current_output_t *out, flo
         ctl->fault_count++;
         return;
     }
-    current_integrate(ctl, &ctl->coef[ctl->active], out, ud_applied_V, uq_applied_V);
+    p2d_current_integrate(ctl, &ctl->coef[ctl->active], out, ud_applied_V, uq_applied_V);
 }
 
 /* compute + update with the own command, which is finite whenever the output is not a fault. */
@@ -181,8 +103,8 @@ void p2d_current_step(p2d_current_t *ctl, float id_ref_A, float iq_ref_A, float 
                       float u_dc_V, p2d_current_output_t *out)
 {
     const p2d_current_coef_t *c = &ctl->coef[ctl->active];
-    if (current_voltage(ctl, c, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out)) {
-        current_integrate(ctl, c, out, out->ud_ref_V, out->uq_ref_V);
+    if (p2d_current_voltage(ctl, c, id_ref_A, iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, out)) {
+        p2d_current_integrate(ctl, c, out, out->ud_ref_V, out->uq_ref_V);
     } else {
         ctl->fault_count++;
     }

@@ -84,6 +84,23 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_ERR_LOWPASS_ZETA] = {"lowpass_zeta", "finite and > 0 (1/sqrt(2): -3 dB at lowpass_freq_Hz, no peak), with "
                                               "g (g + 2*lowpass_zeta) at most 4000 and lowpass_zeta*g above about "
                                               "1e-37, g = tan(pi*lowpass_freq_Hz*Ts_s) (float32)"},
+    [P2D_ERR_SPEED_FULL_SCALE] =
+        {"speed_full_scale_radps",
+         "finite and > 0, with every speed-to-torque gain (Kp + Ki*Ts_s, Ki*Ts_s, Fr(0) and the "
+         "feedforward's) times speed_full_scale_radps/torque_full_scale_Nm below 2^13, in Q31 "
+         "Ki*Ts_s*speed_full_scale_radps/torque_full_scale_Nm >= 2^-32 (one LSB of error moves "
+         "the integrator), and unchanged by set_config (fixed-point speed controllers)"},
+    [P2D_ERR_TORQUE_FULL_SCALE] = {"torque_full_scale_Nm",
+                                   "finite, >= the torque limit 1.5*pole_pairs*psi_f_Wb*i_max_A, which must be at "
+                                   "least one LSB (torque_full_scale_Nm/2^15 in Q15, /2^31 in Q31), and unchanged by "
+                                   "set_config (fixed-point speed controllers)"},
+    [P2D_ERR_CURRENT_FULL_SCALE] = {"current_full_scale_A",
+                                    "finite, >= i_max_A, which must be at least one LSB (current_full_scale_A/2^15 in "
+                                    "Q15, /2^31 in Q31), with torque_full_scale_Nm/(1.5*pole_pairs*psi_f_Wb*"
+                                    "current_full_scale_A) below 2^13, and unchanged by set_config (fixed-point speed "
+                                    "controllers)"},
+    [P2D_ERR_SALIENT] = {"Lq_H", "equal to Ld_H in the fixed-point speed controllers (surface PMSM: id = 0, |iq| <= "
+                                 "i_max_A; no integer MTPA)"},
 };
 
 const char *p2d_status_param(p2d_status_t status)

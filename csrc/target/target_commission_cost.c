@@ -23,41 +23,21 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "cost_probe.h"
 #include "pmsm2dof/commission.h"
 #include "semihost.h"
 
-#define P2D_STACK_PAINT_WORDS 512u    /* painted words below SP (2 KiB) */
-#define P2D_STACK_PATTERN 0xC5A5C5A5u /* paint pattern */
-#define P2D_MAX_STEPS 20000u          /* a bound on the run */
+#define P2D_MAX_STEPS 20000u /* a bound on the run */
 
 static p2d_line_t line;
 static p2d_commission_t routine;
 static uint8_t phase_of_step[P2D_MAX_STEPS]; /* printed after the run, so that the loop calls the step only */
-
-/* Marks the next step call in the instruction trace. */
-__attribute__((noinline)) void p2d_cost_mark(void) { __asm__ volatile("" ::: "memory"); }
-
-static uint32_t stack_pointer(void)
-{
-    uint32_t sp;
-    __asm__ volatile("mov %0, sp" : "=r"(sp));
-    return sp;
-}
 
 static void print_hex(const char *what, uint32_t a, uint32_t b, bool two)
 {
     p2d_line_text(&line, what);
     p2d_line_hex(&line, a);
     if (two) p2d_line_hex(&line, b);
-    p2d_line_flush(&line);
-}
-
-static void print_sizeof(const char *type, uint32_t bytes)
-{
-    p2d_line_text(&line, "sizeof ");
-    p2d_line_text(&line, type);
-    p2d_line_text(&line, " ");
-    p2d_line_hex(&line, bytes);
     p2d_line_flush(&line);
 }
 
@@ -92,13 +72,13 @@ int main(void)
     uint32_t sp, n = 0u;
     volatile uint32_t *paint;
 
-    print_sizeof("p2d_commission_t", sizeof(p2d_commission_t));
-    print_sizeof("p2d_commission_config_t", sizeof(p2d_commission_config_t));
-    print_sizeof("p2d_commission_output_t", sizeof(p2d_commission_output_t));
+    p2d_cost_sizeof(&line, "p2d_commission_t", sizeof(p2d_commission_t));
+    p2d_cost_sizeof(&line, "p2d_commission_config_t", sizeof(p2d_commission_config_t));
+    p2d_cost_sizeof(&line, "p2d_commission_output_t", sizeof(p2d_commission_output_t));
     if (p2d_commission_init(&routine, &cfg) != P2D_OK) p2d_semihost_exit(false);
 
     /* the steps run from here, with this stack pointer: paint once, read the high-water mark at the end */
-    sp = stack_pointer();
+    sp = p2d_stack_pointer();
     paint = (volatile uint32_t *)(uintptr_t)(sp - 4u * P2D_STACK_PAINT_WORDS);
     for (uint32_t i = 0u; i < P2D_STACK_PAINT_WORDS; ++i) paint[i] = P2D_STACK_PATTERN;
 

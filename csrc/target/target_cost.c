@@ -27,6 +27,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "cost_probe.h"
 #include "pmsm2dof/current.h"
 #include "pmsm2dof/encoder.h"
 #include "pmsm2dof/field_weakening.h"
@@ -35,51 +36,10 @@
 #include "pmsm2dof/speed.h"
 #include "semihost.h"
 
-#define P2D_STACK_PAINT_WORDS 512u    /* painted words below SP (2 KiB) */
-#define P2D_STACK_PATTERN 0xC5A5C5A5u /* paint pattern */
-#define P2D_WARMUP_STEPS 4u           /* steps before the probe, so the state is not all zero */
+#define P2D_WARMUP_STEPS 4u /* steps before the probe, so the state is not all zero */
 
 static p2d_line_t line;
 static uint32_t probe_index;
-
-/* Marks the next step call as a probe in the instruction trace. */
-__attribute__((noinline)) void p2d_cost_mark(void) { __asm__ volatile("" ::: "memory"); }
-
-static uint32_t stack_pointer(void)
-{
-    uint32_t sp;
-    __asm__ volatile("mov %0, sp" : "=r"(sp));
-    return sp;
-}
-
-/* Fill the free stack below sp with the pattern. */
-static void stack_paint(uint32_t sp)
-{
-    volatile uint32_t *w = (volatile uint32_t *)(uintptr_t)(sp - 4u * P2D_STACK_PAINT_WORDS);
-    for (uint32_t i = 0u; i < P2D_STACK_PAINT_WORDS; ++i) {
-        w[i] = P2D_STACK_PATTERN;
-    }
-}
-
-/* Bytes below sp overwritten since stack_paint(sp). */
-static uint32_t stack_used(uint32_t sp)
-{
-    volatile const uint32_t *w = (volatile const uint32_t *)(uintptr_t)(sp - 4u * P2D_STACK_PAINT_WORDS);
-    uint32_t i = 0u;
-    while (i < P2D_STACK_PAINT_WORDS && w[i] == P2D_STACK_PATTERN) {
-        ++i;
-    }
-    return 4u * (P2D_STACK_PAINT_WORDS - i);
-}
-
-static void print_sizeof(const char *type, uint32_t bytes)
-{
-    p2d_line_text(&line, "sizeof ");
-    p2d_line_text(&line, type);
-    p2d_line_text(&line, " ");
-    p2d_line_hex(&line, bytes);
-    p2d_line_flush(&line);
-}
 
 /* Start the line of the next probe; its description follows. */
 static void probe_begin(const char *controller)
@@ -142,11 +102,11 @@ static void probe_speed(p2d_method_t method, p2d_anti_windup_t aw, p2d_feedforwa
     for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
         p2d_speed_step(&ctl, w_ref, w_m, &out);
     }
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_speed_step(&ctl, w_ref, w_m, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.saturated != saturate || out.fault) p2d_semihost_exit(false);
 
     probe_begin("speed ");
@@ -207,11 +167,11 @@ static void probe_speed_filtered(uint32_t sections, bool salient, bool saturate)
     for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
         p2d_speed_step(&ctl, w_ref, w_m, &out);
     }
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_speed_step(&ctl, w_ref, w_m, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.saturated != saturate || out.fault) p2d_semihost_exit(false);
     filter_probe_line("speed", sections, salient ? "salient" : "surface", saturate ? "saturated" : "unsaturated",
                       stack_bytes);
@@ -229,11 +189,11 @@ static void probe_filter(uint32_t sections)
     for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
         p2d_filter_step(&flt, (float)k, &out);
     }
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_filter_step(&flt, 1.5f, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.fault) p2d_semihost_exit(false);
     filter_probe_line("filter", sections, "-", "step", stack_bytes);
 }
@@ -261,11 +221,11 @@ static void probe_current(p2d_anti_windup_t aw, bool decouple, bool saturate)
     for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
         p2d_current_step(&ctl, 0.0f, iq_ref, 0.0f, 0.5f, 200.0f, u_dc, &out);
     }
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_current_step(&ctl, 0.0f, iq_ref, 0.0f, 0.5f, 200.0f, u_dc, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.saturated != saturate || out.fault) p2d_semihost_exit(false);
 
     probe_begin("current tustin ");
@@ -295,11 +255,11 @@ static void probe_speed_fw(bool salient, bool saturate)
     for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
         p2d_speed_step_fw(&ctl, w_ref, w_m, id_fw, &out);
     }
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_speed_step_fw(&ctl, w_ref, w_m, id_fw, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.saturated != saturate || out.fault || out.id_ref_A > id_fw) p2d_semihost_exit(false);
 
     probe_begin("speed_fw tustin back_calculation lowpass");
@@ -329,11 +289,11 @@ static void probe_encoder(p2d_estimator_t estimator, bool lowpass)
         p2d_encoder_step(&enc, count, &out);
     }
     count += 160u; /* across the wrap of the 16-bit timer */
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_encoder_step(&enc, count, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.fault || out.dn_counts != 160) p2d_semihost_exit(false);
 
     probe_begin("encoder - - ");
@@ -366,11 +326,11 @@ static void probe_field_weakening(p2d_anti_windup_t aw, float u_norm_V, bool act
     for (uint32_t k = 0u; k < P2D_WARMUP_STEPS; ++k) {
         p2d_field_weakening_step(&fw, 0.6f * u_norm_V, 0.8f * u_norm_V, 48.0f, &out);
     }
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_field_weakening_step(&fw, 0.6f * u_norm_V, 0.8f * u_norm_V, 48.0f, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.fault || out.active != active || out.at_id_min != at_id_min) p2d_semihost_exit(false);
 
     probe_begin("field_weakening tustin ");
@@ -417,11 +377,11 @@ static void probe_inertia(bool period_mean, const char *point)
         w += 1e-3f / 0.01f * (T - 0.2f);
     }
     if (point[0] == 'f') w = NAN;
-    sp = stack_pointer();
-    stack_paint(sp);
+    sp = p2d_stack_pointer();
+    p2d_stack_paint(sp);
     p2d_cost_mark();
     p2d_inertia_step(&est, w, T, &out);
-    stack_bytes = stack_used(sp);
+    stack_bytes = p2d_stack_used(sp);
     if (out.fault != (point[0] == 'f') || out.updated != (point[0] == 'p' || point[0] == 'u')) {
         p2d_semihost_exit(false);
     }
@@ -434,30 +394,30 @@ static void probe_inertia(bool period_mean, const char *point)
 
 int main(void)
 {
-    print_sizeof("p2d_speed_t", sizeof(p2d_speed_t));
-    print_sizeof("p2d_speed_coef_t", sizeof(p2d_speed_coef_t));
-    print_sizeof("p2d_speed_config_t", sizeof(p2d_speed_config_t));
-    print_sizeof("p2d_speed_output_t", sizeof(p2d_speed_output_t));
-    print_sizeof("p2d_current_t", sizeof(p2d_current_t));
-    print_sizeof("p2d_current_coef_t", sizeof(p2d_current_coef_t));
-    print_sizeof("p2d_current_config_t", sizeof(p2d_current_config_t));
-    print_sizeof("p2d_current_output_t", sizeof(p2d_current_output_t));
-    print_sizeof("p2d_encoder_t", sizeof(p2d_encoder_t));
-    print_sizeof("p2d_encoder_coef_t", sizeof(p2d_encoder_coef_t));
-    print_sizeof("p2d_encoder_config_t", sizeof(p2d_encoder_config_t));
-    print_sizeof("p2d_encoder_output_t", sizeof(p2d_encoder_output_t));
-    print_sizeof("p2d_field_weakening_t", sizeof(p2d_field_weakening_t));
-    print_sizeof("p2d_field_weakening_coef_t", sizeof(p2d_field_weakening_coef_t));
-    print_sizeof("p2d_field_weakening_config_t", sizeof(p2d_field_weakening_config_t));
-    print_sizeof("p2d_field_weakening_output_t", sizeof(p2d_field_weakening_output_t));
-    print_sizeof("p2d_inertia_t", sizeof(p2d_inertia_t));
-    print_sizeof("p2d_inertia_coef_t", sizeof(p2d_inertia_coef_t));
-    print_sizeof("p2d_inertia_config_t", sizeof(p2d_inertia_config_t));
-    print_sizeof("p2d_inertia_output_t", sizeof(p2d_inertia_output_t));
-    print_sizeof("p2d_filter_t", sizeof(p2d_filter_t));
-    print_sizeof("p2d_filter_coef_t", sizeof(p2d_filter_coef_t));
-    print_sizeof("p2d_filter_config_t", sizeof(p2d_filter_config_t));
-    print_sizeof("p2d_filter_state_t", sizeof(p2d_filter_state_t));
+    p2d_cost_sizeof(&line, "p2d_speed_t", sizeof(p2d_speed_t));
+    p2d_cost_sizeof(&line, "p2d_speed_coef_t", sizeof(p2d_speed_coef_t));
+    p2d_cost_sizeof(&line, "p2d_speed_config_t", sizeof(p2d_speed_config_t));
+    p2d_cost_sizeof(&line, "p2d_speed_output_t", sizeof(p2d_speed_output_t));
+    p2d_cost_sizeof(&line, "p2d_current_t", sizeof(p2d_current_t));
+    p2d_cost_sizeof(&line, "p2d_current_coef_t", sizeof(p2d_current_coef_t));
+    p2d_cost_sizeof(&line, "p2d_current_config_t", sizeof(p2d_current_config_t));
+    p2d_cost_sizeof(&line, "p2d_current_output_t", sizeof(p2d_current_output_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_t", sizeof(p2d_encoder_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_coef_t", sizeof(p2d_encoder_coef_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_config_t", sizeof(p2d_encoder_config_t));
+    p2d_cost_sizeof(&line, "p2d_encoder_output_t", sizeof(p2d_encoder_output_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_t", sizeof(p2d_field_weakening_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_coef_t", sizeof(p2d_field_weakening_coef_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_config_t", sizeof(p2d_field_weakening_config_t));
+    p2d_cost_sizeof(&line, "p2d_field_weakening_output_t", sizeof(p2d_field_weakening_output_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_t", sizeof(p2d_inertia_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_coef_t", sizeof(p2d_inertia_coef_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_config_t", sizeof(p2d_inertia_config_t));
+    p2d_cost_sizeof(&line, "p2d_inertia_output_t", sizeof(p2d_inertia_output_t));
+    p2d_cost_sizeof(&line, "p2d_filter_t", sizeof(p2d_filter_t));
+    p2d_cost_sizeof(&line, "p2d_filter_coef_t", sizeof(p2d_filter_coef_t));
+    p2d_cost_sizeof(&line, "p2d_filter_config_t", sizeof(p2d_filter_config_t));
+    p2d_cost_sizeof(&line, "p2d_filter_state_t", sizeof(p2d_filter_state_t));
 
     for (int aw = P2D_AW_NONE; aw <= P2D_AW_CLAMPING; ++aw) {
         for (int ff = P2D_FF_NONE; ff <= P2D_FF_FULL; ++ff) {

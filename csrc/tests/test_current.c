@@ -109,7 +109,7 @@ static void test_decoupling(void)
     CHECK(out.ud_ref_V == 0.0f && out.uq_ref_V == 0.0f);
 }
 
-/* ||u_dq|| <= u_dc / sqrt(3), direction kept; integrators bounded with back calculation */
+/* The limit with d-axis priority: ud to [-u_max, u_max], uq to what is left; integrators bounded with back calculation */
 static void test_voltage_limit(void)
 {
     p2d_current_config_t cfg = base_config();
@@ -119,11 +119,13 @@ static void test_voltage_limit(void)
     CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
     for (int k = 0; k < 100000; ++k) p2d_current_step(&ctl, 30.0f, 40.0f, 0.0f, 0.0f, 0.0f, 48.0f, &out);
     CHECK(out.saturated);
-    CHECK_CLOSE(sqrt((double)out.ud_ref_V * out.ud_ref_V + (double)out.uq_ref_V * out.uq_ref_V), u_max, 1e-4);
-    CHECK_CLOSE(out.ud_ref_V * out.uq_unsat_V, out.uq_ref_V * out.ud_unsat_V, 1e-3 * fabs(out.ud_unsat_V));
+    /* ud_unsat > u_max: the whole circle goes to the d axis, none is left for q */
+    CHECK(out.ud_unsat_V > u_max && out.uq_unsat_V > 0.0f);
+    CHECK_CLOSE(out.ud_ref_V, u_max, 1e-5);
+    CHECK(out.uq_ref_V == 0.0f);
     /* per-axis fixed point x* = u_sat - b_e0 e + e / Ka with Ka = 1/Kp: x* = u_sat - (b_e0 - Kp) e */
     CHECK_CLOSE(ctl.x_d_V, out.ud_ref_V - 0.5 * 500.0 * 1e-5 * 30.0, 1e-3);
-    CHECK_CLOSE(ctl.x_q_V, out.uq_ref_V - 0.5 * 500.0 * 1e-5 * 40.0, 1e-3);
+    CHECK_CLOSE(ctl.x_q_V, 0.0 - 0.5 * 500.0 * 1e-5 * 40.0, 1e-3);
 
     cfg.anti_windup = P2D_AW_CLAMPING;
     CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
@@ -143,12 +145,56 @@ static void test_voltage_limit(void)
     p2d_current_compute(&ctl, 0.0f, 0.0f, 0.0f, 0.0f, 4e-24f, 0.0f, &out);
     CHECK(out.uq_unsat_V > 0.0f && out.uq_ref_V == 0.0f && out.saturated);
     p2d_current_compute(&ctl, 3e19f, 4e19f, 0.0f, 0.0f, 0.0f, 48.0f, &out);
+    CHECK(out.saturated && out.ud_ref_V == (float)(48.0 / sqrt(3.0)) && out.uq_ref_V == 0.0f);
+    /* near the float32 range: u_max^2 would overflow, u_max + |ud| too (1.7e38 + 1.7e38) */
+    p2d_current_compute(&ctl, -1e38f, -1e38f, 0.0f, 0.0f, 0.0f, 3e38f, &out);
+    CHECK(!out.fault && out.saturated && out.uq_ref_V == 0.0f);
+    CHECK_CLOSE(out.ud_ref_V, -3e38 / sqrt(3.0), 1e-6 * 3e38 / sqrt(3.0));
+    /* ud inside, uq beyond: uq takes sqrt(u_max^2 - ud^2) with its own sign */
+    p2d_current_compute(&ctl, 5.0f, -40.0f, 0.0f, 0.0f, 0.0f, 48.0f, &out);
     {
-        /* Tustin b_e0 = Kp + Ki Ts / 2 per axis */
-        double ud = (2.0 + 0.5 * 500.0 * 1e-5) * 3e19, uq = (3.0 + 0.5 * 500.0 * 1e-5) * 4e19;
-        CHECK_CLOSE(out.ud_ref_V, u_max * ud / sqrt(ud * ud + uq * uq), 1e-4);
-        CHECK_CLOSE(out.uq_ref_V, u_max * uq / sqrt(ud * ud + uq * uq), 1e-4);
+        double ud = (2.0 + 0.5 * 500.0 * 1e-5) * 5.0;
+        CHECK(out.saturated && out.ud_ref_V == out.ud_unsat_V);
+        CHECK_CLOSE(out.ud_ref_V, ud, 1e-5);
+        CHECK_CLOSE(out.uq_ref_V, -sqrt(u_max * u_max - ud * ud), 1e-5);
     }
+}
+
+/*
+ * d-axis priority in closed loop: the dq model of eq 1 at a constant electrical speed
+ * w_e = 500 rad/s, 48 V DC link (u_max = 27.7 V), id_ref = 0 and iq_ref = 40 A, which needs
+ * uq = Rs iq + w_e psi_f = 45 V. In steady state the d axis, not limited, holds id = 0, so
+ * ud = -w_e Lq iq and uq = Rs iq + w_e psi_f lie on the circle:
+ *   (w_e^2 Lq^2 + Rs^2) iq^2 + 2 Rs w_e psi_f iq + (w_e psi_f)^2 - u_max^2 = 0,
+ *   iq = (-25 + sqrt(25^2 + 4 * 2.5 * 143)) / 5 = 4.066 A with the base configuration.
+ * The plant: forward Euler in double, 100 steps per Ts, the voltage held over the period
+ * (its fixed point is the steady state of eq 1 exactly).
+ */
+static void test_d_axis_priority_holds_id_at_the_voltage_limit(void)
+{
+    p2d_current_config_t cfg = base_config();
+    p2d_current_t ctl;
+    p2d_current_output_t out;
+    const double Rs = 0.5, Ld = 2e-3, Lq = 3e-3, psi = 0.05, w_e = 500.0, u_max = 48.0 / sqrt(3.0);
+    const double a = w_e * w_e * Lq * Lq + Rs * Rs, b = 2.0 * Rs * w_e * psi, c = w_e * w_e * psi * psi - u_max * u_max;
+    const double iq_ss = (-b + sqrt(b * b - 4.0 * a * c)) / (2.0 * a);
+    const double h = 1e-5 / 100.0;
+    double id = 0.0, iq = 0.0;
+    CHECK(p2d_current_init(&ctl, &cfg) == P2D_OK);
+    for (int k = 0; k < 40000; ++k) {
+        p2d_current_step(&ctl, 0.0f, 40.0f, (float)id, (float)iq, (float)w_e, 48.0f, &out);
+        for (int j = 0; j < 100; ++j) {
+            /* eq 1: L di/dt = u - Rs i -+ w_e (cross-coupling, back-EMF) */
+            double did = (out.ud_ref_V - Rs * id + w_e * Lq * iq) / Ld;
+            double diq = (out.uq_ref_V - Rs * iq - w_e * (Ld * id + psi)) / Lq;
+            id += h * did;
+            iq += h * diq;
+        }
+    }
+    CHECK(out.saturated && out.ud_ref_V == out.ud_unsat_V);
+    CHECK(fabs(id) < 1e-4);
+    CHECK_CLOSE(iq, iq_ss, 1e-3 * iq_ss);
+    CHECK_CLOSE(sqrt((double)out.ud_ref_V * out.ud_ref_V + (double)out.uq_ref_V * out.uq_ref_V), u_max, 1e-5);
 }
 
 static void test_non_finite_policy(void)
@@ -225,6 +271,7 @@ int main(void)
     test_gains();
     test_decoupling();
     test_voltage_limit();
+    test_d_axis_priority_holds_id_at_the_voltage_limit();
     test_non_finite_policy();
     test_first_order_loop();
     test_set_config();

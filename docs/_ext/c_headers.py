@@ -1,7 +1,7 @@
 """Sphinx extension: the C API page, made from the public headers' own comments.
 
 The directive ``.. c-headers::`` documents every header of ``csrc/include/pmsm2dof`` (a new header
-appears by itself) with Sphinx's C domain: the header's opening comment, then each enum, struct and
+appears by itself) with Sphinx's C domain: the header's opening comment, then each enum, struct, callback type and
 function in the order of the header, each with the comment the header gives it. The declarations
 are read by pycparser (the parser cffi uses for the same headers), the comments by their line: a
 block comment on the lines just above a declaration documents it, a comment that starts on the line
@@ -29,7 +29,10 @@ from sphinx.util.nodes import nested_parse_with_titles
 ROOT = Path(__file__).resolve().parents[2]
 HEADERS = ROOT / "csrc" / "include" / "pmsm2dof"
 # The types the headers take from <stdint.h> and <stdbool.h>, for pycparser (which reads no system header)
-PRELUDE = "typedef int bool; typedef unsigned int uint32_t; typedef int int32_t; typedef unsigned char uint8_t;\n"
+PRELUDE = (
+    "typedef int bool; typedef unsigned int uint32_t; typedef int int32_t; typedef unsigned char uint8_t;\n"
+    "typedef short int16_t; typedef unsigned short uint16_t; typedef long long int64_t;\n"
+)
 COMMENT = re.compile(r"/\*.*?\*/", re.S)
 CPLUSPLUS = re.compile(r"#ifdef __cplusplus.*?#endif", re.S)
 # a unit in brackets, "[Nm]", "[-]": not an index such as x[k-1], whose bracket follows a name
@@ -150,6 +153,12 @@ class Header:
                     logger.warning(f"field {node.name}.{decl.name}: no [unit] in its comment", location=self._at(decl))
                 members.append((text, comment))
             return Item("struct", node.name, node.name, self._above(node.coord.line), members)
+        if isinstance(node, c_ast.Typedef) and isinstance(getattr(node.type, "type", None), c_ast.FuncDecl):
+            # a callback type: its name, then its comment and, as a formula line, its declaration
+            comment = self._above(node.coord.line)
+            if not comment:
+                logger.warning(f"type {node.name} has no comment above it", location=self._at(node))
+            return Item("type", node.name, node.name, f"{comment}\n  {generate.visit(node)}")
         if isinstance(node, c_ast.Decl) and isinstance(node.type, c_ast.FuncDecl):
             comment = self._above(node.coord.line)
             if not comment:
@@ -201,7 +210,7 @@ def rst_of(header):
     """The reStructuredText of one header's section."""
     lines = [f"``{header.name}``", "-" * (len(header.name) + 4), "", ".. code-block:: text", ""]
     lines += indent(header.intro, 3) + [""]
-    directive = {"enum": "c:enum", "struct": "c:struct", "function": "c:function"}
+    directive = {"enum": "c:enum", "struct": "c:struct", "function": "c:function", "type": "c:type"}
     member = {"enum": "c:enumerator", "struct": "c:member"}
     for item in header.items:
         lines += [f".. {directive[item.kind]}:: {item.declaration}", ""]

@@ -37,6 +37,7 @@ _EXPORTS = {
     "compute_metrics": "pmsm2dof.sim.metrics",
     "Result": "pmsm2dof.sim.simulate",
     "simulate": "pmsm2dof.sim.simulate",
+    "simulate_many": "pmsm2dof.sim.simulate",
     "AutotuneResult": "pmsm2dof.studies.autotune",
     "Spec": "pmsm2dof.studies.autotune",
     "autotune": "pmsm2dof.studies.autotune",
@@ -67,6 +68,7 @@ __all__ = [
     "list_presets",
     "load_scenario",
     "simulate",
+    "simulate_many",
 ]
 
 if TYPE_CHECKING:
@@ -77,7 +79,7 @@ if TYPE_CHECKING:
     from .errors import ConfigError, Pmsm2dofError, SimulationError
     from .sim.metrics import compute_metrics
     from .sim.scenario import Scenario, list_presets, load_scenario
-    from .sim.simulate import Result, simulate
+    from .sim.simulate import Result, simulate, simulate_many
     from .studies.autotune import AutotuneResult, Spec, autotune
 
 

@@ -1,9 +1,11 @@
 """Exceptions of pmsm2dof.
 
 Every public entry point raises :class:`ConfigError` (a ``ValueError``) for bad input,
-with a message that names the parameter, its value and the valid range, and
-:class:`SimulationError` when the numbers go wrong (non-finite or physically absurd state).
-The CLI turns both into one line on stderr and exit status 2.
+with a message that names the parameter, its value and the valid range,
+:class:`SimulationError` when the numbers go wrong (non-finite or physically absurd state), and
+:class:`ToolError` when an external program is missing or fails.
+The CLI turns each into one line on stderr and exit status 2. Valid but doubtful input gives a
+:class:`Pmsm2dofWarning`.
 
 A message stays short whatever the input: a long value (a 5 MB string, a 5000-digit integer)
 is shown by its beginning and its length (:func:`shorten`).
@@ -49,6 +51,17 @@ class ConfigError(Pmsm2dofError, ValueError):
 
 class SimulationError(Pmsm2dofError, RuntimeError):
     """The simulation or a numerical computation produced non-finite or absurd values."""
+
+
+class Pmsm2dofWarning(UserWarning):
+    """Base class of the warnings pmsm2dof gives: a valid input whose result deserves a second look.
+
+    The command line shows each one once per command, as one line on stderr.
+    """
+
+
+class ToolError(Pmsm2dofError, RuntimeError):
+    """An external program (cross compiler, CMake, emulator) is missing or failed; the message says what to do."""
 
 
 def shorten(value: object, limit: int = VALUE_CHARS_MAX) -> str:

@@ -6,9 +6,18 @@
  *   ud = PI_d(id_ref - id) - w_e Lq iq
  *   uq = PI_q(iq_ref - iq) + w_e (Ld id + psi_f)
  * and the voltage vector limited to the inverter's linear range
- * ||u_dq|| <= u_dc / sqrt(3) (amplitude-invariant dq, space-vector modulation),
- * by scaling the vector. Anti-windup per axis: dx/dt = Ki (e + Ka u*),
- * u* = u_sat - u [V], Ka = 1/Kp.
+ * ||u_dq|| <= u_max = u_dc / sqrt(3) (amplitude-invariant dq, space-vector
+ * modulation) with d-axis priority:
+ *   ud_sat = Sat(ud) within [-u_max, u_max]
+ *   uq_sat = Sat(uq) within [-uq_max, uq_max], uq_max = sqrt(u_max^2 - ud_sat^2)
+ * The d axis keeps the voltage it needs (the cross-coupling -w_e Lq iq and the
+ * regulation of id, the flux) and the q axis, the torque, takes what is left:
+ * at the voltage limit id stays at its reference while iq falls short of its
+ * own. Scaling the whole vector instead cuts ud in the ratio of the q-axis
+ * excess, and id drifts positive at high speed, strengthening the flux that
+ * already exhausts the voltage. Anti-windup per axis: dx/dt = Ki (e + Ka u*),
+ * u* = u_sat - u [V] of that axis, Ka = 1/Kp: each integrator sees the
+ * voltage its axis actually got.
  *
  * Gains from the desired loop time constant tau_i (eq 3):
  *   Kp = L / tau_i, Ki = Rs / tau_i
@@ -72,9 +81,9 @@ typedef struct {
     float eq_A;       /* q-axis current error [A] */
     float ud_unsat_V; /* d-axis voltage before the limit [V] */
     float uq_unsat_V; /* q-axis voltage before the limit [V] */
-    float ud_ref_V;   /* d-axis voltage command, limited [V] */
-    float uq_ref_V;   /* q-axis voltage command, limited [V] */
-    bool saturated;   /* the voltage-vector limit is active */
+    float ud_ref_V;   /* d-axis voltage command, limited first, to [-u_max, u_max] [V] */
+    float uq_ref_V;   /* q-axis voltage command, limited to what ud_ref_V leaves of the circle [V] */
+    bool saturated;   /* the voltage-vector limit is active (either axis cut) */
     bool fault;       /* non-finite policy engaged: outputs are zero */
 } p2d_current_output_t;
 

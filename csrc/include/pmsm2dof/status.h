@@ -75,7 +75,12 @@ typedef enum {
     P2D_ERR_NOTCH_DEPTH,  /* notch_depth */
     P2D_ERR_LOWPASS_FREQ, /* lowpass_freq_Hz */
     P2D_ERR_LOWPASS_ZETA, /* lowpass_zeta */
-    P2D_STATUS_COUNT      /* number of codes, not a code */
+    /* fixed-point speed controllers (speed_fixed.h) */
+    P2D_ERR_SPEED_FULL_SCALE,   /* speed_full_scale_radps */
+    P2D_ERR_TORQUE_FULL_SCALE,  /* torque_full_scale_Nm */
+    P2D_ERR_CURRENT_FULL_SCALE, /* current_full_scale_A */
+    P2D_ERR_SALIENT,            /* Lq_H: equal to Ld_H (surface PMSM) */
+    P2D_STATUS_COUNT            /* number of codes, not a code */
 } p2d_status_t;
 
 /* Name of the configuration field that a status code rejects ("" for P2D_OK). */

@@ -1,15 +1,8 @@
 """The dq current loop designed from an identified motor, and the speed loop's sensitivity to it.
 
-A motor file (written by ``pmsm2dof commission --out``, or by hand) holds the machine per phase
-in the amplitude-invariant dq frame of eq 1::
-
-    [motor]
-    pole_pairs = 4
-    Rs_ohm = 0.8
-    Ld_H = 0.004
-    Lq_H = 0.008
-    psi_f_Wb = 0.05
-    Rs_ohm_ci = [0.78, 0.82]     # optional: 95 % interval of an estimate
+A :class:`MotorEstimate` is the machine per phase in the amplitude-invariant dq frame of eq 1,
+with the 95 % intervals of the estimates where known (a motor file of ``pmsm2dof commission
+--out`` or ``identify --electrical --out``, read by :func:`pmsm2dof.sim.datasheet.load_motor`).
 
 :func:`design_current_loop` places the closed current loop of each axis at the bandwidth
 ``alpha_c``: the PI ``Kp = L alpha_c``, ``Ki = Rs alpha_c`` cancels the pole ``-Rs/L`` of the
@@ -25,21 +18,16 @@ Rs')`` (primes: estimates) no longer reduces to eq 3, and a wrong psi_f scales t
 """
 
 import itertools
-import math
 import warnings
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import control
 
-from ..errors import ConfigError, require_positive
-from ..inputs import read_toml
+from ..errors import require_positive
+from .discretize import SamplingWarning
 from .margins import Margins, loop_margins
 
-__all__ = ["CurrentLoopDesign", "MotorEstimate", "design_current_loop", "load_motor", "speed_margin_sensitivity"]
-
-#: The electrical parameters of a motor file, in the order of eq 1.
-PARAMETERS = ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb")
+__all__ = ["CurrentLoopDesign", "MotorEstimate", "design_current_loop", "speed_margin_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -52,47 +40,6 @@ class MotorEstimate:
     Lq_H: float
     psi_f_Wb: float
     intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
-
-
-def load_motor(path: str | Path) -> MotorEstimate:
-    """Read a motor file (see the module docstring).
-
-    Raises
-    ------
-    ConfigError
-        The file cannot be read or parsed, or a value is missing or out of range (named as
-        ``motor.<key>``).
-    """
-    path = Path(path)
-    tree = read_toml(path, "motor_file")
-    motor = tree.get("motor")
-    if not isinstance(motor, dict):
-        raise ConfigError("motor", motor, f"a [motor] table in {path}")
-    known = {"pole_pairs", *PARAMETERS, *(f"{k}_ci" for k in PARAMETERS)}
-    for key in motor:
-        if key not in known:
-            raise ConfigError(f"motor.{key}", motor[key], "one of " + ", ".join(sorted(known)))
-    p = motor.get("pole_pairs")
-    if isinstance(p, bool) or not isinstance(p, int) or p < 1:
-        raise ConfigError("motor.pole_pairs", p, "an integer >= 1")
-    values = {}
-    intervals = {}
-    for key in PARAMETERS:
-        value = motor.get(key)
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"motor.{key}", value, "a finite number > 0")
-        values[key] = require_positive(f"motor.{key}", value)
-        ci = motor.get(f"{key}_ci")
-        if ci is None:
-            continue
-        valid = f"[low, high] with 0 < low <= motor.{key} <= high, finite"
-        if not isinstance(ci, list) or len(ci) != 2 or not all(isinstance(v, (int, float)) for v in ci):
-            raise ConfigError(f"motor.{key}_ci", ci, valid)
-        low, high = float(ci[0]), float(ci[1])
-        if not (math.isfinite(low) and math.isfinite(high) and 0.0 < low <= values[key] <= high):
-            raise ConfigError(f"motor.{key}_ci", ci, valid)
-        intervals[key] = (low, high)
-    return MotorEstimate(pole_pairs=p, intervals=intervals, **values)
 
 
 @dataclass(frozen=True)
@@ -154,6 +101,7 @@ def design_current_loop(motor: MotorEstimate, alpha_c_radps: float, Ts_s: float 
             warnings.warn(
                 f"current bandwidth {alpha_c:g} rad/s is above 0.2 / Ts_current = {0.2 / Ts_s:g} rad/s: "
                 "the sampled current loop is slower and less damped than eq 3 assumes",
+                SamplingWarning,
                 stacklevel=2,
             )
     return CurrentLoopDesign(

@@ -25,13 +25,13 @@ Permanent-Magnet Synchronous Motor Speed Controller"; eq (9) follows the
 analytical PI design of its reference [4].
 """
 
+from __future__ import annotations
+
 import functools
 import math
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 import numpy.typing as npt
 
@@ -46,11 +46,16 @@ from ..errors import (
     require_nonnegative,
     require_positive,
 )
-from .codegen import write_c_header
+from ..lazy import lazy_module
 from .discretize import DiscreteDesign, discretize
 from .margins import Margins, frequency_margins, loop_margins
 from .sensor import DELAY_MODELS, DelayModel, SensorChain
 from .stepresponse import StepResponse
+
+if TYPE_CHECKING:
+    import control
+else:
+    control = lazy_module("control")  # python-control loads on first use (pmsm2dof.lazy)
 
 #: The -3 dB (half-power) gain drop that defines the bandwidth [dB].
 HALF_POWER_DB = 20.0 * math.log10(1.0 / math.sqrt(2.0))
@@ -77,7 +82,7 @@ def tracking_tf(
 
 
 @functools.lru_cache(maxsize=64)
-def _overshoot(design: "Design") -> tuple[float, str]:
+def _overshoot(design: Design) -> tuple[float, str]:
     return design.tracking_step().overshoot_pct()
 
 
@@ -113,6 +118,8 @@ class Design:
         Integral gain ``J (alpha / (2 zeta))^2`` [Nm/rad] (eq 9).
     sensor : SensorChain
         The speed measurement in the loop (ideal by default).
+    Ka_default : bool
+        ``Ka`` is the default ``1 / Kp`` (not given): an error it causes names the input it came from.
     """
 
     J_kgm2: float
@@ -126,6 +133,7 @@ class Design:
     Kp: float
     Ki: float
     sensor: SensorChain = SensorChain()
+    Ka_default: bool = False
 
     @property
     def F(self) -> control.TransferFunction:
@@ -409,13 +417,6 @@ class Design:
         """
         return discretize(self, Ts_s, method)
 
-    def to_c_header(self, path: Path | str, Ts_s: float, method: Method, **motor: Any) -> Path | str:
-        """Write a C header configuring the speed controller with this design.
-
-        See :func:`pmsm2dof.analysis.codegen.write_c_header` for the motor and limit keywords.
-        """
-        return write_c_header(path, self.discretize(Ts_s, method), **motor)
-
 
 #: Shortest sensor delay, relative to the loop's shortest time constant: below about 1e-15
 #: the Pade approximant's coefficients overflow when multiplied with the loop's.
@@ -504,6 +505,7 @@ def design(
     _require_float32_gain(
         "Ki = J (alpha / (2 zeta))^2", Ki, {"J_kgm2": J_kgm2, "alpha_radps": alpha_radps, "zeta": zeta}
     )
+    Ka_default = Ka is None
     Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
     if sensor is None:
         sensor = SensorChain()
@@ -518,4 +520,4 @@ def design(
             "constant 1/max(alpha, alpha/(2 zeta), m alpha) (a shorter delay changes nothing in this loop, and its "
             "Pade approximant's coefficients overflow)",
         )
-    return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki, sensor)
+    return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki, sensor, Ka_default)

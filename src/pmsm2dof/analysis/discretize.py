@@ -50,22 +50,30 @@ practical drives; the w-plane forms above, which keep a loop with ``alpha Ts`` o
 serve the ideal sensor.
 """
 
+from __future__ import annotations
+
 import math
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
-import control
 import numpy as np
 import numpy.typing as npt
 
 from ..core import METHODS, SpeedController
 from ..core.bindings import AntiWindup, Feedforward, Method
-from ..errors import ConfigError, require_choice, require_positive
-from .margins import Margins, frequency_margins, pick_margins
+from ..core.gains import default_Ka_error
+from ..errors import ConfigError, Pmsm2dofWarning, require_choice, require_positive
+from ..lazy import lazy_module
+from .margins import Margins, frequency_margins, pick_margins, polynomial_crossings
 from .sensor import delay_periods, sampled_plant_blocks
 from .stepresponse import StepResponse
+
+if TYPE_CHECKING:
+    import control
+else:
+    control = lazy_module("control")  # python-control loads on first use (pmsm2dof.lazy)
 
 if TYPE_CHECKING:
     from .design import Design
@@ -83,7 +91,7 @@ _Vector = npt.NDArray[np.float64]
 _Poly = npt.NDArray[np.floating[Any]]
 
 
-class SamplingWarning(UserWarning):
+class SamplingWarning(Pmsm2dofWarning):
     """The sampling period is long for the designed bandwidth: expect discretization effects."""
 
 
@@ -132,7 +140,7 @@ class DiscreteDesign:
         integral, feedforward ``y[k-1]`` and ``r[k-1]``).
     """
 
-    design: "Design"
+    design: Design
     Ts_s: float
     method: Method
     b_e0: float
@@ -220,7 +228,7 @@ def _sample(tf_s: control.TransferFunction, Ts_s: float, method: str) -> control
 
 
 def c_coefficients(
-    design: "Design",
+    design: Design,
     Ts_s: float,
     method: Method,
     feedforward: Feedforward | None = None,
@@ -238,19 +246,26 @@ def c_coefficients(
         :attr:`pmsm2dof.core.SpeedController.coefficients` (float32 values).
     """
     d = design
-    ctl = SpeedController(
-        J_kgm2=d.J_kgm2,
-        alpha_radps=d.alpha_radps,
-        zeta=d.zeta,
-        m=d.m,
-        tau_i_s=d.tau_i_s,
-        Ka=d.Ka,
-        Ts_s=Ts_s,
-        method=method,
-        feedforward=feedforward or d.feedforward,
-        anti_windup=anti_windup or d.anti_windup,
-        **NEUTRAL_MOTOR,
-    )
+    try:
+        ctl = SpeedController(
+            J_kgm2=d.J_kgm2,
+            alpha_radps=d.alpha_radps,
+            zeta=d.zeta,
+            m=d.m,
+            tau_i_s=d.tau_i_s,
+            Ka=d.Ka,
+            Ts_s=Ts_s,
+            method=method,
+            feedforward=feedforward or d.feedforward,
+            anti_windup=anti_windup or d.anti_windup,
+            **NEUTRAL_MOTOR,
+        )
+    except ConfigError as exc:
+        if exc.param == "Ka" and d.Ka_default and d.alpha_radps * Ts_s / (4.0 * d.zeta**2) >= 2.0 * (1.0 - 1e-6):
+            # the default 1/Kp made Ki Ka Ts >= 2: name what the caller set
+            names = {name: name for name in ("alpha_radps", "zeta", "Ts_s", "Ka")}
+            raise default_Ka_error(d.J_kgm2, d.alpha_radps, d.zeta, Ts_s, names) from None
+        raise
     return ctl.coefficients
 
 
@@ -293,14 +308,16 @@ def plant_w(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vector, _Vecto
     return np.polymul(hold, [kappa, 1.0]), J_kgm2 * np.array([rho, 1.0, 0.0])
 
 
-def _loop_w(design: "Design", Ts_s: float, b_e0: float, Ki_Ts: float) -> tuple[_Poly, _Poly]:
+def _loop_w(design: Design, Ts_s: float, b_e0: float, Ki_Ts: float) -> tuple[_Poly, _Poly]:
     """Numerator and denominator of the loop gain ``L(w) = F(w) G(w)``.
 
     The realized PI is exactly ``F(w) = Kp' + Ki / w``, ``Kp' = b_e0 - Ki Ts / 2``:
-    ``Ki Ts / (z - 1) = Ki Ts (1 - w Ts/2) / (w Ts) = Ki / w - Ki Ts / 2``.
+    ``Ki Ts / (z - 1) = Ki Ts (1 - w Ts/2) / (w Ts) = Ki / w - Ki Ts / 2``. (Products by
+    convolution: every factor's leading coefficient is nonzero, so that numpy.polymul would
+    trim nothing.)
     """
     G_num, G_den = plant_w(design.J_kgm2, design.tau_i_s, Ts_s)
-    return np.polymul([b_e0 - 0.5 * Ki_Ts, Ki_Ts / Ts_s], G_num), np.polymul([1.0, 0.0], G_den)
+    return np.convolve([b_e0 - 0.5 * Ki_Ts, Ki_Ts / Ts_s], G_num), np.convolve([1.0, 0.0], G_den)
 
 
 def _hurwitz(char: _Poly) -> bool:
@@ -310,14 +327,14 @@ def _hurwitz(char: _Poly) -> bool:
     return len(char) == 3 or bool(char[1] * char[2] > char[0] * char[3])
 
 
-def _stable(design: "Design", Ts_s: float, method: Method) -> bool:
+def _stable(design: Design, Ts_s: float, method: Method) -> bool:
     """Whether the discrete feedback loop is stable at ``Ts_s`` (Routh-Hurwitz in the w plane)."""
     pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
     L_num, L_den = _loop_w(design, Ts_s, pi["b_e0"], pi["Ki_Ts"])
     return _hurwitz(np.polyadd(L_den, L_num))
 
 
-def _unstable_loop_error(design: "Design", Ts_s: float, method: Method, z_max: float) -> ConfigError:
+def _unstable_loop_error(design: Design, Ts_s: float, method: Method, z_max: float) -> ConfigError:
     """The ConfigError of a discrete loop that is unstable at ``Ts_s``, naming the range that is stable."""
     d = design
     if not d.Kp > d.tau_i_s * d.Ki:
@@ -352,26 +369,33 @@ def _unstable_loop_error(design: "Design", Ts_s: float, method: Method, z_max: f
     )
 
 
-def _margins(design: "Design", Ts_s: float, b_e0: float, Ki_Ts: float) -> Margins:
-    """Margins of ``F(z) G(z)``, found by python-control on ``L(w)`` (same gain and phase).
+def _margins(design: Design, Ts_s: float, b_e0: float, Ki_Ts: float) -> Margins:
+    """Margins of ``F(z) G(z)``, found on ``L(w)`` as for a continuous loop (same gain and phase) by the
+    polynomial method of python-control (:func:`~pmsm2dof.analysis.margins.polynomial_crossings`).
 
     A frequency ``w_w`` of the w plane is ``w_z = (2/Ts) atan(w_w Ts / 2)``; the Nyquist
     frequency ``pi/Ts``, ``z = -1``, is ``w = infinity``, where ``L`` is the ratio of the
     leading coefficients (numerator and denominator have the same degree).
     """
-    num, den = _loop_w(design, Ts_s, b_e0, Ki_Ts)
-    gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(control.tf(num, den), returnall=True)
+    return _loop_margins(*_loop_w(design, Ts_s, b_e0, Ki_Ts), Ts_s)[0]
+
+
+def _loop_margins(num: _Poly, den: _Poly, Ts_s: float, scales: Sequence[float] = (1.0,)) -> list[Margins]:
+    """:func:`_margins` of the loop gains ``L(w) = num(w) / (c den(w))`` (:func:`_loop_w`), one per scale ``c``."""
 
     def to_z(w: npt.ArrayLike) -> _Vector:
         return 2.0 / Ts_s * np.arctan(0.5 * Ts_s * np.asarray(w, dtype=float))
 
-    L_nyquist = num[0] / den[0]
-    extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []
-    return pick_margins(gms, pms, to_z(w_pcs), to_z(w_gcs), extra)
+    out = []
+    for c, (gms, pms, w_pcs, w_gcs) in zip(scales, polynomial_crossings(num, den, scales)):
+        L_nyquist = num[0] / (c * den[0])
+        extra = [(1.0 / abs(L_nyquist), math.pi / Ts_s)] if L_nyquist < 0.0 else []
+        out.append(pick_margins(gms, pms, to_z(w_pcs), to_z(w_gcs), extra))
+    return out
 
 
 def margins_on_plant(
-    design: "Design", Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
+    design: Design, Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
 ) -> Margins | None:
     """Margins of the C controller of ``design`` on a plant it was not designed for; None if unstable there.
 
@@ -396,12 +420,56 @@ def margins_on_plant(
         The margins of ``F(z) G(z)``; None when the discrete feedback loop is unstable
         (Routh-Hurwitz in the w plane), where margins have no meaning.
     """
+    return margins_on_plants(design, Ts_s, method, [J_plant_kgm2], tau_i_plant_s)[0]
+
+
+def margins_on_plants(
+    design: Design, Ts_s: float, method: Method, J_plants_kgm2: Sequence[float], tau_i_plant_s: float
+) -> list[Margins | None]:
+    """:func:`margins_on_plant` at each inertia of ``J_plants_kgm2``, computed together.
+
+    The loop gain is inversely proportional to the plant's inertia: its -180 deg crossings are
+    found once (:func:`~pmsm2dof.analysis.margins.polynomial_crossings`), and only the unit-gain
+    crossings once per inertia.
+    """
+    pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
+    unit = replace(design, J_kgm2=1.0, tau_i_s=float(tau_i_plant_s))
+    L_num, L_den = _loop_w(unit, Ts_s, pi["b_e0"], pi["Ki_Ts"])
+    J = [float(J_plant) for J_plant in J_plants_kgm2]
+    stable = [_hurwitz(np.polyadd(J_plant * L_den, L_num)) for J_plant in J]
+    margins = _loop_margins(L_num, L_den, Ts_s, [J_plant for J_plant, ok in zip(J, stable) if ok])
+    return [margins.pop(0) if ok else None for ok in stable]
+
+
+def sampled_loop_poles(
+    design: Design, Ts_s: float, method: Method, J_plant_kgm2: float, tau_i_plant_s: float
+) -> tuple[tuple[complex, ...], bool]:
+    """Poles of the sampled feedback loop of the C controller of ``design`` on a plant, and whether it is stable.
+
+    The check :func:`discretize` makes before it accepts a design (the controller realized at
+    ``Ts_s`` with ``method``, :func:`c_coefficients`; the ZOH plant of eq 2, 3,
+    ``1 / (J_plant s (tau_i_plant s + 1))``; the design's sensor chain), here on any plant and
+    without refusing: the plant of the design itself, or the scenario's true one. Stable is
+    decided as :func:`discretize` decides it (Routh-Hurwitz in the w plane, exact near ``z = 1``;
+    with a sensor chain, the eigenvalues of the closed loop inside the unit circle).
+
+    Returns
+    -------
+    (tuple of complex, bool)
+        The closed-loop poles in z, and whether every one lies inside the unit circle.
+    """
     pi = c_coefficients(design, Ts_s, method, feedforward="none", anti_windup="none")
     plant = replace(design, J_kgm2=float(J_plant_kgm2), tau_i_s=float(tau_i_plant_s))
-    L_num, L_den = _loop_w(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
-    if not _hurwitz(np.polyadd(L_den, L_num)):
-        return None
-    return _margins(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
+    if design.sensor.is_ideal:
+        L_num, L_den = _loop_w(plant, Ts_s, pi["b_e0"], pi["Ki_Ts"])
+        char_w = np.polyadd(L_den, L_num)
+        poles_w = np.roots(char_w)
+        poles = (1.0 + 0.5 * Ts_s * poles_w) / (1.0 - 0.5 * Ts_s * poles_w)
+        return tuple(complex(p) for p in poles), _hurwitz(char_w)
+    F_z = _pi_z(pi["b_e0"], pi["Ki_Ts"], Ts_s)
+    _reading, closed = _closed_loop_with_sensor(plant, Ts_s, F_z, control.tf([0.0], [1.0], Ts_s))
+    poles = np.linalg.eigvals(closed.A)
+    return tuple(complex(p) for p in poles), bool(np.max(np.abs(poles)) < 1.0)
 
 
 def _plant_increments(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vector, _Vector, _Vector]:
@@ -424,7 +492,7 @@ def _plant_increments(J_kgm2: float, tau_i_s: float, Ts_s: float) -> tuple[_Vect
 
 
 def _tracking_increments(
-    design: "Design",
+    design: Design,
     Ts_s: float,
     b_e0: float,
     Ki_Ts: float,
@@ -467,7 +535,7 @@ def _tracking_increments(
     return E, f, c
 
 
-def discretize(design: "Design", Ts_s: float, method: Method) -> DiscreteDesign:
+def discretize(design: Design, Ts_s: float, method: Method) -> DiscreteDesign:
     """Discretize ``design`` for the sampling period ``Ts_s`` with ``method`` (Table 1).
 
     Parameters
@@ -516,7 +584,7 @@ def discretize(design: "Design", Ts_s: float, method: Method) -> DiscreteDesign:
     return discrete_loop(d, Ts_s, method, c_coefficients(d, Ts_s, method))
 
 
-def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: Mapping[str, float]) -> DiscreteDesign:
+def discrete_loop(design: Design, Ts_s: float, method: Method, coefficients: Mapping[str, float]) -> DiscreteDesign:
     """The discrete loop of ``design`` realized with the controller ``coefficients`` at ``Ts_s``.
 
     :func:`discretize` gives it the coefficients of the C controller; any other set in the same
@@ -582,8 +650,23 @@ def discrete_loop(design: "Design", Ts_s: float, method: Method, coefficients: M
     )
 
 
+def _closed_loop_with_sensor(
+    design: Design, Ts_s: float, F_z: control.TransferFunction, Fr_z: control.TransferFunction
+) -> tuple[list[Any], control.StateSpace]:
+    """The sampled plant-to-reading blocks of ``design`` (its J, tau_i and sensor chain) and the closed
+    loop from ``r`` to ``w`` with the PI ``F_z`` and the feedforward ``Fr_z``."""
+    plant = sampled_plant_blocks(design.J_kgm2, design.tau_i_s, Ts_s, design.sensor)
+    blocks = plant + [
+        control.ss(F_z, inputs="e", outputs="u_fb"),
+        control.ss(Fr_z, inputs="r", outputs="u_ff"),
+        control.summing_junction(["u_fb", "u_ff"], "u"),
+        control.summing_junction(["r", "-y"], "e"),
+    ]
+    return plant, control.interconnect(blocks, inplist=["r"], outlist=["w"], dt=Ts_s)
+
+
 def _loop_with_sensor(
-    design: "Design",
+    design: Design,
     Ts_s: float,
     method: Method,
     c: Mapping[str, float],
@@ -592,14 +675,7 @@ def _loop_with_sensor(
 ) -> DiscreteDesign:
     """:func:`discrete_loop` for a design whose controller reads a sensor chain (see the module docstring)."""
     d = design
-    plant = sampled_plant_blocks(d.J_kgm2, d.tau_i_s, Ts_s, d.sensor)
-    blocks = plant + [
-        control.ss(F_z, inputs="e", outputs="u_fb"),
-        control.ss(Fr_z, inputs="r", outputs="u_ff"),
-        control.summing_junction(["u_fb", "u_ff"], "u"),
-        control.summing_junction(["r", "-y"], "e"),
-    ]
-    closed = control.interconnect(blocks, inplist=["r"], outlist=["w"], dt=Ts_s)
+    plant, closed = _closed_loop_with_sensor(d, Ts_s, F_z, Fr_z)
     poles = np.linalg.eigvals(closed.A)
     z_max = float(np.max(np.abs(poles)))
     if not z_max < 1.0:

@@ -7,17 +7,27 @@ rational function (an exact delay ``exp(-s T)``, a sampled loop evaluated factor
 the crossings of its frequency response (:func:`frequency_margins`).
 """
 
+from __future__ import annotations
+
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
-import control
 import numpy as np
 import numpy.typing as npt
-from scipy import optimize
+
+from ..lazy import lazy_module
+
+if TYPE_CHECKING:
+    import control
+else:
+    control = lazy_module("control")  # python-control loads on first use (pmsm2dof.lazy)
 
 #: Numbers at the crossings: a sequence or a 1-D array (python-control returns arrays).
 _Floats = Sequence[float] | npt.NDArray[np.float64]
+_Vector = npt.NDArray[np.float64]
+_Matrix = npt.NDArray[np.float64]
 #: Points per decade of the grid on which :func:`frequency_margins` looks for crossings.
 GRID_PER_DECADE = 400
 
@@ -97,6 +107,95 @@ def pick_margins(
     return Margins(20.0 * math.log10(gm), float(pm), float(w_gc), w_pc)
 
 
+def polynomial_crossings(
+    num: npt.ArrayLike, den: npt.ArrayLike, scales: Sequence[float] = (1.0,)
+) -> list[tuple[_Vector, _Vector, _Vector, _Vector]]:
+    """All -180 deg and unit-gain crossings of the continuous loop gains ``L(s) = num(s) / (c den(s))``.
+
+    The crossings python-control's ``stability_margins`` finds by its polynomial method (its
+    ``returnall`` result, the test oracle), without building a transfer function, for each gain
+    scale ``c > 0`` of ``scales`` (a plant's inertia, say). With ``s = j w`` and ``x = w^2`` a
+    real polynomial splits into its even and odd parts, ``P(jw) = Pe(x) + j w Po(x)``; then
+    ``Im(num(jw) conj(den(jw))) = w (No De - Ne Do)(x)`` and
+    ``|num(jw)|^2 - c^2 |den(jw)|^2 = (Ne^2 + x No^2 - c^2 (De^2 + x Do^2))(x)``. The -180 deg
+    crossings, ``w = 0`` and the roots ``x > 0`` of the first where ``Re L(jw) <= 0``, do not
+    depend on ``c`` (``1/|L|`` grows with it); the unit-gain crossings are the roots ``x > 0``
+    of the second, where the phase does not depend on ``c`` either.
+
+    Parameters
+    ----------
+    num, den : array_like
+        Coefficients, highest power first.
+    scales : sequence of float
+        The factors ``c`` of the denominator, > 0.
+
+    Returns
+    -------
+    list of (gains, phases_deg, w_phase_radps, w_gain_radps)
+        Per scale: ``1/|L|`` at each -180 deg crossing, the phase margin at each unit-gain
+        crossing, and their frequencies, as :func:`pick_margins` takes them.
+    """
+    num = np.asarray(num, dtype=float)
+    den = np.asarray(den, dtype=float)
+
+    def parts(p: _Vector) -> tuple[_Vector, _Vector]:
+        # P(jw) = sum p_k (jw)^k: the even powers k = 2i give (-x)^i, the odd ones k = 2i + 1 give j w (-x)^i
+        c = p[::-1]
+        signs = (-1.0) ** np.arange((len(c) + 1) // 2)
+        return (c[0::2] * signs[: len(c[0::2])])[::-1], (c[1::2] * signs[: len(c[1::2])])[::-1]
+
+    def sqrt_of_roots(polys: _Matrix) -> list[_Vector]:
+        # per row, sqrt(x) of the real roots x > 0, as numpy.roots finds them: the eigenvalues of the
+        # companion matrix, of all rows in one call where their leading and trailing zeros agree
+        nonzero = polys != 0.0
+        if len(polys) == 0:
+            return []
+        if not np.all(nonzero == nonzero[0]):
+            return [r for poly in polys for r in sqrt_of_roots(poly[np.newaxis, :])]
+        where = np.flatnonzero(nonzero[0])
+        if len(where) < 2:
+            return [np.empty(0) for _ in polys]
+        polys = polys[:, where[0] : where[-1] + 1]  # leading zeros, and roots at 0 (x > 0 is kept)
+        n = polys.shape[1] - 1
+        companion = np.zeros((len(polys), n, n))
+        companion[:, np.arange(1, n), np.arange(n - 1)] = 1.0
+        companion[:, 0, :] = -polys[:, 1:] / polys[:, :1]
+        out = []
+        for roots in np.linalg.eigvals(companion):
+            x = np.real(roots[np.isreal(roots)])
+            out.append(np.sort(np.sqrt(x[x > 0.0])))
+        return out
+
+    def L(w: _Vector) -> npt.NDArray[np.complex128]:
+        # with c = 1; den = 0 at w = 0 (integrators): L infinite there, left out below
+        with np.errstate(all="ignore"):
+            return np.polyval(num, 1j * w) / np.polyval(den, 1j * w)
+
+    (ne, no), (de, do) = parts(num), parts(den)
+    phase_poly = np.asarray(np.polysub(np.convolve(no, de), np.convolve(ne, do)), dtype=float)
+    w_180: _Vector = np.concatenate((np.zeros(1), sqrt_of_roots(phase_poly[np.newaxis])[0]))
+    L_180 = L(w_180)
+    negative = L_180.real <= 0.0
+    w_180, abs_L_180 = w_180[negative], np.abs(L_180[negative])
+    num2 = np.polyadd(np.convolve(ne, ne), np.convolve(np.convolve(no, no), [1.0, 0.0]))
+    den2 = np.polyadd(np.convolve(de, de), np.convolve(np.convolve(do, do), [1.0, 0.0]))
+    c = np.asarray(scales, dtype=float)
+    width = max(len(num2), len(den2))
+    gain_polys = np.zeros((len(c), width))
+    gain_polys[:, width - len(num2) :] += num2
+    gain_polys[:, width - len(den2) :] -= np.outer(c * c, den2)
+    w_cs = sqrt_of_roots(gain_polys)
+    phases_all = np.remainder(np.angle(L(np.concatenate([np.empty(0), *w_cs])), deg=True), 360.0) - 180.0
+    out = []
+    start = 0
+    for scale, w_c in zip(c, w_cs):
+        with np.errstate(divide="ignore"):
+            gains = scale / abs_L_180
+        out.append((gains, phases_all[start : start + len(w_c)], w_180, w_c))
+        start += len(w_c)
+    return out
+
+
 def loop_margins(L: control.TransferFunction) -> Margins:
     """Gain and phase margins of the stable continuous loop gain ``L(s)`` (see :func:`pick_margins`)."""
     gms, pms, _sms, w_pcs, w_gcs, _w_sms = control.stability_margins(L, returnall=True)
@@ -127,6 +226,8 @@ def frequency_margins(
         # the phase at x, unwrapped continuously from the nearest grid point
         i = min(int(np.searchsorted(w, x)), len(w) - 1)
         return float(phase[i] + np.angle(L_of_w(np.array([x]))[0] / L[i]))
+
+    from scipy import optimize  # loaded here: a stability check alone never needs it
 
     gains: list[float] = []
     w_phase: list[float] = []

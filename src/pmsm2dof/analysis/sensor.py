@@ -19,18 +19,24 @@ period, ``Ts/2`` of delay at low frequencies, appears in the sampled loop only, 
 continuous design has no period.
 """
 
+from __future__ import annotations
+
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
-import control
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg
 
 from ..core import ESTIMATORS, SPEED_SENSOR_MODELS, Encoder
 from ..errors import ConfigError, require_choice, require_float32
+from ..lazy import lazy_module
+
+if TYPE_CHECKING:
+    import control
+else:
+    control = lazy_module("control")  # python-control loads on first use (pmsm2dof.lazy)
 
 #: Speed-sensor models: the true speed sampled, or an encoder's counts (the engine's, read from C).
 SENSOR_MODELS = SPEED_SENSOR_MODELS
@@ -80,7 +86,7 @@ class SensorChain:
             raise ConfigError("estimator", self.estimator, "'difference' with model 'ideal' (a PLL reads counts)")
 
     @classmethod
-    def from_table(cls, table: Mapping[str, Any]) -> "SensorChain":
+    def from_table(cls, table: Mapping[str, Any]) -> SensorChain:
         """The chain of a scenario's ``[speed_sensor]`` table (``Scenario.data["speed_sensor"]``).
 
         The counts per revolution, the counter and the noise act in the simulation only (the
@@ -292,5 +298,7 @@ def _zoh(A: _Matrix, B: _Matrix, t_s: float) -> tuple[_Matrix, _Matrix]:
     n, m = B.shape
     block = np.zeros((n + m, n + m))
     block[:n, :n], block[:n, n:] = A * t_s, B * t_s
+    import scipy.linalg  # loaded here: a stability check alone never needs it
+
     E = scipy.linalg.expm(block)
     return E[:n, :n], E[:n, n:]

@@ -31,8 +31,6 @@ from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
-import scipy.linalg
-from scipy import optimize
 
 #: Largest advance of any live mode between two grid points [rad or neper].
 THETA = 0.05
@@ -103,6 +101,8 @@ def _gamma(A: _Matrix, t: float) -> _Matrix:
     block = np.zeros((2 * n, 2 * n))
     block[:n, :n] = A * t
     block[:n, n:] = np.eye(n) * t
+    import scipy.linalg  # loaded here: a stability check alone never needs it
+
     exp_block: _Matrix = scipy.linalg.expm(block)
     return exp_block[:n, n:]
 
@@ -282,5 +282,7 @@ class StepResponse:
             return -float(self.c @ (x + A @ G @ x + G @ b))
 
         span = (2.0 if k_best > 0 else 1.0) * self.dt_s
+        from scipy import optimize  # loaded here: a stability check alone never needs it
+
         found = optimize.minimize_scalar(minus_y, bounds=(0.0, span), method="bounded", options={"xatol": 1e-10 * span})
         return max(y_best, -float(found.fun))

@@ -4,7 +4,8 @@ The lowest layer of pmsm2dof (above :mod:`pmsm2dof.errors` and :mod:`pmsm2dof.ou
 imports nothing of the other layers. :mod:`.bindings` holds the compiled library and the names
 read from its headers, :mod:`.controllers` the :class:`SpeedController` and
 :class:`CurrentController` that wrap the deployable C controllers, :mod:`.sensing` the
-:class:`Encoder` speed estimators and the :class:`FieldWeakening`, :mod:`.gains` eq 9.
+:class:`Encoder` speed estimators and the :class:`FieldWeakening`, :mod:`.fixedpoint` the
+:class:`FixedPointSpeedController` (Q15, Q31) for MCUs without an FPU, :mod:`.gains` eq 9.
 """
 
 from .bindings import (
@@ -20,6 +21,7 @@ from .bindings import (
     SPEED_SENSOR_MODELS,
 )
 from .controllers import CurrentController, CurrentOutput, SpeedController, SpeedOutput
+from .fixedpoint import FixedPointOutput, FixedPointSpeedController
 from .gains import pi_gains
 from .sensing import Encoder, EncoderOutput, FieldWeakening, FieldWeakeningOutput
 
@@ -40,6 +42,8 @@ __all__ = [
     "EncoderOutput",
     "FieldWeakening",
     "FieldWeakeningOutput",
+    "FixedPointOutput",
+    "FixedPointSpeedController",
     "SpeedController",
     "SpeedOutput",
     "pi_gains",

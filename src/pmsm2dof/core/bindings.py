@@ -4,7 +4,8 @@
 headers of ``csrc/include/pmsm2dof`` and ``csrc/sim`` (see ``ffibuild.py``). Every name that
 Python shares with the C code is read here from those declarations instead of being written a
 second time: the choices of the enums (:func:`enum_names`), the fields of the C structs
-(:func:`struct_fields`) and the columns of the engine's log (:data:`LOG_COLUMNS`). This is the
+(:func:`struct_fields`), the comment beside each field of the configuration structs
+(:func:`field_comment`) and the columns of the engine's log (:data:`LOG_COLUMNS`). This is the
 only module that imports the extension.
 """
 
@@ -31,6 +32,7 @@ __all__ = [
     "c_string",
     "enum_names",
     "ffi",
+    "field_comment",
     "lib",
     "struct_fields",
 ]
@@ -64,6 +66,28 @@ def enum_names(ctype: str, prefix: str) -> tuple[str, ...]:
 def struct_fields(ctype: str) -> dict[str, str]:
     """The fields of the C struct ``ctype`` in declaration order: ``{name: C type name}``."""
     return {name: field.type.cname for name, field in ffi.typeof(ctype).fields}
+
+
+def _field_comments() -> dict[str, str]:
+    """{"<struct>.<field>": comment} compiled into the extension from the headers (ffibuild.py)."""
+    comments: dict[str, str] = {}
+    i = 0
+    while (name := lib.p2d_field_comment(2 * i)) != ffi.NULL:
+        comments[c_string(name)] = c_string(lib.p2d_field_comment(2 * i + 1))
+        i += 1
+    return comments
+
+
+_FIELD_COMMENTS = _field_comments()
+
+
+def field_comment(ctype: str, field: str) -> str:
+    """The comment beside ``field`` in the declaration of the C struct ``ctype``: meaning, [unit], range.
+
+    Only the configuration structs (``*_config_t``, ``*_params_t``) carry their comments; "" for
+    any other field.
+    """
+    return _FIELD_COMMENTS.get(f"{ctype}.{field}", "")
 
 
 # The choices of the enums of the API's arguments as types for the annotations: the names of the

@@ -547,7 +547,9 @@ class CurrentController:
     ``1 / (tau_i s + 1)``. With ``decouple`` the back-EMF and cross-coupling
     terms of the dq model (eq 1) are fed forward. The voltage vector is limited
     to the linear range of space-vector modulation, ``||u_dq|| <= u_dc / sqrt(3)``,
-    with per-axis anti-windup (``Ka = 1/Kp`` for back calculation).
+    with d-axis priority (``ud`` limited to the range, ``uq`` to what it leaves; see
+    ``csrc/include/pmsm2dof/current.h``) and per-axis anti-windup (``Ka = 1/Kp`` for back
+    calculation).
 
     Parameters
     ----------

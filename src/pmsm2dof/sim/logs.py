@@ -27,7 +27,9 @@ What real logs have is handled and reported in :attr:`Log.notes`: rows where a u
 NaN or empty are dropped; a time step longer than :data:`GAP_FACTOR` times the median step is a
 gap, which splits the log into :meth:`Log.segments` (nothing is differenced or integrated across
 it); a non-uniform sampling is kept as it is (the consumers use the time column) and its spread
-reported. Times must increase.
+reported; a speed quantized coarser than the step figures need (:func:`speed_resolution_rpm`, an
+encoder's counts differenced over the sampling period) is reported with its resolution. Times must
+increase.
 """
 
 import dataclasses
@@ -40,10 +42,14 @@ import numpy as np
 
 from ..errors import ConfigError, format_bytes
 from ..inputs import check_file
+from .plausibility import STEADY_SPREAD
 from .simulate import RPM_PER_RADPS
 
 #: A time step longer than this many median steps is a gap in the log.
 GAP_FACTOR = 3.0
+
+#: Fewest row-to-row changes of the speed that show it quantized.
+QUANTIZED_CHANGES_MIN = 20
 
 #: Signals of a log: name -> ({unit suffix: factor to SI}, required).
 SIGNALS: dict[str, tuple[dict[str, float], bool]] = {
@@ -222,6 +228,25 @@ def _find_columns(names: list[str], columns: Mapping[str, str]) -> dict[str, str
     return found
 
 
+def speed_resolution_rpm(speed_rpm: np.ndarray) -> float | None:
+    """The step of a quantized speed [rpm], or None when the speed is not quantized.
+
+    A speed from encoder counts differenced over the sampling period ``dt`` takes the values
+    ``k 60 / (counts dt)``: its changes from row to row are whole multiples of that step. The step
+    is the smallest change; the speed is quantized when at least :data:`QUANTIZED_CHANGES_MIN`
+    changes are all within 1e-3 of whole multiples of it.
+    """
+    change = np.abs(np.diff(speed_rpm))
+    moving = change[change > 1e-9 * float(np.max(np.abs(speed_rpm), initial=0.0))]
+    if moving.size < QUANTIZED_CHANGES_MIN:
+        return None
+    step = float(np.min(moving))
+    multiple = moving / step
+    if np.max(np.abs(multiple - np.round(multiple))) > 1e-3:
+        return None
+    return step
+
+
 def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = None) -> Log:
     """Read a drive log (CSV, Parquet, NPZ or MAT) into a :class:`Log`.
 
@@ -291,6 +316,17 @@ def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
         notes.append(f"non-uniform sampling: steps {inside.min():.4g} to {inside.max():.4g} s (median {dt:.4g} s)")
     w = raw["speed"]
     ref = raw.get("speed_ref")
+    step_rpm = speed_resolution_rpm(w * RPM_PER_RADPS)
+    if step_rpm is not None and step_rpm > STEADY_SPREAD * float(np.max(np.abs(w))) * RPM_PER_RADPS:
+        counts = 60.0 / (step_rpm * dt)
+        share = 100 * step_rpm / (float(np.max(np.abs(w))) * RPM_PER_RADPS)
+        notes.append(
+            f"the speed moves in steps of {step_rpm:.4g} rpm, {share:.2g} % of its largest value: an encoder of "
+            f"about {counts:.4g} counts per revolution read over the {dt:.4g} s sampling period (60 / (counts dt)); "
+            f"figures finer than that (steady-state errors, which need a spread below {100 * STEADY_SPREAD:g} % "
+            "of the step, small dips) are not resolved and read n/a: log a filtered speed estimate, or count over "
+            "a longer period"
+        )
     return Log(
         source=str(file),
         t_s=t,

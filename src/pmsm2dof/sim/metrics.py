@@ -1,8 +1,19 @@
 """Figures of merit of a simulated run: each reference step and each load step.
 
 For every entry of the scenario's ``reference`` and ``load`` schedules, the response is measured
-in its *window*: from the entry's time ``t_s`` to the next entry of either schedule (or the end of
-the trace). The figures are those used to compare the controllers in the paper's section 4
+in its *window*: from the entry's time ``t_s`` to the last logged sample before the next *event*
+(or to the end of the trace). The events are the entries of either schedule that change the
+reference or the load, in any order and at any spacing, and the starts of the faults. A sample
+at the time of the next event (within the engine's time tolerance, ``csrc/sim/drive.c``) already
+shows it: its reference is the new one, so that a load step removed 50 ms before a speed
+reversal would otherwise count the reversal as its dip. An entry that repeats the value before
+it changes no input of the loop, so the response of the event before goes on through it: it is
+no boundary (its own figures are missing, "does not change"). The figures are taken relative to
+what is commanded in the window (the reference there, for a load step). A window that holds no
+sample after its event has every figure missing; one whose last :data:`STEADY_FRACTION` holds
+fewer than :data:`STEADY_SAMPLES_MIN` samples has no settling, recovery or steady-state figure
+(a steady state cannot be told from fewer); each says why. The figures are those used to
+compare the controllers in the paper's section 4
 (overshoot of Fig. 8, 12, tracking of Fig. 10, 13, load rejection of Fig. 14):
 
 Reference step, from the speed ``w0`` at ``t_s`` to the new reference ``r`` (step ``D = r - w0``):
@@ -23,16 +34,21 @@ Load step, from the load torque before to the new one (change ``dT``), with the 
 ``e = speed_ref - speed`` taken in the direction the load pushes (``sign(dT) e``):
 
 - ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
+  missing when that error is largest at ``t_s`` itself (a load taken off during a reversal:
+  the error is the reversal's, and the load adds nothing to it);
 - ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the deviation (the same
   rule): the dip, or ``|e|`` at ``t_s`` when that is larger (a load that falls while the speed is
   still far from its reference, as when an overload that stalled the drive is released);
 - ``steady_state_error_rpm``, ``iae_rpm_s``, ``current_limit_time_s`` as above (the spread test
   uses 0.2 % of the deviation).
 
-Whole run: ``iae_rpm_s`` and ``current_limit_time_s`` as above, and ``voltage_limit_time_s``, the time
+Whole run: ``iae_rpm_s`` and ``current_limit_time_s`` as above, ``voltage_limit_time_s``, the time
 at the inverter's range ``u_dc / sqrt(3)`` (:func:`at_voltage_limit`; missing for a trace without
-the ``voltage_limited`` signal). A drive at its voltage limit no longer follows its current
-commands: the speed loop's design (eq 3, 9) does not hold there.
+the ``voltage_limited`` signal), and ``chatter_share``, the share of the samples at which the
+current command chatters (:func:`chatter`). A drive at its voltage limit no longer follows its
+current commands: the speed loop's design (eq 3, 9) does not hold there. A run whose
+``chatter_share`` exceeds :data:`CHATTER_SHARE_MAX` is a limit cycle, not a response: its
+``warnings`` say so, first.
 
 Fault (each ``[[fault]]`` entry; a sensor_spike lasts one speed-controller period), from its
 start ``t_s`` over a window that ends at the next schedule entry or fault after the fault's end:
@@ -48,6 +64,7 @@ settle before the window ends) is ``{"value": None, "reason": "..."}``, never Na
 is ``{"value": x}``. Speeds are in rpm, as in the scenario and the trace.
 """
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
@@ -90,7 +107,16 @@ LOAD_FIGURES = (
 #: Figures of each fault, in output order.
 FAULT_FIGURES = ("speed_deviation_rpm", "deviation_time_s", "recovery_time_s", "current_limit_time_s")
 #: Figures of the whole run.
-RUN_FIGURES = ("iae_rpm_s", "current_limit_time_s", "voltage_limit_time_s")
+RUN_FIGURES = ("iae_rpm_s", "current_limit_time_s", "voltage_limit_time_s", "chatter_share")
+#: Fewest samples in the last :data:`STEADY_FRACTION` of a window for a settling, recovery or
+#: steady-state figure: two samples give a spread of one difference, which cannot tell a constant
+#: from a ramp or an oscillation; three show a change of direction.
+STEADY_SAMPLES_MIN = 3
+#: Second difference of the current command, relative to the current limit, at and above which a
+#: sample chatters (:func:`chatter`).
+CHATTER_D2 = 0.1
+#: Largest share of chattering samples of a run that does not chatter (:func:`chatter`).
+CHATTER_SHARE_MAX = 0.01
 #: Largest spread of the speed over that part, relative to the step (reference) or dip (load).
 STEADY_SPREAD = 0.002
 #: A command within this fraction of its limit is at the limit (:func:`at_current_limit`, :func:`at_voltage_limit`).
@@ -230,23 +256,76 @@ def _window(t: _Vector, t0: float, t1: float, *signals: _Vector) -> tuple[_Vecto
     return tw, [np.interp(tw, t, s) for s in signals]
 
 
+@dataclasses.dataclass(frozen=True)
+class _Span:
+    """The window of one event: from its time ``t0`` to the last sample ``t_end`` before the next event.
+
+    ``t_next`` is the time of the next event (None: none before the end of the trace); ``t_end``
+    is None when no sample lies between ``t0`` and ``t_next``; ``tol`` is the time within which a
+    sample is at an event (the engine's tolerance).
+    """
+
+    t0: float
+    t_next: float | None
+    t_end: float | None
+    tol: float
+
+    @classmethod
+    def of(cls, t: _Vector, t0: float, t_next: float | None, tol: float) -> "_Span":
+        inside = t > t0 + tol
+        if t_next is not None:
+            inside &= t < t_next - tol
+        return cls(t0, t_next, float(t[inside][-1]) if np.any(inside) else None, tol)
+
+    def limit_end(self, t: _Vector) -> float:
+        """The end of the time counted at the current limit: the next event, or the end of the trace."""
+        return float(t[-1]) if self.t_next is None else min(self.t_next, float(t[-1]))
+
+    def empty_reason(self, t: _Vector, what: str) -> str:
+        if self.t0 >= t[-1]:
+            return f"the trace ends at {t[-1]:g} s, before the {what}"
+        return (
+            f"no logged sample between the {what} at {self.t0:g} s and the next event at {self.t_next:g} s: "
+            "the window is empty"
+        )
+
+    def samples(self, t: _Vector, *signals: _Vector) -> tuple[_Vector, list[_Vector]]:
+        """The window's sample times after ``t0`` (``t0`` itself first, the signals interpolated there)."""
+        assert self.t_end is not None
+        tw = np.concatenate(([self.t0], t[(t > self.t0 + self.tol) & (t <= self.t_end)]))
+        return tw, [np.interp(tw, t, s) for s in signals]
+
+
+def _too_short(tw: _Vector) -> str:
+    """Why the window ``tw`` is too short to tell a steady state, or empty (:data:`STEADY_SAMPLES_MIN`)."""
+    n = int(np.count_nonzero(tw[1:] >= tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0])))
+    if n >= STEADY_SAMPLES_MIN:
+        return ""
+    return (
+        f"the window to the next event ({tw[0]:g} to {tw[-1]:g} s) is too short: {n} logged samples in its last "
+        f"{100 * STEADY_FRACTION:g} %, at least {STEADY_SAMPLES_MIN} needed to tell a steady state"
+    )
+
+
 def _reference_step(
     t: _Vector,
     speed: _Vector,
     ref: _Vector,
     limited: npt.NDArray[np.bool_],
-    t0: float,
-    t1: float,
+    span: _Span,
     before: float,
     after: float,
 ) -> dict[str, Any]:
-    out: dict[str, Any] = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": t1}
+    t0 = span.t0
+    out: dict[str, Any] = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": span.t_end or t0}
     names = REFERENCE_FIGURES
-    if t1 <= t0:
-        return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
-    tw, (w, r) = _window(t, t0, t1, speed, ref)
+    if span.t_end is None:
+        return out | {n: _missing(span.empty_reason(t, "step")) for n in names}
+    tw, (w, r) = span.samples(t, speed, ref)
+    t1 = span.t_end
     step = after - w[0]
     result: dict[str, _Figure] = {}
+    short = _too_short(tw)
     if after == before or abs(step) <= 1e-3 * abs(after - before):
         reason = (
             "the reference does not change"
@@ -257,7 +336,7 @@ def _reference_step(
     else:
         z = (w - w[0]) / step
         t10, t90 = _first_crossing(tw, z, 0.1), _first_crossing(tw, z, 0.9)
-        t_settle = _entry_into_band(tw, z - 1.0, BAND)
+        t_settle = None if short else _entry_into_band(tw, z - 1.0, BAND)
         if np.max(z) >= 1.0 or t_settle is not None:
             result["overshoot_pct"] = _value(100.0 * max(0.0, np.max(z) - 1.0))
         else:
@@ -267,17 +346,20 @@ def _reference_step(
             if t90 is not None and t10 is not None
             else _missing(f"the speed did not reach 90 % of the step before {t1:g} s")
         )
-        result["settling_time_s"] = (
-            _value(t_settle - t0)
-            if t_settle is not None
-            else _missing(
+        if short:
+            result["settling_time_s"] = _missing(short)
+        elif t_settle is None:
+            result["settling_time_s"] = _missing(
                 f"the speed did not settle within 2 % of the step (and stay there over the last "
                 f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
             )
+        else:
+            result["settling_time_s"] = _value(t_settle - t0)
+        result["steady_state_error_rpm"] = (
+            _missing(short) if short else _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
         )
-        result["steady_state_error_rpm"] = _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
     result["iae_rpm_s"] = _value(float(np.trapezoid(np.abs(r - w), tw)))
-    result["current_limit_time_s"] = _value(_time_where(t, limited, t0, t1))
+    result["current_limit_time_s"] = _value(_time_where(t, limited, t0, span.limit_end(t)))
     return out | {"speed_at_step_rpm": float(w[0])} | {n: result[n] for n in names}
 
 
@@ -286,18 +368,20 @@ def _load_step(
     speed: _Vector,
     ref: _Vector,
     limited: npt.NDArray[np.bool_],
-    t0: float,
-    t1: float,
+    span: _Span,
     before: float,
     after: float,
 ) -> dict[str, Any]:
-    out: dict[str, Any] = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": t1}
+    t0 = span.t0
+    out: dict[str, Any] = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": span.t_end or t0}
     names = LOAD_FIGURES
-    if t1 <= t0:
-        return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the step") for n in names}
-    tw, (w, r) = _window(t, t0, t1, speed, ref)
+    if span.t_end is None:
+        return out | {n: _missing(span.empty_reason(t, "step")) for n in names}
+    tw, (w, r) = span.samples(t, speed, ref)
+    t1 = span.t_end
     e = r - w
     result: dict[str, _Figure] = {}
+    short = _too_short(tw)
     if after == before:
         result.update({n: _missing("the load torque does not change") for n in names[:4]})
     else:
@@ -308,23 +392,32 @@ def _load_step(
         if deviation <= 0.0:
             result.update({n: _missing("the speed did not give way to the load") for n in names[:4]})
         else:
-            if dip > 0.0:
+            if dip > 0.0 and k == 0:
+                reason = (
+                    f"the speed error in the direction of the load is largest at the step itself ({dip:.4g} rpm, the "
+                    "response to what came before): the load adds no dip of its own"
+                )
+                result.update({n: _missing(reason) for n in names[:2]})
+            elif dip > 0.0:
                 result["speed_dip_rpm"] = _value(dip)
                 result["dip_time_s"] = _value(tw[k] - t0)
             else:
                 result.update({n: _missing("the speed did not give way to the load") for n in names[:2]})
-            t_rec = _entry_into_band(tw, e, BAND * deviation)
-            result["recovery_time_s"] = (
-                _value(t_rec - t0)
-                if t_rec is not None
-                else _missing(
+            t_rec = None if short else _entry_into_band(tw, e, BAND * deviation)
+            if short:
+                result["recovery_time_s"] = _missing(short)
+            elif t_rec is None:
+                result["recovery_time_s"] = _missing(
                     f"the speed did not recover to within 2 % of the {'dip' if dip >= deviation else 'error'}"
                     f" (and stay there over the last {100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
                 )
+            else:
+                result["recovery_time_s"] = _value(t_rec - t0)
+            result["steady_state_error_rpm"] = (
+                _missing(short) if short else _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
             )
-            result["steady_state_error_rpm"] = _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
     result["iae_rpm_s"] = _value(float(np.trapezoid(np.abs(e), tw)))
-    result["current_limit_time_s"] = _value(_time_where(t, limited, t0, t1))
+    result["current_limit_time_s"] = _value(_time_where(t, limited, t0, span.limit_end(t)))
     return out | {n: result[n] for n in names}
 
 
@@ -335,17 +428,21 @@ def _fault(
     limited: npt.NDArray[np.bool_],
     fault: Mapping[str, Any],
     t_end_fault: float,
-    t1: float,
+    after: _Span,
 ) -> dict[str, Any]:
+    """Figures of a fault from its start ``t_s`` to ``after.t_end``, the last sample before the event that
+    follows its end (``after`` is the window from the fault's end)."""
     t0 = fault["t_s"]
-    out: dict[str, Any] = {"kind": fault["kind"], "t_s": t0, "end_s": t_end_fault, "window_end_s": t1}
+    span = _Span(t0, after.t_next, after.t_end, after.tol)
+    out: dict[str, Any] = {"kind": fault["kind"], "t_s": t0, "end_s": t_end_fault, "window_end_s": span.t_end or t0}
     names = FAULT_FIGURES
-    if t1 <= t0:
-        return out | {n: _missing(f"the trace ends at {t[-1]:g} s, before the fault") for n in names}
-    tw, (w, r) = _window(t, t0, t1, speed, ref)
+    if span.t_end is None:
+        return out | {n: _missing(span.empty_reason(t, "fault")) for n in names}
+    tw, (w, r) = span.samples(t, speed, ref)
+    t1 = span.t_end
     e = np.abs(r - w)
     k = int(np.argmax(e))
-    result = {"current_limit_time_s": _value(_time_where(t, limited, t0, t1))}
+    result = {"current_limit_time_s": _value(_time_where(t, limited, t0, span.limit_end(t)))}
     if e[k] <= 0.0:
         result.update({n: _missing("the speed did not deviate from its reference") for n in names[:3]})
     elif t_end_fault >= t1:
@@ -358,16 +455,18 @@ def _fault(
         )
     else:
         result.update({"speed_deviation_rpm": _value(e[k]), "deviation_time_s": _value(tw[k] - t0)})
-        tr, (wr, rr) = _window(t, t_end_fault, t1, speed, ref)
-        t_rec = _entry_into_band(tr, rr - wr, BAND * e[k])
-        result["recovery_time_s"] = (
-            _value(t_rec - t_end_fault)
-            if t_rec is not None
-            else _missing(
+        tr, (wr, rr) = after.samples(t, speed, ref)
+        short = _too_short(tr)
+        t_rec = None if short else _entry_into_band(tr, rr - wr, BAND * e[k])
+        if short:
+            result["recovery_time_s"] = _missing(short)
+        elif t_rec is None:
+            result["recovery_time_s"] = _missing(
                 f"the speed did not recover to within 2 % of its deviation (and stay there over the last "
                 f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
             )
-        )
+        else:
+            result["recovery_time_s"] = _value(t_rec - t_end_fault)
     return out | {n: result[n] for n in names}
 
 
@@ -381,6 +480,100 @@ def _steady_state_error(tw: _Vector, w: _Vector, target: float, spread_max: floa
             f"{100 * STEADY_FRACTION:g} % of the window, more than {spread_max:.3g} rpm)"
         )
     return _value(target - np.trapezoid(final, tf) / (tf[-1] - tf[0]))
+
+
+def event_times(data: Mapping[str, Any]) -> list[float]:
+    """The events of a scenario, sorted: the entries of ``reference`` and ``load`` that change the value
+    before them (0 before the first), and the start of each fault."""
+    times = {f["t_s"] for f in data["fault"]}
+    for name, key in (("reference", "speed_rpm"), ("load", "torque_Nm")):
+        times.update(t0 for t0, before, after in _schedule(data[name], key) if after != before)
+    return sorted(times)
+
+
+def _fault_ends(data: Mapping[str, Any]) -> list[float]:
+    """The end of each fault: a sensor_spike lasts one speed-controller period."""
+    Ts_speed = data["speed_controller"]["Ts_s"]
+    return [f["t_s"] + (Ts_speed if f["kind"] == "sensor_spike" else f["duration_s"]) for f in data["fault"]]
+
+
+def _next_event(times: Sequence[float], t0: float, tol: float) -> float | None:
+    later = [x for x in times if x > t0 + tol]
+    return later[0] if later else None
+
+
+def time_tolerance_s(data: Mapping[str, Any]) -> float:
+    """The engine's time tolerance: times closer than it are equal, so an entry within it of a sample
+    acts at that sample (``P2D_SIM_T_TOL`` of ``csrc/sim/drive.c`` times the integration step)."""
+    Ts_current = float(data["current_loop"]["Ts_s"])
+    step = Ts_current / max(1, math.ceil(Ts_current / data["simulation"]["dt_s"] * (1.0 - 1e-9)))
+    return float(1e-6 * step)
+
+
+def chatter(command: _Vector, limit: float, quiet: npt.NDArray[np.bool_] | None = None) -> float:
+    """The share of the samples at which a command chatters: ``|c[k+1] - 2 c[k] + c[k-1]| >= CHATTER_D2 limit``.
+
+    The second difference is the change of the command's slope from one sample to the next. A
+    command that oscillates at the angular frequency ``w`` with amplitude ``A`` has
+    ``|second difference| <= 4 sin^2(w Ts / 2) A``, at most ``(w Ts)^2 A``: within the band the
+    design keeps to (``w Ts <= 0.1``, the sampling check of
+    :func:`pmsm2dof.analysis.discretize.discretize`) and at the full amplitude ``A = limit``,
+    ``0.01 limit``, ten times below :data:`CHATTER_D2`. A sample beyond it is a reversal at a
+    frequency the design does not have: a limit cycle between or short of the limits, an unstable
+    sampled loop held by the limit, or noise amplified to a tenth of the limit. A step of the
+    reference steps the command on purpose; the caller marks those samples ``quiet``.
+
+    Parameters
+    ----------
+    command : numpy.ndarray
+        The command, one value per speed-controller sample (every sample: a decimated log
+        cannot show a reversal from one sample to the next).
+    limit : float
+        Its limit, > 0 (``i_max_A`` for the q current command).
+    quiet : numpy.ndarray of bool, optional
+        Samples whose second difference is not counted (their stencil ``k-1, k, k+1`` holds a
+        step of the reference, the load or a fault).
+
+    Returns
+    -------
+    float
+        In [0, 1]; 0 for fewer than three samples.
+    """
+    c = np.asarray(command, dtype=float) / limit
+    if c.size < 3:
+        return 0.0
+    d2 = np.abs(c[2:] - 2.0 * c[1:-1] + c[:-2])
+    counted = np.ones(d2.shape, bool) if quiet is None else ~np.asarray(quiet, bool)[1:-1]
+    n = int(np.count_nonzero(counted))
+    return float(np.count_nonzero((d2 >= CHATTER_D2) & counted) / n) if n else 0.0
+
+
+def _chatter_figure(
+    t: _Vector, iq_ref: _Vector, i_max_A: float, log_every: int, times: Sequence[float], tol: float
+) -> _Figure:
+    """``chatter_share`` of a run: :func:`chatter` of the q current command, quiet at the events."""
+    if log_every > 1:
+        return _missing(
+            f"the trace logs every {log_every}th speed-controller sample: a reversal from one sample to the "
+            "next needs every sample (simulation.log_every = 1)"
+        )
+    # the two samples from each event on, and the one before, step on purpose
+    quiet = np.zeros(t.shape, bool)
+    for x in times:
+        k = int(np.searchsorted(t, x - tol))
+        quiet[max(k - 1, 0) : k + 2] = True
+    return _value(chatter(iq_ref, i_max_A, quiet))
+
+
+def _chatter_warning(figure: _Figure) -> list[str]:
+    share = figure["value"]
+    if share is None or share <= CHATTER_SHARE_MAX:
+        return []
+    return [
+        f"CHATTER: the current command reverses by {100 * CHATTER_D2:g} % of the limit or more from one sample to "
+        f"the next at {100 * share:.3g} % of the samples (more than {100 * CHATTER_SHARE_MAX:g} %): a limit cycle "
+        "or an unstable sampled loop held by the limit, not a response the figures describe"
+    ]
 
 
 def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dict[str, Any]:
@@ -404,9 +597,10 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     -------
     dict
         JSON-serialisable: ``{"scenario", "reference_steps": [...], "load_steps": [...], "faults": [...],
-        "run"}``;
+        "run", "warnings"}``;
         each figure is ``{"value": x}`` or ``{"value": None, "reason": "..."}`` (see the module
-        docstring for the definitions).
+        docstring for the definitions); ``warnings`` holds sentences on a run that the figures
+        do not describe (a chattering command), empty for a run they do.
     """
     if isinstance(result, Log):
         return _log_metrics(result, i_max_A)
@@ -419,29 +613,35 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     data = result.scenario.data
     ref_events = _schedule(data["reference"], "speed_rpm")
     load_events = _schedule(data["load"], "torque_Nm")
-    Ts_speed = data["speed_controller"]["Ts_s"]
-    fault_ends = [f["t_s"] + (Ts_speed if f["kind"] == "sensor_spike" else f["duration_s"]) for f in data["fault"]]
-    times = sorted({e[0] for e in ref_events + load_events} | {f["t_s"] for f in data["fault"]})
+    times = event_times(data)
+    tol = time_tolerance_s(data)
 
-    def window_end(t0: float) -> float:
-        later = [x for x in times if x > t0]
-        return float(min(later[0], t[-1]) if later else t[-1])
+    def span(t0: float) -> _Span:
+        return _Span.of(t, t0, _next_event(times, t0, tol), tol)
 
+    chatter_share = _chatter_figure(
+        t,
+        _trace(result, "iq_ref_A"),
+        data["limits"]["i_max_A"],
+        data["simulation"]["log_every"],
+        [*times, *_fault_ends(data)],
+        tol,
+    )
     return {
         "scenario": data["name"],
-        "reference_steps": [
-            _reference_step(t, speed, ref, limited, t0, window_end(t0), b, a) for t0, b, a in ref_events
-        ],
-        "load_steps": [_load_step(t, speed, ref, limited, t0, window_end(t0), b, a) for t0, b, a in load_events],
+        "reference_steps": [_reference_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
+        "load_steps": [_load_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in load_events],
         "faults": [
-            _fault(t, speed, ref, limited, f, end, window_end(end)) for f, end in zip(data["fault"], fault_ends)
+            _fault(t, speed, ref, limited, f, end, span(end)) for f, end in zip(data["fault"], _fault_ends(data))
         ],
         "run": {
             "t_end_s": float(t[-1]),
             "iae_rpm_s": _value(float(np.trapezoid(np.abs(ref - speed), t))),
             "current_limit_time_s": _value(_time_where(t, limited, t[0], t[-1])),
             "voltage_limit_time_s": _voltage_limit_time(result, t),
+            "chatter_share": chatter_share,
         },
+        "warnings": _chatter_warning(chatter_share),
     }
 
 
@@ -464,18 +664,17 @@ def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
             raise ConfigError("log", log.source, "a log with iq_A or iq_ref_A to count the time at the current limit")
         i_d = log.id_A if log.id_A is not None else np.zeros_like(iq)
         limited = np.hypot(i_d, iq) >= (1.0 - LIMIT_RTOL) * i_max_A
+    # a logged step is at its row: the window of the one before ends at the row before
     times = [e[0] for e in ref_events]
 
-    def window_end(t0: float) -> float:
-        later = [x for x in times if x > t0]
-        return float(min(later[0], t[-1]) if later else t[-1])
+    def span(t0: float) -> _Span:
+        return _Span.of(t, t0, _next_event(times, t0, 0.0), 0.0)
 
     limit_time = _value(_time_where(t, limited, t[0], t[-1])) if i_max_A is not None else _missing("no i_max_A")
+    chatter_share = _missing("a log's rows need not be the speed controller's samples")
     return {
         "scenario": log.source,
-        "reference_steps": [
-            _reference_step(t, speed, ref, limited, t0, window_end(t0), b, a) for t0, b, a in ref_events
-        ],
+        "reference_steps": [_reference_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
         "load_steps": [],
         "faults": [],
         "run": {
@@ -483,7 +682,9 @@ def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
             "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
             "current_limit_time_s": limit_time,
             "voltage_limit_time_s": _missing("a log has no voltage_limited signal"),
+            "chatter_share": chatter_share,
         },
+        "warnings": [],
     }
 
 
@@ -498,8 +699,12 @@ def _fmt(figure: Mapping[str, Any], unit: str) -> str:
 
 
 def summary_lines(metrics: Mapping[str, Any]) -> list[str]:
-    """A few lines of text summarising :func:`compute_metrics` (missing figures shown as n/a)."""
-    lines = []
+    """A few lines of text summarising :func:`compute_metrics` (missing figures shown as n/a).
+
+    The ``warnings`` come first (a chattering run, an unstable sampled loop when the caller
+    added it), so that no run they name reads as a good one.
+    """
+    lines = list(metrics.get("warnings", []))
     for s in metrics["reference_steps"]:
         lines.append(
             f"reference step at {s['t_s']:g} s to {s['to_rpm']:g} rpm: overshoot {_fmt(s['overshoot_pct'], '%')}, "

@@ -13,9 +13,10 @@ reference and load torque schedules of a run (section 4.1)::
     t_s = 0.0
     speed_rpm = 500.0
 
-The motor may be given in datasheet units instead, as a ``[motor.datasheet]`` table (Kt, Ke, line-to-line
-R and L, poles: see :mod:`pmsm2dof.sim.datasheet`); it provides ``pole_pairs``, ``Rs_ohm``, ``Ld_H``,
-``Lq_H`` and ``psi_f_Wb``, which :meth:`Scenario.to_toml` writes as converted.
+The motor may be given in datasheet units instead, as a ``[motor.datasheet]`` table (Kt, Ke or Kv,
+line-to-line R and L, poles, sinusoidal or block commutation: see :mod:`pmsm2dof.sim.datasheet`); it
+provides ``pole_pairs``, ``Rs_ohm``, ``Ld_H``, ``Lq_H`` and ``psi_f_Wb`` (and the ratings it gives,
+``i_rated_A``, ``i_peak_A``, ``J_rotor_kgm2``), which :meth:`Scenario.to_toml` writes as converted.
 
 An optional ``[mechanics]`` table makes the load a two-mass drive train (the paper's conclusion:
 motor and load inertia coupled by an elastic shaft), and ``[speed_filter]`` puts a notch and a
@@ -58,7 +59,7 @@ from ..core import (
 )
 from ..errors import ConfigError, is_integer, is_real
 from ..inputs import parse_toml, read_toml
-from .datasheet import motor_from_table
+from .datasheet import DATASHEET_KEYS, motor_from_table
 
 #: Longest simulated time of one scenario [s] (ten hours).
 T_END_MAX_S = 36000.0
@@ -202,6 +203,28 @@ SCHEMA = (
     Field("motor.J_kgm2", float, "true inertia of motor and load J [kg m^2] (eq 1, 2)", gt=0),
     Field("motor.B_Nms", float, "viscous friction B [Nm s/rad]", default=0.0, ge=0),
     Field("motor.T_coulomb_Nm", float, "Coulomb friction torque [Nm]", default=0.0, ge=0),
+    Field(
+        "motor.i_rated_A",
+        float,
+        "rated (continuous) current as a dq magnitude, the peak of the phase current [A]; "
+        "only the plausibility checks read it",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "motor.i_peak_A",
+        float,
+        "largest current the motor may carry, as a dq magnitude [A]; only the plausibility checks read it",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "motor.J_rotor_kgm2",
+        float,
+        "the motor's own rotor inertia [kg m^2] (part of J_kgm2); only the plausibility checks read it",
+        default=None,
+        gt=0,
+    ),
     Field("limits.i_max_A", float, "current-vector limit ||i_dq|| <= i_max_A [A] (Sat of Fig. 1 and 2)", gt=0),
     Field("limits.u_dc_V", float, "DC-link voltage [V]; the voltage vector is limited to u_dc/sqrt(3)", gt=0),
     Field(
@@ -1170,4 +1193,11 @@ def schema_reference() -> str:
             f"{name + '[]':36s} {'required, at least one entry' if required else 'optional'}: {what}; "
             "entries sorted by t_s, ramps not overlapping"
         )
+    lines.append("")
+    lines.append(
+        "[motor.datasheet] instead of motor.pole_pairs, Rs_ohm, Ld_H, Lq_H, psi_f_Wb (and i_rated_A, i_peak_A, "
+        "J_rotor_kgm2): the motor in datasheet units (pmsm2dof.sim.datasheet; `pmsm2dof motor FILE` shows the "
+        "conversion)"
+    )
+    lines += [f"{'motor.datasheet.' + key:36s} {doc}" for key, (_, doc) in DATASHEET_KEYS.items()]
     return "\n".join(lines)

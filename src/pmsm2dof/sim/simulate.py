@@ -65,6 +65,13 @@ Stops
     with the time and the reason, when the state becomes non-finite, the speed exceeds twice the
     no-load speed ``u_dc / (sqrt(3) p psi_f)``, or the current exceeds ten times the larger of
     ``i_max_A`` and the short-circuit current ``psi_f / min(Ld, Lq)``.
+
+Many runs
+    :func:`simulate_many` runs scenarios of one shape (the same current period, speed period,
+    integration step, log interval, duration, current-loop model, drive train and presence of
+    Coulomb friction) in lockstep: ``P2D_SIM_LANES`` drives share one C loop, their plants' states
+    in an array per state variable, so that the compiler vectorises the RK4 step across them
+    (``p2d_sim_run_many``). Every trace is bit for bit the one :func:`simulate` gives.
 """
 
 import dataclasses
@@ -92,9 +99,11 @@ from ..core import (
 )
 from ..core.bindings import c_string, ffi, lib
 from ..core.controllers import float32_note
+from ..core.gains import default_Ka_error
 from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
-from .scenario import Scenario, Tree
+from .plausibility import peak_torque_Nm
+from .scenario import SCHEMA, SameAs, Scenario, Tree
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -136,6 +145,10 @@ CURRENT_PER_SPEED_MAX = 10**6
 
 #: Number of C calls a run is split into when the progress bar is on.
 PROGRESS_CHUNKS = 200
+
+#: Fewest current periods of a run that gets a progress bar (fewer take well under the bar's 1 s delay: the
+#: engine runs about 5 million per second).
+PROGRESS_PERIODS_MIN = 2 * 10**6
 
 #: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
 _SPEED_KEYS = {
@@ -240,6 +253,24 @@ _ESTIMATOR_KEYS = {
 } | {"Ts_s": "speed_controller.Ts_s"}
 
 
+#: Keys whose absent value the engine takes from another key: key -> (that key, how). An error of the
+#: engine names the key the user set: the SameAs defaults of the schema and the derived defaults of
+#: [estimator] and [field_weakening] (``speed_controller.Ka``, 1/Kp, is named by what makes it fail:
+#: :func:`pmsm2dof.core.gains.default_Ka_error`).
+_SAME_AS = {f.key: f.default.key for f in SCHEMA if isinstance(f.default, SameAs)}
+_SOURCES = {key: (source, source) for key, source in _SAME_AS.items()} | {
+    "estimator.J_min_kgm2": ("estimator.J0_kgm2", "J0_kgm2 / 10"),
+    "estimator.J_max_kgm2": ("estimator.J0_kgm2", "10 J0_kgm2"),
+    "estimator.B_max_Nms": ("limits.i_max_A", "the peak torque 1.5 p psi_f i_max_A per 100 rad/s"),
+    "estimator.T_load_max_Nm": ("limits.i_max_A", "the peak torque 1.5 p psi_f i_max_A"),
+    "estimator.sigma_T_Nm": ("limits.i_max_A", "1 % of the peak torque 1.5 p psi_f i_max_A"),
+    "estimator.load_memory_s": ("speed_controller.alpha_radps", "1 / alpha_radps"),
+    "estimator.w_f_radps": ("speed_controller.Ts_s", "0.2 / Ts_s"),
+    "field_weakening.Ka_V_per_A": ("field_weakening.Ki_A_per_Vs", "1 / (Ki_A_per_Vs speed_controller.Ts_s)"),
+    "field_weakening.id_min_A": ("limits.i_max_A", "-i_max_A"),
+}
+
+
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
 class Result:
     """The trace of one simulation: numpy arrays of equal length, one per signal.
@@ -328,7 +359,6 @@ class Result:
         so that the log of a long run is never held twice in memory; a full disk raises a
         ConfigError naming ``path`` (:func:`pmsm2dof.outputs.atomic_file`).
         """
-        import pandas as pd
 
         path = Path(path)
         suffix = path.suffix.lower()
@@ -338,10 +368,11 @@ class Result:
                 f.write(",".join(self.signals) + "\n")
                 for start in range(0, len(self.t_s), CSV_ROWS_PER_CHUNK):
                     rows = slice(start, start + CSV_ROWS_PER_CHUNK)
-                    chunk = pd.DataFrame(
-                        {n: a[rows].astype(np.int8) if n in FLAG_SIGNALS else a[rows] for n, a in arrays.items()}
-                    )
-                    chunk.to_csv(f, header=False, index=False, lineterminator="\n")
+                    columns = [
+                        _csv_column(arrays[name][rows].astype(np.int8) if name in FLAG_SIGNALS else arrays[name][rows])
+                        for name in self.signals
+                    ]
+                    f.write("".join(",".join(row) + "\n" for row in zip(*columns)))
         elif suffix == ".npz":
             with atomic_file(path, "wb") as f:
                 np.savez(f, scenario_toml=np.array(self.scenario.to_toml()), **arrays)
@@ -352,6 +383,16 @@ class Result:
                 scipy.io.savemat(f, {"scenario_toml": self.scenario.to_toml(), **arrays}, oned_as="column")
         else:
             raise ConfigError("path", str(path), "a file name ending in .csv, .npz or .mat")
+
+
+def _csv_column(values: npt.NDArray[Any]) -> list[str]:
+    """The texts of a column of the CSV trace: each number as Python writes it (``repr``, the shortest
+    text that reads back the same value), a value that repeats (a schedule, a flag) formatted once."""
+    distinct, index = np.unique(values, return_inverse=True)
+    if 4 * distinct.size < values.size:
+        texts: list[str] = np.array([repr(v) for v in distinct.tolist()], dtype=object)[index].tolist()
+        return texts
+    return list(map(repr, values.tolist()))
 
 
 def simulate(scenario: Scenario, progress: bool = False) -> "Result":
@@ -365,7 +406,8 @@ def simulate(scenario: Scenario, progress: bool = False) -> "Result":
         ``speed_controller.tau_i_s``; the plant uses ``motor.J_kgm2`` and ``current_loop.tau_i_s``.
         ``speed_controller.Ka`` None means the paper's 1/Kp (section 3.3).
     progress : bool
-        Show a progress bar on stderr when the run lasts more than a second.
+        Show a progress bar on stderr when the run lasts more than a second (runs of fewer than
+        :data:`PROGRESS_PERIODS_MIN` current periods never do, and do not load the bar).
 
     Raises
     ------
@@ -381,7 +423,7 @@ def simulate(scenario: Scenario, progress: bool = False) -> "Result":
     data = scenario.data
     run = Simulation(data)
     start = time.perf_counter()
-    if progress:
+    if progress and run.n_samples * run.current_per_speed >= PROGRESS_PERIODS_MIN:
         from tqdm import tqdm
 
         chunk = max(1, math.ceil(run.n_samples / PROGRESS_CHUNKS))
@@ -402,6 +444,81 @@ def simulate(scenario: Scenario, progress: bool = False) -> "Result":
     else:
         run.advance(run.n_samples)
     return run.result(scenario, time.perf_counter() - start)
+
+
+def simulate_many(scenarios: Sequence[Scenario]) -> list["Result | SimulationError"]:
+    """Simulate ``scenarios`` in the compiled engine, those of one shape in lockstep.
+
+    Scenarios of one shape (see the module docstring) run in groups of ``P2D_SIM_LANES`` through one
+    C call each (``p2d_sim_run_many``, the GIL released), the others alone; each trace is bit for
+    bit the :class:`Result` of :func:`simulate`.
+
+    Parameters
+    ----------
+    scenarios : sequence of Scenario
+        Validated scenarios; their logs together may take at most :data:`LOG_BYTES_MAX`.
+
+    Returns
+    -------
+    list
+        In the order of ``scenarios``: the :class:`Result` of each, or the
+        :class:`~pmsm2dof.errors.SimulationError` that stopped it (not raised, so that the others
+        are kept). ``Result.wall_time_s`` is the wall time of its group's C call shared equally
+        among the group's drives.
+
+    Raises
+    ------
+    ConfigError
+        A value the C controllers or the engine reject, naming the scenario key; the logs of all
+        scenarios beyond :data:`LOG_BYTES_MAX`.
+    """
+    for scenario in scenarios:
+        if not isinstance(scenario, Scenario):
+            raise ConfigError(
+                "scenarios", type(scenario).__name__, "pmsm2dof Scenarios (load_scenario or Scenario.from_dict)"
+            )
+    total = sum(log_rows(s.data)[1] * lib.P2D_LOG_COUNT * 8 for s in scenarios)
+    if total > LOG_BYTES_MAX:
+        raise ConfigError(
+            "scenarios",
+            f"{len(scenarios)} scenarios whose logs take {total / 1024**3:.3g} GiB",
+            f"logs of at most {LOG_BYTES_MAX / 1024**3:g} GiB in all: simulate them in smaller groups",
+        )
+    runs = [Simulation(s.data) for s in scenarios]
+    # the engine decides who runs in lockstep (p2d_sim_lockstep): with the first of a group, the same samples
+    groups: list[list[int]] = []
+    for i, run in enumerate(runs):
+        for g in groups:
+            first = runs[g[0]]
+            if first.n_samples == run.n_samples and lib.p2d_sim_lockstep(first.sim, run.sim):
+                g.append(i)
+                break
+        else:
+            groups.append([i])
+    outcomes: list[Result | SimulationError | None] = [None] * len(runs)
+    for members in groups:
+        for start in range(0, len(members), lib.P2D_SIM_LANES):
+            chunk = members[start : start + lib.P2D_SIM_LANES]
+            group = [runs[i] for i in chunk]
+            sims = ffi.new("p2d_sim_t *[]", [r.sim for r in group])
+            logs = ffi.new("double *[]", [r._log_ptr for r in group])
+            rows = ffi.new("uint64_t[]", [r.log.shape[1] for r in group])
+            t0 = time.perf_counter()
+            status = lib.p2d_sim_run_many(sims, len(group), group[0].n_samples, logs, rows)
+            wall_s = (time.perf_counter() - t0) / len(group)
+            if status != lib.P2D_SIM_OK:
+                raise RuntimeError(f"p2d_sim_run_many: {c_string(lib.p2d_sim_status_text(status))}")
+            for i, run in zip(chunk, group):
+                stopped = run.sim.status
+                outcomes[i] = run.stop_error(stopped) if stopped != lib.P2D_SIM_OK else run.result(scenarios[i], wall_s)
+    return [o for o in outcomes if o is not None]
+
+
+def log_rows(data: Tree) -> tuple[int, int]:
+    """The speed samples of the scenario data ``data`` and the rows of its log."""
+    sc, sim = data["speed_controller"], data["simulation"]
+    n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
+    return n_samples, -(-n_samples // sim["log_every"])
 
 
 class Simulation:
@@ -427,7 +544,7 @@ class Simulation:
             data[k] for k in ("motor", "limits", "current_loop", "speed_controller", "simulation")
         )
         self.Ts_speed_s = sc["Ts_s"]
-        current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
+        self.current_per_speed = current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
         if current_per_speed > CURRENT_PER_SPEED_MAX:
             raise ConfigError(
                 "speed_controller.Ts_s",
@@ -441,8 +558,7 @@ class Simulation:
                 sim["dt_s"],
                 f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl['Ts_s'] / SUBSTEPS_MAX:g} s",
             )
-        self.n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
-        rows = -(-self.n_samples // sim["log_every"])
+        self.n_samples, rows = log_rows(data)
         if rows * lib.P2D_LOG_COUNT * 8 > LOG_BYTES_MAX:
             least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // LOG_BYTES_MAX)
             raise ConfigError(
@@ -530,25 +646,11 @@ class Simulation:
         """Run ``n_samples`` speed-controller samples (one C call, GIL released)."""
         status = lib.p2d_sim_run(self.sim, n_samples, self._log_ptr, self.log.shape[1])
         if status != lib.P2D_SIM_OK:
-            self._raise_stop(status)
+            raise self.stop_error(status)
 
     def signals(self) -> dict[str, npt.NDArray[Any]]:
         """The log so far as the named arrays of :class:`Result`, rpm at the edge (:data:`RPM_SIGNALS`)."""
-        n = self.sim.n_rows
-        col = {name: self.log[i, :n] for i, name in enumerate(LOG_COLUMNS)}
-        bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
-        if bad:
-            first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
-            raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = {col['t_s'][first]:.6g} s")
-        signals: dict[str, npt.NDArray[Any]] = {}
-        for name, values in col.items():
-            if name in RPM_SIGNALS:
-                signals[RPM_SIGNALS[name]] = values * RPM_PER_RADPS
-                if name == "w_m_radps":
-                    signals[name] = values
-            else:
-                signals[name] = values != 0.0 if name in FLAG_SIGNALS else values
-        return signals
+        return log_signals(self.log[:, : self.sim.n_rows])
 
     def result(self, scenario: Scenario, wall_time_s: float) -> Result:
         """The :class:`Result` of the log so far, for ``scenario`` (the one this run was built from)."""
@@ -563,8 +665,10 @@ class Simulation:
     def _raise_config(self, status: int) -> None:
         if status in (lib.P2D_SIM_ERR_SPEED_SENSOR, lib.P2D_SIM_ERR_FIELD_WEAKENING) and self.sim.controller_status:
             ctl = self.sim.controller_status
-            key = _SENSING_KEYS[c_string(lib.p2d_status_param(ctl))]
-            raise ConfigError(key, self._value(key), c_string(lib.p2d_status_range(ctl)))
+            field = c_string(lib.p2d_status_param(ctl))
+            key = _SENSING_KEYS[field]
+            derived = getattr(self.cfg.sensing.field_weakening.config, field, None)
+            raise self._blame(key, c_string(lib.p2d_status_range(ctl)), derived)
         if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER, lib.P2D_SIM_ERR_ESTIMATOR):
             ctl = self.sim.controller_status
             field = c_string(lib.p2d_status_param(ctl))
@@ -575,51 +679,123 @@ class Simulation:
                 lib.P2D_SIM_ERR_ESTIMATOR: _ESTIMATOR_KEYS,
             }[status]
             key = keys[field]
+            derived = getattr(self.cfg.adapt.config, field, None) if status == lib.P2D_SIM_ERR_ESTIMATOR else None
             value = self._value(key)
-            valid += float32_note(value)
+            note = float32_note(derived if value is None else value)
             s = self.cfg.speed
-            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "J_kgm2" and not float32_note(value):
+            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "J_kgm2" and not note:
                 # a gain of eq 9 overflowed float32: name the factor farthest from 1
                 factors = {"J_kgm2": s.J_kgm2, "alpha_radps": s.alpha_radps, "zeta": 1.0 / s.zeta}
                 field = max(factors, key=lambda k: abs(math.log(factors[k])))
                 key = _SPEED_KEYS[field]
-                value = self._value(key)
                 Kp, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
                 valid = (
                     f"a value that keeps the gains of eq 9 finite in float32 (Kp = J alpha = {Kp:.4g}, "
                     f"Ki = J (alpha / (2 zeta))^2 = {Ki:.4g} with J_kgm2 = {s.J_kgm2:g}, alpha_radps = "
                     f"{s.alpha_radps:g}, zeta = {s.zeta:g})"
                 )
-            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "Ts_s" and not float32_note(value):
+            elif status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "Ts_s" and not note:
                 # the speed controller's refusal of a sound period: its float32 coefficients overflowed
                 valid += (
                     f" (it is: the controller's float32 coefficients overflow with J_kgm2 = {s.J_kgm2:g}, "
                     f"alpha_radps = {s.alpha_radps:g} and i_max_A = {s.i_max_A:g})"
                 )
-            if key == "speed_controller.Ka":
+            else:
+                valid += note
+            if key != "speed_controller.Ka":
+                raise self._blame(key, valid, derived)
+            sc = self.data["speed_controller"]
+            if sc["Ka"] is not None:
                 _, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
                 valid = (
                     f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
                     f"{2.0 / (Ki * s.Ts_s):.6g} (Ki = {Ki:.6g} by eq 9)"
                 )
-                if value is None:
-                    value = f"None (default 1/Kp = {s.Ka:.6g})"
-            elif value is None:
-                value = f"None (derived: {getattr(self.cfg.adapt.config, field):.6g})"
-            raise ConfigError(key, value, valid)
+                raise ConfigError(key, sc["Ka"], valid)
+            if s.alpha_radps * s.Ts_s / (4.0 * s.zeta**2) >= 2.0 * (1.0 - 1e-6):
+                # the default 1/Kp made Ki Ka Ts >= 2: name what the user set
+                names = {name: f"speed_controller.{name}" for name in ("alpha_radps", "zeta", "Ts_s", "Ka")}
+                raise default_Ka_error(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], sc["Ts_s"], names)
+            raise ConfigError(
+                "speed_filter",
+                "<table>",
+                f"filters through which the back-calculation loop with the default Ka = 1/Kp = {s.Ka:.6g} "
+                "(speed_controller.Ka absent) is stable; or give speed_controller.Ka smaller",
+            )
         field = c_string(lib.p2d_sim_status_param(status))
         valid = c_string(lib.p2d_sim_status_text(status))
-        key = _SIM_KEYS[field]
-        raise ConfigError(key, self._value(key), valid)
+        raise self._blame(_SIM_KEYS[field], valid)
 
-    def _raise_stop(self, status: int) -> None:
+    def _blame(self, key: str, valid: str, derived: float | None = None) -> ConfigError:
+        """The ConfigError of ``key``, or, when ``key`` was absent and took its value from another key
+        (:data:`_SOURCES`: the defaults the engine derives), of that key: the input the user set.
+
+        ``derived`` is the value the engine derived for a key absent from the data (None in it).
+        """
+        value = self._value(key)
+        source = _SOURCES.get(key)
+        if source is not None:
+            origin, how = source
+            is_default = value is None if key not in _SAME_AS else value == self._value(origin)
+            if is_default:
+                shown = value if value is not None else derived
+                return ConfigError(
+                    origin,
+                    self._value(origin),
+                    f"a value that makes {key} (when not given, {how} = {shown:.6g}) valid: {valid}",
+                )
+        return ConfigError(key, value, valid)
+
+    def stop_error(self, status: int) -> SimulationError:
+        """The SimulationError of the stop ``status`` (a ``P2D_SIM_STOP_*`` code) of this run."""
         sim = self.sim
         reason = c_string(lib.p2d_sim_status_text(status))
         if status == lib.P2D_SIM_STOP_OVERSPEED:
             reason += f": |speed| = {sim.stop_value * RPM_PER_RADPS:.6g} rpm > {sim.stop_bound * RPM_PER_RADPS:.6g} rpm"
+            motor, i_max_A = self.data["motor"], self.data["limits"]["i_max_A"]
+            T_peak = peak_torque_Nm(i_max_A, motor["pole_pairs"], motor["psi_f_Wb"], motor["Ld_H"], motor["Lq_H"])
+            over = [
+                (i, e)
+                for i, e in enumerate(self.data["load"])
+                if e["t_s"] <= sim.t_stop_s and abs(e["torque_Nm"]) > T_peak
+            ]
+            if over:
+                i, e = over[-1]
+                reason = (
+                    f"the load load.{i}.torque_Nm = {e['torque_Nm']:.6g} Nm is above the peak torque {T_peak:.4g} "
+                    f"Nm that limits.i_max_A = {i_max_A:g} A gives: it stalled the drive and turned it backwards "
+                    f"({reason})"
+                )
         elif status == lib.P2D_SIM_STOP_OVERCURRENT:
             reason += f": ||i_dq|| = {sim.stop_value:.6g} A > {sim.stop_bound:.6g} A"
-        raise SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
+        return SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
+
+
+def log_signals(log: npt.NDArray[np.float64]) -> dict[str, npt.NDArray[Any]]:
+    """The named arrays of :class:`Result` from a log of the engine's columns (one row per column).
+
+    ``log[i]`` is the column :data:`pmsm2dof.core.LOG_COLUMNS` ``[i]`` (the engine's, or a trace in its
+    format); speeds become rpm at the edge (:data:`RPM_SIGNALS`), flags bool arrays.
+
+    Raises
+    ------
+    SimulationError
+        A value of the log is not finite.
+    """
+    col = {name: log[i] for i, name in enumerate(LOG_COLUMNS)}
+    bad = [name for name, a in col.items() if not np.all(np.isfinite(a))]
+    if bad:
+        first = min(int(np.argmin(np.isfinite(col[name]))) for name in bad)
+        raise SimulationError(f"non-finite values in the log ({', '.join(bad)}) from t = {col['t_s'][first]:.6g} s")
+    signals: dict[str, npt.NDArray[Any]] = {}
+    for name, values in col.items():
+        if name in RPM_SIGNALS:
+            signals[RPM_SIGNALS[name]] = values * RPM_PER_RADPS
+            if name == "w_m_radps":
+                signals[name] = values
+        else:
+            signals[name] = values != 0.0 if name in FLAG_SIGNALS else values
+    return signals
 
 
 def _schedule(

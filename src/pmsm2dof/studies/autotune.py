@@ -2,17 +2,25 @@
 
 :func:`autotune` searches the speed-controller keys of a scenario (``alpha_radps``, ``zeta``,
 ``m``, ``Ka``, and the ``feedforward`` and ``anti_windup`` forms the :class:`Spec` allows) for
-the smallest worst-case speed dip per Nm of load on the scenario's own load steps, such that
-every constraint of the :class:`Spec` holds at every inertia of the range ``J_range`` (the ratio
-of the true inertia to the design inertia):
+the smallest worst-case integral of the absolute speed error per Nm of load (IAE) on the
+scenario's own load steps, such that every constraint of the :class:`Spec` holds at every
+inertia of the range ``J_range`` (the ratio of the true inertia to the design inertia). The IAE
+holds the depth of the dip and the time the speed takes to recover: the dip alone rewards a
+large ``Kp`` and leaves the integral action free, so that zeta would run to the top of its range
+with a slow recovery (for a response that does not overshoot, the IAE is ``dT / Ki``, with
+``Ki = J (alpha / (2 zeta))^2`` of eq 9). ``max_recovery_s`` bounds the recovery itself.
 
 1. linear constraints first: the gain and phase margins of the C controller's discrete loop on
-   the true plant at each inertia ratio (:func:`pmsm2dof.analysis.discretize.margins_on_plant`,
+   the true plant at each inertia ratio (:func:`pmsm2dof.analysis.discretize.margins_on_plants`,
    eq 2, 3, 9, 14); a candidate that is unstable or misses a margin anywhere is not simulated;
 2. then the saturated ones: the candidates left are simulated (the scenario's speed and load
    steps, with the current limit where the scenario drives the drive to it) at the ends and the
    geometric middle of the range, in batches on threads or the workers of a Dask cluster
-   (:func:`pmsm2dof.studies.engine.run_many`);
+   (:func:`pmsm2dof.studies.engine.run_many`): first at the largest inertia, where the worst
+   cases mostly lie, and at the two others only while the candidate could still be the best
+   one; its figures at the ratios simulated bound those over all three (a worst case only
+   grows), so that the search takes the steps it would take with every candidate simulated
+   everywhere, and chooses the same design (``"partial"`` evaluations: the others);
 3. for each zeta, the margins give the edge: the largest ``alpha`` whose loop meets them at
    every inertia ratio (bisection; at most the stability bound ``alpha < 4 zeta^2 / tau_i`` of
    eq 8 and the sampling bound of :data:`~pmsm2dof.analysis.discretize.MAX_W_TS`); the search
@@ -22,13 +30,22 @@ of the true inertia to the design inertia):
 4. the best design is simulated again at :data:`N_J_CHECK` inertia ratios spread over the range;
    one that fails there is rejected and the next best checked.
 
+A candidate whose current command chatters in a simulation (``chatter_share`` above
+:data:`pmsm2dof.sim.metrics.CHATTER_SHARE_MAX`: a limit cycle, whatever its figures) is rejected.
+When the chosen design lies on a bound of the search (:data:`ZETA_RANGE`, :data:`KA_KP_RANGE`,
+:data:`M_RANGE`, or the stability and sampling bound of alpha), :attr:`AutotuneResult.on_bounds`
+says so: the best design may lie beyond it. The scenario's own design is checked as
+``pmsm2dof design`` checks it (:func:`pmsm2dof.studies.loopcheck.sampled_loop`), and a warning
+given when its sampled loop is unstable.
+
 When no candidate meets the specification the result says so (``feasible`` False): the design
 returned is the one that misses it least, and :attr:`AutotuneResult.binding` names the
 constraint it misses most and by how much.
 
 The worst-case figures are those of :func:`pmsm2dof.sim.metrics.compute_metrics` (rpm), taken
 over the reference steps (overshoot, settling time, tracking IAE), the load steps (speed dip
-divided by the load change) and both (longest time at the current limit in one step window).
+and IAE divided by the load change, recovery time) and both (longest time at the current limit
+in one step window), and the run (chatter).
 """
 
 import dataclasses
@@ -41,13 +58,15 @@ from typing import Any
 import numpy as np
 
 from ..analysis.design import design as make_design
-from ..analysis.discretize import MAX_W_TS, c_coefficients, margins_on_plant
+from ..analysis.discretize import MAX_W_TS, c_coefficients, margins_on_plants
 from ..analysis.margins import Margins
 from ..core import ANTI_WINDUPS, FEEDFORWARDS
 from ..core.bindings import AntiWindup, Feedforward
 from ..errors import ConfigError
+from ..sim.metrics import CHATTER_SHARE_MAX
 from ..sim.scenario import Scenario
 from .engine import Outcome, Run, check_options, connect, run_many
+from .loopcheck import sampled_loop
 
 #: Inertia ratios at which the margins are checked, and the best design is simulated again.
 N_J_CHECK = 9
@@ -76,6 +95,10 @@ M_RANGE = (0.25, 4.0)
 #: Most rounds of the pattern search around the best point, and its smallest step (a factor).
 REFINE_ROUNDS = 12
 REFINE_STEP_MIN = 1.01
+#: Most "partial" candidates :meth:`_Search.best` simulates at the other inertia ratios at a time, those of
+#: best bound first: enough for the engine's threads, few enough that the best of them raises the bar
+#: for the rest.
+COMPLETE_BATCH = 4
 #: Largest number of best designs simulated again over the inertia range.
 CHECK_MAX = 20
 #: Widest inertia range, hi / lo.
@@ -88,6 +111,7 @@ CONSTRAINTS = {
     "min_gain_margin_dB": ("gain_margin_dB", "min", "dB"),
     "max_settling_s": ("settling_time_s", "max", "s"),
     "max_load_dip_rpm_per_Nm": ("load_dip_rpm_per_Nm", "max", "rpm/Nm"),
+    "max_recovery_s": ("load_recovery_s", "max", "s"),
     "max_current_limit_time_s": ("current_limit_time_s", "max", "s"),
 }
 #: Worst-case figures of a design over the inertia range; "min" ones are worst at their smallest.
@@ -97,9 +121,14 @@ FIGURES = {
     "overshoot_pct": "max",
     "settling_time_s": "max",
     "load_dip_rpm_per_Nm": "max",
+    "load_iae_rpm_s_per_Nm": "max",
+    "load_recovery_s": "max",
     "current_limit_time_s": "max",
     "tracking_iae_rpm_s": "max",
+    "chatter_share": "max",
 }
+#: The figure the search minimises (worst case over the inertia range).
+OBJECTIVE = "load_iae_rpm_s_per_Nm"
 MARGIN_FIGURES = ("phase_margin_deg", "gain_margin_dB")
 
 
@@ -123,6 +152,8 @@ class Spec:
         Longest settling time (2 % band) of any reference step [s], > 0.
     max_load_dip_rpm_per_Nm : float, optional
         Largest speed dip of any load step per Nm of load change [rpm/Nm], > 0.
+    max_recovery_s : float, optional
+        Longest recovery time (2 % of the dip) of any load step [s], > 0.
     max_current_limit_time_s : float, optional
         Longest time at the current limit within one step window [s], >= 0.
     J_range : (float, float)
@@ -146,6 +177,7 @@ class Spec:
     min_gain_margin_dB: float | None = 6.0
     max_settling_s: float | None = None
     max_load_dip_rpm_per_Nm: float | None = None
+    max_recovery_s: float | None = None
     max_current_limit_time_s: float | None = None
     J_range: tuple[float, float] = (1.0, 1.0)
     feedforwards: tuple[Feedforward, ...] | None = None
@@ -158,6 +190,7 @@ class Spec:
             "min_gain_margin_dB": ("a finite number >= 0", lambda v: v >= 0.0),
             "max_settling_s": ("a finite number > 0", lambda v: v > 0.0),
             "max_load_dip_rpm_per_Nm": ("a finite number > 0", lambda v: v > 0.0),
+            "max_recovery_s": ("a finite number > 0", lambda v: v > 0.0),
             "max_current_limit_time_s": ("a finite number >= 0", lambda v: v >= 0.0),
         }
         for name, (valid, ok) in bounds.items():
@@ -287,7 +320,11 @@ class Evaluation:
     ----------
     candidate : Candidate
     stage : str
-        ``"margins"``: rejected by the analytic margins, never simulated; ``"engine"``: simulated.
+        ``"margins"``: rejected by the analytic margins, never simulated; ``"engine"``: simulated at
+        every inertia ratio of the search (or rejected for good: a simulation stopped, or the
+        current command chattered); ``"partial"``: simulated at some of them only, where it
+        already misses a constraint or ranks below the chosen design (:meth:`_Search.best`), so
+        that the others were not needed.
     worst : dict
         Worst case of each figure of :data:`FIGURES` known at this stage, over the inertia ratios
         checked (the margins at all :data:`N_J_CHECK`, the simulated ones at those simulated).
@@ -312,8 +349,13 @@ class Evaluation:
 
     @property
     def feasible(self) -> bool:
-        """Simulated and meeting every constraint."""
+        """Simulated over the search's inertia ratios and meeting every constraint."""
         return self.stage == "engine" and not self.error and not self.violations
+
+    @property
+    def may_be_feasible(self) -> bool:
+        """Feasible, or simulated at some ratios only and meeting every constraint there."""
+        return self.stage in ("engine", "partial") and not self.error and not self.violations
 
     def total_miss(self) -> tuple[float, float]:
         """How far it misses the specification: (the number of infinite misses, the sum of the finite
@@ -360,7 +402,7 @@ class AutotuneResult:
     feasible : bool
         True when the chosen design meets the whole specification over the inertia range.
     chosen : Evaluation
-        The best design: the smallest worst-case load dip per Nm among the feasible ones; when
+        The best design: the smallest worst case of :data:`OBJECTIVE` among the feasible ones; when
         none is feasible, the one with the smallest :meth:`Evaluation.total_miss`.
     binding : Violation or None
         When no design is feasible: the constraint the chosen design misses most (normalized).
@@ -368,7 +410,7 @@ class AutotuneResult:
         Every candidate of the search, in the order they were generated.
     pareto : tuple of Evaluation
         The feasible candidates (all simulated ones when none is) no other one beats on tracking
-        (worst ``tracking_iae_rpm_s``), rejection (worst ``load_dip_rpm_per_Nm``) and robustness
+        (worst ``tracking_iae_rpm_s``), rejection (worst :data:`OBJECTIVE`) and robustness
         (worst ``phase_margin_deg``): :func:`pareto_front`.
     runs : tuple of RunRecord
         Every simulation, in the order they ran.
@@ -376,6 +418,10 @@ class AutotuneResult:
         The inertia ratios of the margins and of the final check of the chosen design.
     wall_time_s : float
         Wall time of the search [s].
+    on_bounds : tuple of str
+        One sentence per bound of the search the chosen design lies on (:func:`bounds_reached`).
+    scenario_loop : dict
+        :func:`pmsm2dof.studies.loopcheck.sampled_loop` of the scenario's own design.
     """
 
     scenario: Scenario
@@ -388,6 +434,8 @@ class AutotuneResult:
     runs: tuple[RunRecord, ...]
     J_ratios_checked: tuple[float, ...]
     wall_time_s: float
+    on_bounds: tuple[str, ...] = ()
+    scenario_loop: dict[str, Any] = dataclasses.field(default_factory=dict)
 
     @property
     def speed_controller(self) -> dict[str, float | str]:
@@ -396,34 +444,22 @@ class AutotuneResult:
 
     @property
     def rejected(self) -> tuple[Evaluation, ...]:
-        """The candidates that miss a constraint or could not be evaluated."""
+        """The candidates that miss a constraint, could not be evaluated, or rank below the chosen design at
+        the inertia ratios they were simulated at (``"partial"``)."""
         return tuple(e for e in self.evaluations if not e.feasible)
 
     def tuned_scenario(self) -> Scenario:
         """The scenario with the chosen design."""
         return self.scenario.with_overrides(self.chosen.candidate.overrides())
 
-    def write_c_header(self, path: Any, prefix: str = "p2d_autotune") -> Any:
-        """Write the C header of the chosen design with the scenario's motor data; return the path.
+    def write_c_header(self, path: Any, prefix: str = "p2d_config") -> Any:
+        """Write the C configuration of the tuned scenario; return the path.
 
-        See :func:`pmsm2dof.analysis.codegen.write_c_header` (speed controller only).
+        See :func:`pmsm2dof.studies.configuration.configuration` (the header every command writes).
         """
-        from ..analysis.codegen import write_c_header
+        from .configuration import configuration
 
-        data = self.scenario.data
-        sc, motor = data["speed_controller"], data["motor"]
-        c = self.chosen.candidate
-        d = make_design(sc["J_kgm2"], c.alpha_radps, c.zeta, c.m, sc["tau_i_s"], c.feedforward, c.anti_windup, c.Ka)
-        return write_c_header(
-            path,
-            d.discretize(sc["Ts_s"], sc["method"]),
-            i_max_A=data["limits"]["i_max_A"],
-            pole_pairs=motor["pole_pairs"],
-            psi_f_Wb=motor["psi_f_Wb"],
-            Ld_H=motor["Ld_H"],
-            Lq_H=motor["Lq_H"],
-            prefix=prefix,
-        )
+        return configuration(self.tuned_scenario(), source="pmsm2dof autotune").write_header(path, prefix)
 
     def pareto_rows(self) -> list[dict[str, Any]]:
         """One row per design of the Pareto front: its keys, worst-case figures and whether it is feasible."""
@@ -447,6 +483,10 @@ class AutotuneResult:
             keys: dict[str, Any] = e.candidate.speed_controller() | {"stage": e.stage}
             if e.error:
                 rows.append(keys | blank | {"error": e.error})
+            elif not e.violations:
+                ratios = ", ".join(f"{r:.4g}" for r in e.J_ratios_simulated)
+                below = f"its {OBJECTIVE} at J ratio {ratios} already ranks it below the chosen design"
+                rows.append(keys | blank | {"error": below})
             rows += [keys | dataclasses.asdict(v) | {"error": ""} for v in e.violations]
         return rows
 
@@ -470,10 +510,14 @@ class AutotuneResult:
                 "candidates": len(self.evaluations),
                 "rejected_by_margins": sum(e.stage == "margins" for e in self.evaluations),
                 "simulated": len(simulated),
+                "simulated_in_part": sum(e.stage == "partial" for e in self.evaluations),
                 "feasible": sum(e.feasible for e in self.evaluations),
                 "runs": len(self.runs),
             },
             "pareto": [_keys_and_worst(e) | {"feasible": e.feasible} for e in self.pareto],
+            "objective": OBJECTIVE,
+            "on_bounds": list(self.on_bounds),
+            "scenario_sampled_loop": self.scenario_loop,
             "wall_time_s": self.wall_time_s,
         }
 
@@ -503,19 +547,25 @@ def _sig_down(x: float) -> float:
 
 
 def step_figures(metrics: Mapping[str, Any]) -> dict[str, float]:
-    """The figures of one simulated run that the specification bounds.
+    """The figures of one simulated run that the specification bounds and the search minimises.
 
     From :func:`pmsm2dof.sim.metrics.compute_metrics`: over the reference steps that change the
     reference, the largest ``overshoot_pct`` (0 when the speed has not reached the reference in
     the window: no overshoot), the longest ``settling_time_s`` (``inf`` when it does not settle
     in the window) and the sum of their ``iae_rpm_s`` (``tracking_iae_rpm_s``); over the load
-    steps that change the load, the largest ``speed_dip_rpm`` divided by the change
-    (``load_dip_rpm_per_Nm``); over both, the longest ``current_limit_time_s``.
+    steps that change the load, the largest ``speed_dip_rpm`` and ``iae_rpm_s`` divided by the
+    change (``load_dip_rpm_per_Nm``, ``load_iae_rpm_s_per_Nm``) and the longest
+    ``recovery_time_s`` (``load_recovery_s``), each ``inf`` when it is missing (the speed did not
+    recover in the window, or was still following a reference step when the load stepped); over
+    both, the longest ``current_limit_time_s``; the run's ``chatter_share`` (``inf`` when the log
+    cannot tell it).
     """
     figures = {
         "overshoot_pct": 0.0,
         "settling_time_s": 0.0,
         "load_dip_rpm_per_Nm": 0.0,
+        "load_iae_rpm_s_per_Nm": 0.0,
+        "load_recovery_s": 0.0,
         "current_limit_time_s": 0.0,
         "tracking_iae_rpm_s": 0.0,
     }
@@ -533,9 +583,18 @@ def step_figures(metrics: Mapping[str, Any]) -> dict[str, float]:
         figures["tracking_iae_rpm_s"] += step["iae_rpm_s"]["value"]
     for step in metrics["load_steps"]:
         change = abs(step["to_Nm"] - step["from_Nm"])
-        dip = step["speed_dip_rpm"]["value"]
-        if change > 0.0 and dip is not None:
-            figures["load_dip_rpm_per_Nm"] = max(figures["load_dip_rpm_per_Nm"], dip / change)
+        if change == 0.0:
+            continue
+        for name, key, per_Nm in (
+            ("load_dip_rpm_per_Nm", "speed_dip_rpm", True),
+            ("load_iae_rpm_s_per_Nm", "iae_rpm_s", True),
+            ("load_recovery_s", "recovery_time_s", False),
+        ):
+            value = step[key]["value"]
+            value = math.inf if value is None else (value / change if per_Nm else value)
+            figures[name] = max(figures[name], value)
+    chatter = metrics["run"]["chatter_share"]["value"]
+    figures["chatter_share"] = math.inf if chatter is None else chatter
     return figures
 
 
@@ -589,7 +648,7 @@ class _Search:
         self.J_ratios_checked = J_ratios(spec.J_range, N_J_CHECK)
         self.J_ratios_search = J_ratios(spec.J_range, 3)
         self.bases = {"scenario": data}
-        self.margins: dict[tuple[float, float, float], Margins | None] = {}
+        self.margins: dict[tuple[float, float], dict[float, Margins | None]] = {}
         self.edges: dict[tuple[float, float], float | None] = {}
         self.known: dict[Candidate, tuple[int, Evaluation]] = {}
         self.refused: dict[Candidate, str] = {}
@@ -692,14 +751,15 @@ class _Search:
     # -- evaluation --------------------------------------------------------------------------
 
     def margins_of(self, alpha_radps: float, zeta: float, J_ratio: float) -> Margins | None:
-        """The margins of the PI (alpha, zeta) on the plant of inertia ratio ``J_ratio``; None: unstable."""
-        key = (alpha_radps, zeta, J_ratio)
+        """The margins of the PI (alpha, zeta) on the plant of inertia ratio ``J_ratio`` (one of
+        :attr:`J_ratios_checked`, all computed together); None: unstable."""
+        key = (alpha_radps, zeta)
         if key not in self.margins:
             d = make_design(self.J_design_kgm2, alpha_radps, zeta, tau_i_s=self.tau_i_design_s)
-            self.margins[key] = margins_on_plant(
-                d, self.Ts_s, self.method, J_ratio * self.J_design_kgm2, self.tau_i_plant_s
-            )
-        return self.margins[key]
+            J_plants = [r * self.J_design_kgm2 for r in self.J_ratios_checked]
+            margins = margins_on_plants(d, self.Ts_s, self.method, J_plants, self.tau_i_plant_s)
+            self.margins[key] = dict(zip(self.J_ratios_checked, margins))
+        return self.margins[key][J_ratio]
 
     def refusal(self, c: Candidate) -> str:
         """Why the C controller refuses ``c`` at the scenario's sampling period; empty when it does not."""
@@ -782,7 +842,9 @@ class _Search:
                 key=i,
                 base="scenario",
                 overrides=c.overrides()
-                | {"motor.J_kgm2": r * self.J_design_kgm2, "speed_controller.J_kgm2": self.J_design_kgm2},
+                # every sample logged: a chattering command shows from one sample to the next
+                | {"motor.J_kgm2": r * self.J_design_kgm2, "speed_controller.J_kgm2": self.J_design_kgm2}
+                | {"simulation.log_every": 1},
                 label=f"autotune candidate {c.speed_controller()} at J ratio {r:.4g}",
             )
             for i, (c, r) in enumerate(todo)
@@ -798,8 +860,10 @@ class _Search:
             self.runs.append(record)
 
     def evaluate(self, candidates: Iterable[Candidate], J_ratios_sim: Sequence[float] | None = None) -> None:
-        """Check the margins of ``candidates``, then simulate those that pass at ``J_ratios_sim``."""
-        ratios = self.J_ratios_search if J_ratios_sim is None else J_ratios_sim
+        """Check the margins of ``candidates``, then simulate those that pass at ``J_ratios_sim``; by default at
+        the largest inertia ratio of the search, where the worst cases mostly lie (:meth:`best` simulates the
+        others where they matter)."""
+        ratios = self.J_ratios_search[-1:] if J_ratios_sim is None else J_ratios_sim
         candidates = list(candidates)
         self.order.update(dict.fromkeys(candidates))
         self.simulate([(c, r) for c in candidates if self.passes_margins(c) for r in ratios])
@@ -817,6 +881,7 @@ class _Search:
         simulated = sorted(self.simulated_at.get(c, []))
         if error or not simulated:
             return Evaluation(c, "margins", worst, at, (), self.violations(worst, at) if not error else (), error)
+        stage = "engine" if set(self.J_ratios_search) <= set(simulated) else "partial"
         for r in simulated:
             record = self.figures[(c, r)]
             if record.error:
@@ -825,36 +890,96 @@ class _Search:
             for name, value in record.figures.items():
                 if name not in worst or value > worst[name]:
                     worst[name], at[name] = value, r
-        return Evaluation(c, "engine", worst, at, tuple(simulated), self.violations(worst, at), "")
+        if worst["chatter_share"] > CHATTER_SHARE_MAX:
+            chatters = (
+                f"the current command chatters at J ratio {at['chatter_share']:.4g} "
+                f"({100 * worst['chatter_share']:.3g} % of the samples, more than {100 * CHATTER_SHARE_MAX:g} %): "
+                "a limit cycle"
+            )
+            return Evaluation(c, "engine", worst, at, tuple(simulated), (), chatters)
+        return Evaluation(c, stage, worst, at, tuple(simulated), self.violations(worst, at), "")
 
     def evaluations(self) -> list[Evaluation]:
         return [self.evaluation(c) for c in self.order]
 
     @staticmethod
     def rank(e: Evaluation) -> tuple[float, float, float]:
-        """Feasible first, by worst-case load dip per Nm; then by :meth:`Evaluation.total_miss`."""
-        if e.feasible:
-            return (0.0, 0.0, e.worst["load_dip_rpm_per_Nm"])
+        """Feasible first, by the worst case of :data:`OBJECTIVE`; then by :meth:`Evaluation.total_miss`.
+
+        For a ``"partial"`` evaluation, a bound: its rank over the ratios simulated, which more ratios
+        can only raise (a worst case only grows; a finite miss that becomes infinite moves the rank up).
+        """
+        if e.may_be_feasible:
+            return (0.0, 0.0, e.worst[OBJECTIVE])
         return (1.0, *e.total_miss())
 
     def best(self) -> Evaluation:
-        """The best simulated candidate (:meth:`rank`); the best of all when none was simulated."""
-        pool = self.evaluations()
-        simulated = [e for e in pool if e.stage == "engine"]
-        return min(simulated or pool, key=self.rank)
+        """The best simulated candidate (:meth:`rank`); the best of all when none was simulated.
+
+        The same as if every candidate had been simulated at every inertia ratio of the search: a
+        ``"partial"`` candidate whose bound ranks it before the best complete one is simulated at
+        the other ratios (:data:`COMPLETE_BATCH` at a time, best bound first), until the best is complete.
+        """
+        while True:
+            pool = self.evaluations()
+            simulated = [e for e in pool if e.stage in ("engine", "partial")]
+            best = min(simulated or pool, key=self.rank)
+            if best.stage != "partial":
+                return best
+            complete = [self.rank(e) for e in simulated if e.stage == "engine"]
+            bar = min(complete) if complete else None
+            todo = sorted(
+                (e for e in simulated if e.stage == "partial" and (bar is None or self.rank(e) < bar)), key=self.rank
+            )
+            self.simulate([(e.candidate, r) for e in todo[:COMPLETE_BATCH] for r in self.J_ratios_search])
+
+
+def bounds_reached(search: "_Search", c: Candidate) -> tuple[str, ...]:
+    """The bounds of the search that the candidate ``c`` lies on, one sentence each.
+
+    ``zeta`` at an end of :data:`ZETA_RANGE`; ``alpha`` at :meth:`_Search.alpha_max_radps`, the
+    stability and sampling bound (the margins' edge below it is a constraint, not a bound);
+    ``m`` at an end of :data:`M_RANGE` (feedforwards ``no_tau``, ``full``); ``Ka Kp`` at an end of
+    :data:`KA_KP_RANGE` (back calculation). Within the rounding of the keys to 4 digits.
+    """
+
+    def at(value: float, lo: float, hi: float) -> str:
+        return "lower" if value <= lo * 1.001 else "upper" if value >= hi * 0.999 else ""
+
+    out = []
+    checks = [("zeta", c.zeta, ZETA_RANGE)]
+    if c.feedforward in ("no_tau", "full"):
+        checks.append(("m", c.m, M_RANGE))
+    if c.anti_windup == "back_calculation":
+        checks.append(("Ka Kp", c.Ka * search.J_design_kgm2 * c.alpha_radps, KA_KP_RANGE))
+    for name, value, (lo, hi) in checks:
+        side = at(value, lo, hi)
+        if side:
+            out.append(
+                f"{name} = {value:.4g} is at the {side} bound of the search ({lo:g} to {hi:g}): the best design "
+                "may lie beyond it"
+            )
+    alpha_max = search.alpha_max_radps(c.zeta, c.m)
+    if c.alpha_radps >= alpha_max * 0.999:
+        out.append(
+            f"alpha_radps = {c.alpha_radps:.4g} is at the bound of the search, {alpha_max:.4g} rad/s "
+            "(stability alpha < 4 zeta^2 / tau_i, or sampling max(alpha, alpha/(2 zeta), m alpha) Ts <= "
+            f"{MAX_W_TS:g})"
+        )
+    return tuple(out)
 
 
 def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
     """The designs that no other one beats on all of tracking, rejection and robustness.
 
     Among the feasible evaluations (all the simulated, completed ones when none is feasible):
-    worst ``tracking_iae_rpm_s`` (smaller), worst ``load_dip_rpm_per_Nm`` (smaller), worst
-    ``phase_margin_deg`` (larger). Sorted by the load dip.
+    worst ``tracking_iae_rpm_s`` (smaller), worst :data:`OBJECTIVE` (smaller), worst
+    ``phase_margin_deg`` (larger). Sorted by the objective.
     """
     points = [e for e in evaluations if e.feasible] or [e for e in evaluations if e.stage == "engine" and not e.error]
 
     def objectives(e: Evaluation) -> tuple[float, float, float]:
-        return (e.worst["tracking_iae_rpm_s"], e.worst["load_dip_rpm_per_Nm"], -e.worst["phase_margin_deg"])
+        return (e.worst["tracking_iae_rpm_s"], e.worst[OBJECTIVE], -e.worst["phase_margin_deg"])
 
     values = [objectives(e) for e in points]
     front = []
@@ -862,7 +987,7 @@ def pareto_front(evaluations: Sequence[Evaluation]) -> tuple[Evaluation, ...]:
         dominated = any(all(x <= y for x, y in zip(b, a)) and b != a for j, b in enumerate(values) if j != i)
         if not dominated:
             front.append(points[i])
-    return tuple(sorted(front, key=lambda e: e.worst["load_dip_rpm_per_Nm"]))
+    return tuple(sorted(front, key=lambda e: e.worst[OBJECTIVE]))
 
 
 def autotune(
@@ -873,7 +998,7 @@ def autotune(
     scheduler: str | None = None,
     progress: bool = False,
 ) -> AutotuneResult:
-    """The anti-windup 2DOF design of smallest worst-case load dip that meets ``spec`` (see the module docstring).
+    """The anti-windup 2DOF design of smallest worst-case load IAE per Nm that meets ``spec`` (module docstring).
 
     Parameters
     ----------
@@ -957,4 +1082,6 @@ def autotune(
         runs=tuple(search.runs),
         J_ratios_checked=search.J_ratios_checked,
         wall_time_s=time.perf_counter() - start,
+        on_bounds=bounds_reached(search, chosen.candidate),
+        scenario_loop=sampled_loop(scenario.data),
     )

@@ -101,9 +101,11 @@ that correlated residuals do not give intervals too narrow.
 
 Current ranges: a saturating machine's inductances fall with the current, and one fit averages
 them. A second fit, with the same instruments and covariance, keeps Rs, psi_f (and dead_time_V)
-common and gives Ld and Lq one column per range of the windows' mean ``|i_dq|`` (ranges of equal
-window counts). Its estimates lie between the incremental inductance (which the current
-differences see) and the apparent one (which the speed terms see) of the range. By default the log
+common and gives Ld and Lq one column per range of the windows' mean ``|i_dq|``: ranges of equal
+width in current, a range with fewer than :data:`WINDOWS_MIN` windows merged into a neighbour (so
+that no range is a sliver of windows piled at one current, such as the current limit; a note says
+when fewer ranges than asked remain). Its estimates lie between the incremental inductance (which
+the current differences see) and the apparent one (which the speed terms see) of the range. By default the log
 gets :data:`AUTO_RANGES` ranges when its windows' current magnitudes (5th to 95th percentile)
 span more than a factor :data:`AUTO_SPAN`, else one (no range table).
 
@@ -176,7 +178,7 @@ class CurrentRange:
     Attributes
     ----------
     i_low_A, i_high_A : float
-        Smallest and largest window-mean ``|i_dq|`` of the range [A].
+        The range's edges: the window-mean ``|i_dq|`` it holds [A].
     n_windows : int
         Windows in the range.
     Ld_H, Lq_H : float or None
@@ -563,16 +565,26 @@ def _determined(value: float, sd: float) -> bool:
     return bool(np.isfinite(sd) and sd < REL_SD_MAX * abs(value))
 
 
-def _fit_ranges(rows: _Rows, n_ranges: int, n_common: int) -> tuple[CurrentRange, ...]:
-    """Ld and Lq per range of the window-mean |i_dq|, the other parameters common (module docstring)."""
-    edges = np.quantile(rows.i_mean_A, np.linspace(0.0, 1.0, n_ranges + 1))
-    index = np.clip(np.searchsorted(edges[1:-1], rows.i_mean_A, side="right"), 0, n_ranges - 1)
-    counts = np.bincount(index, minlength=n_ranges)
-    if counts.min() < WINDOWS_MIN:
-        raise IdentificationError(
-            f"{n_ranges} current ranges leave {int(counts.min())} windows in one, at least {WINDOWS_MIN} needed: "
-            "fewer ranges or a longer log"
-        )
+def _range_edges(i_mean_A: np.ndarray, n_ranges: int) -> np.ndarray:
+    """The edges of the current ranges: ``n_ranges`` of equal width from the smallest to the largest
+    window-mean ``|i_dq|``, each range with fewer than :data:`WINDOWS_MIN` windows merged into its
+    neighbour with fewer windows until every range holds enough (one range left: no split)."""
+    edges = list(np.linspace(float(i_mean_A.min()), float(i_mean_A.max()), n_ranges + 1))
+    while len(edges) > 2:
+        counts = np.bincount(np.searchsorted(edges[1:-1], i_mean_A, side="right"), minlength=len(edges) - 1)
+        r = int(np.argmin(counts))
+        if counts[r] >= WINDOWS_MIN:
+            break
+        # drop the inner edge between range r and its neighbour with fewer windows
+        left = r > 0 and (r == len(counts) - 1 or counts[r - 1] <= counts[r + 1])
+        del edges[r if left else r + 1]
+    return np.array(edges)
+
+
+def _fit_ranges(rows: _Rows, edges: np.ndarray, n_common: int) -> tuple[CurrentRange, ...]:
+    """Ld and Lq per range of the window-mean |i_dq| (:func:`_range_edges`), the other parameters common."""
+    n_ranges = len(edges) - 1
+    index = np.searchsorted(edges[1:-1], rows.i_mean_A, side="right")
     member = index[:, None] == np.arange(n_ranges)[None, :]
     common = [0, 3, *range(4, n_common)]
 
@@ -591,12 +603,11 @@ def _fit_ranges(rows: _Rows, n_ranges: int, n_common: int) -> tuple[CurrentRange
                 ci[name] = (float(theta[col] - q * sd[col]), float(theta[col] + q * sd[col]))
             else:
                 values[name] = None
-        inside = rows.i_mean_A[index == r]
         out.append(
             CurrentRange(
-                i_low_A=float(inside.min()),
-                i_high_A=float(inside.max()),
-                n_windows=int(inside.size),
+                i_low_A=float(edges[r]),
+                i_high_A=float(edges[r + 1]),
+                n_windows=int(np.count_nonzero(index == r)),
                 Ld_H=values["Ld_H"],
                 Lq_H=values["Lq_H"],
                 ci=ci,
@@ -658,7 +669,8 @@ def identify_electrical(
         DC-link voltage [V]: periods with ``|u_dq| >= u_dc / sqrt(3) (1 - VOLTAGE_MARGIN)`` are at the limit
         (default: the log's ``u_dc_V`` column, if any).
     current_ranges : int or None
-        Ranges of the window-mean ``|i_dq|`` for the per-range Ld and Lq (1: none; None: automatic, module docstring).
+        Ranges of the window-mean ``|i_dq|`` for the per-range Ld and Lq (1: none; None: automatic, module
+        docstring); a range too sparse is merged into a neighbour, so that fewer may result.
     window_samples : int or None
         Distance N of the two blocks of a row [samples] (default: rows / 960, at least 8); blocks N/2 long.
 
@@ -766,10 +778,18 @@ def identify_electrical(
             "over its period (voltage_delay_samples 0, no angle_lead_samples, no u_dc_V); if the log holds the "
             "controller's reference, give one of them to leave those windows out"
         )
+    asked = current_ranges is not None
     if current_ranges is None:
         lo, hi = np.percentile(rows.i_mean_A, [5, 95])
         current_ranges = AUTO_RANGES if hi > AUTO_SPAN * lo and k >= AUTO_RANGES * WINDOWS_MIN else 1
-    ranges = _fit_ranges(rows, current_ranges, len(names)) if current_ranges > 1 else ()
+    edges = _range_edges(rows.i_mean_A, current_ranges)
+    if asked and len(edges) - 1 < current_ranges:
+        notes.append(
+            f"{len(edges) - 1} current range{'s' if len(edges) > 2 else ''} instead of the {current_ranges} asked: "
+            f"a range with fewer than {WINDOWS_MIN} windows is merged into its neighbour (window |i_dq| "
+            f"{edges[0]:.3g} to {edges[-1]:.3g} A; a longer log, or currents spread wider, gives more)"
+        )
+    ranges = _fit_ranges(rows, edges, len(names)) if len(edges) > 2 else ()
     notes += _saturation_notes(ranges)
     fitted = {"ud_fit_V": rows.X_d @ theta, "uq_fit_V": rows.X_q @ theta}
     return Electrical(

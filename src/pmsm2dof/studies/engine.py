@@ -2,7 +2,8 @@
 
 A study is a list of :class:`Run`: a base scenario, named in a mapping of bases, changed by
 overrides. :func:`run_many` simulates them and measures each one
-(:func:`pmsm2dof.sim.metrics.compute_metrics`), in batches:
+(:func:`pmsm2dof.studies.loopcheck.measure`: the figures of
+:func:`pmsm2dof.sim.metrics.compute_metrics` and the sampled-loop stability check), in batches:
 
 - on local threads (:func:`default_workers` by default): the compiled engine releases the GIL
   for the whole simulation, so the threads run on all cores;
@@ -31,17 +32,19 @@ from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Seq
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, SimulationError, is_integer
+from ..errors import ConfigError, Pmsm2dofWarning, SimulationError, is_integer
 from ..inputs import read_bytes
 from ..outputs import atomic_write
-from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario, Tree
-from ..sim.simulate import Result, simulate
+from ..sim.simulate import Result, Simulation, simulate_many
+from .loopcheck import measure
 
 #: Most runs per batch when the batch size is automatic.
 BATCH_SIZE_MAX = 50
 #: Batches per worker when the batch size is automatic (so that the last ones balance the load).
 BATCHES_PER_WORKER = 4
+#: Runs a worker simulates in one simulate_many call (a few lockstep groups: few traces in memory at a time).
+SIMULATE_MANY_RUNS = 8
 
 
 @dataclasses.dataclass(frozen=True)
@@ -76,7 +79,7 @@ class Outcome:
     key : hashable
         The :attr:`Run.key`.
     metrics : dict or None
-        :func:`~pmsm2dof.sim.metrics.compute_metrics` of the run; None when it stopped.
+        :func:`~pmsm2dof.studies.loopcheck.measure` of the run; None when it stopped.
     error : str
         The message of the SimulationError that stopped the run; empty when it completed.
     wall_time_s : float or None
@@ -103,7 +106,8 @@ def default_workers() -> int:
 def simulate_batch(
     bases: Mapping[str, Tree], runs: Sequence[Run], keep: frozenset[Hashable] = frozenset()
 ) -> list[Outcome]:
-    """Simulate and measure ``runs`` one after the other (in a worker thread or on a Dask worker).
+    """Simulate and measure ``runs`` (in a worker thread or on a Dask worker), the engine's lockstep
+    groups (:func:`~pmsm2dof.sim.simulate.simulate_many`) a few runs at a time.
 
     Parameters
     ----------
@@ -119,22 +123,41 @@ def simulate_batch(
         A value that only the C controllers or the engine check, naming the run
         (:attr:`Run.label`) and the scenario key.
     """
-    scenarios = {name: Scenario.from_dict(bases[name]) for name in dict.fromkeys(run.base for run in runs)}
+    bases_scenarios = {name: Scenario.from_dict(bases[name]) for name in dict.fromkeys(run.base for run in runs)}
     outcomes = []
-    for run in runs:
+    # lockstep groups of the engine (simulate_many), measured as they finish: a few traces in memory at a time
+    for start in range(0, len(runs), SIMULATE_MANY_RUNS):
+        chunk = runs[start : start + SIMULATE_MANY_RUNS]
+        scenarios = []
+        for run in chunk:
+            with _named(run):
+                scenarios.append(bases_scenarios[run.base].with_overrides(run.overrides))
         try:
-            result = simulate(scenarios[run.base].with_overrides(run.overrides))
-            metrics = compute_metrics(result)
-        except ConfigError as exc:
-            if not run.label:
-                raise
-            raise ConfigError(f"{run.label}: {exc.param}", exc.value, exc.valid) from None
-        except SimulationError as exc:
-            outcomes.append(Outcome(run.key, None, str(exc), None))
-        else:
-            kept = result if run.key in keep else None
-            outcomes.append(Outcome(run.key, metrics, "", result.wall_time_s, kept))
+            results = simulate_many(scenarios)
+        except ConfigError:
+            # a value that only the C controllers or the engine check: the run whose engine rejects it names it
+            for run, scenario in zip(chunk, scenarios):
+                with _named(run):
+                    Simulation(scenario.data)
+            raise
+        for run, result in zip(chunk, results):
+            if isinstance(result, SimulationError):
+                outcomes.append(Outcome(run.key, None, str(result), None))
+            else:
+                kept = result if run.key in keep else None
+                outcomes.append(Outcome(run.key, measure(result), "", result.wall_time_s, kept))
     return outcomes
+
+
+@contextlib.contextmanager
+def _named(run: Run) -> Iterator[None]:
+    """A ConfigError raised inside names the run (:attr:`Run.label`)."""
+    try:
+        yield
+    except ConfigError as exc:
+        if not run.label:
+            raise
+        raise ConfigError(f"{run.label}: {exc.param}", exc.value, exc.valid) from None
 
 
 def check_options(workers: int | None = None, scheduler: str | None = None, batch_size: int | None = None) -> None:
@@ -323,7 +346,7 @@ def one_line(exc: BaseException) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-class PartWarning(UserWarning):
+class PartWarning(Pmsm2dofWarning):
     """A stored part of an earlier run cannot be used: it is deleted and its rows computed again."""
 
 

@@ -23,8 +23,10 @@ are used only where the speed stays away from zero (sign(w) defined; no stiction
 Fit: ordinary least squares, then a Huber regression (``scipy.optimize.least_squares``,
 ``loss="huber"``) scaled by the median absolute deviation of the residuals; rows whose robust
 residual exceeds :data:`OUTLIER_SIGMAS` robust standard deviations (an unannounced load, a
-stall) are excluded and reported as time windows, and the parameters are the least squares of
-the rows kept. This removes loads acting on less than half the rows and several times the
+stall, a transient the log's sampling does not resolve) are excluded and reported as time
+windows, and the parameters are the least squares of the rows kept. The note calls them an
+unannounced load only when their residuals say so: consecutive rows with one constant residual,
+the load's torque (:func:`_constant_runs`). This removes loads acting on less than half the rows and several times the
 noise; a smaller load biases the fit by at most its share of the rows times its size.
 
 Intervals: 95 % intervals ``theta_i +- t(0.975, n - 3) sd_i`` from the Newey-West covariance
@@ -44,14 +46,16 @@ is in the log (:func:`identify_tau_i`).
 
 import dataclasses
 import math
+import warnings
 from typing import Any
 
 import numpy as np
 import scipy.optimize
 import scipy.stats
 
-from ..errors import ConfigError, Pmsm2dofError
+from ..errors import ConfigError, Pmsm2dofError, Pmsm2dofWarning
 from ..sim.logs import Log
+from ..sim.plausibility import voltage_limited_speed_radps
 from ..sim.scenario import Scenario
 
 #: Rows with a robust residual above this many robust standard deviations are excluded.
@@ -72,6 +76,12 @@ ROWS_AUTO = 60
 
 #: Confidence level of the intervals.
 LEVEL = 0.95
+
+#: Excluded rows are said to be an unannounced load when at least this many consecutive ones ...
+LOAD_ROWS_MIN = 4
+
+#: ... have residuals of one sign within this share of their median (a constant torque).
+LOAD_SPREAD = 0.05
 
 
 class IdentificationError(Pmsm2dofError):
@@ -199,6 +209,30 @@ def _merge(windows: list[tuple[float, float]]) -> tuple[tuple[float, float], ...
     return tuple((a, b) for a, b in merged)
 
 
+def _constant_runs(residual: np.ndarray, excluded: np.ndarray, t0: np.ndarray) -> list[tuple[float, float, float]]:
+    """The runs of excluded rows that an unannounced load explains: ``(start, end, load)`` [s, s, Nm].
+
+    A load torque T_L adds ``+T_L`` to the residual of every row it covers whole (the rows average
+    ``J dw/dt + B w + Tc sign(w) + T_L``): a run of consecutive excluded rows with at least
+    :data:`LOAD_ROWS_MIN` residuals of one sign within :data:`LOAD_SPREAD` of their median is one,
+    of about that median. Transients the rows do not resolve give residuals that change in size or
+    sign instead.
+    """
+    runs: list[tuple[float, float, float]] = []
+    idx = np.flatnonzero(excluded)
+    if idx.size == 0:
+        return runs
+    # consecutive rows of one segment: neighbouring indices whose start times increase by one stride
+    breaks = np.flatnonzero((np.diff(idx) != 1) | (np.diff(t0[idx]) <= 0)) + 1
+    for run in np.split(idx, breaks):
+        r = residual[run]
+        median = float(np.median(r))
+        near = np.abs(r - median) <= LOAD_SPREAD * abs(median)
+        if np.count_nonzero(near) >= LOAD_ROWS_MIN and (np.all(r[near] > 0) or np.all(r[near] < 0)):
+            runs.append((float(t0[run[0]]), float(t0[run[-1]]), median))
+    return runs
+
+
 def identify_mechanics(
     log: Log,
     torque_Nm: np.ndarray | None = None,
@@ -309,11 +343,18 @@ def identify_mechanics(
         )
     excluded = _merge([(float(a), float(b)) for a, b in zip(rows["t0"][~keep], rows["t1"][~keep])])
     if excluded:
-        notes.append(
-            f"{int(np.count_nonzero(~keep))} rows excluded as outliers (an unannounced load?) in "
-            + ", ".join(f"{a:.4g}-{b:.4g} s" for a, b in excluded[:5])
-            + (" ..." if len(excluded) > 5 else "")
-        )
+        where = ", ".join(f"{a:.4g}-{b:.4g} s" for a, b in excluded[:5]) + (" ..." if len(excluded) > 5 else "")
+        loads = _constant_runs(r, ~keep, rows["t0"])
+        if loads:
+            found = "; ".join(f"about {load:.3g} Nm in {a:.4g}-{b:.4g} s" for a, b, load in loads[:3])
+            notes.append(
+                f"{int(np.count_nonzero(~keep))} rows excluded as outliers in {where}: an unannounced load, {found}"
+            )
+        else:
+            notes.append(
+                f"{int(np.count_nonzero(~keep))} rows excluded as outliers in {where}: their residuals change in size "
+                "or sign from row to row, a transient the model or the log's sampling does not follow, not a load"
+            )
     for name, value, s in (("B", B, sd[1]), ("Coulomb friction", Tc, sd[2])):
         if abs(value) < 2 * s:
             notes.append(f"{name} is not distinguished from zero ({value:.3g} +- {q * s:.2g})")
@@ -421,6 +462,13 @@ def identify_tau_i(log: Log) -> CurrentLoop:
 #: (B against the Coulomb friction), large changes (J).
 PLAN_LEVELS = (1.0, -0.8, 0.6, -1.0, 0.3)
 
+#: A plan's largest speed keeps the voltage of eq 1 at the current limit within this share of u_dc / sqrt(3).
+PLAN_VOLTAGE_SHARE = 0.9
+
+
+class PlanWarning(Pmsm2dofWarning):
+    """The plan departs from what was asked (its speeds lowered to stay inside the voltage limit)."""
+
 
 def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | None = None) -> Scenario:
     """A run that identifies the mechanics: speed steps within the limits, as a scenario to simulate and to play.
@@ -431,6 +479,12 @@ def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | N
     ``t_acc = J |dw| / T_max`` is the time of the change at the torque of the current limit for the
     inertia the controller is designed for (the guess), ``8 / alpha`` lets the speed loop settle.
     The load schedule is removed (a load the drive has stays in the log and is found by the fit).
+
+    The plan stays inside the voltage limit, where the current follows its command and the torque
+    is the current limit's: when the steady-state voltage of eq 1 at the current limit would exceed
+    :data:`PLAN_VOLTAGE_SHARE` of ``u_dc / sqrt(3)`` at ``speed_max_rpm``
+    (:func:`pmsm2dof.sim.plausibility.voltage_limited_speed_radps`), the largest speed is lowered
+    to where it does not, with a :class:`PlanWarning`.
 
     Parameters
     ----------
@@ -453,8 +507,20 @@ def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | N
     if i_max_A is not None:
         scenario = scenario.with_overrides({"limits.i_max_A": i_max_A})
     data = scenario.data
-    motor, sc = data["motor"], data["speed_controller"]
-    T_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
+    motor, sc, limits = data["motor"], data["speed_controller"], data["limits"]
+    T_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"]
+    u_plan_V = PLAN_VOLTAGE_SHARE * limits["u_dc_V"] / math.sqrt(3.0)
+    w_voltage_rpm = voltage_limited_speed_radps(u_plan_V, limits["i_max_A"], motor) * 30.0 / math.pi
+    if speed_max_rpm > w_voltage_rpm:
+        warnings.warn(
+            f"the plan's largest speed is {w_voltage_rpm:.5g} rpm, not speed_max_rpm = {speed_max_rpm:g} rpm: above "
+            f"it the voltage of eq 1 at the current limit {limits['i_max_A']:g} A exceeds {PLAN_VOLTAGE_SHARE:g} "
+            f"u_dc / sqrt(3) = {u_plan_V:.4g} V, the current no longer follows its command and the acceleration "
+            "is not the current limit's",
+            PlanWarning,
+            stacklevel=2,
+        )
+        speed_max_rpm = w_voltage_rpm
     levels = [level * speed_max_rpm for level in PLAN_LEVELS]
     t, previous, reference = 0.05, 0.0, []
     for rpm in levels:

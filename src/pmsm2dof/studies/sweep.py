@@ -42,7 +42,10 @@ Every point is validated before anything runs. Results have one row per point:
 or "error" when the engine stopped with a SimulationError, whose message is in
 ``error``), ``wall_time_s`` of the simulation, every metric of
 :func:`pmsm2dof.sim.metrics.compute_metrics` as the columns of :func:`metric_columns`
-(empty when a figure cannot be computed, with the reason in ``notes``).
+(empty when a figure cannot be computed, with the reason in ``notes``), and
+``sampled_loop_z_max``, the largest closed-loop pole magnitude of the point's design on its
+own plant and on the scenario's (:func:`pmsm2dof.studies.loopcheck.sampled_loop`; 1 or more:
+unstable, and its warning in ``notes`` as the warnings of a chattering run).
 """
 
 import hashlib
@@ -414,7 +417,7 @@ def metric_columns(data: "Tree") -> list[str]:
     columns = [f"ref{i}_{f}" for i in range(len(data["reference"])) for f in REFERENCE_FIGURES]
     columns += [f"load{j}_{f}" for j in range(len(data["load"])) for f in LOAD_FIGURES]
     columns += [f"run_{f}" for f in RUN_FIGURES]
-    return columns
+    return columns + ["sampled_loop_z_max"]
 
 
 def _flatten(metrics: Mapping[str, Any]) -> tuple[dict[str, Any], str]:
@@ -429,7 +432,11 @@ def _flatten(metrics: Mapping[str, Any]) -> tuple[dict[str, Any], str]:
         for i, step in enumerate(steps):
             figures.update({f"{prefix}{i}_{name}": step[name] for name in names})
     figures.update({f"run_{name}": metrics["run"][name] for name in RUN_FIGURES})
-    notes = "; ".join(f"{col}: {fig['reason']}" for col, fig in figures.items() if fig["value"] is None)
+    loop = metrics["sampled_loop"]
+    figures["sampled_loop_z_max"] = {"value": max(p["z_max"] for p in (loop["design"], loop["plant"]) if p)}
+    notes = "; ".join(
+        [*metrics["warnings"], *(f"{col}: {fig['reason']}" for col, fig in figures.items() if fig["value"] is None)]
+    )
     return {col: fig["value"] for col, fig in figures.items()}, notes
 
 

@@ -13,10 +13,12 @@ from typing import TYPE_CHECKING, Any, TextIO
 
 import click
 
-from ..errors import ConfigError, Pmsm2dofError, Terminated, signals_raise_terminated
+from ..errors import ConfigError, Pmsm2dofError, Pmsm2dofWarning, Terminated, signals_raise_terminated
 
 if TYPE_CHECKING:
-    from ..analysis.current_loop import CurrentLoopDesign, MotorEstimate
+    import pandas as pd
+
+    from ..analysis.current_loop import CurrentLoopDesign
     from ..analysis.design import Design
     from ..analysis.discretize import DiscreteDesign
     from ..analysis.margins import Margins
@@ -24,6 +26,7 @@ if TYPE_CHECKING:
     from ..analysis.twomass import TwoMass
     from ..core.bindings import AntiWindup, Feedforward, Method
     from ..sim.commission import Commissioning
+    from ..sim.datasheet import MotorParameters
     from ..studies.autotune import AutotuneResult
     from ..studies.identify import Mechanics
 
@@ -76,12 +79,14 @@ def parse_override(text: str) -> tuple[str, Any]:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the console script: run the CLI, map user errors to exit status 2.
 
+    The warnings of pmsm2dof are shown once each, as one line on stderr (:func:`warnings_as_lines`).
+
     A command ends with another status by raising ``click.exceptions.Exit`` (``autotune``: 1
     when no design meets the specification). SIGINT ends it with 130, SIGTERM with 143 and
     SIGHUP with 129 (128 + the signal), after the same cleanup: no staging folder is left.
     """
     try:
-        with signals_raise_terminated():
+        with signals_raise_terminated(), warnings_as_lines():
             status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return int(exc.exit_code)
@@ -204,9 +209,9 @@ def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Calla
     "header",
     type=click.Path(dir_okay=False),
     default=None,
-    help="write a C header with the p2d_speed_config_t of this design",
+    help="write the C configuration of this design and its motor (as pmsm2dof header: the firmware's p2d_config.h)",
 )
-@click.option("--prefix", default="p2d_design", show_default=True, help="C identifier prefix in the header")
+@click.option("--prefix", default="p2d_config", show_default=True, help="C identifier prefix in the header")
 @click.option("--i-max", "i_max_A", type=float, default=None, help="header: current-vector limit [A]")
 @click.option(
     "--pole-pairs",
@@ -224,9 +229,11 @@ def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Calla
     "Rs_ohm",
     type=float,
     default=None,
-    help="header: stator resistance [ohm]; with --Ts-current adds a p2d_current_config_t",
+    help="header: stator resistance [ohm] (the current controller)",
 )
-@click.option("--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s]")
+@click.option(
+    "--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s], Ts / N"
+)
 @click.option(
     "--paper-drive",
     is_flag=True,
@@ -238,7 +245,9 @@ def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Calla
     "motor_file",
     type=click.Path(dir_okay=False),
     default=None,
-    help="identified motor file ([motor] of pmsm2dof commission --out): the header's motor data not given",
+    help="motor file: a scenario, a [motor.datasheet] file or an identified motor.toml (commission --out, identify "
+    "--electrical --out): the header's motor data not given, and the rotor inertia and currents --J and --i-max "
+    "are checked against",
 )
 @click.option(
     "--current-bandwidth",
@@ -286,49 +295,69 @@ def design(
     the margins, poles, overshoot and the discrete loop include it; --phase-margin reports the
     largest alpha that keeps that margin with it.
 
-    With --emit-c-header the header needs the motor data: --i-max, --pole-pairs, --psi-f and
-    --Ld (--Lq for a salient motor; --Rs with --Ts-current for the current controller), or
-    --paper-drive to take what is not given from the paper's drive. The summary says where
-    each value came from.
+    With --emit-c-header the header (the whole configuration, as `pmsm2dof header` writes it)
+    needs the motor data and the current loop: --i-max, --pole-pairs, --psi-f, --Ld (--Lq for a
+    salient motor), --Rs and --Ts-current (Ts an integer multiple of it), or --paper-drive to
+    take what is not given from the paper's drive. The summary says where each value came from.
     """
     import json
     import warnings
 
     from ..analysis.design import design as make_design
     from ..analysis.sensor import SensorChain
+    from ..sim.plausibility import PlausibilityWarning, current_findings, inertia_findings
 
-    with warnings.catch_warnings(record=True) as caught_loop:
-        warnings.simplefilter("always")
-        loop = _identified_current_loop(motor_file, alpha_c_radps, tau_i_s, Ts_current_s)
-    from_file: set[str] = set()
-    if motor_file is not None:
-        identified = _identified_motor(motor_file)
-        given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
-        from_file = {name for name, value in given.items() if value is None}
-        pole_pairs = pole_pairs if pole_pairs is not None else int(identified["pole_pairs"])
-        psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (
-            identified[k] if v is None else v for k, v in given.items() if k != "pole_pairs"
-        )
-    if loop is not None:
-        tau_i_s = loop.tau_i_s
-    if header is not None:
-        motor, sources = _header_motor(
-            dict(i_max_A=i_max_A, pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm),
-            Ts_current_s is not None,
-            paper_drive,
-        )
-        sources |= {name: f"motor file {motor_file}" for name in from_file if name in sources}
-    options = {
-        "model": "--sensor",
-        "estimator": "--estimator",
-        "bandwidth_radps": "--sensor-bandwidth",
-        "lowpass_radps": "--sensor-lowpass",
-        "delay_s": "--sensor-delay",
-        "delay": "--delay",
-        "phase_margin_deg": "--phase-margin",
-    }
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    with _held_warnings():
+        file_motor = None if motor_file is None else _load_motor(motor_file)
+        loop = _identified_current_loop(file_motor, alpha_c_radps, tau_i_s, Ts_current_s)
+        from_file: set[str] = set()
+        if file_motor is not None:
+            given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
+            from_file = {name for name, value in given.items() if value is None}
+            pole_pairs = pole_pairs if pole_pairs is not None else file_motor.pole_pairs
+            psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (
+                getattr(file_motor, k) if k in from_file else v for k, v in given.items() if k != "pole_pairs"
+            )
+            findings = inertia_findings("--J", J_kgm2, file_motor.J_rotor_kgm2)
+            if i_max_A is not None:
+                findings += current_findings("--i-max", i_max_A, file_motor.i_rated_A, file_motor.i_peak_A)
+            for text in findings:
+                warnings.warn(f"{text} (motor file {motor_file})", PlausibilityWarning, stacklevel=1)
+        if loop is not None:
+            tau_i_s = loop.tau_i_s
+        if header is not None:
+            motor, sources = _header_motor(
+                dict(
+                    i_max_A=i_max_A,
+                    pole_pairs=pole_pairs,
+                    psi_f_Wb=psi_f_Wb,
+                    Ld_H=Ld_H,
+                    Lq_H=Lq_H,
+                    Rs_ohm=Rs_ohm,
+                    Ts_current_s=Ts_current_s,
+                ),
+                paper_drive,
+            )
+            sources |= {name: f"motor file {motor_file}" for name in from_file if name in sources}
+        options = {
+            "J_kgm2": "--J",
+            "alpha_radps": "--alpha",
+            "zeta": "--zeta",
+            "m": "--m",
+            "tau_i_s": "--tau-i",
+            "Ts_s": "--Ts",
+            "Ka": "--Ka",
+            "method": "--method",
+            "feedforward": "--feedforward",
+            "anti_windup": "--anti-windup",
+            "model": "--sensor",
+            "estimator": "--estimator",
+            "bandwidth_radps": "--sensor-bandwidth",
+            "lowpass_radps": "--sensor-lowpass",
+            "delay_s": "--sensor-delay",
+            "delay": "--delay",
+            "phase_margin_deg": "--phase-margin",
+        }
         try:
             sensor = SensorChain(
                 model=sensor_model,
@@ -355,17 +384,22 @@ def design(
             )
         except ConfigError as exc:
             raise _as_option(exc, options) from None
-    for w in [*caught_loop, *caught]:
-        print(f"pmsm2dof: warning: {_one_line(w.message)}", file=sys.stderr)
     sensitivity = None
     if loop is not None:
         from ..analysis.current_loop import speed_margin_sensitivity
 
         sensitivity = speed_margin_sensitivity(loop, dd.design.Kp, dd.design.Ki, J_kgm2)
     if header is not None:
-        from ..analysis.codegen import write_c_header
+        from ..studies.configuration import configuration, design_scenario
 
-        write_c_header(header, dd, **motor, Ts_current_s=Ts_current_s, prefix=prefix, motor_sources=sources)
+        notes = ("Motor data and current loop given to design:",) + tuple(
+            f"  {name:<12} = {motor[name]:g} {_HEADER_MOTOR[name][1]} ({source})" for name, source in sources.items()
+        )
+        try:
+            config = configuration(design_scenario(dd, **motor), source="pmsm2dof design", notes=notes)
+            config.write_header(header, prefix)
+        except ConfigError as exc:
+            raise _as_option(exc, _HEADER_KEYS) from None
     if as_json:
         data = dd.as_dict()
         data["continuous"]["margins"], _ = margins.values_and_reasons()
@@ -397,37 +431,38 @@ def design(
             click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
 
 
-def _load_motor(motor_file: str) -> "MotorEstimate":
-    """The motor file of --motor (pmsm2dof.analysis.current_loop.load_motor)."""
-    from ..analysis.current_loop import load_motor
+def _load_motor(motor_file: str) -> "MotorParameters":
+    """The motor of --motor: a scenario, a datasheet motor file or an identified motor.toml."""
+    from ..sim.datasheet import load_motor
 
     try:
         return load_motor(motor_file)
     except ConfigError as exc:
-        raise _as_option(exc, {"motor_file": "--motor"}) from None
-
-
-def _identified_motor(motor_file: str) -> dict[str, float]:
-    """The header's motor data from a motor file, as design's keyword arguments."""
-    m = _load_motor(motor_file)
-    return dict(pole_pairs=m.pole_pairs, psi_f_Wb=m.psi_f_Wb, Ld_H=m.Ld_H, Lq_H=m.Lq_H, Rs_ohm=m.Rs_ohm)
+        raise _as_option(exc, {"motor file": "--motor"}) from None
 
 
 def _identified_current_loop(
-    motor_file: str | None, alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
+    motor: "MotorParameters | None", alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
 ) -> "CurrentLoopDesign | None":
     """The current loop of --motor and --current-bandwidth, or None without --current-bandwidth."""
     if alpha_c_radps is None:
         return None
-    if motor_file is None:
+    if motor is None:
         raise click.UsageError("--current-bandwidth needs --motor FILE (the identified motor)")
     if tau_i_s != 0.0:
         raise click.UsageError("--current-bandwidth sets tau_i = 1/alpha_c: give it or --tau-i, not both")
-    from ..analysis.current_loop import design_current_loop
+    from ..analysis.current_loop import MotorEstimate, design_current_loop
 
-    motor = _load_motor(motor_file)
+    estimate = MotorEstimate(
+        pole_pairs=motor.pole_pairs,
+        Rs_ohm=motor.Rs_ohm,
+        Ld_H=motor.Ld_H,
+        Lq_H=motor.Lq_H,
+        psi_f_Wb=motor.psi_f_Wb,
+        intervals=motor.intervals,
+    )
     try:
-        return design_current_loop(motor, alpha_c_radps, Ts_current_s)
+        return design_current_loop(estimate, alpha_c_radps, Ts_current_s)
     except ConfigError as exc:
         raise _as_option(exc, {"current_bandwidth": "--current-bandwidth", "Ts_current": "--Ts-current"}) from None
 
@@ -457,7 +492,7 @@ def _current_loop_table(
 
 #: The shipped scenario whose motor and current limit --paper-drive fills in.
 PAPER_DRIVE_PRESET = "paper-condition-1"
-#: Motor data of the header: keyword -> (option, unit, scenario key).
+#: Motor data and current loop of the header: keyword -> (option, unit, scenario key).
 _HEADER_MOTOR = {
     "i_max_A": ("--i-max", "A", "limits.i_max_A"),
     "pole_pairs": ("--pole-pairs", "", "motor.pole_pairs"),
@@ -465,25 +500,29 @@ _HEADER_MOTOR = {
     "Ld_H": ("--Ld", "H", "motor.Ld_H"),
     "Lq_H": ("--Lq", "H", "motor.Lq_H"),
     "Rs_ohm": ("--Rs", "ohm", "motor.Rs_ohm"),
+    "Ts_current_s": ("--Ts-current", "s", "current_loop.Ts_s"),
+}
+#: Scenario key of the design's header -> its option (studies.configuration.design_scenario).
+_HEADER_KEYS = {key: option for option, _, key in _HEADER_MOTOR.values()} | {
+    "current_loop.tau_i_s": "--tau-i",
+    "speed_controller.tau_i_s": "--tau-i",
+    "speed_controller.Ts_s": "--Ts",
 }
 
 
-def _header_motor(
-    given: Mapping[str, float | None], current_loop: bool, paper_drive: bool
-) -> tuple[dict[str, Any], dict[str, str]]:
-    """The motor data of the C header and where each value came from.
+def _header_motor(given: Mapping[str, float | None], paper_drive: bool) -> tuple[dict[str, Any], dict[str, str]]:
+    """The motor data and current-loop period of the C header and where each value came from.
 
     Every value is either given, or, with ``paper_drive``, taken from the paper's drive
     (:data:`PAPER_DRIVE_PRESET`); ``Lq_H`` not given is ``Ld_H`` (surface PMSM) when ``Ld_H``
-    is given. ``Rs_ohm`` is needed only for the current controller (``current_loop``).
+    is given.
 
     Raises
     ------
     click.UsageError
         Naming the missing options when a value is neither given nor taken from the paper drive.
     """
-    needed = ["i_max_A", "pole_pairs", "psi_f_Wb", "Ld_H", "Lq_H"]
-    needed += ["Rs_ohm"] if current_loop or given["Rs_ohm"] is not None else []
+    needed = list(_HEADER_MOTOR)
     motor: dict[str, Any] = {}
     sources: dict[str, str] = {}
     if given["Lq_H"] is None and given["Ld_H"] is not None:
@@ -493,7 +532,7 @@ def _header_motor(
     if missing and not paper_drive:
         options = ", ".join(_HEADER_MOTOR[name][0] for name in missing if name != "Lq_H")
         raise click.UsageError(
-            f"--emit-c-header needs the motor data: {options} missing; give them, or "
+            f"--emit-c-header needs the motor data and the current loop: {options} missing; give them, or "
             "--paper-drive for the paper's drive (placeholders, not your motor)"
         )
     if missing:
@@ -617,7 +656,8 @@ def bode(
 
     Fig. 7 of the paper: --feedforward full --m 0.2,0.5,1,2.
     """
-    from .plots.design import bode_gx_sweep, save_figure
+    from .plots.canvas import save_figure
+    from .plots.design import bode_gx_sweep
 
     if m_list.count(",") >= BODE_CURVES_MAX:
         raise ConfigError("m", m_list, f"at most {BODE_CURVES_MAX} comma-separated numbers > 0 (one curve each)")
@@ -669,6 +709,9 @@ def reproduce(out: str, force: bool, overrides: tuple[str, ...]) -> None:
     report = run_reproduction(out, overrides=changes, progress=True, force=force)
     for claim in report.claims:
         click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
+    for name, metrics in report.studies.metrics.items():
+        for warning in metrics["warnings"]:
+            click.echo(f"  WARNING: run {name}: {warning}")
     counts = ", ".join(f"{sum(c.verdict == v for c in report.claims)} {v}" for v in VERDICTS)
     click.echo(f"{len(report.claims)} claims: {counts}")
     click.echo(
@@ -699,14 +742,18 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str, force: bool) -
 
     Writes DIR/trace.csv (one column per signal), DIR/metrics.json (the step and load-step
     figures; a figure that cannot be computed is null with its reason), DIR/plot.png and
-    DIR/scenario.toml (the scenario as run), all or nothing.
+    DIR/scenario.toml (the scenario as run), all or nothing. A design whose sampled loop is
+    unstable (the check `pmsm2dof design` refuses it by) and a current command that chatters
+    are run all the same, and named first in the summary and in metrics.json's warnings.
     """
     import json
 
     from ..outputs import atomic_write, staged_dir
-    from ..sim.metrics import compute_metrics, summary_lines
+    from ..sim.metrics import summary_lines
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from ..sim.simulate import simulate as run_simulation
+    from ..studies.loopcheck import measure
     from .plots import trace
 
     chosen = load_scenario(scenario)
@@ -715,11 +762,13 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str, force: bool) -
         chosen = chosen.with_overrides(changes)
     with staged_dir(out, "simulate", force) as tmp:
         result = run_simulation(chosen, progress=True)
-        metrics = compute_metrics(result)
+        metrics = measure(result)
         result.save(tmp / "trace.csv")
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         trace.plot_trace(result, tmp / "plot.png")
         atomic_write(tmp / "scenario.toml", chosen.to_toml())
+    # after the run: an input the engine refuses, or a run that stops, is one line (its error) alone
+    warn_implausible(chosen)
     click.echo(f"{chosen.name}: {result.t_s[-1]:g} s simulated in {result.wall_time_s:.3g} s")
     for line in summary_lines(metrics):
         click.echo(f"  {line}")
@@ -783,11 +832,13 @@ def sweep(
     """
     import warnings
 
+    from ..sim.plausibility import warn_implausible
     from ..studies.engine import PartWarning
     from ..studies.sweep import load_sweep, run_sweep
     from .plots.sweep import draw_figures
 
     chosen = load_sweep(file)
+    warn_implausible(chosen.base)
     with warnings.catch_warnings():
         show = warnings.showwarning
 
@@ -821,11 +872,32 @@ def sweep(
     )
     for _, row in stopped.head(5).iterrows():
         click.echo(f"  point {row['point']}: {row['error']}")
+    _sweep_warnings(table)
     ranked = table[table[chosen.rank_by].notna()].sort_values(chosen.rank_by, ascending=False)
     for _, row in ranked.head(chosen.worst).iterrows():
         values = ", ".join(f"{key}={row[key]}" for key in chosen.keys)
         click.echo(f"  worst {chosen.rank_by} = {row[chosen.rank_by]:.4g} at point {row['point']}: {values}")
     click.echo(f"wrote results.parquet, results.csv and {len(run.files) - 2} figures to {out}")
+
+
+def _sweep_warnings(table: "pd.DataFrame") -> None:
+    """Name the points whose sampled loop is unstable or whose current command chatters (the first five)."""
+    from ..sim.metrics import CHATTER_SHARE_MAX
+
+    unstable = table["sampled_loop_z_max"] >= 1.0
+    chatter = table["run_chatter_share"] > CHATTER_SHARE_MAX
+    flagged = table[(unstable | chatter).fillna(False)]
+    if flagged.empty:
+        return
+    click.echo(
+        f"  WARNING: {int(unstable.fillna(False).sum())} points with an unstable sampled loop (|z| >= 1), "
+        f"{int(chatter.fillna(False).sum())} whose current command chatters: their figures describe a limit cycle"
+    )
+    for _, row in flagged.head(5).iterrows():
+        click.echo(
+            f"  point {row['point']}: largest closed-loop pole |z| = {row['sampled_loop_z_max']:.4g}, "
+            f"chatter share {row['run_chatter_share']:.3g}"
+        )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -853,10 +925,13 @@ def tune(scenario: str | None, port: int, host: str, no_browser: bool) -> None:
     the inertia error and the speed and load steps; downloads the scenario (TOML), the
     C header of the design and the trace (CSV).
     """
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from .tuner import DEFAULT_PRESET, run_tuner
 
-    run_tuner(load_scenario(scenario or DEFAULT_PRESET), host=host, port=port, open_browser=not no_browser)
+    chosen = load_scenario(scenario or DEFAULT_PRESET)
+    warn_implausible(chosen)
+    run_tuner(chosen, host=host, port=port, open_browser=not no_browser)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -870,6 +945,7 @@ _AUTOTUNE_OPTIONS = {
     "min_gain_margin_dB": "--min-gain-margin-dB",
     "max_settling_s": "--max-settling-s",
     "max_load_dip_rpm_per_Nm": "--max-load-dip-rpm-per-Nm",
+    "max_recovery_s": "--max-recovery-s",
     "max_current_limit_time_s": "--max-current-limit-time-s",
     "J_range": "--J-range",
     "feedforwards": "--feedforward",
@@ -891,16 +967,18 @@ def _J_range(text: str) -> tuple[float, float]:
         raise ConfigError("--J-range", text, "LO,HI: two numbers, true over design inertia, e.g. 0.5,2") from None
 
 
-def _require_writable_file(path: str) -> None:
-    """Raise ConfigError naming --emit-c-header, before any long work, if ``path`` cannot be written."""
+def _require_writable_file(path: str, option: str = "--emit-c-header") -> None:
+    """Raise ConfigError naming ``option``, before any long work, if ``path`` cannot be written."""
     import os
     from pathlib import Path
 
     folder = Path(path).resolve().parent
     if Path(path).is_dir():
-        raise ConfigError("--emit-c-header", path, "a file path (it is an existing folder)")
+        raise ConfigError(option, path, "a file path (it is an existing folder)")
+    if os.path.lexists(path) and not (Path(path).is_file() or Path(path).is_symlink()):
+        raise ConfigError(option, path, "a file path (it is a device, a FIFO or a socket)")
     if not folder.is_dir() or not os.access(folder, os.W_OK):
-        raise ConfigError("--emit-c-header", path, "a file in an existing, writable folder")
+        raise ConfigError(option, path, "a file in an existing, writable folder")
 
 
 def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
@@ -930,6 +1008,9 @@ def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
     help="smallest gain margin [dB]",
 )
 @click.option("--max-settling-s", type=float, default=None, help="longest settling time (2 %) of a reference step [s]")
+@click.option(
+    "--max-recovery-s", type=float, default=None, help="longest recovery time (2 % of the dip) of a load step [s]"
+)
 @click.option(
     "--max-load-dip-rpm-per-Nm",
     "max_load_dip_rpm_per_Nm",
@@ -987,6 +1068,7 @@ def autotune(
     min_phase_margin_deg: float | None,
     min_gain_margin_dB: float | None,
     max_settling_s: float | None,
+    max_recovery_s: float | None,
     max_load_dip_rpm_per_Nm: float | None,
     max_current_limit_time_s: float | None,
     J_range: str,
@@ -999,18 +1081,23 @@ def autotune(
     force: bool,
     header: str | None,
 ) -> None:
-    """Autotune the speed controller of a scenario: the smallest worst-case load dip per Nm that
-    meets the specification at every inertia of --J-range, on the scenario's own steps.
+    """Autotune the speed controller of a scenario: the smallest worst-case load IAE per Nm (the
+    dip and the recovery from it) that meets the specification at every inertia of --J-range, on
+    the scenario's own steps.
 
     Searches alpha, zeta, m, Ka (and the feedforward and anti-windup forms given) with the
     analytic margins first, then the simulation engine (current limit and anti-windup included).
     Prints the chosen speed_controller keys (`--set speed_controller.KEY=VALUE` reproduces
-    them) and their worst case. Exit status 0 when the design meets the specification, 1 when
-    none does (the summary names the binding constraint and the miss), 2 for bad input.
+    them) and their worst case. A candidate whose current command chatters is rejected; the
+    summary says when the chosen design lies on a bound of the search, and when the scenario's
+    own design has an unstable sampled loop. Exit status 0 when the design meets the
+    specification, 1 when none does (the summary names the binding constraint and the miss), 2
+    for bad input.
     """
     import json
 
     from ..outputs import atomic_write, check_out, staged_dir
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from ..studies.autotune import Spec
     from ..studies.autotune import autotune as run_autotune
@@ -1022,6 +1109,7 @@ def autotune(
             min_gain_margin_dB=min_gain_margin_dB,
             max_settling_s=max_settling_s,
             max_load_dip_rpm_per_Nm=max_load_dip_rpm_per_Nm,
+            max_recovery_s=max_recovery_s,
             max_current_limit_time_s=max_current_limit_time_s,
             J_range=_J_range(J_range),
             feedforwards=feedforwards or None,
@@ -1031,6 +1119,7 @@ def autotune(
         changes = dict(parse_override(text) for text in overrides)
         if changes:
             chosen = chosen.with_overrides(changes)
+        warn_implausible(chosen)
         if out is not None:
             check_out(out, "autotune", force)
         if header is not None:
@@ -1074,6 +1163,8 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
         f"{result.scenario.name}: {counts['candidates']} designs ({counts['rejected_by_margins']} rejected by the "
         f"margins alone), {counts['runs']} simulations over J ratio {lo:g} to {hi:g}, in {result.wall_time_s:.3g} s",
     ]
+    if result.scenario_loop["warning"]:
+        lines.append(f"WARNING: the scenario as given: {result.scenario_loop['warning']}")
     if result.feasible:
         lines.append(f"the design below meets the specification ({counts['feasible']} designs did)")
     else:
@@ -1086,11 +1177,18 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     for key, value in result.speed_controller.items():
         lines.append(f"  speed_controller.{key} = {value}")
     lines.append("worst case over the inertia range (J ratio where it occurs):")
-    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {"tracking_iae_rpm_s": "rpm s"}
+    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {
+        "tracking_iae_rpm_s": "rpm s",
+        "load_iae_rpm_s_per_Nm": "rpm s/Nm",
+        "chatter_share": "",
+    }
     for name, value in data["worst_case"].items():
         shown = "inf (never settles in its window)" if value is None and name == "settling_time_s" else value
-        shown = "inf" if shown is None else (f"{shown:.4g} {units[name]}" if isinstance(shown, float) else shown)
+        if isinstance(shown, float):
+            shown = f"{shown:.4g} {units[name]}".rstrip()
+        shown = "inf" if shown is None else shown
         lines.append(f"  {name:<22} {shown}  ({data['worst_J_ratio'][name]:.4g})")
+    lines += [f"NOTE: {sentence}" for sentence in result.on_bounds]
     sets = " ".join(f"--set speed_controller.{k}={v}" for k, v in result.speed_controller.items())
     lines.append(f"reproduce: pmsm2dof simulate {scenario} {sets} --out DIR")
     return "\n".join(lines)
@@ -1111,7 +1209,10 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     help="change a scenario key, e.g. --set commissioning.dead_time_V=1.5 (repeatable; values are TOML literals)",
 )
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
-@out_option("folder for result.json, log.csv, plot.png and motor.toml (the identified motor, for design --motor)")
+@out_option(
+    "folder for result.json, log.csv, plot.png, motor.toml (the identified motor, for design --motor) and "
+    "p2d_config.h (the scenario's controllers for the identified motor)"
+)
 def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: str | None, force: bool) -> None:
     """Run the C commissioning routine (commission.h) against a scenario's simulated motor.
 
@@ -1142,15 +1243,27 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
             plot_commission(result, tmp / "plot.png")
             if result.phase == "done":
                 atomic_write(tmp / "motor.toml", result.motor_toml(chosen.data["motor"]["pole_pairs"]))
+                _commissioned_header(chosen, result, tmp / "p2d_config.h")
     if as_json:
         click.echo(json.dumps(summary, allow_nan=False))
     else:
         click.echo(_commission_table(result))
         if out is not None:
-            written = "result.json, log.csv, plot.png" + (" and motor.toml" if result.phase == "done" else "")
+            written = "result.json, log.csv, plot.png" + (
+                ", motor.toml and p2d_config.h" if result.phase == "done" else ""
+            )
             click.echo(f"wrote {written} to {out}")
     if result.phase != "done":
         raise click.exceptions.Exit(1)
+
+
+def _commissioned_header(scenario: Any, result: "Commissioning", path: Any) -> None:
+    """The scenario's controllers configured with the identified motor (studies.configuration)."""
+    from ..studies.configuration import configuration
+
+    identified = scenario.with_overrides({f"motor.{key}": value for key, value in result.estimates.items()})
+    notes = ("The motor's Rs, Ld, Lq and psi_f are those the commissioning identified.",)
+    configuration(identified, source=f"pmsm2dof commission {scenario.name!r}", notes=notes).write_header(path)
 
 
 def _commission_table(result: "Commissioning") -> str:
@@ -1182,41 +1295,88 @@ def _percent(x: float) -> str:
 # ---------------------------------------------------------------------------------------------
 
 
-@cli.command()
+def _motor_help() -> str:
+    """The help of `pmsm2dof motor`: what it prints and every key of [motor.datasheet]."""
+    import textwrap
+
+    from ..sim.datasheet import DATASHEET_KEYS
+
+    keys = "\n".join(
+        textwrap.fill(f"{key}: {doc}", width=76, initial_indent="  ", subsequent_indent="      ")
+        for key, (_, doc) in DATASHEET_KEYS.items()
+    )
+    return (
+        "Print the model parameters of eq 1 of a motor given in datasheet units, with their source.\n\n"
+        "FILE is a TOML file (a scenario, one with only [motor], or an identified motor.toml) whose "
+        "[motor.datasheet] table gives the datasheet's values; without it the model keys of [motor] are shown "
+        "as given. Kt and Ke (or Kv), when both are given, are checked against each other. With [limits] "
+        "u_dc_V in the file, the no-load speed the DC link allows is shown too.\n\n"
+        "\b\nKeys of [motor.datasheet] (pmsm2dof.sim.datasheet):\n" + keys
+    )
+
+
+@cli.command(help=_motor_help(), short_help="The per-phase model of a motor given in datasheet units.")
 @click.argument("file", type=click.Path(dir_okay=False))
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
 def motor(file: str, as_json: bool) -> None:
-    """Print the model parameters of eq 1 of a motor given in datasheet units, with their source.
-
-    FILE is a TOML file (a scenario, or one with only [motor]) whose [motor.datasheet] table gives
-    Kt, Ke, line-to-line R and L, poles (see `pmsm2dof.sim.datasheet`); without it the model keys
-    of [motor] are shown as given. Kt and Ke, when both are given, are checked against each other.
-    """
     import json
 
-    from ..sim.datasheet import MOTOR_KEYS, load_motor
+    from ..errors import require_positive
+    from ..inputs import read_toml
+    from ..sim.datasheet import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
 
-    with warnings_as_lines():
-        m = load_motor(file)
-    keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + (["i_rated_A"] if m.i_rated_A is not None else [])
+    m = load_motor(file)
+    keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + [key for key in RATING_KEYS if getattr(m, key) is not None]
+    sources = {**m.sources, "kt_Nm_per_A": "1.5 p psi_f (amplitude-invariant dq, eq 1)"}
+    limits = read_toml(file, "motor file").get("limits")
+    u_dc = limits.get("u_dc_V") if isinstance(limits, dict) else None
+    extra: dict[str, float] = {}
+    notes = list(m.notes)
+    if u_dc is not None:
+        u_dc = require_positive("limits.u_dc_V", u_dc)
+        extra["no_load_rpm"] = no_load_speed_radps(u_dc, m.pole_pairs, m.psi_f_Wb) * 30.0 / math.pi
+        sources["no_load_rpm"] = f"u_dc / (sqrt(3) p psi_f) at limits.u_dc_V = {u_dc:g} V (space-vector modulation)"
+        if m.commutation == "block":
+            # block: the mean DC-side back-EMF kM w_m meets u_dc, kM = (3 sqrt(3)/pi) p psi_f (pmsm2dof.sim.datasheet)
+            notes.append(
+                f"block commutation reaches u_dc / kM = {extra['no_load_rpm'] * math.pi / 3.0:.5g} rpm at no load, "
+                "pi/3 times more (the datasheet's no-load speed is this, less the drop of the no-load current)"
+            )
     if as_json:
-        out = {key: getattr(m, key) for key in keys}
-        out["sources"] = m.sources
-        out["notes"] = list(m.notes)
+        out: dict[str, Any] = {key: getattr(m, key) for key in keys} | extra
+        out["sources"] = {key: sources[key] for key in (*keys, *extra)}
+        out["notes"] = notes
         click.echo(json.dumps(out, indent=2))
         return
-    sources = {**m.sources, "kt_Nm_per_A": "1.5 p psi_f (amplitude-invariant dq, eq 1)"}
-    for key in keys:
-        click.echo(f"{key:<12} = {getattr(m, key):<12.6g}  from {sources.get(key, '')}")
-    for note in m.notes:
+    values = {key: getattr(m, key) for key in keys} | extra
+    for key, value in values.items():
+        click.echo(f"{key:<12} = {value:<12.6g}  from {sources.get(key, '')}")
+    for note in notes:
         click.echo(f"note: {note}")
 
 
 @contextlib.contextmanager
-def warnings_as_lines() -> Iterator[None]:
-    """Show the warnings of pmsm2dof raised inside the block as one line each on stderr."""
+def _held_warnings() -> Iterator[None]:
+    """Hold the warnings raised inside the block; give them again only when it ends without an error."""
     import warnings
 
+    with warnings.catch_warnings(record=True) as held:
+        warnings.simplefilter("always")
+        yield
+    for w in held:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+@contextlib.contextmanager
+def warnings_as_lines() -> Iterator[None]:
+    """Show each warning of pmsm2dof raised inside the block once, as one line on stderr.
+
+    A :class:`~pmsm2dof.errors.Pmsm2dofWarning` whose text was shown already (a scenario converted
+    again for every run of a study, say) is not repeated; other warnings are shown as Python shows them.
+    """
+    import warnings
+
+    shown: set[str] = set()
     with warnings.catch_warnings():
         show = warnings.showwarning
 
@@ -1228,12 +1388,13 @@ def warnings_as_lines() -> Iterator[None]:
             file: TextIO | None = None,
             line: str | None = None,
         ) -> None:
-            if category.__module__.startswith("pmsm2dof"):
-                print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
-            else:
+            if not issubclass(category, Pmsm2dofWarning):
                 show(message, category, filename, lineno, file, line)
+            elif (text := _one_line(message)) not in shown:
+                shown.add(text)
+                print(f"pmsm2dof: warning: {text}", file=sys.stderr)
 
-        warnings.simplefilter("always")
+        warnings.filterwarnings("always", category=Pmsm2dofWarning)
         warnings.showwarning = one_line
         yield
 
@@ -1402,11 +1563,10 @@ def identify(
             if value is not None:
                 raise ConfigError(option, value, "absent when --motor gives the motor")
     columns = dict(parse_column(text) for text in column_maps)
-    with warnings_as_lines():
-        measured = read_log(log, columns)
-        motor_data = None
-        if motor_file is not None:
-            motor_data = load_motor(motor_file)
+    measured = read_log(log, columns)
+    motor_data = None
+    if motor_file is not None:
+        motor_data = load_motor(motor_file)
     torque = None
     if motor_data is not None or pole_pairs is not None or psi_f_Wb is not None:
         if motor_data is None:
@@ -1520,8 +1680,7 @@ def _identify_electrical(
 
         check_out(out, "identify-electrical", force)
     columns = dict(parse_column(text) for text in column_maps)
-    with warnings_as_lines():
-        measured = read_log(log, columns)
+    measured = read_log(log, columns)
     try:
         fit = identify_electrical(
             measured,
@@ -1621,14 +1780,14 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str, for
     from ..outputs import atomic_write, staged_dir
     from ..sim.logs import read_log
     from ..sim.metrics import compute_metrics
+    from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from ..sim.simulate import simulate as run_simulation
     from .plots.identify import plot_compare
 
     columns = dict(parse_column(text) for text in column_maps)
-    with warnings_as_lines():
-        measured = read_log(log, columns)
-        chosen = load_scenario(scenario)
+    measured = read_log(log, columns)
+    chosen = load_scenario(scenario)
     inside = (measured.t_s >= 0.0) & (measured.t_s <= chosen.data["simulation"]["t_end_s"])
     if np.count_nonzero(inside) < 2:
         raise ConfigError(
@@ -1649,10 +1808,13 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str, for
         plot_compare(measured, result, tmp / "compare.png")
         atomic_write(tmp / "compare.json", json.dumps(table, indent=2, allow_nan=False) + "\n")
         result.save(tmp / "simulation.csv")
+    warn_implausible(chosen)
     click.echo(
         f"{chosen.name} against {log}: speed difference {table['speed_error_rms_rpm']:.4g} rpm rms, "
         f"{table['speed_error_max_rpm']:.4g} rpm at most"
     )
+    for note in measured.notes:
+        click.echo(f"note: {note}")
     if table["log_metrics"] is not None:
         dt = measured.dt_s
         for mine in table["log_metrics"]["reference_steps"]:
@@ -1702,7 +1864,7 @@ def _identify_plan(
     click.echo(
         f"simulated with J = {chosen.data['speed_controller']['J_kgm2']:g} kg m^2: |speed| <= "
         f"{abs(result.speed_rpm).max():.5g} rpm, |iq| <= {abs(result.iq_A).max():.4g} A (limit {i_limit:g} A), "
-        f"{result.t_s[-1]:g} s"
+        f"at the voltage limit {100 * float(result.voltage_limited.mean()):.3g} % of the time, {result.t_s[-1]:g} s"
     )
     click.echo(f"wrote plan.toml, trace.csv and plot.png to {out}: play plan.toml's reference on the drive, log it")
 
@@ -1909,3 +2071,151 @@ def _write_region(path: str, train: "TwoMass", d: "Design", Ts_s: float, filters
     buf = io.BytesIO()
     fig.savefig(buf, format=path.rsplit(".", 1)[-1].lower(), dpi=110)
     atomic_write(path, buf.getvalue())
+
+
+# ---------------------------------------------------------------------------------------------
+# header and firmware (pmsm2dof.studies.configuration, studies.firmware, ui.plots.firmware)
+# ---------------------------------------------------------------------------------------------
+
+
+def _chosen(scenario: str, overrides: Sequence[str]) -> tuple[Any, str]:
+    """The scenario of PRESET_OR_FILE with the --set changes, and the command line that names it."""
+    from ..sim.scenario import load_scenario
+
+    chosen = load_scenario(scenario)
+    changes = dict(parse_override(text) for text in overrides)
+    if changes:
+        chosen = chosen.with_overrides(changes)
+    return chosen, " ".join([scenario, *(f"--set {text}" for text in overrides)])
+
+
+@cli.command()
+@click.argument("scenario", metavar="PRESET_OR_FILE")
+@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="change a scenario key (repeatable)")
+@click.option(
+    "--out", type=click.Path(dir_okay=False), required=True, help="the header to write (the firmware's p2d_config.h)"
+)
+@click.option("--prefix", default="p2d_config", show_default=True, help="C identifier prefix of the header")
+@click.option(
+    "--virtual-drive",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="also write the virtual board's header (p2d_virtual_drive.h: the scenario's plant and schedules)",
+)
+def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, virtual_drive: str | None) -> None:
+    """Write the C configuration of a scenario's controllers: the header the firmware includes.
+
+    Speed controller, torque filters, current controller, speed-sensor estimator, field weakening,
+    inertia estimator and the loop rates, as the engine runs them on the scenario (the same shape
+    as design --emit-c-header, autotune --emit-c-header, commission --out and the tuner write).
+    """
+    from ..outputs import atomic_write
+    from ..studies.configuration import configuration
+    from ..studies.firmware import virtual_drive_header
+
+    options = {out: "--out"} if virtual_drive is None else {out: "--out", virtual_drive: "--virtual-drive"}
+    for path, option in options.items():
+        _require_writable_file(path, option)
+    chosen, named = _chosen(scenario, overrides)
+    with warnings_as_lines():
+        config = configuration(chosen, source=f"pmsm2dof header {named}")
+        texts = {out: config.c_header(prefix)}
+    if virtual_drive is not None:
+        texts[virtual_drive] = virtual_drive_header(config)
+    for path, text in texts.items():
+        try:
+            atomic_write(path, text)
+        except ConfigError as exc:  # a full disk
+            raise ConfigError(options[path], exc.value, exc.valid) from None
+    click.echo(
+        f"{chosen.name}: wrote {' and '.join(texts)} (current loop every {config.engine.cfg.Ts_current_s:g} s, "
+        f"speed loop every {config.current_per_speed} current periods)"
+    )
+
+
+@cli.command(short_help="Build the firmware for a scenario, or run it on QEMU against the engine.")
+@click.argument("args", nargs=-1, metavar="PRESET_OR_FILE | run DIR")
+@click.option(
+    "--set", "overrides", multiple=True, metavar="KEY=VALUE", help="build: change a scenario key (repeatable)"
+)
+@out_option(
+    "build: the firmware's folder; run: the folder for trace.csv, metrics.json, plot.png, interrupts.csv",
+    type=click.Path(file_okay=False),
+    required=True,
+)
+@click.option("--samples", type=int, default=None, help="run: speed samples to run [default: the scenario's t_end]")
+def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, force: bool, samples: int | None) -> None:
+    """Build the FOC firmware of examples/firmware for a scenario, or run it closed loop on QEMU.
+
+    `pmsm2dof firmware PRESET_OR_FILE --out DIR` writes DIR/scenario.toml, DIR/p2d_config.h (the
+    controllers), DIR/p2d_virtual_drive.h (the virtual board: the engine's plant, the scenario's
+    reference and load) and cross-builds DIR/virtual_drive.elf and DIR/firmware.elf (the porting stub)
+    for the Cortex-M4F (CMake, arm-none-eabi-gcc).
+
+    `pmsm2dof firmware run DIR --out RUN` runs DIR/virtual_drive.elf on QEMU (mps2-an386), simulates
+    the scenario with the engine and writes RUN/trace.csv (the firmware's trace in the engine's
+    format), RUN/metrics.json (the figures of merit, the agreement with the engine, the instructions
+    per interrupt), RUN/plot.png (the firmware over the engine) and RUN/interrupts.csv. Exit status 1
+    when the firmware's speed or currents differ from the engine's by more than 1e-4 of their step.
+    """
+    if len(args) == 2 and args[0] == "run":
+        if overrides:
+            raise click.UsageError("--set changes a scenario before the build: pmsm2dof firmware SCENARIO --set ...")
+        _firmware_run(args[1], out, force, samples)
+        return
+    if len(args) != 1:
+        raise click.UsageError("give a scenario (pmsm2dof firmware SCENARIO --out DIR) or run DIR (--out RUN)")
+    if samples is not None:
+        raise click.UsageError("--samples is an option of `pmsm2dof firmware run DIR`")
+    from ..studies.firmware import build_firmware
+
+    chosen, named = _chosen(args[0], overrides)
+    with warnings_as_lines():
+        build = build_firmware(chosen, out, source=f"pmsm2dof firmware {named}", force=force)
+    for name, size in build.sizes.items():
+        click.echo(f"  {name:<18} flash {size['text'] + size['data']:>7} B, RAM {size['data'] + size['bss']:>6} B")
+    click.echo(f"{chosen.name}: wrote scenario.toml, p2d_config.h, p2d_virtual_drive.h, the ELF and map files to {out}")
+
+
+def _firmware_run(folder: str, out: str, force: bool, samples: int | None) -> None:
+    """``pmsm2dof firmware run DIR --out RUN``."""
+    import json
+
+    from ..outputs import atomic_write, check_out, staged_dir
+    from ..sim.metrics import compute_metrics
+    from ..studies.firmware import run_firmware
+    from .plots.firmware import plot_firmware
+
+    check_out(out, "firmware-run", force)
+    run = run_firmware(folder, samples=samples)
+    comparison, cost = run.comparison(), run.cost()
+    metrics = {"firmware": compute_metrics(run.firmware), "comparison": comparison, "interrupts": cost}
+    with staged_dir(out, "firmware-run", force) as tmp:
+        run.firmware.save(tmp / "trace.csv")
+        atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
+        plot_firmware(run, tmp / "plot.png")
+        rows = [{"instructions": int(n), "speed_sample": int(s)} for n, s in zip(run.instructions, run.speed_sample)]
+        atomic_write(tmp / "interrupts.csv", _csv_text(rows))
+    t_end = run.firmware.t_s[-1]
+    click.echo(f"{run.scenario.name}: {t_end:g} s on QEMU in {run.wall_time_s:.3g} s of wall time")
+    for group in ("speed", "currents"):
+        c = comparison[group]
+        click.echo(
+            f"  {group:<8} firmware - engine: {c['max_abs_difference']:.3g} at most, "
+            f"{c['relative_to_step']:.3g} of the step {c['step']:.4g}"
+        )
+    for kind in ("current", "speed"):
+        k = cost[kind]
+        if k["interrupts"]:
+            click.echo(f"  {kind:<8} interrupts: {k['interrupts']}, {k['min']} to {k['max']} instructions")
+    click.echo(
+        f"  CPU load on a {cost['core_clock_Hz'] / 1e6:g} MHz Cortex-M4 at {cost['cycles_per_instruction']:g} cycles "
+        f"per instruction: {100 * cost['mean_load']:.3g} % mean, {100 * cost['peak_share_of_period']:.3g} % of a "
+        "period at most"
+    )
+    click.echo(f"wrote trace.csv, metrics.json, plot.png and interrupts.csv to {out}")
+    if not comparison["agrees"]:
+        click.echo(
+            f"the firmware's trace differs from the engine's by more than {comparison['agreement']:g} of the step"
+        )
+        raise click.exceptions.Exit(1)

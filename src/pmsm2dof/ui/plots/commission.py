@@ -13,7 +13,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ...sim.commission import PHASES, Commissioning
-from .design import save_figure
+from .canvas import save_figure
 
 __all__ = ["commission_figure", "plot_commission"]
 

@@ -6,9 +6,7 @@ Frequency and time responses come from python-control.
 """
 
 import dataclasses
-import io
 from collections.abc import Iterable, Mapping, Sequence
-from pathlib import Path
 from typing import Any
 
 import control
@@ -21,10 +19,7 @@ from matplotlib.figure import Figure
 from ...analysis.design import Design, design
 from ...core.bindings import Feedforward
 from ...errors import ConfigError, require_positive
-from ...outputs import atomic_write
 
-#: File formats :func:`save_figure` writes, by extension.
-FORMATS = {".png": "png", ".svg": "svg"}
 _POINTS = 600
 
 
@@ -131,15 +126,3 @@ def step_responses(d: Design) -> Figure:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize="small")
     return fig
-
-
-def save_figure(fig: Figure, path: Path | str) -> Path:
-    """Save ``fig`` to ``path`` (``.png`` or ``.svg``) in one atomic write; return the path."""
-    path = Path(path)
-    fmt = FORMATS.get(path.suffix.lower())
-    if fmt is None:
-        raise ConfigError("out", str(path), "a file name ending in " + " or ".join(FORMATS))
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format=fmt, dpi=120)
-    atomic_write(path, buffer.getvalue())
-    return path

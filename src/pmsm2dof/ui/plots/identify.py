@@ -10,7 +10,7 @@ from ...sim.logs import Log
 from ...sim.simulate import Result
 from ...studies.electrical import Electrical
 from ...studies.identify import Mechanics
-from .design import save_figure
+from .canvas import save_figure
 
 
 def plot_fit(mech: Mechanics, path: Path) -> None:

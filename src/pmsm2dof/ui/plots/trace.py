@@ -12,19 +12,30 @@ from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
+from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from ...sim.metrics import at_current_limit, at_voltage_limit
 from ...sim.simulate import Result
-from .design import save_figure
+from .canvas import DPI, decimate_lines, save_figure
 
 
-def saturated_intervals(t: npt.NDArray[np.float64], saturated: npt.ArrayLike) -> list[tuple[float, float]]:
-    """(start, end) of each run of set flags; the flag of sample k holds over [t[k], t[k+1])."""
+def saturated_intervals(
+    t: npt.NDArray[np.float64], saturated: npt.ArrayLike, min_gap_s: float = 0.0
+) -> list[tuple[float, float]]:
+    """(start, end) of each run of set flags; the flag of sample k holds over [t[k], t[k+1]).
+
+    Runs separated by less than ``min_gap_s`` are one (a gap narrower than a pixel is not drawn).
+    """
     flags = np.concatenate(([False], np.asarray(saturated, dtype=bool)[:-1], [False]))
     edges = np.flatnonzero(np.diff(flags.astype(np.int8)))
-    return [(t[a], t[b]) for a, b in zip(edges[::2], edges[1::2])]
+    starts, ends = t[edges[::2]], t[edges[1::2]]
+    if starts.size:
+        join = np.concatenate(([False], starts[1:] - ends[:-1] < min_gap_s))
+        starts, ends = starts[~join], ends[np.concatenate((~join[1:], [True]))]
+    return list(zip(starts.tolist(), ends.tolist()))
 
 
 def trace_figure(result: Result) -> Figure:
@@ -39,12 +50,18 @@ def trace_figure(result: Result) -> Figure:
     -------
     matplotlib.figure.Figure
         On the Agg canvas. The current panel shows the limit ``+-limits.i_max_A``; shaded spans
-        mark the samples where the current-vector limit is active. The voltage panel shows
+        mark the samples where the current-vector limit is active. The torque panel is scaled to
+        the torques applied (limited command, ``Te``, load): a controller output beyond them is
+        clipped, its range in the legend. The voltage panel shows
         ``||u_dq||`` and the range ``u_dc / sqrt(3)``, with the samples at the voltage limit shaded.
+        A trace longer than the image is wide is drawn from the points that matter per pixel column
+        (:func:`~pmsm2dof.ui.plots.canvas.decimate`: peaks kept).
     """
     t = result.t_s
     i_max = result.scenario.data["limits"]["i_max_A"]
-    fig = Figure(figsize=(8.0, 9.5), layout="constrained")
+    # fixed margins: a layout engine measures every text once more for each figure (half of savefig)
+    fig = Figure(figsize=(8.0, 9.5))
+    fig.subplots_adjust(left=0.1, right=0.98, bottom=0.055, top=0.95, hspace=0.1)
     FigureCanvasAgg(fig)
     ax_w, ax_i, ax_T, ax_u = fig.subplots(4, 1, sharex=True, height_ratios=(1.0, 1.0, 1.0, 0.7))
     fig.suptitle(result.scenario.name)
@@ -64,12 +81,15 @@ def trace_figure(result: Result) -> Figure:
         ax_i.axhline(sign * i_max, color="grey", lw=0.8, ls=":")
     ax_i.set_ylabel("current [A]")
 
-    ax_T.plot(t, result.torque_unsat_Nm, ":", lw=1.0, color="C3", label="controller output u")
+    (u_line,) = ax_T.plot(t, result.torque_unsat_Nm, ":", lw=1.0, color="C3", label="controller output u")
     ax_T.plot(t, result.torque_ref_Nm, "--", lw=1.0, color="C2", label="limited command u_sat")
     ax_T.plot(t, result.torque_Nm, lw=1.4, color="C0", label="electromagnetic Te")
     ax_T.plot(t, result.load_Nm, lw=1.4, color="C4", label="load")
+    applied = [result.torque_ref_Nm, result.torque_Nm, result.load_Nm]
     if two_mass:
         ax_T.plot(t, result.shaft_torque_Nm, lw=1.0, color="C5", label="shaft")
+        applied.append(result.shaft_torque_Nm)
+    _clip_to_applied(ax_T, u_line, np.asarray(result.torque_unsat_Nm), applied)
     ax_T.set_ylabel("torque [Nm]")
 
     ax_u.plot(t, np.hypot(result.ud_V, result.uq_V), lw=1.4, color="C0", label="||u_dq||")
@@ -77,10 +97,11 @@ def trace_figure(result: Result) -> Figure:
     ax_u.set_ylabel("voltage [V]")
     ax_u.set_xlabel("time [s]")
     voltage_limited = at_voltage_limit(result) > 0.0
-    for a, b in saturated_intervals(t, voltage_limited):
+    pixel_s = (t[-1] - t[0]) / (fig.get_figwidth() * DPI)
+    for a, b in saturated_intervals(t, voltage_limited, pixel_s):
         ax_u.axvspan(a, b, color="purple", alpha=0.15, lw=0)
 
-    spans = saturated_intervals(t, at_current_limit(result))
+    spans = saturated_intervals(t, at_current_limit(result), pixel_s)
     for ax in (ax_w, ax_i, ax_T, ax_u):
         for a, b in spans:
             ax.axvspan(a, b, color="orange", alpha=0.15, lw=0)
@@ -93,7 +114,26 @@ def trace_figure(result: Result) -> Figure:
         ax_u.axvspan(np.nan, np.nan, color="purple", alpha=0.15, label="voltage limit active")
         ax_u.legend(fontsize="small", loc="best")
     ax_u.set_xlim(t[0], t[-1])
+    decimate_lines(fig)
     return fig
+
+
+def _clip_to_applied(
+    ax: Axes, u_line: Line2D, u: npt.NDArray[np.float64], applied: list[npt.NDArray[np.float64]]
+) -> None:
+    """Scale the torque panel to the torques the drive applies (limited command, Te, load), 10 % beyond.
+
+    The controller output before the limit may be orders of magnitude larger (a windup, a gain
+    designed for the wrong inertia): drawn to its own scale it would flatten ``Te`` and the load
+    to a line. It is then clipped at the panel's edge, its range given in its legend entry.
+    """
+    values = np.concatenate([np.asarray(a, dtype=float) for a in applied])
+    lo, hi = float(np.min(values)), float(np.max(values))
+    pad = 0.1 * (hi - lo) if hi > lo else 0.1 * max(abs(hi), 1e-9)
+    lo, hi = lo - pad, hi + pad
+    if np.min(u) < lo or np.max(u) > hi:
+        ax.set_ylim(lo, hi)
+        u_line.set_label(f"controller output u (clipped; {np.min(u):.3g} to {np.max(u):.3g} Nm)")
 
 
 def plot_trace(result: Result, path: Path | str) -> Path:

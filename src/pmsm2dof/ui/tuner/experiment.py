@@ -35,13 +35,14 @@ import control
 import numpy as np
 import numpy.typing as npt
 
-from ...analysis.codegen import c_header
 from ...analysis.design import Design, design
 from ...core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ...errors import ConfigError, require_positive
-from ...sim.metrics import at_current_limit, at_voltage_limit, compute_metrics
+from ...sim.metrics import at_current_limit, at_voltage_limit
 from ...sim.scenario import Scenario, Tree
 from ...sim.simulate import Result, Simulation
+from ...studies.configuration import configuration
+from ...studies.loopcheck import measure
 from ..plots.trace import saturated_intervals
 from .slots import Ticket
 
@@ -75,6 +76,7 @@ SUGGEST_SPEC_KEYS = (
     "min_gain_margin_dB",
     "max_settling_s",
     "max_load_dip_rpm_per_Nm",
+    "max_recovery_s",
     "max_current_limit_time_s",
     "J_range",
 )
@@ -101,6 +103,7 @@ TABLE_METRICS = {
     "run": (
         ("current_limit_time_s", "time at the current limit", "s"),
         ("voltage_limit_time_s", "time at the voltage limit", "s"),
+        ("chatter_share", "share of samples where the current command chatters", ""),
     ),
 }
 
@@ -434,11 +437,13 @@ class Tuner:
         inverter's voltage range, by :func:`pmsm2dof.sim.metrics.at_current_limit` and
         :func:`~pmsm2dof.sim.metrics.at_voltage_limit`, as plot.png shades them), ``detail`` (speed
         and reference around the first load step,
-        or without one the last reference step, until the next schedule entry, decimated on
-        their own so that the dip keeps its full resolution; its ``t_s`` and ``title``),
-        ``bode``, ``metrics`` (list of ``{key, group, label, unit, value, reason}``, key the path
-        in :func:`pmsm2dof.sim.metrics.compute_metrics`), ``warnings`` (sentences: the voltage limit
-        cut in), ``design`` (Kp, Ki, Ka), ``log`` (every, period_s, rows), ``i_max_A``,
+        or without one the last reference step, to the last sample of its window (before the next
+        event), decimated on their own so that the dip keeps its full resolution; its ``t_s`` and
+        ``title``), ``bode``, ``metrics`` (list of ``{key, group, label, unit, value, reason}``, key
+        the path in :func:`pmsm2dof.sim.metrics.compute_metrics`), ``warnings`` (sentences: the
+        sampled loop unstable, the current command chattering, the voltage limit cut in;
+        :func:`pmsm2dof.studies.loopcheck.measure`), ``design`` (Kp, Ki, Ka), ``log`` (every,
+        period_s, rows), ``i_max_A``,
         ``t_end_s``, ``label`` and ``server_ms``.
 
         Raises
@@ -459,7 +464,7 @@ class Tuner:
         }
         traces["u_dq_V"] = _trace(t, u_dq_V)
         traces["u_max_V"] = _trace(t, np.asarray(result.u_dc_V) / math.sqrt(3.0))
-        figures = compute_metrics(result)
+        figures = measure(result)
         if figures["load_steps"]:
             event = figures["load_steps"][0]
             title = f"Load step: {event['from_Nm']:g} \u2192 {event['to_Nm']:g} Nm at {event['t_s']:g} s"
@@ -528,7 +533,8 @@ class Tuner:
         scenario of the values (:meth:`scenario`) and its design inertia the base scenario's. Keys:
         ``feasible``, ``values`` (the chosen ``speed_controller.*`` control values), ``worst_case``
         and ``worst_J_ratio``, ``violations`` (sentences; empty when feasible), ``binding``,
-        ``counts`` and ``wall_time_s`` (:meth:`pmsm2dof.studies.autotune.AutotuneResult.as_dict`).
+        ``on_bounds`` (sentences: the bounds of the search the design lies on), ``counts`` and
+        ``wall_time_s`` (:meth:`pmsm2dof.studies.autotune.AutotuneResult.as_dict`).
 
         Raises
         ------
@@ -576,6 +582,7 @@ class Tuner:
             "violations": [v.describe() for v in result.chosen.violations]
             + ([result.chosen.error] if result.chosen.error else []),
             "binding": out["binding"],
+            "on_bounds": out["on_bounds"],
             "counts": out["counts"],
             "wall_time_s": out["wall_time_s"],
             "server_ms": 1e3 * (time.perf_counter() - start),
@@ -595,8 +602,7 @@ class Tuner:
             scenario = self.scenario(values)
             # the engine's init runs the C controllers' init, which names the scenario key of any
             # value they reject; nothing is simulated
-            Simulation(self.logged(scenario).data)
-            return "pmsm2dof_speed_config.h", "text/x-c", self._c_header(scenario)
+            return "p2d_config.h", "text/x-c", self._c_header(self.logged(scenario))
         if kind == "trace.csv":
             scenario, result = self._evaluate(values, ticket)
             return f"{_slug(scenario.name)}-trace.csv", "text/csv", result.to_dataframe().to_csv(index=False)
@@ -604,23 +610,8 @@ class Tuner:
 
     @staticmethod
     def _c_header(scenario: Scenario) -> str:
-        """C header of the scenario's speed and current controllers (pmsm2dof.analysis.codegen)."""
-        data = scenario.data
-        motor, sc, cl = data["motor"], data["speed_controller"], data["current_loop"]
-        discrete = design_of(scenario).discretize(sc["Ts_s"], sc["method"])
-        return c_header(
-            discrete,
-            i_max_A=data["limits"]["i_max_A"],
-            pole_pairs=motor["pole_pairs"],
-            psi_f_Wb=motor["psi_f_Wb"],
-            Ld_H=motor["Ld_H"],
-            Lq_H=motor["Lq_H"],
-            Rs_ohm=motor["Rs_ohm"],
-            Ts_current_s=cl["Ts_s"],
-            current_method=cl["method"],
-            current_anti_windup=cl["anti_windup"],
-            decouple=cl["decouple"],
-        )
+        """The C configuration of the scenario's controllers (pmsm2dof.studies.configuration)."""
+        return configuration(scenario, source="pmsm2dof tune (the tuner's download)").c_header()
 
 
 def _metric_rows(figures: Mapping[str, Any]) -> list[dict[str, Any]]:
@@ -661,16 +652,18 @@ def _event_title(part: str, event: Mapping[str, Any]) -> str:
 
 
 def _warnings(figures: Mapping[str, Any], data: Tree) -> list[str]:
-    """Sentences the page shows above the metrics: the run left the design's assumptions."""
+    """Sentences the page shows above the metrics: the run left the design's assumptions (those of
+    :func:`pmsm2dof.studies.loopcheck.measure` first)."""
     run = figures["run"]
     voltage_s = run["voltage_limit_time_s"]["value"]
     if not voltage_s:
-        return []
+        return list(figures["warnings"])
     u_max_V = data["limits"]["u_dc_V"] / math.sqrt(3.0)
     return [
+        *figures["warnings"],
         f"Voltage limit: the inverter's range u_dc/\u221a3 = {u_max_V:.4g} V cut the voltage for "
         f"{voltage_s:.4g} s ({100.0 * voltage_s / run['t_end_s']:.3g} % of the run). There the currents do "
-        "not follow their commands and the design (eq 3, 9) does not hold."
+        "not follow their commands and the design (eq 3, 9) does not hold.",
     ]
 
 

@@ -303,7 +303,8 @@ async function suggest() {
     for (const [key, value] of Object.entries(s.values)) setControl(key, value);
     result.textContent = (s.feasible ? "applied: it meets the specification" :
       "applied the closest design, which misses " + s.violations.join("; ")) +
-      ` (worst load dip ${fmt(s.worst_case.load_dip_rpm_per_Nm)} rpm/Nm; ${s.counts.runs} simulations in ` +
+      ` (worst load dip ${fmt(s.worst_case.load_dip_rpm_per_Nm)} rpm/Nm, load IAE ` +
+      `${fmt(s.worst_case.load_iae_rpm_s_per_Nm)} rpm s/Nm; ${s.counts.runs} simulations in ` +
       `${s.wall_time_s.toFixed(1)} s)`;
     window.tuner.suggestion = s;
     showError(null);

@@ -1,9 +1,11 @@
 /*
- * Minimal startup for a Cortex-M4F: vector table, reset handler (FPU on,
- * .data copied from flash, .bss cleared, main called) and weak default
- * handlers. Handlers are overridden by defining a function of the same name,
- * e.g. SysTick_Handler. Word 0 of the table (initial stack pointer) is placed
- * by the linker script.
+ * Minimal startup for a Cortex-M (M4F, M3, M0): vector table, reset handler
+ * (FPU on where the core has one, .data copied from flash, .bss cleared, main
+ * called) and weak default handlers. Handlers are overridden by defining a
+ * function of the same name, e.g. SysTick_Handler. Word 0 of the table
+ * (initial stack pointer) is placed by the linker script. On an Armv6-M core
+ * (M0) the entries of MemManage, BusFault, UsageFault and DebugMon are
+ * reserved and never taken.
  *
  * Register addresses: Armv7-M Architecture Reference Manual (DDI 0403),
  * B3.2 System Control Space; CPACR at 0xE000ED88, CP10/CP11 in bits 20-23.
@@ -59,9 +61,11 @@ void Reset_Handler(void)
     const uint32_t *src = &__data_load;
     uint32_t *dst;
 
+#if defined(__ARM_FP)
     /* full access to CP10 and CP11, the FPU, before any floating-point instruction */
     P2D_SCB_CPACR |= 0xFu << 20;
     __asm__ volatile("dsb\n\tisb" ::: "memory");
+#endif
 
     for (dst = &__data_start; dst < &__data_end; ++dst) {
         *dst = *src++;

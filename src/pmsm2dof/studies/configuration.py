@@ -1,0 +1,357 @@
+"""The one scenario -> C configuration of the firmware, for every command that writes a header.
+
+:func:`configuration` turns a scenario into the complete configuration of the controllers the
+firmware runs (``examples/firmware/foc.c``), as the engine would run them on that scenario: the
+speed controller and its torque filters, the dq current controllers, the speed sensor's estimator
+(an encoder's, or the low-pass of the speed as measured), the field weakening, the inertia
+estimator and its gain scheduling when enabled, and the loop rates. Its values are read from the
+engine's own C configuration of the scenario (:class:`pmsm2dof.sim.simulate.Simulation`), so a
+default derived in C (``Ka = 1/Kp``, the estimator's bounds) is the engine's float to the bit, and
+a value the C inits reject is a :class:`~pmsm2dof.errors.ConfigError` naming the scenario key.
+
+:meth:`Configuration.c_header` writes it as one C header of one shape, whatever the command:
+``pmsm2dof header``, ``firmware``, ``design --emit-c-header``, ``autotune --emit-c-header``,
+``commission --out`` and the tuner's download. The other results reach it as scenarios:
+:func:`design_scenario` (a design and its motor), ``AutotuneResult.tuned_scenario()``, a
+commissioning's identified motor set into its scenario, the tuner's scenario.
+
+The header defines, with ``prefix`` ``p2d_config`` (the firmware's):
+
+- ``P2D_CONFIG_TS_CURRENT_S``, ``P2D_CONFIG_TS_SPEED_S`` [s] and ``P2D_CONFIG_CURRENT_PER_SPEED``,
+  the integer loop ratio the firmware's interrupt counts;
+- ``P2D_CONFIG_ENCODER``, ``P2D_CONFIG_FIELD_WEAKENING``, ``P2D_CONFIG_INERTIA`` (0 or 1), and the
+  gain scheduling's ``P2D_CONFIG_ADAPT_GAINS``, ``P2D_CONFIG_KA_FOLLOWS_J``,
+  ``P2D_CONFIG_ADAPT_REL_CHANGE``, ``P2D_CONFIG_ADAPT_ERROR_RADPS``;
+- ``p2d_config_speed`` (``p2d_speed_config_t``), ``p2d_config_speed_filter``
+  (``p2d_filter_config_t``, zero: none), ``p2d_config_current`` (``p2d_current_config_t``),
+  ``p2d_config_encoder`` (``p2d_encoder_config_t``; with the speed as measured, only its low-pass
+  counts, as in the engine), ``p2d_config_field_weakening`` and ``p2d_config_inertia`` (zero when off).
+"""
+
+import dataclasses
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ..analysis.codegen import c_float, check_prefix, config_header, design_record
+from ..analysis.design import design
+from ..analysis.discretize import DiscreteDesign
+from ..core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, SpeedController
+from ..core.bindings import ffi
+from ..errors import ConfigError
+from ..outputs import atomic_write
+from ..sim.scenario import Scenario, Tree, load_scenario
+from ..sim.simulate import RPM_PER_RADPS, Simulation
+
+#: The identifier prefix of the firmware's configuration (examples/firmware/foc.c includes p2d_config.h).
+DEFAULT_PREFIX = "p2d_config"
+
+#: The preset whose drive fills what a design does not define (the DC link, friction, the test
+#: sequence): none of it reaches the configuration.
+DESIGN_TEMPLATE = "paper-condition-1"
+
+#: The C headers the configuration's structs come from.
+INCLUDES = (
+    "pmsm2dof/current.h",
+    "pmsm2dof/encoder.h",
+    "pmsm2dof/field_weakening.h",
+    "pmsm2dof/filter.h",
+    "pmsm2dof/inertia.h",
+    "pmsm2dof/speed.h",
+)
+
+#: The largest log_every the engine takes (uint32_t): the configuration's engine logs one row.
+_LOG_EVERY_ONE_ROW = 2**32 - 1
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Configuration:
+    """The complete C configuration of the firmware's controllers for one scenario.
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The scenario it was made from.
+    source : str
+        What made it (a command line), recorded in the header.
+    notes : tuple of str
+        Further lines for the header's record (where placeholder values came from).
+    engine : Simulation
+        The engine set up on the scenario (not run): its C configuration holds every value.
+    """
+
+    scenario: Scenario
+    source: str
+    notes: tuple[str, ...]
+    engine: Simulation
+
+    @property
+    def current_per_speed(self) -> int:
+        """Current periods per speed period [-] (the firmware's loop ratio)."""
+        return int(self.engine.cfg.current_per_speed)
+
+    @property
+    def encoder(self) -> Any:
+        """The ``p2d_encoder_config_t`` the firmware runs (cffi), as the engine's sensing runs it."""
+        cfg = self.engine.cfg
+        enc = ffi.new("p2d_encoder_config_t *", cfg.sensing.speed_sensor.encoder)[0]
+        enc.Ts_s = cfg.speed.Ts_s
+        if self.scenario.data["speed_sensor"]["model"] == "ideal":
+            # the speed as measured: only the estimator's low-pass acts (csrc/sim/sensing.c)
+            enc.counts_per_rev, enc.counter_bits, enc.estimator, enc.bandwidth_radps = 1, 32, 0, 0.0
+        return enc
+
+    @property
+    def switches(self) -> dict[str, bool]:
+        """Which optional parts run: encoder, field weakening, inertia estimator, gain scheduling."""
+        data = self.scenario.data
+        return dict(
+            ENCODER=data["speed_sensor"]["model"] == "encoder",
+            FIELD_WEAKENING=bool(data["field_weakening"]["enabled"]),
+            INERTIA=bool(data["estimator"]["enabled"]),
+            ADAPT_GAINS=bool(data["estimator"]["enabled"] and data["estimator"]["adapt_gains"]),
+            KA_FOLLOWS_J=data["speed_controller"]["Ka"] is None,
+        )
+
+    def c_header(self, prefix: str = DEFAULT_PREFIX) -> str:
+        """The text of the C header (see the module's docstring for what it defines)."""
+        check_prefix(prefix)
+        cfg = self.engine.cfg
+        on = self.switches
+        est = self.scenario.data["estimator"]
+        off = "zero: off (not used by the firmware)"
+        macros = [
+            ("TS_CURRENT_S", c_float(cfg.current.Ts_s), "current-loop (PWM, control interrupt) period [s]"),
+            ("TS_SPEED_S", c_float(cfg.speed.Ts_s), "speed-loop period [s]"),
+            (
+                "CURRENT_PER_SPEED",
+                f"{self.current_per_speed}u",
+                "the speed loop runs every CURRENT_PER_SPEED-th control interrupt: Ts_speed / Ts_current [-]",
+            ),
+            ("ENCODER", str(int(on["ENCODER"])), "1: the speed from an encoder's counter (p2d_encoder_step)"),
+            ("FIELD_WEAKENING", str(int(on["FIELD_WEAKENING"])), "1: field weakening (p2d_field_weakening_step)"),
+            ("INERTIA", str(int(on["INERTIA"])), "1: the online inertia estimator (p2d_inertia_step)"),
+            ("ADAPT_GAINS", str(int(on["ADAPT_GAINS"])), "1: re-design the speed controller for the valid J"),
+            ("KA_FOLLOWS_J", str(int(on["KA_FOLLOWS_J"])), "1: gain scheduling sets Ka = 1 / (J alpha)"),
+            ("ADAPT_REL_CHANGE", c_float(est["adapt_rel_change"]), "re-design when J moved by this share [-]"),
+            (
+                "ADAPT_ERROR_RADPS",
+                c_float(est["adapt_error_rpm"] / RPM_PER_RADPS),
+                "re-design only while |w_ref - w_meas| <= this [rad/s]",
+            ),
+        ]
+        zero_fw = ffi.new("p2d_field_weakening_config_t *")[0]
+        zero_inertia = ffi.new("p2d_inertia_config_t *")[0]
+        blocks = [
+            ("p2d_speed_config_t", "speed", cfg.speed, "Pass to p2d_speed_init()."),
+            (
+                "p2d_filter_config_t",
+                "speed_filter",
+                cfg.speed_filter,
+                "Torque filters: pass to p2d_speed_set_filter() after p2d_speed_init() (zero: none).",
+            ),
+            ("p2d_current_config_t", "current", cfg.current, "Pass to p2d_current_init()."),
+            (
+                "p2d_encoder_config_t",
+                "encoder",
+                self.encoder,
+                "Pass to p2d_encoder_init() (ENCODER 0: only its low-pass acts, on the speed as measured).",
+            ),
+            (
+                "p2d_field_weakening_config_t",
+                "field_weakening",
+                cfg.sensing.field_weakening.config if on["FIELD_WEAKENING"] else zero_fw,
+                "Pass to p2d_field_weakening_init() (FIELD_WEAKENING 1)." if on["FIELD_WEAKENING"] else off,
+            ),
+            (
+                "p2d_inertia_config_t",
+                "inertia",
+                cfg.adapt.config if on["INERTIA"] else zero_inertia,
+                "Pass to p2d_inertia_init() (INERTIA 1)." if on["INERTIA"] else off,
+            ),
+        ]
+        return config_header(
+            prefix=prefix,
+            title=f'{prefix}.h: the controller configuration of "{self.scenario.name}"',
+            record=self.record(),
+            includes=INCLUDES,
+            macros=macros,
+            blocks=blocks,
+        )
+
+    def write_header(self, path: Path | str, prefix: str = DEFAULT_PREFIX) -> Path:
+        """Write :meth:`c_header` to ``path`` (whole or not at all); return the path."""
+        text = self.c_header(prefix)
+        atomic_write(path, text)
+        return Path(path)
+
+    def record(self) -> list[str]:
+        """The header's record: where it came from, the design and what it gives, the other parts."""
+        data = self.scenario.data
+        cfg = self.engine.cfg
+        sc, cl, ss = data["speed_controller"], data["current_loop"], data["speed_sensor"]
+        speed = _speed_controller(cfg.speed)
+        discrete = design(
+            sc["J_kgm2"],
+            sc["alpha_radps"],
+            sc["zeta"],
+            m=sc["m"],
+            tau_i_s=sc["tau_i_s"],
+            feedforward=sc["feedforward"],
+            anti_windup=sc["anti_windup"],
+            # absent: the default 1/Kp as the C library computes it
+            Ka=float(cfg.speed.Ka) if sc["Ka"] is None else sc["Ka"],
+        ).discretize(sc["Ts_s"], sc["method"])
+        Ts_c, Ts_s = float(cfg.current.Ts_s), float(cfg.speed.Ts_s)
+        lines = [f"From: {self.source}" if self.source else f"From the scenario {self.scenario.name!r}.", *self.notes]
+        lines += ["", *design_record(discrete, speed.coefficients), ""]
+        lines += [
+            f"Loop rates: current loop {1.0 / Ts_c:.6g} Hz (Ts {Ts_c:.6g} s), speed loop every "
+            f"{self.current_per_speed}th interrupt ({1.0 / Ts_s:.6g} Hz)",
+            f"Motor: p = {data['motor']['pole_pairs']}, Rs = {cfg.current.Rs_ohm:.6g} ohm, "
+            f"Ld = {cfg.current.Ld_H:.6g} H, Lq = {cfg.current.Lq_H:.6g} H, psi_f = {cfg.current.psi_f_Wb:.6g} Wb, "
+            f"i_max = {cfg.speed.i_max_A:.6g} A",
+            f"Current loop: tau_i = {cl['tau_i_s']:g} s, {cl['method']}, anti-windup {cl['anti_windup']}, "
+            f"decoupling {'on' if cl['decouple'] else 'off'}",
+            "Speed sensor: "
+            + (
+                f"encoder, {ss['counts_per_rev']} counts/rev, {ss['counter_bits']}-bit counter, {ss['estimator']}"
+                if ss["model"] == "encoder"
+                else "the speed as measured"
+            )
+            + (f", low-pass {ss['lowpass_radps']:g} rad/s" if ss["lowpass_radps"] else ""),
+            f"Torque filters: {_filters_text(data['speed_filter'])}",
+            f"Field weakening: {'on' if data['field_weakening']['enabled'] else 'off'}; inertia estimator: "
+            + (
+                ("on, with gain scheduling" if data["estimator"]["adapt_gains"] else "on")
+                if data["estimator"]["enabled"]
+                else "off"
+            ),
+        ]
+        if cl["model"] == "first_order":
+            lines.append("The scenario simulates eq 3 (first_order); the firmware runs these dq current controllers.")
+        return lines
+
+
+def configuration(scenario: Scenario, *, source: str = "", notes: tuple[str, ...] = ()) -> Configuration:
+    """The complete C configuration of the firmware's controllers for ``scenario``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario. Its controllers are what the engine runs on it; with the current
+        loop of eq 3 (``current_loop.model = "first_order"``) the dq current controllers of its
+        ``[current_loop]`` and ``[motor]`` (which the firmware runs) are configured.
+    source : str, optional
+        What made it (a command line), recorded in the header.
+    notes : tuple of str, optional
+        Further lines for the header's record (placeholder values and where they came from).
+
+    Raises
+    ------
+    ConfigError
+        A value the C controllers or the engine reject, naming the scenario key.
+    """
+    if not isinstance(scenario, Scenario):
+        raise ConfigError("scenario", type(scenario).__name__, "a pmsm2dof Scenario (load_scenario)")
+    data: Tree = dict(scenario.data)
+    data["current_loop"] = {**data["current_loop"], "model": "dq_pi"}
+    data["simulation"] = {**data["simulation"], "log_every": _LOG_EVERY_ONE_ROW}
+    return Configuration(scenario=scenario, source=source, notes=tuple(notes), engine=Simulation(data))
+
+
+def design_scenario(
+    discrete: DiscreteDesign,
+    *,
+    i_max_A: float,
+    pole_pairs: int,
+    psi_f_Wb: float,
+    Ld_H: float,
+    Lq_H: float,
+    Rs_ohm: float,
+    Ts_current_s: float,
+    current_method: str | None = None,
+    current_anti_windup: str = "back_calculation",
+    decouple: bool = True,
+    speed_filter: Mapping[str, float] | None = None,
+) -> Scenario:
+    """A scenario holding a discretized design and its motor, for :func:`configuration`.
+
+    The speed controller is the design (its J, alpha, zeta, m, tau_i, feedforward, anti-windup,
+    Ka, Ts and method); the current loop has the design's tau_i (eq 3) at ``Ts_current_s`` with
+    ``current_method`` (default: the design's method); the speed sensor is the design's sensor
+    chain (an encoder's counts and counter are the scenario defaults); ``speed_filter`` holds the
+    fields of ``p2d_filter_config_t`` given. What a design does not define (the DC link, the
+    friction, the test sequence) comes from the preset :data:`DESIGN_TEMPLATE`; none of it reaches
+    the configuration.
+
+    Raises
+    ------
+    ConfigError
+        A value out of its range, naming the scenario key.
+    """
+    d = discrete.design
+    sensor = d.sensor
+    changes: dict[str, Any] = {
+        "name": "design",
+        "description": "a design of pmsm2dof.analysis.design and its motor",
+        "motor.pole_pairs": pole_pairs,
+        "motor.Rs_ohm": Rs_ohm,
+        "motor.Ld_H": Ld_H,
+        "motor.Lq_H": Lq_H,
+        "motor.psi_f_Wb": psi_f_Wb,
+        "motor.J_kgm2": d.J_kgm2,
+        "limits.i_max_A": i_max_A,
+        "current_loop.model": "dq_pi",
+        "current_loop.tau_i_s": d.tau_i_s,
+        "current_loop.Ts_s": Ts_current_s,
+        "current_loop.method": discrete.method if current_method is None else current_method,
+        "current_loop.anti_windup": current_anti_windup,
+        "current_loop.decouple": decouple,
+        "speed_controller.J_kgm2": d.J_kgm2,
+        "speed_controller.alpha_radps": d.alpha_radps,
+        "speed_controller.zeta": d.zeta,
+        "speed_controller.m": d.m,
+        "speed_controller.tau_i_s": d.tau_i_s,
+        "speed_controller.feedforward": d.feedforward,
+        "speed_controller.anti_windup": d.anti_windup,
+        "speed_controller.Ka": d.Ka,
+        "speed_controller.Ts_s": discrete.Ts_s,
+        "speed_controller.method": discrete.method,
+        "speed_sensor.model": sensor.model,
+        "speed_sensor.estimator": sensor.estimator,
+        "speed_sensor.lowpass_radps": sensor.lowpass_radps,
+        "speed_sensor.delay_s": sensor.delay_s,
+        # the design alone, none of the template's test sequence (a zero reference over one speed period)
+        "reference": [{"t_s": 0.0, "speed_rpm": 0.0}],
+        "load": [],
+        "fault": [],
+        "simulation.t_end_s": discrete.Ts_s,
+        "simulation.speed0_rpm": 0.0,
+    }
+    if sensor.pll:
+        changes["speed_sensor.bandwidth_radps"] = sensor.bandwidth_radps
+    for key, value in (speed_filter or {}).items():
+        changes[f"speed_filter.{key}"] = value
+    return load_scenario(DESIGN_TEMPLATE).with_overrides(changes)
+
+
+def _speed_controller(speed: Any) -> SpeedController:
+    """The :class:`SpeedController` of a cffi ``p2d_speed_config_t``."""
+    names = {"method": METHODS, "feedforward": FEEDFORWARDS, "anti_windup": ANTI_WINDUPS}
+    params = {name: getattr(speed, name) for name, _ in ffi.typeof("p2d_speed_config_t").fields}
+    params.update({name: choices[params[name]] for name, choices in names.items()})
+    return SpeedController(**params)
+
+
+def _filters_text(table: Mapping[str, float]) -> str:
+    """The torque filters of a ``[speed_filter]`` table, in words."""
+    parts = []
+    if table["notch_freq_Hz"]:
+        parts.append(
+            f"notch at {table['notch_freq_Hz']:g} Hz, {table['notch_width_Hz']:g} Hz wide, "
+            f"depth {table['notch_depth']:g}"
+        )
+    if table["lowpass_freq_Hz"]:
+        parts.append(f"low-pass at {table['lowpass_freq_Hz']:g} Hz, zeta {table['lowpass_zeta']:g}")
+    return "; ".join(parts) if parts else "none"
