@@ -159,7 +159,7 @@ def test_a_value_nested_5000_deep_is_refused_in_one_line(tmp_path, command):
 @pytest.mark.parametrize(
     "argv, words",
     [
-        ([*DESIGN, "--alpha", "1e300"], "alpha_radps = 1e+300"),
+        ([*DESIGN, "--alpha", "1e300"], "--alpha = 1e+300"),
         (["bode", "--alpha", "1e300", "--out", "f.png"], "alpha_radps = 1e+300"),
         (
             [
@@ -177,13 +177,13 @@ def test_a_value_nested_5000_deep_is_refused_in_one_line(tmp_path, command):
             ],
             "--alpha = 1e+300",
         ),
-        ([*DESIGN, "--J", "1e300"], "J_kgm2 = 1e+300"),  # "Array must not contain infs or NaNs"
-        ([*DESIGN, "--J", "5e-324"], "J_kgm2 = 5e-324"),  # ZeroDivisionError
-        ([*DESIGN, "--alpha", "5e-324"], "alpha_radps = 5e-324"),
-        ([*DESIGN, "--zeta", "1e-300"], "zeta = 1e-300"),  # OverflowError
-        ([*DESIGN, "--zeta", "5e-324"], "zeta = 5e-324"),
-        ([*DESIGN, "--tau-i", "1e-300"], "tau_i_s = 1e-300"),
-        ([*DESIGN, "--tau-i", "1e300"], "tau_i_s = 1e+300"),
+        ([*DESIGN, "--J", "1e300"], "--J = 1e+300"),  # "Array must not contain infs or NaNs"
+        ([*DESIGN, "--J", "5e-324"], "--J = 5e-324"),  # ZeroDivisionError
+        ([*DESIGN, "--alpha", "5e-324"], "--alpha = 5e-324"),
+        ([*DESIGN, "--zeta", "1e-300"], "--zeta = 1e-300"),  # OverflowError
+        ([*DESIGN, "--zeta", "5e-324"], "--zeta = 5e-324"),
+        ([*DESIGN, "--tau-i", "1e-300"], "--tau-i = 1e-300"),
+        ([*DESIGN, "--tau-i", "1e300"], "--tau-i = 1e+300"),
         ([*DESIGN, "--sensor-delay", "1e-300"], "--sensor-delay = 1e-300"),  # ZeroDivisionError in pade
         ([*DESIGN, "--sensor-delay", "1e-20"], "--sensor-delay = 1e-20"),
         ([*DESIGN, "--sensor-lowpass", "1e-300"], "--sensor-lowpass = 1e-300"),
