@@ -50,7 +50,10 @@ TOML_COMMANDS = {
     "design --motor": [*DESIGN, "--motor", "FILE", "--current-bandwidth", "100"],
     "identify --plan": ["identify", "--plan", "--motor", "FILE", "--speed-max-rpm", "100", "--out", "out"],
     "compare (scenario)": ["compare", "log.csv", "FILE", "--out", "out"],
+    "header": ["header", "FILE", "--out", "p2d_config.h"],
 }
+#: Commands that read a file but would start a long build on a sound one: probed with refused files only.
+BUILD_COMMANDS = {"firmware": ["firmware", "FILE", "--out", "out"]}
 LOG_COMMANDS = {
     "identify": ["identify", "FILE", "--pole-pairs", "4", "--psi-f-Wb", "0.1"],
     "identify --electrical": ["identify", "FILE", "--electrical", "--pole-pairs", "4"],
@@ -76,7 +79,7 @@ def assert_one_error_line(code, err):
 
 leaves = st.one_of(
     st.integers(min_value=-(10**30), max_value=10**30),
-    st.sampled_from(["9" * 5000, "1e308", "-1e400", "nan", "inf", "5e-324", "true", '"\\ud800"', '""']),
+    st.sampled_from(["9" * 5000, "9" * 400, "1e308", "-1e400", "nan", "inf", "5e-324", "true", '"\\ud800"', '""']),
     st.floats(allow_nan=False, allow_infinity=False).map(repr),
     st.text(max_size=20).map(json.dumps),
 ).map(str)
@@ -146,14 +149,36 @@ def test_any_log_file_is_read_or_exits_2_with_one_line(command, suffix, content)
 # ---- the probes of the issue ----------------------------------------------------------------
 
 
-@pytest.mark.parametrize("command", sorted(TOML_COMMANDS))
+@pytest.mark.parametrize("command", sorted(TOML_COMMANDS | BUILD_COMMANDS))
 def test_a_value_nested_5000_deep_is_refused_in_one_line(tmp_path, command):
     """RecursionError in simulate, motor, sweep, commission and tune."""
     (tmp_path / "input.toml").write_text("[motor]\nJ_kgm2 = " + "[" * 5000 + "]" * 5000 + "\n")
     (tmp_path / "log.csv").write_text(LOG_TEXT)
-    code, err = run_in(tmp_path, [a if a != "FILE" else "input.toml" for a in TOML_COMMANDS[command]])
+    argv = (TOML_COMMANDS | BUILD_COMMANDS)[command]
+    code, err = run_in(tmp_path, [a if a != "FILE" else "input.toml" for a in argv])
     assert_one_error_line(code, err)
     assert "nested" in err or "within pmsm2dof's bounds" in err
+
+
+MOTOR_MODEL = "[motor]\npole_pairs = 4\nRs_ohm = 0.8\nLd_H = 0.004\nLq_H = 0.004\npsi_f_Wb = 0.05\n"
+
+
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        (MOTOR_MODEL.replace("psi_f_Wb = 0.05", "psi_f_Wb = " + "9" * 400), "motor.psi_f_Wb"),
+        (MOTOR_MODEL + "Rs_ohm_ci = [0.5, " + "9" * 400 + "]\n", "motor.Rs_ohm_ci"),
+        (MOTOR_MODEL + "[limits]\nu_dc_V = " + "9" * 400 + "\n", "limits.u_dc_V"),
+        ("[motor.datasheet]\npoles = 8\nKt_Nm_per_A = " + "9" * 400 + "\n", "motor.datasheet.Kt_Nm_per_A"),
+    ],
+)
+def test_an_integer_beyond_float_in_a_motor_file_names_its_key(tmp_path, text, key):
+    """A TOML integer of 400 digits passed the type checks of the motor file and overflowed in
+    math.isfinite (OverflowError, a traceback)."""
+    (tmp_path / "motor.toml").write_text(text)
+    code, err = run_in(tmp_path, ["motor", "motor.toml"])
+    assert_one_error_line(code, err)
+    assert MESSAGE.match(err.rstrip("\n")) and f"{key} = " in err, err
 
 
 @pytest.mark.parametrize(
