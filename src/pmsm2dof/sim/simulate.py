@@ -109,8 +109,9 @@ if TYPE_CHECKING:
     import pandas as pd
 
 RPM_PER_RADPS = 30.0 / math.pi
-#: Rows of the CSV trace formatted at a time (about 30 MB of text).
-CSV_ROWS_PER_CHUNK = 100_000
+#: Rows of the CSV trace formatted at a time (about 11 MB of text, 45 MiB of Python strings for the
+#: engine's 24 columns; benchmarks/results.md, "Bounds on the work an input asks for").
+CSV_ROWS_PER_CHUNK = 50_000
 
 #: The speeds of the engine's log shown in rpm at the edge, by log column (the others keep their
 #: C names); the mechanical speed is kept in rad/s too.
