@@ -23,8 +23,8 @@ HEAVY = ("control", "scipy", "matplotlib", "pandas", "numpy")
 def modules_after(argv, tmp_path):
     """The modules of HEAVY loaded once ``pmsm2dof ARGV`` has run in a fresh interpreter.
 
-    A module that the standard library's lazy loader registered and nobody used was never executed:
-    it stays of its lazy type until an attribute is read (pmsm2dof.lazy), and costs nothing.
+    A module of pmsm2dof.lazy that nobody used was never imported: it is not in ``sys.modules``
+    (a module of another lazy type there would not count as loaded either).
     """
     code = (
         "import sys, json, types\n"
