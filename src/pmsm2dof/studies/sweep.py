@@ -433,7 +433,8 @@ def _flatten(metrics: Mapping[str, Any]) -> tuple[dict[str, Any], str]:
             figures.update({f"{prefix}{i}_{name}": step[name] for name in names})
     figures.update({f"run_{name}": metrics["run"][name] for name in RUN_FIGURES})
     loop = metrics["sampled_loop"]
-    figures["sampled_loop_z_max"] = {"value": max(p["z_max"] for p in (loop["design"], loop["plant"]) if p)}
+    checked = [p["z_max"] for p in (loop["design"], loop["plant"]) if p]
+    figures["sampled_loop_z_max"] = {"value": max(checked)} if checked else {"value": None, "reason": loop["warning"]}
     notes = "; ".join(
         [*metrics["warnings"], *(f"{col}: {fig['reason']}" for col, fig in figures.items() if fig["value"] is None)]
     )

@@ -882,6 +882,8 @@ def sweep(
 
 def _sweep_warnings(table: "pd.DataFrame") -> None:
     """Name the points whose sampled loop is unstable or whose current command chatters (the first five)."""
+    import pandas as pd
+
     from ..sim.metrics import CHATTER_SHARE_MAX
 
     unstable = table["sampled_loop_z_max"] >= 1.0
@@ -894,8 +896,10 @@ def _sweep_warnings(table: "pd.DataFrame") -> None:
         f"{int(chatter.fillna(False).sum())} whose current command chatters: their figures describe a limit cycle"
     )
     for _, row in flagged.head(5).iterrows():
+        z_max = row["sampled_loop_z_max"]
+        pole = "not computed (see the notes)" if pd.isna(z_max) else f"{z_max:.4g}"
         click.echo(
-            f"  point {row['point']}: largest closed-loop pole |z| = {row['sampled_loop_z_max']:.4g}, "
+            f"  point {row['point']}: largest closed-loop pole |z| = {pole}, "
             f"chatter share {row['run_chatter_share']:.3g}"
         )
 
