@@ -7,8 +7,8 @@ sensor needs numpy alone.
 The stand-in :func:`lazy_module` returns imports the module with :func:`importlib.import_module`
 on the first attribute read, and reads every attribute from it. It stays out of ``sys.modules``
 until then, so that a module nobody used is not there at all. It is not the standard library's
-:class:`importlib.util.LazyLoader`: under Python 3.11 and 3.12 a module that loader made is not
-thread-safe (CPython issue gh-114763) — a thread that reads it while another is executing it sees
+:class:`importlib.util.LazyLoader`: before Python 3.13 a module that loader made is not
+thread-safe (CPython issue gh-114763): a thread that reads it while another is executing it sees
 it half-made (``module 'control' has no attribute 'tf'``), which a sweep's threads running the
 sampled-loop check of a scenario with a sensor chain did. The import system's own per-module lock
 makes every other thread wait until the module is whole.
