@@ -42,6 +42,7 @@ DELAYS = (0, 64, 128, 256, 512)
 DESIGN = textwrap.dedent(
     """
     import json, resource, sys, time
+    import control  # imported before the timing (the analysis loads it on first use, pmsm2dof.lazy)
     import pmsm2dof.analysis.sensor as sensor
     from pmsm2dof.analysis.design import design
     from pmsm2dof.analysis.sensor import SensorChain

@@ -199,8 +199,8 @@ STREAM_SAVE = textwrap.dedent(
 
 @pytest.mark.slow
 def test_the_csv_trace_of_a_long_run_is_streamed_within_a_small_budget(tmp_path):
-    """The log (0.9 M rows, about 190 MB) held whole as a DataFrame and a CSV string needs about
-    four times that; streamed, a budget of 150 MB above the log is enough."""
+    """The log (0.9 M rows, about 190 MB) written as one CSV text needs about four times that
+    (benchmarks/results.md); streamed, a budget of 150 MB above the log is enough."""
     rows = 900_000
     env = dict(os.environ, ROWS=str(rows), BUDGET_MB="150", OPENBLAS_NUM_THREADS="1")
     proc = subprocess.run(

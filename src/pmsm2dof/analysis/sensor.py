@@ -189,7 +189,7 @@ class SensorChain:
 
 
 #: Longest delay of the sampled loop's analysis [periods]: the loop has a state per period of
-#: delay and its step response costs the cube of its order (256 periods: 1.5 s, 512: 13.5 s on
+#: delay and its step response costs the cube of its order (256 periods: 1.8 s, 512: 15 s on
 #: one core of the development machine, benchmarks/results.md). It covers the engine's 2046
 #: current-loop periods (the scenario's bound) wherever the speed loop runs at least 8 of them.
 DELAY_PERIODS_MAX = 256

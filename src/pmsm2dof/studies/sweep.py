@@ -84,8 +84,8 @@ SCALES = ("linear", "log")
 DEFAULT_RANK_BY = "run_iae_rpm_s"
 _TOP_KEYS = ("name", "base", "draws", "seed", "rank_by", "worst", "axes")
 #: Most points of a sweep (grid cells times draws), checked before any is made: validating one
-#: takes about 2 ms and simulating the paper's drive about 18 ms (one core of the development
-#: machine, benchmarks/results.md), so this many take 3 to 4 minutes to check and half an hour to run.
+#: takes about 2 ms and simulating the paper's drive about 10 ms (one core of the development
+#: machine, benchmarks/results.md), so this many take about 3 minutes to check and 16 minutes to run.
 POINTS_MAX = 100_000
 #: Most worst-case traces drawn.
 WORST_MAX = 20
