@@ -240,18 +240,24 @@ class FirmwareBuild:
     sizes: dict[str, dict[str, int]]
 
 
-def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> FirmwareBuild:
+def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "", force: bool = False) -> FirmwareBuild:
     """Write the scenario's headers and cross-build the firmware into the folder ``out`` (all or nothing).
+
+    ``out`` is an output folder of the kind ``"firmware"`` (:func:`pmsm2dof.outputs.staged_dir`):
+    new, empty, or holding only an earlier build, which is replaced as a whole; ``force`` writes
+    beside other files and keeps them.
 
     Raises
     ------
     ConfigError
-        A value the controllers or the engine reject, or what the virtual board does not model.
+        A value the controllers or the engine reject, or what the virtual board does not model;
+        ``out`` holds other files (without ``force``) or cannot be written.
     ToolError
         CMake or the cross toolchain is missing (naming the Debian package), or the build fails.
     """
-    from ..outputs import staged_dir
+    from ..outputs import check_out, staged_dir
 
+    check_out(out, "firmware", force)
     config = configuration(scenario, source=source)
     board = virtual_drive_header(config)
     root = sources_root()
@@ -263,7 +269,7 @@ def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> 
             "newlib for arm-none-eabi is not installed: install the Debian package libnewlib-arm-none-eabi "
             "(scripts/install.sh installs every package pmsm2dof uses)"
         )
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "firmware", force) as tmp:
         atomic_write(tmp / "scenario.toml", scenario.to_toml())
         config.write_header(tmp / "p2d_config.h")
         atomic_write(tmp / "p2d_virtual_drive.h", board)
