@@ -37,6 +37,8 @@ import numpy.typing as npt
 from ..analysis.codegen import c_double, config_header
 from ..core import LOG_COLUMNS
 from ..core.bindings import ffi
+from ..drive.a2l import write_firmware_a2l
+from ..drive.serve import QEMU_MACHINE
 from ..errors import ConfigError, SimulationError, ToolError
 from ..outputs import atomic_write
 from ..sim.scenario import Scenario, load_scenario
@@ -54,13 +56,15 @@ DEBIAN_PACKAGES = {
 }
 
 
-#: QEMU for the virtual drive: the MPS2 AN386 board (Cortex-M4F), no monitor or serial port, semihosting
-#: to the working folder, and instruction counting (128 ns of QEMU's clock per instruction: the firmware
-#: counts instructions with SysTick, virtual_target_mps2.c) with WFI jumping to the next interrupt.
-QEMU = (
-    "qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
-    "-icount", "shift=7,sleep=off",
-)  # fmt: skip
+#: QEMU for a run of the virtual drive without a link: the machine of :data:`pmsm2dof.drive.serve.QEMU_MACHINE`
+#: with no serial port (semihosting writes the trace to the working folder).
+QEMU = (*QEMU_MACHINE, "-serial", "none")
+
+#: The link's UART rate the A2L file names for XCP on SxI (QEMU does not pace the bytes) [bit/s].
+UART_BAUD = 115200
+
+#: The TCP port the A2L files name for XCP on TCP/IP (a master connects where the drive listens).
+TCP_PORT = 5555
 
 #: The virtual core of virtual_target_mps2.c: a 170 MHz Cortex-M4 at 1.5 cycles per instruction.
 CORE_CLOCK_HZ = 170e6
@@ -231,7 +235,9 @@ class FirmwareBuild:
     ----------
     folder : Path
         Holds ``scenario.toml``, ``p2d_config.h``, ``p2d_virtual_drive.h``, ``virtual_drive.elf`` (foc.c on the
-        virtual board, for QEMU), ``firmware.elf`` (foc.c on the porting stub) and their ``.map`` files.
+        virtual board, for QEMU), ``firmware.elf`` (foc.c on the porting stub) and their ``.map`` files,
+        ``virtual_drive_host`` (the virtual drive for the PC, its link on TCP), and the A2L file of each
+        (``virtual_drive.a2l``, ``firmware.a2l``, ``virtual_drive_host.a2l``).
     sizes : dict
         ``{elf name: {"text": bytes, "data": bytes, "bss": bytes}}`` (arm-none-eabi-size).
     """
@@ -276,6 +282,12 @@ def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> 
             600,
         )  # fmt: skip
         _run(["cmake", "--build", build, "-j2"], "cmake --build", 1200)
+        # the same sources for the PC: the host drive of `pmsm2dof drive serve`
+        host = tmp / "build-host"
+        _run(["cmake", "-S", root / "examples" / "firmware", "-B", host, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (host)", 600)
+        _run(["cmake", "--build", host, "-j2", "--target", "virtual_drive"], "cmake --build (host)", 1200)
+        shutil.copy2(host / "virtual_drive", tmp / "virtual_drive_host")
+        shutil.rmtree(host)
         sizes = {}
         for name in ("virtual_drive", "firmware"):
             for suffix in (".elf", ".map"):
@@ -287,6 +299,26 @@ def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> 
             )
             sizes[f"{name}.elf"] = {"text": int(text), "data": int(data), "bss": int(bss)}
         shutil.rmtree(build)
+        sources = [
+            *sorted((root / "examples" / "firmware").glob("*.h")),
+            root / "examples" / "firmware" / "board_virtual.c",
+            *sorted((root / "csrc" / "include" / "pmsm2dof").glob("*.h")),
+        ]
+        for elf, a2l, virtual, baud in (
+            ("virtual_drive.elf", "virtual_drive.a2l", True, UART_BAUD),
+            ("firmware.elf", "firmware.a2l", False, UART_BAUD),
+            ("virtual_drive_host", "virtual_drive_host.a2l", True, None),
+        ):
+            write_firmware_a2l(
+                tmp / elf,
+                tmp / a2l,
+                sources=sources,
+                virtual=virtual,
+                Ts_current_s=scenario.data["current_loop"]["Ts_s"],
+                current_per_speed=config.current_per_speed,
+                tcp_port=TCP_PORT,
+                sxi_baud=baud,
+            )
     return FirmwareBuild(folder=Path(out), sizes=sizes)
 
 
