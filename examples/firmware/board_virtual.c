@@ -392,11 +392,9 @@ void board_init(void)
         vt_exit(false);
     }
     vd_load.n = P2D_VD_LOAD_N;
-    for (uint32_t i = 0; i < P2D_VD_LOAD_N; ++i) {
-        vd_load.t_s[i] = p2d_vd_load_t_s[i];
-        vd_load.torque_Nm[i] = p2d_vd_load_Nm[i];
-        vd_load.ramp_s[i] = p2d_vd_load_ramp_s[i];
-    }
+    memcpy(vd_load.t_s, p2d_vd_load_t_s, P2D_VD_LOAD_N * sizeof(double));
+    memcpy(vd_load.torque_Nm, p2d_vd_load_Nm, P2D_VD_LOAD_N * sizeof(double));
+    memcpy(vd_load.ramp_s, p2d_vd_load_ramp_s, P2D_VD_LOAD_N * sizeof(double));
     /* at rest until board_start_control_interrupt: the friction at the initial speed needs the plant */
     cfg.id0_A = 0.0;
     cfg.iq0_A = 0.0;

@@ -192,7 +192,7 @@ void vt_wait(void)
             tx_blocked = false;
             if (client >= 0 && periods - rx_period > ahead_periods) {
                 wait_link((int64_t)timeout_ms * 1000000, POLLIN);
-                rx_period = periods - ahead_periods; /* one wait per half timeout of silence */
+                rx_period = periods; /* one wait per half timeout of silence */
             } else if (client < 0) {
                 wait_link(1000000, POLLIN); /* no master yet: idle at most a period per millisecond */
             }

@@ -15,7 +15,7 @@ import dataclasses
 import struct
 import threading
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -119,7 +119,7 @@ class _Collect:
         class Collect(DaqOnlinePolicy):  # type: ignore[misc]
             def __init__(self) -> None:
                 super().__init__(daq_lists)
-                self.rows: list[tuple[int, list[Any]]] = []
+                self.rows: list[tuple[int, dict[str, Any]]] = []
                 self.lock = threading.Lock()
 
             def initialize(self) -> None:
@@ -129,8 +129,10 @@ class _Collect:
                 pass
 
             def on_daq_list(self, daq_list: int, timestamp0: int, timestamp1: int, payload: list[Any]) -> None:
+                # pyxcp lays the measurements out in its own order: its headers name the payload's
+                names = [h[0] for h in self.daq_lists[daq_list].headers]
                 with self.lock:
-                    self.rows.append((timestamp1, list(payload)))
+                    self.rows.append((timestamp1, dict(zip(names, payload))))
 
         return Collect()
 
@@ -336,9 +338,8 @@ class Link:
         with policy.lock:
             rows = list(policy.rows)
         self.open()
-        columns = list(zip(*[r[1] for r in rows])) if rows else [() for _ in names]
         return Capture(
-            signals={n: np.array(c) for n, c in zip(names, columns)},
+            signals={n: np.array([r[1][n] for r in rows]) for n in names},
             timestamps=np.array([r[0] for r in rows], dtype=np.int64),
             dtos_lost=lost,
         )
@@ -351,14 +352,16 @@ class Link:
         columns: Sequence[str],
         *,
         timeout_s: float,
+        during: Callable[["Link", dict[str, Any]], None] | None = None,
     ) -> dict[str, npt.NDArray[np.float64]]:
         """Run the drive through a schedule and return the virtual board's trace rows of every speed sample.
 
         Writes the schedules, starts DAQ at the speed event on ``vd_trace.<column>`` (the engine's log
         columns) with the run's sample counter, starts a run of ``samples`` samples, polls until it
         ends, and returns the rows 0 .. samples-1: the row of sample k is complete at sample k+1,
-        where it is captured. Raises SimulationError when the run does not end as done, or a sample
-        is missing.
+        where it is captured. ``during(link, status)`` is called at every poll of the running drive
+        (a live calibration, say). Raises SimulationError when the run does not end as done, or a
+        sample is missing.
         """
         self.set_schedules(reference, load)
         runs = int(self.read("link_status_now.runs"))
@@ -371,6 +374,8 @@ class Link:
                 state["started"] = time.monotonic()
             st = link.status()
             state.update(st)
+            if during is not None and st["state"] == "running":
+                during(link, st)
             if time.monotonic() - state["started"] > timeout_s:
                 raise ToolError(f"the run of {samples} samples did not end within {timeout_s:g} s")
             return bool(st["state"] != "running" and st["runs"] == runs + 1)

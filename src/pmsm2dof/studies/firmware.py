@@ -27,7 +27,7 @@ import shutil
 import subprocess
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +38,7 @@ from ..analysis.codegen import c_double, config_header
 from ..core import LOG_COLUMNS
 from ..core.bindings import ffi
 from ..drive.a2l import write_firmware_a2l
+from ..drive.link import Link
 from ..drive.serve import QEMU_MACHINE
 from ..errors import ConfigError, SimulationError, ToolError
 from ..outputs import atomic_write
@@ -530,3 +531,47 @@ def interrupt_cost(
         out["mean_load"] = float(np.mean(instructions)) * seconds_per_instruction / Ts_s
         out["peak_share_of_period"] = float(np.max(instructions)) * seconds_per_instruction / Ts_s
     return out
+
+
+def play_scenario(
+    link: Link, scenario: Scenario, *, samples: int | None = None, timeout_s: float = 600.0,
+    during: Callable[[Link, dict[str, Any]], None] | None = None,
+) -> Result:  # fmt: skip
+    """Play a scenario's reference and load on the virtual drive over its XCP link; its trace as the engine's log.
+
+    The drive must be a build of the scenario (:func:`build_firmware`): its plant, initial state and
+    loops are the scenario's; the schedules go over the link (:meth:`pmsm2dof.drive.link.Link.play`).
+
+    Parameters
+    ----------
+    link : Link
+        An open link to the drive.
+    scenario : Scenario
+        The scenario the drive was built for.
+    samples : int, optional
+        Speed samples to run (default: the scenario's, to ``simulation.t_end_s``).
+    timeout_s : float
+        Longest run of the wall clock [s].
+    during : callable, optional
+        Called with the link and the drive's status at every poll of the run.
+
+    Raises
+    ------
+    ConfigError
+        ``samples`` out of range, or a schedule longer than the drive holds.
+    SimulationError
+        The run did not end as done, or the capture lost a sample.
+    """
+    data = scenario.data
+    n_samples = math.floor(data["simulation"]["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
+    if samples is not None:
+        if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= n_samples:
+            raise ConfigError("samples", samples, f"an integer in [1, {n_samples}] (the scenario's speed samples)")
+        n_samples = samples
+    # the values as the engine's schedules hold them (pmsm2dof.sim.simulate._schedule)
+    reference = [(e["t_s"], e["speed_rpm"] * (1.0 / RPM_PER_RADPS), e["ramp_s"]) for e in data["reference"]]
+    load = [(e["t_s"], e["torque_Nm"], e["ramp_s"]) for e in data["load"]]
+    start = time.perf_counter()
+    rows = link.play(n_samples, reference, load, LOG_COLUMNS, timeout_s=timeout_s, during=during)
+    log = np.array([rows[c] for c in LOG_COLUMNS])
+    return Result(scenario=scenario, wall_time_s=time.perf_counter() - start, **log_signals(log))
