@@ -232,13 +232,19 @@ def test_a_silent_master_trips_the_watchdog(servo, kind):
     assert status["stop_sample"] == trip + n_ramp + hold and power[i + n_ramp + hold] == 0
 
 
+@pytest.fixture(scope="module")
+def experiment_1(tmp_path_factory):
+    """The paper's experiment 1 built for QEMU and the PC (the run's length is the master's: any t_end builds it)."""
+    return build_firmware(load_scenario("paper-experiment-1"), tmp_path_factory.mktemp("exp1") / "fw").folder
+
+
 @pytest.mark.parametrize("kind", DRIVES)
-def test_paper_experiment_1_over_the_link_equals_the_engine(tmp_path, kind):
+def test_paper_experiment_1_over_the_link_equals_the_engine(experiment_1, kind):
     """The paper's experiment 1 played over the link (reference schedule written, run started, trace captured
     by DAQ): the whole 10 s on the PC's drive, the first 0.8 s (the step at 0.5 s) on QEMU."""
     t_end = 10.0 if kind == "host" else 0.8
     scenario = load_scenario("paper-experiment-1").with_overrides({"simulation.t_end_s": t_end})
-    folder = build_firmware(scenario, tmp_path / "fw").folder
+    folder = experiment_1
     with serve(kind, folder) as url, Link(url, elf(kind, folder)) as link:
         drive = play_scenario(link, scenario)
     sim = Simulation(scenario.data)

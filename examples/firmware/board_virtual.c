@@ -359,7 +359,15 @@ static void physics(void)
 
 void board_virtual_interrupt(void)
 {
-    uint32_t instructions = measure() - reading_instructions;
+    uint32_t instructions;
+    /*
+     * link mode: the virtual motor waits for the link. While the DAQ packets fill more than half the
+     * queue, the period is skipped whole (the firmware's time stands still) and the background loop
+     * sends them: no sample is lost however slow the master reads. A drive's motor cannot wait: its
+     * firmware drops the samples and counts them (link_status_now.dtos_lost).
+     */
+    if (link_mode && link_daq_backlog()) return;
+    instructions = measure() - reading_instructions;
     if (vt_hold(true)) {
         report_at("virtual drive: the control interrupt overran its period Ts_current");
         finish(false);

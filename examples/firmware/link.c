@@ -47,6 +47,8 @@ static bool stop_request;      /* stop the run at the next speed sample */
 
 const link_status_t *link_status(void) { return &link_status_now; }
 
+bool link_daq_backlog(void) { return xcp.queue_used > LINK_QUEUE_BYTES / 2u; }
+
 static uint32_t clock_periods(void *user)
 {
     (void)user;

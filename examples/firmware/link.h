@@ -126,6 +126,9 @@ void link_isr(void);
 /* Background: the received bytes to the slave, its responses and DAQ packets to the link (bounded work). */
 void link_poll(void);
 
+/* True while DAQ packets fill more than half the DTO queue (the link does not keep up). */
+bool link_daq_backlog(void);
+
 /* The link's report (the measurement segment). */
 const link_status_t *link_status(void);
 
