@@ -143,7 +143,10 @@ def test_the_xcp_interface(folder, elf, a2l, nm, virtual, sxi):
     daq = xcp["DAQ"]
     assert daq[0] == "DYNAMIC" and daq[2] == 2
     # 50 us = 5 x 10^4 ns, 0.5 ms = 5 x 10^5 ns; timestamps in ticks of the current period
-    assert daq[-1]["EVENT"] == [["current", "current", 0, "DAQ", 255, 5, 4, 2], ["speed", "speed", 1, "DAQ", 255, 5, 5, 1]]
+    assert daq[-1]["EVENT"] == [
+        ["current", "current", 0, "DAQ", 255, 5, 4, 2],
+        ["speed", "speed", 1, "DAQ", 255, 5, 5, 1],
+    ]
     assert daq[-1]["TIMESTAMP_SUPPORTED"] == [5, "SIZE_DWORD", "UNIT_10US"]
     assert ("XCP_ON_SxI" in xcp) == sxi
     if sxi:

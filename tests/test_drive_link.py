@@ -76,7 +76,9 @@ def assert_agrees(drive: Result, engine: Result):
     """The drive's run equals the engine's within 1e-4 of the step (speed and currents), sample by sample."""
     np.testing.assert_array_equal(drive.t_s, engine.t_s)
     c = compare(drive, engine)
-    print(f"\n  speed {c['speed']['relative_to_step']:.2e}, currents {c['currents']['relative_to_step']:.2e} of the step")
+    print(
+        f"\n  speed {c['speed']['relative_to_step']:.2e}, currents {c['currents']['relative_to_step']:.2e} of the step"
+    )
     assert c["agrees"], c
 
 

@@ -158,4 +158,5 @@ bool board_link_commit(uint16_t index, const void *page, bool running)
 
 bool board_run_valid(void) { return true; }
 
-void board_run_begin(void) { /* STUB: what a run needs first (the DC link precharged, the brake released, ...) */ }
+/* STUB: what a run needs first (the DC link precharged, the brake released, ...) */
+void board_run_begin(void) {}

@@ -49,19 +49,19 @@ const link_status_t *link_status(void) { return &link_status_now; }
 
 bool link_daq_backlog(void) { return xcp.queue_used > LINK_QUEUE_BYTES / 2u; }
 
-static uint32_t clock_periods(void *user)
+static uint32_t link_clock(void *user)
 {
     (void)user;
     return link_status_now.periods;
 }
 
-static void lock(void *user)
+static void link_lock(void *user)
 {
     (void)user;
     board_link_lock();
 }
 
-static void unlock(void *user)
+static void link_unlock(void *user)
 {
     (void)user;
     board_link_unlock();
@@ -78,7 +78,7 @@ static bool reference_schedule(const link_reference_t *r, schedule_t *s)
 }
 
 /* The commit callback: validate and apply the page of a calibration segment (0: applied). */
-static int32_t commit(void *user, uint16_t index, const void *page)
+static int32_t link_commit(void *user, uint16_t index, const void *page)
 {
     bool running = link_status_now.state == LINK_RUNNING;
     int32_t code = 0;
@@ -204,10 +204,10 @@ link_init_status_t link_init(const link_config_t *cfg)
     c.link_timeout_ticks = (uint32_t)((double)cfg->timeout_s / cfg->Ts_current_s + 0.5);
     c.id = "pmsm2dof firmware (examples/firmware)";
     c.a2l_name = "firmware";
-    c.clock = clock_periods;
-    c.commit = commit;
-    c.lock = lock;
-    c.unlock = unlock;
+    c.clock = link_clock;
+    c.commit = link_commit;
+    c.lock = link_lock;
+    c.unlock = link_unlock;
     st.xcp = p2d_xcp_init(&xcp, &c);
     if (st.xcp != P2D_XCP_OK) return st;
     g.Ts_s = (float)Ts_speed_s;

@@ -205,10 +205,10 @@ def write_a2l(
                     f"{pairs} /end COMPU_VTAB"
                 )
             return name
-        fmt = "%.9" if scalar.encoding == "float" else "%.0"
+        fmt = "%12.9" if scalar.encoding == "float" else "%12.0"
         name = "CM_" + (re.sub(r"[^A-Za-z0-9]", "_", unit) or "none") + ("_f" if scalar.encoding == "float" else "_i")
         if name not in compu:
-            compu[name] = f'  /begin COMPU_METHOD {name} "" IDENTICAL "{fmt.replace("%", "%12")}" {_quote(unit)} /end COMPU_METHOD'
+            compu[name] = f'  /begin COMPU_METHOD {name} "" IDENTICAL "{fmt}" {_quote(unit)} /end COMPU_METHOD'
         return name
 
     for var_name in [*measurements, *calibrations]:
@@ -237,16 +237,17 @@ def write_a2l(
                     f"{cm} {_number(lo)} {_number(hi)}{matrix} /end CHARACTERISTIC"
                 )
 
+    kinds = {**dict.fromkeys(measurements, "measurement"), **dict.fromkeys(calibrations, "calibration")}
     segments = "\n".join(
-        f"    /begin MEMORY_SEGMENT {_ident(n)} {_quote(('calibration: ' if n in calibrations else 'measurement: ') + n)} "
-        f"DATA RAM INTERN 0x{variables[n].address:08X} 0x{variables[n].size:X} -1 -1 -1 -1 -1 /end MEMORY_SEGMENT"
+        f"    /begin MEMORY_SEGMENT {_ident(n)} {_quote(kinds[n] + ': ' + n)}"
+        f" DATA RAM INTERN 0x{variables[n].address:08X} 0x{variables[n].size:X} -1 -1 -1 -1 -1 /end MEMORY_SEGMENT"
         for n in [*measurements, *calibrations]
     )
     ts_unit, ts_ticks = _xcp_time(timestamp_s, 65535)
     event_lines = []
     for i, (name, period_s) in enumerate(events):
-        unit, cycle = _xcp_time(period_s, 255)
-        event_lines.append(f'      /begin EVENT "{name}" "{name[:8]}" {i} DAQ 255 {cycle} {unit} {2 - i} /end EVENT')
+        power, cycle = _xcp_time(period_s, 255)
+        event_lines.append(f'      /begin EVENT "{name}" "{name[:8]}" {i} DAQ 255 {cycle} {power} {2 - i} /end EVENT')
     optional = (
         "GET_COMM_MODE_INFO GET_ID SET_MTA UPLOAD SHORT_UPLOAD DOWNLOAD GET_DAQ_CLOCK GET_DAQ_PROCESSOR_INFO "
         "GET_DAQ_RESOLUTION_INFO GET_DAQ_EVENT_INFO FREE_DAQ ALLOC_DAQ ALLOC_ODT ALLOC_ODT_ENTRY SET_DAQ_PTR "

@@ -112,15 +112,15 @@ def read_variables(elf: Path | str, names: list[str]) -> dict[str, Variable]:
         A variable is not in the ELF's symbol table or debug information (built without -g).
     """
     from elftools.elf.elffile import ELFFile
+    from elftools.elf.sections import SymbolTableSection
 
     out: dict[str, Variable] = {}
     with open(elf, "rb") as f:
         e = ELFFile(f)
-        symbols = {
-            s.name: s
-            for s in e.get_section_by_name(".symtab").iter_symbols()
-            if s.name in names and s["st_info"]["type"] == "STT_OBJECT"
-        }
+        table = e.get_section_by_name(".symtab")
+        if not isinstance(table, SymbolTableSection):
+            raise ConfigError("elf", str(elf), "an ELF file with its symbol table (not stripped)")
+        symbols = {s.name: s for s in table.iter_symbols() if s.name in names and s["st_info"]["type"] == "STT_OBJECT"}
         types: dict[str, Any] = {}
         for cu in e.get_dwarf_info().iter_CUs():
             for die in cu.iter_DIEs():

@@ -85,7 +85,12 @@ def pyxcp_master(url: str, timeout_s: float = 2.0, policy: Any = None) -> Any:
     else:
         transport = {
             "timeout": timeout_s,
-            "SxI": {"port": url, "bitrate": 115200, "header_format": "HEADER_LEN_CTR_WORD", "tail_format": "NO_CHECKSUM"},
+            "SxI": {
+                "port": url,
+                "bitrate": 115200,
+                "header_format": "HEADER_LEN_CTR_WORD",
+                "tail_format": "NO_CHECKSUM",
+            },
         }
         name = "sxi"
     config = create_application_from_config({"Transport": transport, "General": general}, log_level=50)
@@ -116,7 +121,7 @@ class _Collect:
     def make(daq_lists: list[Any]) -> Any:
         from pyxcp.daq_stim import DaqOnlinePolicy
 
-        class Collect(DaqOnlinePolicy):  # type: ignore[misc]
+        class Collect(DaqOnlinePolicy):
             def __init__(self) -> None:
                 super().__init__(daq_lists)
                 self.rows: list[tuple[int, dict[str, Any]]] = []
@@ -180,7 +185,7 @@ class Link:
         if self._master is not None:
             try:
                 self._master.disconnect()
-            except Exception:  # noqa: BLE001 - the link may be gone already; the transport closes all the same
+            except Exception:
                 pass
             self._master.__exit__(None, None, None)
             self._master = None
@@ -196,7 +201,9 @@ class Link:
     def scalar(self, name: str) -> Scalar:
         """The variable or field ``name`` (``link_speed_config.alpha_radps``), or ConfigError listing some."""
         if name not in self.scalars:
-            raise ConfigError("name", name, "a variable of the firmware: " + ", ".join(sorted(self.scalars)[:12]) + ", ...")
+            raise ConfigError(
+                "name", name, "a variable of the firmware: " + ", ".join(sorted(self.scalars)[:12]) + ", ..."
+            )
         return self.scalars[name]
 
     def read(self, name: str) -> Any:
@@ -289,7 +296,9 @@ class Link:
             if st["state"] in states:
                 return st
             if time.monotonic() > end:
-                raise ToolError(f"the drive did not reach {'/'.join(states)} within {timeout_s:g} s (state {st['state']})")
+                raise ToolError(
+                    f"the drive did not reach {'/'.join(states)} within {timeout_s:g} s (state {st['state']})"
+                )
             time.sleep(poll_s)
 
     # ---- DAQ ---------------------------------------------------------------
@@ -315,7 +324,13 @@ class Link:
         )
 
     def capture(
-        self, names: Sequence[str], *, event: str = "speed", prescaler: int = 1, until: Any = None, duration_s: float = 1.0
+        self,
+        names: Sequence[str],
+        *,
+        event: str = "speed",
+        prescaler: int = 1,
+        until: Any = None,
+        duration_s: float = 1.0,
     ) -> Capture:
         """Capture signals by DAQ at an event; ``until(link)`` (polled every 20 ms) or ``duration_s`` ends it.
 

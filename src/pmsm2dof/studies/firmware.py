@@ -285,7 +285,9 @@ def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> 
         _run(["cmake", "--build", build, "-j2"], "cmake --build", 1200)
         # the same sources for the PC: the host drive of `pmsm2dof drive serve`
         host = tmp / "build-host"
-        _run(["cmake", "-S", root / "examples" / "firmware", "-B", host, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (host)", 600)
+        _run(
+            ["cmake", "-S", root / "examples" / "firmware", "-B", host, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (host)", 600
+        )
         _run(["cmake", "--build", host, "-j2", "--target", "virtual_drive"], "cmake --build (host)", 1200)
         shutil.copy2(host / "virtual_drive", tmp / "virtual_drive_host")
         shutil.rmtree(host)
