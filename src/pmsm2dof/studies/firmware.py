@@ -21,13 +21,14 @@ code, the plant the same double code (Arm's soft-float double is IEEE 754 correc
 the PC's). See :func:`compare` for the measure.
 """
 
+import contextlib
 import dataclasses
 import math
 import shutil
 import subprocess
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,7 @@ from ..core import LOG_COLUMNS
 from ..core.bindings import ffi
 from ..drive.a2l import write_firmware_a2l
 from ..drive.link import Link
-from ..drive.serve import QEMU_MACHINE
+from ..drive.serve import QEMU_MACHINE, serve_host
 from ..errors import ConfigError, SimulationError, ToolError
 from ..outputs import atomic_write
 from ..sim.scenario import Scenario, load_scenario
@@ -240,15 +241,27 @@ class FirmwareBuild:
         ``virtual_drive_host`` (the virtual drive for the PC, its link on TCP), and the A2L file of each
         (``virtual_drive.a2l``, ``firmware.a2l``, ``virtual_drive_host.a2l``).
     sizes : dict
-        ``{elf name: {"text": bytes, "data": bytes, "bss": bytes}}`` (arm-none-eabi-size).
+        ``{elf name: {"text": bytes, "data": bytes, "bss": bytes}}`` (arm-none-eabi-size) of the Cortex-M4F's ELFs.
     """
 
     folder: Path
     sizes: dict[str, dict[str, int]]
 
 
-def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> FirmwareBuild:
-    """Write the scenario's headers and cross-build the firmware into the folder ``out`` (all or nothing).
+def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "", mcu: bool = True) -> FirmwareBuild:
+    """Write the scenario's headers and build the firmware into the folder ``out`` (all or nothing).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario of the controllers (``p2d_config.h``) and of the virtual board.
+    out : path
+        The folder written (:class:`FirmwareBuild`).
+    source : str
+        Where the scenario came from, for the header's record.
+    mcu : bool
+        Cross-build for the Cortex-M4F too (``virtual_drive.elf``, ``firmware.elf``); False: the PC's
+        virtual drive alone (``virtual_drive_host``: CMake and the host's C compiler suffice).
 
     Raises
     ------
@@ -262,56 +275,54 @@ def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> 
     config = configuration(scenario, source=source)
     board = virtual_drive_header(config)
     root = sources_root()
-    for program in ("cmake", "arm-none-eabi-gcc"):
-        require_tool(program)
-    specs = _run(["arm-none-eabi-gcc", "-print-file-name=nano.specs"], "arm-none-eabi-gcc", 60).stdout.strip()
-    if not Path(specs).is_file():
-        raise ToolError(
-            "newlib for arm-none-eabi is not installed: install the Debian package libnewlib-arm-none-eabi "
-            "(scripts/install.sh installs every package pmsm2dof uses)"
-        )
+    require_tool("cmake")
+    if mcu:
+        require_tool("arm-none-eabi-gcc")
+        specs = _run(["arm-none-eabi-gcc", "-print-file-name=nano.specs"], "arm-none-eabi-gcc", 60).stdout.strip()
+        if not Path(specs).is_file():
+            raise ToolError(
+                "newlib for arm-none-eabi is not installed: install the Debian package libnewlib-arm-none-eabi "
+                "(scripts/install.sh installs every package pmsm2dof uses)"
+            )
+    firmware = root / "examples" / "firmware"
+    sizes = {}
     with staged_dir(out) as tmp:
         atomic_write(tmp / "scenario.toml", scenario.to_toml())
         config.write_header(tmp / "p2d_config.h")
         atomic_write(tmp / "p2d_virtual_drive.h", board)
-        build = tmp / "build"
-        toolchain = root / "csrc" / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
-        _run(
-            ["cmake", "-S", root / "examples" / "firmware", "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={toolchain}",
-             f"-DP2D_CONFIG_DIR={tmp}"],
-            "cmake (configure)",
-            600,
-        )  # fmt: skip
-        _run(["cmake", "--build", build, "-j2"], "cmake --build", 1200)
-        # the same sources for the PC: the host drive of `pmsm2dof drive serve`
+        if mcu:
+            build = tmp / "build"
+            toolchain = f"-DCMAKE_TOOLCHAIN_FILE={root / 'csrc' / 'cmake' / 'arm-none-eabi-cortex-m4f.cmake'}"
+            _run(["cmake", "-S", firmware, "-B", build, toolchain, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (configure)", 600)
+            _run(["cmake", "--build", build, "-j2"], "cmake --build", 1200)
+            for name in ("virtual_drive", "firmware"):
+                for suffix in (".elf", ".map"):
+                    shutil.copy2(build / f"{name}{suffix}", tmp / f"{name}{suffix}")
+                text, data, bss = (
+                    _run(["arm-none-eabi-size", tmp / f"{name}.elf"], "arm-none-eabi-size", 60)
+                    .stdout.split("\n")[1]
+                    .split()[:3]
+                )
+                sizes[f"{name}.elf"] = {"text": int(text), "data": int(data), "bss": int(bss)}
+            shutil.rmtree(build)
+        # the same sources for the PC: the virtual drive with its link on TCP
         host = tmp / "build-host"
-        _run(
-            ["cmake", "-S", root / "examples" / "firmware", "-B", host, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (host)", 600
-        )
-        _run(["cmake", "--build", host, "-j2", "--target", "virtual_drive"], "cmake --build (host)", 1200)
+        _run(["cmake", "-S", firmware, "-B", host, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (configure, PC)", 600)
+        _run(["cmake", "--build", host, "-j2", "--target", "virtual_drive"], "cmake --build (PC)", 1200)
         shutil.copy2(host / "virtual_drive", tmp / "virtual_drive_host")
         shutil.rmtree(host)
-        sizes = {}
-        for name in ("virtual_drive", "firmware"):
-            for suffix in (".elf", ".map"):
-                shutil.copy2(build / f"{name}{suffix}", tmp / f"{name}{suffix}")
-            text, data, bss = (
-                _run(["arm-none-eabi-size", tmp / f"{name}.elf"], "arm-none-eabi-size", 60)
-                .stdout.split("\n")[1]
-                .split()[:3]
-            )
-            sizes[f"{name}.elf"] = {"text": int(text), "data": int(data), "bss": int(bss)}
-        shutil.rmtree(build)
         sources = [
-            *sorted((root / "examples" / "firmware").glob("*.h")),
-            root / "examples" / "firmware" / "board_virtual.c",
+            *sorted(firmware.glob("*.h")),
+            firmware / "board_virtual.c",
             *sorted((root / "csrc" / "include" / "pmsm2dof").glob("*.h")),
         ]
-        for elf, a2l, virtual, baud in (
-            ("virtual_drive.elf", "virtual_drive.a2l", True, UART_BAUD),
-            ("firmware.elf", "firmware.a2l", False, UART_BAUD),
-            ("virtual_drive_host", "virtual_drive_host.a2l", True, None),
-        ):
+        builds = [("virtual_drive_host", "virtual_drive_host.a2l", True, None)]
+        if mcu:
+            builds += [
+                ("virtual_drive.elf", "virtual_drive.a2l", True, UART_BAUD),
+                ("firmware.elf", "firmware.a2l", False, UART_BAUD),
+            ]
+        for elf, a2l, virtual, baud in builds:
             write_firmware_a2l(
                 tmp / elf,
                 tmp / a2l,
@@ -323,6 +334,24 @@ def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> 
                 sxi_baud=baud,
             )
     return FirmwareBuild(folder=Path(out), sizes=sizes)
+
+
+@contextlib.contextmanager
+def serve_scenario(
+    scenario: Scenario, *, port: int = 0, realtime: bool = True, timeout_ms: int = 200
+) -> Iterator[tuple[str, Path]]:
+    """Build the PC's virtual drive of a scenario and run it; yields its link URL and its folder.
+
+    The engine's plant of the scenario under the firmware (foc.c, link.c), its XCP slave on TCP on
+    127.0.0.1:``port`` (0: a free port), on the wall clock (``realtime``) or as fast as the link
+    allows; ``timeout_ms``: the link watchdog [ms of the drive's time], 0: off
+    (:func:`pmsm2dof.drive.serve.serve_host`). The folder (its A2L file ``virtual_drive_host.a2l``
+    for CANape, INCA or pyxcp) is removed at the end.
+    """
+    with tempfile.TemporaryDirectory(prefix="pmsm2dof-serve-") as tmp:
+        folder = build_firmware(scenario, Path(tmp) / "drive", mcu=False).folder
+        with serve_host(folder / "virtual_drive_host", realtime=realtime, timeout_ms=timeout_ms, port=port) as url:
+            yield url, folder
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
