@@ -316,7 +316,7 @@ def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "", mcu
             firmware / "board_virtual.c",
             *sorted((root / "csrc" / "include" / "pmsm2dof").glob("*.h")),
         ]
-        builds = [("virtual_drive_host", "virtual_drive_host.a2l", True, None)]
+        builds: list[tuple[str, str, bool, int | None]] = [("virtual_drive_host", "virtual_drive_host.a2l", True, None)]
         if mcu:
             builds += [
                 ("virtual_drive.elf", "virtual_drive.a2l", True, UART_BAUD),
