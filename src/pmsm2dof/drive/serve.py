@@ -98,7 +98,9 @@ def _free_port() -> int:
 
 
 @contextlib.contextmanager
-def serve_qemu(elf: Path | str, *, serial: str = "pty", timeout_ms: int = 200, **extra: int) -> Iterator[str]:
+def serve_qemu(
+    elf: Path | str, *, serial: str = "pty", timeout_ms: int = 200, folder: Path | str | None = None, **extra: int
+) -> Iterator[str]:
     """Run the virtual drive on QEMU; yields its link URL: the pty's device, or ``socket://127.0.0.1:PORT``.
 
     Parameters
@@ -108,13 +110,20 @@ def serve_qemu(elf: Path | str, *, serial: str = "pty", timeout_ms: int = 200, *
     serial : str
         ``"pty"`` (QEMU's UART0 on a pseudo-terminal: XCP on SxI) or ``"tcp"`` (on a TCP port of
         127.0.0.1 that QEMU listens on: the same framing, XCP on TCP for the master).
+    folder : path, optional
+        QEMU's working folder, where the firmware writes its files (``cost.bin`` with ``cost=1``);
+        default: a temporary one.
+    extra : int
+        Further arguments of the virtual board (``ramp_radps_per_s``, ``hold_ms``, ``cost``).
     """
     if serial not in ("pty", "tcp"):
         raise ConfigError("serial", serial, "pty or tcp")
     port = _free_port() if serial == "tcp" else 0
-    device = "pty" if serial == "pty" else f"tcp:127.0.0.1:{port},server=on,wait=off"
+    # nodelay: every byte the UART sends leaves at once (Nagle's algorithm would hold a response ~40 ms)
+    device = "pty" if serial == "pty" else f"tcp:127.0.0.1:{port},server=on,wait=off,nodelay=on"
     args = ",".join(f"arg={a}" for a in ["virtual_drive", *_arguments(timeout_ms, extra)])
-    with tempfile.TemporaryDirectory(prefix="pmsm2dof-qemu-") as tmp:
+    with tempfile.TemporaryDirectory(prefix="pmsm2dof-qemu-") as scratch:
+        tmp = str(folder) if folder is not None else scratch
         process = subprocess.Popen(
             [*QEMU_MACHINE, "-serial", device, "-semihosting-config", f"enable=on,target=native,{args}",
              "-kernel", str(Path(elf).resolve())],
