@@ -34,10 +34,21 @@
  * sample k, the voltage applied over the period from t_k, the share of the
  * speed period's current periods at the voltage limit.
  *
- * The run stops after P2D_VD_SPEED_SAMPLES speed samples (argument samples=N
+ * Trace mode (the default): the board starts the scenario's run at power-up
+ * and stops after P2D_VD_SPEED_SAMPLES speed samples (argument samples=N
  * overrides it), or as the engine stops: a non-finite state, twice the no-load
  * speed, ten times max(i_max, psi_f / min(Ld, Lq)); or when the control
  * interrupt overruns its period.
+ *
+ * Link mode (argument link=1): the drive idles until its XCP master starts a
+ * run (link.h); the motor stands still while the power stage is off. The
+ * master plays the reference (link_reference) and the load (vd_load, the
+ * board's calibration variable, initialised from the scenario) and captures
+ * the trace row of each speed period (vd_trace, a measurement variable: the
+ * row of period k is complete at speed sample k + 1). No trace file; the
+ * costs only with cost=1. The virtual motor waits for the link: a period is
+ * skipped while DAQ packets fill half the queue. Arguments: timeout_ms=N (the
+ * link watchdog, default 200), ramp_radps_per_s=N and hold_ms=N (its guard).
  *
  * The cost: on a machine that counts instructions (virtual_target_mps2.c), the
  * instructions foc_isr executed at each interrupt, callees included, one
