@@ -367,7 +367,7 @@ class FirmwareRun:
     engine : Result
         The engine's simulation of the scenario over the same samples.
     instructions : numpy.ndarray
-        The instructions foc_isr executed at each control interrupt, callees included (uint32).
+        The instructions of each control interrupt (link_isr and foc_isr), callees included (uint32).
     speed_sample : numpy.ndarray
         Whether each interrupt ran the speed loop (bool).
     report : tuple of str
