@@ -410,11 +410,13 @@ def test_the_instructions_counted_equal_the_instruction_trace(bench, tmp_path):
             target = re.search(r"<([^>+]+)>", m.group(3))
             if target and m.group(2).startswith(("b", "cb")) and target.group(1) != current:
                 calls[current].add(target.group(1))
-            # measured_call calls foc_isr through a pointer: the instruction after its blx is the return site
+            # measured_call calls link_isr through a pointer: the instruction after its blx is the return site
             if previous == (current, "blx") and current == "measured_call":
                 return_site = int(m.group(1), 16)
             previous = (current, m.group(2))
-    reachable, todo = set(), ["foc_isr"]
+    # the control interrupt (link_isr: the slave's sections, then foc_isr) and the callbacks the slave calls
+    # through pointers (its clock, lock, commit)
+    reachable, todo = set(), ["link_isr", "link_clock", "link_lock", "link_unlock", "link_commit"]
     while todo:
         f = todo.pop()
         if f not in reachable:
@@ -433,14 +435,17 @@ def test_the_instructions_counted_equal_the_instruction_trace(bench, tmp_path):
         int(m.group(1), 16) for m in map(re.compile(r"^Trace \d+: \S+ \[[0-9a-f]+/([0-9a-f]+)/").match, log.open()) if m
     ]
     traced, i = [], 0
-    while funcs["foc_isr"][0] in pcs[i:]:
-        start = pcs.index(funcs["foc_isr"][0], i)
+    while funcs["link_isr"][0] in pcs[i:]:
+        start = pcs.index(funcs["link_isr"][0], i)
         i = pcs.index(return_site, start)
         traced.append(i - start)
     counted = np.fromfile(tmp_path / "cost.bin", dtype="<u4") & 0x7FFFFFFF
     print(f"\ninstructions per interrupt (speed sample first): {counted.tolist()}")
     assert len(traced) == 30
-    np.testing.assert_array_equal(counted, traced)
+    # the first interrupt starts the run: board_run_begin initialises the plant with the clock held (the motor
+    # takes no firmware time), which the count leaves out and the trace does not
+    assert counted[0] < traced[0]
+    np.testing.assert_array_equal(counted[1:], traced[1:])
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -463,6 +468,10 @@ def test_the_commands_build_run_and_write_the_engines_format(tmp_path, capsys):
         "virtual_drive.map",
         "firmware.elf",
         "firmware.map",
+        "firmware.a2l",
+        "virtual_drive.a2l",
+        "virtual_drive_host",
+        "virtual_drive_host.a2l",
     }
     out.mkdir()
     (out / "notes.txt").write_text("mine")
