@@ -10,6 +10,7 @@ the configuration structs (``*_config_t``, ``*_params_t``: meaning, unit, range)
 well (``p2d_field_comment``), for the code generator's headers.
 """
 
+import importlib.util
 import re
 from pathlib import Path
 
@@ -49,27 +50,13 @@ def cdef_of(header):
     return "\n".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
 
 
-STRUCT = re.compile(r"typedef struct\s*\{(.*?)\}\s*(\w+_(?:config|params)_t)\s*;", re.S)
-FIELD = re.compile(r"^\s*[\w ]*?\s\**(\w+)(?:\[[^\]]*\])?\s*;\s*/\*(.*)$")
-
-
-def field_comments(headers):
-    """{"<struct>.<field>": comment} of the fields of the configuration structs, one line each."""
-    comments = {}
-    for header in headers:
-        for body, struct in STRUCT.findall(header.read_text()):
-            lines = body.splitlines()
-            for i, line in enumerate(lines):
-                m = FIELD.match(line)
-                if m is None:
-                    continue
-                parts = [m.group(2)]
-                while "*/" not in parts[-1] and i + 1 < len(lines):
-                    i += 1
-                    parts.append(lines[i])
-                text = " ".join(p.strip() for p in parts)
-                comments[f"{struct}.{m.group(1)}"] = " ".join(text[: text.index("*/")].split())
-    return comments
+def load_cheaders():
+    """The package's parser of field comments (src/pmsm2dof/core/cheaders.py), loaded alone: the package
+    itself needs the extension this script builds."""
+    spec = importlib.util.spec_from_file_location("p2d_cheaders", ROOT / "src" / "pmsm2dof" / "core" / "cheaders.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def c_literal(text):
@@ -77,7 +64,8 @@ def c_literal(text):
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-COMMENTS = field_comments(HEADERS)
+# the comments of the configuration structs, one line each
+COMMENTS = load_cheaders().field_comments((h.read_text() for h in HEADERS), r"\w+_(?:config|params)_t")
 # p2d_field_comment(2 i) is the name "<struct>.<field>" of entry i, p2d_field_comment(2 i + 1) its comment, then NULL
 COMMENT_TABLE = (
     "static const char *const p2d_field_comments[] = {\n"

@@ -7,8 +7,10 @@ scenario's ``p2d_config.h`` and the virtual board on the engine's plant), runs e
 of ``benchmarks/results.md``:
 
 instructions per interrupt
-    Counted by the firmware at every control interrupt of the whole run: ``foc_isr`` with every
-    callee (the board's reads and writes, the transforms, ``sinf``/``cosf``, the controllers), from
+    Counted by the firmware at every control interrupt of the whole run: ``link_isr`` (the XCP
+    link's clock, events and, at a speed sample, its commit check, watchdog, guard and reference
+    schedule) and ``foc_isr`` with every callee (the board's reads and writes, the transforms,
+    ``sinf``/``cosf``, the controllers), from
     SysTick read around the call at 128 ns of QEMU's clock per instruction (3.2 ticks: exact; the
     count equals QEMU's instruction trace, tests/test_firmware.py). Interrupts that run the speed
     loop and those that run the current loop alone are counted apart.
@@ -99,8 +101,10 @@ def report(rows):
         "`examples/firmware` (foc.c) on the virtual board (board_virtual.c: the engine's plant), built by "
         "`pmsm2dof firmware` with the flags users ship with (`-O2 -mcpu=cortex-m4 -mfpu=fpv4-sp-d16 "
         "-mfloat-abi=hard -ffp-contract=off`) and run on QEMU by `pmsm2dof firmware run`. Every control "
-        "interrupt of the run is counted: `foc_isr` with its callees (the board's register reads and duty "
-        "writes, Clarke and Park, newlib's `sinf` and `cosf`, the controllers), as the firmware counts it "
+        "interrupt of the run is counted: `link_isr` (the XCP link's clock and events with no DAQ list, and at "
+        "a speed sample its commit check, watchdog, guard and reference schedule, in double) and `foc_isr` with "
+        "its callees (the board's register reads and duty writes, Clarke and Park, newlib's `sinf` and `cosf`, "
+        "the controllers), as the firmware counts it "
         "with SysTick at 128 ns of QEMU's clock per instruction (exact: the counts equal QEMU's instruction "
         "trace, `tests/test_firmware.py`). The count varies with the angle (the range reduction of `sinf` "
         "and `cosf`) and the controllers' paths (the current limit, the voltage limit).",

@@ -349,6 +349,7 @@ def test_cli_writes_the_tuned_scenario_tables_figure_and_header(servo_file, tmp_
     tuned = load_scenario(str(out / "scenario.toml"))
     assert {k: tuned.data["speed_controller"][k] for k in keys} == keys
     assert {p.name for p in out.iterdir()} == {
+        ".pmsm2dof-outputs.json",
         "scenario.toml",
         "autotune.json",
         "pareto.csv",

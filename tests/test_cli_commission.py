@@ -46,7 +46,7 @@ def test_a_failed_run_exits_1_and_writes_no_motor(tmp_path, capsys):
     assert main(["commission", SERVO, "--set", "limits.u_dc_V=4", "--out", str(out)]) == 1
     text = capsys.readouterr().out
     assert "failed in probe: current_not_reached" in text
-    assert sorted(p.name for p in out.iterdir()) == ["log.csv", "plot.png", "result.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".pmsm2dof-outputs.json", "log.csv", "plot.png", "result.json"]
 
 
 def test_bad_setting_one_line_exit_2_nothing_written(tmp_path, monkeypatch, capsys):

@@ -23,8 +23,8 @@ HEAVY = ("control", "scipy", "matplotlib", "pandas", "numpy")
 def modules_after(argv, tmp_path):
     """The modules of HEAVY loaded once ``pmsm2dof ARGV`` has run in a fresh interpreter.
 
-    A module that the standard library's lazy loader registered and nobody used was never executed:
-    it stays of its lazy type until an attribute is read (pmsm2dof.lazy), and costs nothing.
+    A module of pmsm2dof.lazy that nobody used was never imported: it is not in ``sys.modules``
+    (a module of another lazy type there would not count as loaded either).
     """
     code = (
         "import sys, json, types\n"
@@ -49,7 +49,8 @@ def test_help_loads_none_of_the_heavy_libraries(tmp_path):
 @pytest.mark.slow
 def test_simulate_loads_neither_python_control_nor_scipy_nor_pandas(tmp_path):
     assert modules_after(["simulate", "paper-condition-1", "--out", "run"], tmp_path) == {"numpy", "matplotlib"}
-    assert {p.name for p in (tmp_path / "run").iterdir()} == {"trace.csv", "metrics.json", "plot.png", "scenario.toml"}
+    written = {p.name for p in (tmp_path / "run").iterdir()}
+    assert written == {".pmsm2dof-outputs.json", "trace.csv", "metrics.json", "plot.png", "scenario.toml"}
 
 
 def column_extremes(x, y, x_lo, x_hi, columns):
@@ -87,11 +88,18 @@ def test_a_trace_of_150_000_samples_is_drawn_from_a_few_thousand_points():
     assert drawn == column_extremes(result.t_s, result.speed_rpm, x_lo, x_hi, columns)
 
 
-def test_the_csv_trace_is_pandas_own_text(tmp_path):
-    """The trace is written without pandas, as pandas writes it (the oracle): every column, every digit."""
+@pytest.mark.parametrize("rows_per_chunk", [None, 999])
+def test_the_csv_trace_is_pandas_own_text(tmp_path, monkeypatch, rows_per_chunk):
+    """The trace is written without pandas, as pandas writes it (the oracle): every column, every digit;
+    streamed in chunks too (999 rows: 10 whole chunks of the 10001 rows and a last one of 11)."""
     import pandas as pd
 
+    import pmsm2dof.sim.simulate
+
+    if rows_per_chunk is not None:
+        monkeypatch.setattr(pmsm2dof.sim.simulate, "CSV_ROWS_PER_CHUNK", rows_per_chunk)
     result = simulate(load_scenario("paper-condition-1"))
+    assert len(result.t_s) == 10001
     result.save(tmp_path / "trace.csv")
     frame = result.to_dataframe()
     for flag in ("saturated", "J_valid"):

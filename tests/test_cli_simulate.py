@@ -98,21 +98,22 @@ def test_out_is_an_existing_file(tmp_path, capsys):
 
 
 def test_failure_during_the_run_leaves_the_old_output_untouched(tmp_path, capsys, monkeypatch):
-    """An error after the trace is written (here: in the plot) leaves no new file behind."""
+    """An error after the trace is written (here: in the plot) leaves the earlier run's outputs as they
+    were, and no new file behind."""
     import pmsm2dof.ui.plots.trace
 
     out = tmp_path / "out"
-    out.mkdir()
-    (out / "trace.csv").write_text("old")
+    argv = ["simulate", "paper-experiment-1", "--set", "simulation.t_end_s=1", "--out", str(out)]
+    assert run(argv, capsys)[0] == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
 
     def failing_plot(result, path):
         raise SimulationError("plot failed on purpose")
 
     monkeypatch.setattr(pmsm2dof.ui.plots.trace, "plot_trace", failing_plot)
-    code, _, err = run(["simulate", "paper-experiment-1", "--set", "simulation.t_end_s=1", "--out", str(out)], capsys)
+    code, _, err = run([*argv, "--set", "reference.0.speed_rpm=100"], capsys)
     assert code == 2 and "plot failed on purpose" in err and len(err.splitlines()) == 1
-    assert sorted(p.name for p in out.iterdir()) == ["trace.csv"]
-    assert (out / "trace.csv").read_text() == "old"
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert not list(tmp_path.glob(".out.*"))
 
 
@@ -128,7 +129,13 @@ def test_simulate_paper_condition_2(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     assert "paper condition 2" in proc.stdout and "load step at 7 s" in proc.stdout
-    assert sorted(p.name for p in out.iterdir()) == ["metrics.json", "plot.png", "scenario.toml", "trace.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".pmsm2dof-outputs.json",
+        "metrics.json",
+        "plot.png",
+        "scenario.toml",
+        "trace.csv",
+    ]
 
     trace = pd.read_csv(out / "trace.csv")
     assert set(REQUIRED_COLUMNS) <= set(trace.columns)

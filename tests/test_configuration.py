@@ -6,6 +6,7 @@ every command writes the same shape; what the C library or the virtual board can
 refused naming the scenario key.
 """
 
+import os
 import re
 import shutil
 import subprocess
@@ -156,6 +157,25 @@ def test_every_command_writes_the_same_shape(tmp_path, capsys):
     assert len(expected) == 16
     assert shape((tmp_path / "design.h").read_text()) == expected
     assert shape(tuner) == expected
+
+
+def test_header_refuses_a_path_it_must_not_replace_before_any_work(tmp_path, capsys):
+    """`header` writes files the user names: a FIFO (standing for a device such as /dev/null, which the
+    rename of an atomic write would replace) or a folder is refused naming the option, and nothing is written."""
+    os.mkfifo(tmp_path / "fifo.h")
+    (tmp_path / "folder.h").mkdir()
+    cases = [
+        (["--out", str(tmp_path / "fifo.h")], "--out"),
+        (["--out", str(tmp_path / "ok.h"), "--virtual-drive", str(tmp_path / "folder.h")], "--virtual-drive"),
+        (["--out", str(tmp_path / "ok.h"), "--virtual-drive", str(tmp_path / "fifo.h")], "--virtual-drive"),
+        (["--out", str(tmp_path / "missing" / "ok.h")], "--out"),
+    ]
+    for args, option in cases:
+        assert main(["header", "paper-condition-2", *args]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("pmsm2dof: error: ") and option in err, err
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["fifo.h", "folder.h"]
+    assert (tmp_path / "fifo.h").is_fifo()
 
 
 @pytest.mark.parametrize(

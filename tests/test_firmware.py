@@ -410,11 +410,13 @@ def test_the_instructions_counted_equal_the_instruction_trace(bench, tmp_path):
             target = re.search(r"<([^>+]+)>", m.group(3))
             if target and m.group(2).startswith(("b", "cb")) and target.group(1) != current:
                 calls[current].add(target.group(1))
-            # measured_call calls foc_isr through a pointer: the instruction after its blx is the return site
+            # measured_call calls link_isr through a pointer: the instruction after its blx is the return site
             if previous == (current, "blx") and current == "measured_call":
                 return_site = int(m.group(1), 16)
             previous = (current, m.group(2))
-    reachable, todo = set(), ["foc_isr"]
+    # the control interrupt (link_isr: the slave's sections, then foc_isr) and the callbacks the slave calls
+    # through pointers (its clock, lock, commit)
+    reachable, todo = set(), ["link_isr", "link_clock", "link_lock", "link_unlock", "link_commit"]
     while todo:
         f = todo.pop()
         if f not in reachable:
@@ -433,14 +435,17 @@ def test_the_instructions_counted_equal_the_instruction_trace(bench, tmp_path):
         int(m.group(1), 16) for m in map(re.compile(r"^Trace \d+: \S+ \[[0-9a-f]+/([0-9a-f]+)/").match, log.open()) if m
     ]
     traced, i = [], 0
-    while funcs["foc_isr"][0] in pcs[i:]:
-        start = pcs.index(funcs["foc_isr"][0], i)
+    while funcs["link_isr"][0] in pcs[i:]:
+        start = pcs.index(funcs["link_isr"][0], i)
         i = pcs.index(return_site, start)
         traced.append(i - start)
     counted = np.fromfile(tmp_path / "cost.bin", dtype="<u4") & 0x7FFFFFFF
     print(f"\ninstructions per interrupt (speed sample first): {counted.tolist()}")
     assert len(traced) == 30
-    np.testing.assert_array_equal(counted, traced)
+    # the first interrupt starts the run: board_run_begin initialises the plant with the clock held (the motor
+    # takes no firmware time), which the count leaves out and the trace does not
+    assert counted[0] < traced[0]
+    np.testing.assert_array_equal(counted[1:], traced[1:])
 
 
 # ----------------------------------------------------------------------------------------------------
@@ -455,6 +460,7 @@ def test_the_commands_build_run_and_write_the_engines_format(tmp_path, capsys):
     argv += ["--set", "reference=[{t_s = 0.0, speed_rpm = 2000.0}]"]
     assert main(argv) == 0, capsys.readouterr().err
     assert {p.name for p in fw.iterdir()} == {
+        ".pmsm2dof-outputs.json",
         "scenario.toml",
         "p2d_config.h",
         "p2d_virtual_drive.h",
@@ -462,10 +468,20 @@ def test_the_commands_build_run_and_write_the_engines_format(tmp_path, capsys):
         "virtual_drive.map",
         "firmware.elf",
         "firmware.map",
+        "firmware.a2l",
+        "virtual_drive.a2l",
+        "virtual_drive_host",
+        "virtual_drive_host.a2l",
     }
-    assert main(["firmware", "run", str(fw), "--out", str(out)]) == 0, capsys.readouterr().err
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert main(["firmware", "run", str(fw), "--out", str(out), "--force"]) == 0, capsys.readouterr().err
     printed = capsys.readouterr().out
     assert "of the step" in printed and "instructions" in printed and "CPU load" in printed
+    written = {"trace.csv", "metrics.json", "plot.png", "interrupts.csv"}
+    assert {p.name for p in out.iterdir()} == {".pmsm2dof-outputs.json", "notes.txt", *written}
+    assert (out / "notes.txt").read_text() == "mine"  # --force writes beside the user's file, and keeps it
+    assert set(json.loads((out / ".pmsm2dof-outputs.json").read_text())["files"]) == written
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["comparison"]["agrees"] is True
     assert metrics["interrupts"]["speed"]["interrupts"] == 101
@@ -491,6 +507,28 @@ def test_without_the_tools_the_commands_name_the_debian_package(tmp_path, capsys
         err.count("\n") == 1 and "qemu-system-arm is not installed: install the Debian package qemu-system-arm" in err
     )
     assert not (tmp_path / "run").exists()
+
+
+def test_the_firmware_folders_are_outputs_refused_over_other_files(tmp_path, capsys):
+    """Both folders of `pmsm2dof firmware` are command outputs: a folder holding a file of the user's
+    is refused before any build or run, naming the file, and left as it was."""
+    fw = tmp_path / "built"
+    fw.mkdir()
+    (fw / "virtual_drive.elf").write_bytes(b"")
+    (fw / "scenario.toml").write_text(load_scenario(str(SERVO)).to_toml())
+    for argv, folder in (
+        (["firmware", str(SERVO), "--out", str(fw)], fw),  # a folder not written by pmsm2dof firmware
+        (["firmware", "run", str(fw), "--out", str(tmp_path / "run")], tmp_path / "run"),
+    ):
+        folder.mkdir(exist_ok=True)
+        (folder / "notes.txt").write_text("mine")
+        before = sorted(p.name for p in folder.iterdir())
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "--out" in err and "notes.txt" in err and "--force" in err, err
+        assert sorted(p.name for p in folder.iterdir()) == before
+        assert (folder / "notes.txt").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["built", "run"]  # no staging folder left
 
 
 @needs_tools

@@ -199,7 +199,7 @@ MUTANTS = {
     # the voltage limit never cuts the q axis: the vector leaves the circle
     "current_no_limit": (
         "current",
-        "current.c",
+        "current_step.h",
         [("out->uq_ref_V = uq > uq_max ? uq_max : (uq < -uq_max ? -uq_max : uq);", "out->uq_ref_V = uq;")],
     ),
     # the commissioning routine never trips: a current that runs away goes on

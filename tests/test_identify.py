@@ -174,7 +174,13 @@ def test_cli_identify_from_the_currents_writes_the_fit_and_an_identified_scenari
     assert report["tau_i_s"] == pytest.approx(1e-3, rel=1e-3)
     assert report["n_samples"] > 1000 and report["residual_rms_Nm"] > 0
     assert report["design"]["Kp"] == pytest.approx(pi_gains(report["J_kgm2"], 30.0, 0.7)[0], rel=1e-12)
-    assert sorted(p.name for p in out.iterdir()) == ["fit.png", "identified.toml", "identify.json", "rows.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".pmsm2dof-outputs.json",
+        "fit.png",
+        "identified.toml",
+        "identify.json",
+        "rows.csv",
+    ]
     identified = load_scenario(out / "identified.toml")
     assert identified.data["motor"]["J_kgm2"] == report["J_kgm2"]
     assert identified.data["speed_controller"]["J_kgm2"] == report["J_kgm2"]

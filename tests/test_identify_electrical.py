@@ -91,6 +91,7 @@ def test_cli_json_and_out(tmp_path):
         assert abs(report[name] / SALIENT[name] - 1) < TARGETS[name]
     assert report["residual_V"] > 0 and report["n_samples"] == 4001
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        ".pmsm2dof-outputs.json",
         "fit.png",
         "identify.json",
         "motor.toml",

@@ -1,7 +1,7 @@
 """The import direction of the layers, and the names the library's errors use.
 
 The contracts are import-linter's (``[tool.importlinter]`` in pyproject.toml): ``ui`` ->
-``studies`` -> ``sim`` | ``analysis`` -> ``core`` -> ``outputs`` -> ``errors``, imports pointing
+``studies`` -> ``sim`` | ``analysis`` -> ``core`` -> ``outputs`` | ``inputs`` -> ``errors``, imports pointing
 down only, ``sim`` and ``analysis`` not importing each other, no import cycle between the modules
 of a package, and no module importing the package's lazy facade ``pmsm2dof/__init__.py``.
 

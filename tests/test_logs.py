@@ -146,7 +146,12 @@ def test_cli_compare_overlays_a_log_and_its_simulation(tmp_path, capsys):
     table = json.loads((out / "compare.json").read_text())
     # the log's drive is 25 % heavier: its speed lags the simulation's on the steps
     assert table["speed_error_max_rpm"] > 10.0
-    assert sorted(p.name for p in out.iterdir()) == ["compare.json", "compare.png", "simulation.csv"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        ".pmsm2dof-outputs.json",
+        "compare.json",
+        "compare.png",
+        "simulation.csv",
+    ]
     same = tmp_path / "same"
     simulate(scenario).save(tmp_path / "same.csv")
     assert main(["compare", str(tmp_path / "same.csv"), "paper-condition-1", "--out", str(same)]) == 0

@@ -86,6 +86,57 @@ def test_simulate_warns_and_does_not_refuse(tmp_path):
     assert metrics["run"]["chatter_share"]["value"] > CHATTER_SHARE_MAX
 
 
+@pytest.mark.parametrize(
+    "changes, words",
+    [
+        # 300 speed periods with the current loop at the speed loop's rate: within the scenario's
+        # 2046 current periods, beyond the analysis' 256 speed periods
+        ({"current_loop.Ts_s": 5e-4, "speed_sensor.delay_s": 0.15}, "speed_sensor.delay_s = 0.15 is invalid"),
+        # shorter than its Pade approximant takes; the engine runs it
+        ({"speed_sensor.delay_s": 1e-13}, "speed_sensor.delay_s = 1e-13 is invalid"),
+    ],
+)
+def test_a_run_the_analysis_does_not_take_says_the_check_was_not_made(tmp_path, changes, words):
+    """The engine runs such a scenario; the check that would exceed the analysis' bounds is not made
+    (instead of failing the run after it), and the warning names the key and the bound."""
+    from pmsm2dof.studies.sweep import _flatten
+
+    chosen = scenario().with_overrides(changes)
+    check = sampled_loop(chosen.data)
+    assert check["stable"] is None and check["design"] is None and check["plant"] is None
+    assert check["warning"].startswith("the sampled-loop stability check was not made") and words in check["warning"]
+    metrics = measure(simulate(chosen))
+    assert metrics["warnings"][0] == check["warning"]
+    row, notes = _flatten(metrics)
+    assert row["sampled_loop_z_max"] is None and f"sampled_loop_z_max: {check['warning']}" in notes
+    path = tmp_path / "servo.toml"
+    path.write_text(chosen.to_toml())
+    r = CliRunner().invoke(cli, ["simulate", str(path), "--out", str(tmp_path / "run")])
+    assert r.exit_code == 0, r.output
+    assert "the sampled-loop stability check was not made" in r.output.splitlines()[1]
+
+
+def test_the_sweep_summary_names_a_point_whose_check_was_not_made(capsys):
+    import pandas as pd
+
+    from pmsm2dof.ui.cli import _sweep_warnings
+
+    table = pd.DataFrame(
+        {
+            "point": [0, 1, 2],
+            "sampled_loop_z_max": pd.array([None, 1.2, 0.5], dtype="Float64"),
+            "run_chatter_share": [0.9, 0.0, 0.0],
+        }
+    )
+    _sweep_warnings(table)
+    lines = capsys.readouterr().out.splitlines()
+    assert "1 points with an unstable sampled loop" in lines[0] and "1 whose current command chatters" in lines[0]
+    assert lines[1:] == [
+        "  point 0: largest closed-loop pole |z| = not computed (see the notes), chatter share 0.9",
+        "  point 1: largest closed-loop pole |z| = 1.2, chatter share 0",
+    ]
+
+
 def flips_between_limits(iq_ref, i_max):
     """The share of samples at which the command jumps from one current limit to the other."""
     at = np.where(iq_ref >= 0.99 * i_max, 1, np.where(iq_ref <= -0.99 * i_max, -1, 0))

@@ -35,7 +35,7 @@ def test_commands_run_as_written(tmp_path, monkeypatch, capsys):
     assert main(first) == 0
     assert "salient servo: commissioning done" in capsys.readouterr().out
     written = {p.name for p in (tmp_path / "servo-id").iterdir()}
-    assert written == {"result.json", "log.csv", "plot.png", "motor.toml", "p2d_config.h"}
+    assert written == {".pmsm2dof-outputs.json", "result.json", "log.csv", "plot.png", "motor.toml", "p2d_config.h"}
     # the paper's drive with a real inverter (dead time, noise, delay): within the targets
     assert main(second) == 0
     summary = json.loads(capsys.readouterr().out)

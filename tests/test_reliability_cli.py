@@ -101,7 +101,8 @@ SIMULATE_BAD = [
 
 @pytest.mark.parametrize("extra, mention", SIMULATE_BAD, ids=[" ".join(a) for a, _ in SIMULATE_BAD])
 def test_bad_simulate_arguments(extra, mention, workdir, capsys):
-    assert_clean_failure(["simulate", PAPER, *extra, "--out", "out"], workdir, capsys, mention)
+    # --force: the folder holds a file of the user's, which a failed run must leave as it is too
+    assert_clean_failure(["simulate", PAPER, *extra, "--out", "out", "--force"], workdir, capsys, mention)
 
 
 @pytest.mark.parametrize(
@@ -118,7 +119,7 @@ def test_bad_simulate_arguments(extra, mention, workdir, capsys):
     ],
 )
 def test_bad_fault_overrides(preset, extra, mention, workdir, capsys):
-    assert_clean_failure(["simulate", preset, *extra, "--out", "out"], workdir, capsys, mention)
+    assert_clean_failure(["simulate", preset, *extra, "--out", "out", "--force"], workdir, capsys, mention)
 
 
 @pytest.mark.parametrize(

@@ -6,7 +6,9 @@ against individual ``simulate`` + ``compute_metrics`` runs of scenarios built he
 run against the local run, point for point.
 """
 
+import hashlib
 import importlib
+import io
 import json
 import math
 import textwrap
@@ -327,7 +329,7 @@ def test_a_value_only_the_engine_rejects_stops_the_sweep_naming_the_point(tmp_pa
     with pytest.raises(ConfigError) as info:
         run_sweep(sw, out, workers=1, batch_size=1, progress=False, figures=draw_figures)
     assert info.value.param == "point 1 (speed_controller.alpha_radps=1e+39): speed_controller.alpha_radps"
-    assert [p.name for p in (out / "parts").iterdir()] == ["part-00000000.parquet"]
+    assert [p.name[:14] for p in (out / "parts").iterdir()] == ["part-00000000."]
     assert not (out / "results.parquet").exists()
 
 
@@ -372,15 +374,21 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monk
 
 
 def damage(part, how):
-    """Cut ``part`` to half its bytes, fill it with bytes that are no Parquet, or rename a column."""
+    """Cut ``part`` to half its bytes, fill it with bytes that are no Parquet, or rename a column
+    (as an earlier version wrote it: a sound file, under the checksum of its content)."""
     data = part.read_bytes()
     if how == "truncated":
         part.write_bytes(data[: len(data) // 2])
     elif how == "garbage":
         part.write_bytes(b"not a parquet file\n" * 20)
-    else:  # as an earlier version wrote it: the time at the current limit under its old name
+    else:  # the time at the current limit under its old name
         frame = pd.read_parquet(part)
-        frame.rename(columns={"run_current_limit_time_s": "run_saturation_time_s"}).to_parquet(part)
+        buf = io.BytesIO()
+        frame.rename(columns={"run_current_limit_time_s": "run_saturation_time_s"}).to_parquet(buf)
+        part.unlink()
+        (part.parent / f"{part.name[:13]}.{hashlib.sha256(buf.getvalue()).hexdigest()}.parquet").write_bytes(
+            buf.getvalue()
+        )
 
 
 def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, base_file, monkeypatch):
@@ -407,8 +415,8 @@ def test_resume_recomputes_the_points_of_damaged_parts_naming_each(tmp_path, bas
     messages = [str(w.message) for w in caught]
     assert len(messages) == 3
     for name, how in damaged.items():
-        (message,) = [m for m in messages if f"parts/{name}" in m]
-        assert ("cannot be read" if how != "columns" else "columns") in message
+        (message,) = [m for m in messages if f"parts/{name[:13]}" in m]
+        assert ("does not match its checksum" if how != "columns" else "columns") in message
         assert message.endswith("deleted, its points run again")
     assert run.computed == len(lost) == len(simulated) and run.resumed == 9 - len(lost)
     assert all(any(s == sw.scenario(i) for i in lost) for s in simulated)
@@ -426,10 +434,11 @@ def test_cli_resume_with_a_damaged_part_warns_in_one_line(tmp_path, base_file, c
     out = tmp_path / "out"
     assert main(["sweep", str(path), "--out", str(out), "--workers", "1", "--batch-size", "1", "--no-figures"]) == 0
     capsys.readouterr()
-    damage(out / "parts" / "part-00000001.parquet", "truncated")
+    (part,) = (out / "parts").glob("part-00000001.*.parquet")
+    damage(part, "truncated")
     assert main(["sweep", str(path), "--out", str(out), "--no-figures"]) == 0
     captured = capsys.readouterr()
-    assert captured.err.startswith("pmsm2dof: warning: parts/part-00000001.parquet of the earlier run in ")
+    assert captured.err.startswith(f"pmsm2dof: warning: parts/{part.name} of the earlier run in ")
     assert captured.err.count("\n") == 1 and "Traceback" not in captured.err
     assert "2 points (1 simulated, 1 already done)" in captured.out
 

@@ -34,10 +34,13 @@ def guide_commands():
 
 @pytest.mark.slow
 def test_the_guide_runs_as_written_and_identifies_the_drive(tmp_path, monkeypatch, capsys):
-    shutil.copytree(ROOT / "examples" / "your-motor", tmp_path / "examples" / "your-motor")
+    for example in ("your-motor", "ec45-flat"):
+        shutil.copytree(ROOT / "examples" / example, tmp_path / "examples" / example)
     monkeypatch.chdir(tmp_path)
     commands = guide_commands()
-    assert [c[0] for c in commands] == ["motor", "identify", "simulate", "identify", "design", "simulate"]
+    # the chain on the example drive, then a catalogue motor in maxon's convention
+    chain = ["motor", "identify", "simulate", "identify", "design", "simulate", "motor", "design", "simulate"]
+    assert [c[0] for c in commands] == chain
     for args in commands:
         assert main(args) == 0, args
     out = capsys.readouterr().out
@@ -58,3 +61,5 @@ def test_the_guide_runs_as_written_and_identifies_the_drive(tmp_path, monkeypatc
 
     adapted = pd.read_csv(tmp_path / "run-adapted" / "trace.csv")
     assert adapted["J_gains_kgm2"].iloc[-1] == pytest.approx(truth["J_kgm2"], rel=0.05)
+    # the catalogue motor's run is summarised from its own trace
+    assert (tmp_path / "ec45" / "trace.csv").is_file()

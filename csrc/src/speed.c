@@ -45,7 +45,8 @@ static p2d_status_t speed_coefficients(const p2d_speed_config_t *cfg, const p2d_
     /* eq 9: Kp = J alpha, Ki = J (alpha / (2 zeta))^2 */
     Kp = cfg->J_kgm2 * cfg->alpha_radps;
     Ki = cfg->J_kgm2 * (cfg->alpha_radps / (2.0f * cfg->zeta)) * (cfg->alpha_radps / (2.0f * cfg->zeta));
-    if (!isfinite(Kp) || !isfinite(Ki)) return P2D_ERR_J; /* float32 overflow of the gains */
+    /* gains outside the normal float32 range (overflow, or underflow that makes Ka = 1/Kp infinite) */
+    if (!isnormal(Kp) || !isnormal(Ki) || !isfinite(1.0f / Kp)) return P2D_ERR_J;
     /* eq 14 and Table 1 */
     k.pi = p2d_pi_coefficients(Kp, Ki, cfg->Ts_s, cfg->method);
     k.clamping = cfg->anti_windup == P2D_AW_CLAMPING;

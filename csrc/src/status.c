@@ -9,7 +9,8 @@ static const p2d_status_text_t P2D_STATUS_TEXT[P2D_STATUS_COUNT] = {
     [P2D_OK] = {"", ""},
     [P2D_ERR_NULL] = {"pointer", "non-NULL"},
     [P2D_ERR_J] = {"J_kgm2",
-                   "finite and > 0, with the gains Kp = J*alpha and Ki = J*(alpha/(2*zeta))^2 finite in float32"},
+                   "finite and > 0, with the gains Kp = J*alpha and Ki = J*(alpha/(2*zeta))^2 normal float32 numbers "
+                   "(about 1.2e-38 to 3.4e38)"},
     [P2D_ERR_ALPHA] = {"alpha_radps", "finite and > 0"},
     [P2D_ERR_ZETA] = {"zeta", "finite and > 0"},
     [P2D_ERR_M] = {"m", "finite and > 0"},

@@ -19,19 +19,29 @@
  * start), else one period later (a computation delay; the engine's
  * inverter.computation_delay). foc_isr must end within Ts_current.
  *
- *   background (main)          board_init, board_report, board_read_start_state,
- *                              board_start_control_interrupt, board_pwm_enable,
- *                              board_wait_for_interrupt, board_halt
+ *   background (main)          board_init, board_report, board_link_config,
+ *                              board_start_control_interrupt, board_wait_for_interrupt,
+ *                              board_halt, board_link_receive, board_link_send,
+ *                              board_link_segments
  *   control interrupt          board_read_phase_currents, board_read_dc_link_V,
- *   (foc_isr)                  board_read_rotor, board_read_speed_radps,
- *                              board_read_encoder_count, board_speed_reference_radps,
- *                              board_write_duties
+ *   (link_isr, foc_isr)        board_read_rotor, board_read_speed_radps,
+ *                              board_read_encoder_count, board_write_duties,
+ *                              board_read_start_state, board_run_valid, board_run_begin,
+ *                              board_pwm_enable, board_link_commit
+ *   both                       board_link_lock, board_link_unlock
+ *
+ * The link. The firmware speaks XCP (link.h) on a byte link to the master, a
+ * UART on a drive (XCP on SxI: LEN CTR header, no checksum), TCP on the PC;
+ * the master starts and stops runs, measures and calibrates.
  */
 #ifndef BOARD_H
 #define BOARD_H
 
 #include <stdbool.h>
 #include <stdint.h>
+
+#include "link.h"
+#include "pmsm2dof/xcp.h"
 
 /*
  * Clocks, ADC, PWM timer, encoder interface and the diagnostic output (a UART),
@@ -86,19 +96,53 @@ float board_read_speed_radps(void);
  */
 uint32_t board_read_encoder_count(void);
 
-/* Control interrupt (speed samples): the speed reference from the application (fieldbus, ...) [rad/s]. */
-float board_speed_reference_radps(void);
-
 /*
  * Control interrupt: the duty cycles of the three half bridges for the next PWM
  * update, each in [0, 1] (0.5: zero phase voltage) -> the compare registers.
  */
 void board_write_duties(float duty_a, float duty_b, float duty_c);
 
-/* Enable (true) or disable (false) the PWM outputs (the gate driver). Background only. */
+/* Enable (true) or disable (false) the PWM outputs (the gate driver): at the start and the end of a run. */
 void board_pwm_enable(bool enable);
 
 /* Sleep until the next interrupt (WFI). Background only. */
 void board_wait_for_interrupt(void);
+
+/*
+ * The board's part of the link's configuration (link.h): the control period
+ * as its timer makes it, the watchdog's timeout, the guard's ramp and hold,
+ * the initial reference schedule and a run to start at power-up (0: none, the
+ * drive waits for its master). main.c fills in the loop ratio.
+ */
+void board_link_config(link_config_t *cfg);
+
+/* The bytes received on the link since the last call, at most capacity; 0: none. Never waits. */
+uint32_t board_link_receive(uint8_t *bytes, uint32_t capacity);
+
+/* Send up to n bytes on the link without waiting; returns how many it took (0: busy). */
+uint32_t board_link_send(const uint8_t *bytes, uint32_t n);
+
+/* Enter and leave a section shared by the background and the control interrupt (interrupts off, then restored). */
+void board_link_lock(void);
+void board_link_unlock(void);
+
+/*
+ * The board's own variables for the master, after the link's: write up to
+ * capacity segments (address, memory, size, access); returns how many.
+ */
+uint16_t board_link_segments(p2d_xcp_segment_t *segments, uint16_t capacity);
+
+/*
+ * Validate and apply the master's page of the board's calibration segment
+ * index (0: the first of board_link_segments), at a speed sample; running: a
+ * run is under way. False: refused, nothing changed.
+ */
+bool board_link_commit(uint16_t index, const void *page, bool running);
+
+/* True when the board can start a run as configured now (its schedules valid). */
+bool board_run_valid(void);
+
+/* A run starts (after foc_start): the board's time and schedules from t = 0 (a virtual motor: its initial state). */
+void board_run_begin(void);
 
 #endif /* BOARD_H */

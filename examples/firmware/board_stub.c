@@ -3,15 +3,18 @@
  * function must do, in which context, with which timing).
  *
  * What is real here: the control interrupt runs from SysTick, which every
- * Cortex-M has (Armv7-M Architecture Reference Manual, B3.3), and the
- * diagnostic output is UART0 of the Arm MPS2 board (a CMSDK APB UART at
- * 0x40004000; QEMU -M mps2-an386 -nographic shows it on the terminal). On a
+ * Cortex-M has (Armv7-M Architecture Reference Manual, B3.3), the link to the
+ * XCP master and the diagnostic output are UART0 of the Arm MPS2 board (a
+ * CMSDK APB UART at 0x40004000, csrc/target/cmsdk_uart.h; QEMU -M mps2-an386
+ * -nographic shows it on the terminal), and the shared sections of the link
+ * mask the interrupts (PRIMASK). On a
  * drive, the control interrupt is rather the ADC end-of-conversion triggered
  * by the PWM timer, so that the currents are sampled at the PWM centre. The
  * core clock is that of the MPS2 AN386 board (25 MHz).
  */
 #include "board.h"
 
+#include "cmsdk_uart.h"
 #include "foc.h"
 
 #define BOARD_CORE_CLOCK_HZ 25000000.0f
@@ -21,33 +24,21 @@
 #define SYST_CVR (*(volatile uint32_t *)0xE000E018u) /* SysTick current value */
 #define SYST_CSR_ENABLE_TICKINT_CORECLK 0x7u         /* counter on, interrupt on, core clock */
 
-#define UART0_DATA (*(volatile uint32_t *)0x40004000u)  /* CMSDK UART data */
-#define UART0_STATE (*(volatile uint32_t *)0x40004004u) /* bit 0: transmit buffer full */
-#define UART0_CTRL (*(volatile uint32_t *)0x40004008u)  /* bit 0: transmit enable */
-#define UART0_BAUDDIV (*(volatile uint32_t *)0x40004010u)
-#define UART0_BAUD 115200.0f
+#define BOARD_UART_BAUD 115200u /* the link's and the diagnostics' bit rate [bit/s] */
+
+static uint32_t primask; /* PRIMASK saved by board_link_lock */
 
 /* STUB: clocks, ADC triggered by the PWM timer, PWM timer, encoder interface */
-void board_init(void)
-{
-    UART0_BAUDDIV = (uint32_t)(BOARD_CORE_CLOCK_HZ / UART0_BAUD);
-    UART0_CTRL = 1u;
-}
+void board_init(void) { p2d_uart_init(P2D_UART0, (uint32_t)BOARD_CORE_CLOCK_HZ, BOARD_UART_BAUD); }
 
-static void uart_put(char ch)
-{
-    while ((UART0_STATE & 1u) != 0u) {
-    }
-    UART0_DATA = (uint32_t)(unsigned char)ch;
-}
-
+/* on the link's UART: only before the link starts (a rejected configuration) */
 void board_report(const char *text)
 {
     while (*text != '\0') {
-        uart_put(*text++);
+        p2d_uart_put(P2D_UART0, (uint8_t)*text++);
     }
-    uart_put('\r');
-    uart_put('\n');
+    p2d_uart_put(P2D_UART0, '\r');
+    p2d_uart_put(P2D_UART0, '\n');
 }
 
 void board_halt(void)
@@ -74,7 +65,7 @@ void board_start_control_interrupt(float Ts_current_s)
 }
 
 /* The control interrupt of this example. */
-void SysTick_Handler(void) { foc_isr(); }
+void SysTick_Handler(void) { link_isr(); }
 
 void board_read_phase_currents(float *ia_A, float *ib_A, float *ic_A)
 {
@@ -109,12 +100,6 @@ uint32_t board_read_encoder_count(void)
     return 0u;
 }
 
-float board_speed_reference_radps(void)
-{
-    /* STUB: the application's set point (here 500 rpm, the paper's step) */
-    return 52.35988f;
-}
-
 void board_write_duties(float duty_a, float duty_b, float duty_c)
 {
     /* STUB: duty -> compare registers of the PWM timer */
@@ -130,3 +115,48 @@ void board_pwm_enable(bool enable)
 }
 
 void board_wait_for_interrupt(void) { __asm__ volatile("wfi"); }
+
+void board_link_config(link_config_t *cfg)
+{
+    /* STUB: the master must talk every 0.1 s during a run; the guard brakes at 1000 rad/s^2 and holds 0.1 s */
+    cfg->Ts_current_s = (double)foc_current_period_s();
+    cfg->timeout_s = 0.1f;
+    cfg->ramp_radps_per_s = 1000.0f;
+    cfg->hold_s = 0.1f;
+    cfg->n = 0u;
+    cfg->autostart_samples = 0u;
+}
+
+uint32_t board_link_receive(uint8_t *bytes, uint32_t capacity) { return p2d_uart_receive(P2D_UART0, bytes, capacity); }
+
+uint32_t board_link_send(const uint8_t *bytes, uint32_t n) { return p2d_uart_send(P2D_UART0, bytes, n); }
+
+void board_link_lock(void)
+{
+    uint32_t mask;
+    __asm__ volatile("mrs %0, primask\n\tcpsid i" : "=r"(mask)::"memory");
+    primask = mask;
+}
+
+void board_link_unlock(void) { __asm__ volatile("msr primask, %0" ::"r"(primask) : "memory"); }
+
+uint16_t board_link_segments(p2d_xcp_segment_t *segments, uint16_t capacity)
+{
+    /* STUB: the board's own variables for the master (a temperature, the DC link, ...) */
+    (void)segments;
+    (void)capacity;
+    return 0u;
+}
+
+bool board_link_commit(uint16_t index, const void *page, bool running)
+{
+    (void)index;
+    (void)page;
+    (void)running;
+    return false;
+}
+
+bool board_run_valid(void) { return true; }
+
+/* STUB: what a run needs first (the DC link precharged, the brake released, ...) */
+void board_run_begin(void) {}

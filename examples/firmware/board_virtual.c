@@ -34,10 +34,21 @@
  * sample k, the voltage applied over the period from t_k, the share of the
  * speed period's current periods at the voltage limit.
  *
- * The run stops after P2D_VD_SPEED_SAMPLES speed samples (argument samples=N
+ * Trace mode (the default): the board starts the scenario's run at power-up
+ * and stops after P2D_VD_SPEED_SAMPLES speed samples (argument samples=N
  * overrides it), or as the engine stops: a non-finite state, twice the no-load
  * speed, ten times max(i_max, psi_f / min(Ld, Lq)); or when the control
  * interrupt overruns its period.
+ *
+ * Link mode (argument link=1): the drive idles until its XCP master starts a
+ * run (link.h); the motor stands still while the power stage is off. The
+ * master plays the reference (link_reference) and the load (vd_load, the
+ * board's calibration variable, initialised from the scenario) and captures
+ * the trace row of each speed period (vd_trace, a measurement variable: the
+ * row of period k is complete at speed sample k + 1). No trace file; the
+ * costs only with cost=1. The virtual motor waits for the link: a period is
+ * skipped while DAQ packets fill half the queue. Arguments: timeout_ms=N (the
+ * link watchdog, default 200), ramp_radps_per_s=N and hold_ms=N (its guard).
  *
  * The cost: on a machine that counts instructions (virtual_target_mps2.c), the
  * instructions foc_isr executed at each interrupt, callees included, one
@@ -52,6 +63,7 @@
 #include "foc.h"
 #include "p2d_virtual_drive.h"
 #include "plant.h"
+#include "schedule.h"
 #include "virtual_target.h"
 
 #define VB_INV_SQRT3 0.57735026918962576 /* 1 / sqrt(3) */
@@ -97,28 +109,24 @@ static const char trace_header[] =
     "torque_ref_Nm torque_unsat_Nm load_Nm saturated x_i_Nm w_meas_radps u_dc_V voltage_limited J_est_kgm2 "
     "J_valid T_load_est_Nm J_gains_kgm2 w_load_radps shaft_torque_Nm\n";
 
-/* A piecewise-linear schedule (the engine's p2d_schedule_t): 0 before the first entry, entry i
-   moving from the value reached at t_s[i] to value[i] in a step (ramp_s 0) or over ramp_s[i]. */
+/* Most entries of the load schedule (the master's calibration page vd_load). */
+#define VB_LOAD_MAX 32u
+
+/* The load torque of a run (calibration in link mode): a piecewise-linear schedule (schedule.h). */
 typedef struct {
-    const double *t_s;    /* entry times [s] */
-    const double *value;  /* targets [unit of the signal] */
-    const double *ramp_s; /* ramp durations [s] */
-    uint32_t n;           /* number of entries */
-} vb_schedule_t;
+    uint32_t n;                    /* entries in use [-], 0..32 */
+    uint32_t reserved;             /* 0 (alignment of the arrays) [-] */
+    double t_s[VB_LOAD_MAX];       /* time of each entry from the run's start [s], >= 0, nondecreasing */
+    double torque_Nm[VB_LOAD_MAX]; /* load torque of each entry [Nm] */
+    double ramp_s[VB_LOAD_MAX];    /* ramp from the value reached to each entry's [s], >= 0 */
+} vd_load_t;
 
-/* The segment of a schedule in force at some time. */
-typedef struct {
-    double t0_s;   /* its start [s] */
-    double v0;     /* value at its start */
-    double v1;     /* its target */
-    double ramp_s; /* its ramp duration [s]; 0: a step */
-    uint32_t next; /* index of the first entry not entered */
-} vb_segment_t;
-
-static const vb_schedule_t reference = {p2d_vd_reference_t_s, p2d_vd_reference_radps, p2d_vd_reference_ramp_s,
-                                        P2D_VD_REFERENCE_N};
-static const vb_schedule_t load = {p2d_vd_load_t_s, p2d_vd_load_Nm, p2d_vd_load_ramp_s, P2D_VD_LOAD_N};
-
+vd_load_t vd_load;           /* the load schedule (calibration) */
+double vd_trace[VB_COLUMNS]; /* the last complete trace row, the engine's log columns (measurement) */
+static const schedule_t load = {vd_load.t_s, vd_load.torque_Nm, vd_load.ramp_s, 0u};
+static bool link_mode;                                 /* the master runs the drive (argument link=1), no trace file */
+static bool cost_output;                               /* the interrupts' costs go to cost.bin */
+static bool powered;                                   /* the power stage is on: the physics runs */
 static p2d_plant_t plant;                              /* the virtual motor, inverter and sensors */
 static double t_tol_s;                                 /* times closer than this are equal [s] */
 static double w_bound_radps;                           /* the engine's overspeed bound [rad/s] */
@@ -130,49 +138,22 @@ static float rotor_theta_m_rad, rotor_w_m_radps;       /* the rotor latched at t
 static float sensed_w_radps;                           /* the speed loop's side latched at t_n */
 static uint32_t encoder_count;                         /* the encoder counter latched at t_n */
 static float duty[3];                                  /* the duties written by foc_isr */
-static double w_ref_radps;                             /* reference of the last speed sample [rad/s] */
-static float reference_radps;                     /* the application's set point latched for the speed sample [rad/s] */
 static uint32_t n_limited;                        /* current periods of this speed sample at the voltage limit [-] */
 static bool current_saturated;                    /* delay: the controller limited the command applied next */
 static bool row_open;                             /* a trace row for this speed sample waits for its end */
 static double rows[VB_ROWS_BUFFERED][VB_COLUMNS]; /* trace rows not written yet */
 static uint32_t n_rows;                           /* rows in rows[] [-] */
-static void (*volatile control)(void) = foc_isr;  /* the code measured: foc_isr (an empty function to calibrate) */
+static void (*volatile control)(void) = link_isr; /* the code measured: link_isr (an empty function to calibrate) */
 static uint32_t reading_instructions;             /* instructions the measurement itself adds [-] */
 static uint32_t costs[VB_COSTS_BUFFERED];         /* interrupt costs not written yet */
 static uint32_t n_costs;                          /* costs in costs[] [-] */
 
-/* ---- schedules --------------------------------------------------------- */
-
-/* v0 + (v1 - v0) (t - t0) / ramp during the ramp, v1 after */
-static double segment_value(const vb_segment_t *seg, double t_s)
+/* The load schedule in force (its entries counted in vd_load). */
+static schedule_t load_schedule(void)
 {
-    if (seg->ramp_s > 0.0 && t_s < seg->t0_s + seg->ramp_s) {
-        return seg->v0 + (seg->v1 - seg->v0) * fmax(t_s - seg->t0_s, 0.0) / seg->ramp_s;
-    }
-    return seg->v1;
-}
-
-/* The segment in force after every entry with t_s[i] <= t_s has started. */
-static vb_segment_t segment_at(const vb_schedule_t *s, double t_s)
-{
-    vb_segment_t seg = {0.0, 0.0, 0.0, 0.0, 0u};
-    while (seg.next < s->n && s->t_s[seg.next] <= t_s) {
-        double t_entry = s->t_s[seg.next];
-        seg.v0 = segment_value(&seg, t_entry);
-        seg.t0_s = t_entry;
-        seg.v1 = s->value[seg.next];
-        seg.ramp_s = s->ramp_s[seg.next];
-        seg.next++;
-    }
-    return seg;
-}
-
-/* The schedule's value at t (entries within the time tolerance of t have started). */
-static double schedule_value(const vb_schedule_t *s, double t_s)
-{
-    vb_segment_t seg = segment_at(s, t_s + t_tol_s);
-    return segment_value(&seg, t_s);
+    schedule_t l = load;
+    l.n = vd_load.n;
+    return l;
 }
 
 /* ---- physics ----------------------------------------------------------- */
@@ -185,19 +166,20 @@ static double schedule_value(const vb_schedule_t *s, double t_s)
 static void advance(double t_start_s)
 {
     const double dt_s = plant.dt_s;
+    const schedule_t l = load_schedule();
     for (uint32_t s = 0; s < plant.cfg.substeps; ++s) {
         double t = t_start_s + (double)s * dt_s;
         double t_end = t_start_s + (double)(s + 1u) * dt_s;
         while (t < t_end - t_tol_s) {
-            vb_segment_t seg = segment_at(&load, t + t_tol_s);
-            double t_break = seg.next < load.n ? load.t_s[seg.next] : HUGE_VAL;
+            schedule_segment_t seg = schedule_segment_at(&l, t + t_tol_s);
+            double t_break = seg.next < l.n ? l.t_s[seg.next] : HUGE_VAL;
             double t_ramp_end = seg.t0_s + seg.ramp_s, t_stop, h, t_mid, slope = 0.0;
             if (seg.ramp_s > 0.0 && t_ramp_end > t + t_tol_s && t_ramp_end < t_break) t_break = t_ramp_end;
             t_stop = t_break < t_end - t_tol_s ? t_break : t_end;
             h = t_stop - t;
             t_mid = t + 0.5 * h;
             if (seg.ramp_s > 0.0 && t_mid > seg.t0_s && t_mid < t_ramp_end) slope = (seg.v1 - seg.v0) / seg.ramp_s;
-            p2d_plant_advance(&plant, h, segment_value(&seg, t), slope);
+            p2d_plant_advance(&plant, h, schedule_segment_value(&seg, t), slope);
             t = t_stop;
         }
     }
@@ -228,11 +210,6 @@ static void latch_sensors(void)
         w_s = w_m;
     }
     sensed_w_radps = (float)w_s;
-    /* the application's set point for a speed sample at t_n */
-    if (n_current % P2D_VD_CURRENT_PER_SPEED == 0u) {
-        w_ref_radps = schedule_value(&reference, (double)n_current * p2d_vd_plant.Ts_s);
-        reference_radps = (float)w_ref_radps;
-    }
 }
 
 /* Write the buffered (closed) trace rows. */
@@ -319,11 +296,12 @@ static void open_row(double t_k_s)
 {
     const foc_signals_t *sig = foc_signals();
     double *row = rows[n_rows];
-    double theta_L_rad, w_L_radps, ud_V, uq_V, T_load_Nm = schedule_value(&load, t_k_s);
+    const schedule_t l = load_schedule();
+    double theta_L_rad, w_L_radps, ud_V, uq_V, T_load_Nm = schedule_value(&l, t_k_s, t_tol_s);
     p2d_plant_load_side(&plant, &theta_L_rad, &w_L_radps);
     p2d_plant_applied_voltage(&plant, &ud_V, &uq_V);
     row[VB_T_S] = t_k_s;
-    row[VB_W_REF_RADPS] = w_ref_radps;
+    row[VB_W_REF_RADPS] = link_status()->w_ref_radps;
     row[VB_W_M_RADPS] = plant.w_m_radps;
     row[VB_ID_REF_A] = (double)sig->id_ref_A;
     row[VB_IQ_REF_A] = (double)sig->iq_ref_A;
@@ -371,7 +349,7 @@ static void physics(void)
     } else {
         n_limited += sig->voltage_limited || io.limited;
     }
-    if (sig->speed_sample && k % P2D_VD_LOG_EVERY == 0u) open_row(t_s);
+    if (sig->speed_sample && (link_mode || k % P2D_VD_LOG_EVERY == 0u)) open_row(t_s);
     advance(t_s);
     n_current++;
     check_state();
@@ -380,23 +358,40 @@ static void physics(void)
         if (row_open) {
             rows[n_rows][VB_VOLTAGE_LIMITED] = (double)n_limited / (double)P2D_VD_CURRENT_PER_SPEED;
             row_open = false;
-            if (++n_rows == VB_ROWS_BUFFERED) flush_rows();
+            memcpy(vd_trace, rows[n_rows], sizeof vd_trace);
+            /* link mode: the master captures vd_trace; the file holds the run of trace mode */
+            if (!link_mode && ++n_rows == VB_ROWS_BUFFERED) flush_rows();
         }
         n_limited = 0u;
-        if (n_current == n_periods_end) finish(true);
+        if (!link_mode && n_current == n_periods_end) finish(true);
     }
     latch_sensors();
 }
 
 void board_virtual_interrupt(void)
 {
-    uint32_t instructions = measure() - reading_instructions;
+    uint32_t instructions;
+    /*
+     * link mode: the virtual motor waits for the link. While the DAQ packets fill more than half the
+     * queue, the period is skipped whole (the firmware's time stands still) and the background loop
+     * sends them: no sample is lost however slow the master reads. A drive's motor cannot wait: its
+     * firmware drops the samples and counts them (link_status_now.dtos_lost).
+     */
+    if (link_mode && link_daq_backlog()) return;
+    instructions = measure() - reading_instructions;
     if (vt_hold(true)) {
         report_at("virtual drive: the control interrupt overran its period Ts_current");
         finish(false);
     }
-    costs[n_costs++] = instructions | (foc_signals()->speed_sample ? VB_SPEED_SAMPLE_BIT : 0u);
-    if (n_costs == VB_COSTS_BUFFERED) flush_costs();
+    if (!powered) {
+        /* idle: the motor stands in its state, the firmware's link runs */
+        (void)vt_hold(false);
+        return;
+    }
+    if (cost_output) {
+        costs[n_costs++] = instructions | (foc_signals()->speed_sample ? VB_SPEED_SAMPLE_BIT : 0u);
+        if (n_costs == VB_COSTS_BUFFERED) flush_costs();
+    }
     physics();
     (void)vt_hold(false);
 }
@@ -408,7 +403,17 @@ void board_init(void)
     p2d_plant_config_t cfg = p2d_vd_plant;
     p2d_plant_status_t status;
     vt_init();
+    link_mode = vt_argument("link", 0u) != 0u;
+    cost_output = !link_mode || vt_argument("cost", 0u) != 0u;
     n_periods_end = vt_argument("samples", P2D_VD_SPEED_SAMPLES) * P2D_VD_CURRENT_PER_SPEED;
+    if (P2D_VD_LOAD_N > VB_LOAD_MAX) {
+        vt_report("virtual drive: the load schedule has more than 32 entries");
+        vt_exit(false);
+    }
+    vd_load.n = P2D_VD_LOAD_N;
+    memcpy(vd_load.t_s, p2d_vd_load_t_s, P2D_VD_LOAD_N * sizeof(double));
+    memcpy(vd_load.torque_Nm, p2d_vd_load_Nm, P2D_VD_LOAD_N * sizeof(double));
+    memcpy(vd_load.ramp_s, p2d_vd_load_ramp_s, P2D_VD_LOAD_N * sizeof(double));
     /* at rest until board_start_control_interrupt: the friction at the initial speed needs the plant */
     cfg.id0_A = 0.0;
     cfg.iq0_A = 0.0;
@@ -432,27 +437,40 @@ void board_read_start_state(float *w_m_radps, float *T_Nm)
     *T_Nm = (float)p2d_plant_friction_Nm(&plant, p2d_vd_plant.w_m0_radps);
 }
 
-void board_start_control_interrupt(float Ts_current_s)
+void board_run_begin(void)
 {
     p2d_plant_config_t cfg = p2d_vd_plant;
     const foc_signals_t *sig = foc_signals();
-    double L_min_H = fmin(cfg.motor.Ld_H, cfg.motor.Lq_H);
-    /* the currents equal the firmware's command (foc_start) */
+    /* the motor's physics takes none of the firmware's time */
+    (void)vt_hold(true);
+    /* the engine's initial state, the currents equal to the firmware's command (foc_start) */
     cfg.id0_A = (double)sig->id_ref_A;
     cfg.iq0_A = (double)sig->iq_ref_A;
     (void)p2d_plant_init(&plant, &cfg);
+    n_current = 0u;
+    n_limited = 0u;
+    current_saturated = false;
+    row_open = false;
+    latch_sensors();
+    (void)vt_hold(false);
+}
+
+void board_start_control_interrupt(float Ts_current_s)
+{
+    const p2d_plant_config_t *cfg = &p2d_vd_plant;
+    double L_min_H = fmin(cfg->motor.Ld_H, cfg->motor.Lq_H);
     t_tol_s = VB_T_TOL * plant.dt_s;
     /* twice the no-load speed 2 u_dc / (sqrt(3) p psi_f); ten times max(i_max, psi_f / min(Ld, Lq)) */
-    w_bound_radps = 2.0 * plant.u_max_V / (plant.p * cfg.motor.psi_f_Wb);
-    i_bound_A = 10.0 * fmax(P2D_VD_I_MAX_A, cfg.motor.psi_f_Wb / L_min_H);
+    w_bound_radps = 2.0 * plant.u_max_V / (plant.p * cfg->motor.psi_f_Wb);
+    i_bound_A = 10.0 * fmax(P2D_VD_I_MAX_A, cfg->motor.psi_f_Wb / L_min_H);
     n_current = 0u;
     latch_sensors();
-    if (n_periods_end == 0u) finish(true);
+    if (!link_mode && n_periods_end == 0u) finish(true);
     vt_start_interrupt(Ts_current_s);
     /* the instructions of the measurement alone: an empty function called as foc_isr is, less its return */
     control = empty;
     reading_instructions = measure() - 1u;
-    control = foc_isr;
+    control = link_isr;
 }
 
 void board_read_phase_currents(float *ia_A, float *ib_A, float *ic_A)
@@ -474,9 +492,6 @@ float board_read_speed_radps(void) { return sensed_w_radps; }
 
 uint32_t board_read_encoder_count(void) { return encoder_count; }
 
-/* the reference latched for this speed sample (w_ref_radps keeps it in double for the trace, as the engine logs it) */
-float board_speed_reference_radps(void) { return reference_radps; }
-
 void board_write_duties(float duty_a, float duty_b, float duty_c)
 {
     duty[0] = duty_a;
@@ -484,6 +499,53 @@ void board_write_duties(float duty_a, float duty_b, float duty_c)
     duty[2] = duty_c;
 }
 
-void board_pwm_enable(bool enable) { (void)enable; }
+void board_pwm_enable(bool enable) { powered = enable; }
 
 void board_wait_for_interrupt(void) { vt_wait(); }
+
+/* ---- the link -------------------------------------------------------------- */
+
+void board_link_config(link_config_t *cfg)
+{
+    const p2d_pmsm_params_t *m = &p2d_vd_plant.motor;
+    /* half the acceleration of the current limit, 1.5 p psi_f i_max / J, unless ramp_radps_per_s=N */
+    double ramp = 0.75 * (double)m->pole_pairs * m->psi_f_Wb * P2D_VD_I_MAX_A / m->J_kgm2;
+    cfg->Ts_current_s = p2d_vd_plant.Ts_s;
+    cfg->timeout_s = (float)vt_argument("timeout_ms", 200u) * 1e-3f;
+    cfg->ramp_radps_per_s = (float)vt_argument("ramp_radps_per_s", (uint64_t)(ramp + 0.5));
+    cfg->hold_s = (float)vt_argument("hold_ms", 50u) * 1e-3f;
+    cfg->t_s = p2d_vd_reference_t_s;
+    cfg->w_radps = p2d_vd_reference_radps;
+    cfg->ramp_s = p2d_vd_reference_ramp_s;
+    cfg->n = P2D_VD_REFERENCE_N;
+    /* trace mode: the scenario's run at power-up */
+    cfg->autostart_samples = link_mode ? 0u : (uint32_t)(n_periods_end / P2D_VD_CURRENT_PER_SPEED);
+}
+
+uint32_t board_link_receive(uint8_t *bytes, uint32_t capacity) { return vt_link_receive(bytes, capacity); }
+
+uint32_t board_link_send(const uint8_t *bytes, uint32_t n) { return vt_link_send(bytes, n); }
+
+void board_link_lock(void) { vt_lock(true); }
+
+void board_link_unlock(void) { vt_lock(false); }
+
+uint16_t board_link_segments(p2d_xcp_segment_t *segments, uint16_t capacity)
+{
+    if (capacity < 2u) return 0u;
+    segments[0] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&vd_load, &vd_load, sizeof vd_load, P2D_XCP_CALIBRATION};
+    segments[1] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)vd_trace, vd_trace, sizeof vd_trace, P2D_XCP_MEASUREMENT};
+    return 2u;
+}
+
+bool board_link_commit(uint16_t index, const void *page, bool running)
+{
+    /* vd_load: between runs only (checked whole when a run starts) */
+    return index == 0u && !running && ((const vd_load_t *)page)->n <= VB_LOAD_MAX;
+}
+
+bool board_run_valid(void)
+{
+    const schedule_t l = load_schedule();
+    return schedule_valid(&l);
+}

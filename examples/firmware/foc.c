@@ -78,7 +78,8 @@ static float ud_unsat_V;      /* current controller's last d voltage before its 
 static float uq_unsat_V;      /* current controller's last q voltage before its limit [V] */
 static float T_sum_Nm;        /* inertia estimator: sum of the torques of this speed period [Nm] */
 static uint32_t n_T;          /* inertia estimator: number of those torques [-] */
-static foc_signals_t signals; /* what the last interrupt computed */
+static float reference_radps; /* speed reference of the next speed samples [rad/s] */
+foc_signals_t foc_now;        /* what the last interrupt computed (measured by the XCP master: global) */
 
 /* |a - b| <= tol |b| */
 static bool nearly_equal(float a, float b, float tol) { return fabsf(a - b) <= tol * fabsf(b); }
@@ -133,8 +134,8 @@ foc_status_t foc_init(void)
         }
     }
     pole_pairs = (float)p2d_config_speed.pole_pairs;
-    signals.J_est_kgm2 = P2D_CONFIG_INERTIA ? p2d_config_inertia.J0_kgm2 : 0.0f;
-    signals.J_gains_kgm2 = p2d_config_speed.J_kgm2;
+    foc_now.J_est_kgm2 = P2D_CONFIG_INERTIA ? p2d_config_inertia.J0_kgm2 : 0.0f;
+    foc_now.J_gains_kgm2 = p2d_config_speed.J_kgm2;
     return st;
 }
 
@@ -149,12 +150,12 @@ void foc_start(float w_m_radps, float T_Nm)
 
     p2d_speed_reset(&speed_ctl, w_m_radps, T_Nm);
     p2d_speed_compute(&speed_ctl, w_m_radps, w_m_radps, &spd);
-    signals.id_ref_A = spd.id_ref_A;
-    signals.iq_ref_A = spd.iq_ref_A;
-    signals.w_ref_radps = w_m_radps;
-    signals.w_meas_radps = w_m_radps;
-    signals.T_ref_Nm = spd.T_ref_Nm;
-    signals.T_unsat_Nm = spd.T_unsat_Nm;
+    foc_now.id_ref_A = spd.id_ref_A;
+    foc_now.iq_ref_A = spd.iq_ref_A;
+    foc_now.w_ref_radps = w_m_radps;
+    foc_now.w_meas_radps = w_m_radps;
+    foc_now.T_ref_Nm = spd.T_ref_Nm;
+    foc_now.T_unsat_Nm = spd.T_unsat_Nm;
     /*
      * the current integrators at the steady state of eq 1 for these currents: zero error gives
      * ud = x_d - w_e Lq iq and uq = x_q + w_e (Ld id + psi_f) with the decoupling, so x_d = Rs id, x_q = Rs iq
@@ -172,9 +173,31 @@ void foc_start(float w_m_radps, float T_Nm)
     tick = 0u;
 }
 
-const foc_signals_t *foc_signals(void) { return &signals; }
+const foc_signals_t *foc_signals(void) { return &foc_now; }
 
 float foc_current_period_s(void) { return p2d_config_current.Ts_s; }
+
+void foc_set_speed_reference(float w_ref_radps) { reference_radps = w_ref_radps; }
+
+p2d_status_t foc_set_speed_config(const p2d_speed_config_t *cfg)
+{
+    p2d_status_t st;
+    if (cfg->Ts_s != speed_ctl.config.Ts_s) return P2D_ERR_TS;
+    if (cfg->pole_pairs != speed_ctl.config.pole_pairs) return P2D_ERR_POLE_PAIRS;
+    st = p2d_speed_set_config(&speed_ctl, cfg);
+    if (st == P2D_OK) foc_now.J_gains_kgm2 = cfg->J_kgm2;
+    return st;
+}
+
+p2d_status_t foc_set_current_config(const p2d_current_config_t *cfg)
+{
+    if (cfg->Ts_s != current_ctl.config.Ts_s) return P2D_ERR_TS;
+    return p2d_current_set_config(&current_ctl, cfg);
+}
+
+const p2d_speed_config_t *foc_speed_config(void) { return &speed_ctl.config; }
+
+const p2d_current_config_t *foc_current_config(void) { return &current_ctl.config; }
 
 /*
  * Space-vector modulation by min-max zero-sequence injection: linear for
@@ -227,19 +250,19 @@ static void inertia_sample(float w_ref_radps, float w_meas_radps)
     p2d_inertia_step(&inertia, w_meas_radps, T_sum_Nm / (float)n_T, &est);
     T_sum_Nm = 0.0f;
     n_T = 0u;
-    signals.J_est_kgm2 = est.J_kgm2;
-    signals.J_valid = est.J_valid;
-    signals.T_load_est_Nm = est.T_load_Nm;
-    if (!P2D_CONFIG_ADAPT_GAINS || !est.J_valid || signals.saturated || w_ref_radps != speed_ctl.r_prev_radps ||
+    foc_now.J_est_kgm2 = est.J_kgm2;
+    foc_now.J_valid = est.J_valid;
+    foc_now.T_load_est_Nm = est.T_load_Nm;
+    if (!P2D_CONFIG_ADAPT_GAINS || !est.J_valid || foc_now.saturated || w_ref_radps != speed_ctl.r_prev_radps ||
         !(fabsf(w_ref_radps - w_meas_radps) <= P2D_CONFIG_ADAPT_ERROR_RADPS)) {
         return;
     }
-    if (fabsf(est.J_kgm2 - signals.J_gains_kgm2) > P2D_CONFIG_ADAPT_REL_CHANGE * signals.J_gains_kgm2) {
+    if (fabsf(est.J_kgm2 - foc_now.J_gains_kgm2) > P2D_CONFIG_ADAPT_REL_CHANGE * foc_now.J_gains_kgm2) {
         p2d_speed_config_t c = speed_ctl.config;
         c.J_kgm2 = est.J_kgm2;
         if (P2D_CONFIG_KA_FOLLOWS_J) c.Ka = p2d_speed_Ka_default(c.J_kgm2, c.alpha_radps);
         /* bumpless (p2d_speed_set_config keeps the state); a rejected design changes nothing */
-        if (p2d_speed_set_config(&speed_ctl, &c) == P2D_OK) signals.J_gains_kgm2 = est.J_kgm2;
+        if (p2d_speed_set_config(&speed_ctl, &c) == P2D_OK) foc_now.J_gains_kgm2 = est.J_kgm2;
     }
 }
 
@@ -247,7 +270,7 @@ static void inertia_sample(float w_ref_radps, float w_meas_radps)
 static void speed_sample(void)
 {
     p2d_speed_output_t spd;
-    float w_ref_radps = board_speed_reference_radps(), w_meas_radps, id_fw_A = 0.0f;
+    float w_ref_radps = reference_radps, w_meas_radps, id_fw_A = 0.0f;
 
     if (P2D_CONFIG_ENCODER) {
         p2d_encoder_output_t enc;
@@ -275,16 +298,16 @@ static void speed_sample(void)
      * spd.T_ref_Nm (zero after a fault: non-finite speed). A further limit here (thermal
      * derating, ...) must change the current references and pass its limited torque to the update.
      */
-    signals.id_ref_A = spd.id_ref_A;
-    signals.iq_ref_A = spd.iq_ref_A;
+    foc_now.id_ref_A = spd.id_ref_A;
+    foc_now.iq_ref_A = spd.iq_ref_A;
     p2d_speed_update(&speed_ctl, &spd, spd.T_ref_Nm);
-    signals.w_ref_radps = w_ref_radps;
-    signals.w_meas_radps = w_meas_radps;
-    signals.T_unsat_Nm = spd.T_unsat_Nm;
-    signals.T_ref_Nm = spd.T_ref_Nm;
-    signals.saturated = spd.saturated;
-    signals.x_i_Nm = p2d_speed_integrator_Nm(&speed_ctl);
-    signals.id_fw_A = id_fw_A;
+    foc_now.w_ref_radps = w_ref_radps;
+    foc_now.w_meas_radps = w_meas_radps;
+    foc_now.T_unsat_Nm = spd.T_unsat_Nm;
+    foc_now.T_ref_Nm = spd.T_ref_Nm;
+    foc_now.saturated = spd.saturated;
+    foc_now.x_i_Nm = p2d_speed_integrator_Nm(&speed_ctl);
+    foc_now.id_fw_A = id_fw_A;
 }
 
 void foc_isr(void)
@@ -306,12 +329,12 @@ void foc_isr(void)
     p2d_park(i_alpha_A, i_beta_A, sin_e, cos_e, &id_A, &iq_A);
 
     /* speed loop, every P2D_CONFIG_CURRENT_PER_SPEED-th interrupt */
-    signals.speed_sample = tick == 0u;
+    foc_now.speed_sample = tick == 0u;
     if (tick == 0u) speed_sample();
     tick = tick + 1u == P2D_CONFIG_CURRENT_PER_SPEED ? 0u : tick + 1u;
 
     /* current loop, every interrupt */
-    p2d_current_compute(&current_ctl, signals.id_ref_A, signals.iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, &cur);
+    p2d_current_compute(&current_ctl, foc_now.id_ref_A, foc_now.iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, &cur);
     p2d_inv_park(cur.ud_ref_V, cur.uq_ref_V, sin_e, cos_e, &u_alpha_V, &u_beta_V);
     if (svpwm(u_alpha_V, u_beta_V, u_dc_V, &u_alpha_app_V, &u_beta_app_V)) {
         /* the modulator limited the voltage: the integrators must see what it applied, in dq */
@@ -335,10 +358,10 @@ void foc_isr(void)
         T_sum_Nm += 1.5f * pole_pairs * (cc->psi_f_Wb + (cc->Ld_H - cc->Lq_H) * id_A) * iq_A;
         n_T++;
     }
-    signals.id_A = id_A;
-    signals.iq_A = iq_A;
-    signals.ud_ref_V = cur.ud_ref_V;
-    signals.uq_ref_V = cur.uq_ref_V;
-    signals.voltage_limited = cur.saturated;
-    signals.fault_count = speed_ctl.fault_count + current_ctl.fault_count + encoder.fault_count;
+    foc_now.id_A = id_A;
+    foc_now.iq_A = iq_A;
+    foc_now.ud_ref_V = cur.ud_ref_V;
+    foc_now.uq_ref_V = cur.uq_ref_V;
+    foc_now.voltage_limited = cur.saturated;
+    foc_now.fault_count = speed_ctl.fault_count + current_ctl.fault_count + encoder.fault_count;
 }

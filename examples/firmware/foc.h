@@ -11,6 +11,8 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "pmsm2dof/current.h"
+#include "pmsm2dof/speed.h"
 #include "pmsm2dof/status.h"
 
 /* Most current periods per speed period the firmware accepts (the engine's bound is far higher). */
@@ -36,7 +38,8 @@ typedef struct {
 
 /*
  * What the control computed at the last interrupt: the measurement variables
- * a trace, a debugger or an XCP master reads (written by foc_isr only).
+ * a trace, a debugger or an XCP master reads (written by foc_isr only; the
+ * variable foc_now, which the A2L file of the build describes).
  */
 typedef struct {
     bool speed_sample;    /* this interrupt ran the speed loop [-] */
@@ -61,6 +64,9 @@ typedef struct {
     uint32_t fault_count; /* samples a controller refused by its non-finite policy [-] */
 } foc_signals_t;
 
+/* The signals of the last interrupt (foc_signals() points to it). */
+extern foc_signals_t foc_now;
+
 /*
  * Initialize every controller from p2d_config.h. Returns the first part
  * rejected; then never start the control interrupt nor the power stage.
@@ -79,6 +85,22 @@ void foc_start(float w_m_radps, float T_Nm);
 
 /* The period of the control interrupt, Ts_s of p2d_config_current [s]. */
 float foc_current_period_s(void);
+
+/* The speed reference of the next speed samples [rad/s] (the application's: the link plays it). */
+void foc_set_speed_reference(float w_ref_radps);
+
+/*
+ * Take a new configuration of the speed controller (p2d_speed_set_config: validated, bumpless,
+ * state kept) or of the current controller (p2d_current_set_config). Ts_s (and the speed
+ * controller's pole_pairs) must be the firmware's: else P2D_ERR_TS (P2D_ERR_POLE_PAIRS). On an
+ * error nothing changes. Call in the control interrupt, before foc_isr.
+ */
+p2d_status_t foc_set_speed_config(const p2d_speed_config_t *cfg);
+p2d_status_t foc_set_current_config(const p2d_current_config_t *cfg);
+
+/* The configurations in force. */
+const p2d_speed_config_t *foc_speed_config(void);
+const p2d_current_config_t *foc_current_config(void);
 
 /* The control interrupt: call at 1 / Ts_current, from the PWM or ADC interrupt. */
 void foc_isr(void);

@@ -1,10 +1,13 @@
 /*
  * Firmware example: the pmsm2dof speed and current controllers in a FOC
- * interrupt on a Cortex-M4F. See foc.c for the control, board.h for the
- * hardware access to replace, and docs/mcu.md for the build and the runs.
+ * interrupt on a Cortex-M4F, run and tuned by an XCP master over its link.
+ * See foc.c for the control, link.h for the link, board.h for the hardware
+ * access to replace, and docs/mcu.md for the build and the runs.
  */
 #include "board.h"
 #include "foc.h"
+#include "link.h"
+#include "p2d_config.h"
 #include "pmsm2dof/status.h"
 
 /* Characters of a diagnostic line, NUL included. */
@@ -68,10 +71,27 @@ static void report_rejected(foc_status_t st)
     board_report(line);
 }
 
+/* Report a link configuration the slave or its guard rejected. */
+static void report_link_rejected(link_init_status_t st)
+{
+    char line[MAIN_LINE_CHARS];
+    uint32_t len = 0u;
+    append(line, &len, "pmsm2dof firmware: link rejected: ");
+    if (!st.schedule) {
+        append(line, &len, "the reference schedule (at most 32 entries, times >= 0 nondecreasing, ramps >= 0)");
+    } else {
+        append(line, &len, p2d_xcp_status_param(st.xcp));
+        append(line, &len, " must be ");
+        append(line, &len, p2d_xcp_status_range(st.xcp));
+    }
+    board_report(line);
+}
+
 int main(void)
 {
     foc_status_t st;
-    float w_m_radps, T_Nm;
+    link_config_t link = {0};
+    link_init_status_t link_st;
 
     board_init();
     st = foc_init();
@@ -81,12 +101,19 @@ int main(void)
         board_halt();
         return 1;
     }
-    board_read_start_state(&w_m_radps, &T_Nm);
-    foc_start(w_m_radps, T_Nm);
+    board_link_config(&link);
+    link.current_per_speed = P2D_CONFIG_CURRENT_PER_SPEED;
+    link_st = link_init(&link);
+    if (link_st.xcp != P2D_XCP_OK || !link_st.schedule) {
+        report_link_rejected(link_st);
+        board_halt();
+        return 1;
+    }
+    /* idle, power stage off, until the master (or the board's run at power-up) starts a run */
     board_start_control_interrupt(foc_current_period_s());
-    board_pwm_enable(true);
     for (;;) {
-        /* background work (communication, parameter updates with p2d_speed_set_config) */
+        /* background: the link (bounded work), then sleep until an interrupt */
+        link_poll();
         board_wait_for_interrupt();
     }
 }

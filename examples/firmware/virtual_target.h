@@ -1,11 +1,12 @@
 /*
  * What the virtual board (board_virtual.c) needs from the machine it runs on:
  * a periodic interrupt whose clock can be held and read, outputs for the trace,
- * the cost and the diagnostics, the run's arguments, and the end of the run.
- * Two implementations: virtual_target_mps2.c (the Cortex-M4F of QEMU -M
- * mps2-an386: SysTick, semihosting) and virtual_target_host.c (the PC: the
- * interrupt is a call, the outputs stdio), so that foc.c and the virtual board
- * build unchanged for both.
+ * the cost and the diagnostics, the run's arguments, the end of the run and
+ * the link to the XCP master. Two implementations: virtual_target_mps2.c (the
+ * Cortex-M4F of QEMU -M mps2-an386: SysTick, semihosting, UART0) and
+ * virtual_target_host.c (the PC: the interrupt is a call, the outputs stdio,
+ * the link a TCP socket), so that foc.c and the virtual board build unchanged
+ * for both.
  */
 #ifndef VIRTUAL_TARGET_H
 #define VIRTUAL_TARGET_H
@@ -53,6 +54,15 @@ void vt_write(vt_stream_t stream, const void *bytes, uint32_t n);
 
 /* Write one line of text to the diagnostic output. */
 void vt_report(const char *text);
+
+/* The bytes received on the link to the XCP master, at most capacity; 0: none. Never waits. */
+uint32_t vt_link_receive(uint8_t *bytes, uint32_t capacity);
+
+/* Send up to n bytes on the link without waiting; returns how many were taken. */
+uint32_t vt_link_send(const uint8_t *bytes, uint32_t n);
+
+/* Enter (true) or leave (false) a section shared by the background and the control interrupt. */
+void vt_lock(bool enter);
 
 /* Close the outputs and end the run: exit status 0 when ok, else 1. Does not return. */
 void vt_exit(bool ok);

@@ -14,7 +14,23 @@
  * instructions, 3.2 times as many ticks, and an interrupt longer than that is
  * an overrun. While the virtual motor's physics runs (vt_hold), SysTick is
  * stopped: the motor turns between interrupts without taking the firmware's time.
+ *
+ * The link to the XCP master is UART0 (QEMU's first -serial: -serial pty, or
+ * -serial tcp:127.0.0.1:PORT,server), polled by the background loop: a byte
+ * per poll, one poll per control period at least. Time on the link. With
+ * sleep=off QEMU's clock jumps over the idle time (WFI), so the firmware's
+ * time (the control periods, the link's clock, its watchdog, the DAQ
+ * timestamps) runs as fast as QEMU executes it: slower than the wall clock
+ * while the virtual motor's soft-float physics runs (a few times for a 20 kHz
+ * drive), faster while the drive idles. The run stays deterministic whatever
+ * the link does: the reference and load schedules are played by the firmware
+ * at its own samples, and only the instant a master's command or calibration
+ * takes effect depends on the wall clock (the link reports that sample).
+ * sleep=on would tie the idle time to the wall clock, give up the determinism
+ * of the instruction counts (a late wake-up lands past the SysTick deadline)
+ * and not bring a busy drive closer to real time: the physics sets the pace.
  */
+#include "cmsdk_uart.h"
 #include "semihost.h"
 #include "virtual_target.h"
 
@@ -22,6 +38,8 @@
 #define VT_CYCLES_PER_INSTRUCTION 1.5f /* the firmware's core [cycles/instruction] */
 #define VT_TICKS_PER_INSTRUCTION 3.2f  /* SysTick ticks (25 MHz) per instruction at -icount shift=7 */
 #define VT_ARGS_CHARS 256u
+#define VT_UART_PCLK_HZ 25000000u /* the MPS2's peripheral clock [Hz] */
+#define VT_UART_BAUD 115200u      /* the link's bit rate (QEMU does not pace the bytes) [bit/s] */
 
 #define SYST_CSR (*(volatile uint32_t *)0xE000E010u) /* SysTick control and status */
 #define SYST_RVR (*(volatile uint32_t *)0xE000E014u) /* SysTick reload value */
@@ -41,8 +59,11 @@ void SysTick_Handler(void)
     board_virtual_interrupt();
 }
 
+static uint32_t primask; /* PRIMASK saved by vt_lock */
+
 void vt_init(void)
 {
+    p2d_uart_init(P2D_UART0, VT_UART_PCLK_HZ, VT_UART_BAUD);
     if (!p2d_semihost_cmdline(args, VT_ARGS_CHARS)) args[0] = '\0';
     for (uint32_t s = VT_TRACE; s <= VT_COST; ++s) {
         handle[s] = p2d_semihost_create(file_name[s]);
@@ -115,6 +136,21 @@ void vt_report(const char *text)
 {
     p2d_semihost_write(text);
     p2d_semihost_write("\n");
+}
+
+uint32_t vt_link_receive(uint8_t *bytes, uint32_t capacity) { return p2d_uart_receive(P2D_UART0, bytes, capacity); }
+
+uint32_t vt_link_send(const uint8_t *bytes, uint32_t n) { return p2d_uart_send(P2D_UART0, bytes, n); }
+
+void vt_lock(bool enter)
+{
+    if (enter) {
+        uint32_t mask;
+        __asm__ volatile("mrs %0, primask\n\tcpsid i" : "=r"(mask)::"memory");
+        primask = mask;
+    } else {
+        __asm__ volatile("msr primask, %0" ::"r"(primask) : "memory");
+    }
 }
 
 void vt_exit(bool ok)

@@ -37,7 +37,15 @@ import numpy.typing as npt
 
 from ..core import ANTI_WINDUPS, FEEDFORWARDS, pi_gains
 from ..core.bindings import AntiWindup, Feedforward, Method
-from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
+from ..errors import (
+    FLOAT32_MAX,
+    FLOAT32_MIN,
+    ConfigError,
+    require_choice,
+    require_float32,
+    require_nonnegative,
+    require_positive,
+)
 from ..lazy import lazy_module
 from .discretize import DiscreteDesign, discretize
 from .margins import Margins, frequency_margins, loop_margins
@@ -207,7 +215,13 @@ class Design:
         with the load at the mechanics, eq 8). With ``J_plant_kgm2 == J_kgm2`` these are
         :attr:`Gx` and :attr:`GN`. With a sensor chain the feedback reads ``H`` times the speed:
         ``Gx = (Fr + F) G / (1 + F G H)``, ``GN = -Gm / (1 + F Gci Gm H)``.
+
+        Raises
+        ------
+        ConfigError
+            ``J_plant_kgm2`` not a normal float32 number > 0 (as the design's inertia).
         """
+        J_plant_kgm2 = require_float32("J_plant_kgm2", J_plant_kgm2)
         Gm = control.tf([1.0], [J_plant_kgm2, 0.0])
         if self.sensor.is_ideal:
             return tracking_tf(self.F, self.Fr, self.Gci * Gm).minreal(), -control.feedback(Gm, self.F * self.Gci)
@@ -404,6 +418,25 @@ class Design:
         return discretize(self, Ts_s, method)
 
 
+#: Shortest sensor delay, relative to the loop's shortest time constant: below about 1e-15
+#: the Pade approximant's coefficients overflow when multiplied with the loop's.
+DELAY_SHARE_MIN = 1e-9
+
+
+def _require_float32_gain(gain: str, value: float, factors: dict[str, float]) -> None:
+    """Raise ConfigError, naming the factor farthest from 1, if the gain ``value`` of eq 9 is not a
+    normal float32 number (it overflowed, or came out 0 or subnormal)."""
+    if FLOAT32_MIN <= value <= FLOAT32_MAX:
+        return
+    name = max(factors, key=lambda k: abs(math.log(factors[k])))
+    raise ConfigError(
+        name,
+        factors[name],
+        f"a value that makes {gain} (eq 9) a normal float32 number, {FLOAT32_MIN:.4g} to {FLOAT32_MAX:.4g} "
+        f"(it is {value:.4g} with {', '.join(f'{k} = {v:.4g}' for k, v in factors.items())})",
+    )
+
+
 def design(
     J_kgm2: float,
     alpha_radps: float,
@@ -448,13 +481,16 @@ def design(
     Raises
     ------
     ConfigError
-        For any input out of range, naming the parameter, its value and the valid range.
+        For any input out of range, naming the parameter, its value and the valid range. The
+        numbers (``tau_i_s`` when not 0) and the gains ``Kp`` and ``Ki`` of eq 9 must be normal
+        float32 numbers (:func:`~pmsm2dof.errors.require_float32`), the range of the C controller
+        that runs the design: no gain comes out infinite, 0 or subnormal.
     """
-    J_kgm2 = require_positive("J_kgm2", J_kgm2)
-    alpha_radps = require_positive("alpha_radps", alpha_radps)
-    zeta = require_positive("zeta", zeta)
-    m = require_positive("m", m)
-    tau_i_s = require_nonnegative("tau_i_s", tau_i_s)
+    J_kgm2, alpha_radps, zeta, m = (
+        require_float32(name, value)
+        for name, value in (("J_kgm2", J_kgm2), ("alpha_radps", alpha_radps), ("zeta", zeta), ("m", m))
+    )
+    tau_i_s = require_float32("tau_i_s", tau_i_s, zero=True)
     require_choice("feedforward", feedforward, FEEDFORWARDS)
     require_choice("anti_windup", anti_windup, ANTI_WINDUPS)
     if feedforward == "lowpass" and m != 1.0:
@@ -465,10 +501,23 @@ def design(
             "feedforward 'no_tau' or 'full' (eq 11)",
         )
     Kp, Ki = pi_gains(J_kgm2, alpha_radps, zeta)  # eq 9
+    _require_float32_gain("Kp = J alpha", Kp, {"J_kgm2": J_kgm2, "alpha_radps": alpha_radps})
+    _require_float32_gain(
+        "Ki = J (alpha / (2 zeta))^2", Ki, {"J_kgm2": J_kgm2, "alpha_radps": alpha_radps, "zeta": zeta}
+    )
     Ka_default = Ka is None
     Ka = 1.0 / Kp if Ka is None else require_nonnegative("Ka", Ka)
     if sensor is None:
         sensor = SensorChain()
     elif not isinstance(sensor, SensorChain):
         raise ConfigError("sensor", sensor, "a SensorChain")
+    w_fastest_radps = max(alpha_radps, alpha_radps / (2.0 * zeta), m * alpha_radps)
+    if 0.0 < sensor.delay_s < DELAY_SHARE_MIN / w_fastest_radps:
+        raise ConfigError(
+            "delay_s",
+            sensor.delay_s,
+            f"0, or >= {DELAY_SHARE_MIN / w_fastest_radps:.3g} s: {DELAY_SHARE_MIN:g} of the loop's shortest time "
+            "constant 1/max(alpha, alpha/(2 zeta), m alpha) (a shorter delay changes nothing in this loop, and its "
+            "Pade approximant's coefficients overflow)",
+        )
     return Design(J_kgm2, alpha_radps, zeta, m, tau_i_s, feedforward, anti_windup, Ka, Kp, Ki, sensor, Ka_default)

@@ -67,7 +67,7 @@ from ..core.gains import default_Ka_error
 from ..errors import ConfigError, Pmsm2dofWarning, require_choice, require_positive
 from ..lazy import lazy_module
 from .margins import Margins, frequency_margins, pick_margins, polynomial_crossings
-from .sensor import sampled_plant_blocks
+from .sensor import delay_periods, sampled_plant_blocks
 from .stepresponse import StepResponse
 
 if TYPE_CHECKING:
@@ -564,13 +564,15 @@ def discretize(design: Design, Ts_s: float, method: Method) -> DiscreteDesign:
         feedback loop unstable at this ``Ts_s`` (the message gives the periods that are
         stable); ``alpha_radps`` when the continuous loop itself is unstable
         (``alpha tau_i >= 4 zeta^2``, Routh on eq 8's denominator); or ``Ka`` too large for
-        the discrete back-calculation loop ``x[k] = (1 - Ki Ka Ts) x[k-1] + ...``.
+        the discrete back-calculation loop ``x[k] = (1 - Ki Ka Ts) x[k-1] + ...``; the
+        sensor's ``delay_s`` beyond :data:`~pmsm2dof.analysis.sensor.DELAY_PERIODS_MAX` periods.
         A stable design is never refused for a figure of merit: one that cannot be
         computed is NaN, with its reason in ``DiscreteDesign.missing``.
     """
     Ts_s = require_positive("Ts_s", Ts_s)
     require_choice("method", method, METHODS)
     d = design
+    delay_periods(d.sensor.delay_s, Ts_s)  # bounded before any work
     w_design_radps = max(d.alpha_radps, d.alpha_radps / (2.0 * d.zeta), d.m * d.alpha_radps)
     if w_design_radps * Ts_s > MAX_W_TS:
         warnings.warn(
@@ -685,13 +687,17 @@ def _loop_with_sensor(
             "and Design.max_alpha_for_phase_margin)",
         )
     reading = control.interconnect(plant, inplist=["u"], outlist=["y"], ignore_outputs=["w"], dt=Ts_s)
-    A, B, C, D = reading.A, reading.B, reading.C, reading.D
+    # the plant to y_0 (a few states), then the filters and z^-n of the whole periods of delay
+    y_0 = plant[0][1, 0]
+    A, B, C, D = y_0.A, y_0.B, y_0.C, y_0.D
+    n_delay, _lam = delay_periods(d.sensor.delay_s, Ts_s)
     b_e0, Ki_Ts = c["b_e0"], c["Ki_Ts"]
 
     def L_of_w(w: npt.NDArray[np.float64]) -> npt.NDArray[np.complex128]:
         z = np.exp(1j * np.asarray(w, dtype=float) * Ts_s)
         M = z[:, None, None] * np.eye(len(A)) - A
         P = (C @ np.linalg.solve(M, np.broadcast_to(B, (len(z),) + B.shape)))[:, 0, 0] + D[0, 0]
+        P = P * d.sensor.filter_frequency_response(Ts_s, w) * z**-n_delay
         return np.asarray((b_e0 + (Ki_Ts - b_e0) / z) / (1.0 - 1.0 / z) * P, dtype=np.complex128)
 
     L_nyquist = L_of_w(np.array([math.pi / Ts_s]))[0].real

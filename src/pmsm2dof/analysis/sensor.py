@@ -30,7 +30,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import ESTIMATORS, SPEED_SENSOR_MODELS, Encoder
-from ..errors import ConfigError, require_choice, require_nonnegative
+from ..errors import ConfigError, require_choice, require_float32
 from ..lazy import lazy_module
 
 if TYPE_CHECKING:
@@ -78,9 +78,8 @@ class SensorChain:
     def __post_init__(self) -> None:
         require_choice("model", self.model, SENSOR_MODELS)
         require_choice("estimator", self.estimator, ESTIMATORS)
-        object.__setattr__(self, "bandwidth_radps", require_nonnegative("bandwidth_radps", self.bandwidth_radps))
-        object.__setattr__(self, "lowpass_radps", require_nonnegative("lowpass_radps", self.lowpass_radps))
-        object.__setattr__(self, "delay_s", require_nonnegative("delay_s", self.delay_s))
+        for name in ("bandwidth_radps", "lowpass_radps", "delay_s"):
+            object.__setattr__(self, name, require_float32(name, getattr(self, name), zero=True))
         if self.pll and not self.bandwidth_radps > 0.0:
             raise ConfigError("bandwidth_radps", self.bandwidth_radps, "finite and > 0 with estimator 'pll'")
         if self.model == "ideal" and self.estimator == "pll":
@@ -189,6 +188,13 @@ class SensorChain:
         return ", ".join(parts)
 
 
+#: Longest delay of the sampled loop's analysis [periods]: the loop has a state per period of
+#: delay and its step response costs the cube of its order (256 periods: 1.8 s, 512: 15 s on
+#: one core of the development machine, benchmarks/results.md). It covers the engine's 2046
+#: current-loop periods (the scenario's bound) wherever the speed loop runs at least 8 of them.
+DELAY_PERIODS_MAX = 256
+
+
 def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: SensorChain) -> list[Any]:
     """The sampled plant and sensor chain as python-control blocks from ``u`` to ``w`` and ``y``.
 
@@ -226,9 +232,7 @@ def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: Sens
         E, G = _zoh(A, B, t_s)
         return E[:n, :n], G[:n], E[n:, :n], G[n:]
 
-    periods = chain.delay_s / Ts_s
-    n_delay = math.floor(periods + 1e-9)
-    lam = periods - n_delay if periods - n_delay > 1e-9 else 0.0
+    n_delay, lam = delay_periods(chain.delay_s, Ts_s)
     Phi, Gamma, M_T, N_T = over(Ts_s)
     C_w = np.zeros((1, n))
     C_w[0, n - 1] = 1.0
@@ -267,6 +271,26 @@ def sampled_plant_blocks(J_kgm2: float, tau_i_s: float, Ts_s: float, chain: Sens
     if n_delay:
         reading = control.tf([1.0], [1.0] + [0.0] * n_delay, Ts_s) * reading
     return [plant, control.ss(reading, inputs="y_0", outputs="y")]
+
+
+def delay_periods(delay_s: float, Ts_s: float) -> tuple[int, float]:
+    """The delay as ``(n, lam)``: ``delay_s = (n + lam) Ts_s``, ``n`` whole periods and ``0 <= lam < 1``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``delay_s`` when it exceeds :data:`DELAY_PERIODS_MAX` periods.
+    """
+    periods = delay_s / Ts_s
+    if not periods <= DELAY_PERIODS_MAX:
+        raise ConfigError(
+            "delay_s",
+            delay_s,
+            f"<= {DELAY_PERIODS_MAX} Ts_s = {DELAY_PERIODS_MAX * Ts_s:g} s in the sampled loop's analysis (it has "
+            "one state per period of delay)",
+        )
+    n_delay = math.floor(periods + 1e-9)
+    return n_delay, periods - n_delay if periods - n_delay > 1e-9 else 0.0
 
 
 def _zoh(A: _Matrix, B: _Matrix, t_s: float) -> tuple[_Matrix, _Matrix]:

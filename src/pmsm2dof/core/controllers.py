@@ -117,14 +117,19 @@ def _raise_status(status: int, given: Mapping[str, Any]) -> None:
     rejected by C as inf or 0; the message says so.
     """
     param = c_string(lib.p2d_status_param(status))
-    valid = c_string(lib.p2d_status_range(status))
     value = given.get(param)
+    raise ConfigError(param, value, c_string(lib.p2d_status_range(status)) + float32_note(value))
+
+
+def float32_note(value: object) -> str:
+    """Why a C controller refuses a finite ``value`` its range admits: `` (computed in float32, where
+    <value> becomes inf)`` when float32 cannot hold it (it overflows or rounds to 0), else ``""``."""
     if isinstance(value, numbers.Real) and math.isfinite(value) and value != 0:
         with np.errstate(over="ignore"):  # the overflow to inf is what the message reports
             as_float32 = float(np.float32(value))
         if as_float32 == 0 or math.isinf(as_float32):
-            valid += f" (computed in float32, where {value!r} becomes {as_float32!r})"
-    raise ConfigError(param, value, valid)
+            return f" (computed in float32, where {value!r} becomes {as_float32!r})"
+    return ""
 
 
 def _structured_dtype(ctype: str, fields: Mapping[str, str]) -> np.dtype[np.void]:

@@ -59,13 +59,13 @@ checks of :mod:`pmsm2dof.sim.plausibility`).
 import dataclasses
 import math
 import os
-import tomllib
 import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, Pmsm2dofWarning
+from ..errors import ConfigError, Pmsm2dofWarning, is_integer, is_real
+from ..inputs import read_toml
 
 #: Mechanical speed of 1000 rpm [rad/s].
 W_KRPM_RADPS = 1000.0 * 2.0 * math.pi / 60.0
@@ -212,14 +212,15 @@ def _check(sheet: Mapping[str, Any], key: str, prefix: str) -> Any:
             raise ConfigError(dotted, value, "one of " + ", ".join(repr(c) for c in _CHOICES[key]))
         return value
     if kind is int:
-        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= 2000:
+        if not is_integer(value) or not 1 <= value <= 2000:
             raise ConfigError(dotted, value, f"an integer in [1, 2000] ({doc})")
         if key == "poles" and value % 2:
             raise ConfigError(dotted, value, "an even integer in [2, 2000] (the number of poles is 2 p)")
-        return value
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or not value > 0:
+        return int(value)
+    number = _as_float(value)
+    if not (math.isfinite(number) and number > 0):
         raise ConfigError(dotted, value, f"a finite number > 0 ({doc})")
-    return float(value)
+    return number
 
 
 def convert_datasheet(sheet: Mapping[str, Any], prefix: str = "motor.datasheet") -> MotorParameters:
@@ -410,10 +411,7 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
         key of ``[motor]``, or a value out of its range.
     """
     file = Path(os.fspath(path))
-    try:
-        tree = tomllib.loads(file.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise ConfigError("motor file", str(file), f"a readable UTF-8 TOML file ({exc})") from None
+    tree = read_toml(file, "motor file")
     motor = tree.get("motor")
     if not isinstance(motor, dict):
         raise ConfigError("motor", "<missing>", f"a [motor] table in {file}")
@@ -430,8 +428,9 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
     if missing:
         raise ConfigError(f"motor.{missing[0]}", "<missing>", "a [motor.datasheet] table or every model key of [motor]")
     p = motor["pole_pairs"]
-    if isinstance(p, bool) or not isinstance(p, int) or not 1 <= p <= 1000:
+    if not is_integer(p) or not 1 <= p <= 1000:
         raise ConfigError("motor.pole_pairs", p, "an integer >= 1 and <= 1000")
+    p = int(p)
     values: dict[str, Any] = {key: _positive(motor, key) for key in MOTOR_KEYS[1:]}
     values |= {key: _positive(motor, key) for key in RATING_KEYS if key in motor}
     intervals = {}
@@ -440,13 +439,9 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
         if ci is None:
             continue
         valid = f"[low, high] with 0 < low <= motor.{key} <= high, finite"
-        if (
-            not isinstance(ci, list)
-            or len(ci) != 2
-            or any(isinstance(c, bool) or not isinstance(c, (int, float)) for c in ci)
-        ):
+        if not isinstance(ci, list) or len(ci) != 2:
             raise ConfigError(f"motor.{key}_ci", ci, valid)
-        low, high = float(ci[0]), float(ci[1])
+        low, high = _as_float(ci[0]), _as_float(ci[1])
         if not (math.isfinite(low) and math.isfinite(high) and 0.0 < low <= values[key] <= high):
             raise ConfigError(f"motor.{key}_ci", ci, valid)
         intervals[key] = (low, high)
@@ -463,9 +458,21 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
 def _positive(motor: Mapping[str, Any], key: str) -> float:
     """``motor[key]`` as a finite float > 0, or ConfigError naming ``motor.<key>``."""
     value = motor[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and value > 0):
+    number = _as_float(value)
+    if not (math.isfinite(number) and number > 0):
         raise ConfigError(f"motor.{key}", value, "a finite number > 0")
-    return float(value)
+    return number
+
+
+def _as_float(value: Any) -> float:
+    """``value`` as a float; NaN for what is no real number (a bool, a string) and for an integer
+    beyond float's range (a TOML integer may have hundreds of digits)."""
+    if not is_real(value):
+        return math.nan
+    try:
+        return float(value)
+    except OverflowError:
+        return math.nan
 
 
 def motor_from_table(motor: Mapping[str, Any]) -> MotorParameters:

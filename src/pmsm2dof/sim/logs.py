@@ -33,13 +33,15 @@ increase.
 """
 
 import dataclasses
+import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..errors import ConfigError, format_bytes
+from ..inputs import check_file
 from .plausibility import STEADY_SPREAD
 from .simulate import RPM_PER_RADPS
 
@@ -69,6 +71,9 @@ _BASES = {"time": ("time", "t")}
 
 #: Most rows of a log (memory bound: 14 float64 arrays).
 ROWS_MAX = 50_000_000
+#: Largest log file, and largest content of a compressed one (NPZ, MAT, Parquet) [bytes]: what
+#: the readers hold in memory while they parse it.
+LOG_BYTES_MAX = 2 * 1024**3
 
 FORMATS = (".csv", ".parquet", ".npz", ".mat")
 
@@ -135,6 +140,11 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
     """The columns of a file as 1-d arrays, by name."""
     suffix = path.suffix.lower()
     try:
+        content = _content_bytes(path, suffix)
+        if content > LOG_BYTES_MAX:
+            raise ConfigError(
+                "log", str(path), f"a log of at most {format_bytes(LOG_BYTES_MAX)} (it holds {format_bytes(content)})"
+            )
         if suffix in (".csv", ".parquet"):
             import pandas as pd
 
@@ -148,6 +158,8 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
 
             mat = scipy.io.loadmat(path, squeeze_me=True)
             return {name: value for name, value in mat.items() if not name.startswith("__")}
+    except ConfigError:
+        raise
     except (OSError, ValueError, UnicodeDecodeError, ImportError) as exc:
         raise ConfigError("log", str(path), f"a readable {suffix[1:].upper()} log ({exc})") from None
     except Exception as exc:  # the readers' own parse errors (pandas, pyarrow, zipfile, scipy.io)
@@ -155,6 +167,26 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
             "log", str(path), f"a readable {suffix[1:].upper()} log ({type(exc).__name__}: {exc})"
         ) from None
     raise ConfigError("log", str(path), "a file ending in " + ", ".join(FORMATS))
+
+
+def _content_bytes(path: Path, suffix: str) -> int:
+    """The bytes of the arrays in a log file, read from its headers before the arrays (a compressed
+    file may hold far more than its size)."""
+    if suffix == ".npz":
+        import zipfile
+
+        with zipfile.ZipFile(path) as z:
+            return sum(info.file_size for info in z.infolist())
+    if suffix == ".mat":
+        import scipy.io
+
+        return sum(8 * math.prod(shape) for _name, shape, _kind in scipy.io.whosmat(path))
+    if suffix == ".parquet":
+        import pyarrow.parquet as pq
+
+        meta = pq.ParquetFile(path).metadata
+        return 8 * int(meta.num_rows) * int(meta.num_columns)
+    return path.stat().st_size
 
 
 def _unit_factor(signal: str, column: str) -> float:
@@ -237,8 +269,9 @@ def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
         values, times that do not increase, or fewer than 3 usable rows.
     """
     file = Path(os.fspath(path))
-    if not file.is_file():
+    if file.suffix.lower() not in FORMATS:
         raise ConfigError("log", str(file), "an existing file ending in " + ", ".join(FORMATS))
+    check_file(file, "log", LOG_BYTES_MAX)
     table = _read_table(file)
     found = _find_columns(list(table), columns or {})
     raw: dict[str, np.ndarray] = {}

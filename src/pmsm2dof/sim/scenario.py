@@ -42,7 +42,6 @@ import importlib.resources
 import json
 import math
 import os
-import tomllib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -58,7 +57,8 @@ from ..core import (
     METHODS,
     SPEED_SENSOR_MODELS,
 )
-from ..errors import ConfigError
+from ..errors import ConfigError, is_integer, is_real
+from ..inputs import parse_toml, read_toml
 from .datasheet import DATASHEET_KEYS, motor_from_table
 
 #: Longest simulated time of one scenario [s] (ten hours).
@@ -133,7 +133,7 @@ class Field:
         if self.kind is bool:
             return "true or false"
         if self.kind is str:
-            return "a string"
+            return f"a string of at most {STRING_CHARS_MAX} characters"
         limits = ((">", self.gt), (">=", self.ge), ("<", self.lt), ("<=", self.le))
         bounds = [f"{op} {v:g}" if isinstance(v, float) else f"{op} {v}" for op, v in limits if v is not None]
         noun = "an integer" if self.kind is int else "a finite number"
@@ -141,8 +141,9 @@ class Field:
 
     def check(self, dotted: str, value: Any) -> Any:
         """Return ``value`` converted to the field's type, or raise ConfigError naming ``dotted``."""
+        # numpy scalars (np.float32(0.4), np.int64(4)) are numbers too, stored as Python's
         if self.kind is float:
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
+            if not is_real(value):
                 raise ConfigError(dotted, value, self.valid_range())
             try:
                 value = float(value)
@@ -151,9 +152,13 @@ class Field:
             if not math.isfinite(value):
                 raise ConfigError(dotted, value, self.valid_range())
         elif self.kind is int:
-            if isinstance(value, bool) or not isinstance(value, int):
+            if not is_integer(value):
                 raise ConfigError(dotted, value, self.valid_range())
-        elif not isinstance(value, self.kind) or (self.kind is str and not _is_unicode(str(value))):
+            value = int(value)
+        elif self.kind is bool:
+            if not isinstance(value, bool):
+                raise ConfigError(dotted, value, self.valid_range())
+        elif not isinstance(value, str) or len(value) > STRING_CHARS_MAX or not _is_unicode(value):
             raise ConfigError(dotted, value, self.valid_range())
         if self.choices and value not in self.choices:
             raise ConfigError(dotted, value, self.valid_range())
@@ -175,6 +180,10 @@ def _is_unicode(text: str) -> bool:
         return False
     return True
 
+
+#: Longest string value of a scenario (a name, a description) [characters]: a name is drawn in
+#: the titles of figures, whose rasteriser fails on a line of some hundred thousand characters.
+STRING_CHARS_MAX = 500
 
 #: The scenario schema: every key, in file order. Units are in the key names.
 SCHEMA = (
@@ -1157,24 +1166,13 @@ def load_scenario(name_or_path: str | os.PathLike[str]) -> Scenario:
         the dotted key, its value and its valid range).
     """
     path = Path(os.fspath(name_or_path))
-    if path.is_file():
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError("scenario", str(path), f"a readable UTF-8 TOML file ({exc})") from None
-        return _from_toml(text, str(path))
+    if path.exists():
+        return Scenario.from_dict(read_toml(path, "scenario"))
     name = str(name_or_path)
     if name in list_presets():
-        return _from_toml((_presets_dir() / f"{name}.toml").read_text(encoding="utf-8"), name)
+        text = (_presets_dir() / f"{name}.toml").read_text(encoding="utf-8")
+        return Scenario.from_dict(parse_toml(text, "scenario", name))
     raise ConfigError("scenario", name, "an existing TOML file or a preset: " + ", ".join(list_presets()))
-
-
-def _from_toml(text: str, source: str) -> Scenario:
-    try:
-        tree = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("scenario", source, f"valid TOML ({exc})") from None
-    return Scenario.from_dict(tree)
 
 
 def schema_reference() -> str:

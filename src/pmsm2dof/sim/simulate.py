@@ -75,7 +75,6 @@ Many runs
 """
 
 import dataclasses
-import io
 import math
 import time
 from collections.abc import Iterable, Mapping, Sequence
@@ -99,9 +98,10 @@ from ..core import (
     pi_gains,
 )
 from ..core.bindings import c_string, ffi, lib
+from ..core.controllers import float32_note
 from ..core.gains import default_Ka_error
-from ..errors import ConfigError, SimulationError
-from ..outputs import atomic_write
+from ..errors import ConfigError, SimulationError, format_bytes
+from ..outputs import atomic_file
 from .plausibility import peak_torque_Nm
 from .scenario import SCHEMA, SameAs, Scenario, Tree
 
@@ -109,6 +109,9 @@ if TYPE_CHECKING:
     import pandas as pd
 
 RPM_PER_RADPS = 30.0 / math.pi
+#: Rows of the CSV trace formatted at a time (about 11 MB of text, 45 MiB of Python strings for the
+#: engine's 24 columns; benchmarks/results.md, "Bounds on the work an input asks for").
+CSV_ROWS_PER_CHUNK = 50_000
 
 #: The speeds of the engine's log shown in rpm at the edge, by log column (the others keep their
 #: C names); the mechanical speed is kept in rad/s too.
@@ -353,28 +356,32 @@ class Result:
         ``.csv``: one column per signal with a header row (the flags ``saturated`` and ``J_valid`` as 0/1);
         ``.npz`` (numpy) and ``.mat`` (MATLAB, ``scipy.io.savemat``): one array per signal
         and ``scenario_toml``, the scenario as TOML text. The file is written completely or
-        not at all.
+        not at all, streamed to the disk (the CSV text :data:`CSV_ROWS_PER_CHUNK` rows at a time),
+        so that the log of a long run is never held twice in memory; a full disk raises a
+        ConfigError naming ``path`` (:func:`pmsm2dof.outputs.atomic_file`).
         """
+
         path = Path(path)
         suffix = path.suffix.lower()
         arrays = {name: getattr(self, name) for name in self.signals}
         if suffix == ".csv":
-            columns = [
-                _csv_column(arrays[name].astype(np.int8) if name in FLAG_SIGNALS else arrays[name])
-                for name in self.signals
-            ]
-            text = "".join(",".join(row) + "\n" for row in zip(*columns))
-            atomic_write(path, ",".join(self.signals) + "\n" + text)
+            with atomic_file(path, "w") as f:
+                f.write(",".join(self.signals) + "\n")
+                for start in range(0, len(self.t_s), CSV_ROWS_PER_CHUNK):
+                    rows = slice(start, start + CSV_ROWS_PER_CHUNK)
+                    columns = [
+                        _csv_column(arrays[name][rows].astype(np.int8) if name in FLAG_SIGNALS else arrays[name][rows])
+                        for name in self.signals
+                    ]
+                    f.write("".join(",".join(row) + "\n" for row in zip(*columns)))
         elif suffix == ".npz":
-            buf = io.BytesIO()
-            np.savez(buf, scenario_toml=np.array(self.scenario.to_toml()), **arrays)
-            atomic_write(path, buf.getvalue())
+            with atomic_file(path, "wb") as f:
+                np.savez(f, scenario_toml=np.array(self.scenario.to_toml()), **arrays)
         elif suffix == ".mat":
             import scipy.io
 
-            buf = io.BytesIO()
-            scipy.io.savemat(buf, {"scenario_toml": self.scenario.to_toml(), **arrays}, oned_as="column")
-            atomic_write(path, buf.getvalue())
+            with atomic_file(path, "wb") as f:
+                scipy.io.savemat(f, {"scenario_toml": self.scenario.to_toml(), **arrays}, oned_as="column")
         else:
             raise ConfigError("path", str(path), "a file name ending in .csv, .npz or .mat")
 
@@ -623,7 +630,17 @@ class Simulation:
         if status != lib.P2D_SIM_OK:
             self._raise_config(status)
         # column-major: one contiguous array per signal
-        self.log = np.zeros((lib.P2D_LOG_COUNT, rows))
+        try:
+            self.log = np.zeros((lib.P2D_LOG_COUNT, rows))
+        except MemoryError:
+            least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // (LOG_BYTES_MAX // 8))
+            raise ConfigError(
+                "simulation.log_every",
+                sim["log_every"],
+                f"large enough for the log to fit in the memory this process may use: {rows} rows need "
+                f"{format_bytes(rows * lib.P2D_LOG_COUNT * 8)} (log_every >= {least} keeps it below "
+                f"{format_bytes(LOG_BYTES_MAX // 8)})",
+            ) from None
         self._log_ptr = ffi.cast("double *", ffi.from_buffer(self.log))
 
     def advance(self, n_samples: int) -> None:
@@ -663,10 +680,31 @@ class Simulation:
                 lib.P2D_SIM_ERR_ESTIMATOR: _ESTIMATOR_KEYS,
             }[status]
             key = keys[field]
-            if key != "speed_controller.Ka":
-                derived = getattr(self.cfg.adapt.config, field, None) if status == lib.P2D_SIM_ERR_ESTIMATOR else None
-                raise self._blame(key, valid, derived)
+            derived = getattr(self.cfg.adapt.config, field, None) if status == lib.P2D_SIM_ERR_ESTIMATOR else None
+            value = self._value(key)
+            note = float32_note(derived if value is None else value)
             s = self.cfg.speed
+            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "J_kgm2" and not note:
+                # a gain of eq 9 overflowed float32: name the factor farthest from 1
+                factors = {"J_kgm2": s.J_kgm2, "alpha_radps": s.alpha_radps, "zeta": 1.0 / s.zeta}
+                field = max(factors, key=lambda k: abs(math.log(factors[k])))
+                key = _SPEED_KEYS[field]
+                Kp, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
+                valid = (
+                    f"a value that keeps the gains of eq 9 finite in float32 (Kp = J alpha = {Kp:.4g}, "
+                    f"Ki = J (alpha / (2 zeta))^2 = {Ki:.4g} with J_kgm2 = {s.J_kgm2:g}, alpha_radps = "
+                    f"{s.alpha_radps:g}, zeta = {s.zeta:g})"
+                )
+            elif status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "Ts_s" and not note:
+                # the speed controller's refusal of a sound period: its float32 coefficients overflowed
+                valid += (
+                    f" (it is: the controller's float32 coefficients overflow with J_kgm2 = {s.J_kgm2:g}, "
+                    f"alpha_radps = {s.alpha_radps:g} and i_max_A = {s.i_max_A:g})"
+                )
+            else:
+                valid += note
+            if key != "speed_controller.Ka":
+                raise self._blame(key, valid, derived)
             sc = self.data["speed_controller"]
             if sc["Ka"] is not None:
                 _, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)

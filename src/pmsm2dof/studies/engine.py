@@ -22,15 +22,18 @@ study resumes where it stopped (the sweeps of :mod:`pmsm2dof.studies.sweep`).
 
 import contextlib
 import dataclasses
+import hashlib
 import io
 import math
 import os
+import re
 import warnings
 from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError, Pmsm2dofWarning, SimulationError
+from ..errors import ConfigError, Pmsm2dofWarning, SimulationError, is_integer
+from ..inputs import read_bytes
 from ..outputs import atomic_write
 from ..sim.scenario import Scenario, Tree
 from ..sim.simulate import Result, Simulation, simulate_many
@@ -167,9 +170,9 @@ def check_options(workers: int | None = None, scheduler: str | None = None, batc
         raise ConfigError("workers", workers, "absent when a scheduler is given (the cluster's workers run the runs)")
     if scheduler is not None and (not isinstance(scheduler, str) or "://" not in scheduler):
         raise ConfigError("scheduler", scheduler, "the address of a Dask scheduler, e.g. tcp://10.0.0.5:8786")
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+    if workers is not None and (not is_integer(workers) or workers < 1):
         raise ConfigError("workers", workers, "an integer >= 1")
-    if batch_size is not None and (isinstance(batch_size, bool) or not isinstance(batch_size, int) or batch_size < 1):
+    if batch_size is not None and (not is_integer(batch_size) or batch_size < 1):
         raise ConfigError("batch_size", batch_size, "an integer >= 1")
 
 
@@ -352,7 +355,9 @@ class PartStore:
 
     Each part is written whole or not at all (:func:`pmsm2dof.outputs.atomic_write`), so an
     interrupted study keeps what finished and a second run reads it back instead of computing it
-    again.
+    again. Its name carries the SHA-256 of its content, written with it
+    (``part-<first key>.<sha256>.parquet``): a part changed since, by a single byte, no longer
+    matches and is never read.
 
     Parameters
     ----------
@@ -366,6 +371,11 @@ class PartStore:
         The keys run from 0 to ``n_keys - 1``.
     """
 
+    #: File names of the parts, and of the temporary files they are written through.
+    PATTERNS = ("part-*.parquet", ".part-*")
+    #: Largest part read [bytes] (a row takes some hundred bytes).
+    BYTES_MAX = 1024**3
+
     def __init__(
         self, folder: Path, frame: Callable[[list[dict[str, Any]]], Any], key_column: str, n_keys: int
     ) -> None:
@@ -375,18 +385,20 @@ class PartStore:
         self.n_keys = n_keys
 
     def save(self, rows: list[dict[str, Any]]) -> None:
-        """Store the rows of one finished batch as ``part-<first key>.parquet``."""
+        """Store the rows of one finished batch as ``part-<first key>.<sha256 of the file>.parquet``."""
         buf = io.BytesIO()
         self.frame(rows).to_parquet(buf, index=False)
-        atomic_write(self.folder / f"part-{rows[0][self.key_column]:08d}.parquet", buf.getvalue())
+        data = buf.getvalue()
+        name = f"part-{rows[0][self.key_column]:08d}.{hashlib.sha256(data).hexdigest()}.parquet"
+        atomic_write(self.folder / name, data)
 
     def read(self) -> Any:
         """The rows of every stored part as one DataFrame, or None when there is none.
 
         A part can be damaged after it was written (a full disk, a copy cut short, another
-        program). One that cannot be read, or that does not hold the columns and keys of this
-        study, is deleted with a :class:`PartWarning` that names it: its rows are then missing
-        and computed again.
+        program). One whose content does not match the checksum in its name, that cannot be read,
+        or that does not hold the columns and keys of this study, is deleted with a
+        :class:`PartWarning` that names it: its rows are then missing and computed again.
 
         Raises
         ------
@@ -394,23 +406,15 @@ class PartStore:
             A damaged part cannot be deleted (naming the folder as ``out``).
         """
         import pandas as pd
-        import pyarrow
 
-        columns = list(self.frame([]).columns)
+        for path in self.folder.glob(".part-*"):  # the temporary file of a write cut short
+            path.unlink(missing_ok=True)
         frames = []
         for path in sorted(self.folder.glob("part-*.parquet")):
-            try:
-                frame = pd.read_parquet(path)
-            except (OSError, ValueError, pyarrow.ArrowException) as exc:
-                problem = f"cannot be read ({one_line(exc).replace(repr(str(path)), 'the file')})"
-            else:
-                if list(frame.columns) != columns:
-                    problem = "does not hold the columns of this study"
-                elif not frame[self.key_column].between(0, self.n_keys - 1).all():
-                    problem = f"holds {self.key_column}s this study does not have"
-                else:
-                    frames.append(frame)
-                    continue
+            frame, problem = self._read_part(path)
+            if frame is not None:
+                frames.append(frame)
+                continue
             where = f"{self.folder.name}/{path.name}"
             try:
                 path.unlink()
@@ -427,3 +431,32 @@ class PartStore:
                 stacklevel=3,
             )
         return pd.concat(frames, ignore_index=True) if frames else None
+
+    def _read_part(self, path: Path) -> tuple[Any, str]:
+        """``(frame, "")`` of a sound part, ``(None, what is wrong)`` of another."""
+        import pandas as pd
+        import pyarrow
+
+        name = _PART_NAME.fullmatch(path.name)
+        if name is None:
+            return None, "has no checksum in its name (renamed, or written by an older pmsm2dof)"
+        try:
+            data = read_bytes(path, "part", self.BYTES_MAX)
+        except ConfigError as exc:
+            return None, f"cannot be read ({exc.valid})"
+        if hashlib.sha256(data).hexdigest() != name.group(2):
+            return None, "does not match its checksum (it was changed after it was written)"
+        try:
+            frame = pd.read_parquet(io.BytesIO(data))
+        except (OSError, ValueError, pyarrow.ArrowException) as exc:
+            return None, f"cannot be read ({one_line(exc)})"
+        if list(frame.columns) != list(self.frame([]).columns):
+            return None, "does not hold the columns of this study"
+        keys = frame[self.key_column]
+        if not len(keys) or not keys.between(0, self.n_keys - 1).all() or int(keys.iloc[0]) != int(name.group(1)):
+            return None, f"holds {self.key_column}s this study does not have"
+        return frame, ""
+
+
+#: ``part-<first key, 8 digits>.<SHA-256, 64 hex digits>.parquet``.
+_PART_NAME = re.compile(r"part-(\d{8,})\.([0-9a-f]{64})\.parquet")

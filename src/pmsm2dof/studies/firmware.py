@@ -21,13 +21,14 @@ code, the plant the same double code (Arm's soft-float double is IEEE 754 correc
 the PC's). See :func:`compare` for the measure.
 """
 
+import contextlib
 import dataclasses
 import math
 import shutil
 import subprocess
 import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -37,6 +38,9 @@ import numpy.typing as npt
 from ..analysis.codegen import c_double, config_header
 from ..core import LOG_COLUMNS
 from ..core.bindings import ffi
+from ..drive.a2l import write_firmware_a2l
+from ..drive.link import Link
+from ..drive.serve import QEMU_MACHINE, serve_host
 from ..errors import ConfigError, SimulationError, ToolError
 from ..outputs import atomic_write
 from ..sim.scenario import Scenario, load_scenario
@@ -54,13 +58,15 @@ DEBIAN_PACKAGES = {
 }
 
 
-#: QEMU for the virtual drive: the MPS2 AN386 board (Cortex-M4F), no monitor or serial port, semihosting
-#: to the working folder, and instruction counting (128 ns of QEMU's clock per instruction: the firmware
-#: counts instructions with SysTick, virtual_target_mps2.c) with WFI jumping to the next interrupt.
-QEMU = (
-    "qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-serial", "none",
-    "-icount", "shift=7,sleep=off",
-)  # fmt: skip
+#: QEMU for a run of the virtual drive without a link: the machine of :data:`pmsm2dof.drive.serve.QEMU_MACHINE`
+#: with no serial port (semihosting writes the trace to the working folder).
+QEMU = (*QEMU_MACHINE, "-serial", "none")
+
+#: The link's UART rate the A2L file names for XCP on SxI (QEMU does not pace the bytes) [bit/s].
+UART_BAUD = 115200
+
+#: The TCP port the A2L files name for XCP on TCP/IP (a master connects where the drive listens).
+TCP_PORT = 5555
 
 #: The virtual core of virtual_target_mps2.c: a 170 MHz Cortex-M4 at 1.5 cycles per instruction.
 CORE_CLOCK_HZ = 170e6
@@ -231,63 +237,131 @@ class FirmwareBuild:
     ----------
     folder : Path
         Holds ``scenario.toml``, ``p2d_config.h``, ``p2d_virtual_drive.h``, ``virtual_drive.elf`` (foc.c on the
-        virtual board, for QEMU), ``firmware.elf`` (foc.c on the porting stub) and their ``.map`` files.
+        virtual board, for QEMU), ``firmware.elf`` (foc.c on the porting stub) and their ``.map`` files,
+        ``virtual_drive_host`` (the virtual drive for the PC, its link on TCP), and the A2L file of each
+        (``virtual_drive.a2l``, ``firmware.a2l``, ``virtual_drive_host.a2l``).
     sizes : dict
-        ``{elf name: {"text": bytes, "data": bytes, "bss": bytes}}`` (arm-none-eabi-size).
+        ``{elf name: {"text": bytes, "data": bytes, "bss": bytes}}`` (arm-none-eabi-size) of the Cortex-M4F's ELFs.
     """
 
     folder: Path
     sizes: dict[str, dict[str, int]]
 
 
-def build_firmware(scenario: Scenario, out: Path | str, *, source: str = "") -> FirmwareBuild:
-    """Write the scenario's headers and cross-build the firmware into the folder ``out`` (all or nothing).
+def build_firmware(
+    scenario: Scenario, out: Path | str, *, source: str = "", mcu: bool = True, force: bool = False
+) -> FirmwareBuild:
+    """Write the scenario's headers and build the firmware into the folder ``out`` (all or nothing).
+
+    ``out`` is an output folder of the kind ``"firmware"`` (:func:`pmsm2dof.outputs.staged_dir`):
+    new, empty, or holding only an earlier build, which is replaced as a whole; ``force`` writes
+    beside other files and keeps them.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario of the controllers (``p2d_config.h``) and of the virtual board.
+    out : path
+        The folder written (:class:`FirmwareBuild`).
+    source : str
+        Where the scenario came from, for the header's record.
+    mcu : bool
+        Cross-build for the Cortex-M4F too (``virtual_drive.elf``, ``firmware.elf``); False: the PC's
+        virtual drive alone (``virtual_drive_host``: CMake and the host's C compiler suffice).
+    force : bool
+        Write into an output folder that holds other files (they are kept).
 
     Raises
     ------
     ConfigError
-        A value the controllers or the engine reject, or what the virtual board does not model.
+        A value the controllers or the engine reject, or what the virtual board does not model;
+        ``out`` holds other files (without ``force``) or cannot be written.
     ToolError
         CMake or the cross toolchain is missing (naming the Debian package), or the build fails.
     """
-    from ..outputs import staged_dir
+    from ..outputs import check_out, staged_dir
 
+    check_out(out, "firmware", force)
     config = configuration(scenario, source=source)
     board = virtual_drive_header(config)
     root = sources_root()
-    for program in ("cmake", "arm-none-eabi-gcc"):
-        require_tool(program)
-    specs = _run(["arm-none-eabi-gcc", "-print-file-name=nano.specs"], "arm-none-eabi-gcc", 60).stdout.strip()
-    if not Path(specs).is_file():
-        raise ToolError(
-            "newlib for arm-none-eabi is not installed: install the Debian package libnewlib-arm-none-eabi "
-            "(scripts/install.sh installs every package pmsm2dof uses)"
-        )
-    with staged_dir(out) as tmp:
+    require_tool("cmake")
+    if mcu:
+        require_tool("arm-none-eabi-gcc")
+        specs = _run(["arm-none-eabi-gcc", "-print-file-name=nano.specs"], "arm-none-eabi-gcc", 60).stdout.strip()
+        if not Path(specs).is_file():
+            raise ToolError(
+                "newlib for arm-none-eabi is not installed: install the Debian package libnewlib-arm-none-eabi "
+                "(scripts/install.sh installs every package pmsm2dof uses)"
+            )
+    firmware = root / "examples" / "firmware"
+    sizes = {}
+    with staged_dir(out, "firmware", force) as tmp:
         atomic_write(tmp / "scenario.toml", scenario.to_toml())
         config.write_header(tmp / "p2d_config.h")
         atomic_write(tmp / "p2d_virtual_drive.h", board)
-        build = tmp / "build"
-        toolchain = root / "csrc" / "cmake" / "arm-none-eabi-cortex-m4f.cmake"
-        _run(
-            ["cmake", "-S", root / "examples" / "firmware", "-B", build, f"-DCMAKE_TOOLCHAIN_FILE={toolchain}",
-             f"-DP2D_CONFIG_DIR={tmp}"],
-            "cmake (configure)",
-            600,
-        )  # fmt: skip
-        _run(["cmake", "--build", build, "-j2"], "cmake --build", 1200)
-        sizes = {}
-        for name in ("virtual_drive", "firmware"):
-            for suffix in (".elf", ".map"):
-                shutil.copy2(build / f"{name}{suffix}", tmp / f"{name}{suffix}")
-            text, data, bss = (
-                _run(["arm-none-eabi-size", tmp / f"{name}.elf"], "arm-none-eabi-size", 60)
-                .stdout.split("\n")[1]
-                .split()[:3]
+        if mcu:
+            build = tmp / "build"
+            toolchain = f"-DCMAKE_TOOLCHAIN_FILE={root / 'csrc' / 'cmake' / 'arm-none-eabi-cortex-m4f.cmake'}"
+            _run(["cmake", "-S", firmware, "-B", build, toolchain, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (configure)", 600)
+            _run(["cmake", "--build", build, "-j2"], "cmake --build", 1200)
+            for name in ("virtual_drive", "firmware"):
+                for suffix in (".elf", ".map"):
+                    shutil.copy2(build / f"{name}{suffix}", tmp / f"{name}{suffix}")
+                text, data, bss = (
+                    _run(["arm-none-eabi-size", tmp / f"{name}.elf"], "arm-none-eabi-size", 60)
+                    .stdout.split("\n")[1]
+                    .split()[:3]
+                )
+                sizes[f"{name}.elf"] = {"text": int(text), "data": int(data), "bss": int(bss)}
+            shutil.rmtree(build)
+        # the same sources for the PC: the virtual drive with its link on TCP
+        host = tmp / "build-host"
+        _run(["cmake", "-S", firmware, "-B", host, f"-DP2D_CONFIG_DIR={tmp}"], "cmake (configure, PC)", 600)
+        _run(["cmake", "--build", host, "-j2", "--target", "virtual_drive"], "cmake --build (PC)", 1200)
+        shutil.copy2(host / "virtual_drive", tmp / "virtual_drive_host")
+        shutil.rmtree(host)
+        sources = [
+            *sorted(firmware.glob("*.h")),
+            firmware / "board_virtual.c",
+            *sorted((root / "csrc" / "include" / "pmsm2dof").glob("*.h")),
+        ]
+        builds: list[tuple[str, str, bool, int | None]] = [("virtual_drive_host", "virtual_drive_host.a2l", True, None)]
+        if mcu:
+            builds += [
+                ("virtual_drive.elf", "virtual_drive.a2l", True, UART_BAUD),
+                ("firmware.elf", "firmware.a2l", False, UART_BAUD),
+            ]
+        for elf, a2l, virtual, baud in builds:
+            write_firmware_a2l(
+                tmp / elf,
+                tmp / a2l,
+                sources=sources,
+                virtual=virtual,
+                Ts_current_s=scenario.data["current_loop"]["Ts_s"],
+                current_per_speed=config.current_per_speed,
+                tcp_port=TCP_PORT,
+                sxi_baud=baud,
             )
-            sizes[f"{name}.elf"] = {"text": int(text), "data": int(data), "bss": int(bss)}
-        shutil.rmtree(build)
     return FirmwareBuild(folder=Path(out), sizes=sizes)
+
+
+@contextlib.contextmanager
+def serve_scenario(
+    scenario: Scenario, *, port: int = 0, realtime: bool = True, timeout_ms: int = 200
+) -> Iterator[tuple[str, Path]]:
+    """Build the PC's virtual drive of a scenario and run it; yields its link URL and its folder.
+
+    The engine's plant of the scenario under the firmware (foc.c, link.c), its XCP slave on TCP on
+    127.0.0.1:``port`` (0: a free port), on the wall clock (``realtime``) or as fast as the link
+    allows; ``timeout_ms``: the link watchdog [ms of the drive's time], 0: off
+    (:func:`pmsm2dof.drive.serve.serve_host`). The folder (its A2L file ``virtual_drive_host.a2l``
+    for CANape, INCA or pyxcp) is removed at the end.
+    """
+    with tempfile.TemporaryDirectory(prefix="pmsm2dof-serve-") as tmp:
+        folder = build_firmware(scenario, Path(tmp) / "drive", mcu=False).folder
+        with serve_host(folder / "virtual_drive_host", realtime=realtime, timeout_ms=timeout_ms, port=port) as url:
+            yield url, folder
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -303,7 +377,7 @@ class FirmwareRun:
     engine : Result
         The engine's simulation of the scenario over the same samples.
     instructions : numpy.ndarray
-        The instructions foc_isr executed at each control interrupt, callees included (uint32).
+        The instructions of each control interrupt (link_isr and foc_isr), callees included (uint32).
     speed_sample : numpy.ndarray
         Whether each interrupt ran the speed loop (bool).
     report : tuple of str
@@ -498,3 +572,47 @@ def interrupt_cost(
         out["mean_load"] = float(np.mean(instructions)) * seconds_per_instruction / Ts_s
         out["peak_share_of_period"] = float(np.max(instructions)) * seconds_per_instruction / Ts_s
     return out
+
+
+def play_scenario(
+    link: Link, scenario: Scenario, *, samples: int | None = None, timeout_s: float = 600.0,
+    during: Callable[[Link, dict[str, Any]], None] | None = None,
+) -> Result:  # fmt: skip
+    """Play a scenario's reference and load on the virtual drive over its XCP link; its trace as the engine's log.
+
+    The drive must be a build of the scenario (:func:`build_firmware`): its plant, initial state and
+    loops are the scenario's; the schedules go over the link (:meth:`pmsm2dof.drive.link.Link.play`).
+
+    Parameters
+    ----------
+    link : Link
+        An open link to the drive.
+    scenario : Scenario
+        The scenario the drive was built for.
+    samples : int, optional
+        Speed samples to run (default: the scenario's, to ``simulation.t_end_s``).
+    timeout_s : float
+        Longest run of the wall clock [s].
+    during : callable, optional
+        Called with the link and the drive's status at every poll of the run.
+
+    Raises
+    ------
+    ConfigError
+        ``samples`` out of range, or a schedule longer than the drive holds.
+    SimulationError
+        The run did not end as done, or the capture lost a sample.
+    """
+    data = scenario.data
+    n_samples = math.floor(data["simulation"]["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
+    if samples is not None:
+        if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= n_samples:
+            raise ConfigError("samples", samples, f"an integer in [1, {n_samples}] (the scenario's speed samples)")
+        n_samples = samples
+    # the values as the engine's schedules hold them (pmsm2dof.sim.simulate._schedule)
+    reference = [(e["t_s"], e["speed_rpm"] * (1.0 / RPM_PER_RADPS), e["ramp_s"]) for e in data["reference"]]
+    load = [(e["t_s"], e["torque_Nm"], e["ramp_s"]) for e in data["load"]]
+    start = time.perf_counter()
+    rows = link.play(n_samples, reference, load, LOG_COLUMNS, timeout_s=timeout_s, during=during)
+    log = np.array([rows[c] for c in LOG_COLUMNS])
+    return Result(scenario=scenario, wall_time_s=time.perf_counter() - start, **log_signals(log))

@@ -16,6 +16,12 @@ warning when it fails:
 
 Both with the design's speed-sensor chain (``[speed_sensor]``, :class:`~pmsm2dof.analysis.sensor.SensorChain`)
 and the controller the C code realizes (:func:`pmsm2dof.analysis.discretize.sampled_loop_poles`).
+
+A scenario the engine runs may lie beyond what the analysis takes: a sensor delay longer than
+:data:`~pmsm2dof.analysis.sensor.DELAY_PERIODS_MAX` speed-loop periods (the scenario allows
+2046 current-loop periods; the analysis has a state per speed period, and its work is bounded), or
+one too short for its Pade approximant (:func:`pmsm2dof.analysis.design.design`). The check is then
+not made, and its warning says so and why, naming the scenario key.
 """
 
 from collections.abc import Mapping
@@ -24,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 from ..analysis.design import design
 from ..analysis.discretize import sampled_loop_poles
 from ..analysis.sensor import SensorChain
+from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import Tree
 
@@ -46,28 +53,36 @@ def sampled_loop(data: Tree) -> dict[str, Any]:
     dict
         JSON-ready: ``stable`` (both loops), ``design`` and ``plant`` (each ``J_kgm2``,
         ``tau_i_s``, ``z_max``: the largest pole magnitude, ``stable``; ``plant`` is None when
-        it is the design's), and ``warning`` (one sentence; empty when stable).
+        it is the design's), and ``warning`` (one sentence; empty when stable). When the
+        analysis does not take the scenario (see the module docstring), ``stable``, ``design``
+        and ``plant`` are None and the warning gives the reason.
     """
     sc = data["speed_controller"]
-    d = design(
-        sc["J_kgm2"],
-        sc["alpha_radps"],
-        sc["zeta"],
-        m=sc["m"],
-        tau_i_s=sc["tau_i_s"],
-        feedforward=sc["feedforward"],
-        anti_windup=sc["anti_windup"],
-        Ka=sc["Ka"],
-        sensor=SensorChain.from_table(data["speed_sensor"]),
-    )
+    try:
+        d = design(
+            sc["J_kgm2"],
+            sc["alpha_radps"],
+            sc["zeta"],
+            m=sc["m"],
+            tau_i_s=sc["tau_i_s"],
+            feedforward=sc["feedforward"],
+            anti_windup=sc["anti_windup"],
+            Ka=sc["Ka"],
+            sensor=SensorChain.from_table(data["speed_sensor"]),
+        )
 
-    def check(J_kgm2: float, tau_i_s: float) -> dict[str, Any]:
-        poles, stable = sampled_loop_poles(d, sc["Ts_s"], sc["method"], J_kgm2, tau_i_s)
-        return {"J_kgm2": J_kgm2, "tau_i_s": tau_i_s, "z_max": max(abs(p) for p in poles), "stable": stable}
+        def check(J_kgm2: float, tau_i_s: float) -> dict[str, Any]:
+            poles, stable = sampled_loop_poles(d, sc["Ts_s"], sc["method"], J_kgm2, tau_i_s)
+            return {"J_kgm2": J_kgm2, "tau_i_s": tau_i_s, "z_max": max(abs(p) for p in poles), "stable": stable}
 
-    own = check(d.J_kgm2, d.tau_i_s)
-    J_plant, tau_plant = plant_inertia_kgm2(data), float(data["current_loop"]["tau_i_s"])
-    plant = None if (J_plant, tau_plant) == (d.J_kgm2, d.tau_i_s) else check(J_plant, tau_plant)
+        own = check(d.J_kgm2, d.tau_i_s)
+        J_plant, tau_plant = plant_inertia_kgm2(data), float(data["current_loop"]["tau_i_s"])
+        plant = None if (J_plant, tau_plant) == (d.J_kgm2, d.tau_i_s) else check(J_plant, tau_plant)
+    except ConfigError as exc:
+        key = _SCENARIO_KEYS.get(exc.param, exc.param)
+        refused = ConfigError(key, exc.value, exc.valid)
+        warning = f"the sampled-loop stability check was not made: the analysis does not take {refused}"
+        return {"stable": None, "design": None, "plant": None, "warning": warning}
     where = f"alpha_radps = {d.alpha_radps:g} rad/s, zeta = {d.zeta:g}, Ts_s = {sc['Ts_s']:g} s, {sc['method']}"
     warning = ""
     if not own["stable"]:
@@ -86,6 +101,13 @@ def sampled_loop(data: Tree) -> dict[str, Any]:
     return {"stable": own["stable"] and (plant is None or plant["stable"]), "design": own, "plant": plant} | {
         "warning": warning
     }
+
+
+#: The scenario keys of the analysis' parameters, for the reason a check was not made.
+_SCENARIO_KEYS = {
+    **{name: f"speed_sensor.{name}" for name in ("delay_s", "lowpass_radps", "bandwidth_radps")},
+    **{name: f"speed_controller.{name}" for name in ("J_kgm2", "alpha_radps", "zeta", "m", "tau_i_s", "Ka", "Ts_s")},
+}
 
 
 def measure(result: "Result") -> dict[str, Any]:

@@ -53,7 +53,6 @@ import itertools
 import json
 import math
 import numbers
-import tomllib
 import zlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -84,6 +83,12 @@ SCALES = ("linear", "log")
 #: Default ranking metric of the worst cases: the integral of ``|speed reference - speed|`` over the run.
 DEFAULT_RANK_BY = "run_iae_rpm_s"
 _TOP_KEYS = ("name", "base", "draws", "seed", "rank_by", "worst", "axes")
+#: Most points of a sweep (grid cells times draws), checked before any is made: validating one
+#: takes about 2 ms and simulating the paper's drive about 10 ms (one core of the development
+#: machine, benchmarks/results.md), so this many take about 3 minutes to check and 16 minutes to run.
+POINTS_MAX = 100_000
+#: Most worst-case traces drawn.
+WORST_MAX = 20
 
 
 @dataclass(frozen=True)
@@ -198,15 +203,10 @@ def load_sweep(path: Path | str) -> Sweep:
     ConfigError
         If the file is missing or malformed, or any key, axis or point is invalid.
     """
+    from ..inputs import read_toml
+
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError("sweep file", str(path), f"a readable TOML file ({exc.strerror})") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("sweep file", str(path), f"valid TOML ({exc})") from None
+    data = read_toml(path, "sweep file")
     data.setdefault("name", path.stem)
     return parse_sweep(data, base_dir=path.parent)
 
@@ -249,8 +249,10 @@ def parse_sweep(data: Mapping[str, Any], base_dir: Path | str = ".") -> Sweep:
     draws = data.get("draws")
     seed = data.get("seed")
     if has_random:
-        draws = _require_int("draws", draws, 1, "an integer >= 1 (required with distribution axes)")
-        seed = _require_int("seed", seed, 0, "an integer >= 0 (required with distribution axes)")
+        draws = _require_int(
+            "draws", draws, 1, f"an integer >= 1 and <= {POINTS_MAX} (required with distribution axes)", POINTS_MAX
+        )
+        seed = _require_int("seed", seed, 0, "an integer >= 0 and < 2**64 (required with distribution axes)", 2**64 - 1)
     else:
         for key, value in (("draws", draws), ("seed", seed)):
             if value is not None:
@@ -260,8 +262,14 @@ def parse_sweep(data: Mapping[str, Any], base_dir: Path | str = ".") -> Sweep:
     columns = metric_columns(base.data)
     if rank_by not in columns:
         raise ConfigError("rank_by", rank_by, "a metric column of the base scenario: " + ", ".join(columns))
-    worst = _require_int("worst", data.get("worst", 3), 0, "an integer >= 0")
+    worst = _require_int("worst", data.get("worst", 3), 0, f"an integer >= 0 and <= {WORST_MAX}", WORST_MAX)
 
+    n_points = math.prod(len(a.values or ()) for a in axes if not a.is_random) * (draws or 1)
+    if n_points > POINTS_MAX:
+        sizes = " x ".join(
+            [str(len(a.values or ())) for a in axes if not a.is_random] + ([f"{draws} draws"] if has_random else [])
+        )
+        raise ConfigError("axes", f"{sizes} = {n_points} points", f"at most {POINTS_MAX} points")
     points = _expand(axes, draws, seed)
     for index, point in enumerate(points):
         try:
@@ -301,7 +309,7 @@ def _parse_range(key: str, where: str, spec: Mapping[str, Any]) -> Axis:
     _no_extra_keys(where, spec, allowed)
     start = _require_finite(f"{where}.start", spec.get("start"))
     stop = _require_finite(f"{where}.stop", spec.get("stop"))
-    num = _require_int(f"{where}.num", spec.get("num"), 1, "an integer >= 1")
+    num = _require_int(f"{where}.num", spec.get("num"), 1, f"an integer >= 1 and <= {POINTS_MAX}", POINTS_MAX)
     scale = spec.get("scale", "linear")
     if scale not in SCALES:
         raise ConfigError(f"{where}.scale", scale, "one of " + ", ".join(repr(s) for s in SCALES))
@@ -379,13 +387,15 @@ def _no_extra_keys(where: str, spec: Mapping[str, Any], allowed: Iterable[str]) 
 
 
 def _require_finite(param: str, value: object) -> float:
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value):
+    if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
         raise ConfigError(param, value, "a finite number")
     return float(value)
 
 
-def _require_int(param: str, value: object, minimum: int, valid: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or int(value) < minimum:
+def _require_int(param: str, value: object, minimum: int, valid: str, maximum: int | None = None) -> int:
+    if not isinstance(value, numbers.Integral) or isinstance(value, bool):
+        raise ConfigError(param, value, valid)
+    if int(value) < minimum or (maximum is not None and int(value) > maximum):
         raise ConfigError(param, value, valid)
     return int(value)
 
@@ -423,7 +433,8 @@ def _flatten(metrics: Mapping[str, Any]) -> tuple[dict[str, Any], str]:
             figures.update({f"{prefix}{i}_{name}": step[name] for name in names})
     figures.update({f"run_{name}": metrics["run"][name] for name in RUN_FIGURES})
     loop = metrics["sampled_loop"]
-    figures["sampled_loop_z_max"] = {"value": max(p["z_max"] for p in (loop["design"], loop["plant"]) if p)}
+    checked = [p["z_max"] for p in (loop["design"], loop["plant"]) if p]
+    figures["sampled_loop_z_max"] = {"value": max(checked)} if checked else {"value": None, "reason": loop["warning"]}
     notes = "; ".join(
         [*metrics["warnings"], *(f"{col}: {fig['reason']}" for col, fig in figures.items() if fig["value"] is None)]
     )
@@ -463,43 +474,67 @@ def _frame(rows: list[dict[str, Any]], sweep: Sweep) -> "pd.DataFrame":
 
 MANIFEST = "sweep.json"
 PARTS = "parts"
+#: What a sweep keeps in its folder between runs, besides the outputs of its manifest.
+OWN = (MANIFEST, "base.toml", *(f"{PARTS}/{p}" for p in PartStore.PATTERNS))
+#: Largest sweep.json read [bytes] (it holds a name, a digest, a count and the keys).
+MANIFEST_BYTES_MAX = 1024**2
 
 
-def _prepare_out(out: Path, sweep: Sweep) -> None:
-    """Create ``out`` with the sweep's manifest, or check that it holds the same sweep."""
-    from ..outputs import atomic_write
+def _prepare_out(out: Path, sweep: Sweep, force: bool) -> None:
+    """Create ``out`` with the sweep's manifest, or check that it holds the same sweep.
 
-    if out.exists() and not out.is_dir():
-        raise ConfigError("out", str(out), "a folder (it is an existing file)")
-    manifest = out / MANIFEST
+    With ``force``, a folder of another sweep, or of a sweep whose manifest is damaged, is
+    cleared of what the sweep wrote there (other files stay) and the sweep starts afresh.
+    """
+    from ..outputs import atomic_write, check_out, remove_outputs
+
+    check_out(out, "sweep", force, own=OWN)
     digest = sweep.digest()
-    if manifest.exists():
-        try:
-            old = json.loads(manifest.read_text()).get("digest")
-        except (OSError, ValueError, AttributeError):
-            old = None
-        if old != digest:
+    if (out / MANIFEST).exists() or (out / PARTS).exists():
+        problem = _manifest_problem(out, digest)
+        if problem is None:
+            return
+        if not force:
             raise ConfigError(
                 "out",
                 str(out),
-                "a new folder, or the folder of an earlier run of this same "
-                "sweep (it holds the results of a different sweep)",
+                f"a new folder, or the folder of an earlier run of this same sweep ({problem}); force=True "
+                "starts this sweep there afresh",
             )
-        return
-    if out.exists() and any(out.iterdir()):
-        raise ConfigError("out", str(out), "a new or empty folder, or the folder of an earlier run of this sweep")
+        remove_outputs(out, "sweep", own=OWN)
     try:
         (out / PARTS).mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ConfigError("out", str(out), f"a writable folder ({exc.strerror})") from None
     atomic_write(out / "base.toml", sweep.base.to_toml())
-    atomic_write(
-        manifest,
-        json.dumps(
-            {"name": sweep.name, "digest": digest, "points": len(sweep.points), "keys": list(sweep.keys)}, indent=2
-        )
-        + "\n",
-    )
+    content = {"name": sweep.name, "digest": digest, "points": len(sweep.points), "keys": list(sweep.keys)}
+    atomic_write(out / MANIFEST, json.dumps({**content, "checksum": _checksum(content)}, indent=2) + "\n")
+
+
+def _checksum(content: Mapping[str, Any]) -> str:
+    """SHA-256 of the manifest's content (its JSON with sorted keys)."""
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()
+
+
+def _manifest_problem(out: Path, digest: str) -> str | None:
+    """What keeps the sweep folder ``out`` from resuming the sweep of ``digest``; None if nothing."""
+    from ..inputs import parse_json, read_bytes
+
+    where = f"{MANIFEST} of {out}"
+    if not (out / MANIFEST).exists():
+        return f"it has {PARTS}/ but no {MANIFEST}, which says which sweep they belong to"
+    try:
+        data = parse_json(read_bytes(out / MANIFEST, MANIFEST, MANIFEST_BYTES_MAX), MANIFEST, str(out / MANIFEST))
+    except ConfigError as exc:
+        return f"its {MANIFEST} is damaged: {exc.valid}"
+    if not isinstance(data, dict) or "checksum" not in data:
+        return f"its {MANIFEST} is damaged: not a JSON object with a checksum"
+    content = {k: v for k, v in data.items() if k != "checksum"}
+    if data["checksum"] != _checksum(content):
+        return f"its {MANIFEST} is damaged: its content does not match its checksum"
+    if content.get("digest") != digest:
+        return f"{where} is that of a different sweep ({content.get('name')!r})"
+    return None
 
 
 def _parts(out: Path, sweep: Sweep) -> PartStore:
@@ -549,13 +584,15 @@ def run_sweep(
     batch_size: int | None = None,
     progress: bool = True,
     figures: FigureWriter | None = None,
+    force: bool = False,
 ) -> SweepRun:
     """Run every point of ``sweep`` not yet finished in ``out``, then write results and figures.
 
     The points run on the engine of :mod:`pmsm2dof.studies.engine`. Each finished batch of
     points is stored at once as ``out/parts/part-*.parquet``, so an interrupted sweep keeps its
     finished points and a second call with the same ``out`` computes only the missing ones; a
-    stored part that cannot be used is deleted and its points computed again, with a
+    stored part that cannot be used (its content no longer matches the checksum written with it,
+    :class:`~pmsm2dof.studies.engine.PartStore`) is deleted and its points computed again, with a
     :class:`~pmsm2dof.studies.engine.PartWarning` naming it. When all points are done, ``out``
     receives ``results.parquet`` and ``results.csv`` (one row per point, see
     :func:`metric_columns`), ``base.toml`` (the frozen base scenario), ``sweep.json`` and, with
@@ -565,7 +602,8 @@ def run_sweep(
     ----------
     sweep : Sweep
     out : str or Path
-        Output folder: new, empty, or holding an earlier run of the same sweep.
+        Output folder: new, empty, or holding an earlier run of the same sweep (checked by the
+        ``sweep.json`` it wrote there, whose checksum tells a damaged one).
     workers : int, optional
         Local threads (default: the cores available). The compiled engine releases the GIL for
         the whole simulation, so threads run on all cores. Not used with ``scheduler``.
@@ -581,6 +619,9 @@ def run_sweep(
         ``figures(sweep, table, folder)`` draws the figures into ``folder`` and returns their
         paths (:func:`pmsm2dof.ui.plots.sweep.draw_figures`, as ``pmsm2dof sweep`` does); None
         writes the results table only.
+    force : bool
+        Use ``out`` even if it holds other files (they are kept), or the folder of another sweep
+        or one whose ``sweep.json`` is damaged (what that sweep wrote is removed first).
 
     Returns
     -------
@@ -595,7 +636,7 @@ def run_sweep(
     out = Path(out)
     check_options(workers, scheduler, batch_size)
     with connect(scheduler) as client:
-        _prepare_out(out, sweep)
+        _prepare_out(out, sweep, force)
         parts = _parts(out, sweep)
         finished = parts.read()
         done = set() if finished is None else set(int(i) for i in finished["point"])
@@ -618,16 +659,19 @@ def run_sweep(
     table = parts.read().drop_duplicates("point").sort_values("point", ignore_index=True)
     if len(table) != len(sweep.points):
         raise RuntimeError(f"{len(sweep.points) - len(table)} points of the sweep have no stored result")
-    files = _write_results(out, sweep, table, figures)
+    files = _write_results(out, sweep, table, figures, force)
     return SweepRun(table, out, len(done), len(todo), files)
 
 
-def _write_results(out: Path, sweep: Sweep, table: "pd.DataFrame", figures: FigureWriter | None) -> tuple[Path, ...]:
-    """results.parquet, results.csv and the figures, moved into ``out`` together when all are written."""
+def _write_results(
+    out: Path, sweep: Sweep, table: "pd.DataFrame", figures: FigureWriter | None, force: bool
+) -> tuple[Path, ...]:
+    """results.parquet, results.csv and the figures, moved into ``out`` together when all are written
+    (those of an earlier run that this one does not write again are removed)."""
     from ..outputs import staged_dir
 
     drawn: Sequence[Path] = []
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "sweep", force, own=OWN) as tmp:
         table.to_parquet(tmp / "results.parquet", index=False)
         table.to_csv(tmp / "results.csv", index=False)
         if figures:

@@ -8,12 +8,12 @@ import contextlib
 import math
 import sys
 import tomllib
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, TextIO
 
 import click
 
-from ..errors import ConfigError, Pmsm2dofError, Pmsm2dofWarning
+from ..errors import ConfigError, Pmsm2dofError, Pmsm2dofWarning, Terminated, signals_raise_terminated
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -82,23 +82,58 @@ def main(argv: list[str] | None = None) -> int:
     The warnings of pmsm2dof are shown once each, as one line on stderr (:func:`warnings_as_lines`).
 
     A command ends with another status by raising ``click.exceptions.Exit`` (``autotune``: 1
-    when no design meets the specification).
+    when no design meets the specification). SIGINT ends it with 130, SIGTERM with 143 and
+    SIGHUP with 129 (128 + the signal), after the same cleanup: no staging folder is left.
     """
     try:
-        with warnings_as_lines():
+        with signals_raise_terminated(), warnings_as_lines():
             status = cli.main(args=argv, prog_name="pmsm2dof", standalone_mode=False)
     except click.exceptions.Exit as exc:
         return int(exc.exit_code)
     except click.exceptions.Abort:
         print("pmsm2dof: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        print("pmsm2dof: terminated", file=sys.stderr)
+        return 128 + exc.signum
     except click.ClickException as exc:
         print(f"pmsm2dof: error: {_one_line(exc.format_message())}", file=sys.stderr)
+        return 2
+    except ConfigError as exc:
+        print(f"pmsm2dof: error: {_one_line(_as_cli_error(exc))}", file=sys.stderr)
         return 2
     except (Pmsm2dofError, ValueError, OSError) as exc:
         print(f"pmsm2dof: error: {_one_line(exc)}", file=sys.stderr)
         return 2
     return status if isinstance(status, int) else 0
+
+
+def _as_cli_error(exc: ConfigError) -> ConfigError:
+    """``exc`` of an output folder in the words of the command line (``--out``, ``--force``)."""
+    if exc.param not in ("out", "--out"):
+        return exc
+    return ConfigError("--out", exc.value, exc.valid.replace("force=True", "--force"))
+
+
+def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """The ``--out`` folder of a command (``what`` it receives) and ``--force``.
+
+    The folder must be new, empty or hold only the outputs of an earlier run of the same command,
+    which are replaced as a whole (:func:`pmsm2dof.outputs.staged_dir`); ``--force`` writes into
+    a folder holding other files too, and keeps them.
+    """
+    kwargs.setdefault("type", click.Path())
+    help_text = (
+        f"{what}; an existing folder must hold only the outputs of an earlier run of this command, which are replaced"
+    )
+
+    def decorate(f: Callable[..., Any]) -> Callable[..., Any]:
+        f = click.option("--force", is_flag=True, help="write into --out even if it holds other files (they are kept)")(
+            f
+        )
+        return click.option("--out", help=help_text, **kwargs)(f)
+
+    return decorate
 
 
 # ---------------------------------------------------------------------------------------------
@@ -342,11 +377,11 @@ def design(
                 Ka=Ka,
                 sensor=sensor,
             )
+            dd = d.discretize(Ts_s, method)  # first: it bounds the work of the sensor's delay
             margins = d.margins(delay_model)
             alpha_max = (
                 None if phase_margin_deg is None else d.max_alpha_for_phase_margin(phase_margin_deg, delay_model)
             )
-            dd = d.discretize(Ts_s, method)
         except ConfigError as exc:
             raise _as_option(exc, options) from None
     sensitivity = None
@@ -584,6 +619,11 @@ def _design_table(dd: "DiscreteDesign", margins: "Margins", delay_model: str) ->
     return "\n".join(lines)
 
 
+#: Most curves of ``pmsm2dof bode`` (values of --m): each takes about 0.1 s, and a figure with
+#: more is no longer read.
+BODE_CURVES_MAX = 20
+
+
 @cli.command()
 @click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0")
 @click.option(
@@ -591,7 +631,7 @@ def _design_table(dd: "DiscreteDesign", margins: "Margins", delay_model: str) ->
     "m_list",
     default="1",
     show_default=True,
-    help="comma-separated values of m (eq 10); other than 1 with --feedforward no_tau or full",
+    help="comma-separated values of m (eq 10), at most 20; other than 1 with --feedforward no_tau or full",
 )
 @click.option("--J", "J_kgm2", type=float, default=0.4, show_default=True, help="inertia [kg m^2] (paper section 4)")
 @click.option("--zeta", type=float, default=0.2887, show_default=True, help="relative damping (paper: Ki = 0.3)")
@@ -619,6 +659,8 @@ def bode(
     from .plots.canvas import save_figure
     from .plots.design import bode_gx_sweep
 
+    if m_list.count(",") >= BODE_CURVES_MAX:
+        raise ConfigError("m", m_list, f"at most {BODE_CURVES_MAX} comma-separated numbers > 0 (one curve each)")
     try:
         m_values = [float(v) for v in m_list.split(",")]
     except ValueError:
@@ -637,12 +679,10 @@ def bode(
 
 
 @cli.command(short_help="Reproduce the paper: figures 7-14, sensitivity studies and the claims table.")
-@click.option(
-    "--out",
-    type=click.Path(),
+@out_option(
+    "folder for report.md, report.html, claims.json, the figures and their data",
     default="pmsm2dof-report",
     show_default=True,
-    help="folder for report.md, report.html, claims.json, the figures and their data",
 )
 @click.option(
     "--set",
@@ -651,7 +691,7 @@ def bode(
     metavar="KEY=VALUE",
     help="change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)",
 )
-def reproduce(out: str, overrides: tuple[str, ...]) -> None:
+def reproduce(out: str, force: bool, overrides: tuple[str, ...]) -> None:
     """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
 
     Runs the paper's conditions on the presets (the float32 C controller in the compiled
@@ -666,7 +706,7 @@ def reproduce(out: str, overrides: tuple[str, ...]) -> None:
 
     start = time.perf_counter()
     changes = dict(parse_override(text) for text in overrides)
-    report = run_reproduction(out, overrides=changes, progress=True)
+    report = run_reproduction(out, overrides=changes, progress=True, force=force)
     for claim in report.claims:
         click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
     for name, metrics in report.studies.metrics.items():
@@ -696,10 +736,8 @@ def reproduce(out: str, overrides: tuple[str, ...]) -> None:
     help="change a scenario key, e.g. --set speed_controller.anti_windup=none or "
     "--set reference.0.speed_rpm=300 (repeatable; values are TOML literals)",
 )
-@click.option(
-    "--out", type=click.Path(), required=True, help="folder for trace.csv, metrics.json, plot.png and scenario.toml"
-)
-def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
+@out_option("folder for trace.csv, metrics.json, plot.png and scenario.toml", required=True)
+def simulate(scenario: str, overrides: tuple[str, ...], out: str, force: bool) -> None:
     """Simulate a scenario (see `pmsm2dof presets`) and write its trace, metrics and plot.
 
     Writes DIR/trace.csv (one column per signal), DIR/metrics.json (the step and load-step
@@ -722,7 +760,7 @@ def simulate(scenario: str, overrides: tuple[str, ...], out: str) -> None:
     changes = dict(parse_override(text) for text in overrides)
     if changes:
         chosen = chosen.with_overrides(changes)
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "simulate", force) as tmp:
         result = run_simulation(chosen, progress=True)
         metrics = measure(result)
         result.save(tmp / "trace.csv")
@@ -759,12 +797,7 @@ def presets(keys: bool) -> None:
 
 @cli.command()
 @click.argument("file", type=click.Path(dir_okay=False))
-@click.option(
-    "--out",
-    required=True,
-    type=click.Path(file_okay=False),
-    help="output folder; rerun with the same folder to resume an interrupted sweep",
-)
+@out_option("output folder; rerun with the same folder to resume an interrupted sweep", required=True)
 @click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
 @click.option(
     "--scheduler",
@@ -780,15 +813,22 @@ def presets(keys: bool) -> None:
 )
 @click.option("--no-figures", is_flag=True, help="write the results table only")
 def sweep(
-    file: str, out: str, workers: int | None, scheduler: str | None, batch_size: int | None, no_figures: bool
+    file: str,
+    out: str,
+    force: bool,
+    workers: int | None,
+    scheduler: str | None,
+    batch_size: int | None,
+    no_figures: bool,
 ) -> None:
     """Run a sweep (grid or Monte Carlo) of a scenario: one row of metrics per point, and figures.
 
     FILE is a sweep TOML: a base scenario and axes (lists, ranges or random distributions of
     dotted scenario keys); see `pmsm2dof.studies.sweep` for the format. Writes OUT/results.parquet,
     OUT/results.csv and OUT/figures/*.png once every point is done; finished points are kept
-    under OUT/parts, so an interrupted sweep resumes where it stopped (a part damaged since is
-    deleted with a warning and its points run again).
+    under OUT/parts, so an interrupted sweep resumes where it stopped (a part damaged since, which
+    its checksum shows, is deleted with a warning and its points run again). With --force, a
+    folder of another sweep is started again from nothing, and other files in it are kept.
     """
     import warnings
 
@@ -818,10 +858,11 @@ def sweep(
                 scheduler=scheduler,
                 batch_size=batch_size,
                 figures=None if no_figures else draw_figures,
+                force=force,
             )
         except ConfigError as exc:
             raise _as_option(
-                exc, {"out": "--out", "workers": "--workers", "scheduler": "--scheduler", "batch_size": "--batch-size"}
+                exc, {"workers": "--workers", "scheduler": "--scheduler", "batch_size": "--batch-size"}
             ) from None
     table = run.table
     stopped = table[table["status"] != "ok"]
@@ -841,6 +882,8 @@ def sweep(
 
 def _sweep_warnings(table: "pd.DataFrame") -> None:
     """Name the points whose sampled loop is unstable or whose current command chatters (the first five)."""
+    import pandas as pd
+
     from ..sim.metrics import CHATTER_SHARE_MAX
 
     unstable = table["sampled_loop_z_max"] >= 1.0
@@ -853,8 +896,10 @@ def _sweep_warnings(table: "pd.DataFrame") -> None:
         f"{int(chatter.fillna(False).sum())} whose current command chatters: their figures describe a limit cycle"
     )
     for _, row in flagged.head(5).iterrows():
+        z_max = row["sampled_loop_z_max"]
+        pole = "not computed (see the notes)" if pd.isna(z_max) else f"{z_max:.4g}"
         click.echo(
-            f"  point {row['point']}: largest closed-loop pole |z| = {row['sampled_loop_z_max']:.4g}, "
+            f"  point {row['point']}: largest closed-loop pole |z| = {pole}, "
             f"chatter share {row['run_chatter_share']:.3g}"
         )
 
@@ -911,7 +956,6 @@ _AUTOTUNE_OPTIONS = {
     "anti_windups": "--anti-windup",
     "workers": "--workers",
     "scheduler": "--scheduler",
-    "out": "--out",
     "path": "--emit-c-header",
 }
 
@@ -927,16 +971,18 @@ def _J_range(text: str) -> tuple[float, float]:
         raise ConfigError("--J-range", text, "LO,HI: two numbers, true over design inertia, e.g. 0.5,2") from None
 
 
-def _require_writable_file(path: str) -> None:
-    """Raise ConfigError naming --emit-c-header, before any long work, if ``path`` cannot be written."""
+def _require_writable_file(path: str, option: str = "--emit-c-header") -> None:
+    """Raise ConfigError naming ``option``, before any long work, if ``path`` cannot be written."""
     import os
     from pathlib import Path
 
     folder = Path(path).resolve().parent
     if Path(path).is_dir():
-        raise ConfigError("--emit-c-header", path, "a file path (it is an existing folder)")
+        raise ConfigError(option, path, "a file path (it is an existing folder)")
+    if os.path.lexists(path) and not (Path(path).is_file() or Path(path).is_symlink()):
+        raise ConfigError(option, path, "a file path (it is a device, a FIFO or a socket)")
     if not folder.is_dir() or not os.access(folder, os.W_OK):
-        raise ConfigError("--emit-c-header", path, "a file in an existing, writable folder")
+        raise ConfigError(option, path, "a file in an existing, writable folder")
 
 
 def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
@@ -1008,11 +1054,9 @@ def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
     help="run the simulations on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)",
 )
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the summary")
-@click.option(
-    "--out",
-    type=click.Path(file_okay=False),
+@out_option(
+    "folder for scenario.toml (the tuned scenario), autotune.json, pareto.csv, pareto.png, runs.csv, rejected.csv",
     default=None,
-    help="folder for scenario.toml (the tuned scenario), autotune.json, pareto.csv, pareto.png, runs.csv, rejected.csv",
 )
 @click.option(
     "--emit-c-header",
@@ -1038,6 +1082,7 @@ def autotune(
     scheduler: str | None,
     as_json: bool,
     out: str | None,
+    force: bool,
     header: str | None,
 ) -> None:
     """Autotune the speed controller of a scenario: the smallest worst-case load IAE per Nm (the
@@ -1055,7 +1100,7 @@ def autotune(
     """
     import json
 
-    from ..outputs import atomic_write, require_writable_dir, staged_dir
+    from ..outputs import atomic_write, check_out, staged_dir
     from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
     from ..studies.autotune import Spec
@@ -1080,14 +1125,14 @@ def autotune(
             chosen = chosen.with_overrides(changes)
         warn_implausible(chosen)
         if out is not None:
-            require_writable_dir(out)
+            check_out(out, "autotune", force)
         if header is not None:
             _require_writable_file(header)
         result = run_autotune(chosen, spec, workers=workers, scheduler=scheduler, progress=True)
         if out is not None:
             from .plots.autotune import plot_pareto
 
-            with staged_dir(out) as tmp:
+            with staged_dir(out, "autotune", force) as tmp:
                 atomic_write(tmp / "scenario.toml", result.tuned_scenario().to_toml())
                 atomic_write(tmp / "autotune.json", json.dumps(result.as_dict(), indent=2, allow_nan=False) + "\n")
                 atomic_write(tmp / "pareto.csv", _csv_text(result.pareto_rows()))
@@ -1168,14 +1213,11 @@ def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
     help="change a scenario key, e.g. --set commissioning.dead_time_V=1.5 (repeatable; values are TOML literals)",
 )
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
-@click.option(
-    "--out",
-    type=click.Path(),
-    default=None,
-    help="folder for result.json, log.csv, plot.png, motor.toml (the identified motor, for design --motor) and "
-    "p2d_config.h (the scenario's controllers for the identified motor)",
+@out_option(
+    "folder for result.json, log.csv, plot.png, motor.toml (the identified motor, for design --motor) and "
+    "p2d_config.h (the scenario's controllers for the identified motor)"
 )
-def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: str | None) -> None:
+def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: str | None, force: bool) -> None:
     """Run the C commissioning routine (commission.h) against a scenario's simulated motor.
 
     The routine identifies Rs, Ld, Lq and psi_f as on the drive; the table compares them with
@@ -1185,7 +1227,7 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
     """
     import json
 
-    from ..outputs import atomic_write, staged_dir
+    from ..outputs import atomic_write, check_out, staged_dir
     from ..sim.commission import commission as run_commissioning
     from ..sim.scenario import load_scenario
     from .plots.commission import plot_commission
@@ -1194,10 +1236,12 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
     changes = dict(parse_override(text) for text in overrides)
     if changes:
         chosen = chosen.with_overrides(changes)
+    if out is not None:
+        check_out(out, "commission", force)
     result = run_commissioning(chosen)
     summary = result.to_dict()
     if out is not None:
-        with staged_dir(out) as tmp:
+        with staged_dir(out, "commission", force) as tmp:
             atomic_write(tmp / "result.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
             atomic_write(tmp / "log.csv", result.log_csv())
             plot_commission(result, tmp / "plot.png")
@@ -1280,18 +1324,20 @@ def _motor_help() -> str:
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
 def motor(file: str, as_json: bool) -> None:
     import json
-    from pathlib import Path
 
+    from ..errors import require_positive
+    from ..inputs import read_toml
     from ..sim.datasheet import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
 
     m = load_motor(file)
     keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + [key for key in RATING_KEYS if getattr(m, key) is not None]
     sources = {**m.sources, "kt_Nm_per_A": "1.5 p psi_f (amplitude-invariant dq, eq 1)"}
-    limits = tomllib.loads(Path(file).read_text(encoding="utf-8")).get("limits")
+    limits = read_toml(file, "motor file").get("limits")
     u_dc = limits.get("u_dc_V") if isinstance(limits, dict) else None
     extra: dict[str, float] = {}
     notes = list(m.notes)
-    if isinstance(u_dc, (int, float)) and not isinstance(u_dc, bool) and math.isfinite(u_dc) and u_dc > 0:
+    if u_dc is not None:
+        u_dc = require_positive("limits.u_dc_V", u_dc)
         extra["no_load_rpm"] = no_load_speed_radps(u_dc, m.pole_pairs, m.psi_f_Wb) * 30.0 / math.pi
         sources["no_load_rpm"] = f"u_dc / (sqrt(3) p psi_f) at limits.u_dc_V = {u_dc:g} V (space-vector modulation)"
         if m.commutation == "block":
@@ -1378,9 +1424,7 @@ def warnings_as_lines() -> Iterator[None]:
 )
 @click.option("--window-s", type=float, default=None, help="distance of the blocks of a regression row [s]")
 @click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
-@click.option(
-    "--out", type=click.Path(file_okay=False), default=None, help="folder for fit.png, rows.csv, identified.toml"
-)
+@out_option("folder for fit.png, rows.csv, identified.toml")
 @click.option(
     "--design", "design_text", default=None, metavar="ALPHA,ZETA", help="print the eq 9 gains for the J found"
 )
@@ -1442,6 +1486,7 @@ def identify(
     window_s: float | None,
     as_json: bool,
     out: str | None,
+    force: bool,
     design_text: str | None,
     electrical: bool,
     voltage_delay_samples: int,
@@ -1482,7 +1527,7 @@ def identify(
     from ..studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
 
     if plan:
-        _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out)
+        _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out, force)
         return
     if log is None:
         raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT), or --plan")
@@ -1494,7 +1539,7 @@ def identify(
         "--current-ranges": current_ranges,
     }
     if electrical:
-        _identify_electrical(log, column_maps, pole_pairs, options, as_json, out)
+        _identify_electrical(log, column_maps, pole_pairs, options, as_json, out, force)
         return
     for option, value in options.items():
         if value is not None:
@@ -1509,9 +1554,9 @@ def identify(
         if not (alpha_radps > 0 and zeta > 0 and math.isfinite(alpha_radps) and math.isfinite(zeta)):
             raise ConfigError("--design", design_text, "ALPHA,ZETA both finite and > 0")
     if out is not None:
-        from ..outputs import require_writable_dir
+        from ..outputs import check_out
 
-        require_writable_dir(out)
+        check_out(out, "identify", force)
     if motor_file is not None:
         for option, value in (
             ("--pole-pairs", pole_pairs),
@@ -1583,7 +1628,7 @@ def identify(
             if current is not None:
                 lines += ["", "[current_loop]", f"tau_i_s = {current.tau_i_s!r}"]
             text = "\n".join(lines) + "\n"
-        with staged_dir(out) as tmp:
+        with staged_dir(out, "identify", force) as tmp:
             plot_fit(mech, tmp / "fit.png")
             rows = mech.rows
             table = np.column_stack([rows["t_s"], rows["y"], rows["fit"], rows["y"] - rows["fit"], rows["kept"]])
@@ -1621,6 +1666,7 @@ def _identify_electrical(
     options: dict[str, Any],
     as_json: bool,
     out: str | None,
+    force: bool,
 ) -> None:
     """``identify --electrical``: Rs, Ld, Lq, psi_f of eq 1 (pmsm2dof.studies.electrical)."""
     import json
@@ -1634,9 +1680,9 @@ def _identify_electrical(
     if pole_pairs is None or pole_pairs < 1:
         raise ConfigError("--pole-pairs", "<missing>" if pole_pairs is None else pole_pairs, "an integer >= 1")
     if out is not None:
-        from ..outputs import require_writable_dir
+        from ..outputs import check_out
 
-        require_writable_dir(out)
+        check_out(out, "identify-electrical", force)
     columns = dict(parse_column(text) for text in column_maps)
     measured = read_log(log, columns)
     try:
@@ -1669,7 +1715,7 @@ def _identify_electrical(
         table = np.column_stack([rows[n] for n in names])
         body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
         ranges = "".join(",".join(f"{v:.9g}" for v in range_row(r)) + "\n" for r in report["ranges"])
-        with staged_dir(out) as tmp:
+        with staged_dir(out, "identify-electrical", force) as tmp:
             plot_electrical_fit(fit, tmp / "fit.png")
             atomic_write(tmp / "residuals.csv", ",".join(names) + "\n" + body + "\n")
             if fit.ranges:
@@ -1723,8 +1769,8 @@ def _identify_electrical(
     metavar="SIGNAL=NAME",
     help="read a signal from another column, e.g. --column speed=enc_speed_rpm",
 )
-@click.option("--out", type=click.Path(file_okay=False), required=True, help="folder for the figure and the table")
-def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> None:
+@out_option("folder for the figure and the table", required=True)
+def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str, force: bool) -> None:
     """Overlay a measured LOG and the simulation of SCENARIO (the same reference and load).
 
     Writes DIR/compare.png (speed, iq and their difference), DIR/compare.json (RMS and largest
@@ -1751,7 +1797,7 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
         raise ConfigError(
             "LOG", log, f"a log whose time overlaps the scenario's 0 to {chosen.data['simulation']['t_end_s']:g} s"
         )
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "compare", force) as tmp:
         result = run_simulation(chosen)
         error = measured.speed_rpm[inside] - np.interp(measured.t_s[inside], result.t_s, result.speed_rpm)
         i_max = chosen.data["limits"]["i_max_A"]
@@ -1788,7 +1834,12 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str) -> 
 
 
 def _identify_plan(
-    log: str | None, motor_file: str | None, speed_max_rpm: float | None, i_max_A: float | None, out: str | None
+    log: str | None,
+    motor_file: str | None,
+    speed_max_rpm: float | None,
+    i_max_A: float | None,
+    out: str | None,
+    force: bool,
 ) -> None:
     """``identify --plan``: the experiment as a scenario and its simulation."""
     from ..outputs import atomic_write, staged_dir
@@ -1806,7 +1857,7 @@ def _identify_plan(
         chosen = plan_experiment(load_scenario(motor_file), speed_max_rpm, i_max_A)
     except ConfigError as exc:
         raise _as_option(exc, {"speed_max_rpm": "--speed-max-rpm", "limits.i_max_A": "--i-max-A"}) from None
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "identify-plan", force) as tmp:
         result = run_simulation(chosen)
         result.save(tmp / "trace.csv")
         trace.plot_trace(result, tmp / "plot.png")
@@ -1850,8 +1901,8 @@ def dataclasses_replace_notes(mech: "Mechanics", note: str) -> "Mechanics":
     metavar="KEY=VALUE",
     help="change a scenario key of both experiments first, e.g. --set motor.J_kgm2=0.5 (repeatable)",
 )
-@click.option("--out", type=click.Path(), default=None, help="folder for sensors.md and sensors.csv")
-def sensors(overrides: tuple[str, ...], out: str | None) -> None:
+@out_option("folder for sensors.md and sensors.csv")
+def sensors(overrides: tuple[str, ...], out: str | None, force: bool) -> None:
     """How encoder resolution, estimator, filter, delay and noise change the paper's drive.
 
     Runs experiment 1 (500 rpm step, 1DOF PI without and with AW) and experiment 3 (8 Nm load
@@ -1864,18 +1915,20 @@ def sensors(overrides: tuple[str, ...], out: str | None) -> None:
     import dataclasses
     import io
 
-    from ..outputs import atomic_write, staged_dir
+    from ..outputs import atomic_write, check_out, staged_dir
     from ..studies.sensing import offset_study, sensor_study
     from .report.render import render_markdown
     from .report.sensing import sensing_blocks
 
     changes = dict(parse_override(text) for text in overrides)
+    if out is not None:
+        check_out(out, "sensors", force)
     rows = sensor_study(changes)
     text = render_markdown(sensing_blocks(rows, offset_study(changes)))
     click.echo(text)
     if out is None:
         return
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "sensors", force) as tmp:
         atomic_write(tmp / "sensors.md", text)
         buf = io.StringIO()
         names = [f.name for f in dataclasses.fields(rows[0]) if f.name != "sensor"]
@@ -2064,6 +2117,9 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
     from ..studies.configuration import configuration
     from ..studies.firmware import virtual_drive_header
 
+    options = {out: "--out"} if virtual_drive is None else {out: "--out", virtual_drive: "--virtual-drive"}
+    for path, option in options.items():
+        _require_writable_file(path, option)
     chosen, named = _chosen(scenario, overrides)
     with warnings_as_lines():
         config = configuration(chosen, source=f"pmsm2dof header {named}")
@@ -2071,7 +2127,10 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
     if virtual_drive is not None:
         texts[virtual_drive] = virtual_drive_header(config)
     for path, text in texts.items():
-        atomic_write(path, text)
+        try:
+            atomic_write(path, text)
+        except ConfigError as exc:  # a full disk
+            raise ConfigError(options[path], exc.value, exc.valid) from None
     click.echo(
         f"{chosen.name}: wrote {' and '.join(texts)} (current loop every {config.engine.cfg.Ts_current_s:g} s, "
         f"speed loop every {config.current_per_speed} current periods)"
@@ -2083,14 +2142,13 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
 @click.option(
     "--set", "overrides", multiple=True, metavar="KEY=VALUE", help="build: change a scenario key (repeatable)"
 )
-@click.option(
-    "--out",
+@out_option(
+    "build: the firmware's folder; run: the folder for trace.csv, metrics.json, plot.png, interrupts.csv",
     type=click.Path(file_okay=False),
     required=True,
-    help="build: the firmware's folder; run: the folder for trace.csv, metrics.json, plot.png, interrupts.csv",
 )
 @click.option("--samples", type=int, default=None, help="run: speed samples to run [default: the scenario's t_end]")
-def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, samples: int | None) -> None:
+def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, force: bool, samples: int | None) -> None:
     """Build the FOC firmware of examples/firmware for a scenario, or run it closed loop on QEMU.
 
     `pmsm2dof firmware PRESET_OR_FILE --out DIR` writes DIR/scenario.toml, DIR/p2d_config.h (the
@@ -2107,7 +2165,7 @@ def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, sample
     if len(args) == 2 and args[0] == "run":
         if overrides:
             raise click.UsageError("--set changes a scenario before the build: pmsm2dof firmware SCENARIO --set ...")
-        _firmware_run(args[1], out, samples)
+        _firmware_run(args[1], out, force, samples)
         return
     if len(args) != 1:
         raise click.UsageError("give a scenario (pmsm2dof firmware SCENARIO --out DIR) or run DIR (--out RUN)")
@@ -2117,26 +2175,26 @@ def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, sample
 
     chosen, named = _chosen(args[0], overrides)
     with warnings_as_lines():
-        build = build_firmware(chosen, out, source=f"pmsm2dof firmware {named}")
+        build = build_firmware(chosen, out, source=f"pmsm2dof firmware {named}", force=force)
     for name, size in build.sizes.items():
         click.echo(f"  {name:<18} flash {size['text'] + size['data']:>7} B, RAM {size['data'] + size['bss']:>6} B")
     click.echo(f"{chosen.name}: wrote scenario.toml, p2d_config.h, p2d_virtual_drive.h, the ELF and map files to {out}")
 
 
-def _firmware_run(folder: str, out: str, samples: int | None) -> None:
+def _firmware_run(folder: str, out: str, force: bool, samples: int | None) -> None:
     """``pmsm2dof firmware run DIR --out RUN``."""
     import json
 
-    from ..outputs import atomic_write, require_writable_dir, staged_dir
+    from ..outputs import atomic_write, check_out, staged_dir
     from ..sim.metrics import compute_metrics
     from ..studies.firmware import run_firmware
     from .plots.firmware import plot_firmware
 
-    require_writable_dir(out)
+    check_out(out, "firmware-run", force)
     run = run_firmware(folder, samples=samples)
     comparison, cost = run.comparison(), run.cost()
     metrics = {"firmware": compute_metrics(run.firmware), "comparison": comparison, "interrupts": cost}
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "firmware-run", force) as tmp:
         run.firmware.save(tmp / "trace.csv")
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         plot_firmware(run, tmp / "plot.png")

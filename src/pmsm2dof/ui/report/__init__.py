@@ -43,7 +43,7 @@ from typing import Any
 
 from matplotlib.figure import Figure
 
-from ...outputs import atomic_write, require_writable_dir, staged_dir
+from ...outputs import atomic_write, check_out, staged_dir
 from ...studies import paper as st
 from ...studies.adaptation import run_adaptation
 from ...studies.faults import run_faults
@@ -82,7 +82,9 @@ class Report:
     wall_time_s: float
 
 
-def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -> tuple[list[Claim], list[str], float]:
+def write_report(
+    studies: st.Studies, out: Path | str, progress: bool = False, force: bool = False
+) -> tuple[list[Claim], list[str], float]:
     """Check the claims on ``studies`` and write the report into ``out``, all or nothing.
 
     Parameters
@@ -90,9 +92,12 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
     studies : Studies
         Of :func:`pmsm2dof.studies.paper.run_studies`.
     out : str or os.PathLike
-        Output folder (created; files of the same names replaced).
+        Output folder: new, empty, or holding only an earlier report, which is replaced
+        (:func:`pmsm2dof.outputs.staged_dir`).
     progress : bool
         Show a progress bar over the figures.
+    force : bool
+        Write into ``out`` even if it holds other files (they are kept).
 
     Returns
     -------
@@ -119,7 +124,7 @@ def write_report(studies: st.Studies, out: Path | str, progress: bool = False) -
         "resonance; dashed: with a notch at the resonance; dotted: the paper's alpha.",
     )
     files: list[str] = []
-    with staged_dir(out) as tmp:
+    with staged_dir(out, "reproduce", force) as tmp:
         images: dict[str, bytes] = {}
         items: Iterable[tuple[str, tuple[Figure, FigureData, str]]] = made.items()
         if progress:
@@ -178,19 +183,23 @@ def reproduce(
     overrides: Mapping[str, Any] | None = None,
     points: int = st.POINTS,
     progress: bool = False,
+    force: bool = False,
 ) -> Report:
     """Run the paper reproduction and write the report into ``out``, all or nothing.
 
     Parameters
     ----------
     out : str or os.PathLike
-        Output folder (created; files of the same names replaced).
+        Output folder: new, empty, or holding only an earlier report, which is replaced as a
+        whole (:func:`pmsm2dof.outputs.staged_dir`).
     overrides : mapping, optional
         ``{"dotted.key": value}`` applied to every preset (see :func:`pmsm2dof.studies.paper.run_studies`).
     points : int
         Values per sensitivity sweep; the full study uses :data:`pmsm2dof.studies.paper.POINTS`.
     progress : bool
         Show progress bars over the runs, the discrete designs and the figures.
+    force : bool
+        Write into ``out`` even if it holds other files (they are kept).
 
     Returns
     -------
@@ -200,11 +209,11 @@ def reproduce(
     ------
     ConfigError
         Invalid overrides or points (naming the parameter or scenario key), or ``out`` not a
-        writable folder.
+        writable folder or holding other files (without ``force``).
     SimulationError
         A run of the paper's conditions stopped.
     """
-    require_writable_dir(out)
+    check_out(out, "reproduce", force)
     studies = st.run_studies(overrides, points=points, progress=progress)
-    claims, files, wall_time_s = write_report(studies, out, progress=progress)
+    claims, files, wall_time_s = write_report(studies, out, progress=progress, force=force)
     return Report(out=Path(out), claims=claims, studies=studies, files=files, wall_time_s=wall_time_s)

@@ -13,9 +13,12 @@ Endpoints
 A POST body is a JSON object, sent as ``Content-Type: application/json`` (anything else answers
 415: a form of another site cannot post to the tuner without a CORS preflight, which it does
 not grant), mapping control keys (the scenario's dotted keys, e.g. ``speed_controller.alpha_radps``,
-and ``tuner.J_ratio``) to values. Bad input (ConfigError) or numerical trouble
-(SimulationError) answers HTTP 422 with ``{"error": message, "param": key}``; the page shows
-the message next to the control.
+and ``tuner.J_ratio``) to values. A body longer than :data:`BODY_BYTES_MAX` answers 413 before
+it is read whole. Bad input (ConfigError: a body that is no JSON object, nested deeper than
+:data:`~pmsm2dof.inputs.NESTING_MAX`, with an integer of thousands of digits, a bad key or
+value) or numerical trouble (SimulationError, or a result that is not finite) answers HTTP 422
+with ``{"error": message, "param": key}``, both short (a long value is shown by its beginning
+and its length) and valid UTF-8; the page shows the message next to the control.
 
 A client (the peer address and the page's ``X-Pmsm2dof-Client`` header) runs one simulation at
 a time: a newer run request cancels the older one, which answers 409
@@ -26,7 +29,6 @@ by :data:`~pmsm2dof.ui.tuner.experiment.SUGGEST_STEPS_MAX`. The Host and Origin 
 (:mod:`pmsm2dof.ui.tuner.server`), which knows the address it is bound to.
 """
 
-import json
 import threading
 from importlib import resources
 from pathlib import Path
@@ -39,7 +41,8 @@ from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
-from ...errors import ConfigError, SimulationError
+from ...errors import PARAM_CHARS_MAX, ConfigError, SimulationError, cut_text
+from ...inputs import parse_json
 from ...sim.scenario import Scenario
 from .experiment import Tuner
 from .slots import ClientSlots, Superseded
@@ -47,6 +50,8 @@ from .slots import ClientSlots, Superseded
 STATIC_DIR = Path(__file__).parent / "static"
 #: Header with which the page names itself, so that its runs supersede each other only.
 CLIENT_HEADER = "X-Pmsm2dof-Client"
+#: Longest request body [bytes]: the page posts some hundred bytes of control values.
+BODY_BYTES_MAX = 64 * 1024
 
 
 def plotly_js_path() -> Path:
@@ -61,6 +66,13 @@ class _NotJSON(Exception):
     """The request's body is not declared as JSON."""
 
 
+class _TooLarge(Exception):
+    """The request's body is longer than :data:`BODY_BYTES_MAX`."""
+
+    def __init__(self, size: str) -> None:
+        super().__init__(f"the body ({size}) is longer than {BODY_BYTES_MAX} bytes: the tuner takes control values")
+
+
 class _Busy(Exception):
     """A suggestion is being computed: the server computes one at a time."""
 
@@ -72,13 +84,41 @@ class _Busy(Exception):
 
 def _error(exc: Exception) -> JSONResponse:
     if isinstance(exc, _NotJSON):
-        return JSONResponse({"error": str(exc), "param": "Content-Type"}, status_code=415)
+        return _answer({"error": str(exc), "param": "Content-Type"}, 415)
+    if isinstance(exc, _TooLarge):
+        return _answer({"error": str(exc), "param": None}, 413)
     if isinstance(exc, Superseded):
-        return JSONResponse({"error": str(exc), "param": None}, status_code=409)
+        return _answer({"error": str(exc), "param": None}, 409)
     if isinstance(exc, _Busy):
-        return JSONResponse({"error": str(exc), "param": None}, status_code=429)
+        return _answer({"error": str(exc), "param": None}, 429)
     param = exc.param if isinstance(exc, ConfigError) else None
-    return JSONResponse({"error": str(exc), "param": param}, status_code=422)
+    return _answer({"error": str(exc), "param": param}, 422)
+
+
+def _answer(error: dict[str, str | None], status: int) -> JSONResponse:
+    """An error answer whose texts are short and valid UTF-8 (a lone surrogate of the request
+    escaped), whatever the request held."""
+
+    def safe(text: str | None, limit: int) -> str | None:
+        if text is None:
+            return None
+        return cut_text(text, limit).encode("utf-8", "backslashreplace").decode("utf-8")
+
+    return JSONResponse(
+        {"error": safe(error["error"], 4 * PARAM_CHARS_MAX + 1000), "param": safe(error["param"], PARAM_CHARS_MAX)},
+        status_code=status,
+    )
+
+
+def _json(data: Any) -> JSONResponse:
+    """``data`` as a JSON answer; a non-finite number in it (the analysis of values beyond what
+    it can compute) is numerical trouble, answered 422 like a SimulationError."""
+    try:
+        return JSONResponse(data)
+    except ValueError:
+        return _error(
+            SimulationError("the result holds numbers that are not finite: the values are beyond what can be computed")
+        )
 
 
 async def _body(request: Request) -> dict[str, Any]:
@@ -88,10 +128,15 @@ async def _body(request: Request) -> dict[str, Any]:
             f"Content-Type = {media_type or '(none)'!r} is refused: the tuner takes a JSON object "
             "of control values, sent as application/json"
         )
-    try:
-        body = await request.json()
-    except (json.JSONDecodeError, UnicodeDecodeError):
-        raise ConfigError("body", "(not JSON)", "a JSON object of control values") from None
+    declared = request.headers.get("content-length", "")
+    if declared.isdigit() and int(declared) > BODY_BYTES_MAX:
+        raise _TooLarge(f"{int(declared)} bytes")
+    data = bytearray()
+    async for chunk in request.stream():  # a body sent without its length is read up to the bound
+        data += chunk
+        if len(data) > BODY_BYTES_MAX:
+            raise _TooLarge(f"more than {BODY_BYTES_MAX} bytes")
+    body = parse_json(bytes(data), "body", "(the request's body)")
     if not isinstance(body, dict):
         raise ConfigError("body", body, "a JSON object of control values")
     return body
@@ -135,8 +180,8 @@ def create_app(scenario: Scenario) -> Starlette:
         try:
             body = await _body(request)
             with slots.request(_client(request), supersede=True) as ticket:
-                return JSONResponse(await run_in_threadpool(tuner.run, body, ticket))
-        except (_NotJSON, Superseded, ConfigError, SimulationError) as exc:
+                return _json(await run_in_threadpool(tuner.run, body, ticket))
+        except (_NotJSON, _TooLarge, Superseded, ConfigError, SimulationError) as exc:
             return _error(exc)
 
     async def download(request: Request) -> Response:
@@ -145,7 +190,7 @@ def create_app(scenario: Scenario) -> Starlette:
             body = await _body(request)
             with slots.request(_client(request), supersede=False) as ticket:
                 filename, media_type, text = await run_in_threadpool(tuner.download, kind, body, ticket)
-        except (_NotJSON, ConfigError, SimulationError) as exc:
+        except (_NotJSON, _TooLarge, ConfigError, SimulationError) as exc:
             return _error(exc)
         return Response(
             text, media_type=media_type, headers={"Content-Disposition": f'attachment; filename="{filename}"'}
@@ -157,10 +202,10 @@ def create_app(scenario: Scenario) -> Starlette:
             if not suggesting.acquire(blocking=False):
                 raise _Busy()
             try:
-                return JSONResponse(await run_in_threadpool(tuner.suggest, body))
+                return _json(await run_in_threadpool(tuner.suggest, body))
             finally:
                 suggesting.release()
-        except (_NotJSON, _Busy, ConfigError, SimulationError) as exc:
+        except (_NotJSON, _TooLarge, _Busy, ConfigError, SimulationError) as exc:
             return _error(exc)
 
     routes = [

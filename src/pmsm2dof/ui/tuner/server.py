@@ -12,6 +12,7 @@ were its own; the browser still sends that name in the ``Host`` header, which is
 import contextlib
 import errno
 import ipaddress
+import signal
 import socket
 import threading
 import time
@@ -21,7 +22,7 @@ from urllib.parse import urlsplit
 import uvicorn
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from ...errors import ConfigError
+from ...errors import ConfigError, is_integer
 
 DEFAULT_PORT = 8765
 """Port tried first when none is given; a free one is chosen if it is busy."""
@@ -48,8 +49,9 @@ def bind_socket(host: str = "127.0.0.1", port: int | None = None) -> socket.sock
         TCP port; 0 lets the system choose a free one; None tries :data:`DEFAULT_PORT`
         and falls back to a free port when it is busy.
     """
-    if port is not None and (isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535):
+    if port is not None and (not is_integer(port) or not 0 <= port <= 65535):
         raise ConfigError("port", port, "an integer in [0, 65535]")
+    port = None if port is None else int(port)
     try:
         infos = socket.getaddrinfo(host, None, type=socket.SOCK_STREAM)
     except (socket.gaierror, UnicodeError):
@@ -188,8 +190,29 @@ def make_server(app: ASGIApp, sock: socket.socket, host: str) -> uvicorn.Server:
 
 
 def serve(app: ASGIApp, sock: socket.socket, host: str) -> None:
-    """Serve ``app`` on ``sock``, bound for ``host``, until interrupted (Ctrl-C)."""
-    make_server(app, sock, host).run(sockets=[sock])
+    """Serve ``app`` on ``sock``, bound for ``host``, until interrupted (Ctrl-C) or terminated.
+
+    SIGINT and SIGTERM stop the server gracefully (uvicorn), SIGHUP too; the signal is then
+    raised again, so that the caller ends as it does on that signal (``pmsm2dof tune``: exit
+    status 130, 143 or 129).
+    """
+    server = make_server(app, sock, host)
+    hangups: list[int] = []
+    main_thread = threading.current_thread() is threading.main_thread()
+    if main_thread and hasattr(signal, "SIGHUP"):
+
+        def hang_up(signum: int, frame: object) -> None:
+            hangups.append(signum)
+            server.should_exit = True
+
+        before = signal.signal(signal.SIGHUP, hang_up)
+    try:
+        server.run(sockets=[sock])
+    finally:
+        if main_thread and hasattr(signal, "SIGHUP"):
+            signal.signal(signal.SIGHUP, before)
+    for signum in hangups[:1]:
+        signal.raise_signal(signum)
 
 
 @contextlib.contextmanager

@@ -1,0 +1,409 @@
+"""A session with the firmware's XCP slave over its link, by the names of its variables.
+
+The master is pyxcp (the ``drive`` extra); the names, addresses and types are the ELF's
+(:func:`pmsm2dof.drive.elf.read_variables`), the facts the build's A2L file lists. The link is
+``socket://HOST:PORT`` (XCP on TCP: the PC's drive, or QEMU's ``-serial tcp:...``) or a serial
+device (XCP on SxI: a UART, or QEMU's ``-serial pty``), both with the LEN CTR header.
+
+The firmware's run control (examples/firmware/link.h): :meth:`Link.play` writes a reference
+schedule (and, on the virtual board, a load schedule), starts a run of so many speed samples,
+captures named signals by DAQ at the speed event while it keeps the link alive, and returns them
+sample by sample.
+"""
+
+import dataclasses
+import struct
+import threading
+import time
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from ..core import LOG_COLUMNS
+from ..errors import ConfigError, SimulationError, ToolError
+from .elf import Scalar, Variable, read_variables
+
+#: The variables of the firmware example that the slave exposes (examples/firmware/link.h).
+MEASUREMENTS = ("foc_now", "link_status_now")
+CALIBRATIONS = ("link_speed_config", "link_current_config", "link_command", "link_reference")
+#: The virtual board's own (board_virtual.c).
+VIRTUAL_MEASUREMENTS = ("vd_trace",)
+VIRTUAL_CALIBRATIONS = ("vd_load",)
+#: Entries of a schedule (LINK_SCHEDULE_MAX, VB_LOAD_MAX).
+SCHEDULE_MAX = 32
+#: The run states of link_status_now.state.
+STATES = ("idle", "running", "done", "tripped", "stopped")
+#: Events of the slave, by name.
+EVENTS = {"current": 0, "speed": 1}
+
+_FORMATS = {("float", 4): "f", ("float", 8): "d", ("unsigned", 1): "B", ("unsigned", 2): "H", ("unsigned", 4): "I",
+            ("signed", 1): "b", ("signed", 2): "h", ("signed", 4): "i", ("bool", 1): "B", ("enum", 1): "B",
+            ("enum", 2): "H", ("enum", 4): "I", ("unsigned", 8): "Q", ("signed", 8): "q"}  # fmt: skip
+_DAQ_TYPES = {"f": "F32", "d": "F64", "B": "U8", "H": "U16", "I": "U32", "b": "S8", "h": "S16", "i": "S32",
+              "Q": "U64", "q": "S64"}  # fmt: skip
+
+
+def firmware_variables(elf: Path | str, virtual: bool) -> dict[str, Variable]:
+    """The firmware's exposed variables in ``elf`` (with the virtual board's when ``virtual``).
+
+    The virtual board's trace row ``vd_trace`` (double[24]) is split into its columns, named as the
+    engine's log columns (:data:`pmsm2dof.core.LOG_COLUMNS`): ``vd_trace.w_m_radps``, ...
+    """
+    names = [*MEASUREMENTS, *CALIBRATIONS]
+    if virtual:
+        names += [*VIRTUAL_MEASUREMENTS, *VIRTUAL_CALIBRATIONS]
+    variables = read_variables(elf, names)
+    if virtual:
+        row = variables["vd_trace"]
+        (whole,) = row.scalars
+        if whole.count != len(LOG_COLUMNS):
+            raise ConfigError("vd_trace", f"<{whole.count} columns>", f"the engine's {len(LOG_COLUMNS)} log columns")
+        columns = tuple(
+            dataclasses.replace(whole, name=f"vd_trace.{c}", field=c, address=whole.address + i * whole.size, count=1)
+            for i, c in enumerate(LOG_COLUMNS)
+        )
+        variables["vd_trace"] = dataclasses.replace(row, scalars=columns)
+    return variables
+
+
+def pyxcp_master(url: str, timeout_s: float = 2.0, policy: Any = None) -> Any:
+    """A pyxcp Master on ``url`` (``socket://host:port`` or a serial device) that raises on error packets."""
+    from pyxcp import Master
+    from pyxcp.config import create_application_from_config
+
+    general = {"disable_error_handling": True}
+    if url.startswith("socket://"):
+        host, _, port = url[len("socket://") :].rpartition(":")
+        if not host or not port.isdigit():
+            raise ConfigError("url", url, "socket://HOST:PORT or a serial device")
+        transport = {"timeout": timeout_s, "Eth": {"host": host, "port": int(port), "protocol": "TCP"}}
+        name = "eth"
+    else:
+        transport = {
+            "timeout": timeout_s,
+            "SxI": {
+                "port": url,
+                "bitrate": 115200,
+                "header_format": "HEADER_LEN_CTR_WORD",
+                "tail_format": "NO_CHECKSUM",
+            },
+        }
+        name = "sxi"
+    config = create_application_from_config({"Transport": transport, "General": general}, log_level=50)
+    return Master(name, config=config, policy=policy)
+
+
+def _use_default_application() -> None:
+    """pyxcp's DAQ policies read its global application configuration, which pyxcp would otherwise build from
+    sys.argv: a default one."""
+    from pyxcp.config import create_application_from_config, set_application
+
+    set_application(create_application_from_config({}, log_level=50))
+
+
+@dataclasses.dataclass(frozen=True)
+class Capture:
+    """Samples of a DAQ capture: one array per signal, the DAQ timestamps [ticks] and the lost-sample count."""
+
+    signals: dict[str, npt.NDArray[Any]]
+    timestamps: npt.NDArray[np.int64]
+    dtos_lost: int
+
+
+class _Collect:
+    """A pyxcp DAQ policy that keeps every sample of the one list (made on first use: pyxcp is optional)."""
+
+    @staticmethod
+    def make(daq_lists: list[Any]) -> Any:
+        from pyxcp.daq_stim import DaqOnlinePolicy
+
+        class Collect(DaqOnlinePolicy):
+            def __init__(self) -> None:
+                super().__init__(daq_lists)
+                self.rows: list[tuple[int, dict[str, Any]]] = []
+                self.lock = threading.Lock()
+
+            def initialize(self) -> None:
+                pass
+
+            def finalize(self) -> None:
+                pass
+
+            def on_daq_list(self, daq_list: int, timestamp0: int, timestamp1: int, payload: list[Any]) -> None:
+                # pyxcp lays the measurements out in its own order: its headers name the payload's
+                names = [h[0] for h in self.daq_lists[daq_list].headers]
+                with self.lock:
+                    self.rows.append((timestamp1, dict(zip(names, payload))))
+
+        return Collect()
+
+
+class Link:
+    """An XCP session with the firmware over ``url``, its variables read from ``elf``.
+
+    Parameters
+    ----------
+    url : str
+        ``socket://127.0.0.1:PORT`` or a serial device (``/dev/pts/N``, ``COM3``).
+    elf : path
+        The firmware's ELF (``virtual_drive.elf``, ``virtual_drive_host``, ``firmware.elf``).
+    virtual : bool
+        The firmware runs on the virtual board (its load schedule and trace row).
+    timeout_s : float
+        pyxcp's response timeout [s].
+    """
+
+    def __init__(self, url: str, elf: Path | str, *, virtual: bool = True, timeout_s: float = 2.0) -> None:
+        self.url = url
+        self.timeout_s = timeout_s
+        self.variables = firmware_variables(elf, virtual)
+        self.scalars: dict[str, Scalar] = {s.name: s for v in self.variables.values() for s in v.scalars}
+        self._master: Any = None
+        self.max_cto = 8
+
+    # ---- session --------------------------------------------------------
+    def __enter__(self) -> "Link":
+        self.open()
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None, tb: TracebackType | None) -> None:
+        self.close()
+
+    def open(self, policy: Any = None) -> None:
+        """Connect (CONNECT) with a new master; ``policy``: a pyxcp DAQ policy."""
+        self.close()
+        self._master = pyxcp_master(self.url, self.timeout_s, policy)
+        self._master.__enter__()
+        self.max_cto = self._master.connect().maxCto
+
+    def close(self) -> None:
+        """Disconnect and close the transport."""
+        if self._master is not None:
+            try:
+                self._master.disconnect()
+            except Exception:
+                pass
+            self._master.__exit__(None, None, None)
+            self._master = None
+
+    @property
+    def master(self) -> Any:
+        """The pyxcp Master of the session (for what this class does not wrap)."""
+        if self._master is None:
+            raise ToolError("the XCP link is not open")
+        return self._master
+
+    # ---- memory ---------------------------------------------------------
+    def scalar(self, name: str) -> Scalar:
+        """The variable or field ``name`` (``link_speed_config.alpha_radps``), or ConfigError listing some."""
+        if name not in self.scalars:
+            raise ConfigError(
+                "name", name, "a variable of the firmware: " + ", ".join(sorted(self.scalars)[:12]) + ", ..."
+            )
+        return self.scalars[name]
+
+    def read(self, name: str) -> Any:
+        """The value of a field (a number, or a tuple for an array), read with SHORT_UPLOAD/UPLOAD."""
+        s = self.scalar(name)
+        data = self.read_bytes(s.address, s.size * s.count)
+        values = struct.unpack(f"<{s.count}{_FORMATS[(s.encoding, s.size)]}", data)
+        return values[0] if s.count == 1 else values
+
+    def read_bytes(self, address: int, n: int) -> bytes:
+        """n bytes at an XCP address (UPLOADs of at most 255 bytes, in the slave's block mode)."""
+        self.master.setMta(address)
+        return b"".join(bytes(self.master.upload(min(255, n - i))) for i in range(0, n, 255))
+
+    def write_bytes(self, address: int, data: bytes) -> None:
+        """Write bytes with SET_MTA and DOWNLOADs of at most MAX_CTO - 2 bytes (each one taken into force whole)."""
+        step = self.max_cto - 2
+        self.master.setMta(address)
+        for i in range(0, len(data), step):
+            self.master.download(data[i : i + step])
+
+    def write(self, values: Mapping[str, Any]) -> None:
+        """Write fields; the fields of one variable in one DOWNLOAD when they fit, so that they take effect at once.
+
+        An array takes a sequence of at most its length (the first elements). Raises pyxcp's
+        XcpResponseError (ERR_OUT_OF_RANGE) when the drive rejects the new page.
+        """
+        by_variable: dict[str, list[Scalar]] = {}
+        for name in values:
+            s = self.scalar(name)
+            by_variable.setdefault(name.split(".")[0], []).append(s)
+        for var_name, scalars in by_variable.items():
+            var = self.variables[var_name]
+            start = min(s.address for s in scalars)
+            end = max(s.address + s.size * s.count for s in scalars)
+            page = bytearray(self.read_bytes(start, end - start))
+            for s in scalars:
+                value = values[s.name]
+                items = list(value) if s.count > 1 else [value]
+                if len(items) > s.count:
+                    raise ConfigError(s.name, f"<{len(items)} values>", f"at most {s.count} values")
+                fmt = f"<{len(items)}{_FORMATS[(s.encoding, s.size)]}"
+                struct.pack_into(fmt, page, s.address - start, *items)
+            del var
+            self.write_bytes(start, bytes(page))
+
+    # ---- run control ------------------------------------------------------
+    def status(self) -> dict[str, Any]:
+        """link_status_now as a dict of its fields (``state`` as its name)."""
+        var = self.variables["link_status_now"]
+        data = self.read_bytes(var.address, var.size)
+        out: dict[str, Any] = {}
+        for s in var.scalars:
+            out[s.field] = struct.unpack_from(f"<{_FORMATS[(s.encoding, s.size)]}", data, s.address - var.address)[0]
+        out["state"] = STATES[out["state"]] if out["state"] < len(STATES) else out["state"]
+        return out
+
+    def set_schedules(
+        self, reference: Sequence[tuple[float, float, float]], load: Sequence[tuple[float, float, float]] | None = None
+    ) -> None:
+        """Write the speed reference (t_s, w_radps, ramp_s) entries and the virtual board's load (t_s, Nm, ramp_s)."""
+        for var, fields, entries in (
+            ("link_reference", ("t_s", "w_radps", "ramp_s"), reference),
+            ("vd_load", ("t_s", "torque_Nm", "ramp_s"), load),
+        ):
+            if entries is None:
+                continue
+            if len(entries) > SCHEDULE_MAX:
+                raise ConfigError(var, f"<{len(entries)} entries>", f"at most {SCHEDULE_MAX} entries")
+            for j, field in enumerate(fields):
+                if entries:
+                    self.write({f"{var}.{field}": [float(e[j]) for e in entries]})
+            self.write({f"{var}.n": len(entries)})
+
+    def start(self, samples: int) -> None:
+        """Start a run of ``samples`` speed samples at the next speed sample (ERR_OUT_OF_RANGE: refused)."""
+        if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples < 2**32:
+            raise ConfigError("samples", samples, "an integer in [1, 2^32 - 1]")
+        self.write({"link_command.command": 1, "link_command.samples": samples})
+
+    def stop(self) -> None:
+        """Stop the run (power stage off) at the next speed sample."""
+        self.write({"link_command.command": 2})
+
+    def wait(self, states: Sequence[str], timeout_s: float, poll_s: float = 0.02) -> dict[str, Any]:
+        """Poll the status (which also keeps the link alive) until its state is one of ``states``."""
+        end = time.monotonic() + timeout_s
+        while True:
+            st = self.status()
+            if st["state"] in states:
+                return st
+            if time.monotonic() > end:
+                raise ToolError(
+                    f"the drive did not reach {'/'.join(states)} within {timeout_s:g} s (state {st['state']})"
+                )
+            time.sleep(poll_s)
+
+    # ---- DAQ ---------------------------------------------------------------
+    def _daq_list(self, names: Sequence[str], event: str, prescaler: int) -> Any:
+        from pyxcp.daq_stim import DaqList
+
+        measurements = []
+        for name in names:
+            s = self.scalar(name)
+            if s.count != 1:
+                raise ConfigError("signal", name, "a scalar (one element of an array has a name of its own)")
+            measurements.append((name, s.address, 0, _DAQ_TYPES[_FORMATS[(s.encoding, s.size)]]))
+        if event not in EVENTS:
+            raise ConfigError("event", event, "speed or current")
+        return DaqList(
+            name="capture",
+            event_num=EVENTS[event],
+            stim=False,
+            enable_timestamps=True,
+            measurements=measurements,
+            priority=0,
+            prescaler=prescaler,
+        )
+
+    def capture(
+        self,
+        names: Sequence[str],
+        *,
+        event: str = "speed",
+        prescaler: int = 1,
+        until: Any = None,
+        duration_s: float = 1.0,
+    ) -> Capture:
+        """Capture signals by DAQ at an event; ``until(link)`` (polled every 20 ms) or ``duration_s`` ends it.
+
+        The session is re-opened with the DAQ policy. The status is polled throughout, which keeps
+        the link's watchdog fed.
+        """
+        _use_default_application()
+        policy = _Collect.make([self._daq_list(names, event, prescaler)])
+        self.open(policy)
+        policy.setup()
+        policy.start()
+        end = time.monotonic() + duration_s
+        try:
+            while (until is None and time.monotonic() < end) or (until is not None and not until(self)):
+                self.status()
+                time.sleep(0.02)
+        finally:
+            policy.stop()
+        lost = int(self.status()["dtos_lost"])
+        with policy.lock:
+            rows = list(policy.rows)
+        self.open()
+        return Capture(
+            signals={n: np.array([r[1][n] for r in rows]) for n in names},
+            timestamps=np.array([r[0] for r in rows], dtype=np.int64),
+            dtos_lost=lost,
+        )
+
+    def play(
+        self,
+        samples: int,
+        reference: Sequence[tuple[float, float, float]],
+        load: Sequence[tuple[float, float, float]] | None,
+        columns: Sequence[str],
+        *,
+        timeout_s: float,
+        during: Callable[["Link", dict[str, Any]], None] | None = None,
+    ) -> dict[str, npt.NDArray[np.float64]]:
+        """Run the drive through a schedule and return the virtual board's trace rows of every speed sample.
+
+        Writes the schedules, starts DAQ at the speed event on ``vd_trace.<column>`` (the engine's log
+        columns) with the run's sample counter, starts a run of ``samples`` samples, polls until it
+        ends, and returns the rows 0 .. samples-1: the row of sample k is complete at sample k+1,
+        where it is captured. ``during(link, status)`` is called at every poll of the running drive
+        (a live calibration, say). Raises SimulationError when the run does not end as done, or a
+        sample is missing.
+        """
+        self.set_schedules(reference, load)
+        runs = int(self.read("link_status_now.runs"))
+        names = ["link_status_now.runs", "link_status_now.sample", *(f"vd_trace.{c}" for c in columns)]
+        state: dict[str, Any] = {}
+
+        def ended(link: "Link") -> bool:
+            if not state:
+                link.start(samples)
+                state["started"] = time.monotonic()
+            st = link.status()
+            state.update(st)
+            if during is not None and st["state"] == "running":
+                during(link, st)
+            if time.monotonic() - state["started"] > timeout_s:
+                raise ToolError(f"the run of {samples} samples did not end within {timeout_s:g} s")
+            return bool(st["state"] != "running" and st["runs"] == runs + 1)
+
+        cap = self.capture(names, until=ended)
+        if state.get("state") != "done":
+            raise SimulationError(f"the run over the link ended {state.get('state')}, not done (status {state})")
+        if cap.dtos_lost:
+            raise SimulationError(f"the DAQ lost {cap.dtos_lost} samples of the run")
+        run = cap.signals["link_status_now.runs"] == runs + 1
+        k = cap.signals["link_status_now.sample"][run]
+        keep = (k >= 1) & (k <= samples)
+        k, first = np.unique(k[keep], return_index=True)
+        if len(k) != samples:
+            raise SimulationError(f"the capture holds {len(k)} of the run's {samples} samples")
+        return {c: cap.signals[f"vd_trace.{c}"][run][keep][first].astype(np.float64) for c in columns}
