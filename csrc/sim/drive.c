@@ -475,8 +475,7 @@ static p2d_status_t fixed_init(p2d_sim_fixed_t *f, const p2d_sim_config_t *cfg)
     const p2d_speed_fixed_config_t fc = {cfg->speed, cfg->speed_full_scale_radps, cfg->torque_full_scale_Nm,
                                          cfg->current_full_scale_A};
     const int bits = fixed_bits(cfg->arithmetic);
-    const p2d_status_t status =
-        bits == 15 ? p2d_speed_q15_init(&f->q15, &fc) : p2d_speed_q31_init(&f->q31, &fc);
+    const p2d_status_t status = bits == 15 ? p2d_speed_q15_init(&f->q15, &fc) : p2d_speed_q31_init(&f->q31, &fc);
     if (status != P2D_OK) return status;
     f->q_per_radps = ldexp(1.0, bits) / (double)cfg->speed_full_scale_radps;
     f->q_max = ldexp(1.0, bits) - 1.0;
@@ -669,8 +668,8 @@ static P2D_SIM_NOINLINE void fixed_columns(const p2d_sim_t *sim, double *row, ui
         T_unsat = (double)f->out_q31.T_unsat_q31;
         iq_ref = (double)f->out_q31.iq_ref_q31;
         saturated = f->out_q31.saturated;
-        x_i = ldexp((double)f->q31.x_q62, -31) -
-              ldexp((double)Fr0.mantissa * (double)f->q31.r_prev_q31, -(int)Fr0.shift);
+        x_i =
+            ldexp((double)f->q31.x_q62, -31) - ldexp((double)Fr0.mantissa * (double)f->q31.r_prev_q31, -(int)Fr0.shift);
     }
     row[P2D_LOG_ID_REF_A * log_rows] = 0.0;
     row[P2D_LOG_IQ_REF_A * log_rows] = iq_ref * f->i_lsb_A;

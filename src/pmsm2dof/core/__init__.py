@@ -10,6 +10,7 @@ read from its headers, :mod:`.controllers` the :class:`SpeedController` and
 
 from .bindings import (
     ANTI_WINDUPS,
+    ARITHMETICS,
     CURRENT_LOOP_MODELS,
     ESTIMATORS,
     FAULT_KINDS,
@@ -27,6 +28,7 @@ from .sensing import Encoder, EncoderOutput, FieldWeakening, FieldWeakeningOutpu
 
 __all__ = [
     "ANTI_WINDUPS",
+    "ARITHMETICS",
     "CURRENT_LOOP_MODELS",
     "ESTIMATORS",
     "FAULT_KINDS",

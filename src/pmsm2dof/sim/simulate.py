@@ -10,6 +10,15 @@ first-order current loop of eq (3) (``first_order``). The speed controller (eq 9
 and the current controllers are the float32 C controllers of ``csrc/src``, the code that runs on
 the MCU. A whole run is one C call (``p2d_sim_run``), so the GIL is released while it runs.
 
+Arithmetic
+    ``speed_controller.arithmetic`` ``q15`` or ``q31`` runs the fixed-point speed controller of
+    ``speed_fixed.h`` (an MCU without an FPU) instead of the float32 one: the reference and the
+    reading rounded to the nearest integer of the format, its current command ``iq`` in current
+    LSBs. Its full scales are the ``speed_controller.*_full_scale_*`` keys or derived from the drive
+    (:func:`_arithmetic`); :func:`pmsm2dof.analysis.fixedpoint.scaling_check` predicts what they do
+    (the Q15 integrator's dead zone, the headroom). A surface PMSM only, without torque filters,
+    field weakening or gain scheduling.
+
 Sampling and integration
     The speed controller runs every ``speed_controller.Ts_s``, the current controller every
     ``current_loop.Ts_s``. The plant is integrated by the classical Runge-Kutta method (RK4) with
@@ -86,6 +95,7 @@ import numpy.typing as npt
 
 from ..core import (
     ANTI_WINDUPS,
+    ARITHMETICS,
     CURRENT_LOOP_MODELS,
     ESTIMATORS,
     FAULT_KINDS,
@@ -102,6 +112,7 @@ from ..core.controllers import float32_note
 from ..core.gains import default_Ka_error
 from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
+from .datasheet import no_load_speed_radps
 from .plausibility import peak_torque_Nm
 from .scenario import SCHEMA, SameAs, Scenario, Tree
 
@@ -173,6 +184,9 @@ _SPEED_KEYS = {
     "notch_depth": "speed_filter.notch_depth",
     "lowpass_freq_Hz": "speed_filter.lowpass_freq_Hz",
     "lowpass_zeta": "speed_filter.lowpass_zeta",
+    "speed_full_scale_radps": "speed_controller.speed_full_scale_rpm",
+    "torque_full_scale_Nm": "speed_controller.torque_full_scale_Nm",
+    "current_full_scale_A": "speed_controller.current_full_scale_A",
 }
 
 #: Scenario key of each field that the C current controller init can reject.
@@ -234,6 +248,7 @@ _SIM_KEYS = {
     "mechanics.damping_Nms_per_rad": "mechanics.damping_Nms_per_rad",
     "mechanics.backlash_rad": "mechanics.backlash_rad",
     "mechanics.feedback": "mechanics.feedback",
+    "arithmetic": "speed_controller.arithmetic",
 }
 
 #: Scenario key of each field that the C inertia estimator init can reject (the estimator block).
@@ -269,6 +284,16 @@ _SOURCES = {key: (source, source) for key, source in _SAME_AS.items()} | {
     "estimator.w_f_radps": ("speed_controller.Ts_s", "0.2 / Ts_s"),
     "field_weakening.Ka_V_per_A": ("field_weakening.Ki_A_per_Vs", "1 / (Ki_A_per_Vs speed_controller.Ts_s)"),
     "field_weakening.id_min_A": ("limits.i_max_A", "-i_max_A"),
+    "speed_controller.speed_full_scale_rpm": ("limits.u_dc_V", "twice the no-load speed u_dc_V / (sqrt(3) p psi_f)"),
+    "speed_controller.torque_full_scale_Nm": (
+        "limits.i_max_A",
+        "1.25 times the smallest that holds the torque limit 1.5 p psi_f i_max_A and the feedforward's state and "
+        "transient at the references",
+    ),
+    "speed_controller.current_full_scale_A": (
+        "speed_controller.torque_full_scale_Nm",
+        "torque_full_scale_Nm / (1.5 p psi_f)",
+    ),
 }
 
 
@@ -623,6 +648,7 @@ class Simulation:
         _sensing(cfg, data)
 
         _estimator(cfg, data)
+        self.full_scales = _arithmetic(cfg, data)
 
         self.cfg = cfg
         self.sim = ffi.new("p2d_sim_t *")
@@ -681,6 +707,11 @@ class Simulation:
             }[status]
             key = keys[field]
             derived = getattr(self.cfg.adapt.config, field, None) if status == lib.P2D_SIM_ERR_ESTIMATOR else None
+            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field in self.full_scales:
+                # a full scale of the fixed-point controller, in the key's unit (rpm for the speed)
+                derived = self.full_scales[field] * (RPM_PER_RADPS if field == "speed_full_scale_radps" else 1.0)
+                if field == "speed_full_scale_radps":
+                    valid += f" (speed_full_scale_radps = speed_full_scale_rpm pi/30 = {self.full_scales[field]:.6g})"
             value = self._value(key)
             note = float32_note(derived if value is None else value)
             s = self.cfg.speed
@@ -903,3 +934,73 @@ def _sensing(cfg: Any, data: Mapping[str, Any]) -> None:
         reg.id_min_A = -data["limits"]["i_max_A"] if fw["id_min_A"] is None else fw["id_min_A"]
         reg.method = METHODS.index("tustin")
         reg.anti_windup = ANTI_WINDUPS.index("back_calculation")
+
+
+#: Default speed full scale of the fixed-point controllers in no-load speeds: the engine's overspeed bound
+#: (``P2D_SIM_OVERSPEED_FACTOR``), so that every speed a run reaches is within the input's range.
+FULL_SCALE_NO_LOAD_SPEEDS = 2.0
+#: Margin of the default torque full scale over the smallest that holds the states [-].
+FULL_SCALE_MARGIN = 1.25
+
+
+def _float32_up(x: float) -> float:
+    """The float32 number nearest ``x`` at or above it: a full scale that still holds ``x`` once stored."""
+    x32 = np.float32(x)
+    return float(x32) if float(x32) >= x else float(np.nextafter(x32, np.float32(np.inf)))
+
+
+def _arithmetic(cfg: Any, data: Tree) -> dict[str, float]:
+    """Fill the arithmetic of the speed controller and, for Q15 or Q31, its full scales (given or derived,
+    see :data:`~pmsm2dof.sim.scenario.SCHEMA`); return the full scales used by C field name ({} for float32).
+
+    The derived torque full scale keeps the states within the two full scales the format holds
+    (speed_fixed.h): the integrator state ``x = x_i + Fr(0) r`` up to ``T_max + |Fr(0)| r_max``, and the
+    feedforward transient ``y`` up to ``|b_dr| dr_max`` after the largest reference step ``dr_max``; the
+    gains ``Fr(0)`` and ``b_dr`` are the C controller's (``p2d_speed_q15_gains``).
+    """
+    sc, motor = data["speed_controller"], data["motor"]
+    cfg.arithmetic = ARITHMETICS.index(sc["arithmetic"])
+    if sc["arithmetic"] == "float32":
+        return {}
+    s = cfg.speed
+    kt = 1.5 * s.pole_pairs * s.psi_f_Wb
+    T_max = kt * s.i_max_A
+    W_fs = (
+        FULL_SCALE_NO_LOAD_SPEEDS
+        * no_load_speed_radps(data["limits"]["u_dc_V"], motor["pole_pairs"], motor["psi_f_Wb"])
+        if sc["speed_full_scale_rpm"] is None
+        else sc["speed_full_scale_rpm"] / RPM_PER_RADPS
+    )
+    cfg.speed_full_scale_radps = W_fs
+    T_fs = sc["torque_full_scale_Nm"]
+    if T_fs is None:
+        T_fs = T_max
+        # the feedforward's gains in physical units, from the C controller at provisional full scales
+        cfg.torque_full_scale_Nm = _float32_up(T_max)
+        cfg.current_full_scale_A = _float32_up(s.i_max_A)
+        fixed = ffi.new(
+            "p2d_speed_fixed_config_t *",
+            [cfg.speed, cfg.speed_full_scale_radps, cfg.torque_full_scale_Nm, cfg.current_full_scale_A],
+        )
+        gains = ffi.new("p2d_speed_fixed_gains_t *")
+        if getattr(lib, f"p2d_speed_{sc['arithmetic']}_gains")(fixed, gains) == lib.P2D_OK:
+            per_unit = cfg.torque_full_scale_Nm / cfg.speed_full_scale_radps
+            Fr0, b_dr = abs(gains.ff_Fr0) * per_unit, abs(gains.ff_b_dr) * per_unit
+            # the references in the order the controller sees them: w_m0, 0 until the first entry, the entries
+            w_m0 = data["simulation"]["speed0_rpm"] / RPM_PER_RADPS
+            refs = [w_m0] + ([0.0] if data["reference"][0]["t_s"] > 0.0 else [])
+            refs += [e["speed_rpm"] / RPM_PER_RADPS for e in data["reference"]]
+            r_max = max(abs(r) for r in refs)
+            dr_max = max(abs(b - a) for a, b in zip(refs, refs[1:]))
+            held = max(T_max + Fr0 * r_max, b_dr * dr_max) / 2.0
+            T_fs = max(T_max, FULL_SCALE_MARGIN * held)
+        cfg.torque_full_scale_Nm = _float32_up(T_fs)
+    else:
+        cfg.torque_full_scale_Nm = T_fs
+    I_fs = sc["current_full_scale_A"]
+    cfg.current_full_scale_A = _float32_up(max(s.i_max_A, T_fs / kt)) if I_fs is None else I_fs
+    return {name: float(getattr(cfg, name)) for name in FULL_SCALES}
+
+
+#: The full scales of the fixed-point speed controller in the engine's configuration (``p2d_sim_config_t``).
+FULL_SCALES = ("speed_full_scale_radps", "torque_full_scale_Nm", "current_full_scale_A")
