@@ -36,6 +36,8 @@ Proc. 7th Allerton Conf., 1969.
 
 import math
 from dataclasses import dataclass
+
+import numpy as np
 from typing import TYPE_CHECKING
 
 from ..core.bindings import Method
@@ -297,7 +299,12 @@ def _controller(
     design: "Design", Ts_s: float, method: Method, fmt: Format, W_fs: float, T_fs: float, T_max: float
 ) -> FixedPointSpeedController:
     """The C controller of the design: a surface PMSM whose torque limit is ``T_max`` (i_max 1 A, one
-    pole pair, so ``kt = T_max``); the current part does not enter the check."""
+    pole pair, so ``kt = T_max``); the current part does not enter the check. psi_f is the float32 number
+    at or below ``T_max / 1.5``, so that the limit the controller computes never exceeds ``T_max`` (a
+    torque full scale equal to it stays valid)."""
+    psi_f = float(np.float32(T_max / 1.5))
+    if 1.5 * psi_f > T_max:
+        psi_f = float(np.nextafter(np.float32(psi_f), np.float32(0.0)))
     return FixedPointSpeedController(
         fmt,
         J_kgm2=design.J_kgm2,
@@ -308,7 +315,7 @@ def _controller(
         Ka=design.Ka,
         Ts_s=Ts_s,
         i_max_A=1.0,
-        psi_f_Wb=T_max / 1.5,
+        psi_f_Wb=psi_f,
         Ld_H=1.0,
         Lq_H=1.0,
         pole_pairs=1,
