@@ -36,9 +36,9 @@ Proc. 7th Allerton Conf., 1969.
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from typing import TYPE_CHECKING
 
 from ..core.bindings import Method
 from ..core.fixedpoint import FORMATS, FRACTIONAL_BITS, GAINS, INTEGRATOR_EXTRA_BITS, FixedPointSpeedController, Format
