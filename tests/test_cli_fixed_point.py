@@ -72,3 +72,12 @@ def test_bad_values_exit_2_with_one_stderr_line_naming_the_option(capsys, extra,
     assert captured.out == ""
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("pmsm2dof: error:") and option in lines[0], captured.err
+
+
+def test_the_1dof_pi_has_no_feedforward_state_to_hold(capsys):
+    """Without feedforward (b_dr = 0) y stays 0: nothing winds up, and a full scale holds x alone."""
+    argv = ["design", *PAPER, "--Ts", "1e-4", "--feedforward", "none", *DRIVE, *Q15]
+    assert main(argv) == 0
+    out = capsys.readouterr().out.split("Fixed-point scaling check")[1]
+    assert "winds up" not in out and ">= inf" not in out
+    assert "y_ff            0 full scales,   +inf bits: ok" in out

@@ -365,7 +365,13 @@ def _headroom(
     at the torque limit (speeds within one full scale, errors within two)."""
     pole = 1.0 - gains["ff_one_plus_a1"]
     # y = b_dr (r[k] - (1 - p) sum p^(j-1) r[k-j]): one step for p >= 0; alternating references for p < 0
-    y = abs(gains["ff_b_dr"]) * step_pu * (1.0 + abs(1.0 - pole) / (1.0 - abs(pole))) / 2.0 if pole < 1.0 else math.inf
+    # (no feedforward, b_dr = 0: y stays 0 though the section's pole, 1 + a1 = 0, is 1)
+    if gains["ff_b_dr"] == 0.0:
+        y = 0.0
+    elif pole < 1.0:
+        y = abs(gains["ff_b_dr"]) * step_pu * (1.0 + abs(1.0 - pole) / (1.0 - abs(pole))) / 2.0
+    else:
+        y = math.inf
     x = T_max_pu + abs(gains["ff_Fr0"]) * step_pu if anti_windup != "none" else math.inf
     T_ff = abs(gains["ff_Fr0"]) + y + abs(gains["ff_Kd_per_Ts"]) * step_pu
     u = 2.0 * abs(gains["b_e0"]) + x + abs(gains["ff_Fr0"]) * step_pu + abs(gains["ff_Kd_per_Ts"]) * step_pu + y
