@@ -60,7 +60,7 @@ class ArithmeticRow:
     condition : the preset (or :data:`DEAD_ZONE_NAME`)
     arithmetic : ``float32``, ``q31`` or ``q15``
     speed_full_scale_rpm, torque_full_scale_Nm : the full scales run (None for float32)
-    deviation_rpm : largest |speed - the float32 run's speed| [rpm] (0 for float32)
+    deviation_rpm : largest absolute difference of the speed from the float32 run's [rpm] (0 for float32)
     final_error_rpm : reference - speed at the end of the run [rpm]
     dead_zone_rpm : the largest error the integrator ignores, as the scaling check predicts [rpm]
         (None for float32)
