@@ -376,3 +376,13 @@ def test_the_engine_refuses_an_arithmetic_it_does_not_know_and_fixed_point_with_
     cfg.speed_filter.lowpass_freq_Hz, cfg.speed_filter.lowpass_zeta = 50.0, 0.7
     assert lib.p2d_sim_init(sim, cfg) == lib.P2D_SIM_ERR_ARITHMETIC
     assert ffi.string(lib.p2d_sim_status_param(lib.P2D_SIM_ERR_ARITHMETIC)) == b"arithmetic"
+
+
+def test_the_firmware_configuration_refuses_a_fixed_point_scenario():
+    """The header configures the float32 controller the firmware runs: a Q15 scenario is not silently shipped
+    as float32."""
+    from pmsm2dof.studies.configuration import configuration
+
+    with pytest.raises(ConfigError) as info:
+        configuration(load_scenario("paper-condition-1").with_overrides({"speed_controller.arithmetic": "q15"}))
+    assert info.value.param == "speed_controller.arithmetic" and "speed_fixed.h" in str(info.value)
