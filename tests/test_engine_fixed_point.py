@@ -298,10 +298,25 @@ def test_the_derived_full_scales_follow_their_documented_formulas_and_hold_the_s
     # x = x_i + Fr0 r stays inside the two full scales the format holds
     x = run.x_i_Nm - Fr0 * run.speed_ref_rpm * RPM
     assert np.max(np.abs(x)) < 2.0 * fs["torque_full_scale_Nm"]
+    # the small servo (2 kHz speed loop, 2000 rpm step from rest, 0.6 Nm limit): the command at the step decides,
+    # b_e0 = Kp + Ki Ts / 2 (Tustin, eq 14), b_dr = -Fr0 / (1 + m alpha Ts / 2) (eq 15 by Tustin)
+    servo = load_scenario("examples/firmware/small-servo-20k.toml").with_overrides(
+        {"speed_controller.arithmetic": "q31"}
+    )
+    J_s, a_s, z_s, Ts_s, step = 1e-4, 150.0, 0.707, 5e-4, 2000.0 * RPM
+    Fr0_s = -J_s * a_s / (4.0 * z_s**2)
+    b_e0 = J_s * a_s + J_s * (a_s / (2.0 * z_s)) ** 2 * Ts_s / 2.0
+    b_dr = -Fr0_s / (1.0 + a_s * Ts_s / 2.0)
+    T_max_s = 1.5 * 4 * 0.01 * 10.0
+    expected = 1.25 * (T_max_s + (b_e0 + abs(Fr0_s + b_dr)) * step) / 2.0
+    assert Simulation(servo.data).full_scales["torque_full_scale_Nm"] == pytest.approx(expected, rel=1e-5)
     one_dof = load_scenario("paper-condition-2").with_overrides(
         {"speed_controller.arithmetic": "q15", "speed_controller.feedforward": "none"}
     )
-    assert Simulation(one_dof.data).full_scales["torque_full_scale_Nm"] == pytest.approx(T_MAX, rel=1e-6)
+    # the 1DOF PI holds no feedforward state: the command at the 500 rpm step, b_e0 = Kp + Ki Ts / 2
+    b_e0_paper = J * ALPHA + J * (ALPHA / (2.0 * ZETA)) ** 2 * 1e-3 / 2.0
+    expected = 1.25 * (T_MAX + b_e0_paper * W0) / 2.0
+    assert Simulation(one_dof.data).full_scales["torque_full_scale_Nm"] == pytest.approx(expected, rel=1e-6)
 
 
 def test_lockstep_runs_of_the_three_arithmetics_equal_lone_runs():

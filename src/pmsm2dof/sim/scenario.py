@@ -329,8 +329,8 @@ SCHEMA = (
         "speed_controller.torque_full_scale_Nm",
         float,
         "q15, q31: the torque of the integer 2^N [Nm], >= the torque limit 1.5 p psi_f i_max_A; absent: 1.25 times "
-        "the smallest that holds the torque limit and the feedforward's state and transient at the references "
-        "(within two full scales)",
+        "the smallest that holds, within two full scales, the torque limit with the feedforward's state and "
+        "transient at the references and the command at the largest reference step",
         default=None,
         gt=0,
     ),

@@ -287,8 +287,8 @@ _SOURCES = {key: (source, source) for key, source in _SAME_AS.items()} | {
     "speed_controller.speed_full_scale_rpm": ("limits.u_dc_V", "twice the no-load speed u_dc_V / (sqrt(3) p psi_f)"),
     "speed_controller.torque_full_scale_Nm": (
         "limits.i_max_A",
-        "1.25 times the smallest that holds the torque limit 1.5 p psi_f i_max_A and the feedforward's state and "
-        "transient at the references",
+        "1.25 times the smallest that holds the torque limit 1.5 p psi_f i_max_A, the feedforward's state and "
+        "transient at the references and the command at the largest reference step",
     ),
     "speed_controller.current_full_scale_A": (
         "speed_controller.torque_full_scale_Nm",
@@ -953,10 +953,12 @@ def _arithmetic(cfg: Any, data: Tree) -> dict[str, float]:
     """Fill the arithmetic of the speed controller and, for Q15 or Q31, its full scales (given or derived,
     see :data:`~pmsm2dof.sim.scenario.SCHEMA`); return the full scales used by C field name ({} for float32).
 
-    The derived torque full scale keeps the states within the two full scales the format holds
-    (speed_fixed.h): the integrator state ``x = x_i + Fr(0) r`` up to ``T_max + |Fr(0)| r_max``, and the
-    feedforward transient ``y`` up to ``|b_dr| dr_max`` after the largest reference step ``dr_max``; the
-    gains ``Fr(0)`` and ``b_dr`` are the C controller's (``p2d_speed_q15_gains``).
+    The derived torque full scale keeps within the two full scales the format holds (speed_fixed.h)
+    the integrator state ``x = x_i + Fr(0) r`` up to ``T_max + |Fr(0)| r_max``, the feedforward
+    transient ``y`` up to ``|b_dr| dr_max`` after the largest reference step ``dr_max``, and the command
+    ``u`` at that step, ``T_max + (b_e0 + |Fr(0) + b_dr|) dr_max`` (so that the back calculation sees
+    the ``u* = u_sat - u`` the float32 controller sees); the gains are the C controller's
+    (``p2d_speed_q15_gains``).
     """
     sc, motor = data["speed_controller"], data["motor"]
     cfg.arithmetic = ARITHMETICS.index(sc["arithmetic"])
@@ -986,13 +988,16 @@ def _arithmetic(cfg: Any, data: Tree) -> dict[str, float]:
         if getattr(lib, f"p2d_speed_{sc['arithmetic']}_gains")(fixed, gains) == lib.P2D_OK:
             per_unit = cfg.torque_full_scale_Nm / cfg.speed_full_scale_radps
             Fr0, b_dr = abs(gains.ff_Fr0) * per_unit, abs(gains.ff_b_dr) * per_unit
+            # u at a reference step dr from rest: b_e0 dr + x + (Fr0 + b_dr) dr (the derivative kick of the
+            # full feedforward left out: it saturates the command anyway)
+            u_per_dr = (gains.b_e0 + abs(gains.ff_Fr0 + gains.ff_b_dr)) * per_unit
             # the references in the order the controller sees them: w_m0, 0 until the first entry, the entries
             w_m0 = data["simulation"]["speed0_rpm"] / RPM_PER_RADPS
             refs = [w_m0] + ([0.0] if data["reference"][0]["t_s"] > 0.0 else [])
             refs += [e["speed_rpm"] / RPM_PER_RADPS for e in data["reference"]]
             r_max = max(abs(r) for r in refs)
             dr_max = max(abs(b - a) for a, b in zip(refs, refs[1:]))
-            held = max(T_max + Fr0 * r_max, b_dr * dr_max) / 2.0
+            held = max(T_max + Fr0 * r_max, b_dr * dr_max, T_max + u_per_dr * dr_max) / 2.0
             T_fs = max(T_max, FULL_SCALE_MARGIN * held)
         cfg.torque_full_scale_Nm = _float32_up(T_fs)
     else:

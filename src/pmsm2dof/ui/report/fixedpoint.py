@@ -97,8 +97,9 @@ def fixed_point_blocks(study: ArithmeticStudy | None) -> list[tuple[Any, ...]]:
             "The speed controller in integers, as an MCU without an FPU runs it (`speed_fixed.h`, scenario key "
             "`speed_controller.arithmetic`): Q31 (int32 data, int64 arithmetic, an integrator with 31 more "
             "fractional bits) and Q15 (int16 data, int32 arithmetic). The full scales are the engine's defaults "
-            "(twice the no-load speed; 1.25 times the torque that holds the limit and the low-pass feedforward's "
-            "state Fr(0) r, which is many times the limit at 500 rpm), but for the last condition, the paper's "
+            "(twice the no-load speed; 1.25 times the torque that holds the limit, the low-pass feedforward's "
+            "state Fr(0) r, which is many times the limit at 500 rpm, and the command at the reference step), but "
+            "for the last condition, the paper's "
             "design at Ts = 1e-4 s at 1000 rpm and 10 Nm. There one torque LSB (10 Nm / 2^15) is more than twice "
             "what the integrator adds per sample, Ki Ts e, for any error below tens of rpm: the integrator's dead "
             "zone, in which a load's steady-state error is never removed. " + " ".join(findings),
