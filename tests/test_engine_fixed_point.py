@@ -62,11 +62,13 @@ def q15_check():
     )
 
 
-def test_the_q15_integrator_in_the_engine_stands_still_exactly_on_the_predicted_dead_zone():
+@pytest.mark.parametrize("load_Nm", [8.0, -8.0])
+def test_the_q15_integrator_in_the_engine_stands_still_exactly_on_the_predicted_dead_zone(load_Nm):
     """Paper condition 3 at Ts = 1e-4 s (the 1DOF PI: the reference is constant, so the feedforward
     would only add its static part to the state), Q15 at 1000 rpm and 10 Nm: over the 12 s after the
     8 Nm step, the integrator moves at every unsaturated sample whose error is outside the predicted
-    [low, high] and at none inside it. The dead zone is the engine's, to the LSB."""
+    [low, high] and at none inside it. The dead zone is the engine's, to the LSB: the load's sign
+    decides which edge the error's last excursions reach (one LSB more or less on that edge fails)."""
     dz = q15_check().dead_zone
     assert dz.width_radps / RPM == pytest.approx(48.55, abs=0.01)
     run = simulate(
@@ -74,7 +76,7 @@ def test_the_q15_integrator_in_the_engine_stands_still_exactly_on_the_predicted_
             "q15",
             **SCALES,
             **{"speed_controller.Ts_s": 1e-4, "speed_controller.feedforward": "none"},
-            **{"simulation.t_end_s": 12.0},
+            **{"simulation.t_end_s": 12.0, "load.0.torque_Nm": load_Nm},
         )  # fmt: skip
     )
     e = error_lsb(run, 1000.0 * RPM, 15)
