@@ -58,9 +58,14 @@ def drive_session(scenario: Scenario, link: str, elf: Path | str | None) -> "Ite
                 raise ConfigError("elf", None, f"the ELF file of the firmware the drive at {link} runs")
             url = link
         try:
-            session_link = Link(url, elf, virtual=True)
-        except ConfigError:  # no virtual board: a drive of its own
-            session_link = Link(url, elf, virtual=False)
+            try:
+                session_link = Link(url, elf, virtual=True)
+            except ConfigError:  # no virtual board: a drive of its own
+                session_link = Link(url, elf, virtual=False)
+        except ConfigError:
+            raise
+        except Exception as exc:  # not a file, or not an ELF file (pyelftools' ELFError)
+            raise ConfigError("elf", str(elf), f"the firmware's ELF file ({str(exc).strip()})") from None
         try:
             session_link.open()
         except Exception as exc:
