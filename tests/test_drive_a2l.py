@@ -6,19 +6,14 @@ and ranges of the C comments, the XCP interface (parsed by the file's own A2ML).
 import re
 import shutil
 import subprocess
-from pathlib import Path
 
 import pytest
 
 from pmsm2dof.core.bindings import enum_names, ffi, field_comment, struct_fields
-from pmsm2dof.sim.scenario import load_scenario
-from pmsm2dof.studies.firmware import build_firmware
 
 pya2l = pytest.importorskip("pya2l")
 from pya2l import model  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-SERVO = ROOT / "examples" / "firmware" / "small-servo-20k.toml"
 _MISSING = [t for t in ("cmake", "cc", "nm", "arm-none-eabi-gcc", "arm-none-eabi-nm") if shutil.which(t) is None]
 
 pytestmark = [
@@ -40,8 +35,8 @@ LIBRARY = {"link_speed_config": "p2d_speed_config_t", "link_current_config": "p2
 
 
 @pytest.fixture(scope="module")
-def folder(tmp_path_factory):
-    return build_firmware(load_scenario(str(SERVO)), tmp_path_factory.mktemp("a2l") / "fw").folder
+def folder(servo_firmware):
+    return servo_firmware[1]
 
 
 def nm_symbols(nm, elf):

@@ -12,7 +12,6 @@ file read by pya2ldb (tests/test_drive_a2l.py checks those against the ELF).
 import shutil
 import struct
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,8 +27,6 @@ from pmsm2dof.studies.firmware import build_firmware, compare, play_scenario
 pyxcp = pytest.importorskip("pyxcp")
 from pyxcp.types import XcpResponseError  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-SERVO = ROOT / "examples" / "firmware" / "small-servo-20k.toml"
 _MISSING = [t for t in ("cmake", "cc", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
 
 #: Slow (cross builds and emulators: the full suite); skipped without the tools.
@@ -43,10 +40,9 @@ DRIVES = ["host", "qemu-pty", "qemu-tcp"]
 
 
 @pytest.fixture(scope="module")
-def servo(tmp_path_factory):
-    """The small servo (20 kHz current, 2 kHz speed loop) built for QEMU and the PC."""
-    scenario = load_scenario(str(SERVO))
-    return scenario, build_firmware(scenario, tmp_path_factory.mktemp("servo") / "fw").folder
+def servo(servo_firmware):
+    """The small servo (20 kHz current, 2 kHz speed loop) built for QEMU and the PC (tests/conftest.py)."""
+    return servo_firmware
 
 
 def serve(kind, folder, realtime=False, **arguments):
