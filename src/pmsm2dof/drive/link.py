@@ -76,7 +76,7 @@ URL_FORMS = "tcp://HOST:PORT (XCP on TCP), serial:DEVICE or a device path such a
 
 
 def link_url(text: str, allow_remote: bool = False) -> str:
-    """The pyxcp form (``socket://HOST:PORT`` or a device) of a link URL, checked.
+    """A link URL checked, in one form: ``tcp://HOST:PORT`` or a device.
 
     Parameters
     ----------
@@ -111,7 +111,7 @@ def link_url(text: str, allow_remote: bool = False) -> str:
                         text,
                         "a drive on this machine (127.0.0.1, ::1, localhost); allow a remote one explicitly",
                     )
-            return f"socket://{host}:{int(port)}"
+            return f"tcp://{host}:{int(port)}"
     device = text[len("serial:") :] if text.startswith("serial:") else text
     if not device or "://" in device:
         raise ConfigError("link", text, URL_FORMS)
@@ -119,13 +119,13 @@ def link_url(text: str, allow_remote: bool = False) -> str:
 
 
 def pyxcp_master(url: str, timeout_s: float = 2.0, policy: Any = None) -> Any:
-    """A pyxcp Master on ``url`` (``socket://host:port`` or a serial device) that raises on error packets."""
+    """A pyxcp Master on ``url`` (``tcp://host:port``, ``socket://host:port`` or a device) that raises on errors."""
     from pyxcp import Master
     from pyxcp.config import create_application_from_config
 
     general = {"disable_error_handling": True}
-    if url.startswith("socket://"):
-        host, _, port = url[len("socket://") :].rpartition(":")
+    if url.startswith(("socket://", "tcp://")):
+        host, _, port = url.partition("://")[2].rpartition(":")
         if not host or not port.isdigit():
             raise ConfigError("url", url, "socket://HOST:PORT or a serial device")
         transport = {"timeout": timeout_s, "Eth": {"host": host, "port": int(port), "protocol": "TCP"}}
