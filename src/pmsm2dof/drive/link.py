@@ -406,20 +406,38 @@ class Link:
         prescaler: int = 1,
         until: Any = None,
         duration_s: float = 1.0,
+        stall_s: float = 10.0,
     ) -> Capture:
         """Capture signals by DAQ at an event; ``until(link)`` (polled every 20 ms) or ``duration_s`` ends it.
 
-        The session is re-opened with the DAQ policy. The status is polled throughout, which keeps
-        the link's watchdog fed.
+        ``duration_s`` is of the drive's time, by the DAQ timestamps: the capture ends once its samples
+        span it, however fast or slow the drive runs against the wall clock (QEMU's at a few percent
+        of it while a list streams). The session is re-opened with the DAQ policy. The status is
+        polled throughout, which keeps the link's watchdog fed. Raises ToolError when no sample
+        arrives for ``stall_s`` of the wall clock.
         """
         _use_default_application()
         policy = _Collect.make([self._daq_list(names, event, prescaler)])
         self.open(policy)
         policy.setup()
         policy.start()
-        end = time.monotonic() + duration_s
+        span_ns = duration_s * 1e9
+        heard = (time.monotonic(), 0)
+
+        def covered() -> bool:
+            nonlocal heard
+            with policy.lock:
+                n = len(policy.rows)
+                span = policy.rows[-1][0] - policy.rows[0][0] if n else -1
+            now = time.monotonic()
+            if n != heard[1]:
+                heard = (now, n)
+            elif now - heard[0] > stall_s:
+                raise ToolError(f"the drive sent no DAQ sample at the {event} event for {stall_s:g} s")
+            return bool(span >= span_ns)
+
         try:
-            while (until is None and time.monotonic() < end) or (until is not None and not until(self)):
+            while not (until(self) if until is not None else covered()):
                 self.status()
                 time.sleep(0.02)
         finally:

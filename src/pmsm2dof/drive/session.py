@@ -70,7 +70,7 @@ def link_errors(link: Link, what: str) -> Iterator[None]:
         code = exc.get_error_code()  # type: ignore[no-untyped-call]
         raise ToolError(f"the drive at {link.url} refused {what}: {code}") from None
     except (XcpTimeoutError, OSError, EOFError) as exc:
-        reason = " ".join(str(exc).split()) or type(exc).__name__
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise ToolError(f"the link to {link.url} dropped during {what} ({reason}); {SAFE_STATE}") from None
 
 
@@ -83,8 +83,8 @@ def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_
         link.open()
     except (XcpTimeoutError, OSError, EOFError) as exc:
         link.close()
-        reason = " ".join(str(exc).split()[:8]) or type(exc).__name__
-        raise ToolError(f"the drive at {link.url} does not answer ({reason} ...)") from None
+        reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise ToolError(f"the drive at {link.url} does not answer ({reason})") from None
     except BaseException:
         link.close()
         raise
@@ -306,9 +306,14 @@ def plan_capture(
 
 
 def capture(link: Link, plan: CapturePlan) -> Capture:
-    """Run a planned DAQ capture for its duration (the status polled all along: the watchdog stays fed)."""
+    """Run a planned DAQ capture: the samples of its duration from the first one, by the drive's timestamps (the
+    status polled all along: the watchdog stays fed)."""
     with link_errors(link, "capture"):
-        return link.capture(list(plan.signals), event=plan.event, duration_s=plan.duration_s)
+        cap = link.capture(list(plan.signals), event=plan.event, duration_s=plan.duration_s)
+    # the DAQ list streams from its start until its stop reaches the drive: keep the duration's samples
+    t_s = (cap.timestamps - (cap.timestamps[0] if len(cap.timestamps) else 0)) * 1e-9
+    keep = t_s <= plan.duration_s * (1.0 + 1e-12)
+    return Capture({n: v[keep] for n, v in cap.signals.items()}, cap.timestamps[keep], cap.dtos_lost)
 
 
 def capture_columns(link: Link, cap: Capture) -> dict[str, npt.NDArray[Any]]:
