@@ -355,12 +355,14 @@ def cli_latency(url, a2l, env):
     walls = []
     for i in range(3):
         t0 = time.perf_counter()
-        subprocess.run(
+        done = subprocess.run(
             [sys.executable, "-m", "pmsm2dof", "drive", "set", f"speed_controller.alpha_radps={150 + i}", "--link",
              url, "--a2l", str(a2l)],
-            check=True, capture_output=True, env={**env, "PYTHONPATH": str(ROOT / "src")},
+            capture_output=True, text=True, env={**env, "PYTHONPATH": str(ROOT / "src")},
         )  # fmt: skip
         walls.append(time.perf_counter() - t0)
+        if done.returncode != 0:
+            raise RuntimeError(f"pmsm2dof drive set failed: {done.stderr}")
     return statistics.median(walls)
 
 

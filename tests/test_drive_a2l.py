@@ -159,9 +159,9 @@ def test_the_xcp_interface(folder, elf, a2l, nm, virtual, sxi):
 
 @pytest.mark.parametrize(("elf", "a2l", "nm", "virtual", "sxi"), BUILDS)
 def test_the_drive_commands_reader_agrees_with_pya2ldb(folder, elf, a2l, nm, virtual, sxi):
-    """pmsm2dof.drive.a2l.read_a2l (what `pmsm2dof drive` reads) against pya2ldb: every segment, every
+    """pmsm2dof.drive.a2l_reader.read_a2l (what `pmsm2dof drive` reads) against pya2ldb: every segment, every
     MEASUREMENT's and CHARACTERISTIC's address, type, element count, limits, unit and text, the events."""
-    from pmsm2dof.drive.a2l import read_a2l as drive_a2l
+    from pmsm2dof.drive.a2l_reader import read_a2l as drive_a2l
 
     mine = drive_a2l(folder / a2l)
     s = read_a2l(folder / a2l)

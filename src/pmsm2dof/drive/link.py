@@ -25,7 +25,7 @@ import numpy.typing as npt
 
 from ..core import LOG_COLUMNS
 from ..errors import ConfigError, SimulationError, ToolError
-from .a2l import A2l, read_a2l
+from .a2l_reader import A2l, read_a2l
 from .elf import Scalar, Variable, read_variables
 
 #: The variables of the firmware example that the slave exposes (examples/firmware/link.h).

@@ -1,6 +1,6 @@
 """What ``pmsm2dof drive`` does on a link: identity, reads and checked writes by name, DAQ captures to files.
 
-The drive is described by its A2L file (:func:`pmsm2dof.drive.a2l.read_a2l`): the names, types,
+The drive is described by its A2L file (:func:`pmsm2dof.drive.a2l_reader.read_a2l`): the names, types,
 units and limits of its variables, its DAQ events. A write is checked on the host before anything
 is sent: the A2L's type and limits, then the controller's own validation (the C library's
 ``p2d_speed_init`` / ``p2d_current_init`` on the configuration the drive would hold), and again by
@@ -25,7 +25,7 @@ import numpy.typing as npt
 from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, ToolError, format_bytes
 from ..outputs import atomic_file, atomic_write
-from .a2l import Entry
+from .a2l_reader import Entry
 from .link import Capture, Link
 
 #: The scenario's sections whose keys the drive's configuration variables carry (same field names).

@@ -2223,8 +2223,3 @@ def _firmware_run(folder: str, out: str, force: bool, samples: int | None) -> No
             f"the firmware's trace differs from the engine's by more than {comparison['agreement']:g} of the step"
         )
         raise click.exceptions.Exit(1)
-
-
-from .cli_drive import drive  # noqa: E402  (the drive command group, registered below)
-
-cli.add_command(drive)
