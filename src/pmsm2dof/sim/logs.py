@@ -277,7 +277,7 @@ def speed_resolution_rpm(speed_rpm: np.ndarray) -> float | None:
 
 
 def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = None) -> Log:
-    """Read a drive log (CSV, Parquet, NPZ or MAT) into a :class:`Log`.
+    """Read a drive log (CSV, Parquet, NPZ, MAT or MDF4 ``.mf4`` with asammdf, the ``drive`` extra) into a Log.
 
     Parameters
     ----------
