@@ -84,7 +84,9 @@ def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_
     except (XcpTimeoutError, OSError, EOFError) as exc:
         link.close()
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise ToolError(f"the drive at {link.url} does not answer ({reason})") from None
+        raise ToolError(
+            f"the drive at {link.url} does not answer ({reason}; a drive takes one master at a time)"
+        ) from None
     except BaseException:
         link.close()
         raise
