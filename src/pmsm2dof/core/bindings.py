@@ -25,6 +25,7 @@ __all__ = [
     "FEEDFORWARDS",
     "Feedforward",
     "LOG_COLUMNS",
+    "LOG_RATES",
     "MECHANICS_MODELS",
     "METHODS",
     "Method",
@@ -117,5 +118,7 @@ FAULT_KINDS = enum_names("p2d_fault_kind_t", "P2D_FAULT_")
 MECHANICS_MODELS = enum_names("p2d_mechanics_model_t", "P2D_MECHANICS_")
 #: The speed the simulated speed controller reads (``p2d_feedback_t``): motor or load side.
 FEEDBACKS = enum_names("p2d_feedback_t", "P2D_FEEDBACK_")
+#: Rates of the engine's log rows (``p2d_log_rate_t``): a row per speed sample, or per current period.
+LOG_RATES = enum_names("p2d_log_rate_t", "P2D_LOG_RATE_")
 #: Names of the columns of the engine's log, with their units (``p2d_sim_log_name``).
 LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))
