@@ -256,7 +256,7 @@ def configuration(scenario: Scenario, *, source: str = "", notes: tuple[str, ...
         raise ConfigError("scenario", type(scenario).__name__, "a pmsm2dof Scenario (load_scenario)")
     data: Tree = dict(scenario.data)
     data["current_loop"] = {**data["current_loop"], "model": "dq_pi"}
-    data["simulation"] = {**data["simulation"], "log_every": _LOG_EVERY_ONE_ROW}
+    data["simulation"] = {**data["simulation"], "log_every": _LOG_EVERY_ONE_ROW, "log_rate": "speed"}
     return Configuration(scenario=scenario, source=source, notes=tuple(notes), engine=Simulation(data))
 
 
