@@ -761,12 +761,18 @@ static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim)
 
 /*
  * The end of speed sample k: the share of its current periods at the voltage limit, into its rows
- * (those from row0 on: none, its first period's at the speed rate, its periods' at the current rate).
+ * (log_row: its first period's, at the speed rate; at the current rate its periods' from row0 on).
  */
-static void sample_end(p2d_sim_t *sim, uint64_t row0, double *log, uint64_t log_rows)
+static P2D_SIM_INLINE void sample_end(p2d_sim_t *sim, bool per_current, bool log_row, uint64_t row0, double *log,
+                                      uint64_t log_rows)
 {
-    for (uint64_t r = row0; r < sim->n_rows; ++r) {
-        log[P2D_LOG_VOLTAGE_LIMITED * log_rows + r] = (double)sim->n_limited / (double)sim->cfg.current_per_speed;
+    if (per_current) {
+        for (uint64_t r = row0; r < sim->n_rows; ++r) {
+            log[P2D_LOG_VOLTAGE_LIMITED * log_rows + r] = (double)sim->n_limited / (double)sim->cfg.current_per_speed;
+        }
+    } else if (log_row) {
+        log[P2D_LOG_VOLTAGE_LIMITED * log_rows + sim->n_rows - 1u] =
+            (double)sim->n_limited / (double)sim->cfg.current_per_speed;
     }
     sim->n_speed++;
 }
@@ -991,7 +997,8 @@ static void lanes_idle(p2d_sim_lanes_t *L, uint32_t l)
  * of no drive idle). A drive that stops leaves the group.
  */
 static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
-                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma)
+                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma,
+                                     bool per_current)
 {
     const p2d_sim_config_t *cfg = &sims[0]->cfg;
     const uint32_t kind = step_kind(sims[0]), substeps = cfg->substeps;
@@ -999,14 +1006,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
     const double substeps_dt_s = (double)substeps * sims[0]->plant.dt_s;
     const bool first_order = cfg->current_model == P2D_CURRENT_FIRST_ORDER;
     /* every drive is at the same sample: the time and the log decision are the group's */
-    uint64_t n_current = sims[0]->n_current;
-    /*
-     * the current period of the next row: every row_step-th period from the first, at the current rate
-     * log_every periods, at the speed rate the first period of every log_every-th speed sample
-     */
-    const uint64_t row_step = cfg->log_rate == P2D_LOG_RATE_CURRENT ? (uint64_t)cfg->log_every
-                                                                    : (uint64_t)cfg->log_every * cfg->current_per_speed;
-    uint64_t row_period = n_current % row_step == 0u ? n_current : n_current + (row_step - n_current % row_step);
+    uint64_t n_current = sims[0]->n_current, n_speed = sims[0]->n_speed;
     uint64_t row0[P2D_SIM_LANES];
     bool active[P2D_SIM_LANES];
     uint32_t n_active = 0u;
@@ -1018,8 +1018,12 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
             lanes_idle(L, l);
         }
     }
-    for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k) {
+    for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed) {
         const double t_k = count_as_double(n_current) * cfg->Ts_current_s;
+        /* at the speed rate: the row of the sample's first period; at the current rate: the sample's first row's
+           period j_row (beyond the sample: none), then every log_every-th */
+        const bool log_row = !per_current && n_speed % cfg->log_every == 0u;
+        uint32_t j_row = per_current ? (uint32_t)((cfg->log_every - n_current % cfg->log_every) % cfg->log_every) : 0u;
         for (uint32_t l = 0; l < n; ++l) {
             row0[l] = sims[l]->n_rows;
             if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {
@@ -1030,14 +1034,13 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
         }
         for (uint32_t j = 0; j < cfg->current_per_speed && n_active > 0u; ++j, ++n_current) {
             const double t = count_as_double(n_current) * cfg->Ts_current_s;
-            const bool log_row = n_current == row_period;
             double h = 0.0;
             bool smooth = true;
-            if (log_row) row_period += row_step;
             /* the controllers and the inverters; the plants' states and inputs into the lanes */
             for (uint32_t l = 0; l < n; ++l) {
                 if (!active[l]) continue;
-                if (period_start(sims[l], t, first_order, log_row, logs[l], log_rows[l]) != P2D_SIM_OK) {
+                if (period_start(sims[l], t, first_order, per_current ? j == j_row : log_row && j == 0u, logs[l],
+                                 log_rows[l]) != P2D_SIM_OK) {
                     active[l] = false;
                     n_active--;
                     if (lanes > 1u) lanes_idle(L, l);
@@ -1081,9 +1084,10 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
                     if (lanes > 1u) lanes_idle(L, l);
                 }
             }
+            if (per_current && j == j_row) j_row += cfg->log_every;
         }
         for (uint32_t l = 0; l < n; ++l) {
-            if (active[l]) sample_end(sims[l], row0[l], logs[l], log_rows[l]);
+            if (active[l]) sample_end(sims[l], per_current, log_row, row0[l], logs[l], log_rows[l]);
         }
     }
 }
@@ -1091,27 +1095,34 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
 /* run_group of one drive, and of the groups of P2D_SIM_LANES drives of p2d_sim_run_many. */
 static P2D_SIM_NOINLINE void run_lone(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
 {
-    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false);
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false, false);
+}
+
+/* run_lone with a row per log_every-th current period: every drive at the current rate runs alone in it (a lockstep
+   group's copies compute the lone run's bits, so that its logs are those of the groups' copies). */
+static P2D_SIM_NOINLINE void run_lone_current(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false, true);
 }
 
 static P2D_SIM_NOINLINE void run_lanes(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L, uint64_t n_samples,
                                        double *const *logs, const uint64_t *log_rows)
 {
-    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, false);
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, false, false);
 }
 
 #ifdef P2D_SIM_FMA_TARGET
 static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lone_fma(p2d_sim_t *sim, uint64_t n_samples, double *log,
                                                              uint64_t log_rows)
 {
-    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true);
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true, false);
 }
 
 static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lanes_fma(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L,
                                                               uint64_t n_samples, double *const *logs,
                                                               const uint64_t *log_rows)
 {
-    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, true);
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, true, false);
 }
 
 #else
@@ -1124,7 +1135,9 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
     if (sim == 0) return P2D_SIM_ERR_NULL;
     if (sim->status != P2D_SIM_OK) return sim->status;
     if (!log_room(sim, n_samples, log, log_rows)) return P2D_SIM_ERR_LOG_FULL;
-    if (sim->fma) {
+    if (sim->cfg.log_rate == P2D_LOG_RATE_CURRENT) {
+        run_lone_current(sim, n_samples, log, log_rows);
+    } else if (sim->fma) {
         run_lone_fma(sim, n_samples, log, log_rows);
     } else {
         run_lone(sim, n_samples, log, log_rows);
@@ -1152,6 +1165,10 @@ p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint6
         fma = fma && sims[i]->fma;
         if (!p2d_sim_lockstep(sims[0], sims[i])) return P2D_SIM_ERR_LOCKSTEP;
         if (!log_room(sims[i], n_samples, logs[i], log_rows[i])) return P2D_SIM_ERR_LOG_FULL;
+    }
+    if (sims[0]->cfg.log_rate == P2D_LOG_RATE_CURRENT) {
+        for (uint32_t i = 0; i < n_sims; ++i) run_lone_current(sims[i], n_samples, logs[i], log_rows[i]);
+        return P2D_SIM_OK;
     }
     memset(&L, 0, sizeof L);
     for (uint32_t i = 0; i < n_sims; i += P2D_SIM_LANES) {
