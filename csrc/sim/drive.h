@@ -37,7 +37,9 @@
  * across the drives (plant_inline.h's step, the same arithmetic as a lone
  * drive's: every log is bit for bit that of p2d_sim_run). A period in which
  * a drive's load has a breakpoint runs each drive on its own; a drive that
- * stops leaves the group, the others run on.
+ * stops leaves the group, the others run on. Drives logging at the current
+ * rate run one after the other, each in the loop's copy that logs every
+ * current period (the default loop has no test for it).
  *
  * Initial state: the drive is in steady state at the speed w_m0 before
  * t = 0, with the reference equal to w_m0 and no load: the speed controller is
