@@ -1098,8 +1098,8 @@ static P2D_SIM_NOINLINE void run_lone(p2d_sim_t *sim, uint64_t n_samples, double
     run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false, false);
 }
 
-/* run_lone with a row per log_every-th current period: every drive at the current rate runs alone in it (a lockstep
-   group's copies compute the lone run's bits, so that its logs are those of the groups' copies). */
+/* run_lone with a row per log_every-th current period (and its FMA copy below): every drive at the current rate runs
+   alone in it (a lockstep group's copies compute the lone run's bits, so that its logs are those of the groups'). */
 static P2D_SIM_NOINLINE void run_lone_current(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
 {
     run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false, true);
@@ -1125,9 +1125,16 @@ static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lanes_fma(p2d_sim_t *const *
     run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, true, false);
 }
 
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lone_current_fma(p2d_sim_t *sim, uint64_t n_samples, double *log,
+                                                                     uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true, true);
+}
+
 #else
 #define run_lone_fma run_lone
 #define run_lanes_fma run_lanes
+#define run_lone_current_fma run_lone_current
 #endif
 
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
@@ -1135,7 +1142,9 @@ p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, ui
     if (sim == 0) return P2D_SIM_ERR_NULL;
     if (sim->status != P2D_SIM_OK) return sim->status;
     if (!log_room(sim, n_samples, log, log_rows)) return P2D_SIM_ERR_LOG_FULL;
-    if (sim->cfg.log_rate == P2D_LOG_RATE_CURRENT) {
+    if (sim->cfg.log_rate == P2D_LOG_RATE_CURRENT && sim->fma) {
+        run_lone_current_fma(sim, n_samples, log, log_rows);
+    } else if (sim->cfg.log_rate == P2D_LOG_RATE_CURRENT) {
         run_lone_current(sim, n_samples, log, log_rows);
     } else if (sim->fma) {
         run_lone_fma(sim, n_samples, log, log_rows);
@@ -1167,7 +1176,13 @@ p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint6
         if (!log_room(sims[i], n_samples, logs[i], log_rows[i])) return P2D_SIM_ERR_LOG_FULL;
     }
     if (sims[0]->cfg.log_rate == P2D_LOG_RATE_CURRENT) {
-        for (uint32_t i = 0; i < n_sims; ++i) run_lone_current(sims[i], n_samples, logs[i], log_rows[i]);
+        for (uint32_t i = 0; i < n_sims; ++i) {
+            if (fma) {
+                run_lone_current_fma(sims[i], n_samples, logs[i], log_rows[i]);
+            } else {
+                run_lone_current(sims[i], n_samples, logs[i], log_rows[i]);
+            }
+        }
         return P2D_SIM_OK;
     }
     memset(&L, 0, sizeof L);
