@@ -536,7 +536,8 @@ def row_periods(data: Tree, n_samples: int) -> int:
     """The speed samples (log rate ``speed``) or current periods (``current``) of ``n_samples`` speed samples."""
     if data["simulation"]["log_rate"] == "speed":
         return n_samples
-    return n_samples * round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
+    per_speed: int = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
+    return n_samples * per_speed
 
 
 class Simulation:
