@@ -1023,7 +1023,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
         /* at the speed rate: the row of the sample's first period; at the current rate: the sample's first row's
            period j_row (beyond the sample: none), then every log_every-th */
         const bool log_row = !per_current && n_speed % cfg->log_every == 0u;
-        uint32_t j_row = per_current ? (uint32_t)((cfg->log_every - n_current % cfg->log_every) % cfg->log_every) : 0u;
+        uint64_t j_row = per_current ? (cfg->log_every - n_current % cfg->log_every) % cfg->log_every : 0u;
         for (uint32_t l = 0; l < n; ++l) {
             row0[l] = sims[l]->n_rows;
             if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {

@@ -387,7 +387,8 @@ SCHEMA = (
         "simulation.log_rate",
         str,
         "rate of the log's rows: speed (a row per speed_controller.Ts_s) or current (a row per current_loop.Ts_s, "
-        "for the currents within a speed period; the controllers run as at speed)",
+        "to see the currents and voltages within a speed period; the controllers and the run are the same at "
+        "either rate)",
         default="speed",
         choices=LOG_RATES,
     ),

@@ -290,8 +290,8 @@ class Result:
         The scenario simulated.
     wall_time_s : float
         Wall-clock time of the run [s].
-    t_s : time of the row [s]: a speed-controller sampling instant, or with ``simulation.log_rate =
-        "current"`` the start of a current period
+    t_s : time of the row [s]: a speed-controller sampling instant, or the start of a current period
+        (``simulation.log_rate = "current"``)
     speed_ref_rpm : speed reference sampled by the speed controller [rpm]
     speed_rpm, w_m_radps : mechanical speed [rpm], [rad/s]
     id_ref_A, iq_ref_A : current command of the speed controller [A]
