@@ -275,3 +275,13 @@ def test_cli_simulate_logs_at_the_current_rate(tmp_path, capsys):
         and "simulation.log_rate = 'fast' is invalid: valid range is one of 'speed', 'current'" in err[0]
     )
     assert not (tmp_path / "x").exists()
+
+
+def test_the_firmware_refuses_and_the_tuner_drops_the_current_rate():
+    from pmsm2dof.studies.firmware import check_virtual_drive
+    from pmsm2dof.ui.tuner.experiment import Tuner
+
+    with pytest.raises(ConfigError, match=r"simulation.log_rate = 'current' is invalid.*a row per speed sample"):
+        check_virtual_drive(servo(**CURRENT))
+    logged = Tuner.logged(servo(**CURRENT, **{"simulation.log_every": 3})).data["simulation"]
+    assert logged["log_rate"] == "speed" and logged["log_every"] == 1
