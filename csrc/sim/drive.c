@@ -122,6 +122,7 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_ERR_LOCKSTEP] = {"sims", "drives of one shape at the same sample (p2d_sim_lockstep)"},
     [P2D_SIM_ERR_ARITHMETIC] = {"arithmetic", "float32 (0), q15 (1) or q31 (2); q15 and q31 without torque filters "
                                               "(speed_filter), field weakening or gain scheduling (adapt.adapt_gains)"},
+    [P2D_SIM_ERR_LOG_RATE] = {"log_rate", "speed (0) or current (1)"},
 };
 
 static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
@@ -233,6 +234,7 @@ static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
         return P2D_SIM_ERR_CURRENT_PER_SPEED;
     }
     if (cfg->log_every < 1u) return P2D_SIM_ERR_LOG_EVERY;
+    if ((unsigned)cfg->log_rate > (unsigned)P2D_LOG_RATE_CURRENT) return P2D_SIM_ERR_LOG_RATE;
     if (!schedule_valid(&cfg->reference)) return P2D_SIM_ERR_REFERENCE;
     if (!schedule_valid(&cfg->load)) return P2D_SIM_ERR_LOAD;
     if (!faults_valid(cfg)) return P2D_SIM_ERR_FAULTS;
@@ -680,8 +682,8 @@ static P2D_SIM_NOINLINE void fixed_columns(const p2d_sim_t *sim, double *row, ui
 }
 
 /*
- * Write the row of speed sample k at t_k into the column-major log of log_rows rows (at n_rows); the
- * speed controller's columns of the float32 one or, with a fixed-point one, fixed_columns.
+ * Write the row of the current period starting at t_k into the column-major log of log_rows rows (at n_rows);
+ * the speed controller's columns of the float32 one or, with a fixed-point one, fixed_columns.
  */
 static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V, double uq_V)
 {
@@ -787,8 +789,8 @@ static p2d_sim_status_t speed_sample(p2d_sim_t *sim, double t_k_s)
 
 /*
  * The start of the current period at t = n_current Ts_current: the DC link, the current
- * controller and the inverter (dq_pi) or eq 3's command (first_order), the log row of the speed
- * sample (first period, log_row) and the estimator's torque sample.
+ * controller and the inverter (dq_pi) or eq 3's command (first_order), the log row of the period
+ * (log_row) and the estimator's torque sample.
  */
 static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, bool first_order, bool log_row,
                                                     double *log, uint64_t log_rows)
@@ -908,22 +910,49 @@ static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim)
     return check_state(sim, count_as_double(sim->n_current) * sim->cfg.Ts_current_s);
 }
 
-/* The end of speed sample k: the share of its current periods at the voltage limit. */
-static void sample_end(p2d_sim_t *sim, bool log_row, double *log, uint64_t log_rows)
+/*
+ * The end of speed sample k: the share of its current periods at the voltage limit, into its rows
+ * (log_row: its first period's, at the speed rate; at the current rate its periods' from row0 on).
+ */
+static P2D_SIM_INLINE void sample_end(p2d_sim_t *sim, bool per_current, bool log_row, uint64_t row0, double *log,
+                                      uint64_t log_rows)
 {
-    if (log_row) {
+    if (per_current) {
+        for (uint64_t r = row0; r < sim->n_rows; ++r) {
+            log[P2D_LOG_VOLTAGE_LIMITED * log_rows + r] = (double)sim->n_limited / (double)sim->cfg.current_per_speed;
+        }
+    } else if (log_row) {
         log[P2D_LOG_VOLTAGE_LIMITED * log_rows + sim->n_rows - 1u] =
             (double)sim->n_limited / (double)sim->cfg.current_per_speed;
     }
     sim->n_speed++;
 }
 
-/* Rows the log needs for the next n_samples speed samples. */
+/* The multiples of E in [n0, n0 + n): ceil((n0 + n) / E) - ceil(n0 / E), without overflow. */
+static uint64_t multiples_in(uint64_t n0, uint64_t n, uint64_t E)
+{
+    uint64_t first = n0 % E == 0u ? n0 : n0 + (E - n0 % E);
+    if (n == 0u || first - n0 >= n) return 0u;
+    return (n - 1u - (first - n0)) / E + 1u;
+}
+
+/*
+ * Rows the log needs for the next n_samples speed samples: their samples (SPEED) or current periods
+ * (CURRENT) counted by log_every; UINT64_MAX when the periods overflow the count.
+ */
 static uint64_t rows_needed(const p2d_sim_t *sim, uint64_t n_samples)
 {
-    uint64_t E = sim->cfg.log_every, n0 = sim->n_speed, n1 = sim->n_speed + n_samples;
-    /* samples in [n0, n1) divisible by E: ceil(n1 / E) - ceil(n0 / E) */
-    return (n1 + E - 1u) / E - (n0 + E - 1u) / E;
+    const uint64_t cps = sim->cfg.current_per_speed;
+    if (sim->cfg.log_rate == P2D_LOG_RATE_SPEED) return multiples_in(sim->n_speed, n_samples, sim->cfg.log_every);
+    if (n_samples > (UINT64_MAX - sim->n_current) / cps) return UINT64_MAX;
+    return multiples_in(sim->n_current, n_samples * cps, sim->cfg.log_every);
+}
+
+/* The log of log_rows rows has room for the rows of the next n_samples speed samples. */
+static bool log_room(const p2d_sim_t *sim, uint64_t n_samples, const double *log, uint64_t log_rows)
+{
+    uint64_t rows = rows_needed(sim, n_samples);
+    return rows == 0u || (log != 0 && sim->n_rows <= log_rows && rows <= log_rows - sim->n_rows);
 }
 
 /*
@@ -1119,7 +1148,8 @@ static void lanes_idle(p2d_sim_lanes_t *L, uint32_t l)
  * of no drive idle). A drive that stops leaves the group.
  */
 static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
-                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma)
+                                     uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma,
+                                     bool per_current)
 {
     const p2d_sim_config_t *cfg = &sims[0]->cfg;
     const uint32_t kind = step_kind(sims[0]), substeps = cfg->substeps;
@@ -1128,6 +1158,7 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
     const bool first_order = cfg->current_model == P2D_CURRENT_FIRST_ORDER;
     /* every drive is at the same sample: the time and the log decision are the group's */
     uint64_t n_current = sims[0]->n_current, n_speed = sims[0]->n_speed;
+    uint64_t row0[P2D_SIM_LANES];
     bool active[P2D_SIM_LANES];
     uint32_t n_active = 0u;
     for (uint32_t l = 0; l < lanes; ++l) {
@@ -1140,8 +1171,12 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
     }
     for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed) {
         const double t_k = count_as_double(n_current) * cfg->Ts_current_s;
-        const bool log_row = n_speed % cfg->log_every == 0u;
+        /* at the speed rate: the row of the sample's first period; at the current rate: the sample's first row's
+           period j_row (beyond the sample: none), then every log_every-th */
+        const bool log_row = !per_current && n_speed % cfg->log_every == 0u;
+        uint64_t j_row = per_current ? (cfg->log_every - n_current % cfg->log_every) % cfg->log_every : 0u;
         for (uint32_t l = 0; l < n; ++l) {
+            row0[l] = sims[l]->n_rows;
             if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {
                 active[l] = false;
                 n_active--;
@@ -1155,7 +1190,8 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
             /* the controllers and the inverters; the plants' states and inputs into the lanes */
             for (uint32_t l = 0; l < n; ++l) {
                 if (!active[l]) continue;
-                if (period_start(sims[l], t, first_order, log_row && j == 0u, logs[l], log_rows[l]) != P2D_SIM_OK) {
+                if (period_start(sims[l], t, first_order, per_current ? j == j_row : log_row && j == 0u, logs[l],
+                                 log_rows[l]) != P2D_SIM_OK) {
                     active[l] = false;
                     n_active--;
                     if (lanes > 1u) lanes_idle(L, l);
@@ -1199,9 +1235,10 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
                     if (lanes > 1u) lanes_idle(L, l);
                 }
             }
+            if (per_current && j == j_row) j_row += cfg->log_every;
         }
         for (uint32_t l = 0; l < n; ++l) {
-            if (active[l]) sample_end(sims[l], log_row, logs[l], log_rows[l]);
+            if (active[l]) sample_end(sims[l], per_current, log_row, row0[l], logs[l], log_rows[l]);
         }
     }
 }
@@ -1209,42 +1246,58 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
 /* run_group of one drive, and of the groups of P2D_SIM_LANES drives of p2d_sim_run_many. */
 static P2D_SIM_NOINLINE void run_lone(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
 {
-    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false);
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false, false);
+}
+
+/* run_lone with a row per log_every-th current period (and its FMA copy below): every drive at the current rate runs
+   alone in it (a lockstep group's copies compute the lone run's bits, so that its logs are those of the groups'). */
+static P2D_SIM_NOINLINE void run_lone_current(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, false, true);
 }
 
 static P2D_SIM_NOINLINE void run_lanes(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L, uint64_t n_samples,
                                        double *const *logs, const uint64_t *log_rows)
 {
-    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, false);
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, false, false);
 }
 
 #ifdef P2D_SIM_FMA_TARGET
 static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lone_fma(p2d_sim_t *sim, uint64_t n_samples, double *log,
                                                              uint64_t log_rows)
 {
-    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true);
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true, false);
 }
 
 static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lanes_fma(p2d_sim_t *const *sims, uint32_t n, p2d_sim_lanes_t *L,
                                                               uint64_t n_samples, double *const *logs,
                                                               const uint64_t *log_rows)
 {
-    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, true);
+    run_group(sims, n, P2D_SIM_LANES, L, n_samples, logs, log_rows, true, false);
+}
+
+static P2D_SIM_FMA_TARGET P2D_SIM_NOINLINE void run_lone_current_fma(p2d_sim_t *sim, uint64_t n_samples, double *log,
+                                                                     uint64_t log_rows)
+{
+    run_group(&sim, 1u, 1u, 0, n_samples, &log, &log_rows, true, true);
 }
 
 #else
 #define run_lone_fma run_lone
 #define run_lanes_fma run_lanes
+#define run_lone_current_fma run_lone_current
 #endif
 
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows)
 {
     if (sim == 0) return P2D_SIM_ERR_NULL;
     if (sim->status != P2D_SIM_OK) return sim->status;
-    if (rows_needed(sim, n_samples) > 0u && (log == 0 || sim->n_rows + rows_needed(sim, n_samples) > log_rows)) {
-        return P2D_SIM_ERR_LOG_FULL;
-    }
-    if (sim->fma) {
+    if (!log_room(sim, n_samples, log, log_rows)) return P2D_SIM_ERR_LOG_FULL;
+    if (sim->cfg.log_rate == P2D_LOG_RATE_CURRENT && sim->fma) {
+        run_lone_current_fma(sim, n_samples, log, log_rows);
+    } else if (sim->cfg.log_rate == P2D_LOG_RATE_CURRENT) {
+        run_lone_current(sim, n_samples, log, log_rows);
+    } else if (sim->fma) {
         run_lone_fma(sim, n_samples, log, log_rows);
     } else {
         run_lone(sim, n_samples, log, log_rows);
@@ -1257,7 +1310,7 @@ bool p2d_sim_lockstep(const p2d_sim_t *a, const p2d_sim_t *b)
     const p2d_sim_config_t *x = &a->cfg, *y = &b->cfg;
     return a->n_speed == b->n_speed && a->n_current == b->n_current && x->Ts_current_s == y->Ts_current_s &&
            x->current_per_speed == y->current_per_speed && x->substeps == y->substeps && x->log_every == y->log_every &&
-           x->current_model == y->current_model && step_kind(a) == step_kind(b);
+           x->log_rate == y->log_rate && x->current_model == y->current_model && step_kind(a) == step_kind(b);
 }
 
 p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint64_t n_samples, double *const *logs,
@@ -1271,10 +1324,17 @@ p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint6
         if (sims[i] == 0) return P2D_SIM_ERR_NULL;
         fma = fma && sims[i]->fma;
         if (!p2d_sim_lockstep(sims[0], sims[i])) return P2D_SIM_ERR_LOCKSTEP;
-        if (rows_needed(sims[i], n_samples) > 0u &&
-            (logs[i] == 0 || sims[i]->n_rows + rows_needed(sims[i], n_samples) > log_rows[i])) {
-            return P2D_SIM_ERR_LOG_FULL;
+        if (!log_room(sims[i], n_samples, logs[i], log_rows[i])) return P2D_SIM_ERR_LOG_FULL;
+    }
+    if (sims[0]->cfg.log_rate == P2D_LOG_RATE_CURRENT) {
+        for (uint32_t i = 0; i < n_sims; ++i) {
+            if (fma) {
+                run_lone_current_fma(sims[i], n_samples, logs[i], log_rows[i]);
+            } else {
+                run_lone_current(sims[i], n_samples, logs[i], log_rows[i]);
+            }
         }
+        return P2D_SIM_OK;
     }
     memset(&L, 0, sizeof L);
     for (uint32_t i = 0; i < n_sims; i += P2D_SIM_LANES) {

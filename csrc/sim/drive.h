@@ -37,7 +37,9 @@
  * across the drives (plant_inline.h's step, the same arithmetic as a lone
  * drive's: every log is bit for bit that of p2d_sim_run). A period in which
  * a drive's load has a breakpoint runs each drive on its own; a drive that
- * stops leaves the group, the others run on.
+ * stops leaves the group, the others run on. Drives logging at the current
+ * rate run one after the other, each in the loop's copy that logs every
+ * current period (the default loop has no test for it).
  *
  * Initial state: the drive is in steady state at the speed w_m0 before
  * t = 0, with the reference equal to w_m0 and no load: the speed controller is
@@ -81,19 +83,25 @@
  * LSB. The log holds its outputs in Nm and A as its integers say, and its integrator x - Fr0 r
  * from its integers (x in its LSBs, Fr0 as its mantissa and shift).
  *
- * Log: one row for every log_every-th speed sample, starting with sample 0,
- * in a column-major buffer of P2D_LOG_COUNT columns of log_rows doubles
- * (column c of row r at log[c * log_rows + r]), so that every signal is a
- * contiguous array. Row k holds the plant state at t_k
- * (before the plant moves), the speed controller's outputs of sample k, its
- * integrator after the update of sample k, the voltage applied over the
- * current period starting at t_k (first_order: the voltage eq 1 needs to
- * make the currents follow eq 3 at t_k, unlimited), the load at t_k, the
- * speed reading of sample k, the DC link over that current period, and the
- * share of the speed period's current periods at the voltage limit (the
- * current controller's voltage-vector limit active, or the inverter cutting a
- * delayed command; first_order: the voltage that eq 1 needs for eq 3 beyond the
- * inverter's range, a sign that eq 3 does not describe the drive there).
+ * Log: one row for every log_every-th speed sample (log_rate SPEED), or for
+ * every log_every-th current period (log_rate CURRENT), starting with the
+ * first, in a column-major buffer of P2D_LOG_COUNT columns of log_rows
+ * doubles (column c of row r at log[c * log_rows + r]), so that every signal
+ * is a contiguous array. The row of the current period starting at t (at
+ * the speed rate: t = t_k of speed sample k) holds the plant state at t
+ * (before the plant moves), the outputs of the last speed sample (at or
+ * before t: the speed controller's command, its integrator after the
+ * update, the reference and the speed reading it sampled, the estimator),
+ * the voltage applied over the current period starting at t (first_order:
+ * the voltage eq 1 needs to make the currents follow eq 3 at t, unlimited),
+ * the load at t, the DC link over that current period, and the share of
+ * the speed sample's current periods at the voltage limit (the current
+ * controller's voltage-vector limit active, or the inverter cutting a
+ * delayed command; first_order: the voltage that eq 1 needs for eq 3 beyond
+ * the inverter's range, a sign that eq 3 does not describe the drive there),
+ * written into every row of that speed sample. The log rate changes which
+ * rows are written, nothing else: the row of a speed sample's first current
+ * period at the current rate is bit for bit its row at the speed rate.
  *
  * Stops (p2d_sim_run returns the code, sim->t_stop_s holds the time):
  *   P2D_SIM_STOP_NONFINITE         a state variable is NaN or infinite;
@@ -140,6 +148,11 @@ typedef enum {
     P2D_ARITHMETIC_Q15 = 1,     /* p2d_speed_q15_* (speed_fixed.h): int16 data, int32 arithmetic */
     P2D_ARITHMETIC_Q31 = 2      /* p2d_speed_q31_* (speed_fixed.h): int32 data, int64 arithmetic */
 } p2d_arithmetic_t;
+/* Rate of the log's rows; log_every counts rows of that rate. */
+typedef enum {
+    P2D_LOG_RATE_SPEED = 0,  /* a row per speed sample */
+    P2D_LOG_RATE_CURRENT = 1 /* a row per current period */
+} p2d_log_rate_t;
 
 /* Outcome of p2d_sim_init (configuration errors) and p2d_sim_run (stops). */
 typedef enum {
@@ -185,6 +198,7 @@ typedef enum {
     P2D_SIM_ERR_E_QUIET,            /* adapt.e_quiet_radps */
     P2D_SIM_ERR_LOCKSTEP,           /* p2d_sim_run_many: drives of different shapes (p2d_sim_lockstep) */
     P2D_SIM_ERR_ARITHMETIC,         /* arithmetic (and what fixed point does not support) */
+    P2D_SIM_ERR_LOG_RATE,           /* log_rate */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
@@ -266,7 +280,8 @@ typedef struct {
     double Ts_current_s;               /* current-controller and PWM period [s], > 0 */
     uint32_t current_per_speed;        /* Ts_speed / Ts_current [-], >= 1 */
     uint32_t substeps;                 /* RK4 steps per current period [-], >= 1 */
-    uint32_t log_every;                /* log one speed sample in log_every [-], >= 1 */
+    uint32_t log_every;                /* log one speed sample (or current period) in log_every [-], >= 1 */
+    p2d_log_rate_t log_rate;           /* SPEED or CURRENT: the rows log_every counts; 0: SPEED */
     double w_m0_radps;                 /* initial speed [rad/s], finite */
     p2d_schedule_t reference;          /* speed reference [rad/s] */
     p2d_schedule_t load;               /* load torque [Nm] */
@@ -340,7 +355,8 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg);
  * Run n_samples speed samples, appending rows to the column-major log
  * (P2D_LOG_COUNT columns of log_rows doubles, the same buffer on every call). Returns
  * P2D_SIM_OK or the stop code; after a stop every call returns that code. P2D_SIM_ERR_LOG_FULL
- * (nothing run) when the log has no room for the rows of the n_samples samples.
+ * (nothing run) when the log has no room for the rows of the n_samples samples (at the current
+ * rate: of their n_samples current_per_speed current periods).
  */
 p2d_sim_status_t p2d_sim_run(p2d_sim_t *sim, uint64_t n_samples, double *log, uint64_t log_rows);
 
@@ -359,7 +375,7 @@ p2d_sim_status_t p2d_sim_run_many(p2d_sim_t *const *sims, uint32_t n_sims, uint6
 
 /*
  * Whether a and b can run in lockstep: both initialized, at the same speed sample, with equal
- * Ts_current_s, current_per_speed, substeps, log_every, current model, mechanics model and
+ * Ts_current_s, current_per_speed, substeps, log_every, log_rate, current model, mechanics model and
  * Coulomb friction (present or not).
  */
 bool p2d_sim_lockstep(const p2d_sim_t *a, const p2d_sim_t *b);

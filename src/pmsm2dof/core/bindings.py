@@ -26,6 +26,7 @@ __all__ = [
     "FEEDFORWARDS",
     "Feedforward",
     "LOG_COLUMNS",
+    "LOG_RATES",
     "MECHANICS_MODELS",
     "METHODS",
     "Method",
@@ -121,5 +122,7 @@ FEEDBACKS = enum_names("p2d_feedback_t", "P2D_FEEDBACK_")
 #: Arithmetic of the engine's speed controller (``p2d_arithmetic_t``): the float32 controller, or the
 #: fixed-point Q15 or Q31 one (speed_fixed.h).
 ARITHMETICS = enum_names("p2d_arithmetic_t", "P2D_ARITHMETIC_")
+#: Rates of the engine's log rows (``p2d_log_rate_t``): a row per speed sample, or per current period.
+LOG_RATES = enum_names("p2d_log_rate_t", "P2D_LOG_RATE_")
 #: Names of the columns of the engine's log, with their units (``p2d_sim_log_name``).
 LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))

@@ -30,6 +30,10 @@ it); a non-uniform sampling is kept as it is (the consumers use the time column)
 reported; a speed quantized coarser than the step figures need (:func:`speed_resolution_rpm`, an
 encoder's counts differenced over the sampling period) is reported with its resolution. Times must
 increase.
+
+A trace that pmsm2dof wrote with its scenario (``Result.save`` to NPZ or MAT: ``scenario_toml``)
+gives the period of its drive's current loop, :attr:`Log.current_period_s`: the period over which
+its voltage holds, which :mod:`pmsm2dof.studies.electrical` compares with the rows' spacing.
 """
 
 import dataclasses
@@ -42,8 +46,9 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError, format_bytes
-from ..inputs import check_file
+from ..inputs import check_file, parse_toml
 from .plausibility import STEADY_SPREAD
+from .scenario import Scenario
 from .simulate import RPM_PER_RADPS
 
 #: A time step longer than this many median steps is a gap in the log.
@@ -101,6 +106,9 @@ class Log:
     voltage_limited : ndarray or None
         Share of the row's periods whose voltage the inverter cut to its range [-] (0 or 1 in a
         log that flags each period), or None.
+    current_period_s : float or None
+        The current loop's period of the drive that logged it [s] (``current_loop.Ts_s`` of a
+        pmsm2dof trace's scenario), or None when the file does not say.
     """
 
     source: str
@@ -120,6 +128,7 @@ class Log:
     gaps: tuple[tuple[float, float], ...]
     notes: tuple[str, ...]
     voltage_limited: np.ndarray | None = None
+    current_period_s: float | None = None
 
     @property
     def dt_s(self) -> float:
@@ -374,4 +383,16 @@ def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
         gaps=gaps,
         notes=tuple(notes),
         voltage_limited=raw.get("voltage_limited"),
+        current_period_s=_current_period_s(table, file),
     )
+
+
+def _current_period_s(table: Mapping[str, np.ndarray], file: Path) -> float | None:
+    """``current_loop.Ts_s`` of the scenario a pmsm2dof trace carries (``scenario_toml``), or None."""
+    if "scenario_toml" not in table:
+        return None
+    text = str(np.asarray(table["scenario_toml"]).reshape(-1)[0])
+    try:
+        return float(Scenario.from_dict(parse_toml(text, "log", str(file))).data["current_loop"]["Ts_s"])
+    except ConfigError:
+        return None

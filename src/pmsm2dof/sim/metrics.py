@@ -59,6 +59,12 @@ start ``t_s`` over a window that ends at the next schedule entry or fault after 
   rule);
 - ``current_limit_time_s`` as above.
 
+A log at the current rate (``simulation.log_rate = "current"``) is measured on all its rows (the
+speed between the speed controller's samples too: a dip or a crossing between two samples is
+seen where it happens); what is counted in the speed controller's samples is counted in the rows
+at its sampling instants: the samples that tell a steady state (:data:`STEADY_SAMPLES_MIN`) and
+the chatter of its command, which holds between them.
+
 A figure that cannot be computed (no change at the step, the speed did not reach or did not
 settle before the window ends) is ``{"value": None, "reason": "..."}``, never NaN; a computed one
 is ``{"value": x}``. Speeds are in rpm, as in the scenario and the trace.
@@ -296,19 +302,38 @@ class _Span:
         return tw, [np.interp(tw, t, s) for s in signals]
 
 
-def _too_short(tw: _Vector) -> str:
-    """Why the window ``tw`` is too short to tell a steady state, or empty (:data:`STEADY_SAMPLES_MIN`)."""
-    n = int(np.count_nonzero(tw[1:] >= tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0])))
+def _too_short(tw: _Vector, t_samples: _Vector) -> str:
+    """Why the window ``tw`` is too short to tell a steady state, or empty (:data:`STEADY_SAMPLES_MIN`).
+
+    ``t_samples`` are the times of the rows at the speed controller's samples (:func:`speed_sample_rows`):
+    its samples are what a steady state of the speed loop is told from.
+    """
+    inside = t_samples[(t_samples > tw[0]) & (t_samples <= tw[-1])]
+    n = int(np.count_nonzero(inside >= tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0])))
     if n >= STEADY_SAMPLES_MIN:
         return ""
     return (
-        f"the window to the next event ({tw[0]:g} to {tw[-1]:g} s) is too short: {n} logged samples in its last "
-        f"{100 * STEADY_FRACTION:g} %, at least {STEADY_SAMPLES_MIN} needed to tell a steady state"
+        f"the window to the next event ({tw[0]:g} to {tw[-1]:g} s) is too short: {n} logged speed-controller "
+        f"samples in its last {100 * STEADY_FRACTION:g} %, at least {STEADY_SAMPLES_MIN} needed to tell a steady state"
     )
+
+
+def speed_sample_rows(data: Mapping[str, Any], rows: int) -> npt.NDArray[np.bool_]:
+    """Which of the ``rows`` rows of a run's log are at the speed controller's sampling instants.
+
+    Every row at the speed rate; at the current rate (``simulation.log_rate = "current"``) row ``r``
+    starts the current period ``r log_every``, a speed sample when ``current_per_speed`` divides it.
+    """
+    if data["simulation"]["log_rate"] == "speed":
+        return np.ones(rows, bool)
+    per_speed = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
+    mask: npt.NDArray[np.bool_] = (np.arange(rows, dtype=np.int64) * data["simulation"]["log_every"]) % per_speed == 0
+    return mask
 
 
 def _reference_step(
     t: _Vector,
+    t_samples: _Vector,
     speed: _Vector,
     ref: _Vector,
     limited: npt.NDArray[np.bool_],
@@ -325,7 +350,7 @@ def _reference_step(
     t1 = span.t_end
     step = after - w[0]
     result: dict[str, _Figure] = {}
-    short = _too_short(tw)
+    short = _too_short(tw, t_samples)
     if after == before or abs(step) <= 1e-3 * abs(after - before):
         reason = (
             "the reference does not change"
@@ -365,6 +390,7 @@ def _reference_step(
 
 def _load_step(
     t: _Vector,
+    t_samples: _Vector,
     speed: _Vector,
     ref: _Vector,
     limited: npt.NDArray[np.bool_],
@@ -381,7 +407,7 @@ def _load_step(
     t1 = span.t_end
     e = r - w
     result: dict[str, _Figure] = {}
-    short = _too_short(tw)
+    short = _too_short(tw, t_samples)
     if after == before:
         result.update({n: _missing("the load torque does not change") for n in names[:4]})
     else:
@@ -423,6 +449,7 @@ def _load_step(
 
 def _fault(
     t: _Vector,
+    t_samples: _Vector,
     speed: _Vector,
     ref: _Vector,
     limited: npt.NDArray[np.bool_],
@@ -456,7 +483,7 @@ def _fault(
     else:
         result.update({"speed_deviation_rpm": _value(e[k]), "deviation_time_s": _value(tw[k] - t0)})
         tr, (wr, rr) = after.samples(t, speed, ref)
-        short = _too_short(tr)
+        short = _too_short(tr, t_samples)
         t_rec = None if short else _entry_into_band(tr, rr - wr, BAND * e[k])
         if short:
             result["recovery_time_s"] = _missing(short)
@@ -549,20 +576,29 @@ def chatter(command: _Vector, limit: float, quiet: npt.NDArray[np.bool_] | None 
 
 
 def _chatter_figure(
-    t: _Vector, iq_ref: _Vector, i_max_A: float, log_every: int, times: Sequence[float], tol: float
+    t: _Vector, iq_ref: _Vector, data: Mapping[str, Any], times: Sequence[float], tol: float
 ) -> _Figure:
-    """``chatter_share`` of a run: :func:`chatter` of the q current command, quiet at the events."""
-    if log_every > 1:
+    """``chatter_share`` of a run: :func:`chatter` of the q current command at the speed controller's samples
+    (the rows of :func:`speed_sample_rows`, ``t`` and ``iq_ref`` already those), quiet at the events."""
+    log_every = data["simulation"]["log_every"]
+    per_speed = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
+    if data["simulation"]["log_rate"] == "speed" and log_every > 1:
         return _missing(
             f"the trace logs every {log_every}th speed-controller sample: a reversal from one sample to the "
             "next needs every sample (simulation.log_every = 1)"
+        )
+    if data["simulation"]["log_rate"] == "current" and per_speed % log_every != 0:
+        return _missing(
+            f"the trace logs every {log_every}th current period, which does not divide the speed-controller "
+            "period: a reversal from one sample to the next needs every sample (a simulation.log_every that "
+            "divides speed_controller.Ts_s / current_loop.Ts_s)"
         )
     # the two samples from each event on, and the one before, step on purpose
     quiet = np.zeros(t.shape, bool)
     for x in times:
         k = int(np.searchsorted(t, x - tol))
         quiet[max(k - 1, 0) : k + 2] = True
-    return _value(chatter(iq_ref, i_max_A, quiet))
+    return _value(chatter(iq_ref, data["limits"]["i_max_A"], quiet))
 
 
 def _chatter_warning(figure: _Figure) -> list[str]:
@@ -611,6 +647,8 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     ref = _trace(result, "speed_ref_rpm")
     limited = at_current_limit(result)
     data = result.scenario.data
+    at_samples = speed_sample_rows(data, t.size)
+    t_samples = t[at_samples]
     ref_events = _schedule(data["reference"], "speed_rpm")
     load_events = _schedule(data["load"], "torque_Nm")
     times = event_times(data)
@@ -620,19 +658,21 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
         return _Span.of(t, t0, _next_event(times, t0, tol), tol)
 
     chatter_share = _chatter_figure(
-        t,
-        _trace(result, "iq_ref_A"),
-        data["limits"]["i_max_A"],
-        data["simulation"]["log_every"],
+        t_samples,
+        _trace(result, "iq_ref_A")[at_samples],
+        data,
         [*times, *_fault_ends(data)],
         tol,
     )
     return {
         "scenario": data["name"],
-        "reference_steps": [_reference_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
-        "load_steps": [_load_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in load_events],
+        "reference_steps": [
+            _reference_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events
+        ],
+        "load_steps": [_load_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in load_events],
         "faults": [
-            _fault(t, speed, ref, limited, f, end, span(end)) for f, end in zip(data["fault"], _fault_ends(data))
+            _fault(t, t_samples, speed, ref, limited, f, end, span(end))
+            for f, end in zip(data["fault"], _fault_ends(data))
         ],
         "run": {
             "t_end_s": float(t[-1]),
@@ -674,7 +714,7 @@ def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
     chatter_share = _missing("a log's rows need not be the speed controller's samples")
     return {
         "scenario": log.source,
-        "reference_steps": [_reference_step(t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
+        "reference_steps": [_reference_step(t, t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
         "load_steps": [],
         "faults": [],
         "run": {

@@ -54,6 +54,7 @@ from ..core import (
     FAULT_KINDS,
     FEEDBACKS,
     FEEDFORWARDS,
+    LOG_RATES,
     MECHANICS_MODELS,
     METHODS,
     SPEED_SENSOR_MODELS,
@@ -408,7 +409,23 @@ SCHEMA = (
         default=SameAs("current_loop.Ts_s"),
         gt=0,
     ),
-    Field("simulation.log_every", int, "log every n-th speed-controller sample", default=1, ge=1, le=10**9),
+    Field(
+        "simulation.log_every",
+        int,
+        "log every n-th row of simulation.log_rate: speed-controller sample (speed) or current period (current) [-]",
+        default=1,
+        ge=1,
+        le=10**9,
+    ),
+    Field(
+        "simulation.log_rate",
+        str,
+        "rate of the log's rows: speed (a row per speed_controller.Ts_s) or current (a row per current_loop.Ts_s, "
+        "to see the currents and voltages within a speed period; the controllers and the run are the same at "
+        "either rate)",
+        default="speed",
+        choices=LOG_RATES,
+    ),
     Field("simulation.speed0_rpm", float, "initial speed [rpm]", default=0.0),
     # commissioning: `pmsm2dof commission` runs the C routine of commission.h against this motor; absent
     # values are derived from the scenario (pmsm2dof.sim.commission.commissioning_config); no other run reads them

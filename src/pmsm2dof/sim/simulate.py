@@ -28,11 +28,17 @@ Sampling and integration
     1e-4 of the speed for the paper's drive (tests/test_engine.py halves it).
 
 Log
-    One row per ``simulation.log_every`` speed-controller samples, starting at t = 0: the plant
-    state at the sampling instant, the speed controller's outputs of that sample, its integrator
-    after the update, the voltage applied over the current period that starts there
-    (``first_order``: the voltage eq 1 needs for the current slopes of eq 3, not limited) and the
-    load torque.
+    One row per ``simulation.log_every`` speed-controller samples (``simulation.log_rate =
+    "speed"``, the default) or current periods (``"current"``), starting at t = 0: the plant state
+    at the row's instant, the outputs of the speed controller's last sample at or before it (its
+    command, its integrator after the update, the reference and speed reading it sampled), the
+    voltage applied over the current period that starts there (``first_order``: the voltage eq 1
+    needs for the current slopes of eq 3, not limited) and the load torque. The rate chooses the
+    rows and nothing else: the controllers run as they do at the speed rate, and the row of a speed
+    sample is bit for bit the same at either rate. At the current rate the currents and voltages
+    are seen over every current period (ripple, the voltage balance of eq 1 that
+    :mod:`pmsm2dof.studies.electrical` fits); the log takes ``speed_controller.Ts_s /
+    current_loop.Ts_s`` times the rows.
 
 Faults
     The scenario's ``[[fault]]`` entries (:data:`pmsm2dof.core.FAULT_KINDS`): a DC-link sag
@@ -102,6 +108,7 @@ from ..core import (
     FEEDBACKS,
     FEEDFORWARDS,
     LOG_COLUMNS,
+    LOG_RATES,
     MECHANICS_MODELS,
     METHODS,
     SPEED_SENSOR_MODELS,
@@ -233,6 +240,7 @@ _SIM_KEYS = {
     "current_per_speed": "speed_controller.Ts_s",
     "substeps": "simulation.dt_s",
     "log_every": "simulation.log_every",
+    "log_rate": "simulation.log_rate",
     "w_m0_radps": "simulation.speed0_rpm",
     "reference": "reference",
     "load": "load",
@@ -307,7 +315,8 @@ class Result:
         The scenario simulated.
     wall_time_s : float
         Wall-clock time of the run [s].
-    t_s : time of the row, a speed-controller sampling instant [s]
+    t_s : time of the row [s]: a speed-controller sampling instant, or the start of a current period
+        (``simulation.log_rate = "current"``)
     speed_ref_rpm : speed reference sampled by the speed controller [rpm]
     speed_rpm, w_m_radps : mechanical speed [rpm], [rad/s]
     id_ref_A, iq_ref_A : current command of the speed controller [A]
@@ -327,7 +336,8 @@ class Result:
         DC-link sag) [V]
     voltage_limited : share of the current periods of the row's speed sample whose voltage was cut
         to the inverter's range ``u_dc / sqrt(3)`` [-], in [0, 1] (``first_order``: whose voltage of
-        eq 1 exceeded that range, which eq 3 ignores)
+        eq 1 exceeded that range, which eq 3 ignores); at the current rate every row of a speed
+        sample holds its share
     load_speed_rpm : load-side speed of the two-mass train [rpm] (rigid: speed_rpm)
     shaft_torque_Nm : torque the shaft carries from motor to load [Nm] (rigid: load_Nm)
     """
@@ -541,10 +551,18 @@ def simulate_many(scenarios: Sequence[Scenario]) -> list["Result | SimulationErr
 
 
 def log_rows(data: Tree) -> tuple[int, int]:
-    """The speed samples of the scenario data ``data`` and the rows of its log."""
+    """The speed samples of the scenario data ``data`` and the rows of its log (at its ``simulation.log_rate``)."""
     sc, sim = data["speed_controller"], data["simulation"]
     n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
-    return n_samples, -(-n_samples // sim["log_every"])
+    return n_samples, -(-row_periods(data, n_samples) // sim["log_every"])
+
+
+def row_periods(data: Tree, n_samples: int) -> int:
+    """The speed samples (log rate ``speed``) or current periods (``current``) of ``n_samples`` speed samples."""
+    if data["simulation"]["log_rate"] == "speed":
+        return n_samples
+    per_speed: int = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
+    return n_samples * per_speed
 
 
 class Simulation:
@@ -585,12 +603,15 @@ class Simulation:
                 f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl['Ts_s'] / SUBSTEPS_MAX:g} s",
             )
         self.n_samples, rows = log_rows(data)
+        self._periods = row_periods(data, self.n_samples)
+        # the rows to t_end_s: at the current rate the periods of the last speed sample after t_end_s are left out
+        self._rows_to_end = (self._periods - self._periods // self.n_samples) // sim["log_every"] + 1
         if rows * lib.P2D_LOG_COUNT * 8 > LOG_BYTES_MAX:
-            least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // LOG_BYTES_MAX)
+            least = -(-self._periods * lib.P2D_LOG_COUNT * 8 // LOG_BYTES_MAX)
             raise ConfigError(
                 "simulation.log_every",
                 sim["log_every"],
-                f">= {least}: the log of {rows} rows would exceed {LOG_BYTES_MAX / 1024**3:g} GiB",
+                f">= {least}: the log of {rows} rows{self._rate_text()} would exceed {LOG_BYTES_MAX / 1024**3:g} GiB",
             )
 
         cfg = ffi.new("p2d_sim_config_t *")
@@ -606,6 +627,7 @@ class Simulation:
         cfg.current_per_speed = current_per_speed
         cfg.substeps = substeps
         cfg.log_every = sim["log_every"]
+        cfg.log_rate = LOG_RATES.index(sim["log_rate"])
         cfg.w_m0_radps = sim["speed0_rpm"] / RPM_PER_RADPS
         self._schedules = [
             _schedule(cfg.reference, data["reference"], "speed_rpm", 1.0 / RPM_PER_RADPS),
@@ -659,15 +681,25 @@ class Simulation:
         try:
             self.log = np.zeros((lib.P2D_LOG_COUNT, rows))
         except MemoryError:
-            least = -(-self.n_samples * lib.P2D_LOG_COUNT * 8 // (LOG_BYTES_MAX // 8))
+            least = -(-self._periods * lib.P2D_LOG_COUNT * 8 // (LOG_BYTES_MAX // 8))
             raise ConfigError(
                 "simulation.log_every",
                 sim["log_every"],
-                f"large enough for the log to fit in the memory this process may use: {rows} rows need "
-                f"{format_bytes(rows * lib.P2D_LOG_COUNT * 8)} (log_every >= {least} keeps it below "
+                f"large enough for the log to fit in the memory this process may use: {rows} rows"
+                f"{self._rate_text()} need {format_bytes(rows * lib.P2D_LOG_COUNT * 8)} (log_every >= {least} "
+                "keeps it below "
                 f"{format_bytes(LOG_BYTES_MAX // 8)})",
             ) from None
         self._log_ptr = ffi.cast("double *", ffi.from_buffer(self.log))
+
+    def _rate_text(self) -> str:
+        """How the rows of a log at the current rate come about, for a message ("" at the speed rate)."""
+        if self.data["simulation"]["log_rate"] == "speed":
+            return ""
+        return (
+            f" (simulation.log_rate = 'current': a row every {self.data['simulation']['log_every']} of the "
+            f"{self._periods} current periods, {self.current_per_speed} per speed sample)"
+        )
 
     def advance(self, n_samples: int) -> None:
         """Run ``n_samples`` speed-controller samples (one C call, GIL released)."""
@@ -677,7 +709,7 @@ class Simulation:
 
     def signals(self) -> dict[str, npt.NDArray[Any]]:
         """The log so far as the named arrays of :class:`Result`, rpm at the edge (:data:`RPM_SIGNALS`)."""
-        return log_signals(self.log[:, : self.sim.n_rows])
+        return log_signals(self.log[:, : min(self.sim.n_rows, self._rows_to_end)])
 
     def result(self, scenario: Scenario, wall_time_s: float) -> Result:
         """The :class:`Result` of the log so far, for ``scenario`` (the one this run was built from)."""

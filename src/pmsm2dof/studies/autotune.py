@@ -842,9 +842,9 @@ class _Search:
                 key=i,
                 base="scenario",
                 overrides=c.overrides()
-                # every sample logged: a chattering command shows from one sample to the next
+                # every speed sample logged, no more: a chattering command shows from one sample to the next
                 | {"motor.J_kgm2": r * self.J_design_kgm2, "speed_controller.J_kgm2": self.J_design_kgm2}
-                | {"simulation.log_every": 1},
+                | {"simulation.log_every": 1, "simulation.log_rate": "speed"},
                 label=f"autotune candidate {c.speed_controller()} at J ratio {r:.4g}",
             )
             for i, (c, r) in enumerate(todo)

@@ -266,7 +266,7 @@ def configuration(scenario: Scenario, *, source: str = "", notes: tuple[str, ...
             "fixed-point one is configured by p2d_speed_fixed_config_t (speed_fixed.h)",
         )
     data["current_loop"] = {**data["current_loop"], "model": "dq_pi"}
-    data["simulation"] = {**data["simulation"], "log_every": _LOG_EVERY_ONE_ROW}
+    data["simulation"] = {**data["simulation"], "log_every": _LOG_EVERY_ONE_ROW, "log_rate": "speed"}
     return Configuration(scenario=scenario, source=source, notes=tuple(notes), engine=Simulation(data))
 
 

@@ -26,7 +26,16 @@ relation over the ``M`` pairs of instants ``a + j``, ``b + j`` of two blocks ``N
 ``sqrt(M)`` (the errors-in-variables bias of Ld and Lq stays small).
 
 Voltage: held over the sample period that starts at its time (a zero-order hold: the voltage
-integral is a sum over whole periods); a log that records the voltage computed at a sample and
+integral is a sum over whole periods), so the log needs a row per period of the voltage, the
+current loop's. A log whose rows are further apart (the speed controller's samples, while the
+current controller changes the voltage several times between them) breaks that hold: the engine's
+log of the servo at 10 current periods per speed sample gives Lq 3 % high and Ld 2 % low, with no
+sign in the residuals. Such a log is refused when the file gives the current loop's period
+(:attr:`~pmsm2dof.sim.logs.Log.current_period_s`, a pmsm2dof trace saved with its scenario), and
+noted when its speed controller's command ``iq_ref_A`` changes from row to row, as it does at the
+speed controller's rate and never at a faster one, where it holds over the current periods of a
+speed sample (:data:`COMMAND_CHANGES_MAX`); pmsm2dof's engine logs every current
+period with ``simulation.log_rate = "current"``. A log that records the voltage computed at a sample and
 applied ``d`` periods later (``voltage_delay_samples``) is shifted by ``d`` samples first.
 pmsm2dof's own engine logs the dq voltage applied over the period that starts at the row, after its
 computation delay (``inverter.computation_delay``): its logs take ``voltage_delay_samples = 0``
@@ -160,6 +169,15 @@ RANGES_MAX = 10
 
 #: Largest ``|angle_lead_samples|``.
 ANGLE_LEAD_MAX = 10.0
+
+#: A logged ``iq_ref_A`` whose changes are followed by another at the next row more often than this share changes
+#: at every speed-controller sample: the rows are those samples (at a faster rate the command holds over the rows
+#: of a sample, and no change follows another).
+COMMAND_CHANGES_MAX = 0.5
+
+#: Rows further apart than this many current periods (:attr:`~pmsm2dof.sim.logs.Log.current_period_s`) are too
+#: coarse for the voltage's hold.
+PERIODS_PER_ROW_MAX = 1.01
 
 #: What each parameter needs from the log, for the message when it is not identifiable.
 _NEEDS = {
@@ -638,6 +656,33 @@ def _saturation_notes(ranges: tuple[CurrentRange, ...]) -> list[str]:
     return notes
 
 
+def _rate_check(log: Log) -> str:
+    """Refuse a log whose rows are further apart than its drive's current period (when the file gives it); the
+    note of a log whose ``iq_ref_A`` changes at most rows (the speed controller's rate), else ""."""
+    dt = log.dt_s
+    if log.current_period_s is not None and dt > PERIODS_PER_ROW_MAX * log.current_period_s:
+        raise IdentificationError(
+            f"the log's rows are {dt:.4g} s apart, {dt / log.current_period_s:.3g} periods of its current loop "
+            f"(current_loop.Ts_s = {log.current_period_s:.4g} s), which changes the voltage at each: the fit holds "
+            "a row's voltage until the next row, so it needs a row per current period (simulate with "
+            "simulation.log_rate = 'current' and simulation.log_every = 1)"
+        )
+    if log.current_period_s is not None or log.iq_ref_A is None or len(log.t_s) < 3:
+        return ""
+    changes = np.diff(log.iq_ref_A) != 0.0
+    n_changes = int(np.count_nonzero(changes[:-1]))
+    share = float(np.count_nonzero(changes[:-1] & changes[1:]) / n_changes) if n_changes else 0.0
+    if share <= COMMAND_CHANGES_MAX:
+        return ""
+    return (
+        f"iq_ref_A changes again at the next row after {100 * share:.3g} % of its changes (rows {dt:.4g} s apart): "
+        "the rows look like the speed "
+        "controller's samples; the fit holds a row's voltage until the next row, so if the current loop runs "
+        "faster, its voltage changed between the rows and the estimates are biased (a few %): log every current "
+        "period (pmsm2dof: simulation.log_rate = 'current')"
+    )
+
+
 def identify_electrical(
     log: Log,
     pole_pairs: int,
@@ -696,6 +741,7 @@ def identify_electrical(
         raise ConfigError("u_dc_V", u_dc_V, "a finite voltage > 0 [V]")
     if current_ranges is not None and not 1 <= current_ranges <= RANGES_MAX:
         raise ConfigError("current_ranges", current_ranges, f"an integer in [1, {RANGES_MAX}]")
+    rate_note = _rate_check(log)
     n_total = len(log.t_s)
     if window_samples is None:
         window_samples = max(8, n_total // 960)
@@ -765,7 +811,7 @@ def identify_electrical(
                 f"deviation {s:.3g}; it needs a log where {_NEEDS[name]}"
             )
     ci = {name: (float(v - q * s), float(v + q * s)) for name, v, s in zip(names, theta, sd, strict=True)}
-    notes = []
+    notes = [rate_note] if rate_note else []
     if not has_limit_source and stuck >= STUCK_SAMPLES:
         notes.append(
             f"|u_dq| sits at its largest value in {stuck} samples: if the drive logged its reference "

@@ -102,6 +102,12 @@ def check_virtual_drive(scenario: Scenario) -> None:
         )
     if data["fault"]:
         raise ConfigError("fault", f"<{len(data['fault'])} entries>", "none: the virtual board plays no fault")
+    if data["simulation"]["log_rate"] != "speed":
+        raise ConfigError(
+            "simulation.log_rate",
+            data["simulation"]["log_rate"],
+            "'speed' for the firmware: its trace holds a row per speed sample",
+        )
     ss = data["speed_sensor"]
     for key in ("delay_s", "noise_rpm_rms"):
         if ss[key] != 0.0:

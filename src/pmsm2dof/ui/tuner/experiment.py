@@ -366,8 +366,8 @@ class Tuner:
 
     @staticmethod
     def logged(scenario: Scenario) -> Scenario:
-        """The scenario as the tuner simulates it: ``simulation.log_every`` raised to log at most
-        :data:`LOG_ROWS_MAX` rows.
+        """The scenario as the tuner simulates it: at the speed rate (``simulation.log_rate``), its
+        ``simulation.log_every`` raised to log at most :data:`LOG_ROWS_MAX` rows.
 
         Raises
         ------
@@ -387,8 +387,9 @@ class Tuner:
                 f"steps of {h_s:g} s per run (pmsm2dof simulate runs longer ones)",
             )
         n_samples = math.floor(sim["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
-        log_every = max(sim["log_every"], -(-n_samples // LOG_ROWS_MAX))
-        return scenario.with_overrides({"simulation.log_every": log_every})
+        # the tuner's figures and metrics are the speed loop's: a row per speed sample at most
+        log_every = max(sim["log_every"] if sim["log_rate"] == "speed" else 1, -(-n_samples // LOG_ROWS_MAX))
+        return scenario.with_overrides({"simulation.log_every": log_every, "simulation.log_rate": "speed"})
 
     # ---- runs ------------------------------------------------------------------------
 
