@@ -60,6 +60,8 @@ def speed_rows(rows, log_every):
         {"mechanics.model": "two_mass", "mechanics.J_load_kgm2": 1e-4, "mechanics.stiffness_Nm_per_rad": 50.0},
         {"simulation.log_every": 5},
         {"simulation.log_every": 3},
+        {"speed_controller.arithmetic": "q31"},  # the fixed-point controller's columns
+        {"speed_controller.arithmetic": "q15"},
     ],
 )
 def test_rows_at_the_speed_samples_are_the_speed_rate_log_bit_for_bit(overrides):
