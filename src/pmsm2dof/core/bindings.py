@@ -19,6 +19,7 @@ __all__ = [
     "ANTI_WINDUPS",
     "AntiWindup",
     "CURRENT_LOOP_MODELS",
+    "ENUM_CHOICES",
     "ESTIMATORS",
     "FAULT_KINDS",
     "FEEDBACKS",
@@ -119,3 +120,17 @@ MECHANICS_MODELS = enum_names("p2d_mechanics_model_t", "P2D_MECHANICS_")
 FEEDBACKS = enum_names("p2d_feedback_t", "P2D_FEEDBACK_")
 #: Names of the columns of the engine's log, with their units (``p2d_sim_log_name``).
 LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))
+
+#: The choices of every enum type of the C configurations, indexed by their C value: what a field of
+#: that type takes (:func:`pmsm2dof.core.controllers.set_fields`).
+ENUM_CHOICES: dict[str, tuple[str, ...]] = {
+    "p2d_method_t": METHODS,
+    "p2d_feedforward_t": FEEDFORWARDS,
+    "p2d_anti_windup_t": ANTI_WINDUPS,
+    "p2d_estimator_t": ESTIMATORS,
+    "p2d_speed_sensor_model_t": SPEED_SENSOR_MODELS,
+    "p2d_current_model_t": CURRENT_LOOP_MODELS,
+    "p2d_fault_kind_t": FAULT_KINDS,
+    "p2d_mechanics_model_t": MECHANICS_MODELS,
+    "p2d_feedback_t": FEEDBACKS,
+}

@@ -26,10 +26,7 @@ import numpy.typing as npt
 
 from ..errors import ConfigError
 from .bindings import (
-    ANTI_WINDUPS,
-    ESTIMATORS,
-    FEEDFORWARDS,
-    METHODS,
+    ENUM_CHOICES,
     AntiWindup,
     Feedforward,
     Method,
@@ -38,14 +35,6 @@ from .bindings import (
     lib,
     struct_fields,
 )
-
-#: The choices of each enum type of the C configurations, indexed by their C value.
-_CHOICES = {
-    "p2d_method_t": METHODS,
-    "p2d_feedforward_t": FEEDFORWARDS,
-    "p2d_anti_windup_t": ANTI_WINDUPS,
-    "p2d_estimator_t": ESTIMATORS,
-}
 
 
 def _float_param(name: str, value: object) -> float:
@@ -74,27 +63,36 @@ def _choice_param(name: str, value: object, choices: Sequence[str]) -> int:
     return choices.index(value)
 
 
-def _set_fields(cfg: Any, fields: Mapping[str, str], params: Mapping[str, Any]) -> None:
+def set_fields(
+    cfg: Any, fields: Mapping[str, str], params: Mapping[str, Any], names: Mapping[str, str] | None = None
+) -> None:
     """Write ``params`` into the C configuration ``cfg``, field by field as its C type asks.
 
     ``fields`` maps a field to its C type (:func:`~pmsm2dof.core.bindings.struct_fields`):
-    ``float`` takes a real number, ``uint32_t`` an integer, an enum one of its names, ``_Bool``
-    True or False. Only the type is checked here: the C init checks the range.
+    ``float`` and ``double`` take a real number, ``uint32_t`` and ``uint64_t`` an integer, an enum
+    one of its names (:data:`~pmsm2dof.core.bindings.ENUM_CHOICES`), ``_Bool`` True or False. Only
+    the type is checked here: the C init checks the range. An error names ``names[field]`` (the
+    user's name of the field, e.g. a scenario key), else the field.
     """
-    for name, ctype in fields.items():
-        value = params[name]
-        if ctype == "float":
-            setattr(cfg, name, _float_param(name, value))
-        elif ctype == "uint32_t":
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) <= 0xFFFFFFFF:
-                raise ConfigError(name, value, "an integer >= 1")
-            setattr(cfg, name, int(value))
-        elif ctype in _CHOICES:
-            setattr(cfg, name, _choice_param(name, value, _CHOICES[ctype]))
-        else:  # _Bool
+    for field, ctype in fields.items():
+        value, name = params[field], (names or {}).get(field, field)
+        if ctype in ("float", "double"):
+            setattr(cfg, field, _float_param(name, value))
+        elif ctype in ("uint32_t", "uint64_t"):
+            top = 0xFFFFFFFF if ctype == "uint32_t" else 0xFFFFFFFFFFFFFFFF
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) <= top:
+                raise ConfigError(
+                    name, value, "an integer >= 1" if ctype == "uint32_t" else f"an integer in [0, {top}]"
+                )
+            setattr(cfg, field, int(value))
+        elif ctype in ENUM_CHOICES:
+            setattr(cfg, field, _choice_param(name, value, ENUM_CHOICES[ctype]))
+        elif ctype == "_Bool":
             if not isinstance(value, (bool, np.bool_)):
                 raise ConfigError(name, value, "True or False")
-            setattr(cfg, name, bool(value))
+            setattr(cfg, field, bool(value))
+        else:
+            raise TypeError(f"set_fields: field {field} has the C type {ctype}, which it does not convert")
 
 
 def _get_fields(cfg: Any, fields: Mapping[str, str]) -> dict[str, Any]:
@@ -102,8 +100,8 @@ def _get_fields(cfg: Any, fields: Mapping[str, str]) -> dict[str, Any]:
     values: dict[str, Any] = {}
     for name, ctype in fields.items():
         value = getattr(cfg, name)
-        if ctype in _CHOICES:
-            value = _CHOICES[ctype][value]
+        if ctype in ENUM_CHOICES:
+            value = ENUM_CHOICES[ctype][value]
         elif ctype == "_Bool":
             value = bool(value)
         values[name] = value
@@ -318,7 +316,7 @@ class SpeedController:
     def _c_config(params: Mapping[str, Any]) -> Any:
         """The C configuration of ``params`` (a cffi ``p2d_speed_config_t *``); type errors raise ConfigError."""
         cfg = ffi.new("p2d_speed_config_t *")
-        _set_fields(cfg, {name: t for name, t in _SPEED_CONFIG_FIELDS.items() if name != "Ka"}, params)
+        set_fields(cfg, {name: t for name, t in _SPEED_CONFIG_FIELDS.items() if name != "Ka"}, params)
         if params["Ka"] is None:
             # section 3.3: Ka = 1/Kp, computed in float32 by the C library
             cfg.Ka = lib.p2d_speed_Ka_default(cfg.J_kgm2, cfg.alpha_radps)
@@ -331,7 +329,7 @@ class SpeedController:
         """The C torque-filter configuration of ``params`` (cffi ``p2d_filter_config_t *``); type
         errors raise ConfigError."""
         filt = ffi.new("p2d_filter_config_t *")
-        _set_fields(filt, _FILTER_CONFIG_FIELDS, params)
+        set_fields(filt, _FILTER_CONFIG_FIELDS, params)
         return filt
 
     def set_config(self, **changes: Any) -> None:
@@ -603,7 +601,7 @@ class CurrentController:
     @staticmethod
     def _c_config(params: Mapping[str, Any]) -> Any:  # cffi ``p2d_current_config_t *``
         cfg = ffi.new("p2d_current_config_t *")
-        _set_fields(cfg, _CURRENT_CONFIG_FIELDS, params)
+        set_fields(cfg, _CURRENT_CONFIG_FIELDS, params)
         return cfg
 
     def set_config(self, **changes: Any) -> None:

@@ -85,20 +85,12 @@ import numpy as np
 import numpy.typing as npt
 
 from ..core import (
-    ANTI_WINDUPS,
-    CURRENT_LOOP_MODELS,
-    ESTIMATORS,
     FAULT_KINDS,
-    FEEDBACKS,
-    FEEDFORWARDS,
     LOG_COLUMNS,
-    MECHANICS_MODELS,
-    METHODS,
-    SPEED_SENSOR_MODELS,
     pi_gains,
 )
 from ..core.bindings import c_string, ffi, lib
-from ..core.controllers import float32_note
+from ..core.controllers import float32_note, set_fields
 from ..core.gains import default_Ka_error
 from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
@@ -151,68 +143,28 @@ PROGRESS_CHUNKS = 200
 #: engine runs about 5 million per second).
 PROGRESS_PERIODS_MIN = 2 * 10**6
 
-#: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
-_SPEED_KEYS = {
-    "J_kgm2": "speed_controller.J_kgm2",
-    "alpha_radps": "speed_controller.alpha_radps",
-    "zeta": "speed_controller.zeta",
-    "m": "speed_controller.m",
-    "tau_i_s": "speed_controller.tau_i_s",
-    "Ka": "speed_controller.Ka",
-    "Ts_s": "speed_controller.Ts_s",
-    "i_max_A": "limits.i_max_A",
-    "psi_f_Wb": "motor.psi_f_Wb",
-    "Ld_H": "motor.Ld_H",
-    "Lq_H": "motor.Lq_H",
-    "pole_pairs": "motor.pole_pairs",
-    "method": "speed_controller.method",
-    "feedforward": "speed_controller.feedforward",
-    "anti_windup": "speed_controller.anti_windup",
-    "notch_freq_Hz": "speed_filter.notch_freq_Hz",
-    "notch_width_Hz": "speed_filter.notch_width_Hz",
-    "notch_depth": "speed_filter.notch_depth",
-    "lowpass_freq_Hz": "speed_filter.lowpass_freq_Hz",
-    "lowpass_zeta": "speed_filter.lowpass_zeta",
+#: The scenario table of each part of the engine's configuration (``p2d_sim_config_t``, csrc/sim/drive.h):
+#: the field ``f`` of a part is the key ``<table>.f`` unless :data:`_FIELD_KEYS` names another.
+_TABLES = {
+    "motor": "motor",
+    "speed": "speed_controller",
+    "speed_filter": "speed_filter",
+    "current": "current_loop",
+    "mechanics": "mechanics",
+    "sensing.speed_sensor": "speed_sensor",
+    "sensing.speed_sensor.encoder": "speed_sensor",
+    "sensing.current_sensor": "current_measurement",
+    "sensing.field_weakening": "field_weakening",
+    "sensing.field_weakening.config": "field_weakening",
+    "adapt": "estimator",
+    "adapt.config": "estimator",
 }
 
-#: Scenario key of each field that the C current controller init can reject.
-_CURRENT_KEYS = {
-    "Rs_ohm": "motor.Rs_ohm",
-    "Ld_H": "motor.Ld_H",
-    "Lq_H": "motor.Lq_H",
-    "psi_f_Wb": "motor.psi_f_Wb",
-    "tau_i_s": "current_loop.tau_i_s",
-    "Ts_s": "current_loop.Ts_s",
-    "method": "current_loop.method",
-    "anti_windup": "current_loop.anti_windup",
-}
-
-#: Scenario key of each field that the C encoder (speed_sensor) or field weakening init can reject.
-_SENSING_KEYS = {
-    "counts_per_rev": "speed_sensor.counts_per_rev",
-    "counter_bits": "speed_sensor.counter_bits",
-    "estimator": "speed_sensor.estimator",
-    "bandwidth_radps": "speed_sensor.bandwidth_radps",
-    "lowpass_radps": "speed_sensor.lowpass_radps",
-    "Ts_s": "speed_controller.Ts_s",
-    "Kp_A_per_V": "field_weakening.Kp_A_per_V",
-    "Ki_A_per_Vs": "field_weakening.Ki_A_per_Vs",
-    "Ka_V_per_A": "field_weakening.Ka_V_per_A",
-    "voltage_ratio": "field_weakening.voltage_ratio",
-    "id_min_A": "field_weakening.id_min_A",
-}
-
-#: Scenario key of each field that p2d_sim_init can reject (p2d_sim_status_param).
-_SIM_KEYS = {
-    "motor.pole_pairs": "motor.pole_pairs",
-    "motor.Rs_ohm": "motor.Rs_ohm",
-    "motor.Ld_H": "motor.Ld_H",
-    "motor.Lq_H": "motor.Lq_H",
-    "motor.psi_f_Wb": "motor.psi_f_Wb",
-    "motor.J_kgm2": "motor.J_kgm2",
-    "motor.B_Nms": "motor.B_Nms",
-    "motor.T_coulomb_Nm": "motor.T_coulomb_Nm",
+#: The scenario key of each field of the engine's configuration that its table does not give; a
+#: key in rpm fills a field in rad/s. None: a value the engine's caller derives (:func:`_derived`).
+_FIELD_KEYS: dict[str, str | None] = {
     "u_dc_V": "limits.u_dc_V",
+    "computation_delay": "inverter.computation_delay",
     "current_model": "current_loop.model",
     "tau_i_s": "current_loop.tau_i_s",
     "Ts_current_s": "current_loop.Ts_s",
@@ -220,38 +172,81 @@ _SIM_KEYS = {
     "substeps": "simulation.dt_s",
     "log_every": "simulation.log_every",
     "w_m0_radps": "simulation.speed0_rpm",
+    "speed.i_max_A": "limits.i_max_A",
+    "speed.pole_pairs": "motor.pole_pairs",
+    "current.Rs_ohm": "motor.Rs_ohm",
+    **{f"{part}.{name}": f"motor.{name}" for part in ("speed", "current") for name in ("psi_f_Wb", "Ld_H", "Lq_H")},
+    "sensing.speed_sensor.encoder.Ts_s": "speed_controller.Ts_s",
+    "sensing.speed_sensor.noise_rms_radps": "speed_sensor.noise_rpm_rms",
+    "sensing.current_sensor.noise_rms_A": "current_measurement.noise_A_rms",
+    "sensing.field_weakening.config.Ts_s": "speed_controller.Ts_s",
+    "sensing.field_weakening.config.method": None,
+    "sensing.field_weakening.config.anti_windup": None,
+    "adapt.Ka_follows_J": "speed_controller.Ka",
+    "adapt.e_quiet_radps": "estimator.adapt_error_rpm",
+    "adapt.config.Ts_s": "speed_controller.Ts_s",
+}
+
+#: The parts of the configuration filled from the scenario's entries (:func:`_schedule`, :func:`_faults`).
+_ENTRIES = {"reference": "reference", "load": "load", "faults": "fault", "n_faults": "fault"}
+
+
+def _parts(ctype: str, path: str = "") -> dict[str, tuple[str, dict[str, str]]]:
+    """The structs of the C configuration ``ctype`` by path, each with its C type and its fields of
+    one value (``{field: C type}``), the nested structs and the scenario's entries left out."""
+    parts: dict[str, tuple[str, dict[str, str]]] = {path: (ctype, {})}
+    for name, field in ffi.typeof(ctype).fields:
+        dotted = f"{path}.{name}" if path else name
+        if field.type.kind == "struct" and dotted not in _ENTRIES:
+            parts |= _parts(field.type.cname, dotted)
+        elif field.type.kind in ("primitive", "enum") and dotted not in _ENTRIES:
+            parts[path][1][name] = field.type.cname
+    return parts
+
+
+#: The parts of ``p2d_sim_config_t`` read from its declaration: a new field needs no line here.
+_CONFIG_PARTS = _parts("p2d_sim_config_t")
+
+
+def _key(path: str) -> str | None:
+    """The scenario key of the configuration field ``path`` (None: derived)."""
+    if path in _FIELD_KEYS:
+        return _FIELD_KEYS[path]
+    part, _, name = path.rpartition(".")
+    if part not in _TABLES:
+        raise RuntimeError(f"p2d_sim_config_t.{path} has no scenario key: name it in _FIELD_KEYS or _TABLES")
+    return f"{_TABLES[part]}.{name}"
+
+
+#: The scenario key of every field of the engine's configuration, by path (checked when imported).
+_KEYS = {
+    path: _key(path)
+    for path in (f"{part}.{name}" if part else name for part, (_, fields) in _CONFIG_PARTS.items() for name in fields)
+}
+
+
+def _names(part: str) -> dict[str, str]:
+    """``{field: scenario key}`` of the fields of ``part`` that a C init can reject."""
+    return {name: key for name in _CONFIG_PARTS[part][1] if (key := _KEYS[f"{part}.{name}"]) is not None}
+
+
+#: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
+_SPEED_KEYS = _names("speed") | _names("speed_filter")
+#: Scenario key of each field that the C current controller init can reject.
+_CURRENT_KEYS = _names("current")
+#: Scenario key of each field that the C encoder (speed_sensor) or field weakening init can reject.
+_SENSING_KEYS = _names("sensing.speed_sensor.encoder") | _names("sensing.field_weakening.config")
+#: Scenario key of each field that p2d_sim_init can reject (p2d_sim_status_param): a field, or a table.
+_SIM_KEYS = {path: key for path, key in _KEYS.items() if key is not None} | {
     "reference": "reference",
     "load": "load",
     "faults": "fault",
-    "adapt.adapt_rel_change": "estimator.adapt_rel_change",
-    "adapt.e_quiet_radps": "estimator.adapt_error_rpm",
     "speed_sensor": "speed_sensor",
     "current_sensor": "current_measurement",
     "field_weakening": "field_weakening",
-    "mechanics.model": "mechanics.model",
-    "mechanics.J_load_kgm2": "mechanics.J_load_kgm2",
-    "mechanics.stiffness_Nm_per_rad": "mechanics.stiffness_Nm_per_rad",
-    "mechanics.damping_Nms_per_rad": "mechanics.damping_Nms_per_rad",
-    "mechanics.backlash_rad": "mechanics.backlash_rad",
-    "mechanics.feedback": "mechanics.feedback",
 }
-
 #: Scenario key of each field that the C inertia estimator init can reject (the estimator block).
-_ESTIMATOR_KEYS = {
-    name: f"estimator.{name}"
-    for name in (
-        "J0_kgm2",
-        "J_min_kgm2",
-        "J_max_kgm2",
-        "B_max_Nms",
-        "T_load_max_Nm",
-        "sigma_T_Nm",
-        "J_memory_s",
-        "load_memory_s",
-        "w_f_radps",
-        "J_rel_sd_max",
-    )
-} | {"Ts_s": "speed_controller.Ts_s"}
+_ESTIMATOR_KEYS = _names("adapt.config")
 
 
 #: Keys whose absent value the engine takes from another key: key -> (that key, how). An error of the
@@ -541,9 +536,7 @@ class Simulation:
 
     def __init__(self, data: Tree) -> None:
         self.data = data
-        motor, limits, cl, sc, sim = (
-            data[k] for k in ("motor", "limits", "current_loop", "speed_controller", "simulation")
-        )
+        cl, sc, sim = data["current_loop"], data["speed_controller"], data["simulation"]
         self.Ts_speed_s = sc["Ts_s"]
         self.current_per_speed = current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
         if current_per_speed > CURRENT_PER_SPEED_MAX:
@@ -569,60 +562,12 @@ class Simulation:
             )
 
         cfg = ffi.new("p2d_sim_config_t *")
-        m = cfg.motor
-        m.pole_pairs = motor["pole_pairs"]
-        for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb", "J_kgm2", "B_Nms", "T_coulomb_Nm"):
-            setattr(m, key, motor[key])
-        cfg.u_dc_V = limits["u_dc_V"]
-        cfg.computation_delay = data["inverter"]["computation_delay"]
-        cfg.current_model = CURRENT_LOOP_MODELS.index(cl["model"])
-        cfg.tau_i_s = cl["tau_i_s"]
-        cfg.Ts_current_s = cl["Ts_s"]
-        cfg.current_per_speed = current_per_speed
-        cfg.substeps = substeps
-        cfg.log_every = sim["log_every"]
-        cfg.w_m0_radps = sim["speed0_rpm"] / RPM_PER_RADPS
         self._schedules = [
             _schedule(cfg.reference, data["reference"], "speed_rpm", 1.0 / RPM_PER_RADPS),
             _schedule(cfg.load, data["load"], "torque_Nm", 1.0),
         ]
         self._faults = _faults(cfg, data["fault"])
-        _mechanics(cfg, data["mechanics"], data["speed_filter"])
-
-        s = cfg.speed
-        s.J_kgm2 = sc["J_kgm2"]
-        s.alpha_radps = sc["alpha_radps"]
-        s.zeta = sc["zeta"]
-        s.m = sc["m"]
-        s.tau_i_s = sc["tau_i_s"]
-        s.Ts_s = sc["Ts_s"]
-        s.i_max_A = limits["i_max_A"]
-        s.psi_f_Wb = motor["psi_f_Wb"]
-        s.Ld_H = motor["Ld_H"]
-        s.Lq_H = motor["Lq_H"]
-        s.pole_pairs = motor["pole_pairs"]
-        s.method = METHODS.index(sc["method"])
-        s.feedforward = FEEDFORWARDS.index(sc["feedforward"])
-        s.anti_windup = ANTI_WINDUPS.index(sc["anti_windup"])
-        if sc["Ka"] is None:
-            # section 3.3: Ka = 1/Kp = 1/(J alpha), computed in float32 by the C library
-            s.Ka = lib.p2d_speed_Ka_default(s.J_kgm2, s.alpha_radps)
-        else:
-            s.Ka = sc["Ka"]
-
-        c = cfg.current
-        c.Rs_ohm = motor["Rs_ohm"]
-        c.Ld_H = s.Ld_H
-        c.Lq_H = s.Lq_H
-        c.psi_f_Wb = s.psi_f_Wb
-        c.tau_i_s = cl["tau_i_s"]
-        c.Ts_s = cl["Ts_s"]
-        c.method = METHODS.index(cl["method"])
-        c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
-        c.decouple = cl["decouple"]
-        _sensing(cfg, data)
-
-        _estimator(cfg, data)
+        _fill(cfg, data, _derived(data, current_per_speed, substeps))
 
         self.cfg = cfg
         self.sim = ffi.new("p2d_sim_t *")
@@ -813,18 +758,6 @@ def _schedule(
     return arrays
 
 
-def _mechanics(cfg: Any, mechanics: Mapping[str, Any], speed_filter: Mapping[str, float]) -> None:
-    """Fill the drive train and the speed controller's torque filters of the C configuration ``cfg``."""
-    mech = cfg.mechanics
-    mech.model = MECHANICS_MODELS.index(mechanics["model"])
-    mech.feedback = FEEDBACKS.index(mechanics["feedback"])
-    if mechanics["model"] == "two_mass":
-        for key in ("J_load_kgm2", "stiffness_Nm_per_rad", "damping_Nms_per_rad", "backlash_rad"):
-            setattr(mech, key, mechanics[key])
-    for key, value in speed_filter.items():
-        setattr(cfg.speed_filter, key, value)
-
-
 def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
     """Fill ``cfg.faults`` from the scenario's ``fault`` entries; return the C array it points to."""
     faults = ffi.new("p2d_fault_t[]", max(1, len(entries)))
@@ -841,65 +774,76 @@ def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
     return faults
 
 
-def _estimator(cfg: Any, data: Mapping[str, Any]) -> None:
-    """The estimator block of the engine's configuration (``[estimator]``, csrc/sim/adapt.h)."""
-    est, sc, motor = data["estimator"], data["speed_controller"], data["motor"]
-    a = cfg.adapt
-    a.enabled = est["enabled"]
-    if not est["enabled"]:
-        return
-    a.adapt_gains = est["adapt_gains"]
-    a.Ka_follows_J = sc["Ka"] is None
-    a.adapt_rel_change = est["adapt_rel_change"]
-    a.e_quiet_radps = est["adapt_error_rpm"] / RPM_PER_RADPS
-    T_peak_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
-    J0 = est["J0_kgm2"]
-    derived = {
-        "J_min_kgm2": J0 / 10.0,
-        "J_max_kgm2": 10.0 * J0,
-        "B_max_Nms": T_peak_Nm / 100.0,
-        "T_load_max_Nm": T_peak_Nm,
-        "sigma_T_Nm": 0.01 * T_peak_Nm,
-        "load_memory_s": 1.0 / sc["alpha_radps"],
-        "w_f_radps": 0.2 / sc["Ts_s"],
+def _fill(cfg: Any, data: Mapping[str, Any], derived: Mapping[str, Any]) -> None:
+    """Fill every field of the C configuration ``cfg`` (:data:`_CONFIG_PARTS`) but the scenario's entries:
+    from its scenario key (:data:`_KEYS`) or ``derived``, through the generic field setter."""
+    for part, (_, fields) in _CONFIG_PARTS.items():
+        paths = {name: f"{part}.{name}" if part else name for name in fields}
+        filled = {name: ctype for name, ctype in fields.items() if not _left_zero(data, paths[name])}
+        values = {name: _scenario_value(data, paths[name], derived) for name in filled}
+        target = cfg
+        for name in filter(None, part.split(".")):
+            target = getattr(target, name)
+        set_fields(target, filled, values, {name: _KEYS[paths[name]] or paths[name] for name in filled})
+
+
+def _left_zero(data: Mapping[str, Any], path: str) -> bool:
+    """Whether the configuration field ``path`` stays 0 (unused): the estimator when it is off, the field
+    weakening's regulator when it is off, the two-mass train's parameters of a rigid one."""
+    if path.startswith("adapt.") and path != "adapt.enabled":
+        return not data["estimator"]["enabled"]
+    if path.startswith("sensing.field_weakening.config."):
+        return not data["field_weakening"]["enabled"]
+    if path.startswith("mechanics.") and path not in ("mechanics.model", "mechanics.feedback"):
+        return bool(data["mechanics"]["model"] != "two_mass")
+    return False
+
+
+def _scenario_value(data: Mapping[str, Any], path: str, derived: Mapping[str, Any]) -> Any:
+    """The value of the configuration field ``path``: derived (:func:`_derived`), else the scenario's, in
+    rad/s for a key in rpm."""
+    if path in derived:
+        return derived[path]
+    key = _KEYS[path]
+    assert key is not None, path
+    table, name = key.split(".")
+    value = data[table][name]
+    return value / RPM_PER_RADPS if "_rpm" in name else value
+
+
+def _derived(data: Mapping[str, Any], current_per_speed: int, substeps: int) -> dict[str, Any]:
+    """The configuration fields the scenario does not give, by path: the periods' ratios, the defaults of
+    absent keys (``speed_controller.Ka``, the estimator's limits, the field weakening's), fixed choices."""
+    sc, motor, est, fw = data["speed_controller"], data["motor"], data["estimator"], data["field_weakening"]
+    derived: dict[str, Any] = {
+        "current_per_speed": current_per_speed,
+        "substeps": substeps,
+        "adapt.Ka_follows_J": sc["Ka"] is None,
+        "sensing.field_weakening.config.method": "tustin",
+        "sensing.field_weakening.config.anti_windup": "back_calculation",
     }
-    c = a.config
-    c.Ts_s = sc["Ts_s"]
-    c.J0_kgm2 = J0
-    for key, value in derived.items():
-        setattr(c, key, value if est[key] is None else est[key])
-    c.J_memory_s = est["J_memory_s"]
-    c.J_rel_sd_max = est["J_rel_sd_max"]
-    c.speed_is_period_mean = est["speed_is_period_mean"]
-
-
-def _sensing(cfg: Any, data: Mapping[str, Any]) -> None:
-    """Fill the speed sensor, current measurement and field weakening of ``cfg`` (csrc/sim/sensing.h)."""
-    ss, cm, fw = data["speed_sensor"], data["current_measurement"], data["field_weakening"]
-    sensor = cfg.sensing.speed_sensor
-    sensor.model = SPEED_SENSOR_MODELS.index(ss["model"])
-    sensor.encoder.counts_per_rev = ss["counts_per_rev"]
-    sensor.encoder.counter_bits = ss["counter_bits"]
-    sensor.encoder.estimator = ESTIMATORS.index(ss["estimator"])
-    sensor.encoder.bandwidth_radps = 0.0 if ss["bandwidth_radps"] is None else ss["bandwidth_radps"]
-    sensor.encoder.lowpass_radps = ss["lowpass_radps"]
-    sensor.delay_s = ss["delay_s"]
-    sensor.noise_rms_radps = ss["noise_rpm_rms"] / RPM_PER_RADPS
-    sensor.seed = ss["seed"]
-    meas = cfg.sensing.current_sensor
-    for key in ("gain_error_a", "gain_error_b", "offset_a_A", "offset_b_A", "seed"):
-        setattr(meas, key, cm[key])
-    meas.noise_rms_A = cm["noise_A_rms"]
-    cfg.sensing.field_weakening.enabled = fw["enabled"]
+    if sc["Ka"] is None:
+        # section 3.3: Ka = 1/Kp = 1/(J alpha), computed in float32 by the C library
+        derived["speed.Ka"] = lib.p2d_speed_Ka_default(sc["J_kgm2"], sc["alpha_radps"])
+    if data["speed_sensor"]["bandwidth_radps"] is None:
+        derived["sensing.speed_sensor.encoder.bandwidth_radps"] = 0.0
+    if est["enabled"]:
+        T_peak_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
+        J0 = est["J0_kgm2"]
+        defaults = {
+            "J_min_kgm2": J0 / 10.0,
+            "J_max_kgm2": 10.0 * J0,
+            "B_max_Nms": T_peak_Nm / 100.0,
+            "T_load_max_Nm": T_peak_Nm,
+            "sigma_T_Nm": 0.01 * T_peak_Nm,
+            "load_memory_s": 1.0 / sc["alpha_radps"],
+            "w_f_radps": 0.2 / sc["Ts_s"],
+        }
+        derived |= {f"adapt.config.{k}": v for k, v in defaults.items() if est[k] is None}
     if fw["enabled"]:
-        reg = cfg.sensing.field_weakening.config
-        Ts_s = data["speed_controller"]["Ts_s"]
-        reg.Kp_A_per_V = fw["Kp_A_per_V"]
-        reg.Ki_A_per_Vs = fw["Ki_A_per_Vs"]
-        # absent: Ki Ka Ts = 1, the back-calculation's own time constant one sample
-        reg.Ka_V_per_A = 1.0 / (fw["Ki_A_per_Vs"] * Ts_s) if fw["Ka_V_per_A"] is None else fw["Ka_V_per_A"]
-        reg.Ts_s = Ts_s
-        reg.voltage_ratio = fw["voltage_ratio"]
-        reg.id_min_A = -data["limits"]["i_max_A"] if fw["id_min_A"] is None else fw["id_min_A"]
-        reg.method = METHODS.index("tustin")
-        reg.anti_windup = ANTI_WINDUPS.index("back_calculation")
+        if fw["Ka_V_per_A"] is None:
+            # absent: Ki Ka Ts = 1, the back-calculation's own time constant one sample
+            derived["sensing.field_weakening.config.Ka_V_per_A"] = 1.0 / (fw["Ki_A_per_Vs"] * sc["Ts_s"])
+        if fw["id_min_A"] is None:
+            derived["sensing.field_weakening.config.id_min_A"] = -data["limits"]["i_max_A"]
+    return derived
