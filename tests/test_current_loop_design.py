@@ -22,8 +22,8 @@ from pmsm2dof.analysis.current_loop import (
     speed_margin_sensitivity,
 )
 from pmsm2dof.core import CurrentController
+from pmsm2dof.core.motor import load_motor
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.sim.datasheet import load_motor
 from pmsm2dof.ui.cli import main
 
 SERVO = "[motor]\npole_pairs = 4\nRs_ohm = 0.8\nLd_H = 0.004\nLq_H = 0.008\npsi_f_Wb = 0.05\n"

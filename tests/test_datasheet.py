@@ -2,7 +2,7 @@
 
 Truth: the three phase waveforms of a sinusoidal star-connected machine sampled numerically (line
 voltages and their rms, the power balance sum(e_k i_k) = Te w_m), independent of the formulas of
-pmsm2dof.sim.datasheet.
+pmsm2dof.core.motor.
 """
 
 import json
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pmsm2dof.core.motor import DatasheetWarning, convert_datasheet, load_motor
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.sim.datasheet import DatasheetWarning, convert_datasheet, load_motor
 from pmsm2dof.sim.scenario import load_scenario
 
 P, PSI_F = 4, 0.2  # the machine of the paper presets
@@ -257,7 +257,7 @@ def test_the_catalogue_motor_converts_as_the_formulas_of_its_convention(capsys):
 
 
 def test_datasheet_keys_are_listed_by_presets_keys_motor_help_and_the_readme(capsys):
-    from pmsm2dof.sim.datasheet import DATASHEET_KEYS
+    from pmsm2dof.core.motor import DATASHEET_KEYS
     from pmsm2dof.ui.cli import main
 
     assert main(["presets", "--keys"]) == 0

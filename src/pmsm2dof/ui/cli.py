@@ -25,8 +25,8 @@ if TYPE_CHECKING:
     from ..analysis.sensor import DelayModel
     from ..analysis.twomass import TwoMass
     from ..core.bindings import AntiWindup, Feedforward, Method
+    from ..core.motor import MotorParameters
     from ..sim.commission import Commissioning
-    from ..sim.datasheet import MotorParameters
     from ..studies.autotune import AutotuneResult
     from ..studies.identify import Mechanics
 
@@ -433,7 +433,7 @@ def design(
 
 def _load_motor(motor_file: str) -> "MotorParameters":
     """The motor of --motor: a scenario, a datasheet motor file or an identified motor.toml."""
-    from ..sim.datasheet import load_motor
+    from ..core.motor import load_motor
 
     try:
         return load_motor(motor_file)
@@ -1295,7 +1295,7 @@ def _percent(x: float) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# motor and identify (pmsm2dof.sim.datasheet, sim.logs, studies.identify)
+# motor and identify (pmsm2dof.core.motor, sim.logs, studies.identify)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -1303,7 +1303,7 @@ def _motor_help() -> str:
     """The help of `pmsm2dof motor`: what it prints and every key of [motor.datasheet]."""
     import textwrap
 
-    from ..sim.datasheet import DATASHEET_KEYS
+    from ..core.motor import DATASHEET_KEYS
 
     keys = "\n".join(
         textwrap.fill(f"{key}: {doc}", width=76, initial_indent="  ", subsequent_indent="      ")
@@ -1315,7 +1315,7 @@ def _motor_help() -> str:
         "[motor.datasheet] table gives the datasheet's values; without it the model keys of [motor] are shown "
         "as given. Kt and Ke (or Kv), when both are given, are checked against each other. With [limits] "
         "u_dc_V in the file, the no-load speed the DC link allows is shown too.\n\n"
-        "\b\nKeys of [motor.datasheet] (pmsm2dof.sim.datasheet):\n" + keys
+        "\b\nKeys of [motor.datasheet] (pmsm2dof.core.motor):\n" + keys
     )
 
 
@@ -1325,9 +1325,9 @@ def _motor_help() -> str:
 def motor(file: str, as_json: bool) -> None:
     import json
 
+    from ..core.motor import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
     from ..errors import require_positive
     from ..inputs import read_toml
-    from ..sim.datasheet import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
 
     m = load_motor(file)
     keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + [key for key in RATING_KEYS if getattr(m, key) is not None]
@@ -1341,7 +1341,7 @@ def motor(file: str, as_json: bool) -> None:
         extra["no_load_rpm"] = no_load_speed_radps(u_dc, m.pole_pairs, m.psi_f_Wb) * 30.0 / math.pi
         sources["no_load_rpm"] = f"u_dc / (sqrt(3) p psi_f) at limits.u_dc_V = {u_dc:g} V (space-vector modulation)"
         if m.commutation == "block":
-            # block: the mean DC-side back-EMF kM w_m meets u_dc, kM = (3 sqrt(3)/pi) p psi_f (pmsm2dof.sim.datasheet)
+            # block: the mean DC-side back-EMF kM w_m meets u_dc, kM = (3 sqrt(3)/pi) p psi_f (pmsm2dof.core.motor)
             notes.append(
                 f"block commutation reaches u_dc / kM = {extra['no_load_rpm'] * math.pi / 3.0:.5g} rpm at no load, "
                 "pi/3 times more (the datasheet's no-load speed is this, less the drop of the no-load current)"
@@ -1521,8 +1521,8 @@ def identify(
     import json
 
     from ..core.gains import pi_gains
+    from ..core.motor import load_motor
     from ..outputs import atomic_write, staged_dir
-    from ..sim.datasheet import load_motor
     from ..sim.logs import read_log
     from ..studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
 
