@@ -121,6 +121,7 @@ from typing import Any
 import numpy as np
 import scipy.stats
 
+from ..core.motor import Motor
 from ..errors import ConfigError
 from ..sim.logs import Log
 from .identify import LEVEL, IdentificationError, _block_means, _cumtrapz
@@ -265,24 +266,32 @@ class Electrical:
         )
         return out
 
+    def motor(self, pole_pairs: int) -> Motor:
+        """The identified motor: the estimates of eq 1 with their 95 % intervals, ``pole_pairs`` given."""
+        return Motor(
+            pole_pairs=pole_pairs,
+            Rs_ohm=self.Rs_ohm,
+            Ld_H=self.Ld_H,
+            Lq_H=self.Lq_H,
+            psi_f_Wb=self.psi_f_Wb,
+            intervals={name: ci for name, ci in self.ci.items() if name in PARAMETERS},
+        )
+
     def motor_toml(self, pole_pairs: int, source: str) -> str:
         """The identified motor as a ``[motor]`` table for ``pmsm2dof design --motor`` (as ``commission --out``)."""
         lines = [
-            f"# identified from {source} by pmsm2dof identify --electrical",
-            "# per phase, amplitude-invariant dq (eq 1)",
+            f"identified from {source} by pmsm2dof identify --electrical",
+            "per phase, amplitude-invariant dq (eq 1)",
         ]
         if self.dead_time_V is not None:
             lo, hi = self.ci[DEAD_TIME]
-            lines.append(f"# inverter dead-time voltage per phase: {self.dead_time_V:.4g} V [{lo:.4g}, {hi:.4g}]")
+            lines.append(f"inverter dead-time voltage per phase: {self.dead_time_V:.4g} V [{lo:.4g}, {hi:.4g}]")
         for r in self.ranges:
             found = ", ".join(
                 f"{name} = {value:.4g}" for name in ("Ld_H", "Lq_H") if (value := getattr(r, name)) is not None
             )
-            lines.append(f"# |i_dq| {r.i_low_A:.3g} to {r.i_high_A:.3g} A: {found or 'not determined'}")
-        lines += ["[motor]", f"pole_pairs = {pole_pairs}"]
-        lines += [f"{name} = {getattr(self, name)!r}" for name in PARAMETERS]
-        lines += [f"{name}_ci = [{lo!r}, {hi!r}]" for name, (lo, hi) in self.ci.items() if name in PARAMETERS]
-        return "\n".join(lines) + "\n"
+            lines.append(f"|i_dq| {r.i_low_A:.3g} to {r.i_high_A:.3g} A: {found or 'not determined'}")
+        return self.motor(pole_pairs).motor_file(lines)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from ..analysis.sensor import DelayModel
     from ..analysis.twomass import TwoMass
     from ..core.bindings import AntiWindup, Feedforward, Method
-    from ..core.motor import MotorParameters
+    from ..core.motor import Motor
     from ..sim.commission import Commissioning
     from ..studies.autotune import AutotuneResult
     from ..studies.identify import Mechanics
@@ -431,7 +431,7 @@ def design(
             click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
 
 
-def _load_motor(motor_file: str) -> "MotorParameters":
+def _load_motor(motor_file: str) -> "Motor":
     """The motor of --motor: a scenario, a datasheet motor file or an identified motor.toml."""
     from ..core.motor import load_motor
 
@@ -442,7 +442,7 @@ def _load_motor(motor_file: str) -> "MotorParameters":
 
 
 def _identified_current_loop(
-    motor: "MotorParameters | None", alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
+    motor: "Motor | None", alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
 ) -> "CurrentLoopDesign | None":
     """The current loop of --motor and --current-bandwidth, or None without --current-bandwidth."""
     if alpha_c_radps is None:
@@ -451,18 +451,10 @@ def _identified_current_loop(
         raise click.UsageError("--current-bandwidth needs --motor FILE (the identified motor)")
     if tau_i_s != 0.0:
         raise click.UsageError("--current-bandwidth sets tau_i = 1/alpha_c: give it or --tau-i, not both")
-    from ..analysis.current_loop import MotorEstimate, design_current_loop
+    from ..analysis.current_loop import design_current_loop
 
-    estimate = MotorEstimate(
-        pole_pairs=motor.pole_pairs,
-        Rs_ohm=motor.Rs_ohm,
-        Ld_H=motor.Ld_H,
-        Lq_H=motor.Lq_H,
-        psi_f_Wb=motor.psi_f_Wb,
-        intervals=motor.intervals,
-    )
     try:
-        return design_current_loop(estimate, alpha_c_radps, Ts_current_s)
+        return design_current_loop(motor, alpha_c_radps, Ts_current_s)
     except ConfigError as exc:
         raise _as_option(exc, {"current_bandwidth": "--current-bandwidth", "Ts_current": "--Ts-current"}) from None
 
