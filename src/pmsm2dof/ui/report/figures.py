@@ -25,9 +25,9 @@ from ...core import pi_gains
 from ...core.bindings import AntiWindup
 from ...sim.simulate import Result
 from ...studies import paper as st
+from ...studies.claims import FIG7_M
 from ...studies.faults import FAULT_PRESETS, fault_figures
 from ..plots.design import bode_gx_sweep
-from .claims import FIG7_M
 
 #: Most points per line in the time plots (the traces are thinned evenly beyond it).
 PLOT_POINTS = 2500

@@ -18,10 +18,10 @@ from ...sim.commission import Commissioning
 from ...sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES
 from ...sim.simulate import Result
 from ...studies import paper as st
+from ...studies.claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
 from ...studies.faults import fault_figures
 from ...studies.sensing import OffsetRow, SensorRow
 from .adaptation import adaptation_blocks
-from .claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
 from .commissioning import commissioning_blocks
 from .sensing import sensing_blocks
 from .twomass import TwoMassStudy, two_mass_blocks

@@ -25,7 +25,7 @@ from ...core import pi_gains
 from ...core.bindings import Method
 from ...sim.metrics import at_current_limit
 from ...sim.simulate import Result
-from ...studies import paper as st
+from .. import paper as st
 
 #: Verdicts, best first.
 VERDICTS = ("reproduced", "partly", "not reproduced")
