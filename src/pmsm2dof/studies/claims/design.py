@@ -6,10 +6,9 @@ from collections.abc import Callable, Mapping
 
 import numpy as np
 
-from ...analysis.design import design
-from ...core import pi_gains
 from ...core.bindings import Method
 from .. import paper as st
+from ..configuration import scenario_design
 from .common import (
     C1_SECOND_STEP_S,
     FIG7_M,
@@ -32,7 +31,7 @@ from .common import (
 
 def _claim_gains(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
-    d = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
+    d = scenario_design(studies.bases[st.STEP_BASE])
     ok = math.isclose(d.Kp, 0.2, rel_tol=1e-6) and math.isclose(d.Ki, 0.3, rel_tol=1e-6)
     return _claim(
         section="4.1 (eq 9)",
@@ -88,7 +87,7 @@ def _claim_separate(studies: st.Studies) -> Claim:
 
 def _claim_first_order(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
-    d = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_s"], feedforward="full")
+    d = scenario_design(studies.bases[st.STEP_BASE], m=1.0, feedforward="full")
     overshoot_lin = d.overshoot_pct()
     bandwidth = d.bandwidth_radps()
     pole = sc["alpha_radps"]
@@ -141,12 +140,8 @@ def _claim_first_order(studies: st.Studies) -> Claim:
 
 
 def _claim_fig7(studies: st.Studies) -> Claim:
-    sc = studies.speed_controller()
     bandwidths = [
-        design(
-            sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=m, tau_i_s=sc["tau_i_s"], feedforward="full"
-        ).bandwidth_radps()
-        for m in FIG7_M
+        scenario_design(studies.bases[st.STEP_BASE], m=m, feedforward="full").bandwidth_radps() for m in FIG7_M
     ]
     sweep = studies.sweep("m")
     rise = _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "rise_time_s")
@@ -171,7 +166,7 @@ def _claim_fig7(studies: st.Studies) -> Claim:
 
 def _claim_lowpass(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
-    low = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], m=1.0, tau_i_s=sc["tau_i_s"], feedforward="lowpass")
+    low = scenario_design(studies.bases[st.STEP_BASE], m=1.0, feedforward="lowpass")
     small = studies.step("lin-lowpass")
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc["alpha_radps"]
     over_small = _value(small["overshoot_pct"])
@@ -221,8 +216,7 @@ def _claim_lowpass(studies: st.Studies) -> Claim:
 
 def _claim_ka_range(studies: st.Studies) -> Claim:
     sweep = studies.sweep("ka")
-    sc = studies.speed_controller()
-    Kp, _ = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
+    Kp = scenario_design(studies.bases[st.STEP_BASE]).Kp
     x = np.array(sweep.x)
     used = (x >= 1.0 / (3.0 * Kp) * (1 - 1e-9)) & (x <= 3.0 / Kp * (1 + 1e-9))
     literal = (x >= Kp / 3.0 * (1 - 1e-9)) & (x <= 3.0 * Kp * (1 + 1e-9)) & ~used

@@ -4,8 +4,8 @@ import math
 
 import numpy as np
 
-from ...core import pi_gains
 from .. import paper as st
+from ..configuration import scenario_design
 from .common import (
     ABOUT_RTOL,
     AW_TOLERANCE_PP,
@@ -174,8 +174,7 @@ def _claim_1dof_load(studies: st.Studies) -> Claim:
     speed = data["reference"][0]["speed_rpm"]
     load = data["load"][0]["torque_Nm"]
     torque_max = 1.5 * data["motor"]["pole_pairs"] * data["motor"]["psi_f_Wb"] * data["limits"]["i_max_A"]
-    sc = data["speed_controller"]
-    Kp, _ = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
+    Kp = scenario_design(data).Kp
     dip_c2 = _value(studies.load("c2-1dof")["speed_dip_rpm"])
     e3 = studies.load("e3-1dof")
     dip, rec, sse, limit_time = (
