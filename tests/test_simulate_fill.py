@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from pmsm2dof.core.bindings import ENUM_CHOICES, ffi
-from pmsm2dof.sim import simulate as engine
+from pmsm2dof.sim import engine_config as engine
 from pmsm2dof.sim.scenario import SCHEMA, load_scenario
+from pmsm2dof.sim.simulate import Simulation
 
 #: Every part switched on, every value distinct from its default.
 CHANGES = {
@@ -62,14 +63,14 @@ def _leaves(obj, ctype, path=""):
 def test_every_field_holds_its_scenario_key():
     scenario = load_scenario("field-weakening").with_overrides(CHANGES)
     data = scenario.data
-    run = engine.Simulation(data)
+    run = Simulation(data)
     keys = {f.key for f in SCHEMA}
     checked = 0
     for path, ctype, value in _leaves(run.cfg, "p2d_sim_config_t"):
         if path in ("reference.n", "load.n", "n_faults"):
             continue
-        key = engine._KEYS[path]
-        if key is None or path in engine._derived(data, run.current_per_speed, 1):
+        key = engine.KEYS[path]
+        if key is None or path in engine.derived_values(data, run.current_per_speed, 1):
             continue
         assert key in keys, (path, key)
         assert key == RENAMED.get(path, key.split(".")[0] + "." + path.rpartition(".")[2]), path
@@ -90,4 +91,4 @@ def test_every_field_holds_its_scenario_key():
 
 def test_a_field_without_a_key_is_refused_when_imported():
     with pytest.raises(RuntimeError, match="no scenario key"):
-        engine._key("p2d_new_part.new_field_s")
+        engine.scenario_key("p2d_new_part.new_field_s")
