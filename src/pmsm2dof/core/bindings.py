@@ -122,7 +122,7 @@ FEEDBACKS = enum_names("p2d_feedback_t", "P2D_FEEDBACK_")
 LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))
 
 #: The choices of every enum type of the C configurations, indexed by their C value: what a field of
-#: that type takes (:func:`pmsm2dof.core.controllers.set_fields`).
+#: that type takes (:func:`pmsm2dof.core.fields.set_fields`).
 ENUM_CHOICES: dict[str, tuple[str, ...]] = {
     "p2d_method_t": METHODS,
     "p2d_feedforward_t": FEEDFORWARDS,

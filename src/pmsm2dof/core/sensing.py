@@ -18,7 +18,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from .bindings import AntiWindup, Method, ffi, lib, struct_fields
-from .controllers import _finite, _get_fields, _raise_status, _struct_dict, set_fields
+from .fields import _finite, _get_fields, _raise_status, _struct_dict, set_fields
 
 _ENCODER_CONFIG_FIELDS = struct_fields("p2d_encoder_config_t")
 _ENCODER_PARAMS = tuple(_ENCODER_CONFIG_FIELDS)

@@ -2,7 +2,7 @@
 key of each of its fields.
 
 :func:`engine_config` walks the configuration's fields from its C declaration and fills each through
-the generic field setter of :mod:`pmsm2dof.core` (:func:`~pmsm2dof.core.controllers.set_fields`):
+the generic field setter of :mod:`pmsm2dof.core` (:func:`~pmsm2dof.core.fields.set_fields`):
 the field ``f`` of a part is the key ``<table>.f`` of the part's scenario table (:data:`TABLES`)
 unless :data:`FIELD_KEYS` names another key or the value is derived (:func:`derived_values`), so
 that a new C field needs no hand-written line. The same maps give the scenario key an error of a C
@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from ..core import FAULT_KINDS, pi_gains
 from ..core.bindings import c_string, ffi, lib
-from ..core.controllers import float32_note, set_fields
+from ..core.fields import float32_note, set_fields
 from ..core.gains import default_Ka_error
 from ..errors import ConfigError
 from .scenario import SCHEMA, SameAs
