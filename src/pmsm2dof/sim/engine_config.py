@@ -87,7 +87,7 @@ FIELD_KEYS: dict[str, str | None] = {
 }
 
 #: The parts of the configuration filled from the scenario's entries (:func:`_schedule`, :func:`_faults`).
-_ENTRIES = {"reference": "reference", "load": "load", "faults": "fault", "n_faults": "fault"}
+_ENTRIES = ("reference", "load", "faults", "n_faults")
 
 
 def _parts(ctype: str, path: str = "") -> dict[str, tuple[str, dict[str, str]]]:
