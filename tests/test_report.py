@@ -26,10 +26,12 @@ from scipy.optimize import brentq
 from pmsm2dof import load_scenario, simulate
 from pmsm2dof.studies.claims import FIG7_M
 from pmsm2dof.studies.faults import run_faults
+from pmsm2dof.studies.fixedpoint import run_arithmetic
 from pmsm2dof.studies.paper import run_studies
 from pmsm2dof.ui.cli import main
 from pmsm2dof.ui.report import VERDICTS, compute_claims
 from pmsm2dof.ui.report.figures import fig_faults, figures
+from pmsm2dof.ui.report.fixedpoint import fig_fixed_point
 
 #: Slow (builds, emulators, fuzzing, browsers or whole reproductions): run by the full suite.
 pytestmark = pytest.mark.slow
@@ -48,6 +50,7 @@ STEMS = [
     "sens_inertia",
     "sens_torque_limit",
     "discretization",
+    "fixed_point",
 ]
 VOID = {"meta", "img", "br", "hr", "link", "input"}
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -225,6 +228,7 @@ def drawn():
     """The report's figures in memory, drawn from reduced studies: {stem: (Figure, FigureData)}."""
     made = {stem: (fig, data) for stem, (fig, data, _caption) in figures(run_studies({}, **REDUCED)).items()}
     made["faults"] = fig_faults(run_faults())
+    made["fixed_point"] = fig_fixed_point(run_arithmetic())
     return made
 
 

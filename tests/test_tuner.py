@@ -751,3 +751,24 @@ def test_tune_on_a_busy_port_exits_2():
         )
     assert proc.returncode == 2
     assert proc.stderr.startswith(f"pmsm2dof: error: port = {port} is invalid")
+
+
+@pytest.mark.parametrize(
+    ("args", "param"),
+    [
+        (["--link", "socket://127.0.0.1:1"], "elf"),  # a drive of its own needs its firmware's ELF
+        (["--link", "virtual", "--elf", __file__], "elf"),  # the virtual drive is built here
+        (["--link", "socket://127.0.0.1:1", "--elf", __file__], "elf"),  # not an ELF file
+        (["--link", "socket://127.0.0.1:1", "--elf", "no-such.elf"], "elf"),
+        (["--link", "virtual", "--host", "0.0.0.0"], "host"),  # drive mode on loopback only
+    ],
+)
+def test_tune_link_bad_arguments_exit_2_with_one_line_before_any_build(args, param, capsys):
+    from pmsm2dof.ui.cli import main
+
+    servo = Path(__file__).resolve().parents[1] / "examples" / "firmware" / "small-servo-20k.toml"
+    code = main(["tune", "--no-browser", str(servo), *args])
+    err = capsys.readouterr().err
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"pmsm2dof: error: {param} = "), err

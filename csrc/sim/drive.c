@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "../src/current_step.h"
+#include "../src/speed_integral.h"
 #include "plant_inline.h"
 
 #define P2D_SIM_OVERSPEED_FACTOR 2.0    /* overspeed bound in no-load speeds [-] */
@@ -119,6 +120,8 @@ static const p2d_sim_status_text_t P2D_SIM_STATUS_TEXT[P2D_SIM_STATUS_COUNT] = {
     [P2D_SIM_ERR_ADAPT_REL_CHANGE] = {"adapt.adapt_rel_change", "finite and >= 0"},
     [P2D_SIM_ERR_E_QUIET] = {"adapt.e_quiet_radps", "finite and >= 0"},
     [P2D_SIM_ERR_LOCKSTEP] = {"sims", "drives of one shape at the same sample (p2d_sim_lockstep)"},
+    [P2D_SIM_ERR_ARITHMETIC] = {"arithmetic", "float32 (0), q15 (1) or q31 (2); q15 and q31 without torque filters "
+                                              "(speed_filter), field weakening or gain scheduling (adapt.adapt_gains)"},
 };
 
 static const char *const P2D_LOG_NAMES[P2D_LOG_COUNT] = {
@@ -233,6 +236,12 @@ static p2d_sim_status_t config_status(const p2d_sim_config_t *cfg)
     if (!schedule_valid(&cfg->reference)) return P2D_SIM_ERR_REFERENCE;
     if (!schedule_valid(&cfg->load)) return P2D_SIM_ERR_LOAD;
     if (!faults_valid(cfg)) return P2D_SIM_ERR_FAULTS;
+    if ((unsigned)cfg->arithmetic > (unsigned)P2D_ARITHMETIC_Q31) return P2D_SIM_ERR_ARITHMETIC;
+    if (cfg->arithmetic != P2D_ARITHMETIC_FLOAT32 &&
+        (cfg->speed_filter.notch_freq_Hz != 0.0f || cfg->speed_filter.lowpass_freq_Hz != 0.0f ||
+         cfg->sensing.field_weakening.enabled || (cfg->adapt.enabled && cfg->adapt.adapt_gains))) {
+        return P2D_SIM_ERR_ARITHMETIC;
+    }
     return P2D_SIM_OK;
 }
 
@@ -455,6 +464,72 @@ static p2d_plant_config_t plant_config(const p2d_sim_config_t *cfg, double id0_A
     return pc;
 }
 
+/* ---- the fixed-point speed controller ----------------------------------- */
+
+/* Fractional bits N of the arithmetic Q15 or Q31. */
+static int fixed_bits(p2d_arithmetic_t arithmetic) { return arithmetic == P2D_ARITHMETIC_Q15 ? 15 : 31; }
+
+/* Initialise the fixed-point speed controller of cfg (arithmetic Q15 or Q31) and its scalings. */
+static p2d_status_t fixed_init(p2d_sim_fixed_t *f, const p2d_sim_config_t *cfg)
+{
+    const p2d_speed_fixed_config_t fc = {cfg->speed, cfg->speed_full_scale_radps, cfg->torque_full_scale_Nm,
+                                         cfg->current_full_scale_A};
+    const int bits = fixed_bits(cfg->arithmetic);
+    const p2d_status_t status = bits == 15 ? p2d_speed_q15_init(&f->q15, &fc) : p2d_speed_q31_init(&f->q31, &fc);
+    if (status != P2D_OK) return status;
+    f->q_per_radps = ldexp(1.0, bits) / (double)cfg->speed_full_scale_radps;
+    f->q_max = ldexp(1.0, bits) - 1.0;
+    f->T_lsb_Nm = ldexp((double)cfg->torque_full_scale_Nm, -bits);
+    f->i_lsb_A = ldexp((double)cfg->current_full_scale_A, -bits);
+    return P2D_OK;
+}
+
+/* x (an integer) limited to [-q_max - 1, q_max]: an input or a torque of the format. */
+static int32_t fixed_saturate(const p2d_sim_fixed_t *f, double x)
+{
+    return (int32_t)(x > f->q_max ? f->q_max : (x < -f->q_max - 1.0 ? -f->q_max - 1.0 : x));
+}
+
+/* The speed w [rad/s] as the nearest integer of the format (half up), saturated to its input range; false if
+   w is not finite. */
+static bool fixed_speed(const p2d_sim_fixed_t *f, double w_radps, int32_t *w_q)
+{
+    if (!isfinite(w_radps)) return false;
+    *w_q = fixed_saturate(f, floor(w_radps * f->q_per_radps + 0.5));
+    return true;
+}
+
+/*
+ * The command of the fixed-point controller's present output: id = 0 and iq = iq_q I_fs 2^-N into
+ * sim's command (double, for eq 3) and speed_out (float32, for the dq current controller).
+ */
+static void fixed_command(p2d_sim_t *sim)
+{
+    const p2d_sim_fixed_t *f = &sim->fixed;
+    const bool q15 = sim->cfg.arithmetic == P2D_ARITHMETIC_Q15;
+    sim->id_ref_A = 0.0;
+    sim->iq_ref_A = (q15 ? (double)f->out_q15.iq_ref_q15 : (double)f->out_q31.iq_ref_q31) * f->i_lsb_A;
+    sim->speed_out.id_ref_A = 0.0f;
+    sim->speed_out.iq_ref_A = (float)sim->iq_ref_A;
+}
+
+/* Steady state at the reference w_m0 holding the torque T_Nm (rounded to the nearest LSB): reset and command. */
+static void fixed_rest(p2d_sim_t *sim, double w_m0_radps, double T_Nm)
+{
+    p2d_sim_fixed_t *f = &sim->fixed;
+    int32_t w_q = 0;
+    const int32_t T_q = fixed_saturate(f, floor(T_Nm / f->T_lsb_Nm + 0.5));
+    (void)fixed_speed(f, w_m0_radps, &w_q); /* w_m0 is finite (p2d_plant_init) */
+    if (sim->cfg.arithmetic == P2D_ARITHMETIC_Q15) {
+        p2d_speed_q15_reset(&f->q15, (int16_t)w_q, (int16_t)T_q);
+        p2d_speed_q15_compute(&f->q15, (int16_t)w_q, (int16_t)w_q, &f->out_q15);
+    } else {
+        p2d_speed_q31_reset(&f->q31, w_q, T_q);
+        p2d_speed_q31_compute(&f->q31, w_q, w_q, &f->out_q31);
+    }
+    fixed_command(sim);
+}
+
 p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 {
     p2d_plant_config_t pc;
@@ -474,11 +549,15 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     if (status != P2D_SIM_OK) return status;
     sim->cfg = *cfg;
     sim->controller_status = P2D_OK;
-    ctl_status = p2d_speed_init(&sim->speed, &cfg->speed);
-    /* the torque filters, if any (p2d_speed_init leaves none) */
-    if (ctl_status == P2D_OK &&
-        (cfg->speed_filter.notch_freq_Hz != 0.0f || cfg->speed_filter.lowpass_freq_Hz != 0.0f)) {
-        ctl_status = p2d_speed_set_filter(&sim->speed, &cfg->speed_filter);
+    if (cfg->arithmetic == P2D_ARITHMETIC_FLOAT32) {
+        ctl_status = p2d_speed_init(&sim->speed, &cfg->speed);
+        /* the torque filters, if any (p2d_speed_init leaves none) */
+        if (ctl_status == P2D_OK &&
+            (cfg->speed_filter.notch_freq_Hz != 0.0f || cfg->speed_filter.lowpass_freq_Hz != 0.0f)) {
+            ctl_status = p2d_speed_set_filter(&sim->speed, &cfg->speed_filter);
+        }
+    } else {
+        ctl_status = fixed_init(&sim->fixed, cfg);
     }
     if (ctl_status != P2D_OK) {
         sim->controller_status = ctl_status;
@@ -534,16 +613,21 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     sim->w_ref_radps = cfg->w_m0_radps;
     sim->n_limited = 0u;
     sim->fma = cpu_has_fma();
+    sim->speed_special = cfg->arithmetic != P2D_ARITHMETIC_FLOAT32 || cfg->sensing.field_weakening.enabled;
 
     /* steady state at w_m0 before t = 0: the torque that holds w_m0 against friction */
     p2d_sensing_init(&sim->sensing, &cfg->sensing.speed_sensor, &cfg->sensing.current_sensor,
                      &cfg->sensing.field_weakening, cfg->speed.Ts_s, cfg->w_m0_radps);
     T_hold_Nm = p2d_plant_friction_Nm(m, cfg->w_m0_radps);
-    p2d_speed_reset(&sim->speed, (float)cfg->w_m0_radps, (float)T_hold_Nm);
-    p2d_speed_compute(&sim->speed, (float)cfg->w_m0_radps, (float)cfg->w_m0_radps, &so);
-    if (so.fault) return P2D_SIM_ERR_W_M0;
-    sim->id_ref_A = (double)so.id_ref_A;
-    sim->iq_ref_A = (double)so.iq_ref_A;
+    if (cfg->arithmetic == P2D_ARITHMETIC_FLOAT32) {
+        p2d_speed_reset(&sim->speed, (float)cfg->w_m0_radps, (float)T_hold_Nm);
+        p2d_speed_compute(&sim->speed, (float)cfg->w_m0_radps, (float)cfg->w_m0_radps, &so);
+        if (so.fault) return P2D_SIM_ERR_W_M0;
+        sim->id_ref_A = (double)so.id_ref_A;
+        sim->iq_ref_A = (double)so.iq_ref_A;
+    } else {
+        fixed_rest(sim, cfg->w_m0_radps, T_hold_Nm);
+    }
     /* the currents equal the command */
     pc = plant_config(cfg, sim->id_ref_A, sim->iq_ref_A);
     (void)p2d_plant_init(m, &pc);
@@ -561,7 +645,44 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
 
 /* ---- loop --------------------------------------------------------------- */
 
-/* Write the row of speed sample k at t_k into the column-major log of log_rows rows (at n_rows). */
+/*
+ * The fixed-point speed controller's columns of the log row `row` (of a log of log_rows rows): its
+ * outputs in Nm and A, and its integrator x - Fr0 r from x in its LSBs (2^-(N + F) of T_fs, F = 0 in
+ * Q15, 31 in Q31) and Fr0 = m 2^-s per unit, (x 2^-F - m r 2^-s) T_fs 2^-N.
+ */
+static P2D_SIM_NOINLINE void fixed_columns(const p2d_sim_t *sim, double *row, uint64_t log_rows)
+{
+    const p2d_sim_fixed_t *f = &sim->fixed;
+    double T_ref, T_unsat, iq_ref, x_i;
+    bool saturated;
+    if (sim->cfg.arithmetic == P2D_ARITHMETIC_Q15) {
+        const p2d_q15_gain_t Fr0 = f->q15.coef[f->q15.active].ff_Fr0;
+        T_ref = (double)f->out_q15.T_ref_q15;
+        T_unsat = (double)f->out_q15.T_unsat_q15;
+        iq_ref = (double)f->out_q15.iq_ref_q15;
+        saturated = f->out_q15.saturated;
+        x_i = (double)f->q15.x_q15 - ldexp((double)Fr0.mantissa * (double)f->q15.r_prev_q15, -(int)Fr0.shift);
+    } else {
+        const p2d_q31_gain_t Fr0 = f->q31.coef[f->q31.active].ff_Fr0;
+        T_ref = (double)f->out_q31.T_ref_q31;
+        T_unsat = (double)f->out_q31.T_unsat_q31;
+        iq_ref = (double)f->out_q31.iq_ref_q31;
+        saturated = f->out_q31.saturated;
+        x_i =
+            ldexp((double)f->q31.x_q62, -31) - ldexp((double)Fr0.mantissa * (double)f->q31.r_prev_q31, -(int)Fr0.shift);
+    }
+    row[P2D_LOG_ID_REF_A * log_rows] = 0.0;
+    row[P2D_LOG_IQ_REF_A * log_rows] = iq_ref * f->i_lsb_A;
+    row[P2D_LOG_TORQUE_REF_NM * log_rows] = T_ref * f->T_lsb_Nm;
+    row[P2D_LOG_TORQUE_UNSAT_NM * log_rows] = T_unsat * f->T_lsb_Nm;
+    row[P2D_LOG_SATURATED * log_rows] = saturated ? 1.0 : 0.0;
+    row[P2D_LOG_X_I_NM * log_rows] = x_i * f->T_lsb_Nm;
+}
+
+/*
+ * Write the row of speed sample k at t_k into the column-major log of log_rows rows (at n_rows); the
+ * speed controller's columns of the float32 one or, with a fixed-point one, fixed_columns.
+ */
 static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V, double uq_V)
 {
     const p2d_plant_t *m = &sim->plant;
@@ -573,18 +694,22 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
     row[P2D_LOG_T_S * log_rows] = t_k_s;
     row[P2D_LOG_W_REF_RADPS * log_rows] = sim->w_ref_radps;
     row[P2D_LOG_W_M_RADPS * log_rows] = m->w_m_radps;
-    row[P2D_LOG_ID_REF_A * log_rows] = (double)so->id_ref_A;
-    row[P2D_LOG_IQ_REF_A * log_rows] = (double)so->iq_ref_A;
     row[P2D_LOG_ID_A * log_rows] = m->id_A;
     row[P2D_LOG_IQ_A * log_rows] = m->iq_A;
     row[P2D_LOG_UD_V * log_rows] = ud_V;
     row[P2D_LOG_UQ_V * log_rows] = uq_V;
     row[P2D_LOG_TORQUE_NM * log_rows] = p2d_plant_torque_Nm(m);
-    row[P2D_LOG_TORQUE_REF_NM * log_rows] = (double)so->T_ref_Nm;
-    row[P2D_LOG_TORQUE_UNSAT_NM * log_rows] = (double)so->T_unsat_Nm;
+    if (sim->cfg.arithmetic == P2D_ARITHMETIC_FLOAT32) {
+        row[P2D_LOG_ID_REF_A * log_rows] = (double)so->id_ref_A;
+        row[P2D_LOG_IQ_REF_A * log_rows] = (double)so->iq_ref_A;
+        row[P2D_LOG_TORQUE_REF_NM * log_rows] = (double)so->T_ref_Nm;
+        row[P2D_LOG_TORQUE_UNSAT_NM * log_rows] = (double)so->T_unsat_Nm;
+        row[P2D_LOG_SATURATED * log_rows] = so->saturated ? 1.0 : 0.0;
+        row[P2D_LOG_X_I_NM * log_rows] = (double)p2d_speed_integral_Nm(&sim->speed);
+    } else {
+        fixed_columns(sim, row, log_rows);
+    }
     row[P2D_LOG_LOAD_NM * log_rows] = segment_value(&sim->load, t_k_s);
-    row[P2D_LOG_SATURATED * log_rows] = so->saturated ? 1.0 : 0.0;
-    row[P2D_LOG_X_I_NM * log_rows] = (double)p2d_speed_integrator_Nm(&sim->speed);
     row[P2D_LOG_W_MEAS_RADPS * log_rows] = sim->w_meas_radps;
     row[P2D_LOG_U_DC_V * log_rows] = m->u_dc_V;
     row[P2D_LOG_VOLTAGE_LIMITED * log_rows] = 0.0; /* the share, written at the end of the speed sample */
@@ -598,8 +723,32 @@ static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k
 }
 
 /*
- * Speed sample k at t_k: the reference and the speed reading sampled, the estimator, the field
- * weakening and the speed controller (its output in sim->speed_out).
+ * The fixed-point speed controller's step of speed sample k at t_k (after the inputs of speed_sample):
+ * the reference and the reading rounded to its integers, its output in sim->fixed, the command in sim.
+ */
+static P2D_SIM_NOINLINE p2d_sim_status_t fixed_sample(p2d_sim_t *sim, double t_k_s)
+{
+    p2d_sim_fixed_t *f = &sim->fixed;
+    int32_t w_ref_q, w_meas_q;
+    if (!fixed_speed(f, sim->w_ref_radps, &w_ref_q) || !fixed_speed(f, sim->w_meas_radps, &w_meas_q)) {
+        return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
+    }
+    if (sim->cfg.arithmetic == P2D_ARITHMETIC_Q15) {
+        p2d_speed_q15_step(&f->q15, (int16_t)w_ref_q, (int16_t)w_meas_q, &f->out_q15);
+        sim->saturated = f->out_q15.saturated;
+    } else {
+        p2d_speed_q31_step(&f->q31, w_ref_q, w_meas_q, &f->out_q31);
+        sim->saturated = f->out_q31.saturated;
+    }
+    fixed_command(sim);
+    sim->n_limited = 0u;
+    return P2D_SIM_OK;
+}
+
+/*
+ * Speed sample k at t_k: the reference and the speed reading sampled, the estimator, and the speed
+ * controller: the float32 one (with the field weakening, if any; its output in sim->speed_out) or
+ * the fixed-point one (fixed_sample).
  */
 static p2d_sim_status_t speed_sample(p2d_sim_t *sim, double t_k_s)
 {
@@ -617,8 +766,10 @@ static p2d_sim_status_t speed_sample(p2d_sim_t *sim, double t_k_s)
     if (cfg->adapt.enabled) {
         p2d_adapt_sample(&sim->adapt, sim->w_meas_radps, sim->w_ref_radps, sim->saturated, &sim->speed);
     }
-    if (cfg->sensing.field_weakening.enabled) {
+    if (sim->speed_special) {
         float id_fw_A;
+        /* a fixed-point controller (with no field weakening, p2d_sim_init), or the field weakening */
+        if (cfg->arithmetic != P2D_ARITHMETIC_FLOAT32) return fixed_sample(sim, t_k_s);
         if (!p2d_sensing_field_weakening(&sim->sensing, sim->plant.u_dc_V, &id_fw_A)) {
             return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_k_s, 0.0, 0.0);
         }

@@ -71,6 +71,16 @@
  * rotor angle is integrated only when one of them needs it; with cfg.sensing
  * all zero the loop is the one described above.
  *
+ * Arithmetic (cfg.arithmetic): the speed controller is the float32 p2d_speed_t, or the
+ * fixed-point p2d_speed_q15_t or p2d_speed_q31_t of speed_fixed.h in the configuration's full
+ * scales (a surface PMSM, without torque filters, field weakening or gain scheduling). Its
+ * inputs are the reference and the reading rounded to the nearest integer of the format (half
+ * up), saturated to its input range [-2^N, 2^N - 1]; its current command, id = 0 and iq in
+ * current LSBs, drives the current loop as iq I_fs 2^-N [A] (float32 for the dq current
+ * controller, double for eq 3); the initial steady state holds the torque rounded to the nearest
+ * LSB. The log holds its outputs in Nm and A as its integers say, and its integrator x - Fr0 r
+ * from its integers (x in its LSBs, Fr0 as its mantissa and shift).
+ *
  * Log: one row for every log_every-th speed sample, starting with sample 0,
  * in a column-major buffer of P2D_LOG_COUNT columns of log_rows doubles
  * (column c of row r at log[c * log_rows + r]), so that every signal is a
@@ -107,6 +117,7 @@
 #include "plant.h"
 #include "pmsm2dof/current.h"
 #include "pmsm2dof/speed.h"
+#include "pmsm2dof/speed_fixed.h"
 #include "pmsm2dof/status.h"
 #include "sensing.h"
 
@@ -122,6 +133,13 @@ typedef enum {
     P2D_CURRENT_DQ_PI = 0,      /* C current controller + electrical model + inverter */
     P2D_CURRENT_FIRST_ORDER = 1 /* eq 3: i = i_ref / (tau_i s + 1) */
 } p2d_current_model_t;
+
+/* Arithmetic of the speed controller. */
+typedef enum {
+    P2D_ARITHMETIC_FLOAT32 = 0, /* p2d_speed_* (speed.h): float32 */
+    P2D_ARITHMETIC_Q15 = 1,     /* p2d_speed_q15_* (speed_fixed.h): int16 data, int32 arithmetic */
+    P2D_ARITHMETIC_Q31 = 2      /* p2d_speed_q31_* (speed_fixed.h): int32 data, int64 arithmetic */
+} p2d_arithmetic_t;
 
 /* Outcome of p2d_sim_init (configuration errors) and p2d_sim_run (stops). */
 typedef enum {
@@ -166,6 +184,7 @@ typedef enum {
     P2D_SIM_ERR_ADAPT_REL_CHANGE,   /* adapt.adapt_rel_change */
     P2D_SIM_ERR_E_QUIET,            /* adapt.e_quiet_radps */
     P2D_SIM_ERR_LOCKSTEP,           /* p2d_sim_run_many: drives of different shapes (p2d_sim_lockstep) */
+    P2D_SIM_ERR_ARITHMETIC,         /* arithmetic (and what fixed point does not support) */
     P2D_SIM_STATUS_COUNT            /* number of codes, not a code */
 } p2d_sim_status_t;
 
@@ -259,7 +278,24 @@ typedef struct {
     p2d_adapt_config_t adapt;          /* inertia estimator and gain scheduling (adapt.h); off when zero */
     p2d_mechanics_config_t mechanics;  /* drive train (plant.h); all zero: rigid, motor-side feedback */
     p2d_filter_config_t speed_filter;  /* torque filters of the speed controller (filter.h); all zero: none */
+    p2d_arithmetic_t arithmetic;       /* speed controller: FLOAT32 (0, speed.h), Q15 or Q31 (speed_fixed.h: surface
+                                          PMSM, no torque filters, field weakening or gain scheduling) */
+    float speed_full_scale_radps;      /* Q15, Q31: speed of the integer 2^N [rad/s] (speed_fixed.h) */
+    float torque_full_scale_Nm;        /* Q15, Q31: torque of the integer 2^N [Nm] (speed_fixed.h) */
+    float current_full_scale_A;        /* Q15, Q31: current of the integer 2^N [A] (speed_fixed.h) */
 } p2d_sim_config_t;
+
+/* The fixed-point speed controller of a drive (arithmetic Q15 or Q31) and its scalings. */
+typedef struct {
+    p2d_speed_q15_t q15;            /* the Q15 controller (arithmetic Q15) */
+    p2d_speed_q31_t q31;            /* the Q31 controller (arithmetic Q31) */
+    p2d_speed_q15_output_t out_q15; /* its output of the present speed sample (Q15) */
+    p2d_speed_q31_output_t out_q31; /* its output of the present speed sample (Q31) */
+    double q_per_radps;             /* speed LSBs per rad/s, 2^N / speed_full_scale_radps [s/rad] */
+    double q_max;                   /* largest input 2^N - 1 (the smallest -2^N) [-] */
+    double T_lsb_Nm;                /* torque of one LSB, torque_full_scale_Nm 2^-N [Nm] */
+    double i_lsb_A;                 /* current of one LSB, current_full_scale_A 2^-N [A] */
+} p2d_sim_fixed_t;
 
 typedef struct {
     p2d_sim_config_t cfg;            /* configuration (the schedules are not copied) */
@@ -292,6 +328,9 @@ typedef struct {
     uint32_t n_limited;              /* current periods of the present speed sample at the voltage limit [-] */
     bool fma;                        /* run the loop's copy for x86-64 CPUs with FMA (p2d_sim_init: whether the CPU
                                         has it; false: the baseline copy, which computes the same bits) */
+    bool speed_special;              /* the speed sample is not the float32 step alone: field weakening, or a
+                                        fixed-point controller */
+    p2d_sim_fixed_t fixed;           /* the speed controller of arithmetic Q15 or Q31 (speed is then unused) */
 } p2d_sim_t;
 
 /* Validate cfg, initialize the controllers and set the initial state. */

@@ -9,6 +9,7 @@
 #include "biquad.h"
 #include "mtpa.h"
 #include "pi.h"
+#include "speed_integral.h"
 
 /* Newton iterations of the MTPA torque-to-current inversion (salient PMSM). */
 #define P2D_MTPA_NEWTON_ITERATIONS 5
@@ -618,11 +619,7 @@ void p2d_speed_step_fw(p2d_speed_t *ctl, float w_ref_radps, float w_m_radps, flo
     p2d_speed_update(ctl, out, out->T_ref_Nm);
 }
 
-float p2d_speed_integrator_Nm(const p2d_speed_t *ctl)
-{
-    /* x_i[k-1] = x[k-1] - Fr0 r[k-1] */
-    return fmaf(-ctl->coef[ctl->active].ff_Fr0, ctl->r_prev_radps, ctl->x_Nm);
-}
+float p2d_speed_integrator_Nm(const p2d_speed_t *ctl) { return p2d_speed_integral_Nm(ctl); }
 
 float p2d_speed_Ka_default(float J_kgm2, float alpha_radps)
 {

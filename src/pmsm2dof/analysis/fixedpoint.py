@@ -38,6 +38,8 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from ..core.bindings import Method
 from ..core.fixedpoint import FORMATS, FRACTIONAL_BITS, GAINS, INTEGRATOR_EXTRA_BITS, FixedPointSpeedController, Format
 from ..errors import ConfigError, require_choice, require_positive
@@ -297,7 +299,12 @@ def _controller(
     design: "Design", Ts_s: float, method: Method, fmt: Format, W_fs: float, T_fs: float, T_max: float
 ) -> FixedPointSpeedController:
     """The C controller of the design: a surface PMSM whose torque limit is ``T_max`` (i_max 1 A, one
-    pole pair, so ``kt = T_max``); the current part does not enter the check."""
+    pole pair, so ``kt = T_max``); the current part does not enter the check. psi_f is the float32 number
+    at or below ``T_max / 1.5``, so that the limit the controller computes never exceeds ``T_max`` (a
+    torque full scale equal to it stays valid)."""
+    psi_f = float(np.float32(T_max / 1.5))
+    if 1.5 * psi_f > T_max:
+        psi_f = float(np.nextafter(np.float32(psi_f), np.float32(0.0)))
     return FixedPointSpeedController(
         fmt,
         J_kgm2=design.J_kgm2,
@@ -308,7 +315,7 @@ def _controller(
         Ka=design.Ka,
         Ts_s=Ts_s,
         i_max_A=1.0,
-        psi_f_Wb=T_max / 1.5,
+        psi_f_Wb=psi_f,
         Ld_H=1.0,
         Lq_H=1.0,
         pole_pairs=1,
@@ -358,7 +365,13 @@ def _headroom(
     at the torque limit (speeds within one full scale, errors within two)."""
     pole = 1.0 - gains["ff_one_plus_a1"]
     # y = b_dr (r[k] - (1 - p) sum p^(j-1) r[k-j]): one step for p >= 0; alternating references for p < 0
-    y = abs(gains["ff_b_dr"]) * step_pu * (1.0 + abs(1.0 - pole) / (1.0 - abs(pole))) / 2.0 if pole < 1.0 else math.inf
+    # (no feedforward, b_dr = 0: y stays 0 though the section's pole, 1 + a1 = 0, is 1)
+    if gains["ff_b_dr"] == 0.0:
+        y = 0.0
+    elif pole < 1.0:
+        y = abs(gains["ff_b_dr"]) * step_pu * (1.0 + abs(1.0 - pole) / (1.0 - abs(pole))) / 2.0
+    else:
+        y = math.inf
     x = T_max_pu + abs(gains["ff_Fr0"]) * step_pu if anti_windup != "none" else math.inf
     T_ff = abs(gains["ff_Fr0"]) + y + abs(gains["ff_Kd_per_Ts"]) * step_pu
     u = 2.0 * abs(gains["b_e0"]) + x + abs(gains["ff_Fr0"]) * step_pu + abs(gains["ff_Kd_per_Ts"]) * step_pu + y

@@ -12,6 +12,7 @@ type and its loader (datasheet units, scenarios, identified motor files).
 
 from .bindings import (
     ANTI_WINDUPS,
+    ARITHMETICS,
     CURRENT_LOOP_MODELS,
     ESTIMATORS,
     FAULT_KINDS,
@@ -29,6 +30,7 @@ from .sensing import Encoder, EncoderOutput, FieldWeakening, FieldWeakeningOutpu
 
 __all__ = [
     "ANTI_WINDUPS",
+    "ARITHMETICS",
     "CURRENT_LOOP_MODELS",
     "ESTIMATORS",
     "FAULT_KINDS",

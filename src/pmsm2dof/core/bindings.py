@@ -17,6 +17,7 @@ from .._core import ffi, lib
 
 __all__ = [
     "ANTI_WINDUPS",
+    "ARITHMETICS",
     "AntiWindup",
     "CURRENT_LOOP_MODELS",
     "ENUM_CHOICES",
@@ -118,6 +119,9 @@ FAULT_KINDS = enum_names("p2d_fault_kind_t", "P2D_FAULT_")
 MECHANICS_MODELS = enum_names("p2d_mechanics_model_t", "P2D_MECHANICS_")
 #: The speed the simulated speed controller reads (``p2d_feedback_t``): motor or load side.
 FEEDBACKS = enum_names("p2d_feedback_t", "P2D_FEEDBACK_")
+#: Arithmetic of the engine's speed controller (``p2d_arithmetic_t``): the float32 controller, or the
+#: fixed-point Q15 or Q31 one (speed_fixed.h).
+ARITHMETICS = enum_names("p2d_arithmetic_t", "P2D_ARITHMETIC_")
 #: Names of the columns of the engine's log, with their units (``p2d_sim_log_name``).
 LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))
 
@@ -133,4 +137,5 @@ ENUM_CHOICES: dict[str, tuple[str, ...]] = {
     "p2d_fault_kind_t": FAULT_KINDS,
     "p2d_mechanics_model_t": MECHANICS_MODELS,
     "p2d_feedback_t": FEEDBACKS,
+    "p2d_arithmetic_t": ARITHMETICS,
 }

@@ -10,7 +10,7 @@ that the build script can load this file before the extension exists.
 import re
 from collections.abc import Iterable
 
-#: ``typedef struct { ... } name;`` (no nested braces): its body and its name.
+#: ``typedef struct { fields } name;`` (no nested braces): its body and its name.
 STRUCT = re.compile(r"typedef struct\s*\{([^{}]*?)\}\s*(\w+)\s*;", re.S)
 #: A field declaration followed by the start of its comment.
 FIELD = re.compile(r"^\s*[\w ]*?\s\**(\w+)(?:\[[^\]]*\])?\s*;\s*/\*(.*)$")

@@ -5,7 +5,8 @@ key of each of its fields.
 the generic field setter of :mod:`pmsm2dof.core` (:func:`~pmsm2dof.core.fields.set_fields`):
 the field ``f`` of a part is the key ``<table>.f`` of the part's scenario table (:data:`TABLES`)
 unless :data:`FIELD_KEYS` names another key or the value is derived (:func:`derived_values`), so
-that a new C field needs no hand-written line. The same maps give the scenario key an error of a C
+that a new C field needs no hand-written line; the fixed-point speed controller's full scales, given or
+derived from the filled rest (:data:`FULL_SCALES`), are filled last. The same maps give the scenario key an error of a C
 init names (:data:`SPEED_KEYS` ...), and :func:`raise_config_error` the error itself.
 """
 
@@ -20,6 +21,7 @@ from ..core import FAULT_KINDS, pi_gains
 from ..core.bindings import c_string, ffi, lib
 from ..core.fields import float32_note, set_fields
 from ..core.gains import default_Ka_error
+from ..core.motor import no_load_speed_radps
 from ..errors import ConfigError
 from .scenario import SCHEMA, SameAs
 
@@ -39,7 +41,18 @@ def engine_config(data: Mapping[str, Any], current_per_speed: int, substeps: int
         _faults(cfg, data["fault"]),
     ]
     _fill(cfg, data, derived_values(data, current_per_speed, substeps))
+    _arithmetic(cfg, data)  # after the fill: the derived full scales read the speed controller's fields
     return cfg, arrays
+
+
+#: The full scales of the fixed-point speed controller in the engine's configuration (``p2d_sim_config_t``):
+#: given or derived by :func:`_arithmetic`, not by the generic fill (their keys may be absent, None).
+FULL_SCALES = ("speed_full_scale_radps", "torque_full_scale_Nm", "current_full_scale_A")
+#: Default speed full scale of the fixed-point controllers in no-load speeds: the engine's overspeed bound
+#: (``P2D_SIM_OVERSPEED_FACTOR``), so that every speed a run reaches is within the input's range.
+FULL_SCALE_NO_LOAD_SPEEDS = 2.0
+#: Margin of the default torque full scale over the smallest that holds the states [-].
+FULL_SCALE_MARGIN = 1.25
 
 
 #: The scenario table of each part of the engine's configuration (``p2d_sim_config_t``, csrc/sim/drive.h):
@@ -71,6 +84,10 @@ FIELD_KEYS: dict[str, str | None] = {
     "substeps": "simulation.dt_s",
     "log_every": "simulation.log_every",
     "w_m0_radps": "simulation.speed0_rpm",
+    "arithmetic": "speed_controller.arithmetic",
+    "speed_full_scale_radps": "speed_controller.speed_full_scale_rpm",
+    "torque_full_scale_Nm": "speed_controller.torque_full_scale_Nm",
+    "current_full_scale_A": "speed_controller.current_full_scale_A",
     "speed.i_max_A": "limits.i_max_A",
     "speed.pole_pairs": "motor.pole_pairs",
     "current.Rs_ohm": "motor.Rs_ohm",
@@ -129,8 +146,11 @@ def _names(part: str) -> dict[str, str]:
     return {name: key for name in CONFIG_PARTS[part][1] if (key := KEYS[f"{part}.{name}"]) is not None}
 
 
-#: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
-SPEED_KEYS = _names("speed") | _names("speed_filter")
+#: Scenario key of each field that the C speed controller init can reject (p2d_status_param): the
+#: fixed-point one's full scales too.
+SPEED_KEYS = (
+    _names("speed") | _names("speed_filter") | {name: key for name in FULL_SCALES if (key := KEYS[name]) is not None}
+)
 #: Scenario key of each field that the C current controller init can reject.
 CURRENT_KEYS = _names("current")
 #: Scenario key of each field that the C encoder (speed_sensor) or field weakening init can reject.
@@ -179,11 +199,16 @@ def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
 
 
 def _fill(cfg: Any, data: Mapping[str, Any], derived: Mapping[str, Any]) -> None:
-    """Fill every field of the C configuration ``cfg`` (:data:`CONFIG_PARTS`) but the scenario's entries:
-    from its scenario key (:data:`KEYS`) or ``derived``, through the generic field setter."""
+    """Fill every field of the C configuration ``cfg`` (:data:`CONFIG_PARTS`) but the scenario's entries
+    and the full scales (:func:`_arithmetic`): from its scenario key (:data:`KEYS`) or ``derived``, through
+    the generic field setter."""
     for part, (_, fields) in CONFIG_PARTS.items():
         paths = {name: f"{part}.{name}" if part else name for name in fields}
-        filled = {name: ctype for name, ctype in fields.items() if not _left_zero(data, paths[name])}
+        filled = {
+            name: ctype
+            for name, ctype in fields.items()
+            if paths[name] not in FULL_SCALES and not _left_zero(data, paths[name])
+        }
         values = {name: _scenario_value(data, paths[name], derived) for name in filled}
         target = cfg
         for name in filter(None, part.split(".")):
@@ -268,6 +293,16 @@ _SOURCES = {key: (source, source) for key, source in _SAME_AS.items()} | {
     "estimator.w_f_radps": ("speed_controller.Ts_s", "0.2 / Ts_s"),
     "field_weakening.Ka_V_per_A": ("field_weakening.Ki_A_per_Vs", "1 / (Ki_A_per_Vs speed_controller.Ts_s)"),
     "field_weakening.id_min_A": ("limits.i_max_A", "-i_max_A"),
+    "speed_controller.speed_full_scale_rpm": ("limits.u_dc_V", "twice the no-load speed u_dc_V / (sqrt(3) p psi_f)"),
+    "speed_controller.torque_full_scale_Nm": (
+        "limits.i_max_A",
+        "1.25 times the smallest that holds the torque limit 1.5 p psi_f i_max_A, the feedforward's state and "
+        "transient at the references and the command at the largest reference step",
+    ),
+    "speed_controller.current_full_scale_A": (
+        "speed_controller.torque_full_scale_Nm",
+        "torque_full_scale_Nm / (1.5 p psi_f)",
+    ),
 }
 
 
@@ -298,6 +333,12 @@ def raise_config_error(status: int, sim: Any, cfg: Any, data: Mapping[str, Any])
         }[status]
         key = keys[field]
         derived = getattr(cfg.adapt.config, field, None) if status == lib.P2D_SIM_ERR_ESTIMATOR else None
+        scales = full_scales(cfg) if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER else {}
+        if field in scales:
+            # a full scale of the fixed-point controller, in the key's unit (rpm for the speed)
+            derived = scales[field] * (RPM_PER_RADPS if field == "speed_full_scale_radps" else 1.0)
+            if field == "speed_full_scale_radps":
+                valid += f" (speed_full_scale_radps = speed_full_scale_rpm pi/30 = {scales[field]:.6g})"
         value = _value(data, key)
         note = float32_note(derived if value is None else value)
         s = cfg.speed
@@ -364,3 +405,73 @@ def _blame(data: Mapping[str, Any], key: str, valid: str, derived: float | None 
                 f"a value that makes {key} (when not given, {how} = {shown:.6g}) valid: {valid}",
             )
     return ConfigError(key, value, valid)
+
+
+def full_scales(cfg: Any) -> dict[str, float]:
+    """The full scales of the fixed-point speed controller of the C configuration ``cfg`` by C field name
+    ({} for float32)."""
+    if cfg.arithmetic == lib.P2D_ARITHMETIC_FLOAT32:
+        return {}
+    return {name: float(getattr(cfg, name)) for name in FULL_SCALES}
+
+
+def _float32_up(x: float) -> float:
+    """The float32 number nearest ``x`` at or above it: a full scale that still holds ``x`` once stored."""
+    x32 = np.float32(x)
+    return float(x32) if float(x32) >= x else float(np.nextafter(x32, np.float32(np.inf)))
+
+
+def _arithmetic(cfg: Any, data: Mapping[str, Any]) -> None:
+    """Fill the full scales of the fixed-point speed controller (Q15 or Q31) of ``cfg``, given or derived (see
+    :data:`~pmsm2dof.sim.scenario.SCHEMA`), once the rest of ``cfg`` is filled.
+
+    The derived torque full scale keeps within the two full scales the format holds (speed_fixed.h)
+    the integrator state ``x = x_i + Fr(0) r`` up to ``T_max + |Fr(0)| r_max``, the feedforward
+    transient ``y`` up to ``|b_dr| dr_max`` after the largest reference step ``dr_max``, and the command
+    ``u`` at that step, ``T_max + (b_e0 + |Fr(0) + b_dr|) dr_max`` (so that the back calculation sees
+    the ``u* = u_sat - u`` the float32 controller sees); the gains are the C controller's
+    (``p2d_speed_q15_gains``).
+    """
+    sc, motor = data["speed_controller"], data["motor"]
+    if sc["arithmetic"] == "float32":
+        return
+    s = cfg.speed
+    kt = 1.5 * s.pole_pairs * s.psi_f_Wb
+    T_max = kt * s.i_max_A
+    W_fs = (
+        FULL_SCALE_NO_LOAD_SPEEDS
+        * no_load_speed_radps(data["limits"]["u_dc_V"], motor["pole_pairs"], motor["psi_f_Wb"])
+        if sc["speed_full_scale_rpm"] is None
+        else sc["speed_full_scale_rpm"] / RPM_PER_RADPS
+    )
+    cfg.speed_full_scale_radps = W_fs
+    T_fs = sc["torque_full_scale_Nm"]
+    if T_fs is None:
+        T_fs = T_max
+        # the feedforward's gains in physical units, from the C controller at provisional full scales
+        cfg.torque_full_scale_Nm = _float32_up(T_max)
+        cfg.current_full_scale_A = _float32_up(s.i_max_A)
+        fixed = ffi.new(
+            "p2d_speed_fixed_config_t *",
+            [cfg.speed, cfg.speed_full_scale_radps, cfg.torque_full_scale_Nm, cfg.current_full_scale_A],
+        )
+        gains = ffi.new("p2d_speed_fixed_gains_t *")
+        if getattr(lib, f"p2d_speed_{sc['arithmetic']}_gains")(fixed, gains) == lib.P2D_OK:
+            per_unit = cfg.torque_full_scale_Nm / cfg.speed_full_scale_radps
+            Fr0, b_dr = abs(gains.ff_Fr0) * per_unit, abs(gains.ff_b_dr) * per_unit
+            # u at a reference step dr from rest: b_e0 dr + x + (Fr0 + b_dr) dr (the derivative kick of the
+            # full feedforward left out: it saturates the command anyway)
+            u_per_dr = (gains.b_e0 + abs(gains.ff_Fr0 + gains.ff_b_dr)) * per_unit
+            # the references in the order the controller sees them: w_m0, 0 until the first entry, the entries
+            w_m0 = data["simulation"]["speed0_rpm"] / RPM_PER_RADPS
+            refs = [w_m0] + ([0.0] if data["reference"][0]["t_s"] > 0.0 else [])
+            refs += [e["speed_rpm"] / RPM_PER_RADPS for e in data["reference"]]
+            r_max = max(abs(r) for r in refs)
+            dr_max = max(abs(b - a) for a, b in zip(refs, refs[1:]))
+            held = max(T_max + Fr0 * r_max, b_dr * dr_max, T_max + u_per_dr * dr_max) / 2.0
+            T_fs = max(T_max, FULL_SCALE_MARGIN * held)
+        cfg.torque_full_scale_Nm = _float32_up(T_fs)
+    else:
+        cfg.torque_full_scale_Nm = T_fs
+    I_fs = sc["current_full_scale_A"]
+    cfg.current_full_scale_A = _float32_up(max(s.i_max_A, T_fs / kt)) if I_fs is None else I_fs

@@ -48,6 +48,7 @@ from typing import Any
 
 from ..core import (
     ANTI_WINDUPS,
+    ARITHMETICS,
     CURRENT_LOOP_MODELS,
     ESTIMATORS,
     FAULT_KINDS,
@@ -307,6 +308,39 @@ SCHEMA = (
         "current-loop time constant the full feedforward is designed for [s] (eq 11)",
         default=SameAs("current_loop.tau_i_s"),
         ge=0,
+    ),
+    Field(
+        "speed_controller.arithmetic",
+        str,
+        "arithmetic of the speed controller: float32 (speed.h), or the fixed-point q15 or q31 (speed_fixed.h: an MCU "
+        "without an FPU; a surface PMSM, no speed_filter, field weakening or estimator.adapt_gains)",
+        default="float32",
+        choices=ARITHMETICS,
+    ),
+    Field(
+        "speed_controller.speed_full_scale_rpm",
+        float,
+        "q15, q31: the speed of the integer 2^N [rpm]; absent: twice the no-load speed u_dc_V / (sqrt(3) p psi_f), "
+        "the engine's overspeed bound",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "speed_controller.torque_full_scale_Nm",
+        float,
+        "q15, q31: the torque of the integer 2^N [Nm], >= the torque limit 1.5 p psi_f i_max_A; absent: 1.25 times "
+        "the smallest that holds, within two full scales, the torque limit with the feedforward's state and "
+        "transient at the references and the command at the largest reference step",
+        default=None,
+        gt=0,
+    ),
+    Field(
+        "speed_controller.current_full_scale_A",
+        float,
+        "q15, q31: the current of the integer 2^N [A], >= limits.i_max_A; absent: the current of the torque full "
+        "scale, torque_full_scale_Nm / (1.5 p psi_f)",
+        default=None,
+        gt=0,
     ),
     # the drive train beyond the rigid load, and the speed controller's torque filters (drive.h, filter.h)
     Field(
@@ -891,6 +925,40 @@ def _check_relations(data: Tree) -> None:
                     )
     _check_faults(data)
     _check_sensing(data)
+    _check_arithmetic(data)
+
+
+#: The full scales of the fixed-point speed controllers (speed_controller.*).
+FULL_SCALE_KEYS = ("speed_full_scale_rpm", "torque_full_scale_Nm", "current_full_scale_A")
+
+
+def _check_arithmetic(data: Tree) -> None:
+    """The full scales only with a fixed-point speed controller, which needs a surface PMSM and takes no
+    torque filters, field weakening or gain scheduling (speed_fixed.h)."""
+    sc = data["speed_controller"]
+    if sc["arithmetic"] == "float32":
+        for leaf in FULL_SCALE_KEYS:
+            if sc[leaf] is not None:
+                raise ConfigError(
+                    f"speed_controller.{leaf}", sc[leaf], "absent: arithmetic 'float32' has no full scales"
+                )
+        return
+    fixed = f"with speed_controller.arithmetic {sc['arithmetic']!r} (the fixed-point speed controllers have none)"
+    for leaf in ("notch_freq_Hz", "lowpass_freq_Hz"):
+        if data["speed_filter"][leaf] != 0.0:
+            raise ConfigError(f"speed_filter.{leaf}", data["speed_filter"][leaf], f"0 (no torque filter) {fixed}")
+    if data["field_weakening"]["enabled"]:
+        raise ConfigError("field_weakening.enabled", True, f"false {fixed}")
+    if data["estimator"]["enabled"] and data["estimator"]["adapt_gains"]:
+        raise ConfigError("estimator.adapt_gains", True, f"false (no gain scheduling) {fixed}")
+    motor = data["motor"]
+    if motor["Lq_H"] != motor["Ld_H"]:
+        raise ConfigError(
+            "motor.Lq_H",
+            motor["Lq_H"],
+            f"equal to motor.Ld_H = {motor['Ld_H']!r} with speed_controller.arithmetic {sc['arithmetic']!r} (the "
+            "fixed-point speed controllers drive a surface PMSM: id = 0, no MTPA)",
+        )
 
 
 def _check_sensing(data: Tree) -> None:

@@ -10,6 +10,15 @@ first-order current loop of eq (3) (``first_order``). The speed controller (eq 9
 and the current controllers are the float32 C controllers of ``csrc/src``, the code that runs on
 the MCU. A whole run is one C call (``p2d_sim_run``), so the GIL is released while it runs.
 
+Arithmetic
+    ``speed_controller.arithmetic`` ``q15`` or ``q31`` runs the fixed-point speed controller of
+    ``speed_fixed.h`` (an MCU without an FPU) instead of the float32 one: the reference and the
+    reading rounded to the nearest integer of the format, its current command ``iq`` in current
+    LSBs. Its full scales are the ``speed_controller.*_full_scale_*`` keys or derived from the drive
+    (:mod:`pmsm2dof.sim.engine_config`); :func:`pmsm2dof.analysis.fixedpoint.scaling_check` predicts what they do
+    (the Q15 integrator's dead zone, the headroom). A surface PMSM only, without torque filters,
+    field weakening or gain scheduling.
+
 Sampling and integration
     The speed controller runs every ``speed_controller.Ts_s``, the current controller every
     ``current_loop.Ts_s``. The plant is integrated by the classical Runge-Kutta method (RK4) with
@@ -91,7 +100,7 @@ from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
 from .engine_config import RPM_PER_RADPS as RPM_PER_RADPS  # the speed unit at the edge, for the callers
-from .engine_config import engine_config, raise_config_error
+from .engine_config import engine_config, full_scales, raise_config_error
 from .plausibility import peak_torque_Nm
 from .scenario import Scenario, Tree
 
@@ -436,6 +445,8 @@ class Simulation:
             )
 
         cfg, self._arrays = engine_config(data, current_per_speed, substeps)
+        #: The full scales of the fixed-point speed controller by C field name ({} for float32).
+        self.full_scales = full_scales(cfg)
         self.cfg = cfg
         self.sim = ffi.new("p2d_sim_t *")
         status = lib.p2d_sim_init(self.sim, cfg)

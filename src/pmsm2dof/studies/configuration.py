@@ -282,11 +282,21 @@ def configuration(scenario: Scenario, *, source: str = "", notes: tuple[str, ...
     Raises
     ------
     ConfigError
-        A value the C controllers or the engine reject, naming the scenario key.
+        A value the C controllers or the engine reject, naming the scenario key; a fixed-point speed
+        controller (``speed_controller.arithmetic``), which the firmware's float32 configuration
+        does not hold.
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("scenario", type(scenario).__name__, "a pmsm2dof Scenario (load_scenario)")
     data: Tree = dict(scenario.data)
+    arithmetic = data["speed_controller"]["arithmetic"]
+    if arithmetic != "float32":
+        raise ConfigError(
+            "speed_controller.arithmetic",
+            arithmetic,
+            "'float32': the firmware's configuration is that of the float32 speed controller (speed.h); a "
+            "fixed-point one is configured by p2d_speed_fixed_config_t (speed_fixed.h)",
+        )
     data["current_loop"] = {**data["current_loop"], "model": "dq_pi"}
     data["simulation"] = {**data["simulation"], "log_every": _LOG_EVERY_ONE_ROW}
     return Configuration(scenario=scenario, source=source, notes=tuple(notes), engine=Simulation(data))

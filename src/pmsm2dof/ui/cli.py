@@ -256,6 +256,23 @@ def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Calla
     default=None,
     help="with --motor: current loop Kp = L alpha_c, Ki = Rs alpha_c [rad/s]; tau_i = 1/alpha_c (replaces --tau-i)",
 )
+@click.option(
+    "--fixed-point",
+    "fixed_point",
+    default=None,
+    help="also check the design in the fixed-point controller: q15 (Cortex-M0) or q31 (Cortex-M3); needs the "
+    "two full scales",
+)
+@click.option(
+    "--speed-full-scale-rpm", type=float, default=None, help="--fixed-point: speed of the integer 2^N [rpm], > 0"
+)
+@click.option(
+    "--torque-full-scale-Nm",
+    "torque_full_scale_Nm",
+    type=float,
+    default=None,
+    help="--fixed-point: torque of the integer 2^N [Nm], >= the torque limit",
+)
 def design(
     J_kgm2: float,
     alpha_radps: float,
@@ -287,6 +304,9 @@ def design(
     paper_drive: bool,
     motor_file: str | None,
     alpha_c_radps: float | None,
+    fixed_point: str | None,
+    speed_full_scale_rpm: float | None,
+    torque_full_scale_Nm: float | None,
 ) -> None:
     """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.
 
@@ -299,6 +319,10 @@ def design(
     needs the motor data and the current loop: --i-max, --pole-pairs, --psi-f, --Ld (--Lq for a
     salient motor), --Rs and --Ts-current (Ts an integer multiple of it), or --paper-drive to
     take what is not given from the paper's drive. The summary says where each value came from.
+
+    --fixed-point q15|q31 with --speed-full-scale-rpm and --torque-full-scale-Nm adds the scaling check
+    of the fixed-point controller (docs/mcu.md, "No FPU"): each coefficient's quantisation error, the
+    integrator's dead zone, the headroom of the states and the scalings or Ts that remove a dead zone.
     """
     import json
     import warnings
@@ -306,6 +330,7 @@ def design(
     from ..analysis.design import design as make_design
     from ..analysis.sensor import SensorChain
     from ..sim.plausibility import PlausibilityWarning, current_findings, inertia_findings
+    from .fixedpoint import design_scaling_check, report_dict
 
     with _held_warnings():
         file_motor = None if motor_file is None else _load_motor(motor_file)
@@ -384,6 +409,9 @@ def design(
             )
         except ConfigError as exc:
             raise _as_option(exc, options) from None
+        scaling = design_scaling_check(
+            d, Ts_s, method, fixed_point, speed_full_scale_rpm, torque_full_scale_Nm, i_max_A, pole_pairs, psi_f_Wb
+        )
     sensitivity = None
     if loop is not None:
         from ..analysis.current_loop import speed_margin_sensitivity
@@ -414,6 +442,8 @@ def design(
         if loop is not None:
             data["current_loop"] = loop.as_dict()
             data["speed_margin_sensitivity"] = sensitivity
+        if scaling is not None:
+            data["fixed_point"] = report_dict(scaling)
         click.echo(json.dumps(data))
         return
     click.echo(_design_table(dd, margins, delay_model))
@@ -424,6 +454,8 @@ def design(
         )
     if loop is not None:
         click.echo(_current_loop_table(loop, motor_file, sensitivity))
+    if scaling is not None:
+        click.echo("\n" + scaling.text())
     if header is not None:
         click.echo(f"\nC header written to {header}, with the motor data")
         width = max(len(name) for name in sources)
@@ -913,13 +945,22 @@ def _sweep_warnings(table: "pd.DataFrame") -> None:
     help="interface to listen on; anything but loopback exposes the tuner to the network",
 )
 @click.option("--no-browser", is_flag=True, help="do not open the page in a browser")
-def tune(scenario: str | None, port: int, host: str, no_browser: bool) -> None:
+@click.option(
+    "--link",
+    metavar="URL",
+    default=None,
+    help="drive mode: the XCP link of a drive built for the scenario (socket://HOST:PORT or a serial device), "
+    "or 'virtual' for the PC's virtual drive built here",
+)
+@click.option("--elf", type=click.Path(dir_okay=False), default=None, help="the ELF file of the drive's firmware")
+def tune(scenario: str | None, port: int, host: str, no_browser: bool, link: str | None, elf: str | None) -> None:
     """Tune the speed controller in the browser: responses redrawn as the sliders move.
 
     Starts from PRESET_OR_FILE (default: paper-condition-2) and serves a local page with
     sliders for alpha, zeta, m, Ka, the feedforward, anti-windup, discretization and Ts,
     the inertia error and the speed and load steps; downloads the scenario (TOML), the
-    C header of the design and the trace (CSV).
+    C header of the design and the trace (CSV). With --link the page, once armed, writes each
+    change to the drive and runs the experiment on it beside its simulation (docs/tuning.md).
     """
     from ..sim.plausibility import warn_implausible
     from ..sim.scenario import load_scenario
@@ -927,7 +968,7 @@ def tune(scenario: str | None, port: int, host: str, no_browser: bool) -> None:
 
     chosen = load_scenario(scenario or DEFAULT_PRESET)
     warn_implausible(chosen)
-    run_tuner(chosen, host=host, port=port, open_browser=not no_browser)
+    run_tuner(chosen, host=host, port=port, open_browser=not no_browser, link=link, elf=elf)
 
 
 # ---------------------------------------------------------------------------------------------

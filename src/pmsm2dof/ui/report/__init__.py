@@ -26,7 +26,9 @@ and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
 - a section on gain scheduling by the inertia the online estimator identifies (J of the plant
   0.5 to 2 times the design's: fixed, adapted and matched designs, :mod:`.adaptation`);
 - a section beyond the rigid load (:mod:`.twomass`): the paper's condition 2 on two-mass drive
-  trains, with and without a notch, and the stable region of alpha.
+  trains, with and without a notch, and the stable region of alpha;
+- a section without an FPU (:mod:`.fixedpoint`): the paper's conditions with the speed controller
+  in Q31 and Q15 against float32, and the Q15 dead zone of the paper's design at Ts = 1e-4 s.
 
 Reference: Wang, Lin, Yang, Fang, "Anti-Windup and 2DOF Design for Permanent-Magnet Synchronous
 Motor Speed Controller" (equation, figure and section numbers are the paper's).
@@ -48,11 +50,14 @@ from ...studies import paper as st
 from ...studies.adaptation import run_adaptation
 from ...studies.claims import VERDICTS, Claim, compute_claims
 from ...studies.faults import run_faults
+from ...studies.fixedpoint import run_arithmetic
 from ...studies.sensing import offset_study, sensor_study
 from .adaptation import CAPTION as ADAPTATION_CAPTION
 from .adaptation import fig_adaptation
 from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
+from .fixedpoint import CAPTION as FIXED_POINT_CAPTION
+from .fixedpoint import fig_fixed_point
 from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
 from .twomass import fig_stable_region, run_two_mass_study
 
@@ -118,6 +123,8 @@ def write_report(
     adaptation_runs = run_adaptation(studies.overrides)
     made["adaptation"] = (*fig_adaptation(adaptation_runs), ADAPTATION_CAPTION)
     two_mass = run_two_mass_study(studies.overrides)
+    arithmetic = run_arithmetic(studies.overrides)
+    made["fixed_point"] = (*fig_fixed_point(arithmetic), FIXED_POINT_CAPTION)
     made["two_mass_region"] = (
         *fig_stable_region(two_mass),
         "Largest alpha of a stable sampled loop on two-mass trains of the paper's inertia, against the shaft's "
@@ -171,6 +178,7 @@ def write_report(
             offset_rows=offset_rows,
             adaptation_runs=adaptation_runs,
             two_mass=two_mass,
+            arithmetic=arithmetic,
         )
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))

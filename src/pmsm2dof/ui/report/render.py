@@ -20,9 +20,11 @@ from ...studies import paper as st
 from ...studies.claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
 from ...studies.configuration import scenario_design
 from ...studies.faults import fault_figures
+from ...studies.fixedpoint import ArithmeticStudy
 from ...studies.sensing import OffsetRow, SensorRow
 from .adaptation import adaptation_blocks
 from .commissioning import commissioning_blocks
+from .fixedpoint import fixed_point_blocks
 from .sensing import sensing_blocks
 from .twomass import TwoMassStudy, two_mass_blocks
 
@@ -156,6 +158,7 @@ def report_blocks(
     offset_rows: Sequence[OffsetRow] = (),
     adaptation_runs: dict[tuple[float, str], Result | str] | None = None,
     two_mass: TwoMassStudy | None = None,
+    arithmetic: ArithmeticStudy | None = None,
 ) -> list[Block]:
     """The report as a list of blocks, rendered by :func:`render_markdown` and :func:`render_html`.
 
@@ -164,7 +167,8 @@ def report_blocks(
     ``sensor_rows`` (of :func:`pmsm2dof.studies.sensing.sensor_study`) the one on the speed measurement,
     with ``offset_rows`` (:func:`pmsm2dof.studies.sensing.offset_study`);
     ``adaptation_runs`` (of :func:`pmsm2dof.studies.adaptation.run_adaptation`) the one on gain scheduling;
-    ``two_mass`` (of :func:`~pmsm2dof.ui.report.twomass.run_two_mass_study`) the section beyond the rigid load.
+    ``two_mass`` (of :func:`~pmsm2dof.ui.report.twomass.run_two_mass_study`) the section beyond the rigid load;
+    ``arithmetic`` (of :func:`pmsm2dof.studies.fixedpoint.run_arithmetic`) the one without an FPU.
 
     Blocks: ``("h1"|"h2"|"h3"|"p", text)``, ``("list", [text])``, ``("table", header, rows)``,
     ``("figure", stem, caption)``. Text may hold `code` spans.
@@ -250,6 +254,7 @@ def report_blocks(
         *sensing_blocks(sensor_rows, offset_rows),
         *adaptation_blocks(adaptation_runs),
         *(two_mass_blocks(two_mass, figure_captions) if two_mass is not None else []),
+        *fixed_point_blocks(arithmetic),
         ("h2", "Files"),
         (
             "list",

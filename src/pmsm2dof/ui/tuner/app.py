@@ -10,6 +10,17 @@ Endpoints
 ``POST /api/download/{kind}``      ``scenario.toml``, ``header.h`` or ``trace.csv`` of those values
 ``POST /api/suggest``              autotune the experiment of those values for a specification
 
+In drive mode (:mod:`pmsm2dof.ui.tuner.drive`, ``create_app(scenario, drive=session)``), also:
+
+``GET /api/drive``                 the drive's link, arming, run state and speed controller read back
+``POST /api/drive/arm``            ``{"armed": true}`` arms the drive for this page, ``false`` disarms
+``POST /api/drive/heartbeat``      the arming page is there (at least every ``heartbeat_timeout_s``)
+``POST /api/drive/write``          validate the control values and write their speed controller
+``POST /api/drive/run``            run the experiment of the control values on the drive and in its twin
+
+A write or a run by a page that has not armed the drive answers 409 and writes nothing; a failed
+link or a drive that refused or stopped answers 502 with the sentence the terminal prints too.
+
 A POST body is a JSON object, sent as ``Content-Type: application/json`` (anything else answers
 415: a form of another site cannot post to the tuner without a CORS preflight, which it does
 not grant), mapping control keys (the scenario's dotted keys, e.g. ``speed_controller.alpha_radps``,
@@ -41,9 +52,11 @@ from starlette.responses import FileResponse, JSONResponse, Response
 from starlette.routing import Mount, Route
 from starlette.staticfiles import StaticFiles
 
-from ...errors import PARAM_CHARS_MAX, ConfigError, SimulationError, cut_text
+from ...errors import PARAM_CHARS_MAX, ConfigError, SimulationError, ToolError, cut_text
 from ...inputs import parse_json
 from ...sim.scenario import Scenario
+from ...studies.bench import DriveSession, NotArmed
+from .drive import DriveMode
 from .experiment import Tuner
 from .slots import ClientSlots, Superseded
 
@@ -91,6 +104,10 @@ def _error(exc: Exception) -> JSONResponse:
         return _answer({"error": str(exc), "param": None}, 409)
     if isinstance(exc, _Busy):
         return _answer({"error": str(exc), "param": None}, 429)
+    if isinstance(exc, NotArmed):
+        return _answer({"error": str(exc), "param": None}, 409)
+    if isinstance(exc, ToolError):
+        return _answer({"error": str(exc), "param": None}, 502)
     param = exc.param if isinstance(exc, ConfigError) else None
     return _answer({"error": str(exc), "param": param}, 422)
 
@@ -147,22 +164,26 @@ def _client(request: Request) -> tuple[str, str]:
     return peer, request.headers.get(CLIENT_HEADER, "")
 
 
-def create_app(scenario: Scenario) -> Starlette:
-    """The tuner application for a base scenario.
+def create_app(scenario: Scenario, drive: DriveSession | None = None) -> Starlette:
+    """The tuner application for a base scenario, in drive mode with a session on a drive.
 
     Parameters
     ----------
     scenario : pmsm2dof.sim.scenario.Scenario
         Base scenario: motor, limits, current loop, schedules and the initial controller settings.
+    drive : pmsm2dof.studies.bench.DriveSession, optional
+        A session on the drive built for ``scenario``: the drive mode's endpoints.
 
     Returns
     -------
     starlette.applications.Starlette
         Its ``state.tuner`` is the :class:`~pmsm2dof.ui.tuner.experiment.Tuner`, its
         ``state.slots`` the :class:`~pmsm2dof.ui.tuner.slots.ClientSlots` of its clients, its
-        ``state.suggesting`` the lock held while a suggestion is computed.
+        ``state.suggesting`` the lock held while a suggestion is computed, ``state.drive`` the
+        :class:`~pmsm2dof.ui.tuner.drive.DriveMode` or None.
     """
     tuner = Tuner(scenario)
+    mode = DriveMode(tuner, drive) if drive is not None else None
     slots = ClientSlots()
     suggesting = threading.Lock()
     plotly_js = plotly_js_path()
@@ -174,7 +195,9 @@ def create_app(scenario: Scenario) -> Starlette:
         return FileResponse(plotly_js, media_type="text/javascript")
 
     async def controls(request: Request) -> Response:
-        return JSONResponse(tuner.controls())
+        description = tuner.controls()
+        description["drive"] = mode.describe() if mode is not None else None
+        return JSONResponse(description)
 
     async def run(request: Request) -> Response:
         try:
@@ -208,7 +231,67 @@ def create_app(scenario: Scenario) -> Starlette:
         except (_NotJSON, _TooLarge, _Busy, ConfigError, SimulationError) as exc:
             return _error(exc)
 
+    async def drive_status(request: Request) -> Response:
+        assert mode is not None
+        try:
+            return _json(await run_in_threadpool(mode.session.status))
+        except ToolError as exc:
+            return _error(exc)
+
+    async def drive_arm(request: Request) -> Response:
+        assert mode is not None
+        try:
+            body = await _body(request)
+            armed = body.get("armed")
+            if set(body) != {"armed"} or not isinstance(armed, bool):
+                raise ConfigError("armed", body.get("armed", body), "true (arm the drive for this page) or false")
+            owner = _client(request)
+            await run_in_threadpool(mode.session.arm if armed else mode.session.disarm, owner)
+            return _json(await run_in_threadpool(mode.session.status))
+        except (_NotJSON, _TooLarge, ConfigError, NotArmed, ToolError) as exc:
+            return _error(exc)
+
+    async def drive_heartbeat(request: Request) -> Response:
+        assert mode is not None
+        try:
+            await _body(request)
+        except (_NotJSON, _TooLarge, ConfigError) as exc:
+            return _error(exc)
+        session = mode.session
+        return _json(
+            {
+                "armed": session.heartbeat(_client(request)),
+                "running": session.running,
+                "lost": session.lost,
+                "messages": session.recent(),
+            }
+        )
+
+    async def drive_write(request: Request) -> Response:
+        assert mode is not None
+        try:
+            body = await _body(request)
+            return _json(await run_in_threadpool(mode.write, body, _client(request)))
+        except (_NotJSON, _TooLarge, ConfigError, NotArmed, SimulationError, ToolError) as exc:
+            return _error(exc)
+
+    async def drive_run(request: Request) -> Response:
+        assert mode is not None
+        try:
+            body = await _body(request)
+            return _json(await run_in_threadpool(mode.run, body, _client(request)))
+        except (_NotJSON, _TooLarge, ConfigError, NotArmed, SimulationError, ToolError) as exc:
+            return _error(exc)
+
+    drive_routes = [
+        Route("/api/drive", drive_status),
+        Route("/api/drive/arm", drive_arm, methods=["POST"]),
+        Route("/api/drive/heartbeat", drive_heartbeat, methods=["POST"]),
+        Route("/api/drive/write", drive_write, methods=["POST"]),
+        Route("/api/drive/run", drive_run, methods=["POST"]),
+    ]
     routes = [
+        *(drive_routes if mode is not None else []),
         Route("/", index),
         Route("/vendor/plotly.min.js", vendor_plotly),
         Route("/api/controls", controls),
@@ -221,4 +304,5 @@ def create_app(scenario: Scenario) -> Starlette:
     app.state.tuner = tuner
     app.state.slots = slots
     app.state.suggesting = suggesting
+    app.state.drive = mode
     return app

@@ -39,6 +39,7 @@ window.tuner = {
   current: null,      // response on screen
   pinned: null,       // pinned response
   suggestion: null,   // the last suggestion applied
+  drive: null,        // drive mode: the drive panel's state (drive.js)
 };
 
 const state = { specs: {}, values: {}, changedAt: 0, inFlight: false, dirty: false, timer: null };
@@ -229,6 +230,7 @@ async function requestRun() {
       window.tuner.lastFetchMs = fetchMs;
       showError(null);
       markStale(false);
+      if (window.tuner.drive && window.tuner.drive.armed) driveWrite();  // validated: to the drive
       document.getElementById("status").textContent =
         `redrawn ${window.tuner.lastLatencyMs.toFixed(0)} ms after the change ` +
         `(server ${run.server_ms.toFixed(0)} ms, request ${fetchMs.toFixed(0)} ms)`;
@@ -540,6 +542,7 @@ async function start() {
     const description = await response.json();
     document.getElementById("scenario-name").textContent = "scenario: " + description.name;
     buildControls(description);
+    startDrive(description.drive);
   } catch (error) {
     showError(new Error("cannot load the controls: " + error.message));
     return;
