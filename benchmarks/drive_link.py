@@ -25,6 +25,12 @@ latency
     Wall time of a calibration write of alpha (SET_MTA + DOWNLOAD of 4 bytes, answered once the
     firmware committed it at its next speed sample) and of a GET_STATUS, medians of 20, with the drive
     idle and running.
+pmsm2dof drive
+    ``drive capture`` on the PC's drive on the wall clock at the current event (20 kHz, 1 s): the
+    samples, the lost ones, and the time to write them as CSV, Parquet and MDF4 with the file sizes;
+    ``drive set`` of alpha: the checked write (A2L limits, the controller's validation on the
+    configuration read back, one DOWNLOAD, the value read back; medians of 20) beside the bare
+    write, on the PC's drive and QEMU's TCP link, and the whole command (a new process) on the PC.
 
 Usage: ``python3 benchmarks/drive_link.py`` (a few minutes: builds and QEMU runs).
 """
@@ -202,6 +208,8 @@ def main():
                 lossy.append((count, payload_bytes(link, names), n, lost))
             rows["host-realtime"] = (latency(link, False), latency(link, True))
 
+        captures, checked = drive_commands(folder, qelf)
+
     base_current, base_speed = cost_rows[0][1], cost_rows[0][2]
     lines = [  # the samples counted are those of the run (power on)
         SECTION,
@@ -265,8 +273,99 @@ def main():
         "A calibration write is answered after the firmware's next speed sample committed it (0.5 ms of the "
         "drive's time here). QEMU's UART hands the firmware one received byte per poll of its background loop "
         "(one per control period while the virtual motor's physics runs); its transmitter is not paced.",
+        "",
+        "### pmsm2dof drive: capture to a file, checked set",
+        "",
+        "`drive capture` on the PC's drive on the wall clock, at the current event (20 kHz) for 1 s of the drive's "
+        "time (the samples/s are those of the wall time the whole capture took, set-up and stop included); the "
+        "writes of the same samples to each format:",
+        "",
+        "| signals | samples | lost | samples/s (wall) | CSV | Parquet | MDF4 |",
+        "|---:|---:|---:|---:|---:|---:|---:|",
+        *(
+            f"| {c} | {n} | {lo} | {rate:.0f} | "
+            + " | ".join(f"{t * 1e3:.0f} ms, {b / 1e3:.0f} kB" for t, b in w)
+            + " |"
+            for c, n, lo, rate, w in captures
+        ),
+        "",
+        "`drive set speed_controller.alpha_radps=...` (medians of 20): the checked write reads the controller's "
+        "configuration back (15 fields), validates it with the C library's init, writes in one DOWNLOAD and "
+        "reads the value back; the bare write is one SET_MTA + DOWNLOAD.",
+        "",
+        "| drive | checked set | bare write | the command (new process) |",
+        "|---|---:|---:|---:|",
+        *(
+            f"| {k} | {a * 1e3:.2f} ms | {b * 1e3:.2f} ms | " + (f"{c:.2f} s |" if c else "- |")
+            for k, (a, b, c) in checked.items()
+        ),
+        "",
+        "The command's time is Python's start and the imports (pyxcp, numpy, the extension) far more than the link.",
     ]
     write_section(SECTION, "\n".join(lines))
+
+
+def drive_commands(folder, qelf):
+    """`drive capture` throughput and the file writes; `drive set` latency (checked, bare, whole command)."""
+    import os
+
+    from pmsm2dof.drive.session import capture, open_link, plan_capture, write_capture
+
+    captures = []
+    checked = {}
+    a2l = folder / "virtual_drive_host.a2l"
+    with serve_host(folder / "virtual_drive_host", realtime=True) as url, tempfile.TemporaryDirectory() as tmp:
+        with open_link(url, a2l) as link:
+            for count in (2, 8, 24):
+                names = TRACE[:count] if count > 8 else (FLOATS + TRACE)[:count]
+                start = time.perf_counter()
+                cap = capture(link, plan_capture(link, names, "current", 1.0, Path(tmp) / "c.csv", force=True))
+                wall = time.perf_counter() - start
+                writes = []
+                for suffix in (".csv", ".parquet", ".mf4"):
+                    path = Path(tmp) / f"c{suffix}"
+                    t0 = time.perf_counter()
+                    write_capture(link, cap, path)
+                    writes.append((time.perf_counter() - t0, path.stat().st_size))
+                n = len(cap.timestamps)
+                captures.append((count, n, cap.dtos_lost, n / wall, writes))
+            checked["host (wall clock)"] = set_latency(link)
+        # a new master once this one has gone (the drive takes one at a time)
+        checked["host (wall clock)"] += (cli_latency(url, a2l, os.environ),)
+    with serve_qemu(qelf, serial="tcp") as url, open_link(url, folder / "virtual_drive.a2l") as link:
+        checked["qemu-tcp"] = set_latency(link) + (None,)
+    return captures, checked
+
+
+def set_latency(link):
+    from pmsm2dof.drive.session import set_values
+
+    alpha = link.read("link_speed_config.alpha_radps")
+    checked, bare = [], []
+    for i in range(20):
+        t0 = time.perf_counter()
+        set_values(link, [f"speed_controller.alpha_radps={alpha + 1 + i % 2}"])
+        checked.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        link.write({"link_speed_config.alpha_radps": alpha + i % 2})
+        bare.append(time.perf_counter() - t0)
+    link.write({"link_speed_config.alpha_radps": alpha})
+    return statistics.median(checked), statistics.median(bare)
+
+
+def cli_latency(url, a2l, env):
+    walls = []
+    for i in range(3):
+        t0 = time.perf_counter()
+        done = subprocess.run(
+            [sys.executable, "-m", "pmsm2dof", "drive", "set", f"speed_controller.alpha_radps={150 + i}", "--link",
+             url, "--a2l", str(a2l)],
+            capture_output=True, text=True, env={**env, "PYTHONPATH": str(ROOT / "src")},
+        )  # fmt: skip
+        walls.append(time.perf_counter() - t0)
+        if done.returncode != 0:
+            raise RuntimeError(f"pmsm2dof drive set failed: {done.stderr}")
+    return statistics.median(walls)
 
 
 if __name__ == "__main__":

@@ -21,11 +21,20 @@ from the commit:
   (filtering too much, data too large) stay on.
 
 A test's own ``@settings`` (its number of examples, say) still applies on top of the profile.
+
+Builds that several test files need are session fixtures here, made once per run; under
+pytest-xdist (``-n``) the first worker that asks makes it, in the folder the workers share, and
+the others wait for it (:func:`made_once`).
 """
 
+import fcntl
 import os
+from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, settings
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def pytest_addoption(parser):
@@ -49,3 +58,37 @@ settings.register_profile(
     "ci", derandomize=True, database=None, deadline=None, suppress_health_check=[HealthCheck.too_slow]
 )
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
+
+
+def made_once(request, tmp_path_factory, name, make):
+    """The folder ``name`` filled by ``make(folder)`` once per test run, shared by the xdist workers.
+
+    Without xdist a new temporary folder. Under xdist a folder of the run's temporary root, which
+    all workers share: the first worker holding its lock makes it, the others wait and reuse it; a
+    ``make`` that failed leaves no mark, and the next worker tries again (and fails the same way).
+    """
+    if not hasattr(request.config, "workerinput"):
+        folder = tmp_path_factory.mktemp(name)
+        make(folder)
+        return folder
+    root = tmp_path_factory.getbasetemp().parent
+    folder, done = root / name, root / f"{name}.done"
+    with open(root / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if not done.exists():
+            folder.mkdir(exist_ok=True)
+            make(folder)
+            done.touch()
+    return folder
+
+
+@pytest.fixture(scope="session")
+def servo_firmware(request, tmp_path_factory):
+    """examples/firmware/small-servo-20k.toml (20 kHz current, 2 kHz speed loop) built by ``build_firmware``
+    for QEMU and the PC: ``(scenario, folder)``. The tests read the folder and never write into it."""
+    from pmsm2dof.sim.scenario import load_scenario
+    from pmsm2dof.studies.firmware import build_firmware
+
+    scenario = load_scenario(str(ROOT / "examples" / "firmware" / "small-servo-20k.toml"))
+    folder = made_once(request, tmp_path_factory, "small-servo-20k", lambda f: build_firmware(scenario, f / "fw"))
+    return scenario, folder / "fw"

@@ -6,19 +6,14 @@ and ranges of the C comments, the XCP interface (parsed by the file's own A2ML).
 import re
 import shutil
 import subprocess
-from pathlib import Path
 
 import pytest
 
 from pmsm2dof.core.bindings import enum_names, ffi, field_comment, struct_fields
-from pmsm2dof.sim.scenario import load_scenario
-from pmsm2dof.studies.firmware import build_firmware
 
 pya2l = pytest.importorskip("pya2l")
 from pya2l import model  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-SERVO = ROOT / "examples" / "firmware" / "small-servo-20k.toml"
 _MISSING = [t for t in ("cmake", "cc", "nm", "arm-none-eabi-gcc", "arm-none-eabi-nm") if shutil.which(t) is None]
 
 pytestmark = [
@@ -40,8 +35,8 @@ LIBRARY = {"link_speed_config": "p2d_speed_config_t", "link_current_config": "p2
 
 
 @pytest.fixture(scope="module")
-def folder(tmp_path_factory):
-    return build_firmware(load_scenario(str(SERVO)), tmp_path_factory.mktemp("a2l") / "fw").folder
+def folder(servo_firmware):
+    return servo_firmware[1]
 
 
 def nm_symbols(nm, elf):
@@ -155,3 +150,33 @@ def test_the_xcp_interface(folder, elf, a2l, nm, virtual, sxi):
     mod_common = s.query(model.ModCommon).first()
     assert mod_common.byte_order.byteOrder == "MSB_LAST"
     assert re.search(r"ASAP2_VERSION 1 71", (folder / a2l).read_text())
+
+
+@pytest.mark.parametrize(("elf", "a2l", "nm", "virtual", "sxi"), BUILDS)
+def test_the_drive_commands_reader_agrees_with_pya2ldb(folder, elf, a2l, nm, virtual, sxi):
+    """pmsm2dof.drive.a2l_reader.read_a2l (what `pmsm2dof drive` reads) against pya2ldb: every segment, every
+    MEASUREMENT's and CHARACTERISTIC's address, type, element count, limits, unit and text, the events."""
+    from pmsm2dof.drive.a2l_reader import read_a2l as drive_a2l
+
+    mine = drive_a2l(folder / a2l)
+    s = read_a2l(folder / a2l)
+    assert mine.segments == {m.name: (m.address, m.size) for m in s.query(model.MemorySegment).all()}
+    units = {c.name: c.unit for c in s.query(model.CompuMethod).all()}
+    sizes = {"FLOAT32_IEEE": 4, "FLOAT64_IEEE": 8, "UBYTE": 1, "UWORD": 2, "ULONG": 4, "SLONG": 4, "SWORD": 2}
+    theirs = {}
+    for m in s.query(model.Measurement).all():
+        theirs[m.name] = (m.ecu_address.address, sizes[m.datatype], m.matrix_dim.numbers[0] if m.matrix_dim else 1,
+                          m.lowerLimit, m.upperLimit, units[m.conversion], m.longIdentifier, False)  # fmt: skip
+    for c in s.query(model.Characteristic).all():
+        size = sizes[str(c.deposit)[len("RL_") :]]
+        theirs[c.name] = (c.address, size, c.matrix_dim.numbers[0] if c.matrix_dim else 1, c.lowerLimit,
+                          c.upperLimit, units[c.conversion], c.longIdentifier, True)  # fmt: skip
+    assert {
+        n: (e.scalar.address, e.scalar.size, e.scalar.count, e.lower, e.upper, e.unit, e.text, e.writable)
+        for n, e in mine.entries.items()
+    } == theirs
+    module = s.query(model.Module).first()
+    (xcp,) = s.parse_ifdata(module.if_data)
+    events = xcp["XCP"][0]["DAQ"][-1]["EVENT"]
+    assert mine.events == {e[0]: (e[2], pytest.approx(e[5] * 10.0 ** e[6] * 1e-9, rel=1e-12)) for e in events}
+    assert mine.module == module.name and mine.byte_order == "little"

@@ -12,7 +12,6 @@ file read by pya2ldb (tests/test_drive_a2l.py checks those against the ELF).
 import shutil
 import struct
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,8 +27,6 @@ from pmsm2dof.studies.firmware import build_firmware, compare, play_scenario
 pyxcp = pytest.importorskip("pyxcp")
 from pyxcp.types import XcpResponseError  # noqa: E402
 
-ROOT = Path(__file__).resolve().parents[1]
-SERVO = ROOT / "examples" / "firmware" / "small-servo-20k.toml"
 _MISSING = [t for t in ("cmake", "cc", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
 
 #: Slow (cross builds and emulators: the full suite); skipped without the tools.
@@ -43,14 +40,18 @@ DRIVES = ["host", "qemu-pty", "qemu-tcp"]
 
 
 @pytest.fixture(scope="module")
-def servo(tmp_path_factory):
-    """The small servo (20 kHz current, 2 kHz speed loop) built for QEMU and the PC."""
-    scenario = load_scenario(str(SERVO))
-    return scenario, build_firmware(scenario, tmp_path_factory.mktemp("servo") / "fw").folder
+def servo(servo_firmware):
+    """The small servo (20 kHz current, 2 kHz speed loop) built for QEMU and the PC (tests/conftest.py)."""
+    return servo_firmware
 
 
 def serve(kind, folder, realtime=False, **arguments):
-    """The drive of a build; the PC's as fast as the link allows unless ``realtime`` (QEMU's as fast as it runs)."""
+    """The drive of a build; the PC's as fast as the link allows unless ``realtime`` (QEMU's as fast as it runs).
+
+    The link's watchdog waits 1 s unless a test sets ``timeout_ms``: the tests share the cores with other
+    tests, and a master starved of CPU for the default 200 ms would trip a drive that a test expects to run.
+    """
+    arguments.setdefault("timeout_ms", 1000)
     if kind == "host":
         return serve_host(folder / "virtual_drive_host", realtime=realtime, **arguments)
     return serve_qemu(folder / "virtual_drive.elf", serial=kind.split("-")[1], **arguments)
@@ -141,8 +142,9 @@ def test_a_live_write_of_alpha_takes_effect_at_the_next_speed_sample(servo, kind
     new design at the sample the drive reports, through the same bumpless p2d_speed_set_config."""
     scenario, folder = servo
     alpha_new = 100.0
-    # the PC's drive on the wall clock: the run lasts its 0.2 s, a write lands within it
-    with serve(kind, folder, realtime=True) as url, Link(url, elf(kind, folder)) as link:
+
+    def play_with_a_write():
+        """The run on the PC's drive on the wall clock (its 0.2 s), alpha written once it passed sample 100."""
         written = {}
 
         def write_alpha(link, status):
@@ -150,11 +152,17 @@ def test_a_live_write_of_alpha_takes_effect_at_the_next_speed_sample(servo, kind
                 link.write({"link_speed_config.alpha_radps": alpha_new})
                 written["status"] = link.status()
 
-        drive = play_scenario(link, scenario, during=write_alpha)
-        status = written["status"]
-    assert status["commit_run"] == status["runs"] and status["commits_applied"] >= 1
+        with serve(kind, folder, realtime=True) as url, Link(url, elf(kind, folder)) as link:
+            return play_scenario(link, scenario, during=write_alpha), written.get("status")
+
+    # a machine too busy for the write to land before the second step's response is over plays the run again
+    for _ in range(3):
+        drive, status = play_with_a_write()
+        if status is not None and status["commit_run"] == status["runs"] and status["commit_sample"] < 300:
+            break
+    assert status is not None and status["commit_run"] == status["runs"] and status["commits_applied"] >= 1, status
     k = status["commit_sample"]
-    assert 100 <= k < 240, k  # between the first step and the second (at 0.12 s, sample 240)
+    assert 100 <= k < 300, k  # after the first step, before the response to the second (at sample 240) is over
     sim = Simulation(scenario.data)
     sim.advance(k)
     cfg = ffi.new("p2d_speed_config_t *", sim.sim.speed.config)

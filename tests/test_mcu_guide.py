@@ -99,3 +99,9 @@ def test_every_shell_block_of_the_guide_runs_as_written(tmp_path):
     metrics = json.loads((repo / "run-servo" / "metrics.json").read_text())
     assert metrics["comparison"]["agrees"] is True
     assert metrics["interrupts"]["speed"]["interrupts"] == 401
+    # pmsm2dof drive on the PC's drive: the capture (MDF4) and the run agreeing with the engine
+    import asammdf
+
+    with asammdf.MDF(repo / "capture.mf4") as mdf:
+        assert len(mdf.get("foc_now.iq_A").samples) > 100
+    assert json.loads((repo / "drive-run" / "metrics.json").read_text())["comparison"]["agrees"] is True

@@ -109,8 +109,21 @@ def read_variables(elf: Path | str, names: list[str]) -> dict[str, Variable]:
     Raises
     ------
     ConfigError
-        A variable is not in the ELF's symbol table or debug information (built without -g).
+        Not an ELF file, unreadable, or a variable not in its symbol table or debug information (built
+        without -g).
     """
+    from elftools.common.exceptions import DWARFError, ELFError
+
+    try:
+        return _read_variables(elf, names)
+    except (ELFError, DWARFError) as exc:
+        raise ConfigError("elf", str(elf), f"an ELF file of the firmware ({exc})") from None
+    except OSError as exc:
+        raise ConfigError("elf", str(elf), f"a readable ELF file ({exc.strerror or exc})") from None
+
+
+def _read_variables(elf: Path | str, names: list[str]) -> dict[str, Variable]:
+    """:func:`read_variables`, its parser's errors left to the caller."""
     from elftools.elf.elffile import ELFFile
     from elftools.elf.sections import SymbolTableSection
 

@@ -25,6 +25,7 @@ import numpy.typing as npt
 
 from ..core import LOG_COLUMNS
 from ..errors import ConfigError, SimulationError, ToolError
+from .a2l_reader import A2l, read_a2l
 from .elf import Scalar, Variable, read_variables
 
 #: The variables of the firmware example that the slave exposes (examples/firmware/link.h).
@@ -70,14 +71,61 @@ def firmware_variables(elf: Path | str, virtual: bool) -> dict[str, Variable]:
     return variables
 
 
+#: The forms of a link URL, for messages.
+URL_FORMS = "tcp://HOST:PORT (XCP on TCP), serial:DEVICE or a device path such as /dev/pts/3 or COM3 (XCP on SxI)"
+
+
+def link_url(text: str, allow_remote: bool = False) -> str:
+    """A link URL checked, in one form: ``tcp://HOST:PORT`` or a device.
+
+    Parameters
+    ----------
+    text : str
+        ``tcp://HOST:PORT`` (also ``socket://HOST:PORT``), ``serial:DEVICE``, or a device path.
+    allow_remote : bool
+        Accept a HOST that is not this machine's loopback. A drive answers whoever connects to it
+        (XCP has no authentication unless the integrator adds seed and key): a master reaches
+        another machine's drive only when told to.
+
+    Raises
+    ------
+    ConfigError
+        Another form, a port outside 1..65535, or a remote HOST without ``allow_remote``.
+    """
+    import ipaddress
+
+    for scheme in ("tcp://", "socket://"):
+        if text.startswith(scheme):
+            host, _, port = text[len(scheme) :].rpartition(":")
+            host = host.strip("[]")
+            if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+                raise ConfigError("link", text, URL_FORMS + ", PORT in 1..65535")
+            if not allow_remote:
+                try:
+                    local = host == "localhost" or ipaddress.ip_address(host).is_loopback
+                except ValueError:
+                    local = False
+                if not local:
+                    raise ConfigError(
+                        "link",
+                        text,
+                        "a drive on this machine (127.0.0.1, ::1, localhost); allow a remote one explicitly",
+                    )
+            return f"tcp://{host}:{int(port)}"
+    device = text[len("serial:") :] if text.startswith("serial:") else text
+    if not device or "://" in device:
+        raise ConfigError("link", text, URL_FORMS)
+    return device
+
+
 def pyxcp_master(url: str, timeout_s: float = 2.0, policy: Any = None) -> Any:
-    """A pyxcp Master on ``url`` (``socket://host:port`` or a serial device) that raises on error packets."""
+    """A pyxcp Master on ``url`` (``tcp://host:port``, ``socket://host:port`` or a device) that raises on errors."""
     from pyxcp import Master
     from pyxcp.config import create_application_from_config
 
     general = {"disable_error_handling": True}
-    if url.startswith("socket://"):
-        host, _, port = url[len("socket://") :].rpartition(":")
+    if url.startswith(("socket://", "tcp://")):
+        host, _, port = url.partition("://")[2].rpartition(":")
         if not host or not port.isdigit():
             raise ConfigError("url", url, "socket://HOST:PORT or a serial device")
         transport = {"timeout": timeout_s, "Eth": {"host": host, "port": int(port), "protocol": "TCP"}}
@@ -151,23 +199,38 @@ class Link:
         ``socket://127.0.0.1:PORT`` or a serial device (``/dev/pts/N``, ``COM3``).
     elf : path
         The firmware's ELF (``virtual_drive.elf``, ``virtual_drive_host``, ``firmware.elf``).
+        Or the build's A2L file (``virtual_drive_host.a2l``, ...): its memory segments, variables and limits.
     virtual : bool
-        The firmware runs on the virtual board (its load schedule and trace row).
+        The firmware runs on the virtual board (its load schedule and trace row); read from an A2L file.
     timeout_s : float
         pyxcp's response timeout [s].
+    allow_remote : bool
+        Connect to a TCP host other than this machine (:func:`link_url`).
+
+    Notes
+    -----
+    The link reads and writes only inside the variables (:meth:`read_bytes`, :meth:`write_bytes`).
     """
 
-    def __init__(self, url: str, elf: Path | str, *, virtual: bool = True, timeout_s: float = 2.0) -> None:
-        self.url = url
+    def __init__(
+        self, url: str, elf: Path | str, *, virtual: bool = True, timeout_s: float = 2.0, allow_remote: bool = False
+    ) -> None:
+        self.url = link_url(url, allow_remote)
         self.timeout_s = timeout_s
-        self.variables = firmware_variables(elf, virtual)
+        self.a2l: A2l | None = None
+        if Path(elf).suffix.lower() == ".a2l":
+            self.a2l = read_a2l(elf)
+            self.variables = self.a2l.variables()
+        else:
+            self.variables = firmware_variables(elf, virtual)
         self.scalars: dict[str, Scalar] = {s.name: s for v in self.variables.values() for s in v.scalars}
         self._master: Any = None
         self.max_cto = 8
 
     # ---- session --------------------------------------------------------
     def __enter__(self) -> "Link":
-        self.open()
+        if self._master is None:
+            self.open()
         return self
 
     def __exit__(self, kind: type[BaseException] | None, value: BaseException | None, tb: TracebackType | None) -> None:
@@ -213,13 +276,25 @@ class Link:
         values = struct.unpack(f"<{s.count}{_FORMATS[(s.encoding, s.size)]}", data)
         return values[0] if s.count == 1 else values
 
+    def _inside(self, address: int, n: int) -> None:
+        """Raise ConfigError unless [address, address + n) lies inside one variable of the firmware."""
+        for var in self.variables.values():
+            if var.address <= address and address + n <= var.address + var.size:
+                return
+        raise ConfigError(
+            "address", f"0x{address:X} + {n} bytes", "inside one of the variables: " + ", ".join(self.variables)
+        )
+
     def read_bytes(self, address: int, n: int) -> bytes:
-        """n bytes at an XCP address (UPLOADs of at most 255 bytes, in the slave's block mode)."""
+        """n bytes at an XCP address inside a variable (UPLOADs of at most 255 bytes, in the slave's block mode)."""
+        self._inside(address, n)
         self.master.setMta(address)
         return b"".join(bytes(self.master.upload(min(255, n - i))) for i in range(0, n, 255))
 
     def write_bytes(self, address: int, data: bytes) -> None:
-        """Write bytes with SET_MTA and DOWNLOADs of at most MAX_CTO - 2 bytes (each one taken into force whole)."""
+        """Write bytes inside a variable with SET_MTA and DOWNLOADs of at most MAX_CTO - 2 bytes (each one taken
+        into force whole)."""
+        self._inside(address, len(data))
         step = self.max_cto - 2
         self.master.setMta(address)
         for i in range(0, len(data), step):
@@ -331,20 +406,38 @@ class Link:
         prescaler: int = 1,
         until: Any = None,
         duration_s: float = 1.0,
+        stall_s: float = 10.0,
     ) -> Capture:
         """Capture signals by DAQ at an event; ``until(link)`` (polled every 20 ms) or ``duration_s`` ends it.
 
-        The session is re-opened with the DAQ policy. The status is polled throughout, which keeps
-        the link's watchdog fed.
+        ``duration_s`` is of the drive's time, by the DAQ timestamps: the capture ends once its samples
+        span it, however fast or slow the drive runs against the wall clock (QEMU's at a few percent
+        of it while a list streams). The session is re-opened with the DAQ policy. The status is
+        polled throughout, which keeps the link's watchdog fed. Raises ToolError when no sample
+        arrives for ``stall_s`` of the wall clock.
         """
         _use_default_application()
         policy = _Collect.make([self._daq_list(names, event, prescaler)])
         self.open(policy)
         policy.setup()
         policy.start()
-        end = time.monotonic() + duration_s
+        span_ns = duration_s * 1e9
+        heard = (time.monotonic(), 0)
+
+        def covered() -> bool:
+            nonlocal heard
+            with policy.lock:
+                n = len(policy.rows)
+                span = policy.rows[-1][0] - policy.rows[0][0] if n else -1
+            now = time.monotonic()
+            if n != heard[1]:
+                heard = (now, n)
+            elif now - heard[0] > stall_s:
+                raise ToolError(f"the drive sent no DAQ sample at the {event} event for {stall_s:g} s")
+            return bool(span >= span_ns)
+
         try:
-            while (until is None and time.monotonic() < end) or (until is not None and not until(self)):
+            while not (until(self) if until is not None else covered()):
                 self.status()
                 time.sleep(0.02)
         finally:

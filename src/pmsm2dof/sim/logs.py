@@ -1,4 +1,4 @@
-"""Measured drive logs: CSV, Parquet, NPZ or MAT files read into named arrays in SI units.
+"""Measured drive logs: CSV, Parquet, NPZ, MAT or MDF4 files read into named arrays in SI units.
 
 A log has one column per signal, found by its unit-suffixed name (the suffix gives the unit):
 
@@ -37,6 +37,7 @@ import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -75,7 +76,7 @@ ROWS_MAX = 50_000_000
 #: the readers hold in memory while they parse it.
 LOG_BYTES_MAX = 2 * 1024**3
 
-FORMATS = (".csv", ".parquet", ".npz", ".mat")
+FORMATS = (".csv", ".parquet", ".npz", ".mat", ".mf4")
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -158,6 +159,8 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
 
             mat = scipy.io.loadmat(path, squeeze_me=True)
             return {name: value for name, value in mat.items() if not name.startswith("__")}
+        if suffix == ".mf4":
+            return _read_mdf(path)
     except ConfigError:
         raise
     except (OSError, ValueError, UnicodeDecodeError, ImportError) as exc:
@@ -167,6 +170,27 @@ def _read_table(path: Path) -> dict[str, np.ndarray]:
             "log", str(path), f"a readable {suffix[1:].upper()} log ({type(exc).__name__}: {exc})"
         ) from None
     raise ConfigError("log", str(path), "a file ending in " + ", ".join(FORMATS))
+
+
+def _read_mdf(path: Path) -> dict[str, np.ndarray]:
+    """The channels of an MDF4 file (ASAM MDF 4, as CANape, INCA and ``pmsm2dof drive capture`` write it) by
+    name, read with asammdf; the master channel (time [s]) as ``t_s``. The channels must share one time base
+    (one channel group, or groups sampled together): a log is one table."""
+    from asammdf import MDF
+
+    table: dict[str, np.ndarray] = {}
+    with MDF(path) as mdf:
+        for index, group in enumerate(mdf.groups):
+            channels: list[Any] = group.channels  # type: ignore[attr-defined]
+            master = np.asarray(mdf.get_master(index), dtype=float)
+            if "t_s" in table and not np.array_equal(table["t_s"], master):
+                raise ConfigError("log", str(path), "an MDF4 log whose channel groups share one time base")
+            table["t_s"] = master
+            master_index = mdf.masters_db.get(index)
+            for i, channel in enumerate(channels):
+                if i != master_index:
+                    table[channel.name] = np.asarray(mdf.get(channel.name, group=index, index=i).samples)
+    return table
 
 
 def _content_bytes(path: Path, suffix: str) -> int:
@@ -186,6 +210,11 @@ def _content_bytes(path: Path, suffix: str) -> int:
 
         meta = pq.ParquetFile(path).metadata
         return 8 * int(meta.num_rows) * int(meta.num_columns)
+    if suffix == ".mf4":
+        from asammdf import MDF
+
+        with MDF(path) as mdf:
+            return sum(8 * int(g.channel_group.cycles_nr) * len(g.channels) for g in mdf.groups)
     return path.stat().st_size
 
 
@@ -248,7 +277,7 @@ def speed_resolution_rpm(speed_rpm: np.ndarray) -> float | None:
 
 
 def read_log(path: str | os.PathLike[str], columns: Mapping[str, str] | None = None) -> Log:
-    """Read a drive log (CSV, Parquet, NPZ or MAT) into a :class:`Log`.
+    """Read a drive log (CSV, Parquet, NPZ, MAT or MDF4 ``.mf4`` with asammdf, the ``drive`` extra) into a Log.
 
     Parameters
     ----------

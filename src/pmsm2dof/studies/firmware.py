@@ -348,18 +348,28 @@ def build_firmware(
 
 @contextlib.contextmanager
 def serve_scenario(
-    scenario: Scenario, *, port: int = 0, realtime: bool = True, timeout_ms: int = 200
+    scenario: Scenario,
+    *,
+    port: int = 0,
+    realtime: bool = True,
+    timeout_ms: int = 200,
+    out: Path | str | None = None,
+    force: bool = False,
 ) -> Iterator[tuple[str, Path]]:
     """Build the PC's virtual drive of a scenario and run it; yields its link URL and its folder.
 
     The engine's plant of the scenario under the firmware (foc.c, link.c), its XCP slave on TCP on
     127.0.0.1:``port`` (0: a free port), on the wall clock (``realtime``) or as fast as the link
     allows; ``timeout_ms``: the link watchdog [ms of the drive's time], 0: off
-    (:func:`pmsm2dof.drive.serve.serve_host`). The folder (its A2L file ``virtual_drive_host.a2l``
-    for CANape, INCA or pyxcp) is removed at the end.
+    (:func:`pmsm2dof.drive.serve.serve_host`). The folder holds its A2L file
+    ``virtual_drive_host.a2l`` for CANape, INCA, pyxcp or ``pmsm2dof drive``: ``out`` (an output
+    folder of the kind ``"firmware"``, kept; ``force`` as :func:`build_firmware`), or by default a
+    temporary one removed at the end.
     """
     with tempfile.TemporaryDirectory(prefix="pmsm2dof-serve-") as tmp:
-        folder = build_firmware(scenario, Path(tmp) / "drive", mcu=False).folder
+        folder = build_firmware(
+            scenario, out if out is not None else Path(tmp) / "drive", mcu=False, force=force
+        ).folder
         with serve_host(folder / "virtual_drive_host", realtime=realtime, timeout_ms=timeout_ms, port=port) as url:
             yield url, folder
 
