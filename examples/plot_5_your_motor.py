@@ -15,14 +15,14 @@ import tempfile
 from pathlib import Path
 
 import pmsm2dof
-from pmsm2dof.sim.datasheet import convert_datasheet
+from pmsm2dof.core.motor import convert_datasheet
 from pmsm2dof.ui.plots.trace import trace_figure
 
 # %%
 # The motor's data
 # ----------------
 # Datasheets give line-to-line resistance and inductance, a torque constant per RMS ampere and
-# RMS currents. :func:`pmsm2dof.sim.datasheet.convert_datasheet` converts them to per-phase,
+# RMS currents. :func:`pmsm2dof.core.motor.convert_datasheet` converts them to per-phase,
 # amplitude-invariant values and says where each one came from (``pmsm2dof motor FILE`` does the
 # same for a ``[motor.datasheet]`` table; a scenario can hold that table instead of the values).
 

@@ -212,3 +212,44 @@ def test_what_the_virtual_board_does_not_model_is_refused(changes, key):
     assert exc.value.param == key
     # the header alone is fine: the firmware's controllers do not depend on it
     assert "p2d_config_speed" in configuration(scenario).c_header()
+
+
+# ---------------------------------------------------------------------------------------------
+# scenario_design: the one scenario -> design
+# ---------------------------------------------------------------------------------------------
+
+
+def test_scenario_design_is_the_design_of_the_scenario_keys():
+    """eq 9 from the scenario's own J, alpha, zeta; its feedforward, m and tau_i; changes replace them."""
+    from pmsm2dof.studies.configuration import scenario_design
+
+    scenario = load_scenario(str(SERVO))
+    sc = scenario.data["speed_controller"]
+    d = scenario_design(scenario)
+    assert d.Kp == pytest.approx(sc["J_kgm2"] * sc["alpha_radps"], rel=1e-12)
+    assert d.Ki == pytest.approx(sc["J_kgm2"] * (sc["alpha_radps"] / (2.0 * sc["zeta"])) ** 2, rel=1e-12)
+    assert (d.m, d.tau_i_s, d.feedforward, d.anti_windup) == (
+        sc["m"],
+        sc["tau_i_s"],
+        sc["feedforward"],
+        sc["anti_windup"],
+    )
+    assert scenario_design(scenario.data).Kp == d.Kp
+    full = scenario_design(scenario, m=1.0, feedforward="full")
+    assert (full.feedforward, full.m, full.Kp) == ("full", 1.0, d.Kp)
+    with pytest.raises(ConfigError, match="alpha = 3"):
+        scenario_design(scenario, alpha=3)
+
+
+def test_scenario_design_holds_the_scenario_sensor():
+    """A measurement delay in [speed_sensor] costs phase margin: the design's loop holds the sensor."""
+    from pmsm2dof.studies.configuration import scenario_design
+
+    base = load_scenario("paper-experiment-1")
+    delay_s = 0.2
+    delayed = base.with_overrides({"speed_sensor.delay_s": delay_s})
+    ideal, slow = scenario_design(base).margins(), scenario_design(delayed).margins()
+    w_c = ideal.w_gain_crossover_radps
+    # a pure delay leaves the gain crossover and removes w_c * delay of phase there
+    assert slow.w_gain_crossover_radps == pytest.approx(w_c, rel=1e-6)
+    assert ideal.phase_margin_deg - slow.phase_margin_deg == pytest.approx(np.degrees(w_c * delay_s), rel=1e-3)

@@ -16,14 +16,13 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from pmsm2dof.analysis.current_loop import (
-    MotorEstimate,
     current_closed_loop,
     design_current_loop,
     speed_margin_sensitivity,
 )
 from pmsm2dof.core import CurrentController
+from pmsm2dof.core.motor import load_motor
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.sim.datasheet import load_motor
 from pmsm2dof.ui.cli import main
 
 SERVO = "[motor]\npole_pairs = 4\nRs_ohm = 0.8\nLd_H = 0.004\nLq_H = 0.008\npsi_f_Wb = 0.05\n"
@@ -32,8 +31,7 @@ INTERVALS = "Rs_ohm_ci = [0.76, 0.84]\nLq_H_ci = [0.0076, 0.0084]\npsi_f_Wb_ci =
 
 def estimate(path):
     """The identified motor of a motor file, as design --motor reads it."""
-    m = load_motor(path)
-    return MotorEstimate(m.pole_pairs, m.Rs_ohm, m.Ld_H, m.Lq_H, m.psi_f_Wb, m.intervals)
+    return load_motor(path)
 
 
 @pytest.fixture

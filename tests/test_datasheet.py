@@ -2,7 +2,7 @@
 
 Truth: the three phase waveforms of a sinusoidal star-connected machine sampled numerically (line
 voltages and their rms, the power balance sum(e_k i_k) = Te w_m), independent of the formulas of
-pmsm2dof.sim.datasheet.
+pmsm2dof.core.motor.
 """
 
 import json
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from pmsm2dof.core.motor import DatasheetWarning, convert_datasheet, load_motor
 from pmsm2dof.errors import ConfigError
-from pmsm2dof.sim.datasheet import DatasheetWarning, convert_datasheet, load_motor
 from pmsm2dof.sim.scenario import load_scenario
 
 P, PSI_F = 4, 0.2  # the machine of the paper presets
@@ -257,7 +257,7 @@ def test_the_catalogue_motor_converts_as_the_formulas_of_its_convention(capsys):
 
 
 def test_datasheet_keys_are_listed_by_presets_keys_motor_help_and_the_readme(capsys):
-    from pmsm2dof.sim.datasheet import DATASHEET_KEYS
+    from pmsm2dof.core.motor import DATASHEET_KEYS
     from pmsm2dof.ui.cli import main
 
     assert main(["presets", "--keys"]) == 0
@@ -332,3 +332,32 @@ def test_ratings_beside_a_datasheet_and_in_a_model_file(tmp_path):
         "[motor]\npole_pairs = 4\nRs_ohm = 0.5\nLd_H = 0.01\nLq_H = 0.01\npsi_f_Wb = 0.2\nJ_rotor_kgm2 = 1e-4\n"
     )
     assert load_motor(path).J_rotor_kgm2 == 1e-4
+
+
+def test_motor_file_reads_back_the_motor(tmp_path):
+    """Motor.motor_file writes what load_motor reads: every key, ratings, mechanics and intervals."""
+    from pmsm2dof.core.motor import Motor
+
+    motor = Motor(
+        pole_pairs=5,
+        Rs_ohm=0.31,
+        Ld_H=1.1e-3,
+        Lq_H=1.7e-3,
+        psi_f_Wb=0.021,
+        i_peak_A=12.0,
+        J_rotor_kgm2=3.3e-5,
+        J_kgm2=1.2e-4,
+        B_Nms=0.0,
+        T_coulomb_Nm=0.004,
+        intervals={"Rs_ohm": (0.3, 0.32), "psi_f_Wb": (0.0205, 0.0215)},
+    )
+    path = tmp_path / "motor.toml"
+    path.write_text(motor.motor_file(["a comment"]))
+    back = load_motor(path)
+    for name in ("pole_pairs", "Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb", "i_peak_A", "J_rotor_kgm2", "J_kgm2", "B_Nms"):
+        assert getattr(back, name) == getattr(motor, name), name
+    assert (back.T_coulomb_Nm, back.i_rated_A, back.intervals) == (0.004, None, motor.intervals)
+    assert back.kt_Nm_per_A == pytest.approx(1.5 * 5 * 0.021, rel=1e-15)
+    path.write_text(motor.motor_file().replace("B_Nms = 0.0", "B_Nms = -1.0"))
+    with pytest.raises(ConfigError, match=r"motor\.B_Nms = -1\.0 .*>= 0"):
+        load_motor(path)

@@ -17,7 +17,8 @@ from click.testing import CliRunner
 
 from oracles.electrical_log import Machine, simulate_log, write_csv
 from pmsm2dof.sim.logs import read_log
-from pmsm2dof.studies.electrical import DEAD_TIME, PARAMETERS, _held_voltage, _turning_integral, identify_electrical
+from pmsm2dof.studies.electrical import DEAD_TIME, PARAMETERS, identify_electrical
+from pmsm2dof.studies.electrical_fit import _held_voltage, _turning_integral
 from pmsm2dof.studies.identify import IdentificationError
 from pmsm2dof.ui.cli import cli, main
 

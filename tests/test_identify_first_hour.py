@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pmsm2dof.sim.datasheet import load_motor
+from pmsm2dof.core.motor import load_motor
 from pmsm2dof.sim.logs import read_log
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate

@@ -24,12 +24,12 @@ import pytest
 from scipy.optimize import brentq
 
 from pmsm2dof import load_scenario, simulate
+from pmsm2dof.studies.claims import FIG7_M
 from pmsm2dof.studies.faults import run_faults
 from pmsm2dof.studies.fixedpoint import run_arithmetic
 from pmsm2dof.studies.paper import run_studies
 from pmsm2dof.ui.cli import main
 from pmsm2dof.ui.report import VERDICTS, compute_claims
-from pmsm2dof.ui.report.claims import FIG7_M
 from pmsm2dof.ui.report.figures import fig_faults, figures
 from pmsm2dof.ui.report.fixedpoint import fig_fixed_point
 

@@ -1,8 +1,8 @@
 """The dq current loop designed from an identified motor, and the speed loop's sensitivity to it.
 
-A :class:`MotorEstimate` is the machine per phase in the amplitude-invariant dq frame of eq 1,
-with the 95 % intervals of the estimates where known (a motor file of ``pmsm2dof commission
---out`` or ``identify --electrical --out``, read by :func:`pmsm2dof.sim.datasheet.load_motor`).
+A :class:`~pmsm2dof.core.motor.Motor` is the machine per phase in the amplitude-invariant dq frame
+of eq 1, with the 95 % intervals of the estimates where known (a motor file of ``pmsm2dof commission
+--out`` or ``identify --electrical --out``, read by :func:`pmsm2dof.core.motor.load_motor`).
 
 :func:`design_current_loop` places the closed current loop of each axis at the bandwidth
 ``alpha_c``: the PI ``Kp = L alpha_c``, ``Ki = Rs alpha_c`` cancels the pole ``-Rs/L`` of the
@@ -19,27 +19,16 @@ Rs')`` (primes: estimates) no longer reduces to eq 3, and a wrong psi_f scales t
 
 import itertools
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import control
 
+from ..core.motor import Motor
 from ..errors import require_positive
 from .discretize import SamplingWarning
 from .margins import Margins, loop_margins
 
-__all__ = ["CurrentLoopDesign", "MotorEstimate", "design_current_loop", "speed_margin_sensitivity"]
-
-
-@dataclass(frozen=True)
-class MotorEstimate:
-    """An identified motor: the estimates and, where known, their 95 % intervals ``(low, high)``."""
-
-    pole_pairs: int
-    Rs_ohm: float
-    Ld_H: float
-    Lq_H: float
-    psi_f_Wb: float
-    intervals: dict[str, tuple[float, float]] = field(default_factory=dict)
+__all__ = ["CurrentLoopDesign", "design_current_loop", "speed_margin_sensitivity"]
 
 
 @dataclass(frozen=True)
@@ -51,7 +40,7 @@ class CurrentLoopDesign:
     decoupling coefficients ``Ld_H``, ``Lq_H``, ``psi_f_Wb`` of the feedforward.
     """
 
-    motor: MotorEstimate
+    motor: Motor
     alpha_c_radps: float
     Kp_d_V_per_A: float
     Kp_q_V_per_A: float
@@ -76,12 +65,12 @@ class CurrentLoopDesign:
         }
 
 
-def design_current_loop(motor: MotorEstimate, alpha_c_radps: float, Ts_s: float | None = None) -> CurrentLoopDesign:
+def design_current_loop(motor: Motor, alpha_c_radps: float, Ts_s: float | None = None) -> CurrentLoopDesign:
     """Current PIs of bandwidth ``alpha_c_radps`` for ``motor`` (pole-zero cancellation, eq 3).
 
     Parameters
     ----------
-    motor : MotorEstimate
+    motor : Motor
         The identified machine.
     alpha_c_radps : float
         Closed current-loop bandwidth [rad/s], > 0.

@@ -5,7 +5,9 @@ imports nothing of the other layers. :mod:`.bindings` holds the compiled library
 read from its headers, :mod:`.controllers` the :class:`SpeedController` and
 :class:`CurrentController` that wrap the deployable C controllers, :mod:`.sensing` the
 :class:`Encoder` speed estimators and the :class:`FieldWeakening`, :mod:`.fixedpoint` the
-:class:`FixedPointSpeedController` (Q15, Q31) for MCUs without an FPU, :mod:`.gains` eq 9.
+:class:`FixedPointSpeedController` (Q15, Q31) for MCUs without an FPU, :mod:`.gains` eq 9,
+:mod:`.fields` the generic setter of the C structs' fields, :mod:`.motor` the one :class:`~.motor.Motor`
+type and its loader (datasheet units, scenarios, identified motor files).
 """
 
 from .bindings import (

@@ -20,6 +20,7 @@ __all__ = [
     "ARITHMETICS",
     "AntiWindup",
     "CURRENT_LOOP_MODELS",
+    "ENUM_CHOICES",
     "ESTIMATORS",
     "FAULT_KINDS",
     "FEEDBACKS",
@@ -126,3 +127,19 @@ ARITHMETICS = enum_names("p2d_arithmetic_t", "P2D_ARITHMETIC_")
 LOG_RATES = enum_names("p2d_log_rate_t", "P2D_LOG_RATE_")
 #: Names of the columns of the engine's log, with their units (``p2d_sim_log_name``).
 LOG_COLUMNS = tuple(c_string(lib.p2d_sim_log_name(i)) for i in range(lib.P2D_LOG_COUNT))
+
+#: The choices of every enum type of the C configurations, indexed by their C value: what a field of
+#: that type takes (:func:`pmsm2dof.core.fields.set_fields`).
+ENUM_CHOICES: dict[str, tuple[str, ...]] = {
+    "p2d_method_t": METHODS,
+    "p2d_feedforward_t": FEEDFORWARDS,
+    "p2d_anti_windup_t": ANTI_WINDUPS,
+    "p2d_estimator_t": ESTIMATORS,
+    "p2d_speed_sensor_model_t": SPEED_SENSOR_MODELS,
+    "p2d_current_model_t": CURRENT_LOOP_MODELS,
+    "p2d_fault_kind_t": FAULT_KINDS,
+    "p2d_mechanics_model_t": MECHANICS_MODELS,
+    "p2d_feedback_t": FEEDBACKS,
+    "p2d_arithmetic_t": ARITHMETICS,
+    "p2d_log_rate_t": LOG_RATES,
+}

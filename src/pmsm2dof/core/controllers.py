@@ -16,9 +16,7 @@ Permanent-Magnet Synchronous Motor Speed Controller".
 """
 
 import dataclasses
-import math
-import numbers
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -26,143 +24,24 @@ import numpy.typing as npt
 
 from ..errors import ConfigError
 from .bindings import (
-    ANTI_WINDUPS,
-    ESTIMATORS,
-    FEEDFORWARDS,
-    METHODS,
     AntiWindup,
     Feedforward,
     Method,
-    c_string,
     ffi,
     lib,
     struct_fields,
 )
-
-#: The choices of each enum type of the C configurations, indexed by their C value.
-_CHOICES = {
-    "p2d_method_t": METHODS,
-    "p2d_feedforward_t": FEEDFORWARDS,
-    "p2d_anti_windup_t": ANTI_WINDUPS,
-    "p2d_estimator_t": ESTIMATORS,
-}
-
-
-def _float_param(name: str, value: object) -> float:
-    """``value`` as a Python float, for a float32 field of a C configuration.
-
-    Only the type is checked here; the C init checks the range (it knows it)
-    and :func:`_raise_status` reports its verdict with the value given.
-    """
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ConfigError(name, value, "a real number")
-    return float(value)
-
-
-def _finite(name: str, value: object) -> float:
-    """``value`` as a finite Python float, else ConfigError naming ``name``."""
-    v = _float_param(name, value)
-    if not math.isfinite(v):
-        raise ConfigError(name, value, "a finite number")
-    return v
-
-
-def _choice_param(name: str, value: object, choices: Sequence[str]) -> int:
-    """Index of the string ``value`` in ``choices`` (the C enum value)."""
-    if not isinstance(value, str) or value not in choices:
-        raise ConfigError(name, value, "one of " + ", ".join(repr(c) for c in choices))
-    return choices.index(value)
-
-
-def _set_fields(cfg: Any, fields: Mapping[str, str], params: Mapping[str, Any]) -> None:
-    """Write ``params`` into the C configuration ``cfg``, field by field as its C type asks.
-
-    ``fields`` maps a field to its C type (:func:`~pmsm2dof.core.bindings.struct_fields`):
-    ``float`` takes a real number, ``uint32_t`` an integer, an enum one of its names, ``_Bool``
-    True or False. Only the type is checked here: the C init checks the range.
-    """
-    for name, ctype in fields.items():
-        value = params[name]
-        if ctype == "float":
-            setattr(cfg, name, _float_param(name, value))
-        elif ctype == "uint32_t":
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not 0 <= int(value) <= 0xFFFFFFFF:
-                raise ConfigError(name, value, "an integer >= 1")
-            setattr(cfg, name, int(value))
-        elif ctype in _CHOICES:
-            setattr(cfg, name, _choice_param(name, value, _CHOICES[ctype]))
-        else:  # _Bool
-            if not isinstance(value, (bool, np.bool_)):
-                raise ConfigError(name, value, "True or False")
-            setattr(cfg, name, bool(value))
-
-
-def _get_fields(cfg: Any, fields: Mapping[str, str]) -> dict[str, Any]:
-    """The C configuration ``cfg`` as a dict of Python values: floats, ints, enum names, bools."""
-    values: dict[str, Any] = {}
-    for name, ctype in fields.items():
-        value = getattr(cfg, name)
-        if ctype in _CHOICES:
-            value = _CHOICES[ctype][value]
-        elif ctype == "_Bool":
-            value = bool(value)
-        values[name] = value
-    return values
-
-
-def _raise_status(status: int, given: Mapping[str, Any]) -> None:
-    """Raise the ConfigError of a non-zero C status, with the value the user gave.
-
-    A value that float32 cannot hold (it overflows to inf or rounds to 0) is
-    rejected by C as inf or 0; the message says so.
-    """
-    param = c_string(lib.p2d_status_param(status))
-    value = given.get(param)
-    raise ConfigError(param, value, c_string(lib.p2d_status_range(status)) + float32_note(value))
-
-
-def float32_note(value: object) -> str:
-    """Why a C controller refuses a finite ``value`` its range admits: `` (computed in float32, where
-    <value> becomes inf)`` when float32 cannot hold it (it overflows or rounds to 0), else ``""``."""
-    if isinstance(value, numbers.Real) and math.isfinite(value) and value != 0:
-        with np.errstate(over="ignore"):  # the overflow to inf is what the message reports
-            as_float32 = float(np.float32(value))
-        if as_float32 == 0 or math.isinf(as_float32):
-            return f" (computed in float32, where {value!r} becomes {as_float32!r})"
-    return ""
-
-
-def _structured_dtype(ctype: str, fields: Mapping[str, str]) -> np.dtype[np.void]:
-    """A numpy dtype with the memory layout of the C struct ``ctype``."""
-    return np.dtype(
-        {
-            "names": list(fields),
-            "formats": [np.bool_ if kind == "_Bool" else np.float32 for kind in fields.values()],
-            "offsets": [ffi.offsetof(ctype, name) for name in fields],
-            "itemsize": ffi.sizeof(ctype),
-        }
-    )
-
-
-def _as_inputs(names: Sequence[str], values: Sequence[npt.ArrayLike]) -> list[npt.NDArray[np.float32]]:
-    """Broadcast the inputs of a ``run`` to contiguous 1-D float32 arrays of one length."""
-    arrays: list[npt.NDArray[np.float64]] = []
-    for name, value in zip(names, values):
-        a = np.asarray(value, dtype=np.float64)
-        if a.ndim > 1:
-            raise ConfigError(name, f"array of shape {a.shape}", "a scalar or a 1-D array")
-        arrays.append(a)
-    try:
-        broadcast = np.broadcast_arrays(*arrays)
-    except ValueError:
-        shapes = ", ".join(f"{n}: {a.shape}" for n, a in zip(names, arrays))
-        raise ConfigError(names[1], shapes, "arrays of equal length (or scalars)") from None
-    return [np.ascontiguousarray(np.atleast_1d(a), dtype=np.float32) for a in broadcast]
-
-
-def _float_ptr(array: npt.NDArray[np.float32]) -> Any:  # a cffi ``float *``
-    return ffi.cast("float *", ffi.from_buffer(array))
-
+from .fields import (
+    _as_inputs,
+    _finite,
+    _float_param,
+    _float_ptr,
+    _get_fields,
+    _raise_status,
+    _struct_dict,
+    _structured_dtype,
+    set_fields,
+)
 
 # ---------------------------------------------------------------------------------------------
 # Speed controller
@@ -318,7 +197,7 @@ class SpeedController:
     def _c_config(params: Mapping[str, Any]) -> Any:
         """The C configuration of ``params`` (a cffi ``p2d_speed_config_t *``); type errors raise ConfigError."""
         cfg = ffi.new("p2d_speed_config_t *")
-        _set_fields(cfg, {name: t for name, t in _SPEED_CONFIG_FIELDS.items() if name != "Ka"}, params)
+        set_fields(cfg, {name: t for name, t in _SPEED_CONFIG_FIELDS.items() if name != "Ka"}, params)
         if params["Ka"] is None:
             # section 3.3: Ka = 1/Kp, computed in float32 by the C library
             cfg.Ka = lib.p2d_speed_Ka_default(cfg.J_kgm2, cfg.alpha_radps)
@@ -331,7 +210,7 @@ class SpeedController:
         """The C torque-filter configuration of ``params`` (cffi ``p2d_filter_config_t *``); type
         errors raise ConfigError."""
         filt = ffi.new("p2d_filter_config_t *")
-        _set_fields(filt, _FILTER_CONFIG_FIELDS, params)
+        set_fields(filt, _FILTER_CONFIG_FIELDS, params)
         return filt
 
     def set_config(self, **changes: Any) -> None:
@@ -499,11 +378,6 @@ def _speed_output(out: Any) -> SpeedOutput:
     return SpeedOutput(**{name: getattr(out, name) for name in _SPEED_OUTPUT_FIELDS})
 
 
-def _struct_dict(cdata: Any, ctype: str) -> dict[str, Any]:
-    """The fields of a flat C struct of numbers and bools as a dict."""
-    return {name: getattr(cdata, name) for name, _ in ffi.typeof(ctype).fields}
-
-
 # ---------------------------------------------------------------------------------------------
 # Current controller
 # ---------------------------------------------------------------------------------------------
@@ -603,7 +477,7 @@ class CurrentController:
     @staticmethod
     def _c_config(params: Mapping[str, Any]) -> Any:  # cffi ``p2d_current_config_t *``
         cfg = ffi.new("p2d_current_config_t *")
-        _set_fields(cfg, _CURRENT_CONFIG_FIELDS, params)
+        set_fields(cfg, _CURRENT_CONFIG_FIELDS, params)
         return cfg
 
     def set_config(self, **changes: Any) -> None:

@@ -22,7 +22,8 @@ from typing import Any, Literal
 
 from ..errors import ConfigError, require_choice
 from .bindings import AntiWindup, Feedforward, Method, ffi, lib, struct_fields
-from .controllers import SpeedController, _float_param, _get_fields, _given_speed, _raise_status
+from .controllers import SpeedController, _given_speed
+from .fields import _float_param, _get_fields, _raise_status
 
 #: The fixed-point formats: Q15 (int16 data, int32 arithmetic) and Q31 (int32 data, int64 arithmetic).
 Format = Literal["q15", "q31"]

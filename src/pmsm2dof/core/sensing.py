@@ -18,7 +18,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from .bindings import AntiWindup, Method, ffi, lib, struct_fields
-from .controllers import _finite, _get_fields, _raise_status, _set_fields, _struct_dict
+from .fields import _finite, _get_fields, _raise_status, _struct_dict, set_fields
 
 _ENCODER_CONFIG_FIELDS = struct_fields("p2d_encoder_config_t")
 _ENCODER_PARAMS = tuple(_ENCODER_CONFIG_FIELDS)
@@ -104,7 +104,7 @@ class Encoder:
     @staticmethod
     def _c_config(params: Mapping[str, Any]) -> Any:
         cfg = ffi.new("p2d_encoder_config_t *")
-        _set_fields(cfg, _ENCODER_CONFIG_FIELDS, params)
+        set_fields(cfg, _ENCODER_CONFIG_FIELDS, params)
         return cfg
 
     def set_config(self, **changes: Any) -> None:
@@ -247,7 +247,7 @@ class FieldWeakening:
     @staticmethod
     def _c_config(params: Mapping[str, Any]) -> Any:
         cfg = ffi.new("p2d_field_weakening_config_t *")
-        _set_fields(cfg, _FW_CONFIG_FIELDS, params)
+        set_fields(cfg, _FW_CONFIG_FIELDS, params)
         return cfg
 
     def set_config(self, **changes: Any) -> None:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..core.bindings import c_string, enum_names, ffi, lib
+from ..core.motor import Motor
 from ..errors import ConfigError, SimulationError
 from .scenario import Scenario
 
@@ -202,14 +203,14 @@ class Commissioning:
         """
         if self.phase != "done":
             raise SimulationError(f"commissioning failed in {self.failed_phase} ({self.reason}): no motor to write")
-        lines = [
-            f"# identified by the commissioning routine (commission.h) on scenario {self.scenario!r}",
-            "# per phase, amplitude-invariant dq (eq 1)",
-            "[motor]",
-            f"pole_pairs = {pole_pairs}",
-        ]
-        lines += [f"{k} = {self.estimates[k]!r}" for k in ESTIMATES]
-        return "\n".join(lines) + "\n"
+        e = self.estimates
+        motor = Motor(pole_pairs, Rs_ohm=e["Rs_ohm"], Ld_H=e["Ld_H"], Lq_H=e["Lq_H"], psi_f_Wb=e["psi_f_Wb"])
+        return motor.motor_file(
+            [
+                f"identified by the commissioning routine (commission.h) on scenario {self.scenario!r}",
+                "per phase, amplitude-invariant dq (eq 1)",
+            ]
+        )
 
     def log_csv(self) -> str:
         """The log as CSV text, one column per signal (``phase`` as its index in :data:`PHASES`)."""

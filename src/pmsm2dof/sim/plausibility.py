@@ -17,7 +17,7 @@ The checks, with ``p``, ``psi_f``, ``Ld``, ``Lq`` of ``[motor]``:
   may demagnetize), or, when only the rated current is known, above :data:`I_RATED_RATIO_MAX` times
   ``motor.i_rated_A`` (servo motors allow peaks of 3 to 4 times their rated current);
 - speed: a reference or initial speed above the no-load speed ``u_dc / (sqrt(3) p psi_f)``
-  (:func:`pmsm2dof.sim.datasheet.no_load_speed_radps`), which the drive cannot reach without field
+  (:func:`pmsm2dof.core.motor.no_load_speed_radps`), which the drive cannot reach without field
   weakening (skipped when ``field_weakening.enabled``);
 - load: a load torque above the peak torque the current limit gives, the largest torque of eq 1 at
   ``||i_dq|| = limits.i_max_A`` (:func:`peak_torque_Nm`): the drive cannot hold it, it stalls and
@@ -31,8 +31,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from ..core.motor import no_load_speed_radps
 from ..errors import Pmsm2dofWarning
-from .datasheet import no_load_speed_radps
 from .scenario import Scenario
 
 #: Largest plausible ratio of the drive's inertia to the rotor's own [-].

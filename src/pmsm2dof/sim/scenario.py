@@ -14,7 +14,7 @@ reference and load torque schedules of a run (section 4.1)::
     speed_rpm = 500.0
 
 The motor may be given in datasheet units instead, as a ``[motor.datasheet]`` table (Kt, Ke or Kv,
-line-to-line R and L, poles, sinusoidal or block commutation: see :mod:`pmsm2dof.sim.datasheet`); it
+line-to-line R and L, poles, sinusoidal or block commutation: see :mod:`pmsm2dof.core.motor`); it
 provides ``pole_pairs``, ``Rs_ohm``, ``Ld_H``, ``Lq_H`` and ``psi_f_Wb`` (and the ratings it gives,
 ``i_rated_A``, ``i_peak_A``, ``J_rotor_kgm2``), which :meth:`Scenario.to_toml` writes as converted.
 
@@ -59,9 +59,9 @@ from ..core import (
     METHODS,
     SPEED_SENSOR_MODELS,
 )
+from ..core.motor import DATASHEET_KEYS, motor_from_table
 from ..errors import ConfigError, is_integer, is_real
 from ..inputs import parse_toml, read_toml
-from .datasheet import DATASHEET_KEYS, motor_from_table
 
 #: Longest simulated time of one scenario [s] (ten hours).
 T_END_MAX_S = 36000.0
@@ -836,7 +836,7 @@ def _validate(tree: object) -> tuple[Tree, Tree]:
     table = _as_table(tree, "scenario")
     motor = table.get("motor")
     if isinstance(motor, dict) and "datasheet" in motor:
-        # [motor.datasheet]: the model keys converted from datasheet units (pmsm2dof.sim.datasheet)
+        # [motor.datasheet]: the model keys converted from datasheet units (pmsm2dof.core.motor)
         converted = motor_from_table(motor).motor_table()
         table["motor"] = {**{k: v for k, v in motor.items() if k != "datasheet"}, **converted}
     given = _validate_table(table, "", "")
@@ -1281,7 +1281,7 @@ def schema_reference() -> str:
     lines.append("")
     lines.append(
         "[motor.datasheet] instead of motor.pole_pairs, Rs_ohm, Ld_H, Lq_H, psi_f_Wb (and i_rated_A, i_peak_A, "
-        "J_rotor_kgm2): the motor in datasheet units (pmsm2dof.sim.datasheet; `pmsm2dof motor FILE` shows the "
+        "J_rotor_kgm2): the motor in datasheet units (pmsm2dof.core.motor; `pmsm2dof motor FILE` shows the "
         "conversion)"
     )
     lines += [f"{'motor.datasheet.' + key:36s} {doc}" for key, (_, doc) in DATASHEET_KEYS.items()]

@@ -15,7 +15,7 @@ Arithmetic
     ``speed_fixed.h`` (an MCU without an FPU) instead of the float32 one: the reference and the
     reading rounded to the nearest integer of the format, its current command ``iq`` in current
     LSBs. Its full scales are the ``speed_controller.*_full_scale_*`` keys or derived from the drive
-    (:func:`_arithmetic`); :func:`pmsm2dof.analysis.fixedpoint.scaling_check` predicts what they do
+    (:mod:`pmsm2dof.sim.engine_config`); :func:`pmsm2dof.analysis.fixedpoint.scaling_check` predicts what they do
     (the Q15 integrator's dead zone, the headroom). A surface PMSM only, without torque filters,
     field weakening or gain scheduling.
 
@@ -92,41 +92,27 @@ Many runs
 import dataclasses
 import math
 import time
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, NoReturn
 
 import numpy as np
 import numpy.typing as npt
 
 from ..core import (
-    ANTI_WINDUPS,
-    ARITHMETICS,
-    CURRENT_LOOP_MODELS,
-    ESTIMATORS,
-    FAULT_KINDS,
-    FEEDBACKS,
-    FEEDFORWARDS,
     LOG_COLUMNS,
-    LOG_RATES,
-    MECHANICS_MODELS,
-    METHODS,
-    SPEED_SENSOR_MODELS,
-    pi_gains,
 )
 from ..core.bindings import c_string, ffi, lib
-from ..core.controllers import float32_note
-from ..core.gains import default_Ka_error
 from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
-from .datasheet import no_load_speed_radps
+from .engine_config import RPM_PER_RADPS as RPM_PER_RADPS  # the speed unit at the edge, for the callers
+from .engine_config import engine_config, full_scales, raise_config_error
 from .plausibility import peak_torque_Nm
-from .scenario import SCHEMA, SameAs, Scenario, Tree
+from .scenario import Scenario, Tree
 
 if TYPE_CHECKING:
     import pandas as pd
 
-RPM_PER_RADPS = 30.0 / math.pi
 #: Rows of the CSV trace formatted at a time (about 11 MB of text, 45 MiB of Python strings for the
 #: engine's 24 columns; benchmarks/results.md, "Bounds on the work an input asks for").
 CSV_ROWS_PER_CHUNK = 50_000
@@ -168,141 +154,6 @@ PROGRESS_CHUNKS = 200
 #: Fewest current periods of a run that gets a progress bar (fewer take well under the bar's 1 s delay: the
 #: engine runs about 5 million per second).
 PROGRESS_PERIODS_MIN = 2 * 10**6
-
-#: Scenario key of each field that the C speed controller init can reject (p2d_status_param).
-_SPEED_KEYS = {
-    "J_kgm2": "speed_controller.J_kgm2",
-    "alpha_radps": "speed_controller.alpha_radps",
-    "zeta": "speed_controller.zeta",
-    "m": "speed_controller.m",
-    "tau_i_s": "speed_controller.tau_i_s",
-    "Ka": "speed_controller.Ka",
-    "Ts_s": "speed_controller.Ts_s",
-    "i_max_A": "limits.i_max_A",
-    "psi_f_Wb": "motor.psi_f_Wb",
-    "Ld_H": "motor.Ld_H",
-    "Lq_H": "motor.Lq_H",
-    "pole_pairs": "motor.pole_pairs",
-    "method": "speed_controller.method",
-    "feedforward": "speed_controller.feedforward",
-    "anti_windup": "speed_controller.anti_windup",
-    "notch_freq_Hz": "speed_filter.notch_freq_Hz",
-    "notch_width_Hz": "speed_filter.notch_width_Hz",
-    "notch_depth": "speed_filter.notch_depth",
-    "lowpass_freq_Hz": "speed_filter.lowpass_freq_Hz",
-    "lowpass_zeta": "speed_filter.lowpass_zeta",
-    "speed_full_scale_radps": "speed_controller.speed_full_scale_rpm",
-    "torque_full_scale_Nm": "speed_controller.torque_full_scale_Nm",
-    "current_full_scale_A": "speed_controller.current_full_scale_A",
-}
-
-#: Scenario key of each field that the C current controller init can reject.
-_CURRENT_KEYS = {
-    "Rs_ohm": "motor.Rs_ohm",
-    "Ld_H": "motor.Ld_H",
-    "Lq_H": "motor.Lq_H",
-    "psi_f_Wb": "motor.psi_f_Wb",
-    "tau_i_s": "current_loop.tau_i_s",
-    "Ts_s": "current_loop.Ts_s",
-    "method": "current_loop.method",
-    "anti_windup": "current_loop.anti_windup",
-}
-
-#: Scenario key of each field that the C encoder (speed_sensor) or field weakening init can reject.
-_SENSING_KEYS = {
-    "counts_per_rev": "speed_sensor.counts_per_rev",
-    "counter_bits": "speed_sensor.counter_bits",
-    "estimator": "speed_sensor.estimator",
-    "bandwidth_radps": "speed_sensor.bandwidth_radps",
-    "lowpass_radps": "speed_sensor.lowpass_radps",
-    "Ts_s": "speed_controller.Ts_s",
-    "Kp_A_per_V": "field_weakening.Kp_A_per_V",
-    "Ki_A_per_Vs": "field_weakening.Ki_A_per_Vs",
-    "Ka_V_per_A": "field_weakening.Ka_V_per_A",
-    "voltage_ratio": "field_weakening.voltage_ratio",
-    "id_min_A": "field_weakening.id_min_A",
-}
-
-#: Scenario key of each field that p2d_sim_init can reject (p2d_sim_status_param).
-_SIM_KEYS = {
-    "motor.pole_pairs": "motor.pole_pairs",
-    "motor.Rs_ohm": "motor.Rs_ohm",
-    "motor.Ld_H": "motor.Ld_H",
-    "motor.Lq_H": "motor.Lq_H",
-    "motor.psi_f_Wb": "motor.psi_f_Wb",
-    "motor.J_kgm2": "motor.J_kgm2",
-    "motor.B_Nms": "motor.B_Nms",
-    "motor.T_coulomb_Nm": "motor.T_coulomb_Nm",
-    "u_dc_V": "limits.u_dc_V",
-    "current_model": "current_loop.model",
-    "tau_i_s": "current_loop.tau_i_s",
-    "Ts_current_s": "current_loop.Ts_s",
-    "current_per_speed": "speed_controller.Ts_s",
-    "substeps": "simulation.dt_s",
-    "log_every": "simulation.log_every",
-    "log_rate": "simulation.log_rate",
-    "w_m0_radps": "simulation.speed0_rpm",
-    "reference": "reference",
-    "load": "load",
-    "faults": "fault",
-    "adapt.adapt_rel_change": "estimator.adapt_rel_change",
-    "adapt.e_quiet_radps": "estimator.adapt_error_rpm",
-    "speed_sensor": "speed_sensor",
-    "current_sensor": "current_measurement",
-    "field_weakening": "field_weakening",
-    "mechanics.model": "mechanics.model",
-    "mechanics.J_load_kgm2": "mechanics.J_load_kgm2",
-    "mechanics.stiffness_Nm_per_rad": "mechanics.stiffness_Nm_per_rad",
-    "mechanics.damping_Nms_per_rad": "mechanics.damping_Nms_per_rad",
-    "mechanics.backlash_rad": "mechanics.backlash_rad",
-    "mechanics.feedback": "mechanics.feedback",
-    "arithmetic": "speed_controller.arithmetic",
-}
-
-#: Scenario key of each field that the C inertia estimator init can reject (the estimator block).
-_ESTIMATOR_KEYS = {
-    name: f"estimator.{name}"
-    for name in (
-        "J0_kgm2",
-        "J_min_kgm2",
-        "J_max_kgm2",
-        "B_max_Nms",
-        "T_load_max_Nm",
-        "sigma_T_Nm",
-        "J_memory_s",
-        "load_memory_s",
-        "w_f_radps",
-        "J_rel_sd_max",
-    )
-} | {"Ts_s": "speed_controller.Ts_s"}
-
-
-#: Keys whose absent value the engine takes from another key: key -> (that key, how). An error of the
-#: engine names the key the user set: the SameAs defaults of the schema and the derived defaults of
-#: [estimator] and [field_weakening] (``speed_controller.Ka``, 1/Kp, is named by what makes it fail:
-#: :func:`pmsm2dof.core.gains.default_Ka_error`).
-_SAME_AS = {f.key: f.default.key for f in SCHEMA if isinstance(f.default, SameAs)}
-_SOURCES = {key: (source, source) for key, source in _SAME_AS.items()} | {
-    "estimator.J_min_kgm2": ("estimator.J0_kgm2", "J0_kgm2 / 10"),
-    "estimator.J_max_kgm2": ("estimator.J0_kgm2", "10 J0_kgm2"),
-    "estimator.B_max_Nms": ("limits.i_max_A", "the peak torque 1.5 p psi_f i_max_A per 100 rad/s"),
-    "estimator.T_load_max_Nm": ("limits.i_max_A", "the peak torque 1.5 p psi_f i_max_A"),
-    "estimator.sigma_T_Nm": ("limits.i_max_A", "1 % of the peak torque 1.5 p psi_f i_max_A"),
-    "estimator.load_memory_s": ("speed_controller.alpha_radps", "1 / alpha_radps"),
-    "estimator.w_f_radps": ("speed_controller.Ts_s", "0.2 / Ts_s"),
-    "field_weakening.Ka_V_per_A": ("field_weakening.Ki_A_per_Vs", "1 / (Ki_A_per_Vs speed_controller.Ts_s)"),
-    "field_weakening.id_min_A": ("limits.i_max_A", "-i_max_A"),
-    "speed_controller.speed_full_scale_rpm": ("limits.u_dc_V", "twice the no-load speed u_dc_V / (sqrt(3) p psi_f)"),
-    "speed_controller.torque_full_scale_Nm": (
-        "limits.i_max_A",
-        "1.25 times the smallest that holds the torque limit 1.5 p psi_f i_max_A, the feedforward's state and "
-        "transient at the references and the command at the largest reference step",
-    ),
-    "speed_controller.current_full_scale_A": (
-        "speed_controller.torque_full_scale_Nm",
-        "torque_full_scale_Nm / (1.5 p psi_f)",
-    ),
-}
 
 
 @dataclasses.dataclass(frozen=True, eq=False, repr=False)
@@ -584,9 +435,7 @@ class Simulation:
 
     def __init__(self, data: Tree) -> None:
         self.data = data
-        motor, limits, cl, sc, sim = (
-            data[k] for k in ("motor", "limits", "current_loop", "speed_controller", "simulation")
-        )
+        cl, sc, sim = data["current_loop"], data["speed_controller"], data["simulation"]
         self.Ts_speed_s = sc["Ts_s"]
         self.current_per_speed = current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
         if current_per_speed > CURRENT_PER_SPEED_MAX:
@@ -614,64 +463,9 @@ class Simulation:
                 f">= {least}: the log of {rows} rows{self._rate_text()} would exceed {LOG_BYTES_MAX / 1024**3:g} GiB",
             )
 
-        cfg = ffi.new("p2d_sim_config_t *")
-        m = cfg.motor
-        m.pole_pairs = motor["pole_pairs"]
-        for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb", "J_kgm2", "B_Nms", "T_coulomb_Nm"):
-            setattr(m, key, motor[key])
-        cfg.u_dc_V = limits["u_dc_V"]
-        cfg.computation_delay = data["inverter"]["computation_delay"]
-        cfg.current_model = CURRENT_LOOP_MODELS.index(cl["model"])
-        cfg.tau_i_s = cl["tau_i_s"]
-        cfg.Ts_current_s = cl["Ts_s"]
-        cfg.current_per_speed = current_per_speed
-        cfg.substeps = substeps
-        cfg.log_every = sim["log_every"]
-        cfg.log_rate = LOG_RATES.index(sim["log_rate"])
-        cfg.w_m0_radps = sim["speed0_rpm"] / RPM_PER_RADPS
-        self._schedules = [
-            _schedule(cfg.reference, data["reference"], "speed_rpm", 1.0 / RPM_PER_RADPS),
-            _schedule(cfg.load, data["load"], "torque_Nm", 1.0),
-        ]
-        self._faults = _faults(cfg, data["fault"])
-        _mechanics(cfg, data["mechanics"], data["speed_filter"])
-
-        s = cfg.speed
-        s.J_kgm2 = sc["J_kgm2"]
-        s.alpha_radps = sc["alpha_radps"]
-        s.zeta = sc["zeta"]
-        s.m = sc["m"]
-        s.tau_i_s = sc["tau_i_s"]
-        s.Ts_s = sc["Ts_s"]
-        s.i_max_A = limits["i_max_A"]
-        s.psi_f_Wb = motor["psi_f_Wb"]
-        s.Ld_H = motor["Ld_H"]
-        s.Lq_H = motor["Lq_H"]
-        s.pole_pairs = motor["pole_pairs"]
-        s.method = METHODS.index(sc["method"])
-        s.feedforward = FEEDFORWARDS.index(sc["feedforward"])
-        s.anti_windup = ANTI_WINDUPS.index(sc["anti_windup"])
-        if sc["Ka"] is None:
-            # section 3.3: Ka = 1/Kp = 1/(J alpha), computed in float32 by the C library
-            s.Ka = lib.p2d_speed_Ka_default(s.J_kgm2, s.alpha_radps)
-        else:
-            s.Ka = sc["Ka"]
-
-        c = cfg.current
-        c.Rs_ohm = motor["Rs_ohm"]
-        c.Ld_H = s.Ld_H
-        c.Lq_H = s.Lq_H
-        c.psi_f_Wb = s.psi_f_Wb
-        c.tau_i_s = cl["tau_i_s"]
-        c.Ts_s = cl["Ts_s"]
-        c.method = METHODS.index(cl["method"])
-        c.anti_windup = ANTI_WINDUPS.index(cl["anti_windup"])
-        c.decouple = cl["decouple"]
-        _sensing(cfg, data)
-
-        _estimator(cfg, data)
-        self.full_scales = _arithmetic(cfg, data)
-
+        cfg, self._arrays = engine_config(data, current_per_speed, substeps)
+        #: The full scales of the fixed-point speed controller by C field name ({} for float32).
+        self.full_scales = full_scales(cfg)
         self.cfg = cfg
         self.sim = ffi.new("p2d_sim_t *")
         status = lib.p2d_sim_init(self.sim, cfg)
@@ -715,100 +509,9 @@ class Simulation:
         """The :class:`Result` of the log so far, for ``scenario`` (the one this run was built from)."""
         return Result(scenario=scenario, wall_time_s=wall_time_s, **self.signals())
 
-    def _value(self, key: str) -> Any:
-        node: Any = self.data
-        for part in key.split("."):
-            node = node[part]
-        return node
-
-    def _raise_config(self, status: int) -> None:
-        if status in (lib.P2D_SIM_ERR_SPEED_SENSOR, lib.P2D_SIM_ERR_FIELD_WEAKENING) and self.sim.controller_status:
-            ctl = self.sim.controller_status
-            field = c_string(lib.p2d_status_param(ctl))
-            key = _SENSING_KEYS[field]
-            derived = getattr(self.cfg.sensing.field_weakening.config, field, None)
-            raise self._blame(key, c_string(lib.p2d_status_range(ctl)), derived)
-        if status in (lib.P2D_SIM_ERR_SPEED_CONTROLLER, lib.P2D_SIM_ERR_CURRENT_CONTROLLER, lib.P2D_SIM_ERR_ESTIMATOR):
-            ctl = self.sim.controller_status
-            field = c_string(lib.p2d_status_param(ctl))
-            valid = c_string(lib.p2d_status_range(ctl))
-            keys = {
-                lib.P2D_SIM_ERR_SPEED_CONTROLLER: _SPEED_KEYS,
-                lib.P2D_SIM_ERR_CURRENT_CONTROLLER: _CURRENT_KEYS,
-                lib.P2D_SIM_ERR_ESTIMATOR: _ESTIMATOR_KEYS,
-            }[status]
-            key = keys[field]
-            derived = getattr(self.cfg.adapt.config, field, None) if status == lib.P2D_SIM_ERR_ESTIMATOR else None
-            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field in self.full_scales:
-                # a full scale of the fixed-point controller, in the key's unit (rpm for the speed)
-                derived = self.full_scales[field] * (RPM_PER_RADPS if field == "speed_full_scale_radps" else 1.0)
-                if field == "speed_full_scale_radps":
-                    valid += f" (speed_full_scale_radps = speed_full_scale_rpm pi/30 = {self.full_scales[field]:.6g})"
-            value = self._value(key)
-            note = float32_note(derived if value is None else value)
-            s = self.cfg.speed
-            if status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "J_kgm2" and not note:
-                # a gain of eq 9 overflowed float32: name the factor farthest from 1
-                factors = {"J_kgm2": s.J_kgm2, "alpha_radps": s.alpha_radps, "zeta": 1.0 / s.zeta}
-                field = max(factors, key=lambda k: abs(math.log(factors[k])))
-                key = _SPEED_KEYS[field]
-                Kp, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
-                valid = (
-                    f"a value that keeps the gains of eq 9 finite in float32 (Kp = J alpha = {Kp:.4g}, "
-                    f"Ki = J (alpha / (2 zeta))^2 = {Ki:.4g} with J_kgm2 = {s.J_kgm2:g}, alpha_radps = "
-                    f"{s.alpha_radps:g}, zeta = {s.zeta:g})"
-                )
-            elif status == lib.P2D_SIM_ERR_SPEED_CONTROLLER and field == "Ts_s" and not note:
-                # the speed controller's refusal of a sound period: its float32 coefficients overflowed
-                valid += (
-                    f" (it is: the controller's float32 coefficients overflow with J_kgm2 = {s.J_kgm2:g}, "
-                    f"alpha_radps = {s.alpha_radps:g} and i_max_A = {s.i_max_A:g})"
-                )
-            else:
-                valid += note
-            if key != "speed_controller.Ka":
-                raise self._blame(key, valid, derived)
-            sc = self.data["speed_controller"]
-            if sc["Ka"] is not None:
-                _, Ki = pi_gains(s.J_kgm2, s.alpha_radps, s.zeta)
-                valid = (
-                    f"finite, >= 0 and, with back_calculation, Ki Ka Ts_s < 2, i.e. Ka < "
-                    f"{2.0 / (Ki * s.Ts_s):.6g} (Ki = {Ki:.6g} by eq 9)"
-                )
-                raise ConfigError(key, sc["Ka"], valid)
-            if s.alpha_radps * s.Ts_s / (4.0 * s.zeta**2) >= 2.0 * (1.0 - 1e-6):
-                # the default 1/Kp made Ki Ka Ts >= 2: name what the user set
-                names = {name: f"speed_controller.{name}" for name in ("alpha_radps", "zeta", "Ts_s", "Ka")}
-                raise default_Ka_error(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], sc["Ts_s"], names)
-            raise ConfigError(
-                "speed_filter",
-                "<table>",
-                f"filters through which the back-calculation loop with the default Ka = 1/Kp = {s.Ka:.6g} "
-                "(speed_controller.Ka absent) is stable; or give speed_controller.Ka smaller",
-            )
-        field = c_string(lib.p2d_sim_status_param(status))
-        valid = c_string(lib.p2d_sim_status_text(status))
-        raise self._blame(_SIM_KEYS[field], valid)
-
-    def _blame(self, key: str, valid: str, derived: float | None = None) -> ConfigError:
-        """The ConfigError of ``key``, or, when ``key`` was absent and took its value from another key
-        (:data:`_SOURCES`: the defaults the engine derives), of that key: the input the user set.
-
-        ``derived`` is the value the engine derived for a key absent from the data (None in it).
-        """
-        value = self._value(key)
-        source = _SOURCES.get(key)
-        if source is not None:
-            origin, how = source
-            is_default = value is None if key not in _SAME_AS else value == self._value(origin)
-            if is_default:
-                shown = value if value is not None else derived
-                return ConfigError(
-                    origin,
-                    self._value(origin),
-                    f"a value that makes {key} (when not given, {how} = {shown:.6g}) valid: {valid}",
-                )
-        return ConfigError(key, value, valid)
+    def _raise_config(self, status: int) -> NoReturn:
+        """Raise the ConfigError of the init status ``status``, naming the scenario key (:func:`raise_config_error`)."""
+        raise_config_error(status, self.sim, self.cfg, self.data)
 
     def stop_error(self, status: int) -> SimulationError:
         """The SimulationError of the stop ``status`` (a ``P2D_SIM_STOP_*`` code) of this run."""
@@ -860,184 +563,3 @@ def log_signals(log: npt.NDArray[np.float64]) -> dict[str, npt.NDArray[Any]]:
         else:
             signals[name] = values != 0.0 if name in FLAG_SIGNALS else values
     return signals
-
-
-def _schedule(
-    target: Any, entries: Sequence[Mapping[str, Any]], value_key: str, scale: float
-) -> list[npt.NDArray[np.float64]]:
-    """Fill the C schedule ``target`` from scenario entries; return the arrays it points into."""
-    arrays = [
-        np.array([e[k] * (scale if k == value_key else 1.0) for e in entries], dtype=np.float64)
-        for k in ("t_s", value_key, "ramp_s")
-    ]
-    target.n = len(entries)
-    if entries:
-        target.t_s, target.value, target.ramp_s = (ffi.cast("double *", ffi.from_buffer(a)) for a in arrays)
-    return arrays
-
-
-def _mechanics(cfg: Any, mechanics: Mapping[str, Any], speed_filter: Mapping[str, float]) -> None:
-    """Fill the drive train and the speed controller's torque filters of the C configuration ``cfg``."""
-    mech = cfg.mechanics
-    mech.model = MECHANICS_MODELS.index(mechanics["model"])
-    mech.feedback = FEEDBACKS.index(mechanics["feedback"])
-    if mechanics["model"] == "two_mass":
-        for key in ("J_load_kgm2", "stiffness_Nm_per_rad", "damping_Nms_per_rad", "backlash_rad"):
-            setattr(mech, key, mechanics[key])
-    for key, value in speed_filter.items():
-        setattr(cfg.speed_filter, key, value)
-
-
-def _faults(cfg: Any, entries: Sequence[Mapping[str, Any]]) -> Any:
-    """Fill ``cfg.faults`` from the scenario's ``fault`` entries; return the C array it points to."""
-    faults = ffi.new("p2d_fault_t[]", max(1, len(entries)))
-    for f, e in zip(faults, entries):
-        f.kind = FAULT_KINDS.index(e["kind"])
-        f.t_s = e["t_s"]
-        f.duration_s = 0.0 if e["duration_s"] is None else e["duration_s"]
-        if e["kind"] == "dc_link_sag":
-            f.value = e["u_dc_factor"]
-        elif e["kind"] == "sensor_spike":
-            f.value = e["speed_rpm"] / RPM_PER_RADPS
-    cfg.faults = faults
-    cfg.n_faults = len(entries)
-    return faults
-
-
-def _estimator(cfg: Any, data: Mapping[str, Any]) -> None:
-    """The estimator block of the engine's configuration (``[estimator]``, csrc/sim/adapt.h)."""
-    est, sc, motor = data["estimator"], data["speed_controller"], data["motor"]
-    a = cfg.adapt
-    a.enabled = est["enabled"]
-    if not est["enabled"]:
-        return
-    a.adapt_gains = est["adapt_gains"]
-    a.Ka_follows_J = sc["Ka"] is None
-    a.adapt_rel_change = est["adapt_rel_change"]
-    a.e_quiet_radps = est["adapt_error_rpm"] / RPM_PER_RADPS
-    T_peak_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"]
-    J0 = est["J0_kgm2"]
-    derived = {
-        "J_min_kgm2": J0 / 10.0,
-        "J_max_kgm2": 10.0 * J0,
-        "B_max_Nms": T_peak_Nm / 100.0,
-        "T_load_max_Nm": T_peak_Nm,
-        "sigma_T_Nm": 0.01 * T_peak_Nm,
-        "load_memory_s": 1.0 / sc["alpha_radps"],
-        "w_f_radps": 0.2 / sc["Ts_s"],
-    }
-    c = a.config
-    c.Ts_s = sc["Ts_s"]
-    c.J0_kgm2 = J0
-    for key, value in derived.items():
-        setattr(c, key, value if est[key] is None else est[key])
-    c.J_memory_s = est["J_memory_s"]
-    c.J_rel_sd_max = est["J_rel_sd_max"]
-    c.speed_is_period_mean = est["speed_is_period_mean"]
-
-
-def _sensing(cfg: Any, data: Mapping[str, Any]) -> None:
-    """Fill the speed sensor, current measurement and field weakening of ``cfg`` (csrc/sim/sensing.h)."""
-    ss, cm, fw = data["speed_sensor"], data["current_measurement"], data["field_weakening"]
-    sensor = cfg.sensing.speed_sensor
-    sensor.model = SPEED_SENSOR_MODELS.index(ss["model"])
-    sensor.encoder.counts_per_rev = ss["counts_per_rev"]
-    sensor.encoder.counter_bits = ss["counter_bits"]
-    sensor.encoder.estimator = ESTIMATORS.index(ss["estimator"])
-    sensor.encoder.bandwidth_radps = 0.0 if ss["bandwidth_radps"] is None else ss["bandwidth_radps"]
-    sensor.encoder.lowpass_radps = ss["lowpass_radps"]
-    sensor.delay_s = ss["delay_s"]
-    sensor.noise_rms_radps = ss["noise_rpm_rms"] / RPM_PER_RADPS
-    sensor.seed = ss["seed"]
-    meas = cfg.sensing.current_sensor
-    for key in ("gain_error_a", "gain_error_b", "offset_a_A", "offset_b_A", "seed"):
-        setattr(meas, key, cm[key])
-    meas.noise_rms_A = cm["noise_A_rms"]
-    cfg.sensing.field_weakening.enabled = fw["enabled"]
-    if fw["enabled"]:
-        reg = cfg.sensing.field_weakening.config
-        Ts_s = data["speed_controller"]["Ts_s"]
-        reg.Kp_A_per_V = fw["Kp_A_per_V"]
-        reg.Ki_A_per_Vs = fw["Ki_A_per_Vs"]
-        # absent: Ki Ka Ts = 1, the back-calculation's own time constant one sample
-        reg.Ka_V_per_A = 1.0 / (fw["Ki_A_per_Vs"] * Ts_s) if fw["Ka_V_per_A"] is None else fw["Ka_V_per_A"]
-        reg.Ts_s = Ts_s
-        reg.voltage_ratio = fw["voltage_ratio"]
-        reg.id_min_A = -data["limits"]["i_max_A"] if fw["id_min_A"] is None else fw["id_min_A"]
-        reg.method = METHODS.index("tustin")
-        reg.anti_windup = ANTI_WINDUPS.index("back_calculation")
-
-
-#: Default speed full scale of the fixed-point controllers in no-load speeds: the engine's overspeed bound
-#: (``P2D_SIM_OVERSPEED_FACTOR``), so that every speed a run reaches is within the input's range.
-FULL_SCALE_NO_LOAD_SPEEDS = 2.0
-#: Margin of the default torque full scale over the smallest that holds the states [-].
-FULL_SCALE_MARGIN = 1.25
-
-
-def _float32_up(x: float) -> float:
-    """The float32 number nearest ``x`` at or above it: a full scale that still holds ``x`` once stored."""
-    x32 = np.float32(x)
-    return float(x32) if float(x32) >= x else float(np.nextafter(x32, np.float32(np.inf)))
-
-
-def _arithmetic(cfg: Any, data: Tree) -> dict[str, float]:
-    """Fill the arithmetic of the speed controller and, for Q15 or Q31, its full scales (given or derived,
-    see :data:`~pmsm2dof.sim.scenario.SCHEMA`); return the full scales used by C field name ({} for float32).
-
-    The derived torque full scale keeps within the two full scales the format holds (speed_fixed.h)
-    the integrator state ``x = x_i + Fr(0) r`` up to ``T_max + |Fr(0)| r_max``, the feedforward
-    transient ``y`` up to ``|b_dr| dr_max`` after the largest reference step ``dr_max``, and the command
-    ``u`` at that step, ``T_max + (b_e0 + |Fr(0) + b_dr|) dr_max`` (so that the back calculation sees
-    the ``u* = u_sat - u`` the float32 controller sees); the gains are the C controller's
-    (``p2d_speed_q15_gains``).
-    """
-    sc, motor = data["speed_controller"], data["motor"]
-    cfg.arithmetic = ARITHMETICS.index(sc["arithmetic"])
-    if sc["arithmetic"] == "float32":
-        return {}
-    s = cfg.speed
-    kt = 1.5 * s.pole_pairs * s.psi_f_Wb
-    T_max = kt * s.i_max_A
-    W_fs = (
-        FULL_SCALE_NO_LOAD_SPEEDS
-        * no_load_speed_radps(data["limits"]["u_dc_V"], motor["pole_pairs"], motor["psi_f_Wb"])
-        if sc["speed_full_scale_rpm"] is None
-        else sc["speed_full_scale_rpm"] / RPM_PER_RADPS
-    )
-    cfg.speed_full_scale_radps = W_fs
-    T_fs = sc["torque_full_scale_Nm"]
-    if T_fs is None:
-        T_fs = T_max
-        # the feedforward's gains in physical units, from the C controller at provisional full scales
-        cfg.torque_full_scale_Nm = _float32_up(T_max)
-        cfg.current_full_scale_A = _float32_up(s.i_max_A)
-        fixed = ffi.new(
-            "p2d_speed_fixed_config_t *",
-            [cfg.speed, cfg.speed_full_scale_radps, cfg.torque_full_scale_Nm, cfg.current_full_scale_A],
-        )
-        gains = ffi.new("p2d_speed_fixed_gains_t *")
-        if getattr(lib, f"p2d_speed_{sc['arithmetic']}_gains")(fixed, gains) == lib.P2D_OK:
-            per_unit = cfg.torque_full_scale_Nm / cfg.speed_full_scale_radps
-            Fr0, b_dr = abs(gains.ff_Fr0) * per_unit, abs(gains.ff_b_dr) * per_unit
-            # u at a reference step dr from rest: b_e0 dr + x + (Fr0 + b_dr) dr (the derivative kick of the
-            # full feedforward left out: it saturates the command anyway)
-            u_per_dr = (gains.b_e0 + abs(gains.ff_Fr0 + gains.ff_b_dr)) * per_unit
-            # the references in the order the controller sees them: w_m0, 0 until the first entry, the entries
-            w_m0 = data["simulation"]["speed0_rpm"] / RPM_PER_RADPS
-            refs = [w_m0] + ([0.0] if data["reference"][0]["t_s"] > 0.0 else [])
-            refs += [e["speed_rpm"] / RPM_PER_RADPS for e in data["reference"]]
-            r_max = max(abs(r) for r in refs)
-            dr_max = max(abs(b - a) for a, b in zip(refs, refs[1:]))
-            held = max(T_max + Fr0 * r_max, b_dr * dr_max, T_max + u_per_dr * dr_max) / 2.0
-            T_fs = max(T_max, FULL_SCALE_MARGIN * held)
-        cfg.torque_full_scale_Nm = _float32_up(T_fs)
-    else:
-        cfg.torque_full_scale_Nm = T_fs
-    I_fs = sc["current_full_scale_A"]
-    cfg.current_full_scale_A = _float32_up(max(s.i_max_A, T_fs / kt)) if I_fs is None else I_fs
-    return {name: float(getattr(cfg, name)) for name in FULL_SCALES}
-
-
-#: The full scales of the fixed-point speed controller in the engine's configuration (``p2d_sim_config_t``).
-FULL_SCALES = ("speed_full_scale_radps", "torque_full_scale_Nm", "current_full_scale_A")

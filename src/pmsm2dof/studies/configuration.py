@@ -1,5 +1,7 @@
-"""The one scenario -> C configuration of the firmware, for every command that writes a header.
+"""The one scenario -> design -> C configuration of the firmware, for every command that writes a header.
 
+:func:`scenario_design` is the design (eq 9-13) of a scenario's speed controller, for every caller
+that analyses a scenario's loop (the claims, the report, the loop checks, the header's record).
 :func:`configuration` turns a scenario into the complete configuration of the controllers the
 firmware runs (``examples/firmware/foc.c``), as the engine would run them on that scenario: the
 speed controller and its torque filters, the dq current controllers, the speed sensor's estimator
@@ -34,8 +36,9 @@ from pathlib import Path
 from typing import Any
 
 from ..analysis.codegen import c_float, check_prefix, config_header, design_record
-from ..analysis.design import design
+from ..analysis.design import Design, design
 from ..analysis.discretize import DiscreteDesign
+from ..analysis.sensor import SensorChain
 from ..core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, SpeedController
 from ..core.bindings import ffi
 from ..errors import ConfigError
@@ -191,17 +194,9 @@ class Configuration:
         cfg = self.engine.cfg
         sc, cl, ss = data["speed_controller"], data["current_loop"], data["speed_sensor"]
         speed = _speed_controller(cfg.speed)
-        discrete = design(
-            sc["J_kgm2"],
-            sc["alpha_radps"],
-            sc["zeta"],
-            m=sc["m"],
-            tau_i_s=sc["tau_i_s"],
-            feedforward=sc["feedforward"],
-            anti_windup=sc["anti_windup"],
-            # absent: the default 1/Kp as the C library computes it
-            Ka=float(cfg.speed.Ka) if sc["Ka"] is None else sc["Ka"],
-        ).discretize(sc["Ts_s"], sc["method"])
+        # Ka absent: the default 1/Kp as the C library computes it; the record's margins are the ideal sensor's
+        Ka = float(cfg.speed.Ka) if sc["Ka"] is None else sc["Ka"]
+        discrete = scenario_design(self.scenario, Ka=Ka, sensor=None).discretize(sc["Ts_s"], sc["method"])
         Ts_c, Ts_s = float(cfg.current.Ts_s), float(cfg.speed.Ts_s)
         lines = [f"From: {self.source}" if self.source else f"From the scenario {self.scenario.name!r}.", *self.notes]
         lines += ["", *design_record(discrete, speed.coefficients), ""]
@@ -231,6 +226,43 @@ class Configuration:
         if cl["model"] == "first_order":
             lines.append("The scenario simulates eq 3 (first_order); the firmware runs these dq current controllers.")
         return lines
+
+
+def scenario_design(scenario: Scenario | Tree, **changes: Any) -> Design:
+    """The design (eq 9-13, section 3.3) of the speed controller of ``scenario``.
+
+    Parameters
+    ----------
+    scenario : Scenario or dict
+        A validated scenario, or its :attr:`~pmsm2dof.sim.scenario.Scenario.data`: the design takes
+        its ``speed_controller`` J, alpha, zeta, m, tau_i, feedforward, anti-windup and Ka (absent:
+        1/Kp) and the sensor chain of its ``[speed_sensor]``.
+    **changes
+        Arguments of :func:`pmsm2dof.analysis.design.design` that replace the scenario's, e.g.
+        ``feedforward="none"``.
+
+    Raises
+    ------
+    ConfigError
+        A change out of its range, named as the argument.
+    """
+    data = scenario.data if isinstance(scenario, Scenario) else scenario
+    sc = data["speed_controller"]
+    arguments: dict[str, Any] = {
+        "J_kgm2": sc["J_kgm2"],
+        "alpha_radps": sc["alpha_radps"],
+        "zeta": sc["zeta"],
+        "m": sc["m"],
+        "tau_i_s": sc["tau_i_s"],
+        "feedforward": sc["feedforward"],
+        "anti_windup": sc["anti_windup"],
+        "Ka": sc["Ka"],
+        "sensor": SensorChain.from_table(data["speed_sensor"]),
+    }
+    unknown = sorted(set(changes) - set(arguments))
+    if unknown:
+        raise ConfigError(unknown[0], changes[unknown[0]], "an argument of design: " + ", ".join(arguments))
+    return design(**(arguments | changes))
 
 
 def configuration(scenario: Scenario, *, source: str = "", notes: tuple[str, ...] = ()) -> Configuration:

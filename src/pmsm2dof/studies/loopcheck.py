@@ -27,12 +27,11 @@ not made, and its warning says so and why, naming the scenario key.
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from ..analysis.design import design
 from ..analysis.discretize import sampled_loop_poles
-from ..analysis.sensor import SensorChain
 from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import Tree
+from .configuration import scenario_design
 
 if TYPE_CHECKING:
     from ..sim.simulate import Result
@@ -59,17 +58,7 @@ def sampled_loop(data: Tree) -> dict[str, Any]:
     """
     sc = data["speed_controller"]
     try:
-        d = design(
-            sc["J_kgm2"],
-            sc["alpha_radps"],
-            sc["zeta"],
-            m=sc["m"],
-            tau_i_s=sc["tau_i_s"],
-            feedforward=sc["feedforward"],
-            anti_windup=sc["anti_windup"],
-            Ka=sc["Ka"],
-            sensor=SensorChain.from_table(data["speed_sensor"]),
-        )
+        d = scenario_design(data)
 
         def check(J_kgm2: float, tau_i_s: float) -> dict[str, Any]:
             poles, stable = sampled_loop_poles(d, sc["Ts_s"], sc["method"], J_kgm2, tau_i_s)

@@ -22,12 +22,11 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.design import design
-from ..analysis.sensor import SensorChain
 from ..errors import Pmsm2dofError, SimulationError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario, load_scenario
 from ..sim.simulate import simulate
+from .configuration import scenario_design
 
 #: The paper's measured overshoots of experiment 1 without and with AW [%] (section 4.2).
 PAPER_OVERSHOOT_PCT = {"none": 35.0, "back_calculation": 15.0}
@@ -99,8 +98,7 @@ def _margins(scenario: Scenario) -> tuple[float | None, float | None]:
     """Phase and gain margin of the sampled 1DOF loop with the scenario's sensor chain."""
     d = scenario.data
     sc = d["speed_controller"]
-    chain = SensorChain.from_table(d["speed_sensor"])
-    loop = design(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], tau_i_s=sc["tau_i_s"], feedforward="none", sensor=chain)
+    loop = scenario_design(d, feedforward="none")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

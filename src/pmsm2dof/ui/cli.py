@@ -25,8 +25,8 @@ if TYPE_CHECKING:
     from ..analysis.sensor import DelayModel
     from ..analysis.twomass import TwoMass
     from ..core.bindings import AntiWindup, Feedforward, Method
+    from ..core.motor import Motor
     from ..sim.commission import Commissioning
-    from ..sim.datasheet import MotorParameters
     from ..studies.autotune import AutotuneResult
     from ..studies.identify import Mechanics
 
@@ -463,9 +463,9 @@ def design(
             click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
 
 
-def _load_motor(motor_file: str) -> "MotorParameters":
+def _load_motor(motor_file: str) -> "Motor":
     """The motor of --motor: a scenario, a datasheet motor file or an identified motor.toml."""
-    from ..sim.datasheet import load_motor
+    from ..core.motor import load_motor
 
     try:
         return load_motor(motor_file)
@@ -474,7 +474,7 @@ def _load_motor(motor_file: str) -> "MotorParameters":
 
 
 def _identified_current_loop(
-    motor: "MotorParameters | None", alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
+    motor: "Motor | None", alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
 ) -> "CurrentLoopDesign | None":
     """The current loop of --motor and --current-bandwidth, or None without --current-bandwidth."""
     if alpha_c_radps is None:
@@ -483,18 +483,10 @@ def _identified_current_loop(
         raise click.UsageError("--current-bandwidth needs --motor FILE (the identified motor)")
     if tau_i_s != 0.0:
         raise click.UsageError("--current-bandwidth sets tau_i = 1/alpha_c: give it or --tau-i, not both")
-    from ..analysis.current_loop import MotorEstimate, design_current_loop
+    from ..analysis.current_loop import design_current_loop
 
-    estimate = MotorEstimate(
-        pole_pairs=motor.pole_pairs,
-        Rs_ohm=motor.Rs_ohm,
-        Ld_H=motor.Ld_H,
-        Lq_H=motor.Lq_H,
-        psi_f_Wb=motor.psi_f_Wb,
-        intervals=motor.intervals,
-    )
     try:
-        return design_current_loop(estimate, alpha_c_radps, Ts_current_s)
+        return design_current_loop(motor, alpha_c_radps, Ts_current_s)
     except ConfigError as exc:
         raise _as_option(exc, {"current_bandwidth": "--current-bandwidth", "Ts_current": "--Ts-current"}) from None
 
@@ -1336,7 +1328,7 @@ def _percent(x: float) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# motor and identify (pmsm2dof.sim.datasheet, sim.logs, studies.identify)
+# motor and identify (pmsm2dof.core.motor, sim.logs, studies.identify)
 # ---------------------------------------------------------------------------------------------
 
 
@@ -1344,7 +1336,7 @@ def _motor_help() -> str:
     """The help of `pmsm2dof motor`: what it prints and every key of [motor.datasheet]."""
     import textwrap
 
-    from ..sim.datasheet import DATASHEET_KEYS
+    from ..core.motor import DATASHEET_KEYS
 
     keys = "\n".join(
         textwrap.fill(f"{key}: {doc}", width=76, initial_indent="  ", subsequent_indent="      ")
@@ -1356,7 +1348,7 @@ def _motor_help() -> str:
         "[motor.datasheet] table gives the datasheet's values; without it the model keys of [motor] are shown "
         "as given. Kt and Ke (or Kv), when both are given, are checked against each other. With [limits] "
         "u_dc_V in the file, the no-load speed the DC link allows is shown too.\n\n"
-        "\b\nKeys of [motor.datasheet] (pmsm2dof.sim.datasheet):\n" + keys
+        "\b\nKeys of [motor.datasheet] (pmsm2dof.core.motor):\n" + keys
     )
 
 
@@ -1366,9 +1358,9 @@ def _motor_help() -> str:
 def motor(file: str, as_json: bool) -> None:
     import json
 
+    from ..core.motor import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
     from ..errors import require_positive
     from ..inputs import read_toml
-    from ..sim.datasheet import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
 
     m = load_motor(file)
     keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + [key for key in RATING_KEYS if getattr(m, key) is not None]
@@ -1382,7 +1374,7 @@ def motor(file: str, as_json: bool) -> None:
         extra["no_load_rpm"] = no_load_speed_radps(u_dc, m.pole_pairs, m.psi_f_Wb) * 30.0 / math.pi
         sources["no_load_rpm"] = f"u_dc / (sqrt(3) p psi_f) at limits.u_dc_V = {u_dc:g} V (space-vector modulation)"
         if m.commutation == "block":
-            # block: the mean DC-side back-EMF kM w_m meets u_dc, kM = (3 sqrt(3)/pi) p psi_f (pmsm2dof.sim.datasheet)
+            # block: the mean DC-side back-EMF kM w_m meets u_dc, kM = (3 sqrt(3)/pi) p psi_f (pmsm2dof.core.motor)
             notes.append(
                 f"block commutation reaches u_dc / kM = {extra['no_load_rpm'] * math.pi / 3.0:.5g} rpm at no load, "
                 "pi/3 times more (the datasheet's no-load speed is this, less the drop of the no-load current)"
@@ -1562,8 +1554,8 @@ def identify(
     import json
 
     from ..core.gains import pi_gains
+    from ..core.motor import load_motor
     from ..outputs import atomic_write, staged_dir
-    from ..sim.datasheet import load_motor
     from ..sim.logs import read_log
     from ..studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
 

@@ -48,12 +48,12 @@ from matplotlib.figure import Figure
 from ...outputs import atomic_write, check_out, staged_dir
 from ...studies import paper as st
 from ...studies.adaptation import run_adaptation
+from ...studies.claims import VERDICTS, Claim, compute_claims
 from ...studies.faults import run_faults
 from ...studies.fixedpoint import run_arithmetic
 from ...studies.sensing import offset_study, sensor_study
 from .adaptation import CAPTION as ADAPTATION_CAPTION
 from .adaptation import fig_adaptation
-from .claims import VERDICTS, Claim, compute_claims
 from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
 from .fixedpoint import CAPTION as FIXED_POINT_CAPTION

@@ -21,13 +21,13 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from ...core import pi_gains
 from ...core.bindings import AntiWindup
 from ...sim.simulate import Result
 from ...studies import paper as st
+from ...studies.claims import FIG7_M
+from ...studies.configuration import scenario_design
 from ...studies.faults import FAULT_PRESETS, fault_figures
 from ..plots.design import bode_gx_sweep
-from .claims import FIG7_M
 
 #: Most points per line in the time plots (the traces are thinned evenly beyond it).
 PLOT_POINTS = 2500
@@ -460,7 +460,8 @@ def fig_faults(runs: Mapping[tuple[str, AntiWindup], Result | str | None]) -> tu
 def figures(studies: st.Studies) -> dict[str, tuple[Figure, FigureData, str]]:
     """Every figure of the report: ``{stem: (Figure, FigureData, caption)}`` in report order."""
     sc = studies.speed_controller()
-    Kp, Ki = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
+    d = scenario_design(studies.bases[st.STEP_BASE])
+    Kp, Ki = d.Kp, d.Ki
     bode = bode_gx_sweep(
         sc["alpha_radps"],
         FIG7_M,

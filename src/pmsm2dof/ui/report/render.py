@@ -12,17 +12,17 @@ from typing import Any
 
 import numpy as np
 
-from ...core import pi_gains
 from ...core.bindings import AntiWindup
 from ...sim.commission import Commissioning
 from ...sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES
 from ...sim.simulate import Result
 from ...studies import paper as st
+from ...studies.claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
+from ...studies.configuration import scenario_design
 from ...studies.faults import fault_figures
 from ...studies.fixedpoint import ArithmeticStudy
 from ...studies.sensing import OffsetRow, SensorRow
 from .adaptation import adaptation_blocks
-from .claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
 from .commissioning import commissioning_blocks
 from .fixedpoint import fixed_point_blocks
 from .sensing import sensing_blocks
@@ -44,7 +44,8 @@ def _parameters_table(studies: st.Studies) -> _Table:
     data = studies.bases["paper-condition-1"].data
     m, lim, cl, sc = data["motor"], data["limits"], data["current_loop"], data["speed_controller"]
     kt = 1.5 * m["pole_pairs"] * m["psi_f_Wb"]
-    Kp, Ki = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
+    d = scenario_design(data)
+    Kp, Ki = d.Kp, d.Ki
     given = [
         ("J", f"{m['J_kgm2']:g} kg m^2", "paper (4.1, 4.2)"),
         ("tau_i", f"{cl['tau_i_s']:g} s", "paper (4.1, 4.2)"),
@@ -173,8 +174,7 @@ def report_blocks(
     ``("figure", stem, caption)``. Text may hold `code` spans.
     """
     counts = {v: sum(c.verdict == v for c in claims) for v in VERDICTS}
-    sc = studies.speed_controller()
-    Kp, _ = pi_gains(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"])
+    Kp = scenario_design(studies.bases[st.STEP_BASE]).Kp
     timing = f"; {wall_time_s:.1f} s in all" if wall_time_s is not None else ""
     overrides = ", ".join(f"`{k} = {v!r}`" for k, v in studies.overrides.items())
     blocks = [

@@ -41,7 +41,7 @@ from ...errors import ConfigError, require_positive
 from ...sim.metrics import at_current_limit, at_voltage_limit
 from ...sim.scenario import Scenario, Tree
 from ...sim.simulate import Result, Simulation
-from ...studies.configuration import configuration
+from ...studies.configuration import configuration, scenario_design
 from ...studies.loopcheck import measure
 from ..plots.trace import saturated_intervals
 from .slots import Ticket
@@ -171,17 +171,7 @@ def bode_data(
 
 def design_of(scenario: Scenario) -> Design:
     """The :class:`~pmsm2dof.analysis.design.Design` of a scenario's speed controller (eq 9-13)."""
-    sc = scenario.data["speed_controller"]
-    return design(
-        sc["J_kgm2"],
-        sc["alpha_radps"],
-        sc["zeta"],
-        m=sc["m"],
-        tau_i_s=sc["tau_i_s"],
-        feedforward=sc["feedforward"],
-        anti_windup=sc["anti_windup"],
-        Ka=sc["Ka"],
-    )
+    return scenario_design(scenario, sensor=None)
 
 
 class Tuner:

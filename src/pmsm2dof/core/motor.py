@@ -48,7 +48,7 @@ In SI units the two constants of one machine are tied (sinusoidal: ``Kt_rms [Nm/
 Ke_line_rms [V s/rad]``; block: ``kM = kn^-1``). When both are given, psi_f comes from Ke or Kv
 (measured at no load, free of the saturation that lowers Kt at high current) and their
 disagreement beyond :data:`KT_KE_RTOL` is reported as a :class:`DatasheetWarning` and in
-:attr:`MotorParameters.notes`.
+:attr:`Motor.notes`.
 
 In a scenario, the table ``[motor.datasheet]`` replaces the keys ``motor.pole_pairs``,
 ``motor.Rs_ohm``, ``motor.Ld_H``, ``motor.Lq_H`` and ``motor.psi_f_Wb``, and, when it gives them,
@@ -60,7 +60,7 @@ import dataclasses
 import math
 import os
 import warnings
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -141,7 +141,7 @@ RATING_KEYS = ("i_rated_A", "i_peak_A", "J_rotor_kgm2")
 #: The model parameters an identified motor file may give 95 % intervals of, as ``<key>_ci``.
 INTERVAL_KEYS = ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb")
 
-#: The mechanical keys of a scenario's [motor] (read by the scenario, not by :func:`load_motor`).
+#: The mechanical keys of a scenario's [motor] (read by :func:`load_motor` when a file gives them).
 MECHANICAL_KEYS = ("J_kgm2", "B_Nms", "T_coulomb_Nm")
 
 
@@ -159,21 +159,27 @@ class DatasheetWarning(Pmsm2dofWarning):
 
 
 @dataclasses.dataclass(frozen=True)
-class MotorParameters:
-    """The model parameters of eq 1 converted from a datasheet, each with its source.
+class Motor:
+    """The motor of eq 1: per-phase, amplitude-invariant parameters, named as the scenario's ``[motor]`` keys.
+
+    The one motor type of simulation, analysis and identification: read from a datasheet, a
+    scenario or an identified motor file by :func:`load_motor`, built by identification
+    (:meth:`pmsm2dof.studies.electrical.Electrical.motor`), designed for by
+    :func:`pmsm2dof.analysis.current_loop.design_current_loop`.
 
     Attributes
     ----------
     pole_pairs, Rs_ohm, Ld_H, Lq_H, psi_f_Wb
-        Per-phase, amplitude-invariant parameters (scenario keys of ``[motor]``).
+        Pole pairs p [-], phase resistance [ohm], dq inductances [H], magnet flux linkage [Wb].
     i_rated_A, i_peak_A
         Rated and peak current as a dq current magnitude (peak phase current) [A], or None.
     J_rotor_kgm2
         Rotor inertia [kg m^2], or None.
-    kt_Nm_per_A
-        Torque constant of the model, ``1.5 p psi_f`` [Nm per A of dq current].
+    J_kgm2, B_Nms, T_coulomb_Nm
+        The drive's inertia [kg m^2], viscous [Nm s/rad] and Coulomb [Nm] friction, when the file
+        gives them (a scenario's mechanical keys of ``[motor]``), or None.
     sources
-        For each parameter, the formula and datasheet value it comes from.
+        For each parameter, the formula and datasheet value or the key it comes from.
     notes
         Findings of the consistency check (Kt against Ke).
     intervals
@@ -187,20 +193,37 @@ class MotorParameters:
     Ld_H: float
     Lq_H: float
     psi_f_Wb: float
-    kt_Nm_per_A: float
-    sources: dict[str, str]
-    notes: tuple[str, ...]
     i_rated_A: float | None = None
     i_peak_A: float | None = None
     J_rotor_kgm2: float | None = None
+    J_kgm2: float | None = None
+    B_Nms: float | None = None
+    T_coulomb_Nm: float | None = None
+    sources: dict[str, str] = dataclasses.field(default_factory=dict)
+    notes: tuple[str, ...] = ()
     intervals: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
     commutation: str = "sinusoidal"
+
+    @property
+    def kt_Nm_per_A(self) -> float:
+        """Torque constant of the model, ``1.5 p psi_f`` [Nm per A of dq current] (eq 1, id = 0)."""
+        return 1.5 * self.pole_pairs * self.psi_f_Wb
 
     def motor_table(self) -> dict[str, Any]:
         """The scenario keys of ``[motor]`` this datasheet provides (the ratings it gives)."""
         table = {key: getattr(self, key) for key in MOTOR_KEYS}
         table |= {key: getattr(self, key) for key in RATING_KEYS if getattr(self, key) is not None}
         return table
+
+    def motor_file(self, comments: Sequence[str] = ()) -> str:
+        """The motor as a motor file that :func:`load_motor` reads back: the ``comments`` (one ``#`` line
+        each), ``[motor]`` with the model keys, the ratings and mechanical keys given, and the intervals
+        as ``<key>_ci = [low, high]``."""
+        lines = [f"# {text}" for text in comments] + ["[motor]", f"pole_pairs = {self.pole_pairs}"]
+        given = (*MOTOR_KEYS[1:], *RATING_KEYS, *MECHANICAL_KEYS)
+        lines += [f"{key} = {value!r}" for key in given if (value := getattr(self, key)) is not None]
+        lines += [f"{key}_ci = [{low!r}, {high!r}]" for key, (low, high) in self.intervals.items()]
+        return "\n".join(lines) + "\n"
 
 
 def _check(sheet: Mapping[str, Any], key: str, prefix: str) -> Any:
@@ -223,7 +246,7 @@ def _check(sheet: Mapping[str, Any], key: str, prefix: str) -> Any:
     return number
 
 
-def convert_datasheet(sheet: Mapping[str, Any], prefix: str = "motor.datasheet") -> MotorParameters:
+def convert_datasheet(sheet: Mapping[str, Any], prefix: str = "motor.datasheet") -> Motor:
     """Convert datasheet values to the per-phase, amplitude-invariant parameters of eq 1.
 
     Parameters
@@ -240,7 +263,7 @@ def convert_datasheet(sheet: Mapping[str, Any], prefix: str = "motor.datasheet")
 
     Returns
     -------
-    MotorParameters
+    Motor
 
     Raises
     ------
@@ -372,7 +395,7 @@ def convert_datasheet(sheet: Mapping[str, Any], prefix: str = "motor.datasheet")
     if "J_rotor_gcm2" in v:
         J_rotor = v["J_rotor_gcm2"] * 1e-7
         sources["J_rotor_kgm2"] = f"J_rotor {v['J_rotor_gcm2']:g} g cm^2 * 1e-7"
-    return MotorParameters(
+    return Motor(
         pole_pairs=p,
         Rs_ohm=Rs,
         Ld_H=Ld,
@@ -381,14 +404,13 @@ def convert_datasheet(sheet: Mapping[str, Any], prefix: str = "motor.datasheet")
         i_rated_A=currents["i_rated_A"],
         i_peak_A=currents["i_peak_A"],
         J_rotor_kgm2=J_rotor,
-        kt_Nm_per_A=1.5 * p * psi_f,
         sources=sources,
         notes=tuple(notes),
         commutation="block" if block else "sinusoidal",
     )
 
 
-def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
+def load_motor(path: str | os.PathLike[str]) -> Motor:
     """Read the motor of a TOML file: a ``[motor.datasheet]`` table, or the model keys of ``[motor]``.
 
     Parameters
@@ -401,7 +423,7 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
 
     Returns
     -------
-    MotorParameters
+    Motor
         With sources ``"motor.<key>"`` for the keys given directly.
 
     Raises
@@ -421,7 +443,7 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
             raise ConfigError(f"motor.{key}", motor[key], "a key of [motor]: " + ", ".join(known))
     if "datasheet" in motor:
         converted = motor_from_table(motor)
-        ratings: dict[str, Any] = {k: _positive(motor, k) for k in RATING_KEYS if k in motor}
+        ratings: dict[str, Any] = {k: _positive(motor, k) for k in RATING_KEYS if k in motor} | _mechanics(motor)
         ratings["sources"] = {**converted.sources, **{k: f"motor.{k}" for k in ratings}}
         return dataclasses.replace(converted, **ratings)
     missing = [k for k in MOTOR_KEYS if k not in motor]
@@ -432,7 +454,7 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
         raise ConfigError("motor.pole_pairs", p, "an integer >= 1 and <= 1000")
     p = int(p)
     values: dict[str, Any] = {key: _positive(motor, key) for key in MOTOR_KEYS[1:]}
-    values |= {key: _positive(motor, key) for key in RATING_KEYS if key in motor}
+    values |= {key: _positive(motor, key) for key in RATING_KEYS if key in motor} | _mechanics(motor)
     intervals = {}
     for key in INTERVAL_KEYS:
         ci = motor.get(f"{key}_ci")
@@ -445,14 +467,26 @@ def load_motor(path: str | os.PathLike[str]) -> MotorParameters:
         if not (math.isfinite(low) and math.isfinite(high) and 0.0 < low <= values[key] <= high):
             raise ConfigError(f"motor.{key}_ci", ci, valid)
         intervals[key] = (low, high)
-    return MotorParameters(
+    return Motor(
         pole_pairs=p,
         **values,
-        kt_Nm_per_A=1.5 * p * values["psi_f_Wb"],
-        sources={key: f"motor.{key}" for key in (*MOTOR_KEYS, *RATING_KEYS) if key in motor},
-        notes=(),
+        sources={key: f"motor.{key}" for key in (*MOTOR_KEYS, *RATING_KEYS, *MECHANICAL_KEYS) if key in motor},
         intervals=intervals,
     )
+
+
+def _mechanics(motor: Mapping[str, Any]) -> dict[str, float]:
+    """The mechanical keys ``motor`` gives: ``J_kgm2`` > 0, ``B_Nms`` and ``T_coulomb_Nm`` >= 0, finite."""
+    values = {}
+    for key in MECHANICAL_KEYS:
+        if key in motor:
+            number = _as_float(motor[key])
+            if not (math.isfinite(number) and (number > 0 if key == "J_kgm2" else number >= 0)):
+                raise ConfigError(
+                    f"motor.{key}", motor[key], "a finite number " + ("> 0" if key == "J_kgm2" else ">= 0")
+                )
+            values[key] = number
+    return values
 
 
 def _positive(motor: Mapping[str, Any], key: str) -> float:
@@ -475,7 +509,7 @@ def _as_float(value: Any) -> float:
         return math.nan
 
 
-def motor_from_table(motor: Mapping[str, Any]) -> MotorParameters:
+def motor_from_table(motor: Mapping[str, Any]) -> Motor:
     """Convert the ``[motor.datasheet]`` of a ``[motor]`` table; no key it provides may be given beside it."""
     converted = convert_datasheet(motor["datasheet"])
     for key in (*MOTOR_KEYS, *converted.motor_table()):
