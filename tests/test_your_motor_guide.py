@@ -52,7 +52,7 @@ def test_the_guide_runs_as_written_and_identifies_the_drive(tmp_path, monkeypatc
     assert report["B_Nms"] == pytest.approx(truth["B_Nms"], rel=0.35)
     # the design's J is the identified one, rounded as the guide writes it
     assert load_scenario(tmp_path / "plan" / "plan.toml").data["reference"]
-    design_J = float(commands[4][commands[4].index("--J") + 1])
+    design_J = float(commands[4][commands[4].index("--J-kgm2") + 1])
     assert design_J == pytest.approx(report["J_kgm2"], rel=0.01)
     assert "p2d_speed_config_t" in (tmp_path / "speed_config.h").read_text()
     identified = load_scenario(tmp_path / "ident" / "identified.toml")

@@ -38,7 +38,7 @@ from the white-noise formula would be too narrow.
 
 Identifiability: J is reported only when its relative standard deviation is below
 :data:`J_REL_SD_MAX`; otherwise :class:`IdentificationError` says why and what experiment
-would do (speed steps or torque pulses: ``pmsm2dof identify --plan``).
+would do (speed steps or torque pulses: ``pmsm2dof identify plan``).
 
 The time constant of the current loop (eq 3) comes from the logged iq steps when ``iq_ref_A``
 is in the log (:func:`identify_tau_i`).
@@ -312,7 +312,7 @@ def identify_mechanics(
         raise IdentificationError(
             f"{log.source}: only {rows['y'].size} usable rows of {n * dt:.3g} s (at least {ROWS_MIN}) with the speed "
             f"away from zero (|w| > {w_zero:.3g} rad/s): log a longer run with speed steps or torque pulses "
-            "(pmsm2dof identify --plan)"
+            "(pmsm2dof identify plan)"
         )
     X = np.column_stack([rows["x_J"], rows["x_B"], rows["x_C"]])
     y = rows["y"]
@@ -339,7 +339,7 @@ def identify_mechanics(
             f"{log.source}: J is not identifiable from this log (J = {J:.4g} +- {sd[0]:.2g} kg m^2; the largest "
             f"mean acceleration over {n * dt:.3g} s is {accel:.3g} rad/s^2, too little against the torque noise): "
             "log speed steps or torque pulses that accelerate the drive near its current limit, in both directions "
-            "(pmsm2dof identify --plan writes such a run)"
+            "(pmsm2dof identify plan writes such a run)"
         )
     excluded = _merge([(float(a), float(b)) for a, b in zip(rows["t0"][~keep], rows["t1"][~keep])])
     if excluded:
@@ -531,7 +531,7 @@ def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | N
     return scenario.with_overrides(
         {
             "name": f"{data['name']}: identification plan",
-            "description": f"speed steps within +-{speed_max_rpm:g} rpm for pmsm2dof identify",
+            "description": f"speed steps within +-{speed_max_rpm:g} rpm for pmsm2dof identify mechanics",
             "reference": reference,
             "load": [],
             "fault": [],

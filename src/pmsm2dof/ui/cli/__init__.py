@@ -13,12 +13,12 @@ import click
 
 from ...errors import ConfigError, Pmsm2dofError, Terminated, signals_raise_terminated
 from . import commission, design, firmware, identify, motor, report, simulate, sweep, tune, twomass
-from .options import _as_cli_error, _one_line, parse_override, warnings_as_lines
+from .options import Group, as_cli_error, one_line, parse_override, warnings_as_lines
 
 __all__ = ["cli", "main", "parse_override"]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="pmsm2dof")
 def cli() -> None:
     """Design, simulate and deploy the anti-windup 2DOF PI speed controller of a PMSM."""
@@ -67,12 +67,12 @@ def main(argv: list[str] | None = None) -> int:
         print("pmsm2dof: terminated", file=sys.stderr)
         return 128 + exc.signum
     except click.ClickException as exc:
-        print(f"pmsm2dof: error: {_one_line(exc.format_message())}", file=sys.stderr)
+        print(f"pmsm2dof: error: {one_line(exc.format_message())}", file=sys.stderr)
         return 2
     except ConfigError as exc:
-        print(f"pmsm2dof: error: {_one_line(_as_cli_error(exc))}", file=sys.stderr)
+        print(f"pmsm2dof: error: {one_line(as_cli_error(exc))}", file=sys.stderr)
         return 2
     except (Pmsm2dofError, ValueError, OSError) as exc:
-        print(f"pmsm2dof: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"pmsm2dof: error: {one_line(exc)}", file=sys.stderr)
         return 2
     return status if isinstance(status, int) else 0

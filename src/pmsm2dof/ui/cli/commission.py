@@ -8,19 +8,13 @@ import click
 if TYPE_CHECKING:
     from ...sim.commission import Commissioning
 
-from .options import out_option, parse_override
+from .options import json_option, out_option, parse_override, set_option
 
 
 @click.command()
 @click.argument("scenario", metavar="PRESET_OR_FILE")
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="change a scenario key, e.g. --set commissioning.dead_time_V=1.5 (repeatable; values are TOML literals)",
-)
-@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
+@set_option("change a scenario key, e.g. --set commissioning.dead_time_V=1.5 (repeatable; values are TOML literals)")
+@json_option()
 @out_option(
     "folder for result.json, log.csv, plot.png, motor.toml (the identified motor, for design --motor) and "
     "p2d_config.h (the scenario's controllers for the identified motor)"

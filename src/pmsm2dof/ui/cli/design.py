@@ -15,20 +15,16 @@ if TYPE_CHECKING:
     from ...core.bindings import AntiWindup, Feedforward, Method
     from ...sim.datasheet import MotorParameters
 
-from .options import _as_option, _held_warnings
+from .options import as_option, held_warnings, json_option, motor_option, option_name, speed_option
 
 
 @click.command()
-@click.option("--J", "J_kgm2", type=float, required=True, help="inertia [kg m^2], > 0")
-@click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0 (eq 9)")
-@click.option("--zeta", type=float, required=True, help="relative damping of the PI loop, > 0 (eq 9)")
-@click.option(
-    "--m", type=float, default=1.0, show_default=True, help="tracking pole factor, Gx = m alpha/(s + m alpha) (eq 10)"
-)
-@click.option(
-    "--tau-i", "tau_i_s", type=float, default=0.0, show_default=True, help="current-loop time constant [s] (eq 3)"
-)
-@click.option("--Ts", "Ts_s", type=float, required=True, help="speed-loop sampling period [s], > 0")
+@speed_option("J_kgm2", required=True)
+@speed_option("alpha_radps", required=True)
+@speed_option("zeta", required=True)
+@speed_option("m", default=1.0, show_default=True)
+@speed_option("tau_i_s", default=0.0, show_default=True)
+@speed_option("Ts_s", required=True)
 @click.option(
     "--method",
     default="tustin",
@@ -43,7 +39,7 @@ from .options import _as_option, _held_warnings
     "no_tau (eq 11 with tau_i = 0) or full (eq 11); for m != 1 choose no_tau or full",
 )
 @click.option("--anti-windup", default="back_calculation", show_default=True, help="none, back_calculation or clamping")
-@click.option("--Ka", "Ka", type=float, default=None, help="back-calculation gain [(rad/s)/Nm], >= 0 [default: 1/Kp]")
+@speed_option("Ka", default=None)
 @click.option(
     "--sensor",
     "sensor_model",
@@ -52,20 +48,15 @@ from .options import _as_option, _held_warnings
     help="speed sensor: ideal (the speed, sampled) or encoder (counted angle increments)",
 )
 @click.option("--estimator", default="difference", show_default=True, help="encoder speed estimator: difference or pll")
+@click.option("--sensor-bandwidth-radps", type=float, default=0.0, help="PLL double pole [rad/s] (pll)")
 @click.option(
-    "--sensor-bandwidth", "sensor_bandwidth_radps", type=float, default=0.0, help="PLL double pole [rad/s] (pll)"
-)
-@click.option(
-    "--sensor-lowpass",
-    "sensor_lowpass_radps",
+    "--sensor-lowpass-radps",
     type=float,
     default=0.0,
     show_default=True,
     help="first-order low-pass on the measured speed [rad/s]; 0: none",
 )
-@click.option(
-    "--sensor-delay", "sensor_delay_s", type=float, default=0.0, show_default=True, help="delay of the reading [s]"
-)
+@click.option("--sensor-delay-s", type=float, default=0.0, show_default=True, help="delay of the reading [s]")
 @click.option(
     "--delay",
     "delay_model",
@@ -74,13 +65,12 @@ from .options import _as_option, _held_warnings
     help="the delay in the continuous margins: exact (exp(-sT)) or pade (its approximant, as in poles and steps)",
 )
 @click.option(
-    "--phase-margin",
-    "phase_margin_deg",
+    "--phase-margin-deg",
     type=float,
     default=None,
     help="also report the largest alpha that keeps this phase margin [deg] with the sensor chain",
 )
-@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
+@json_option()
 @click.option(
     "--emit-c-header",
     "header",
@@ -89,28 +79,13 @@ from .options import _as_option, _held_warnings
     help="write the C configuration of this design and its motor (as pmsm2dof header: the firmware's p2d_config.h)",
 )
 @click.option("--prefix", default="p2d_config", show_default=True, help="C identifier prefix in the header")
-@click.option("--i-max", "i_max_A", type=float, default=None, help="header: current-vector limit [A]")
-@click.option(
-    "--pole-pairs",
-    type=int,
-    default=None,
-    help="header: pole pairs p, Te = 1.5 p psi_f iq (the paper's p0, called there the number of poles)",
-)
-@click.option("--psi-f", "psi_f_Wb", type=float, default=None, help="header: magnet flux linkage [Wb]")
-@click.option("--Ld", "Ld_H", type=float, default=None, help="header: d-axis inductance [H]")
-@click.option(
-    "--Lq", "Lq_H", type=float, default=None, help="header: q-axis inductance [H] [default: Ld, surface PMSM]"
-)
-@click.option(
-    "--Rs",
-    "Rs_ohm",
-    type=float,
-    default=None,
-    help="header: stator resistance [ohm] (the current controller)",
-)
-@click.option(
-    "--Ts-current", "Ts_current_s", type=float, default=None, help="header: current-loop sampling period [s], Ts / N"
-)
+@motor_option("i_max_A", "(header)")
+@motor_option("pole_pairs", "(header), Te = 1.5 p psi_f iq (the paper's p0, called there the number of poles)")
+@motor_option("psi_f_Wb", "(header)")
+@motor_option("Ld_H", "(header)")
+@motor_option("Lq_H", "(header) [default: Ld, surface PMSM]")
+@motor_option("Rs_ohm", "(header: the current controller)")
+@motor_option("Ts_current_s", "(header), Ts / N")
 @click.option(
     "--paper-drive",
     is_flag=True,
@@ -123,15 +98,15 @@ from .options import _as_option, _held_warnings
     type=click.Path(dir_okay=False),
     default=None,
     help="motor file: a scenario, a [motor.datasheet] file or an identified motor.toml (commission --out, identify "
-    "--electrical --out): the header's motor data not given, and the rotor inertia and currents --J and --i-max "
-    "are checked against",
+    "electrical --out): the header's motor data not given, and the rotor inertia and currents --J-kgm2 and "
+    "--i-max-A are checked against",
 )
 @click.option(
-    "--current-bandwidth",
+    "--current-bandwidth-radps",
     "alpha_c_radps",
     type=float,
     default=None,
-    help="with --motor: current loop Kp = L alpha_c, Ki = Rs alpha_c [rad/s]; tau_i = 1/alpha_c (replaces --tau-i)",
+    help="with --motor: current loop Kp = L alpha_c, Ki = Rs alpha_c [rad/s]; tau_i = 1/alpha_c (replaces --tau-i-s)",
 )
 def design(
     J_kgm2: float,
@@ -168,13 +143,13 @@ def design(
     """Design the speed controller (eq 9-15): gains, poles, margins, bandwidth, coefficients.
 
     The speed the controller reads may pass through a sensor chain (--sensor, --estimator,
-    --sensor-bandwidth, --sensor-lowpass, --sensor-delay): the loop gain becomes F G H, and
-    the margins, poles, overshoot and the discrete loop include it; --phase-margin reports the
+    --sensor-bandwidth-radps, --sensor-lowpass-radps, --sensor-delay-s): the loop gain becomes F G H, and
+    the margins, poles, overshoot and the discrete loop include it; --phase-margin-deg reports the
     largest alpha that keeps that margin with it.
 
     With --emit-c-header the header (the whole configuration, as `pmsm2dof header` writes it)
-    needs the motor data and the current loop: --i-max, --pole-pairs, --psi-f, --Ld (--Lq for a
-    salient motor), --Rs and --Ts-current (Ts an integer multiple of it), or --paper-drive to
+    needs the motor data and the current loop: --i-max-A, --pole-pairs, --psi-f-Wb, --Ld-H (--Lq-H for a
+    salient motor), --Rs-ohm and --Ts-current-s (Ts an integer multiple of it), or --paper-drive to
     take what is not given from the paper's drive. The summary says where each value came from.
     """
     import json
@@ -184,20 +159,13 @@ def design(
     from ...analysis.sensor import SensorChain
     from ...sim.plausibility import PlausibilityWarning, current_findings, inertia_findings
 
-    with _held_warnings():
+    with held_warnings():
         file_motor = None if motor_file is None else _load_motor(motor_file)
         loop = _identified_current_loop(file_motor, alpha_c_radps, tau_i_s, Ts_current_s)
-        from_file: set[str] = set()
         if file_motor is not None:
-            given = dict(pole_pairs=pole_pairs, psi_f_Wb=psi_f_Wb, Ld_H=Ld_H, Lq_H=Lq_H, Rs_ohm=Rs_ohm)
-            from_file = {name for name, value in given.items() if value is None}
-            pole_pairs = pole_pairs if pole_pairs is not None else file_motor.pole_pairs
-            psi_f_Wb, Ld_H, Lq_H, Rs_ohm = (
-                getattr(file_motor, k) if k in from_file else v for k, v in given.items() if k != "pole_pairs"
-            )
-            findings = inertia_findings("--J", J_kgm2, file_motor.J_rotor_kgm2)
+            findings = inertia_findings("--J-kgm2", J_kgm2, file_motor.J_rotor_kgm2)
             if i_max_A is not None:
-                findings += current_findings("--i-max", i_max_A, file_motor.i_rated_A, file_motor.i_peak_A)
+                findings += current_findings("--i-max-A", i_max_A, file_motor.i_rated_A, file_motor.i_peak_A)
             for text in findings:
                 warnings.warn(f"{text} (motor file {motor_file})", PlausibilityWarning, stacklevel=1)
         if loop is not None:
@@ -213,28 +181,15 @@ def design(
                     Rs_ohm=Rs_ohm,
                     Ts_current_s=Ts_current_s,
                 ),
+                file_motor,
+                motor_file,
                 paper_drive,
             )
-            sources |= {name: f"motor file {motor_file}" for name in from_file if name in sources}
-        options = {
-            "J_kgm2": "--J",
-            "alpha_radps": "--alpha",
-            "zeta": "--zeta",
-            "m": "--m",
-            "tau_i_s": "--tau-i",
-            "Ts_s": "--Ts",
-            "Ka": "--Ka",
-            "method": "--method",
-            "feedforward": "--feedforward",
-            "anti_windup": "--anti-windup",
-            "model": "--sensor",
-            "estimator": "--estimator",
-            "bandwidth_radps": "--sensor-bandwidth",
-            "lowpass_radps": "--sensor-lowpass",
-            "delay_s": "--sensor-delay",
-            "delay": "--delay",
-            "phase_margin_deg": "--phase-margin",
-        }
+        options = {name: option_name(name) for name in ("J_kgm2", "alpha_radps", "zeta", "m", "tau_i_s", "Ts_s", "Ka")}
+        options |= {"method": "--method", "feedforward": "--feedforward", "anti_windup": "--anti-windup"}
+        options |= {"model": "--sensor", "estimator": "--estimator", "delay": "--delay"}
+        options |= {name: option_name("sensor_" + name) for name in ("bandwidth_radps", "lowpass_radps", "delay_s")}
+        options["phase_margin_deg"] = "--phase-margin-deg"
         try:
             sensor = SensorChain(
                 model=sensor_model,
@@ -260,23 +215,23 @@ def design(
                 None if phase_margin_deg is None else d.max_alpha_for_phase_margin(phase_margin_deg, delay_model)
             )
         except ConfigError as exc:
-            raise _as_option(exc, options) from None
+            raise as_option(exc, options) from None
     sensitivity = None
     if loop is not None:
         from ...analysis.current_loop import speed_margin_sensitivity
 
         sensitivity = speed_margin_sensitivity(loop, dd.design.Kp, dd.design.Ki, J_kgm2)
     if header is not None:
-        from ...studies.configuration import configuration, design_scenario
+        from ...studies.configuration import DESIGN_MOTOR, configuration, design_scenario
 
         notes = ("Motor data and current loop given to design:",) + tuple(
-            f"  {name:<12} = {motor[name]:g} {_HEADER_MOTOR[name][1]} ({source})" for name, source in sources.items()
+            f"  {name:<12} = {motor[name]:g} {DESIGN_MOTOR[name][0]} ({source})" for name, source in sources.items()
         )
         try:
             config = configuration(design_scenario(dd, **motor), source="pmsm2dof design", notes=notes)
             config.write_header(header, prefix)
         except ConfigError as exc:
-            raise _as_option(exc, _HEADER_KEYS) from None
+            raise as_option(exc, _header_keys()) from None
     if as_json:
         data = dd.as_dict()
         data["continuous"]["margins"], _ = margins.values_and_reasons()
@@ -305,7 +260,7 @@ def design(
         click.echo(f"\nC header written to {header}, with the motor data")
         width = max(len(name) for name in sources)
         for name, source in sources.items():
-            click.echo(f"  {name:<{width}} = {motor[name]:<8g} {_HEADER_MOTOR[name][1]:<4} {source}")
+            click.echo(f"  {name:<{width}} = {motor[name]:<8g} {DESIGN_MOTOR[name][0]:<4} {source}")
 
 
 def _load_motor(motor_file: str) -> "MotorParameters":
@@ -315,19 +270,19 @@ def _load_motor(motor_file: str) -> "MotorParameters":
     try:
         return load_motor(motor_file)
     except ConfigError as exc:
-        raise _as_option(exc, {"motor file": "--motor"}) from None
+        raise as_option(exc, {"motor file": "--motor"}) from None
 
 
 def _identified_current_loop(
     motor: "MotorParameters | None", alpha_c_radps: float | None, tau_i_s: float, Ts_current_s: float | None
 ) -> "CurrentLoopDesign | None":
-    """The current loop of --motor and --current-bandwidth, or None without --current-bandwidth."""
+    """The current loop of --motor and --current-bandwidth-radps, or None without --current-bandwidth-radps."""
     if alpha_c_radps is None:
         return None
     if motor is None:
-        raise click.UsageError("--current-bandwidth needs --motor FILE (the identified motor)")
+        raise click.UsageError("--current-bandwidth-radps needs --motor FILE (the identified motor)")
     if tau_i_s != 0.0:
-        raise click.UsageError("--current-bandwidth sets tau_i = 1/alpha_c: give it or --tau-i, not both")
+        raise click.UsageError("--current-bandwidth-radps sets tau_i = 1/alpha_c: give it or --tau-i-s, not both")
     from ...analysis.current_loop import MotorEstimate, design_current_loop
 
     estimate = MotorEstimate(
@@ -341,7 +296,9 @@ def _identified_current_loop(
     try:
         return design_current_loop(estimate, alpha_c_radps, Ts_current_s)
     except ConfigError as exc:
-        raise _as_option(exc, {"current_bandwidth": "--current-bandwidth", "Ts_current": "--Ts-current"}) from None
+        raise as_option(
+            exc, {"current_bandwidth": "--current-bandwidth-radps", "Ts_current": "--Ts-current-s"}
+        ) from None
 
 
 def _current_loop_table(
@@ -367,68 +324,34 @@ def _current_loop_table(
     return "\n".join(lines)
 
 
-#: The shipped scenario whose motor and current limit --paper-drive fills in.
-PAPER_DRIVE_PRESET = "paper-condition-1"
+def _header_keys() -> dict[str, str]:
+    """Scenario key of the design's header -> its option (studies.configuration.design_scenario)."""
+    from ...studies.configuration import DESIGN_MOTOR
+
+    return {key: option_name(name) for name, (_, key) in DESIGN_MOTOR.items()} | {
+        "current_loop.tau_i_s": "--tau-i-s",
+        "speed_controller.tau_i_s": "--tau-i-s",
+        "speed_controller.Ts_s": "--Ts-s",
+    }
 
 
-#: Motor data and current loop of the header: keyword -> (option, unit, scenario key).
-_HEADER_MOTOR = {
-    "i_max_A": ("--i-max", "A", "limits.i_max_A"),
-    "pole_pairs": ("--pole-pairs", "", "motor.pole_pairs"),
-    "psi_f_Wb": ("--psi-f", "Wb", "motor.psi_f_Wb"),
-    "Ld_H": ("--Ld", "H", "motor.Ld_H"),
-    "Lq_H": ("--Lq", "H", "motor.Lq_H"),
-    "Rs_ohm": ("--Rs", "ohm", "motor.Rs_ohm"),
-    "Ts_current_s": ("--Ts-current", "s", "current_loop.Ts_s"),
-}
+def _header_motor(
+    given: Mapping[str, float | None], file_motor: "MotorParameters | None", motor_file: str | None, paper_drive: bool
+) -> tuple[dict[str, Any], dict[str, str]]:
+    """The motor data of --emit-c-header and their sources, in the words of the command line."""
+    from ...studies.configuration import GIVEN, design_motor
 
-
-#: Scenario key of the design's header -> its option (studies.configuration.design_scenario).
-_HEADER_KEYS = {key: option for option, _, key in _HEADER_MOTOR.values()} | {
-    "current_loop.tau_i_s": "--tau-i",
-    "speed_controller.tau_i_s": "--tau-i",
-    "speed_controller.Ts_s": "--Ts",
-}
-
-
-def _header_motor(given: Mapping[str, float | None], paper_drive: bool) -> tuple[dict[str, Any], dict[str, str]]:
-    """The motor data and current-loop period of the C header and where each value came from.
-
-    Every value is either given, or, with ``paper_drive``, taken from the paper's drive
-    (:data:`PAPER_DRIVE_PRESET`); ``Lq_H`` not given is ``Ld_H`` (surface PMSM) when ``Ld_H``
-    is given.
-
-    Raises
-    ------
-    click.UsageError
-        Naming the missing options when a value is neither given nor taken from the paper drive.
-    """
-    needed = list(_HEADER_MOTOR)
-    motor: dict[str, Any] = {}
-    sources: dict[str, str] = {}
-    if given["Lq_H"] is None and given["Ld_H"] is not None:
-        given = {**given, "Lq_H": given["Ld_H"]}
-        sources["Lq_H"] = "= Ld_H: surface PMSM, --Lq not given"
-    missing = [name for name in needed if given[name] is None]
-    if missing and not paper_drive:
-        options = ", ".join(_HEADER_MOTOR[name][0] for name in missing if name != "Lq_H")
-        raise click.UsageError(
-            f"--emit-c-header needs the motor data and the current loop: {options} missing; give them, or "
-            "--paper-drive for the paper's drive (placeholders, not your motor)"
+    try:
+        motor, sources = design_motor(
+            given, motor=file_motor, motor_source=f"motor file {motor_file}", paper_drive=paper_drive
         )
-    if missing:
-        from ...sim.scenario import load_scenario
-
-        data = load_scenario(PAPER_DRIVE_PRESET).data
-    for name in needed:
-        if given[name] is not None:
-            motor[name] = given[name]
-            sources.setdefault(name, "given: " + _HEADER_MOTOR[name][0])
-        else:
-            table, key = _HEADER_MOTOR[name][2].split(".")
-            motor[name] = data[table][key]
-            sources[name] = f"paper drive, preset {PAPER_DRIVE_PRESET}: a placeholder, not your motor"
-    return motor, {name: sources[name] for name in needed}
+    except ConfigError as exc:
+        missing = ", ".join(option_name(name) for name in exc.param.split(", ") if name != "Lq_H")
+        raise click.UsageError(
+            f"--emit-c-header needs the motor data and the current loop: {missing} missing; give them, or "
+            "--paper-drive for the paper's drive (placeholders, not your motor)"
+        ) from None
+    return motor, {name: f"given: {option_name(name)}" if s == GIVEN else s for name, s in sources.items()}
 
 
 def _poles_text(poles: Iterable[complex], unit: str) -> str:
@@ -506,7 +429,7 @@ BODE_CURVES_MAX = 20
 
 
 @click.command()
-@click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s], > 0")
+@speed_option("alpha_radps", required=True)
 @click.option(
     "--m",
     "m_list",
@@ -514,9 +437,9 @@ BODE_CURVES_MAX = 20
     show_default=True,
     help="comma-separated values of m (eq 10), at most 20; other than 1 with --feedforward no_tau or full",
 )
-@click.option("--J", "J_kgm2", type=float, default=0.4, show_default=True, help="inertia [kg m^2] (paper section 4)")
-@click.option("--zeta", type=float, default=0.2887, show_default=True, help="relative damping (paper: Ki = 0.3)")
-@click.option("--tau-i", "tau_i_s", type=float, default=0.05, show_default=True, help="current-loop time constant [s]")
+@speed_option("J_kgm2", "paper section 4", default=0.4, show_default=True)
+@speed_option("zeta", "paper: Ki = 0.3", default=0.2887, show_default=True)
+@speed_option("tau_i_s", default=0.05, show_default=True)
 @click.option(
     "--feedforward",
     default="lowpass",

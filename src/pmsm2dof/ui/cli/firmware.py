@@ -1,20 +1,14 @@
 """``pmsm2dof header`` and ``pmsm2dof firmware``: the C configuration and the firmware (pmsm2dof.studies.firmware)."""
 
-from typing import TYPE_CHECKING
-
 import click
 
 from ...errors import ConfigError
-
-if TYPE_CHECKING:
-    pass
-
-from .options import _chosen, _csv_text, _require_writable_file, out_option, warnings_as_lines
+from .options import chosen_scenario, csv_text, out_option, require_writable_file, set_option, warnings_as_lines
 
 
 @click.command()
 @click.argument("scenario", metavar="PRESET_OR_FILE")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="change a scenario key (repeatable)")
+@set_option("change a scenario key (repeatable)")
 @click.option(
     "--out", type=click.Path(dir_okay=False), required=True, help="the header to write (the firmware's p2d_config.h)"
 )
@@ -38,8 +32,8 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
 
     options = {out: "--out"} if virtual_drive is None else {out: "--out", virtual_drive: "--virtual-drive"}
     for path, option in options.items():
-        _require_writable_file(path, option)
-    chosen, named = _chosen(scenario, overrides)
+        require_writable_file(path, option)
+    chosen, named = chosen_scenario(scenario, overrides)
     with warnings_as_lines():
         config = configuration(chosen, source=f"pmsm2dof header {named}")
         texts = {out: config.c_header(prefix)}
@@ -58,9 +52,7 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
 
 @click.command(short_help="Build the firmware for a scenario, or run it on QEMU against the engine.")
 @click.argument("args", nargs=-1, metavar="PRESET_OR_FILE | run DIR")
-@click.option(
-    "--set", "overrides", multiple=True, metavar="KEY=VALUE", help="build: change a scenario key (repeatable)"
-)
+@set_option("build: change a scenario key (repeatable)")
 @out_option(
     "build: the firmware's folder; run: the folder for trace.csv, metrics.json, plot.png, interrupts.csv",
     type=click.Path(file_okay=False),
@@ -92,7 +84,7 @@ def firmware(args: tuple[str, ...], overrides: tuple[str, ...], out: str, force:
         raise click.UsageError("--samples is an option of `pmsm2dof firmware run DIR`")
     from ...studies.firmware import build_firmware
 
-    chosen, named = _chosen(args[0], overrides)
+    chosen, named = chosen_scenario(args[0], overrides)
     with warnings_as_lines():
         build = build_firmware(chosen, out, source=f"pmsm2dof firmware {named}", force=force)
     for name, size in build.sizes.items():
@@ -118,7 +110,7 @@ def _firmware_run(folder: str, out: str, force: bool, samples: int | None) -> No
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         plot_firmware(run, tmp / "plot.png")
         rows = [{"instructions": int(n), "speed_sample": int(s)} for n, s in zip(run.instructions, run.speed_sample)]
-        atomic_write(tmp / "interrupts.csv", _csv_text(rows))
+        atomic_write(tmp / "interrupts.csv", csv_text(rows))
     t_end = run.firmware.t_s[-1]
     click.echo(f"{run.scenario.name}: {t_end:g} s on QEMU in {run.wall_time_s:.3g} s of wall time")
     for group in ("speed", "currents"):

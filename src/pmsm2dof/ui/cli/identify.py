@@ -1,4 +1,5 @@
-"""``pmsm2dof identify``: the mechanics, the electrical parameters and the experiment (pmsm2dof.studies.identify)."""
+"""``pmsm2dof identify mechanics | electrical | plan``: a drive from its logs (pmsm2dof.studies.identify,
+studies.electrical)."""
 
 import math
 from typing import TYPE_CHECKING, Any
@@ -10,82 +11,59 @@ from ...errors import ConfigError
 if TYPE_CHECKING:
     from ...studies.identify import Mechanics
 
-from .options import _as_option, out_option, parse_column
+from .options import Group, as_option, json_option, motor_option, out_option, parse_column
+
+#: The modes of the former single command (a flag each) -> the sub-command now.
+_FORMER_FLAGS = {"--plan": "plan", "--electrical": "electrical"}
 
 
-@click.command()
-@click.argument("log", type=click.Path(dir_okay=False), required=False)
-@click.option(
-    "--column",
-    "column_maps",
-    multiple=True,
-    metavar="SIGNAL=NAME",
-    help="read a signal from another column, e.g. --column speed=enc_speed_rpm (the suffix gives the unit)",
-)
+class _Identify(Group):
+    """``identify``: a sub-command first; the former ``identify LOG [--electrical | --plan]`` names it."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if args and args[0] not in self.commands and args[0] not in ctx.help_option_names:
+            mode = next((name for flag, name in _FORMER_FLAGS.items() if flag in args), "mechanics")
+            rest = " ".join(arg for arg in args if arg not in _FORMER_FLAGS)
+            raise click.UsageError(f"identify takes a sub-command: use `pmsm2dof identify {mode} {rest}`".strip())
+        return super().parse_args(ctx, args)
+
+
+def _column_option(f: Any) -> Any:
+    return click.option(
+        "--column",
+        "column_maps",
+        multiple=True,
+        metavar="SIGNAL=NAME",
+        help="read a signal from another column, e.g. --column speed=enc_speed_rpm (the suffix gives the unit)",
+    )(f)
+
+
+@click.group(cls=_Identify)
+def identify() -> None:
+    """Identify a drive from logged runs: its mechanics, its electrical parameters, or the run to log."""
+
+
+@identify.command(short_help="The inertia J, viscous and Coulomb friction (and tau_i) of a logged run.")
+@click.argument("log", type=click.Path(dir_okay=False))
+@_column_option
 @click.option("--motor", "motor_file", type=click.Path(dir_okay=False), help="motor TOML (scenario or datasheet)")
-@click.option("--pole-pairs", type=int, default=None, help="pole pairs p (torque from the currents)")
-@click.option("--psi-f-Wb", "psi_f_Wb", type=float, default=None, help="magnet flux linkage [Wb]")
-@click.option("--Ld-H", "Ld_H", type=float, default=None, help="d-axis inductance [H] (default: Lq)")
-@click.option("--Lq-H", "Lq_H", type=float, default=None, help="q-axis inductance [H] (default: Ld)")
+@motor_option("pole_pairs", "(torque from the currents)")
+@motor_option("psi_f_Wb")
+@motor_option("Ld_H", "(default: Lq)")
+@motor_option("Lq_H", "(default: Ld)")
 @click.option(
     "--speed-period-mean",
     is_flag=True,
     help="the logged speed is the mean over each sampling period (encoder counts differenced)",
 )
 @click.option("--window-s", type=float, default=None, help="distance of the blocks of a regression row [s]")
-@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
+@json_option()
 @out_option("folder for fit.png, rows.csv, identified.toml")
 @click.option(
     "--design", "design_text", default=None, metavar="ALPHA,ZETA", help="print the eq 9 gains for the J found"
 )
-@click.option(
-    "--electrical",
-    is_flag=True,
-    help="instead: Rs, Ld, Lq, psi_f (eq 1) from id_A, iq_A, ud_V, uq_V (needs --pole-pairs)",
-)
-@click.option(
-    "--voltage-delay-samples",
-    type=int,
-    default=0,
-    help="--electrical: the logged voltage applies this many samples after its row",
-)
-@click.option(
-    "--angle-lead-samples",
-    type=float,
-    default=None,
-    metavar="X",
-    help="--electrical: the drive holds the stator-frame voltage over a period, turned at the row's angle plus "
-    "X w_e Ts (0.5: mid-period; 1.5 with --voltage-delay-samples 1: delay compensation); default: the logged "
-    "voltage is the rotor-frame voltage over its period",
-)
-@click.option(
-    "--dead-time",
-    is_flag=True,
-    help="--electrical: fit the inverter's dead-time voltage per phase dead_time_V [V] with Rs "
-    "(needs two current levels)",
-)
-@click.option(
-    "--u-dc-V",
-    "u_dc_V",
-    type=float,
-    default=None,
-    help="--electrical: DC-link voltage [V]; windows where the voltage magnitude reaches u_dc/sqrt(3) are left out "
-    "(default: the log's u_dc_V column; a voltage_limited column is always used)",
-)
-@click.option(
-    "--current-ranges",
-    type=int,
-    default=None,
-    help="--electrical: Ld and Lq per range of the current magnitude (1: none; default: 3 when the log's currents span "
-    "more than a factor 2, else 1)",
-)
-@click.option("--plan", is_flag=True, help="instead: write the run to log (speed steps) for --motor SCENARIO to --out")
-@click.option("--speed-max-rpm", type=float, default=None, help="--plan: largest speed of the steps [rpm]")
-@click.option(
-    "--i-max-A", "i_max_A", type=float, default=None, help="--plan: current limit [A] (default: the scenario's)"
-)
-def identify(
-    log: str | None,
+def mechanics(
+    log: str,
     column_maps: tuple[str, ...],
     motor_file: str | None,
     pole_pairs: int | None,
@@ -98,15 +76,6 @@ def identify(
     out: str | None,
     force: bool,
     design_text: str | None,
-    electrical: bool,
-    voltage_delay_samples: int,
-    angle_lead_samples: float | None,
-    dead_time: bool,
-    u_dc_V: float | None,
-    current_ranges: int | None,
-    plan: bool,
-    speed_max_rpm: float | None,
-    i_max_A: float | None,
 ) -> None:
     """Identify the inertia J, viscous friction B and Coulomb friction of a logged run.
 
@@ -115,18 +84,6 @@ def identify(
     --psi-f-Wb). With iq_ref_A in the log, the current loop's tau_i (eq 3) is identified too.
     Prints each value with its 95 % interval; --out DIR writes fit.png, rows.csv and
     identified.toml (the --motor scenario with the values found, or a [motor] table).
-
-    With --plan (no LOG): writes to --out the run to play on the drive and log, speed steps
-    within --speed-max-rpm and the current limit for the --motor scenario's J guess: plan.toml
-    (the scenario), its simulation trace.csv and plot.png.
-
-    With --electrical --pole-pairs P: Rs, Ld, Lq and psi_f (per phase, amplitude-invariant dq,
-    eq 1) from id_A, iq_A, ud_V, uq_V and the speed, each with its 95 % interval; --out DIR
-    writes fit.png (measured vs model voltages), residuals.csv, motor.toml (for design --motor)
-    and identify.json (and ranges.csv with the fit per current range). When the log holds the
-    controller's references (--voltage-delay-samples >= 1, --angle-lead-samples or --u-dc-V), windows
-    at the inverter's voltage limit (a voltage_limited column, or a voltage magnitude at u_dc/sqrt(3)
-    from --u-dc-V or a u_dc_V column) are left out; a log of applied voltages keeps them.
     """
     import json
 
@@ -136,24 +93,6 @@ def identify(
     from ...sim.logs import read_log
     from ...studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
 
-    if plan:
-        _identify_plan(log, motor_file, speed_max_rpm, i_max_A, out, force)
-        return
-    if log is None:
-        raise ConfigError("LOG", "<missing>", "a log file (CSV, Parquet, NPZ or MAT), or --plan")
-    options = {
-        "--voltage-delay-samples": voltage_delay_samples or None,
-        "--angle-lead-samples": angle_lead_samples,
-        "--dead-time": dead_time or None,
-        "--u-dc-V": u_dc_V,
-        "--current-ranges": current_ranges,
-    }
-    if electrical:
-        _identify_electrical(log, column_maps, pole_pairs, options, as_json, out, force)
-        return
-    for option, value in options.items():
-        if value is not None:
-            raise ConfigError(option, value, "given only with --electrical")
     gains = None
     if design_text is not None:
         parts = design_text.split(",")
@@ -199,7 +138,7 @@ def identify(
     try:
         mech = identify_mechanics(measured, torque_Nm=torque, window_s=window_s, speed_is_period_mean=speed_period_mean)
     except ConfigError as exc:
-        raise _as_option(exc, {"window_s": "--window-s"}) from None
+        raise as_option(exc, {"window_s": "--window-s"}) from None
     current = None
     if measured.iq_ref_A is not None and measured.iq_A is not None:
         try:
@@ -269,16 +208,69 @@ def identify(
         click.echo(f"wrote fit.png, rows.csv, identified.toml and identify.json to {out}")
 
 
-def _identify_electrical(
+@identify.command(short_help="Rs, Ld, Lq and psi_f (eq 1) from the logged currents and voltages.")
+@click.argument("log", type=click.Path(dir_okay=False))
+@_column_option
+@motor_option("pole_pairs", "(required)")
+@click.option(
+    "--voltage-delay-samples",
+    type=int,
+    default=0,
+    help="the logged voltage applies this many samples after its row",
+)
+@click.option(
+    "--angle-lead-samples",
+    type=float,
+    default=None,
+    metavar="X",
+    help="the drive holds the stator-frame voltage over a period, turned at the row's angle plus "
+    "X w_e Ts (0.5: mid-period; 1.5 with --voltage-delay-samples 1: delay compensation); default: the logged "
+    "voltage is the rotor-frame voltage over its period",
+)
+@click.option(
+    "--dead-time",
+    is_flag=True,
+    help="fit the inverter's dead-time voltage per phase dead_time_V [V] with Rs (needs two current levels)",
+)
+@click.option(
+    "--u-dc-V",
+    "u_dc_V",
+    type=float,
+    default=None,
+    help="DC-link voltage [V]; windows where the voltage magnitude reaches u_dc/sqrt(3) are left out "
+    "(default: the log's u_dc_V column; a voltage_limited column is always used)",
+)
+@click.option(
+    "--current-ranges",
+    type=int,
+    default=None,
+    help="Ld and Lq per range of the current magnitude (1: none; default: 3 when the log's currents span "
+    "more than a factor 2, else 1)",
+)
+@json_option()
+@out_option("folder for fit.png, residuals.csv, motor.toml, identify.json (and ranges.csv)")
+def electrical(
     log: str,
     column_maps: tuple[str, ...],
     pole_pairs: int | None,
-    options: dict[str, Any],
+    voltage_delay_samples: int,
+    angle_lead_samples: float | None,
+    dead_time: bool,
+    u_dc_V: float | None,
+    current_ranges: int | None,
     as_json: bool,
     out: str | None,
     force: bool,
 ) -> None:
-    """``identify --electrical``: Rs, Ld, Lq, psi_f of eq 1 (pmsm2dof.studies.electrical)."""
+    """Rs, Ld, Lq and psi_f (per phase, amplitude-invariant dq, eq 1) of a logged run.
+
+    From id_A, iq_A, ud_V, uq_V and the speed, each with its 95 % interval; --out DIR writes
+    fit.png (measured vs model voltages), residuals.csv, motor.toml (for design --motor) and
+    identify.json (and ranges.csv with the fit per current range). When the log holds the
+    controller's references (--voltage-delay-samples >= 1, --angle-lead-samples or --u-dc-V), windows
+    at the inverter's voltage limit (a voltage_limited column, or a voltage magnitude at u_dc/sqrt(3)
+    from --u-dc-V or a u_dc_V column) are left out; a log of applied voltages keeps them.
+    """
     import json
 
     import numpy as np
@@ -287,6 +279,13 @@ def _identify_electrical(
     from ...sim.logs import read_log
     from ...studies.electrical import DEAD_TIME, PARAMETERS, identify_electrical
 
+    options: dict[str, Any] = {
+        "--voltage-delay-samples": voltage_delay_samples or None,
+        "--angle-lead-samples": angle_lead_samples,
+        "--dead-time": dead_time or None,
+        "--u-dc-V": u_dc_V,
+        "--current-ranges": current_ranges,
+    }
     if pole_pairs is None or pole_pairs < 1:
         raise ConfigError("--pole-pairs", "<missing>" if pole_pairs is None else pole_pairs, "an integer >= 1")
     if out is not None:
@@ -307,7 +306,7 @@ def _identify_electrical(
         )
     except ConfigError as exc:
         # the library names its arguments; the user typed options
-        raise _as_option(exc, {name[2:].replace("-", "_"): name for name in options}) from None
+        raise as_option(exc, {name[2:].replace("-", "_"): name for name in options}) from None
     report = fit.to_json()
     range_names = ["i_low_A", "i_high_A", "n_windows", "Ld_H", "Ld_H_low", "Ld_H_high", "Lq_H", "Lq_H_low", "Lq_H_high"]
 
@@ -369,30 +368,32 @@ def _identify_electrical(
         click.echo(f"wrote {written}motor.toml and identify.json to {out}")
 
 
-def _identify_plan(
-    log: str | None,
-    motor_file: str | None,
-    speed_max_rpm: float | None,
-    i_max_A: float | None,
-    out: str | None,
-    force: bool,
+@identify.command(short_help="The run to play on the drive and log: speed steps for a scenario's J guess.")
+@click.option("--motor", "motor_file", type=click.Path(dir_okay=False), help="the drive's scenario (its J guess)")
+@click.option("--speed-max-rpm", type=float, default=None, help="largest speed of the steps [rpm]")
+@motor_option("i_max_A", "(default: the scenario's)")
+@out_option("folder for plan.toml, trace.csv and plot.png")
+def plan(
+    motor_file: str | None, speed_max_rpm: float | None, i_max_A: float | None, out: str | None, force: bool
 ) -> None:
-    """``identify --plan``: the experiment as a scenario and its simulation."""
+    """Write the run to play on the drive and log for identify mechanics.
+
+    Speed steps within --speed-max-rpm and the current limit for the --motor scenario's J guess:
+    plan.toml (the scenario), its simulation trace.csv and plot.png, written to --out.
+    """
     from ...outputs import atomic_write, staged_dir
     from ...sim.scenario import load_scenario
     from ...sim.simulate import simulate as run_simulation
     from ...studies.identify import plan_experiment
     from ..plots import trace
 
-    if log is not None:
-        raise ConfigError("LOG", log, "absent with --plan (the plan is what to log)")
     if motor_file is None or speed_max_rpm is None or out is None:
         missing = "--motor" if motor_file is None else "--speed-max-rpm" if speed_max_rpm is None else "--out"
-        raise ConfigError(missing, "<missing>", "given with --plan")
+        raise ConfigError(missing, "<missing>", "given to identify plan")
     try:
         chosen = plan_experiment(load_scenario(motor_file), speed_max_rpm, i_max_A)
     except ConfigError as exc:
-        raise _as_option(exc, {"speed_max_rpm": "--speed-max-rpm", "limits.i_max_A": "--i-max-A"}) from None
+        raise as_option(exc, {"speed_max_rpm": "--speed-max-rpm", "limits.i_max_A": "--i-max-A"}) from None
     with staged_dir(out, "identify-plan", force) as tmp:
         result = run_simulation(chosen)
         result.save(tmp / "trace.csv")

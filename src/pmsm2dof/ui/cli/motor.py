@@ -1,12 +1,11 @@
 """``pmsm2dof motor``: the per-phase model of a motor given in datasheet units (pmsm2dof.sim.datasheet)."""
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
-if TYPE_CHECKING:
-    pass
+from .options import json_option
 
 
 def _motor_help() -> str:
@@ -31,7 +30,7 @@ def _motor_help() -> str:
 
 @click.command(help=_motor_help(), short_help="The per-phase model of a motor given in datasheet units.")
 @click.argument("file", type=click.Path(dir_okay=False))
-@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the table")
+@json_option()
 def motor(file: str, as_json: bool) -> None:
     import json
 

@@ -1,25 +1,181 @@
 """What the commands share: the options written once, the parsing of --set and --column, the errors
-and warnings as one line."""
+and warnings as one line.
+
+An option that sets a quantity with a unit is spelled as the scenario key or the library argument
+it sets, ``_`` written ``-``: its SI unit suffix included (``--alpha-radps``, ``--Ts-s``,
+``--Ld-H``; docs/conventions.md, "Units"). A spelling renamed by this rule is refused with one line
+that names the new one (:data:`RENAMED`, :class:`Group`).
+"""
 
 import contextlib
 import sys
 import tomllib
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import Any, TextIO
 
 import click
 
 from ...errors import ConfigError, Pmsm2dofWarning
 
-if TYPE_CHECKING:
-    pass
+Decorator = Callable[[Callable[..., Any]], Callable[..., Any]]
+
+#: Old spellings of options -> the spelling with the unit suffix of the scenario key.
+RENAMED = {
+    "--J": "--J-kgm2",
+    "--alpha": "--alpha-radps",
+    "--Ts": "--Ts-s",
+    "--tau-i": "--tau-i-s",
+    "--i-max": "--i-max-A",
+    "--psi-f": "--psi-f-Wb",
+    "--Ld": "--Ld-H",
+    "--Lq": "--Lq-H",
+    "--Rs": "--Rs-ohm",
+    "--Ts-current": "--Ts-current-s",
+    "--sensor-bandwidth": "--sensor-bandwidth-radps",
+    "--sensor-lowpass": "--sensor-lowpass-radps",
+    "--sensor-delay": "--sensor-delay-s",
+    "--phase-margin": "--phase-margin-deg",
+    "--current-bandwidth": "--current-bandwidth-radps",
+    "--J-motor": "--J-motor-kgm2",
+    "--J-load": "--J-load-kgm2",
+    "--stiffness": "--stiffness-Nm-per-rad",
+    "--damping": "--damping-Nms-per-rad",
+    "--notch-freq": "--notch-freq-Hz",
+    "--notch-width": "--notch-width-Hz",
+    "--lowpass-freq": "--lowpass-freq-Hz",
+}
 
 
-def _one_line(text: object) -> str:
+class Group(click.Group):
+    """A command group whose commands refuse the old spelling of a renamed option in one line.
+
+    ``pmsm2dof design --alpha 30`` ends with "--alpha is spelled --alpha-radps now", exit status 2,
+    where click would only say that it knows no such option.
+    """
+
+    def resolve_command(
+        self, ctx: click.Context, args: list[str]
+    ) -> tuple[str | None, click.Command | None, list[str]]:
+        name, command, rest = super().resolve_command(ctx, args)
+        if command is not None and not isinstance(command, click.Group):
+            known = {opt for param in command.params for opt in param.opts}
+            for arg in rest:
+                if arg == "--":
+                    break
+                old = arg.split("=", 1)[0]
+                if old in RENAMED and old not in known and RENAMED[old] in known:
+                    raise click.UsageError(
+                        f"{old} is spelled {RENAMED[old]} now (an option carries the unit of its scenario key)"
+                    )
+        return name, command, rest
+
+
+def option_name(param: str) -> str:
+    """The option of the library argument or scenario key ``param`` (``alpha_radps`` -> ``--alpha-radps``)."""
+    return "--" + param.replace("_", "-")
+
+
+class _FieldOption(click.Option):
+    """An option whose help is the comment of a field in a C header (meaning, unit, range), read when shown.
+
+    The comments load with the C library (:func:`pmsm2dof.core.bindings.field_comment`), which
+    ``pmsm2dof --help`` does not import.
+    """
+
+    def __init__(self, *args: Any, ctype: str, field: str, note: str = "", **kwargs: Any) -> None:
+        self._comment = (ctype, field, note)
+        super().__init__(*args, **kwargs)
+
+    @property
+    def help(self) -> str:
+        from ...core.bindings import field_comment
+
+        ctype, field, note = self._comment
+        return "; ".join(filter(None, (field_comment(ctype, field), note)))
+
+    @help.setter
+    def help(self, value: str | None) -> None:
+        """click sets the help it was given (None): the header's is read instead."""
+
+
+def speed_option(field: str, note: str = "", **kwargs: Any) -> Decorator:
+    """The option of a field of the C speed controller's configuration (``p2d_speed_config_t``).
+
+    Its meaning, unit and range are the header's comment of the field (speed.h), written once;
+    ``note`` is added to it.
+    """
+    kwargs.setdefault("type", float)
+    return click.option(
+        option_name(field), field, cls=_FieldOption, ctype="p2d_speed_config_t", field=field, note=note, **kwargs
+    )
+
+
+#: The motor data options: argument -> (type, help).
+MOTOR_OPTIONS: dict[str, tuple[type, str]] = {
+    "i_max_A": (float, "current-vector limit [A]"),
+    "pole_pairs": (int, "pole pairs p"),
+    "psi_f_Wb": (float, "magnet flux linkage [Wb]"),
+    "Ld_H": (float, "d-axis inductance [H]"),
+    "Lq_H": (float, "q-axis inductance [H]"),
+    "Rs_ohm": (float, "stator resistance per phase [ohm]"),
+    "Ts_current_s": (float, "current-loop sampling period [s]"),
+}
+
+
+def motor_option(param: str, note: str = "") -> Decorator:
+    """The option of one motor quantity of :data:`MOTOR_OPTIONS`, ``note`` added to its help."""
+    kind, help_text = MOTOR_OPTIONS[param]
+    return click.option(option_name(param), param, type=kind, default=None, help=f"{help_text} {note}".strip())
+
+
+def json_option(instead_of: str = "the table") -> Decorator:
+    """``--json``: print one JSON object instead of ``instead_of``."""
+    return click.option("--json", "as_json", is_flag=True, help=f"print one JSON object instead of {instead_of}")
+
+
+def set_option(help_text: str = "change a scenario key (repeatable; values are TOML literals)") -> Decorator:
+    """``--set KEY=VALUE`` (repeatable): change a scenario key, the value a TOML literal (:func:`parse_override`)."""
+    return click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help=help_text)
+
+
+def workers_option() -> Decorator:
+    """``--workers``: the local threads of a study."""
+    return click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
+
+
+def scheduler_option(command: str) -> Decorator:
+    """``--scheduler ADDRESS``: run ``command``'s simulations on a Dask cluster (the extra ``dask``)."""
+
+    def needs_dask(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+        if value is not None:
+            require_extra("distributed", "dask", f"pmsm2dof {command} --scheduler")
+        return value
+
+    return click.option(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        callback=needs_dask,
+        help="run the simulations on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof; "
+        "the extra 'dask')",
+    )
+
+
+def require_extra(module: str, extra: str, what: str) -> None:
+    """Raise a one-line error naming the extra and its pip command when ``module`` is not installed."""
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise click.UsageError(
+            f"{what} needs the optional dependencies '{extra}': python3 -m pip install 'pmsm2dof[{extra}]'"
+        )
+
+
+def one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
-def _as_option(exc: ConfigError, options: Mapping[str, str]) -> ConfigError:
+def as_option(exc: ConfigError, options: Mapping[str, str]) -> ConfigError:
     """``exc`` with its parameter named by its command-line option, when it has one in ``options``."""
     if exc.param in options:
         return ConfigError(options[exc.param], exc.value, exc.valid)
@@ -54,7 +210,7 @@ def parse_override(text: str) -> tuple[str, Any]:
     return (key, parsed["v"]) if list(parsed) == ["v"] else (key, raw)
 
 
-def _as_cli_error(exc: ConfigError) -> ConfigError:
+def as_cli_error(exc: ConfigError) -> ConfigError:
     """``exc`` of an output folder in the words of the command line (``--out``, ``--force``)."""
     if exc.param not in ("out", "--out"):
         return exc
@@ -82,7 +238,7 @@ def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Calla
     return decorate
 
 
-def _require_writable_file(path: str, option: str = "--emit-c-header") -> None:
+def require_writable_file(path: str, option: str = "--emit-c-header") -> None:
     """Raise ConfigError naming ``option``, before any long work, if ``path`` cannot be written."""
     import os
     from pathlib import Path
@@ -96,7 +252,7 @@ def _require_writable_file(path: str, option: str = "--emit-c-header") -> None:
         raise ConfigError(option, path, "a file in an existing, writable folder")
 
 
-def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
+def csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
     """``rows`` (dicts with the same keys) as CSV text; None is an empty cell."""
     import csv
     import io
@@ -110,7 +266,7 @@ def _csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
 
 
 @contextlib.contextmanager
-def _held_warnings() -> Iterator[None]:
+def held_warnings() -> Iterator[None]:
     """Hold the warnings raised inside the block; give them again only when it ends without an error."""
     import warnings
 
@@ -134,7 +290,7 @@ def warnings_as_lines() -> Iterator[None]:
     with warnings.catch_warnings():
         show = warnings.showwarning
 
-        def one_line(
+        def show_as_line(
             message: Warning | str,
             category: type[Warning],
             filename: str,
@@ -144,12 +300,12 @@ def warnings_as_lines() -> Iterator[None]:
         ) -> None:
             if not issubclass(category, Pmsm2dofWarning):
                 show(message, category, filename, lineno, file, line)
-            elif (text := _one_line(message)) not in shown:
+            elif (text := one_line(message)) not in shown:
                 shown.add(text)
                 print(f"pmsm2dof: warning: {text}", file=sys.stderr)
 
         warnings.filterwarnings("always", category=Pmsm2dofWarning)
-        warnings.showwarning = one_line
+        warnings.showwarning = show_as_line
         yield
 
 
@@ -161,7 +317,7 @@ def parse_column(text: str) -> tuple[str, str]:
     return signal.strip(), name.strip()
 
 
-def _chosen(scenario: str, overrides: Sequence[str]) -> tuple[Any, str]:
+def chosen_scenario(scenario: str, overrides: Sequence[str]) -> tuple[Any, str]:
     """The scenario of PRESET_OR_FILE with the --set changes, and the command line that names it."""
     from ...sim.scenario import load_scenario
 

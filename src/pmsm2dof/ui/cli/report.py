@@ -1,13 +1,8 @@
 """``pmsm2dof reproduce`` and ``pmsm2dof sensors``: the paper's studies (pmsm2dof.studies, ui.report)."""
 
-from typing import TYPE_CHECKING
-
 import click
 
-if TYPE_CHECKING:
-    pass
-
-from .options import out_option, parse_override
+from .options import out_option, parse_override, set_option
 
 
 @click.command(short_help="Reproduce the paper: figures 7-14, sensitivity studies and the claims table.")
@@ -16,13 +11,7 @@ from .options import out_option, parse_override
     default="pmsm2dof-report",
     show_default=True,
 )
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)",
-)
+@set_option("change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)")
 def reproduce(out: str, force: bool, overrides: tuple[str, ...]) -> None:
     """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
 
@@ -54,13 +43,7 @@ def reproduce(out: str, force: bool, overrides: tuple[str, ...]) -> None:
 
 
 @click.command(short_help="Sensor chains against the paper's experiments: overshoot, load dip, margins.")
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="change a scenario key of both experiments first, e.g. --set motor.J_kgm2=0.5 (repeatable)",
-)
+@set_option("change a scenario key of both experiments first, e.g. --set motor.J_kgm2=0.5 (repeatable)")
 @out_option("folder for sensors.md and sensors.csv")
 def sensors(overrides: tuple[str, ...], out: str | None, force: bool) -> None:
     """How encoder resolution, estimator, filter, delay and noise change the paper's drive.

@@ -1,26 +1,18 @@
 """``pmsm2dof simulate``, ``presets`` and ``compare``: one scenario run by the engine (pmsm2dof.sim)."""
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import click
 
 from ...errors import ConfigError
-
-if TYPE_CHECKING:
-    pass
-
-from .options import out_option, parse_column, parse_override
+from .options import out_option, parse_column, parse_override, set_option
 
 
 @click.command()
 @click.argument("scenario", metavar="PRESET_OR_FILE")
-@click.option(
-    "--set",
-    "overrides",
-    multiple=True,
-    metavar="KEY=VALUE",
-    help="change a scenario key, e.g. --set speed_controller.anti_windup=none or "
-    "--set reference.0.speed_rpm=300 (repeatable; values are TOML literals)",
+@set_option(
+    "change a scenario key, e.g. --set speed_controller.anti_windup=none or "
+    "--set reference.0.speed_rpm=300 (repeatable; values are TOML literals)"
 )
 @out_option("folder for trace.csv, metrics.json, plot.png and scenario.toml", required=True)
 def simulate(scenario: str, overrides: tuple[str, ...], out: str, force: bool) -> None:

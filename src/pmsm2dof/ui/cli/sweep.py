@@ -13,19 +13,25 @@ if TYPE_CHECKING:
     from ...core.bindings import AntiWindup, Feedforward
     from ...studies.autotune import AutotuneResult
 
-from .options import _as_option, _csv_text, _one_line, _require_writable_file, out_option, parse_override
+from .options import (
+    as_option,
+    csv_text,
+    json_option,
+    one_line,
+    out_option,
+    parse_override,
+    require_writable_file,
+    scheduler_option,
+    set_option,
+    workers_option,
+)
 
 
 @click.command()
 @click.argument("file", type=click.Path(dir_okay=False))
 @out_option("output folder; rerun with the same folder to resume an interrupted sweep", required=True)
-@click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
-@click.option(
-    "--scheduler",
-    default=None,
-    metavar="ADDRESS",
-    help="run on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)",
-)
+@workers_option()
+@scheduler_option("sweep")
 @click.option(
     "--batch-size",
     type=int,
@@ -63,14 +69,14 @@ def sweep(
     with warnings.catch_warnings():
         show = warnings.showwarning
 
-        def one_line(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
+        def show_as_line(message: Warning | str, category: type[Warning], *args: Any, **kwargs: Any) -> None:
             if issubclass(category, PartWarning):
-                print(f"pmsm2dof: warning: {_one_line(message)}", file=sys.stderr)
+                print(f"pmsm2dof: warning: {one_line(message)}", file=sys.stderr)
             else:
                 show(message, category, *args, **kwargs)
 
         warnings.simplefilter("always", PartWarning)
-        warnings.showwarning = one_line
+        warnings.showwarning = show_as_line
         try:
             run = run_sweep(
                 chosen,
@@ -82,7 +88,7 @@ def sweep(
                 force=force,
             )
         except ConfigError as exc:
-            raise _as_option(
+            raise as_option(
                 exc, {"workers": "--workers", "scheduler": "--scheduler", "batch_size": "--batch-size"}
             ) from None
     table = run.table
@@ -156,7 +162,7 @@ def _J_range(text: str) -> tuple[float, float]:
 
 @click.command(short_help="Find the anti-windup 2DOF design that rejects loads best within a specification.")
 @click.argument("scenario", metavar="PRESET_OR_FILE")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="change a scenario key first (repeatable)")
+@set_option("change a scenario key first (repeatable)")
 @click.option("--max-overshoot-pct", type=float, default=None, help="largest overshoot of a reference step [%]")
 @click.option("--min-phase-margin-deg", type=float, default=45.0, show_default=True, help="smallest phase margin [deg]")
 @click.option(
@@ -202,14 +208,9 @@ def _J_range(text: str) -> tuple[float, float]:
     help="an anti-windup the search may choose: none, back_calculation, clamping (repeatable) "
     "[default: the scenario's]",
 )
-@click.option("--workers", type=int, default=None, help="local threads [default: all available cores]")
-@click.option(
-    "--scheduler",
-    default=None,
-    metavar="ADDRESS",
-    help="run the simulations on an existing Dask cluster, e.g. tcp://host:8786 (its workers need pmsm2dof)",
-)
-@click.option("--json", "as_json", is_flag=True, help="print one JSON object instead of the summary")
+@workers_option()
+@scheduler_option("autotune")
+@json_option("the summary")
 @out_option(
     "folder for scenario.toml (the tuned scenario), autotune.json, pareto.csv, pareto.png, runs.csv, rejected.csv",
     default=None,
@@ -283,7 +284,7 @@ def autotune(
         if out is not None:
             check_out(out, "autotune", force)
         if header is not None:
-            _require_writable_file(header)
+            require_writable_file(header)
         result = run_autotune(chosen, spec, workers=workers, scheduler=scheduler, progress=True)
         if out is not None:
             from ..plots.autotune import plot_pareto
@@ -291,16 +292,16 @@ def autotune(
             with staged_dir(out, "autotune", force) as tmp:
                 atomic_write(tmp / "scenario.toml", result.tuned_scenario().to_toml())
                 atomic_write(tmp / "autotune.json", json.dumps(result.as_dict(), indent=2, allow_nan=False) + "\n")
-                atomic_write(tmp / "pareto.csv", _csv_text(result.pareto_rows()))
-                atomic_write(tmp / "runs.csv", _csv_text(result.runs_rows()))
-                atomic_write(tmp / "rejected.csv", _csv_text(result.rejected_rows()))
+                atomic_write(tmp / "pareto.csv", csv_text(result.pareto_rows()))
+                atomic_write(tmp / "runs.csv", csv_text(result.runs_rows()))
+                atomic_write(tmp / "rejected.csv", csv_text(result.rejected_rows()))
                 plot_pareto(result, tmp / "pareto.png")
                 if header is not None:
                     result.write_c_header(header)
         elif header is not None:
             result.write_c_header(header)
     except ConfigError as exc:
-        raise _as_option(exc, _AUTOTUNE_OPTIONS) from None
+        raise as_option(exc, _AUTOTUNE_OPTIONS) from None
     if as_json:
         click.echo(json.dumps(result.as_dict(), allow_nan=False))
     else:

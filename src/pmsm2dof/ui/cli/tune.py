@@ -1,11 +1,8 @@
 """``pmsm2dof tune``: the tuner in the browser (pmsm2dof.ui.tuner)."""
 
-from typing import TYPE_CHECKING
-
 import click
 
-if TYPE_CHECKING:
-    pass
+from .options import require_extra
 
 
 @click.command()
@@ -28,6 +25,8 @@ def tune(scenario: str | None, port: int, host: str, no_browser: bool) -> None:
     the inertia error and the speed and load steps; downloads the scenario (TOML), the
     C header of the design and the trace (CSV).
     """
+    for module in ("starlette", "uvicorn"):
+        require_extra(module, "tuner", "pmsm2dof tune")
     from ...sim.plausibility import warn_implausible
     from ...sim.scenario import load_scenario
     from ..tuner import DEFAULT_PRESET, run_tuner

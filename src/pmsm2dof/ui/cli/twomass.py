@@ -11,25 +11,32 @@ if TYPE_CHECKING:
     from ...analysis.design import Design
     from ...analysis.twomass import TwoMass
 
-from .options import _as_option
+from .options import as_option, option_name, speed_option
 
 
 @click.command()
-@click.option("--J-motor", "J_motor_kgm2", type=float, required=True, help="motor-side inertia J_M [kg m^2], > 0")
-@click.option("--J-load", "J_load_kgm2", type=float, required=True, help="load-side inertia J_L [kg m^2], > 0")
-@click.option("--stiffness", "stiffness_Nm_per_rad", type=float, required=True, help="shaft stiffness K [Nm/rad], > 0")
+@click.option("--J-motor-kgm2", "J_motor_kgm2", type=float, required=True, help="motor-side inertia J_M [kg m^2], > 0")
+@click.option("--J-load-kgm2", "J_load_kgm2", type=float, required=True, help="load-side inertia J_L [kg m^2], > 0")
 @click.option(
-    "--damping", "damping_Nms_per_rad", type=float, default=0.0, show_default=True, help="shaft damping [Nm s/rad]"
+    "--stiffness-Nm-per-rad", "stiffness_Nm_per_rad", type=float, required=True, help="shaft stiffness K [Nm/rad], > 0"
 )
-@click.option("--alpha", "alpha_radps", type=float, required=True, help="bandwidth of the P loop [rad/s] (eq 9)")
-@click.option("--zeta", type=float, default=0.7, show_default=True, help="relative damping of the PI loop (eq 9)")
-@click.option("--tau-i", "tau_i_s", type=float, default=0.0, show_default=True, help="current-loop time constant [s]")
-@click.option("--Ts", "Ts_s", type=float, required=True, help="speed-loop sampling period [s]")
+@click.option(
+    "--damping-Nms-per-rad",
+    "damping_Nms_per_rad",
+    type=float,
+    default=0.0,
+    show_default=True,
+    help="shaft damping [Nm s/rad]",
+)
+@speed_option("alpha_radps", required=True)
+@speed_option("zeta", default=0.7, show_default=True)
+@speed_option("tau_i_s", default=0.0, show_default=True)
+@speed_option("Ts_s", required=True)
 @click.option("--feedback", default="motor", show_default=True, help="the speed the controller reads: motor or load")
-@click.option("--notch-freq", "notch_freq_Hz", type=float, default=0.0, help="notch frequency [Hz] (0: none)")
-@click.option("--notch-width", "notch_width_Hz", type=float, default=0.0, help="notch -3 dB width [Hz]")
+@click.option("--notch-freq-Hz", "notch_freq_Hz", type=float, default=0.0, help="notch frequency [Hz] (0: none)")
+@click.option("--notch-width-Hz", "notch_width_Hz", type=float, default=0.0, help="notch -3 dB width [Hz]")
 @click.option("--notch-depth", "notch_depth", type=float, default=0.0, help="notch gain at its frequency [-]")
-@click.option("--lowpass-freq", "lowpass_freq_Hz", type=float, default=0.0, help="low-pass frequency [Hz] (0: none)")
+@click.option("--lowpass-freq-Hz", "lowpass_freq_Hz", type=float, default=0.0, help="low-pass frequency [Hz] (0: none)")
 @click.option("--lowpass-zeta", "lowpass_zeta", type=float, default=0.0, help="low-pass damping [-]")
 @click.option(
     "--region",
@@ -61,22 +68,9 @@ def twomass(
     from ...analysis.design import design
     from ...analysis.twomass import sampled_loop, two_mass
 
-    options = {
-        "J_motor_kgm2": "--J-motor",
-        "J_load_kgm2": "--J-load",
-        "stiffness_Nm_per_rad": "--stiffness",
-        "damping_Nms_per_rad": "--damping",
-        "alpha_radps": "--alpha",
-        "J_kgm2": "--J-motor",
-        "zeta": "--zeta",
-        "tau_i_s": "--tau-i",
-        "Ts_s": "--Ts",
-        "feedback": "--feedback",
-        **{name: "--" + name.rsplit("_", 1)[0].replace("_", "-") for name in filters},
-        "notch_depth": "--notch-depth",
-        "lowpass_zeta": "--lowpass-zeta",
-        "region": "--region",
-    }
+    options = {name: option_name(name) for name in ("J_motor_kgm2", "J_load_kgm2", "alpha_radps", "zeta", "tau_i_s")}
+    options |= {name: option_name(name) for name in ("stiffness_Nm_per_rad", "damping_Nms_per_rad", "Ts_s", *filters)}
+    options |= {"J_kgm2": "--J-motor-kgm2", "feedback": "--feedback", "region": "--region"}
     try:
         train = two_mass(J_motor_kgm2, J_load_kgm2, stiffness_Nm_per_rad, damping_Nms_per_rad)
         d = design(train.J_total_kgm2, alpha_radps, zeta, tau_i_s=tau_i_s)
@@ -84,7 +78,7 @@ def twomass(
         if region is not None and not region.lower().endswith((".png", ".svg")):
             raise ConfigError("region", region, "a file name ending in .png or .svg")
     except ConfigError as exc:
-        raise _as_option(exc, options) from None
+        raise as_option(exc, options) from None
     two_pi = 2.0 * 3.141592653589793
     click.echo(
         f"inertia ratio J_L/J_M      {train.inertia_ratio:.4g} (design on J_M + J_L = {train.J_total_kgm2:.4g} kg m^2)"
@@ -108,39 +102,11 @@ def _write_region(path: str, train: "TwoMass", d: "Design", Ts_s: float, filters
     """The stable-region figure of ``pmsm2dof twomass --region`` (written whole or not at all)."""
     import io
 
-    import numpy as np
-
-    from ...core import FEEDBACKS
     from ...outputs import atomic_write
-    from ...studies.twomass import stable_region
-    from ..report.twomass import TwoMassStudy, fig_stable_region
+    from ...studies.twomass import region_around
+    from ..report.twomass import fig_stable_region
 
-    f_r = train.resonance_radps / (2.0 * np.pi)
-    ratios = tuple(sorted({train.inertia_ratio, train.inertia_ratio / 3.0, 3.0 * train.inertia_ratio}))
-    resonances = tuple(float(f) for f in np.geomspace(f_r / 10.0, 10.0 * f_r, 9))
-    notch = filters["notch_freq_Hz"] > 0.0
-    shape = dict(
-        J_total_kgm2=train.J_total_kgm2,
-        resonance_damping=train.resonance_damping,
-        notch_width_share=filters["notch_width_Hz"] / filters["notch_freq_Hz"] if notch else 0.5,
-        notch_depth=filters["notch_depth"] if notch else 0.05,
-    )
-    regions = {
-        (fb, with_notch): stable_region(
-            ratios if fb == "motor" else ratios[:1],
-            resonances,
-            zeta=d.zeta,
-            tau_i_s=d.tau_i_s,
-            Ts_s=Ts_s,
-            feedback=fb,
-            notch=with_notch,
-            **shape,
-        )
-        for fb in FEEDBACKS
-        for with_notch in (False, True)
-    }
-    study = TwoMassStudy([], regions, d.alpha_radps, d.zeta, d.tau_i_s, Ts_s, ratios, resonances)
-    fig, _data = fig_stable_region(study)
+    fig, _data = fig_stable_region(region_around(train, d.alpha_radps, d.zeta, d.tau_i_s, Ts_s, filters))
     buf = io.BytesIO()
     fig.savefig(buf, format=path.rsplit(".", 1)[-1].lower(), dpi=110)
     atomic_write(path, buf.getvalue())

@@ -48,13 +48,14 @@ from ...studies import paper as st
 from ...studies.adaptation import run_adaptation
 from ...studies.faults import run_faults
 from ...studies.sensing import offset_study, sensor_study
+from ...studies.twomass import paper_region_study
 from .adaptation import CAPTION as ADAPTATION_CAPTION
 from .adaptation import fig_adaptation
 from .claims import VERDICTS, Claim, compute_claims
 from .commissioning import run_commissioning
 from .figures import FigureData, fig_faults, figures
 from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
-from .twomass import fig_stable_region, run_two_mass_study
+from .twomass import fig_stable_region
 
 __all__ = ["VERDICTS", "Claim", "Report", "compute_claims", "reproduce", "write_report"]
 
@@ -117,7 +118,7 @@ def write_report(
     )
     adaptation_runs = run_adaptation(studies.overrides)
     made["adaptation"] = (*fig_adaptation(adaptation_runs), ADAPTATION_CAPTION)
-    two_mass = run_two_mass_study(studies.overrides)
+    two_mass = paper_region_study(studies.overrides)
     made["two_mass_region"] = (
         *fig_stable_region(two_mass),
         "Largest alpha of a stable sampled loop on two-mass trains of the paper's inertia, against the shaft's "
