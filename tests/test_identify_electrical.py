@@ -157,7 +157,7 @@ def test_intervals_cover_truth_on_random_machines(tmp_path):
 
 @pytest.mark.slow
 def test_readme_commands_identify_the_servo_within_the_targets(tmp_path, monkeypatch, capsys):
-    """README 'No datasheet': the simulate and identify electrical commands, run as written."""
+    """docs/your-motor.md, 'No datasheet': the simulate and identify electrical commands, run as written."""
     commands = readme_commands("pmsm2dof")
     simulate_args = next(a for a in commands if a[0] == "simulate" and SERVO in a)
     identify_args = next(a for a in commands if a[:2] == ["identify", "electrical"])

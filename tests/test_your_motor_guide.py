@@ -1,6 +1,6 @@
-"""The README's guide "Your motor" runs as written and finds the drive's inertia.
+"""The manual's guide "Your motor" (docs/your-motor.md) runs as written and finds the drive's inertia.
 
-The commands are read from the guide's section of README.md; the truth is the example drive's
+The commands are read from the guide's section of docs/your-motor.md; the truth is the example drive's
 motor.J_kgm2 (the plant of the simulated log), not anything the commands print.
 """
 
@@ -20,7 +20,7 @@ HEADING = "## Your motor: datasheet, log, identify, design, header"
 
 
 def guide_commands():
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "your-motor.md").read_text()
     section = text[text.index(HEADING) :]
     section = section[: section.index("\n## ", 1)]
     commands = []
