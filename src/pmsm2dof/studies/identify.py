@@ -466,6 +466,26 @@ PLAN_LEVELS = (1.0, -0.8, 0.6, -1.0, 0.3)
 PLAN_VOLTAGE_SHARE = 0.9
 
 
+def identified_toml(mech: Mechanics, current: CurrentLoop | None, scenario: Scenario | None, source: str) -> str:
+    """The values identified from a log as a TOML file for the next commands (simulate, design --motor).
+
+    With the drive's ``scenario``: the scenario with them, its speed controller designed for the J
+    found (eq 9); without one, a ``[motor]`` table (and ``[current_loop]`` with tau_i), headed by
+    ``source``. Friction coefficients below zero (a fit within its noise) are written as zero.
+    """
+    values = {"motor.J_kgm2": mech.J_kgm2, "motor.B_Nms": max(mech.B_Nms, 0.0)}
+    values["motor.T_coulomb_Nm"] = max(mech.T_coulomb_Nm, 0.0)
+    if current is not None:
+        values["current_loop.tau_i_s"] = current.tau_i_s
+    if scenario is not None:
+        return scenario.with_overrides({**values, "speed_controller.J_kgm2": mech.J_kgm2}).to_toml()
+    lines = [f"# identified from {source}", "[motor]"]
+    lines += [f"{k.split('.')[1]} = {v!r}" for k, v in values.items() if k.startswith("motor.")]
+    if current is not None:
+        lines += ["", "[current_loop]", f"tau_i_s = {current.tau_i_s!r}"]
+    return "\n".join(lines) + "\n"
+
+
 class PlanWarning(Pmsm2dofWarning):
     """The plan departs from what was asked (its speeds lowered to stay inside the voltage limit)."""
 

@@ -43,7 +43,8 @@ for _command in (
     firmware.firmware,
 ):
     cli.add_command(_command)
-# Command groups of other modules are registered here, one line each.
+# Command groups defined in modules of their own are registered below, one line each:
+# cli.add_command(GROUP) after importing it.
 
 
 def main(argv: list[str] | None = None) -> int:

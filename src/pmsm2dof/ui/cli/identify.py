@@ -91,7 +91,13 @@ def mechanics(
     from ...outputs import atomic_write, staged_dir
     from ...sim.datasheet import load_motor
     from ...sim.logs import read_log
-    from ...studies.identify import IdentificationError, identify_mechanics, identify_tau_i, torque_from_currents
+    from ...studies.identify import (
+        IdentificationError,
+        identified_toml,
+        identify_mechanics,
+        identify_tau_i,
+        torque_from_currents,
+    )
 
     gains = None
     if design_text is not None:
@@ -158,25 +164,13 @@ def mechanics(
         from ...sim.scenario import Scenario, load_scenario
         from ..plots.identify import plot_fit
 
-        values = {"motor.J_kgm2": mech.J_kgm2, "motor.B_Nms": max(mech.B_Nms, 0.0)}
-        values["motor.T_coulomb_Nm"] = max(mech.T_coulomb_Nm, 0.0)
-        if current is not None:
-            values["current_loop.tau_i_s"] = current.tau_i_s
         scenario: Scenario | None = None
         if motor_file is not None:
             try:
                 scenario = load_scenario(motor_file)
             except ConfigError:
                 scenario = None
-        if scenario is not None:
-            # the drive with the values found, its speed controller designed for the J found (eq 9)
-            text = scenario.with_overrides({**values, "speed_controller.J_kgm2": mech.J_kgm2}).to_toml()
-        else:
-            lines = [f"# identified from {log} by pmsm2dof identify", "[motor]"]
-            lines += [f"{k.split('.')[1]} = {v!r}" for k, v in values.items() if k.startswith("motor.")]
-            if current is not None:
-                lines += ["", "[current_loop]", f"tau_i_s = {current.tau_i_s!r}"]
-            text = "\n".join(lines) + "\n"
+        text = identified_toml(mech, current, scenario, f"{log} by pmsm2dof identify mechanics")
         with staged_dir(out, "identify", force) as tmp:
             plot_fit(mech, tmp / "fit.png")
             rows = mech.rows
