@@ -7,7 +7,7 @@ limited to 7.6 A, ``Kp = 0.2``, ``Ki = 0.3`` (``J = 0.4 kg m^2``, ``alpha = 0.5 
 Top: the 1DOF PI, bottom: the 2DOF controller of eq 15, each without anti-windup, with back
 calculation (Fig. 5) and with clamping. The paper reports more than 55 % overshoot without
 anti-windup and about 16 % with it; ``pmsm2dof reproduce`` compares every claim with these runs
-(see the README's table for why the numbers differ).
+(see the claims table of the getting-started page for why the numbers differ).
 """
 
 import matplotlib.pyplot as plt

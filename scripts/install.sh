@@ -2,7 +2,7 @@
 # Install everything pmsm2dof needs on a fresh Debian machine with Python >= 3.11:
 # the Cortex-M cross compiler and emulator, clang for fuzzing, clang-format for the C
 # style, Chromium for the browser test, then the package itself (editable) with its
-# test, lint, docs and drive extras.
+# test, lint and docs extras and the extras of single commands (the tuner's server, Dask, the drive link).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -19,4 +19,4 @@ if [ -n "$missing" ]; then
 fi
 
 python3 -m pip install -q --upgrade pip
-python3 -m pip install -q -e ".[test,lint,docs,drive]"
+python3 -m pip install -q -e ".[test,lint,docs,tuner,dask,drive]"

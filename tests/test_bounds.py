@@ -79,7 +79,7 @@ def assert_refused(result, *words):
     return err
 
 
-DESIGN = ["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"]
+DESIGN = ["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3"]
 SWEEPS = {
     "num 1e9": ('"motor.J_kgm2" = { start = 0.1, stop = 1.0, num = 1000000000 }', "num = 1000000000"),
     "3000 x 3000": (
@@ -99,9 +99,9 @@ FILES = [
 ]
 #: Every refusal probe, by name: argv.
 PROBES = {
-    **{f"design --sensor-delay {d}": [*DESIGN, "--sensor-delay", d] for d in ("1e6", "10", "0.5", "0.257")},
+    **{f"design --sensor-delay-s {d}": [*DESIGN, "--sensor-delay-s", d] for d in ("1e6", "10", "0.5", "0.257")},
     **{f"sweep {name}": ["sweep", f"{name.replace(' ', '_')}.toml", "--out", "out"] for name in SWEEPS},
-    "bode --m 2000 values": ["bode", "--alpha", "0.5", "--m", ",".join(["1"] * 2000), "--out", "f.png"],
+    "bode --m 2000 values": ["bode", "--alpha-radps", "0.5", "--m", ",".join(["1"] * 2000), "--out", "f.png"],
     **{f"{command[0]} {path}": [command[0], path, *command[1:]] for command, path in FILES},
     "simulate t_end_s = 10000": ["simulate", "paper-condition-2", "--set", "simulation.t_end_s=10000", "--out", "long"],
 }
@@ -127,12 +127,12 @@ def refusals(tmp_path_factory):
 @pytest.mark.parametrize("delay_s", ["1e6", "10", "0.5", "0.257"])
 def test_design_bounds_the_sensor_delay_in_periods(refusals, delay_s):
     """1e6 s grew to 15 GB, 10 s ran over 5 minutes, 0.5 s asked for 10 GiB of frequency responses."""
-    assert_refused(refusals[f"design --sensor-delay {delay_s}"], "--sensor-delay = ", "<= 256 Ts_s = 0.256 s")
+    assert_refused(refusals[f"design --sensor-delay-s {delay_s}"], "--sensor-delay-s = ", "<= 256 Ts_s = 0.256 s")
 
 
 @pytest.mark.slow
 def test_design_at_the_delay_bound_runs_within_the_budget(tmp_path):
-    ((code, err),) = run_capped([[*DESIGN, "--sensor-delay", "0.256"]], tmp_path, budget_mb=400)
+    ((code, err),) = run_capped([[*DESIGN, "--sensor-delay-s", "0.256"]], tmp_path, budget_mb=400)
     assert code == 0, err[-2000:]
 
 
@@ -172,7 +172,7 @@ def test_a_compressed_log_is_bounded_by_what_it_holds(tmp_path):
                 f.write(block)
             f.write(bytes(n * 8 % len(block)))
     assert (tmp_path / "log.npz").stat().st_size < 20 * 1024**2
-    (result,) = run_capped([["identify", "log.npz", "--pole-pairs", "4", "--psi-f-Wb", "0.1"]], tmp_path)
+    (result,) = run_capped([["identify", "mechanics", "log.npz", "--pole-pairs", "4", "--psi-f-Wb", "0.1"]], tmp_path)
     assert_refused(result, "(it holds 2.14 GiB)")
 
 

@@ -11,17 +11,17 @@ import pytest
 from pmsm2dof.ui.cli import main
 
 PAPER = [
-    "--J",
+    "--J-kgm2",
     "0.4",
-    "--alpha",
+    "--alpha-radps",
     "0.5",
     "--zeta",
     "0.2887",
     "--m",
     "1",
-    "--tau-i",
+    "--tau-i-s",
     "0.05",
-    "--Ts",
+    "--Ts-s",
     "1e-3",
     "--method",
     "tustin",
@@ -56,8 +56,8 @@ def test_design_json_in_a_fresh_process():
 
 def test_design_emits_c_header(tmp_path, capsys):
     header = tmp_path / "speed_design.h"
-    motor = ["--i-max", "5", "--pole-pairs", "3", "--psi-f", "0.1", "--Ld", "0.002", "--Lq", "0.003"]
-    motor += ["--Rs", "0.5", "--Ts-current", "1e-4", "--tau-i", "0.05"]
+    motor = ["--i-max-A", "5", "--pole-pairs", "3", "--psi-f-Wb", "0.1", "--Ld-H", "0.002", "--Lq-H", "0.003"]
+    motor += ["--Rs-ohm", "0.5", "--Ts-current-s", "1e-4", "--tau-i-s", "0.05"]
     assert main(["design", *PAPER, *motor, "--emit-c-header", str(header), "--prefix", "motor1", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     text = header.read_text()
@@ -65,16 +65,19 @@ def test_design_emits_c_header(tmp_path, capsys):
     assert ".i_max_A = 5.0f" in text and ".pole_pairs = 3u" in text and ".Lq_H = 0.003f" in text
     assert "static const p2d_current_config_t motor1_current = {" in text and ".Rs_ohm = 0.5f" in text
     assert "#define MOTOR1_CURRENT_PER_SPEED 10u" in text
-    assert data["header"]["motor"]["psi_f_Wb"] == {"value": 0.1, "source": "given: --psi-f"}
-    assert data["header"]["motor"]["Ts_current_s"] == {"value": 1e-4, "source": "given: --Ts-current"}
+    assert data["header"]["motor"]["psi_f_Wb"] == {"value": 0.1, "source": "given: --psi-f-Wb"}
+    assert data["header"]["motor"]["Ts_current_s"] == {"value": 1e-4, "source": "given: --Ts-current-s"}
 
 
 def test_header_without_motor_data_names_what_is_missing(tmp_path, capsys):
     header = tmp_path / "speed.h"
-    assert main(["design", *PAPER, "--emit-c-header", str(header), "--psi-f", "0.1"]) == 2
+    assert main(["design", *PAPER, "--emit-c-header", str(header), "--psi-f-Wb", "0.1"]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and captured.err.count("\n") == 1
-    assert "--i-max, --pole-pairs, --Ld, --Rs, --Ts-current missing" in captured.err and "--paper-drive" in captured.err
+    assert (
+        "--i-max-A, --pole-pairs, --Ld-H, --Rs-ohm, --Ts-current-s missing" in captured.err
+        and "--paper-drive" in captured.err
+    )
     assert not any(tmp_path.iterdir())
 
 
@@ -88,11 +91,11 @@ def test_paper_drive_fills_in_what_is_not_given_and_says_so(tmp_path, capsys):
                 "--emit-c-header",
                 str(header),
                 "--paper-drive",
-                "--Ld",
+                "--Ld-H",
                 "0.012",
-                "--Rs",
+                "--Rs-ohm",
                 "0.3",
-                "--Ts-current",
+                "--Ts-current-s",
                 "1e-4",
             ]
         )
@@ -107,9 +110,9 @@ def test_paper_drive_fills_in_what_is_not_given_and_says_so(tmp_path, capsys):
         "i_max_A": (preset["limits"]["i_max_A"], "paper drive"),
         "pole_pairs": (preset["motor"]["pole_pairs"], "paper drive"),
         "psi_f_Wb": (preset["motor"]["psi_f_Wb"], "paper drive"),
-        "Ld_H": (0.012, "given: --Ld"),
+        "Ld_H": (0.012, "given: --Ld-H"),
         "Lq_H": (0.012, "= Ld_H: surface PMSM"),
-        "Rs_ohm": (0.3, "given: --Rs"),
+        "Rs_ohm": (0.3, "given: --Rs-ohm"),
     }
     summary = {line.split()[0]: line for line in out.split("C header written to")[1].splitlines()[1:]}
     text = header.read_text()
@@ -121,28 +124,31 @@ def test_paper_drive_fills_in_what_is_not_given_and_says_so(tmp_path, capsys):
 
 
 def test_sampling_warning_is_one_stderr_line(capsys):
-    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--Ts", "0.5"]) == 0
+    assert main(["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.2887", "--Ts-s", "0.5"]) == 0
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("pmsm2dof: warning: Ts_s = 0.5")
 
 
 BAD = [
-    (["design", "--J", "-0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
-    (["design", "--J", "0.4", "--alpha", "nan", "--zeta", "0.3", "--Ts", "1e-3"], "--alpha"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0", "--Ts", "1e-3"], "--zeta"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "inf"], "--Ts"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--tau-i", "-1"], "--tau-i"),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--Ka", "-2"], "--Ka"),
+    (["design", "--J-kgm2", "-0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3"], "--J-kgm2"),
+    (["design", "--J-kgm2", "0.4", "--alpha-radps", "nan", "--zeta", "0.3", "--Ts-s", "1e-3"], "--alpha-radps"),
+    (["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0", "--Ts-s", "1e-3"], "--zeta"),
+    (["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "inf"], "--Ts-s"),
+    (
+        ["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3", "--tau-i-s", "-1"],
+        "--tau-i-s",
+    ),
+    (["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3", "--Ka", "-2"], "--Ka"),
     (
         [
             "design",
-            "--J",
+            "--J-kgm2",
             "0.4",
-            "--alpha",
+            "--alpha-radps",
             "0.5",
             "--zeta",
             "0.3",
-            "--Ts",
+            "--Ts-s",
             "1e-3",
             "--m",
             "2",
@@ -151,12 +157,15 @@ BAD = [
         ],
         "--m",
     ),
-    (["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3", "--method", "zoh"], "method"),
-    (["design", "--J", "heavy", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
-    (["design", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"], "--J"),
-    (["bode", "--alpha", "0.5", "--m", "0.2,x", "--out", "fig.png"], "m"),
-    (["bode", "--alpha", "0", "--out", "fig.png"], "alpha_radps"),
-    (["bode", "--alpha", "0.5", "--out", "fig.pdf"], "out"),
+    (
+        ["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3", "--method", "zoh"],
+        "method",
+    ),
+    (["design", "--J-kgm2", "heavy", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3"], "--J-kgm2"),
+    (["design", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3"], "--J-kgm2"),
+    (["bode", "--alpha-radps", "0.5", "--m", "0.2,x", "--out", "fig.png"], "m"),
+    (["bode", "--alpha-radps", "0", "--out", "fig.png"], "alpha_radps"),
+    (["bode", "--alpha-radps", "0.5", "--out", "fig.pdf"], "out"),
 ]
 
 
@@ -176,7 +185,9 @@ def test_design_with_a_vanishing_integral_action_is_not_refused(capsys):
     # zeta = 1e10 leaves Ki = J (alpha / (2 zeta))^2 ~ 1e-22: a stable loop whose slowest pole,
     # -Ki / Kp = -1.25e-21 rad/s, is nearly cancelled by the PI's zero; the P loop alone gives the
     # first-order response Kp / (J s + Kp), without overshoot
-    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "1e10", "--Ts", "1e-3", "--json"]) == 0
+    assert (
+        main(["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "1e10", "--Ts-s", "1e-3", "--json"]) == 0
+    )
     data = json.loads(capsys.readouterr().out)
     for part in ("continuous", "discrete"):
         assert "overshoot_pct" not in data[part]["missing"]
@@ -185,18 +196,44 @@ def test_design_with_a_vanishing_integral_action_is_not_refused(capsys):
 
 # designs once refused with "the step response does not rise in a computable time"
 SLOW_OR_FINE = [
-    ["--J", "0.4", "--alpha", "0.45", "--zeta", "0.2887", "--Ts", "1e-3", "--feedforward", "lowpass"],
-    ["--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--tau-i", "0.05", "--Ts", "1e-4", "--feedforward", "lowpass"],
-    ["--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--tau-i", "0.05", "--Ts", "1e-4", "--feedforward", "none"],
+    ["--J-kgm2", "0.4", "--alpha-radps", "0.45", "--zeta", "0.2887", "--Ts-s", "1e-3", "--feedforward", "lowpass"],
+    [
+        "--J-kgm2",
+        "0.4",
+        "--alpha-radps",
+        "0.5",
+        "--zeta",
+        "0.2887",
+        "--tau-i-s",
+        "0.05",
+        "--Ts-s",
+        "1e-4",
+        "--feedforward",
+        "lowpass",
+    ],
+    [
+        "--J-kgm2",
+        "0.4",
+        "--alpha-radps",
+        "0.5",
+        "--zeta",
+        "0.2887",
+        "--tau-i-s",
+        "0.05",
+        "--Ts-s",
+        "1e-4",
+        "--feedforward",
+        "none",
+    ],
 ]
 
 
 @pytest.mark.parametrize("argv", SLOW_OR_FINE)
 def test_slow_or_finely_sampled_designs_are_not_refused(tmp_path, capsys, argv):
     header = tmp_path / "speed.h"
-    motor = ["--i-max", "7.6", "--pole-pairs", "4", "--psi-f", "0.2", "--Ld", "0.01"]
-    motor += ["--Rs", "0.5", "--Ts-current", "1e-4"]
-    motor += [] if "--tau-i" in argv else ["--tau-i", "0.05"]  # the header's current loop has eq 3's tau_i
+    motor = ["--i-max-A", "7.6", "--pole-pairs", "4", "--psi-f-Wb", "0.2", "--Ld-H", "0.01"]
+    motor += ["--Rs-ohm", "0.5", "--Ts-current-s", "1e-4"]
+    motor += [] if "--tau-i-s" in argv else ["--tau-i-s", "0.05"]  # the header's current loop has eq 3's tau_i
     assert main(["design", *argv, *motor, "--emit-c-header", str(header), "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     for part in ("continuous", "discrete"):
@@ -231,20 +268,35 @@ def test_bad_header_option_writes_nothing(tmp_path, capsys):
 @pytest.mark.slow
 def test_bad_value_in_a_fresh_process_has_no_traceback():
     run = subprocess.run(
-        [sys.executable, "-m", "pmsm2dof", "design", "--J", "0", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"],
+        [
+            sys.executable,
+            "-m",
+            "pmsm2dof",
+            "design",
+            "--J-kgm2",
+            "0",
+            "--alpha-radps",
+            "0.5",
+            "--zeta",
+            "0.3",
+            "--Ts-s",
+            "1e-3",
+        ],
         capture_output=True,
         text=True,
         timeout=120,
     )
     assert run.returncode == 2
-    assert run.stderr.strip().splitlines() == ["pmsm2dof: error: --J = 0.0 is invalid: valid range is finite and > 0"]
+    assert run.stderr.strip().splitlines() == [
+        "pmsm2dof: error: --J-kgm2 = 0.0 is invalid: valid range is finite and > 0"
+    ]
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("name", ["fig7.png", "fig7.svg"])
 def test_bode_draws_fig7(tmp_path, name):
     out = tmp_path / name
-    assert main(["bode", "--alpha", "0.5", "--feedforward", "full", "--m", "0.2,0.5,1,2", "--out", str(out)]) == 0
+    assert main(["bode", "--alpha-radps", "0.5", "--feedforward", "full", "--m", "0.2,0.5,1,2", "--out", str(out)]) == 0
     data = out.read_bytes()
     assert data.startswith(b"\x89PNG") if name.endswith(".png") else b"<svg" in data[:2000]
 
@@ -252,7 +304,7 @@ def test_bode_draws_fig7(tmp_path, name):
 @pytest.mark.slow
 def test_bode_says_what_it_wrote(tmp_path, capsys):
     out = tmp_path / "gx.svg"
-    assert main(["bode", "--alpha", "0.5", "--out", str(out)]) == 0
+    assert main(["bode", "--alpha-radps", "0.5", "--out", str(out)]) == 0
     captured = capsys.readouterr()
     assert captured.out.count("\n") == 1 and captured.out.startswith(f"wrote {out}")
     assert captured.err == ""

@@ -12,14 +12,14 @@ import pytest
 
 from pmsm2dof.ui.cli import main
 
-PAPER = ["--J", "0.4", "--alpha", "0.5", "--zeta", str(1.0 / (2.0 * math.sqrt(3.0))), "--tau-i", "0.05"]
-DRIVE = ["--i-max", "7.6", "--pole-pairs", "4", "--psi-f", "0.2"]
+PAPER = ["--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", str(1.0 / (2.0 * math.sqrt(3.0))), "--tau-i-s", "0.05"]
+DRIVE = ["--i-max-A", "7.6", "--pole-pairs", "4", "--psi-f-Wb", "0.2"]
 Q15 = ["--fixed-point", "q15", "--speed-full-scale-rpm", "1000", "--torque-full-scale-Nm", "10"]
 RPM = math.pi / 30.0
 
 
 def test_the_paper_design_at_1e_4_s_in_q15_is_flagged_with_its_dead_zone(capsys):
-    assert main(["design", *PAPER, "--Ts", "1e-4", *DRIVE, *Q15]) == 0
+    assert main(["design", *PAPER, "--Ts-s", "1e-4", *DRIVE, *Q15]) == 0
     out = capsys.readouterr().out
     print(out)
     assert "Fixed-point scaling check: Q15, Ts = 0.0001 s, tustin -- FLAGGED" in out and "limit 9.12 Nm" in out
@@ -34,7 +34,7 @@ def test_the_paper_design_at_1e_4_s_in_q15_is_flagged_with_its_dead_zone(capsys)
 
 
 def test_q31_has_no_dead_zone_and_the_json_carries_the_report(capsys):
-    argv = ["design", *PAPER, "--Ts", "1e-4", "--fixed-point", "q31", "--speed-full-scale-rpm", "1000"]
+    argv = ["design", *PAPER, "--Ts-s", "1e-4", "--fixed-point", "q31", "--speed-full-scale-rpm", "1000"]
     assert main([*argv, "--torque-full-scale-Nm", "64", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)  # strict JSON: no Infinity
     fixed = data["fixed_point"]
@@ -46,7 +46,7 @@ def test_q31_has_no_dead_zone_and_the_json_carries_the_report(capsys):
 
 
 def test_without_fixed_point_the_design_prints_no_check(capsys):
-    assert main(["design", *PAPER, "--Ts", "1e-4"]) == 0
+    assert main(["design", *PAPER, "--Ts-s", "1e-4"]) == 0
     assert "scaling check" not in capsys.readouterr().out
 
 
@@ -67,7 +67,7 @@ def test_without_fixed_point_the_design_prints_no_check(capsys):
     ],
 )  # fmt: skip
 def test_bad_values_exit_2_with_one_stderr_line_naming_the_option(capsys, extra, option):
-    assert main(["design", *PAPER, "--Ts", "1e-4", *extra]) == 2
+    assert main(["design", *PAPER, "--Ts-s", "1e-4", *extra]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
     lines = captured.err.strip().splitlines()
@@ -76,7 +76,7 @@ def test_bad_values_exit_2_with_one_stderr_line_naming_the_option(capsys, extra,
 
 def test_the_1dof_pi_has_no_feedforward_state_to_hold(capsys):
     """Without feedforward (b_dr = 0) y stays 0: nothing winds up, and a full scale holds x alone."""
-    argv = ["design", *PAPER, "--Ts", "1e-4", "--feedforward", "none", *DRIVE, *Q15]
+    argv = ["design", *PAPER, "--Ts-s", "1e-4", "--feedforward", "none", *DRIVE, *Q15]
     assert main(argv) == 0
     out = capsys.readouterr().out.split("Fixed-point scaling check")[1]
     assert "winds up" not in out and ">= inf" not in out

@@ -150,7 +150,19 @@ def test_every_command_writes_the_same_shape(tmp_path, capsys):
     from pmsm2dof.ui.tuner.experiment import Tuner
 
     assert main(["header", "paper-condition-2", "--out", str(tmp_path / "header.h")]) == 0
-    design = ["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--tau-i", "0.05", "--Ts", "1e-3"]
+    design = [
+        "design",
+        "--J-kgm2",
+        "0.4",
+        "--alpha-radps",
+        "0.5",
+        "--zeta",
+        "0.2887",
+        "--tau-i-s",
+        "0.05",
+        "--Ts-s",
+        "1e-3",
+    ]
     assert main([*design, "--paper-drive", "--emit-c-header", str(tmp_path / "design.h")]) == 0
     _, _, tuner = Tuner(load_scenario("paper-condition-2")).download("header.h", {})
     expected = shape((tmp_path / "header.h").read_text())

@@ -112,17 +112,17 @@ def test_bad_motor_file_names_the_key(tmp_path, text, param):
     assert err.value.param == param
 
 
-DESIGN = ["design", "--J", "2e-4", "--alpha", "50", "--zeta", "0.7", "--Ts", "1e-3"]
+DESIGN = ["design", "--J-kgm2", "2e-4", "--alpha-radps", "50", "--zeta", "0.7", "--Ts-s", "1e-3"]
 
 
 @pytest.mark.slow
 def test_design_command_with_an_identified_motor(motor_file, capsys):
-    assert main([*DESIGN, "--motor", str(motor_file), "--current-bandwidth", "2000", "--json"]) == 0
+    assert main([*DESIGN, "--motor", str(motor_file), "--current-bandwidth-radps", "2000", "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     assert data["current_loop"]["Kp_q_V_per_A"] == pytest.approx(16.0)
     assert data["tau_i_s"] == pytest.approx(5e-4)  # eq 11's tau_i is 1 / alpha_c
     assert len(data["speed_margin_sensitivity"]) == 9
-    assert main([*DESIGN, "--motor", str(motor_file), "--current-bandwidth", "2000"]) == 0
+    assert main([*DESIGN, "--motor", str(motor_file), "--current-bandwidth-radps", "2000"]) == 0
     out = capsys.readouterr().out
     assert "Kp_q = Lq alpha_c" in out and "interval" in out
 
@@ -130,9 +130,9 @@ def test_design_command_with_an_identified_motor(motor_file, capsys):
 @pytest.mark.parametrize(
     ("extra", "mention"),
     [
-        (["--current-bandwidth", "-1"], "--current-bandwidth = -1.0"),
-        (["--current-bandwidth", "2000", "--tau-i", "0.01"], "not both"),
-        (["--current-bandwidth", "2000", "--motor", "missing.toml"], "--motor = 'missing.toml'"),
+        (["--current-bandwidth-radps", "-1"], "--current-bandwidth-radps = -1.0"),
+        (["--current-bandwidth-radps", "2000", "--tau-i-s", "0.01"], "not both"),
+        (["--current-bandwidth-radps", "2000", "--motor", "missing.toml"], "--motor = 'missing.toml'"),
     ],
 )
 def test_design_bad_input_one_line_exit_2(motor_file, capsys, extra, mention):

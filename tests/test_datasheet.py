@@ -264,7 +264,7 @@ def test_datasheet_keys_are_listed_by_presets_keys_motor_help_and_the_readme(cap
     keys_out = capsys.readouterr().out
     assert main(["motor", "--help"]) == 0
     help_out = capsys.readouterr().out
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "your-motor.md").read_text()
     section = readme[readme.index("### Datasheet keys") :]
     section = section[: section.index("\n## ")]
     for key in DATASHEET_KEYS:

@@ -33,13 +33,15 @@ def test_scenario_default():
 
 
 def test_cli_design_default(capsys):
-    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--Ts", "1e-3", "--json"]) == 0
+    assert (
+        main(["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.2887", "--Ts-s", "1e-3", "--json"]) == 0
+    )
     assert json.loads(capsys.readouterr().out)["feedforward"] == DEFAULT
 
 
 @pytest.mark.slow
 def test_bode_default_draws_the_lowpass(tmp_path, capsys):
-    assert main(["bode", "--alpha", "0.5", "--out", str(tmp_path / "gx.png")]) == 0
+    assert main(["bode", "--alpha-radps", "0.5", "--out", str(tmp_path / "gx.png")]) == 0
     title = bode_gx_sweep(0.5, [1.0]).axes[0].get_title()
     assert f"feedforward {DEFAULT}" in title
 
@@ -53,6 +55,9 @@ def test_m_other_than_1_without_a_feedforward_says_to_choose_no_tau_or_full(caps
         with pytest.raises(ValueError, match=r"^m = (2|0\.5)\b.*no_tau'? or '?full") as exc:
             make()
         assert "lowpass" in str(exc.value)
-    assert main(["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--Ts", "1e-3", "--m", "2"]) == 2
+    assert (
+        main(["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.2887", "--Ts-s", "1e-3", "--m", "2"])
+        == 2
+    )
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "no_tau' or 'full" in err

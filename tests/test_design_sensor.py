@@ -202,9 +202,9 @@ def run_cli(*args):
 @pytest.mark.slow  # a fresh interpreter per CLI call
 def test_cli_design_reports_the_sensor_chain_and_the_largest_alpha():
     done = run_cli(
-        "design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--tau-i", "0.05", "--Ts", "1e-3",
-        "--sensor", "encoder", "--estimator", "pll", "--sensor-bandwidth", "20", "--sensor-delay", "0.02",
-        "--phase-margin", "20", "--json",
+        "design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.2887", "--tau-i-s", "0.05", "--Ts-s", "1e-3",
+        "--sensor", "encoder", "--estimator", "pll", "--sensor-bandwidth-radps", "20", "--sensor-delay-s", "0.02",
+        "--phase-margin-deg", "20", "--json",
     )  # fmt: skip
     assert done.returncode == 0, done.stderr
     data = json.loads(done.stdout)
@@ -214,14 +214,14 @@ def test_cli_design_reports_the_sensor_chain_and_the_largest_alpha():
                                   delay_s=0.02)  # fmt: skip
     assert data["continuous"]["margins"]["phase_margin_deg"] == pytest.approx(d.margins().phase_margin_deg)
     assert data["max_alpha_radps"]["alpha_radps"] == pytest.approx(d.max_alpha_for_phase_margin(20.0), rel=1e-6)
-    table = run_cli("design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--Ts", "1e-3", "--sensor-delay",
-                    "0.02")  # fmt: skip
+    table = run_cli("design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.2887", "--Ts-s", "1e-3",
+                    "--sensor-delay-s", "0.02")  # fmt: skip
     assert table.returncode == 0 and "ideal, delay 20 ms (exact delay in the margins)" in table.stdout
 
 
 @pytest.mark.slow  # a fresh interpreter per CLI call
 def test_cli_design_bad_sensor_input_is_one_line_and_status_2():
-    done = run_cli("design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.2887", "--Ts", "1e-3", "--sensor-lowpass",
-                   "-3")  # fmt: skip
+    done = run_cli("design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.2887", "--Ts-s", "1e-3",
+                   "--sensor-lowpass-radps", "-3")  # fmt: skip
     assert done.returncode == 2 and done.stdout == ""
-    assert done.stderr.count("\n") == 1 and "--sensor-lowpass = -3.0 is invalid" in done.stderr
+    assert done.stderr.count("\n") == 1 and "--sensor-lowpass-radps = -3.0 is invalid" in done.stderr

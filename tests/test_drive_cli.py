@@ -66,7 +66,7 @@ class Served:
         self.port = free_port()
         env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
         argv = [sys.executable, "-m", "pmsm2dof", "drive", "serve", str(scenario), "--port", str(self.port),
-                "--out", str(out), "--fast", "--duration", "900", *extra]  # fmt: skip
+                "--out", str(out), "--fast", "--duration-s", "900", *extra]  # fmt: skip
         self.process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
         self.line = self.process.stdout.readline()
         if "serving" not in self.line:
@@ -176,7 +176,9 @@ def test_capture_records_every_speed_sample(servo, tmp_path, capsys, suffix):
     scenario, served = servo
     out = tmp_path / f"capture{suffix}"
     signals = ["link_status_now.periods", "foc_now.w_meas_radps", "foc_now.iq_A"]
-    code, text, err = run(["drive", "capture", *signals, "--duration", "0.3", "--out", str(out), *served.link], capsys)
+    code, text, err = run(
+        ["drive", "capture", *signals, "--duration-s", "0.3", "--out", str(out), *served.link], capsys
+    )
     assert code == 0, err
     n = int(text.split()[0])
     # 0.3 s of the drive's time at the speed period, every sample from the first
@@ -218,12 +220,15 @@ def test_capture_bounds_are_checked_before_it_starts(servo, tmp_path, capsys):
     scenario, served = servo
     (tmp_path / "mine.csv").write_text("not the tool's\n")
     cases = [
-        (["foc_now.iq_A", "--duration", "1e9", "--out", str(tmp_path / "a.csv")], "duration = 1000000000.0"),
-        (["foc_now.iq_A", "--duration", "0.1", "--out", str(tmp_path / "a.txt")], ".mf4"),
-        (["foc_now.iq_A", "--duration", "0.1", "--event", "slow", "--out", str(tmp_path / "a.csv")], "event = 'slow'"),
-        (["foc_now.iq_A", "--duration", "0.1", "--out", str(tmp_path / "mine.csv")], "--force replaces it"),
-        ([*(["foc_now.iq_A"] * 65), "--duration", "0.1", "--out", str(tmp_path / "a.csv")], "1 to 64 names"),
-        (["link_reference.t_s", "--duration", "0.1", "--out", str(tmp_path / "a.csv")], "a scalar"),
+        (["foc_now.iq_A", "--duration-s", "1e9", "--out", str(tmp_path / "a.csv")], "--duration-s = 1000000000.0"),
+        (["foc_now.iq_A", "--duration-s", "0.1", "--out", str(tmp_path / "a.txt")], ".mf4"),
+        (
+            ["foc_now.iq_A", "--duration-s", "0.1", "--event", "slow", "--out", str(tmp_path / "a.csv")],
+            "event = 'slow'",
+        ),
+        (["foc_now.iq_A", "--duration-s", "0.1", "--out", str(tmp_path / "mine.csv")], "--force replaces it"),
+        ([*(["foc_now.iq_A"] * 65), "--duration-s", "0.1", "--out", str(tmp_path / "a.csv")], "1 to 64 names"),
+        (["link_reference.t_s", "--duration-s", "0.1", "--out", str(tmp_path / "a.csv")], "a scalar"),
     ]
     for argv, words in cases:
         start = time.perf_counter()
@@ -381,7 +386,7 @@ def test_qemu_tcp_capture_to_mdf4(servo_mcu, tmp_path, capsys):
     out = tmp_path / "c.mf4"
     with serve_qemu(servo_mcu / "virtual_drive.elf", serial="tcp") as url:
         link = ["--link", url.replace("socket://", "tcp://"), "--a2l", str(servo_mcu / "virtual_drive.a2l")]
-        code, text, err = run(["drive", "capture", "link_status_now.periods", "foc_now.iq_A", "--duration", "1",
+        code, text, err = run(["drive", "capture", "link_status_now.periods", "foc_now.iq_A", "--duration-s", "1",
                                "--out", str(out), *link], capsys)  # fmt: skip
     assert code == 0 and ", 0 lost" in text, err
     with asammdf.MDF(out) as mdf:

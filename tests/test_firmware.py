@@ -315,9 +315,21 @@ def test_the_header_of_pmsm2dof_header_builds_and_runs(bench, tmp_path, capsys):
 def test_the_header_of_design_builds_and_runs(bench, tmp_path, capsys):
     """design --emit-c-header: the same controllers as the design's scenario, whose engine it equals."""
     header = tmp_path / "p2d_config.h"
-    argv = ["design", "--J", "1e-4", "--alpha", "150", "--zeta", "0.707", "--tau-i", "5e-4", "--Ts", "5e-4"]
-    motor = ["--i-max", "10", "--pole-pairs", "4", "--psi-f", "0.01", "--Ld", "5e-4", "--Rs", "0.5"]
-    assert main([*argv, *motor, "--Ts-current", "5e-5", "--emit-c-header", str(header)]) == 0
+    argv = [
+        "design",
+        "--J-kgm2",
+        "1e-4",
+        "--alpha-radps",
+        "150",
+        "--zeta",
+        "0.707",
+        "--tau-i-s",
+        "5e-4",
+        "--Ts-s",
+        "5e-4",
+    ]
+    motor = ["--i-max-A", "10", "--pole-pairs", "4", "--psi-f-Wb", "0.01", "--Ld-H", "5e-4", "--Rs-ohm", "0.5"]
+    assert main([*argv, *motor, "--Ts-current-s", "5e-5", "--emit-c-header", str(header)]) == 0
     dd = design(1e-4, 150.0, 0.707, tau_i_s=5e-4).discretize(5e-4, "tustin")
     scenario = design_scenario(
         dd, i_max_A=10.0, pole_pairs=4, psi_f_Wb=0.01, Ld_H=5e-4, Lq_H=5e-4, Rs_ohm=0.5, Ts_current_s=5e-5

@@ -129,7 +129,7 @@ def test_a_log_without_acceleration_says_what_experiment_would_identify_j():
     steady = [{"t_s": 0.0, "speed_rpm": 500.0}]
     scenario = drive_scenario(0.01, 0.003, 0.3, reference=steady).with_overrides({"simulation.speed0_rpm": 500.0})
     log = measured_log(simulate(scenario), counts_per_rev=4096, torque_noise_Nm=0.05)
-    with pytest.raises(IdentificationError, match="not identifiable.*speed steps or torque pulses.*--plan"):
+    with pytest.raises(IdentificationError, match="not identifiable.*speed steps or torque pulses.*identify plan"):
         identify_mechanics(log, speed_is_period_mean=True)
 
 
@@ -165,7 +165,7 @@ def test_cli_identify_from_the_currents_writes_the_fit_and_an_identified_scenari
 
     path, motor = _csv_log(tmp_path)
     out = tmp_path / "out"
-    argv = ["identify", str(path), "--column", "speed=enc_speed_rpm", "--motor", str(motor), "--json"]
+    argv = ["identify", "mechanics", str(path), "--column", "speed=enc_speed_rpm", "--motor", str(motor), "--json"]
     assert main([*argv, "--out", str(out), "--design", "30,0.7"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["J_kgm2"] == pytest.approx(0.01, rel=0.02)
@@ -200,7 +200,17 @@ def test_cli_identify_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys,
 
     path, motor = _csv_log(tmp_path)
     out = tmp_path / "out"
-    argv = ["identify", str(path), "--column", "speed=enc_speed_rpm", "--motor", str(motor), "--out", str(out)]
+    argv = [
+        "identify",
+        "mechanics",
+        str(path),
+        "--column",
+        "speed=enc_speed_rpm",
+        "--motor",
+        str(motor),
+        "--out",
+        str(out),
+    ]
     assert main(argv + extra) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and captured.err.count("\n") == 1 and message in captured.err
@@ -238,7 +248,7 @@ def test_cli_plan_writes_a_run_within_the_limits_that_identifies_the_drive(tmp_p
 
     drive = Path(__file__).resolve().parents[1] / "examples" / "your-motor" / "drive.toml"
     out = tmp_path / "plan"
-    argv = ["identify", "--plan", "--motor", str(drive), "--speed-max-rpm", "1000", "--i-max-A", "6", "--out"]
+    argv = ["identify", "plan", "--motor", str(drive), "--speed-max-rpm", "1000", "--i-max-A", "6", "--out"]
     assert main([*argv, str(out)]) == 0
     plan = load_scenario(out / "plan.toml")
     speeds = [e["speed_rpm"] for e in plan.data["reference"]]

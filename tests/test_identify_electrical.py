@@ -1,4 +1,4 @@
-"""identify --electrical: Rs, Ld, Lq, psi_f (eq 1) from logs the engine simulated with known motors.
+"""identify electrical: Rs, Ld, Lq, psi_f (eq 1) from logs the engine simulated with known motors.
 
 Truth is the scenario's motor; the log is the engine's applied dq voltages and currents, the
 currents with extra seeded sensor noise, so the fit sees the errors in variables of a real log.
@@ -81,7 +81,7 @@ def test_ld_not_identifiable_when_id_never_moves(tmp_path):
 def test_cli_json_and_out(tmp_path):
     write_log(tmp_path / "log.csv", SALIENT)
     runner = CliRunner()
-    args = ["identify", str(tmp_path / "log.csv"), "--electrical", "--pole-pairs", "4"]
+    args = ["identify", "electrical", str(tmp_path / "log.csv"), "--pole-pairs", "4"]
     done = runner.invoke(cli, [*args, "--json", "--out", str(tmp_path / "out")])
     assert done.exit_code == 0, done.output
     report = json.loads(done.output)
@@ -104,15 +104,22 @@ def test_cli_json_and_out(tmp_path):
     assert report["n_samples_voltage_limited"] is None and report["n_windows_voltage_limited"] == 0
     design = runner.invoke(
         cli,
-        ["design", "--J", "2e-4", "--alpha", "50", "--zeta", "0.7", "--Ts", "1e-3"]
-        + ["--motor", str(tmp_path / "out" / "motor.toml"), "--current-bandwidth", "2000", "--Ts-current", "1e-4"],
+        ["design", "--J-kgm2", "2e-4", "--alpha-radps", "50", "--zeta", "0.7", "--Ts-s", "1e-3"]
+        + [
+            "--motor",
+            str(tmp_path / "out" / "motor.toml"),
+            "--current-bandwidth-radps",
+            "2000",
+            "--Ts-current-s",
+            "1e-4",
+        ],
     )
     assert design.exit_code == 0, design.output
 
 
 def test_cli_bad_pole_pairs_one_line_nothing_written(tmp_path, capsys):
     write_log(tmp_path / "log.csv", SALIENT, noise_A=0.0)
-    argv = ["identify", str(tmp_path / "log.csv"), "--electrical", "--pole-pairs", "0", "--out", str(tmp_path / "o")]
+    argv = ["identify", "electrical", str(tmp_path / "log.csv"), "--pole-pairs", "0", "--out", str(tmp_path / "o")]
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "--pole-pairs = 0" in err and ">= 1" in err
@@ -150,10 +157,10 @@ def test_intervals_cover_truth_on_random_machines(tmp_path):
 
 @pytest.mark.slow
 def test_readme_commands_identify_the_servo_within_the_targets(tmp_path, monkeypatch, capsys):
-    """README 'No datasheet': the simulate and identify --electrical commands, run as written."""
+    """docs/your-motor.md, 'No datasheet': the simulate and identify electrical commands, run as written."""
     commands = readme_commands("pmsm2dof")
     simulate_args = next(a for a in commands if a[0] == "simulate" and SERVO in a)
-    identify_args = next(a for a in commands if a[0] == "identify" and "--electrical" in a)
+    identify_args = next(a for a in commands if a[:2] == ["identify", "electrical"])
     monkeypatch.chdir(tmp_path)
     (tmp_path / "examples" / "commissioning").mkdir(parents=True)
     (tmp_path / SERVO).write_text((ROOT / SERVO).read_text())

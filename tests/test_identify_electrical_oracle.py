@@ -1,4 +1,4 @@
-"""identify --electrical on logs of the reference simulator (tests/oracles/electrical_log.py).
+"""identify electrical on logs of the reference simulator (tests/oracles/electrical_log.py).
 
 The oracle has what real drives have and the engine does not: the inverter holds the stator-frame
 voltage over a period (the rotor frame turns within it), per-phase dead time, a clip of the
@@ -287,7 +287,7 @@ def test_no_saturation_note_on_a_linear_machine(dead_time_log):
 
 def test_cli_new_options_text_json_and_out(clipped, tmp_path):
     _, folder = clipped
-    args = ["identify", str(folder / "full.csv"), "--electrical", "--pole-pairs", "4", "--current-ranges", "2"]
+    args = ["identify", "electrical", str(folder / "full.csv"), "--pole-pairs", "4", "--current-ranges", "2"]
     args += ["--angle-lead-samples", "0.5"]
     runner = CliRunner()
     text = runner.invoke(cli, [*args, "--dead-time"])
@@ -319,7 +319,7 @@ def test_cli_new_options_text_json_and_out(clipped, tmp_path):
 )
 def test_cli_bad_option_one_line_nothing_written(clipped, tmp_path, capsys, option, text):
     _, folder = clipped
-    argv = ["identify", str(folder / "bare.csv"), "--electrical", "--pole-pairs", "4", *option]
+    argv = ["identify", "electrical", str(folder / "bare.csv"), "--pole-pairs", "4", *option]
     assert main([*argv, "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and text in err
@@ -328,7 +328,21 @@ def test_cli_bad_option_one_line_nothing_written(clipped, tmp_path, capsys, opti
 
 def test_cli_electrical_options_need_electrical(clipped, capsys):
     _, folder = clipped
-    assert main(["identify", str(folder / "bare.csv"), "--dead-time", "--pole-pairs", "4", "--psi-f-Wb", "0.05"]) == 2
+    assert (
+        main(
+            [
+                "identify",
+                "mechanics",
+                str(folder / "bare.csv"),
+                "--dead-time",
+                "--pole-pairs",
+                "4",
+                "--psi-f-Wb",
+                "0.05",
+            ]
+        )
+        == 2
+    )
     assert "--dead-time" in capsys.readouterr().err
 
 

@@ -1,4 +1,4 @@
-"""identify --electrical on a log from another simulator: motulator (tests/data/make_motulator_electrical_log.py).
+"""identify electrical on a log from another simulator: motulator (tests/data/make_motulator_electrical_log.py).
 
 Truth is the machine motulator simulated (a salient servo, Lq/Ld = 2), outside pmsm2dof: its own
 machine model, converter, sensored current-vector controller with its delay compensation, MTPA
@@ -30,12 +30,12 @@ def motulator_log():
 
 
 def identify(tmp_path, capsys, log, *options):
-    """Write the drive's CSV log and run ``pmsm2dof identify LOG --electrical --json`` on it."""
+    """Write the drive's CSV log and run ``pmsm2dof identify electrical LOG --json`` on it."""
     path = tmp_path / "motulator.csv"
     table = np.column_stack([log[name].astype(np.float64) for name in COLUMNS])
     np.savetxt(path, table, delimiter=",", header=",".join(COLUMNS), comments="", fmt="%.10g")
     pole_pairs = str(int(log["pole_pairs"]))
-    assert main(["identify", str(path), "--electrical", "--pole-pairs", pole_pairs, "--json", *options]) == 0
+    assert main(["identify", "electrical", str(path), "--pole-pairs", pole_pairs, "--json", *options]) == 0
     return json.loads(capsys.readouterr().out)
 
 

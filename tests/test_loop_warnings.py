@@ -119,7 +119,7 @@ def test_a_run_the_analysis_does_not_take_says_the_check_was_not_made(tmp_path, 
 def test_the_sweep_summary_names_a_point_whose_check_was_not_made(capsys):
     import pandas as pd
 
-    from pmsm2dof.ui.cli import _sweep_warnings
+    from pmsm2dof.ui.cli.sweep import _sweep_warnings
 
     table = pd.DataFrame(
         {

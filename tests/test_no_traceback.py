@@ -4,7 +4,7 @@ valid range.
 - A property test feeds random bytes, and TOML nested at random depths with random values, to
   every command that reads a file (scenario, sweep, motor and log files): exit status 2 and one
   line on stderr, never a traceback.
-- The probes the issue found: a TOML value nested 5000 deep, --alpha 1e300 (eq 9 overflowed in
+- The probes the issue found: a TOML value nested 5000 deep, --alpha-radps 1e300 (eq 9 overflowed in
   design, bode, twomass), the design equations at 5e-324, a 5 MB scenario name, the tuner's JSON
   edge cases (answered 500 before), and the messages that named no parameter.
 - The Python API: numpy scalars are numbers, a plant inertia must be finite and > 0, and a gain
@@ -36,7 +36,7 @@ with warnings.catch_warnings():
 
 ROOT = Path(__file__).resolve().parents[1]
 MESSAGE = re.compile(r"^pmsm2dof: error: .+ = .+ is invalid: valid range is .+$")
-DESIGN = ["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"]
+DESIGN = ["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3"]
 LOG_TEXT = "time_s,speed_rpm\n" + "".join(f"{i * 0.01},{10.0 * i}\n" for i in range(300))
 
 #: Every command that reads a file, by the kind of file: argv with FILE where the file goes.
@@ -47,16 +47,16 @@ TOML_COMMANDS = {
     "commission": ["commission", "FILE"],
     "autotune": ["autotune", "FILE"],
     "tune": ["tune", "FILE", "--port", "70000", "--no-browser"],
-    "design --motor": [*DESIGN, "--motor", "FILE", "--current-bandwidth", "100"],
-    "identify --plan": ["identify", "--plan", "--motor", "FILE", "--speed-max-rpm", "100", "--out", "out"],
+    "design --motor": [*DESIGN, "--motor", "FILE", "--current-bandwidth-radps", "100"],
+    "identify plan": ["identify", "plan", "--motor", "FILE", "--speed-max-rpm", "100", "--out", "out"],
     "compare (scenario)": ["compare", "log.csv", "FILE", "--out", "out"],
     "header": ["header", "FILE", "--out", "p2d_config.h"],
 }
 #: Commands that read a file but would start a long build on a sound one: probed with refused files only.
 BUILD_COMMANDS = {"firmware": ["firmware", "FILE", "--out", "out"]}
 LOG_COMMANDS = {
-    "identify": ["identify", "FILE", "--pole-pairs", "4", "--psi-f-Wb", "0.1"],
-    "identify --electrical": ["identify", "FILE", "--electrical", "--pole-pairs", "4"],
+    "identify mechanics": ["identify", "mechanics", "FILE", "--pole-pairs", "4", "--psi-f-Wb", "0.1"],
+    "identify electrical": ["identify", "electrical", "FILE", "--pole-pairs", "4"],
     "compare (log)": ["compare", "FILE", "paper-condition-2", "--out", "out"],
 }
 LOG_SUFFIXES = (".csv", ".parquet", ".npz", ".mat")
@@ -184,37 +184,40 @@ def test_an_integer_beyond_float_in_a_motor_file_names_its_key(tmp_path, text, k
 @pytest.mark.parametrize(
     "argv, words",
     [
-        ([*DESIGN, "--alpha", "1e300"], "--alpha = 1e+300"),
-        (["bode", "--alpha", "1e300", "--out", "f.png"], "alpha_radps = 1e+300"),
+        ([*DESIGN, "--alpha-radps", "1e300"], "--alpha-radps = 1e+300"),
+        (["bode", "--alpha-radps", "1e300", "--out", "f.png"], "alpha_radps = 1e+300"),
         (
             [
                 "twomass",
-                "--J-motor",
+                "--J-motor-kgm2",
                 "0.4",
-                "--J-load",
+                "--J-load-kgm2",
                 "0.1",
-                "--stiffness",
+                "--stiffness-Nm-per-rad",
                 "100",
-                "--alpha",
+                "--alpha-radps",
                 "1e300",
-                "--Ts",
+                "--Ts-s",
                 "1e-3",
             ],
-            "--alpha = 1e+300",
+            "--alpha-radps = 1e+300",
         ),
-        ([*DESIGN, "--J", "1e300"], "--J = 1e+300"),  # "Array must not contain infs or NaNs"
-        ([*DESIGN, "--J", "5e-324"], "--J = 5e-324"),  # ZeroDivisionError
-        ([*DESIGN, "--alpha", "5e-324"], "--alpha = 5e-324"),
+        ([*DESIGN, "--J-kgm2", "1e300"], "--J-kgm2 = 1e+300"),  # "Array must not contain infs or NaNs"
+        ([*DESIGN, "--J-kgm2", "5e-324"], "--J-kgm2 = 5e-324"),  # ZeroDivisionError
+        ([*DESIGN, "--alpha-radps", "5e-324"], "--alpha-radps = 5e-324"),
         ([*DESIGN, "--zeta", "1e-300"], "--zeta = 1e-300"),  # OverflowError
         ([*DESIGN, "--zeta", "5e-324"], "--zeta = 5e-324"),
-        ([*DESIGN, "--tau-i", "1e-300"], "--tau-i = 1e-300"),
-        ([*DESIGN, "--tau-i", "1e300"], "--tau-i = 1e+300"),
-        ([*DESIGN, "--sensor-delay", "1e-300"], "--sensor-delay = 1e-300"),  # ZeroDivisionError in pade
-        ([*DESIGN, "--sensor-delay", "1e-20"], "--sensor-delay = 1e-20"),
-        ([*DESIGN, "--sensor-lowpass", "1e-300"], "--sensor-lowpass = 1e-300"),
-        ([*DESIGN, "--sensor-delay", "10"], "--sensor-delay = 10.0"),  # over 5 minutes
-        ([*DESIGN, "--J", "3e38", "--alpha", "3e38"], "a value that makes Kp = J alpha (eq 9) a normal float32"),
-        (["bode", "--alpha", "0.5", "--m", ",".join(["1"] * 2000), "--out", "f.png"], "at most 20"),
+        ([*DESIGN, "--tau-i-s", "1e-300"], "--tau-i-s = 1e-300"),
+        ([*DESIGN, "--tau-i-s", "1e300"], "--tau-i-s = 1e+300"),
+        ([*DESIGN, "--sensor-delay-s", "1e-300"], "--sensor-delay-s = 1e-300"),  # ZeroDivisionError in pade
+        ([*DESIGN, "--sensor-delay-s", "1e-20"], "--sensor-delay-s = 1e-20"),
+        ([*DESIGN, "--sensor-lowpass-radps", "1e-300"], "--sensor-lowpass-radps = 1e-300"),
+        ([*DESIGN, "--sensor-delay-s", "10"], "--sensor-delay-s = 10.0"),  # over 5 minutes
+        (
+            [*DESIGN, "--J-kgm2", "3e38", "--alpha-radps", "3e38"],
+            "a value that makes Kp = J alpha (eq 9) a normal float32",
+        ),
+        (["bode", "--alpha-radps", "0.5", "--m", ",".join(["1"] * 2000), "--out", "f.png"], "at most 20"),
     ],
 )
 def test_the_design_probes_name_the_parameter(tmp_path, argv, words):
@@ -224,7 +227,9 @@ def test_the_design_probes_name_the_parameter(tmp_path, argv, words):
     assert not any(tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("option", ["--J", "--alpha", "--zeta", "--m", "--tau-i", "--Ts", "--Ka", "--sensor-delay"])
+@pytest.mark.parametrize(
+    "option", ["--J-kgm2", "--alpha-radps", "--zeta", "--m", "--tau-i-s", "--Ts-s", "--Ka", "--sensor-delay-s"]
+)
 @pytest.mark.parametrize("value", ["5e-324", "1e-300", "1e-40", "1e-20", "1e20", "1e40", "1e300"])
 def test_design_at_any_magnitude_runs_or_names_the_parameter(tmp_path, option, value):
     argv = [*DESIGN, option, value] + (["--feedforward", "full"] if option == "--m" else [])

@@ -215,13 +215,13 @@ def test_a_device_or_fifo_is_never_replaced_by_a_file(tmp_path):
     code = main(
         [
             "design",
-            "--J",
+            "--J-kgm2",
             "0.4",
-            "--alpha",
+            "--alpha-radps",
             "0.5",
             "--zeta",
             "0.3",
-            "--Ts",
+            "--Ts-s",
             "1e-3",
             "--paper-drive",
             "--emit-c-header",

@@ -1,12 +1,12 @@
 """The package as users get it: the wheel, the sdist, and installs from a checkout.
 
 Every build starts from a copy of the checkout's files as a fresh clone has them (tracked files
-and new ones that are not ignored), with the commands of README "Build backend": ``python -m build``
+and new ones that are not ignored), with the commands of docs/development.md "Build backend": ``python -m build``
 in an isolated build environment, as on a fresh machine. The wheel is installed into a new venv
 without system site-packages (its dependencies come from the package index), by an install that
 has no compiler: ``CC`` and ``CXX`` are ``false`` and ``PATH`` holds only the venv's scripts; a
 control shows that cffi cannot compile there. From a folder outside the checkout that venv then
-runs ``pmsm2dof reproduce``, whose claims and verdicts must be those of the README's table.
+runs ``pmsm2dof reproduce``, whose claims and verdicts must be those of the table of docs/getting-started.md.
 """
 
 import json
@@ -171,8 +171,8 @@ def test_abi3_wheel_loads_on_newer_cpython(wheel, tmp_path):
 
 
 def readme_verdicts():
-    """Claim id -> verdict, from the claims table of README.md."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    """Claim id -> verdict, from the claims table of docs/getting-started.md."""
+    text = (ROOT / "docs" / "getting-started.md").read_text(encoding="utf-8")
     rows = re.findall(r"^\| (C\d+) \|.*\| (reproduced|partly|not reproduced) \|$", text, flags=re.M)
     return dict(rows)
 

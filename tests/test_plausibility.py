@@ -174,7 +174,7 @@ def test_design_names_zeta_and_alpha_too(capsys):
     with pytest.raises(ConfigError) as err:
         design(7.24e-5, 10000.0, 0.7).discretize(TS, "tustin")
     assert err.value.param == "alpha_radps"
-    assert main(["design", "--J", "7.24e-5", "--alpha", "200", "--zeta", "0.01", "--Ts", "5e-4"]) == 2
+    assert main(["design", "--J-kgm2", "7.24e-5", "--alpha-radps", "200", "--zeta", "0.01", "--Ts-s", "5e-4"]) == 2
     assert capsys.readouterr().err.startswith("pmsm2dof: error: --zeta = 0.01 is invalid")
 
 
@@ -216,8 +216,29 @@ def test_design_motor_takes_every_kind_of_motor_file(kind, tmp_path, capsys):
     if kind != "scenario":
         path.write_text(SHEET_ONLY if kind == "datasheet" else IDENTIFIED)
     header = tmp_path / "h.h"
-    argv = ["design", "--motor", str(path), "--J", "7.24e-5", "--alpha", "200", "--zeta", "0.7", "--Ts", "5e-4"]
-    argv += ["--current-bandwidth", "4000", "--Ts-current", "5e-5", "--emit-c-header", str(header), "--i-max", "10"]
+    argv = [
+        "design",
+        "--motor",
+        str(path),
+        "--J-kgm2",
+        "7.24e-5",
+        "--alpha-radps",
+        "200",
+        "--zeta",
+        "0.7",
+        "--Ts-s",
+        "5e-4",
+    ]
+    argv += [
+        "--current-bandwidth-radps",
+        "4000",
+        "--Ts-current-s",
+        "5e-5",
+        "--emit-c-header",
+        str(header),
+        "--i-max-A",
+        "10",
+    ]
     assert main(argv) == 0, capsys.readouterr().err
     captured = capsys.readouterr()
     assert captured.err == ""
@@ -227,7 +248,7 @@ def test_design_motor_takes_every_kind_of_motor_file(kind, tmp_path, capsys):
 
 
 def test_design_motor_warns_of_an_inertia_in_the_wrong_unit(capsys):
-    argv = ["design", "--motor", EC45, "--J", "181", "--alpha", "200", "--zeta", "0.7", "--Ts", "5e-4"]
+    argv = ["design", "--motor", EC45, "--J-kgm2", "181", "--alpha-radps", "200", "--zeta", "0.7", "--Ts-s", "5e-4"]
     assert main(argv) == 0
     (line,) = capsys.readouterr().err.splitlines()
-    assert line.startswith("pmsm2dof: warning: --J = 181 kg m^2 is 1e+07 times the motor's rotor inertia")
+    assert line.startswith("pmsm2dof: warning: --J-kgm2 = 181 kg m^2 is 1e+07 times the motor's rotor inertia")

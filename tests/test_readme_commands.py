@@ -1,6 +1,7 @@
-"""The README's commands run as written and show what the README says they show.
+"""The commands of the README and of the manual run as written and show what the text says they show.
 
-The commands are read from README.md itself, so the text cannot drift from the tool.
+The commands are read from README.md and the manual's pages (docs/, :data:`MANUAL`) themselves, so
+the text cannot drift from the tool.
 """
 
 import json
@@ -12,14 +13,28 @@ import pytest
 
 from pmsm2dof.ui.cli import main
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+#: The landing page and the pages of the manual whose commands run as written.
+MANUAL = (
+    README,
+    *(
+        ROOT / "docs" / page
+        for page in ("getting-started.md", "design.md", "your-motor.md", "studies.md", "sensing.md", "development.md")
+    ),
+)
+
+
+def manual_text():
+    """The landing page and the manual's pages, one after the other."""
+    return "\n".join(path.read_text() for path in MANUAL)
 
 
 def readme_commands(program):
-    """The ``program ...`` command lines of the README's ``sh`` blocks: continuations joined,
-    comments dropped, as argument lists without the program name."""
+    """The ``program ...`` command lines of the ``sh`` blocks of the README and the manual: continuations
+    joined, comments dropped, as argument lists without the program name."""
     commands = []
-    for block in re.findall(r"```sh\n(.*?)```", README.read_text(), flags=re.S):
+    for block in re.findall(r"```sh\n(.*?)```", manual_text(), flags=re.S):
         for line in block.replace("\\\n", " ").splitlines():
             args = shlex.split(line, comments=True)
             if args and args[0] == program:
@@ -64,7 +79,7 @@ def test_autotune_commands_run_as_written(tmp_path, monkeypatch, capsys):
     commands = [a for a in readme_commands("pmsm2dof") if a[0] == "autotune"]
     assert len(commands) == 2
     (tmp_path / "benchmarks").mkdir()
-    shutil.copy(README.parent / "benchmarks" / "small-servo.toml", tmp_path / "benchmarks")
+    shutil.copy(ROOT / "benchmarks" / "small-servo.toml", tmp_path / "benchmarks")
     monkeypatch.chdir(tmp_path)
     for args in commands:
         assert main(args) == 0, args
@@ -77,6 +92,6 @@ def test_autotune_commands_run_as_written(tmp_path, monkeypatch, capsys):
             assert (out / "scenario.toml").stat().st_size > 0 and (out / "pareto.png").stat().st_size > 0
         if "--emit-c-header" in args:
             assert (tmp_path / args[args.index("--emit-c-header") + 1]).stat().st_size > 0
-    (example,) = [b for b in re.findall(r"```python\n(.*?)```", README.read_text(), flags=re.S) if "autotune" in b]
-    exec(compile(example, "README.md", "exec"), {})
+    (example,) = [b for b in re.findall(r"```python\n(.*?)```", manual_text(), flags=re.S) if "autotune" in b]
+    exec(compile(example, "docs/studies.md", "exec"), {})
     assert "True {'alpha_radps'" in capsys.readouterr().out

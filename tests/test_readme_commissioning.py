@@ -1,4 +1,4 @@
-"""README "No datasheet: identify the machine": its commands run as written and do what it says."""
+"""docs/your-motor.md, "No datasheet: identify the machine": its commands run as written and do what it says."""
 
 import json
 import shutil
@@ -59,4 +59,4 @@ def test_a_failed_run_as_the_guide_says(tmp_path, monkeypatch, capsys):
 def test_the_c_snippet_uses_the_real_signature(block):
     header = (ROOT / "csrc" / "include" / "pmsm2dof" / "commission.h").read_text()
     assert "void p2d_commission_step(p2d_commission_t *c, float id_A, float iq_A, float u_dc_V," in header
-    assert block in (ROOT / "README.md").read_text()
+    assert block in (ROOT / "docs" / "your-motor.md").read_text()

@@ -152,35 +152,38 @@ def test_unwritable_output_folder(where, workdir, capsys):
     assert (workdir / "file").read_text() == "x"
 
 
-DESIGN = ["design", "--J", "0.4", "--alpha", "0.5", "--zeta", "0.3", "--Ts", "1e-3"]
+DESIGN = ["design", "--J-kgm2", "0.4", "--alpha-radps", "0.5", "--zeta", "0.3", "--Ts-s", "1e-3"]
 
 DESIGN_BAD = [
     (["--feedforward", "bogus"], "feedforward = 'bogus'"),
     (["--anti-windup", "bogus"], "--anti-windup = 'bogus'"),
     (["--method", "zoh"], "method = 'zoh'"),
     (["--method"], "--method"),
-    (["--Ts", "0"], "--Ts = 0.0"),
-    (["--Ts", "-1e-3"], "--Ts = -0.001"),
-    (["--Ts", "1e300"], "--Ts = "),  # the C controller: not a float32
+    (["--Ts-s", "0"], "--Ts-s = 0.0"),
+    (["--Ts-s", "-1e-3"], "--Ts-s = -0.001"),
+    (["--Ts-s", "1e300"], "--Ts-s = "),  # the C controller: not a float32
     (["--zeta", "-0.5"], "zeta = -0.5"),
-    (["--alpha", "inf"], "--alpha = inf"),
-    (["--J", "nan"], "--J = nan"),
-    (["--J", "0.4kg"], "--J"),
+    (["--alpha-radps", "inf"], "--alpha-radps = inf"),
+    (["--J-kgm2", "nan"], "--J-kgm2 = nan"),
+    (["--J-kgm2", "0.4kg"], "--J-kgm2"),
     (["--m", "0"], "m = 0.0"),
     (["--Ka", "nan"], "Ka = nan"),
-    (["--tau-i", "nan"], "--tau-i = nan"),
-    (["--emit-c-header", "h.h"], "--i-max, --pole-pairs, --psi-f, --Ld, --Rs, --Ts-current missing"),
-    (["--emit-c-header", "h.h", "--i-max", "7.6", "--Ld", "0.01"], "--pole-pairs, --psi-f, --Rs, --Ts-current missing"),
-    (["--emit-c-header", "h.h", "--paper-drive", "--i-max", "-1"], "--i-max = -1.0"),
+    (["--tau-i-s", "nan"], "--tau-i-s = nan"),
+    (["--emit-c-header", "h.h"], "--i-max-A, --pole-pairs, --psi-f-Wb, --Ld-H, --Rs-ohm, --Ts-current-s missing"),
+    (
+        ["--emit-c-header", "h.h", "--i-max-A", "7.6", "--Ld-H", "0.01"],
+        "--pole-pairs, --psi-f-Wb, --Rs-ohm, --Ts-current-s missing",
+    ),
+    (["--emit-c-header", "h.h", "--paper-drive", "--i-max-A", "-1"], "--i-max-A = -1.0"),
     (["--emit-c-header", "h.h", "--paper-drive", "--pole-pairs", "0"], "--pole-pairs = 0"),
-    (["--emit-c-header", "h.h", "--paper-drive", "--tau-i", "0.05", "--prefix", "1bad"], "prefix = '1bad'"),
-    (["--emit-c-header", "h.h", "--paper-drive", "--Ld", "0"], "--Ld = 0.0"),
-    (["--emit-c-header", "h.h", "--paper-drive", "--psi-f", "nan"], "--psi-f = nan"),
-    (["--emit-c-header", "h.h", "--paper-drive", "--tau-i", "0.05", "--Ts-current", "3e-4"], "--Ts = 0.001"),
-    (["--emit-c-header", "h.h", "--paper-drive", "--tau-i", "0.05", "--Rs", "-1"], "--Rs = -1.0"),
-    (["--emit-c-header", "h.h", "--paper-drive"], "--tau-i = 0.0"),
-    (["--emit-c-header", "/proc/pmsm2dof/h.h", "--paper-drive", "--tau-i", "0.05"], "/proc/pmsm2dof/h.h"),
-    (["--emit-c-header", "file/h.h", "--paper-drive", "--tau-i", "0.05"], "file/h.h"),
+    (["--emit-c-header", "h.h", "--paper-drive", "--tau-i-s", "0.05", "--prefix", "1bad"], "prefix = '1bad'"),
+    (["--emit-c-header", "h.h", "--paper-drive", "--Ld-H", "0"], "--Ld-H = 0.0"),
+    (["--emit-c-header", "h.h", "--paper-drive", "--psi-f-Wb", "nan"], "--psi-f-Wb = nan"),
+    (["--emit-c-header", "h.h", "--paper-drive", "--tau-i-s", "0.05", "--Ts-current-s", "3e-4"], "--Ts-s = 0.001"),
+    (["--emit-c-header", "h.h", "--paper-drive", "--tau-i-s", "0.05", "--Rs-ohm", "-1"], "--Rs-ohm = -1.0"),
+    (["--emit-c-header", "h.h", "--paper-drive"], "--tau-i-s = 0.0"),
+    (["--emit-c-header", "/proc/pmsm2dof/h.h", "--paper-drive", "--tau-i-s", "0.05"], "/proc/pmsm2dof/h.h"),
+    (["--emit-c-header", "file/h.h", "--paper-drive", "--tau-i-s", "0.05"], "file/h.h"),
 ]
 
 
@@ -196,15 +199,15 @@ def test_bad_design_options(extra, mention, workdir, capsys):
         (["--m", ""], "m = ''"),
         (["--m", "0"], "m = 0.0"),
         (["--m", "-1,2"], "m = -1.0"),
-        (["--alpha", "nan"], "alpha_radps = nan"),
-        (["--J", "0"], "J_kgm2 = 0.0"),
+        (["--alpha-radps", "nan"], "alpha_radps = nan"),
+        (["--J-kgm2", "0"], "J_kgm2 = 0.0"),
         (["--feedforward", "bogus"], "feedforward = 'bogus'"),
         (["--out", "fig"], "out = 'fig'"),
         (["--out", "/proc/pmsm2dof.png"], "/proc/pmsm2dof.png"),
     ],
 )
 def test_bad_bode_options(extra, mention, workdir, capsys):
-    argv = ["bode", "--alpha", "0.5", "--out", "fig.png"]
+    argv = ["bode", "--alpha-radps", "0.5", "--out", "fig.png"]
     for i in range(0, len(extra), 2):
         if extra[i] in argv:
             argv[argv.index(extra[i]) + 1] = extra[i + 1]

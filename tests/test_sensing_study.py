@@ -1,4 +1,4 @@
-"""The sensor-chain study, its CLI command, and the README guide to speed sensing run verbatim.
+"""The sensor-chain study, its CLI command, and the manual's guide to speed sensing (docs/sensing.md) run verbatim.
 
 Truth from outside the study: the margins of the ideal chain are those of the paper's loop
 without a sensor (python-control on F G built here from eq 2, 3 and 9, sampled by
@@ -152,7 +152,7 @@ def test_cli_simulate_refuses_a_bad_sensing_key_in_one_line_and_writes_nothing(t
 
 
 def readme_section():
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "sensing.md").read_text()
     start = text.index("## Speed sensing, current sensors and field weakening")
     end = text.index("\n## ", start + 1)
     return text[start:end]

@@ -72,17 +72,41 @@ def test_sampled_loop_stability_is_the_engines():
 
 
 def test_cli_twomass_prints_the_analysis(capsys):
-    args = ["twomass", "--J-motor", "0.1", "--J-load", "0.3", "--stiffness", str(K), "--damping", str(D)]
-    assert main([*args, "--alpha", "20", "--tau-i", "2e-3", "--Ts", "1e-3", "--feedback", "load"]) == 0
+    args = [
+        "twomass",
+        "--J-motor-kgm2",
+        "0.1",
+        "--J-load-kgm2",
+        "0.3",
+        "--stiffness-Nm-per-rad",
+        str(K),
+        "--damping-Nms-per-rad",
+        str(D),
+    ]
+    assert main([*args, "--alpha-radps", "20", "--tau-i-s", "2e-3", "--Ts-s", "1e-3", "--feedback", "load"]) == 0
     out = capsys.readouterr().out
     assert "resonance                  30 Hz" in out and "UNSTABLE" in out
 
 
 def test_cli_twomass_bad_input_is_one_line(capsys):
-    args = ["twomass", "--J-motor", "0.1", "--J-load", "-1", "--stiffness", "1", "--alpha", "20", "--Ts", "1e-3"]
+    args = [
+        "twomass",
+        "--J-motor-kgm2",
+        "0.1",
+        "--J-load-kgm2",
+        "-1",
+        "--stiffness-Nm-per-rad",
+        "1",
+        "--alpha-radps",
+        "20",
+        "--Ts-s",
+        "1e-3",
+    ]
     assert main(args) == 2
     captured = capsys.readouterr()
-    assert captured.err.splitlines() == ["pmsm2dof: error: --J-load = -1.0 is invalid: valid range is finite and > 0"]
+    assert captured.err.splitlines() == [
+        "pmsm2dof: error: --J-load-kgm2 = -1.0 is invalid: valid range is finite and > 0"
+    ]
     assert captured.out == ""
 
 
@@ -162,7 +186,19 @@ def test_a_stiff_shaft_has_the_rigid_drives_bound():
 
 
 def test_cli_region_refuses_other_formats_and_writes_nothing(tmp_path, capsys):
-    args = ["twomass", "--J-motor", "0.1", "--J-load", "0.3", "--stiffness", str(K), "--alpha", "20", "--Ts", "1e-3"]
+    args = [
+        "twomass",
+        "--J-motor-kgm2",
+        "0.1",
+        "--J-load-kgm2",
+        "0.3",
+        "--stiffness-Nm-per-rad",
+        str(K),
+        "--alpha-radps",
+        "20",
+        "--Ts-s",
+        "1e-3",
+    ]
     assert main([*args, "--region", str(tmp_path / "region.pdf")]) == 2
     assert capsys.readouterr().err.splitlines() == [
         f"pmsm2dof: error: --region = '{tmp_path / 'region.pdf'}' is invalid: valid range is a file name ending "
@@ -173,8 +209,18 @@ def test_cli_region_refuses_other_formats_and_writes_nothing(tmp_path, capsys):
 
 @pytest.mark.slow
 def test_cli_region_draws_the_stable_region(tmp_path, capsys):
-    args = ["twomass", "--J-motor", "0.1", "--J-load", "0.3", "--stiffness", str(K), "--damping", str(D)]
-    args += ["--alpha", "20", "--tau-i", "2e-3", "--Ts", "1e-3", "--feedback", "load"]
+    args = [
+        "twomass",
+        "--J-motor-kgm2",
+        "0.1",
+        "--J-load-kgm2",
+        "0.3",
+        "--stiffness-Nm-per-rad",
+        str(K),
+        "--damping-Nms-per-rad",
+        str(D),
+    ]
+    args += ["--alpha-radps", "20", "--tau-i-s", "2e-3", "--Ts-s", "1e-3", "--feedback", "load"]
     assert main([*args, "--region", str(tmp_path / "region.svg")]) == 0
     assert (tmp_path / "region.svg").read_text().lstrip().startswith("<?xml")
     assert [p.name for p in tmp_path.iterdir()] == ["region.svg"]

@@ -1,4 +1,4 @@
-"""The README's two-mass guide runs as written and shows what it says."""
+"""The manual's two-mass guide (docs/sensing.md) runs as written and shows what it says."""
 
 import numpy as np
 import pandas as pd

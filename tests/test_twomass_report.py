@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 from pmsm2dof.studies import twomass as tm
+from pmsm2dof.studies.twomass import REGION_RESONANCES_HZ
+from pmsm2dof.studies.twomass import paper_region_study as run_two_mass_study
 from pmsm2dof.ui.report.render import render_markdown
-from pmsm2dof.ui.report.twomass import REGION_RESONANCES_HZ, run_two_mass_study, two_mass_blocks
+from pmsm2dof.ui.report.twomass import two_mass_blocks
 
 PAPER = dict(zeta=0.28867513459481287, tau_i_s=0.05, Ts_s=1e-3)
 

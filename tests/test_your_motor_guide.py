@@ -1,6 +1,6 @@
-"""The README's guide "Your motor" runs as written and finds the drive's inertia.
+"""The manual's guide "Your motor" (docs/your-motor.md) runs as written and finds the drive's inertia.
 
-The commands are read from the guide's section of README.md; the truth is the example drive's
+The commands are read from the guide's section of docs/your-motor.md; the truth is the example drive's
 motor.J_kgm2 (the plant of the simulated log), not anything the commands print.
 """
 
@@ -20,7 +20,7 @@ HEADING = "## Your motor: datasheet, log, identify, design, header"
 
 
 def guide_commands():
-    text = (ROOT / "README.md").read_text()
+    text = (ROOT / "docs" / "your-motor.md").read_text()
     section = text[text.index(HEADING) :]
     section = section[: section.index("\n## ", 1)]
     commands = []
@@ -52,7 +52,7 @@ def test_the_guide_runs_as_written_and_identifies_the_drive(tmp_path, monkeypatc
     assert report["B_Nms"] == pytest.approx(truth["B_Nms"], rel=0.35)
     # the design's J is the identified one, rounded as the guide writes it
     assert load_scenario(tmp_path / "plan" / "plan.toml").data["reference"]
-    design_J = float(commands[4][commands[4].index("--J") + 1])
+    design_J = float(commands[4][commands[4].index("--J-kgm2") + 1])
     assert design_J == pytest.approx(report["J_kgm2"], rel=0.01)
     assert "p2d_speed_config_t" in (tmp_path / "speed_config.h").read_text()
     identified = load_scenario(tmp_path / "ident" / "identified.toml")

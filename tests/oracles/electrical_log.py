@@ -1,6 +1,6 @@
 """A reference simulator of the electrical drive: the log a real drive records, from the physics.
 
-An oracle for the electrical identification (``identify --electrical``): it never imports
+An oracle for the electrical identification (``identify electrical``): it never imports
 pmsm2dof. A PMSM on a dynamometer (the rotor speed is imposed by the caller, so there are no
 mechanics) runs under a sampled dq current controller, and the log holds what a drive records,
 with what real drives have and pmsm2dof's engine does not model:

@@ -2,7 +2,7 @@
 
 A :class:`~pmsm2dof.core.motor.Motor` is the machine per phase in the amplitude-invariant dq frame
 of eq 1, with the 95 % intervals of the estimates where known (a motor file of ``pmsm2dof commission
---out`` or ``identify --electrical --out``, read by :func:`pmsm2dof.core.motor.load_motor`).
+--out`` or ``identify electrical --out``, read by :func:`pmsm2dof.core.motor.load_motor`).
 
 :func:`design_current_loop` places the closed current loop of each axis at the bandwidth
 ``alpha_c``: the PI ``Kp = L alpha_c``, ``Ki = Rs alpha_c`` cancels the pole ``-Rs/L`` of the

@@ -14,12 +14,12 @@ from collections.abc import Iterable
 STRUCT = re.compile(r"typedef struct\s*\{([^{}]*?)\}\s*(\w+)\s*;", re.S)
 #: A field declaration followed by the start of its comment.
 FIELD = re.compile(r"^\s*[\w ]*?\s\**(\w+)(?:\[[^\]]*\])?\s*;\s*/\*(.*)$")
-#: The unit in a comment: the first ``[...]``.
+#: The unit in a comment: the text of its first square brackets, ``[unit]``.
 UNIT = re.compile(r"\[([^\]]*)\]")
 
 
 def field_comments(texts: Iterable[str], struct_names: str = r"\w+") -> dict[str, str]:
-    """``{"<struct>.<field>": comment}`` of the fields of the typedef'd structs in the C texts.
+    """The comments of the fields of the typedef'd structs in the C texts, by ``"<struct>.<field>"``.
 
     Parameters
     ----------
@@ -49,6 +49,6 @@ def field_comments(texts: Iterable[str], struct_names: str = r"\w+") -> dict[str
 
 
 def comment_unit(comment: str) -> str:
-    """The unit of a field comment, the text of its first ``[...]`` ("" when none, "-" for dimensionless)."""
+    """The unit of a field comment, the text of its first square brackets ("" when none, "-" for dimensionless)."""
     m = UNIT.search(comment)
     return m.group(1).strip() if m else ""

@@ -417,7 +417,7 @@ def load_motor(path: str | os.PathLike[str]) -> Motor:
     ----------
     path : str or os.PathLike
         A scenario file, a file with only ``[motor]`` (and ``[motor.datasheet]``), or an identified
-        motor file (``motor.toml`` of ``pmsm2dof commission --out`` or ``identify --electrical
+        motor file (``motor.toml`` of ``pmsm2dof commission --out`` or ``identify electrical
         --out``: the model keys and, optionally, ``<key>_ci = [low, high]``, the 95 % interval of
         an estimate, for the keys of :data:`INTERVAL_KEYS`).
 

@@ -275,7 +275,7 @@ def plan_capture(
     if event not in link.a2l.events:
         raise ConfigError("event", event, " or ".join(link.a2l.events) + " (the A2L's DAQ events)")
     if not (isinstance(duration_s, float | int) and math.isfinite(duration_s) and 0 < duration_s <= DURATION_MAX_S):
-        raise ConfigError("duration", duration_s, f"(0, {DURATION_MAX_S:g}] s")
+        raise ConfigError("duration_s", duration_s, f"(0, {DURATION_MAX_S:g}] s")
     suffix = Path(out).suffix.lower()
     if suffix not in CAPTURE_FORMATS:
         raise ConfigError("out", str(out), "a file ending in " + ", ".join(CAPTURE_FORMATS))
@@ -290,7 +290,7 @@ def plan_capture(
     values = samples * (len(names) + 1)
     if values > CAPTURE_VALUES_MAX:
         raise ConfigError(
-            "duration",
+            "duration_s",
             duration_s,
             f"at most {CAPTURE_VALUES_MAX / (len(names) + 1) * period_s:.4g} s of {len(names)} signals at the "
             f"{event} event ({period_s:g} s): {CAPTURE_VALUES_MAX:g} values",

@@ -18,7 +18,7 @@ from ..sim.scenario import Scenario, load_scenario
 
 __all__ = ["SERVO", "AccuracyRow", "accuracy_study", "random_machines", "real_drive", "servo_scenario"]
 
-#: The salient servo of the README's commissioning guide (examples/commissioning/servo-salient.toml):
+#: The salient servo of the commissioning guide (docs/your-motor.md, examples/commissioning/servo-salient.toml):
 #: Rs = 0.8 ohm, Ld = 4 mH, Lq = 8 mH, psi_f = 0.05 Wb, p = 4, J = 2e-4 kg m^2, 48 V, 5 A.
 SERVO = {
     "name": "salient servo",

@@ -43,6 +43,7 @@ from ..core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, SpeedController
 from ..core.bindings import ffi
 from ..errors import ConfigError
 from ..outputs import atomic_write
+from ..core.motor import Motor
 from ..sim.scenario import Scenario, Tree, load_scenario
 from ..sim.simulate import RPM_PER_RADPS, Simulation
 
@@ -376,6 +377,73 @@ def design_scenario(
     for key, value in (speed_filter or {}).items():
         changes[f"speed_filter.{key}"] = value
     return load_scenario(DESIGN_TEMPLATE).with_overrides(changes)
+
+
+#: The motor data and current loop of a design's configuration (:func:`design_scenario`'s arguments):
+#: argument -> (unit, scenario key).
+DESIGN_MOTOR = {
+    "i_max_A": ("A", "limits.i_max_A"),
+    "pole_pairs": ("", "motor.pole_pairs"),
+    "psi_f_Wb": ("Wb", "motor.psi_f_Wb"),
+    "Ld_H": ("H", "motor.Ld_H"),
+    "Lq_H": ("H", "motor.Lq_H"),
+    "Rs_ohm": ("ohm", "motor.Rs_ohm"),
+    "Ts_current_s": ("s", "current_loop.Ts_s"),
+}
+#: The source of a value of :func:`design_motor` given by the caller.
+GIVEN = "given"
+
+
+def design_motor(
+    given: Mapping[str, float | None],
+    *,
+    motor: Motor | None = None,
+    motor_source: str = "",
+    paper_drive: bool = False,
+) -> tuple[dict[str, Any], dict[str, str]]:
+    """The motor data and current-loop period of a design's configuration, and where each came from.
+
+    Each value of :data:`DESIGN_MOTOR` is the one ``given`` (source :data:`GIVEN`), else the one of
+    ``motor`` (a motor file's, source ``motor_source``), else, with ``paper_drive``, the paper's
+    drive (the preset :data:`DESIGN_TEMPLATE`, a placeholder); ``Lq_H`` not given is ``Ld_H``
+    (surface PMSM) when ``Ld_H`` is given.
+
+    Returns
+    -------
+    tuple
+        ``(values, sources)``: the keyword arguments of :func:`design_scenario` and, for each,
+        its source, in the order of :data:`DESIGN_MOTOR`.
+
+    Raises
+    ------
+    ConfigError
+        Naming every missing value (its parameter: their names, comma-separated) when one is
+        neither given, in ``motor`` nor taken from the paper's drive.
+    """
+    values: dict[str, Any] = {}
+    sources: dict[str, str] = {}
+    for name in DESIGN_MOTOR:
+        if given.get(name) is not None:
+            values[name], sources[name] = given[name], GIVEN
+        elif motor is not None and hasattr(motor, name):
+            values[name], sources[name] = getattr(motor, name), motor_source
+    if "Lq_H" not in values and sources.get("Ld_H") == GIVEN:
+        values["Lq_H"], sources["Lq_H"] = values["Ld_H"], "= Ld_H: surface PMSM, Lq_H not given"
+    missing = [name for name in DESIGN_MOTOR if name not in values]
+    if missing and not paper_drive:
+        raise ConfigError(
+            ", ".join(missing),
+            "<missing>",
+            f"the motor data and the current loop of the configuration: {', '.join(missing)} missing; give "
+            "them, or take them from the paper's drive (placeholders, not your motor)",
+        )
+    if missing:
+        data = load_scenario(DESIGN_TEMPLATE).data
+        for name in missing:
+            table, key = DESIGN_MOTOR[name][1].split(".")
+            values[name] = data[table][key]
+            sources[name] = f"paper drive, preset {DESIGN_TEMPLATE}: a placeholder, not your motor"
+    return {name: values[name] for name in DESIGN_MOTOR}, {name: sources[name] for name in DESIGN_MOTOR}
 
 
 def _speed_controller(speed: Any) -> SpeedController:

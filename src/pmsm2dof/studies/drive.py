@@ -137,7 +137,7 @@ def serve_drive(
     (:func:`pmsm2dof.studies.firmware.serve_scenario`).
     """
     if duration_s is not None and not (math.isfinite(duration_s) and 0 < duration_s <= SERVE_MAX_S):
-        raise ConfigError("duration", duration_s, f"(0, {SERVE_MAX_S:g}] s, or none: until interrupted")
+        raise ConfigError("duration_s", duration_s, f"(0, {SERVE_MAX_S:g}] s, or none: until interrupted")
     with serve_scenario(scenario, port=port, realtime=realtime, timeout_ms=timeout_ms, out=out, force=force) as (
         url,
         folder,

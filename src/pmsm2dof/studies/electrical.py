@@ -262,7 +262,7 @@ class Electrical:
     def motor_toml(self, pole_pairs: int, source: str) -> str:
         """The identified motor as a ``[motor]`` table for ``pmsm2dof design --motor`` (as ``commission --out``)."""
         lines = [
-            f"identified from {source} by pmsm2dof identify --electrical",
+            f"identified from {source} by pmsm2dof identify electrical",
             "per phase, amplitude-invariant dq (eq 1)",
         ]
         if self.dead_time_V is not None:

@@ -38,7 +38,7 @@ from the white-noise formula would be too narrow.
 
 Identifiability: J is reported only when its relative standard deviation is below
 :data:`J_REL_SD_MAX`; otherwise :class:`IdentificationError` says why and what experiment
-would do (speed steps or torque pulses: ``pmsm2dof identify --plan``).
+would do (speed steps or torque pulses: ``pmsm2dof identify plan``).
 
 The time constant of the current loop (eq 3) comes from the logged iq steps when ``iq_ref_A``
 is in the log (:func:`identify_tau_i`).
@@ -312,7 +312,7 @@ def identify_mechanics(
         raise IdentificationError(
             f"{log.source}: only {rows['y'].size} usable rows of {n * dt:.3g} s (at least {ROWS_MIN}) with the speed "
             f"away from zero (|w| > {w_zero:.3g} rad/s): log a longer run with speed steps or torque pulses "
-            "(pmsm2dof identify --plan)"
+            "(pmsm2dof identify plan)"
         )
     X = np.column_stack([rows["x_J"], rows["x_B"], rows["x_C"]])
     y = rows["y"]
@@ -339,7 +339,7 @@ def identify_mechanics(
             f"{log.source}: J is not identifiable from this log (J = {J:.4g} +- {sd[0]:.2g} kg m^2; the largest "
             f"mean acceleration over {n * dt:.3g} s is {accel:.3g} rad/s^2, too little against the torque noise): "
             "log speed steps or torque pulses that accelerate the drive near its current limit, in both directions "
-            "(pmsm2dof identify --plan writes such a run)"
+            "(pmsm2dof identify plan writes such a run)"
         )
     excluded = _merge([(float(a), float(b)) for a, b in zip(rows["t0"][~keep], rows["t1"][~keep])])
     if excluded:
@@ -466,6 +466,26 @@ PLAN_LEVELS = (1.0, -0.8, 0.6, -1.0, 0.3)
 PLAN_VOLTAGE_SHARE = 0.9
 
 
+def identified_toml(mech: Mechanics, current: CurrentLoop | None, scenario: Scenario | None, source: str) -> str:
+    """The values identified from a log as a TOML file for the next commands (simulate, design --motor).
+
+    With the drive's ``scenario``: the scenario with them, its speed controller designed for the J
+    found (eq 9); without one, a ``[motor]`` table (and ``[current_loop]`` with tau_i), headed by
+    ``source``. Friction coefficients below zero (a fit within its noise) are written as zero.
+    """
+    values = {"motor.J_kgm2": mech.J_kgm2, "motor.B_Nms": max(mech.B_Nms, 0.0)}
+    values["motor.T_coulomb_Nm"] = max(mech.T_coulomb_Nm, 0.0)
+    if current is not None:
+        values["current_loop.tau_i_s"] = current.tau_i_s
+    if scenario is not None:
+        return scenario.with_overrides({**values, "speed_controller.J_kgm2": mech.J_kgm2}).to_toml()
+    lines = [f"# identified from {source}", "[motor]"]
+    lines += [f"{k.split('.')[1]} = {v!r}" for k, v in values.items() if k.startswith("motor.")]
+    if current is not None:
+        lines += ["", "[current_loop]", f"tau_i_s = {current.tau_i_s!r}"]
+    return "\n".join(lines) + "\n"
+
+
 class PlanWarning(Pmsm2dofWarning):
     """The plan departs from what was asked (its speeds lowered to stay inside the voltage limit)."""
 
@@ -531,7 +551,7 @@ def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | N
     return scenario.with_overrides(
         {
             "name": f"{data['name']}: identification plan",
-            "description": f"speed steps within +-{speed_max_rpm:g} rpm for pmsm2dof identify",
+            "description": f"speed steps within +-{speed_max_rpm:g} rpm for pmsm2dof identify mechanics",
             "reference": reference,
             "load": [],
             "fault": [],

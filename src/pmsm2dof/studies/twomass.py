@@ -9,13 +9,14 @@ measures each run against the rigid drive; :func:`stable_region` gives the large
 stable sampled loop over inertia ratio and resonance (:mod:`pmsm2dof.analysis.twomass`).
 """
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from ..analysis.twomass import largest_stable_alpha, two_mass
+from ..analysis.twomass import TwoMass, largest_stable_alpha, two_mass
 from ..core import FEEDBACKS
 from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
@@ -40,6 +41,29 @@ Case = tuple[float | None, str, float, bool]
 LATE_S = 2.0
 #: The notch at the resonance: -3 dB width as a share of its frequency, and its depth [-].
 NOTCH_WIDTH_SHARE, NOTCH_DEPTH = 0.5, 0.05
+#: Inertia ratios J_L/J_M and resonances [Hz] of the report's stable-region figure.
+REGION_RATIOS = (1.0, 3.0, 10.0)
+REGION_RESONANCES_HZ = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
+#: A stable region: (the side read, with the notch) -> largest stable alpha [rad/s] over (ratio, resonance).
+Regions = dict[tuple[str, bool], np.ndarray]
+
+
+@dataclasses.dataclass(frozen=True)
+class TwoMassStudy:
+    """The runs, their rows and the stable regions of two-mass trains around one design.
+
+    ``regions[(feedback, notch)]``: the largest stable alpha [rad/s] over ``ratios`` (rows; the load
+    side: the first ratio alone, it does not depend on it) and ``resonances_Hz`` (columns).
+    """
+
+    rows: list[dict[str, Any]]
+    regions: Regions
+    alpha_radps: float
+    zeta: float
+    tau_i_s: float
+    Ts_s: float
+    ratios: tuple[float, ...] = REGION_RATIOS
+    resonances_Hz: tuple[float, ...] = REGION_RESONANCES_HZ
 
 
 def train_overrides(
@@ -183,3 +207,57 @@ def stable_region(
                 train, zeta, tau_i_s, Ts_s, alpha_min_radps, alpha_max_radps, feedback, filters
             )
     return region
+
+
+def stable_regions(
+    ratios: Sequence[float], resonances_Hz: Sequence[float], *, zeta: float, tau_i_s: float, Ts_s: float, **shape: float
+) -> Regions:
+    """:func:`stable_region` read on either side (the load side: the first ratio alone), without and with a notch."""
+    return {
+        (fb, notch): stable_region(
+            ratios if fb == "motor" else ratios[:1],
+            resonances_Hz,
+            zeta=zeta,
+            tau_i_s=tau_i_s,
+            Ts_s=Ts_s,
+            feedback=fb,
+            notch=notch,
+            **shape,
+        )
+        for fb in FEEDBACKS
+        for notch in (False, True)
+    }
+
+
+def paper_region_study(overrides: Mapping[str, Any] | None = None) -> TwoMassStudy:
+    """The study's runs and the stable regions of :data:`REGION_RATIOS` x :data:`REGION_RESONANCES_HZ` on
+    the preset's design (with ``overrides``)."""
+    data = load_scenario(PRESET).with_overrides(dict(overrides or {})).data
+    sc, tau_i_s = data["speed_controller"], data["current_loop"]["tau_i_s"]
+    rows = two_mass_rows(run_two_mass(overrides))
+    regions = stable_regions(REGION_RATIOS, REGION_RESONANCES_HZ, zeta=sc["zeta"], tau_i_s=tau_i_s, Ts_s=sc["Ts_s"])
+    return TwoMassStudy(rows, regions, sc["alpha_radps"], sc["zeta"], tau_i_s, sc["Ts_s"])
+
+
+def region_around(
+    train: TwoMass, alpha_radps: float, zeta: float, tau_i_s: float, Ts_s: float, filters: Mapping[str, float]
+) -> TwoMassStudy:
+    """The stable regions around one train: resonances from a tenth to ten times its own (9, log-spaced),
+    inertia ratios a third, one and three times its own, with the notch of ``filters`` (the fields of
+    ``p2d_filter_config_t``; without a notch: :data:`NOTCH_WIDTH_SHARE` and :data:`NOTCH_DEPTH`)."""
+    f_r = train.resonance_radps / (2.0 * np.pi)
+    ratios = tuple(sorted({train.inertia_ratio, train.inertia_ratio / 3.0, 3.0 * train.inertia_ratio}))
+    resonances = tuple(float(f) for f in np.geomspace(f_r / 10.0, 10.0 * f_r, 9))
+    notch = filters.get("notch_freq_Hz", 0.0) > 0.0
+    regions = stable_regions(
+        ratios,
+        resonances,
+        zeta=zeta,
+        tau_i_s=tau_i_s,
+        Ts_s=Ts_s,
+        J_total_kgm2=train.J_total_kgm2,
+        resonance_damping=train.resonance_damping,
+        notch_width_share=filters["notch_width_Hz"] / filters["notch_freq_Hz"] if notch else NOTCH_WIDTH_SHARE,
+        notch_depth=filters["notch_depth"] if notch else NOTCH_DEPTH,
+    )
+    return TwoMassStudy([], regions, alpha_radps, zeta, tau_i_s, Ts_s, ratios, resonances)

@@ -23,8 +23,8 @@ _OPTIONS = {
     "fmt": "--fixed-point",
     "speed_full_scale_radps": "--speed-full-scale-rpm",
     "torque_full_scale_Nm": "--torque-full-scale-Nm",
-    "T_max_Nm": "--i-max",
-    "Ts_s": "--Ts",
+    "T_max_Nm": "--i-max-A",
+    "Ts_s": "--Ts-s",
 }
 
 
@@ -41,7 +41,7 @@ def design_scaling_check(
 ) -> "ScalingReport | None":
     """The scaling check of ``design`` at ``Ts_s`` in ``fmt``, or None without ``--fixed-point``.
 
-    The torque limit is ``1.5 p psi_f i_max`` when --i-max, --pole-pairs and --psi-f (or --motor)
+    The torque limit is ``1.5 p psi_f i_max`` when --i-max-A, --pole-pairs and --psi-f-Wb (or --motor)
     give it, else the torque full scale (the check's default).
 
     Raises

@@ -52,6 +52,7 @@ from ...studies.claims import VERDICTS, Claim, compute_claims
 from ...studies.faults import run_faults
 from ...studies.fixedpoint import run_arithmetic
 from ...studies.sensing import offset_study, sensor_study
+from ...studies.twomass import paper_region_study
 from .adaptation import CAPTION as ADAPTATION_CAPTION
 from .adaptation import fig_adaptation
 from .commissioning import run_commissioning
@@ -59,7 +60,7 @@ from .figures import FigureData, fig_faults, figures
 from .fixedpoint import CAPTION as FIXED_POINT_CAPTION
 from .fixedpoint import fig_fixed_point
 from .render import csv_text, json_value, render_html, render_markdown, report_blocks, sensitivity_rows
-from .twomass import fig_stable_region, run_two_mass_study
+from .twomass import fig_stable_region
 
 __all__ = ["VERDICTS", "Claim", "Report", "compute_claims", "reproduce", "write_report"]
 
@@ -122,7 +123,7 @@ def write_report(
     )
     adaptation_runs = run_adaptation(studies.overrides)
     made["adaptation"] = (*fig_adaptation(adaptation_runs), ADAPTATION_CAPTION)
-    two_mass = run_two_mass_study(studies.overrides)
+    two_mass = paper_region_study(studies.overrides)
     arithmetic = run_arithmetic(studies.overrides)
     made["fixed_point"] = (*fig_fixed_point(arithmetic), FIXED_POINT_CAPTION)
     made["two_mass_region"] = (

@@ -92,7 +92,7 @@ def adaptation_blocks(runs: Mapping[tuple[float, str], Result | str] | None) -> 
             "from the matched response. Where the drive never becomes quiet before that step (the smaller "
             "inertias, on this slow loop), the gains stay those of the design. The runs have no load: the "
             "estimate of the load follows a step with the time constant `estimator.load_memory_s`, and a large "
-            "load step during a speed transient is meanwhile taken partly for a change of J (see the README).",
+            "load step during a speed transient is meanwhile taken partly for a change of J (see docs/your-motor.md).",
         ),
         ("figure", "adaptation", CAPTION),
         ("table", header, rows),

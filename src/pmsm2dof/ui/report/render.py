@@ -22,11 +22,12 @@ from ...studies.configuration import scenario_design
 from ...studies.faults import fault_figures
 from ...studies.fixedpoint import ArithmeticStudy
 from ...studies.sensing import OffsetRow, SensorRow
+from ...studies.twomass import TwoMassStudy
 from .adaptation import adaptation_blocks
 from .commissioning import commissioning_blocks
 from .fixedpoint import fixed_point_blocks
 from .sensing import sensing_blocks
-from .twomass import TwoMassStudy, two_mass_blocks
+from .twomass import two_mass_blocks
 
 #: A block of the report: ``(kind, ...)``, see :func:`report_blocks`.
 Block = tuple[Any, ...]
@@ -167,7 +168,7 @@ def report_blocks(
     ``sensor_rows`` (of :func:`pmsm2dof.studies.sensing.sensor_study`) the one on the speed measurement,
     with ``offset_rows`` (:func:`pmsm2dof.studies.sensing.offset_study`);
     ``adaptation_runs`` (of :func:`pmsm2dof.studies.adaptation.run_adaptation`) the one on gain scheduling;
-    ``two_mass`` (of :func:`~pmsm2dof.ui.report.twomass.run_two_mass_study`) the section beyond the rigid load;
+    ``two_mass`` (of :func:`~pmsm2dof.studies.twomass.paper_region_study`) the section beyond the rigid load;
     ``arithmetic`` (of :func:`pmsm2dof.studies.fixedpoint.run_arithmetic`) the one without an FPU.
 
     Blocks: ``("h1"|"h2"|"h3"|"p", text)``, ``("list", [text])``, ``("table", header, rows)``,

@@ -1,65 +1,19 @@
 """The report's section "Beyond the rigid load": the paper's design on two-mass drive trains.
 
-:func:`run_two_mass_study` runs :mod:`pmsm2dof.studies.twomass` (the simulations and the stable
-region), :func:`fig_stable_region` draws the region, :func:`two_mass_blocks` writes the section.
+:func:`pmsm2dof.studies.twomass.paper_region_study` runs the simulations and the stable region,
+:func:`fig_stable_region` draws the region, :func:`two_mass_blocks` writes the section.
 """
 
-import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 from matplotlib.figure import Figure
 
 from ...core import FEEDBACKS
 from ...studies import twomass as tm
+from ...studies.twomass import TwoMassStudy
 from .figures import FigureData, _figure
-
-#: Inertia ratios J_L/J_M and resonances [Hz] of the stable-region figure.
-REGION_RATIOS = (1.0, 3.0, 10.0)
-REGION_RESONANCES_HZ = (1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0)
-
-
-@dataclasses.dataclass(frozen=True)
-class TwoMassStudy:
-    """The runs, their rows and the stable regions of the section.
-
-    ``regions[(feedback, notch)]``: the largest stable alpha [rad/s] over ``ratios`` (rows; the load
-    side: the first ratio alone, it does not depend on it) and ``resonances_Hz`` (columns).
-    """
-
-    rows: list[dict[str, Any]]
-    regions: dict[tuple[str, bool], npt.NDArray[np.float64]]
-    alpha_radps: float
-    zeta: float
-    tau_i_s: float
-    Ts_s: float
-    ratios: tuple[float, ...] = REGION_RATIOS
-    resonances_Hz: tuple[float, ...] = REGION_RESONANCES_HZ
-
-
-def run_two_mass_study(overrides: Mapping[str, Any] | None = None) -> TwoMassStudy:
-    """Simulate the study and compute the stable regions on the preset's design (with ``overrides``)."""
-    from ...sim.scenario import load_scenario
-
-    data = load_scenario(tm.PRESET).with_overrides(dict(overrides or {})).data
-    sc = data["speed_controller"]
-    rows = tm.two_mass_rows(tm.run_two_mass(overrides))
-    regions = {
-        (fb, notch): tm.stable_region(
-            REGION_RATIOS if fb == "motor" else REGION_RATIOS[:1],
-            REGION_RESONANCES_HZ,
-            zeta=sc["zeta"],
-            tau_i_s=data["current_loop"]["tau_i_s"],
-            Ts_s=sc["Ts_s"],
-            feedback=fb,
-            notch=notch,
-        )
-        for fb in FEEDBACKS
-        for notch in (False, True)
-    }
-    return TwoMassStudy(rows, regions, sc["alpha_radps"], sc["zeta"], data["current_loop"]["tau_i_s"], sc["Ts_s"])
 
 
 def fig_stable_region(study: TwoMassStudy) -> tuple[Figure, FigureData]:

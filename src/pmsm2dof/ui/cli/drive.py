@@ -9,12 +9,16 @@ from typing import Any
 
 import click
 
-from .cli import _chosen, out_option, warnings_as_lines
+from ...errors import ConfigError
+from .options import Group, as_option, chosen_scenario, out_option, set_option, warnings_as_lines
 
 LINK_HELP = (
     "the drive's link: tcp://HOST:PORT (XCP on TCP: the PC's drive, QEMU's -serial tcp), serial:DEVICE or a "
     "device (/dev/pts/3, /dev/ttyUSB0, COM3: XCP on SxI); HOST must be this machine unless --allow-remote"
 )
+
+#: The library's argument of the duration -> its option.
+DURATION = {"duration_s": "--duration-s"}
 
 
 def link_option(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -28,7 +32,7 @@ def link_option(f: Callable[..., Any]) -> Callable[..., Any]:
 
 
 def _open(url: str, a2l: str, allow_remote: bool) -> Any:
-    from ..drive.session import open_link
+    from ...drive.session import open_link
 
     return open_link(url, a2l, allow_remote=allow_remote)
 
@@ -43,7 +47,7 @@ def _show(value: Any) -> str:
     )
 
 
-@click.group(short_help="Talk to a drive over XCP: info, get, set, capture, run, serve.")
+@click.group(cls=Group, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve.")
 def drive() -> None:
     """Talk to a drive (the firmware of examples/firmware, on an MCU, on QEMU or the PC's virtual drive) over
     XCP, by the names of its A2L file: read and write its variables, capture signals by DAQ, play a
@@ -55,7 +59,7 @@ def drive() -> None:
 @link_option
 def info(url: str, a2l: str, allow_remote: bool) -> None:
     """The drive's identity, protocol limits, events, run status and the controllers' configuration."""
-    from ..drive.session import info as drive_info
+    from ...drive.session import info as drive_info
 
     with _open(url, a2l, allow_remote) as link:
         i = drive_info(link)
@@ -78,7 +82,7 @@ def info(url: str, a2l: str, allow_remote: bool) -> None:
 def get(names: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -> None:
     """Read variables by the A2L's names (link_speed_config.alpha_radps) or the scenario's keys
     (speed_controller.alpha_radps)."""
-    from ..drive.session import get as drive_get
+    from ...drive.session import get as drive_get
 
     with _open(url, a2l, allow_remote) as link:
         for name, value, unit in drive_get(link, names):
@@ -91,7 +95,7 @@ def get(names: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -> None:
 def set_(assignments: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -> None:
     """Write calibration variables, checked first against the A2L's limits and the controller's own validation;
     the fields of one variable take effect together at the drive's next speed sample."""
-    from ..drive.session import set_values
+    from ...drive.session import set_values
 
     with _open(url, a2l, allow_remote) as link:
         for name, value, unit in set_values(link, assignments):
@@ -103,7 +107,7 @@ def set_(assignments: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -
 @click.option(
     "--event", default="speed", show_default=True, help="the DAQ event: speed (every speed sample) or current"
 )
-@click.option("--duration", "duration_s", type=float, required=True, help="how long to capture [s], (0, 3600]")
+@click.option("--duration-s", "duration_s", type=float, required=True, help="how long to capture [s], (0, 3600]")
 @click.option("--out", required=True, type=click.Path(), help="the file: .csv, .parquet or .mf4 (ASAM MDF 4.10)")
 @click.option("--force", is_flag=True, help="replace --out if it exists")
 @link_option
@@ -111,11 +115,14 @@ def capture(signals: tuple[str, ...], event: str, duration_s: float, out: str, f
             allow_remote: bool) -> None:  # fmt: skip
     """Capture signals by DAQ at an event (every sample, timestamped by the drive) into a file; t_s from the
     first sample. Exit status 1 when the drive lost samples (its DAQ queue overflowed)."""
-    from ..drive.session import capture as drive_capture
-    from ..drive.session import plan_capture, write_capture
+    from ...drive.session import capture as drive_capture
+    from ...drive.session import plan_capture, write_capture
 
     with _open(url, a2l, allow_remote) as link:
-        plan = plan_capture(link, signals, event, duration_s, out, force)
+        try:
+            plan = plan_capture(link, signals, event, duration_s, out, force)
+        except ConfigError as exc:
+            raise as_option(exc, DURATION) from None
         cap = drive_capture(link, plan)
         write_capture(link, cap, out)
     n = len(cap.timestamps)
@@ -127,7 +134,7 @@ def capture(signals: tuple[str, ...], event: str, duration_s: float, out: str, f
 
 @drive.command()
 @click.argument("scenario")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="change a scenario key (repeatable)")
+@set_option()
 @out_option("the folder for trace.csv, metrics.json and plot.png", type=click.Path(file_okay=False), required=True)
 @link_option
 def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: str, a2l: str,
@@ -140,12 +147,12 @@ def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: s
     """
     import json
 
-    from ..outputs import atomic_write, check_out, staged_dir
-    from ..sim.metrics import compute_metrics
-    from ..studies.drive import run_on_drive
-    from .plots.firmware import plot_drive_run
+    from ...outputs import atomic_write, check_out, staged_dir
+    from ...sim.metrics import compute_metrics
+    from ...studies.drive import run_on_drive
+    from ..plots.firmware import plot_drive_run
 
-    chosen, _ = _chosen(scenario, overrides)
+    chosen, _ = chosen_scenario(scenario, overrides)
     check_out(out, "drive-run", force)
     with _open(url, a2l, allow_remote) as link, warnings_as_lines():
         result = run_on_drive(link, chosen)
@@ -168,25 +175,30 @@ def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: s
 
 @drive.command()
 @click.argument("scenario")
-@click.option("--set", "overrides", multiple=True, metavar="KEY=VALUE", help="change a scenario key (repeatable)")
+@set_option()
 @click.option("--port", type=int, default=5555, show_default=True, help="TCP port on 127.0.0.1 (0: a free one)")
 @out_option("the drive's build folder (its A2L file virtual_drive_host.a2l)", type=click.Path(file_okay=False),
             required=True)  # fmt: skip
 @click.option("--realtime/--fast", default=True, show_default=True,
               help="the control interrupt on the wall clock, or as fast as the link allows")  # fmt: skip
 @click.option("--timeout-ms", type=int, default=200, show_default=True, help="the link watchdog [ms], 0: off")
-@click.option("--duration", "duration_s", type=float, default=None, help="serve this long [s] [default: until Ctrl-C]")
+@click.option(
+    "--duration-s", "duration_s", type=float, default=None, help="serve this long [s] [default: until Ctrl-C]"
+)
 def serve(scenario: str, overrides: tuple[str, ...], port: int, out: str, force: bool, realtime: bool,
           timeout_ms: int, duration_s: float | None) -> None:  # fmt: skip
     """Build the PC's virtual drive of a scenario (the firmware over the engine's plant) into OUT and serve it on
-    TCP at 127.0.0.1:PORT until Ctrl-C (or --duration); OUT holds its A2L file for the other commands."""
-    from ..studies.drive import serve_drive
+    TCP at 127.0.0.1:PORT until Ctrl-C (or --duration-s); OUT holds its A2L file for the other commands."""
+    from ...studies.drive import serve_drive
 
-    chosen, _ = _chosen(scenario, overrides)
+    chosen, _ = chosen_scenario(scenario, overrides)
 
     def ready(url: str, a2l: str) -> None:
         click.echo(f"{chosen.name}: serving --link {url} --a2l {a2l} (Ctrl-C ends it)")
 
-    serve_drive(chosen, out, port=port, realtime=realtime, timeout_ms=timeout_ms, force=force, duration_s=duration_s,
-                ready=ready)  # fmt: skip
+    try:
+        serve_drive(chosen, out, port=port, realtime=realtime, timeout_ms=timeout_ms, force=force,
+                    duration_s=duration_s, ready=ready)  # fmt: skip
+    except ConfigError as exc:
+        raise as_option(exc, DURATION) from None
     click.echo("the drive stopped")
