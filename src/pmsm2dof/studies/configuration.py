@@ -41,9 +41,9 @@ from ..analysis.discretize import DiscreteDesign
 from ..analysis.sensor import SensorChain
 from ..core import ANTI_WINDUPS, FEEDFORWARDS, METHODS, SpeedController
 from ..core.bindings import ffi
+from ..core.motor import Motor
 from ..errors import ConfigError
 from ..outputs import atomic_write
-from ..core.motor import Motor
 from ..sim.scenario import Scenario, Tree, load_scenario
 from ..sim.simulate import RPM_PER_RADPS, Simulation
 

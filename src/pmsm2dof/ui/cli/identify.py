@@ -88,8 +88,8 @@ def mechanics(
     import json
 
     from ...core.gains import pi_gains
-    from ...outputs import atomic_write, staged_dir
     from ...core.motor import load_motor
+    from ...outputs import atomic_write, staged_dir
     from ...sim.logs import read_log
     from ...studies.identify import (
         IdentificationError,

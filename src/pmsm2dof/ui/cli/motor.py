@@ -34,9 +34,9 @@ def _motor_help() -> str:
 def motor(file: str, as_json: bool) -> None:
     import json
 
+    from ...core.motor import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
     from ...errors import require_positive
     from ...inputs import read_toml
-    from ...core.motor import MOTOR_KEYS, RATING_KEYS, load_motor, no_load_speed_radps
 
     m = load_motor(file)
     keys = [*MOTOR_KEYS, "kt_Nm_per_A"] + [key for key in RATING_KEYS if getattr(m, key) is not None]
