@@ -50,7 +50,7 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networki
 ALPHA = "speed_controller.alpha_radps"
 #: The drive's link watchdog in the runs on the wall clock [ms]: the tuner polls every 20 ms, but on a loaded
 #: machine (a browser and the tests on two cores) a poll can come late by more than the virtual board's 200 ms.
-LINK_TIMEOUT_MS = 1000
+LINK_TIMEOUT_MS = 2000
 
 
 @pytest.fixture(scope="module")

@@ -376,10 +376,13 @@ def raise_config_error(status: int, sim: Any, cfg: Any, data: Mapping[str, Any])
             # the default 1/Kp made Ki Ka Ts >= 2: name what the user set
             names = {name: f"speed_controller.{name}" for name in ("alpha_radps", "zeta", "Ts_s", "Ka")}
             raise default_Ka_error(sc["J_kgm2"], sc["alpha_radps"], sc["zeta"], sc["Ts_s"], names)
+        # the filters the user set made the loop unstable: name the first of their frequencies given
+        filters = data["speed_filter"]
+        given = [k for k in ("lowpass_freq_Hz", "notch_freq_Hz") if filters.get(k) is not None] or ["lowpass_freq_Hz"]
         raise ConfigError(
-            "speed_filter",
-            "<table>",
-            f"filters through which the back-calculation loop with the default Ka = 1/Kp = {s.Ka:.6g} "
+            f"speed_filter.{given[0]}",
+            filters.get(given[0]),
+            f"a filter through which the back-calculation loop with the default Ka = 1/Kp = {s.Ka:.6g} "
             "(speed_controller.Ka absent) is stable; or give speed_controller.Ka smaller",
         )
     field = c_string(lib.p2d_sim_status_param(status))
