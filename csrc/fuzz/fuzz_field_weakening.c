@@ -47,6 +47,8 @@
 #include "pmsm2dof/field_weakening.h"
 #include "pmsm2dof/speed.h"
 
+#include "../src/mtpa.h" /* the MTPA relation the controller uses, to tell its vector from the bound */
+
 /* The controllers of one fuzz input. */
 typedef struct {
     p2d_field_weakening_t fw; /* field weakening under test */
@@ -295,11 +297,14 @@ static float fz_speed_sample(fz_fw_rig_t *rig, fz_reader_t *r, unsigned mode, fl
                "id_ref %g against the bound %g (salient %d)", (double)out.id_ref_A, (double)id_bound, (int)c->salient);
     FZ_REQUIRE(fabsf(out.T_ref_Nm) < FLT_MIN || (double)out.iq_ref_A * (double)out.T_ref_Nm >= 0.0,
                "iq %g against T_ref %g", (double)out.iq_ref_A, (double)out.T_ref_Nm);
-    if (out.id_ref_A == id_bound && (!c->salient || id_bound < 0.0f)) {
+    if (out.id_ref_A == id_bound && (!c->salient || id_bound < 0.0f) &&
+        !(c->salient && p2d_mtpa_id_of_iq_A(out.iq_ref_A, c->psi_f_Wb, c->dL_H) == out.id_ref_A)) {
         /*
          * on the bound (and not the MTPA vector, whose inversion is the speed controller's and
-         * checked there), the current gives the torque: 1.5 p (psi_f + dL id) iq = T_ref (away from subnormals:
-         * a subnormal T_ref, e.g. 2.8e-44 Nm, holds a few bits, and one rounding of iq moves it by several %)
+         * checked there; a vector on the MTPA trajectory whose id equals the bound, e.g. both the same
+         * subnormal, is that vector), the current gives the torque: 1.5 p (psi_f + dL id) iq = T_ref (away
+         * from subnormals: a subnormal T_ref, e.g. 2.8e-44 Nm, holds a few bits, and one rounding of iq
+         * moves it by several %)
          */
         double k_T = 1.5 * before.config.pole_pairs * ((double)before.config.psi_f_Wb + (double)c->dL_H * id_bound);
         FZ_REQUIRE(k_T < 1e-30 || fabsf(out.T_ref_Nm) < FLT_MIN || fabs((double)out.T_ref_Nm / k_T) < 1e-30 ||
