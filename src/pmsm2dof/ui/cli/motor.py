@@ -28,7 +28,15 @@ def _motor_help() -> str:
     )
 
 
-@click.command(help=_motor_help(), short_help="The per-phase model of a motor given in datasheet units.")
+class _MotorCommand(click.Command):
+    """`pmsm2dof motor`, its help written when shown (the datasheet keys are core's: numpy and the extension)."""
+
+    def format_help_text(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        self.help = _motor_help()
+        super().format_help_text(ctx, formatter)
+
+
+@click.command(cls=_MotorCommand, short_help="The per-phase model of a motor given in datasheet units.")
 @click.argument("file", type=click.Path(dir_okay=False))
 @json_option()
 def motor(file: str, as_json: bool) -> None:
