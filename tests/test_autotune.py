@@ -18,7 +18,7 @@ import pytest
 
 from pmsm2dof import ConfigError, Scenario, SpeedController, autotune, compute_metrics, load_scenario, simulate
 from pmsm2dof.analysis.design import design
-from pmsm2dof.analysis.discretize import margins_on_plant
+from pmsm2dof.analysis.sampled_loop import margins_on_plant
 from pmsm2dof.studies.autotune import (
     FIGURES,
     KA_KP_RANGE,
@@ -471,8 +471,8 @@ def test_margins_on_plants_equal_python_controls_polynomial_method(tau_i_s):
     stability_margins finds on each L(w) as a transfer function (the same crossings, picked alike)."""
     from dataclasses import replace
 
-    from pmsm2dof.analysis.discretize import _loop_w, c_coefficients, margins_on_plants
     from pmsm2dof.analysis.margins import pick_margins
+    from pmsm2dof.analysis.sampled_loop import c_coefficients, loop_w, margins_on_plants
 
     rng = np.random.default_rng(31)
     for _ in range(12):
@@ -485,7 +485,7 @@ def test_margins_on_plants_equal_python_controls_polynomial_method(tau_i_s):
         got = margins_on_plants(d, Ts, "tustin", J * ratios, tau)
         pi = c_coefficients(d, Ts, "tustin", feedforward="none", anti_windup="none")
         for r, margins in zip(ratios, got):
-            num, den = _loop_w(replace(d, J_kgm2=J * r), Ts, pi["b_e0"], pi["Ki_Ts"])
+            num, den = loop_w(replace(d, J_kgm2=J * r), Ts, pi["b_e0"], pi["Ki_Ts"])
             char = np.polyadd(den, num)
             stable = bool(np.all(np.real(np.roots(char)) < 0.0))
             assert (margins is not None) == stable

@@ -13,7 +13,7 @@ with the resonance ``w_r = sqrt(K (J_M + J_L) / (J_M J_L))`` (poles), the anti-r
 both tend to the rigid ``1 / ((J_M + J_L) s)`` of eq 2. The PI of eq 9 is designed on the total
 inertia ``J_M + J_L``. The loop is analysed sampled, as the controller runs: the ZOH equivalent
 of ``Gci Gm`` (eq 3 and the above), the PI as the C controller realizes it
-(:func:`pmsm2dof.analysis.discretize.c_coefficients`) and the torque filters of
+(:func:`pmsm2dof.analysis.sampled_loop.c_coefficients`) and the torque filters of
 ``csrc/include/pmsm2dof/filter.h`` (Tustin prewarped at their frequency) inside the loop.
 The reference feedforward Fr is outside the loop (eq 6): the closed-loop poles, and so the
 stable region, are the same for every feedforward form; Fr adds only its own pole.
@@ -36,7 +36,7 @@ from ..core import FEEDBACKS
 from ..core.bindings import Method
 from ..errors import ConfigError, require_choice, require_nonnegative, require_positive
 from .design import Design, design
-from .discretize import c_coefficients
+from .sampled_loop import c_coefficients
 
 
 @dataclass(frozen=True)

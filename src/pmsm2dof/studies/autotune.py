@@ -11,7 +11,7 @@ with a slow recovery (for a response that does not overshoot, the IAE is ``dT / 
 ``Ki = J (alpha / (2 zeta))^2`` of eq 9). ``max_recovery_s`` bounds the recovery itself.
 
 1. linear constraints first: the gain and phase margins of the C controller's discrete loop on
-   the true plant at each inertia ratio (:func:`pmsm2dof.analysis.discretize.margins_on_plants`,
+   the true plant at each inertia ratio (:func:`pmsm2dof.analysis.sampled_loop.margins_on_plants`,
    eq 2, 3, 9, 14); a candidate that is unstable or misses a margin anywhere is not simulated;
 2. then the saturated ones: the candidates left are simulated (the scenario's speed and load
    steps, with the current limit where the scenario drives the drive to it) at the ends and the
@@ -58,8 +58,9 @@ from typing import Any
 import numpy as np
 
 from ..analysis.design import design as make_design
-from ..analysis.discretize import MAX_W_TS, c_coefficients, margins_on_plants
+from ..analysis.discretize import MAX_W_TS
 from ..analysis.margins import Margins
+from ..analysis.sampled_loop import c_coefficients, margins_on_plants
 from ..core import ANTI_WINDUPS, FEEDFORWARDS
 from ..core.bindings import AntiWindup, Feedforward
 from ..errors import ConfigError

@@ -15,7 +15,7 @@ warning when it fails:
   wrong unit for the design makes a loop that is stable on paper and unstable on the drive.
 
 Both with the design's speed-sensor chain (``[speed_sensor]``, :class:`~pmsm2dof.analysis.sensor.SensorChain`)
-and the controller the C code realizes (:func:`pmsm2dof.analysis.discretize.sampled_loop_poles`).
+and the controller the C code realizes (:func:`pmsm2dof.analysis.sampled_loop.sampled_loop_poles`).
 
 A scenario the engine runs may lie beyond what the analysis takes: a sensor delay longer than
 :data:`~pmsm2dof.analysis.sensor.DELAY_PERIODS_MAX` speed-loop periods (the scenario allows
@@ -27,7 +27,7 @@ not made, and its warning says so and why, naming the scenario key.
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from ..analysis.discretize import sampled_loop_poles
+from ..analysis.sampled_loop import sampled_loop_poles
 from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import Tree
