@@ -75,6 +75,41 @@ def speed_config(scenario: Scenario) -> dict[str, Any]:
     return {name: getattr(cfg, name) for name, _ in ffi.typeof("p2d_speed_config_t").fields}
 
 
+def write_speed_controller(link: Link, scenario: Scenario, values: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Write the speed controller of ``scenario`` (:data:`SPEED_FIELDS`) to the drive in one DOWNLOAD; read back.
+
+    ``values``: :func:`speed_config` of ``scenario`` when already computed.
+
+    Raises
+    ------
+    ConfigError
+        A value the C controllers reject (nothing written), or another speed-loop period than the drive's.
+    ToolError
+        The drive rejected the configuration (its error; the drive is unchanged).
+    """
+    values = speed_config(scenario) if values is None else values
+    Ts_s = link.read("link_speed_config.Ts_s")
+    if not _same(Ts_s, values["Ts_s"]):
+        raise ConfigError(
+            "speed_controller.Ts_s",
+            scenario.data["speed_controller"]["Ts_s"],
+            f"{Ts_s:g} s, the speed-loop period of the drive's firmware",
+        )
+    try:
+        link.write({f"link_speed_config.{f}": values[f] for f in SPEED_FIELDS})
+    except Pmsm2dofError:
+        raise
+    except Exception as exc:
+        if not _is_xcp_error(exc):
+            raise
+        st = link.status()
+        raise ToolError(
+            f"the drive rejected the speed controller ({_text(exc)}, code {st['commit_status']}): "
+            "it runs the previous one"
+        ) from None
+    return {f: link.read(f"link_speed_config.{f}") for f, _ in ffi.typeof("p2d_speed_config_t").fields}
+
+
 @dataclasses.dataclass
 class _Watch:
     """The operator's arming: who armed, and the time of their last heartbeat (time.monotonic)."""
@@ -280,26 +315,7 @@ class DriveSession:
         self._require(owner)
         with self._lock:
             try:
-                Ts_s = self.link.read("link_speed_config.Ts_s")
-                if not _same(Ts_s, values["Ts_s"]):
-                    raise ConfigError(
-                        "speed_controller.Ts_s",
-                        scenario.data["speed_controller"]["Ts_s"],
-                        f"{Ts_s:g} s, the speed-loop period of the drive's firmware",
-                    )
-                try:
-                    self.link.write({f"link_speed_config.{f}": values[f] for f in SPEED_FIELDS})
-                except Pmsm2dofError:
-                    raise
-                except Exception as exc:
-                    if not _is_xcp_error(exc):
-                        raise
-                    st = self.link.status()
-                    raise ToolError(
-                        f"the drive rejected the speed controller ({_text(exc)}, code {st['commit_status']}): "
-                        "it runs the previous one"
-                    ) from None
-                return self.read_speed_config()
+                return write_speed_controller(self.link, scenario, values)
             except Pmsm2dofError:
                 raise
             except Exception as exc:

@@ -60,6 +60,9 @@ class Claim:
         One of :data:`SOURCES`: what the measured values come from.
     evidence : str
         The runs and figures used.
+    on_drive : OnDrive or None
+        The same claim checked on the runs played on a drive (``reproduce --link``), for the
+        claims of the experiments; None otherwise.
     """
 
     id: str
@@ -72,6 +75,33 @@ class Claim:
     reason: str
     source: str
     evidence: str
+    on_drive: "OnDrive | None" = None
+
+
+@dataclasses.dataclass(frozen=True)
+class OnDrive:
+    """A claim checked on the runs played on a drive (:mod:`pmsm2dof.studies.paper_drive`).
+
+    Attributes
+    ----------
+    measured : str
+        What the drive's runs measured, in words with the numbers.
+    values : dict
+        The measured numbers, as :attr:`Claim.values`.
+    verdict : str
+        One of :data:`VERDICTS`, by the same rule as the simulated runs'.
+    link : str
+        Where the runs were played.
+    speed_difference : float
+        Largest difference of the drive's speed from the engine's over the claim's runs, as a
+        fraction of the speed step.
+    """
+
+    measured: str
+    values: dict[str, Any]
+    verdict: str
+    link: str
+    speed_difference: float
 
 
 # ---------------------------------------------------------------------------------------------

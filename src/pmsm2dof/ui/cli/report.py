@@ -2,7 +2,7 @@
 
 import click
 
-from .options import out_option, parse_override, set_option
+from .options import out_option, parse_override, require_extra, set_option
 
 
 @click.command(short_help="Reproduce the paper: figures 7-14, sensitivity studies and the claims table.")
@@ -12,13 +12,21 @@ from .options import out_option, parse_override, set_option
     show_default=True,
 )
 @set_option("change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)")
-def reproduce(out: str, force: bool, overrides: tuple[str, ...]) -> None:
+@click.option(
+    "--link",
+    metavar="virtual",
+    default=None,
+    help="also play experimental conditions 1 to 3 on drives and check their claims on them: 'virtual', the "
+    "PC's virtual drive of each experiment built here (needs the extra 'drive', cmake and a C compiler)",
+)
+def reproduce(out: str, force: bool, overrides: tuple[str, ...], link: str | None) -> None:
     """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
 
     Runs the paper's conditions on the presets (the float32 C controller in the compiled
     engine) and writes OUT/report.md, OUT/report.html (self-contained), OUT/claims.json (each
     claim of the paper with the measured value and a verdict), OUT/figures/*.png and *.svg,
-    and beside each figure its data (OUT/figures/*.csv), all or nothing.
+    and beside each figure its data (OUT/figures/*.csv), all or nothing. With --link, the
+    experiments also run on drives: OUT/drive.json, and the claims of section 4.2 checked on them.
     """
     import time
 
@@ -26,10 +34,13 @@ def reproduce(out: str, force: bool, overrides: tuple[str, ...]) -> None:
     from ..report import reproduce as run_reproduction
 
     start = time.perf_counter()
+    if link is not None:
+        require_extra("pyxcp", "drive", "pmsm2dof reproduce --link")
     changes = dict(parse_override(text) for text in overrides)
-    report = run_reproduction(out, overrides=changes, progress=True, force=force)
+    report = run_reproduction(out, overrides=changes, progress=True, force=force, link=link)
     for claim in report.claims:
-        click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}")
+        on_drive = f"  (on the drive: {claim.on_drive.verdict})" if claim.on_drive is not None else ""
+        click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}{on_drive}")
     for name, metrics in report.studies.metrics.items():
         for warning in metrics["warnings"]:
             click.echo(f"  WARNING: run {name}: {warning}")

@@ -14,6 +14,8 @@ and writes, all or nothing (:func:`pmsm2dof.outputs.staged_dir`), the report
 - ``report.md`` and ``report.html`` (self-contained: the figures embedded as base64 PNG);
 - ``claims.json``: one row per claim, with the paper's value, the measured one, a verdict
   (``reproduced``, ``partly``, ``not reproduced``) and the reason where they differ;
+- with ``--link``, ``drive.json``: the experiments' runs on the drive, their figures and their
+  agreement with the engine (:mod:`.drive`), and the claims of section 4.2 checked on them;
 - ``metrics.json`` (figures of merit of the paper runs), ``sensitivity.csv`` and
   ``discretization.csv`` (the data of the study figures);
 - a section on fault scenarios the paper does not treat (the ``fault-*`` presets: a stall, a
@@ -37,6 +39,7 @@ Motor Speed Controller" (equation, figure and section numbers are the paper's).
 import dataclasses
 import io
 import json
+import sys
 import time
 from collections.abc import Iterable, Mapping
 from importlib.metadata import version
@@ -51,6 +54,7 @@ from ...studies.adaptation import run_adaptation
 from ...studies.claims import VERDICTS, Claim, compute_claims
 from ...studies.faults import run_faults
 from ...studies.fixedpoint import run_arithmetic
+from ...studies.paper_drive import DriveStudies, check_link, run_on_drives
 from ...studies.sensing import offset_study, sensor_study
 from ...studies.twomass import paper_region_study
 from .adaptation import CAPTION as ADAPTATION_CAPTION
@@ -89,7 +93,11 @@ class Report:
 
 
 def write_report(
-    studies: st.Studies, out: Path | str, progress: bool = False, force: bool = False
+    studies: st.Studies,
+    out: Path | str,
+    progress: bool = False,
+    force: bool = False,
+    drive: DriveStudies | None = None,
 ) -> tuple[list[Claim], list[str], float]:
     """Check the claims on ``studies`` and write the report into ``out``, all or nothing.
 
@@ -104,6 +112,10 @@ def write_report(
         Show a progress bar over the figures.
     force : bool
         Write into ``out`` even if it holds other files (they are kept).
+    drive : DriveStudies, optional
+        The experiments played on a drive (:func:`pmsm2dof.studies.paper_drive.run_on_drives`): the
+        claims are checked on them too, and ``drive.json`` holds their figures and their agreement
+        with the engine.
 
     Returns
     -------
@@ -112,7 +124,7 @@ def write_report(
         studies and the report [s].
     """
     start = time.perf_counter()
-    claims = compute_claims(studies)
+    claims = compute_claims(studies, drive)
     made = figures(studies)
     fault_runs = run_faults(studies.overrides)
     sensor_rows = sensor_study(studies.overrides)
@@ -156,7 +168,7 @@ def write_report(
             "pmsm2dof_version": version("pmsm2dof"),
             "overrides": json_value(studies.overrides),
             "verdict_counts": {v: sum(c.verdict == v for c in claims) for v in VERDICTS},
-            "claims": [json_value(dataclasses.asdict(c)) for c in claims],
+            "claims": [json_value(_claim_json(c)) for c in claims],
         }
         atomic_write(tmp / "claims.json", json.dumps(claims_json, indent=2, allow_nan=False) + "\n")
         atomic_write(
@@ -167,6 +179,13 @@ def write_report(
         atomic_write(
             tmp / "discretization.csv", csv_text([json_value(dataclasses.asdict(p)) for p in studies.discretization])
         )
+        if drive is not None:
+            drive_json = {
+                "link": drive.link,
+                "runs": {n: {"metrics": drive.metrics[n], "comparison": drive.comparisons[n]} for n in drive.results},
+            }
+            atomic_write(tmp / "drive.json", json.dumps(json_value(drive_json), indent=2, allow_nan=False) + "\n")
+            files.append("drive.json")
         wall_time_s = studies.wall_time_s + time.perf_counter() - start
         blocks = report_blocks(
             studies,
@@ -180,11 +199,20 @@ def write_report(
             adaptation_runs=adaptation_runs,
             two_mass=two_mass,
             arithmetic=arithmetic,
+            drive=drive,
         )
         atomic_write(tmp / "report.md", render_markdown(blocks))
         atomic_write(tmp / "report.html", render_html(blocks, images))
         files += ["claims.json", "metrics.json", "sensitivity.csv", "discretization.csv", "report.md", "report.html"]
     return claims, files, studies.wall_time_s + time.perf_counter() - start
+
+
+def _claim_json(claim: Claim) -> dict[str, Any]:
+    """A claim as claims.json holds it: ``on_drive`` only where the claim was checked on a drive."""
+    row = dataclasses.asdict(claim)
+    if row["on_drive"] is None:
+        del row["on_drive"]
+    return row
 
 
 def reproduce(
@@ -193,6 +221,7 @@ def reproduce(
     points: int = st.POINTS,
     progress: bool = False,
     force: bool = False,
+    link: str | None = None,
 ) -> Report:
     """Run the paper reproduction and write the report into ``out``, all or nothing.
 
@@ -209,6 +238,9 @@ def reproduce(
         Show progress bars over the runs, the discrete designs and the figures.
     force : bool
         Write into ``out`` even if it holds other files (they are kept).
+    link : str, optional
+        Also play the experiments on drives (:func:`pmsm2dof.studies.paper_drive.run_on_drives`;
+        ``"virtual"``: the PC's virtual drives, built here).
 
     Returns
     -------
@@ -220,9 +252,17 @@ def reproduce(
         Invalid overrides or points (naming the parameter or scenario key), or ``out`` not a
         writable folder or holding other files (without ``force``).
     SimulationError
-        A run of the paper's conditions stopped.
+        A run of the paper's conditions stopped, or a run on a drive did not end as done.
+    ToolError
+        The link to a drive dropped (its watchdog stops the run), or a drive's build failed.
     """
     check_out(out, "reproduce", force)
+    if link is not None:
+        check_link(link)
     studies = st.run_studies(overrides, points=points, progress=progress)
-    claims, files, wall_time_s = write_report(studies, out, progress=progress, force=force)
+    drive = None
+    if link is not None:
+        say = (lambda text: print(f"  drive: {text}", file=sys.stderr, flush=True)) if progress else None
+        drive = run_on_drives(studies.bases, link, report=say)
+    claims, files, wall_time_s = write_report(studies, out, progress=progress, force=force, drive=drive)
     return Report(out=Path(out), claims=claims, studies=studies, files=files, wall_time_s=wall_time_s)

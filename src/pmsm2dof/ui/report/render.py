@@ -21,10 +21,12 @@ from ...studies.claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SA
 from ...studies.configuration import scenario_design
 from ...studies.faults import fault_figures
 from ...studies.fixedpoint import ArithmeticStudy
+from ...studies.paper_drive import DriveStudies
 from ...studies.sensing import OffsetRow, SensorRow
 from ...studies.twomass import TwoMassStudy
 from .adaptation import adaptation_blocks
 from .commissioning import commissioning_blocks
+from .drive import drive_blocks
 from .fixedpoint import fixed_point_blocks
 from .sensing import sensing_blocks
 from .twomass import two_mass_blocks
@@ -36,8 +38,14 @@ _Table = tuple[tuple[str, ...], list[tuple[Any, ...]]]
 
 
 def _claims_table(claims: Sequence[Claim]) -> _Table:
-    header = ("#", "section", "claim", "paper", "measured", "verdict", "reason")
-    rows = [(c.id, c.section, c.claim, c.paper, c.measured, c.verdict, c.reason) for c in claims]
+    header: tuple[str, ...] = ("#", "section", "claim", "paper", "measured", "verdict", "reason")
+    rows: list[tuple[Any, ...]] = [(c.id, c.section, c.claim, c.paper, c.measured, c.verdict, c.reason) for c in claims]
+    if any(c.on_drive is not None for c in claims):
+        header += ("on the drive", "verdict on the drive")
+        rows = [
+            (*row, *((c.on_drive.measured, c.on_drive.verdict) if c.on_drive is not None else ("", "")))
+            for row, c in zip(rows, claims, strict=True)
+        ]
     return header, rows
 
 
@@ -160,6 +168,7 @@ def report_blocks(
     adaptation_runs: dict[tuple[float, str], Result | str] | None = None,
     two_mass: TwoMassStudy | None = None,
     arithmetic: ArithmeticStudy | None = None,
+    drive: DriveStudies | None = None,
 ) -> list[Block]:
     """The report as a list of blocks, rendered by :func:`render_markdown` and :func:`render_html`.
 
@@ -169,7 +178,9 @@ def report_blocks(
     with ``offset_rows`` (:func:`pmsm2dof.studies.sensing.offset_study`);
     ``adaptation_runs`` (of :func:`pmsm2dof.studies.adaptation.run_adaptation`) the one on gain scheduling;
     ``two_mass`` (of :func:`~pmsm2dof.studies.twomass.paper_region_study`) the section beyond the rigid load;
-    ``arithmetic`` (of :func:`pmsm2dof.studies.fixedpoint.run_arithmetic`) the one without an FPU.
+    ``arithmetic`` (of :func:`pmsm2dof.studies.fixedpoint.run_arithmetic`) the one without an FPU;
+    ``drive`` (of :func:`pmsm2dof.studies.paper_drive.run_on_drives`) the one on the experiments played
+    on a drive, and the claims table's columns on the drive.
 
     Blocks: ``("h1"|"h2"|"h3"|"p", text)``, ``("list", [text])``, ``("table", header, rows)``,
     ``("figure", stem, caption)``. Text may hold `code` spans.
@@ -201,6 +212,7 @@ def report_blocks(
             f"{100 * FIRST_ORDER_RTOL:g} % of eq 10. The presets were not tuned to meet any number of the paper.",
         ),
         ("table", *_claims_table(claims)),
+        *drive_blocks(drive, studies.metrics),
         ("h2", "What the simulations assume"),
         ("table", *_parameters_table(studies)),
         (
@@ -224,7 +236,9 @@ def report_blocks(
                 "steps 30 s (8 Nm at a steady 500 rpm, preset paper-experiment-3) so that slow designs settle; "
                 "figures of merit as in `pmsm2dof.sim.metrics` (2 % bands; n/a when a response has not settled).",
                 "The experiments of section 4.2 ran on a real drive (with a magnetic-powder brake); here they are "
-                "simulated with the simulation's drive, which is all the paper describes of it.",
+                "simulated with the simulation's drive, which is all the paper describes of it"
+                + ("" if drive is None else ", and played on a drive (section 'The experiments on a drive')")
+                + ".",
             ],
         ),
         ("h2", "Figures of the paper"),
