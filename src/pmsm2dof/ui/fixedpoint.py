@@ -14,7 +14,7 @@ from ..errors import ConfigError
 
 if TYPE_CHECKING:
     from ..analysis.design import Design
-    from ..analysis.fixedpoint import ScalingReport
+    from ..analysis.scaling_report import ScalingReport
     from ..core.fixedpoint import Format
 
 RPM_PER_RADPS = 30.0 / math.pi
