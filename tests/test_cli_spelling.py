@@ -11,7 +11,7 @@ import pytest
 
 from pmsm2dof.core.bindings import field_comment
 from pmsm2dof.ui.cli import cli, main
-from pmsm2dof.ui.cli.options import RENAMED
+from pmsm2dof.ui.cli.options import RENAMED, REPLACED
 
 #: The unit suffixes of the scenario keys and library arguments (docs/conventions.md).
 UNIT = re.compile(r"_(s|radps|kgm2|H|Wb|A|V|ohm|Hz|deg|dB|rpm|Nm|pct|Nm_per_rad|Nms_per_rad|rpm_per_Nm)$")
@@ -45,7 +45,7 @@ def test_every_option_of_a_quantity_with_a_unit_ends_with_its_suffix():
 def test_no_command_has_a_former_spelling():
     for words, command in commands():
         names = {opt for option in options(command) for opt in option.opts}
-        assert not names & set(RENAMED), words
+        assert not names & (set(RENAMED) | set(REPLACED)), words
 
 
 def test_every_former_spelling_answers_with_the_new_one(capsys):
@@ -64,6 +64,18 @@ def test_every_former_spelling_answers_with_the_new_one(capsys):
                 assert main([*words, f"{old}=1"]) == 2
                 assert f"is spelled {new} now" in capsys.readouterr().err
     assert tried == set(RENAMED)  # each in every command that has its new spelling
+
+
+def test_a_replaced_option_names_its_replacement(capsys):
+    tried = set()
+    for words, command in commands():
+        names = {opt for option in options(command) for opt in option.opts}
+        for old, (new, why) in REPLACED.items():
+            if new in names and words == ("tune",):
+                tried.add(old)
+                assert main([*words, old, "x"]) == 2
+                assert capsys.readouterr().err == f"pmsm2dof: error: {old} is replaced by {new}: {why}\n"
+    assert tried == set(REPLACED)
 
 
 @pytest.mark.parametrize(

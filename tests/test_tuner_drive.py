@@ -69,9 +69,9 @@ def browser():
 
 
 @contextlib.contextmanager
-def tuner_on(browser, scenario, url, elf):
+def tuner_on(browser, scenario, url, a2l):
     """The tuner in drive mode on the drive at ``url``, served and open in a page; yields (page, app)."""
-    with drive_session(scenario, url, elf) as session, serving_in_thread(create_app(scenario, drive=session)) as at:
+    with drive_session(scenario, url, a2l) as session, serving_in_thread(create_app(scenario, drive=session)) as at:
         page = browser.new_page(viewport={"width": 1440, "height": 900})
         errors = []
         page.on("pageerror", lambda exc: errors.append(str(exc)))
@@ -116,9 +116,10 @@ def engine_speed(scenario, alpha_radps):
 def test_the_page_writes_alpha_runs_the_drive_and_draws_it_over_its_twin(servo, browser):
     scenario, folder = servo
     elf = folder / "virtual_drive_host"
+    a2l = folder / "virtual_drive_host.a2l"
     alpha = 100.0
     with serve_host(elf, realtime=False) as url:
-        with tuner_on(browser, scenario, url, elf) as (page, session):
+        with tuner_on(browser, scenario, url, a2l) as (page, session):
             arm(page)
             writes = page.evaluate("window.tuner.drive.writes")
             type_value(page, ALPHA, alpha)
@@ -162,11 +163,12 @@ def test_the_page_writes_alpha_runs_the_drive_and_draws_it_over_its_twin(servo, 
 def test_an_unarmed_write_or_run_is_refused_and_writes_nothing(servo, browser):
     scenario, folder = servo
     elf = folder / "virtual_drive_host"
+    a2l = folder / "virtual_drive_host.a2l"
     post = """async ([path, body]) => { const r = await fetch(path, {method: 'POST', body: JSON.stringify(body),
                  headers: {'Content-Type': 'application/json', 'X-Pmsm2dof-Client': 'another'}});
                  return [r.status, (await r.json()).error]; }"""
     with serve_host(elf, realtime=False) as url:
-        with tuner_on(browser, scenario, url, elf) as (page, session):
+        with tuner_on(browser, scenario, url, a2l) as (page, session):
             type_value(page, ALPHA, 90.0)  # the tuner redraws; nothing goes to the disarmed drive
             assert page.evaluate("window.tuner.drive.writes") == 0
             for path in ("api/drive/write", "api/drive/run"):
@@ -195,8 +197,9 @@ def test_a_lost_page_disarms_and_stops_the_drive(servo, browser, capfd):
     drive is disarmed, and stopped, power stage off."""
     scenario, folder = servo
     elf = folder / "virtual_drive_host"
+    a2l = folder / "virtual_drive_host.a2l"
     with serve_host(elf, realtime=True, timeout_ms=LINK_TIMEOUT_MS) as url:
-        with tuner_on(browser, scenario, url, elf) as (page, session):
+        with tuner_on(browser, scenario, url, a2l) as (page, session):
             beats = []
             received = session.heartbeat
 
@@ -288,10 +291,11 @@ class Proxy:
 def test_a_link_dropped_during_a_run_is_reported_and_leaves_the_drive_safe(servo, browser, capfd):
     scenario, folder = servo
     elf = folder / "virtual_drive_host"
+    a2l = folder / "virtual_drive_host.a2l"
     with serve_host(elf, realtime=True, timeout_ms=LINK_TIMEOUT_MS) as url:
         proxy = Proxy(url)
         try:
-            with tuner_on(browser, scenario, proxy.url, elf) as (page, session):
+            with tuner_on(browser, scenario, proxy.url, a2l) as (page, session):
                 type_value(page, "simulation.t_end_s", 4.0)
                 arm(page)
                 page.click("#drive-run")

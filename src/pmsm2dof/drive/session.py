@@ -78,6 +78,8 @@ def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_
     """An open :class:`Link` to the drive at ``url`` described by the A2L file ``a2l`` (:func:`link_url` forms)."""
     from pyxcp.types import XcpTimeoutError
 
+    if Path(a2l).suffix.lower() != ".a2l":
+        raise ConfigError("a2l", str(a2l), "an A2L file (*.a2l), written beside the firmware's ELF by its build")
     link = Link(url, a2l, allow_remote=allow_remote, timeout_s=timeout_s)
     try:
         link.open()

@@ -45,6 +45,8 @@ RENAMED = {
     "--lowpass-freq": "--lowpass-freq-Hz",
     "--duration": "--duration-s",
 }
+#: Options replaced by another of a different meaning -> (the new option, why).
+REPLACED = {"--elf": ("--a2l", "the drive is described by its A2L file, as in `pmsm2dof drive`")}
 
 
 class Group(click.Group):
@@ -68,6 +70,8 @@ class Group(click.Group):
                     raise click.UsageError(
                         f"{old} is spelled {RENAMED[old]} now (an option carries the unit of its scenario key)"
                     )
+                if old in REPLACED and old not in known and REPLACED[old][0] in known:
+                    raise click.UsageError(f"{old} is replaced by {REPLACED[old][0]}: {REPLACED[old][1]}")
         return name, command, rest
 
 

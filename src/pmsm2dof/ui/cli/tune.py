@@ -24,8 +24,13 @@ from .options import require_extra
     help="drive mode: the XCP link of a drive built for the scenario (socket://HOST:PORT or a serial device), "
     "or 'virtual' for the PC's virtual drive built here",
 )
-@click.option("--elf", type=click.Path(dir_okay=False), default=None, help="the ELF file of the drive's firmware")
-def tune(scenario: str | None, port: int, host: str, no_browser: bool, link: str | None, elf: str | None) -> None:
+@click.option(
+    "--a2l",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="the A2L file of the drive's firmware (written beside its ELF by pmsm2dof firmware)",
+)
+def tune(scenario: str | None, port: int, host: str, no_browser: bool, link: str | None, a2l: str | None) -> None:
     """Tune the speed controller in the browser: responses redrawn as the sliders move.
 
     Starts from PRESET_OR_FILE (default: paper-condition-2) and serves a local page with
@@ -42,4 +47,4 @@ def tune(scenario: str | None, port: int, host: str, no_browser: bool, link: str
 
     chosen = load_scenario(scenario or DEFAULT_PRESET)
     warn_implausible(chosen)
-    run_tuner(chosen, host=host, port=port, open_browser=not no_browser, link=link, elf=elf)
+    run_tuner(chosen, host=host, port=port, open_browser=not no_browser, link=link, a2l=a2l)

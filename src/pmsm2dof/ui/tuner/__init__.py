@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ...errors import ConfigError, ToolError
+from ...errors import ConfigError
 from ...sim.scenario import Scenario
 from .app import create_app
 from .server import bind_socket, is_loopback, serve, serving_in_thread, url_of
@@ -33,14 +33,14 @@ VIRTUAL_LINK = "virtual"
 
 
 @contextlib.contextmanager
-def drive_session(scenario: Scenario, link: str, elf: Path | str | None) -> "Iterator[DriveSession]":
-    """A :class:`~pmsm2dof.studies.bench.DriveSession` on the drive at ``link`` (its firmware's ``elf``).
+def drive_session(scenario: Scenario, link: str, a2l: Path | str | None) -> "Iterator[DriveSession]":
+    """A :class:`~pmsm2dof.studies.bench.DriveSession` on the drive at ``link`` (its firmware's A2L file ``a2l``).
 
     ``link`` is ``socket://HOST:PORT``, a serial device, or :data:`VIRTUAL_LINK`: the PC's virtual
     drive of ``scenario`` built and started here (on the wall clock) for the session's length.
     Events of the session are printed on stderr.
     """
-    from ...drive.link import Link
+    from ...drive.session import open_link
     from ...studies.bench import DriveSession
     from ...studies.firmware import serve_scenario
 
@@ -49,27 +49,15 @@ def drive_session(scenario: Scenario, link: str, elf: Path | str | None) -> "Ite
 
     with contextlib.ExitStack() as stack:
         if link == VIRTUAL_LINK:
-            if elf is not None:
-                raise ConfigError("elf", str(elf), f"none with link = {VIRTUAL_LINK} (the drive is built here)")
+            if a2l is not None:
+                raise ConfigError("a2l", str(a2l), f"none with link = {VIRTUAL_LINK} (the drive is built here)")
             url, folder = stack.enter_context(serve_scenario(scenario))
-            elf = folder / "virtual_drive_host"
+            a2l = folder / "virtual_drive_host.a2l"
         else:
-            if elf is None:
-                raise ConfigError("elf", None, f"the ELF file of the firmware the drive at {link} runs")
+            if a2l is None:
+                raise ConfigError("a2l", None, f"the A2L file of the firmware the drive at {link} runs")
             url = link
-        try:
-            try:
-                session_link = Link(url, elf, virtual=True)
-            except ConfigError:  # no virtual board: a drive of its own
-                session_link = Link(url, elf, virtual=False)
-        except ConfigError:
-            raise
-        except Exception as exc:  # not a file, or not an ELF file (pyelftools' ELFError)
-            raise ConfigError("elf", str(elf), f"the firmware's ELF file ({str(exc).strip()})") from None
-        try:
-            session_link.open()
-        except Exception as exc:
-            raise ToolError(f"cannot connect to the drive at {url}: {str(exc).strip() or type(exc).__name__}") from None
+        session_link = stack.enter_context(open_link(url, a2l))
         session = DriveSession(session_link, scenario, report=say)
         stack.callback(session.close)
         yield session
@@ -81,7 +69,7 @@ def run_tuner(
     port: int | None = None,
     open_browser: bool = True,
     link: str | None = None,
-    elf: Path | str | None = None,
+    a2l: Path | str | None = None,
 ) -> None:
     """Serve the tuner for ``scenario`` until interrupted.
 
@@ -98,13 +86,13 @@ def run_tuner(
         Open the page in the default browser.
     link : str, optional
         The drive mode: the link of a drive built for ``scenario`` (:func:`drive_session`).
-    elf : path, optional
-        The ELF file of the drive's firmware (its variables' addresses).
+    a2l : path, optional
+        The A2L file of the drive's firmware (its variables' addresses, types and limits).
     """
     if link is not None and not is_loopback(host):
         raise ConfigError("host", host, "a loopback address (127.0.0.1, localhost) when the tuner drives a drive")
     with contextlib.ExitStack() as stack:
-        session = stack.enter_context(drive_session(scenario, link, elf)) if link is not None else None
+        session = stack.enter_context(drive_session(scenario, link, a2l)) if link is not None else None
         _serve(create_app(scenario, drive=session), scenario, host, port, open_browser)
 
 

@@ -1,6 +1,6 @@
 """The tuner's drive mode: the control values written to a drive, its runs captured beside their digital twin.
 
-``pmsm2dof tune SCENARIO --link URL --elf FILE`` serves the tuner with a
+``pmsm2dof tune SCENARIO --link URL --a2l FILE`` serves the tuner with a
 :class:`~pmsm2dof.studies.bench.DriveSession` on the drive: the page arms it, and then every
 change of a control is validated as the tuner validates it (:meth:`Tuner.scenario
 <pmsm2dof.ui.tuner.experiment.Tuner.scenario>`, then the C controllers' init) and written to the
