@@ -63,14 +63,14 @@ def _leaves(obj, ctype, path=""):
 def test_every_field_holds_its_scenario_key():
     scenario = load_scenario("field-weakening").with_overrides(CHANGES)
     data = scenario.data
-    run = Simulation(data)
+    run = Simulation(scenario)
     keys = {f.key for f in SCHEMA}
     checked = 0
     for path, ctype, value in _leaves(run.cfg, "p2d_sim_config_t"):
         if path in ("reference.n", "load.n", "n_faults"):
             continue
         key = engine.KEYS[path]
-        if key is None or path in engine.derived_values(data, run.current_per_speed, 1):
+        if key is None or path in engine.derived_values(scenario, run.current_per_speed, 1):
             continue
         if path in engine.FULL_SCALES:  # given or derived for Q15 and Q31: tests/test_engine_fixed_point.py
             continue
