@@ -192,3 +192,41 @@ def test_a_scenario_pickles_and_compares_by_value():
     assert back.fault == scenario.fault and back.speed_controller.Ka == 2.0
     assert back.with_overrides({"speed_controller.Ka": 3.0}) != scenario
     assert back.with_overrides({"speed_controller.Ka": 2.0}) == scenario
+
+
+def test_a_controller_key_is_described_by_its_c_field_comment():
+    """One source per fact: the meaning, unit and range of a key that a C field holds under its name are that
+    field's comment in the C header (compiled into the extension from csrc/), read here from the header text."""
+    from pathlib import Path
+
+    from pmsm2dof.core.cheaders import field_comments
+    from pmsm2dof.sim.engine_keys import c_field
+    from pmsm2dof.sim.scenario_keys import FromC
+    from pmsm2dof.sim.scenario_schema import FIELDS
+
+    root = Path(__file__).resolve().parents[1] / "csrc"
+    headers = field_comments(p.read_text() for p in sorted(root.glob("**/*.h")))
+    speed_h = (root / "include/pmsm2dof/speed.h").read_text()
+    assert "bandwidth of the P loop [rad/s], > 0 (eq 9)" in speed_h
+    assert FIELDS["speed_controller.alpha_radps"].doc == "bandwidth of the P loop [rad/s], > 0 (eq 9)"
+    from_c = 0
+    for name, table in TABLES.items():
+        for field in dataclasses.fields(table):
+            key = f"{name}.{field.name}"
+            where = c_field(key)
+            if isinstance(field.metadata["key"].doc, FromC):
+                assert where is not None, key
+                assert FIELDS[key].doc.startswith(headers[f"{where[0]}.{where[1]}"]), key
+                from_c += 1
+            elif where is not None:
+                # a choice or a switch: its words say what each choice does, the C comment only names them
+                assert FIELDS[key].choices or FIELDS[key].kind is bool, key
+    assert from_c >= 50
+
+
+def test_a_key_declared_from_c_without_a_c_field_is_refused():
+    from pmsm2dof.sim.scenario_keys import from_c
+    from pmsm2dof.sim.scenario_schema import _c_doc
+
+    with pytest.raises(RuntimeError, match="fills no commented field"):
+        _c_doc("limits.u_dc_V", from_c())

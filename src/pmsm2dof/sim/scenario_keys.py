@@ -139,10 +139,23 @@ STRING_CHARS_MAX = 500
 
 
 @dataclasses.dataclass(frozen=True)
+class FromC:
+    """The meaning of a key is the comment beside the C field it fills (meaning, [unit], range, equation: the
+    one source of that fact), followed by ``extra``, what only the scenario says (its default when absent)."""
+
+    extra: str = ""
+
+
+def from_c(extra: str = "") -> FromC:
+    """The doc of a key that a controller's C field holds: that field's comment, then ``extra`` (see :class:`FromC`)."""
+    return FromC(extra)
+
+
+@dataclasses.dataclass(frozen=True)
 class Spec:
     """What :func:`key` declares of one key: all of :class:`Field` but its dotted name and its type."""
 
-    doc: str
+    doc: str | FromC
     default: object = REQUIRED
     gt: float | None = None
     ge: float | None = None
@@ -152,7 +165,7 @@ class Spec:
 
 
 def key(
-    doc: str,
+    doc: str | FromC,
     default: object = REQUIRED,
     *,
     gt: float | None = None,
@@ -162,6 +175,8 @@ def key(
     choices: tuple[str, ...] = (),
 ) -> Any:
     """Declare a key of a scenario table as a field of its dataclass: meaning, default and valid range.
+
+    ``doc`` is the meaning in words, or :func:`from_c` for a key that a controller's C field holds.
 
     ``default`` is :data:`REQUIRED`, a value, ``None`` (optional, no value: see ``doc``) or a
     :class:`SameAs`. The dataclass field itself has no default: a table is built with every key resolved.

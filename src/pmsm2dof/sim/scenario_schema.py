@@ -11,8 +11,10 @@ import json
 import types
 import typing
 
+from ..core.bindings import field_comment
 from ..core.motor import DATASHEET_KEYS
-from .scenario_keys import REQUIRED, Field, SameAs, Spec
+from .engine_keys import c_field
+from .scenario_keys import REQUIRED, Field, FromC, SameAs, Spec
 from .scenario_tables import ARRAYS, ENTRIES, TABLES
 
 #: The keys of the top level of a scenario file.
@@ -34,10 +36,19 @@ def _table_fields(parent: str, table: type) -> tuple[Field, ...]:
             kind = str
         if not isinstance(kind, type):
             raise TypeError(f"{parent}.{f.name}: annotated {f.type!r}, not float, int, bool or str")
-        fields.append(
-            Field(f"{parent}.{f.name}", kind, spec.doc, spec.default, spec.gt, spec.ge, spec.lt, spec.le, spec.choices)
-        )
+        key = f"{parent}.{f.name}"
+        doc = spec.doc if isinstance(spec.doc, str) else _c_doc(key, spec.doc)
+        fields.append(Field(key, kind, doc, spec.default, spec.gt, spec.ge, spec.lt, spec.le, spec.choices))
     return tuple(fields)
+
+
+def _c_doc(key: str, doc: FromC) -> str:
+    """The doc of ``key`` from the comment of the C field it fills (:func:`~pmsm2dof.sim.engine_keys.c_field`)."""
+    where = c_field(key)
+    comment = field_comment(*where) if where is not None else ""
+    if not comment:
+        raise RuntimeError(f"{key} is declared from_c() but fills no commented field of a C configuration struct")
+    return f"{comment}; {doc.extra}" if doc.extra else comment
 
 
 #: Each table's keys by parent: ``""`` (the top level), ``"motor"``, ..., ``"reference[]"``.

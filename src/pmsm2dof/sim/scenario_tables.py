@@ -25,21 +25,21 @@ from ..core import (
     SPEED_SENSOR_MODELS,
 )
 from ..core.bindings import AntiWindup, Feedforward, Method
-from .scenario_keys import SENSOR_DELAY_MAX_PERIODS, T_END_MAX_S, SameAs, key
+from .scenario_keys import T_END_MAX_S, SameAs, from_c, key
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
 class MotorTable:
     """``[motor]``."""
 
-    pole_pairs: int = key("pole pairs p (the paper's p0 of eq 1, which it calls the number of poles)", ge=1, le=1000)
-    Rs_ohm: float = key("stator resistance Rs [ohm] (eq 1)", gt=0)
-    Ld_H: float = key("d-axis inductance Ld [H] (eq 1)", gt=0)
-    Lq_H: float = key("q-axis inductance Lq [H] (eq 1); Lq != Ld makes a salient motor (MTPA)", gt=0)
-    psi_f_Wb: float = key("permanent-magnet flux linkage psi_f [Wb] (eq 1)", gt=0)
-    J_kgm2: float = key("true inertia of motor and load J [kg m^2] (eq 1, 2)", gt=0)
-    B_Nms: float = key("viscous friction B [Nm s/rad]", default=0.0, ge=0)
-    T_coulomb_Nm: float = key("Coulomb friction torque [Nm]", default=0.0, ge=0)
+    pole_pairs: int = key(from_c("the paper's p0 of eq 1, which it calls the number of poles"), ge=1, le=1000)
+    Rs_ohm: float = key(from_c("eq 1"), gt=0)
+    Ld_H: float = key(from_c("eq 1"), gt=0)
+    Lq_H: float = key(from_c("eq 1; Lq != Ld makes a salient motor (MTPA)"), gt=0)
+    psi_f_Wb: float = key(from_c("eq 1"), gt=0)
+    J_kgm2: float = key(from_c("the plant's (eq 1, 2)"), gt=0)
+    B_Nms: float = key(from_c(), default=0.0, ge=0)
+    T_coulomb_Nm: float = key(from_c(), default=0.0, ge=0)
     i_rated_A: float | None = key(
         "rated (continuous) current as a dq magnitude, the peak of the phase current [A]; "
         "only the plausibility checks read it",
@@ -85,9 +85,9 @@ class CurrentLoopTable:
         "first_order: the closed current loop as eq 3",
         choices=CURRENT_LOOP_MODELS,
     )
-    tau_i_s: float = key("time constant of the closed current loop tau_i [s] (eq 3)", gt=0)
-    Ts_s: float = key("sampling period of the current controller [s]", gt=0)
-    decouple: bool = key("add the back-EMF and cross-coupling feedforward (dq_pi)", default=True)
+    tau_i_s: float = key(from_c("tau_i of the closed current loop (eq 3): first_order's, or the dq PIs' design"), gt=0)
+    Ts_s: float = key(from_c("of the current controller and the PWM"), gt=0)
+    decouple: bool = key(from_c("dq_pi"), default=True)
     anti_windup: AntiWindup = key(
         "anti-windup of the current PIs (dq_pi)", default="back_calculation", choices=ANTI_WINDUPS
     )
@@ -98,9 +98,9 @@ class CurrentLoopTable:
 class SpeedControllerTable:
     """``[speed_controller]``."""
 
-    alpha_radps: float = key("bandwidth alpha [rad/s] of the P loop (eq 9)", gt=0)
-    zeta: float = key("relative damping zeta of the PI loop (eq 9)", gt=0)
-    m: float = key("tracking pole factor, Gx = m alpha / (s + m alpha) (eq 10)", default=1.0, gt=0)
+    alpha_radps: float = key(from_c(), gt=0)
+    zeta: float = key(from_c(), gt=0)
+    m: float = key(from_c(), default=1.0, gt=0)
     feedforward: Feedforward = key(
         "2DOF feedforward Fr: none (1DOF PI), lowpass (eq 13, 15), no_tau (eq 11 with tau_i = 0), full (eq 11)",
         default="lowpass",
@@ -112,15 +112,19 @@ class SpeedControllerTable:
         choices=ANTI_WINDUPS,
     )
     Ka: float | None = key(
-        "back-calculation gain Ka [(rad/s)/Nm] (Fig. 5); absent: 1/Kp (section 3.3)",
+        from_c("absent means that default (section 3.3)"),
         default=None,
         ge=0,
     )
     method: Method = key("discretization of the PI and Fr (Table 1, eq 14, 15)", default="tustin", choices=METHODS)
-    Ts_s: float = key("sampling period of the speed controller [s], an integer multiple of current_loop.Ts_s", gt=0)
-    J_kgm2: float = key("inertia the gains are designed for [kg m^2] (eq 9, 11)", default=SameAs("motor.J_kgm2"), gt=0)
+    Ts_s: float = key(from_c("of the speed controller, an integer multiple of current_loop.Ts_s"), gt=0)
+    J_kgm2: float = key(
+        from_c("the gains of eq 9 and the feedforward of eq 11 are designed for it"),
+        default=SameAs("motor.J_kgm2"),
+        gt=0,
+    )
     tau_i_s: float = key(
-        "current-loop time constant the full feedforward is designed for [s] (eq 11)",
+        from_c("the full feedforward of eq 11 is designed for it"),
         default=SameAs("current_loop.tau_i_s"),
         ge=0,
     )
@@ -161,11 +165,11 @@ class MechanicsTable:
         default="rigid",
         choices=MECHANICS_MODELS,
     )
-    J_load_kgm2: float | None = key("load inertia J_L [kg m^2] (two_mass)", default=None, gt=0)
-    stiffness_Nm_per_rad: float | None = key("shaft stiffness K [Nm/rad] (two_mass)", default=None, gt=0)
-    damping_Nms_per_rad: float = key("shaft damping D [Nm s/rad] (two_mass)", default=0.0, ge=0)
+    J_load_kgm2: float | None = key(from_c("two_mass"), default=None, gt=0)
+    stiffness_Nm_per_rad: float | None = key(from_c("two_mass"), default=None, gt=0)
+    damping_Nms_per_rad: float = key(from_c("two_mass"), default=0.0, ge=0)
     backlash_rad: float = key(
-        "total play b of the shaft, a dead zone of +-b/2 of the twist [rad] (two_mass)",
+        from_c("a dead zone of +-b/2 of the twist (two_mass)"),
         default=0.0,
         ge=0,
     )
@@ -181,25 +185,24 @@ class SpeedFilterTable:
     """``[speed_filter]``."""
 
     notch_freq_Hz: float = key(
-        "notch on the torque command, inside the anti-windup loop: frequency f0 [Hz]; 0: no notch, "
-        "else < 1/(2 speed_controller.Ts_s)",
+        from_c("on the torque command, inside the anti-windup loop; Ts_s is speed_controller.Ts_s"),
         default=0.0,
         ge=0,
     )
-    notch_width_Hz: float = key("-3 dB width of the notch [Hz] (notch only)", default=0.0, ge=0)
+    notch_width_Hz: float = key(from_c(), default=0.0, ge=0)
     notch_depth: float = key(
-        "gain of the notch at f0 [-], < 1/sqrt(2) (0.1: -20 dB; notch only)",
+        from_c(),
         default=0.0,
         ge=0,
         lt=1 / math.sqrt(2),
     )
     lowpass_freq_Hz: float = key(
-        "second-order low-pass on the torque command: natural frequency [Hz]; 0: no low-pass",
+        from_c("second order, on the torque command"),
         default=0.0,
         ge=0,
     )
     lowpass_zeta: float = key(
-        "damping of the low-pass [-] (1/sqrt(2): -3 dB at its frequency; low-pass only)",
+        from_c(),
         default=0.0,
         ge=0,
     )
@@ -291,25 +294,25 @@ class SpeedSensorTable:
         default="ideal",
         choices=SPEED_SENSOR_MODELS,
     )
-    counts_per_rev: int = key("encoder counts per revolution (4 x lines)", default=4096, ge=1, le=2**24)
-    counter_bits: int = key("width of the encoder's hardware counter [bit]", default=32, ge=2, le=32)
+    counts_per_rev: int = key(from_c("4 x lines"), default=4096, ge=1, le=2**24)
+    counter_bits: int = key(from_c(), default=32, ge=2, le=32)
     estimator: str = key(
         "encoder speed estimator: difference (counts over one speed period) or pll (type-2 tracking loop)",
         default="difference",
         choices=ESTIMATORS,
     )
     bandwidth_radps: float | None = key(
-        "PLL double pole w_pll [rad/s], 1e-3 <= w_pll speed_controller.Ts_s <= 2 (estimator pll)",
+        from_c("Ts_s is speed_controller.Ts_s"),
         default=None,
         gt=0,
     )
     lowpass_radps: float = key(
-        "first-order low-pass on the estimate [rad/s], 0: none, else 1e-3 <= it speed_controller.Ts_s <= 2",
+        from_c("first order; Ts_s is speed_controller.Ts_s"),
         default=0.0,
         ge=0,
     )
     delay_s: float = key(
-        f"transport delay of the reading [s], at most {SENSOR_DELAY_MAX_PERIODS} current_loop.Ts_s",
+        from_c("Ts_current is current_loop.Ts_s"),
         default=0.0,
         ge=0,
     )
@@ -318,7 +321,7 @@ class SpeedSensorTable:
         default=0.0,
         ge=0,
     )
-    seed: int = key("seed of the speed noise", default=0, ge=0, lt=2**64)
+    seed: int = key(from_c("the speed noise"), default=0, ge=0, lt=2**64)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -326,15 +329,15 @@ class CurrentMeasurementTable:
     """``[current_measurement]``."""
 
     gain_error_a: float = key(
-        "relative gain error of the phase-a current sensor [-] (measured = (1 + gain_error) i + offset + noise)",
+        from_c("measured = (1 + gain_error) i + offset + noise"),
         default=0.0,
         gt=-1,
     )
-    gain_error_b: float = key("relative gain error of the phase-b sensor [-]", default=0.0, gt=-1)
-    offset_a_A: float = key("offset of the phase-a current sensor [A]", default=0.0)
-    offset_b_A: float = key("offset of the phase-b current sensor [A]", default=0.0)
+    gain_error_b: float = key(from_c(), default=0.0, gt=-1)
+    offset_a_A: float = key(from_c(), default=0.0)
+    offset_b_A: float = key(from_c(), default=0.0)
     noise_A_rms: float = key("white Gaussian noise of each phase current sensor [A rms]", default=0.0, ge=0)
-    seed: int = key("seed of the current noise", default=0, ge=0, lt=2**64)
+    seed: int = key(from_c("the current noise"), default=0, ge=0, lt=2**64)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -343,23 +346,23 @@ class FieldWeakeningTable:
 
     enabled: bool = key("voltage-feedback field weakening in the current reference path (dq_pi)", default=False)
     Ki_A_per_Vs: float | None = key(
-        "integral gain of the PI on the voltage margin [A/(V s)]; crossover about Ki w_e Ld (required when enabled)",
+        from_c("of the PI on the voltage margin, crossover about Ki w_e Ld; required when enabled"),
         default=None,
         gt=0,
     )
-    Kp_A_per_V: float = key("proportional gain of that PI [A/V]", default=0.0, ge=0)
+    Kp_A_per_V: float = key(from_c(), default=0.0, ge=0)
     Ka_V_per_A: float | None = key(
-        "back-calculation gain [V/A]; absent: 1 / (Ki speed_controller.Ts_s)",
+        from_c("absent: 1 / (Ki speed_controller.Ts_s)"),
         default=None,
         ge=0,
     )
     voltage_ratio: float = key(
-        "the voltage command is held at voltage_ratio u_dc/sqrt(3) [-]",
+        from_c(),
         default=0.95,
         gt=0,
         le=1,
     )
-    id_min_A: float | None = key("most negative d-axis current [A]; absent: -limits.i_max_A", default=None, lt=0)
+    id_min_A: float | None = key(from_c("absent: -limits.i_max_A"), default=None, lt=0)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -375,7 +378,7 @@ class EstimatorTable:
         default=False,
     )
     adapt_rel_change: float = key(
-        "re-design when the estimate has moved by more than this fraction of the J of the present gains",
+        from_c(),
         default=0.05,
         ge=0,
     )
@@ -386,46 +389,46 @@ class EstimatorTable:
         ge=0,
     )
     J0_kgm2: float = key(
-        "initial estimate and prior standard deviation of J [kg m^2]",
+        from_c(),
         default=SameAs("speed_controller.J_kgm2"),
         gt=0,
     )
-    J_min_kgm2: float | None = key("smallest plausible J [kg m^2]; absent: J0_kgm2 / 10", default=None, gt=0)
-    J_max_kgm2: float | None = key("largest plausible J [kg m^2]; absent: 10 J0_kgm2", default=None, gt=0)
+    J_min_kgm2: float | None = key(from_c("absent: J0_kgm2 / 10"), default=None, gt=0)
+    J_max_kgm2: float | None = key(from_c("absent: 10 J0_kgm2"), default=None, gt=0)
     B_max_Nms: float | None = key(
-        "largest plausible viscous friction [Nm s/rad]; absent: the peak torque 1.5 p psi_f i_max_A per 100 rad/s",
+        from_c("absent: the peak torque 1.5 p psi_f i_max_A per 100 rad/s"),
         default=None,
         gt=0,
     )
     T_load_max_Nm: float | None = key(
-        "largest plausible |load torque| [Nm]; absent: the peak torque 1.5 p psi_f i_max_A",
+        from_c("absent: the peak torque 1.5 p psi_f i_max_A"),
         default=None,
         gt=0,
     )
     sigma_T_Nm: float | None = key(
-        "standard deviation of the torque input's noise [Nm]; absent: 1 % of the peak torque",
+        from_c("absent: 1 % of the peak torque"),
         default=None,
         gt=0,
     )
-    J_memory_s: float = key("memory of the estimates of J and B [s]", default=10.0, gt=0)
+    J_memory_s: float = key(from_c(), default=10.0, gt=0)
     load_memory_s: float | None = key(
-        "time constant of the load estimate after a load step [s]; absent: 1 / speed_controller.alpha_radps",
+        from_c("absent: 1 / speed_controller.alpha_radps"),
         default=None,
         gt=0,
     )
     w_f_radps: float | None = key(
-        "bandwidth of the prefilter of speed and torque [rad/s]; absent: 0.2 / speed_controller.Ts_s",
+        from_c("absent: 0.2 / speed_controller.Ts_s"),
         default=None,
         gt=0,
     )
     J_rel_sd_max: float = key(
-        "J is valid (and used by adapt_gains) once its standard deviation is below this fraction",
+        from_c("J_valid: the estimate is used by adapt_gains"),
         default=0.05,
         gt=0,
         lt=1,
     )
     speed_is_period_mean: bool = key(
-        "the speed reading is the mean over the speed period (encoder counts differenced)",
+        from_c(),
         default=False,
     )
 
