@@ -63,7 +63,7 @@ def worker(kind, arg):
         "wall": time.perf_counter() - start,
         "cpu": usage.ru_utime + usage.ru_stime - start_cpu,
         "runs": result.as_dict()["counts"]["runs"],
-        "chosen": result.as_dict()["chosen"],
+        "chosen": result.as_dict()["speed_controller"],
     }
 
 
