@@ -246,7 +246,6 @@ def test_scenario_design_is_the_design_of_the_scenario_keys():
         sc["feedforward"],
         sc["anti_windup"],
     )
-    assert scenario_design(scenario.data).Kp == d.Kp
     full = scenario_design(scenario, m=1.0, feedforward="full")
     assert (full.feedforward, full.m, full.Kp) == ("full", 1.0, d.Kp)
     with pytest.raises(ConfigError, match="alpha = 3"):

@@ -331,7 +331,7 @@ def test_run_of_paper_experiment_1_agrees_with_the_engine(experiment_1, tmp_path
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["metrics.json", "plot.png",
                                                                                    "trace.csv"]  # fmt: skip
     trace = pd.read_csv(out / "trace.csv")
-    sim = Simulation(scenario.data)
+    sim = Simulation(scenario)
     sim.advance(sim.n_samples)
     engine = sim.result(scenario, 0.0)
     np.testing.assert_array_equal(trace["t_s"].to_numpy(), engine.t_s)
@@ -403,7 +403,7 @@ def test_qemu_run_agrees_with_the_engine(servo_mcu, tmp_path, capsys):
                                "--out", str(tmp_path / "run"), *link], capsys)  # fmt: skip
     assert code == 0, err
     scenario = load_scenario(str(SERVO)).with_overrides({"simulation.t_end_s": 0.15})
-    sim = Simulation(scenario.data)
+    sim = Simulation(scenario)
     sim.advance(sim.n_samples)
     engine = sim.result(scenario, 0.0)
     trace = pd.read_csv(tmp_path / "run" / "trace.csv")

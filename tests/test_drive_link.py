@@ -163,7 +163,7 @@ def test_a_live_write_of_alpha_takes_effect_at_the_next_speed_sample(servo, kind
     assert status is not None and status["commit_run"] == status["runs"] and status["commits_applied"] >= 1, status
     k = status["commit_sample"]
     assert 100 <= k < 300, k  # after the first step, before the response to the second (at sample 240) is over
-    sim = Simulation(scenario.data)
+    sim = Simulation(scenario)
     sim.advance(k)
     cfg = ffi.new("p2d_speed_config_t *", sim.sim.speed.config)
     cfg.alpha_radps = alpha_new
@@ -172,7 +172,7 @@ def test_a_live_write_of_alpha_takes_effect_at_the_next_speed_sample(servo, kind
     engine = sim.result(scenario, 0.0)
     assert_agrees(drive, engine)
     # and the new design made a difference the comparison can see: the old one's run differs after k
-    old = Simulation(scenario.data)
+    old = Simulation(scenario)
     old.advance(old.n_samples)
     old_speed = old.result(scenario, 0.0).w_m_radps
     assert np.max(np.abs(old_speed - drive.w_m_radps)) > 1e-2 * np.ptp(old_speed)
@@ -193,7 +193,7 @@ def test_a_rejected_configuration_leaves_the_drive_unchanged(servo, kind):
         assert link.read("link_speed_config.alpha_radps") == before
         assert status["commits_rejected"] == 2 and status["commit_status"] == lib.P2D_ERR_TS
         drive = play_scenario(link, scenario, samples=200)
-    sim = Simulation(scenario.data)
+    sim = Simulation(scenario)
     sim.advance(200)
     assert_agrees(drive, sim.result(scenario, 0.0))
 
@@ -257,7 +257,7 @@ def test_paper_experiment_1_over_the_link_equals_the_engine(experiment_1, kind):
     folder = experiment_1
     with serve(kind, folder) as url, Link(url, elf(kind, folder)) as link:
         drive = play_scenario(link, scenario)
-    sim = Simulation(scenario.data)
+    sim = Simulation(scenario)
     sim.advance(sim.n_samples)
     engine = sim.result(scenario, 0.0)
     assert list(LOG_COLUMNS)[:3] == ["t_s", "w_ref_radps", "w_m_radps"]

@@ -464,7 +464,7 @@ def test_overcurrent_stops():
                 "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
                 "load": [],
             }
-        ).data
+        )
     )
     run.cfg.motor.Ld_H = run.cfg.motor.Lq_H = 1e-5
     run.cfg.motor.psi_f_Wb = 1e-4

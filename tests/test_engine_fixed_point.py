@@ -253,7 +253,7 @@ def test_float32_and_q31_runs_of_the_paper_condition_agree_within_the_derived_bo
     f = simulate(experiment3("float32", **overrides))
     q_scenario = experiment3("q31", **overrides)
     q = simulate(q_scenario)
-    fs = Simulation(q_scenario.data).full_scales
+    fs = Simulation(q_scenario).full_scales
     T_lsb = math.ldexp(fs["torque_full_scale_Nm"], -31)
     # within the ranges the analysis assumes: u inside two full scales (not clamped by the format)
     assert np.max(np.abs(q.torque_unsat_Nm)) < (2**32 - 1) * T_lsb
@@ -288,7 +288,7 @@ def test_the_derived_full_scales_follow_their_documented_formulas_and_hold_the_s
     """Paper condition 2 (2DOF lowpass: x = x_i + Fr(0) r with Fr(0) = -J alpha / (4 zeta^2 m), eq 11 at
     s = 0): speed twice the no-load speed, torque 1.25 max(T_max + |Fr0| r_max, |b_dr| dr_max) / 2."""
     scenario = load_scenario("paper-condition-2").with_overrides({"speed_controller.arithmetic": "q31"})
-    fs = Simulation(scenario.data).full_scales
+    fs = Simulation(scenario).full_scales
     no_load = 540.0 / (math.sqrt(3.0) * 4 * 0.2)
     assert fs["speed_full_scale_radps"] == pytest.approx(2.0 * no_load, rel=1e-7)
     Fr0 = J * ALPHA / (4.0 * ZETA**2)  # 0.6 Nm per rad/s
@@ -311,14 +311,14 @@ def test_the_derived_full_scales_follow_their_documented_formulas_and_hold_the_s
     b_dr = -Fr0_s / (1.0 + a_s * Ts_s / 2.0)
     T_max_s = 1.5 * 4 * 0.01 * 10.0
     expected = 1.25 * (T_max_s + (b_e0 + abs(Fr0_s + b_dr)) * step) / 2.0
-    assert Simulation(servo.data).full_scales["torque_full_scale_Nm"] == pytest.approx(expected, rel=1e-5)
+    assert Simulation(servo).full_scales["torque_full_scale_Nm"] == pytest.approx(expected, rel=1e-5)
     one_dof = load_scenario("paper-condition-2").with_overrides(
         {"speed_controller.arithmetic": "q15", "speed_controller.feedforward": "none"}
     )
     # the 1DOF PI holds no feedforward state: the command at the 500 rpm step, b_e0 = Kp + Ki Ts / 2
     b_e0_paper = J * ALPHA + J * (ALPHA / (2.0 * ZETA)) ** 2 * 1e-3 / 2.0
     expected = 1.25 * (T_MAX + b_e0_paper * W0) / 2.0
-    assert Simulation(one_dof.data).full_scales["torque_full_scale_Nm"] == pytest.approx(expected, rel=1e-6)
+    assert Simulation(one_dof).full_scales["torque_full_scale_Nm"] == pytest.approx(expected, rel=1e-6)
 
 
 def test_lockstep_runs_of_the_three_arithmetics_equal_lone_runs():
@@ -383,7 +383,7 @@ def test_what_the_fixed_point_controllers_do_not_support_is_refused_naming_the_k
 
 
 def test_the_engine_refuses_an_arithmetic_it_does_not_know_and_fixed_point_with_a_torque_filter():
-    cfg = Simulation(load_scenario("paper-condition-1").data).cfg
+    cfg = Simulation(load_scenario("paper-condition-1")).cfg
     sim = ffi.new("p2d_sim_t *")
     cfg.arithmetic = 3
     assert lib.p2d_sim_init(sim, cfg) == lib.P2D_SIM_ERR_ARITHMETIC

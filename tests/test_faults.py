@@ -360,7 +360,7 @@ def test_sensor_spike_between_samples_hits_the_next_one():
     ],
 )
 def test_engine_rejects_bad_fault_entries_naming_the_fault_key(field, value):
-    r = Simulation(load_scenario("fault-dc-link-sag").data)
+    r = Simulation(load_scenario("fault-dc-link-sag"))
     setattr(r.cfg.faults[0], field, value)
     status = lib.p2d_sim_init(r.sim, r.cfg)
     assert status == lib.P2D_SIM_ERR_FAULTS
@@ -370,7 +370,7 @@ def test_engine_rejects_bad_fault_entries_naming_the_fault_key(field, value):
 
 
 def test_engine_rejects_a_sag_without_an_inverter():
-    r = Simulation(load_scenario("fault-dc-link-sag").data)
+    r = Simulation(load_scenario("fault-dc-link-sag"))
     r.cfg.current_model = lib.P2D_CURRENT_FIRST_ORDER
     assert lib.p2d_sim_init(r.sim, r.cfg) == lib.P2D_SIM_ERR_FAULTS
 

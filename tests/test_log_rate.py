@@ -190,7 +190,7 @@ def test_the_log_bound_counts_the_rows_of_the_current_rate():
     text = str(err.value)
     assert f"simulation.log_every = 1 is invalid: valid range is >= 2: the log of {rows} rows" in text
     assert f"a row every 1 of the {rows} current periods, 10 per speed sample) would exceed 2 GiB" in text
-    assert log_rows(scenario.data) == (1500001, 1500001)
+    assert log_rows(scenario) == (1500001, 1500001)
 
 
 def test_steady_state_figures_count_speed_samples_not_rows():

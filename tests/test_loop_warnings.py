@@ -49,7 +49,7 @@ def scenario(**speed_controller):
 
 @pytest.mark.parametrize("alpha", [300.0, 1500.0, 2500.0, 3000.0, 4000.0])
 def test_stability_check_against_analytic_poles(alpha):
-    check = sampled_loop(scenario(alpha_radps=alpha).data)
+    check = sampled_loop(scenario(alpha_radps=alpha))
     z = np.max(np.abs(analytic_poles(small_servo.J_KGM2, alpha, 1.0, small_servo.J_KGM2, TAU_I_S, 5e-4)))
     assert check["design"]["z_max"] == pytest.approx(z, rel=1e-5)  # float32 coefficients in the C controller
     assert check["stable"] == (z < 1.0)
@@ -61,7 +61,7 @@ def test_stability_check_against_analytic_poles(alpha):
 
 def test_inertia_typed_in_the_wrong_unit_is_unstable_on_the_plant():
     """J = 181 (g cm^2 typed as kg m^2) for the design: stable on paper, unstable on the 7.24e-5 kg m^2 rotor."""
-    check = sampled_loop(scenario(J_kgm2=181.0).data)
+    check = sampled_loop(scenario(J_kgm2=181.0))
     own = np.max(np.abs(analytic_poles(181.0, 300.0, 1.0, 181.0, TAU_I_S, 5e-4)))
     on_plant = np.max(np.abs(analytic_poles(181.0, 300.0, 1.0, small_servo.J_KGM2, TAU_I_S, 5e-4)))
     assert own < 1.0 < on_plant
@@ -102,7 +102,7 @@ def test_a_run_the_analysis_does_not_take_says_the_check_was_not_made(tmp_path, 
     from pmsm2dof.studies.sweep import _flatten
 
     chosen = scenario().with_overrides(changes)
-    check = sampled_loop(chosen.data)
+    check = sampled_loop(chosen)
     assert check["stable"] is None and check["design"] is None and check["plant"] is None
     assert check["warning"].startswith("the sampled-loop stability check was not made") and words in check["warning"]
     metrics = measure(simulate(chosen))

@@ -47,7 +47,7 @@ def test_the_drive_column_comes_from_the_drive_traces(studies):
     plain = _by_evidence(compute_claims(studies), "e1-1dof")
     claim = _by_evidence(compute_claims(studies, drive), "e1-1dof")
     # the overshoot of the changed trace, by hand: the 500 rpm step from rest at t = 0
-    step_rpm = sim.scenario.data["reference"][0]["speed_rpm"]
+    step_rpm = sim.scenario.reference[0].speed_rpm
     expected = 100.0 * (np.max(changed.speed_rpm) - step_rpm) / step_rpm
     assert claim.on_drive is not None and plain.on_drive is None
     assert claim.on_drive.values["overshoot_no_aw_pct"] == pytest.approx(expected, rel=1e-9)
@@ -78,18 +78,18 @@ def test_experiment_1_on_the_virtual_drive_reads_as_simulated():
     lines = []
     drive = run_on_drives(bases, "virtual", runs=runs, report=lines.append)
     assert len(lines) == 2
-    step = bases["paper-experiment-1"].data["reference"][0]
+    step = bases["paper-experiment-1"].reference[0]
     for name in runs:
         played = drive.results[name]
         # the drive played the preset's step (500 rpm from rest at 0.5 s), and the engine agrees with it
-        after = played.t_s >= step["t_s"] + 1e-3
-        assert np.all(played.speed_ref_rpm[after] == pytest.approx(step["speed_rpm"], rel=1e-6))
-        assert np.all(played.speed_ref_rpm[played.t_s < step["t_s"]] == 0.0)
+        after = played.t_s >= step.t_s + 1e-3
+        assert np.all(played.speed_ref_rpm[after] == pytest.approx(step.speed_rpm, rel=1e-6))
+        assert np.all(played.speed_ref_rpm[played.t_s < step.t_s] == 0.0)
         assert drive.comparisons[name]["agrees"]
         assert drive.comparisons[name]["speed"]["relative_to_step"] < 1e-6
         # the figure the claim reads is the overshoot of the drive's own trace
         overshoot = drive.metrics[name]["reference_steps"][0]["overshoot_pct"]["value"]
-        by_hand = 100.0 * (np.max(played.speed_rpm) - step["speed_rpm"]) / step["speed_rpm"]
+        by_hand = 100.0 * (np.max(played.speed_rpm) - step.speed_rpm) / step.speed_rpm
         assert overshoot == pytest.approx(by_hand, rel=1e-9)
     # back-calculation AW overshoots less on the drive, as claim 16 says
     o = {n: drive.metrics[n]["reference_steps"][0]["overshoot_pct"]["value"] for n in runs}

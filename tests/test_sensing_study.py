@@ -24,6 +24,7 @@ from pmsm2dof.analysis.sensor import SensorChain
 from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
+from pmsm2dof.studies.configuration import sensor_chain
 from pmsm2dof.studies.sensing import SensorRow, offset_ripple_Nm, offset_study, sensor_study, verdict
 from pmsm2dof.ui.report.render import render_markdown
 from pmsm2dof.ui.report.sensing import sensing_blocks
@@ -67,10 +68,9 @@ def test_ideal_row_is_the_plain_simulation_and_the_plain_sampled_loop(rows):
 
 
 def test_sensor_chain_of_a_scenario_table():
-    table = load_scenario("paper-experiment-3").with_overrides(CHAINS["encoder 1024, PLL 5 rad/s"]).data
-    chain = SensorChain.from_table(table["speed_sensor"])
+    chain = sensor_chain(load_scenario("paper-experiment-3").with_overrides(CHAINS["encoder 1024, PLL 5 rad/s"]))
     assert chain == SensorChain(model="encoder", estimator="pll", bandwidth_radps=5.0)
-    assert SensorChain.from_table(load_scenario("paper-experiment-3").data["speed_sensor"]).is_ideal
+    assert sensor_chain(load_scenario("paper-experiment-3")).is_ideal
 
 
 def test_a_lag_in_the_reading_costs_phase_and_raises_the_overshoot(rows):
@@ -78,7 +78,7 @@ def test_a_lag_in_the_reading_costs_phase_and_raises_the_overshoot(rows):
     assert pll.phase_margin_deg < ideal.phase_margin_deg - 10
     assert pll.overshoot_no_aw_pct > ideal.overshoot_no_aw_pct
     assert pll.dip_rpm > ideal.dip_rpm
-    assert pll.sensor["estimator"] == "pll" and ideal.sensor["model"] == "ideal"
+    assert pll.sensor.estimator == "pll" and ideal.sensor.model == "ideal"
 
 
 def test_verdict_follows_the_numbers(rows):

@@ -11,6 +11,7 @@ import scipy.io
 import pmsm2dof
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.sim.scenario import Scenario, load_scenario
+from pmsm2dof.sim.scenario_tables import ARRAYS, TABLES, ReferenceEntry
 from pmsm2dof.sim.simulate import Result, Simulation, simulate
 
 RPM_PER_RADPS = 30.0 / math.pi
@@ -194,10 +195,14 @@ def test_rejected_values_name_the_scenario_key(overrides, key, valid):
 def test_engine_validates_what_it_is_given():
     """The C engine checks its configuration itself (here an unsorted reference, which a Scenario
     never holds) and the error names the scenario key."""
-    data = paper2().data
-    data["reference"] = [{"t_s": 2.0, "speed_rpm": 100.0, "ramp_s": 0.0}, {"t_s": 1.0, "speed_rpm": 0.0, "ramp_s": 0.0}]
+    valid = paper2()
+    tables = {name: getattr(valid, name) for name in ("name", "description", *TABLES, *ARRAYS)}
+    tables["reference"] = (
+        ReferenceEntry(t_s=2.0, speed_rpm=100.0, ramp_s=0.0),
+        ReferenceEntry(t_s=1.0, speed_rpm=0.0, ramp_s=0.0),
+    )
     with pytest.raises(ConfigError, match=r"nondecreasing") as err:
-        Simulation(data)
+        Simulation(Scenario(valid.data, tables))
     assert err.value.param == "reference"
 
 

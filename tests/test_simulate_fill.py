@@ -12,6 +12,7 @@ import pytest
 
 from pmsm2dof.core.bindings import ENUM_CHOICES, ffi
 from pmsm2dof.sim import engine_config as engine
+from pmsm2dof.sim import engine_keys
 from pmsm2dof.sim.scenario import SCHEMA, load_scenario
 from pmsm2dof.sim.simulate import Simulation
 
@@ -63,14 +64,14 @@ def _leaves(obj, ctype, path=""):
 def test_every_field_holds_its_scenario_key():
     scenario = load_scenario("field-weakening").with_overrides(CHANGES)
     data = scenario.data
-    run = Simulation(data)
+    run = Simulation(scenario)
     keys = {f.key for f in SCHEMA}
     checked = 0
     for path, ctype, value in _leaves(run.cfg, "p2d_sim_config_t"):
         if path in ("reference.n", "load.n", "n_faults"):
             continue
-        key = engine.KEYS[path]
-        if key is None or path in engine.derived_values(data, run.current_per_speed, 1):
+        key = engine_keys.KEYS[path]
+        if key is None or path in engine.derived_values(scenario, run.current_per_speed, 1):
             continue
         if path in engine.FULL_SCALES:  # given or derived for Q15 and Q31: tests/test_engine_fixed_point.py
             continue
@@ -93,4 +94,4 @@ def test_every_field_holds_its_scenario_key():
 
 def test_a_field_without_a_key_is_refused_when_imported():
     with pytest.raises(RuntimeError, match="no scenario key"):
-        engine.scenario_key("p2d_new_part.new_field_s")
+        engine_keys.scenario_key("p2d_new_part.new_field_s")

@@ -132,8 +132,8 @@ def test_rejects_what_is_no_scenario_and_bounds_the_logs(monkeypatch):
 
 
 def test_run_many_checks_shapes_and_log_room_before_running():
-    runs = [Simulation(short().data), Simulation(short().data)]
-    other = Simulation(short(**{"simulation.dt_s": 5e-5}).data)
+    runs = [Simulation(short()), Simulation(short())]
+    other = Simulation(short(**{"simulation.dt_s": 5e-5}))
     assert lib.p2d_sim_lockstep(runs[0].sim, runs[1].sim) and not lib.p2d_sim_lockstep(runs[0].sim, other.sim)
     group = runs + [other]
     sims = ffi.new("p2d_sim_t *[]", [r.sim for r in group])
@@ -151,9 +151,9 @@ def test_run_many_checks_shapes_and_log_room_before_running():
 def baseline_isa_logs(scenarios):
     """The logs of ``scenarios`` through the engine's baseline copy of its loop (p2d_sim_t.fma false): each
     alone (p2d_sim_run), then all in lockstep groups (p2d_sim_run_many)."""
-    lone, grouped = [], [Simulation(s.data) for s in scenarios]
+    lone, grouped = [], [Simulation(s) for s in scenarios]
     for scenario, run in zip(scenarios, grouped):
-        single = Simulation(scenario.data)
+        single = Simulation(scenario)
         single.sim.fma = run.sim.fma = False
         status = lib.p2d_sim_run(single.sim, single.n_samples, single._log_ptr, single.log.shape[1])
         lone.append((status, single.log[:, : single.sim.n_rows].copy()))
@@ -192,7 +192,7 @@ def test_baseline_copy_of_the_loop_equals_the_fma_copy_to_the_bit(common):
     ]
     reference = []
     for scenario in scenarios:
-        run = Simulation(scenario.data)
+        run = Simulation(scenario)
         status = lib.p2d_sim_run(run.sim, run.n_samples, run._log_ptr, run.log.shape[1])
         reference.append((status, run.log[:, : run.sim.n_rows].copy()))
     for logs in baseline_isa_logs(scenarios):

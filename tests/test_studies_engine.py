@@ -32,7 +32,7 @@ def bases():
 def test_outcomes_in_the_order_of_the_runs_equal_single_runs(bases, workers, batch_size):
     batches = []
     outcomes = run_many(
-        {k: v.data for k, v in bases.items()},
+        bases,
         RUNS,
         keep=["b"],
         workers=workers,
@@ -56,7 +56,7 @@ def test_outcomes_in_the_order_of_the_runs_equal_single_runs(bases, workers, bat
 def test_a_value_only_the_c_code_rejects_names_the_run(bases):
     bad = Run("too-fast", "c2", {**SHORT, "speed_controller.alpha_radps": 1e39}, "run too-fast")
     with pytest.raises(ConfigError) as info:
-        run_many({"c2": bases["c2"].data}, [bad], workers=1)
+        run_many({"c2": bases["c2"]}, [bad], workers=1)
     assert info.value.param == "run too-fast: speed_controller.alpha_radps"
 
 

@@ -278,7 +278,7 @@ def test_local_run_equals_single_runs_and_writes_every_output(tmp_path, base_fil
     assert list(table["point"]) == list(range(9))
     assert (table["status"] == "ok").all()
     assert run.computed == 9 and run.resumed == 0
-    columns = metric_columns(sw.base.data)
+    columns = metric_columns(sw.base)
     assert set(columns) <= set(table.columns)
     for index in (0, 4, 8):
         point = sw.points[index]
@@ -316,7 +316,7 @@ def test_a_diverging_point_is_a_row_with_its_error_and_no_metrics(tmp_path, base
     assert list(table["status"]) == ["ok", "error"]
     assert table.loc[0, "error"] == ""
     assert "speed" in table.loc[1, "error"]
-    assert table.loc[1, metric_columns(sw.base.data)].isna().all()
+    assert table.loc[1, metric_columns(sw.base)].isna().all()
     with pytest.raises(Exception) as info:
         simulate(load_scenario(base_file).with_overrides({"load.0.torque_Nm": -2000.0}))
     assert str(info.value) == table.loc[1, "error"]

@@ -106,8 +106,7 @@ def drive_status(url, elf):
 
 def engine_speed(scenario, alpha_radps):
     """The engine's speed [rpm] of the scenario with another alpha, at every speed sample."""
-    data = scenario.with_overrides({ALPHA: alpha_radps}).data
-    sim = Simulation(data)
+    sim = Simulation(scenario.with_overrides({ALPHA: alpha_radps}))
     sim.advance(sim.n_samples)
     result = sim.result(scenario, 0.0)
     return np.asarray(result.t_s), np.asarray(result.speed_rpm), np.asarray(result.speed_ref_rpm)

@@ -22,7 +22,6 @@ continuous design has no period.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -84,21 +83,6 @@ class SensorChain:
             raise ConfigError("bandwidth_radps", self.bandwidth_radps, "finite and > 0 with estimator 'pll'")
         if self.model == "ideal" and self.estimator == "pll":
             raise ConfigError("estimator", self.estimator, "'difference' with model 'ideal' (a PLL reads counts)")
-
-    @classmethod
-    def from_table(cls, table: Mapping[str, Any]) -> SensorChain:
-        """The chain of a scenario's ``[speed_sensor]`` table (``Scenario.data["speed_sensor"]``).
-
-        The counts per revolution, the counter and the noise act in the simulation only (the
-        linear loop has no quantization and no noise).
-        """
-        return cls(
-            model=table["model"],
-            estimator=table["estimator"],
-            bandwidth_radps=table["bandwidth_radps"] or 0.0,
-            lowpass_radps=table["lowpass_radps"],
-            delay_s=table["delay_s"],
-        )
 
     @property
     def pll(self) -> bool:

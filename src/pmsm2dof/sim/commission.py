@@ -88,41 +88,40 @@ def commissioning_config(scenario: Scenario) -> dict[str, float | int]:
     - ``t_spin_s = max(t_align_s, 0.5 s, 20 tau_i_s)``;
     - ``voltage_delay_samples`` is 1 with ``inverter.computation_delay``, else 0.
     """
-    data = scenario.data
-    motor, cm = data["motor"], data["commissioning"]
-    Ts = data["current_loop"]["Ts_s"]
-    p, psi_f, J = motor["pole_pairs"], motor["psi_f_Wb"], motor["J_kgm2"]
-    dL = motor["Lq_H"] - motor["Ld_H"]
-    i_test = cm["i_test_A"]
+    motor, cm = scenario.motor, scenario.commissioning
+    Ts = scenario.current_loop.Ts_s
+    p, psi_f, J = motor.pole_pairs, motor.psi_f_Wb, motor.J_kgm2
+    dL = motor.Lq_H - motor.Ld_H
+    i_test = cm.i_test_A
     if i_test is None:
-        i_test = 0.4 * data["limits"]["i_max_A"]
+        i_test = 0.4 * scenario.limits.i_max_A
         if dL > 0.0:
             i_test = min(i_test, _RELUCTANCE_SHARE * psi_f / dL)
-    i_spin = cm["i_spin_A"] if cm["i_spin_A"] is not None else i_test
-    i_trip = cm["i_trip_A"] if cm["i_trip_A"] is not None else 2.0 * max(i_test, i_spin)
-    tau_i = cm["tau_i_s"] if cm["tau_i_s"] is not None else 20.0 * Ts
+    i_spin = cm.i_spin_A if cm.i_spin_A is not None else i_test
+    i_trip = cm.i_trip_A if cm.i_trip_A is not None else 2.0 * max(i_test, i_spin)
+    tau_i = cm.tau_i_s if cm.tau_i_s is not None else 20.0 * Ts
     w_hold = math.sqrt(1.5 * p * p * i_test * max(psi_f - dL * i_test, 0.5 * psi_f) / J)
-    t_creep = psi_f / (motor["Rs_ohm"] * i_test)
+    t_creep = psi_f / (motor.Rs_ohm * i_test)
     t_align = (
-        cm["t_align_s"]
-        if cm["t_align_s"] is not None
+        cm.t_align_s
+        if cm.t_align_s is not None
         else max(_ALIGN_PERIODS * 2.0 * math.pi / w_hold, _ALIGN_CREEP_TIMES * t_creep, 20.0 * tau_i)
     )
     t_level = (
-        cm["t_level_s"]
-        if cm["t_level_s"] is not None
-        else max(50.0 * tau_i, 0.05, _LEVEL_TIME_CONSTANTS * motor["Ld_H"] / motor["Rs_ohm"])
+        cm.t_level_s
+        if cm.t_level_s is not None
+        else max(50.0 * tau_i, 0.05, _LEVEL_TIME_CONSTANTS * motor.Ld_H / motor.Rs_ohm)
     )
-    if cm["w_e_spin_radps"] is not None:
-        w_e_spin = cm["w_e_spin_radps"]
+    if cm.w_e_spin_radps is not None:
+        w_e_spin = cm.w_e_spin_radps
     else:
-        w_e_spin = min(_SPIN_EMF_SHARE * data["limits"]["u_dc_V"] / math.sqrt(3.0) / psi_f, 0.1 / Ts)
-    if cm["t_ramp_s"] is not None:
-        t_ramp = cm["t_ramp_s"]
+        w_e_spin = min(_SPIN_EMF_SHARE * scenario.limits.u_dc_V / math.sqrt(3.0) / psi_f, 0.1 / Ts)
+    if cm.t_ramp_s is not None:
+        t_ramp = cm.t_ramp_s
     else:
         torque = _RAMP_TORQUE_SHARE * 1.5 * p * psi_f * i_spin
         t_ramp = max(2.0 * J * (w_e_spin / p) / torque, t_align)
-    t_spin = cm["t_spin_s"] if cm["t_spin_s"] is not None else max(t_align, 0.5, 20.0 * tau_i)
+    t_spin = cm.t_spin_s if cm.t_spin_s is not None else max(t_align, 0.5, 20.0 * tau_i)
     return {
         "Ts_s": Ts,
         "i_test_A": i_test,
@@ -131,11 +130,11 @@ def commissioning_config(scenario: Scenario) -> dict[str, float | int]:
         "tau_i_s": tau_i,
         "t_align_s": t_align,
         "t_level_s": t_level,
-        "t_inductance_s": cm["t_inductance_s"],
+        "t_inductance_s": cm.t_inductance_s,
         "t_ramp_s": t_ramp,
         "t_spin_s": t_spin,
         "w_e_spin_radps": w_e_spin,
-        "voltage_delay_samples": 1 if data["inverter"]["computation_delay"] else 0,
+        "voltage_delay_samples": 1 if scenario.inverter.computation_delay else 0,
     }
 
 
@@ -266,19 +265,18 @@ def commission(scenario: Scenario, log_every: int = LOG_EVERY) -> Commissioning:
     """
     if isinstance(log_every, bool) or not isinstance(log_every, int) or log_every < 1:
         raise ConfigError("log_every", log_every, "an integer >= 1")
-    data = scenario.data
-    motor, cm = data["motor"], data["commissioning"]
+    motor, cm = scenario.motor, scenario.commissioning
     routine = commissioning_config(scenario)
     cfg = ffi.new("p2d_crun_config_t *")
-    cfg.motor.pole_pairs = motor["pole_pairs"]
+    cfg.motor.pole_pairs = motor.pole_pairs
     for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb", "J_kgm2", "B_Nms", "T_coulomb_Nm"):
-        setattr(cfg.motor, key, motor[key])
-    cfg.u_dc_V = data["limits"]["u_dc_V"]
-    cfg.computation_delay = data["inverter"]["computation_delay"]
-    cfg.substeps = max(1, math.ceil(data["current_loop"]["Ts_s"] / data["simulation"]["dt_s"] * (1.0 - 1e-9)))
+        setattr(cfg.motor, key, getattr(motor, key))
+    cfg.u_dc_V = scenario.limits.u_dc_V
+    cfg.computation_delay = scenario.inverter.computation_delay
+    cfg.substeps = max(1, math.ceil(scenario.current_loop.Ts_s / scenario.simulation.dt_s * (1.0 - 1e-9)))
     cfg.log_every = log_every
     for key in ("dead_time_V", "noise_A", "seed", "theta0_rad", "T_load_Nm"):
-        setattr(cfg, key, cm[key])
+        setattr(cfg, key, getattr(cm, key))
     for key, value in routine.items():
         setattr(cfg.commissioning, key, value)
     run = ffi.new("p2d_crun_t *")
@@ -334,7 +332,7 @@ def commission(scenario: Scenario, log_every: int = LOG_EVERY) -> Commissioning:
         reason=None if done else REASONS[r.reason],
         reason_text=c_string(lib.p2d_commission_reason_text(r.reason)),
         estimates=estimates,
-        truth={k: float(motor[k]) for k in ESTIMATES},
+        truth={k: float(getattr(motor, k)) for k in ESTIMATES},
         phase_time_s=phase_time_s,
         config=routine,
         checks=checks,

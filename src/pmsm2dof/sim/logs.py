@@ -393,6 +393,6 @@ def _current_period_s(table: Mapping[str, np.ndarray], file: Path) -> float | No
         return None
     text = str(np.asarray(table["scenario_toml"]).reshape(-1)[0])
     try:
-        return float(Scenario.from_dict(parse_toml(text, "log", str(file))).data["current_loop"]["Ts_s"])
+        return float(Scenario.from_dict(parse_toml(text, "log", str(file))).current_loop.Ts_s)
     except ConfigError:
         return None

@@ -82,6 +82,8 @@ from ..errors import ConfigError, SimulationError
 from .logs import Log
 
 if TYPE_CHECKING:
+    from .scenario import Scenario
+    from .scenario_tables import FaultEntry
     from .simulate import Result
 
 _Vector = npt.NDArray[np.float64]
@@ -144,14 +146,24 @@ def _trace(result: "Result", name: str) -> _Vector:
     return values
 
 
-def _schedule(entries: Sequence[Mapping[str, Any]], key: str) -> list[tuple[float, float, float]]:
-    """(t_s, value before, value after) of each entry; the value is 0 before the first entry."""
+def _schedule(entries: Sequence[tuple[float, float]]) -> list[tuple[float, float, float]]:
+    """(t_s, value before, value after) of each entry ``(t_s, value)``; the value is 0 before the first entry."""
     before = 0.0
     events = []
-    for e in entries:
-        events.append((e["t_s"], before, e[key]))
-        before = e[key]
+    for t_s, value in entries:
+        events.append((t_s, before, value))
+        before = value
     return events
+
+
+def _references(scenario: "Scenario") -> list[tuple[float, float, float]]:
+    """:func:`_schedule` of the speed reference [rpm]."""
+    return _schedule([(e.t_s, e.speed_rpm) for e in scenario.reference])
+
+
+def _loads(scenario: "Scenario") -> list[tuple[float, float, float]]:
+    """:func:`_schedule` of the load torque [Nm]."""
+    return _schedule([(e.t_s, e.torque_Nm) for e in scenario.load])
 
 
 def _first_crossing(t: _Vector, z: _Vector, level: float) -> float | None:
@@ -211,7 +223,7 @@ def at_current_limit(result: "Result") -> npt.NDArray[np.bool_]:
     saturated = np.asarray(result.saturated, dtype=bool)
     if saturated.shape != np.shape(result.t_s):
         raise SimulationError("result.saturated must be as long as result.t_s")
-    i_max = result.scenario.data["limits"]["i_max_A"]
+    i_max = result.scenario.limits.i_max_A
     command = np.hypot(_trace(result, "id_ref_A"), _trace(result, "iq_ref_A"))
     at_limit: npt.NDArray[np.bool_] = saturated | (command >= (1.0 - LIMIT_RTOL) * i_max)
     return at_limit
@@ -318,16 +330,16 @@ def _too_short(tw: _Vector, t_samples: _Vector) -> str:
     )
 
 
-def speed_sample_rows(data: Mapping[str, Any], rows: int) -> npt.NDArray[np.bool_]:
+def speed_sample_rows(scenario: "Scenario", rows: int) -> npt.NDArray[np.bool_]:
     """Which of the ``rows`` rows of a run's log are at the speed controller's sampling instants.
 
     Every row at the speed rate; at the current rate (``simulation.log_rate = "current"``) row ``r``
     starts the current period ``r log_every``, a speed sample when ``current_per_speed`` divides it.
     """
-    if data["simulation"]["log_rate"] == "speed":
+    if scenario.simulation.log_rate == "speed":
         return np.ones(rows, bool)
-    per_speed = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
-    mask: npt.NDArray[np.bool_] = (np.arange(rows, dtype=np.int64) * data["simulation"]["log_every"]) % per_speed == 0
+    per_speed = round(scenario.speed_controller.Ts_s / scenario.current_loop.Ts_s)
+    mask: npt.NDArray[np.bool_] = (np.arange(rows, dtype=np.int64) * scenario.simulation.log_every) % per_speed == 0
     return mask
 
 
@@ -453,15 +465,15 @@ def _fault(
     speed: _Vector,
     ref: _Vector,
     limited: npt.NDArray[np.bool_],
-    fault: Mapping[str, Any],
+    fault: "FaultEntry",
     t_end_fault: float,
     after: _Span,
 ) -> dict[str, Any]:
     """Figures of a fault from its start ``t_s`` to ``after.t_end``, the last sample before the event that
     follows its end (``after`` is the window from the fault's end)."""
-    t0 = fault["t_s"]
+    t0 = fault.t_s
     span = _Span(t0, after.t_next, after.t_end, after.tol)
-    out: dict[str, Any] = {"kind": fault["kind"], "t_s": t0, "end_s": t_end_fault, "window_end_s": span.t_end or t0}
+    out: dict[str, Any] = {"kind": fault.kind, "t_s": t0, "end_s": t_end_fault, "window_end_s": span.t_end or t0}
     names = FAULT_FIGURES
     if span.t_end is None:
         return out | {n: _missing(span.empty_reason(t, "fault")) for n in names}
@@ -509,19 +521,19 @@ def _steady_state_error(tw: _Vector, w: _Vector, target: float, spread_max: floa
     return _value(target - np.trapezoid(final, tf) / (tf[-1] - tf[0]))
 
 
-def event_times(data: Mapping[str, Any]) -> list[float]:
+def event_times(scenario: "Scenario") -> list[float]:
     """The events of a scenario, sorted: the entries of ``reference`` and ``load`` that change the value
     before them (0 before the first), and the start of each fault."""
-    times = {f["t_s"] for f in data["fault"]}
-    for name, key in (("reference", "speed_rpm"), ("load", "torque_Nm")):
-        times.update(t0 for t0, before, after in _schedule(data[name], key) if after != before)
+    times = {f.t_s for f in scenario.fault}
+    for events in (_references(scenario), _loads(scenario)):
+        times.update(t0 for t0, before, after in events if after != before)
     return sorted(times)
 
 
-def _fault_ends(data: Mapping[str, Any]) -> list[float]:
+def _fault_ends(scenario: "Scenario") -> list[float]:
     """The end of each fault: a sensor_spike lasts one speed-controller period."""
-    Ts_speed = data["speed_controller"]["Ts_s"]
-    return [f["t_s"] + (Ts_speed if f["kind"] == "sensor_spike" else f["duration_s"]) for f in data["fault"]]
+    Ts_speed = scenario.speed_controller.Ts_s
+    return [f.t_s + (Ts_speed if f.duration_s is None else f.duration_s) for f in scenario.fault]
 
 
 def _next_event(times: Sequence[float], t0: float, tol: float) -> float | None:
@@ -529,11 +541,11 @@ def _next_event(times: Sequence[float], t0: float, tol: float) -> float | None:
     return later[0] if later else None
 
 
-def time_tolerance_s(data: Mapping[str, Any]) -> float:
+def time_tolerance_s(scenario: "Scenario") -> float:
     """The engine's time tolerance: times closer than it are equal, so an entry within it of a sample
     acts at that sample (``P2D_SIM_T_TOL`` of ``csrc/sim/drive.c`` times the integration step)."""
-    Ts_current = float(data["current_loop"]["Ts_s"])
-    step = Ts_current / max(1, math.ceil(Ts_current / data["simulation"]["dt_s"] * (1.0 - 1e-9)))
+    Ts_current = float(scenario.current_loop.Ts_s)
+    step = Ts_current / max(1, math.ceil(Ts_current / scenario.simulation.dt_s * (1.0 - 1e-9)))
     return float(1e-6 * step)
 
 
@@ -575,19 +587,17 @@ def chatter(command: _Vector, limit: float, quiet: npt.NDArray[np.bool_] | None 
     return float(np.count_nonzero((d2 >= CHATTER_D2) & counted) / n) if n else 0.0
 
 
-def _chatter_figure(
-    t: _Vector, iq_ref: _Vector, data: Mapping[str, Any], times: Sequence[float], tol: float
-) -> _Figure:
+def _chatter_figure(t: _Vector, iq_ref: _Vector, scenario: "Scenario", times: Sequence[float], tol: float) -> _Figure:
     """``chatter_share`` of a run: :func:`chatter` of the q current command at the speed controller's samples
     (the rows of :func:`speed_sample_rows`, ``t`` and ``iq_ref`` already those), quiet at the events."""
-    log_every = data["simulation"]["log_every"]
-    per_speed = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
-    if data["simulation"]["log_rate"] == "speed" and log_every > 1:
+    log_every = scenario.simulation.log_every
+    per_speed = round(scenario.speed_controller.Ts_s / scenario.current_loop.Ts_s)
+    if scenario.simulation.log_rate == "speed" and log_every > 1:
         return _missing(
             f"the trace logs every {log_every}th speed-controller sample: a reversal from one sample to the "
             "next needs every sample (simulation.log_every = 1)"
         )
-    if data["simulation"]["log_rate"] == "current" and per_speed % log_every != 0:
+    if scenario.simulation.log_rate == "current" and per_speed % log_every != 0:
         return _missing(
             f"the trace logs every {log_every}th current period, which does not divide the speed-controller "
             "period: a reversal from one sample to the next needs every sample (a simulation.log_every that "
@@ -598,7 +608,7 @@ def _chatter_figure(
     for x in times:
         k = int(np.searchsorted(t, x - tol))
         quiet[max(k - 1, 0) : k + 2] = True
-    return _value(chatter(iq_ref, data["limits"]["i_max_A"], quiet))
+    return _value(chatter(iq_ref, scenario.limits.i_max_A, quiet))
 
 
 def _chatter_warning(figure: _Figure) -> list[str]:
@@ -646,13 +656,13 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     speed = _trace(result, "speed_rpm")
     ref = _trace(result, "speed_ref_rpm")
     limited = at_current_limit(result)
-    data = result.scenario.data
-    at_samples = speed_sample_rows(data, t.size)
+    scenario = result.scenario
+    at_samples = speed_sample_rows(scenario, t.size)
     t_samples = t[at_samples]
-    ref_events = _schedule(data["reference"], "speed_rpm")
-    load_events = _schedule(data["load"], "torque_Nm")
-    times = event_times(data)
-    tol = time_tolerance_s(data)
+    ref_events = _references(scenario)
+    load_events = _loads(scenario)
+    times = event_times(scenario)
+    tol = time_tolerance_s(scenario)
 
     def span(t0: float) -> _Span:
         return _Span.of(t, t0, _next_event(times, t0, tol), tol)
@@ -660,19 +670,19 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     chatter_share = _chatter_figure(
         t_samples,
         _trace(result, "iq_ref_A")[at_samples],
-        data,
-        [*times, *_fault_ends(data)],
+        scenario,
+        [*times, *_fault_ends(scenario)],
         tol,
     )
     return {
-        "scenario": data["name"],
+        "scenario": scenario.name,
         "reference_steps": [
             _reference_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events
         ],
         "load_steps": [_load_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in load_events],
         "faults": [
             _fault(t, t_samples, speed, ref, limited, f, end, span(end))
-            for f, end in zip(data["fault"], _fault_ends(data))
+            for f, end in zip(scenario.fault, _fault_ends(scenario))
         ],
         "run": {
             "t_end_s": float(t[-1]),

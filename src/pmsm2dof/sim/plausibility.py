@@ -28,12 +28,11 @@ The checks, with ``p``, ``psi_f``, ``Ld``, ``Lq`` of ``[motor]``:
 """
 
 import math
-from collections.abc import Mapping
-from typing import Any
 
 from ..core.motor import no_load_speed_radps
 from ..errors import Pmsm2dofWarning
 from .scenario import Scenario
+from .scenario_tables import MotorTable
 
 #: Largest plausible ratio of the drive's inertia to the rotor's own [-].
 J_ROTOR_RATIO_MAX = 1000.0
@@ -75,7 +74,7 @@ def peak_torque_Nm(i_max_A: float, pole_pairs: int, psi_f_Wb: float, Ld_H: float
     return 1.5 * pole_pairs * iq_A * (psi_f_Wb + (Ld_H - Lq_H) * id_A)
 
 
-def voltage_limited_speed_radps(u_V: float, i_A: float, motor: Mapping[str, Any]) -> float:
+def voltage_limited_speed_radps(u_V: float, i_A: float, motor: MotorTable) -> float:
     """The mechanical speed at which the steady-state voltage of eq 1 at the current ``i_A`` reaches ``u_V`` [rad/s].
 
     At the MTPA point ``(id, iq)`` of ``||i_dq|| = i_A``, eq 1 with d/dt = 0 gives
@@ -83,9 +82,9 @@ def voltage_limited_speed_radps(u_V: float, i_A: float, motor: Mapping[str, Any]
     ``A w_e^2 + 2 B w_e + C = 0`` with ``A = (Lq iq)^2 + (Ld id + psi_f)^2``,
     ``B = Rs iq (Ld id + psi_f) - Rs id Lq iq``, ``C = Rs^2 i^2 - u^2``, whose positive root is taken;
     ``i_A = 0`` gives the no-load speed ``u / (p psi_f)``. 0 when ``Rs i_A >= u`` (no speed is left).
-    ``motor`` holds the scenario keys ``pole_pairs``, ``Rs_ohm``, ``Ld_H``, ``Lq_H``, ``psi_f_Wb``.
+    ``motor`` is a scenario's ``[motor]``.
     """
-    Rs, Ld, Lq, psi = motor["Rs_ohm"], motor["Ld_H"], motor["Lq_H"], motor["psi_f_Wb"]
+    Rs, Ld, Lq, psi = motor.Rs_ohm, motor.Ld_H, motor.Lq_H, motor.psi_f_Wb
     id_A = mtpa_id_A(i_A, psi, Ld, Lq)
     iq_A = math.sqrt(max(i_A * i_A - id_A * id_A, 0.0))
     flux_d = Ld * id_A + psi
@@ -95,7 +94,7 @@ def voltage_limited_speed_radps(u_V: float, i_A: float, motor: Mapping[str, Any]
     if C >= 0.0:
         return 0.0
     w_e = (-B + math.sqrt(B * B - A * C)) / A
-    return float(w_e / motor["pole_pairs"])
+    return float(w_e / motor.pole_pairs)
 
 
 def inertia_findings(key: str, J_kgm2: float, J_rotor_kgm2: float | None) -> list[str]:
@@ -150,59 +149,59 @@ def implausible(scenario: Scenario) -> list[str]:
     list of str
         Empty when nothing is implausible.
     """
-    data: dict[str, Any] = scenario.data
-    motor, limits, sc = data["motor"], data["limits"], data["speed_controller"]
+    motor, limits, sc = scenario.motor, scenario.limits, scenario.speed_controller
     found: list[str] = []
-    two_mass = data["mechanics"]["model"] == "two_mass"
-    J_train = motor["J_kgm2"] + (data["mechanics"]["J_load_kgm2"] if two_mass else 0.0)
-    found += inertia_findings("speed_controller.J_kgm2", sc["J_kgm2"], motor["J_rotor_kgm2"])
-    found += inertia_findings("motor.J_kgm2", motor["J_kgm2"], motor["J_rotor_kgm2"])
-    ratio = sc["J_kgm2"] / J_train
+    two_mass = scenario.mechanics.model == "two_mass"
+    J_load = scenario.mechanics.J_load_kgm2
+    J_train = motor.J_kgm2 + (J_load if two_mass and J_load is not None else 0.0)
+    found += inertia_findings("speed_controller.J_kgm2", sc.J_kgm2, motor.J_rotor_kgm2)
+    found += inertia_findings("motor.J_kgm2", motor.J_kgm2, motor.J_rotor_kgm2)
+    ratio = sc.J_kgm2 / J_train
     if not 1.0 / J_DESIGN_RATIO_MAX <= ratio <= J_DESIGN_RATIO_MAX:
         found.append(
-            f"speed_controller.J_kgm2 = {sc['J_kgm2']:.6g} kg m^2 is {ratio:.3g} times the inertia of the drive "
+            f"speed_controller.J_kgm2 = {sc.J_kgm2:.6g} kg m^2 is {ratio:.3g} times the inertia of the drive "
             f"train, {J_train:.6g} kg m^2 (motor.J_kgm2{' + mechanics.J_load_kgm2' if two_mass else ''}): "
             "the gains of eq 9 scale with the design inertia"
         )
-    found += current_findings("limits.i_max_A", limits["i_max_A"], motor["i_rated_A"], motor["i_peak_A"])
-    if not data["field_weakening"]["enabled"]:
-        w_max_rpm = no_load_speed_radps(limits["u_dc_V"], motor["pole_pairs"], motor["psi_f_Wb"]) * RPM_PER_RADPS
-        speeds = [("simulation.speed0_rpm", data["simulation"]["speed0_rpm"])]
-        speeds += [(f"reference.{i}.speed_rpm", e["speed_rpm"]) for i, e in enumerate(data["reference"])]
+    found += current_findings("limits.i_max_A", limits.i_max_A, motor.i_rated_A, motor.i_peak_A)
+    if not scenario.field_weakening.enabled:
+        w_max_rpm = no_load_speed_radps(limits.u_dc_V, motor.pole_pairs, motor.psi_f_Wb) * RPM_PER_RADPS
+        speeds = [("simulation.speed0_rpm", scenario.simulation.speed0_rpm)]
+        speeds += [(f"reference.{i}.speed_rpm", e.speed_rpm) for i, e in enumerate(scenario.reference)]
         for key, rpm in speeds:
             if abs(rpm) > w_max_rpm:
                 found.append(
                     f"{key} = {rpm:.6g} rpm is above the no-load speed {w_max_rpm:.5g} rpm that limits.u_dc_V = "
-                    f"{limits['u_dc_V']:g} V reaches (u_dc / (sqrt(3) p psi_f)): the drive runs at its voltage "
+                    f"{limits.u_dc_V:g} V reaches (u_dc / (sqrt(3) p psi_f)): the drive runs at its voltage "
                     "limit and cannot follow it (field weakening is off)"
                 )
-    found += _sensor_findings(data)
-    T_peak = peak_torque_Nm(limits["i_max_A"], motor["pole_pairs"], motor["psi_f_Wb"], motor["Ld_H"], motor["Lq_H"])
-    for i, e in enumerate(data["load"]):
-        if abs(e["torque_Nm"]) > T_peak:
+    found += _sensor_findings(scenario)
+    T_peak = peak_torque_Nm(limits.i_max_A, motor.pole_pairs, motor.psi_f_Wb, motor.Ld_H, motor.Lq_H)
+    for i, e in enumerate(scenario.load):
+        if abs(e.torque_Nm) > T_peak:
             found.append(
-                f"load.{i}.torque_Nm = {e['torque_Nm']:.6g} Nm is above the peak torque {T_peak:.4g} Nm that "
-                f"limits.i_max_A = {limits['i_max_A']:g} A gives: the drive cannot hold it, it stalls and the load "
+                f"load.{i}.torque_Nm = {e.torque_Nm:.6g} Nm is above the peak torque {T_peak:.4g} Nm that "
+                f"limits.i_max_A = {limits.i_max_A:g} A gives: the drive cannot hold it, it stalls and the load "
                 "turns it backwards"
             )
     return found
 
 
-def _sensor_findings(data: Mapping[str, Any]) -> list[str]:
+def _sensor_findings(scenario: "Scenario") -> list[str]:
     """An encoder read by the difference estimator whose resolution is coarser than the step figures need."""
-    ss, sc = data["speed_sensor"], data["speed_controller"]
-    if ss["model"] != "encoder" or ss["estimator"] != "difference":
+    ss, sc = scenario.speed_sensor, scenario.speed_controller
+    if ss.model != "encoder" or ss.estimator != "difference":
         return []
-    resolution_rpm = 60.0 / (ss["counts_per_rev"] * sc["Ts_s"])
-    previous, steps = data["simulation"]["speed0_rpm"], []
-    for e in data["reference"]:
-        if e["speed_rpm"] != previous:
-            steps.append(abs(e["speed_rpm"] - previous))
-        previous = e["speed_rpm"]
+    resolution_rpm = 60.0 / (ss.counts_per_rev * sc.Ts_s)
+    previous, steps = scenario.simulation.speed0_rpm, []
+    for e in scenario.reference:
+        if e.speed_rpm != previous:
+            steps.append(abs(e.speed_rpm - previous))
+        previous = e.speed_rpm
     if not steps or resolution_rpm <= STEADY_SPREAD * min(steps):
         return []
     return [
-        f"speed_sensor.counts_per_rev = {ss['counts_per_rev']} counted over speed_controller.Ts_s = {sc['Ts_s']:g} s "
+        f"speed_sensor.counts_per_rev = {ss.counts_per_rev} counted over speed_controller.Ts_s = {sc.Ts_s:g} s "
         f"resolves {resolution_rpm:.4g} rpm (60 / (counts Ts), estimator 'difference'), "
         f"{100 * resolution_rpm / min(steps):.2g} % of the smallest reference step, {min(steps):g} rpm: the speed "
         f"dithers by about that, and the step figures finer than it (a steady state needs a spread below "

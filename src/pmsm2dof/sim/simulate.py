@@ -108,7 +108,7 @@ from ..outputs import atomic_file
 from .engine_config import RPM_PER_RADPS as RPM_PER_RADPS  # the speed unit at the edge, for the callers
 from .engine_config import engine_config, full_scales, raise_config_error
 from .plausibility import peak_torque_Nm
-from .scenario import Scenario, Tree
+from .scenario import Scenario
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -307,15 +307,14 @@ def simulate(scenario: Scenario, progress: bool = False) -> "Result":
         raise ConfigError(
             "scenario", type(scenario).__name__, "a pmsm2dof Scenario (load_scenario or Scenario.from_dict)"
         )
-    data = scenario.data
-    run = Simulation(data)
+    run = Simulation(scenario)
     start = time.perf_counter()
     if progress and run.n_samples * run.current_per_speed >= PROGRESS_PERIODS_MIN:
         from tqdm import tqdm
 
         chunk = max(1, math.ceil(run.n_samples / PROGRESS_CHUNKS))
         with tqdm(
-            total=data["simulation"]["t_end_s"],
+            total=scenario.simulation.t_end_s,
             unit="s",
             unit_scale=True,
             delay=1.0,
@@ -364,14 +363,14 @@ def simulate_many(scenarios: Sequence[Scenario]) -> list["Result | SimulationErr
             raise ConfigError(
                 "scenarios", type(scenario).__name__, "pmsm2dof Scenarios (load_scenario or Scenario.from_dict)"
             )
-    total = sum(log_rows(s.data)[1] * lib.P2D_LOG_COUNT * 8 for s in scenarios)
+    total = sum(log_rows(s)[1] * lib.P2D_LOG_COUNT * 8 for s in scenarios)
     if total > LOG_BYTES_MAX:
         raise ConfigError(
             "scenarios",
             f"{len(scenarios)} scenarios whose logs take {total / 1024**3:.3g} GiB",
             f"logs of at most {LOG_BYTES_MAX / 1024**3:g} GiB in all: simulate them in smaller groups",
         )
-    runs = [Simulation(s.data) for s in scenarios]
+    runs = [Simulation(s) for s in scenarios]
     # the engine decides who runs in lockstep (p2d_sim_lockstep): with the first of a group, the same samples
     groups: list[list[int]] = []
     for i, run in enumerate(runs):
@@ -401,31 +400,31 @@ def simulate_many(scenarios: Sequence[Scenario]) -> list["Result | SimulationErr
     return [o for o in outcomes if o is not None]
 
 
-def log_rows(data: Tree) -> tuple[int, int]:
-    """The speed samples of the scenario data ``data`` and the rows of its log (at its ``simulation.log_rate``)."""
-    sc, sim = data["speed_controller"], data["simulation"]
-    n_samples = math.floor(sim["t_end_s"] / sc["Ts_s"] + 1e-9) + 1
-    return n_samples, -(-row_periods(data, n_samples) // sim["log_every"])
+def log_rows(scenario: Scenario) -> tuple[int, int]:
+    """The speed samples of ``scenario`` and the rows of its log (at its ``simulation.log_rate``)."""
+    sim = scenario.simulation
+    n_samples = math.floor(sim.t_end_s / scenario.speed_controller.Ts_s + 1e-9) + 1
+    return n_samples, -(-row_periods(scenario, n_samples) // sim.log_every)
 
 
-def row_periods(data: Tree, n_samples: int) -> int:
+def row_periods(scenario: Scenario, n_samples: int) -> int:
     """The speed samples (log rate ``speed``) or current periods (``current``) of ``n_samples`` speed samples."""
-    if data["simulation"]["log_rate"] == "speed":
+    if scenario.simulation.log_rate == "speed":
         return n_samples
-    per_speed: int = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
+    per_speed: int = round(scenario.speed_controller.Ts_s / scenario.current_loop.Ts_s)
     return n_samples * per_speed
 
 
 class Simulation:
-    """One engine instance: the C configuration built from scenario data, the state and the log.
+    """One engine instance: the C configuration built from a scenario, the state and the log.
 
     :func:`simulate` runs it whole; a caller that wants to stop between parts of a run (the
     tuner) calls :meth:`advance` in chunks, then :meth:`signals`.
 
     Parameters
     ----------
-    data : dict
-        :attr:`Scenario.data` of a validated scenario.
+    scenario : Scenario
+        A validated scenario.
 
     Raises
     ------
@@ -433,37 +432,37 @@ class Simulation:
         A value the C controllers or the engine reject, naming the scenario key.
     """
 
-    def __init__(self, data: Tree) -> None:
-        self.data = data
-        cl, sc, sim = data["current_loop"], data["speed_controller"], data["simulation"]
-        self.Ts_speed_s = sc["Ts_s"]
-        self.current_per_speed = current_per_speed = round(sc["Ts_s"] / cl["Ts_s"])
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        cl, sc, sim = scenario.current_loop, scenario.speed_controller, scenario.simulation
+        self.Ts_speed_s = sc.Ts_s
+        self.current_per_speed = current_per_speed = round(sc.Ts_s / cl.Ts_s)
         if current_per_speed > CURRENT_PER_SPEED_MAX:
             raise ConfigError(
                 "speed_controller.Ts_s",
-                sc["Ts_s"],
-                f"<= {CURRENT_PER_SPEED_MAX:g} current_loop.Ts_s = {cl['Ts_s'] * CURRENT_PER_SPEED_MAX:g} s",
+                sc.Ts_s,
+                f"<= {CURRENT_PER_SPEED_MAX:g} current_loop.Ts_s = {cl.Ts_s * CURRENT_PER_SPEED_MAX:g} s",
             )
-        substeps = max(1, math.ceil(cl["Ts_s"] / sim["dt_s"] * (1.0 - 1e-9)))
+        substeps = max(1, math.ceil(cl.Ts_s / sim.dt_s * (1.0 - 1e-9)))
         if substeps > SUBSTEPS_MAX:
             raise ConfigError(
                 "simulation.dt_s",
-                sim["dt_s"],
-                f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl['Ts_s'] / SUBSTEPS_MAX:g} s",
+                sim.dt_s,
+                f">= current_loop.Ts_s / {SUBSTEPS_MAX:g} = {cl.Ts_s / SUBSTEPS_MAX:g} s",
             )
-        self.n_samples, rows = log_rows(data)
-        self._periods = row_periods(data, self.n_samples)
+        self.n_samples, rows = log_rows(scenario)
+        self._periods = row_periods(scenario, self.n_samples)
         # the rows to t_end_s: at the current rate the periods of the last speed sample after t_end_s are left out
-        self._rows_to_end = (self._periods - self._periods // self.n_samples) // sim["log_every"] + 1
+        self._rows_to_end = (self._periods - self._periods // self.n_samples) // sim.log_every + 1
         if rows * lib.P2D_LOG_COUNT * 8 > LOG_BYTES_MAX:
             least = -(-self._periods * lib.P2D_LOG_COUNT * 8 // LOG_BYTES_MAX)
             raise ConfigError(
                 "simulation.log_every",
-                sim["log_every"],
+                sim.log_every,
                 f">= {least}: the log of {rows} rows{self._rate_text()} would exceed {LOG_BYTES_MAX / 1024**3:g} GiB",
             )
 
-        cfg, self._arrays = engine_config(data, current_per_speed, substeps)
+        cfg, self._arrays = engine_config(scenario, current_per_speed, substeps)
         #: The full scales of the fixed-point speed controller by C field name ({} for float32).
         self.full_scales = full_scales(cfg)
         self.cfg = cfg
@@ -478,7 +477,7 @@ class Simulation:
             least = -(-self._periods * lib.P2D_LOG_COUNT * 8 // (LOG_BYTES_MAX // 8))
             raise ConfigError(
                 "simulation.log_every",
-                sim["log_every"],
+                sim.log_every,
                 f"large enough for the log to fit in the memory this process may use: {rows} rows"
                 f"{self._rate_text()} need {format_bytes(rows * lib.P2D_LOG_COUNT * 8)} (log_every >= {least} "
                 "keeps it below "
@@ -488,10 +487,10 @@ class Simulation:
 
     def _rate_text(self) -> str:
         """How the rows of a log at the current rate come about, for a message ("" at the speed rate)."""
-        if self.data["simulation"]["log_rate"] == "speed":
+        if self.scenario.simulation.log_rate == "speed":
             return ""
         return (
-            f" (simulation.log_rate = 'current': a row every {self.data['simulation']['log_every']} of the "
+            f" (simulation.log_rate = 'current': a row every {self.scenario.simulation.log_every} of the "
             f"{self._periods} current periods, {self.current_per_speed} per speed sample)"
         )
 
@@ -511,7 +510,7 @@ class Simulation:
 
     def _raise_config(self, status: int) -> NoReturn:
         """Raise the ConfigError of the init status ``status``, naming the scenario key (:func:`raise_config_error`)."""
-        raise_config_error(status, self.sim, self.cfg, self.data)
+        raise_config_error(status, self.sim, self.cfg, self.scenario)
 
     def stop_error(self, status: int) -> SimulationError:
         """The SimulationError of the stop ``status`` (a ``P2D_SIM_STOP_*`` code) of this run."""
@@ -519,23 +518,21 @@ class Simulation:
         reason = c_string(lib.p2d_sim_status_text(status))
         if status == lib.P2D_SIM_STOP_OVERSPEED:
             reason += f": |speed| = {sim.stop_value * RPM_PER_RADPS:.6g} rpm > {sim.stop_bound * RPM_PER_RADPS:.6g} rpm"
-            motor, i_max_A = self.data["motor"], self.data["limits"]["i_max_A"]
-            T_peak = peak_torque_Nm(i_max_A, motor["pole_pairs"], motor["psi_f_Wb"], motor["Ld_H"], motor["Lq_H"])
+            motor, i_max_A = self.scenario.motor, self.scenario.limits.i_max_A
+            T_peak = peak_torque_Nm(i_max_A, motor.pole_pairs, motor.psi_f_Wb, motor.Ld_H, motor.Lq_H)
             over = [
-                (i, e)
-                for i, e in enumerate(self.data["load"])
-                if e["t_s"] <= sim.t_stop_s and abs(e["torque_Nm"]) > T_peak
+                (i, e) for i, e in enumerate(self.scenario.load) if e.t_s <= sim.t_stop_s and abs(e.torque_Nm) > T_peak
             ]
             if over:
                 i, e = over[-1]
                 reason = (
-                    f"the load load.{i}.torque_Nm = {e['torque_Nm']:.6g} Nm is above the peak torque {T_peak:.4g} "
+                    f"the load load.{i}.torque_Nm = {e.torque_Nm:.6g} Nm is above the peak torque {T_peak:.4g} "
                     f"Nm that limits.i_max_A = {i_max_A:g} A gives: it stalled the drive and turned it backwards "
                     f"({reason})"
                 )
         elif status == lib.P2D_SIM_STOP_OVERCURRENT:
             reason += f": ||i_dq|| = {sim.stop_value:.6g} A > {sim.stop_bound:.6g} A"
-        return SimulationError(f"simulation of {self.data['name']!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
+        return SimulationError(f"simulation of {self.scenario.name!r} stopped at t = {sim.t_stop_s:.6g} s: {reason}")
 
 
 def log_signals(log: npt.NDArray[np.float64]) -> dict[str, npt.NDArray[Any]]:

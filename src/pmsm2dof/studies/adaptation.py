@@ -54,12 +54,12 @@ def run_adaptation(
             base = base.with_overrides(overrides)
         except ConfigError as exc:
             return {(ratio, mode): str(exc) for ratio in J_RATIOS for mode in MODES}
-    J_design = base.data["speed_controller"]["J_kgm2"]
+    J_design = base.speed_controller.J_kgm2
     bases, todo = {}, []
     for ratio in J_RATIOS:
         for mode in MODES:
             key = f"{ratio}-{mode}"
-            bases[key] = base.with_overrides(_overrides(ratio, mode, J_design)).data
+            bases[key] = base.with_overrides(_overrides(ratio, mode, J_design))
             todo.append(Run(key, key, {}, key))
     outcomes = {o.key: o for o in run_many(bases, todo, keep=[r.key for r in todo], workers=workers)}
     runs: dict[tuple[float, str], Result | str] = {}
@@ -81,7 +81,7 @@ def adaptation_figures(runs: Mapping[tuple[float, str], Result | str], ratio: fl
             return out
         results[mode] = run
     matched = results["matched"]
-    t0 = matched.scenario.data["reference"][STEP_INDEX]["t_s"]
+    t0 = matched.scenario.reference[STEP_INDEX].t_s
     step = matched.t_s >= t0
     for mode, r in results.items():
         err = np.abs(r.speed_ref_rpm[step] - r.speed_rpm[step])

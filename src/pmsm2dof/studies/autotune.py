@@ -613,10 +613,8 @@ def runs_bound(scenario: Scenario, spec: Spec) -> int:
     The coarse grid, :data:`REFINE_ROUNDS` rounds of at most 81 neighbours, each at the 3 inertia
     ratios of the search, and at most :data:`CHECK_MAX` final checks at :data:`N_J_CHECK` ratios.
     """
-    sc = scenario.data["speed_controller"]
-    forms = list(
-        itertools.product(spec.feedforwards or (sc["feedforward"],), spec.anti_windups or (sc["anti_windup"],))
-    )
+    sc = scenario.speed_controller
+    forms = list(itertools.product(spec.feedforwards or (sc.feedforward,), spec.anti_windups or (sc.anti_windup,)))
     grid = 0
     neighbours = 0
     for ff, aw in forms:
@@ -637,18 +635,17 @@ class _Search:
         self.workers = workers
         self.client = client
         self.progress = progress
-        data = scenario.data
-        sc = data["speed_controller"]
-        self.J_design_kgm2 = sc["J_kgm2"]
-        self.tau_i_design_s = sc["tau_i_s"]
-        self.tau_i_plant_s = data["current_loop"]["tau_i_s"]
-        self.Ts_s = sc["Ts_s"]
-        self.method = sc["method"]
-        self.feedforwards = spec.feedforwards or (sc["feedforward"],)
-        self.anti_windups = spec.anti_windups or (sc["anti_windup"],)
+        sc = scenario.speed_controller
+        self.J_design_kgm2 = sc.J_kgm2
+        self.tau_i_design_s = sc.tau_i_s
+        self.tau_i_plant_s = scenario.current_loop.tau_i_s
+        self.Ts_s = sc.Ts_s
+        self.method = sc.method
+        self.feedforwards = spec.feedforwards or (sc.feedforward,)
+        self.anti_windups = spec.anti_windups or (sc.anti_windup,)
         self.J_ratios_checked = J_ratios(spec.J_range, N_J_CHECK)
         self.J_ratios_search = J_ratios(spec.J_range, 3)
-        self.bases = {"scenario": data}
+        self.bases = {"scenario": scenario}
         self.margins: dict[tuple[float, float], dict[float, Margins | None]] = {}
         self.edges: dict[tuple[float, float], float | None] = {}
         self.known: dict[Candidate, tuple[int, Evaluation]] = {}
@@ -1038,7 +1035,7 @@ def autotune(
     if not isinstance(spec, Spec):
         raise ConfigError("spec", type(spec).__name__, "a pmsm2dof Spec")
     check_options(workers, scheduler)
-    loads = [entry["torque_Nm"] for entry in scenario.data["load"]]
+    loads = [entry.torque_Nm for entry in scenario.load]
     if not any(b != a for b, a in zip([0.0] + loads, loads)):
         raise ConfigError(
             "scenario",
@@ -1084,5 +1081,5 @@ def autotune(
         J_ratios_checked=search.J_ratios_checked,
         wall_time_s=time.perf_counter() - start,
         on_bounds=bounds_reached(search, chosen.candidate),
-        scenario_loop=sampled_loop(scenario.data),
+        scenario_loop=sampled_loop(scenario),
     )

@@ -92,7 +92,7 @@ def write_speed_controller(link: Link, scenario: Scenario, values: dict[str, Any
     if not _same(Ts_s, values["Ts_s"]):
         raise ConfigError(
             "speed_controller.Ts_s",
-            scenario.data["speed_controller"]["Ts_s"],
+            scenario.speed_controller.Ts_s,
             f"{Ts_s:g} s, the speed-loop period of the drive's firmware",
         )
     try:
@@ -342,13 +342,12 @@ class DriveSession:
             raise ToolError(
                 "this drive's firmware has no virtual board's trace (vd_trace): the run captures the virtual drive"
             )
-        data = scenario.data
-        n = math.floor(data["simulation"]["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
+        n = math.floor(scenario.simulation.t_end_s / scenario.speed_controller.Ts_s + 1e-9) + 1
         if n > RUN_SAMPLES_MAX:
             raise ConfigError(
                 "simulation.t_end_s",
-                data["simulation"]["t_end_s"],
-                f"<= {RUN_SAMPLES_MAX * data['speed_controller']['Ts_s']:g} s: at most {RUN_SAMPLES_MAX} speed "
+                scenario.simulation.t_end_s,
+                f"<= {RUN_SAMPLES_MAX * scenario.speed_controller.Ts_s:g} s: at most {RUN_SAMPLES_MAX} speed "
                 "samples of a run on the drive",
             )
         self.write(scenario, owner)

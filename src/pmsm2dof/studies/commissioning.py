@@ -45,13 +45,12 @@ def real_drive(scenario: Scenario, dead_time_share: float = 0.01, noise_share: f
     RK4 steps per current period (the dead-time error switches within a period)."""
     from ..sim.commission import commissioning_config
 
-    data = scenario.data
     return scenario.with_overrides(
         {
             "inverter.computation_delay": True,
-            "commissioning.dead_time_V": dead_time_share * data["limits"]["u_dc_V"],
+            "commissioning.dead_time_V": dead_time_share * scenario.limits.u_dc_V,
             "commissioning.noise_A": noise_share * commissioning_config(scenario)["i_test_A"],
-            "simulation.dt_s": data["current_loop"]["Ts_s"] / 4,
+            "simulation.dt_s": scenario.current_loop.Ts_s / 4,
         }
     )
 

@@ -44,7 +44,9 @@ from ..core.bindings import ffi
 from ..core.motor import Motor
 from ..errors import ConfigError
 from ..outputs import atomic_write
-from ..sim.scenario import Scenario, Tree, load_scenario
+from ..sim.scenario import Scenario, load_scenario
+from ..sim.scenario_schema import FIELDS
+from ..sim.scenario_tables import SpeedFilterTable
 from ..sim.simulate import RPM_PER_RADPS, Simulation
 
 #: The identifier prefix of the firmware's configuration (examples/firmware/foc.c includes p2d_config.h).
@@ -64,8 +66,8 @@ INCLUDES = (
     "pmsm2dof/speed.h",
 )
 
-#: The largest log_every the engine takes (uint32_t): the configuration's engine logs one row.
-_LOG_EVERY_ONE_ROW = 2**32 - 1
+#: The largest log_every of a scenario: the configuration's engine logs a row or a few.
+_LOG_EVERY_ONE_ROW = FIELDS["simulation.log_every"].le
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -100,7 +102,7 @@ class Configuration:
         cfg = self.engine.cfg
         enc = ffi.new("p2d_encoder_config_t *", cfg.sensing.speed_sensor.encoder)[0]
         enc.Ts_s = cfg.speed.Ts_s
-        if self.scenario.data["speed_sensor"]["model"] == "ideal":
+        if self.scenario.speed_sensor.model == "ideal":
             # the speed as measured: only the estimator's low-pass acts (csrc/sim/sensing.c)
             enc.counts_per_rev, enc.counter_bits, enc.estimator, enc.bandwidth_radps = 1, 32, 0, 0.0
         return enc
@@ -108,13 +110,13 @@ class Configuration:
     @property
     def switches(self) -> dict[str, bool]:
         """Which optional parts run: encoder, field weakening, inertia estimator, gain scheduling."""
-        data = self.scenario.data
+        scenario = self.scenario
         return dict(
-            ENCODER=data["speed_sensor"]["model"] == "encoder",
-            FIELD_WEAKENING=bool(data["field_weakening"]["enabled"]),
-            INERTIA=bool(data["estimator"]["enabled"]),
-            ADAPT_GAINS=bool(data["estimator"]["enabled"] and data["estimator"]["adapt_gains"]),
-            KA_FOLLOWS_J=data["speed_controller"]["Ka"] is None,
+            ENCODER=scenario.speed_sensor.model == "encoder",
+            FIELD_WEAKENING=scenario.field_weakening.enabled,
+            INERTIA=scenario.estimator.enabled,
+            ADAPT_GAINS=scenario.estimator.enabled and scenario.estimator.adapt_gains,
+            KA_FOLLOWS_J=scenario.speed_controller.Ka is None,
         )
 
     def c_header(self, prefix: str = DEFAULT_PREFIX) -> str:
@@ -122,7 +124,7 @@ class Configuration:
         check_prefix(prefix)
         cfg = self.engine.cfg
         on = self.switches
-        est = self.scenario.data["estimator"]
+        est = self.scenario.estimator
         off = "zero: off (not used by the firmware)"
         macros = [
             ("TS_CURRENT_S", c_float(cfg.current.Ts_s), "current-loop (PWM, control interrupt) period [s]"),
@@ -137,10 +139,10 @@ class Configuration:
             ("INERTIA", str(int(on["INERTIA"])), "1: the online inertia estimator (p2d_inertia_step)"),
             ("ADAPT_GAINS", str(int(on["ADAPT_GAINS"])), "1: re-design the speed controller for the valid J"),
             ("KA_FOLLOWS_J", str(int(on["KA_FOLLOWS_J"])), "1: gain scheduling sets Ka = 1 / (J alpha)"),
-            ("ADAPT_REL_CHANGE", c_float(est["adapt_rel_change"]), "re-design when J moved by this share [-]"),
+            ("ADAPT_REL_CHANGE", c_float(est.adapt_rel_change), "re-design when J moved by this share [-]"),
             (
                 "ADAPT_ERROR_RADPS",
-                c_float(est["adapt_error_rpm"] / RPM_PER_RADPS),
+                c_float(est.adapt_error_rpm / RPM_PER_RADPS),
                 "re-design only while |w_ref - w_meas| <= this [rad/s]",
             ),
         ]
@@ -191,53 +193,69 @@ class Configuration:
 
     def record(self) -> list[str]:
         """The header's record: where it came from, the design and what it gives, the other parts."""
-        data = self.scenario.data
+        scenario = self.scenario
         cfg = self.engine.cfg
-        sc, cl, ss = data["speed_controller"], data["current_loop"], data["speed_sensor"]
+        sc, cl, ss = scenario.speed_controller, scenario.current_loop, scenario.speed_sensor
         speed = _speed_controller(cfg.speed)
         # Ka absent: the default 1/Kp as the C library computes it; the record's margins are the ideal sensor's
-        Ka = float(cfg.speed.Ka) if sc["Ka"] is None else sc["Ka"]
-        discrete = scenario_design(self.scenario, Ka=Ka, sensor=None).discretize(sc["Ts_s"], sc["method"])
+        Ka = float(cfg.speed.Ka) if sc.Ka is None else sc.Ka
+        discrete = scenario_design(self.scenario, Ka=Ka, sensor=None).discretize(sc.Ts_s, sc.method)
         Ts_c, Ts_s = float(cfg.current.Ts_s), float(cfg.speed.Ts_s)
         lines = [f"From: {self.source}" if self.source else f"From the scenario {self.scenario.name!r}.", *self.notes]
         lines += ["", *design_record(discrete, speed.coefficients), ""]
         lines += [
             f"Loop rates: current loop {1.0 / Ts_c:.6g} Hz (Ts {Ts_c:.6g} s), speed loop every "
             f"{self.current_per_speed}th interrupt ({1.0 / Ts_s:.6g} Hz)",
-            f"Motor: p = {data['motor']['pole_pairs']}, Rs = {cfg.current.Rs_ohm:.6g} ohm, "
+            f"Motor: p = {scenario.motor.pole_pairs}, Rs = {cfg.current.Rs_ohm:.6g} ohm, "
             f"Ld = {cfg.current.Ld_H:.6g} H, Lq = {cfg.current.Lq_H:.6g} H, psi_f = {cfg.current.psi_f_Wb:.6g} Wb, "
             f"i_max = {cfg.speed.i_max_A:.6g} A",
-            f"Current loop: tau_i = {cl['tau_i_s']:g} s, {cl['method']}, anti-windup {cl['anti_windup']}, "
-            f"decoupling {'on' if cl['decouple'] else 'off'}",
+            f"Current loop: tau_i = {cl.tau_i_s:g} s, {cl.method}, anti-windup {cl.anti_windup}, "
+            f"decoupling {'on' if cl.decouple else 'off'}",
             "Speed sensor: "
             + (
-                f"encoder, {ss['counts_per_rev']} counts/rev, {ss['counter_bits']}-bit counter, {ss['estimator']}"
-                if ss["model"] == "encoder"
+                f"encoder, {ss.counts_per_rev} counts/rev, {ss.counter_bits}-bit counter, {ss.estimator}"
+                if ss.model == "encoder"
                 else "the speed as measured"
             )
-            + (f", low-pass {ss['lowpass_radps']:g} rad/s" if ss["lowpass_radps"] else ""),
-            f"Torque filters: {_filters_text(data['speed_filter'])}",
-            f"Field weakening: {'on' if data['field_weakening']['enabled'] else 'off'}; inertia estimator: "
+            + (f", low-pass {ss.lowpass_radps:g} rad/s" if ss.lowpass_radps else ""),
+            f"Torque filters: {_filters_text(scenario.speed_filter)}",
+            f"Field weakening: {'on' if scenario.field_weakening.enabled else 'off'}; inertia estimator: "
             + (
-                ("on, with gain scheduling" if data["estimator"]["adapt_gains"] else "on")
-                if data["estimator"]["enabled"]
+                ("on, with gain scheduling" if scenario.estimator.adapt_gains else "on")
+                if scenario.estimator.enabled
                 else "off"
             ),
         ]
-        if cl["model"] == "first_order":
+        if cl.model == "first_order":
             lines.append("The scenario simulates eq 3 (first_order); the firmware runs these dq current controllers.")
         return lines
 
 
-def scenario_design(scenario: Scenario | Tree, **changes: Any) -> Design:
+def sensor_chain(scenario: Scenario) -> SensorChain:
+    """The speed sensor chain of ``scenario``'s ``[speed_sensor]`` in the linear loop.
+
+    The counts per revolution, the counter and the noise act in the simulation only (the linear
+    loop has no quantization and no noise).
+    """
+    ss = scenario.speed_sensor
+    return SensorChain(
+        model=ss.model,
+        estimator=ss.estimator,
+        bandwidth_radps=ss.bandwidth_radps or 0.0,
+        lowpass_radps=ss.lowpass_radps,
+        delay_s=ss.delay_s,
+    )
+
+
+def scenario_design(scenario: Scenario, **changes: Any) -> Design:
     """The design (eq 9-13, section 3.3) of the speed controller of ``scenario``.
 
     Parameters
     ----------
-    scenario : Scenario or dict
-        A validated scenario, or its :attr:`~pmsm2dof.sim.scenario.Scenario.data`: the design takes
-        its ``speed_controller`` J, alpha, zeta, m, tau_i, feedforward, anti-windup and Ka (absent:
-        1/Kp) and the sensor chain of its ``[speed_sensor]``.
+    scenario : Scenario
+        A validated scenario: the design takes its ``speed_controller`` J, alpha, zeta, m, tau_i,
+        feedforward, anti-windup and Ka (absent: 1/Kp) and the sensor chain of its ``[speed_sensor]``
+        (:func:`sensor_chain`).
     **changes
         Arguments of :func:`pmsm2dof.analysis.design.design` that replace the scenario's, e.g.
         ``feedforward="none"``.
@@ -247,18 +265,17 @@ def scenario_design(scenario: Scenario | Tree, **changes: Any) -> Design:
     ConfigError
         A change out of its range, named as the argument.
     """
-    data = scenario.data if isinstance(scenario, Scenario) else scenario
-    sc = data["speed_controller"]
+    sc = scenario.speed_controller
     arguments: dict[str, Any] = {
-        "J_kgm2": sc["J_kgm2"],
-        "alpha_radps": sc["alpha_radps"],
-        "zeta": sc["zeta"],
-        "m": sc["m"],
-        "tau_i_s": sc["tau_i_s"],
-        "feedforward": sc["feedforward"],
-        "anti_windup": sc["anti_windup"],
-        "Ka": sc["Ka"],
-        "sensor": SensorChain.from_table(data["speed_sensor"]),
+        "J_kgm2": sc.J_kgm2,
+        "alpha_radps": sc.alpha_radps,
+        "zeta": sc.zeta,
+        "m": sc.m,
+        "tau_i_s": sc.tau_i_s,
+        "feedforward": sc.feedforward,
+        "anti_windup": sc.anti_windup,
+        "Ka": sc.Ka,
+        "sensor": sensor_chain(scenario),
     }
     unknown = sorted(set(changes) - set(arguments))
     if unknown:
@@ -289,8 +306,7 @@ def configuration(scenario: Scenario, *, source: str = "", notes: tuple[str, ...
     """
     if not isinstance(scenario, Scenario):
         raise ConfigError("scenario", type(scenario).__name__, "a pmsm2dof Scenario (load_scenario)")
-    data: Tree = dict(scenario.data)
-    arithmetic = data["speed_controller"]["arithmetic"]
+    arithmetic = scenario.speed_controller.arithmetic
     if arithmetic != "float32":
         raise ConfigError(
             "speed_controller.arithmetic",
@@ -298,9 +314,10 @@ def configuration(scenario: Scenario, *, source: str = "", notes: tuple[str, ...
             "'float32': the firmware's configuration is that of the float32 speed controller (speed.h); a "
             "fixed-point one is configured by p2d_speed_fixed_config_t (speed_fixed.h)",
         )
-    data["current_loop"] = {**data["current_loop"], "model": "dq_pi"}
-    data["simulation"] = {**data["simulation"], "log_every": _LOG_EVERY_ONE_ROW, "log_rate": "speed"}
-    return Configuration(scenario=scenario, source=source, notes=tuple(notes), engine=Simulation(data))
+    engine = scenario.with_overrides(
+        {"current_loop.model": "dq_pi", "simulation.log_every": _LOG_EVERY_ONE_ROW, "simulation.log_rate": "speed"}
+    )
+    return Configuration(scenario=scenario, source=source, notes=tuple(notes), engine=Simulation(engine))
 
 
 def design_scenario(
@@ -438,10 +455,10 @@ def design_motor(
             "them, or take them from the paper's drive (placeholders, not your motor)",
         )
     if missing:
-        data = load_scenario(DESIGN_TEMPLATE).data
+        template = load_scenario(DESIGN_TEMPLATE)
         for name in missing:
             table, key = DESIGN_MOTOR[name][1].split(".")
-            values[name] = data[table][key]
+            values[name] = getattr(getattr(template, table), key)
             sources[name] = f"paper drive, preset {DESIGN_TEMPLATE}: a placeholder, not your motor"
     return {name: values[name] for name in DESIGN_MOTOR}, {name: sources[name] for name in DESIGN_MOTOR}
 
@@ -454,14 +471,13 @@ def _speed_controller(speed: Any) -> SpeedController:
     return SpeedController(**params)
 
 
-def _filters_text(table: Mapping[str, float]) -> str:
+def _filters_text(table: SpeedFilterTable) -> str:
     """The torque filters of a ``[speed_filter]`` table, in words."""
     parts = []
-    if table["notch_freq_Hz"]:
+    if table.notch_freq_Hz:
         parts.append(
-            f"notch at {table['notch_freq_Hz']:g} Hz, {table['notch_width_Hz']:g} Hz wide, "
-            f"depth {table['notch_depth']:g}"
+            f"notch at {table.notch_freq_Hz:g} Hz, {table.notch_width_Hz:g} Hz wide, depth {table.notch_depth:g}"
         )
-    if table["lowpass_freq_Hz"]:
-        parts.append(f"low-pass at {table['lowpass_freq_Hz']:g} Hz, zeta {table['lowpass_zeta']:g}")
+    if table.lowpass_freq_Hz:
+        parts.append(f"low-pass at {table.lowpass_freq_Hz:g} Hz, zeta {table.lowpass_zeta:g}")
     return "; ".join(parts) if parts else "none"

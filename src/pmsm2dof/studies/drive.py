@@ -65,7 +65,7 @@ def check_drive_runs(link: Link, scenario: Scenario) -> None:
         raise ConfigError(
             "link", link.url, "a virtual drive (its A2L lists vd_trace): a run is held against the engine"
         )
-    sim = Simulation(scenario.data).sim
+    sim = Simulation(scenario).sim
     engine_cfg = {"link_speed_config": sim.speed.config, "link_current_config": sim.current.config}
     with link_errors(link, "reading the configuration"):
         for var, (ctype, _, _) in CONTROLLERS.items():
@@ -95,7 +95,7 @@ def run_on_drive(link: Link, scenario: Scenario) -> DriveRun:
     ToolError
         The link dropped (the drive's watchdog stops the run).
     """
-    t_end = scenario.data["simulation"]["t_end_s"]
+    t_end = scenario.simulation.t_end_s
     if t_end > RUN_MAX_S:
         raise ConfigError("simulation.t_end_s", t_end, f"at most {RUN_MAX_S:g} s for a run over the link")
     check_drive_runs(link, scenario)
@@ -112,7 +112,7 @@ def run_on_drive(link: Link, scenario: Scenario) -> DriveRun:
             f"the link watchdog tripped the run at sample {after['trip_sample']} (the master was silent for longer "
             "than the drive's link timeout): the run is not the scenario's"
         )
-    sim = Simulation(scenario.data)
+    sim = Simulation(scenario)
     start = time.perf_counter()
     sim.advance(sim.n_samples)
     engine = sim.result(scenario, time.perf_counter() - start)

@@ -8,7 +8,7 @@ overrides. :func:`run_many` simulates them and measures each one
 - on local threads (:func:`default_workers` by default): the compiled engine releases the GIL
   for the whole simulation, so the threads run on all cores;
 - or on the workers of a running Dask distributed scheduler (:func:`connect`), which need
-  pmsm2dof installed: the batches travel as plain data (the bases' ``Scenario.data``).
+  pmsm2dof installed: the batches travel pickled (their base scenarios and overrides).
 
 Every run is one :class:`Outcome` (its metrics, or the message of the SimulationError that
 stopped it; its :class:`~pmsm2dof.sim.simulate.Result` when asked to keep it), returned in the
@@ -35,7 +35,7 @@ from typing import Any
 from ..errors import ConfigError, Pmsm2dofWarning, SimulationError, is_integer
 from ..inputs import read_bytes
 from ..outputs import atomic_write
-from ..sim.scenario import Scenario, Tree
+from ..sim.scenario import Scenario
 from ..sim.simulate import Result, Simulation, simulate_many
 from .loopcheck import measure
 
@@ -104,7 +104,7 @@ def default_workers() -> int:
 
 
 def simulate_batch(
-    bases: Mapping[str, Tree], runs: Sequence[Run], keep: frozenset[Hashable] = frozenset()
+    bases: Mapping[str, Scenario], runs: Sequence[Run], keep: frozenset[Hashable] = frozenset()
 ) -> list[Outcome]:
     """Simulate and measure ``runs`` (in a worker thread or on a Dask worker), the engine's lockstep
     groups (:func:`~pmsm2dof.sim.simulate.simulate_many`) a few runs at a time.
@@ -112,7 +112,7 @@ def simulate_batch(
     Parameters
     ----------
     bases : mapping
-        Base name -> ``Scenario.data`` (plain data, so that it travels to Dask workers).
+        Base name -> its scenario (pickled to a Dask worker).
     runs : sequence of Run
     keep : frozenset
         Keys of the runs whose Result is kept in their Outcome.
@@ -123,7 +123,6 @@ def simulate_batch(
         A value that only the C controllers or the engine check, naming the run
         (:attr:`Run.label`) and the scenario key.
     """
-    bases_scenarios = {name: Scenario.from_dict(bases[name]) for name in dict.fromkeys(run.base for run in runs)}
     outcomes = []
     # lockstep groups of the engine (simulate_many), measured as they finish: a few traces in memory at a time
     for start in range(0, len(runs), SIMULATE_MANY_RUNS):
@@ -131,14 +130,14 @@ def simulate_batch(
         scenarios = []
         for run in chunk:
             with _named(run):
-                scenarios.append(bases_scenarios[run.base].with_overrides(run.overrides))
+                scenarios.append(bases[run.base].with_overrides(run.overrides))
         try:
             results = simulate_many(scenarios)
         except ConfigError:
             # a value that only the C controllers or the engine check: the run whose engine rejects it names it
             for run, scenario in zip(chunk, scenarios):
                 with _named(run):
-                    Simulation(scenario.data)
+                    Simulation(scenario)
             raise
         for run, result in zip(chunk, results):
             if isinstance(result, SimulationError):
@@ -201,7 +200,7 @@ def connect(scheduler: str | None) -> Iterator[Any]:
 
 
 def run_many(
-    bases: Mapping[str, Tree],
+    bases: Mapping[str, Scenario],
     runs: Sequence[Run],
     *,
     keep: Iterable[Hashable] = (),
@@ -217,7 +216,7 @@ def run_many(
     Parameters
     ----------
     bases : mapping
-        Base name -> ``Scenario.data`` of a validated scenario.
+        Base name -> its scenario.
     runs : sequence of Run
         Their overrides are validated by the caller (a ConfigError raised here stops the study).
     keep : iterable
@@ -285,7 +284,7 @@ def _batches(runs: Sequence[Run], size: int) -> list[list[Run]]:
 
 
 def _run_local(
-    bases: Mapping[str, Tree],
+    bases: Mapping[str, Scenario],
     batches: Sequence[list[Run]],
     keep: frozenset[Hashable],
     workers: int,
@@ -314,7 +313,7 @@ def _run_local(
 
 def _run_dask(
     client: Any,  # a dask.distributed.Client
-    bases: Mapping[str, Tree],
+    bases: Mapping[str, Scenario],
     batches: Sequence[list[Run]],
     keep: frozenset[Hashable],
     finished: Callable[[list[Outcome]], None],

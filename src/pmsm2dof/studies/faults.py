@@ -13,7 +13,7 @@ import numpy as np
 from ..core.bindings import AntiWindup
 from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
-from ..sim.scenario import Tree, load_scenario
+from ..sim.scenario import Scenario, load_scenario
 from ..sim.simulate import Result
 from .engine import Run, run_many
 from .paper import AW_LABELS
@@ -33,7 +33,7 @@ def run_faults(
     engine (default: the cores available).
     """
     runs: dict[tuple[str, AntiWindup], Result | str | None] = {}
-    bases: dict[str, Tree] = {}
+    bases: dict[str, Scenario] = {}
     todo: list[Run] = []
     for preset in FAULT_PRESETS:
         for aw in AW_LABELS:
@@ -45,7 +45,7 @@ def run_faults(
             except ConfigError as exc:
                 runs[preset, aw] = str(exc)
                 continue
-            bases[key] = scenario.data
+            bases[key] = scenario
             todo.append(Run(key, key, {}, key))
             runs[preset, aw] = None
     outcomes = {o.key: o for o in run_many(bases, todo, keep=[r.key for r in todo], workers=workers)}

@@ -93,29 +93,28 @@ def check_virtual_drive(scenario: Scenario) -> None:
     The virtual board runs the firmware's dq current controllers against eq 1, reads the speed as
     the plant has it (or its encoder's counter) and plays no fault.
     """
-    data = scenario.data
-    if data["current_loop"]["model"] != "dq_pi":
+    if scenario.current_loop.model != "dq_pi":
         raise ConfigError(
             "current_loop.model",
-            data["current_loop"]["model"],
+            scenario.current_loop.model,
             "'dq_pi' for the firmware: it runs the dq current controllers against the motor of eq 1",
         )
-    if data["fault"]:
-        raise ConfigError("fault", f"<{len(data['fault'])} entries>", "none: the virtual board plays no fault")
-    if data["simulation"]["log_rate"] != "speed":
+    if scenario.fault:
+        raise ConfigError("fault", f"<{len(scenario.fault)} entries>", "none: the virtual board plays no fault")
+    if scenario.simulation.log_rate != "speed":
         raise ConfigError(
             "simulation.log_rate",
-            data["simulation"]["log_rate"],
+            scenario.simulation.log_rate,
             "'speed' for the firmware: its trace holds a row per speed sample",
         )
-    ss = data["speed_sensor"]
-    for key in ("delay_s", "noise_rpm_rms"):
-        if ss[key] != 0.0:
-            raise ConfigError(f"speed_sensor.{key}", ss[key], "0: the virtual board has no delay or noise on the speed")
-    if data["current_loop"]["Ts_s"] > TS_CURRENT_MAX_S:
+    ss = scenario.speed_sensor
+    for key, value in (("delay_s", ss.delay_s), ("noise_rpm_rms", ss.noise_rpm_rms)):
+        if value != 0.0:
+            raise ConfigError(f"speed_sensor.{key}", value, "0: the virtual board has no delay or noise on the speed")
+    if scenario.current_loop.Ts_s > TS_CURRENT_MAX_S:
         raise ConfigError(
             "current_loop.Ts_s",
-            data["current_loop"]["Ts_s"],
+            scenario.current_loop.Ts_s,
             f"<= {TS_CURRENT_MAX_S:.4g} s on the virtual board (the 24-bit SysTick at its instruction clock)",
         )
 
@@ -137,7 +136,6 @@ def virtual_drive_header(config: Configuration) -> str:
     """
     scenario = config.scenario
     check_virtual_drive(scenario)
-    data = scenario.data
     cfg = config.engine.cfg
     # the plant the engine builds from its configuration (csrc/sim/drive.c, plant_config)
     plant = ffi.new("p2d_plant_config_t *")[0]
@@ -149,16 +147,16 @@ def virtual_drive_header(config: Configuration) -> str:
     plant.substeps = cfg.substeps
     plant.w_m0_radps = cfg.w_m0_radps
     plant.current_sensor = cfg.sensing.current_sensor
-    encoder = data["speed_sensor"]["model"] == "encoder"
+    encoder = scenario.speed_sensor.model == "encoder"
     plant.counts_per_rev = cfg.sensing.speed_sensor.encoder.counts_per_rev if encoder else 0
-    cm = data["current_measurement"]
-    errors = any(cm[k] != 0.0 for k in ("gain_error_a", "gain_error_b", "offset_a_A", "offset_b_A", "noise_A_rms"))
-    reference = data["reference"]
-    load = data["load"]
+    cm = scenario.current_measurement
+    errors = any(e != 0.0 for e in (cm.gain_error_a, cm.gain_error_b, cm.offset_a_A, cm.offset_b_A, cm.noise_A_rms))
+    reference = scenario.reference
+    load = scenario.load
     macros = [
         ("CURRENT_PER_SPEED", f"{config.current_per_speed}u", "current periods per speed period [-]"),
         ("SPEED_SAMPLES", f"{config.engine.n_samples}u", "speed samples of the run (t_end) [-]"),
-        ("LOG_EVERY", f"{data['simulation']['log_every']}u", "a trace row every LOG_EVERY-th speed sample [-]"),
+        ("LOG_EVERY", f"{scenario.simulation.log_every}u", "a trace row every LOG_EVERY-th speed sample [-]"),
         ("I_MAX_A", c_double(float(cfg.speed.i_max_A)), "current limit of the speed controller [A]"),
         ("REFERENCE_N", f"{len(reference)}u", "entries of the speed reference [-]"),
         ("LOAD_N", f"{len(load)}u", "entries of the load torque [-]"),
@@ -166,16 +164,16 @@ def virtual_drive_header(config: Configuration) -> str:
     ]
     # the values as the engine's schedules hold them (pmsm2dof.sim.simulate._schedule)
     arrays = [
-        ("reference_t_s", [e["t_s"] for e in reference], "entry times of the speed reference [s]"),
+        ("reference_t_s", [e.t_s for e in reference], "entry times of the speed reference [s]"),
         (
             "reference_radps",
-            [e["speed_rpm"] * (1.0 / RPM_PER_RADPS) for e in reference],
+            [e.speed_rpm * (1.0 / RPM_PER_RADPS) for e in reference],
             "speed reference entries [rad/s]",
         ),
-        ("reference_ramp_s", [e["ramp_s"] for e in reference], "ramp of each speed reference entry [s]"),
-        ("load_t_s", [e["t_s"] for e in load], "entry times of the load torque [s]"),
-        ("load_Nm", [e["torque_Nm"] for e in load], "load torque entries [Nm]"),
-        ("load_ramp_s", [e["ramp_s"] for e in load], "ramp of each load torque entry [s]"),
+        ("reference_ramp_s", [e.ramp_s for e in reference], "ramp of each speed reference entry [s]"),
+        ("load_t_s", [e.t_s for e in load], "entry times of the load torque [s]"),
+        ("load_Nm", [e.torque_Nm for e in load], "load torque entries [Nm]"),
+        ("load_ramp_s", [e.ramp_s for e in load], "ramp of each load torque entry [s]"),
     ]
     return config_header(
         prefix=VIRTUAL_DRIVE_PREFIX,
@@ -344,7 +342,7 @@ def build_firmware(
                 tmp / a2l,
                 sources=sources,
                 virtual=virtual,
-                Ts_current_s=scenario.data["current_loop"]["Ts_s"],
+                Ts_current_s=scenario.current_loop.Ts_s,
                 current_per_speed=config.current_per_speed,
                 tcp_port=TCP_PORT,
                 sxi_baud=baud,
@@ -416,7 +414,7 @@ class FirmwareRun:
 
     def cost(self) -> dict[str, Any]:
         """:func:`interrupt_cost` of the run."""
-        Ts_s = self.scenario.data["current_loop"]["Ts_s"]
+        Ts_s = self.scenario.current_loop.Ts_s
         return interrupt_cost(self.instructions, self.speed_sample, Ts_s)
 
 
@@ -458,9 +456,8 @@ def run_firmware(folder: Path | str, *, samples: int | None = None) -> FirmwareR
     if not elf.is_file() or not (folder / "scenario.toml").is_file():
         raise ConfigError("DIR", str(folder), "a folder written by `pmsm2dof firmware SCENARIO --out DIR`")
     scenario = load_scenario(str(folder / "scenario.toml"))
-    data = scenario.data
-    ratio = round(data["speed_controller"]["Ts_s"] / data["current_loop"]["Ts_s"])
-    n_samples = math.floor(data["simulation"]["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
+    ratio = round(scenario.speed_controller.Ts_s / scenario.current_loop.Ts_s)
+    n_samples = math.floor(scenario.simulation.t_end_s / scenario.speed_controller.Ts_s + 1e-9) + 1
     if samples is not None:
         if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= n_samples:
             raise ConfigError("samples", samples, f"an integer in [1, {n_samples}] (the scenario's speed samples)")
@@ -468,9 +465,9 @@ def run_firmware(folder: Path | str, *, samples: int | None = None) -> FirmwareR
     if n_samples * ratio > PERIODS_MAX:
         raise ConfigError(
             "simulation.t_end_s",
-            data["simulation"]["t_end_s"],
+            scenario.simulation.t_end_s,
             f"at most {PERIODS_MAX:g} current periods on QEMU "
-            f"({PERIODS_MAX / ratio * data['speed_controller']['Ts_s']:g} s)",
+            f"({PERIODS_MAX / ratio * scenario.speed_controller.Ts_s:g} s)",
         )
     require_tool("qemu-system-arm")
     timeout_s = 60.0 + WALL_S_PER_PERIOD * n_samples * ratio
@@ -509,7 +506,7 @@ def run_firmware(folder: Path | str, *, samples: int | None = None) -> FirmwareR
         )
     firmware = Result(scenario=scenario, wall_time_s=wall_s, **log_signals(np.array(list(columns.values()))))
     # the engine over the same speed samples
-    sim = Simulation(data)
+    sim = Simulation(scenario)
     start = time.perf_counter()
     sim.advance(n_samples)
     engine = sim.result(scenario, time.perf_counter() - start)
@@ -619,15 +616,14 @@ def play_scenario(
     SimulationError
         The run did not end as done, or the capture lost a sample.
     """
-    data = scenario.data
-    n_samples = math.floor(data["simulation"]["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
+    n_samples = math.floor(scenario.simulation.t_end_s / scenario.speed_controller.Ts_s + 1e-9) + 1
     if samples is not None:
         if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= n_samples:
             raise ConfigError("samples", samples, f"an integer in [1, {n_samples}] (the scenario's speed samples)")
         n_samples = samples
     # the values as the engine's schedules hold them (pmsm2dof.sim.simulate._schedule)
-    reference = [(e["t_s"], e["speed_rpm"] * (1.0 / RPM_PER_RADPS), e["ramp_s"]) for e in data["reference"]]
-    load = [(e["t_s"], e["torque_Nm"], e["ramp_s"]) for e in data["load"]]
+    reference = [(e.t_s, e.speed_rpm * (1.0 / RPM_PER_RADPS), e.ramp_s) for e in scenario.reference]
+    load = [(e.t_s, e.torque_Nm, e.ramp_s) for e in scenario.load]
     start = time.perf_counter()
     rows = link.play(n_samples, reference, load, LOG_COLUMNS, timeout_s=timeout_s, during=during)
     log = np.array([rows[c] for c in LOG_COLUMNS])

@@ -24,7 +24,7 @@ import numpy as np
 from ..analysis.design import design
 from ..analysis.fixedpoint import scaling_check
 from ..errors import ConfigError
-from ..sim.scenario import Scenario, Tree, load_scenario
+from ..sim.scenario import Scenario, load_scenario
 from ..sim.simulate import Result, Simulation
 from .engine import Run, run_many
 
@@ -85,27 +85,27 @@ class ArithmeticStudy:
     results: dict[tuple[str, str], Result]
 
 
-def _dead_zone_rpm(data: Tree, full_scales: Mapping[str, float]) -> float:
+def _dead_zone_rpm(scenario: Scenario, full_scales: Mapping[str, float]) -> float:
     """The dead zone of the scenario's design at its full scales (scaling_check) [rpm]."""
-    sc, motor = data["speed_controller"], data["motor"]
+    sc, motor = scenario.speed_controller, scenario.motor
     d = design(
-        sc["J_kgm2"],
-        sc["alpha_radps"],
-        sc["zeta"],
-        m=sc["m"],
-        tau_i_s=sc["tau_i_s"],
-        feedforward=sc["feedforward"],
-        anti_windup=sc["anti_windup"],
-        Ka=sc["Ka"],
+        sc.J_kgm2,
+        sc.alpha_radps,
+        sc.zeta,
+        m=sc.m,
+        tau_i_s=sc.tau_i_s,
+        feedforward=sc.feedforward,
+        anti_windup=sc.anti_windup,
+        Ka=sc.Ka,
     )
     report = scaling_check(
         d,
-        sc["Ts_s"],
-        fmt=sc["arithmetic"],
+        sc.Ts_s,
+        fmt="q15" if sc.arithmetic == "q15" else "q31",
         speed_full_scale_radps=full_scales["speed_full_scale_radps"],
         torque_full_scale_Nm=full_scales["torque_full_scale_Nm"],
-        method=sc["method"],
-        T_max_Nm=1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * data["limits"]["i_max_A"],
+        method=sc.method,
+        T_max_Nm=1.5 * motor.pole_pairs * motor.psi_f_Wb * scenario.limits.i_max_A,
     )
     return report.dead_zone.width_radps * RPM_PER_RADPS
 
@@ -121,7 +121,7 @@ def run_arithmetic(overrides: Mapping[str, Any] | None = None, workers: int | No
             conditions[name] = load_scenario(preset).with_overrides({**dict(overrides or {}), **extra})
         except ConfigError as exc:
             conditions[name] = str(exc)
-    bases: dict[str, Tree] = {}
+    bases: dict[str, Scenario] = {}
     todo: list[Run] = []
     scales: dict[tuple[str, str], dict[str, float]] = {}
     failed: dict[tuple[str, str], str] = {}
@@ -134,13 +134,13 @@ def run_arithmetic(overrides: Mapping[str, Any] | None = None, workers: int | No
             if name == DEAD_ZONE_NAME and arithmetic != "float32":
                 fixed |= DEAD_ZONE_SCALES
             try:
-                data = scenario.with_overrides(fixed).data
-                scales[name, arithmetic] = Simulation(data).full_scales
+                changed = scenario.with_overrides(fixed)
+                scales[name, arithmetic] = Simulation(changed).full_scales
             except ConfigError as exc:
                 failed[name, arithmetic] = str(exc)
                 continue
             key = f"{name} {arithmetic}"
-            bases[key] = data
+            bases[key] = changed
             todo.append(Run((name, arithmetic), key, {}, key))
     outcomes = run_many(bases, todo, keep=[r.key for r in todo], workers=workers)
     results: dict[tuple[str, str], Result] = {}
@@ -169,7 +169,7 @@ def run_arithmetic(overrides: Mapping[str, Any] | None = None, workers: int | No
                         None if reference is None else float(np.max(np.abs(run.speed_rpm - reference.speed_rpm)))
                     ),
                     final_error_rpm=float(run.speed_ref_rpm[-1] - run.speed_rpm[-1]),
-                    dead_zone_rpm=_dead_zone_rpm(run.scenario.data, fs) if fixed_point else None,
+                    dead_zone_rpm=_dead_zone_rpm(run.scenario, fs) if fixed_point else None,
                 )
             )
     return ArithmeticStudy(tuple(rows), results)

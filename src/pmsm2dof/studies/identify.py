@@ -526,15 +526,14 @@ def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | N
         raise ConfigError("speed_max_rpm", speed_max_rpm, "a finite number > 0 [rpm]")
     if i_max_A is not None:
         scenario = scenario.with_overrides({"limits.i_max_A": i_max_A})
-    data = scenario.data
-    motor, sc, limits = data["motor"], data["speed_controller"], data["limits"]
-    T_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"]
-    u_plan_V = PLAN_VOLTAGE_SHARE * limits["u_dc_V"] / math.sqrt(3.0)
-    w_voltage_rpm = voltage_limited_speed_radps(u_plan_V, limits["i_max_A"], motor) * 30.0 / math.pi
+    motor, sc, limits = scenario.motor, scenario.speed_controller, scenario.limits
+    T_max_Nm = 1.5 * motor.pole_pairs * motor.psi_f_Wb * limits.i_max_A
+    u_plan_V = PLAN_VOLTAGE_SHARE * limits.u_dc_V / math.sqrt(3.0)
+    w_voltage_rpm = voltage_limited_speed_radps(u_plan_V, limits.i_max_A, motor) * 30.0 / math.pi
     if speed_max_rpm > w_voltage_rpm:
         warnings.warn(
             f"the plan's largest speed is {w_voltage_rpm:.5g} rpm, not speed_max_rpm = {speed_max_rpm:g} rpm: above "
-            f"it the voltage of eq 1 at the current limit {limits['i_max_A']:g} A exceeds {PLAN_VOLTAGE_SHARE:g} "
+            f"it the voltage of eq 1 at the current limit {limits.i_max_A:g} A exceeds {PLAN_VOLTAGE_SHARE:g} "
             f"u_dc / sqrt(3) = {u_plan_V:.4g} V, the current no longer follows its command and the acceleration "
             "is not the current limit's",
             PlanWarning,
@@ -545,12 +544,12 @@ def plan_experiment(scenario: Scenario, speed_max_rpm: float, i_max_A: float | N
     t, previous, reference = 0.05, 0.0, []
     for rpm in levels:
         reference.append({"t_s": round(t, 6), "speed_rpm": rpm})
-        t_acc = sc["J_kgm2"] * abs(rpm - previous) * math.pi / 30.0 / T_max_Nm
-        t += 2.0 * t_acc + 8.0 / sc["alpha_radps"]
+        t_acc = sc.J_kgm2 * abs(rpm - previous) * math.pi / 30.0 / T_max_Nm
+        t += 2.0 * t_acc + 8.0 / sc.alpha_radps
         previous = rpm
     return scenario.with_overrides(
         {
-            "name": f"{data['name']}: identification plan",
+            "name": f"{scenario.name}: identification plan",
             "description": f"speed steps within +-{speed_max_rpm:g} rpm for pmsm2dof identify mechanics",
             "reference": reference,
             "load": [],

@@ -24,28 +24,27 @@ one too short for its Pade approximant (:func:`pmsm2dof.analysis.design.design`)
 not made, and its warning says so and why, naming the scenario key.
 """
 
-from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 from ..analysis.sampled_loop import sampled_loop_poles
 from ..errors import ConfigError
 from ..sim.metrics import compute_metrics
-from ..sim.scenario import Tree
+from ..sim.scenario import Scenario
 from .configuration import scenario_design
 
 if TYPE_CHECKING:
     from ..sim.simulate import Result
 
 
-def plant_inertia_kgm2(data: Mapping[str, Any]) -> float:
+def plant_inertia_kgm2(scenario: Scenario) -> float:
     """The inertia the speed loop drives: ``motor.J_kgm2``, plus ``mechanics.J_load_kgm2`` for a two-mass train."""
-    J = float(data["motor"]["J_kgm2"])
-    mech = data["mechanics"]
-    return J + float(mech["J_load_kgm2"]) if mech["model"] == "two_mass" else J
+    J = scenario.motor.J_kgm2
+    J_load = scenario.mechanics.J_load_kgm2
+    return J + J_load if scenario.mechanics.model == "two_mass" and J_load is not None else J
 
 
-def sampled_loop(data: Tree) -> dict[str, Any]:
-    """The sampled-loop stability check of the scenario ``data``'s speed controller (see the module docstring).
+def sampled_loop(scenario: Scenario) -> dict[str, Any]:
+    """The sampled-loop stability check of ``scenario``'s speed controller (see the module docstring).
 
     Returns
     -------
@@ -56,23 +55,23 @@ def sampled_loop(data: Tree) -> dict[str, Any]:
         analysis does not take the scenario (see the module docstring), ``stable``, ``design``
         and ``plant`` are None and the warning gives the reason.
     """
-    sc = data["speed_controller"]
+    sc = scenario.speed_controller
     try:
-        d = scenario_design(data)
+        d = scenario_design(scenario)
 
         def check(J_kgm2: float, tau_i_s: float) -> dict[str, Any]:
-            poles, stable = sampled_loop_poles(d, sc["Ts_s"], sc["method"], J_kgm2, tau_i_s)
+            poles, stable = sampled_loop_poles(d, sc.Ts_s, sc.method, J_kgm2, tau_i_s)
             return {"J_kgm2": J_kgm2, "tau_i_s": tau_i_s, "z_max": max(abs(p) for p in poles), "stable": stable}
 
         own = check(d.J_kgm2, d.tau_i_s)
-        J_plant, tau_plant = plant_inertia_kgm2(data), float(data["current_loop"]["tau_i_s"])
+        J_plant, tau_plant = plant_inertia_kgm2(scenario), scenario.current_loop.tau_i_s
         plant = None if (J_plant, tau_plant) == (d.J_kgm2, d.tau_i_s) else check(J_plant, tau_plant)
     except ConfigError as exc:
         key = _SCENARIO_KEYS.get(exc.param, exc.param)
         refused = ConfigError(key, exc.value, exc.valid)
         warning = f"the sampled-loop stability check was not made: the analysis does not take {refused}"
         return {"stable": None, "design": None, "plant": None, "warning": warning}
-    where = f"alpha_radps = {d.alpha_radps:g} rad/s, zeta = {d.zeta:g}, Ts_s = {sc['Ts_s']:g} s, {sc['method']}"
+    where = f"alpha_radps = {d.alpha_radps:g} rad/s, zeta = {d.zeta:g}, Ts_s = {sc.Ts_s:g} s, {sc.method}"
     warning = ""
     if not own["stable"]:
         warning = (
@@ -103,7 +102,7 @@ def measure(result: "Result") -> dict[str, Any]:
     """:func:`pmsm2dof.sim.metrics.compute_metrics` of a run, with its ``sampled_loop`` check
     (:func:`sampled_loop`) and that check's warning first among the ``warnings``."""
     metrics = compute_metrics(result)
-    check = sampled_loop(result.scenario.data)
+    check = sampled_loop(result.scenario)
     metrics["sampled_loop"] = check
     if check["warning"]:
         metrics["warnings"] = [check["warning"], *metrics["warnings"]]

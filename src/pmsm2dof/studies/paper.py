@@ -44,6 +44,7 @@ from ..core import METHODS, pi_gains
 from ..core.bindings import AntiWindup, Feedforward, Method
 from ..errors import ConfigError, SimulationError
 from ..sim.scenario import Scenario, load_scenario
+from ..sim.scenario_tables import SpeedControllerTable
 from ..sim.simulate import Result
 from .engine import Run, run_many
 
@@ -192,10 +193,10 @@ def sweeps(bases: Mapping[str, Scenario], points: int = POINTS) -> list[Sweep]:
     """
     if isinstance(points, bool) or not isinstance(points, int) or points < 2:
         raise ConfigError("points", points, "an integer >= 2")
-    step_data = bases[STEP_BASE].data
-    sc = step_data["speed_controller"]
-    J_design = sc["J_kgm2"]
-    Kp, _ = pi_gains(J_design, sc["alpha_radps"], sc["zeta"])  # eq 9
+    step_data = bases[STEP_BASE]
+    sc = step_data.speed_controller
+    J_design = sc.J_kgm2
+    Kp, _ = pi_gains(J_design, sc.alpha_radps, sc.zeta)  # eq 9
     out = []
 
     # Ka (Fig. 5): the range the paper gives, read as 1/(3 Kp) .. 3/Kp, and its literal Kp/3 .. 3 Kp
@@ -280,12 +281,12 @@ def sweeps(bases: Mapping[str, Scenario], points: int = POINTS) -> list[Sweep]:
                     ),
                 ),
             ),
-            marks=((sc["m"], "preset"),),
+            marks=((sc.m, "preset"),),
         )
     )
 
     # zeta (eq 9)
-    zeta = _geom(0.2, 1.0, points, sc["zeta"])
+    zeta = _geom(0.2, 1.0, points, sc.zeta)
     out.append(
         Sweep(
             "zeta",
@@ -294,7 +295,7 @@ def sweeps(bases: Mapping[str, Scenario], points: int = POINTS) -> list[Sweep]:
             "zeta",
             zeta,
             _both_controllers("zeta", zeta, "speed_controller.zeta"),
-            marks=((sc["zeta"], "preset"),),
+            marks=((sc.zeta, "preset"),),
             log_x=True,
         )
     )
@@ -332,9 +333,9 @@ def sweeps(bases: Mapping[str, Scenario], points: int = POINTS) -> list[Sweep]:
     )
 
     # torque limit: the torque constant 1.5 p psi_f that turns the 7.6 A limit into torque is not in the paper
-    motor, limits = step_data["motor"], step_data["limits"]
-    psi_f = _geom(0.4 * motor["psi_f_Wb"], 2.5 * motor["psi_f_Wb"], points, motor["psi_f_Wb"])
-    torque_limit = tuple(1.5 * motor["pole_pairs"] * v * limits["i_max_A"] for v in psi_f)
+    motor, limits = step_data.motor, step_data.limits
+    psi_f = _geom(0.4 * motor.psi_f_Wb, 2.5 * motor.psi_f_Wb, points, motor.psi_f_Wb)
+    torque_limit = tuple(1.5 * motor.pole_pairs * v * limits.i_max_A for v in psi_f)
     out.append(
         Sweep(
             "torque_limit",
@@ -350,7 +351,7 @@ def sweeps(bases: Mapping[str, Scenario], points: int = POINTS) -> list[Sweep]:
                 )
                 for aw in AW_LABELS
             ),
-            marks=((1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"], "preset"),),
+            marks=((1.5 * motor.pole_pairs * motor.psi_f_Wb * limits.i_max_A, "preset"),),
             log_x=True,
         )
     )
@@ -409,22 +410,22 @@ def discretization_points(
     (list of DiscretePoint, dict)
         The points, and the continuous reference: ``{controller: (overshoot_pct, Margins, w_gc)}``.
     """
-    sc, cl = base.data["speed_controller"], base.data["current_loop"]
+    sc, cl = base.speed_controller, base.current_loop
     for Ts in Ts_grid:
-        if not math.isclose(Ts / cl["Ts_s"], round(Ts / cl["Ts_s"]), rel_tol=1e-9):
-            raise ConfigError("Ts_s", Ts, f"a multiple of current_loop.Ts_s = {cl['Ts_s']:g} s")
+        if not math.isclose(Ts / cl.Ts_s, round(Ts / cl.Ts_s), rel_tol=1e-9):
+            raise ConfigError("Ts_s", Ts, f"a multiple of current_loop.Ts_s = {cl.Ts_s:g} s")
     designs: dict[str, Design] = {}
     continuous: dict[str, tuple[float, Margins, float]] = {}
     for label, ff in FEEDFORWARD.items():
         d = design(
-            sc["J_kgm2"],
-            sc["alpha_radps"],
-            sc["zeta"],
-            m=sc["m"],
-            tau_i_s=sc["tau_i_s"],
+            sc.J_kgm2,
+            sc.alpha_radps,
+            sc.zeta,
+            m=sc.m,
+            tau_i_s=sc.tau_i_s,
             feedforward=ff,
-            anti_windup=sc["anti_windup"],
-            Ka=sc["Ka"],
+            anti_windup=sc.anti_windup,
+            Ka=sc.Ka,
         )
         margins = loop_margins(d.L)
         designs[label] = d
@@ -458,8 +459,8 @@ def largest_fine_Ts(base: Scenario, Ts_grid: Sequence[float] = TS_GRID_S) -> flo
 
     That is ``max(alpha, alpha/(2 zeta), m alpha) Ts <= MAX_W_TS`` (beyond it discretize warns).
     """
-    sc = base.data["speed_controller"]
-    w = max(sc["alpha_radps"], sc["alpha_radps"] / (2.0 * sc["zeta"]), sc["m"] * sc["alpha_radps"])
+    sc = base.speed_controller
+    w = max(sc.alpha_radps, sc.alpha_radps / (2.0 * sc.zeta), sc.m * sc.alpha_radps)
     fine = [Ts for Ts in Ts_grid if w * Ts <= MAX_W_TS]
     return max(fine) if fine else min(Ts_grid)
 
@@ -549,10 +550,9 @@ class Studies:
     n_runs: int
     wall_time_s: float
 
-    def speed_controller(self) -> dict[str, Any]:
+    def speed_controller(self) -> SpeedControllerTable:
         """The ``speed_controller`` table of the sensitivity base (:data:`STEP_BASE`), as run."""
-        table: dict[str, Any] = self.bases[STEP_BASE].data["speed_controller"]
-        return table
+        return self.bases[STEP_BASE].speed_controller
 
     def step(self, name: str, index: int = 0) -> dict[str, Any]:
         """Figures of reference step ``index`` of run ``name`` (see :mod:`pmsm2dof.sim.metrics`)."""
@@ -633,7 +633,7 @@ def run_studies(
         bases[spec.preset].with_overrides(spec.overrides)
     keep = {spec.name for spec in kept}
     outcomes = run_many(
-        {name: base.data for name, base in bases.items()},
+        bases,
         [Run(spec.name, spec.preset, spec.overrides, spec.name) for spec in specs],
         keep=keep,
         workers=workers,

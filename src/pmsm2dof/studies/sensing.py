@@ -25,6 +25,7 @@ import numpy as np
 from ..errors import Pmsm2dofError, SimulationError
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario, load_scenario
+from ..sim.scenario_tables import SpeedSensorTable
 from ..sim.simulate import simulate
 from .configuration import scenario_design
 
@@ -59,7 +60,7 @@ class SensorRow:
     ----------
     label : str
         Name of the chain in :data:`SENSOR_CHAINS`.
-    sensor : dict
+    sensor : SpeedSensorTable
         Its ``[speed_sensor]`` table as run.
     overshoot_no_aw_pct, overshoot_aw_pct : float or None
         Experiment 1, 1DOF PI, without and with back-calculation AW [%].
@@ -72,7 +73,7 @@ class SensorRow:
     """
 
     label: str
-    sensor: dict[str, Any]
+    sensor: SpeedSensorTable
     overshoot_no_aw_pct: float | None
     overshoot_aw_pct: float | None
     dip_rpm: float | None
@@ -96,13 +97,12 @@ def _run_figure(scenario: Scenario, group: str, name: str) -> float | None:
 
 def _margins(scenario: Scenario) -> tuple[float | None, float | None]:
     """Phase and gain margin of the sampled 1DOF loop with the scenario's sensor chain."""
-    d = scenario.data
-    sc = d["speed_controller"]
-    loop = scenario_design(d, feedforward="none")
+    sc = scenario.speed_controller
+    loop = scenario_design(scenario, feedforward="none")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            margins = loop.discretize(sc["Ts_s"], sc["method"]).margins
+            margins = loop.discretize(sc.Ts_s, sc.method).margins
     except Pmsm2dofError:
         return None, None
     pm, gm = margins.phase_margin_deg, margins.gain_margin_dB
@@ -149,7 +149,7 @@ def sensor_study(
         rows.append(
             SensorRow(
                 label=label,
-                sensor=loaded.data["speed_sensor"],
+                sensor=loaded.speed_sensor,
                 overshoot_no_aw_pct=overshoot["none"],
                 overshoot_aw_pct=overshoot["back_calculation"],
                 dip_rpm=dip,
@@ -258,8 +258,8 @@ def offset_study(overrides: Mapping[str, Any] | None = None) -> list[OffsetRow]:
         For each of :data:`OFFSET_SPEEDS_RPM` and :data:`OFFSET_CURRENTS_A`.
     """
     base = load_scenario("paper-experiment-3").with_overrides(dict(overrides or {}))
-    motor, cl = base.data["motor"], base.data["current_loop"]
-    kt = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"]
+    motor, cl = base.motor, base.current_loop
+    kt = 1.5 * motor.pole_pairs * motor.psi_f_Wb
     rows = []
     for rpm in OFFSET_SPEEDS_RPM:
         for I0 in OFFSET_CURRENTS_A:
@@ -273,7 +273,7 @@ def offset_study(overrides: Mapping[str, Any] | None = None) -> list[OffsetRow]:
                 }
             )
             r = simulate(run)
-            w_e = motor["pole_pairs"] * rpm * math.pi / 30.0
+            w_e = motor.pole_pairs * rpm * math.pi / 30.0
             late = r.t_s >= OFFSET_WINDOW_S
             rows.append(
                 OffsetRow(
@@ -281,7 +281,7 @@ def offset_study(overrides: Mapping[str, Any] | None = None) -> list[OffsetRow]:
                     offset_a_A=I0,
                     torque_ripple_Nm=_amplitude(r.t_s[late], r.torque_Nm[late], w_e),
                     speed_ripple_rpm=_amplitude(r.t_s[late], r.speed_rpm[late], w_e),
-                    predicted_Nm=offset_ripple_Nm(I0, w_e, kt, motor["Ld_H"], motor["Rs_ohm"], cl["tau_i_s"]),
+                    predicted_Nm=offset_ripple_Nm(I0, w_e, kt, motor.Ld_H, motor.Rs_ohm, cl.tau_i_s),
                 )
             )
     return rows

@@ -259,7 +259,7 @@ def parse_sweep(data: Mapping[str, Any], base_dir: Path | str = ".") -> Sweep:
                 raise ConfigError(key, value, "absent: only distribution axes are drawn")
 
     rank_by = data.get("rank_by", DEFAULT_RANK_BY)
-    columns = metric_columns(base.data)
+    columns = metric_columns(base)
     if rank_by not in columns:
         raise ConfigError("rank_by", rank_by, "a metric column of the base scenario: " + ", ".join(columns))
     worst = _require_int("worst", data.get("worst", 3), 0, f"an integer >= 0 and <= {WORST_MAX}", WORST_MAX)
@@ -405,8 +405,8 @@ def _require_int(param: str, value: object, minimum: int, valid: str, maximum: i
 # ---------------------------------------------------------------------------------------------
 
 
-def metric_columns(data: "Tree") -> list[str]:
-    """Names of the metric columns for a scenario's ``data``, in table order.
+def metric_columns(scenario: "Scenario") -> list[str]:
+    """Names of the metric columns for ``scenario``, in table order.
 
     ``ref{i}_<figure>`` for the i-th entry of ``reference``, ``load{j}_<figure>`` for the j-th
     entry of ``load`` and ``run_<figure>`` for the whole run (figures of
@@ -414,8 +414,8 @@ def metric_columns(data: "Tree") -> list[str]:
     """
     from ..sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
 
-    columns = [f"ref{i}_{f}" for i in range(len(data["reference"])) for f in REFERENCE_FIGURES]
-    columns += [f"load{j}_{f}" for j in range(len(data["load"])) for f in LOAD_FIGURES]
+    columns = [f"ref{i}_{f}" for i in range(len(scenario.reference)) for f in REFERENCE_FIGURES]
+    columns += [f"load{j}_{f}" for j in range(len(scenario.load)) for f in LOAD_FIGURES]
     columns += [f"run_{f}" for f in RUN_FIGURES]
     return columns + ["sampled_loop_z_max"]
 
@@ -449,7 +449,7 @@ def _row(sweep: Sweep, point: int, outcome: Outcome) -> dict[str, Any]:
     row = {"point": point, **sweep.points[point]}
     if outcome.metrics is None:
         row.update(status="error", error=outcome.error, wall_time_s=None)
-        row.update(dict.fromkeys(metric_columns(sweep.base.data)))
+        row.update(dict.fromkeys(metric_columns(sweep.base)))
         row["notes"] = ""
     else:
         figures, notes = _flatten(outcome.metrics)
@@ -461,9 +461,9 @@ def _frame(rows: list[dict[str, Any]], sweep: Sweep) -> "pd.DataFrame":
     """Rows as a DataFrame with fixed column order and nullable float metrics."""
     import pandas as pd
 
-    columns = ["point", *sweep.keys, "status", "error", "wall_time_s", *metric_columns(sweep.base.data), "notes"]
+    columns = ["point", *sweep.keys, "status", "error", "wall_time_s", *metric_columns(sweep.base), "notes"]
     frame = pd.DataFrame(rows, columns=columns)
-    for col in ["wall_time_s", *metric_columns(sweep.base.data)]:
+    for col in ["wall_time_s", *metric_columns(sweep.base)]:
         frame[col] = frame[col].astype("Float64")
     return frame
 
@@ -646,7 +646,7 @@ def run_sweep(
             if i not in done
         ]
         run_many(
-            {"base": sweep.base.data},
+            {"base": sweep.base},
             todo,
             workers=workers,
             client=client,

@@ -110,7 +110,7 @@ def run_two_mass(overrides: Mapping[str, Any] | None = None, workers: int | None
     overrides do not apply or the run stopped.
     """
     base = load_scenario(PRESET).with_overrides(dict(overrides or {}))
-    alpha = base.data["speed_controller"]["alpha_radps"]
+    alpha = base.speed_controller.alpha_radps
     cases: list[Case] = [(None, "rigid", a, False) for a in ALPHA_FACTORS]
     cases += [
         (f_r, fb, a, notch)
@@ -126,7 +126,7 @@ def run_two_mass(overrides: Mapping[str, Any] | None = None, workers: int | None
         if f_r is not None:
             change |= train_overrides(f_r, fb, notch)
         try:
-            bases[str(i)] = base.with_overrides(change).data
+            bases[str(i)] = base.with_overrides(change)
         except ConfigError as exc:
             runs[f_r, fb, a, notch] = str(exc)
             continue
@@ -232,11 +232,11 @@ def stable_regions(
 def paper_region_study(overrides: Mapping[str, Any] | None = None) -> TwoMassStudy:
     """The study's runs and the stable regions of :data:`REGION_RATIOS` x :data:`REGION_RESONANCES_HZ` on
     the preset's design (with ``overrides``)."""
-    data = load_scenario(PRESET).with_overrides(dict(overrides or {})).data
-    sc, tau_i_s = data["speed_controller"], data["current_loop"]["tau_i_s"]
+    base = load_scenario(PRESET).with_overrides(dict(overrides or {}))
+    sc, tau_i_s = base.speed_controller, base.current_loop.tau_i_s
     rows = two_mass_rows(run_two_mass(overrides))
-    regions = stable_regions(REGION_RATIOS, REGION_RESONANCES_HZ, zeta=sc["zeta"], tau_i_s=tau_i_s, Ts_s=sc["Ts_s"])
-    return TwoMassStudy(rows, regions, sc["alpha_radps"], sc["zeta"], tau_i_s, sc["Ts_s"])
+    regions = stable_regions(REGION_RATIOS, REGION_RESONANCES_HZ, zeta=sc.zeta, tau_i_s=tau_i_s, Ts_s=sc.Ts_s)
+    return TwoMassStudy(rows, regions, sc.alpha_radps, sc.zeta, tau_i_s, sc.Ts_s)
 
 
 def region_around(

@@ -38,10 +38,10 @@ def _claim_gains(studies: st.Studies) -> Claim:
         claim="the PI gains Kp = 0.2 and Ki = 0.3 correspond to alpha = 0.5 (eq 9, J = 0.4 kg m^2)",
         paper="Kp = 0.2, Ki = 0.3, alpha = 0.5 rad/s",
         measured=(
-            f"eq 9 with J = {sc['J_kgm2']:g} kg m^2, alpha = {sc['alpha_radps']:g} rad/s, zeta = "
-            f"{sc['zeta']:.4g}: Kp = {d.Kp:.4g} Nm/(rad/s), Ki = {d.Ki:.4g} Nm/rad"
+            f"eq 9 with J = {sc.J_kgm2:g} kg m^2, alpha = {sc.alpha_radps:g} rad/s, zeta = "
+            f"{sc.zeta:.4g}: Kp = {d.Kp:.4g} Nm/(rad/s), Ki = {d.Ki:.4g} Nm/rad"
         ),
-        values={"Kp": d.Kp, "Ki": d.Ki, "zeta": sc["zeta"]},
+        values={"Kp": d.Kp, "Ki": d.Ki, "zeta": sc.zeta},
         verdict=_verdict(ok),
         reason=(
             "Kp = J alpha holds; the paper does not state zeta, and Ki = 0.3 gives zeta = alpha/2 sqrt(J/Ki) "
@@ -90,7 +90,7 @@ def _claim_first_order(studies: st.Studies) -> Claim:
     d = scenario_design(studies.bases[st.STEP_BASE], m=1.0, feedforward="full")
     overshoot_lin = d.overshoot_pct()
     bandwidth = d.bandwidth_radps()
-    pole = sc["alpha_radps"]
+    pole = sc.alpha_radps
     small = studies.step("lin-full")
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / pole
     over_small = _value(small["overshoot_pct"])
@@ -168,14 +168,14 @@ def _claim_lowpass(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
     low = scenario_design(studies.bases[st.STEP_BASE], m=1.0, feedforward="lowpass")
     small = studies.step("lin-lowpass")
-    rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc["alpha_radps"]
+    rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc.alpha_radps
     over_small = _value(small["overshoot_pct"])
     a, b = studies.results["lin-lowpass"], studies.results["lin-full"]
     diff = float(np.max(np.abs(a.speed_rpm - b.speed_rpm)))
-    alpha_tau = sc["alpha_radps"] * sc["tau_i_s"]
+    alpha_tau = sc.alpha_radps * sc.tau_i_s
     ok = (
         low.overshoot_pct() < NO_OVERSHOOT_PCT
-        and math.isclose(low.bandwidth_radps(), sc["alpha_radps"], rel_tol=FIRST_ORDER_RTOL)
+        and math.isclose(low.bandwidth_radps(), sc.alpha_radps, rel_tol=FIRST_ORDER_RTOL)
         and over_small is not None
         and over_small < NO_OVERSHOOT_PCT
         and rise is not None
@@ -187,7 +187,7 @@ def _claim_lowpass(studies: st.Studies) -> Claim:
         paper=f"tau_i 'very small' (here alpha tau_i = {alpha_tau:.3g})",
         measured=(
             f"linear Gx with eq 13: overshoot {low.overshoot_pct():.2g} %, bandwidth "
-            f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc['alpha_radps']:g}); simulated {st.SMALL_STEP_RPM:g} rpm "
+            f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc.alpha_radps:g}); simulated {st.SMALL_STEP_RPM:g} rpm "
             f"step with eq 13: overshoot {fmt(over_small, 2, '%')}, rise {fmt(rise, 4, 's')} (eq 10: "
             f"{rise_eq10:.4g} s); it differs from the step with eq 12 by at most "
             f"{100 * diff / st.SMALL_STEP_RPM:.2g} % of the step"

@@ -38,7 +38,7 @@ def _claim_limit_reached(studies: st.Studies) -> Claim:
         claim="when the step reference comes, iq_cmd quickly rises to the limit and holds on",
         paper="qualitative (limit 7.6 A)",
         measured=(
-            f"1DOF PI without AW: iq_cmd at the {r.scenario.data['limits']['i_max_A']:g} A limit "
+            f"1DOF PI without AW: iq_cmd at the {r.scenario.limits.i_max_A:g} A limit "
             f"{delay * 1000:.0f} ms after the step and held for {hold:.2f} s (2DOF eq 15: {hold2:.2f} s)"
         ),
         values={"delay_s": delay, "hold_s": hold, "hold_2dof_s": hold2},
@@ -130,7 +130,7 @@ def _claim_aw_overshoot(studies: st.Studies) -> Claim:
     if torque is not None:
         y_none = _along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")
         no_aw_there = float(np.interp(torque, sweep.x, y_none))
-        i_max = studies.bases[st.STEP_BASE].data["limits"]["i_max_A"]
+        i_max = studies.bases[st.STEP_BASE].limits.i_max_A
         where = (
             f"the sweep of the torque limit gives 16 % with AW at about {torque:.2g} Nm (a torque constant of "
             f"{torque / i_max:.2g} Nm/A for the 7.6 A limit, against {sweep.marks[0][0] / i_max:.2g} here), "
@@ -170,10 +170,10 @@ def _claim_aw_overshoot(studies: st.Studies) -> Claim:
 
 
 def _claim_1dof_load(studies: st.Studies) -> Claim:
-    data = studies.bases["paper-condition-2"].data
-    speed = data["reference"][0]["speed_rpm"]
-    load = data["load"][0]["torque_Nm"]
-    torque_max = 1.5 * data["motor"]["pole_pairs"] * data["motor"]["psi_f_Wb"] * data["limits"]["i_max_A"]
+    data = studies.bases["paper-condition-2"]
+    speed = data.reference[0].speed_rpm
+    load = data.load[0].torque_Nm
+    torque_max = 1.5 * data.motor.pole_pairs * data.motor.psi_f_Wb * data.limits.i_max_A
     Kp = scenario_design(data).Kp
     dip_c2 = _value(studies.load("c2-1dof")["speed_dip_rpm"])
     e3 = studies.load("e3-1dof")

@@ -48,7 +48,7 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
             atomic_write(tmp / "log.csv", result.log_csv())
             plot_commission(result, tmp / "plot.png")
             if result.phase == "done":
-                atomic_write(tmp / "motor.toml", result.motor_toml(chosen.data["motor"]["pole_pairs"]))
+                atomic_write(tmp / "motor.toml", result.motor_toml(chosen.motor.pole_pairs))
                 _commissioned_header(chosen, result, tmp / "p2d_config.h")
     if as_json:
         click.echo(json.dumps(summary, allow_nan=False))

@@ -393,11 +393,11 @@ def plan(
         result.save(tmp / "trace.csv")
         trace.plot_trace(result, tmp / "plot.png")
         atomic_write(tmp / "plan.toml", chosen.to_toml())
-    for entry in chosen.data["reference"]:
-        click.echo(f"  t = {entry['t_s']:8.4g} s: speed reference {entry['speed_rpm']:8.5g} rpm")
-    i_limit = chosen.data["limits"]["i_max_A"]
+    for entry in chosen.reference:
+        click.echo(f"  t = {entry.t_s:8.4g} s: speed reference {entry.speed_rpm:8.5g} rpm")
+    i_limit = chosen.limits.i_max_A
     click.echo(
-        f"simulated with J = {chosen.data['speed_controller']['J_kgm2']:g} kg m^2: |speed| <= "
+        f"simulated with J = {chosen.speed_controller.J_kgm2:g} kg m^2: |speed| <= "
         f"{abs(result.speed_rpm).max():.5g} rpm, |iq| <= {abs(result.iq_A).max():.4g} A (limit {i_limit:g} A), "
         f"at the voltage limit {100 * float(result.voltage_limited.mean()):.3g} % of the time, {result.t_s[-1]:g} s"
     )

@@ -101,15 +101,13 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str, for
     columns = dict(parse_column(text) for text in column_maps)
     measured = read_log(log, columns)
     chosen = load_scenario(scenario)
-    inside = (measured.t_s >= 0.0) & (measured.t_s <= chosen.data["simulation"]["t_end_s"])
+    inside = (measured.t_s >= 0.0) & (measured.t_s <= chosen.simulation.t_end_s)
     if np.count_nonzero(inside) < 2:
-        raise ConfigError(
-            "LOG", log, f"a log whose time overlaps the scenario's 0 to {chosen.data['simulation']['t_end_s']:g} s"
-        )
+        raise ConfigError("LOG", log, f"a log whose time overlaps the scenario's 0 to {chosen.simulation.t_end_s:g} s")
     with staged_dir(out, "compare", force) as tmp:
         result = run_simulation(chosen)
         error = measured.speed_rpm[inside] - np.interp(measured.t_s[inside], result.t_s, result.speed_rpm)
-        i_max = chosen.data["limits"]["i_max_A"]
+        i_max = chosen.limits.i_max_A
         table: dict[str, Any] = {
             "log": str(log),
             "scenario": chosen.name,

@@ -49,7 +49,7 @@ def draw_figures(sweep: Sweep, table: "pd.DataFrame", folder: Path) -> list[Path
     """Draw the figures of ``sweep`` from its results ``table`` into ``folder``; return their paths."""
     folder.mkdir(parents=True, exist_ok=True)
     plt = _pyplot()
-    columns = [c for c in metric_columns(sweep.base.data) if table[c].notna().any()]
+    columns = [c for c in metric_columns(sweep.base) if table[c].notna().any()]
     grid = [a for a in sweep.grid_axes if len(a.values or ()) > 1]
     paths: list[Path] = []
     if len(grid) == 2 and not sweep.random_axes:

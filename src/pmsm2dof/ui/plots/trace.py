@@ -58,7 +58,7 @@ def trace_figure(result: Result) -> Figure:
         (:func:`~pmsm2dof.ui.plots.canvas.decimate`: peaks kept).
     """
     t = result.t_s
-    i_max = result.scenario.data["limits"]["i_max_A"]
+    i_max = result.scenario.limits.i_max_A
     # fixed margins: a layout engine measures every text once more for each figure (half of savefig)
     fig = Figure(figsize=(8.0, 9.5))
     fig.subplots_adjust(left=0.1, right=0.98, bottom=0.055, top=0.95, hspace=0.1)
@@ -67,7 +67,7 @@ def trace_figure(result: Result) -> Figure:
     fig.suptitle(result.scenario.name)
 
     ax_w.plot(t, result.speed_ref_rpm, "k--", lw=1.0, label="reference")
-    two_mass = result.scenario.data["mechanics"]["model"] == "two_mass"
+    two_mass = result.scenario.mechanics.model == "two_mass"
     ax_w.plot(t, result.speed_rpm, lw=1.4, label="motor speed" if two_mass else "speed")
     if two_mass:
         ax_w.plot(t, result.load_speed_rpm, lw=1.0, color="C2", label="load speed")

@@ -129,19 +129,19 @@ def _finish(ax: Axes, ylabel: str, xlabel: str | None = None) -> None:
 
 def _current_limit(ax: Axes, result: Result, signs: Sequence[int] = (1, -1)) -> None:
     """Dotted horizontal lines at the current limit (``+i_max`` and ``-i_max`` by default)."""
-    i_max = result.scenario.data["limits"]["i_max_A"]
+    i_max = result.scenario.limits.i_max_A
     for sign in signs:
         ax.axhline(sign * i_max, color="grey", lw=0.8, ls=":")
 
 
 def _load_steps(axes: Sequence[Axes], result: Result) -> None:
     """Dashed vertical lines at the load steps of ``result``, labelled on the first axes."""
-    for entry in result.scenario.data["load"]:
+    for entry in result.scenario.load:
         for ax in axes:
-            ax.axvline(entry["t_s"], color="C4", lw=0.8, ls="--")
+            ax.axvline(entry.t_s, color="C4", lw=0.8, ls="--")
         axes[0].annotate(
-            f"load {entry['torque_Nm']:g} Nm",
-            (entry["t_s"], axes[0].get_ylim()[0]),
+            f"load {entry.torque_Nm:g} Nm",
+            (entry.t_s, axes[0].get_ylim()[0]),
             fontsize="small",
             color="C4",
             xytext=(3, 3),
@@ -463,11 +463,11 @@ def figures(studies: st.Studies) -> dict[str, tuple[Figure, FigureData, str]]:
     d = scenario_design(studies.bases[st.STEP_BASE])
     Kp, Ki = d.Kp, d.Ki
     bode = bode_gx_sweep(
-        sc["alpha_radps"],
+        sc.alpha_radps,
         FIG7_M,
-        J_kgm2=sc["J_kgm2"],
-        zeta=sc["zeta"],
-        tau_i_s=sc["tau_i_s"],
+        J_kgm2=sc.J_kgm2,
+        zeta=sc.zeta,
+        tau_i_s=sc.tau_i_s,
         feedforward="full",
     )
     out = {
@@ -475,7 +475,7 @@ def figures(studies: st.Studies) -> dict[str, tuple[Figure, FigureData, str]]:
             bode,
             _bode_data(bode),
             f"Fig. 7: Bode diagram of the tracking response Gx (eq 6 with the feedforward of eq 11), alpha = "
-            f"{sc['alpha_radps']:g} rad/s, m from {FIG7_M[0]:g} to {FIG7_M[-1]:g}.",
+            f"{sc.alpha_radps:g} rad/s, m from {FIG7_M[0]:g} to {FIG7_M[-1]:g}.",
         ),
         "fig08_speed_aw": (
             *fig_aw(studies, "c1", "speed_rpm"),

@@ -50,29 +50,29 @@ def _claims_table(claims: Sequence[Claim]) -> _Table:
 
 
 def _parameters_table(studies: st.Studies) -> _Table:
-    data = studies.bases["paper-condition-1"].data
-    m, lim, cl, sc = data["motor"], data["limits"], data["current_loop"], data["speed_controller"]
-    kt = 1.5 * m["pole_pairs"] * m["psi_f_Wb"]
+    data = studies.bases["paper-condition-1"]
+    m, lim, cl, sc = data.motor, data.limits, data.current_loop, data.speed_controller
+    kt = 1.5 * m.pole_pairs * m.psi_f_Wb
     d = scenario_design(data)
     Kp, Ki = d.Kp, d.Ki
     given = [
-        ("J", f"{m['J_kgm2']:g} kg m^2", "paper (4.1, 4.2)"),
-        ("tau_i", f"{cl['tau_i_s']:g} s", "paper (4.1, 4.2)"),
-        ("limit of iq_cmd", f"{lim['i_max_A']:g} A", "paper (4.1, 4.2)"),
-        ("alpha, Kp, Ki", f"{sc['alpha_radps']:g} rad/s, {Kp:.3g}, {Ki:.3g}", "paper (4.1)"),
-        ("zeta", f"{sc['zeta']:.4g}", "from Kp, Ki by eq 9 (not stated)"),
-        ("Ka", "1/Kp" if sc["Ka"] is None else f"{sc['Ka']:g}", "paper (3.3)"),
-        ("pole pairs p, psi_f", f"{m['pole_pairs']}, {m['psi_f_Wb']:g} Wb", "chosen (not in the paper)"),
+        ("J", f"{m.J_kgm2:g} kg m^2", "paper (4.1, 4.2)"),
+        ("tau_i", f"{cl.tau_i_s:g} s", "paper (4.1, 4.2)"),
+        ("limit of iq_cmd", f"{lim.i_max_A:g} A", "paper (4.1, 4.2)"),
+        ("alpha, Kp, Ki", f"{sc.alpha_radps:g} rad/s, {Kp:.3g}, {Ki:.3g}", "paper (4.1)"),
+        ("zeta", f"{sc.zeta:.4g}", "from Kp, Ki by eq 9 (not stated)"),
+        ("Ka", "1/Kp" if sc.Ka is None else f"{sc.Ka:g}", "paper (3.3)"),
+        ("pole pairs p, psi_f", f"{m.pole_pairs}, {m.psi_f_Wb:g} Wb", "chosen (not in the paper)"),
         (
             "torque constant 1.5 p psi_f",
-            f"{kt:.3g} Nm/A, so {kt * lim['i_max_A']:.3g} Nm at the limit",
+            f"{kt:.3g} Nm/A, so {kt * lim.i_max_A:.3g} Nm at the limit",
             "follows; the paper's eq 1 omits the 1.5 and calls p0 the number of poles while using it as pole pairs",
         ),
-        ("Rs, Ld, Lq", f"{m['Rs_ohm']:g} ohm, {m['Ld_H']:g} H, {m['Lq_H']:g} H", "chosen (surface PMSM)"),
-        ("u_dc", f"{lim['u_dc_V']:g} V", "chosen"),
-        ("friction", f"B = {m['B_Nms']:g}, Coulomb {m['T_coulomb_Nm']:g} Nm", "none, as the paper's model"),
-        ("current loop", f"{cl['model']}, Ts = {cl['Ts_s']:g} s", "chosen (dq current PIs giving tau_i)"),
-        ("speed loop", f"{sc['method']}, Ts = {sc['Ts_s']:g} s", "chosen (eq 14, 15: Tustin)"),
+        ("Rs, Ld, Lq", f"{m.Rs_ohm:g} ohm, {m.Ld_H:g} H, {m.Lq_H:g} H", "chosen (surface PMSM)"),
+        ("u_dc", f"{lim.u_dc_V:g} V", "chosen"),
+        ("friction", f"B = {m.B_Nms:g}, Coulomb {m.T_coulomb_Nm:g} Nm", "none, as the paper's model"),
+        ("current loop", f"{cl.model}, Ts = {cl.Ts_s:g} s", "chosen (dq current PIs giving tau_i)"),
+        ("speed loop", f"{sc.method}, Ts = {sc.Ts_s:g} s", "chosen (eq 14, 15: Tustin)"),
     ]
     return ("parameter", "value", "source"), given
 

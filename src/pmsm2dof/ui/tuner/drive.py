@@ -78,7 +78,7 @@ class DriveMode:
         drive = self.session.run(exact, owner)
         drive_s = time.perf_counter() - start
         start = time.perf_counter()
-        sim = Simulation(exact.data)
+        sim = Simulation(exact)
         sim.advance(sim.n_samples)
         twin = sim.result(exact, time.perf_counter() - start)
         twin_s = time.perf_counter() - start
@@ -92,7 +92,7 @@ class DriveMode:
         ]
         comparison = compare(drive, twin)
         return {
-            "label": _label(exact.data),
+            "label": _label(exact),
             "samples": len(t),
             "drive": _decimated(t, {name: np.asarray(getattr(drive, name)) for name, _, _ in RUN_SIGNALS}),
             "twin": _decimated(t, {name: np.asarray(getattr(twin, name)) for name, _, _ in RUN_SIGNALS}),

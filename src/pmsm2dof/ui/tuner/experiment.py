@@ -39,7 +39,7 @@ from ...analysis.design import Design, design
 from ...core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ...errors import ConfigError, require_positive
 from ...sim.metrics import at_current_limit, at_voltage_limit
-from ...sim.scenario import Scenario, Tree
+from ...sim.scenario import Scenario
 from ...sim.simulate import Result, Simulation
 from ...studies.configuration import configuration, scenario_design
 from ...studies.loopcheck import measure
@@ -185,24 +185,23 @@ class Tuner:
 
     def __init__(self, base: Scenario) -> None:
         self.base = base
-        data = base.data
-        self._J_design_kgm2 = data["speed_controller"]["J_kgm2"]
-        self._initial = self._initial_values(data)
+        self._J_design_kgm2 = base.speed_controller.J_kgm2
+        self._initial = self._initial_values(base)
         self._cache: collections.OrderedDict[str, tuple[Scenario, Result]] = collections.OrderedDict()
         self._cache_lock = threading.Lock()
         self._bode_cached = functools.lru_cache(maxsize=CACHED_RUNS)(self._bode_uncached)
 
     # ---- controls -------------------------------------------------------------------
 
-    def _initial_values(self, data: Tree) -> dict[str, Any]:
-        sc, sim = data["speed_controller"], data["simulation"]
-        values = {f"speed_controller.{k}": sc[k] for k in SPEED_CONTROLLER_CONTROLS}
-        values["tuner.J_ratio"] = data["motor"]["J_kgm2"] / self._J_design_kgm2
+    def _initial_values(self, scenario: Scenario) -> dict[str, Any]:
+        sc, sim = scenario.speed_controller, scenario.simulation
+        values = {f"speed_controller.{k}": getattr(sc, k) for k in SPEED_CONTROLLER_CONTROLS}
+        values["tuner.J_ratio"] = scenario.motor.J_kgm2 / self._J_design_kgm2
         for name, value_key, _, _ in SCHEDULES:
-            for i, entry in enumerate(data[name][:ENTRY_CONTROLS_MAX]):
-                values[f"{name}.{i}.t_s"] = entry["t_s"]
-                values[f"{name}.{i}.{value_key}"] = entry[value_key]
-        values["simulation.t_end_s"] = sim["t_end_s"]
+            for i, entry in enumerate(getattr(scenario, name)[:ENTRY_CONTROLS_MAX]):
+                values[f"{name}.{i}.t_s"] = entry.t_s
+                values[f"{name}.{i}.{value_key}"] = getattr(entry, value_key)
+        values["simulation.t_end_s"] = sim.t_end_s
         return values
 
     @property
@@ -221,12 +220,11 @@ class Tuner:
         any value can be typed, and the server validates it. A group may carry a ``note``.
         """
         v = self._initial
-        data = self.base.data
-        motor, limits = data["motor"], data["limits"]
+        motor, limits = self.base.motor, self.base.limits
         alpha = v["speed_controller.alpha_radps"]
         Kp = self._J_design_kgm2 * alpha
-        Ts_cl = data["current_loop"]["Ts_s"]
-        torque_max_Nm = 1.5 * motor["pole_pairs"] * motor["psi_f_Wb"] * limits["i_max_A"]
+        Ts_cl = self.base.current_loop.Ts_s
+        torque_max_Nm = 1.5 * motor.pole_pairs * motor.psi_f_Wb * limits.i_max_A
         t_end = v["simulation.t_end_s"]
 
         def slider(
@@ -252,8 +250,8 @@ class Tuner:
         ]
         notes: list[str] = []
         for name, value_key, label, unit in SCHEDULES:
-            entries = data[name]
-            values = [e[value_key] for e in entries]
+            entries = getattr(self.base, name)
+            values = [getattr(e, value_key) for e in entries]
             if name == "reference":  # the scenario has at least one reference entry
                 top = 3 * (max(abs(x) for x in values) or 500.0)
                 lo, hi = (-top if min(values) < 0 else 0.0), top
@@ -365,20 +363,19 @@ class Tuner:
             Naming ``simulation.t_end_s`` when the run would take more than :data:`STEPS_MAX`
             plant integration steps.
         """
-        data = scenario.data
-        sim, Ts_cl = data["simulation"], data["current_loop"]["Ts_s"]
+        sim, Ts_cl = scenario.simulation, scenario.current_loop.Ts_s
         # the engine's integration step: current_loop.Ts_s / ceil(current_loop.Ts_s / dt_s) (pmsm2dof.sim.simulate)
-        h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim["dt_s"] * (1.0 - 1e-9)))
-        if sim["t_end_s"] > STEPS_MAX * h_s:
+        h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim.dt_s * (1.0 - 1e-9)))
+        if sim.t_end_s > STEPS_MAX * h_s:
             raise ConfigError(
                 "simulation.t_end_s",
-                sim["t_end_s"],
+                sim.t_end_s,
                 f"<= {STEPS_MAX * h_s:g} s in the tuner: at most {STEPS_MAX:.0e} plant integration "
                 f"steps of {h_s:g} s per run (pmsm2dof simulate runs longer ones)",
             )
-        n_samples = math.floor(sim["t_end_s"] / data["speed_controller"]["Ts_s"] + 1e-9) + 1
+        n_samples = math.floor(sim.t_end_s / scenario.speed_controller.Ts_s + 1e-9) + 1
         # the tuner's figures and metrics are the speed loop's: a row per speed sample at most
-        log_every = max(sim["log_every"] if sim["log_rate"] == "speed" else 1, -(-n_samples // LOG_ROWS_MAX))
+        log_every = max(sim.log_every if sim.log_rate == "speed" else 1, -(-n_samples // LOG_ROWS_MAX))
         return scenario.with_overrides({"simulation.log_every": log_every, "simulation.log_rate": "speed"})
 
     # ---- runs ------------------------------------------------------------------------
@@ -406,7 +403,7 @@ class Tuner:
     def _simulate(scenario: Scenario, ticket: Ticket) -> Result:
         """:func:`pmsm2dof.simulate` in chunks of about :data:`CHUNK_STEPS` steps, stopping with
         :class:`~pmsm2dof.ui.tuner.slots.Superseded` between two when ``ticket`` is cancelled."""
-        run = Simulation(scenario.data)
+        run = Simulation(scenario)
         chunk = max(1, CHUNK_STEPS // (run.cfg.current_per_speed * run.cfg.substeps))
         with ticket.simulation():
             start = time.perf_counter()
@@ -446,7 +443,6 @@ class Tuner:
         """
         t0 = time.perf_counter()
         scenario, result = self._evaluate(values, ticket)
-        data = result.scenario.data
         dsg = design_of(scenario)
         t = np.asarray(result.t_s)
         u_dq_V = np.hypot(result.ud_V, result.uq_V)
@@ -483,13 +479,13 @@ class Tuner:
                 dsg.m,
                 dsg.tau_i_s,
                 dsg.feedforward,
-                data["motor"]["J_kgm2"],
-                data["speed_controller"]["Ts_s"],
+                result.scenario.motor.J_kgm2,
+                result.scenario.speed_controller.Ts_s,
             ]
         )
-        log_every = data["simulation"]["log_every"]
+        log_every = result.scenario.simulation.log_every
         out: dict[str, Any] = {
-            "label": _label(data),
+            "label": _label(result.scenario),
             "traces": traces,
             "spans": {
                 "current": limit_spans(t, at_current_limit(result)),
@@ -498,11 +494,11 @@ class Tuner:
             "detail": detail,
             "bode": self._bode_cached(bode_key),
             "metrics": _metric_rows(figures),
-            "warnings": _warnings(figures, data),
+            "warnings": _warnings(figures, result.scenario),
             "design": {"Kp": dsg.Kp, "Ki": dsg.Ki, "Ka": dsg.Ka},
-            "log": {"every": log_every, "period_s": log_every * data["speed_controller"]["Ts_s"], "rows": len(t)},
-            "i_max_A": data["limits"]["i_max_A"],
-            "t_end_s": data["simulation"]["t_end_s"],
+            "log": {"every": log_every, "period_s": log_every * result.scenario.speed_controller.Ts_s, "rows": len(t)},
+            "i_max_A": result.scenario.limits.i_max_A,
+            "t_end_s": result.scenario.simulation.t_end_s,
         }
         out["server_ms"] = 1e3 * (time.perf_counter() - t0)
         return out
@@ -550,14 +546,13 @@ class Tuner:
         except ConfigError as exc:
             raise ConfigError(f"spec.{exc.param}", exc.value, exc.valid) from None
         scenario = self.scenario(values)
-        data = scenario.data
-        sim, Ts_cl = data["simulation"], data["current_loop"]["Ts_s"]
-        h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim["dt_s"] * (1.0 - 1e-9)))
+        sim, Ts_cl = scenario.simulation, scenario.current_loop.Ts_s
+        h_s = Ts_cl / max(1, math.ceil(Ts_cl / sim.dt_s * (1.0 - 1e-9)))
         runs = runs_bound(scenario, spec)
-        if sim["t_end_s"] / h_s * runs > SUGGEST_STEPS_MAX:
+        if sim.t_end_s / h_s * runs > SUGGEST_STEPS_MAX:
             raise ConfigError(
                 "simulation.t_end_s",
-                sim["t_end_s"],
+                sim.t_end_s,
                 f"<= {SUGGEST_STEPS_MAX / runs * h_s:.3g} s for a suggestion: the search may simulate the "
                 f"experiment {runs} times, at most {SUGGEST_STEPS_MAX:.0e} integration steps of {h_s:g} s in "
                 "all (pmsm2dof autotune runs longer ones)",
@@ -642,14 +637,14 @@ def _event_title(part: str, event: Mapping[str, Any]) -> str:
     return f"fault {event['kind']} at {event['t_s']:g} s to {event['end_s']:g} s"
 
 
-def _warnings(figures: Mapping[str, Any], data: Tree) -> list[str]:
+def _warnings(figures: Mapping[str, Any], scenario: Scenario) -> list[str]:
     """Sentences the page shows above the metrics: the run left the design's assumptions (those of
     :func:`pmsm2dof.studies.loopcheck.measure` first)."""
     run = figures["run"]
     voltage_s = run["voltage_limit_time_s"]["value"]
     if not voltage_s:
         return list(figures["warnings"])
-    u_max_V = data["limits"]["u_dc_V"] / math.sqrt(3.0)
+    u_max_V = scenario.limits.u_dc_V / math.sqrt(3.0)
     return [
         *figures["warnings"],
         f"Voltage limit: the inverter's range u_dc/\u221a3 = {u_max_V:.4g} V cut the voltage for "
@@ -662,11 +657,11 @@ def _slug(name: str) -> str:
     return "".join(c if c.isalnum() else "-" for c in name.lower()).strip("-") or "scenario"
 
 
-def _label(data: Tree) -> str:
-    sc = data["speed_controller"]
-    ka = "1/Kp" if sc["Ka"] is None else f"{sc['Ka']:.4g}"
-    J_ratio = data["motor"]["J_kgm2"] / sc["J_kgm2"]
+def _label(scenario: Scenario) -> str:
+    sc = scenario.speed_controller
+    ka = "1/Kp" if sc.Ka is None else f"{sc.Ka:.4g}"
+    J_ratio = scenario.motor.J_kgm2 / sc.J_kgm2
     return (
-        f"\u03b1={sc['alpha_radps']:.4g} \u03b6={sc['zeta']:.4g} m={sc['m']:.4g} Fr {sc['feedforward']}, "
-        f"AW {sc['anti_windup']} Ka={ka}, {sc['method']} Ts={sc['Ts_s']:.4g} s, J/Jd={J_ratio:.3g}"
+        f"\u03b1={sc.alpha_radps:.4g} \u03b6={sc.zeta:.4g} m={sc.m:.4g} Fr {sc.feedforward}, "
+        f"AW {sc.anti_windup} Ka={ka}, {sc.method} Ts={sc.Ts_s:.4g} s, J/Jd={J_ratio:.3g}"
     )
