@@ -8,10 +8,11 @@
 #include <math.h>
 
 #include "board.h"
+#include "commission_task.h"
 #include "foc.h"
 #include "schedule.h"
 
-#define LINK_SEGMENTS_MAX 12u  /* the link's six and the board's */
+#define LINK_SEGMENTS_MAX 12u  /* the link's six, the commissioning's and the board's */
 #define LINK_MAX_CTO 255u      /* longest command or response [bytes] */
 #define LINK_MAX_DTO 255u      /* longest DAQ packet [bytes] */
 #define LINK_DAQ_BYTES 1536u   /* DAQ lists, ODTs and entries [bytes] */
@@ -21,7 +22,16 @@
 #define LINK_SCHEDULE_TOL 1e-9 /* entries within this share of Ts_speed of a sample have started [-] */
 
 /* The segments of the link, in this order before the board's. */
-enum { SEG_FOC_NOW = 0, SEG_STATUS, SEG_SPEED_CONFIG, SEG_CURRENT_CONFIG, SEG_COMMAND, SEG_REFERENCE, SEG_BOARD };
+enum {
+    SEG_FOC_NOW = 0,
+    SEG_STATUS,
+    SEG_SPEED_CONFIG,
+    SEG_CURRENT_CONFIG,
+    SEG_COMMAND,
+    SEG_REFERENCE,
+    SEG_COMMISSION,
+    SEG_BOARD = SEG_COMMISSION + COMMISSION_SEGMENTS
+};
 
 link_status_t link_status_now;            /* the link's report (measurement) */
 p2d_speed_config_t link_speed_config;     /* the speed controller's configuration (calibration) */
@@ -93,7 +103,7 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
             code = LINK_REJECT_COMMAND;
         } else if (c->command == 1u && !reference_schedule(&link_reference, &s)) {
             code = LINK_REJECT_SCHEDULE;
-        } else if (c->command == 1u && !board_run_valid()) {
+        } else if (c->command == 1u && (!board_run_valid() || commission_running())) {
             code = LINK_REJECT_BOARD;
         } else {
             start_request = c->command == 1u ? c->samples : 0u;
@@ -105,6 +115,8 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
         /* a run plays its schedule to the end: the master changes it between runs (checked whole at the start) */
         if (running || ((const link_reference_t *)page)->n > LINK_SCHEDULE_MAX) code = LINK_REJECT_SCHEDULE;
         break;
+    case SEG_COMMISSION:
+    case SEG_COMMISSION + 1: code = commission_commit((uint16_t)(index - SEG_COMMISSION), page, running); break;
     default: code = board_link_commit((uint16_t)(index - SEG_BOARD), page, running) ? 0 : LINK_REJECT_BOARD; break;
     }
     if (code == 0) {
@@ -136,7 +148,7 @@ link_init_status_t link_init(const link_config_t *cfg)
     p2d_xcp_config_t c = {0};
     p2d_xcp_guard_config_t g;
     uint64_t Ts_ns = (uint64_t)(cfg->Ts_current_s * 1e9 + 0.5);
-    uint16_t n = SEG_BOARD;
+    uint16_t n = SEG_COMMISSION;
     uint8_t unit;
 
     if (cfg->n > LINK_SCHEDULE_MAX) {
@@ -174,6 +186,8 @@ link_init_status_t link_init(const link_config_t *cfg)
                                                 P2D_XCP_CALIBRATION};
     segments[SEG_REFERENCE] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&link_reference, &link_reference,
                                                   sizeof link_reference, P2D_XCP_CALIBRATION};
+    commission_init((float)cfg->Ts_current_s);
+    n = (uint16_t)(n + commission_link_segments(&segments[SEG_COMMISSION], COMMISSION_SEGMENTS));
     n = (uint16_t)(n + board_link_segments(&segments[SEG_BOARD], (uint16_t)(LINK_SEGMENTS_MAX - SEG_BOARD)));
 
     xcp_cycle(Ts_ns, &events[0].cycle, &unit);
@@ -296,6 +310,9 @@ void link_isr(void)
     }
     if (s->state == LINK_RUNNING) {
         foc_isr();
+    } else {
+        /* between runs: the commissioning routine when the master started it, the link watchdog over it */
+        power(commission_isr(commission_running() && p2d_xcp_link_check(&xcp)));
     }
     tick = tick + 1u == current_per_speed ? 0u : tick + 1u;
     s->dtos_lost = xcp.dtos_lost;

@@ -47,11 +47,14 @@ def _show(value: Any) -> str:
     )
 
 
-@click.group(cls=Group, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve.")
+@click.group(
+    cls=Group, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve, commission, identify."
+)
 def drive() -> None:
     """Talk to a drive (the firmware of examples/firmware, on an MCU, on QEMU or the PC's virtual drive) over
     XCP, by the names of its A2L file: read and write its variables, capture signals by DAQ, play a
-    scenario on it beside the engine's simulation, or serve the PC's virtual drive of a scenario.
+    scenario on it beside the engine's simulation, serve the PC's virtual drive of a scenario, commission
+    its motor or identify its mechanics.
     """
 
 
@@ -202,3 +205,54 @@ def serve(scenario: str, overrides: tuple[str, ...], port: int, out: str, force:
     except ConfigError as exc:
         raise as_option(exc, DURATION) from None
     click.echo("the drive stopped")
+
+
+@drive.command()
+@out_option("the folder for result.json, log.csv, plot.png and motor.toml (the identified motor)",
+            type=click.Path(file_okay=False), required=True)  # fmt: skip
+@link_option
+def commission(out: str, force: bool, url: str, a2l: str, allow_remote: bool) -> None:
+    """Run the commissioning routine (commission.h) on the drive: Rs, Ld, Lq and psi_f of its motor.
+
+    The routine's settings follow from the motor data the drive's controllers hold and the DC link it
+    measures; each step is printed as the drive enters it. Writes the report of `pmsm2dof commission`:
+    OUT/result.json, log.csv (the routine's signals at the speed event), plot.png and, when it ends
+    done, motor.toml. A failed routine names the step and why, and exits with 1; a link that drops
+    leaves the drive's watchdog to end the routine (power stage off), exit status 2.
+    """
+    from ...outputs import check_out, staged_dir
+    from ...studies.drive_commission import commission_on_drive, drive_scenario
+    from .commission import write_commission
+
+    check_out(out, "drive-commission", force)
+
+    def progress(step: str, t_s: float) -> None:
+        click.echo(f"  {t_s:8.4f} s  {step}")
+
+    with _open(url, a2l, allow_remote) as link:
+        configured = drive_scenario(link).data["motor"]
+        click.echo(f"commissioning the drive at {link.url}")
+        result = commission_on_drive(link, progress=progress)
+    with staged_dir(out, "drive-commission", force) as tmp:
+        write_commission(result, configured["pole_pairs"], tmp)
+    click.echo(_commission_table(result, configured))
+    written = "result.json, log.csv, plot.png" + (", motor.toml" if result.phase == "done" else "")
+    click.echo(f"wrote {written} to {out}")
+    if result.phase != "done":
+        raise click.exceptions.Exit(1)
+
+
+def _commission_table(result: Any, configured: dict[str, Any]) -> str:
+    """The estimates beside the values the drive's controllers hold, and the time of each step."""
+    units = {"Rs_ohm": "ohm", "Ld_H": "H", "Lq_H": "H", "psi_f_Wb": "Wb"}
+    lines = [f"commissioning {result.phase}"]
+    if result.phase != "done":
+        lines.append(f"  failed in {result.failed_phase}: {result.reason} ({result.reason_text})")
+    lines.append(f"  {'':<9}{'identified':>13}{'configured':>13}")
+    for key, unit in units.items():
+        lines.append(f"  {key:<9}{result.estimates[key]:>13.6g}{configured[key]:>13.6g}  [{unit}]")
+    lines.append("  step        time [s]")
+    for phase, t in result.phase_time_s.items():
+        lines.append(f"  {phase:<12}{t:>8.4g}")
+    lines.append(f"  {'total':<12}{sum(result.phase_time_s.values()):>8.4g}")
+    return "\n".join(lines)
