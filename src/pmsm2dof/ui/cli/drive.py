@@ -4,6 +4,8 @@ Each command parses its options and calls one function of :mod:`pmsm2dof.drive.s
 :mod:`pmsm2dof.studies.drive`; the link is one option, ``--link URL`` (:func:`link_option`).
 """
 
+import dataclasses
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -256,3 +258,78 @@ def _commission_table(result: Any, configured: dict[str, Any]) -> str:
         lines.append(f"  {phase:<12}{t:>8.4g}")
     lines.append(f"  {'total':<12}{sum(result.phase_time_s.values()):>8.4g}")
     return "\n".join(lines)
+
+
+@drive.command()
+@click.option("--speed-max-rpm", type=float, default=None,
+              help="largest speed of the plan [rpm] (default: where the voltage at the current limit reaches "
+                   "0.9 u_dc / sqrt(3))")  # fmt: skip
+@click.option("--motor", "motor_file", type=click.Path(dir_okay=False), default=None,
+              help="the motor's data for the torque from the currents (the motor.toml of drive commission); "
+                   "default: the drive's configuration")  # fmt: skip
+@out_option("the folder for capture.csv, plan.toml and what identify mechanics writes (fit.png, rows.csv, "
+            "identified.toml, identify.json)", type=click.Path(file_okay=False), required=True)  # fmt: skip
+@link_option
+def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, force: bool, url: str, a2l: str,
+             allow_remote: bool) -> None:  # fmt: skip
+    """Play the identification plan on the drive, capture it, and identify the inertia J and the friction.
+
+    The plan (pmsm2dof identify plan: speed steps at the current limit, both directions) is made for the
+    drive's own configuration: its current limit, DC link and the inertia its speed controller is designed
+    for. The speed reading, the dq currents and the q current reference are captured at every speed sample
+    (OUT/capture.csv) and fitted as `pmsm2dof identify mechanics capture.csv --motor MOTOR` would; OUT/
+    identified.toml is the drive's configuration with the values found (its speed controller designed for
+    the J found). A link that drops leaves the drive's watchdog to stop it (exit status 2).
+    """
+    from ...core.motor import load_motor
+    from ...outputs import atomic_write, check_out, staged_dir
+    from ...sim.logs import read_log
+    from ...studies.drive_commission import drive_scenario
+    from ...studies.drive_identify import capture_plan, plan_on_drive
+    from ...studies.identify import (
+        IdentificationError,
+        identified_toml,
+        identify_mechanics,
+        identify_tau_i,
+        torque_from_currents,
+    )
+    from .identify import echo_mechanics, write_mechanics
+
+    check_out(out, "drive-identify", force)
+    motor = load_motor(motor_file) if motor_file is not None else None
+    with staged_dir(out, "drive-identify", force) as tmp:
+        with _open(url, a2l, allow_remote) as link, warnings_as_lines():
+            drive = drive_scenario(link)
+            try:
+                plan = plan_on_drive(link, speed_max_rpm)
+            except ConfigError as exc:
+                raise as_option(exc, {"speed_max_rpm": "--speed-max-rpm"}) from None
+            for entry in plan.data["reference"]:
+                click.echo(f"  t = {entry['t_s']:8.4g} s: speed reference {entry['speed_rpm']:8.5g} rpm")
+            t_start = time.perf_counter()
+            samples = capture_plan(link, plan, tmp / "capture.csv")
+            wall_s = time.perf_counter() - t_start
+        click.echo(f"captured {samples} speed samples ({plan.data['simulation']['t_end_s']:g} s of the drive) in "
+                   f"{wall_s:.3g} s")  # fmt: skip
+        atomic_write(tmp / "plan.toml", plan.to_toml())
+        measured = read_log(tmp / "capture.csv")
+        # the torque from the currents with the motor's data: the given file's, or what the drive holds
+        d = drive.data["motor"]
+        p, psi, Ld, Lq = (
+            (motor.pole_pairs, motor.psi_f_Wb, motor.Ld_H, motor.Lq_H)
+            if motor is not None
+            else (d["pole_pairs"], d["psi_f_Wb"], d["Ld_H"], d["Lq_H"])
+        )
+        mech = identify_mechanics(measured, torque_Nm=torque_from_currents(measured, p, psi, Ld, Lq))
+        current = None
+        try:
+            current = identify_tau_i(measured)
+        except IdentificationError as exc:
+            mech = dataclasses.replace(mech, notes=(*mech.notes, f"tau_i: {exc}"))
+        report = mech.to_json()
+        if current is not None:
+            report.update(tau_i_s=current.tau_i_s, tau_i_s_ci=list(current.tau_i_s_ci), tau_i_n_rows=current.n_rows)
+        text = identified_toml(mech, current, drive, f"the drive at {url} by pmsm2dof drive identify")
+        write_mechanics(tmp, mech, text, report)
+    echo_mechanics(mech, current, report)
+    click.echo(f"wrote capture.csv, plan.toml, fit.png, rows.csv, identified.toml and identify.json to {out}")
