@@ -75,10 +75,12 @@ static void finish(uint32_t state)
 static void report_estimates(void)
 {
     commission_status_t *s = &commission_now;
+    s->sample++;
+    /* the step the routine is in now started with the next sample */
+    if ((uint32_t)routine.phase != s->phase) s->phase_start[routine.phase] = s->sample;
     s->phase = (uint32_t)routine.phase;
     s->failed_phase = (uint32_t)routine.failed_phase;
     s->reason = (uint32_t)routine.reason;
-    s->sample++;
     s->fault_count = routine.fault_count;
     s->L_probe_H = routine.L_probe_H;
     s->Rs_ohm = routine.Rs_ohm;
@@ -138,6 +140,9 @@ bool commission_isr(bool silent)
         s->state = COMMISSION_RUNNING;
         s->starts++;
         s->sample = 0u;
+        s->phase = (uint32_t)P2D_PHASE_PROBE;
+        for (uint32_t i = 0; i < (uint32_t)P2D_PHASE_COUNT; ++i) s->phase_start[i] = UINT32_MAX;
+        s->phase_start[P2D_PHASE_PROBE] = 0u;
     }
     if (s->state != COMMISSION_RUNNING) {
         abort_request = false;

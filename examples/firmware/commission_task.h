@@ -69,6 +69,7 @@ typedef struct {
     uint32_t failed_phase; /* the step that failed (state failed) [-] */
     uint32_t reason;       /* why, p2d_commission_reason_t (state failed) [-] */
     uint32_t sample;       /* current samples since the routine started [-] */
+    uint32_t phase_start[P2D_PHASE_COUNT]; /* sample at which each step started; 4294967295: not reached [-] */
     uint32_t fault_count;  /* samples the routine rejected by its non-finite policy [-] */
     float u_dc_V;          /* DC link of the last control interrupt [V] */
     float id_A;            /* measured current on the routine's d axis [A] */

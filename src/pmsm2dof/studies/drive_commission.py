@@ -34,6 +34,8 @@ STATES = ("idle", "running", "done", "failed", "tripped", "aborted")
 LOG_SIGNALS = ("phase", "id_A", "iq_A", "ud_V", "uq_V", "w_e_frame_radps", "w_e_radps", "theta_err_rad")
 #: The routine's checks read at its end (as :attr:`pmsm2dof.sim.commission.Commissioning.checks`).
 CHECKS = ("u_err_V", "rs_spread", "uq_ratio", "asymmetry", "coherence", "psi_spread", "slip", "L_probe_H")
+#: commission_now.phase_start of a step not reached.
+NOT_REACHED = 2**32 - 1
 #: Wall-clock time allowed per second of the routine's nominal time, on top of a fixed minute [s] (QEMU is slower).
 WALL_S_PER_DRIVE_S = 120.0
 #: Longest routine the host follows, of the drive's time [s] (the engine's T_MAX_S is an hour; a drive's is minutes).
@@ -121,7 +123,7 @@ def commission_on_drive(
     Commissioning
         ``estimates`` and ``checks`` the drive's routine found, ``truth`` NaN (a drive's motor has no
         known truth), ``config`` the routine's configuration, ``log`` the followed signals at the
-        speed event, ``phase_time_s`` from the log (to a speed period).
+        speed event, ``phase_time_s`` from the sample each step started at.
 
     Raises
     ------
@@ -159,15 +161,17 @@ def commission_on_drive(
         if not followed:
             link.write({f"commission_config.{k}": v for k, v in config.items()})
             link.write({"commission_command.command": 1})
-            followed.update(started=time.monotonic(), phase=-1)
+            followed.update(started=time.monotonic(), reported=0)
         now = read_variable(link, "commission_now")
         followed["now"] = now
         if now["starts"] != before["starts"] + 1:
             return False
-        if now["phase"] != followed["phase"] and now["phase"] < len(PHASES):
-            followed["phase"] = now["phase"]
+        # every step started since the last poll, in order, at the sample it started
+        started = sorted((k, p) for p, k in enumerate(now["phase_start"]) if k != NOT_REACHED)
+        for k, p in started[followed["reported"] :]:
             if progress is not None:
-                progress(PHASES[now["phase"]], now["sample"] * Ts_s)
+                progress(PHASES[p], k * Ts_s)
+        followed["reported"] = len(started)
         if time.monotonic() - followed["started"] > timeout:
             raise ToolError(f"the commissioning did not end within {timeout:g} s of the wall clock (state running)")
         return STATES[now["state"]] != "running"
@@ -197,15 +201,14 @@ def _outcome(
     for s in LOG_SIGNALS:
         log[s] = signals[f"commission_now.{s}"][mine][first].astype(np.float64)
     done = PHASES[end["phase"]] == "done"
-    # the time of each step: from the first logged sample in it to the first of a later step
+    # the time of each step, from the sample it started to the start of the next one reached (as the engine's)
+    starts = [int(k) for k in end["phase_start"]]
     phase_time_s: dict[str, float] = {}
-    end_t = end["sample"] * Ts_s
-    starts = {int(p): float(log["t_s"][np.flatnonzero(log["phase"] == p)[0]]) for p in np.unique(log["phase"])}
-    for p in sorted(starts):
-        if p >= lib.P2D_PHASE_DONE:
+    for i in range(lib.P2D_PHASE_DONE):
+        if starts[i] == NOT_REACHED:
             continue
-        later = [t for q, t in starts.items() if q > p and q <= lib.P2D_PHASE_DONE]
-        phase_time_s[PHASES[p]] = (min(later) if later else end_t) - starts[p]
+        later = [k for k in starts[i + 1 : lib.P2D_PHASE_DONE] if k != NOT_REACHED]
+        phase_time_s[PHASES[i]] = ((min(later) if later else int(end["sample"])) - starts[i]) * Ts_s
     estimates = {k: float(end[k]) for k in ESTIMATES}
     if not done:
         finished = {"Rs_ohm": lib.P2D_PHASE_LD, "Ld_H": lib.P2D_PHASE_RAMP_UP, "Lq_H": lib.P2D_PHASE_RAMP_UP}
