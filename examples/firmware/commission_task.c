@@ -14,13 +14,13 @@
 #define CT_PI 3.14159265f     /* pi */
 #define CT_TWO_PI 6.28318531f /* 2 pi */
 
-p2d_commission_config_t commission_config;   /* the routine's configuration (calibration) */
-commission_command_t commission_command;     /* the master's request (calibration) */
-commission_status_t commission_now;          /* the task's report (measurement) */
-static p2d_commission_t routine;             /* the routine's state */
-static p2d_commission_t scratch;             /* a configuration validated before it is taken */
-static bool start_request;                   /* start the routine at the next control interrupt */
-static bool abort_request;                   /* end it at the next control interrupt */
+p2d_commission_config_t commission_config; /* the routine's configuration (calibration) */
+commission_command_t commission_command;   /* the master's request (calibration) */
+commission_status_t commission_now;        /* the task's report (measurement) */
+static p2d_commission_t routine;           /* the routine's state */
+static p2d_commission_t scratch;           /* a configuration validated before it is taken */
+static bool start_request;                 /* start the routine at the next control interrupt */
+static bool abort_request;                 /* end it at the next control interrupt */
 
 void commission_init(float Ts_current_s)
 {

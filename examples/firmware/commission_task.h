@@ -70,27 +70,27 @@ typedef struct {
     uint32_t reason;       /* why, p2d_commission_reason_t (state failed) [-] */
     uint32_t sample;       /* current samples since the routine started [-] */
     uint32_t phase_start[P2D_PHASE_COUNT]; /* sample at which each step started; 4294967295: not reached [-] */
-    uint32_t fault_count;  /* samples the routine rejected by its non-finite policy [-] */
-    float u_dc_V;          /* DC link of the last control interrupt [V] */
-    float id_A;            /* measured current on the routine's d axis [A] */
-    float iq_A;            /* measured current on the routine's q axis [A] */
-    float ud_V;            /* the routine's d voltage command [V] */
-    float uq_V;            /* the routine's q voltage command [V] */
-    float w_e_frame_radps; /* the routine's frame speed [rad/s] */
-    float w_e_radps;       /* the rotor's electrical speed, from the position sensor [rad/s] */
-    float theta_err_rad;   /* the rotor's electrical angle less the frame's, in [-pi, pi) [rad] */
-    float L_probe_H;       /* the first inductance, for the routine's current loop [H] */
-    float Rs_ohm;          /* stator resistance [ohm] */
-    float u_err_V;         /* inverter voltage error at i_test_A on d [V] */
-    float Ld_H;            /* d-axis inductance [H] */
-    float Lq_H;            /* q-axis inductance [H] */
-    float psi_f_Wb;        /* permanent-magnet flux linkage [Wb] */
-    float rs_spread;       /* Rs of the late half-windows against the early ones [-] */
-    float uq_ratio;        /* mean q voltage of the Rs levels against their d voltage step [-] */
-    float asymmetry;       /* asymmetry of the admittance matrix of the inductance tests [-] */
-    float coherence;       /* coherence of the active flux in the flux test [-] */
-    float psi_spread;      /* psi_f of the late half-window against the early one [-] */
-    float slip;            /* mean slip of the rotor against the I-f frame [-] */
+    uint32_t fault_count;                  /* samples the routine rejected by its non-finite policy [-] */
+    float u_dc_V;                          /* DC link of the last control interrupt [V] */
+    float id_A;                            /* measured current on the routine's d axis [A] */
+    float iq_A;                            /* measured current on the routine's q axis [A] */
+    float ud_V;                            /* the routine's d voltage command [V] */
+    float uq_V;                            /* the routine's q voltage command [V] */
+    float w_e_frame_radps;                 /* the routine's frame speed [rad/s] */
+    float w_e_radps;                       /* the rotor's electrical speed, from the position sensor [rad/s] */
+    float theta_err_rad;                   /* the rotor's electrical angle less the frame's, in [-pi, pi) [rad] */
+    float L_probe_H;                       /* the first inductance, for the routine's current loop [H] */
+    float Rs_ohm;                          /* stator resistance [ohm] */
+    float u_err_V;                         /* inverter voltage error at i_test_A on d [V] */
+    float Ld_H;                            /* d-axis inductance [H] */
+    float Lq_H;                            /* q-axis inductance [H] */
+    float psi_f_Wb;                        /* permanent-magnet flux linkage [Wb] */
+    float rs_spread;                       /* Rs of the late half-windows against the early ones [-] */
+    float uq_ratio;                        /* mean q voltage of the Rs levels against their d voltage step [-] */
+    float asymmetry;                       /* asymmetry of the admittance matrix of the inductance tests [-] */
+    float coherence;                       /* coherence of the active flux in the flux test [-] */
+    float psi_spread;                      /* psi_f of the late half-window against the early one [-] */
+    float slip;                            /* mean slip of the rotor against the I-f frame [-] */
 } commission_status_t;
 
 /* Initialise the task (idle) and its configuration's Ts_s for the control period Ts_current_s [s]. */

@@ -7,8 +7,8 @@ inertia its speed controller is designed for): the largest speed is where the vo
 the current limit reaches :data:`pmsm2dof.studies.identify.PLAN_VOLTAGE_SHARE` of ``u_dc /
 sqrt(3)`` unless a lower one is asked for. :func:`capture_plan` plays it as a run of the drive
 (``link_reference``, the run control of examples/firmware/link.h) and captures by DAQ at the speed
-event what any drive measures (``foc_now``: the speed reading, the dq currents and the q current
-reference), one row per speed sample; the result is a drive log (CSV) for
+event what any drive measures (``foc_now``: the speed reading and the dq currents), one row per
+speed sample; the result is a drive log (CSV) for
 :func:`pmsm2dof.studies.identify.identify_mechanics`, which the command reads back as
 ``pmsm2dof identify mechanics`` would.
 """
@@ -29,14 +29,10 @@ from ..sim.scenario import Scenario
 from .drive_commission import drive_scenario
 from .identify import PLAN_VOLTAGE_SHARE, plan_experiment
 
-#: The capture's signals (foc_now of examples/firmware/foc.h) -> the drive log's columns (pmsm2dof.sim.logs).
-SIGNALS = {
-    "foc_now.w_ref_radps": "speed_ref_radps",
-    "foc_now.w_meas_radps": "speed_radps",
-    "foc_now.id_A": "id_A",
-    "foc_now.iq_A": "iq_A",
-    "foc_now.iq_ref_A": "iq_ref_A",
-}
+#: The capture's signals (foc_now of examples/firmware/foc.h) -> the drive log's columns (pmsm2dof.sim.logs): what
+#: the fit needs and no more (each DAQ entry costs the control interrupt time, and the period that starts a run
+#: is the longest: on the Cortex-M4F at 20 kHz, two more entries overran it).
+SIGNALS = {"foc_now.w_meas_radps": "speed_radps", "foc_now.id_A": "id_A", "foc_now.iq_A": "iq_A"}
 #: Longest plan played over the link, of the drive's time [s].
 PLAN_MAX_S = 120.0
 #: Wall-clock time allowed per second of the plan, on top of a fixed minute [s] (QEMU runs slower).

@@ -4,7 +4,6 @@ Each command parses its options and calls one function of :mod:`pmsm2dof.drive.s
 :mod:`pmsm2dof.studies.drive`; the link is one option, ``--link URL`` (:func:`link_option`).
 """
 
-import dataclasses
 import time
 from collections.abc import Callable
 from typing import Any
@@ -276,9 +275,8 @@ def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, forc
 
     The plan (pmsm2dof identify plan: speed steps at the current limit, both directions) is made for the
     drive's own configuration: its current limit, DC link and the inertia its speed controller is designed
-    for. The speed reading, the dq currents and the q current reference are captured at every speed sample
-    (OUT/capture.csv) and fitted as `pmsm2dof identify mechanics capture.csv --motor MOTOR` would; OUT/
-    identified.toml is the drive's configuration with the values found (its speed controller designed for
+    for. The speed reading and the dq currents are captured at every speed sample (OUT/capture.csv) and
+    fitted as `pmsm2dof identify mechanics capture.csv --motor MOTOR` would; OUT/identified.toml is the drive's configuration with the values found (its speed controller designed for
     the J found). A link that drops leaves the drive's watchdog to stop it (exit status 2).
     """
     from ...core.motor import load_motor
@@ -287,10 +285,8 @@ def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, forc
     from ...studies.drive_commission import drive_scenario
     from ...studies.drive_identify import capture_plan, plan_on_drive
     from ...studies.identify import (
-        IdentificationError,
         identified_toml,
         identify_mechanics,
-        identify_tau_i,
         torque_from_currents,
     )
     from .identify import echo_mechanics, write_mechanics
@@ -321,15 +317,8 @@ def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, forc
             else (d["pole_pairs"], d["psi_f_Wb"], d["Ld_H"], d["Lq_H"])
         )
         mech = identify_mechanics(measured, torque_Nm=torque_from_currents(measured, p, psi, Ld, Lq))
-        current = None
-        try:
-            current = identify_tau_i(measured)
-        except IdentificationError as exc:
-            mech = dataclasses.replace(mech, notes=(*mech.notes, f"tau_i: {exc}"))
         report = mech.to_json()
-        if current is not None:
-            report.update(tau_i_s=current.tau_i_s, tau_i_s_ci=list(current.tau_i_s_ci), tau_i_n_rows=current.n_rows)
-        text = identified_toml(mech, current, drive, f"the drive at {url} by pmsm2dof drive identify")
+        text = identified_toml(mech, None, drive, f"the drive at {url} by pmsm2dof drive identify")
         write_mechanics(tmp, mech, text, report)
-    echo_mechanics(mech, current, report)
+    echo_mechanics(mech, None, report)
     click.echo(f"wrote capture.csv, plan.toml, fit.png, rows.csv, identified.toml and identify.json to {out}")
