@@ -276,8 +276,9 @@ def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, forc
     The plan (pmsm2dof identify plan: speed steps at the current limit, both directions) is made for the
     drive's own configuration: its current limit, DC link and the inertia its speed controller is designed
     for. The speed reading and the dq currents are captured at every speed sample (OUT/capture.csv) and
-    fitted as `pmsm2dof identify mechanics capture.csv --motor MOTOR` would; OUT/identified.toml is the drive's configuration with the values found (its speed controller designed for
-    the J found). A link that drops leaves the drive's watchdog to stop it (exit status 2).
+    fitted as `pmsm2dof identify mechanics capture.csv --motor MOTOR` would; OUT/identified.toml is the
+    drive's configuration with the values found (its speed controller designed for the J found). A link
+    that drops leaves the drive's watchdog to stop it (exit status 2).
     """
     from ...core.motor import load_motor
     from ...outputs import atomic_write, check_out, staged_dir
