@@ -119,6 +119,13 @@ def test_units_ranges_and_enums_come_from_the_c_declarations(folder):
     assert alpha.lowerLimit == 0.0  # "> 0"
     command = s.query(model.Characteristic).filter(model.Characteristic.name == "link_command.command").one()
     assert (command.lowerLimit, command.upperLimit) == (0.0, 2.0)  # "0..2"
+    # a bound of another quantity is none of the field's: "[s], >= 10 Ts_s", "[rad/s], > 0, w_e_spin_radps Ts_s <= 0.1"
+    tau = s.query(model.Characteristic).filter(model.Characteristic.name == "commission_config.tau_i_s").one()
+    assert (tau.lowerLimit, tau.upperLimit) == (-3.4e38, 3.4e38)
+    spin = s.query(model.Characteristic).filter(model.Characteristic.name == "commission_config.w_e_spin_radps").one()
+    assert (spin.lowerLimit, spin.upperLimit) == (0.0, 3.4e38)
+    trip = s.query(model.Characteristic).filter(model.Characteristic.name == "commission_config.i_trip_A").one()
+    assert trip.lowerLimit == -3.4e38  # ">= 1.5 max(i_test_A, i_spin_A)": not 1.5, nor 1
     w_m = s.query(model.Measurement).filter(model.Measurement.name == "vd_trace.w_m_radps").one()
     assert s.query(model.CompuMethod).filter(model.CompuMethod.name == w_m.conversion).one().unit == "rad/s"
     method = s.query(model.Characteristic).filter(model.Characteristic.name == "link_speed_config.method").one()

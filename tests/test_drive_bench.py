@@ -55,6 +55,12 @@ DATASHEET = ["current_loop.Rs_ohm=0.7", "current_loop.Ld_H=0.0006", "current_loo
              "current_loop.psi_f_Wb=0.012"]  # fmt: skip
 #: The link watchdog of the drives [ms]: the tests share two cores, a master starved of them must not trip a drive.
 TIMEOUT_MS = 1000
+#: The watchdog of the drives whose link is cut [ms]: the PC's drive without a master runs a control period per
+#: millisecond of the wall clock, so the trip comes 10 s of the wall clock per 0.5 s of its time (and a master that
+#: connects before it would feed the watchdog again).
+CUT_TIMEOUT_MS = 200
+#: Wall time left to a drive whose link was cut before its state is read [s]: the timeout, the guard's ramp and hold.
+CUT_WAIT_S = 15.0
 DRIVES = ["host", "qemu"]
 
 
@@ -211,7 +217,7 @@ def test_a_link_that_drops_mid_commissioning_leaves_the_drive_off(hidden, tmp_pa
     watchdog ends the routine (state tripped, power stage off) long before its end, read over a fresh link."""
     scenario, folder = hidden
     Ts = scenario.data["current_loop"]["Ts_s"]
-    with serve("host", folder) as url:
+    with serve("host", folder, timeout_ms=CUT_TIMEOUT_MS) as url:
         port = int(url.rpartition(":")[2])
         relay = Relay(port)
 
@@ -229,20 +235,20 @@ def test_a_link_that_drops_mid_commissioning_leaves_the_drive_off(hidden, tmp_pa
         assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, err
         assert "dropped" in err and "watchdog" in err and "power stage off" in err
         assert seen and not (tmp_path / "c").exists()
-        time.sleep(5.0)
+        time.sleep(CUT_WAIT_S)
         with Link(url, a2l) as link:
             now = read_variable(link, "commission_now")
             status = link.status()
     assert STATES[now["state"]] == "tripped" and status["power_on"] == 0, (now, status)
     # ended within the watchdog's timeout (and a poll) of the cut, far from the routine's 3.3 s
-    assert now["sample"] * Ts < 1.0 + TIMEOUT_MS * 1e-3, now
+    assert now["sample"] * Ts < 1.0 + CUT_TIMEOUT_MS * 1e-3, now
 
 
 def test_a_link_that_drops_mid_identification_leaves_the_drive_off(hidden, tmp_path, capsys, monkeypatch):
     """The relay cuts the link 200 samples into the plan's run: one line, exit status 2, no output folder; the
     watchdog ramps the reference to zero and switches the power stage off (state tripped)."""
     scenario, folder = hidden
-    with serve("host", folder) as url:
+    with serve("host", folder, timeout_ms=CUT_TIMEOUT_MS) as url:
         relay = Relay(int(url.rpartition(":")[2]))
         seen = cut_when(monkeypatch, relay, lambda link, st: st["state"] == "running" and st["sample"] > 200)
         a2l = str(folder / "virtual_drive_host.a2l")
@@ -255,8 +261,8 @@ def test_a_link_that_drops_mid_identification_leaves_the_drive_off(hidden, tmp_p
         assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, err
         assert "dropped" in err and "watchdog" in err and "power stage off" in err
         assert seen and not (tmp_path / "i").exists()
-        time.sleep(5.0)
+        time.sleep(CUT_WAIT_S)
         with Link(url, a2l) as link:
             status = link.status()
     assert status["state"] == "tripped" and status["power_on"] == 0 and status["w_ref_radps"] == 0.0, status
-    assert status["trip_sample"] >= seen["sample"] + TIMEOUT_MS * 1e-3 / scenario.data["speed_controller"]["Ts_s"]
+    assert status["trip_sample"] >= seen["sample"] + CUT_TIMEOUT_MS * 1e-3 / scenario.data["speed_controller"]["Ts_s"]

@@ -16,6 +16,7 @@ speed sample; the result is a drive log (CSV) for
 import math
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -84,11 +85,11 @@ def capture_plan(link: Link, plan: Scenario, log: Path | str) -> int:
     data = plan.data
     Ts_speed_s = data["speed_controller"]["Ts_s"]
     t_end = data["simulation"]["t_end_s"]
-    samples = math.ceil(t_end / Ts_speed_s)
+    samples = int(math.ceil(t_end / Ts_speed_s))
     reference = [(e["t_s"], e["speed_rpm"] * math.pi / 30.0, e["ramp_s"]) for e in data["reference"]]
     timeout = 60.0 + WALL_S_PER_DRIVE_S * t_end
     names = ["link_status_now.runs", "link_status_now.sample", *SIGNALS]
-    state: dict[str, object] = {}
+    state: dict[str, Any] = {}
     with link_errors(link, "the identification run"):
         st = link.status()
         if st["state"] == "running":
@@ -102,7 +103,7 @@ def capture_plan(link: Link, plan: Scenario, log: Path | str) -> int:
                 state["started"] = time.monotonic()
             now = link.status()
             state.update(now)
-            if time.monotonic() - float(state["started"]) > timeout:  # type: ignore[arg-type]
+            if time.monotonic() - state["started"] > timeout:
                 raise ToolError(f"the identification run did not end within {timeout:g} s of the wall clock")
             return bool(now["state"] != "running" and now["runs"] == runs + 1)
 
