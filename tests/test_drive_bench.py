@@ -152,6 +152,8 @@ def test_identify_over_the_link_finds_the_hidden_inertia(hidden, kind, tmp_path,
     np.testing.assert_allclose(np.diff(capture["time_s"]), Ts_speed)
     w_max = max(abs(e["speed_rpm"]) for e in plan.data["reference"]) * np.pi / 30
     assert np.max(np.abs(capture["speed_radps"])) <= 1.1 * w_max
+    # the run leaves the motor at rest (its last step is to zero)
+    assert abs(capture["speed_radps"][-1]) < 0.01 * w_max
 
 
 class Relay:

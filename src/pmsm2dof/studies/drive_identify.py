@@ -41,7 +41,10 @@ WALL_S_PER_DRIVE_S = 120.0
 
 
 def plan_on_drive(link: Link, speed_max_rpm: float | None = None) -> Scenario:
-    """The identification plan for the drive, from its own configuration (module docstring).
+    """The identification plan for the drive, from its own configuration (module docstring), ending at standstill.
+
+    The steps of :func:`pmsm2dof.studies.identify.plan_experiment`, then a step to zero held as
+    long as the others (twice the time of the change at the current limit, plus ``8 / alpha``).
 
     Parameters
     ----------
@@ -63,6 +66,20 @@ def plan_on_drive(link: Link, speed_max_rpm: float | None = None) -> Scenario:
         u_plan_V = PLAN_VOLTAGE_SHARE * data["limits"]["u_dc_V"] / math.sqrt(3.0)
         speed_max_rpm = voltage_limited_speed_radps(u_plan_V, data["limits"]["i_max_A"], data["motor"]) * 30 / math.pi
     plan = plan_experiment(drive, speed_max_rpm)
+    # the run ends at standstill: a last step to zero held as the plan holds each step (the drive's power stage goes
+    # off at the run's end, and the motor is left at rest for what comes next, a commissioning say)
+    data = plan.data
+    last = data["reference"][-1]
+    T_max_Nm = 1.5 * data["motor"]["pole_pairs"] * data["motor"]["psi_f_Wb"] * data["limits"]["i_max_A"]
+    t_acc = data["speed_controller"]["J_kgm2"] * abs(last["speed_rpm"]) * math.pi / 30.0 / T_max_Nm
+    t_stop = data["simulation"]["t_end_s"]
+    hold = 2.0 * t_acc + 8.0 / data["speed_controller"]["alpha_radps"]
+    plan = plan.with_overrides(
+        {
+            "reference": [*data["reference"], {"t_s": t_stop, "speed_rpm": 0.0}],
+            "simulation.t_end_s": round(t_stop + hold, 6),
+        }
+    )
     t_end = plan.data["simulation"]["t_end_s"]
     if t_end > PLAN_MAX_S:
         raise ConfigError("plan", f"{t_end:.4g} s", f"at most {PLAN_MAX_S:g} s of the drive's time")
