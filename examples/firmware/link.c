@@ -77,13 +77,17 @@ static void link_unlock(void *user)
     board_link_unlock();
 }
 
-/* The reference schedule of a page as schedule.h reads it; false when n is too large. */
+/* The reference schedule of a page as schedule.h reads it, not checked. */
+static schedule_t reference_entries(const link_reference_t *r)
+{
+    schedule_t s = {r->t_s, r->w_radps, r->ramp_s, r->n};
+    return s;
+}
+
+/* The reference schedule of a page as schedule.h reads it; false when n is too large or an entry invalid. */
 static bool reference_schedule(const link_reference_t *r, schedule_t *s)
 {
-    s->t_s = r->t_s;
-    s->value = r->w_radps;
-    s->ramp_s = r->ramp_s;
-    s->n = r->n;
+    *s = reference_entries(r);
     return r->n <= LINK_SCHEDULE_MAX && schedule_valid(s);
 }
 
@@ -261,11 +265,11 @@ static void start_run(uint32_t samples)
 static void run_sample(void)
 {
     link_status_t *s = &link_status_now;
-    schedule_t r;
+    /* checked whole when the run started, and unchanged during it (link_commit) */
+    schedule_t r = reference_entries(&link_reference);
     bool on, silent = p2d_xcp_link_check(&xcp);
     double t_s = (double)s->sample * Ts_speed_s;
     float w_ref_radps;
-    (void)reference_schedule(&link_reference, &r);
     s->t_s = t_s;
     s->w_cmd_radps = schedule_value(&r, t_s, LINK_SCHEDULE_TOL * Ts_speed_s);
     w_ref_radps = p2d_xcp_guard_step(&guard, silent, (float)s->w_cmd_radps, &on);
