@@ -105,7 +105,7 @@ def main_():
         "|---|---:|---:|---:|---:|",
         f"| `drive commission` (the whole routine) | {t_routine:.3g} s | {med(host_walls['commission']):.3g} s | "
         f"{qemu_walls['commission'][0]:.3g} s | {med(engine_walls):.3g} s (`pmsm2dof commission`'s run) |",
-        f"| `drive identify` (the plan: 5 speed steps) | {found['t_plan_s']:.3g} s | "
+        f"| `drive identify` (the plan: 5 speed steps, then to rest) | {found['t_plan_s']:.3g} s | "
         f"{med(host_walls['identify']):.3g} s | {qemu_walls['identify'][0]:.3g} s | |",
         "",
         "| estimate | truth | PC's drive | QEMU | engine (same routine settings) |",
