@@ -27,9 +27,10 @@ BUILDS = [
     ("firmware.elf", "firmware.a2l", "arm-none-eabi-nm", False, True),
     ("virtual_drive_host", "virtual_drive_host.a2l", "nm", True, False),
 ]
-#: The firmware's variables of each kind (examples/firmware/link.h, board_virtual.c).
-MEASUREMENTS = ["foc_now", "link_status_now"]
-CALIBRATIONS = ["link_speed_config", "link_current_config", "link_command", "link_reference"]
+#: The firmware's variables of each kind (examples/firmware/link.h, commission_task.h, board_virtual.c).
+MEASUREMENTS = ["foc_now", "link_status_now", "commission_now"]
+CALIBRATIONS = ["link_speed_config", "link_current_config", "link_command", "link_reference", "commission_config",
+                "commission_command"]  # fmt: skip
 #: Struct type of the library's calibration variables.
 LIBRARY = {"link_speed_config": "p2d_speed_config_t", "link_current_config": "p2d_current_config_t"}
 
@@ -118,6 +119,13 @@ def test_units_ranges_and_enums_come_from_the_c_declarations(folder):
     assert alpha.lowerLimit == 0.0  # "> 0"
     command = s.query(model.Characteristic).filter(model.Characteristic.name == "link_command.command").one()
     assert (command.lowerLimit, command.upperLimit) == (0.0, 2.0)  # "0..2"
+    # a bound of another quantity is none of the field's: "[s], >= 10 Ts_s", "[rad/s], > 0, w_e_spin_radps Ts_s <= 0.1"
+    tau = s.query(model.Characteristic).filter(model.Characteristic.name == "commission_config.tau_i_s").one()
+    assert (tau.lowerLimit, tau.upperLimit) == (-3.4e38, 3.4e38)
+    spin = s.query(model.Characteristic).filter(model.Characteristic.name == "commission_config.w_e_spin_radps").one()
+    assert (spin.lowerLimit, spin.upperLimit) == (0.0, 3.4e38)
+    trip = s.query(model.Characteristic).filter(model.Characteristic.name == "commission_config.i_trip_A").one()
+    assert trip.lowerLimit == -3.4e38  # ">= 1.5 max(i_test_A, i_spin_A)": not 1.5, nor 1
     w_m = s.query(model.Measurement).filter(model.Measurement.name == "vd_trace.w_m_radps").one()
     assert s.query(model.CompuMethod).filter(model.CompuMethod.name == w_m.conversion).one().unit == "rad/s"
     method = s.query(model.Characteristic).filter(model.Characteristic.name == "link_speed_config.method").one()

@@ -105,3 +105,10 @@ def test_every_shell_block_of_the_guide_runs_as_written(tmp_path):
     with asammdf.MDF(repo / "capture.mf4") as mdf:
         assert len(mdf.get("foc_now.iq_A").samples) > 100
     assert json.loads((repo / "drive-run" / "metrics.json").read_text())["comparison"]["agrees"] is True
+    # commissioning and identification on the drive of the servo without its load: its own motor's values
+    servo = {"Rs_ohm": 0.5, "Ld_H": 5e-4, "Lq_H": 5e-4, "psi_f_Wb": 0.01}
+    commissioned = json.loads((repo / "commissioned" / "result.json").read_text())
+    assert commissioned["phase"] == "done" and (repo / "commissioned" / "motor.toml").is_file()
+    for key, value in servo.items():
+        assert commissioned["estimates"][key] == pytest.approx(value, rel=0.02), key
+    assert json.loads((repo / "identified" / "identify.json").read_text())["J_kgm2"] == pytest.approx(1e-4, rel=0.02)

@@ -432,9 +432,12 @@ void board_halt(void) { finish(false); }
 
 void board_read_start_state(float *w_m_radps, float *T_Nm)
 {
-    /* the engine's initial state: steady at w_m0, the torque holding it against friction */
+    /* the engine's initial state: steady at w_m0, the torque holding it against friction (the motor's physics,
+       in double: none of the firmware's time, as board_run_begin) */
+    (void)vt_hold(true);
     *w_m_radps = (float)p2d_vd_plant.w_m0_radps;
     *T_Nm = (float)p2d_plant_friction_Nm(&plant, p2d_vd_plant.w_m0_radps);
+    (void)vt_hold(false);
 }
 
 void board_run_begin(void)

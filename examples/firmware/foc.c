@@ -199,14 +199,8 @@ const p2d_speed_config_t *foc_speed_config(void) { return &speed_ctl.config; }
 
 const p2d_current_config_t *foc_current_config(void) { return &current_ctl.config; }
 
-/*
- * Space-vector modulation by min-max zero-sequence injection: linear for
- * ||u_ab|| <= u_dc / sqrt(3), the limit the current controller enforces.
- * Writes the duty cycles; returns true when a duty had to be clipped to
- * [0, 1], and then in *u_alpha_app_V, *u_beta_app_V the voltage actually
- * applied.
- */
-static bool svpwm(float u_alpha_V, float u_beta_V, float u_dc_V, float *u_alpha_app_V, float *u_beta_app_V)
+/* Space-vector modulation by min-max zero-sequence injection (foc.h). */
+bool foc_modulate(float u_alpha_V, float u_beta_V, float u_dc_V, float *u_alpha_app_V, float *u_beta_app_V)
 {
     float u[3], duty[3], u_max, u_min;
     bool clipped = false;
@@ -336,7 +330,7 @@ void foc_isr(void)
     /* current loop, every interrupt */
     p2d_current_compute(&current_ctl, foc_now.id_ref_A, foc_now.iq_ref_A, id_A, iq_A, w_e_radps, u_dc_V, &cur);
     p2d_inv_park(cur.ud_ref_V, cur.uq_ref_V, sin_e, cos_e, &u_alpha_V, &u_beta_V);
-    if (svpwm(u_alpha_V, u_beta_V, u_dc_V, &u_alpha_app_V, &u_beta_app_V)) {
+    if (foc_modulate(u_alpha_V, u_beta_V, u_dc_V, &u_alpha_app_V, &u_beta_app_V)) {
         /* the modulator limited the voltage: the integrators must see what it applied, in dq */
         p2d_park(u_alpha_app_V, u_beta_app_V, sin_e, cos_e, &ud_app_V, &uq_app_V);
     } else {

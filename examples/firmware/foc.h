@@ -102,6 +102,15 @@ p2d_status_t foc_set_current_config(const p2d_current_config_t *cfg);
 const p2d_speed_config_t *foc_speed_config(void);
 const p2d_current_config_t *foc_current_config(void);
 
+/*
+ * Space-vector modulation by min-max zero-sequence injection: linear for
+ * ||u_ab|| <= u_dc / sqrt(3), the limit the current controller enforces.
+ * Writes the duty cycles; returns true when a duty had to be clipped to
+ * [0, 1], and then in *u_alpha_app_V, *u_beta_app_V the voltage actually
+ * applied. Control interrupt only.
+ */
+bool foc_modulate(float u_alpha_V, float u_beta_V, float u_dc_V, float *u_alpha_app_V, float *u_beta_app_V);
+
 /* The control interrupt: call at 1 / Ts_current, from the PWM or ADC interrupt. */
 void foc_isr(void);
 

@@ -8,10 +8,11 @@
 #include <math.h>
 
 #include "board.h"
+#include "commission_task.h"
 #include "foc.h"
 #include "schedule.h"
 
-#define LINK_SEGMENTS_MAX 12u  /* the link's six and the board's */
+#define LINK_SEGMENTS_MAX 12u  /* the link's six, the commissioning's and the board's */
 #define LINK_MAX_CTO 255u      /* longest command or response [bytes] */
 #define LINK_MAX_DTO 255u      /* longest DAQ packet [bytes] */
 #define LINK_DAQ_BYTES 1536u   /* DAQ lists, ODTs and entries [bytes] */
@@ -21,7 +22,16 @@
 #define LINK_SCHEDULE_TOL 1e-9 /* entries within this share of Ts_speed of a sample have started [-] */
 
 /* The segments of the link, in this order before the board's. */
-enum { SEG_FOC_NOW = 0, SEG_STATUS, SEG_SPEED_CONFIG, SEG_CURRENT_CONFIG, SEG_COMMAND, SEG_REFERENCE, SEG_BOARD };
+enum {
+    SEG_FOC_NOW = 0,
+    SEG_STATUS,
+    SEG_SPEED_CONFIG,
+    SEG_CURRENT_CONFIG,
+    SEG_COMMAND,
+    SEG_REFERENCE,
+    SEG_COMMISSION,
+    SEG_BOARD = SEG_COMMISSION + COMMISSION_SEGMENTS
+};
 
 link_status_t link_status_now;            /* the link's report (measurement) */
 p2d_speed_config_t link_speed_config;     /* the speed controller's configuration (calibration) */
@@ -67,13 +77,17 @@ static void link_unlock(void *user)
     board_link_unlock();
 }
 
-/* The reference schedule of a page as schedule.h reads it; false when n is too large. */
+/* The reference schedule of a page as schedule.h reads it, not checked. */
+static schedule_t reference_entries(const link_reference_t *r)
+{
+    schedule_t s = {r->t_s, r->w_radps, r->ramp_s, r->n};
+    return s;
+}
+
+/* The reference schedule of a page as schedule.h reads it; false when n is too large or an entry invalid. */
 static bool reference_schedule(const link_reference_t *r, schedule_t *s)
 {
-    s->t_s = r->t_s;
-    s->value = r->w_radps;
-    s->ramp_s = r->ramp_s;
-    s->n = r->n;
+    *s = reference_entries(r);
     return r->n <= LINK_SCHEDULE_MAX && schedule_valid(s);
 }
 
@@ -93,7 +107,7 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
             code = LINK_REJECT_COMMAND;
         } else if (c->command == 1u && !reference_schedule(&link_reference, &s)) {
             code = LINK_REJECT_SCHEDULE;
-        } else if (c->command == 1u && !board_run_valid()) {
+        } else if (c->command == 1u && (!board_run_valid() || commission_running())) {
             code = LINK_REJECT_BOARD;
         } else {
             start_request = c->command == 1u ? c->samples : 0u;
@@ -105,6 +119,8 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
         /* a run plays its schedule to the end: the master changes it between runs (checked whole at the start) */
         if (running || ((const link_reference_t *)page)->n > LINK_SCHEDULE_MAX) code = LINK_REJECT_SCHEDULE;
         break;
+    case SEG_COMMISSION:
+    case SEG_COMMISSION + 1: code = commission_commit((uint16_t)(index - SEG_COMMISSION), page, running); break;
     default: code = board_link_commit((uint16_t)(index - SEG_BOARD), page, running) ? 0 : LINK_REJECT_BOARD; break;
     }
     if (code == 0) {
@@ -136,7 +152,7 @@ link_init_status_t link_init(const link_config_t *cfg)
     p2d_xcp_config_t c = {0};
     p2d_xcp_guard_config_t g;
     uint64_t Ts_ns = (uint64_t)(cfg->Ts_current_s * 1e9 + 0.5);
-    uint16_t n = SEG_BOARD;
+    uint16_t n = SEG_COMMISSION;
     uint8_t unit;
 
     if (cfg->n > LINK_SCHEDULE_MAX) {
@@ -174,6 +190,8 @@ link_init_status_t link_init(const link_config_t *cfg)
                                                 P2D_XCP_CALIBRATION};
     segments[SEG_REFERENCE] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&link_reference, &link_reference,
                                                   sizeof link_reference, P2D_XCP_CALIBRATION};
+    commission_init((float)cfg->Ts_current_s);
+    n = (uint16_t)(n + commission_link_segments(&segments[SEG_COMMISSION], COMMISSION_SEGMENTS));
     n = (uint16_t)(n + board_link_segments(&segments[SEG_BOARD], (uint16_t)(LINK_SEGMENTS_MAX - SEG_BOARD)));
 
     xcp_cycle(Ts_ns, &events[0].cycle, &unit);
@@ -247,11 +265,11 @@ static void start_run(uint32_t samples)
 static void run_sample(void)
 {
     link_status_t *s = &link_status_now;
-    schedule_t r;
+    /* checked whole when the run started, and unchanged during it (link_commit) */
+    schedule_t r = reference_entries(&link_reference);
     bool on, silent = p2d_xcp_link_check(&xcp);
     double t_s = (double)s->sample * Ts_speed_s;
     float w_ref_radps;
-    (void)reference_schedule(&link_reference, &r);
     s->t_s = t_s;
     s->w_cmd_radps = schedule_value(&r, t_s, LINK_SCHEDULE_TOL * Ts_speed_s);
     w_ref_radps = p2d_xcp_guard_step(&guard, silent, (float)s->w_cmd_radps, &on);
@@ -296,6 +314,9 @@ void link_isr(void)
     }
     if (s->state == LINK_RUNNING) {
         foc_isr();
+    } else {
+        /* between runs: the commissioning routine when the master started it, the link watchdog over it */
+        power(commission_isr(commission_running() && p2d_xcp_link_check(&xcp)));
     }
     tick = tick + 1u == current_per_speed ? 0u : tick + 1u;
     s->dtos_lost = xcp.dtos_lost;

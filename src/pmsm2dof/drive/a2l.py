@@ -113,7 +113,12 @@ _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 
 
 def limits(comment: str, scalar: Scalar) -> tuple[float, float]:
-    """The range of a field: its type's, narrowed by a comment's ``>= a``, ``> a``, ``<= b``, ``a..b``."""
+    """The range of a field: its type's, narrowed by a comment's ``>= a``, ``> a``, ``<= b``, ``a..b``.
+
+    A bound counts when it opens a clause of the comment (after ``]``, a comma, ``and`` or ``else``) and
+    is a number alone: ``>= 10 Ts_s``, ``w_e_spin_radps Ts_s <= 0.1`` and ``|m| <= 2^15 - 1`` bound
+    other quantities (the library's own check applies them).
+    """
     if scalar.encoding == "float":
         lo, hi = (-3.4e38, 3.4e38) if scalar.size == 4 else (-1.7e308, 1.7e308)
     elif scalar.encoding in ("unsigned", "bool", "enum"):
@@ -127,10 +132,11 @@ def limits(comment: str, scalar: Scalar) -> tuple[float, float]:
     m = re.search(rf"({_NUMBER})\s*\.\.\s*({_NUMBER})", comment)
     if m:
         return max(lo, float(m.group(1))), min(hi, float(m.group(2)))
-    m = re.search(rf">=?\s*({_NUMBER})(?![\w/])", comment)
+    # a bound of the field itself opens a clause and is a plain number: not ">= 10 Ts_s", "x Ts_s <= 0.1"
+    m = re.search(rf"(?:^|[],]|\band|\belse)\s*>=?\s*({_NUMBER})(?!\.?\d|\s*(?!and\b|or\b)[\w/^*])", comment)
     if m:
         lo = max(lo, float(m.group(1)))
-    m = re.search(rf"<=?\s*({_NUMBER})(?![\w/])", comment)
+    m = re.search(rf"(?:^|[],]|\band|\belse)\s*<=?\s*({_NUMBER})(?!\.?\d|\s*(?!and\b|or\b)[\w/^*])", comment)
     if m:
         hi = min(hi, float(m.group(1)))
     return lo, hi

@@ -28,9 +28,16 @@ from ..errors import ConfigError, SimulationError, ToolError
 from .a2l_reader import A2l, read_a2l
 from .elf import Scalar, Variable, read_variables
 
-#: The variables of the firmware example that the slave exposes (examples/firmware/link.h).
-MEASUREMENTS = ("foc_now", "link_status_now")
-CALIBRATIONS = ("link_speed_config", "link_current_config", "link_command", "link_reference")
+#: The variables of the firmware example that the slave exposes (examples/firmware/link.h, commission_task.h).
+MEASUREMENTS = ("foc_now", "link_status_now", "commission_now")
+CALIBRATIONS = (
+    "link_speed_config",
+    "link_current_config",
+    "link_command",
+    "link_reference",
+    "commission_config",
+    "commission_command",
+)
 #: The virtual board's own (board_virtual.c).
 VIRTUAL_MEASUREMENTS = ("vd_trace",)
 VIRTUAL_CALIBRATIONS = ("vd_load",)

@@ -15,6 +15,7 @@ import io
 import math
 import os
 import shutil
+import struct
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,7 @@ from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, ToolError, format_bytes
 from ..outputs import atomic_file, atomic_write
 from .a2l_reader import Entry
-from .link import Capture, Link
+from .link import _FORMATS, Capture, Link
 
 #: The scenario's sections whose keys the drive's configuration variables carry (same field names).
 SCENARIO_SECTIONS = {"speed_controller": "link_speed_config", "current_loop": "link_current_config"}
@@ -56,11 +57,19 @@ SAFE_STATE = (
 )
 
 
+#: What the drive does when the link drops during its commissioning (examples/firmware/commission_task.h).
+SAFE_STATE_COMMISSIONING = (
+    "the drive falls back to its safe state by itself: its link watchdog ends the commissioning routine, zero "
+    "voltage and the power stage off"
+)
+
+
 @contextlib.contextmanager
-def link_errors(link: Link, what: str) -> Iterator[None]:
+def link_errors(link: Link, what: str, safe_state: str = SAFE_STATE) -> Iterator[None]:
     """Turn pyxcp's timeouts and the transport's errors during ``what`` into one ToolError line.
 
-    An error packet of the drive (pyxcp's XcpResponseError) becomes a ToolError naming its code.
+    An error packet of the drive (pyxcp's XcpResponseError) becomes a ToolError naming its code;
+    a dropped link one that says what the drive does then (``safe_state``).
     """
     from pyxcp.types import XcpResponseError, XcpTimeoutError
 
@@ -71,7 +80,7 @@ def link_errors(link: Link, what: str) -> Iterator[None]:
         raise ToolError(f"the drive at {link.url} refused {what}: {code}") from None
     except (XcpTimeoutError, OSError, EOFError) as exc:
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise ToolError(f"the link to {link.url} dropped during {what} ({reason}); {SAFE_STATE}") from None
+        raise ToolError(f"the link to {link.url} dropped during {what} ({reason}); {safe_state}") from None
 
 
 def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_s: float = 2.0) -> Link:
@@ -141,6 +150,20 @@ def info(link: Link) -> dict[str, Any]:
         "status": status,
         "config": config,
     }
+
+
+def read_variable(link: Link, name: str) -> dict[str, Any]:
+    """Every field of the variable ``name`` (a struct of the firmware), read in one upload: ``{field: value}``."""
+    if name not in link.variables:
+        raise ConfigError("link", link.url, f"a drive whose firmware has {name} (its A2L lists it)")
+    var = link.variables[name]
+    data = link.read_bytes(var.address, var.size)
+    out: dict[str, Any] = {}
+    for s in var.scalars:
+        fmt = f"<{s.count}{_FORMATS[(s.encoding, s.size)]}"
+        values = struct.unpack_from(fmt, data, s.address - var.address)
+        out[s.field] = values[0] if s.count == 1 else values
+    return out
 
 
 def value(link: Link, e: Entry) -> Any:

@@ -182,7 +182,7 @@ class Commissioning:
             "reason": self.reason,
             "reason_text": self.reason_text,
             "estimates": {k: _json_float(v) for k, v in self.estimates.items()},
-            "truth": self.truth,
+            "truth": {k: _json_float(v) for k, v in self.truth.items()},
             "relative_errors": {k: _json_float(v) for k, v in self.errors.items()},
             "targets": TARGETS,
             "within_targets": self.within_targets,

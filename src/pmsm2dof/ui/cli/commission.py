@@ -29,10 +29,9 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
     """
     import json
 
-    from ...outputs import atomic_write, check_out, staged_dir
+    from ...outputs import check_out, staged_dir
     from ...sim.commission import commission as run_commissioning
     from ...sim.scenario import load_scenario
-    from ..plots.commission import plot_commission
 
     chosen = load_scenario(scenario)
     changes = dict(parse_override(text) for text in overrides)
@@ -44,11 +43,8 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
     summary = result.to_dict()
     if out is not None:
         with staged_dir(out, "commission", force) as tmp:
-            atomic_write(tmp / "result.json", json.dumps(summary, indent=2, allow_nan=False) + "\n")
-            atomic_write(tmp / "log.csv", result.log_csv())
-            plot_commission(result, tmp / "plot.png")
+            write_commission(result, chosen.motor.pole_pairs, tmp)
             if result.phase == "done":
-                atomic_write(tmp / "motor.toml", result.motor_toml(chosen.motor.pole_pairs))
                 _commissioned_header(chosen, result, tmp / "p2d_config.h")
     if as_json:
         click.echo(json.dumps(summary, allow_nan=False))
@@ -61,6 +57,21 @@ def commission(scenario: str, overrides: tuple[str, ...], as_json: bool, out: st
             click.echo(f"wrote {written} to {out}")
     if result.phase != "done":
         raise click.exceptions.Exit(1)
+
+
+def write_commission(result: "Commissioning", pole_pairs: int, folder: Any) -> None:
+    """The report of a commissioning into ``folder``: result.json, log.csv, plot.png and, when it ended done,
+    motor.toml (the identified motor)."""
+    import json
+
+    from ...outputs import atomic_write
+    from ..plots.commission import plot_commission
+
+    atomic_write(folder / "result.json", json.dumps(result.to_dict(), indent=2, allow_nan=False) + "\n")
+    atomic_write(folder / "log.csv", result.log_csv())
+    plot_commission(result, folder / "plot.png")
+    if result.phase == "done":
+        atomic_write(folder / "motor.toml", result.motor_toml(pole_pairs))
 
 
 def _commissioned_header(scenario: Any, result: "Commissioning", path: Any) -> None:

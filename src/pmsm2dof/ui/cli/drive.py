@@ -4,13 +4,17 @@ Each command parses its options and calls one function of :mod:`pmsm2dof.drive.s
 :mod:`pmsm2dof.studies.drive`; the link is one option, ``--link URL`` (:func:`link_option`).
 """
 
+import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
 
 from ...errors import ConfigError
 from .options import Group, as_option, chosen_scenario, out_option, set_option, warnings_as_lines
+
+if TYPE_CHECKING:
+    from ...sim.scenario_tables import MotorTable
 
 LINK_HELP = (
     "the drive's link: tcp://HOST:PORT (XCP on TCP: the PC's drive, QEMU's -serial tcp), serial:DEVICE or a "
@@ -47,11 +51,14 @@ def _show(value: Any) -> str:
     )
 
 
-@click.group(cls=Group, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve.")
+@click.group(
+    cls=Group, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve, commission, identify."
+)
 def drive() -> None:
     """Talk to a drive (the firmware of examples/firmware, on an MCU, on QEMU or the PC's virtual drive) over
     XCP, by the names of its A2L file: read and write its variables, capture signals by DAQ, play a
-    scenario on it beside the engine's simulation, or serve the PC's virtual drive of a scenario.
+    scenario on it beside the engine's simulation, serve the PC's virtual drive of a scenario, commission
+    its motor or identify its mechanics.
     """
 
 
@@ -202,3 +209,116 @@ def serve(scenario: str, overrides: tuple[str, ...], port: int, out: str, force:
     except ConfigError as exc:
         raise as_option(exc, DURATION) from None
     click.echo("the drive stopped")
+
+
+@drive.command()
+@out_option("the folder for result.json, log.csv, plot.png and motor.toml (the identified motor)",
+            type=click.Path(file_okay=False), required=True)  # fmt: skip
+@link_option
+def commission(out: str, force: bool, url: str, a2l: str, allow_remote: bool) -> None:
+    """Run the commissioning routine (commission.h) on the drive: Rs, Ld, Lq and psi_f of its motor.
+
+    The routine's settings follow from the motor data the drive's controllers hold and the DC link it
+    measures; each step is printed as the drive enters it. Writes the report of `pmsm2dof commission`:
+    OUT/result.json, log.csv (the routine's signals at the speed event), plot.png and, when it ends
+    done, motor.toml. A failed routine names the step and why, and exits with 1; a link that drops
+    leaves the drive's watchdog to end the routine (power stage off), exit status 2.
+    """
+    from ...outputs import check_out, staged_dir
+    from ...studies.drive_commission import commission_on_drive, drive_scenario
+    from .commission import write_commission
+
+    check_out(out, "drive-commission", force)
+
+    def progress(step: str, t_s: float) -> None:
+        click.echo(f"  {t_s:8.4f} s  {step}")
+
+    with _open(url, a2l, allow_remote) as link:
+        configured = drive_scenario(link).motor
+        click.echo(f"commissioning the drive at {link.url}")
+        result = commission_on_drive(link, progress=progress)
+    with staged_dir(out, "drive-commission", force) as tmp:
+        write_commission(result, configured.pole_pairs, tmp)
+    click.echo(_commission_table(result, configured))
+    written = "result.json, log.csv, plot.png" + (", motor.toml" if result.phase == "done" else "")
+    click.echo(f"wrote {written} to {out}")
+    if result.phase != "done":
+        raise click.exceptions.Exit(1)
+
+
+def _commission_table(result: Any, configured: "MotorTable") -> str:
+    """The estimates beside the values the drive's controllers hold, and the time of each step."""
+    units = {"Rs_ohm": "ohm", "Ld_H": "H", "Lq_H": "H", "psi_f_Wb": "Wb"}
+    lines = [f"commissioning {result.phase}"]
+    if result.phase != "done":
+        lines.append(f"  failed in {result.failed_phase}: {result.reason} ({result.reason_text})")
+    lines.append(f"  {'':<9}{'identified':>13}{'configured':>13}")
+    for key, unit in units.items():
+        lines.append(f"  {key:<9}{result.estimates[key]:>13.6g}{getattr(configured, key):>13.6g}  [{unit}]")
+    lines.append("  step        time [s]")
+    for phase, t in result.phase_time_s.items():
+        lines.append(f"  {phase:<12}{t:>8.4g}")
+    lines.append(f"  {'total':<12}{sum(result.phase_time_s.values()):>8.4g}")
+    return "\n".join(lines)
+
+
+@drive.command()
+@click.option("--speed-max-rpm", type=float, default=None,
+              help="largest speed of the plan [rpm] (default: where the voltage at the current limit reaches "
+                   "0.9 u_dc / sqrt(3))")  # fmt: skip
+@click.option("--motor", "motor_file", type=click.Path(dir_okay=False), default=None,
+              help="the motor's data for the torque from the currents (the motor.toml of drive commission); "
+                   "default: the drive's configuration")  # fmt: skip
+@out_option("the folder for capture.csv, plan.toml and what identify mechanics writes (fit.png, rows.csv, "
+            "identified.toml, identify.json)", type=click.Path(file_okay=False), required=True)  # fmt: skip
+@link_option
+def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, force: bool, url: str, a2l: str,
+             allow_remote: bool) -> None:  # fmt: skip
+    """Play the identification plan on the drive, capture it, and identify the inertia J and the friction.
+
+    The plan (pmsm2dof identify plan: speed steps at the current limit, both directions) is made for the
+    drive's own configuration: its current limit, DC link and the inertia its speed controller is designed
+    for. The speed reading and the dq currents are captured at every speed sample (OUT/capture.csv) and
+    fitted as `pmsm2dof identify mechanics capture.csv --motor MOTOR` would; OUT/identified.toml is the
+    drive's configuration with the values found (its speed controller designed for the J found). A link
+    that drops leaves the drive's watchdog to stop it (exit status 2).
+    """
+    from ...core.motor import load_motor
+    from ...outputs import atomic_write, check_out, staged_dir
+    from ...sim.logs import read_log
+    from ...studies.drive_commission import drive_scenario
+    from ...studies.drive_identify import capture_plan, plan_on_drive
+    from ...studies.identify import (
+        identified_toml,
+        identify_mechanics,
+        torque_from_currents,
+    )
+    from .identify import echo_mechanics, write_mechanics
+
+    check_out(out, "drive-identify", force)
+    motor = load_motor(motor_file) if motor_file is not None else None
+    with staged_dir(out, "drive-identify", force) as tmp:
+        with _open(url, a2l, allow_remote) as link, warnings_as_lines():
+            drive = drive_scenario(link)
+            try:
+                plan = plan_on_drive(link, speed_max_rpm)
+            except ConfigError as exc:
+                raise as_option(exc, {"speed_max_rpm": "--speed-max-rpm"}) from None
+            for entry in plan.reference:
+                click.echo(f"  t = {entry.t_s:8.4g} s: speed reference {entry.speed_rpm:8.5g} rpm")
+            t_start = time.perf_counter()
+            samples = capture_plan(link, plan, tmp / "capture.csv")
+            wall_s = time.perf_counter() - t_start
+        click.echo(f"captured {samples} speed samples ({plan.simulation.t_end_s:g} s of the drive) in "
+                   f"{wall_s:.3g} s")  # fmt: skip
+        atomic_write(tmp / "plan.toml", plan.to_toml())
+        measured = read_log(tmp / "capture.csv")
+        # the torque from the currents with the motor's data: the given file's, or what the drive holds
+        d = drive.motor if motor is None else motor
+        p, psi, Ld, Lq = d.pole_pairs, d.psi_f_Wb, d.Ld_H, d.Lq_H
+        mech = identify_mechanics(measured, torque_Nm=torque_from_currents(measured, p, psi, Ld, Lq))
+        report = mech.to_json()
+        text = identified_toml(mech, None, drive, f"the drive at {url} by pmsm2dof drive identify")
+        write_mechanics(tmp, mech, text, report)
+    echo_mechanics(mech, None, report)
+    click.echo(f"wrote capture.csv, plan.toml, fit.png, rows.csv, identified.toml and identify.json to {out}")

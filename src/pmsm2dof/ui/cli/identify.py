@@ -9,7 +9,7 @@ import click
 from ...errors import ConfigError
 
 if TYPE_CHECKING:
-    from ...studies.identify import Mechanics
+    from ...studies.identify import CurrentLoop, Mechanics
 
 from .options import Group, as_option, json_option, motor_option, out_option, parse_column
 
@@ -89,7 +89,7 @@ def mechanics(
 
     from ...core.gains import pi_gains
     from ...core.motor import load_motor
-    from ...outputs import atomic_write, staged_dir
+    from ...outputs import staged_dir
     from ...sim.logs import read_log
     from ...studies.identify import (
         IdentificationError,
@@ -159,10 +159,7 @@ def mechanics(
     if gains is not None:
         report["design"] = {"alpha_radps": alpha_radps, "zeta": zeta, "Kp": gains[0], "Ki": gains[1]}
     if out is not None:
-        import numpy as np
-
         from ...sim.scenario import Scenario, load_scenario
-        from ..plots.identify import plot_fit
 
         scenario: Scenario | None = None
         if motor_file is not None:
@@ -172,16 +169,39 @@ def mechanics(
                 scenario = None
         text = identified_toml(mech, current, scenario, f"{log} by pmsm2dof identify mechanics")
         with staged_dir(out, "identify", force) as tmp:
-            plot_fit(mech, tmp / "fit.png")
-            rows = mech.rows
-            table = np.column_stack([rows["t_s"], rows["y"], rows["fit"], rows["y"] - rows["fit"], rows["kept"]])
-            body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
-            atomic_write(tmp / "rows.csv", "t_s,torque_mean_Nm,fit_Nm,residual_Nm,kept\n" + body + "\n")
-            atomic_write(tmp / "identified.toml", text)
-            atomic_write(tmp / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
+            write_mechanics(tmp, mech, text, report)
     if as_json:
         click.echo(json.dumps(report, indent=2, allow_nan=False))
         return
+    echo_mechanics(mech, current, report)
+    if gains is not None:
+        click.echo(
+            f"eq 9 with alpha = {alpha_radps:g} rad/s, zeta = {zeta:g}: Kp = {gains[0]:.6g}, Ki = {gains[1]:.6g}"
+        )
+    if out is not None:
+        click.echo(f"wrote fit.png, rows.csv, identified.toml and identify.json to {out}")
+
+
+def write_mechanics(folder: Any, mech: "Mechanics", identified: str, report: dict[str, Any]) -> None:
+    """The outputs of identify mechanics into ``folder``: fit.png, rows.csv, identified.toml, identify.json."""
+    import json
+
+    import numpy as np
+
+    from ...outputs import atomic_write
+    from ..plots.identify import plot_fit
+
+    plot_fit(mech, folder / "fit.png")
+    rows = mech.rows
+    table = np.column_stack([rows["t_s"], rows["y"], rows["fit"], rows["y"] - rows["fit"], rows["kept"]])
+    body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
+    atomic_write(folder / "rows.csv", "t_s,torque_mean_Nm,fit_Nm,residual_Nm,kept\n" + body + "\n")
+    atomic_write(folder / "identified.toml", identified)
+    atomic_write(folder / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
+
+
+def echo_mechanics(mech: "Mechanics", current: "CurrentLoop | None", report: dict[str, Any]) -> None:
+    """Print what identify mechanics found: each value with its 95 % interval, the fit, its notes."""
     for name, unit in (("J_kgm2", "kg m^2"), ("B_Nms", "Nm s/rad"), ("T_coulomb_Nm", "Nm")):
         lo, hi = report[f"{name}_ci"]
         click.echo(f"{name:<13} = {report[name]:<11.5g} 95 % interval [{lo:.5g}, {hi:.5g}] {unit}")
@@ -194,12 +214,6 @@ def mechanics(
     )
     for note in mech.notes:
         click.echo(f"note: {note}")
-    if gains is not None:
-        click.echo(
-            f"eq 9 with alpha = {alpha_radps:g} rad/s, zeta = {zeta:g}: Kp = {gains[0]:.6g}, Ki = {gains[1]:.6g}"
-        )
-    if out is not None:
-        click.echo(f"wrote fit.png, rows.csv, identified.toml and identify.json to {out}")
 
 
 @identify.command(short_help="Rs, Ld, Lq and psi_f (eq 1) from the logged currents and voltages.")
