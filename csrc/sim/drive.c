@@ -438,16 +438,17 @@ static P2D_SIM_NOINLINE p2d_sim_status_t state_stop(p2d_sim_t *sim, double t_s)
 }
 
 /*
- * state_stop, with the state inside every bound decided by comparisons that NaN fails:
- * ||i||^2 <= i_bound^2, |w_m| <= w_bound (and |w_L|, theta finite with two_mass).
+ * state_stop at the end of the current period, n_current periods done (t = n_current Ts_current),
+ * with the state inside every bound decided by comparisons that NaN fails: ||i||^2 <= i_bound^2,
+ * |w_m| <= w_bound (and |w_L|, theta finite with two_mass).
  */
-static P2D_SIM_INLINE p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s, bool plain)
+static P2D_SIM_INLINE p2d_sim_status_t check_state(p2d_sim_t *sim, uint64_t n_current, bool plain)
 {
     const p2d_plant_t *m = &sim->plant;
     double i2 = m->id_A * m->id_A + m->iq_A * m->iq_A;
-    bool inside = i2 <= sim->i_bound_A * sim->i_bound_A && fabs(m->w_m_radps) <= sim->w_bound_radps;
+    bool inside = i2 <= sim->i_bound2_A2 && fabs(m->w_m_radps) <= sim->w_bound_radps;
     if (!plain && m->two_mass) inside = inside && fabs(m->w_load_radps) <= sim->w_bound_radps && isfinite(m->theta_rad);
-    return inside ? P2D_SIM_OK : state_stop(sim, t_s);
+    return inside ? P2D_SIM_OK : state_stop(sim, count_as_double(n_current) * sim->cfg.Ts_current_s);
 }
 
 /* The plant's configuration of cfg, with the initial currents id0, iq0. */
@@ -602,6 +603,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     /* ten times max(i_max, psi_f / min(Ld, Lq)) */
     L_min_H = fmin(cfg->motor.Ld_H, cfg->motor.Lq_H);
     sim->i_bound_A = P2D_SIM_OVERCURRENT_FACTOR * fmax((double)cfg->speed.i_max_A, cfg->motor.psi_f_Wb / L_min_H);
+    sim->i_bound2_A2 = sim->i_bound_A * sim->i_bound_A;
     if (fabs(cfg->w_m0_radps) > sim->w_bound_radps) return P2D_SIM_ERR_W_M0;
 
     cursor_reset(&sim->reference);
@@ -796,10 +798,12 @@ static p2d_sim_status_t speed_sample(p2d_sim_t *sim, double t_k_s)
 /*
  * The start of the current period at t = n_current Ts_current: the DC link, the current
  * controller and the inverter (dq_pi) or eq 3's command (first_order), the log row of the period
- * (log_row) and the estimator's torque sample.
+ * (log_row) and the estimator's torque sample. cc: the current controller's active coefficients;
+ * plain: the drive is plain (drive_plain).
  */
-static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, bool first_order, bool plain,
-                                                    bool log_row, double *log, uint64_t log_rows)
+static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, const p2d_current_coef_t *cc, double t_s,
+                                                    bool first_order, bool plain, bool log_row, double *log,
+                                                    uint64_t log_rows)
 {
     const p2d_sim_config_t *cfg = &sim->cfg;
     p2d_plant_t *m = &sim->plant;
@@ -819,9 +823,8 @@ static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, 
             iq_meas_A = (float)iq_A;
         }
         /* p2d_current_compute, inlined */
-        if (!p2d_current_voltage(&sim->current, &sim->current.coef[sim->current.active], sim->speed_out.id_ref_A,
-                                 sim->speed_out.iq_ref_A, id_meas_A, iq_meas_A, (float)(m->p * m->w_m_radps),
-                                 (float)m->u_dc_V, &co)) {
+        if (!p2d_current_voltage(&sim->current, cc, sim->speed_out.id_ref_A, sim->speed_out.iq_ref_A, id_meas_A,
+                                 iq_meas_A, (float)(m->p * m->w_m_radps), (float)m->u_dc_V, &co)) {
             return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_s, 0.0, 0.0);
         }
         sim->sensing.ud_unsat_V = co.ud_unsat_V;
@@ -838,8 +841,7 @@ static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, 
          * the integrators learn the command the inverter accepted: p2d_current_update, inlined, of an
          * output that is no fault with a command that is finite (the controller's, at most scaled down)
          */
-        p2d_current_integrate(&sim->current, &sim->current.coef[sim->current.active], &co, (float)io.ud_V,
-                              (float)io.uq_V);
+        p2d_current_integrate(&sim->current, cc, &co, (float)io.ud_V, (float)io.uq_V);
     } else {
         sim->n_limited += p2d_plant_command_currents(m, sim->id_ref_A, sim->iq_ref_A);
     }
@@ -923,7 +925,7 @@ static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim, bool plain)
         sensed_side(sim, &theta_s_rad, &w_s_radps);
         p2d_sensing_record(&sim->sensing, sim->n_current, theta_s_rad, w_s_radps);
     }
-    return check_state(sim, count_as_double(sim->n_current) * sim->cfg.Ts_current_s, plain);
+    return check_state(sim, sim->n_current, plain);
 }
 
 /*
@@ -1206,7 +1208,8 @@ static P2D_SIM_INLINE void group_period(p2d_sim_t *const *sims, const p2d_sim_gr
     /* the controllers and the inverters; the plants' states and inputs into the lanes */
     for (uint32_t l = 0; l < g.n; ++l) {
         if (!active[l]) continue;
-        if (period_start(sims[l], t, g.first_order, plain, log_row, g.logs[l], g.log_rows[l]) != P2D_SIM_OK) {
+        if (period_start(sims[l], &sims[l]->current.coef[sims[l]->current.active], t, g.first_order, plain, log_row,
+                         g.logs[l], g.log_rows[l]) != P2D_SIM_OK) {
             group_leave(g.lanes, L, active, n_active, l);
             continue;
         }
@@ -1264,12 +1267,80 @@ static P2D_SIM_INLINE void group_periods(p2d_sim_t *const *sims, const p2d_sim_g
 }
 
 /*
+ * The periods [n_current, n_current + count) of a plain lone drive (drive_plain) whose load is
+ * constant over them (its value v1, no slope), as group_period; false after a stop.
+ */
+static P2D_SIM_INLINE bool lone_periods(p2d_sim_t *sim, uint64_t n_current, uint64_t count, double Ts_current_s,
+                                        uint32_t kind, bool first_order)
+{
+    const double T_load_Nm = sim->load.v1;
+    const p2d_current_coef_t *cc = &sim->current.coef[sim->current.active];
+    for (uint64_t j = 0; j < count; ++j) {
+        const double t = count_as_double(n_current + j) * Ts_current_s;
+        double t_step, h;
+        /* the plant steps after a stop in period_start too, as in group_period; period_end with the count kept here */
+        const bool started = period_start(sim, cc, t, first_order, true, false, 0, 0u) == P2D_SIM_OK;
+        h = substep_length(sim, t, 0u, &t_step);
+        step_one(&sim->plant, kind, h, T_load_Nm, 0.0);
+        if (!started || check_state(sim, n_current + j + 1u, true) != P2D_SIM_OK) {
+            sim->n_current = n_current + j + (started ? 1u : 0u);
+            return false;
+        }
+    }
+    sim->n_current = n_current + count;
+    return true;
+}
+
+/* lone_periods in the copy of the step's kind: a constant kind keeps the state in registers across the period. */
+static P2D_SIM_INLINE bool lone_periods_kind(p2d_sim_t *sim, uint64_t n_current, uint64_t count, double Ts_current_s,
+                                             uint32_t kind)
+{
+    switch (kind) {
+    case P2D_KIND_LEAN: return lone_periods(sim, n_current, count, Ts_current_s, P2D_KIND_LEAN, false);
+    case P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER:
+        return lone_periods(sim, n_current, count, Ts_current_s, P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER, true);
+    case 0: return lone_periods(sim, n_current, count, Ts_current_s, 0u, false);
+    case P2D_KIND_FIRST_ORDER: return lone_periods(sim, n_current, count, Ts_current_s, P2D_KIND_FIRST_ORDER, true);
+    default: return lone_periods(sim, n_current, count, Ts_current_s, kind, (kind & P2D_KIND_FIRST_ORDER) != 0u);
+    }
+}
+
+/*
+ * The periods after the first of the speed sample starting at period n_current (of cps periods)
+ * in one stretch: their loads known smooth if no active drive's load breaks before the end of the
+ * last period (the per-period test load_smooth, monotone in t, with the cursor that the first
+ * period left and none of these periods moves), and the lone drive's load moreover constant if its
+ * segment is from the second period on (segment_constant); the lone plain drive's in lone_periods.
+ */
+static P2D_SIM_INLINE void group_rest(p2d_sim_t *const *sims, const p2d_sim_group_t g, p2d_sim_lanes_t *L, bool *active,
+                                      uint32_t *n_active, uint64_t n_current, uint64_t cps, double Ts_current_s,
+                                      bool plain)
+{
+    const double t_last = count_as_double(n_current + cps - 1u) * Ts_current_s;
+    bool smooth = true, load_v1;
+    for (uint32_t l = 0; l < g.n; ++l) {
+        if (active[l]) smooth = smooth && load_smooth(sims[l], t_last, g.substeps_dt_s);
+    }
+    load_v1 =
+        smooth && g.lanes == 1u && segment_constant(&sims[0]->load, count_as_double(n_current + 1u) * Ts_current_s);
+    if (load_v1 && plain) {
+        if (!lone_periods_kind(sims[0], n_current + 1u, cps - 1u, Ts_current_s, g.kind)) {
+            group_leave(g.lanes, L, active, n_active, 0u);
+        }
+    } else if (load_v1) {
+        group_periods(sims, g, L, active, n_active, n_current + 1u, cps - 1u, Ts_current_s, true, true, false);
+    } else if (smooth && g.lanes > 1u) {
+        group_periods(sims, g, L, active, n_active, n_current + 1u, cps - 1u, Ts_current_s, true, false, false);
+    } else {
+        group_periods(sims, g, L, active, n_active, n_current + 1u, cps - 1u, Ts_current_s, false, false, false);
+    }
+}
+
+/*
  * n (1 <= n <= lanes) drives of one shape in lockstep over n_samples speed samples; lanes = 1:
  * the plant stepped in place; lanes = P2D_SIM_LANES: the plants through the arrays of L (lanes
  * of no drive idle). A drive that stops leaves the group. At the speed rate a sample is its first
- * period, with the log row, and the rest in one stretch: their load decided once for all of them
- * (smooth, and constant for a lone drive) where the first period's test, its cursor then fixed,
- * shows it for the last.
+ * period, with the log row, and the rest in one stretch (group_rest).
  */
 static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
                                      uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma,
@@ -1318,30 +1389,9 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
                 if (j == j_row) j_row += cfg->log_every;
             }
         } else if (n_active > 0u) {
-            bool smooth = true;
             group_period(sims, g, L, active, &n_active, t_k, log_row, false, false, false);
-            /* the rest: no drive's load breaks before the end of the sample's last period (its own test) */
-            for (uint32_t l = 0; l < n && cps > 1u; ++l) {
-                if (active[l]) {
-                    smooth = smooth && load_smooth(sims[l], count_as_double(n_current + cps - 1u) * cfg->Ts_current_s,
-                                                   g.substeps_dt_s);
-                }
-            }
-            const bool load_v1 = smooth && lanes == 1u &&
-                                 segment_constant(&sims[0]->load, count_as_double(n_current + 1u) * cfg->Ts_current_s);
-            if (load_v1 && plain) {
-                group_periods(sims, g, L, active, &n_active, n_current + 1u, cps - 1u, cfg->Ts_current_s, true, true,
-                              true);
-            } else if (load_v1) {
-                group_periods(sims, g, L, active, &n_active, n_current + 1u, cps - 1u, cfg->Ts_current_s, true, true,
-                              false);
-            } else if (smooth && lanes > 1u) {
-                group_periods(sims, g, L, active, &n_active, n_current + 1u, cps - 1u, cfg->Ts_current_s, true, false,
-                              false);
-            } else {
-                group_periods(sims, g, L, active, &n_active, n_current + 1u, cps - 1u, cfg->Ts_current_s, false, false,
-                              false);
-            }
+            if (n_active > 0u && cps > 1u)
+                group_rest(sims, g, L, active, &n_active, n_current, cps, cfg->Ts_current_s, plain);
         }
         for (uint32_t l = 0; l < n; ++l) {
             if (active[l]) sample_end(sims[l], per_current, log_row, row0[l], logs[l], log_rows[l]);
