@@ -693,7 +693,8 @@ static P2D_SIM_NOINLINE void fixed_columns(const p2d_sim_t *sim, double *row, ui
  * Write the row of the current period starting at t_k into the column-major log of log_rows rows (at n_rows);
  * the speed controller's columns of the float32 one or, with a fixed-point one, fixed_columns.
  */
-static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V, double uq_V)
+static P2D_SIM_INLINE void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V,
+                                     double uq_V)
 {
     const p2d_plant_t *m = &sim->plant;
     const p2d_speed_output_t *so = &sim->speed_out;
