@@ -1261,7 +1261,7 @@ static P2D_SIM_INLINE void group_periods(p2d_sim_t *const *sims, const p2d_sim_g
                                          bool *active, uint32_t *n_active, uint64_t n_current, uint64_t count,
                                          double Ts_current_s, bool smooth_known, bool load_v1, bool plain)
 {
-    for (uint64_t j = 0; j<count && * n_active> 0u; ++j) {
+    for (uint64_t j = 0; *n_active > 0u && j < count; ++j) {
         group_period(sims, g, L, active, n_active, count_as_double(n_current + j) * Ts_current_s, false, smooth_known,
                      load_v1, plain);
     }
