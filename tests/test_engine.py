@@ -11,6 +11,7 @@
 """
 
 import math
+import re
 
 import control
 import numpy as np
@@ -439,12 +440,19 @@ def test_runaway_under_overhauling_load_stops_with_the_time():
     assert f"{2 * no_load_rpm:.6g} rpm" in str(err.value)
 
 
-def test_non_finite_state_stops():
-    with pytest.raises(SimulationError, match=r"t = 0\.5001 s: the plant state became non-finite"):
+@pytest.mark.parametrize(
+    ("t_load_s", "t_stop"),
+    [
+        ("0.5", "0.5001"),  # the first period of a speed sample
+        ("0.50037", "0.5004"),  # inside one: the stop ends the period the load enters in, not the sample
+    ],
+)
+def test_non_finite_state_stops(t_load_s, t_stop):
+    with pytest.raises(SimulationError, match=rf"t = {re.escape(t_stop)} s: the plant state became non-finite"):
         simulate(
             paper2(
                 **{
-                    "load": [{"t_s": 0.5, "torque_Nm": 1e308}],
+                    "load": [{"t_s": float(t_load_s), "torque_Nm": 1e308}],
                     "reference": [{"t_s": 0.0, "speed_rpm": 500.0}],
                     "simulation.t_end_s": 1.0,
                 }

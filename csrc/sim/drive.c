@@ -306,6 +306,12 @@ static double segment_slope(const p2d_schedule_cursor_t *c, double t_s)
     return 0.0;
 }
 
+/* From t on the present segment is constant: its value v1 (segment_value) and no slope (segment_slope). */
+static bool segment_constant(const p2d_schedule_cursor_t *c, double t_s)
+{
+    return !(c->ramp_s > 0.0 && t_s < c->t0_s + c->ramp_s);
+}
+
 /* Enter every entry with t_s[i] <= t; a new segment starts from the value reached. */
 static P2D_SIM_NOINLINE void cursor_enter(p2d_schedule_cursor_t *c, const p2d_schedule_t *s, double t_s)
 {
@@ -432,16 +438,17 @@ static P2D_SIM_NOINLINE p2d_sim_status_t state_stop(p2d_sim_t *sim, double t_s)
 }
 
 /*
- * state_stop, with the state inside every bound decided by comparisons that NaN fails:
- * ||i||^2 <= i_bound^2, |w_m| <= w_bound (and |w_L|, theta finite with two_mass).
+ * state_stop at the end of the current period, n_current periods done (t = n_current Ts_current),
+ * with the state inside every bound decided by comparisons that NaN fails: ||i||^2 <= i_bound^2,
+ * |w_m| <= w_bound (and |w_L|, theta finite with two_mass).
  */
-static P2D_SIM_INLINE p2d_sim_status_t check_state(p2d_sim_t *sim, double t_s)
+static P2D_SIM_INLINE p2d_sim_status_t check_state(p2d_sim_t *sim, uint64_t n_current, bool plain)
 {
     const p2d_plant_t *m = &sim->plant;
     double i2 = m->id_A * m->id_A + m->iq_A * m->iq_A;
-    bool inside = i2 <= sim->i_bound_A * sim->i_bound_A && fabs(m->w_m_radps) <= sim->w_bound_radps;
-    if (m->two_mass) inside = inside && fabs(m->w_load_radps) <= sim->w_bound_radps && isfinite(m->theta_rad);
-    return inside ? P2D_SIM_OK : state_stop(sim, t_s);
+    bool inside = i2 <= sim->i_bound2_A2 && fabs(m->w_m_radps) <= sim->w_bound_radps;
+    if (!plain && m->two_mass) inside = inside && fabs(m->w_load_radps) <= sim->w_bound_radps && isfinite(m->theta_rad);
+    return inside ? P2D_SIM_OK : state_stop(sim, count_as_double(n_current) * sim->cfg.Ts_current_s);
 }
 
 /* The plant's configuration of cfg, with the initial currents id0, iq0. */
@@ -596,6 +603,7 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
     /* ten times max(i_max, psi_f / min(Ld, Lq)) */
     L_min_H = fmin(cfg->motor.Ld_H, cfg->motor.Lq_H);
     sim->i_bound_A = P2D_SIM_OVERCURRENT_FACTOR * fmax((double)cfg->speed.i_max_A, cfg->motor.psi_f_Wb / L_min_H);
+    sim->i_bound2_A2 = sim->i_bound_A * sim->i_bound_A;
     if (fabs(cfg->w_m0_radps) > sim->w_bound_radps) return P2D_SIM_ERR_W_M0;
 
     cursor_reset(&sim->reference);
@@ -685,7 +693,8 @@ static P2D_SIM_NOINLINE void fixed_columns(const p2d_sim_t *sim, double *row, ui
  * Write the row of the current period starting at t_k into the column-major log of log_rows rows (at n_rows);
  * the speed controller's columns of the float32 one or, with a fixed-point one, fixed_columns.
  */
-static void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V, double uq_V)
+static P2D_SIM_INLINE void log_write(p2d_sim_t *sim, double *log, uint64_t log_rows, double t_k_s, double ud_V,
+                                     double uq_V)
 {
     const p2d_plant_t *m = &sim->plant;
     const p2d_speed_output_t *so = &sim->speed_out;
@@ -790,10 +799,12 @@ static p2d_sim_status_t speed_sample(p2d_sim_t *sim, double t_k_s)
 /*
  * The start of the current period at t = n_current Ts_current: the DC link, the current
  * controller and the inverter (dq_pi) or eq 3's command (first_order), the log row of the period
- * (log_row) and the estimator's torque sample.
+ * (log_row) and the estimator's torque sample. cc: the current controller's active coefficients;
+ * plain: the drive is plain (drive_plain).
  */
-static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, bool first_order, bool log_row,
-                                                    double *log, uint64_t log_rows)
+static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, const p2d_current_coef_t *cc, double t_s,
+                                                    bool first_order, bool plain, bool log_row, double *log,
+                                                    uint64_t log_rows)
 {
     const p2d_sim_config_t *cfg = &sim->cfg;
     p2d_plant_t *m = &sim->plant;
@@ -802,20 +813,19 @@ static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, 
         p2d_inverter_output_t io;
         float id_meas_A = (float)m->id_A, iq_meas_A = (float)m->iq_A;
         /* the DC link of this period sets the inverter's range and the controller's measurement */
-        if (sim->dc_link_sag) {
+        if (!plain && sim->dc_link_sag) {
             double u_dc_V = dc_link_V(sim, t_s);
             if (u_dc_V != m->u_dc_V) p2d_plant_set_dc_link(m, u_dc_V);
         }
-        if (sim->sensing.current_sensor) {
+        if (!plain && sim->sensing.current_sensor) {
             double id_A, iq_A;
             p2d_sensing_currents(m, &id_A, &iq_A);
             id_meas_A = (float)id_A;
             iq_meas_A = (float)iq_A;
         }
         /* p2d_current_compute, inlined */
-        if (!p2d_current_voltage(&sim->current, &sim->current.coef[sim->current.active], sim->speed_out.id_ref_A,
-                                 sim->speed_out.iq_ref_A, id_meas_A, iq_meas_A, (float)(m->p * m->w_m_radps),
-                                 (float)m->u_dc_V, &co)) {
+        if (!p2d_current_voltage(&sim->current, cc, sim->speed_out.id_ref_A, sim->speed_out.iq_ref_A, id_meas_A,
+                                 iq_meas_A, (float)(m->p * m->w_m_radps), (float)m->u_dc_V, &co)) {
             return stop(sim, P2D_SIM_STOP_CONTROLLER_FAULT, t_s, 0.0, 0.0);
         }
         sim->sensing.ud_unsat_V = co.ud_unsat_V;
@@ -832,8 +842,7 @@ static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, 
          * the integrators learn the command the inverter accepted: p2d_current_update, inlined, of an
          * output that is no fault with a command that is finite (the controller's, at most scaled down)
          */
-        p2d_current_integrate(&sim->current, &sim->current.coef[sim->current.active], &co, (float)io.ud_V,
-                              (float)io.uq_V);
+        p2d_current_integrate(&sim->current, cc, &co, (float)io.ud_V, (float)io.uq_V);
     } else {
         sim->n_limited += p2d_plant_command_currents(m, sim->id_ref_A, sim->iq_ref_A);
     }
@@ -842,23 +851,33 @@ static P2D_SIM_INLINE p2d_sim_status_t period_start(p2d_sim_t *sim, double t_s, 
         p2d_plant_applied_voltage(m, &ud_V, &uq_V);
         log_write(sim, log, log_rows, t_s, ud_V, uq_V);
     }
-    if (cfg->adapt.enabled) p2d_adapt_torque(&sim->adapt, p2d_plant_torque_Nm(m));
+    if (!plain && cfg->adapt.enabled) p2d_adapt_torque(&sim->adapt, p2d_plant_torque_Nm(m));
     return P2D_SIM_OK;
 }
 
 /*
- * Substep s of the current period starting at t_start: its length h = t_end - t (as the split
- * steps of plant_advance_split compute it) and the load T0 at its start with the slope dT_dt at
- * its middle. Valid when the load has no breakpoint inside the period (load_smooth).
+ * The length h = t_end - t of substep s of the current period starting at t_start (as the split
+ * steps of plant_advance_split compute it), and its start t.
+ */
+static P2D_SIM_INLINE double substep_length(const p2d_sim_t *sim, double t_start_s, uint32_t s, double *t_s)
+{
+    double dt_s = sim->plant.dt_s;
+    /* t_start + s dt and t_start + (s + 1) dt; for s = 0 the same values without the products (0 dt = +0, 1 dt = dt) */
+    double t_end = t_start_s + (s == 0u ? dt_s : (double)(s + 1u) * dt_s);
+    *t_s = s == 0u ? t_start_s : t_start_s + (double)s * dt_s;
+    return t_end - *t_s;
+}
+
+/*
+ * Substep s of the current period starting at t_start: its length h (substep_length) and the load
+ * T0 at its start with the slope dT_dt at its middle. Valid when the load has no breakpoint inside
+ * the period (load_smooth).
  */
 static P2D_SIM_INLINE void substep(const p2d_sim_t *sim, double t_start_s, uint32_t s, double *h_s, double *T0_Nm,
                                    double *dT_dt_Nmps)
 {
-    double dt_s = sim->plant.dt_s;
-    /* t_start + s dt and t_start + (s + 1) dt; for s = 0 the same values without the products (0 dt = +0, 1 dt = dt) */
-    double t = s == 0u ? t_start_s : t_start_s + (double)s * dt_s;
-    double t_end = t_start_s + (s == 0u ? dt_s : (double)(s + 1u) * dt_s);
-    *h_s = t_end - t;
+    double t;
+    *h_s = substep_length(sim, t_start_s, s, &t);
     *T0_Nm = segment_value(&sim->load, t);
     *dT_dt_Nmps = segment_slope(&sim->load, t + 0.5 * *h_s);
 }
@@ -899,15 +918,15 @@ static P2D_SIM_NOINLINE void plant_advance_split(p2d_sim_t *sim, double t_start_
 }
 
 /* The end of the current period: the time advances, the sensor's history, the checks. */
-static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim)
+static P2D_SIM_INLINE p2d_sim_status_t period_end(p2d_sim_t *sim, bool plain)
 {
     sim->n_current++;
-    if (sim->sensing.history) {
+    if (!plain && sim->sensing.history) {
         double theta_s_rad, w_s_radps;
         sensed_side(sim, &theta_s_rad, &w_s_radps);
         p2d_sensing_record(&sim->sensing, sim->n_current, theta_s_rad, w_s_radps);
     }
-    return check_state(sim, count_as_double(sim->n_current) * sim->cfg.Ts_current_s);
+    return check_state(sim, sim->n_current, plain);
 }
 
 /*
@@ -1142,22 +1161,207 @@ static void lanes_idle(p2d_sim_lanes_t *L, uint32_t l)
     L->a_d[l] = L->a_q[l] = L->T0_Nm[l] = L->dT_Nmps[l] = 0.0;
 }
 
+/* The loop's constants of a lockstep group (or of a lone drive), the same for every drive of it. */
+typedef struct {
+    uint32_t n;               /* drives [-] */
+    uint32_t lanes;           /* 1: the plant stepped in place; P2D_SIM_LANES: the plants through the arrays of L */
+    uint32_t kind;            /* the RK4 step's kind (step_kind) */
+    uint32_t substeps;        /* RK4 steps per current period [-] */
+    double substeps_dt_s;     /* substeps dt, the current period as the steps add up [s] */
+    bool first_order;         /* the current loop of eq 3 (no current controller) */
+    bool fma;                 /* the lanes' step of the FMA copy */
+    double *const *logs;      /* the logs of the drives */
+    const uint64_t *log_rows; /* their rows [-] */
+} p2d_sim_group_t;
+
+/*
+ * The lone drive has none of the features a current period tests for: a DC-link sag, current
+ * sensors, a sensor's history, the estimator, the two-mass train; and one RK4 step per period.
+ */
+static bool drive_plain(const p2d_sim_t *sim)
+{
+    return !sim->dc_link_sag && !sim->sensing.current_sensor && !sim->sensing.history && !sim->cfg.adapt.enabled &&
+           !sim->plant.two_mass && sim->cfg.substeps == 1u;
+}
+
+/* Drive l leaves the group (a stop): its lane idles. */
+static P2D_SIM_INLINE void group_leave(uint32_t lanes, p2d_sim_lanes_t *L, bool *active, uint32_t *n_active, uint32_t l)
+{
+    active[l] = false;
+    (*n_active)--;
+    if (lanes > 1u) lanes_idle(L, l);
+}
+
+/*
+ * The current period of the group starting at t: the controllers and the inverters (with the
+ * period's log row if log_row), the plants over the period, the checks at its end. smooth_known: no
+ * drive's load has a breakpoint inside the period, known before (else the period's own test,
+ * load_smooth); load_v1: moreover the lone drive's load constant over it, its value v1 and no slope;
+ * plain: the lone drive is plain (drive_plain).
+ */
+static P2D_SIM_INLINE void group_period(p2d_sim_t *const *sims, const p2d_sim_group_t g, p2d_sim_lanes_t *L,
+                                        bool *active, uint32_t *n_active, double t, bool log_row, bool smooth_known,
+                                        bool load_v1, bool plain)
+{
+    const uint32_t substeps = plain ? 1u : g.substeps;
+    double h = 0.0;
+    bool smooth = true;
+    /* the controllers and the inverters; the plants' states and inputs into the lanes */
+    for (uint32_t l = 0; l < g.n; ++l) {
+        if (!active[l]) continue;
+        if (period_start(sims[l], &sims[l]->current.coef[sims[l]->current.active], t, g.first_order, plain, log_row,
+                         g.logs[l], g.log_rows[l]) != P2D_SIM_OK) {
+            group_leave(g.lanes, L, active, n_active, l);
+            continue;
+        }
+        if (!smooth_known) smooth = smooth && load_smooth(sims[l], t, g.substeps_dt_s);
+        if (g.lanes > 1u) {
+            lanes_load(L, l, &sims[l]->plant);
+            substep(sims[l], t, 0u, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
+        }
+    }
+    if (!smooth) {
+        /* a load breakpoint inside the period: each drive on its own, its steps split there */
+        for (uint32_t l = 0; l < g.n; ++l) {
+            if (active[l]) plant_advance_split(sims[l], t);
+        }
+    } else if (g.lanes == 1u) {
+        for (uint32_t s = 0; s < substeps; ++s) {
+            if (load_v1) {
+                double t_s;
+                h = substep_length(sims[0], t, s, &t_s);
+                step_one(&sims[0]->plant, g.kind, h, sims[0]->load.v1, 0.0);
+            } else {
+                double T0, dT;
+                substep(sims[0], t, s, &h, &T0, &dT);
+                step_one(&sims[0]->plant, g.kind, h, T0, dT);
+            }
+        }
+    } else {
+        for (uint32_t s = 0; s < g.substeps; ++s) {
+            for (uint32_t l = 0; l < g.n && s > 0u; ++l) {
+                if (active[l]) substep(sims[l], t, s, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
+            }
+            if (g.fma) {
+                lanes_step_fma(L, g.kind, h);
+            } else {
+                lanes_step(L, g.kind, h);
+            }
+        }
+    }
+    for (uint32_t l = 0; l < g.n; ++l) {
+        if (!active[l]) continue;
+        if (g.lanes > 1u && smooth) lanes_store(L, l, &sims[l]->plant);
+        if (period_end(sims[l], plain) != P2D_SIM_OK) group_leave(g.lanes, L, active, n_active, l);
+    }
+}
+
+/* The periods [n_current, n_current + count) of the group (none after the last drive stopped), as group_period. */
+static P2D_SIM_INLINE void group_periods(p2d_sim_t *const *sims, const p2d_sim_group_t g, p2d_sim_lanes_t *L,
+                                         bool *active, uint32_t *n_active, uint64_t n_current, uint64_t count,
+                                         double Ts_current_s, bool smooth_known, bool load_v1, bool plain)
+{
+    for (uint64_t j = 0; *n_active > 0u && j < count; ++j) {
+        group_period(sims, g, L, active, n_active, count_as_double(n_current + j) * Ts_current_s, false, smooth_known,
+                     load_v1, plain);
+    }
+}
+
+/*
+ * The periods [n_current, n_current + count) of a plain lone drive (drive_plain) whose load is
+ * constant over them (its value v1, no slope), as group_period; false after a stop.
+ */
+static P2D_SIM_INLINE bool lone_periods(p2d_sim_t *sim, uint64_t n_current, uint64_t count, double Ts_current_s,
+                                        uint32_t kind, bool first_order)
+{
+    const double T_load_Nm = sim->load.v1;
+    const p2d_current_coef_t *cc = &sim->current.coef[sim->current.active];
+    for (uint64_t j = 0; j < count; ++j) {
+        const double t = count_as_double(n_current + j) * Ts_current_s;
+        double t_step, h;
+        /* the plant steps after a stop in period_start too, as in group_period; period_end with the count kept here */
+        const bool started = period_start(sim, cc, t, first_order, true, false, 0, 0u) == P2D_SIM_OK;
+        h = substep_length(sim, t, 0u, &t_step);
+        step_one(&sim->plant, kind, h, T_load_Nm, 0.0);
+        if (!started || check_state(sim, n_current + j + 1u, true) != P2D_SIM_OK) {
+            sim->n_current = n_current + j + (started ? 1u : 0u);
+            return false;
+        }
+    }
+    sim->n_current = n_current + count;
+    return true;
+}
+
+/* lone_periods in the copy of the step's kind: a constant kind keeps the state in registers across the period. */
+static P2D_SIM_INLINE bool lone_periods_kind(p2d_sim_t *sim, uint64_t n_current, uint64_t count, double Ts_current_s,
+                                             uint32_t kind)
+{
+    switch (kind) {
+    case P2D_KIND_LEAN: return lone_periods(sim, n_current, count, Ts_current_s, P2D_KIND_LEAN, false);
+    case P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER:
+        return lone_periods(sim, n_current, count, Ts_current_s, P2D_KIND_LEAN | P2D_KIND_FIRST_ORDER, true);
+    case 0: return lone_periods(sim, n_current, count, Ts_current_s, 0u, false);
+    case P2D_KIND_FIRST_ORDER: return lone_periods(sim, n_current, count, Ts_current_s, P2D_KIND_FIRST_ORDER, true);
+    default: return lone_periods(sim, n_current, count, Ts_current_s, kind, (kind & P2D_KIND_FIRST_ORDER) != 0u);
+    }
+}
+
+/*
+ * The periods after the first of the speed sample starting at period n_current (of cps periods)
+ * in one stretch: their loads known smooth if no active drive's load breaks before the end of the
+ * last period (the per-period test load_smooth, monotone in t, with the cursor that the first
+ * period left and none of these periods moves), and the lone drive's load moreover constant if its
+ * segment is from the second period on (segment_constant); the lone plain drive's in lone_periods.
+ */
+static P2D_SIM_INLINE void group_rest(p2d_sim_t *const *sims, const p2d_sim_group_t g, p2d_sim_lanes_t *L, bool *active,
+                                      uint32_t *n_active, uint64_t n_current, uint64_t cps, double Ts_current_s,
+                                      bool plain)
+{
+    const double t_last = count_as_double(n_current + cps - 1u) * Ts_current_s;
+    bool smooth = true, load_v1;
+    for (uint32_t l = 0; l < g.n; ++l) {
+        if (active[l]) smooth = smooth && load_smooth(sims[l], t_last, g.substeps_dt_s);
+    }
+    load_v1 =
+        smooth && g.lanes == 1u && segment_constant(&sims[0]->load, count_as_double(n_current + 1u) * Ts_current_s);
+    if (load_v1 && plain) {
+        if (!lone_periods_kind(sims[0], n_current + 1u, cps - 1u, Ts_current_s, g.kind)) {
+            group_leave(g.lanes, L, active, n_active, 0u);
+        }
+    } else if (load_v1) {
+        group_periods(sims, g, L, active, n_active, n_current + 1u, cps - 1u, Ts_current_s, true, true, false);
+    } else if (smooth && g.lanes > 1u) {
+        group_periods(sims, g, L, active, n_active, n_current + 1u, cps - 1u, Ts_current_s, true, false, false);
+    } else {
+        group_periods(sims, g, L, active, n_active, n_current + 1u, cps - 1u, Ts_current_s, false, false, false);
+    }
+}
+
 /*
  * n (1 <= n <= lanes) drives of one shape in lockstep over n_samples speed samples; lanes = 1:
  * the plant stepped in place; lanes = P2D_SIM_LANES: the plants through the arrays of L (lanes
- * of no drive idle). A drive that stops leaves the group.
+ * of no drive idle). A drive that stops leaves the group. At the speed rate a sample is its first
+ * period, with the log row, and the rest in one stretch (group_rest).
  */
 static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_t lanes, p2d_sim_lanes_t *L,
                                      uint64_t n_samples, double *const *logs, const uint64_t *log_rows, bool fma,
                                      bool per_current)
 {
     const p2d_sim_config_t *cfg = &sims[0]->cfg;
-    const uint32_t kind = step_kind(sims[0]), substeps = cfg->substeps;
+    const uint64_t cps = cfg->current_per_speed;
     /* every drive of a group has the same step dt = Ts_current / substeps */
-    const double substeps_dt_s = (double)substeps * sims[0]->plant.dt_s;
-    const bool first_order = cfg->current_model == P2D_CURRENT_FIRST_ORDER;
+    const p2d_sim_group_t g = {n,
+                               lanes,
+                               step_kind(sims[0]),
+                               cfg->substeps,
+                               (double)cfg->substeps * sims[0]->plant.dt_s,
+                               cfg->current_model == P2D_CURRENT_FIRST_ORDER,
+                               fma,
+                               logs,
+                               log_rows};
     /* every drive is at the same sample: the time and the log decision are the group's */
     uint64_t n_current = sims[0]->n_current, n_speed = sims[0]->n_speed;
+    const bool plain = lanes == 1u && drive_plain(sims[0]);
     uint64_t row0[P2D_SIM_LANES];
     bool active[P2D_SIM_LANES];
     uint32_t n_active = 0u;
@@ -1169,73 +1373,26 @@ static P2D_SIM_INLINE void run_group(p2d_sim_t *const *sims, uint32_t n, uint32_
             lanes_idle(L, l);
         }
     }
-    for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed) {
+    for (uint64_t k = 0; k < n_samples && n_active > 0u; ++k, ++n_speed, n_current += cps) {
         const double t_k = count_as_double(n_current) * cfg->Ts_current_s;
-        /* at the speed rate: the row of the sample's first period; at the current rate: the sample's first row's
-           period j_row (beyond the sample: none), then every log_every-th */
+        /* at the speed rate: the row of the sample's first period */
         const bool log_row = !per_current && n_speed % cfg->log_every == 0u;
-        uint64_t j_row = per_current ? (cfg->log_every - n_current % cfg->log_every) % cfg->log_every : 0u;
         for (uint32_t l = 0; l < n; ++l) {
             row0[l] = sims[l]->n_rows;
-            if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) {
-                active[l] = false;
-                n_active--;
-                if (lanes > 1u) lanes_idle(L, l);
-            }
+            if (active[l] && speed_sample(sims[l], t_k) != P2D_SIM_OK) group_leave(g.lanes, L, active, &n_active, l);
         }
-        for (uint32_t j = 0; j < cfg->current_per_speed && n_active > 0u; ++j, ++n_current) {
-            const double t = count_as_double(n_current) * cfg->Ts_current_s;
-            double h = 0.0;
-            bool smooth = true;
-            /* the controllers and the inverters; the plants' states and inputs into the lanes */
-            for (uint32_t l = 0; l < n; ++l) {
-                if (!active[l]) continue;
-                if (period_start(sims[l], t, first_order, per_current ? j == j_row : log_row && j == 0u, logs[l],
-                                 log_rows[l]) != P2D_SIM_OK) {
-                    active[l] = false;
-                    n_active--;
-                    if (lanes > 1u) lanes_idle(L, l);
-                    continue;
-                }
-                smooth = smooth && load_smooth(sims[l], t, substeps_dt_s);
-                if (lanes > 1u) {
-                    lanes_load(L, l, &sims[l]->plant);
-                    substep(sims[l], t, 0u, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
-                }
+        if (per_current) {
+            /* the sample's first row's period j_row (beyond the sample: none), then every log_every-th */
+            uint64_t j_row = (cfg->log_every - n_current % cfg->log_every) % cfg->log_every;
+            for (uint64_t j = 0; j < cps && n_active > 0u; ++j) {
+                group_period(sims, g, L, active, &n_active, count_as_double(n_current + j) * cfg->Ts_current_s,
+                             j == j_row, false, false, false);
+                if (j == j_row) j_row += cfg->log_every;
             }
-            if (!smooth) {
-                /* a load breakpoint inside the period: each drive on its own, its steps split there */
-                for (uint32_t l = 0; l < n; ++l) {
-                    if (active[l]) plant_advance_split(sims[l], t);
-                }
-            } else if (lanes == 1u) {
-                for (uint32_t s = 0; s < substeps; ++s) {
-                    double T0, dT;
-                    substep(sims[0], t, s, &h, &T0, &dT);
-                    step_one(&sims[0]->plant, kind, h, T0, dT);
-                }
-            } else {
-                for (uint32_t s = 0; s < substeps; ++s) {
-                    for (uint32_t l = 0; l < n && s > 0u; ++l) {
-                        if (active[l]) substep(sims[l], t, s, &h, &L->T0_Nm[l], &L->dT_Nmps[l]);
-                    }
-                    if (fma) {
-                        lanes_step_fma(L, kind, h);
-                    } else {
-                        lanes_step(L, kind, h);
-                    }
-                }
-            }
-            for (uint32_t l = 0; l < n; ++l) {
-                if (!active[l]) continue;
-                if (lanes > 1u && smooth) lanes_store(L, l, &sims[l]->plant);
-                if (period_end(sims[l]) != P2D_SIM_OK) {
-                    active[l] = false;
-                    n_active--;
-                    if (lanes > 1u) lanes_idle(L, l);
-                }
-            }
-            if (per_current && j == j_row) j_row += cfg->log_every;
+        } else if (n_active > 0u) {
+            group_period(sims, g, L, active, &n_active, t_k, log_row, false, false, false);
+            if (n_active > 0u && cps > 1u)
+                group_rest(sims, g, L, active, &n_active, n_current, cps, cfg->Ts_current_s, plain);
         }
         for (uint32_t l = 0; l < n; ++l) {
             if (active[l]) sample_end(sims[l], per_current, log_row, row0[l], logs[l], log_rows[l]);

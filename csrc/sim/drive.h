@@ -324,6 +324,7 @@ typedef struct {
     double iq_ref_A;                 /* current command held over the speed period [A] */
     double w_bound_radps;            /* overspeed bound [rad/s] */
     double i_bound_A;                /* overcurrent bound [A] */
+    double i_bound2_A2;              /* its square [A^2] */
     uint64_t n_current;              /* current periods done: t = n_current Ts_current [-] */
     uint64_t n_speed;                /* speed samples done [-] */
     uint64_t n_rows;                 /* log rows written [-] */
