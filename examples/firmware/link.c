@@ -8,10 +8,11 @@
 #include <math.h>
 
 #include "board.h"
+#include "capture.h"
 #include "foc.h"
 #include "schedule.h"
 
-#define LINK_SEGMENTS_MAX 12u  /* the link's six and the board's */
+#define LINK_SEGMENTS_MAX 12u  /* the link's nine and the board's */
 #define LINK_MAX_CTO 255u      /* longest command or response [bytes] */
 #define LINK_MAX_DTO 255u      /* longest DAQ packet [bytes] */
 #define LINK_DAQ_BYTES 1536u   /* DAQ lists, ODTs and entries [bytes] */
@@ -21,7 +22,18 @@
 #define LINK_SCHEDULE_TOL 1e-9 /* entries within this share of Ts_speed of a sample have started [-] */
 
 /* The segments of the link, in this order before the board's. */
-enum { SEG_FOC_NOW = 0, SEG_STATUS, SEG_SPEED_CONFIG, SEG_CURRENT_CONFIG, SEG_COMMAND, SEG_REFERENCE, SEG_BOARD };
+enum {
+    SEG_FOC_NOW = 0,
+    SEG_STATUS,
+    SEG_SPEED_CONFIG,
+    SEG_CURRENT_CONFIG,
+    SEG_COMMAND,
+    SEG_REFERENCE,
+    SEG_CAPTURE_CONFIG,
+    SEG_CAPTURE_STATUS,
+    SEG_CAPTURE_BUFFER,
+    SEG_BOARD
+};
 
 link_status_t link_status_now;            /* the link's report (measurement) */
 p2d_speed_config_t link_speed_config;     /* the speed controller's configuration (calibration) */
@@ -44,6 +56,8 @@ static double Ts_speed_s;                                     /* speed period [s
 static uint32_t run_samples;                                  /* speed samples of the run [-] */
 static uint32_t start_request; /* samples of a run to start at the next speed sample, 0: none */
 static bool stop_request;      /* stop the run at the next speed sample */
+static uint32_t run_master;    /* the slave's CONNECT count of the master that started the run, 0: none */
+static uint32_t master_heard;  /* link clock at that master's last command [ticks] */
 
 const link_status_t *link_status(void) { return &link_status_now; }
 
@@ -77,6 +91,33 @@ static bool reference_schedule(const link_reference_t *r, schedule_t *s)
     return r->n <= LINK_SCHEDULE_MAX && schedule_valid(s);
 }
 
+/* Where n bytes at an XCP address are read: inside one measurement or calibration segment but the capture buffer;
+   NULL when none holds them. */
+static const uint8_t *readable(uint32_t address, uint32_t n)
+{
+    for (uint16_t i = 0; i < xcp.config.segment_count; ++i) {
+        const p2d_xcp_segment_t *g = &segments[i];
+        if (i != SEG_CAPTURE_BUFFER && address >= g->address && n <= g->size_bytes &&
+            address - g->address <= g->size_bytes - n) {
+            return (const uint8_t *)g->memory + (address - g->address);
+        }
+    }
+    return NULL;
+}
+
+/* A capture page: valid, and its signals readable (capture.h); arms or disarms the capture. */
+static bool capture_commit(const capture_config_t *c)
+{
+    const uint8_t *source[CAPTURE_SIGNALS_MAX];
+    if (!capture_valid(c)) return false;
+    for (uint32_t i = 0; c->command == 1u && i < c->n; ++i) {
+        source[i] = readable(c->address[i], c->size[i]);
+        if (source[i] == NULL) return false;
+    }
+    capture_command(c, source);
+    return true;
+}
+
 /* The commit callback: validate and apply the page of a calibration segment (0: applied). */
 static int32_t link_commit(void *user, uint16_t index, const void *page)
 {
@@ -101,6 +142,9 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
         }
         break;
     }
+    case SEG_CAPTURE_CONFIG:
+        if (!capture_commit((const capture_config_t *)page)) code = LINK_REJECT_CAPTURE;
+        break;
     case SEG_REFERENCE:
         /* a run plays its schedule to the end: the master changes it between runs (checked whole at the start) */
         if (running || ((const link_reference_t *)page)->n > LINK_SCHEDULE_MAX) code = LINK_REJECT_SCHEDULE;
@@ -174,6 +218,12 @@ link_init_status_t link_init(const link_config_t *cfg)
                                                 P2D_XCP_CALIBRATION};
     segments[SEG_REFERENCE] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&link_reference, &link_reference,
                                                   sizeof link_reference, P2D_XCP_CALIBRATION};
+    segments[SEG_CAPTURE_CONFIG] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&capture_config, &capture_config,
+                                                       sizeof capture_config, P2D_XCP_CALIBRATION};
+    segments[SEG_CAPTURE_STATUS] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&capture_status_now, &capture_status_now,
+                                                       sizeof capture_status_now, P2D_XCP_MEASUREMENT};
+    segments[SEG_CAPTURE_BUFFER] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)capture_buffer, capture_buffer,
+                                                       sizeof capture_buffer, P2D_XCP_MEASUREMENT};
     n = (uint16_t)(n + board_link_segments(&segments[SEG_BOARD], (uint16_t)(LINK_SEGMENTS_MAX - SEG_BOARD)));
 
     xcp_cycle(Ts_ns, &events[0].cycle, &unit);
@@ -234,6 +284,8 @@ static void start_run(uint32_t samples)
     foc_start(w_m_radps, T_Nm);
     board_run_begin();
     p2d_xcp_guard_reset(&guard);
+    run_master = xcp.connected ? xcp.connects : 0u;
+    master_heard = xcp.last_command_ticks;
     run_samples = samples;
     link_status_now.state = LINK_RUNNING;
     link_status_now.runs++;
@@ -243,12 +295,25 @@ static void start_run(uint32_t samples)
     power(true);
 }
 
+/*
+ * The run's master is silent: the slave's watchdog, or the master that started the run gone (it disconnected, or
+ * another CONNECT came: a new master, or the same after a cut) for longer than the link timeout since its last
+ * command. Only that master feeds the guard; a run started at power-up (no master) is fed by any.
+ */
+static bool master_silent(void)
+{
+    bool silent = p2d_xcp_link_check(&xcp);
+    if (run_master == 0u || (xcp.connected && xcp.connects == run_master)) return silent;
+    return xcp.config.link_timeout_ticks > 0u &&
+           link_status_now.periods - master_heard > xcp.config.link_timeout_ticks;
+}
+
 /* The speed sample of a run: the schedule's reference through the link guard. */
 static void run_sample(void)
 {
     link_status_t *s = &link_status_now;
     schedule_t r;
-    bool on, silent = p2d_xcp_link_check(&xcp);
+    bool on, silent = master_silent();
     double t_s = (double)s->sample * Ts_speed_s;
     float w_ref_radps;
     (void)reference_schedule(&link_reference, &r);
@@ -272,6 +337,7 @@ void link_isr(void)
 {
     link_status_t *s = &link_status_now;
     bool speed = tick == 0u; /* foc_isr's own count agrees: both start a run at a speed sample */
+    bool run_start = false;
     s->periods++;
     if (speed) {
         /* the master's calibration takes effect here, all at once, before the control */
@@ -284,6 +350,7 @@ void link_isr(void)
         if (start_request > 0u) {
             start_run(start_request);
             start_request = 0u;
+            run_start = true;
         }
         if (s->state == LINK_RUNNING) {
             if (s->sample == run_samples) {
@@ -300,6 +367,7 @@ void link_isr(void)
     tick = tick + 1u == current_per_speed ? 0u : tick + 1u;
     s->dtos_lost = xcp.dtos_lost;
     p2d_xcp_event(&xcp, 0u);
+    capture_sample(speed, run_start, s->periods);
     if (speed) {
         p2d_xcp_event(&xcp, 1u);
         if (s->state == LINK_RUNNING) s->sample++;
@@ -312,7 +380,11 @@ void link_poll(void)
     uint32_t n = board_link_receive(rx, LINK_RX_CHUNK);
     for (uint32_t i = 0; i < n; ++i) {
         uint32_t len = p2d_xcp_frame_rx(&frame, rx[i]);
-        if (len > 0u) p2d_xcp_command(&xcp, frame.packet, len);
+        if (len > 0u) {
+            p2d_xcp_command(&xcp, frame.packet, len);
+            /* the run's master spoke (its DISCONNECT too); another's CONNECT changes the count */
+            if (xcp.connects == run_master) master_heard = xcp.last_command_ticks;
+        }
     }
     for (uint32_t k = 0; k < LINK_TX_PACKETS; ++k) {
         if (tx_sent == tx_bytes) {
