@@ -6,6 +6,7 @@
 #include "link.h"
 
 #include <math.h>
+#include <stddef.h>
 
 #include "board.h"
 #include "capture.h"
@@ -304,8 +305,7 @@ static bool master_silent(void)
 {
     bool silent = p2d_xcp_link_check(&xcp);
     if (run_master == 0u || (xcp.connected && xcp.connects == run_master)) return silent;
-    return xcp.config.link_timeout_ticks > 0u &&
-           link_status_now.periods - master_heard > xcp.config.link_timeout_ticks;
+    return xcp.config.link_timeout_ticks > 0u && link_status_now.periods - master_heard > xcp.config.link_timeout_ticks;
 }
 
 /* The speed sample of a run: the schedule's reference through the link guard. */

@@ -16,6 +16,8 @@
  *                ERR_OUT_OF_RANGE and leaves the drive unchanged;
  *                link_command and link_reference: the run control (below);
  *                and the board's own (the virtual board's load schedule)
+ *                capture_config (capture.h): a triggered capture into capture_buffer
+ *   measurement  capture_status_now, capture_buffer (read after the capture is done)
  * Events: 0 "current" (every control interrupt), 1 "speed" (every speed sample),
  * sampled at the end of the interrupt, after the control.
  *
@@ -69,7 +71,8 @@ enum { LINK_IDLE = 0, LINK_RUNNING = 1, LINK_DONE = 2, LINK_TRIPPED = 3, LINK_ST
 enum {
     LINK_REJECT_COMMAND = 1001,  /* link_command: an unknown command or samples 0 */
     LINK_REJECT_SCHEDULE = 1002, /* a schedule is invalid, or changed during a run */
-    LINK_REJECT_BOARD = 1003     /* the board refused its page or the run's start */
+    LINK_REJECT_BOARD = 1003,    /* the board refused its page or the run's start */
+    LINK_REJECT_CAPTURE = 1004   /* capture_config: invalid, or a signal outside the readable segments */
 };
 
 /* What the link reports (measurement), updated at every speed sample. */
@@ -89,7 +92,7 @@ typedef struct {
     uint32_t commit_sample;    /* the speed sample at which it took effect, before the control [-] */
     uint32_t commits_applied;  /* calibration pages taken into force [-] */
     uint32_t commits_rejected; /* calibration pages rejected [-] */
-    int32_t commit_status;     /* code of the last rejection: the controller's p2d_status_t, or 1001..1003 [-] */
+    int32_t commit_status;     /* code of the last rejection: the controller's p2d_status_t, or 1001..1004 [-] */
     uint32_t dtos_lost;        /* DAQ samples dropped for want of room in the DTO queue [-] */
 } link_status_t;
 

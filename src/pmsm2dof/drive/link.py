@@ -29,8 +29,8 @@ from .a2l_reader import A2l, read_a2l
 from .elf import Scalar, Variable, read_variables
 
 #: The variables of the firmware example that the slave exposes (examples/firmware/link.h).
-MEASUREMENTS = ("foc_now", "link_status_now")
-CALIBRATIONS = ("link_speed_config", "link_current_config", "link_command", "link_reference")
+MEASUREMENTS = ("foc_now", "link_status_now", "capture_status_now", "capture_buffer")
+CALIBRATIONS = ("link_speed_config", "link_current_config", "link_command", "link_reference", "capture_config")
 #: The virtual board's own (board_virtual.c).
 VIRTUAL_MEASUREMENTS = ("vd_trace",)
 VIRTUAL_CALIBRATIONS = ("vd_load",)
@@ -40,6 +40,10 @@ SCHEDULE_MAX = 32
 STATES = ("idle", "running", "done", "tripped", "stopped")
 #: Events of the slave, by name.
 EVENTS = {"current": 0, "speed": 1}
+#: The capture buffer's triggers (examples/firmware/capture.h), by name.
+TRIGGERS = {"immediate": 0, "rising": 1, "falling": 2, "run": 3}
+#: Most signals of one buffered capture (CAPTURE_SIGNALS_MAX).
+CAPTURE_SIGNALS_MAX = 16
 
 _FORMATS = {("float", 4): "f", ("float", 8): "d", ("unsigned", 1): "B", ("unsigned", 2): "H", ("unsigned", 4): "I",
             ("signed", 1): "b", ("signed", 2): "h", ("signed", 4): "i", ("bool", 1): "B", ("enum", 1): "B",
@@ -160,6 +164,9 @@ class Capture:
     signals: dict[str, npt.NDArray[Any]]
     timestamps: npt.NDArray[np.int64]
     dtos_lost: int
+    #: The drive's time of the trigger [ns] of a buffered capture (t = 0 there); None: a DAQ capture (t = 0 at its
+    #: first sample).
+    trigger_ns: int | None = None
 
 
 class _Collect:
@@ -451,6 +458,103 @@ class Link:
             timestamps=np.array([r[0] for r in rows], dtype=np.int64),
             dtos_lost=lost,
         )
+
+    # ---- the capture buffer ------------------------------------------------
+    def capture_buffered(
+        self,
+        names: Sequence[str],
+        *,
+        event: str = "current",
+        samples: int,
+        trigger: str = "immediate",
+        level: float = 0.0,
+        trigger_signal: str | None = None,
+        pre_samples: int = 0,
+        armed: Callable[["Link"], None] | None = None,
+        timeout_s: float = 60.0,
+    ) -> Capture:
+        """Capture signals into the drive's buffer (examples/firmware/capture.h) and read them out by UPLOAD.
+
+        ``samples`` records at the event, ``pre_samples`` of them before the trigger's: ``immediate``,
+        ``rising``/``falling`` (``trigger_signal``, a float32 of ``names``, crossing ``level``) or ``run``
+        (a run's first control interrupt). ``armed(link)`` is called once the drive holds the
+        pre-trigger records (to start the run a ``run`` trigger waits for, say). The status is polled
+        until the capture is done (which keeps the watchdog fed). Timestamps: the drive's clock [ns].
+        Raises ConfigError for a capture the buffer cannot hold, ToolError when it does not end in
+        ``timeout_s``.
+        """
+        scalars = [self.scalar(n) for n in names]
+        if not 1 <= len(scalars) <= CAPTURE_SIGNALS_MAX:
+            raise ConfigError("signals", f"<{len(scalars)} signals>", f"1 to {CAPTURE_SIGNALS_MAX} signals")
+        for s in scalars:
+            if s.count != 1:
+                raise ConfigError("signal", s.name, "a scalar")
+        if event not in EVENTS or trigger not in TRIGGERS:
+            raise ConfigError("event" if event not in EVENTS else "trigger", event if event not in EVENTS else trigger,
+                              " or ".join(EVENTS if event not in EVENTS else TRIGGERS))  # fmt: skip
+        index = 0
+        if trigger in ("rising", "falling"):
+            if trigger_signal is None or trigger_signal not in names:
+                raise ConfigError("trigger_signal", trigger_signal, "a float32 signal among the captured ones")
+            index = list(names).index(trigger_signal)
+            if (scalars[index].encoding, scalars[index].size) != ("float", 4):
+                raise ConfigError("trigger_signal", trigger_signal, "a float32 signal among the captured ones")
+        record = sum(s.size for s in scalars)
+        capacity = self.variables["capture_buffer"].size // record
+        if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= capacity:
+            raise ConfigError("samples", samples, f"an integer in [1, {capacity}] (the buffer's {record}-byte records)")
+        if isinstance(pre_samples, bool) or not isinstance(pre_samples, int) or not 0 <= pre_samples < samples:
+            raise ConfigError("pre_samples", pre_samples, f"an integer in [0, {samples - 1}]")
+        arms = int(self.read("capture_status_now.arms"))
+        self.write({
+            "capture_config.command": 1, "capture_config.event": EVENTS[event], "capture_config.n": len(scalars),
+            "capture_config.samples": samples, "capture_config.pre_samples": pre_samples,
+            "capture_config.trigger": TRIGGERS[trigger], "capture_config.trigger_signal": index,
+            "capture_config.level": level, "capture_config.address": [s.address for s in scalars],
+            "capture_config.size": [s.size for s in scalars],
+        })  # fmt: skip
+        end = time.monotonic() + timeout_s
+        told = armed is None
+        while True:
+            st = self._capture_status()
+            if st["arms"] == arms + 1 and st["state"] == 3:
+                break
+            if not told and st["arms"] == arms + 1 and st["written"] > pre_samples:
+                assert armed is not None
+                armed(self)
+                told = True
+            if time.monotonic() > end:
+                raise ToolError(f"the drive's capture did not end within {timeout_s:g} s (state {st['state']})")
+            time.sleep(0.01)
+        var = self.variables["capture_buffer"]
+        data = self.read_bytes(var.address, samples * record)
+        first = st["first"]
+        data = data[first * record :] + data[: first * record]
+        fmt = "<" + "".join(_FORMATS[(s.encoding, s.size)] for s in scalars)
+        rows = np.array(list(struct.iter_unpack(fmt, data)), dtype=object)
+        stride = 1 if event == "current" else self._current_per_speed()
+        Ts_ns = self._Ts_current_ns()
+        periods = st["trigger_period"] + (np.arange(samples, dtype=np.int64) - pre_samples) * stride
+        signals = {}
+        for j, (n, s) in enumerate(zip(names, scalars)):
+            dtype = np.float32 if (s.encoding, s.size) == ("float", 4) else None
+            signals[n] = np.array(list(rows[:, j]), dtype=dtype)
+        return Capture(signals, periods * Ts_ns, 0, trigger_ns=int(st["trigger_period"]) * Ts_ns)
+
+    def _capture_status(self) -> dict[str, int]:
+        var = self.variables["capture_status_now"]
+        data = self.read_bytes(var.address, var.size)
+        return {s.field: struct.unpack_from("<I", data, s.address - var.address)[0] for s in var.scalars}
+
+    def _Ts_current_ns(self) -> int:
+        """The control period [ns] of the drive: its A2L's current event."""
+        if self.a2l is None:
+            raise ToolError("the control period of the drive comes from its A2L file")
+        return round(self.a2l.events["current"][1] * 1e9)
+
+    def _current_per_speed(self) -> int:
+        assert self.a2l is not None
+        return round(self.a2l.events["speed"][1] / self.a2l.events["current"][1])
 
     def play(
         self,
