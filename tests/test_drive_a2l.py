@@ -27,9 +27,9 @@ BUILDS = [
     ("firmware.elf", "firmware.a2l", "arm-none-eabi-nm", False, True),
     ("virtual_drive_host", "virtual_drive_host.a2l", "nm", True, False),
 ]
-#: The firmware's variables of each kind (examples/firmware/link.h, board_virtual.c).
-MEASUREMENTS = ["foc_now", "link_status_now"]
-CALIBRATIONS = ["link_speed_config", "link_current_config", "link_command", "link_reference"]
+#: The firmware's variables of each kind (examples/firmware/link.h, capture.h, board_virtual.c).
+MEASUREMENTS = ["foc_now", "link_status_now", "capture_status_now", "capture_buffer"]
+CALIBRATIONS = ["link_speed_config", "link_current_config", "link_command", "link_reference", "capture_config"]
 #: Struct type of the library's calibration variables.
 LIBRARY = {"link_speed_config": "p2d_speed_config_t", "link_current_config": "p2d_current_config_t"}
 

@@ -119,12 +119,16 @@ def test_the_capture_takes_the_buffer_when_the_link_is_too_slow(servo_firmware, 
         assert caught.value.param == "duration_s" and "0.05115 s" in str(caught.value)
     with drive(folder) as url:
         link = ["--link", url.replace("socket://", "tcp://"), "--a2l", str(a2l), "--link-bytes-per-s", "11520"]
-        argv = ["drive", "capture", *CURRENTS, "--event", "current", "--duration-s", "0.06", "--out", str(out), *link]
-        code = main(argv)
+
+        def argv(duration_s):
+            return ["drive", "capture", *CURRENTS, "--event", "current", "--duration-s", duration_s, "--out", str(out),
+                    *link]  # fmt: skip
+
+        code = main(argv("0.06"))
         err = capsys.readouterr().err
         assert code == 2 and "--duration-s = 0.06" in err and "at most 0.05115 s" in err and len(err.splitlines()) == 1
         assert not out.exists()
-        code = main([*argv[:6], "0.02", *argv[7:]])
+        code = main(argv("0.02"))
         text = capsys.readouterr().out
         assert code == 0 and "in the drive's buffer" in text, text
     import pandas as pd

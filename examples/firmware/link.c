@@ -242,8 +242,12 @@ link_init_status_t link_init(const link_config_t *cfg)
     c.daq_memory_bytes = sizeof daq_memory;
     c.queue = queue;
     c.queue_bytes = sizeof queue;
-    c.max_cto = LINK_MAX_CTO;
-    c.max_dto = LINK_MAX_DTO;
+    if (cfg->max_packet_bytes < 8u || cfg->max_packet_bytes > LINK_MAX_CTO) {
+        st.xcp = P2D_XCP_ERR_MAX_CTO;
+        return st;
+    }
+    c.max_cto = (uint8_t)cfg->max_packet_bytes;
+    c.max_dto = (uint16_t)cfg->max_packet_bytes;
     /* timestamps in control periods: one tick = Ts_current, as a whole number of 10^unit ns */
     unit = 0u;
     while (unit < 9u && Ts_ns % 10u == 0u && Ts_ns >= 10u) {

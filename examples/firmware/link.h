@@ -103,6 +103,7 @@ typedef struct {
     float timeout_s;            /* link watchdog: longest silence of the master of a run [s], >= 0; 0: off */
     float ramp_radps_per_s;     /* guard: deceleration of the reference after a trip [rad/s^2], > 0 */
     float hold_s;               /* guard: zero reference before the power stage is switched off [s], >= 0 */
+    uint32_t max_packet_bytes;  /* longest packet the link carries [bytes], 8..255 (SxI, TCP: 255; CAN 8, CAN FD 64) */
     const double *t_s;          /* initial reference schedule: entry times [s] */
     const double *w_radps;      /* its speed references [rad/s] */
     const double *ramp_s;       /* its ramps [s] */

@@ -76,7 +76,61 @@ def firmware_variables(elf: Path | str, virtual: bool) -> dict[str, Variable]:
 
 
 #: The forms of a link URL, for messages.
-URL_FORMS = "tcp://HOST:PORT (XCP on TCP), serial:DEVICE or a device path such as /dev/pts/3 or COM3 (XCP on SxI)"
+URL_FORMS = (
+    "tcp://HOST:PORT (XCP on TCP), serial:DEVICE or a device path such as /dev/pts/3 or COM3 (XCP on SxI), "
+    "can://INTERFACE/CHANNEL?master=ID&slave=ID&fd=0|1&bitrate=N (XCP on CAN by python-can)"
+)
+#: The CAN identifiers of XCP on CAN unless the URL names others: master -> slave and slave -> master.
+CAN_IDS = (0x7E0, 0x7E1)
+#: Options of a can:// URL and their defaults.
+CAN_OPTIONS = {"master": CAN_IDS[0], "slave": CAN_IDS[1], "fd": 0, "bitrate": 500_000}
+
+
+def can_url(text: str) -> dict[str, Any]:
+    """The parts of ``can://INTERFACE/CHANNEL?master=ID&slave=ID&fd=0|1&bitrate=N`` (XCP on CAN by python-can).
+
+    INTERFACE is a python-can interface (``socketcan``, ``pcan``, ``vector``, ``udp_multicast``, ...),
+    CHANNEL its channel (``can0``, ``PCAN_USBBUS1``, a multicast group such as ``239.74.163.2``);
+    ``master`` and ``slave`` the CAN identifiers of the two directions (11 bits, or 29 with
+    ``0x80000000`` set: extended), ``fd=1`` CAN FD (64-byte frames), ``bitrate`` the arbitration rate
+    [bit/s]. Raises ConfigError naming the part that is wrong.
+    """
+    from urllib.parse import parse_qsl
+
+    from can.interfaces import VALID_INTERFACES
+
+    rest = text[len("can://") :]
+    where, _, query = rest.partition("?")
+    interface, _, channel = where.partition("/")
+    if interface not in VALID_INTERFACES:
+        raise ConfigError(
+            "link", text, "can://INTERFACE/CHANNEL, INTERFACE one of " + ", ".join(sorted(VALID_INTERFACES))
+        )
+    if not channel:
+        raise ConfigError("link", text, "can://INTERFACE/CHANNEL?...: a channel (can0, PCAN_USBBUS1, 239.74.163.2)")
+    out: dict[str, Any] = {"interface": interface, "channel": channel, **CAN_OPTIONS}
+    for key, value in parse_qsl(query, keep_blank_values=True):
+        if key not in CAN_OPTIONS:
+            raise ConfigError("link", text, "options " + ", ".join(f"{k}=" for k in CAN_OPTIONS) + " of a can:// URL")
+        try:
+            number = int(value, 0)
+        except ValueError:
+            number = -1
+        valid = {
+            "master": (0, 0x9FFFFFFF), "slave": (0, 0x9FFFFFFF), "fd": (0, 1), "bitrate": (10_000, 8_000_000),
+        }[key]  # fmt: skip
+        extended = number & 0x80000000
+        if not valid[0] <= number <= valid[1] or (
+            key in ("master", "slave") and number > (0x1FFFFFFF if extended else 0x7FF) | extended
+        ):
+            names = {"master": "a CAN identifier: 0..0x7FF, or 0x80000000 | 0..0x1FFFFFFF (extended)",
+                     "slave": "a CAN identifier: 0..0x7FF, or 0x80000000 | 0..0x1FFFFFFF (extended)",
+                     "fd": "0 or 1", "bitrate": "10000..8000000 bit/s"}  # fmt: skip
+            raise ConfigError(f"link {key}", value, names[key])
+        out[key] = number
+    if out["master"] == out["slave"]:
+        raise ConfigError("link slave", hex(out["slave"]), "another identifier than master's")
+    return out
 
 
 def link_url(text: str, allow_remote: bool = False) -> str:
@@ -98,6 +152,10 @@ def link_url(text: str, allow_remote: bool = False) -> str:
     """
     import ipaddress
 
+    if text.startswith("can://"):
+        c = can_url(text)
+        return (f"can://{c['interface']}/{c['channel']}?master=0x{c['master']:X}&slave=0x{c['slave']:X}"
+                f"&fd={c['fd']}&bitrate={c['bitrate']}")  # fmt: skip
     for scheme in ("tcp://", "socket://"):
         if text.startswith(scheme):
             host, _, port = text[len(scheme) :].rpartition(":")
@@ -134,6 +192,14 @@ def pyxcp_master(url: str, timeout_s: float = 2.0, policy: Any = None) -> Any:
             raise ConfigError("url", url, "socket://HOST:PORT or a serial device")
         transport = {"timeout": timeout_s, "Eth": {"host": host, "port": int(port), "protocol": "TCP"}}
         name = "eth"
+    elif url.startswith("can://"):
+        c = can_url(url)
+        transport = {
+            "timeout": timeout_s,
+            "CAN": {"interface": c["interface"], "channel": c["channel"], "can_id_master": c["master"],
+                    "can_id_slave": c["slave"], "fd": bool(c["fd"]), "bitrate": c["bitrate"]},
+        }  # fmt: skip
+        name = "can"
     else:
         transport = {
             "timeout": timeout_s,
@@ -506,13 +572,17 @@ class Link:
         if isinstance(pre_samples, bool) or not isinstance(pre_samples, int) or not 0 <= pre_samples < samples:
             raise ConfigError("pre_samples", pre_samples, f"an integer in [0, {samples - 1}]")
         arms = int(self.read("capture_status_now.arms"))
+        # the page in parts as small as the link's packets (6 bytes on classic CAN), each taken on its own: the
+        # command 0 (none) first, the fields, then the command 1 (arm) that the drive checks with the whole page
+        self.write({"capture_config.command": 0})
         self.write({
-            "capture_config.command": 1, "capture_config.event": EVENTS[event], "capture_config.n": len(scalars),
+            "capture_config.event": EVENTS[event], "capture_config.n": len(scalars),
             "capture_config.samples": samples, "capture_config.pre_samples": pre_samples,
             "capture_config.trigger": TRIGGERS[trigger], "capture_config.trigger_signal": index,
             "capture_config.level": level, "capture_config.address": [s.address for s in scalars],
             "capture_config.size": [s.size for s in scalars],
         })  # fmt: skip
+        self.write({"capture_config.command": 1})
         end = time.monotonic() + timeout_s
         told = armed is None
         while True:

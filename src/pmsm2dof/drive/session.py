@@ -366,9 +366,14 @@ def plan_capture(
     rate = link_bytes_per_s if link_bytes_per_s is not None else LINK_BYTES_PER_S[link_kind(link.url)]
     record = sum(link.scalars[n].size for n in names)
     need = (record + DAQ_OVERHEAD_BYTES) / period_s
-    chosen = way if way != "auto" else "daq" if need <= DAQ_SHARE * rate and kind == "immediate" else "buffer"
+    # classic CAN: 8-byte packets leave 3 bytes beside the PID and the timestamp, too few for most signals
+    classic_can = link.url.startswith("can://") and "&fd=0" in link.url
+    streams = need <= DAQ_SHARE * rate and not classic_can
+    chosen = way if way != "auto" else "daq" if streams and kind == "immediate" else "buffer"
     if chosen == "daq" and kind != "immediate":
         raise ConfigError("trigger", trigger, "immediate for a DAQ capture (a trigger needs the drive's buffer)")
+    if chosen == "daq" and classic_can:
+        raise ConfigError("way", way, "buffer or auto on classic CAN (fd=0): a DAQ packet of 8 bytes holds no signal")
     pre_samples = 0
     if chosen == "buffer":
         if "capture_buffer" not in link.variables:
