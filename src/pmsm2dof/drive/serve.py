@@ -91,9 +91,10 @@ def serve_can(program: Path | str, can_link: str, *, realtime: bool = True, time
     packet, each packet of the drive goes on the bus as one frame with the slave's identifier, padded
     to a CAN (FD) data length by the C library's ``p2d_xcp_can_pad``, at the bus's pace (the URL's
     bitrate, :data:`CAN_FRAME_BITS` and 8 bits a data byte a frame; the drive waits while it is
-    busy, as for TCP: nothing is lost, and a master on a bus that drops datagrams keeps up). Between processes the bus is
-    python-can's ``udp_multicast`` interface (``can://udp_multicast/239.74.163.2?fd=1``: no root, no
-    kernel module); a socketcan ``vcan`` works the same where one exists.
+    busy, as for TCP: nothing is lost, and a master on a bus that drops datagrams keeps up). Between
+    processes the bus is python-can's ``udp_multicast`` interface
+    (``can://udp_multicast/239.74.163.2?fd=1``: no root, no kernel module); a socketcan ``vcan``
+    works the same where one exists.
     """
     import can
 
