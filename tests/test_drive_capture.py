@@ -12,14 +12,14 @@ import numpy as np
 import pytest
 
 from pmsm2dof.drive.link import Link
-from pmsm2dof.drive.serve import serve_host
+from pmsm2dof.drive.serve import serve_host, serve_qemu
 from pmsm2dof.drive.session import plan_capture
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.sim.simulate import RPM_PER_RADPS, Simulation
 from pmsm2dof.ui.cli import main
 
 pytest.importorskip("pyxcp")
-_MISSING = [t for t in ("cmake", "cc", "arm-none-eabi-gcc") if shutil.which(t) is None]
+_MISSING = [t for t in ("cmake", "cc", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
 pytestmark = [
     pytest.mark.slow,
     pytest.mark.skipif(bool(_MISSING), reason=f"{', '.join(_MISSING)} not installed (scripts/install.sh)"),
@@ -34,16 +34,24 @@ def schedules(scenario):
     return reference, [(e["t_s"], e["torque_Nm"], e["ramp_s"]) for e in d["load"]]
 
 
-def drive(folder):
-    return serve_host(folder / "virtual_drive_host", realtime=False, timeout_ms=2000)
+def drive(folder, kind="host"):
+    """The PC's drive as fast as the link allows, or QEMU's with its UART on a pty (XCP on SxI); and its A2L."""
+    if kind == "host":
+        return serve_host(folder / "virtual_drive_host", realtime=False, timeout_ms=2000)
+    return serve_qemu(folder / "virtual_drive.elf", serial="pty", timeout_ms=2000)
 
 
-def test_a_buffered_capture_of_a_run_equals_the_engines_current_rate_log(servo_firmware):
+def a2l(folder, kind="host"):
+    return folder / ("virtual_drive_host.a2l" if kind == "host" else "virtual_drive.a2l")
+
+
+@pytest.mark.parametrize("kind", ["host", "qemu-pty"])
+def test_a_buffered_capture_of_a_run_equals_the_engines_current_rate_log(servo_firmware, kind):
     """The currents of a run's first 0.05 s (1000 control periods, the load step at 0.06 s not yet) recorded at
     every control interrupt from the run's start: the engine's current-rate log row by row, to float32 round-off."""
     scenario, folder = servo_firmware
     names = ["foc_now.id_A", "foc_now.iq_A", "link_status_now.periods"]
-    with drive(folder) as url, Link(url, folder / "virtual_drive_host.a2l") as link:
+    with drive(folder, kind) as url, Link(url, a2l(folder, kind)) as link:
         link.set_schedules(*schedules(scenario))
         cap = link.capture_buffered(names, samples=1000, trigger="run", armed=lambda link: link.start(200))
     sim = Simulation(scenario.with_overrides({"simulation.log_rate": "current"}).data)
