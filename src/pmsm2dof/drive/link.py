@@ -485,9 +485,11 @@ class Link:
 
         ``duration_s`` is of the drive's time, by the DAQ timestamps: the capture ends once its samples
         span it, however fast or slow the drive runs against the wall clock (QEMU's at a few percent
-        of it while a list streams). The session is re-opened with the DAQ policy. The status is
-        polled throughout, which keeps the link's watchdog fed. Raises ToolError when no sample
-        arrives for ``stall_s`` of the wall clock.
+        of it while a list streams). The session is re-opened with the DAQ policy (a CONNECT: the
+        drive takes it for a new master, whose commands do not feed the watchdog of a run started
+        before; start a run from ``until``, as :meth:`play` does). The status is polled throughout,
+        which keeps the link's watchdog fed. Raises ToolError when no sample arrives for ``stall_s``
+        of the wall clock.
         """
         _use_default_application()
         policy = _Collect.make([self._daq_list(names, event, prescaler)])
@@ -594,7 +596,8 @@ class Link:
                 armed(self)
                 told = True
             if time.monotonic() > end:
-                raise ToolError(f"the drive's capture did not end within {timeout_s:g} s (state {st['state']})")
+                state = ("idle", "armed: no trigger came", "triggered", "done")[min(st["state"], 3)]
+                raise ToolError(f"the drive's capture did not end within {timeout_s:g} s ({state})")
             time.sleep(0.01)
         var = self.variables["capture_buffer"]
         data = self.read_bytes(var.address, samples * record)

@@ -281,8 +281,12 @@ def link_kind(url: str) -> str:
 
 
 def parse_trigger(text: str) -> tuple[str, str | None, float]:
-    """``immediate``, ``run``, ``SIGNAL>LEVEL`` (rising) or ``SIGNAL<LEVEL`` (falling) -> (kind, signal, level)."""
-    if text in ("immediate", "run"):
+    """``immediate``, ``SIGNAL>LEVEL`` (rising) or ``SIGNAL<LEVEL`` (falling) -> (kind, signal, level).
+
+    (The start of a run, the buffer's fourth trigger, is for a master that starts the run itself:
+    :meth:`pmsm2dof.drive.link.Link.capture_buffered`.)
+    """
+    if text == "immediate":
         return text, None, 0.0
     for op, kind in ((">", "rising"), ("<", "falling")):
         name, sep, level = text.partition(op)
@@ -293,7 +297,7 @@ def parse_trigger(text: str) -> tuple[str, str | None, float]:
                 break
             if math.isfinite(value):
                 return kind, name.strip(), value
-    raise ConfigError("trigger", text, "immediate, run, SIGNAL>LEVEL (rising) or SIGNAL<LEVEL (falling)")
+    raise ConfigError("trigger", text, "immediate, SIGNAL>LEVEL (rising) or SIGNAL<LEVEL (falling)")
 
 
 def plan_capture(

@@ -128,7 +128,7 @@ def set_(assignments: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -
     "--trigger",
     default="immediate",
     show_default=True,
-    help="the buffer's trigger: immediate, run (the next run's start), SIGNAL>LEVEL or SIGNAL<LEVEL",
+    help="the buffer's trigger: immediate, SIGNAL>LEVEL (rising) or SIGNAL<LEVEL (falling)",
 )
 @click.option("--pre-s", "pre_s", type=float, default=0.0, show_default=True, help="captured before the trigger [s]")
 @link_option
