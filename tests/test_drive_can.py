@@ -104,3 +104,18 @@ def test_the_pcs_drive_speaks_xcp_on_can(servo_firmware, fd, tmp_path):
             cap = capture(link, plan)
     periods = cap.signals["link_status_now.periods"].astype(np.int64)
     assert cap.dtos_lost == 0 and len(periods) == 101 and np.all(np.diff(periods) == 10)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(bool(_MISSING), reason=f"{', '.join(_MISSING)} not installed (scripts/install.sh)")
+def test_a_can_interface_that_cannot_open_is_one_line(servo_firmware, capsys):
+    """A CAN channel this machine does not have (no socketcan here, or no such device): exit status 2, one line
+    on stderr naming the link, no traceback."""
+    from pmsm2dof.ui.cli import main
+
+    _, folder = servo_firmware
+    code = main(
+        ["drive", "info", "--link", "can://socketcan/p2dnone0", "--a2l", str(folder / "virtual_drive_host.a2l")]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and "can://socketcan/p2dnone0" in err and "Traceback" not in err

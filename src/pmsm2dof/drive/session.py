@@ -71,6 +71,7 @@ def link_errors(link: Link, what: str) -> Iterator[None]:
 
     An error packet of the drive (pyxcp's XcpResponseError) becomes a ToolError naming its code.
     """
+    from can import CanError
     from pyxcp.types import XcpResponseError, XcpTimeoutError
 
     try:
@@ -78,19 +79,20 @@ def link_errors(link: Link, what: str) -> Iterator[None]:
     except XcpResponseError as exc:
         code = exc.get_error_code()  # type: ignore[no-untyped-call]
         raise ToolError(f"the drive at {link.url} refused {what}: {code}") from None
-    except (XcpTimeoutError, OSError, EOFError) as exc:
+    except (XcpTimeoutError, OSError, EOFError, CanError) as exc:
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise ToolError(f"the link to {link.url} dropped during {what} ({reason}); {SAFE_STATE}") from None
 
 
 def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_s: float = 2.0) -> Link:
     """An open :class:`Link` to the drive at ``url`` described by the A2L file ``a2l`` (:func:`link_url` forms)."""
+    from can import CanError
     from pyxcp.types import XcpTimeoutError
 
     link = Link(url, a2l, allow_remote=allow_remote, timeout_s=timeout_s)
     try:
         link.open()
-    except (XcpTimeoutError, OSError, EOFError) as exc:
+    except (XcpTimeoutError, OSError, EOFError, CanError) as exc:
         link.close()
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise ToolError(

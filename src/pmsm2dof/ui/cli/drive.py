@@ -14,7 +14,8 @@ from .options import Group, as_option, chosen_scenario, out_option, set_option, 
 
 LINK_HELP = (
     "the drive's link: tcp://HOST:PORT (XCP on TCP: the PC's drive, QEMU's -serial tcp), serial:DEVICE or a "
-    "device (/dev/pts/3, /dev/ttyUSB0, COM3: XCP on SxI); HOST must be this machine unless --allow-remote"
+    "device (/dev/pts/3, /dev/ttyUSB0, COM3: XCP on SxI), can://INTERFACE/CHANNEL?master=ID&slave=ID&fd=0|1 "
+    "(XCP on CAN by python-can); HOST must be this machine unless --allow-remote"
 )
 
 #: The library's argument of the duration -> its option.
