@@ -86,9 +86,9 @@ def code_version():
     return head.stdout.strip() + ("+" if dirty.strip() else "")
 
 
-def footprint(map_file):
+def footprint(map_file, objects=OBJECTS):
     """{object: [flash, ram]} of the link's objects, from the linker map's placed input sections."""
-    sizes = {o: [0, 0] for o in OBJECTS}
+    sizes = {o: [0, 0] for o in objects}
     text = map_file.read_text()
     body = text[text.index("Linker script and memory map") :]
     section = ""

@@ -27,10 +27,10 @@ BUILDS = [
     ("firmware.elf", "firmware.a2l", "arm-none-eabi-nm", False, True),
     ("virtual_drive_host", "virtual_drive_host.a2l", "nm", True, False),
 ]
-#: The firmware's variables of each kind (examples/firmware/link.h, commission_task.h, board_virtual.c).
-MEASUREMENTS = ["foc_now", "link_status_now", "commission_now"]
-CALIBRATIONS = ["link_speed_config", "link_current_config", "link_command", "link_reference", "commission_config",
-                "commission_command"]  # fmt: skip
+#: The firmware's variables of each kind (examples/firmware/link.h, capture.h, commission_task.h, board_virtual.c).
+MEASUREMENTS = ["foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now"]
+CALIBRATIONS = ["link_speed_config", "link_current_config", "link_command", "link_reference", "capture_config",
+                "commission_config", "commission_command"]  # fmt: skip
 #: Struct type of the library's calibration variables.
 LIBRARY = {"link_speed_config": "p2d_speed_config_t", "link_current_config": "p2d_current_config_t"}
 
@@ -68,7 +68,16 @@ def test_every_address_and_size_is_the_elfs(folder, elf, a2l, nm, virtual, sxi):
     characteristics = {c.name: c for c in s.query(model.Characteristic).all()}
     assert measurements and characteristics
     offsets = {}
-    sizes = {"FLOAT32_IEEE": 4, "FLOAT64_IEEE": 8, "UBYTE": 1, "UWORD": 2, "ULONG": 4, "SLONG": 4, "SWORD": 2}
+    sizes = {
+        "FLOAT32_IEEE": 4,
+        "FLOAT64_IEEE": 8,
+        "UBYTE": 1,
+        "UWORD": 2,
+        "ULONG": 4,
+        "SLONG": 4,
+        "SWORD": 2,
+        "A_UINT64": 8,
+    }
     for name, m in measurements.items():
         var = name.split(".")[0]
         assert var in MEASUREMENTS + ["vd_trace"], name
@@ -170,7 +179,16 @@ def test_the_drive_commands_reader_agrees_with_pya2ldb(folder, elf, a2l, nm, vir
     s = read_a2l(folder / a2l)
     assert mine.segments == {m.name: (m.address, m.size) for m in s.query(model.MemorySegment).all()}
     units = {c.name: c.unit for c in s.query(model.CompuMethod).all()}
-    sizes = {"FLOAT32_IEEE": 4, "FLOAT64_IEEE": 8, "UBYTE": 1, "UWORD": 2, "ULONG": 4, "SLONG": 4, "SWORD": 2}
+    sizes = {
+        "FLOAT32_IEEE": 4,
+        "FLOAT64_IEEE": 8,
+        "UBYTE": 1,
+        "UWORD": 2,
+        "ULONG": 4,
+        "SLONG": 4,
+        "SWORD": 2,
+        "A_UINT64": 8,
+    }
     theirs = {}
     for m in s.query(model.Measurement).all():
         theirs[m.name] = (m.ecu_address.address, sizes[m.datatype], m.matrix_dim.numbers[0] if m.matrix_dim else 1,

@@ -262,3 +262,40 @@ def test_paper_experiment_1_over_the_link_equals_the_engine(experiment_1, kind):
     engine = sim.result(scenario, 0.0)
     assert list(LOG_COLUMNS)[:3] == ["t_s", "w_ref_radps", "w_m_radps"]
     assert_agrees(drive, engine)
+
+
+@pytest.mark.parametrize("how", ["cut", "disconnect"])
+@pytest.mark.parametrize("kind", ["host", "qemu-tcp"])
+def test_only_the_master_of_a_run_feeds_its_watchdog(servo, kind, how):
+    """The master that started a run is cut off (its socket shut, no DISCONNECT) or leaves (DISCONNECT); a second
+    master connects at once and talks all along: the run still trips, the link timeout after the first master's
+    last command, as if nobody talked (a second master cannot keep alive a run it did not start)."""
+    scenario, folder = servo
+    timeout_ms, Ts = 50, 5e-4
+    with serve(kind, folder, timeout_ms=timeout_ms) as url:
+        first = Link(url, elf(kind, folder)).__enter__()
+        first.set_schedules([(0.0, 100.0, 0.0)], [])
+        first.start(40000)
+        last = first.wait(["running"], timeout_s=10.0)
+        if how == "cut":
+            import socket
+
+            first.master.transport.sock.shutdown(socket.SHUT_RDWR)
+            first._master = None  # abandoned, as by a master that crashed
+        else:
+            first.close()
+        end = time.monotonic() + 60.0
+        while True:
+            try:
+                second = Link(url, elf(kind, folder)).__enter__()
+                break
+            except Exception:
+                if time.monotonic() > end:
+                    raise
+                time.sleep(0.1)
+        with second:
+            status = second.wait(["tripped", "done", "stopped"], timeout_s=60.0, poll_s=0.005)
+    assert status["state"] == "tripped" and status["power_on"] == 0, status
+    # the first master's last command came at or after `last` (its status read); the guard left armed the link
+    # timeout of the drive's time later, at the first speed sample after it (the second master notwithstanding)
+    assert timeout_ms * 1e-3 / Ts <= status["trip_sample"] - last["sample"] <= timeout_ms * 1e-3 / Ts + 40, status

@@ -496,6 +496,7 @@ static void cmd_connect(p2d_xcp_t *x, const uint8_t *cmd)
         return;
     }
     x->connected = 1;
+    x->connects++;
     x->locked = x->config.protected_resources;
     x->seed_resource = 0;
     x->mta_text = 0;

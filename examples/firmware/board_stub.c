@@ -123,6 +123,7 @@ void board_link_config(link_config_t *cfg)
     cfg->timeout_s = 0.1f;
     cfg->ramp_radps_per_s = 1000.0f;
     cfg->hold_s = 0.1f;
+    cfg->max_packet_bytes = 255u; /* XCP on SxI (a UART); on CAN 8, on CAN FD 64 */
     cfg->n = 0u;
     cfg->autostart_samples = 0u;
 }

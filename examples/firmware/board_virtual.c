@@ -517,6 +517,8 @@ void board_link_config(link_config_t *cfg)
     cfg->timeout_s = (float)vt_argument("timeout_ms", 200u) * 1e-3f;
     cfg->ramp_radps_per_s = (float)vt_argument("ramp_radps_per_s", (uint64_t)(ramp + 0.5));
     cfg->hold_s = (float)vt_argument("hold_ms", 50u) * 1e-3f;
+    /* 255 on TCP; the PC's drive behind a CAN (FD) bridge: max_packet=8 (64) */
+    cfg->max_packet_bytes = (uint32_t)vt_argument("max_packet", 255u);
     cfg->t_s = p2d_vd_reference_t_s;
     cfg->w_radps = p2d_vd_reference_radps;
     cfg->ramp_s = p2d_vd_reference_ramp_s;

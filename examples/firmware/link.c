@@ -6,13 +6,15 @@
 #include "link.h"
 
 #include <math.h>
+#include <stddef.h>
 
 #include "board.h"
+#include "capture.h"
 #include "commission_task.h"
 #include "foc.h"
 #include "schedule.h"
 
-#define LINK_SEGMENTS_MAX 12u  /* the link's six, the commissioning's and the board's */
+#define LINK_SEGMENTS_MAX 16u  /* the link's six, the capture's three, the commissioning's and the board's */
 #define LINK_MAX_CTO 255u      /* longest command or response [bytes] */
 #define LINK_MAX_DTO 255u      /* longest DAQ packet [bytes] */
 #define LINK_DAQ_BYTES 1536u   /* DAQ lists, ODTs and entries [bytes] */
@@ -29,6 +31,9 @@ enum {
     SEG_CURRENT_CONFIG,
     SEG_COMMAND,
     SEG_REFERENCE,
+    SEG_CAPTURE_CONFIG,
+    SEG_CAPTURE_STATUS,
+    SEG_CAPTURE_BUFFER,
     SEG_COMMISSION,
     SEG_BOARD = SEG_COMMISSION + COMMISSION_SEGMENTS
 };
@@ -54,6 +59,8 @@ static double Ts_speed_s;                                     /* speed period [s
 static uint32_t run_samples;                                  /* speed samples of the run [-] */
 static uint32_t start_request; /* samples of a run to start at the next speed sample, 0: none */
 static bool stop_request;      /* stop the run at the next speed sample */
+static uint32_t run_master;    /* the slave's CONNECT count of the master that started the run, 0: none */
+static uint32_t master_heard;  /* link clock at that master's last command [ticks] */
 
 const link_status_t *link_status(void) { return &link_status_now; }
 
@@ -91,6 +98,33 @@ static bool reference_schedule(const link_reference_t *r, schedule_t *s)
     return r->n <= LINK_SCHEDULE_MAX && schedule_valid(s);
 }
 
+/* Where n bytes at an XCP address are read: inside one measurement or calibration segment but the capture buffer;
+   NULL when none holds them. */
+static const uint8_t *readable(uint32_t address, uint32_t n)
+{
+    for (uint16_t i = 0; i < xcp.config.segment_count; ++i) {
+        const p2d_xcp_segment_t *g = &segments[i];
+        if (i != SEG_CAPTURE_BUFFER && address >= g->address && n <= g->size_bytes &&
+            address - g->address <= g->size_bytes - n) {
+            return (const uint8_t *)g->memory + (address - g->address);
+        }
+    }
+    return NULL;
+}
+
+/* A capture page: valid, and its signals readable (capture.h); arms or disarms the capture. */
+static bool capture_commit(const capture_config_t *c)
+{
+    const uint8_t *source[CAPTURE_SIGNALS_MAX];
+    if (!capture_valid(c)) return false;
+    for (uint32_t i = 0; c->command == 1u && i < c->n; ++i) {
+        source[i] = readable(c->address[i], c->size[i]);
+        if (source[i] == NULL) return false;
+    }
+    capture_command(c, source);
+    return true;
+}
+
 /* The commit callback: validate and apply the page of a calibration segment (0: applied). */
 static int32_t link_commit(void *user, uint16_t index, const void *page)
 {
@@ -115,6 +149,9 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
         }
         break;
     }
+    case SEG_CAPTURE_CONFIG:
+        if (!capture_commit((const capture_config_t *)page)) code = LINK_REJECT_CAPTURE;
+        break;
     case SEG_REFERENCE:
         /* a run plays its schedule to the end: the master changes it between runs (checked whole at the start) */
         if (running || ((const link_reference_t *)page)->n > LINK_SCHEDULE_MAX) code = LINK_REJECT_SCHEDULE;
@@ -190,6 +227,12 @@ link_init_status_t link_init(const link_config_t *cfg)
                                                 P2D_XCP_CALIBRATION};
     segments[SEG_REFERENCE] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&link_reference, &link_reference,
                                                   sizeof link_reference, P2D_XCP_CALIBRATION};
+    segments[SEG_CAPTURE_CONFIG] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&capture_config, &capture_config,
+                                                       sizeof capture_config, P2D_XCP_CALIBRATION};
+    segments[SEG_CAPTURE_STATUS] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)&capture_status_now, &capture_status_now,
+                                                       sizeof capture_status_now, P2D_XCP_MEASUREMENT};
+    segments[SEG_CAPTURE_BUFFER] = (p2d_xcp_segment_t){(uint32_t)(uintptr_t)capture_buffer, capture_buffer,
+                                                       sizeof capture_buffer, P2D_XCP_MEASUREMENT};
     commission_init((float)cfg->Ts_current_s);
     n = (uint16_t)(n + commission_link_segments(&segments[SEG_COMMISSION], COMMISSION_SEGMENTS));
     n = (uint16_t)(n + board_link_segments(&segments[SEG_BOARD], (uint16_t)(LINK_SEGMENTS_MAX - SEG_BOARD)));
@@ -209,8 +252,12 @@ link_init_status_t link_init(const link_config_t *cfg)
     c.daq_memory_bytes = sizeof daq_memory;
     c.queue = queue;
     c.queue_bytes = sizeof queue;
-    c.max_cto = LINK_MAX_CTO;
-    c.max_dto = LINK_MAX_DTO;
+    if (cfg->max_packet_bytes < 8u || cfg->max_packet_bytes > LINK_MAX_CTO) {
+        st.xcp = P2D_XCP_ERR_MAX_CTO;
+        return st;
+    }
+    c.max_cto = (uint8_t)cfg->max_packet_bytes;
+    c.max_dto = (uint16_t)cfg->max_packet_bytes;
     /* timestamps in control periods: one tick = Ts_current, as a whole number of 10^unit ns */
     unit = 0u;
     while (unit < 9u && Ts_ns % 10u == 0u && Ts_ns >= 10u) {
@@ -252,6 +299,8 @@ static void start_run(uint32_t samples)
     foc_start(w_m_radps, T_Nm);
     board_run_begin();
     p2d_xcp_guard_reset(&guard);
+    run_master = xcp.connected ? xcp.connects : 0u;
+    master_heard = xcp.last_command_ticks;
     run_samples = samples;
     link_status_now.state = LINK_RUNNING;
     link_status_now.runs++;
@@ -261,13 +310,25 @@ static void start_run(uint32_t samples)
     power(true);
 }
 
+/*
+ * The run's master is silent: the slave's watchdog, or the master that started the run gone (it disconnected, or
+ * another CONNECT came: a new master, or the same after a cut) for longer than the link timeout since its last
+ * command. Only that master feeds the guard; a run started at power-up (no master) is fed by any.
+ */
+static bool master_silent(void)
+{
+    bool silent = p2d_xcp_link_check(&xcp);
+    if (run_master == 0u || (xcp.connected && xcp.connects == run_master)) return silent;
+    return xcp.config.link_timeout_ticks > 0u && link_status_now.periods - master_heard > xcp.config.link_timeout_ticks;
+}
+
 /* The speed sample of a run: the schedule's reference through the link guard. */
 static void run_sample(void)
 {
     link_status_t *s = &link_status_now;
     /* checked whole when the run started, and unchanged during it (link_commit) */
     schedule_t r = reference_entries(&link_reference);
-    bool on, silent = p2d_xcp_link_check(&xcp);
+    bool on, silent = master_silent();
     double t_s = (double)s->sample * Ts_speed_s;
     float w_ref_radps;
     s->t_s = t_s;
@@ -290,6 +351,7 @@ void link_isr(void)
 {
     link_status_t *s = &link_status_now;
     bool speed = tick == 0u; /* foc_isr's own count agrees: both start a run at a speed sample */
+    bool run_start = false;
     s->periods++;
     if (speed) {
         /* the master's calibration takes effect here, all at once, before the control */
@@ -302,6 +364,7 @@ void link_isr(void)
         if (start_request > 0u) {
             start_run(start_request);
             start_request = 0u;
+            run_start = true;
         }
         if (s->state == LINK_RUNNING) {
             if (s->sample == run_samples) {
@@ -321,6 +384,7 @@ void link_isr(void)
     tick = tick + 1u == current_per_speed ? 0u : tick + 1u;
     s->dtos_lost = xcp.dtos_lost;
     p2d_xcp_event(&xcp, 0u);
+    capture_sample(speed, run_start, s->periods);
     if (speed) {
         p2d_xcp_event(&xcp, 1u);
         if (s->state == LINK_RUNNING) s->sample++;
@@ -333,7 +397,11 @@ void link_poll(void)
     uint32_t n = board_link_receive(rx, LINK_RX_CHUNK);
     for (uint32_t i = 0; i < n; ++i) {
         uint32_t len = p2d_xcp_frame_rx(&frame, rx[i]);
-        if (len > 0u) p2d_xcp_command(&xcp, frame.packet, len);
+        if (len > 0u) {
+            p2d_xcp_command(&xcp, frame.packet, len);
+            /* the run's master spoke (its DISCONNECT too); another's CONNECT changes the count */
+            if (xcp.connects == run_master) master_heard = xcp.last_command_ticks;
+        }
     }
     for (uint32_t k = 0; k < LINK_TX_PACKETS; ++k) {
         if (tx_sent == tx_bytes) {

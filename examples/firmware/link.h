@@ -15,7 +15,9 @@
  *                (validating, bumpless); a rejected configuration is answered
  *                ERR_OUT_OF_RANGE and leaves the drive unchanged;
  *                link_command and link_reference: the run control (below);
- *                and the board's own (the virtual board's load schedule)
+ *                and the board's own (the virtual board's load schedule);
+ *                capture_config (capture.h): a triggered capture into capture_buffer
+ *   measurement  capture_status_now, capture_buffer (read after the capture is done)
  *   commissioning commission_config, commission_command (calibration) and
  *                commission_now (measurement): the commissioning routine run
  *                between runs (commission_task.h; code 1004: its page refused)
@@ -72,7 +74,8 @@ enum { LINK_IDLE = 0, LINK_RUNNING = 1, LINK_DONE = 2, LINK_TRIPPED = 3, LINK_ST
 enum {
     LINK_REJECT_COMMAND = 1001,  /* link_command: an unknown command or samples 0 */
     LINK_REJECT_SCHEDULE = 1002, /* a schedule is invalid, or changed during a run */
-    LINK_REJECT_BOARD = 1003     /* the board refused its page or the run's start, or the commissioning runs */
+    LINK_REJECT_BOARD = 1003,    /* the board refused its page or the run's start, or the commissioning runs */
+    LINK_REJECT_CAPTURE = 1005   /* capture_config: invalid, or a signal outside the readable segments */
 };
 
 /* What the link reports (measurement), updated at every speed sample. */
@@ -92,7 +95,7 @@ typedef struct {
     uint32_t commit_sample;    /* the speed sample at which it took effect, before the control [-] */
     uint32_t commits_applied;  /* calibration pages taken into force [-] */
     uint32_t commits_rejected; /* calibration pages rejected [-] */
-    int32_t commit_status;     /* code of the last rejection: the controller's p2d_status_t, or 1001..1004 [-] */
+    int32_t commit_status;     /* code of the last rejection: the controller's p2d_status_t, or 1001..1005 [-] */
     uint32_t dtos_lost;        /* DAQ samples dropped for want of room in the DTO queue [-] */
 } link_status_t;
 
@@ -103,6 +106,7 @@ typedef struct {
     float timeout_s;            /* link watchdog: longest silence of the master of a run [s], >= 0; 0: off */
     float ramp_radps_per_s;     /* guard: deceleration of the reference after a trip [rad/s^2], > 0 */
     float hold_s;               /* guard: zero reference before the power stage is switched off [s], >= 0 */
+    uint32_t max_packet_bytes;  /* longest packet the link carries [bytes], 8..255 (SxI, TCP: 255; CAN 8, CAN FD 64) */
     const double *t_s;          /* initial reference schedule: entry times [s] */
     const double *w_radps;      /* its speed references [rad/s] */
     const double *ramp_s;       /* its ramps [s] */

@@ -56,6 +56,9 @@
  * Link watchdog: once connected, p2d_xcp_link_check reports a master silent
  * for more than link_timeout_ticks; p2d_xcp_guard_* is the policy the drive
  * applies then (ramp the reference to zero, hold, disable the power stage).
+ * Any command feeds it; the integrator ties a run to the master that started
+ * it by the count of CONNECTs (connects), since a master that reconnects
+ * after a cut, or another one, sends CONNECT first.
  *
  * Concurrency. p2d_xcp_command, p2d_xcp_event, p2d_xcp_calibrate and
  * p2d_xcp_take may run in different contexts (command parser in the main
@@ -207,7 +210,8 @@ typedef struct {
     uint8_t connected;           /* 1 between CONNECT and DISCONNECT */
     uint8_t locked;              /* P2D_XCP_RESOURCE_* bits now locked */
     uint8_t link_silent;         /* 1 once the connected master was silent for link_timeout_ticks (read) */
-    uint32_t last_command_ticks; /* clock at the last command received [ticks] */
+    uint32_t last_command_ticks; /* clock at the last command received [ticks] (read) */
+    uint32_t connects;           /* CONNECT commands accepted since init: a new count is a new master (read) */
     /* memory transfer address */
     uint32_t mta;            /* XCP address of the next UPLOAD or DOWNLOAD */
     const char *mta_text;    /* or text of GET_ID or GET_DAQ_EVENT_INFO being read, NULL if none */

@@ -28,13 +28,15 @@ from ..errors import ConfigError, SimulationError, ToolError
 from .a2l_reader import A2l, read_a2l
 from .elf import Scalar, Variable, read_variables
 
-#: The variables of the firmware example that the slave exposes (examples/firmware/link.h, commission_task.h).
-MEASUREMENTS = ("foc_now", "link_status_now", "commission_now")
+#: The variables of the firmware example that the slave exposes (examples/firmware/link.h, capture.h,
+#: commission_task.h).
+MEASUREMENTS = ("foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now")
 CALIBRATIONS = (
     "link_speed_config",
     "link_current_config",
     "link_command",
     "link_reference",
+    "capture_config",
     "commission_config",
     "commission_command",
 )
@@ -47,6 +49,10 @@ SCHEDULE_MAX = 32
 STATES = ("idle", "running", "done", "tripped", "stopped")
 #: Events of the slave, by name.
 EVENTS = {"current": 0, "speed": 1}
+#: The capture buffer's triggers (examples/firmware/capture.h), by name.
+TRIGGERS = {"immediate": 0, "rising": 1, "falling": 2, "run": 3}
+#: Most signals of one buffered capture (CAPTURE_SIGNALS_MAX).
+CAPTURE_SIGNALS_MAX = 16
 
 _FORMATS = {("float", 4): "f", ("float", 8): "d", ("unsigned", 1): "B", ("unsigned", 2): "H", ("unsigned", 4): "I",
             ("signed", 1): "b", ("signed", 2): "h", ("signed", 4): "i", ("bool", 1): "B", ("enum", 1): "B",
@@ -79,7 +85,61 @@ def firmware_variables(elf: Path | str, virtual: bool) -> dict[str, Variable]:
 
 
 #: The forms of a link URL, for messages.
-URL_FORMS = "tcp://HOST:PORT (XCP on TCP), serial:DEVICE or a device path such as /dev/pts/3 or COM3 (XCP on SxI)"
+URL_FORMS = (
+    "tcp://HOST:PORT (XCP on TCP), serial:DEVICE or a device path such as /dev/pts/3 or COM3 (XCP on SxI), "
+    "can://INTERFACE/CHANNEL?master=ID&slave=ID&fd=0|1&bitrate=N (XCP on CAN by python-can)"
+)
+#: The CAN identifiers of XCP on CAN unless the URL names others: master -> slave and slave -> master.
+CAN_IDS = (0x7E0, 0x7E1)
+#: Options of a can:// URL and their defaults.
+CAN_OPTIONS = {"master": CAN_IDS[0], "slave": CAN_IDS[1], "fd": 0, "bitrate": 500_000}
+
+
+def can_url(text: str) -> dict[str, Any]:
+    """The parts of ``can://INTERFACE/CHANNEL?master=ID&slave=ID&fd=0|1&bitrate=N`` (XCP on CAN by python-can).
+
+    INTERFACE is a python-can interface (``socketcan``, ``pcan``, ``vector``, ``udp_multicast``, ...),
+    CHANNEL its channel (``can0``, ``PCAN_USBBUS1``, a multicast group such as ``239.74.163.2``);
+    ``master`` and ``slave`` the CAN identifiers of the two directions (11 bits, or 29 with
+    ``0x80000000`` set: extended), ``fd=1`` CAN FD (64-byte frames), ``bitrate`` the arbitration rate
+    [bit/s]. Raises ConfigError naming the part that is wrong.
+    """
+    from urllib.parse import parse_qsl
+
+    from can.interfaces import VALID_INTERFACES
+
+    rest = text[len("can://") :]
+    where, _, query = rest.partition("?")
+    interface, _, channel = where.partition("/")
+    if interface not in VALID_INTERFACES:
+        raise ConfigError(
+            "link", text, "can://INTERFACE/CHANNEL, INTERFACE one of " + ", ".join(sorted(VALID_INTERFACES))
+        )
+    if not channel:
+        raise ConfigError("link", text, "can://INTERFACE/CHANNEL?...: a channel (can0, PCAN_USBBUS1, 239.74.163.2)")
+    out: dict[str, Any] = {"interface": interface, "channel": channel, **CAN_OPTIONS}
+    for key, value in parse_qsl(query, keep_blank_values=True):
+        if key not in CAN_OPTIONS:
+            raise ConfigError("link", text, "options " + ", ".join(f"{k}=" for k in CAN_OPTIONS) + " of a can:// URL")
+        try:
+            number = int(value, 0)
+        except ValueError:
+            number = -1
+        valid = {
+            "master": (0, 0x9FFFFFFF), "slave": (0, 0x9FFFFFFF), "fd": (0, 1), "bitrate": (10_000, 8_000_000),
+        }[key]  # fmt: skip
+        extended = number & 0x80000000
+        if not valid[0] <= number <= valid[1] or (
+            key in ("master", "slave") and number > (0x1FFFFFFF if extended else 0x7FF) | extended
+        ):
+            names = {"master": "a CAN identifier: 0..0x7FF, or 0x80000000 | 0..0x1FFFFFFF (extended)",
+                     "slave": "a CAN identifier: 0..0x7FF, or 0x80000000 | 0..0x1FFFFFFF (extended)",
+                     "fd": "0 or 1", "bitrate": "10000..8000000 bit/s"}  # fmt: skip
+            raise ConfigError(f"link {key}", value, names[key])
+        out[key] = number
+    if out["master"] == out["slave"]:
+        raise ConfigError("link slave", hex(out["slave"]), "another identifier than master's")
+    return out
 
 
 def link_url(text: str, allow_remote: bool = False) -> str:
@@ -101,6 +161,10 @@ def link_url(text: str, allow_remote: bool = False) -> str:
     """
     import ipaddress
 
+    if text.startswith("can://"):
+        c = can_url(text)
+        return (f"can://{c['interface']}/{c['channel']}?master=0x{c['master']:X}&slave=0x{c['slave']:X}"
+                f"&fd={c['fd']}&bitrate={c['bitrate']}")  # fmt: skip
     for scheme in ("tcp://", "socket://"):
         if text.startswith(scheme):
             host, _, port = text[len(scheme) :].rpartition(":")
@@ -137,6 +201,14 @@ def pyxcp_master(url: str, timeout_s: float = 2.0, policy: Any = None) -> Any:
             raise ConfigError("url", url, "socket://HOST:PORT or a serial device")
         transport = {"timeout": timeout_s, "Eth": {"host": host, "port": int(port), "protocol": "TCP"}}
         name = "eth"
+    elif url.startswith("can://"):
+        c = can_url(url)
+        transport = {
+            "timeout": timeout_s,
+            "CAN": {"interface": c["interface"], "channel": c["channel"], "can_id_master": c["master"],
+                    "can_id_slave": c["slave"], "fd": bool(c["fd"]), "bitrate": c["bitrate"]},
+        }  # fmt: skip
+        name = "can"
     else:
         transport = {
             "timeout": timeout_s,
@@ -167,6 +239,9 @@ class Capture:
     signals: dict[str, npt.NDArray[Any]]
     timestamps: npt.NDArray[np.int64]
     dtos_lost: int
+    #: The drive's time of the trigger [ns] of a buffered capture (t = 0 there); None: a DAQ capture (t = 0 at its
+    #: first sample).
+    trigger_ns: int | None = None
 
 
 class _Collect:
@@ -419,9 +494,11 @@ class Link:
 
         ``duration_s`` is of the drive's time, by the DAQ timestamps: the capture ends once its samples
         span it, however fast or slow the drive runs against the wall clock (QEMU's at a few percent
-        of it while a list streams). The session is re-opened with the DAQ policy. The status is
-        polled throughout, which keeps the link's watchdog fed. Raises ToolError when no sample
-        arrives for ``stall_s`` of the wall clock.
+        of it while a list streams). The session is re-opened with the DAQ policy (a CONNECT: the
+        drive takes it for a new master, whose commands do not feed the watchdog of a run started
+        before; start a run from ``until``, as :meth:`play` does). The status is polled throughout,
+        which keeps the link's watchdog fed. Raises ToolError when no sample arrives for ``stall_s``
+        of the wall clock.
         """
         _use_default_application()
         policy = _Collect.make([self._daq_list(names, event, prescaler)])
@@ -458,6 +535,108 @@ class Link:
             timestamps=np.array([r[0] for r in rows], dtype=np.int64),
             dtos_lost=lost,
         )
+
+    # ---- the capture buffer ------------------------------------------------
+    def capture_buffered(
+        self,
+        names: Sequence[str],
+        *,
+        event: str = "current",
+        samples: int,
+        trigger: str = "immediate",
+        level: float = 0.0,
+        trigger_signal: str | None = None,
+        pre_samples: int = 0,
+        armed: Callable[["Link"], None] | None = None,
+        timeout_s: float = 60.0,
+    ) -> Capture:
+        """Capture signals into the drive's buffer (examples/firmware/capture.h) and read them out by UPLOAD.
+
+        ``samples`` records at the event, ``pre_samples`` of them before the trigger's: ``immediate``,
+        ``rising``/``falling`` (``trigger_signal``, a float32 of ``names``, crossing ``level``) or ``run``
+        (a run's first control interrupt). ``armed(link)`` is called once the drive holds the
+        pre-trigger records (to start the run a ``run`` trigger waits for, say). The status is polled
+        until the capture is done (which keeps the watchdog fed). Timestamps: the drive's clock [ns].
+        Raises ConfigError for a capture the buffer cannot hold, ToolError when it does not end in
+        ``timeout_s``.
+        """
+        scalars = [self.scalar(n) for n in names]
+        if not 1 <= len(scalars) <= CAPTURE_SIGNALS_MAX:
+            raise ConfigError("signals", f"<{len(scalars)} signals>", f"1 to {CAPTURE_SIGNALS_MAX} signals")
+        for s in scalars:
+            if s.count != 1:
+                raise ConfigError("signal", s.name, "a scalar")
+        if event not in EVENTS or trigger not in TRIGGERS:
+            raise ConfigError("event" if event not in EVENTS else "trigger", event if event not in EVENTS else trigger,
+                              " or ".join(EVENTS if event not in EVENTS else TRIGGERS))  # fmt: skip
+        index = 0
+        if trigger in ("rising", "falling"):
+            if trigger_signal is None or trigger_signal not in names:
+                raise ConfigError("trigger_signal", trigger_signal, "a float32 signal among the captured ones")
+            index = list(names).index(trigger_signal)
+            if (scalars[index].encoding, scalars[index].size) != ("float", 4):
+                raise ConfigError("trigger_signal", trigger_signal, "a float32 signal among the captured ones")
+        record = sum(s.size for s in scalars)
+        capacity = self.variables["capture_buffer"].size // record
+        if isinstance(samples, bool) or not isinstance(samples, int) or not 1 <= samples <= capacity:
+            raise ConfigError("samples", samples, f"an integer in [1, {capacity}] (the buffer's {record}-byte records)")
+        if isinstance(pre_samples, bool) or not isinstance(pre_samples, int) or not 0 <= pre_samples < samples:
+            raise ConfigError("pre_samples", pre_samples, f"an integer in [0, {samples - 1}]")
+        arms = int(self.read("capture_status_now.arms"))
+        # the page in parts as small as the link's packets (6 bytes on classic CAN), each taken on its own: the
+        # command 0 (none) first, the fields, then the command 1 (arm) that the drive checks with the whole page
+        self.write({"capture_config.command": 0})
+        self.write({
+            "capture_config.event": EVENTS[event], "capture_config.n": len(scalars),
+            "capture_config.samples": samples, "capture_config.pre_samples": pre_samples,
+            "capture_config.trigger": TRIGGERS[trigger], "capture_config.trigger_signal": index,
+            "capture_config.level": level, "capture_config.address": [s.address for s in scalars],
+            "capture_config.size": [s.size for s in scalars],
+        })  # fmt: skip
+        self.write({"capture_config.command": 1})
+        end = time.monotonic() + timeout_s
+        told = armed is None
+        while True:
+            st = self._capture_status()
+            if st["arms"] == arms + 1 and st["state"] == 3:
+                break
+            if not told and st["arms"] == arms + 1 and st["written"] > pre_samples:
+                assert armed is not None
+                armed(self)
+                told = True
+            if time.monotonic() > end:
+                state = ("idle", "armed: no trigger came", "triggered", "done")[min(st["state"], 3)]
+                raise ToolError(f"the drive's capture did not end within {timeout_s:g} s ({state})")
+            time.sleep(0.01)
+        var = self.variables["capture_buffer"]
+        data = self.read_bytes(var.address, samples * record)
+        first = st["first"]
+        data = data[first * record :] + data[: first * record]
+        fmt = "<" + "".join(_FORMATS[(s.encoding, s.size)] for s in scalars)
+        rows = np.array(list(struct.iter_unpack(fmt, data)), dtype=object)
+        stride = 1 if event == "current" else self._current_per_speed()
+        Ts_ns = self._Ts_current_ns()
+        periods = st["trigger_period"] + (np.arange(samples, dtype=np.int64) - pre_samples) * stride
+        signals = {}
+        for j, (n, s) in enumerate(zip(names, scalars)):
+            dtype = np.float32 if (s.encoding, s.size) == ("float", 4) else None
+            signals[n] = np.array(list(rows[:, j]), dtype=dtype)
+        return Capture(signals, periods * Ts_ns, 0, trigger_ns=int(st["trigger_period"]) * Ts_ns)
+
+    def _capture_status(self) -> dict[str, int]:
+        var = self.variables["capture_status_now"]
+        data = self.read_bytes(var.address, var.size)
+        return {s.field: struct.unpack_from("<I", data, s.address - var.address)[0] for s in var.scalars}
+
+    def _Ts_current_ns(self) -> int:
+        """The control period [ns] of the drive: its A2L's current event."""
+        if self.a2l is None:
+            raise ToolError("the control period of the drive comes from its A2L file")
+        return round(self.a2l.events["current"][1] * 1e9)
+
+    def _current_per_speed(self) -> int:
+        assert self.a2l is not None
+        return round(self.a2l.events["speed"][1] / self.a2l.events["current"][1])
 
     def play(
         self,

@@ -11,11 +11,14 @@ import contextlib
 import os
 import re
 import socket
+import struct
 import subprocess
 import tempfile
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from ..errors import ConfigError, ToolError
 
@@ -23,6 +26,9 @@ from ..errors import ConfigError, ToolError
 #: (128 ns of QEMU's clock per instruction: the firmware counts instructions with SysTick) with WFI jumping
 #: to the next interrupt (sleep=off: see examples/firmware/virtual_target_mps2.c on time and the link).
 QEMU_MACHINE = ("qemu-system-arm", "-M", "mps2-an386", "-nographic", "-monitor", "none", "-icount", "shift=7,sleep=off")
+
+#: Bits of a CAN frame beside its data (11-bit identifier, control, CRC, stuffing, interframe space), about.
+CAN_FRAME_BITS = 64
 
 #: Longest wait for a drive to come up [s].
 START_TIMEOUT_S = 30.0
@@ -73,6 +79,84 @@ def serve_host(program: Path | str, *, realtime: bool = True, timeout_ms: int = 
             yield f"socket://127.0.0.1:{int(line.split()[1])}"
         finally:
             _end(process)
+
+
+@contextlib.contextmanager
+def serve_can(program: Path | str, can_link: str, *, realtime: bool = True, timeout_ms: int = 200,
+              **extra: int) -> Iterator[str]:  # fmt: skip
+    """Run the PC's virtual drive on a CAN bus of python-can; yields the link URL ``can://...`` for the master.
+
+    The drive runs with packets of a CAN frame (``max_packet=8``, 64 with ``fd=1``) and a bridge here
+    is its CAN controller: each frame on the bus with the master's identifier goes to the drive as one
+    packet, each packet of the drive goes on the bus as one frame with the slave's identifier, padded
+    to a CAN (FD) data length by the C library's ``p2d_xcp_can_pad``, at the bus's pace (the URL's
+    bitrate, :data:`CAN_FRAME_BITS` and 8 bits a data byte a frame; the drive waits while it is
+    busy, as for TCP: nothing is lost, and a master on a bus that drops datagrams keeps up). Between
+    processes the bus is python-can's ``udp_multicast`` interface
+    (``can://udp_multicast/239.74.163.2?fd=1``: no root, no kernel module); a socketcan ``vcan``
+    works the same where one exists.
+    """
+    import can
+
+    from ..core.bindings import ffi, lib
+    from .link import can_url
+
+    c = can_url(can_link)
+    fd = bool(c["fd"])
+    extended = [bool(c[k] & 0x80000000) for k in ("master", "slave")]
+    master_id, slave_id = (c[k] & 0x1FFFFFFF for k in ("master", "slave"))
+    with serve_host(program, realtime=realtime, timeout_ms=timeout_ms, max_packet=64 if fd else 8, **extra) as url:
+        host, _, port = url.partition("://")[2].rpartition(":")
+        drive = socket.create_connection((host, int(port)))
+        drive.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        bus: Any = can.Bus(interface=c["interface"], channel=c["channel"], fd=fd, bitrate=c["bitrate"])
+        done = threading.Event()
+
+        def to_drive() -> None:
+            counter = 0
+            while not done.is_set():
+                msg = bus.recv(0.05)
+                if msg is None or msg.arbitration_id != master_id or msg.is_extended_id != extended[0]:
+                    continue
+                # XCP on SxI/TCP: LEN CTR (little endian) and the packet
+                drive.sendall(struct.pack("<HH", len(msg.data), counter & 0xFFFF) + bytes(msg.data))
+                counter += 1
+
+        def to_bus() -> None:
+            frame = ffi.new("uint8_t[64]")
+            data = b""
+            free_at = time.monotonic()  # when the bus takes the next frame
+            while not done.is_set():
+                try:
+                    chunk = drive.recv(65536)
+                except OSError:
+                    return
+                if not chunk:
+                    return
+                data += chunk
+                while len(data) >= 4 and len(data) >= 4 + struct.unpack_from("<H", data)[0]:
+                    n = struct.unpack_from("<H", data)[0]
+                    packet, data = data[4 : 4 + n], data[4 + n :]
+                    ffi.memmove(frame, packet, n)
+                    length = lib.p2d_xcp_can_pad(frame, n, 0, 0)
+                    free_at = max(free_at, time.monotonic()) + (CAN_FRAME_BITS + 8 * length) / c["bitrate"]
+                    if free_at - time.monotonic() > 2e-3:
+                        time.sleep(free_at - time.monotonic())
+                    bus.send(can.Message(arbitration_id=slave_id, is_extended_id=extended[1], is_fd=fd,
+                                         data=bytes(ffi.buffer(frame, length))))  # fmt: skip
+
+        threads = [threading.Thread(target=f, daemon=True) for f in (to_drive, to_bus)]
+        for t in threads:
+            t.start()
+        try:
+            yield can_link
+        finally:
+            done.set()
+            drive.shutdown(socket.SHUT_RDWR)
+            drive.close()
+            for t in threads:
+                t.join(timeout=5)
+            bus.shutdown()
 
 
 def _end(process: "subprocess.Popen[str]") -> None:

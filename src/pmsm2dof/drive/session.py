@@ -47,6 +47,15 @@ DURATION_MAX_S = 3600.0
 CAPTURE_VALUES_MAX = 20_000_000
 #: Bytes a value takes in the largest output format (CSV text), for the room check before a capture.
 BYTES_PER_VALUE = 24
+#: What each kind of link streams, stated [bytes/s] (a capture measured otherwise gives --link-bytes-per-s): a
+#: UART at 115200 baud (10 bits a byte), a CAN bus at 500 kbit/s (8 data bytes in some 130 bits a frame), TCP.
+LINK_BYTES_PER_S = {"serial": 11_520.0, "can": 30_000.0, "tcp": 1_000_000.0}
+#: Share of the link's rate a DAQ capture may take (the rest: the master's polls, the framing's jitter).
+DAQ_SHARE = 0.5
+#: Bytes a DAQ sample adds to its payload: the SxI/TCP header (4), the PID (1) and the timestamp (4).
+DAQ_OVERHEAD_BYTES = 9
+#: Ways of a capture: chosen by the rate, streamed by DAQ, or recorded in the drive's buffer.
+CAPTURE_WAYS = ("auto", "daq", "buffer")
 #: Formats of a capture file.
 CAPTURE_FORMATS = (".csv", ".parquet", ".mf4")
 
@@ -71,6 +80,7 @@ def link_errors(link: Link, what: str, safe_state: str = SAFE_STATE) -> Iterator
     An error packet of the drive (pyxcp's XcpResponseError) becomes a ToolError naming its code;
     a dropped link one that says what the drive does then (``safe_state``).
     """
+    from can import CanError
     from pyxcp.types import XcpResponseError, XcpTimeoutError
 
     try:
@@ -78,13 +88,14 @@ def link_errors(link: Link, what: str, safe_state: str = SAFE_STATE) -> Iterator
     except XcpResponseError as exc:
         code = exc.get_error_code()  # type: ignore[no-untyped-call]
         raise ToolError(f"the drive at {link.url} refused {what}: {code}") from None
-    except (XcpTimeoutError, OSError, EOFError) as exc:
+    except (XcpTimeoutError, OSError, EOFError, CanError) as exc:
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise ToolError(f"the link to {link.url} dropped during {what} ({reason}); {safe_state}") from None
 
 
 def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_s: float = 2.0) -> Link:
     """An open :class:`Link` to the drive at ``url`` described by the A2L file ``a2l`` (:func:`link_url` forms)."""
+    from can import CanError
     from pyxcp.types import XcpTimeoutError
 
     if Path(a2l).suffix.lower() != ".a2l":
@@ -92,7 +103,7 @@ def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_
     link = Link(url, a2l, allow_remote=allow_remote, timeout_s=timeout_s)
     try:
         link.open()
-    except (XcpTimeoutError, OSError, EOFError) as exc:
+    except (XcpTimeoutError, OSError, EOFError, CanError) as exc:
         link.close()
         reason = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         raise ToolError(
@@ -279,16 +290,70 @@ class CapturePlan:
     period_s: float
     duration_s: float
     samples: int
+    #: "daq" (streamed) or "buffer" (recorded in the drive, read out after)
+    way: str = "daq"
+    #: the payload the DAQ would stream and what the link streams [bytes/s]
+    need_bytes_per_s: float = 0.0
+    link_bytes_per_s: float = 0.0
+    #: the buffer's trigger, its signal and level, and the samples before it
+    trigger: str = "immediate"
+    trigger_signal: str | None = None
+    level: float = 0.0
+    pre_samples: int = 0
+
+
+def link_kind(url: str) -> str:
+    """The kind of a link URL: ``tcp``, ``can`` or ``serial``."""
+    return "tcp" if url.startswith(("tcp://", "socket://")) else "can" if url.startswith("can://") else "serial"
+
+
+def parse_trigger(text: str) -> tuple[str, str | None, float]:
+    """``immediate``, ``SIGNAL>LEVEL`` (rising) or ``SIGNAL<LEVEL`` (falling) -> (kind, signal, level).
+
+    (The start of a run, the buffer's fourth trigger, is for a master that starts the run itself:
+    :meth:`pmsm2dof.drive.link.Link.capture_buffered`.)
+    """
+    if text == "immediate":
+        return text, None, 0.0
+    for op, kind in ((">", "rising"), ("<", "falling")):
+        name, sep, level = text.partition(op)
+        if sep and name.strip():
+            try:
+                value = float(level)
+            except ValueError:
+                break
+            if math.isfinite(value):
+                return kind, name.strip(), value
+    raise ConfigError("trigger", text, "immediate, SIGNAL>LEVEL (rising) or SIGNAL<LEVEL (falling)")
 
 
 def plan_capture(
-    link: Link, signals: Sequence[str], event: str, duration_s: float, out: Path | str, force: bool = False
+    link: Link,
+    signals: Sequence[str],
+    event: str,
+    duration_s: float,
+    out: Path | str,
+    force: bool = False,
+    *,
+    way: str = "auto",
+    link_bytes_per_s: float | None = None,
+    trigger: str = "immediate",
+    pre_s: float = 0.0,
 ) -> CapturePlan:
     """Check a capture before any work: names, event, duration, the samples it holds and the room for its file.
 
-    ``out`` must be a new file unless ``force`` (an existing file is replaced only when asked).
-    Raises ConfigError naming what is out of range.
+    The way: DAQ when its payload (signals x bytes + 9 bytes a sample, x the event's rate) takes at
+    most half of what the link streams (``link_bytes_per_s``, else :data:`LINK_BYTES_PER_S` of its
+    kind), else the drive's capture buffer (examples/firmware/capture.h), which must hold the
+    duration; ``way`` forces one. A trigger (:func:`parse_trigger`; ``pre_s`` before it) needs the
+    buffer. ``out`` must be a new file unless ``force`` (an existing file is replaced only when
+    asked). Raises ConfigError naming what is out of range.
     """
+    if way not in CAPTURE_WAYS:
+        raise ConfigError("way", way, " or ".join(CAPTURE_WAYS))
+    if link_bytes_per_s is not None and not (math.isfinite(link_bytes_per_s) and 1.0 <= link_bytes_per_s <= 1e10):
+        raise ConfigError("link_bytes_per_s", link_bytes_per_s, "[1, 1e10] bytes/s")
+    kind, trigger_signal, level = parse_trigger(trigger)
     assert link.a2l is not None
     _check_names(signals)
     names = tuple(entry(link, s).scalar.name for s in signals)
@@ -329,12 +394,52 @@ def plan_capture(
                 str(out),
                 f"a disk with room for {format_bytes(values * BYTES_PER_VALUE)} (it has {format_bytes(free)})",
             )
-    return CapturePlan(names, event, period_s, float(duration_s), samples)
+    rate = link_bytes_per_s if link_bytes_per_s is not None else LINK_BYTES_PER_S[link_kind(link.url)]
+    record = sum(link.scalars[n].size for n in names)
+    need = (record + DAQ_OVERHEAD_BYTES) / period_s
+    # classic CAN: 8-byte packets leave 3 bytes beside the PID and the timestamp, too few for most signals
+    classic_can = link.url.startswith("can://") and "&fd=0" in link.url
+    streams = need <= DAQ_SHARE * rate and not classic_can
+    chosen = way if way != "auto" else "daq" if streams and kind == "immediate" else "buffer"
+    if chosen == "daq" and kind != "immediate":
+        raise ConfigError("trigger", trigger, "immediate for a DAQ capture (a trigger needs the drive's buffer)")
+    if chosen == "daq" and classic_can:
+        raise ConfigError("way", way, "buffer or auto on classic CAN (fd=0): a DAQ packet of 8 bytes holds no signal")
+    pre_samples = 0
+    if chosen == "buffer":
+        if "capture_buffer" not in link.variables:
+            raise ConfigError("way", way, "daq: this drive has no capture buffer")
+        capacity = link.variables["capture_buffer"].size // record
+        samples = round(duration_s / period_s) + 1
+        if samples > capacity:
+            raise ConfigError(
+                "duration_s",
+                duration_s,
+                f"at most {(capacity - 1) * period_s:.6g} s of these {len(names)} signals ({record} bytes a sample) "
+                f"at the {event} event in the drive's capture buffer of {link.variables['capture_buffer'].size} "
+                f"bytes: the link streams {rate:.6g} bytes/s, DAQ would need {need:.6g}",
+            )
+        if not (math.isfinite(pre_s) and 0.0 <= pre_s <= (samples - 1) * period_s):
+            raise ConfigError("pre_s", pre_s, f"[0, {(samples - 1) * period_s:g}] s (the capture's duration)")
+        pre_samples = round(pre_s / period_s)
+        if trigger_signal is not None:
+            trigger_signal = entry(link, trigger_signal).scalar.name
+            if trigger_signal not in names:
+                raise ConfigError("trigger", trigger, "a crossing of one of the captured signals")
+    return CapturePlan(names, event, period_s, float(duration_s), samples, chosen, need, rate, kind,
+                       trigger_signal, level, pre_samples)  # fmt: skip
 
 
 def capture(link: Link, plan: CapturePlan) -> Capture:
     """Run a planned DAQ capture: the samples of its duration from the first one, by the drive's timestamps (the
     status polled all along: the watchdog stays fed)."""
+    if plan.way == "buffer":
+        with link_errors(link, "capture"):
+            return link.capture_buffered(
+                list(plan.signals), event=plan.event, samples=plan.samples, trigger=plan.trigger,
+                level=plan.level, trigger_signal=plan.trigger_signal, pre_samples=plan.pre_samples,
+                timeout_s=max(60.0, 1000 * plan.duration_s),
+            )  # fmt: skip
     with link_errors(link, "capture"):
         cap = link.capture(list(plan.signals), event=plan.event, duration_s=plan.duration_s)
     # the DAQ list streams from its start until its stop reaches the drive: keep the duration's samples
@@ -344,8 +449,10 @@ def capture(link: Link, plan: CapturePlan) -> Capture:
 
 
 def capture_columns(link: Link, cap: Capture) -> dict[str, npt.NDArray[Any]]:
-    """The columns of a capture: ``t_s`` (from the first sample's DAQ timestamp) and each signal."""
-    t_s = (cap.timestamps - (cap.timestamps[0] if len(cap.timestamps) else 0)) * 1e-9
+    """The columns of a capture: ``t_s`` (from the first sample's DAQ timestamp, or from the trigger of a buffered
+    capture) and each signal."""
+    t0 = cap.trigger_ns if cap.trigger_ns is not None else cap.timestamps[0] if len(cap.timestamps) else 0
+    t_s = (cap.timestamps - t0) * 1e-9
     return {"t_s": t_s, **cap.signals}
 
 

@@ -18,11 +18,12 @@ if TYPE_CHECKING:
 
 LINK_HELP = (
     "the drive's link: tcp://HOST:PORT (XCP on TCP: the PC's drive, QEMU's -serial tcp), serial:DEVICE or a "
-    "device (/dev/pts/3, /dev/ttyUSB0, COM3: XCP on SxI); HOST must be this machine unless --allow-remote"
+    "device (/dev/pts/3, /dev/ttyUSB0, COM3: XCP on SxI), can://INTERFACE/CHANNEL?master=ID&slave=ID&fd=0|1 "
+    "(XCP on CAN by python-can); HOST must be this machine unless --allow-remote"
 )
 
 #: The library's argument of the duration -> its option.
-DURATION = {"duration_s": "--duration-s"}
+DURATION = {"duration_s": "--duration-s", "pre_s": "--pre-s", "link_bytes_per_s": "--link-bytes-per-s"}
 
 
 def link_option(f: Callable[..., Any]) -> Callable[..., Any]:
@@ -117,23 +118,51 @@ def set_(assignments: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -
 @click.option("--duration-s", "duration_s", type=float, required=True, help="how long to capture [s], (0, 3600]")
 @click.option("--out", required=True, type=click.Path(), help="the file: .csv, .parquet or .mf4 (ASAM MDF 4.10)")
 @click.option("--force", is_flag=True, help="replace --out if it exists")
+@click.option(
+    "--way",
+    type=click.Choice(["auto", "daq", "buffer"]),
+    default="auto",
+    show_default=True,
+    help="stream by DAQ, record in the drive's capture buffer and read it after, or choose by the rate",
+)
+@click.option(
+    "--link-bytes-per-s",
+    "link_bytes_per_s",
+    type=float,
+    default=None,
+    help="what the link streams [bytes/s] [default: 11520 serial (115200 baud), 30000 CAN, 1e6 TCP]",
+)
+@click.option(
+    "--trigger",
+    default="immediate",
+    show_default=True,
+    help="the buffer's trigger: immediate, SIGNAL>LEVEL (rising) or SIGNAL<LEVEL (falling)",
+)
+@click.option("--pre-s", "pre_s", type=float, default=0.0, show_default=True, help="captured before the trigger [s]")
 @link_option
-def capture(signals: tuple[str, ...], event: str, duration_s: float, out: str, force: bool, url: str, a2l: str,
+def capture(signals: tuple[str, ...], event: str, duration_s: float, out: str, force: bool, way: str,
+            link_bytes_per_s: float | None, trigger: str, pre_s: float, url: str, a2l: str,
             allow_remote: bool) -> None:  # fmt: skip
-    """Capture signals by DAQ at an event (every sample, timestamped by the drive) into a file; t_s from the
-    first sample. Exit status 1 when the drive lost samples (its DAQ queue overflowed)."""
+    """Capture signals at an event (every sample, timestamped by the drive) into a file: streamed by DAQ when the
+    link carries them with room to spare, else recorded in the drive's capture buffer and read out after (a
+    duration longer than the buffer holds is refused). t_s from the first sample (DAQ) or from the trigger
+    (buffer). Exit status 1 when the drive lost samples (its DAQ queue overflowed)."""
     from ...drive.session import capture as drive_capture
     from ...drive.session import plan_capture, write_capture
 
     with _open(url, a2l, allow_remote) as link:
         try:
-            plan = plan_capture(link, signals, event, duration_s, out, force)
+            plan = plan_capture(link, signals, event, duration_s, out, force, way=way,
+                                link_bytes_per_s=link_bytes_per_s, trigger=trigger, pre_s=pre_s)  # fmt: skip
         except ConfigError as exc:
             raise as_option(exc, DURATION) from None
         cap = drive_capture(link, plan)
         write_capture(link, cap, out)
     n = len(cap.timestamps)
-    click.echo(f"{n} samples of {len(signals)} signals at the {event} event over {duration_s:g} s, "
+    how = ("by DAQ" if plan.way == "daq" else "in the drive's buffer") + (
+        f" (payload {plan.need_bytes_per_s:.4g} B/s, the link {plan.link_bytes_per_s:.4g} B/s)"
+    )
+    click.echo(f"{n} samples of {len(signals)} signals at the {event} event over {duration_s:g} s {how}, "
                f"{cap.dtos_lost} lost: wrote {out}")  # fmt: skip
     if cap.dtos_lost:
         raise click.exceptions.Exit(1)
