@@ -412,7 +412,8 @@ def metric_columns(scenario: "Scenario") -> list[str]:
     entry of ``load`` and ``run_<figure>`` for the whole run (figures of
     :func:`pmsm2dof.sim.metrics.compute_metrics`).
     """
-    from ..sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
+    from ..sim.event_figures import LOAD_FIGURES, REFERENCE_FIGURES
+    from ..sim.metrics import RUN_FIGURES
 
     columns = [f"ref{i}_{f}" for i in range(len(scenario.reference)) for f in REFERENCE_FIGURES]
     columns += [f"load{j}_{f}" for j in range(len(scenario.load)) for f in LOAD_FIGURES]
@@ -422,7 +423,8 @@ def metric_columns(scenario: "Scenario") -> list[str]:
 
 def _flatten(metrics: Mapping[str, Any]) -> tuple[dict[str, Any], str]:
     """The figures of ``compute_metrics`` as ``{column: value or None}`` and the reasons of the None."""
-    from ..sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES, RUN_FIGURES
+    from ..sim.event_figures import LOAD_FIGURES, REFERENCE_FIGURES
+    from ..sim.metrics import RUN_FIGURES
 
     figures: dict[str, dict[str, Any]] = {}
     for prefix, steps, names in (

@@ -14,7 +14,7 @@ import numpy as np
 
 from ...core.bindings import AntiWindup
 from ...sim.commission import Commissioning
-from ...sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES
+from ...sim.event_figures import LOAD_FIGURES, REFERENCE_FIGURES
 from ...sim.simulate import Result
 from ...studies import paper as st
 from ...studies.claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
