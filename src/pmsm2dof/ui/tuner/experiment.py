@@ -66,7 +66,7 @@ ENTRY_CONTROLS_MAX = 6
 #: Most shaded spans a limit gets on the page: beyond, the spans closest together merge.
 SPANS_MAX = 40
 #: Most plant integration steps one suggestion may take over all the simulations the autotuner
-#: can make (:func:`pmsm2dof.studies.autotune.runs_bound` times the steps of one run).
+#: can make (:func:`pmsm2dof.studies.autotune_search.runs_bound` times the steps of one run).
 SUGGEST_STEPS_MAX = 5 * 10**8
 #: The specification a suggestion takes (:class:`pmsm2dof.studies.autotune.Spec` fields; the forms
 #: searched are the experiment's feedforward and anti-windup).
@@ -529,7 +529,8 @@ class Tuner:
             Naming ``spec.<field>`` or the control key, or ``simulation.t_end_s`` when the search
             could take more than :data:`SUGGEST_STEPS_MAX` integration steps.
         """
-        from ...studies.autotune import Spec, autotune, runs_bound
+        from ...studies.autotune import Spec
+        from ...studies.autotune_search import autotune, runs_bound
 
         for key in body:
             if key not in ("values", "spec"):
