@@ -145,7 +145,8 @@ def worker_sweep(workers):
     """
     import resource
 
-    from pmsm2dof.studies.sweep import load_sweep, run_sweep
+    from pmsm2dof.studies.sweep import load_sweep
+    from pmsm2dof.studies.sweep_run import run_sweep
 
     with tempfile.TemporaryDirectory(prefix="p2d-bench-engine-") as tmp:
         path = Path(tmp) / "sweep.toml"

@@ -73,7 +73,8 @@ def sweep_rates(path, repeats):
     inside the engine's C call) per repetition]}``, the time to write the results and figures
     of a finished sweep, and the number of figures.
     """
-    from pmsm2dof.studies.sweep import load_sweep, run_sweep
+    from pmsm2dof.studies.sweep import load_sweep
+    from pmsm2dof.studies.sweep_run import run_sweep
     from pmsm2dof.ui.plots.sweep import draw_figures
 
     sweep = load_sweep(path)

@@ -14,7 +14,8 @@ from pathlib import Path
 
 import matplotlib.pyplot as plt
 
-from pmsm2dof.studies.sweep import parse_sweep, run_sweep
+from pmsm2dof.studies.sweep import parse_sweep
+from pmsm2dof.studies.sweep_run import run_sweep
 
 sweep = parse_sweep(
     {

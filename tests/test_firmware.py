@@ -340,7 +340,8 @@ def test_the_header_of_design_builds_and_runs(bench, tmp_path, capsys):
 @needs_tools
 def test_the_header_of_autotune_builds_and_runs(bench, tmp_path):
     """autotune --emit-c-header (AutotuneResult.write_c_header): the tuned scenario's controllers."""
-    from pmsm2dof.studies.autotune import Spec, autotune
+    from pmsm2dof.studies.autotune import Spec
+    from pmsm2dof.studies.autotune_search import autotune
 
     base = load_scenario(str(SERVO)).with_overrides({**RUN, "load": [{"t_s": 0.03, "torque_Nm": 0.3}]})
     result = autotune(base, Spec(max_overshoot_pct=10.0, feedforwards=("lowpass",), anti_windups=("back_calculation",)))

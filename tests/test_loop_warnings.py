@@ -99,7 +99,7 @@ def test_simulate_warns_and_does_not_refuse(tmp_path):
 def test_a_run_the_analysis_does_not_take_says_the_check_was_not_made(tmp_path, changes, words):
     """The engine runs such a scenario; the check that would exceed the analysis' bounds is not made
     (instead of failing the run after it), and the warning names the key and the bound."""
-    from pmsm2dof.studies.sweep import _flatten
+    from pmsm2dof.studies.sweep import flatten_metrics
 
     chosen = scenario().with_overrides(changes)
     check = sampled_loop(chosen)
@@ -107,7 +107,7 @@ def test_a_run_the_analysis_does_not_take_says_the_check_was_not_made(tmp_path, 
     assert check["warning"].startswith("the sampled-loop stability check was not made") and words in check["warning"]
     metrics = measure(simulate(chosen))
     assert metrics["warnings"][0] == check["warning"]
-    row, notes = _flatten(metrics)
+    row, notes = flatten_metrics(metrics)
     assert row["sampled_loop_z_max"] is None and f"sampled_loop_z_max: {check['warning']}" in notes
     path = tmp_path / "servo.toml"
     path.write_text(chosen.to_toml())

@@ -24,14 +24,15 @@ from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
 from pmsm2dof.studies.engine import PartWarning
-from pmsm2dof.studies.sweep import load_sweep, metric_columns, parse_sweep, run_sweep
+from pmsm2dof.studies.sweep import load_sweep, metric_columns, parse_sweep
+from pmsm2dof.studies.sweep_run import run_sweep
 from pmsm2dof.ui.cli import main
 from pmsm2dof.ui.plots.sweep import draw_figures
 
 # the modules (the package exports functions of the same names)
 # the simulate that the engine calls (the tests count the simulations)
 simulate_module = importlib.import_module("pmsm2dof.studies.engine")
-sweep_module = importlib.import_module("pmsm2dof.studies.sweep")
+sweep_run_module = importlib.import_module("pmsm2dof.studies.sweep_run")
 
 # A small drive that settles within 0.3 s: a speed step at 0 s and a load step at 0.3 s.
 BASE_TOML = """
@@ -337,7 +338,7 @@ def test_a_value_only_the_engine_rejects_stops_the_sweep_naming_the_point(tmp_pa
 def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monkeypatch):
     sw = sweep_of(base_file, GRID_AXES, worst=0)
     out = tmp_path / "out"
-    real_save = sweep_module._save_part
+    real_save = sweep_run_module._save_part
     saved = []
 
     def save_then_interrupt(out_, sweep_, rows):
@@ -346,10 +347,10 @@ def test_interrupted_sweep_resumes_without_recomputing(tmp_path, base_file, monk
         if len(saved) >= 4:
             raise KeyboardInterrupt
 
-    monkeypatch.setattr(sweep_module, "_save_part", save_then_interrupt)
+    monkeypatch.setattr(sweep_run_module, "_save_part", save_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
         run_sweep(sw, out, workers=1, batch_size=2, progress=False, figures=draw_figures)
-    monkeypatch.setattr(sweep_module, "_save_part", real_save)
+    monkeypatch.setattr(sweep_run_module, "_save_part", real_save)
     assert not (out / "results.parquet").exists() and not (out / "results.csv").exists()
     finished = set(saved)
     assert 4 <= len(finished) < 9

@@ -15,7 +15,8 @@ import pytest
 
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.studies.engine import PartStore, PartWarning
-from pmsm2dof.studies.sweep import _parts, parse_sweep, run_sweep
+from pmsm2dof.studies.sweep import parse_sweep
+from pmsm2dof.studies.sweep_run import _parts, run_sweep
 from pmsm2dof.ui.cli import main
 
 SWEEP = {"base": "paper-experiment-1", "worst": 0, "axes": {"motor.J_kgm2": [0.3, 0.5]}}

@@ -33,6 +33,7 @@ from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import Simulation
 from pmsm2dof.ui.tuner import create_app, serving_in_thread
 from pmsm2dof.ui.tuner.app import CLIENT_HEADER
+from pmsm2dof.ui.tuner.controls import page_controls
 from pmsm2dof.ui.tuner.experiment import (
     DECIMATION_BUCKETS,
     LOG_ROWS_MAX,
@@ -169,7 +170,7 @@ def test_every_reference_and_load_entry_is_a_control():
     the tuner runs them as they are, adding none."""
     base = load_scenario("paper-condition-1")
     tuner = Tuner(base)
-    specs = {c["key"]: c for g in tuner.controls()["groups"] for c in g["controls"]}
+    specs = {c["key"]: c for g in page_controls(base)["groups"] for c in g["controls"]}
     entries = [specs[f"reference.{i}.{k}"]["value"] for i in (0, 1) for k in ("t_s", "speed_rpm")]
     assert entries == [0.0, 500.0, 5.0, 200.0]
     assert not [key for key in specs if key.startswith("load.")]

@@ -40,7 +40,7 @@ _EXPORTS = {
     "simulate_many": "pmsm2dof.sim.simulate",
     "AutotuneResult": "pmsm2dof.studies.autotune",
     "Spec": "pmsm2dof.studies.autotune",
-    "autotune": "pmsm2dof.studies.autotune",
+    "autotune": "pmsm2dof.studies.autotune_search",
 }
 
 __all__ = [
@@ -80,7 +80,8 @@ if TYPE_CHECKING:
     from .sim.metrics import compute_metrics
     from .sim.scenario import Scenario, list_presets, load_scenario
     from .sim.simulate import Result, simulate, simulate_many
-    from .studies.autotune import AutotuneResult, Spec, autotune
+    from .studies.autotune import AutotuneResult, Spec
+    from .studies.autotune_search import autotune
 
 
 def __getattr__(name: str) -> Any:

@@ -1,48 +1,10 @@
-"""Figures of merit of a simulated run: each reference step and each load step.
+"""Figures of merit of a simulated run or a measured log: each reference step, load step and fault, and the run.
 
-For every entry of the scenario's ``reference`` and ``load`` schedules, the response is measured
-in its *window*: from the entry's time ``t_s`` to the last logged sample before the next *event*
-(or to the end of the trace). The events are the entries of either schedule that change the
-reference or the load, in any order and at any spacing, and the starts of the faults. A sample
-at the time of the next event (within the engine's time tolerance, ``csrc/sim/drive.c``) already
-shows it: its reference is the new one, so that a load step removed 50 ms before a speed
-reversal would otherwise count the reversal as its dip. An entry that repeats the value before
-it changes no input of the loop, so the response of the event before goes on through it: it is
-no boundary (its own figures are missing, "does not change"). The figures are taken relative to
-what is commanded in the window (the reference there, for a load step). A window that holds no
-sample after its event has every figure missing; one whose last :data:`STEADY_FRACTION` holds
-fewer than :data:`STEADY_SAMPLES_MIN` samples has no settling, recovery or steady-state figure
-(a steady state cannot be told from fewer); each says why. The figures are those used to
-compare the controllers in the paper's section 4
-(overshoot of Fig. 8, 12, tracking of Fig. 10, 13, load rejection of Fig. 14):
+The figures of each event, measured in its window, are those of :mod:`pmsm2dof.sim.event_figures` (the events and
+their windows: :mod:`pmsm2dof.sim.events`); they are those used to compare the controllers in the paper's section 4
+(overshoot of Fig. 8, 12, tracking of Fig. 10, 13, load rejection of Fig. 14).
 
-Reference step, from the speed ``w0`` at ``t_s`` to the new reference ``r`` (step ``D = r - w0``):
-
-- ``overshoot_pct``: ``100 max(0, max((w - r) / D))``;
-- ``rise_time_s``: from 10 % to 90 % of ``D`` (first crossings, linear interpolation);
-- ``settling_time_s``: from ``t_s`` until ``|w - r|`` stays within 2 % of ``|D|``; the speed must
-  be inside that band over at least the last 10 % of the window, else the figure is missing (a
-  speed that has just entered the band may leave it again);
-- ``steady_state_error_rpm``: ``r`` minus the mean speed over the last 10 % of the window, when
-  the speed is steady there: it spreads by at most 0.2 % of ``|D|`` (a speed still converging
-  inside the settling band is not a steady state);
-- ``iae_rpm_s``: integral of ``|speed_ref - speed|`` over the window;
-- ``current_limit_time_s``: time at the current limit (:func:`at_current_limit`; the state of a
-  logged sample holds until the next sample).
-
-Load step, from the load torque before to the new one (change ``dT``), with the speed error
-``e = speed_ref - speed`` taken in the direction the load pushes (``sign(dT) e``):
-
-- ``speed_dip_rpm`` and ``dip_time_s``: the peak of that error and when it occurs after ``t_s``;
-  missing when that error is largest at ``t_s`` itself (a load taken off during a reversal:
-  the error is the reversal's, and the load adds nothing to it);
-- ``recovery_time_s``: from ``t_s`` until ``|e|`` stays within 2 % of the deviation (the same
-  rule): the dip, or ``|e|`` at ``t_s`` when that is larger (a load that falls while the speed is
-  still far from its reference, as when an overload that stalled the drive is released);
-- ``steady_state_error_rpm``, ``iae_rpm_s``, ``current_limit_time_s`` as above (the spread test
-  uses 0.2 % of the deviation).
-
-Whole run: ``iae_rpm_s`` and ``current_limit_time_s`` as above, ``voltage_limit_time_s``, the time
+Whole run: ``iae_rpm_s`` and ``current_limit_time_s`` as for a step, ``voltage_limit_time_s``, the time
 at the inverter's range ``u_dc / sqrt(3)`` (:func:`at_voltage_limit`; missing for a trace without
 the ``voltage_limited`` signal), and ``chatter_share``, the share of the samples at which the
 current command chatters (:func:`chatter`). A drive at its voltage limit no longer follows its
@@ -50,19 +12,11 @@ current commands: the speed loop's design (eq 3, 9) does not hold there. A run w
 ``chatter_share`` exceeds :data:`CHATTER_SHARE_MAX` is a limit cycle, not a response: its
 ``warnings`` say so, first.
 
-Fault (each ``[[fault]]`` entry; a sensor_spike lasts one speed-controller period), from its
-start ``t_s`` over a window that ends at the next schedule entry or fault after the fault's end:
-
-- ``speed_deviation_rpm`` and ``deviation_time_s``: the peak of ``|e|`` and when it occurs after
-  ``t_s``;
-- ``recovery_time_s``: from the fault's end until ``|e|`` stays within 2 % of that peak (the same
-  rule);
-- ``current_limit_time_s`` as above.
-
 A log at the current rate (``simulation.log_rate = "current"``) is measured on all its rows (the
 speed between the speed controller's samples too: a dip or a crossing between two samples is
 seen where it happens); what is counted in the speed controller's samples is counted in the rows
-at its sampling instants: the samples that tell a steady state (:data:`STEADY_SAMPLES_MIN`) and
+at its sampling instants: the samples that tell a steady state
+(:data:`~pmsm2dof.sim.event_figures.STEADY_SAMPLES_MIN`) and
 the chatter of its command, which holds between them.
 
 A figure that cannot be computed (no change at the step, the speed did not reach or did not
@@ -70,7 +24,6 @@ settle before the window ends) is ``{"value": None, "reason": "..."}``, never Na
 is ``{"value": x}``. Speeds are in rpm, as in the scenario and the trace.
 """
 
-import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any
@@ -79,64 +32,36 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import ConfigError, SimulationError
+from .event_figures import fault_figures, figure, load_step, missing, reference_step, time_where
+from .events import (
+    EventWindow,
+    event_times,
+    fault_ends,
+    load_events,
+    next_event,
+    reference_events,
+    speed_sample_rows,
+    time_tolerance_s,
+)
 from .logs import Log
 
 if TYPE_CHECKING:
     from .scenario import Scenario
-    from .scenario_tables import FaultEntry
     from .simulate import Result
 
 _Vector = npt.NDArray[np.float64]
 #: A figure of merit: ``{"value": x}`` or ``{"value": None, "reason": "..."}``.
 _Figure = dict[str, Any]
 
-#: Settling band, relative to the step (reference) or to the dip (load).
-BAND = 0.02
-#: Final part of a window over which the steady state is measured.
-STEADY_FRACTION = 0.1
-#: Figures of each reference step, in output order.
-REFERENCE_FIGURES = (
-    "overshoot_pct",
-    "rise_time_s",
-    "settling_time_s",
-    "steady_state_error_rpm",
-    "iae_rpm_s",
-    "current_limit_time_s",
-)
-#: Figures of each load step, in output order.
-LOAD_FIGURES = (
-    "speed_dip_rpm",
-    "dip_time_s",
-    "recovery_time_s",
-    "steady_state_error_rpm",
-    "iae_rpm_s",
-    "current_limit_time_s",
-)
-#: Figures of each fault, in output order.
-FAULT_FIGURES = ("speed_deviation_rpm", "deviation_time_s", "recovery_time_s", "current_limit_time_s")
 #: Figures of the whole run.
 RUN_FIGURES = ("iae_rpm_s", "current_limit_time_s", "voltage_limit_time_s", "chatter_share")
-#: Fewest samples in the last :data:`STEADY_FRACTION` of a window for a settling, recovery or
-#: steady-state figure: two samples give a spread of one difference, which cannot tell a constant
-#: from a ramp or an oscillation; three show a change of direction.
-STEADY_SAMPLES_MIN = 3
 #: Second difference of the current command, relative to the current limit, at and above which a
 #: sample chatters (:func:`chatter`).
 CHATTER_D2 = 0.1
 #: Largest share of chattering samples of a run that does not chatter (:func:`chatter`).
 CHATTER_SHARE_MAX = 0.01
-#: Largest spread of the speed over that part, relative to the step (reference) or dip (load).
-STEADY_SPREAD = 0.002
 #: A command within this fraction of its limit is at the limit (:func:`at_current_limit`, :func:`at_voltage_limit`).
 LIMIT_RTOL = 0.01
-
-
-def _value(x: float) -> _Figure:
-    return {"value": float(x)}
-
-
-def _missing(reason: str) -> _Figure:
-    return {"value": None, "reason": reason}
 
 
 def _trace(result: "Result", name: str) -> _Vector:
@@ -144,54 +69,6 @@ def _trace(result: "Result", name: str) -> _Vector:
     if values.shape != np.shape(result.t_s) or not np.all(np.isfinite(values)):
         raise SimulationError(f"result.{name} must be finite and as long as result.t_s")
     return values
-
-
-def _schedule(entries: Sequence[tuple[float, float]]) -> list[tuple[float, float, float]]:
-    """(t_s, value before, value after) of each entry ``(t_s, value)``; the value is 0 before the first entry."""
-    before = 0.0
-    events = []
-    for t_s, value in entries:
-        events.append((t_s, before, value))
-        before = value
-    return events
-
-
-def _references(scenario: "Scenario") -> list[tuple[float, float, float]]:
-    """:func:`_schedule` of the speed reference [rpm]."""
-    return _schedule([(e.t_s, e.speed_rpm) for e in scenario.reference])
-
-
-def _loads(scenario: "Scenario") -> list[tuple[float, float, float]]:
-    """:func:`_schedule` of the load torque [Nm]."""
-    return _schedule([(e.t_s, e.torque_Nm) for e in scenario.load])
-
-
-def _first_crossing(t: _Vector, z: _Vector, level: float) -> float | None:
-    """First time z rises to ``level`` (z[0] < level), linearly interpolated, or None."""
-    above = np.nonzero(z >= level)[0]
-    if above.size == 0:
-        return None
-    k = above[0]
-    if k == 0:
-        return float(t[0])
-    return float(t[k - 1] + (level - z[k - 1]) / (z[k] - z[k - 1]) * (t[k] - t[k - 1]))
-
-
-def _entry_into_band(t: _Vector, dev: _Vector, band: float) -> float | None:
-    """Time after which ``|dev| <= band`` to the end (interpolated), or None.
-
-    None when ``dev`` is not inside the band over the whole final part of the window
-    (:data:`STEADY_FRACTION`): a trace that has just entered the band may leave it again.
-    """
-    outside = np.nonzero(np.abs(dev) > band)[0]
-    if outside.size == 0:
-        return float(t[0])
-    k = outside[-1]
-    if k == len(t) - 1:
-        return None
-    level = band if dev[k] > band else -band
-    t_in = float(t[k] + (level - dev[k]) / (dev[k + 1] - dev[k]) * (t[k + 1] - t[k]))
-    return t_in if t_in <= t[-1] - STEADY_FRACTION * (t[-1] - t[0]) else None
 
 
 def at_current_limit(result: "Result") -> npt.NDArray[np.bool_]:
@@ -258,297 +135,6 @@ def at_voltage_limit(result: "Result") -> _Vector:
     return np.where(at_range, 1.0, share)
 
 
-def _time_where(t: _Vector, mask: npt.NDArray[np.bool_] | _Vector, t0: float, t1: float) -> float:
-    """Time in [t0, t1] where ``mask`` holds; the value of sample k holds over [t[k], t[k+1]).
-
-    ``mask`` may also be a share in [0, 1] of each sample's interval (``voltage_limited``).
-    """
-    starts = np.clip(t[:-1], t0, t1)
-    ends = np.clip(t[1:], t0, t1)
-    return float(np.sum((ends - starts) * mask[:-1]))
-
-
-def _window(t: _Vector, t0: float, t1: float, *signals: _Vector) -> tuple[_Vector, list[_Vector]]:
-    """Sample times in [t0, t1] with both ends included, and the signals interpolated on them."""
-    tw = np.concatenate(([t0], t[(t > t0) & (t < t1)], [t1]))
-    return tw, [np.interp(tw, t, s) for s in signals]
-
-
-@dataclasses.dataclass(frozen=True)
-class _Span:
-    """The window of one event: from its time ``t0`` to the last sample ``t_end`` before the next event.
-
-    ``t_next`` is the time of the next event (None: none before the end of the trace); ``t_end``
-    is None when no sample lies between ``t0`` and ``t_next``; ``tol`` is the time within which a
-    sample is at an event (the engine's tolerance).
-    """
-
-    t0: float
-    t_next: float | None
-    t_end: float | None
-    tol: float
-
-    @classmethod
-    def of(cls, t: _Vector, t0: float, t_next: float | None, tol: float) -> "_Span":
-        inside = t > t0 + tol
-        if t_next is not None:
-            inside &= t < t_next - tol
-        return cls(t0, t_next, float(t[inside][-1]) if np.any(inside) else None, tol)
-
-    def limit_end(self, t: _Vector) -> float:
-        """The end of the time counted at the current limit: the next event, or the end of the trace."""
-        return float(t[-1]) if self.t_next is None else min(self.t_next, float(t[-1]))
-
-    def empty_reason(self, t: _Vector, what: str) -> str:
-        if self.t0 >= t[-1]:
-            return f"the trace ends at {t[-1]:g} s, before the {what}"
-        return (
-            f"no logged sample between the {what} at {self.t0:g} s and the next event at {self.t_next:g} s: "
-            "the window is empty"
-        )
-
-    def samples(self, t: _Vector, *signals: _Vector) -> tuple[_Vector, list[_Vector]]:
-        """The window's sample times after ``t0`` (``t0`` itself first, the signals interpolated there)."""
-        assert self.t_end is not None
-        tw = np.concatenate(([self.t0], t[(t > self.t0 + self.tol) & (t <= self.t_end)]))
-        return tw, [np.interp(tw, t, s) for s in signals]
-
-
-def _too_short(tw: _Vector, t_samples: _Vector) -> str:
-    """Why the window ``tw`` is too short to tell a steady state, or empty (:data:`STEADY_SAMPLES_MIN`).
-
-    ``t_samples`` are the times of the rows at the speed controller's samples (:func:`speed_sample_rows`):
-    its samples are what a steady state of the speed loop is told from.
-    """
-    inside = t_samples[(t_samples > tw[0]) & (t_samples <= tw[-1])]
-    n = int(np.count_nonzero(inside >= tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0])))
-    if n >= STEADY_SAMPLES_MIN:
-        return ""
-    return (
-        f"the window to the next event ({tw[0]:g} to {tw[-1]:g} s) is too short: {n} logged speed-controller "
-        f"samples in its last {100 * STEADY_FRACTION:g} %, at least {STEADY_SAMPLES_MIN} needed to tell a steady state"
-    )
-
-
-def speed_sample_rows(scenario: "Scenario", rows: int) -> npt.NDArray[np.bool_]:
-    """Which of the ``rows`` rows of a run's log are at the speed controller's sampling instants.
-
-    Every row at the speed rate; at the current rate (``simulation.log_rate = "current"``) row ``r``
-    starts the current period ``r log_every``, a speed sample when ``current_per_speed`` divides it.
-    """
-    if scenario.simulation.log_rate == "speed":
-        return np.ones(rows, bool)
-    per_speed = round(scenario.speed_controller.Ts_s / scenario.current_loop.Ts_s)
-    mask: npt.NDArray[np.bool_] = (np.arange(rows, dtype=np.int64) * scenario.simulation.log_every) % per_speed == 0
-    return mask
-
-
-def _reference_step(
-    t: _Vector,
-    t_samples: _Vector,
-    speed: _Vector,
-    ref: _Vector,
-    limited: npt.NDArray[np.bool_],
-    span: _Span,
-    before: float,
-    after: float,
-) -> dict[str, Any]:
-    t0 = span.t0
-    out: dict[str, Any] = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": span.t_end or t0}
-    names = REFERENCE_FIGURES
-    if span.t_end is None:
-        return out | {n: _missing(span.empty_reason(t, "step")) for n in names}
-    tw, (w, r) = span.samples(t, speed, ref)
-    t1 = span.t_end
-    step = after - w[0]
-    result: dict[str, _Figure] = {}
-    short = _too_short(tw, t_samples)
-    if after == before or abs(step) <= 1e-3 * abs(after - before):
-        reason = (
-            "the reference does not change"
-            if after == before
-            else f"the speed is already at the new reference ({w[0]:g} rpm)"
-        )
-        result.update({n: _missing(reason) for n in names[:4]})
-    else:
-        z = (w - w[0]) / step
-        t10, t90 = _first_crossing(tw, z, 0.1), _first_crossing(tw, z, 0.9)
-        t_settle = None if short else _entry_into_band(tw, z - 1.0, BAND)
-        if np.max(z) >= 1.0 or t_settle is not None:
-            result["overshoot_pct"] = _value(100.0 * max(0.0, np.max(z) - 1.0))
-        else:
-            result["overshoot_pct"] = _missing(f"the speed did not reach the reference before {t1:g} s")
-        result["rise_time_s"] = (
-            _value(t90 - t10)
-            if t90 is not None and t10 is not None
-            else _missing(f"the speed did not reach 90 % of the step before {t1:g} s")
-        )
-        if short:
-            result["settling_time_s"] = _missing(short)
-        elif t_settle is None:
-            result["settling_time_s"] = _missing(
-                f"the speed did not settle within 2 % of the step (and stay there over the last "
-                f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
-            )
-        else:
-            result["settling_time_s"] = _value(t_settle - t0)
-        result["steady_state_error_rpm"] = (
-            _missing(short) if short else _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
-        )
-    result["iae_rpm_s"] = _value(float(np.trapezoid(np.abs(r - w), tw)))
-    result["current_limit_time_s"] = _value(_time_where(t, limited, t0, span.limit_end(t)))
-    return out | {"speed_at_step_rpm": float(w[0])} | {n: result[n] for n in names}
-
-
-def _load_step(
-    t: _Vector,
-    t_samples: _Vector,
-    speed: _Vector,
-    ref: _Vector,
-    limited: npt.NDArray[np.bool_],
-    span: _Span,
-    before: float,
-    after: float,
-) -> dict[str, Any]:
-    t0 = span.t0
-    out: dict[str, Any] = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": span.t_end or t0}
-    names = LOAD_FIGURES
-    if span.t_end is None:
-        return out | {n: _missing(span.empty_reason(t, "step")) for n in names}
-    tw, (w, r) = span.samples(t, speed, ref)
-    t1 = span.t_end
-    e = r - w
-    result: dict[str, _Figure] = {}
-    short = _too_short(tw, t_samples)
-    if after == before:
-        result.update({n: _missing("the load torque does not change") for n in names[:4]})
-    else:
-        d = math.copysign(1.0, after - before) * e
-        k = int(np.argmax(d))
-        dip = float(d[k])
-        deviation = max(dip, abs(float(e[0])))
-        if deviation <= 0.0:
-            result.update({n: _missing("the speed did not give way to the load") for n in names[:4]})
-        else:
-            if dip > 0.0 and k == 0:
-                reason = (
-                    f"the speed error in the direction of the load is largest at the step itself ({dip:.4g} rpm, the "
-                    "response to what came before): the load adds no dip of its own"
-                )
-                result.update({n: _missing(reason) for n in names[:2]})
-            elif dip > 0.0:
-                result["speed_dip_rpm"] = _value(dip)
-                result["dip_time_s"] = _value(tw[k] - t0)
-            else:
-                result.update({n: _missing("the speed did not give way to the load") for n in names[:2]})
-            t_rec = None if short else _entry_into_band(tw, e, BAND * deviation)
-            if short:
-                result["recovery_time_s"] = _missing(short)
-            elif t_rec is None:
-                result["recovery_time_s"] = _missing(
-                    f"the speed did not recover to within 2 % of the {'dip' if dip >= deviation else 'error'}"
-                    f" (and stay there over the last {100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
-                )
-            else:
-                result["recovery_time_s"] = _value(t_rec - t0)
-            result["steady_state_error_rpm"] = (
-                _missing(short) if short else _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
-            )
-    result["iae_rpm_s"] = _value(float(np.trapezoid(np.abs(e), tw)))
-    result["current_limit_time_s"] = _value(_time_where(t, limited, t0, span.limit_end(t)))
-    return out | {n: result[n] for n in names}
-
-
-def _fault(
-    t: _Vector,
-    t_samples: _Vector,
-    speed: _Vector,
-    ref: _Vector,
-    limited: npt.NDArray[np.bool_],
-    fault: "FaultEntry",
-    t_end_fault: float,
-    after: _Span,
-) -> dict[str, Any]:
-    """Figures of a fault from its start ``t_s`` to ``after.t_end``, the last sample before the event that
-    follows its end (``after`` is the window from the fault's end)."""
-    t0 = fault.t_s
-    span = _Span(t0, after.t_next, after.t_end, after.tol)
-    out: dict[str, Any] = {"kind": fault.kind, "t_s": t0, "end_s": t_end_fault, "window_end_s": span.t_end or t0}
-    names = FAULT_FIGURES
-    if span.t_end is None:
-        return out | {n: _missing(span.empty_reason(t, "fault")) for n in names}
-    tw, (w, r) = span.samples(t, speed, ref)
-    t1 = span.t_end
-    e = np.abs(r - w)
-    k = int(np.argmax(e))
-    result = {"current_limit_time_s": _value(_time_where(t, limited, t0, span.limit_end(t)))}
-    if e[k] <= 0.0:
-        result.update({n: _missing("the speed did not deviate from its reference") for n in names[:3]})
-    elif t_end_fault >= t1:
-        result.update(
-            {
-                "speed_deviation_rpm": _value(e[k]),
-                "deviation_time_s": _value(tw[k] - t0),
-                "recovery_time_s": _missing(f"the fault lasts to the end of the window ({t1:g} s)"),
-            }
-        )
-    else:
-        result.update({"speed_deviation_rpm": _value(e[k]), "deviation_time_s": _value(tw[k] - t0)})
-        tr, (wr, rr) = after.samples(t, speed, ref)
-        short = _too_short(tr, t_samples)
-        t_rec = None if short else _entry_into_band(tr, rr - wr, BAND * e[k])
-        if short:
-            result["recovery_time_s"] = _missing(short)
-        elif t_rec is None:
-            result["recovery_time_s"] = _missing(
-                f"the speed did not recover to within 2 % of its deviation (and stay there over the last "
-                f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
-            )
-        else:
-            result["recovery_time_s"] = _value(t_rec - t_end_fault)
-    return out | {n: result[n] for n in names}
-
-
-def _steady_state_error(tw: _Vector, w: _Vector, target: float, spread_max: float) -> _Figure:
-    """``target`` minus the mean of ``w`` over the last part of the window, if ``w`` is steady there."""
-    tf, (final,) = _window(tw, tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0]), tw[-1], w)
-    spread = float(np.ptp(final))
-    if spread > spread_max:
-        return _missing(
-            f"the speed is still changing at {tw[-1]:g} s (spread {spread:.3g} rpm over the last "
-            f"{100 * STEADY_FRACTION:g} % of the window, more than {spread_max:.3g} rpm)"
-        )
-    return _value(target - np.trapezoid(final, tf) / (tf[-1] - tf[0]))
-
-
-def event_times(scenario: "Scenario") -> list[float]:
-    """The events of a scenario, sorted: the entries of ``reference`` and ``load`` that change the value
-    before them (0 before the first), and the start of each fault."""
-    times = {f.t_s for f in scenario.fault}
-    for events in (_references(scenario), _loads(scenario)):
-        times.update(t0 for t0, before, after in events if after != before)
-    return sorted(times)
-
-
-def _fault_ends(scenario: "Scenario") -> list[float]:
-    """The end of each fault: a sensor_spike lasts one speed-controller period."""
-    Ts_speed = scenario.speed_controller.Ts_s
-    return [f.t_s + (Ts_speed if f.duration_s is None else f.duration_s) for f in scenario.fault]
-
-
-def _next_event(times: Sequence[float], t0: float, tol: float) -> float | None:
-    later = [x for x in times if x > t0 + tol]
-    return later[0] if later else None
-
-
-def time_tolerance_s(scenario: "Scenario") -> float:
-    """The engine's time tolerance: times closer than it are equal, so an entry within it of a sample
-    acts at that sample (``P2D_SIM_T_TOL`` of ``csrc/sim/drive.c`` times the integration step)."""
-    Ts_current = float(scenario.current_loop.Ts_s)
-    step = Ts_current / max(1, math.ceil(Ts_current / scenario.simulation.dt_s * (1.0 - 1e-9)))
-    return float(1e-6 * step)
-
-
 def chatter(command: _Vector, limit: float, quiet: npt.NDArray[np.bool_] | None = None) -> float:
     """The share of the samples at which a command chatters: ``|c[k+1] - 2 c[k] + c[k-1]| >= CHATTER_D2 limit``.
 
@@ -593,12 +179,12 @@ def _chatter_figure(t: _Vector, iq_ref: _Vector, scenario: "Scenario", times: Se
     log_every = scenario.simulation.log_every
     per_speed = round(scenario.speed_controller.Ts_s / scenario.current_loop.Ts_s)
     if scenario.simulation.log_rate == "speed" and log_every > 1:
-        return _missing(
+        return missing(
             f"the trace logs every {log_every}th speed-controller sample: a reversal from one sample to the "
             "next needs every sample (simulation.log_every = 1)"
         )
     if scenario.simulation.log_rate == "current" and per_speed % log_every != 0:
-        return _missing(
+        return missing(
             f"the trace logs every {log_every}th current period, which does not divide the speed-controller "
             "period: a reversal from one sample to the next needs every sample (a simulation.log_every that "
             "divides speed_controller.Ts_s / current_loop.Ts_s)"
@@ -608,7 +194,7 @@ def _chatter_figure(t: _Vector, iq_ref: _Vector, scenario: "Scenario", times: Se
     for x in times:
         k = int(np.searchsorted(t, x - tol))
         quiet[max(k - 1, 0) : k + 2] = True
-    return _value(chatter(iq_ref, scenario.limits.i_max_A, quiet))
+    return figure(chatter(iq_ref, scenario.limits.i_max_A, quiet))
 
 
 def _chatter_warning(figure: _Figure) -> list[str]:
@@ -659,35 +245,35 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     scenario = result.scenario
     at_samples = speed_sample_rows(scenario, t.size)
     t_samples = t[at_samples]
-    ref_events = _references(scenario)
-    load_events = _loads(scenario)
+    ref_events = reference_events(scenario)
+    loads = load_events(scenario)
     times = event_times(scenario)
     tol = time_tolerance_s(scenario)
 
-    def span(t0: float) -> _Span:
-        return _Span.of(t, t0, _next_event(times, t0, tol), tol)
+    def span(t0: float) -> EventWindow:
+        return EventWindow.of(t, t0, next_event(times, t0, tol), tol)
 
     chatter_share = _chatter_figure(
         t_samples,
         _trace(result, "iq_ref_A")[at_samples],
         scenario,
-        [*times, *_fault_ends(scenario)],
+        [*times, *fault_ends(scenario)],
         tol,
     )
     return {
         "scenario": scenario.name,
         "reference_steps": [
-            _reference_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events
+            reference_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events
         ],
-        "load_steps": [_load_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in load_events],
+        "load_steps": [load_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in loads],
         "faults": [
-            _fault(t, t_samples, speed, ref, limited, f, end, span(end))
-            for f, end in zip(scenario.fault, _fault_ends(scenario))
+            fault_figures(t, t_samples, speed, ref, limited, f, end, span(end))
+            for f, end in zip(scenario.fault, fault_ends(scenario))
         ],
         "run": {
             "t_end_s": float(t[-1]),
-            "iae_rpm_s": _value(float(np.trapezoid(np.abs(ref - speed), t))),
-            "current_limit_time_s": _value(_time_where(t, limited, t[0], t[-1])),
+            "iae_rpm_s": figure(float(np.trapezoid(np.abs(ref - speed), t))),
+            "current_limit_time_s": figure(time_where(t, limited, t[0], t[-1])),
             "voltage_limit_time_s": _voltage_limit_time(result, t),
             "chatter_share": chatter_share,
         },
@@ -717,21 +303,21 @@ def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
     # a logged step is at its row: the window of the one before ends at the row before
     times = [e[0] for e in ref_events]
 
-    def span(t0: float) -> _Span:
-        return _Span.of(t, t0, _next_event(times, t0, 0.0), 0.0)
+    def span(t0: float) -> EventWindow:
+        return EventWindow.of(t, t0, next_event(times, t0, 0.0), 0.0)
 
-    limit_time = _value(_time_where(t, limited, t[0], t[-1])) if i_max_A is not None else _missing("no i_max_A")
-    chatter_share = _missing("a log's rows need not be the speed controller's samples")
+    limit_time = figure(time_where(t, limited, t[0], t[-1])) if i_max_A is not None else missing("no i_max_A")
+    chatter_share = missing("a log's rows need not be the speed controller's samples")
     return {
         "scenario": log.source,
-        "reference_steps": [_reference_step(t, t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
+        "reference_steps": [reference_step(t, t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
         "load_steps": [],
         "faults": [],
         "run": {
             "t_end_s": float(t[-1]),
-            "iae_rpm_s": _value(np.trapezoid(np.abs(ref - speed), t)),
+            "iae_rpm_s": figure(np.trapezoid(np.abs(ref - speed), t)),
             "current_limit_time_s": limit_time,
-            "voltage_limit_time_s": _missing("a log has no voltage_limited signal"),
+            "voltage_limit_time_s": missing("a log has no voltage_limited signal"),
             "chatter_share": chatter_share,
         },
         "warnings": [],
@@ -740,8 +326,8 @@ def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
 
 def _voltage_limit_time(result: "Result", t: _Vector) -> _Figure:
     if getattr(result, "voltage_limited", None) is None:
-        return _missing("the trace has no voltage_limited signal")
-    return _value(_time_where(t, at_voltage_limit(result), t[0], t[-1]))
+        return missing("the trace has no voltage_limited signal")
+    return figure(time_where(t, at_voltage_limit(result), t[0], t[-1]))
 
 
 def _fmt(figure: Mapping[str, Any], unit: str) -> str:

@@ -16,7 +16,7 @@ from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario, load_scenario
 from ..sim.simulate import Result
 from .engine import Run, run_many
-from .paper import AW_LABELS
+from .paper_runs import AW_LABELS
 
 #: The fault presets of the report, in report order.
 FAULT_PRESETS = ("fault-stall", "fault-dc-link-sag", "fault-sensor-hold", "fault-sensor-zero", "fault-sensor-spike")
@@ -28,7 +28,7 @@ def run_faults(
     """Simulate every fault preset with each anti-windup mode (:func:`pmsm2dof.studies.engine.run_many`).
 
     Returns ``{(preset, anti_windup): Result}`` in the order of :data:`FAULT_PRESETS` and
-    :data:`~pmsm2dof.studies.paper.AW_LABELS`, or the reason instead of a Result when the
+    :data:`~pmsm2dof.studies.paper_runs.AW_LABELS`, or the reason instead of a Result when the
     overrides do not apply to the preset or the run stopped. ``workers``: local threads of the
     engine (default: the cores available).
     """

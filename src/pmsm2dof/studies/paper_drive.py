@@ -30,7 +30,7 @@ from ..sim.simulate import Result
 from .bench import write_speed_controller
 from .drive import run_on_drive
 from .firmware import serve_scenario
-from .paper import RunSpec, paper_runs
+from .paper_runs import RunSpec, paper_runs
 
 #: The link of ``reproduce --link``: the PC's virtual drive of each experiment, built here.
 VIRTUAL_LINK = "virtual"
@@ -94,7 +94,7 @@ def run_on_drives(
     runs: tuple[str, ...] = DRIVE_RUNS,
     report: Callable[[str], None] | None = None,
 ) -> DriveStudies:
-    """Play ``runs`` (names of :func:`pmsm2dof.studies.paper.paper_runs`) on drives of their presets.
+    """Play ``runs`` (names of :func:`pmsm2dof.studies.paper_runs.paper_runs`) on drives of their presets.
 
     Parameters
     ----------

@@ -11,6 +11,7 @@ import numpy.typing as npt
 from ...sim.metrics import at_current_limit
 from ...sim.simulate import Result
 from .. import paper as st
+from .. import paper_runs as pr
 
 #: Verdicts, best first.
 VERDICTS = ("reproduced", "partly", "not reproduced")
@@ -176,16 +177,16 @@ def _verdict(ok: bool | np.bool_, partly: bool | np.bool_ = False) -> str:
     return VERDICTS[0] if ok else (VERDICTS[1] if partly else VERDICTS[2])
 
 
-def _series(sweep: st.Sweep, label: str, kind: str) -> st.Series:
+def _series(sweep: pr.Sweep, label: str, kind: str) -> pr.Series:
     return next(s for s in sweep.series if s.label == label and s.kind == kind)
 
 
-def _along(studies: st.Studies, sweep: st.Sweep, label: str, kind: str, figure: str) -> npt.NDArray[np.float64]:
+def _along(studies: st.Studies, sweep: pr.Sweep, label: str, kind: str, figure: str) -> npt.NDArray[np.float64]:
     """``figure`` along the series ``label`` of ``kind`` (step or load) of ``sweep`` (NaN where missing)."""
     return studies.series_values(_series(sweep, label, kind), figure)
 
 
-def _reference(sweep: st.Sweep, label: str) -> st.RunSpec:
+def _reference(sweep: pr.Sweep, label: str) -> pr.RunSpec:
     return next(r for lbl, r in sweep.references if lbl == label)
 
 

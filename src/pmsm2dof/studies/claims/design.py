@@ -8,6 +8,7 @@ import numpy as np
 
 from ...core.bindings import Method
 from .. import paper as st
+from .. import paper_runs as pr
 from ..configuration import scenario_design
 from .common import (
     C1_SECOND_STEP_S,
@@ -31,7 +32,7 @@ from .common import (
 
 def _claim_gains(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
-    d = scenario_design(studies.bases[st.STEP_BASE])
+    d = scenario_design(studies.bases[pr.STEP_BASE])
     ok = math.isclose(d.Kp, 0.2, rel_tol=1e-6) and math.isclose(d.Ki, 0.3, rel_tol=1e-6)
     return _claim(
         section="4.1 (eq 9)",
@@ -87,7 +88,7 @@ def _claim_separate(studies: st.Studies) -> Claim:
 
 def _claim_first_order(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
-    d = scenario_design(studies.bases[st.STEP_BASE], m=1.0, feedforward="full")
+    d = scenario_design(studies.bases[pr.STEP_BASE], m=1.0, feedforward="full")
     overshoot_lin = d.overshoot_pct()
     bandwidth = d.bandwidth_radps()
     pole = sc.alpha_radps
@@ -113,7 +114,7 @@ def _claim_first_order(studies: st.Studies) -> Claim:
         paper="Gx = m alpha / (s + m alpha)",
         measured=(
             f"m = 1: linear Gx (eq 6 with eq 11) overshoot {overshoot_lin:.2g} %, -3 dB bandwidth "
-            f"{bandwidth:.4g} rad/s (m alpha = {pole:.4g}); simulated {st.SMALL_STEP_RPM:g} rpm step: overshoot "
+            f"{bandwidth:.4g} rad/s (m alpha = {pole:.4g}); simulated {pr.SMALL_STEP_RPM:g} rpm step: overshoot "
             f"{fmt(over_small, 2, '%')}, 10-90 % rise {fmt(rise, 4, 's')} (eq 10: ln 9/(m alpha) = "
             f"{rise_eq10:.4g} s); 500 rpm step from rest (at the current limit for {limit_time:.2f} s): "
             f"{_over_text(big, note)}; the larger m of the sweep saturate longer and overshoot up to "
@@ -141,7 +142,7 @@ def _claim_first_order(studies: st.Studies) -> Claim:
 
 def _claim_fig7(studies: st.Studies) -> Claim:
     bandwidths = [
-        scenario_design(studies.bases[st.STEP_BASE], m=m, feedforward="full").bandwidth_radps() for m in FIG7_M
+        scenario_design(studies.bases[pr.STEP_BASE], m=m, feedforward="full").bandwidth_radps() for m in FIG7_M
     ]
     sweep = studies.sweep("m")
     rise = _along(studies, sweep, "2DOF eq 11, back-calculation AW", "step", "rise_time_s")
@@ -166,7 +167,7 @@ def _claim_fig7(studies: st.Studies) -> Claim:
 
 def _claim_lowpass(studies: st.Studies) -> Claim:
     sc = studies.speed_controller()
-    low = scenario_design(studies.bases[st.STEP_BASE], m=1.0, feedforward="lowpass")
+    low = scenario_design(studies.bases[pr.STEP_BASE], m=1.0, feedforward="lowpass")
     small = studies.step("lin-lowpass")
     rise, rise_eq10 = _value(small["rise_time_s"]), math.log(9.0) / sc.alpha_radps
     over_small = _value(small["overshoot_pct"])
@@ -187,17 +188,17 @@ def _claim_lowpass(studies: st.Studies) -> Claim:
         paper=f"tau_i 'very small' (here alpha tau_i = {alpha_tau:.3g})",
         measured=(
             f"linear Gx with eq 13: overshoot {low.overshoot_pct():.2g} %, bandwidth "
-            f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc.alpha_radps:g}); simulated {st.SMALL_STEP_RPM:g} rpm "
+            f"{low.bandwidth_radps():.4g} rad/s (eq 12: {sc.alpha_radps:g}); simulated {pr.SMALL_STEP_RPM:g} rpm "
             f"step with eq 13: overshoot {fmt(over_small, 2, '%')}, rise {fmt(rise, 4, 's')} (eq 10: "
             f"{rise_eq10:.4g} s); it differs from the step with eq 12 by at most "
-            f"{100 * diff / st.SMALL_STEP_RPM:.2g} % of the step"
+            f"{100 * diff / pr.SMALL_STEP_RPM:.2g} % of the step"
         ),
         values={
             "overshoot_lowpass_pct": low.overshoot_pct(),
             "bandwidth_lowpass_radps": low.bandwidth_radps(),
             "overshoot_small_step_pct": over_small,
             "rise_time_small_step_s": rise,
-            "max_speed_difference_fraction": diff / st.SMALL_STEP_RPM,
+            "max_speed_difference_fraction": diff / pr.SMALL_STEP_RPM,
         },
         verdict=_verdict(ok),
         reason=(
@@ -216,14 +217,14 @@ def _claim_lowpass(studies: st.Studies) -> Claim:
 
 def _claim_ka_range(studies: st.Studies) -> Claim:
     sweep = studies.sweep("ka")
-    Kp = scenario_design(studies.bases[st.STEP_BASE]).Kp
+    Kp = scenario_design(studies.bases[pr.STEP_BASE]).Kp
     x = np.array(sweep.x)
     used = (x >= 1.0 / (3.0 * Kp) * (1 - 1e-9)) & (x <= 3.0 / Kp * (1 + 1e-9))
     literal = (x >= Kp / 3.0 * (1 - 1e-9)) & (x <= 3.0 * Kp * (1 + 1e-9)) & ~used
-    series = _series(sweep, st.ONE_DOF, "step")
+    series = _series(sweep, pr.ONE_DOF, "step")
     over = studies.series_values(series, "overshoot_pct")
     settle = studies.series_values(series, "settling_time_s")
-    no_aw = studies.figure(_reference(sweep, f"{st.ONE_DOF}, no AW").name, "step", "overshoot_pct")
+    no_aw = studies.figure(_reference(sweep, f"{pr.ONE_DOF}, no AW").name, "step", "overshoot_pct")
     ok = bool(np.all(np.isfinite(over[used])) and np.all(over[used] < no_aw))
     literal_text = (
         f"; over the literal Kp/3 .. 3 Kp = {Kp / 3:.3g} .. {3 * Kp:.3g} it is "
@@ -259,7 +260,7 @@ def _claim_ka_range(studies: st.Studies) -> Claim:
 
 
 def _claim_unwind(studies: st.Studies) -> Claim:
-    runs = {aw: studies.results[f"c1-1dof-{aw}"] for aw in st.AW_LABELS}
+    runs = {aw: studies.results[f"c1-1dof-{aw}"] for aw in pr.AW_LABELS}
     limit_time = {aw: _value(studies.step(f"c1-1dof-{aw}", 0)["current_limit_time_s"]) for aw in runs}
     x_peak = {aw: float(np.max(r.x_i_Nm[_window(r, 0.0, C1_SECOND_STEP_S)])) for aw, r in runs.items()}
     ok = limit_time["back_calculation"] < limit_time["none"]
@@ -285,8 +286,8 @@ def _claim_unwind(studies: st.Studies) -> Claim:
 def _claim_tustin(studies: st.Studies) -> Claim:
     Ts = studies.fine_Ts_s
     points = [p for p in studies.discretization if p.Ts_s == Ts]
-    one = {p.method: p for p in points if p.controller == st.ONE_DOF}
-    cont = studies.continuous[st.ONE_DOF][0]
+    one = {p.method: p for p in points if p.controller == pr.ONE_DOF}
+    cont = studies.continuous[pr.ONE_DOF][0]
     error = {m: p.controller_error for m, p in one.items()}
     deviation = {m: abs(p.overshoot_pct - cont) for m, p in one.items()}
     pm = {m: p.phase_margin_deg for m, p in one.items()}
@@ -299,7 +300,7 @@ def _claim_tustin(studies: st.Studies) -> Claim:
     closest = min(deviation, key=deviation.__getitem__)
     best_loop = closest == "tustin"
     Ts0 = min(p.Ts_s for p in studies.discretization)
-    at_Ts0 = [p.overshoot_pct for p in studies.discretization if p.Ts_s == Ts0 and p.controller == st.ONE_DOF]
+    at_Ts0 = [p.overshoot_pct for p in studies.discretization if p.Ts_s == Ts0 and p.controller == pr.ONE_DOF]
     spread0 = max(at_Ts0) - min(at_Ts0)
     names = {"forward_euler": "FE", "backward_euler": "BE", "tustin": "Tustin"}
     reason = ""

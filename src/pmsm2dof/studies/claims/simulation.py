@@ -5,6 +5,7 @@ import math
 import numpy as np
 
 from .. import paper as st
+from .. import paper_runs as pr
 from ..configuration import scenario_design
 from .common import (
     ABOUT_RTOL,
@@ -89,7 +90,7 @@ def _claim_current_reverse(studies: st.Studies) -> Claim:
                 ]
             )
         )
-        for aw in st.AW_LABELS
+        for aw in pr.AW_LABELS
     }
     ok = lows["none"] < 0.0 and lows["none"] < lows["back_calculation"]
     return _claim(
@@ -114,7 +115,7 @@ def _claim_current_reverse(studies: st.Studies) -> Claim:
     )
 
 
-def _torque_for(studies: st.Studies, label: str, level: float) -> tuple[float | None, st.Sweep]:
+def _torque_for(studies: st.Studies, label: str, level: float) -> tuple[float | None, pr.Sweep]:
     sweep = studies.sweep("torque_limit")
     y = _along(studies, sweep, label, "step", "overshoot_pct")
     return _crossing(sweep.x, y, level), sweep
@@ -126,11 +127,11 @@ def _claim_aw_overshoot(studies: st.Studies) -> Claim:
     clamp, _ = _overshoot(studies, "c1-1dof-clamping", 0)
     two, _ = _overshoot(studies, "c1-2dof-back_calculation", 0)
     about = abs(value - 16.0) <= ABOUT_RTOL * 16.0
-    torque, sweep = _torque_for(studies, f"{st.ONE_DOF}, back-calculation AW", 16.0)
+    torque, sweep = _torque_for(studies, f"{pr.ONE_DOF}, back-calculation AW", 16.0)
     if torque is not None:
-        y_none = _along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")
+        y_none = _along(studies, sweep, f"{pr.ONE_DOF}, no AW", "step", "overshoot_pct")
         no_aw_there = float(np.interp(torque, sweep.x, y_none))
-        i_max = studies.bases[st.STEP_BASE].limits.i_max_A
+        i_max = studies.bases[pr.STEP_BASE].limits.i_max_A
         where = (
             f"the sweep of the torque limit gives 16 % with AW at about {torque:.2g} Nm (a torque constant of "
             f"{torque / i_max:.2g} Nm/A for the 7.6 A limit, against {sweep.marks[0][0] / i_max:.2g} here), "
@@ -270,7 +271,7 @@ def _claim_e1(studies: st.Studies) -> Claim:
     bc, _ = _overshoot(studies, "e1-1dof-back_calculation")
     both = abs(none - 35.0) <= ABOUT_RTOL * 35.0 and abs(bc - 15.0) <= ABOUT_RTOL * 15.0
     sweep = studies.sweep("torque_limit")
-    least_no_aw = float(np.nanmin(_along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")))
+    least_no_aw = float(np.nanmin(_along(studies, sweep, f"{pr.ONE_DOF}, no AW", "step", "overshoot_pct")))
     if both:
         reason = ""
     elif bc >= none:
@@ -283,7 +284,7 @@ def _claim_e1(studies: st.Studies) -> Claim:
         if 35.0 < least_no_aw:
             reason += (
                 f". Without AW no torque limit of the sweep overshoots less than {least_no_aw:.1f} % (the "
-                f"linear 1DOF PI of eq 4 with eq 2, 3, 9: {studies.continuous[st.ONE_DOF][0]:.1f} %), above "
+                f"linear 1DOF PI of eq 4 with eq 2, 3, 9: {studies.continuous[pr.ONE_DOF][0]:.1f} %), above "
                 "the experiment's 35 %: the real drive is damped by what the model leaves out and the paper "
                 "does not give (friction, the magnetic-powder brake's drag, the torque constant, the gains "
                 "actually used)"
@@ -359,8 +360,8 @@ def _claim_e3(studies: st.Studies) -> Claim:
 def _claim_aw_everywhere(studies: st.Studies) -> Claim:
     pairs = []
     sweep = studies.sweep("torque_limit")
-    none = _along(studies, sweep, f"{st.ONE_DOF}, no AW", "step", "overshoot_pct")
-    for label in (f"{st.ONE_DOF}, back-calculation AW", f"{st.ONE_DOF}, clamping"):
+    none = _along(studies, sweep, f"{pr.ONE_DOF}, no AW", "step", "overshoot_pct")
+    for label in (f"{pr.ONE_DOF}, back-calculation AW", f"{pr.ONE_DOF}, clamping"):
         pairs += list(zip(_along(studies, sweep, label, "step", "overshoot_pct"), none))
     sweep = studies.sweep("m")
     pairs += list(
@@ -406,10 +407,10 @@ def _claim_2dof_everywhere(studies: st.Studies) -> Claim:
     worst_load = 0.0
     for name in ("zeta", "inertia"):
         sweep = studies.sweep(name)
-        o1 = _along(studies, sweep, st.ONE_DOF, "step", "overshoot_pct")
-        o2 = _along(studies, sweep, st.TWO_DOF, "step", "overshoot_pct")
-        d1 = _along(studies, sweep, st.ONE_DOF, "load", "speed_dip_rpm")
-        d2 = _along(studies, sweep, st.TWO_DOF, "load", "speed_dip_rpm")
+        o1 = _along(studies, sweep, pr.ONE_DOF, "step", "overshoot_pct")
+        o2 = _along(studies, sweep, pr.TWO_DOF, "step", "overshoot_pct")
+        d1 = _along(studies, sweep, pr.ONE_DOF, "load", "speed_dip_rpm")
+        d2 = _along(studies, sweep, pr.TWO_DOF, "load", "speed_dip_rpm")
         total += len(o1)
         over_better += int(np.sum(o2 < o1))
         rel = np.abs(d2 - d1) / d1

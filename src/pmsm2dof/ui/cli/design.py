@@ -1,6 +1,6 @@
 """``pmsm2dof design`` and ``pmsm2dof bode``: the speed controller of eq 9-15 (pmsm2dof.analysis)."""
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
 import click
@@ -9,11 +9,10 @@ from ...errors import ConfigError
 
 if TYPE_CHECKING:
     from ...analysis.current_loop import CurrentLoopDesign
-    from ...analysis.discretize import DiscreteDesign
-    from ...analysis.margins import Margins
     from ...analysis.sensor import DelayModel
     from ...core.bindings import AntiWindup, Feedforward, Method
     from ...core.motor import Motor
+    from ...studies.speed_design import SpeedDesign
 
 from .options import as_option, held_warnings, json_option, motor_option, option_name, speed_option
 
@@ -179,9 +178,8 @@ def design(
     import json
     import warnings
 
-    from ...analysis.design import design as make_design
-    from ...analysis.sensor import SensorChain
     from ...sim.plausibility import PlausibilityWarning, current_findings, inertia_findings
+    from ...studies.speed_design import speed_design
     from ..fixedpoint import design_scaling_check, report_dict
 
     with held_warnings():
@@ -216,39 +214,41 @@ def design(
         options |= {name: option_name("sensor_" + name) for name in ("bandwidth_radps", "lowpass_radps", "delay_s")}
         options["phase_margin_deg"] = "--phase-margin-deg"
         try:
-            sensor = SensorChain(
-                model=sensor_model,
-                estimator=estimator,
-                bandwidth_radps=sensor_bandwidth_radps,
-                lowpass_radps=sensor_lowpass_radps,
-                delay_s=sensor_delay_s,
-            )
-            d = make_design(
+            result = speed_design(
                 J_kgm2,
                 alpha_radps,
                 zeta,
                 m=m,
                 tau_i_s=tau_i_s,
+                Ts_s=Ts_s,
+                method=method,
                 feedforward=feedforward,
                 anti_windup=anti_windup,
                 Ka=Ka,
-                sensor=sensor,
-            )
-            dd = d.discretize(Ts_s, method)  # first: it bounds the work of the sensor's delay
-            margins = d.margins(delay_model)
-            alpha_max = (
-                None if phase_margin_deg is None else d.max_alpha_for_phase_margin(phase_margin_deg, delay_model)
+                sensor=dict(
+                    model=sensor_model,
+                    estimator=estimator,
+                    bandwidth_radps=sensor_bandwidth_radps,
+                    lowpass_radps=sensor_lowpass_radps,
+                    delay_s=sensor_delay_s,
+                ),
+                delay_model=delay_model,
+                phase_margin_deg=phase_margin_deg,
+                current_loop=loop,
             )
         except ConfigError as exc:
             raise as_option(exc, options) from None
         scaling = design_scaling_check(
-            d, Ts_s, method, fixed_point, speed_full_scale_rpm, torque_full_scale_Nm, i_max_A, pole_pairs, psi_f_Wb
+            result.design,
+            Ts_s,
+            method,
+            fixed_point,
+            speed_full_scale_rpm,
+            torque_full_scale_Nm,
+            i_max_A,
+            pole_pairs,
+            psi_f_Wb,
         )
-    sensitivity = None
-    if loop is not None:
-        from ...analysis.current_loop import speed_margin_sensitivity
-
-        sensitivity = speed_margin_sensitivity(loop, dd.design.Kp, dd.design.Ki, J_kgm2)
     if header is not None:
         from ...studies.configuration import DESIGN_MOTOR, configuration, design_scenario
 
@@ -256,36 +256,30 @@ def design(
             f"  {name:<12} = {motor[name]:g} {DESIGN_MOTOR[name][0]} ({source})" for name, source in sources.items()
         )
         try:
-            config = configuration(design_scenario(dd, **motor), source="pmsm2dof design", notes=notes)
+            config = configuration(design_scenario(result.discrete, **motor), source="pmsm2dof design", notes=notes)
             config.write_header(header, prefix)
         except ConfigError as exc:
             raise as_option(exc, _header_keys()) from None
     if as_json:
-        data = dd.as_dict()
-        data["continuous"]["margins"], _ = margins.values_and_reasons()
-        data["delay"] = delay_model
-        if phase_margin_deg is not None:
-            data["max_alpha_radps"] = {"phase_margin_deg": phase_margin_deg, "alpha_radps": alpha_max}
+        data = result.as_dict()
         if header is not None:
             data["header"] = {
                 "path": header,
                 "motor": {name: {"value": motor[name], "source": sources[name]} for name in sources},
             }
-        if loop is not None:
-            data["current_loop"] = loop.as_dict()
-            data["speed_margin_sensitivity"] = sensitivity
+        data |= result.current_loop_dict()
         if scaling is not None:
             data["fixed_point"] = report_dict(scaling)
         click.echo(json.dumps(data))
         return
-    click.echo(_design_table(dd, margins, delay_model))
+    click.echo(_table(result.design_rows()))
     if phase_margin_deg is not None:
         click.echo(
             f"\nLargest alpha keeping a phase margin of {phase_margin_deg:g} deg (zeta, tau_i and sensor kept): "
-            f"{alpha_max:.6g} rad/s"
+            f"{result.alpha_max_radps:.6g} rad/s"
         )
     if loop is not None:
-        click.echo(_current_loop_table(loop, motor_file, sensitivity))
+        click.echo(_current_loop_table(result, loop, motor_file))
     if scaling is not None:
         click.echo("\n" + scaling.text())
     if header is not None:
@@ -325,25 +319,18 @@ def _identified_current_loop(
         ) from None
 
 
-def _current_loop_table(
-    loop: "CurrentLoopDesign", motor_file: str | None, sensitivity: list[dict[str, Any]] | None
-) -> str:
-    m = loop.motor
-    lines = [
-        f"\nCurrent loop from {motor_file} (alpha_c = {loop.alpha_c_radps:g} rad/s)",
-        f"  Kp_d = Ld alpha_c          {loop.Kp_d_V_per_A:.6g} V/A",
-        f"  Kp_q = Lq alpha_c          {loop.Kp_q_V_per_A:.6g} V/A",
-        f"  Ki = Rs alpha_c            {loop.Ki_V_per_As:.6g} V/(A s)",
-        f"  tau_i = 1/alpha_c (eq 3)   {loop.tau_i_s:.6g} s",
-        f"  decoupling                 ud += -w_e {m.Lq_H:.6g} iq, uq += w_e ({m.Ld_H:.6g} id + {m.psi_f_Wb:.6g})",
+def _current_loop_table(result: "SpeedDesign", loop: "CurrentLoopDesign", motor_file: str | None) -> str:
+    lines = [f"\nCurrent loop from {motor_file} (alpha_c = {loop.alpha_c_radps:g} rad/s)"]
+    lines += [f"  {name:<27}{value}" for name, value in result.current_loop_rows()]
+    lines += [
         "Speed-loop margins if the machine is at the corners of the estimates' intervals",
         f"  {'Rs_ohm':>10} {'Lq_H':>10} {'psi_f_Wb':>10} {'gain [dB]':>10} {'phase [deg]':>12}",
     ]
-    for row in sensitivity or []:
+    for row in result.sensitivity or []:
         gm = "inf" if row["gain_margin_dB"] is None else f"{row['gain_margin_dB']:.4g}"
         pm = "inf" if row["phase_margin_deg"] is None else f"{row['phase_margin_deg']:.4g}"
         lines.append(f"  {row['Rs_ohm']:>10.4g} {row['Lq_H']:>10.4g} {row['psi_f_Wb']:>10.4g} {gm:>10} {pm:>12}")
-    if not m.intervals:
+    if not loop.motor.intervals:
         lines.append(f"  (no intervals in {motor_file}: the estimates only)")
     return "\n".join(lines)
 
@@ -378,65 +365,8 @@ def _header_motor(
     return motor, {name: f"given: {option_name(name)}" if s == GIVEN else s for name, s in sources.items()}
 
 
-def _poles_text(poles: Iterable[complex], unit: str) -> str:
-    """Poles with conjugate pairs shown once as re ± im j."""
-    parts = []
-    for p in sorted(poles, key=lambda p: (p.real, -p.imag)):
-        if p.imag > 0:
-            parts.append(f"{p.real:.6g} ± {p.imag:.6g}j")
-        elif p.imag == 0:
-            parts.append(f"{p.real:.6g}")
-    return ", ".join(parts) + f" {unit}"
-
-
-def _margins_text(margins: "Margins", unit: str) -> str:
-    return (
-        f"gain {margins.gain_margin_dB:.4g} dB, phase {margins.phase_margin_deg:.4g} deg"
-        f" (crossover {margins.w_gain_crossover_radps:.4g} {unit})"
-    )
-
-
-def _overshoot_text(value: float, missing: Mapping[str, str]) -> str:
-    return f"{value:.3g} %" if "overshoot_pct" not in missing else f"n/a ({missing['overshoot_pct']})"
-
-
-def _design_table(dd: "DiscreteDesign", margins: "Margins", delay_model: str) -> str:
-    d = dd.design
-    sensor = d.sensor.describe() + (f" ({delay_model} delay in the margins)" if d.sensor.delay_s else "")
-    rows = [
-        ("Design inputs", None),
-        ("J", f"{d.J_kgm2:.6g} kg m^2"),
-        ("alpha", f"{d.alpha_radps:.6g} rad/s"),
-        ("zeta", f"{d.zeta:.6g}"),
-        ("m", f"{d.m:.6g}"),
-        ("tau_i", f"{d.tau_i_s:.6g} s"),
-        ("feedforward", d.feedforward),
-        ("anti-windup", d.anti_windup),
-        ("speed sensor", sensor),
-        ("Gains (eq 9)", None),
-        ("Kp = J alpha", f"{d.Kp:.6g} Nm/(rad/s)"),
-        ("Ki = J (alpha/(2 zeta))^2", f"{d.Ki:.6g} Nm/rad"),
-        ("Ka", f"{d.Ka:.6g} (rad/s)/Nm" + (" (1/Kp)" if d.Ka == 1.0 / d.Kp else "")),
-        ("Continuous loop (F G, eq 2, 3, 6, 8)" if d.sensor.is_ideal else "Continuous loop (F G H)", None),
-        ("loop poles", _poles_text(d.closed_loop_poles(), "rad/s")),
-        ("feedforward pole", "none" if d.feedforward == "none" else f"{-d.fr_polynomials()[1][1]:.6g} rad/s"),
-        ("bandwidth (-3 dB of Gx)", f"{d.bandwidth_radps():.6g} rad/s"),
-        ("step overshoot", _overshoot_text(d.overshoot_pct(), d.missing())),
-        ("margins", _margins_text(margins, "rad/s")),
-        (f"Discrete loop ({dd.method}, Ts = {dd.Ts_s:g} s, ZOH plant)", None),
-        ("loop poles", _poles_text(dd.poles, "(z)")),
-        ("largest |z|", f"{max(abs(p) for p in dd.poles):.9g}"),
-        ("step overshoot", _overshoot_text(dd.overshoot_pct, dd.missing)),
-        ("margins", _margins_text(dd.margins, "rad/s")),
-        ("Coefficients (p2d_speed_coef_t)", None),
-        ("b_e0", f"{dd.b_e0:.9g} Nm/(rad/s)"),
-        ("Ki_Ts", f"{dd.Ki_Ts:.9g} Nm/(rad/s)"),
-        ("Ki_Ka_Ts", f"{dd.Ki_Ka_Ts:.9g}"),
-        ("ff_Fr0", f"{dd.ff_Fr0:.9g} Nm/(rad/s)"),
-        ("ff_b_dr", f"{dd.ff_b_dr:.9g} Nm/(rad/s)"),
-        ("ff_a1", f"{dd.ff_a1:.9g}"),
-        ("ff_Kd_per_Ts", f"{dd.ff_Kd_per_Ts:.9g} Nm/(rad/s)"),
-    ]
+def _table(rows: "list[tuple[str, str | None]]") -> str:
+    """Rows ``(name, value)`` as a table under their headings (the rows whose value is None)."""
     width = max(len(name) for name, value in rows if value is not None) + 2
     lines: list[str] = []
     for name, value in rows:

@@ -1,4 +1,4 @@
-"""``pmsm2dof sweep`` and ``pmsm2dof autotune``: many runs (pmsm2dof.studies.sweep, studies.autotune)."""
+"""``pmsm2dof sweep`` and ``pmsm2dof autotune``: many runs (pmsm2dof.studies.sweep_run, studies.autotune_search)."""
 
 import sys
 from typing import TYPE_CHECKING, Any
@@ -61,7 +61,8 @@ def sweep(
 
     from ...sim.plausibility import warn_implausible
     from ...studies.engine import PartWarning
-    from ...studies.sweep import load_sweep, run_sweep
+    from ...studies.sweep import load_sweep
+    from ...studies.sweep_run import run_sweep
     from ..plots.sweep import draw_figures
 
     chosen = load_sweep(file)
@@ -261,7 +262,7 @@ def autotune(
     from ...sim.plausibility import warn_implausible
     from ...sim.scenario import load_scenario
     from ...studies.autotune import Spec
-    from ...studies.autotune import autotune as run_autotune
+    from ...studies.autotune_search import autotune as run_autotune
 
     try:
         spec = Spec(

@@ -50,6 +50,7 @@ from matplotlib.figure import Figure
 
 from ...outputs import atomic_write, check_out, staged_dir
 from ...studies import paper as st
+from ...studies import paper_runs as pr
 from ...studies.adaptation import run_adaptation
 from ...studies.claims import VERDICTS, Claim, compute_claims
 from ...studies.faults import run_faults
@@ -218,7 +219,7 @@ def _claim_json(claim: Claim) -> dict[str, Any]:
 def reproduce(
     out: Path | str = "pmsm2dof-report",
     overrides: Mapping[str, Any] | None = None,
-    points: int = st.POINTS,
+    points: int = pr.POINTS,
     progress: bool = False,
     force: bool = False,
     link: str | None = None,
@@ -233,7 +234,7 @@ def reproduce(
     overrides : mapping, optional
         ``{"dotted.key": value}`` applied to every preset (see :func:`pmsm2dof.studies.paper.run_studies`).
     points : int
-        Values per sensitivity sweep; the full study uses :data:`pmsm2dof.studies.paper.POINTS`.
+        Values per sensitivity sweep; the full study uses :data:`pmsm2dof.studies.paper_runs.POINTS`.
     progress : bool
         Show progress bars over the runs, the discrete designs and the figures.
     force : bool

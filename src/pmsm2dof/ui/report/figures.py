@@ -24,6 +24,7 @@ from matplotlib.figure import Figure
 from ...core.bindings import AntiWindup
 from ...sim.simulate import Result
 from ...studies import paper as st
+from ...studies import paper_runs as pr
 from ...studies.claims import FIG7_M
 from ...studies.configuration import scenario_design
 from ...studies.faults import FAULT_PRESETS, fault_figures
@@ -153,13 +154,13 @@ def fig_aw(studies: st.Studies, cond: str, signal: str) -> tuple[Figure, FigureD
     """Fig. 8 (speed) or 9 (current command) of condition ``cond``: each AW mode, 1DOF and 2DOF."""
     fig, axes = _figure(2)
     data = FigureData()
-    for ax, (dof, label) in zip(axes[:, 0], (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF))):
+    for ax, (dof, label) in zip(axes[:, 0], (("1dof", pr.ONE_DOF), ("2dof", pr.TWO_DOF))):
         first = studies.results[f"{cond}-{dof}-none"]
         if signal == "speed_rpm":
             _trace(data, ax, first, "speed_ref_rpm", "speed_ref_rpm", color="k", ls=":", lw=1.0, label="reference")
         else:
             _current_limit(ax, first)
-        for aw, aw_label in st.AW_LABELS.items():
+        for aw, aw_label in pr.AW_LABELS.items():
             _trace(
                 data,
                 ax,
@@ -185,7 +186,7 @@ def fig_2dof(studies: st.Studies, cond: str) -> tuple[Figure, FigureData]:
     ax_w, ax_i = axes[:, 0]
     r1 = studies.results[f"{cond}-1dof"]
     _trace(data, ax_w, r1, "speed_ref_rpm", "speed_ref_rpm", color="k", ls=":", lw=1.0, label="reference")
-    for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
+    for dof, label in (("1dof", pr.ONE_DOF), ("2dof", pr.TWO_DOF)):
         r = studies.results[f"{cond}-{dof}"]
         _trace(data, ax_w, r, "speed_rpm", f"{dof}_speed_rpm", lw=1.3, label=label, **_DOF_STYLE[dof])
         _trace(data, ax_i, r, "iq_ref_A", f"{dof}_iq_ref_A", lw=1.3, label=label, **_DOF_STYLE[dof])
@@ -212,7 +213,7 @@ def fig_exp1(studies: st.Studies) -> tuple[Figure, FigureData]:
         lw=1.0,
         label="reference",
     )
-    for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
+    for dof, label in (("1dof", pr.ONE_DOF), ("2dof", pr.TWO_DOF)):
         for aw in ("none", "back_calculation"):
             style = dict(_DOF_STYLE[dof], ls="-" if aw == "back_calculation" else "--")
             _trace(
@@ -222,7 +223,7 @@ def fig_exp1(studies: st.Studies) -> tuple[Figure, FigureData]:
                 "speed_rpm",
                 f"{dof}_{aw}_speed_rpm",
                 lw=1.3,
-                label=f"{label}, {st.AW_LABELS[aw]}",
+                label=f"{label}, {pr.AW_LABELS[aw]}",
                 **style,
             )
     _finish(ax, "speed [rpm]", "time [s]")
@@ -252,7 +253,7 @@ def fig_exp2(studies: st.Studies) -> tuple[Figure, FigureData]:
             lw=1.0,
             label="reference",
         )
-        for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
+        for dof, label in (("1dof", pr.ONE_DOF), ("2dof", pr.TWO_DOF)):
             _trace(
                 data,
                 ax,
@@ -279,7 +280,7 @@ def fig_exp3(studies: st.Studies) -> tuple[Figure, FigureData]:
     data = FigureData()
     ax_w, ax_i = axes[:, 0]
     r1 = studies.results["e3-1dof"]
-    for dof, label in (("1dof", st.ONE_DOF), ("2dof", st.TWO_DOF)):
+    for dof, label in (("1dof", pr.ONE_DOF), ("2dof", pr.TWO_DOF)):
         r = studies.results[f"e3-{dof}"]
         _trace(data, ax_w, r, "speed_rpm", f"{dof}_speed_rpm", label=label, **_SAME_STYLE[dof])
         _trace(data, ax_i, r, "iq_ref_A", f"{dof}_iq_ref_A", label=label, **_SAME_STYLE[dof])
@@ -307,7 +308,7 @@ _STEP_PANELS = (("overshoot_pct", "overshoot [%]"), ("settling_time_s", "2 % set
 _LOAD_PANELS = (("speed_dip_rpm", "load-step dip [rpm]"), ("recovery_time_s", "load recovery (2 % of dip) [s]"))
 
 
-def fig_sweep(studies: st.Studies, sweep: st.Sweep) -> tuple[Figure, FigureData]:
+def fig_sweep(studies: st.Studies, sweep: pr.Sweep) -> tuple[Figure, FigureData]:
     """A sensitivity figure: overshoot and settling of the step (and dip and recovery of the load step)."""
     has_load = any(s.kind == "load" for s in sweep.series)
     fig, axes = _figure(2 if has_load else 1, 2, height=3.0, width=9.0)
@@ -335,7 +336,7 @@ def fig_sweep(studies: st.Studies, sweep: st.Sweep) -> tuple[Figure, FigureData]
                 value,
                 color=f"C{k}",
                 lw=1.0,
-                ls=":" if ref_label.endswith(st.AW_LABELS["none"]) else "-.",
+                ls=":" if ref_label.endswith(pr.AW_LABELS["none"]) else "-.",
                 label=ref_label,
             )
         for x, mark in sweep.marks:
@@ -369,8 +370,8 @@ def fig_discretization(studies: st.Studies) -> tuple[Figure, FigureData]:
     )
     for ax, (field, label) in zip(axes.flat, panels):
         for k, method in enumerate(names):
-            for controller, ls in ((st.ONE_DOF, "-"), (st.TWO_DOF, "--")):
-                if controller == st.TWO_DOF and field != "overshoot_pct":
+            for controller, ls in ((pr.ONE_DOF, "-"), (pr.TWO_DOF, "--")):
+                if controller == pr.TWO_DOF and field != "overshoot_pct":
                     continue  # the feedforward is outside the loop: same margins and PI
                 pts = [p for p in studies.discretization if p.controller == controller and p.method == method]
                 ax.plot(
@@ -380,13 +381,13 @@ def fig_discretization(studies: st.Studies) -> tuple[Figure, FigureData]:
                     marker="o",
                     ms=3,
                     color=f"C{k}",
-                    label=names[method] if controller == st.ONE_DOF else None,
+                    label=names[method] if controller == pr.ONE_DOF else None,
                 )
             if field == "overshoot_pct":
-                engine = [studies.figure(f"disc-{method}-{Ts:g}", "step", "overshoot_pct") for Ts in st.TS_ENGINE_S]
+                engine = [studies.figure(f"disc-{method}-{Ts:g}", "step", "overshoot_pct") for Ts in pr.TS_ENGINE_S]
                 ax.plot(
-                    data("engine_Ts_s", st.TS_ENGINE_S),
-                    data(f"engine_{_tag(st.ONE_DOF)}_{method}_overshoot_pct", engine),
+                    data("engine_Ts_s", pr.TS_ENGINE_S),
+                    data(f"engine_{_tag(pr.ONE_DOF)}_{method}_overshoot_pct", engine),
                     ls="none",
                     marker="x",
                     ms=8,
@@ -394,12 +395,12 @@ def fig_discretization(studies: st.Studies) -> tuple[Figure, FigureData]:
                     label="engine" if k == 0 else None,
                 )
         if field == "overshoot_pct":
-            for controller, ls in ((st.ONE_DOF, "-"), (st.TWO_DOF, "--")):
+            for controller, ls in ((pr.ONE_DOF, "-"), (pr.TWO_DOF, "--")):
                 value = data(f"continuous_{_tag(controller)}_overshoot_pct", studies.continuous[controller][0])[0]
                 ax.axhline(value, color="k", lw=0.8, ls=ls, alpha=0.5)
         elif field == "phase_margin_deg":
             value = data(
-                f"continuous_{_tag(st.ONE_DOF)}_phase_margin_deg", studies.continuous[st.ONE_DOF][1].phase_margin_deg
+                f"continuous_{_tag(pr.ONE_DOF)}_phase_margin_deg", studies.continuous[pr.ONE_DOF][1].phase_margin_deg
             )[0]
             ax.axhline(value, color="k", lw=0.8, alpha=0.5, label="continuous")
         ax.axvline(studies.fine_Ts_s, color="grey", lw=0.8, ls="-.")
@@ -422,7 +423,7 @@ def fig_faults(runs: Mapping[tuple[str, AntiWindup], Result | str | None]) -> tu
     fig, axes = _figure(len(FAULT_PRESETS), 2, height=2.2, width=10.0)
     data = FigureData()
     for (ax_w, ax_x), preset in zip(axes, FAULT_PRESETS):
-        results = {aw: run for aw in st.AW_LABELS if isinstance(run := runs[preset, aw], Result)}
+        results = {aw: run for aw in pr.AW_LABELS if isinstance(run := runs[preset, aw], Result)}
         if not results:
             ax_w.set_title(f"{preset}: did not run", fontsize="small")
             continue
@@ -445,7 +446,7 @@ def fig_faults(runs: Mapping[tuple[str, AntiWindup], Result | str | None]) -> tu
             label="reference",
         )
         for aw, result in results.items():
-            style = dict(lw=1.2, label=st.AW_LABELS[aw], **_AW_STYLE[aw])
+            style = dict(lw=1.2, label=pr.AW_LABELS[aw], **_AW_STYLE[aw])
             _trace(data, ax_w, result, "speed_rpm", f"{tag}{aw}_speed_rpm", tag, t0, t1, **style)
             _trace(data, ax_x, result, "x_i_Nm", f"{tag}{aw}_x_i_Nm", tag, t0, t1, **style)
         ax_w.set_title(first.scenario.description, fontsize="small", loc="left")
@@ -460,7 +461,7 @@ def fig_faults(runs: Mapping[tuple[str, AntiWindup], Result | str | None]) -> tu
 def figures(studies: st.Studies) -> dict[str, tuple[Figure, FigureData, str]]:
     """Every figure of the report: ``{stem: (Figure, FigureData, caption)}`` in report order."""
     sc = studies.speed_controller()
-    d = scenario_design(studies.bases[st.STEP_BASE])
+    d = scenario_design(studies.bases[pr.STEP_BASE])
     Kp, Ki = d.Kp, d.Ki
     bode = bode_gx_sweep(
         sc.alpha_radps,
@@ -536,7 +537,7 @@ def figures(studies: st.Studies) -> dict[str, tuple[Figure, FigureData, str]]:
         *fig_discretization(studies),
         "Discretization study: the design's discrete loop (ZOH plant, python-control) for forward Euler, backward "
         f"Euler and Tustin as Ts grows; overshoot: solid 1DOF PI, dashed 2DOF eq 15, crosses the engine's overshoot "
-        f"of a {st.SMALL_STEP_RPM:g} rpm step with the 1DOF PI. The margins and the PI are the same for both "
+        f"of a {pr.SMALL_STEP_RPM:g} rpm step with the 1DOF PI. The margins and the PI are the same for both "
         "controllers (the feedforward is outside the loop). Missing points: the discrete loop is unstable.",
     )
     return out

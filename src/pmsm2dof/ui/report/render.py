@@ -14,9 +14,10 @@ import numpy as np
 
 from ...core.bindings import AntiWindup
 from ...sim.commission import Commissioning
-from ...sim.metrics import LOAD_FIGURES, REFERENCE_FIGURES
+from ...sim.event_figures import LOAD_FIGURES, REFERENCE_FIGURES
 from ...sim.simulate import Result
 from ...studies import paper as st
+from ...studies import paper_runs as pr
 from ...studies.claims import ABOUT_RTOL, FIRST_ORDER_RTOL, NO_OVERSHOOT_PCT, SAME_RTOL, VERDICTS, Claim, fmt
 from ...studies.configuration import scenario_design
 from ...studies.faults import fault_figures
@@ -86,12 +87,12 @@ def sensitivity_rows(studies: st.Studies) -> list[dict[str, Any]]:
             for x, run in zip(sweep.x, series.runs):
                 rows.append(_metric_row(studies, sweep.name, series, x, run, figures_))
         for label, run in sweep.references:
-            rows.append(_metric_row(studies, sweep.name, st.Series(label, "step", ()), None, run, REFERENCE_FIGURES))
+            rows.append(_metric_row(studies, sweep.name, pr.Series(label, "step", ()), None, run, REFERENCE_FIGURES))
     return rows
 
 
 def _metric_row(
-    studies: st.Studies, sweep: str, series: st.Series, x: float | None, run: st.RunSpec, figures_: Sequence[str]
+    studies: st.Studies, sweep: str, series: pr.Series, x: float | None, run: pr.RunSpec, figures_: Sequence[str]
 ) -> dict[str, Any]:
     row: dict[str, Any] = {
         "study": sweep,
@@ -129,13 +130,13 @@ def _discretization_table(studies: st.Studies) -> _Table:
         "PI error at crossover",
     )
     grid = sorted({p.Ts_s for p in studies.discretization})
-    shown = [Ts for Ts in grid if Ts in st.TS_ENGINE_S or Ts in (studies.fine_Ts_s, grid[-1])]
+    shown = [Ts for Ts in grid if Ts in pr.TS_ENGINE_S or Ts in (studies.fine_Ts_s, grid[-1])]
     rows: list[tuple[Any, ...]] = []
     for Ts in shown:
         for method in ("forward_euler", "backward_euler", "tustin"):
             p1, p2 = (
                 next(p for p in studies.discretization if p.Ts_s == Ts and p.method == method and p.controller == label)
-                for label in (st.ONE_DOF, st.TWO_DOF)
+                for label in (pr.ONE_DOF, pr.TWO_DOF)
             )
             if not p1.stable:
                 rows.append((f"{Ts:g}", method, "unstable", "", "", "", "", ""))
@@ -186,7 +187,7 @@ def report_blocks(
     ``("figure", stem, caption)``. Text may hold `code` spans.
     """
     counts = {v: sum(c.verdict == v for c in claims) for v in VERDICTS}
-    Kp = scenario_design(studies.bases[st.STEP_BASE]).Kp
+    Kp = scenario_design(studies.bases[pr.STEP_BASE]).Kp
     timing = f"; {wall_time_s:.1f} s in all" if wall_time_s is not None else ""
     overrides = ", ".join(f"`{k} = {v!r}`" for k, v in studies.overrides.items())
     blocks = [
@@ -304,14 +305,14 @@ def _fault_blocks(
     rows: list[tuple[Any, ...]] = []
     for (preset, aw), result in runs.items():
         if not isinstance(result, Result):
-            rows.append((preset, st.AW_LABELS[aw], f"did not run: {result}", "", "", "", ""))
+            rows.append((preset, pr.AW_LABELS[aw], f"did not run: {result}", "", "", "", ""))
             continue
         f = fault_figures(result)
         recovery = "not within the run" if f["recovery_time_s"] is None else f"{f['recovery_time_s']:.3g}"
         rows.append(
             (
                 preset,
-                st.AW_LABELS[aw],
+                pr.AW_LABELS[aw],
                 f"{f['deviation_rpm']:.3g}",
                 f"{f['x_i_excursion_Nm']:.3g}",
                 f"{f['i_peak_A']:.3g}",

@@ -56,6 +56,7 @@ from ...errors import PARAM_CHARS_MAX, ConfigError, SimulationError, ToolError, 
 from ...inputs import parse_json
 from ...sim.scenario import Scenario
 from ...studies.bench import DriveSession, NotArmed
+from .controls import page_controls
 from .drive import DriveMode
 from .experiment import Tuner
 from .slots import ClientSlots, Superseded
@@ -195,7 +196,7 @@ def create_app(scenario: Scenario, drive: DriveSession | None = None) -> Starlet
         return FileResponse(plotly_js, media_type="text/javascript")
 
     async def controls(request: Request) -> Response:
-        description = tuner.controls()
+        description = page_controls(tuner.base)
         description["drive"] = mode.describe() if mode is not None else None
         return JSONResponse(description)
 

@@ -1,15 +1,7 @@
 """What the tuner computes: from control values to a scenario, a run, plot data and downloads.
 
-The tuner's experiment is the base scenario: every entry of its ``reference`` and ``load``
-schedules, and its faults. The controls are
-
-- scenario keys, applied as overrides of the base scenario (``speed_controller.alpha_radps``,
-  ``zeta``, ``m``, ``Ka``, ``feedforward``, ``anti_windup``, ``method``, ``Ts_s``,
-  ``simulation.t_end_s``, and ``reference.<i>.t_s``, ``reference.<i>.speed_rpm``,
-  ``load.<i>.t_s``, ``load.<i>.torque_Nm`` of the first :data:`ENTRY_CONTROLS_MAX` entries of
-  each schedule; later entries run as the scenario has them), and
-- ``tuner.J_ratio`` (true inertia / design inertia: the design inertia stays that of the base
-  scenario and ``motor.J_kgm2`` follows the ratio).
+The tuner's experiment is the base scenario, changed by the page's controls
+(:mod:`pmsm2dof.ui.tuner.controls`).
 
 Every request is validated by :meth:`pmsm2dof.sim.scenario.Scenario.with_overrides`, exactly like
 a scenario file; errors name the control key.
@@ -28,7 +20,7 @@ import json
 import math
 import threading
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import control
@@ -36,7 +28,6 @@ import numpy as np
 import numpy.typing as npt
 
 from ...analysis.design import Design, design
-from ...core import ANTI_WINDUPS, FEEDFORWARDS, METHODS
 from ...errors import ConfigError, require_positive
 from ...sim.metrics import at_current_limit, at_voltage_limit
 from ...sim.scenario import Scenario
@@ -44,6 +35,7 @@ from ...sim.simulate import Result, Simulation
 from ...studies.configuration import configuration, scenario_design
 from ...studies.loopcheck import measure
 from ..plots.trace import saturated_intervals
+from .controls import initial_values
 from .slots import Ticket
 
 #: Buckets of the min-max decimation of the traces sent to the page: each bucket keeps its
@@ -61,12 +53,10 @@ LOG_ROWS_MAX = 5000
 STEPS_MAX = 10**7
 #: Integration steps per C call: a superseded run stops within one call (a few ms).
 CHUNK_STEPS = 50_000
-#: Entries of each schedule (reference, load) of the base scenario that get controls.
-ENTRY_CONTROLS_MAX = 6
 #: Most shaded spans a limit gets on the page: beyond, the spans closest together merge.
 SPANS_MAX = 40
 #: Most plant integration steps one suggestion may take over all the simulations the autotuner
-#: can make (:func:`pmsm2dof.studies.autotune.runs_bound` times the steps of one run).
+#: can make (:func:`pmsm2dof.studies.autotune_search.runs_bound` times the steps of one run).
 SUGGEST_STEPS_MAX = 5 * 10**8
 #: The specification a suggestion takes (:class:`pmsm2dof.studies.autotune.Spec` fields; the forms
 #: searched are the experiment's feedforward and anti-windup).
@@ -81,9 +71,6 @@ SUGGEST_SPEC_KEYS = (
     "J_range",
 )
 
-SPEED_CONTROLLER_CONTROLS = ("alpha_radps", "zeta", "m", "Ka", "feedforward", "anti_windup", "method", "Ts_s")
-#: Schedules of the experiment: (name, value key, label, unit).
-SCHEDULES = (("reference", "speed_rpm", "reference", "rpm"), ("load", "torque_Nm", "load", "Nm"))
 #: Rows of the metrics table, per part of compute_metrics: (figure key, label, unit).
 TABLE_METRICS = {
     "reference_steps": (
@@ -186,153 +173,15 @@ class Tuner:
     def __init__(self, base: Scenario) -> None:
         self.base = base
         self._J_design_kgm2 = base.speed_controller.J_kgm2
-        self._initial = self._initial_values(base)
+        self._initial = initial_values(base)
         self._cache: collections.OrderedDict[str, tuple[Scenario, Result]] = collections.OrderedDict()
         self._cache_lock = threading.Lock()
         self._bode_cached = functools.lru_cache(maxsize=CACHED_RUNS)(self._bode_uncached)
-
-    # ---- controls -------------------------------------------------------------------
-
-    def _initial_values(self, scenario: Scenario) -> dict[str, Any]:
-        sc, sim = scenario.speed_controller, scenario.simulation
-        values = {f"speed_controller.{k}": getattr(sc, k) for k in SPEED_CONTROLLER_CONTROLS}
-        values["tuner.J_ratio"] = scenario.motor.J_kgm2 / self._J_design_kgm2
-        for name, value_key, _, _ in SCHEDULES:
-            for i, entry in enumerate(getattr(scenario, name)[:ENTRY_CONTROLS_MAX]):
-                values[f"{name}.{i}.t_s"] = entry.t_s
-                values[f"{name}.{i}.{value_key}"] = getattr(entry, value_key)
-        values["simulation.t_end_s"] = sim.t_end_s
-        return values
 
     @property
     def keys(self) -> tuple[str, ...]:
         """The control keys a request may set, in the page's order."""
         return tuple(self._initial)
-
-    def controls(self) -> dict[str, Any]:
-        """Description of the page's controls: groups of specs with ranges and initial values.
-
-        A spec has ``key``, ``label``, ``unit``, ``kind`` ('slider' or 'select'), ``value``;
-        sliders have ``min``, ``max``, ``scale`` ('lin' or 'log') and optionally ``quantum``
-        (values are integer multiples of it) and ``nullable`` (a checkbox sends null);
-        ``enabled_when = [key, [choices]]`` disables a control unless another has one of the
-        choices (``value_when_disabled`` is then sent). Ranges are only those of the sliders:
-        any value can be typed, and the server validates it. A group may carry a ``note``.
-        """
-        v = self._initial
-        motor, limits = self.base.motor, self.base.limits
-        alpha = v["speed_controller.alpha_radps"]
-        Kp = self._J_design_kgm2 * alpha
-        Ts_cl = self.base.current_loop.Ts_s
-        torque_max_Nm = 1.5 * motor.pole_pairs * motor.psi_f_Wb * limits.i_max_A
-        t_end = v["simulation.t_end_s"]
-
-        def slider(
-            key: str, label: str, unit: str, lo: float, hi: float, scale: str = "lin", **extra: Any
-        ) -> dict[str, Any]:
-            return dict(
-                key=key, label=label, unit=unit, kind="slider", min=lo, max=hi, scale=scale, value=v[key], **extra
-            )
-
-        def select(key: str, label: str, choices: Iterable[str], **extra: Any) -> dict[str, Any]:
-            return dict(key=key, label=label, unit="", kind="select", choices=list(choices), value=v[key], **extra)
-
-        experiment = [
-            slider(
-                "tuner.J_ratio",
-                "true J / design J",
-                "",
-                0.25,
-                4.0,
-                "log",
-                help=f"design inertia {self._J_design_kgm2:g} kg m^2 stays; the plant's changes",
-            )
-        ]
-        notes: list[str] = []
-        for name, value_key, label, unit in SCHEDULES:
-            entries = getattr(self.base, name)
-            values = [getattr(e, value_key) for e in entries]
-            if name == "reference":  # the scenario has at least one reference entry
-                top = 3 * (max(abs(x) for x in values) or 500.0)
-                lo, hi = (-top if min(values) < 0 else 0.0), top
-            else:
-                lo, hi = -torque_max_Nm, torque_max_Nm
-            for i in range(min(len(entries), ENTRY_CONTROLS_MAX)):
-                experiment.append(
-                    slider(f"{name}.{i}.{value_key}", f"{label} {i + 1}", unit, lo, hi, help=f"{name}.{i}.{value_key}")
-                )
-                experiment.append(
-                    slider(f"{name}.{i}.t_s", f"{label} {i + 1} at", "s", 0.0, t_end, help=f"{name}.{i}.t_s")
-                )
-            if len(entries) > ENTRY_CONTROLS_MAX:
-                notes.append(f"{name} entries {ENTRY_CONTROLS_MAX + 1} to {len(entries)} run as the scenario has them")
-        t_last = max(v[key] for key in v if key.endswith(".t_s"))
-        t_end_min = 1.05 * t_last if t_end / 10 < 1.05 * t_last < t_end else t_end / 10
-        experiment.append(slider("simulation.t_end_s", "simulated time", "s", t_end_min, t_end * 10, "log"))
-
-        groups = [
-            {
-                "legend": "PI design (eq 9, 10)",
-                "controls": [
-                    slider("speed_controller.alpha_radps", "\u03b1 bandwidth", "rad/s", alpha / 10, alpha * 10, "log"),
-                    slider("speed_controller.zeta", "\u03b6 damping", "", 0.1, 2.0, "log"),
-                    slider(
-                        "speed_controller.m",
-                        "m tracking pole",
-                        "",
-                        0.1,
-                        10.0,
-                        "log",
-                        enabled_when=["speed_controller.feedforward", ["no_tau", "full"]],
-                        value_when_disabled=1.0,
-                        help="Gx = m alpha / (s + m alpha) (eq 10); lowpass is m = 1 (eq 13)",
-                    ),
-                    select(
-                        "speed_controller.feedforward",
-                        "feedforward Fr",
-                        FEEDFORWARDS,
-                        help="none: 1DOF PI; lowpass: eq 13/15; no_tau: eq 11 with tau_i = 0; full: eq 11",
-                    ),
-                ],
-            },
-            {
-                "legend": "Anti-windup (Fig. 5)",
-                "controls": [
-                    select("speed_controller.anti_windup", "anti-windup", ANTI_WINDUPS),
-                    slider(
-                        "speed_controller.Ka",
-                        "Ka",
-                        "(rad/s)/Nm",
-                        0.03 / Kp,
-                        30.0 / Kp,
-                        "log",
-                        nullable=True,
-                        null_label="1/Kp (paper default)",
-                        default_position=1.0 / Kp,
-                        enabled_when=["speed_controller.anti_windup", ["back_calculation"]],
-                        value_when_disabled=None,
-                    ),
-                ],
-            },
-            {
-                "legend": "Digital implementation (Table 1)",
-                "controls": [
-                    select("speed_controller.method", "discretization", METHODS),
-                    slider(
-                        "speed_controller.Ts_s",
-                        "Ts speed loop",
-                        "s",
-                        Ts_cl,
-                        max(1000 * Ts_cl, 10 * v["speed_controller.Ts_s"]),
-                        "log",
-                        quantum=Ts_cl,
-                        help=f"an integer multiple of the current-loop period {Ts_cl:g} s",
-                    ),
-                ],
-            },
-            {"legend": "Experiment", "controls": experiment, "note": "; ".join(notes)},
-        ]
-        return {"name": self.base.name, "groups": groups}
 
     # ---- request -> scenario ---------------------------------------------------------
 
@@ -529,7 +378,8 @@ class Tuner:
             Naming ``spec.<field>`` or the control key, or ``simulation.t_end_s`` when the search
             could take more than :data:`SUGGEST_STEPS_MAX` integration steps.
         """
-        from ...studies.autotune import Spec, autotune, runs_bound
+        from ...studies.autotune import Spec
+        from ...studies.autotune_search import autotune, runs_bound
 
         for key in body:
             if key not in ("values", "spec"):
