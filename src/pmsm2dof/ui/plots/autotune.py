@@ -1,6 +1,6 @@
 """The figure of an autotuning: tracking against rejection against robustness.
 
-:func:`plot_pareto` draws every simulated design of :func:`pmsm2dof.studies.autotune.autotune`
+:func:`plot_pareto` draws every simulated design of :func:`pmsm2dof.studies.autotune_search.autotune`
 by its worst-case load IAE per Nm (rejection, the search's objective) and tracking IAE
 (tracking) over the inertia range, coloured by its worst-case phase margin (robustness); the
 Pareto front is outlined and the chosen design starred. An axis is logarithmic when its values

@@ -1,7 +1,7 @@
 """Figures of a sweep: heatmaps of 2-D grids, scatter plots and histograms, worst-case traces.
 
 Drawn by :func:`draw_figures`, which ``pmsm2dof sweep`` gives to
-:func:`pmsm2dof.studies.sweep.run_sweep`, into ``<out>/figures`` with matplotlib's Agg backend
+:func:`pmsm2dof.studies.sweep_run.run_sweep`, into ``<out>/figures`` with matplotlib's Agg backend
 (no display needed):
 
 - a grid with exactly two axes of more than one value and no distribution axes:
