@@ -42,7 +42,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from pmsm2dof.sim.scenario import load_scenario  # noqa: E402
-from pmsm2dof.studies.firmware import CYCLES_PER_INSTRUCTION, build_firmware, run_firmware  # noqa: E402
+from pmsm2dof.studies.firmware import build_firmware, run_firmware  # noqa: E402
+from pmsm2dof.studies.virtual_drive import CYCLES_PER_INSTRUCTION  # noqa: E402
 
 SECTION = "## FOC firmware on the Cortex-M4F (virtual board, QEMU)"
 SERVO = ROOT / "examples" / "firmware" / "small-servo-20k.toml"

@@ -19,7 +19,7 @@ from pmsm2dof.core.bindings import ffi
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.studies.configuration import configuration
-from pmsm2dof.studies.firmware import check_virtual_drive
+from pmsm2dof.studies.virtual_drive import check_virtual_drive
 from pmsm2dof.ui.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

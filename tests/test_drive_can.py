@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from pmsm2dof.core.bindings import ffi, lib
-from pmsm2dof.drive.link import Link, link_url
+from pmsm2dof.drive.link import Link
+from pmsm2dof.drive.transport import link_url
 from pmsm2dof.errors import ConfigError
 
 can = pytest.importorskip("can")

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from pmsm2dof.drive.link import link_url
+from pmsm2dof.drive.transport import link_url
 from pmsm2dof.errors import ConfigError
 from pmsm2dof.sim.logs import read_log
 

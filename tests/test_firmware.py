@@ -30,7 +30,8 @@ from pmsm2dof.errors import SimulationError, ToolError
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import Result, simulate
 from pmsm2dof.studies.configuration import configuration, design_scenario
-from pmsm2dof.studies.firmware import QEMU, read_trace, run_firmware, virtual_drive_header
+from pmsm2dof.studies.firmware import QEMU, read_trace, run_firmware
+from pmsm2dof.studies.virtual_drive import virtual_drive_header
 from pmsm2dof.ui.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -280,7 +280,7 @@ def test_cli_simulate_logs_at_the_current_rate(tmp_path, capsys):
 
 
 def test_the_firmware_refuses_and_the_tuner_drops_the_current_rate():
-    from pmsm2dof.studies.firmware import check_virtual_drive
+    from pmsm2dof.studies.virtual_drive import check_virtual_drive
     from pmsm2dof.ui.tuner.experiment import Tuner
 
     with pytest.raises(ConfigError, match=r"simulation.log_rate = 'current' is invalid.*a row per speed sample"):

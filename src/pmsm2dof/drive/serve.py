@@ -99,7 +99,7 @@ def serve_can(program: Path | str, can_link: str, *, realtime: bool = True, time
     import can
 
     from ..core.bindings import ffi, lib
-    from .link import can_url
+    from .transport import can_url
 
     c = can_url(can_link)
     fd = bool(c["fd"])

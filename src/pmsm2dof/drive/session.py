@@ -94,7 +94,10 @@ def link_errors(link: Link, what: str, safe_state: str = SAFE_STATE) -> Iterator
 
 
 def open_link(url: str, a2l: Path | str, *, allow_remote: bool = False, timeout_s: float = 2.0) -> Link:
-    """An open :class:`Link` to the drive at ``url`` described by the A2L file ``a2l`` (:func:`link_url` forms)."""
+    """An open :class:`Link` to the drive at ``url`` described by the A2L file ``a2l``.
+
+    ``url`` in the forms of :func:`~pmsm2dof.drive.transport.link_url`.
+    """
     from can import CanError
     from pyxcp.types import XcpTimeoutError
 

@@ -28,7 +28,7 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
     """
     from ...outputs import atomic_write
     from ...studies.configuration import configuration
-    from ...studies.firmware import virtual_drive_header
+    from ...studies.virtual_drive import virtual_drive_header
 
     options = {out: "--out"} if virtual_drive is None else {out: "--out", virtual_drive: "--virtual-drive"}
     for path, option in options.items():
