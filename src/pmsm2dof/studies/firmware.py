@@ -456,7 +456,8 @@ def interrupt_cost(
     For the interrupts that ran the speed loop and those that did not: their number and the
     smallest, median and largest instruction count. The load of the run's mean interrupt and the
     share of the period its largest one takes, at the run's rate on the virtual core
-    (:data:`~pmsm2dof.studies.virtual_drive.CORE_CLOCK_HZ`, :data:`~pmsm2dof.studies.virtual_drive.CYCLES_PER_INSTRUCTION`).
+    (:data:`~pmsm2dof.studies.virtual_drive.CORE_CLOCK_HZ`,
+    :data:`~pmsm2dof.studies.virtual_drive.CYCLES_PER_INSTRUCTION`).
     """
     out: dict[str, Any] = {"core_clock_Hz": CORE_CLOCK_HZ, "cycles_per_instruction": CYCLES_PER_INSTRUCTION}
     for name, mask in (("current", ~speed_sample), ("speed", speed_sample)):
