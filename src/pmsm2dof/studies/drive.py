@@ -18,8 +18,8 @@ import numpy as np
 from ..drive.link import Link
 from ..drive.session import CONTROLLERS, link_errors
 from ..errors import ConfigError, SimulationError, ToolError
-from ..sim.scenario import Scenario
 from ..sim.metrics import compute_metrics
+from ..sim.scenario import Scenario
 from ..sim.simulate import Result, Simulation
 from .autotune import CONSTRAINTS, MARGIN_FIGURES, Spec, step_figures
 from .firmware import compare, play_scenario, serve_scenario
@@ -75,7 +75,7 @@ def judge(trace: Result, limits: dict[str, float]) -> dict[str, Any]:
     """
     check_limits(limits)
     figures = step_figures(compute_metrics(trace))
-    misses = []
+    misses: list[dict[str, Any]] = []
     for name, limit in limits.items():
         figure, sense, unit = CONSTRAINTS[name]
         value = figures[figure]
@@ -92,7 +92,8 @@ def check_limits(limits: dict[str, float]) -> None:
     for name, limit in limits.items():
         if name not in TRACE_CONSTRAINTS:
             raise ConfigError(name, limit, "one of " + ", ".join(TRACE_CONSTRAINTS) + " (what a trace shows)")
-    Spec(min_phase_margin_deg=None, min_gain_margin_dB=None, **limits)
+    checked: dict[str, Any] = dict(limits)
+    Spec(min_phase_margin_deg=None, min_gain_margin_dB=None, **checked)
 
 
 def _finite(x: float) -> float | None:

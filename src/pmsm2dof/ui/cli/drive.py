@@ -116,7 +116,9 @@ def set_(assignments: tuple[str, ...], scenario_file: str | None, url: str, a2l:
     from ...studies.bench import TUNED_FIELDS, write_tuned
 
     if (scenario_file is None) == (not assignments):
-        raise ConfigError("NAME=VALUE", " ".join(assignments) or "none", "assignments or --scenario FILE, one of the two")
+        raise ConfigError(
+            "NAME=VALUE", " ".join(assignments) or "none", "assignments or --scenario FILE, one of the two"
+        )
     chosen = chosen_scenario(scenario_file, ())[0] if scenario_file is not None else None
     with _open(url, a2l, allow_remote) as link:
         if chosen is None:
