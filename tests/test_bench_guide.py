@@ -118,3 +118,39 @@ def test_the_chain_of_the_guide_runs_as_written(tmp_path):
     assert metrics["spec"]["met"] is True and metrics["spec"]["misses"] == []
     # the judged trace is the drive's, which differs from the engine's (friction, the last percent of J)
     assert metrics["comparison"]["agrees"] is False
+
+
+def test_set_scenario_writes_the_design_with_its_inertia_and_refuses_another_drive(capsys):
+    """``drive set --scenario``: alpha and the design J of the scenario read back from the drive; a scenario whose
+    current limit is not the drive's is refused in one line (exit status 2) with nothing written."""
+    from pmsm2dof.drive.link import Link
+    from pmsm2dof.studies.firmware import serve_scenario
+    from pmsm2dof.ui.cli import main
+
+    drive = load_scenario(str(ROOT / "examples" / "bench" / "drive.toml"))
+    datasheet = str(ROOT / "examples" / "bench" / "datasheet.toml")
+    with serve_scenario(drive, realtime=False, timeout_ms=1000) as (url, folder):
+        link = ["--link", url.replace("socket://", "tcp://"), "--a2l", str(folder / "virtual_drive_host.a2l")]
+        other = load_scenario(datasheet).with_overrides({"limits.i_max_A": 8.0, "speed_controller.alpha_radps": 90.0})
+        other_file = folder / "other.toml"
+        other_file.write_text(other.to_toml())
+        assert main(["drive", "set", "--scenario", str(other_file), *link]) == 2
+        err = capsys.readouterr().err
+        assert len(err.splitlines()) == 1 and "link_speed_config.i_max_A" in err, err
+        design = {
+            "speed_controller.alpha_radps": 120.0,
+            "speed_controller.zeta": 1.0,
+            "speed_controller.J_kgm2": 1.25e-4,
+        }
+        tuned = load_scenario(datasheet).with_overrides(design)
+        tuned_file = folder / "tuned.toml"
+        tuned_file.write_text(tuned.to_toml())
+        with Link(url, folder / "virtual_drive_host") as drive_link:
+            assert drive_link.read("link_speed_config.alpha_radps") == 150.0  # nothing written by the refusal
+            assert drive_link.read("link_speed_config.J_kgm2") == pytest.approx(1e-4, rel=1e-7)
+        assert main(["drive", "set", "--scenario", str(tuned_file), *link]) == 0
+        with Link(url, folder / "virtual_drive_host") as drive_link:
+            assert drive_link.read("link_speed_config.alpha_radps") == 120.0
+            assert drive_link.read("link_speed_config.zeta") == 1.0
+            # the scenario's design inertia, not the drive's build's 1e-4
+            assert drive_link.read("link_speed_config.J_kgm2") == pytest.approx(1.25e-4, rel=1e-7)
