@@ -13,6 +13,7 @@ drive's (not the engine's, which differs from a motor with friction).
 import json
 import os
 import re
+import shlex
 import shutil
 import signal
 import subprocess
@@ -154,3 +155,47 @@ def test_set_scenario_writes_the_design_with_its_inertia_and_refuses_another_dri
             assert drive_link.read("link_speed_config.zeta") == 1.0
             # the scenario's design inertia, not the drive's build's 1e-4
             assert drive_link.read("link_speed_config.J_kgm2") == pytest.approx(1.25e-4, rel=1e-7)
+
+
+def guide_commands(block):
+    """The ``pmsm2dof`` commands of a guide's block after the drive answers, continuation lines joined."""
+    text = block.replace("\\\n", " ")
+    lines = [line.split("#")[0].strip() for line in text.splitlines()]
+    return [shlex.split(line)[1:] for line in lines
+            if line.startswith("pmsm2dof ") and not line.startswith("pmsm2dof drive serve")]  # fmt: skip
+
+
+@pytest.mark.skipif(
+    shutil.which("qemu-system-arm") is None or shutil.which("arm-none-eabi-gcc") is None,
+    reason="qemu-system-arm, arm-none-eabi-gcc not installed (scripts/install.sh)",
+)
+def test_the_chain_on_qemu(tmp_path, monkeypatch, capsys):
+    """The guide's chain, its commands as written with QEMU's link for ``$LINK``, on the firmware of the bench
+    drive on QEMU's virtual board (a TCP serial link): the identified J within 2 %, the final run meeting the spec."""
+    from pmsm2dof.drive.serve import serve_qemu
+    from pmsm2dof.studies.firmware import build_firmware
+    from pmsm2dof.ui.cli import main
+
+    commands = guide_commands(shell_blocks(GUIDE.read_text())[-1])
+    assert [c[:2] for c in commands] == [["drive", "commission"], ["drive", "identify"], ["autotune",
+            "identified/identified.toml"], ["drive", "set"], ["drive", "run"]]  # fmt: skip
+    hidden = load_scenario(str(ROOT / "examples" / "bench" / "drive.toml"))
+    folder = build_firmware(hidden, tmp_path / "fw").folder
+    monkeypatch.chdir(tmp_path)
+    start, walls = time.perf_counter(), []
+    with serve_qemu(folder / "virtual_drive.elf", serial="tcp", timeout_ms=1000) as url:
+        link = ["--link", url.replace("socket://", "tcp://"), "--a2l", str(folder / "virtual_drive.a2l")]
+        for argv in commands:
+            argv = [a for arg in argv for a in (link if arg == "$LINK" else [arg])]
+            t0 = time.perf_counter()
+            code = main(argv)
+            out = capsys.readouterr().out
+            assert code == 0, (argv, out)
+            walls.append(f"  {time.perf_counter() - t0:6.1f} s  {' '.join(argv[:3])}")  # capsys holds prints
+    walls.append(f"  QEMU chain: {time.perf_counter() - start:.1f} s wall (the firmware's build apart)")
+    print("\n" + "\n".join(walls))
+    found = json.loads((tmp_path / "identified" / "identify.json").read_text())
+    assert found["J_kgm2"] == pytest.approx(hidden.motor.J_kgm2, rel=0.02)
+    verdict = json.loads((tmp_path / "verified" / "metrics.json").read_text())["spec"]
+    assert verdict["met"] is True, verdict
+    print(f"  J {found['J_kgm2']:.6g}; the drive's figures {verdict['figures']}")
