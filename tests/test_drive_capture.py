@@ -29,9 +29,8 @@ CURRENTS = ["foc_now.id_A", "foc_now.iq_A", "foc_now.ud_ref_V", "foc_now.uq_ref_
 
 
 def schedules(scenario):
-    d = scenario.data
-    reference = [(e["t_s"], e["speed_rpm"] / RPM_PER_RADPS, e["ramp_s"]) for e in d["reference"]]
-    return reference, [(e["t_s"], e["torque_Nm"], e["ramp_s"]) for e in d["load"]]
+    reference = [(e.t_s, e.speed_rpm / RPM_PER_RADPS, e.ramp_s) for e in scenario.reference]
+    return reference, [(e.t_s, e.torque_Nm, e.ramp_s) for e in scenario.load]
 
 
 def drive(folder, kind="host"):
@@ -54,7 +53,7 @@ def test_a_buffered_capture_of_a_run_equals_the_engines_current_rate_log(servo_f
     with drive(folder, kind) as url, Link(url, a2l(folder, kind)) as link:
         link.set_schedules(*schedules(scenario))
         cap = link.capture_buffered(names, samples=1000, trigger="run", armed=lambda link: link.start(200))
-    sim = Simulation(scenario.with_overrides({"simulation.log_rate": "current"}).data)
+    sim = Simulation(scenario.with_overrides({"simulation.log_rate": "current"}))
     sim.advance(200)
     engine = sim.result(scenario, 0.0)
     # no sample lost, none twice: the drive's clock steps by one period, the trigger at the run's first

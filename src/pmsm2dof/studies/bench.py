@@ -37,6 +37,9 @@ from .firmware import play_scenario
 SPEED_FIELDS = ("alpha_radps", "zeta", "m", "Ka", "method", "feedforward", "anti_windup")
 #: Fields of p2d_speed_config_t that are the drive's (motor, limits, current loop): compared with the scenario's.
 DRIVE_FIELDS = ("J_kgm2", "tau_i_s", "Ts_s", "i_max_A", "psi_f_Wb", "Ld_H", "Lq_H", "pole_pairs")
+#: Fields a tuned scenario of the drive writes (:func:`write_tuned`): the speed controller and the inertia it is
+#: designed for (eq 9: the gains follow from alpha, zeta and J together).
+TUNED_FIELDS = (*SPEED_FIELDS, "J_kgm2")
 #: Longest silence of an armed session's operator before it disarms and stops the drive [s].
 HEARTBEAT_TIMEOUT_S = 3.0
 #: How often the session's watchdog checks the heartbeat [s].
@@ -75,10 +78,13 @@ def speed_config(scenario: Scenario) -> dict[str, Any]:
     return {name: getattr(cfg, name) for name, _ in ffi.typeof("p2d_speed_config_t").fields}
 
 
-def write_speed_controller(link: Link, scenario: Scenario, values: dict[str, Any] | None = None) -> dict[str, Any]:
-    """Write the speed controller of ``scenario`` (:data:`SPEED_FIELDS`) to the drive in one DOWNLOAD; read back.
+def write_speed_controller(
+    link: Link, scenario: Scenario, values: dict[str, Any] | None = None, fields: tuple[str, ...] = SPEED_FIELDS
+) -> dict[str, Any]:
+    """Write the speed controller of ``scenario`` (``fields``, :data:`SPEED_FIELDS`) to the drive in one DOWNLOAD.
 
-    ``values``: :func:`speed_config` of ``scenario`` when already computed.
+    ``values``: :func:`speed_config` of ``scenario`` when already computed. Returns the drive's
+    ``link_speed_config`` read back.
 
     Raises
     ------
@@ -96,7 +102,7 @@ def write_speed_controller(link: Link, scenario: Scenario, values: dict[str, Any
             f"{Ts_s:g} s, the speed-loop period of the drive's firmware",
         )
     try:
-        link.write({f"link_speed_config.{f}": values[f] for f in SPEED_FIELDS})
+        link.write({f"link_speed_config.{f}": values[f] for f in fields})
     except Pmsm2dofError:
         raise
     except Exception as exc:
@@ -108,6 +114,38 @@ def write_speed_controller(link: Link, scenario: Scenario, values: dict[str, Any
             "it runs the previous one"
         ) from None
     return {f: link.read(f"link_speed_config.{f}") for f, _ in ffi.typeof("p2d_speed_config_t").fields}
+
+
+def write_tuned(link: Link, scenario: Scenario) -> dict[str, Any]:
+    """Write a tuned scenario of the drive (:data:`TUNED_FIELDS`) in one DOWNLOAD; the drive's values read back.
+
+    ``scenario`` is the drive's configuration with a new speed controller (the ``scenario.toml`` of
+    ``pmsm2dof autotune`` of the ``identified.toml`` of ``pmsm2dof drive identify``): its design
+    inertia ``speed_controller.J_kgm2`` goes to the drive with alpha, zeta, m, Ka and the forms, so
+    that the drive's gains are those autotune chose (eq 9). The scenario's other fields of
+    :data:`DRIVE_FIELDS` (motor, limits, loop periods) must be the drive's: they are its hardware's.
+
+    Raises
+    ------
+    ConfigError
+        A value the C controllers reject, or a field of :data:`DRIVE_FIELDS` other than ``J_kgm2`` that
+        is not the drive's (nothing written).
+    ToolError
+        The drive rejected the configuration (its error; the drive is unchanged).
+    """
+    values = speed_config(scenario)
+    for f in DRIVE_FIELDS:
+        if f in (*TUNED_FIELDS, "Ts_s"):  # written, or checked by write_speed_controller
+            continue
+        drive = link.read(f"link_speed_config.{f}")
+        if not _same(drive, values[f]):
+            raise ConfigError(
+                "SCENARIO",
+                scenario.name,
+                f"a scenario of this drive: its link_speed_config.{f} is {drive!r}, the scenario's {values[f]!r} "
+                "(autotune the identified.toml of pmsm2dof drive identify)",
+            )
+    return write_speed_controller(link, scenario, values, TUNED_FIELDS)
 
 
 @dataclasses.dataclass

@@ -18,8 +18,10 @@ import numpy as np
 from ..drive.link import Link
 from ..drive.session import CONTROLLERS, link_errors
 from ..errors import ConfigError, SimulationError, ToolError
+from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario
 from ..sim.simulate import Result, Simulation
+from .autotune import CONSTRAINTS, MARGIN_FIGURES, Spec, step_figures
 from .firmware import compare, play_scenario, serve_scenario
 
 #: Longest run played over the link, of the drive's time [s] (the virtual board's schedules and the host's memory).
@@ -28,6 +30,8 @@ RUN_MAX_S = 600.0
 SERVE_MAX_S = 86400.0
 #: Wall-clock time allowed per second of the drive's time, on top of a fixed minute [s] (QEMU runs slower).
 WALL_S_PER_DRIVE_S = 60.0
+#: The constraints of autotune's specification that a trace shows (the margins are the analytic loop's).
+TRACE_CONSTRAINTS = tuple(name for name, (figure, _, _) in CONSTRAINTS.items() if figure not in MARGIN_FIGURES)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -53,6 +57,52 @@ class DriveRun:
     def comparison(self) -> dict[str, Any]:
         """:func:`pmsm2dof.studies.firmware.compare` of the drive's trace with the engine's."""
         return compare(self.drive, self.engine)
+
+
+def judge(trace: Result, limits: dict[str, float]) -> dict[str, Any]:
+    """Hold a run's trace against a specification: autotune's constraints (:data:`TRACE_CONSTRAINTS`) on its figures.
+
+    ``limits`` maps Spec fields to their limits; the figures are
+    :func:`pmsm2dof.studies.autotune.step_figures` of the trace's metrics, as autotune holds each
+    simulated run. Returns ``{"limits", "figures", "misses", "met"}``: ``misses`` lists
+    ``{"constraint", "limit", "value", "miss", "unit"}`` of the constraints missed, the largest miss
+    relative to its limit (the binding one) first.
+
+    Raises
+    ------
+    ConfigError
+        A limit outside its valid range, or a constraint a trace does not show (naming it).
+    """
+    check_limits(limits)
+    figures = step_figures(compute_metrics(trace))
+    misses: list[dict[str, Any]] = []
+    for name, limit in limits.items():
+        figure, sense, unit = CONSTRAINTS[name]
+        value = figures[figure]
+        miss = value - limit if sense == "max" else limit - value
+        if miss > 0.0:
+            misses.append({"constraint": name, "limit": limit, "value": value, "miss": miss, "unit": unit})
+    misses.sort(key=lambda m: -m["miss"] / (abs(m["limit"]) or 1.0))
+    shown = {CONSTRAINTS[name][0]: _finite(figures[CONSTRAINTS[name][0]]) for name in limits}
+    return {"limits": dict(limits), "figures": shown, "misses": _json_misses(misses), "met": not misses}
+
+
+def check_limits(limits: dict[str, float]) -> None:
+    """Raise ConfigError unless ``limits`` are valid constraints of :data:`TRACE_CONSTRAINTS` (as the Spec checks)."""
+    for name, limit in limits.items():
+        if name not in TRACE_CONSTRAINTS:
+            raise ConfigError(name, limit, "one of " + ", ".join(TRACE_CONSTRAINTS) + " (what a trace shows)")
+    checked: dict[str, Any] = dict(limits)
+    Spec(min_phase_margin_deg=None, min_gain_margin_dB=None, **checked)
+
+
+def _finite(x: float) -> float | None:
+    """A figure for JSON: None for a step that never settled or recovered (inf)."""
+    return x if math.isfinite(x) else None
+
+
+def _json_misses(misses: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [{**m, "value": _finite(m["value"]), "miss": _finite(m["miss"])} for m in misses]
 
 
 def check_drive_runs(link: Link, scenario: Scenario) -> None:

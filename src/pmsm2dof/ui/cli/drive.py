@@ -98,15 +98,37 @@ def get(names: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -> None:
 
 
 @drive.command(name="set")
-@click.argument("assignments", nargs=-1, required=True, metavar="NAME=VALUE...")
+@click.argument("assignments", nargs=-1, metavar="[NAME=VALUE...]")
+@click.option(
+    "--scenario", "scenario_file", type=click.Path(dir_okay=False), default=None,
+    help="write this scenario's speed controller and its design inertia J_kgm2 (the scenario.toml of autotune "
+         "of drive identify's identified.toml) instead of NAME=VALUE",
+)  # fmt: skip
 @link_option
-def set_(assignments: tuple[str, ...], url: str, a2l: str, allow_remote: bool) -> None:
+def set_(assignments: tuple[str, ...], scenario_file: str | None, url: str, a2l: str, allow_remote: bool) -> None:
     """Write calibration variables, checked first against the A2L's limits and the controller's own validation;
-    the fields of one variable take effect together at the drive's next speed sample."""
-    from ...drive.session import set_values
+    the fields of one variable take effect together at the drive's next speed sample.
 
+    With --scenario FILE: the speed controller of FILE (alpha, zeta, m, Ka, method, feedforward,
+    anti_windup) and the inertia it is designed for (speed_controller.J_kgm2), in one write; the
+    motor, limits and loop periods of FILE must be the drive's (a tuned scenario of this drive).
+    """
+    from ...drive.session import link_errors, set_values
+    from ...studies.bench import TUNED_FIELDS, write_tuned
+
+    if (scenario_file is None) == (not assignments):
+        raise ConfigError(
+            "NAME=VALUE", " ".join(assignments) or "none", "assignments or --scenario FILE, one of the two"
+        )
+    chosen = chosen_scenario(scenario_file, ())[0] if scenario_file is not None else None
     with _open(url, a2l, allow_remote) as link:
-        for name, value, unit in set_values(link, assignments):
+        if chosen is None:
+            written = set_values(link, assignments)
+        else:
+            with link_errors(link, "set"):
+                values = write_tuned(link, chosen)
+            written = [(f"link_speed_config.{f}", values[f], "") for f in TUNED_FIELDS]
+        for name, value, unit in written:
             click.echo(f"{name} = {_show(value)}" + (f" {unit}" if unit not in ("", "-") else ""))
 
 
@@ -168,34 +190,72 @@ def capture(signals: tuple[str, ...], event: str, duration_s: float, out: str, f
         raise click.exceptions.Exit(1)
 
 
+#: Spec field -> its option of drive run (autotune's names).
+SPEC_OPTIONS = {
+    "max_overshoot_pct": "--max-overshoot-pct",
+    "max_settling_s": "--max-settling-s",
+    "max_load_dip_rpm_per_Nm": "--max-load-dip-rpm-per-Nm",
+    "max_recovery_s": "--max-recovery-s",
+    "max_current_limit_time_s": "--max-current-limit-time-s",
+}
+
+
+def spec_options(f: Callable[..., Any]) -> Callable[..., Any]:
+    """The constraints of autotune's specification that a trace shows, by autotune's option names."""
+    helps = {
+        "max_overshoot_pct": "largest overshoot of a reference step [%]",
+        "max_settling_s": "longest settling time (2 %) of a reference step [s]",
+        "max_load_dip_rpm_per_Nm": "largest speed dip of a load step per Nm of load change [rpm/Nm]",
+        "max_recovery_s": "longest recovery time (2 % of the dip) of a load step [s]",
+        "max_current_limit_time_s": "longest time at the current limit in one step [s]",
+    }
+    for name, option in reversed(SPEC_OPTIONS.items()):
+        f = click.option(option, name, type=float, default=None, help="the spec: " + helps[name])(f)
+    return f
+
+
 @drive.command()
 @click.argument("scenario")
 @set_option()
+@spec_options
 @out_option("the folder for trace.csv, metrics.json and plot.png", type=click.Path(file_okay=False), required=True)
 @link_option
 def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: str, a2l: str,
-        allow_remote: bool) -> None:  # fmt: skip
-    """Play a scenario's reference and load on the drive (a build of it) and hold the trace against the engine.
+        allow_remote: bool, **limits: float | None) -> None:  # fmt: skip
+    """Play a scenario's reference and load on the drive (a build of it) and hold the trace against the engine,
+    or against a specification.
 
     Writes OUT/trace.csv (the drive's trace in the engine's log format), OUT/metrics.json (the figures
-    of merit, the agreement) and OUT/plot.png (the drive over the engine). Exit status 1 when the
-    speed or the currents differ from the engine's by more than 1e-4 of their step.
+    of merit, the agreement, the specification's verdict) and OUT/plot.png (the drive over the engine).
+    Without a specification, exit status 1 when the speed or the currents differ from the engine's by
+    more than 1e-4 of their step. With one (--max-overshoot-pct ... as autotune takes them: a drive
+    whose motor is not the scenario's), the trace's figures are held against it as autotune holds its
+    runs: exit status 1 when one is missed (the binding miss is printed); the agreement with the
+    engine is printed for information.
     """
     import json
 
     from ...outputs import atomic_write, check_out, staged_dir
     from ...sim.metrics import compute_metrics
-    from ...studies.drive import run_on_drive
+    from ...studies.drive import check_limits, judge, run_on_drive
     from ..plots.firmware import plot_drive_run
 
+    spec = {name: value for name, value in limits.items() if value is not None}
+    try:
+        check_limits(spec)
+    except ConfigError as exc:
+        raise as_option(exc, SPEC_OPTIONS) from None
     chosen, _ = chosen_scenario(scenario, overrides)
     check_out(out, "drive-run", force)
     with _open(url, a2l, allow_remote) as link, warnings_as_lines():
         result = run_on_drive(link, chosen)
     c = result.comparison()
+    verdict = judge(result.drive, spec) if spec else None
     with staged_dir(out, "drive-run", force) as tmp:
         result.drive.save(tmp / "trace.csv")
         metrics = {"drive": compute_metrics(result.drive), "engine": compute_metrics(result.engine), "comparison": c}
+        if verdict is not None:
+            metrics["spec"] = verdict
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         plot_drive_run(result, tmp / "plot.png")
     click.echo(f"{chosen.name}: {result.drive.t_s[-1]:g} s on the drive at {result.url}")
@@ -203,10 +263,33 @@ def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: s
         g = c[group]
         click.echo(f"  {group:<8} drive - engine: {g['max_abs_difference']:.3g} at most, "
                    f"{g['relative_to_step']:.3g} of the step {g['step']:.4g}")  # fmt: skip
+    if verdict is not None:
+        _echo_verdict(verdict)
     click.echo(f"wrote trace.csv, metrics.json and plot.png to {out}")
-    if not c["agrees"]:
+    if verdict is not None:
+        if not verdict["met"]:
+            raise click.exceptions.Exit(1)
+    elif not c["agrees"]:
         click.echo(f"the drive's trace differs from the engine's by more than {c['agreement']:g} of the step")
         raise click.exceptions.Exit(1)
+
+
+def _echo_verdict(verdict: dict[str, Any]) -> None:
+    """The drive's figures against the specification, and the binding miss."""
+    from ...studies.autotune import CONSTRAINTS
+
+    for name, limit in verdict["limits"].items():
+        figure, sense, unit = CONSTRAINTS[name]
+        value = verdict["figures"][figure]
+        shown = "never reached" if value is None else f"{value:.4g} {unit}"
+        click.echo(f"  {figure:<22} {shown:>14}  ({sense} {limit:g} {unit})")
+    if verdict["met"]:
+        click.echo("the drive meets the specification")
+    else:
+        m = verdict["misses"][0]
+        value = "inf" if m["value"] is None else f"{m['value']:.4g}"
+        click.echo(f"the drive misses the specification: binding {m['constraint']} = {m['limit']:g} {m['unit']}, "
+                   f"the drive's {value} {m['unit']}")  # fmt: skip
 
 
 @drive.command()
