@@ -578,6 +578,9 @@ p2d_sim_status_t p2d_sim_init(p2d_sim_t *sim, const p2d_sim_config_t *cfg)
             sim->controller_status = ctl_status;
             return P2D_SIM_ERR_CURRENT_CONTROLLER;
         }
+    } else {
+        /* no current controller (eq 3): its state defined all the same, the periods address its coefficients */
+        memset(&sim->current, 0, sizeof sim->current);
     }
     sensing =
         p2d_sensing_check(&cfg->sensing.speed_sensor, &cfg->sensing.current_sensor, &cfg->sensing.field_weakening,
