@@ -22,12 +22,11 @@ tests/test_drive_cli.py) and read the drive's state over a fresh link.
 
 import json
 import shutil
-import socket
-import threading
 import time
 
 import numpy as np
 import pytest
+from test_drive_cli import Relay
 
 from pmsm2dof.drive.link import Link
 from pmsm2dof.drive.serve import serve_host, serve_qemu
@@ -154,48 +153,6 @@ def test_identify_over_the_link_finds_the_hidden_inertia(hidden, kind, tmp_path,
     assert np.max(np.abs(capture["speed_radps"])) <= 1.1 * w_max
     # the run leaves the motor at rest (its last step is to zero)
     assert abs(capture["speed_radps"][-1]) < 0.01 * w_max
-
-
-class Relay:
-    """A TCP relay to the drive whose connections :meth:`cut` shuts (the master's and the drive's sockets)."""
-
-    def __init__(self, port):
-        self.server = socket.create_server(("127.0.0.1", 0))
-        self.port, self.drive_port = self.server.getsockname()[1], port
-        self.open = []
-        threading.Thread(target=self.serve, daemon=True).start()
-
-    @staticmethod
-    def pipe(a, b):
-        try:
-            while data := a.recv(65536):
-                b.sendall(data)
-            b.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-
-    def serve(self):
-        while True:
-            try:
-                master, _ = self.server.accept()
-            except OSError:
-                return
-            drive = socket.create_connection(("127.0.0.1", self.drive_port))
-            self.open += [master, drive]
-            threading.Thread(target=self.pipe, args=(master, drive), daemon=True).start()
-            threading.Thread(target=self.pipe, args=(drive, master), daemon=True).start()
-
-    def cut(self):
-        for s in self.open:
-            try:
-                s.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-            s.close()
-
-    def close(self):
-        self.server.close()
-        self.cut()
 
 
 def cut_when(monkeypatch, relay, condition):
