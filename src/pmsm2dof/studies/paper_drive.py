@@ -64,11 +64,6 @@ class DriveStudies:
     comparisons: dict[str, dict[str, Any]]
     wall_time_s: float
 
-    def largest_difference(self) -> tuple[str, float]:
-        """The run whose speed differs most from the engine's, and that difference as a fraction of its step."""
-        name = max(self.comparisons, key=lambda n: self.comparisons[n]["speed"]["relative_to_step"])
-        return name, float(self.comparisons[name]["speed"]["relative_to_step"])
-
 
 def check_link(link: str) -> None:
     """Raise ConfigError unless ``link`` is one :func:`run_on_drives` plays on."""
