@@ -47,7 +47,7 @@ import numpy as np
 
 from ..errors import ConfigError, format_bytes
 from ..inputs import check_file, parse_toml
-from .plausibility import STEADY_SPREAD
+from .event_figures import STEADY_SPREAD
 from .scenario import Scenario
 from .simulate import RPM_PER_RADPS
 

@@ -23,7 +23,7 @@ The checks, with ``p``, ``psi_f``, ``Ld``, ``Lq`` of ``[motor]``:
   ``||i_dq|| = limits.i_max_A`` (:func:`peak_torque_Nm`): the drive cannot hold it, it stalls and
   the load turns it backwards;
 - speed sensor: an encoder read by the difference estimator resolves ``60 / (counts Ts)`` rpm;
-  coarser than :data:`STEADY_SPREAD` of the smallest reference step, the speed dithers by about
+  coarser than :data:`~pmsm2dof.sim.event_figures.STEADY_SPREAD` of the smallest reference step, the speed dithers by about
   that and the step figures finer than it read n/a.
 """
 
@@ -31,6 +31,7 @@ import math
 
 from ..core.motor import no_load_speed_radps
 from ..errors import Pmsm2dofWarning
+from .event_figures import STEADY_SPREAD
 from .scenario import Scenario
 from .scenario_tables import MotorTable
 
@@ -42,9 +43,6 @@ J_DESIGN_RATIO_MAX = 10.0
 I_RATED_RATIO_MAX = 5.0
 #: Relative margin of the current limit over the motor's peak current before it is reported [-].
 I_PEAK_RTOL = 0.1
-#: The spread of the speed the step figures allow for a steady state, as a share of the step
-#: (:mod:`pmsm2dof.sim.metrics`): a speed resolution coarser than it leaves them n/a [-].
-STEADY_SPREAD = 0.002
 
 RPM_PER_RADPS = 30.0 / math.pi
 
