@@ -15,7 +15,6 @@ enumerators by name), each with the comment its C header gives the field (meanin
 import math
 import re
 from collections.abc import Iterable, Mapping, Sequence
-from importlib.metadata import version
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -126,6 +125,8 @@ def config_header(
     arrays : sequence of (name, values, comment)
         ``static const double <prefix>_<name>[]`` (one element at least: a 0 stands for an empty one).
     """
+    from importlib.metadata import version  # read only when a header is written
+
     check_prefix(prefix)
     upper = prefix.upper()
     lines = ["/*", f" * {title}", f" * Written by pmsm2dof {version('pmsm2dof')}.", " *"]

@@ -23,8 +23,8 @@ The checks, with ``p``, ``psi_f``, ``Ld``, ``Lq`` of ``[motor]``:
   ``||i_dq|| = limits.i_max_A`` (:func:`peak_torque_Nm`): the drive cannot hold it, it stalls and
   the load turns it backwards;
 - speed sensor: an encoder read by the difference estimator resolves ``60 / (counts Ts)`` rpm;
-  coarser than :data:`~pmsm2dof.sim.event_figures.STEADY_SPREAD` of the smallest reference step, the speed dithers by about
-  that and the step figures finer than it read n/a.
+  coarser than :data:`~pmsm2dof.sim.event_figures.STEADY_SPREAD` of the smallest reference step,
+  the speed dithers by about that and the step figures finer than it read n/a.
 """
 
 import math
