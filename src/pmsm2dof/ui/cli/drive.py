@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ...errors import ConfigError
-from .options import Group, as_option, chosen_scenario, out_option, set_option, warnings_as_lines
+from .options import DriveGroup, as_option, chosen_scenario, out_option, set_option, warnings_as_lines
 
 if TYPE_CHECKING:
     from ...sim.scenario_tables import MotorTable
@@ -53,7 +53,7 @@ def _show(value: Any) -> str:
 
 
 @click.group(
-    cls=Group, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve, commission, identify."
+    cls=DriveGroup, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve, commission, identify."
 )
 def drive() -> None:
     """Talk to a drive (the firmware of examples/firmware, on an MCU, on QEMU or the PC's virtual drive) over
