@@ -22,11 +22,13 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+import pandas as pd
 
 from ..core import LOG_COLUMNS
 from ..drive.link import Link
 from ..drive.session import CONTROLLERS, DAQ_OVERHEAD_BYTES, DAQ_SHARE, LINK_BYTES_PER_S, link_errors, link_kind
 from ..errors import ConfigError, SimulationError, ToolError
+from ..outputs import atomic_file
 from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario
 from ..sim.simulate import RPM_PER_RADPS, RPM_SIGNALS, Result, Simulation, log_signals
@@ -276,6 +278,20 @@ def measured_result(scenario: Scenario, columns: dict[str, npt.NDArray[np.float6
         name = RPM_SIGNALS.get(c, c)
         signals[name] = np.zeros(n, dtype=bool) if c == "J_valid" else np.full(n, np.nan)
     return Result(scenario=scenario, wall_time_s=0.0, **signals)
+
+
+def save_run(result: Result, path: Path | str) -> None:
+    """Write a measured run (:func:`measured_result`) as CSV: the engine's trace columns the drive measures.
+
+    The columns of :data:`NOT_MEASURED` are left out, so that the file reads back as a drive log
+    (:func:`pmsm2dof.sim.logs.read_log`) whose missing signals are missing, not NaN. Written whole
+    or not at all.
+    """
+    dropped = {RPM_SIGNALS.get(c, c) for c in NOT_MEASURED}
+    columns = {name: getattr(result, name) for name in Result.signals if name not in dropped}
+    columns["saturated"] = columns["saturated"].astype(np.int8)
+    with atomic_file(path, "w") as f:
+        pd.DataFrame(columns).to_csv(f, index=False)
 
 
 def sample_times(scenario: Scenario, n: int) -> npt.NDArray[np.float64]:
