@@ -219,11 +219,11 @@ def run_pre_rolled(link: Link, scenario: Scenario) -> tuple[DriveRun, float]:
     w0_rpm = scenario.simulation.speed0_rpm
     if n_pre:
         window = max(1, math.ceil(STEADY_WINDOW_PER_ALPHA / scenario.speed_controller.alpha_radps / Ts_s))
-        off = float(np.max(np.abs(measured.speed_rpm[n_pre - window : n_pre] - w0_rpm)))
+        off = float(np.max(np.abs(measured.speed_rpm[max(0, n_pre - window) : n_pre] - w0_rpm)))
         if off > STEADY_SHARE * abs(w0_rpm):
             raise SimulationError(
                 f"the drive at {link.url} was not steady at {w0_rpm:g} rpm after a pre-roll of {n_pre * Ts_s:g} s: its "
-                f"speed was up to {off:.3g} rpm away over the last {window * Ts_s:g} s (at most "
+                f"speed was up to {off:.3g} rpm away over the last {min(window, n_pre) * Ts_s:g} s (at most "
                 f"{STEADY_SHARE * abs(w0_rpm):.3g}): the recorded part would not start from the condition"
             )
     part = {name: getattr(measured, name)[n_pre:] for name in Result.signals if name != "t_s"}
