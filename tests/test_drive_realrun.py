@@ -30,12 +30,13 @@ from pmsm2dof.drive.session import open_link
 from pmsm2dof.errors import ConfigError, SimulationError
 from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
-from pmsm2dof.sim.simulate import RPM_PER_RADPS, Simulation
+from pmsm2dof.sim.simulate import RPM_PER_RADPS, Simulation, simulate
 from pmsm2dof.studies import paper_drive
 from pmsm2dof.studies.drive import plan_run, run_on_drive
 from pmsm2dof.studies.firmware import AGREEMENT, build_firmware, play_scenario
 from pmsm2dof.studies.paper_drive import DRIVE_RUNS, STEADY_SHARE, pre_roll, run_on_drives
 from pmsm2dof.ui.cli import main
+from pmsm2dof.ui.report.drive import drive_blocks
 
 pytest.importorskip("pyxcp")
 ROOT = Path(__file__).resolve().parents[1]
@@ -126,6 +127,29 @@ def test_drive_run_on_a_board_a2l_and_a_run_the_link_cannot_carry(encoder_drive,
         with pytest.raises(ConfigError) as refused:
             plan_run(drive, plan.buffer_samples + 1, link_bytes_per_s=11520.0)
         assert refused.value.param == "simulation.t_end_s"
+
+
+@needs_build
+def test_the_tuners_drive_mode_runs_a_drive_known_by_its_board_a2l(encoder_drive):
+    """The tuner's run (its session, its computations; the page is tests/test_tuner_drive.py's) on a board's A2L."""
+    pytest.importorskip("starlette")
+    from pmsm2dof.ui.tuner import drive_session
+    from pmsm2dof.ui.tuner.controls import initial_values
+    from pmsm2dof.ui.tuner.drive import DriveMode
+    from pmsm2dof.ui.tuner.experiment import Tuner
+
+    scenario, folder, url, board_a2l = encoder_drive
+    with drive_session(scenario, url, board_a2l) as session:
+        mode = DriveMode(Tuner(scenario), session)
+        assert mode.describe()["virtual"] is False
+        session.arm("page")
+        shown = mode.run(initial_values(scenario), "page")
+    assert "streamed by DAQ" in shown["capture"]
+    # the drive's reading against the twin's sensor: the same encoder and estimator in float32
+    assert shown["comparison"]["agrees"], shown["comparison"]
+    dip = {r["key"]: r for r in shown["metrics"]}
+    rows = [r for r in dip.values() if r["drive"] is not None and r["twin"] is not None]
+    assert rows and all(r["drive"] == pytest.approx(r["twin"], rel=1e-3, abs=1e-6) for r in rows), rows
 
 
 @pytest.mark.parametrize(
@@ -229,6 +253,12 @@ def test_the_experiments_on_one_drive_at_a_url(paper_drive_served, monkeypatch):
         for mine, engine_step in zip(ours["load_steps"], theirs["load_steps"]):
             assert abs(mine["speed_dip_rpm"]["value"] - engine_step["speed_dip_rpm"]["value"]) <= tolerance, name
     assert drive.pre_roll_s["e3-1dof"] > 10.0  # the paper's slow loop (alpha = 0.5 rad/s) takes its time to settle
+    # the report's table holds each run's pre-roll, and names the drive at its URL
+    engine_metrics = {n: compute_metrics(simulate(drive.results[n].scenario)) for n in DRIVE_RUNS}
+    (_, title), (_, text), (_, header, rows) = drive_blocks(drive, engine_metrics)
+    column = header.index("pre-roll [s]")
+    assert {r[0]: float(r[column]) for r in rows} == pytest.approx(drive.pre_roll_s)
+    assert url in text and "pre-roll" in text
     # a recorded part that would start before the drive is steady (here: during the pre-roll's ramp) is refused
     whole = paper_drive.pre_roll
     monkeypatch.setattr(paper_drive, "pre_roll", lambda scenario: (whole(scenario)[0], whole(scenario)[1] // 8))
