@@ -26,7 +26,15 @@ import pandas as pd
 
 from ..core import LOG_COLUMNS
 from ..drive.link import Link
-from ..drive.session import CONTROLLERS, DAQ_OVERHEAD_BYTES, DAQ_SHARE, LINK_BYTES_PER_S, link_errors, link_kind
+from ..drive.session import (
+    CAPTURE_WAYS,
+    CONTROLLERS,
+    DAQ_OVERHEAD_BYTES,
+    DAQ_SHARE,
+    LINK_BYTES_PER_S,
+    link_errors,
+    link_kind,
+)
 from ..errors import ConfigError, SimulationError, ToolError
 from ..outputs import atomic_file
 from ..sim.metrics import compute_metrics
@@ -66,8 +74,6 @@ NOT_MEASURED = (
     "ud_V", "uq_V", "torque_unsat_Nm", "load_Nm", "u_dc_V", "J_est_kgm2", "J_valid", "T_load_est_Nm",
     "J_gains_kgm2", "w_load_radps", "shaft_torque_Nm",
 )  # fmt: skip
-#: Ways of capturing a run (:func:`plan_run`).
-RUN_WAYS = ("auto", "daq", "buffer")
 
 
 @dataclasses.dataclass(frozen=True)
@@ -118,8 +124,8 @@ def plan_run(link: Link, samples: int, *, way: str = "auto", link_bytes_per_s: f
         The drive lacks a signal of :data:`RUN_SIGNALS` (its A2L is not the firmware's), a bad ``way``
         or ``link_bytes_per_s``, or a run that neither way can capture (naming ``simulation.t_end_s``).
     """
-    if way not in RUN_WAYS:
-        raise ConfigError("way", way, " or ".join(RUN_WAYS))
+    if way not in CAPTURE_WAYS:
+        raise ConfigError("way", way, " or ".join(CAPTURE_WAYS))
     if link_bytes_per_s is not None and not (math.isfinite(link_bytes_per_s) and 1.0 <= link_bytes_per_s <= 1e10):
         raise ConfigError("link_bytes_per_s", link_bytes_per_s, "[1, 1e10] bytes/s")
     missing = [n for n in (*RUN_SIGNALS, *RUN_COUNTERS) if n not in link.scalars]
@@ -136,6 +142,8 @@ def plan_run(link: Link, samples: int, *, way: str = "auto", link_bytes_per_s: f
     buffer_samples = link.variables["capture_buffer"].size // record if "capture_buffer" in link.variables else 0
     streams = need <= DAQ_SHARE * rate and not classic_can
     chosen = way if way != "auto" else "daq" if streams else "buffer"
+    if chosen == "daq" and classic_can:
+        raise ConfigError("way", way, "buffer or auto on classic CAN (fd=0): a DAQ packet of 8 bytes holds no signal")
     if chosen == "daq":
         why = (
             f"streamed by DAQ at the speed event: {need:.4g} bytes/s, the link {rate:.4g}"
