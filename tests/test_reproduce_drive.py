@@ -60,9 +60,14 @@ def test_the_drive_column_comes_from_the_drive_traces(studies):
 
 def test_reproduce_refuses_a_link_it_cannot_play_on(tmp_path, capsys):
     out = tmp_path / "report"
+    # a drive at a URL is known by its A2L file: without one, refused before any study runs
     assert main(["reproduce", "--link", "tcp://127.0.0.1:5555", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "link" in err[0] and "tcp://127.0.0.1:5555" in err[0] and "virtual" in err[0]
+    assert len(err) == 1 and err[0].startswith("pmsm2dof: error: --a2l") and "tcp://127.0.0.1:5555" in err[0]
+    assert not out.exists()
+    assert main(["reproduce", "--link", "ftp://127.0.0.1", "--a2l", "d.a2l", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("pmsm2dof: error: --link = 'ftp://127.0.0.1'")
     assert not out.exists()
 
 

@@ -757,10 +757,10 @@ def test_tune_on_a_busy_port_exits_2():
 @pytest.mark.parametrize(
     ("args", "param"),
     [
-        (["--link", "socket://127.0.0.1:1"], "a2l"),  # a drive of its own needs its firmware's A2L file
-        (["--link", "virtual", "--a2l", __file__], "a2l"),  # the virtual drive is built here
-        (["--link", "socket://127.0.0.1:1", "--a2l", __file__], "a2l"),  # not an A2L file
-        (["--link", "socket://127.0.0.1:1", "--a2l", "no-such.a2l"], "a2l"),
+        (["--link", "socket://127.0.0.1:1"], "--a2l"),  # a drive of its own needs its firmware's A2L file
+        (["--link", "virtual", "--a2l", __file__], "--a2l"),  # the virtual drive is built here
+        (["--link", "socket://127.0.0.1:1", "--a2l", __file__], "--a2l"),  # not an A2L file
+        (["--link", "socket://127.0.0.1:1", "--a2l", "no-such.a2l"], "--a2l"),
         (["--link", "virtual", "--host", "0.0.0.0"], "host"),  # drive mode on loopback only
     ],
 )

@@ -433,8 +433,12 @@ void board_halt(void) { finish(false); }
 void board_read_start_state(float *w_m_radps, float *T_Nm)
 {
     /* the engine's initial state: steady at w_m0, the torque holding it against friction (the motor's physics,
-       in double: none of the firmware's time, as board_run_begin) */
+       in double: none of the firmware's time, as board_run_begin). The plant and its sensors are put back in it
+       here already: foc_start reads the encoder's counter, which must be the initial state's and not where the
+       rotor of the last run stopped (board_run_begin sets the currents foc_start chose) */
     (void)vt_hold(true);
+    (void)p2d_plant_init(&plant, &p2d_vd_plant);
+    latch_sensors();
     *w_m_radps = (float)p2d_vd_plant.w_m0_radps;
     *T_Nm = (float)p2d_plant_friction_Nm(&plant, p2d_vd_plant.w_m0_radps);
     (void)vt_hold(false);

@@ -120,7 +120,8 @@ def at_voltage_limit(result: "Result") -> _Vector:
     Parameters
     ----------
     result : Result
-        Arrays ``voltage_limited``, ``ud_V``, ``uq_V`` and ``u_dc_V``.
+        Arrays ``voltage_limited``, ``ud_V``, ``uq_V`` and ``u_dc_V`` (the last three all NaN in a
+        drive's measured run, which has its firmware's flag alone: then the flag).
 
     Returns
     -------
@@ -130,6 +131,8 @@ def at_voltage_limit(result: "Result") -> _Vector:
     share = _trace(result, "voltage_limited")
     if np.any((share < 0.0) | (share > 1.0)):
         raise SimulationError("result.voltage_limited must be a share in [0, 1]")
+    if all(np.all(np.isnan(getattr(result, name))) for name in ("ud_V", "uq_V", "u_dc_V")):
+        return share  # a drive's measured run: the firmware's flag alone (pmsm2dof.studies.drive.NOT_MEASURED)
     u_max = _trace(result, "u_dc_V") / math.sqrt(3.0)
     at_range = np.hypot(_trace(result, "ud_V"), _trace(result, "uq_V")) >= (1.0 - LIMIT_RTOL) * u_max
     return np.where(at_range, 1.0, share)

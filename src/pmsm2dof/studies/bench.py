@@ -30,7 +30,7 @@ from ..errors import ConfigError, Pmsm2dofError, SimulationError, ToolError
 from ..sim.scenario import Scenario
 from ..sim.simulate import Result
 from .configuration import configuration
-from .firmware import play_scenario
+from .drive import capture_run, plan_run
 
 #: Fields of p2d_speed_config_t a scenario's [speed_controller] sets, as the tuner's controls do
 #: (the speed-loop period Ts_s is the firmware's and is checked, not written).
@@ -186,6 +186,8 @@ class DriveSession:
         self.scenario = scenario
         self.heartbeat_timeout_s = float(heartbeat_timeout_s)
         self.virtual = "vd_trace" in link.variables
+        #: How the last run was captured (:class:`pmsm2dof.studies.drive.RunPlan`), None before one.
+        self.last_plan: Any = None
         self._report = report
         self._lock = threading.RLock()  # the link: one exchange at a time
         self._watch = _Watch()
@@ -360,15 +362,19 @@ class DriveSession:
                 raise self._lost_link("a write", exc) from None
 
     def run(self, scenario: Scenario, owner: Any, *, timeout_s: float = 600.0) -> Result:
-        """Write ``scenario``'s speed controller, play its reference and load on the drive; the captured run.
+        """Write ``scenario``'s speed controller, play its reference and load on the drive; the measured run.
 
-        The run is :func:`pmsm2dof.studies.firmware.play_scenario` (the virtual board's trace in the
-        engine's log format). While it runs, a lost heartbeat or a disarm stops the drive.
+        The run is captured from the firmware's own signals
+        (:func:`pmsm2dof.studies.drive.plan_run`, :func:`~pmsm2dof.studies.drive.capture_run`: DAQ or
+        the drive's capture buffer, whichever the link and the run's length allow; :attr:`last_plan`
+        says which), so any drive with the firmware's variables runs it. While it runs, a lost
+        heartbeat or a disarm stops the drive.
 
         Raises
         ------
         ConfigError
-            Bad values (nothing written), a run longer than :data:`RUN_SAMPLES_MAX` samples.
+            Bad values (nothing written), a run longer than :data:`RUN_SAMPLES_MAX` samples or than the
+            link can capture.
         NotArmed
             The session is not armed for ``owner``.
         LinkLost
@@ -376,10 +382,6 @@ class DriveSession:
         RunStopped
             The run was stopped (the page was lost or disarmed), or ended otherwise than done.
         """
-        if not self.virtual:
-            raise ToolError(
-                "this drive's firmware has no virtual board's trace (vd_trace): the run captures the virtual drive"
-            )
         n = math.floor(scenario.simulation.t_end_s / scenario.speed_controller.Ts_s + 1e-9) + 1
         if n > RUN_SAMPLES_MAX:
             raise ConfigError(
@@ -404,7 +406,9 @@ class DriveSession:
                     raise NotArmed("the drive was disarmed before the run started: nothing ran")
                 self._running, self._stop_asked = True, ""
             try:
-                return play_scenario(self.link, scenario, samples=n, timeout_s=timeout_s, during=watch)
+                plan = plan_run(self.link, n)
+                self.last_plan = plan
+                return capture_run(self.link, scenario, plan, timeout_s=timeout_s, during=watch)
             except SimulationError as exc:
                 failure = _text(exc)
             except ToolError as exc:  # the run outlasted timeout_s

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from ...errors import ConfigError
-from .options import Group, as_option, chosen_scenario, out_option, set_option, warnings_as_lines
+from .options import DriveGroup, as_option, chosen_scenario, out_option, set_option, warnings_as_lines
 
 if TYPE_CHECKING:
     from ...sim.scenario_tables import MotorTable
@@ -53,7 +53,7 @@ def _show(value: Any) -> str:
 
 
 @click.group(
-    cls=Group, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve, commission, identify."
+    cls=DriveGroup, short_help="Talk to a drive over XCP: info, get, set, capture, run, serve, commission, identify."
 )
 def drive() -> None:
     """Talk to a drive (the firmware of examples/firmware, on an MCU, on QEMU or the PC's virtual drive) over
@@ -225,7 +225,10 @@ def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: s
     """Play a scenario's reference and load on the drive (a build of it) and hold the trace against the engine,
     or against a specification.
 
-    Writes OUT/trace.csv (the drive's trace in the engine's log format), OUT/metrics.json (the figures
+    The run is captured from the firmware's own signals (foc_now at every speed sample: by DAQ when the
+    link carries it, else in the drive's capture buffer), so any drive with the firmware's variables
+    plays it. Writes OUT/trace.csv (the drive's measured run in the engine's log columns that a drive
+    measures: its speed is the drive's speed reading), OUT/metrics.json (the figures
     of merit, the agreement, the specification's verdict) and OUT/plot.png (the drive over the engine).
     Without a specification, exit status 1 when the speed or the currents differ from the engine's by
     more than 1e-4 of their step. With one (--max-overshoot-pct ... as autotune takes them: a drive
@@ -237,7 +240,7 @@ def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: s
 
     from ...outputs import atomic_write, check_out, staged_dir
     from ...sim.metrics import compute_metrics
-    from ...studies.drive import check_limits, judge, run_on_drive
+    from ...studies.drive import check_limits, judge, run_on_drive, save_run
     from ..plots.firmware import plot_drive_run
 
     spec = {name: value for name, value in limits.items() if value is not None}
@@ -252,13 +255,13 @@ def run(scenario: str, overrides: tuple[str, ...], out: str, force: bool, url: s
     c = result.comparison()
     verdict = judge(result.drive, spec) if spec else None
     with staged_dir(out, "drive-run", force) as tmp:
-        result.drive.save(tmp / "trace.csv")
+        save_run(result.drive, tmp / "trace.csv")
         metrics = {"drive": compute_metrics(result.drive), "engine": compute_metrics(result.engine), "comparison": c}
         if verdict is not None:
             metrics["spec"] = verdict
         atomic_write(tmp / "metrics.json", json.dumps(metrics, indent=2, allow_nan=False) + "\n")
         plot_drive_run(result, tmp / "plot.png")
-    click.echo(f"{chosen.name}: {result.drive.t_s[-1]:g} s on the drive at {result.url}")
+    click.echo(f"{chosen.name}: {result.drive.t_s[-1]:g} s on the drive at {result.url}, {result.plan.why}")
     for group in ("speed", "currents"):
         g = c[group]
         click.echo(f"  {group:<8} drive - engine: {g['max_abs_difference']:.3g} at most, "

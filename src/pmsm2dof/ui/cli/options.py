@@ -187,6 +187,27 @@ def as_option(exc: ConfigError, options: Mapping[str, str]) -> ConfigError:
     return exc
 
 
+#: The library's arguments of a drive's link -> the options the drive commands, ``tune`` and ``reproduce`` take.
+LINK_OPTIONS = {"link": "--link", "a2l": "--a2l", "allow_remote": "--allow-remote"}
+
+
+@contextlib.contextmanager
+def options_named(options: Mapping[str, str]) -> Iterator[None]:
+    """Raise a ConfigError of the block with its parameter named by its option (:func:`as_option`)."""
+    try:
+        yield
+    except ConfigError as exc:
+        raise as_option(exc, options) from None
+
+
+class DriveGroup(Group):
+    """A group of commands on a drive: an error of its link or A2L file names ``--link`` or ``--a2l``."""
+
+    def invoke(self, ctx: click.Context) -> Any:
+        with options_named(LINK_OPTIONS):
+            return super().invoke(ctx)
+
+
 def parse_override(text: str) -> tuple[str, Any]:
     """Parse one ``--set key=value`` of the command line.
 

@@ -2,7 +2,7 @@
 
 import click
 
-from .options import out_option, parse_override, require_extra, set_option
+from .options import LINK_OPTIONS, options_named, out_option, parse_override, require_extra, set_option
 
 
 @click.command(short_help="Reproduce the paper: figures 7-14, sensitivity studies and the claims table.")
@@ -14,19 +14,32 @@ from .options import out_option, parse_override, require_extra, set_option
 @set_option("change a scenario key in every preset, e.g. --set motor.psi_f_Wb=0.1 (repeatable)")
 @click.option(
     "--link",
-    metavar="virtual",
+    metavar="virtual|URL",
     default=None,
-    help="also play experimental conditions 1 to 3 on drives and check their claims on them: 'virtual', the "
-    "PC's virtual drive of each experiment built here (needs the extra 'drive', cmake and a C compiler)",
+    help="also play experimental conditions 1 to 3 on a drive and check their claims on it: 'virtual', the "
+    "PC's virtual drive of each experiment built here (needs cmake and a C compiler), or the link of one drive "
+    "whose motor and limits are the paper's (tcp://HOST:PORT, a serial device, can://...; with --a2l); "
+    "needs the extra 'drive'",
 )
-def reproduce(out: str, force: bool, overrides: tuple[str, ...], link: str | None) -> None:
+@click.option(
+    "--a2l",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="the A2L file of the drive at --link URL (written beside its firmware's ELF)",
+)
+@click.option("--allow-remote", is_flag=True, help="connect to a drive on another machine (tcp://HOST)")
+def reproduce(
+    out: str, force: bool, overrides: tuple[str, ...], link: str | None, a2l: str | None, allow_remote: bool
+) -> None:
     """Reproduce the paper: Fig. 7-14 as simulations, sensitivity and discretization studies, claims table.
 
     Runs the paper's conditions on the presets (the float32 C controller in the compiled
     engine) and writes OUT/report.md, OUT/report.html (self-contained), OUT/claims.json (each
     claim of the paper with the measured value and a verdict), OUT/figures/*.png and *.svg,
     and beside each figure its data (OUT/figures/*.csv), all or nothing. With --link, the
-    experiments also run on drives: OUT/drive.json, and the claims of section 4.2 checked on them.
+    experiments also run on a drive, captured from the firmware's own signals (its measured speed):
+    OUT/drive.json, and the claims of section 4.2 checked on them. On one drive at a URL, condition
+    3 (steady at 500 rpm) starts with a pre-roll from rest, checked steady before the recorded part.
     """
     import time
 
@@ -37,7 +50,10 @@ def reproduce(out: str, force: bool, overrides: tuple[str, ...], link: str | Non
     if link is not None:
         require_extra("pyxcp", "drive", "pmsm2dof reproduce --link")
     changes = dict(parse_override(text) for text in overrides)
-    report = run_reproduction(out, overrides=changes, progress=True, force=force, link=link)
+    with options_named(LINK_OPTIONS):
+        report = run_reproduction(
+            out, overrides=changes, progress=True, force=force, link=link, a2l=a2l, allow_remote=allow_remote
+        )
     for claim in report.claims:
         on_drive = f"  (on the drive: {claim.on_drive.verdict})" if claim.on_drive is not None else ""
         click.echo(f"  {claim.id:>4}  {claim.verdict:<15} {claim.claim}{on_drive}")

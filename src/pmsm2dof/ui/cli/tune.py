@@ -2,7 +2,7 @@
 
 import click
 
-from .options import require_extra
+from .options import LINK_OPTIONS, options_named, require_extra
 
 
 @click.command()
@@ -47,4 +47,5 @@ def tune(scenario: str | None, port: int, host: str, no_browser: bool, link: str
 
     chosen = load_scenario(scenario or DEFAULT_PRESET)
     warn_implausible(chosen)
-    run_tuner(chosen, host=host, port=port, open_browser=not no_browser, link=link, a2l=a2l)
+    with options_named(LINK_OPTIONS):
+        run_tuner(chosen, host=host, port=port, open_browser=not no_browser, link=link, a2l=a2l)

@@ -183,7 +183,15 @@ def write_report(
         if drive is not None:
             drive_json = {
                 "link": drive.link,
-                "runs": {n: {"metrics": drive.metrics[n], "comparison": drive.comparisons[n]} for n in drive.results},
+                "runs": {
+                    n: {
+                        "metrics": drive.metrics[n],
+                        "comparison": drive.comparisons[n],
+                        "pre_roll_s": drive.pre_roll_s.get(n, 0.0),
+                        "capture": drive.captures.get(n, ""),
+                    }
+                    for n in drive.results
+                },
             }
             atomic_write(tmp / "drive.json", json.dumps(json_value(drive_json), indent=2, allow_nan=False) + "\n")
             files.append("drive.json")
@@ -223,6 +231,8 @@ def reproduce(
     progress: bool = False,
     force: bool = False,
     link: str | None = None,
+    a2l: Path | str | None = None,
+    allow_remote: bool = False,
 ) -> Report:
     """Run the paper reproduction and write the report into ``out``, all or nothing.
 
@@ -241,7 +251,11 @@ def reproduce(
         Write into ``out`` even if it holds other files (they are kept).
     link : str, optional
         Also play the experiments on drives (:func:`pmsm2dof.studies.paper_drive.run_on_drives`;
-        ``"virtual"``: the PC's virtual drives, built here).
+        ``"virtual"``: the PC's virtual drives, built here; or the link URL of one drive).
+    a2l : path, optional
+        The A2L file of the drive at a ``link`` URL.
+    allow_remote : bool
+        A ``tcp://`` link to another machine.
 
     Returns
     -------
@@ -253,17 +267,18 @@ def reproduce(
         Invalid overrides or points (naming the parameter or scenario key), or ``out`` not a
         writable folder or holding other files (without ``force``).
     SimulationError
-        A run of the paper's conditions stopped, or a run on a drive did not end as done.
+        A run of the paper's conditions stopped, or a run on a drive did not end as done (or was not steady
+        after its pre-roll).
     ToolError
         The link to a drive dropped (its watchdog stops the run), or a drive's build failed.
     """
     check_out(out, "reproduce", force)
     if link is not None:
-        check_link(link)
+        check_link(link, a2l, allow_remote)
     studies = st.run_studies(overrides, points=points, progress=progress)
     drive = None
     if link is not None:
         say = (lambda text: print(f"  drive: {text}", file=sys.stderr, flush=True)) if progress else None
-        drive = run_on_drives(studies.bases, link, report=say)
+        drive = run_on_drives(studies.bases, link, report=say, a2l=a2l, allow_remote=allow_remote)
     claims, files, wall_time_s = write_report(studies, out, progress=progress, force=force, drive=drive)
     return Report(out=Path(out), claims=claims, studies=studies, files=files, wall_time_s=wall_time_s)

@@ -5,10 +5,12 @@
 change of a control is validated as the tuner validates it (:meth:`Tuner.scenario
 <pmsm2dof.ui.tuner.experiment.Tuner.scenario>`, then the C controllers' init) and written to the
 drive (:meth:`DriveSession.write <pmsm2dof.studies.bench.DriveSession.write>`); "Run on the
-drive" plays the experiment's reference and load on it and captures every speed sample
-(:meth:`DriveSession.run <pmsm2dof.studies.bench.DriveSession.run>`). The twin is the engine's
-simulation of the same control values at every speed sample; the page draws both, their
-difference, and the metrics of both (:func:`pmsm2dof.studies.loopcheck.measure`).
+drive" plays the experiment's reference and load on it and captures every speed sample of the
+firmware's own signals, so that any drive with them runs it (:meth:`DriveSession.run
+<pmsm2dof.studies.bench.DriveSession.run>`). The twin is the engine's simulation of the same
+control values at every speed sample, its speed as the drive's sensor reads it
+(:func:`pmsm2dof.studies.drive.as_measured`); the page draws both, their difference, and the
+metrics of both (:func:`pmsm2dof.studies.loopcheck.measure`).
 """
 
 import time
@@ -19,6 +21,7 @@ import numpy as np
 
 from ...sim.simulate import Simulation
 from ...studies.bench import DriveSession
+from ...studies.drive import as_measured
 from ...studies.firmware import compare
 from ...studies.loopcheck import measure
 from .experiment import Tuner, _label, _metric_rows, minmax_indices
@@ -68,8 +71,9 @@ class DriveMode:
         (drive minus twin of ``speed_rpm`` and ``iq_A`` at every sample, decimated),
         ``comparison`` (:func:`pmsm2dof.studies.firmware.compare`: the largest differences against
         the step), ``metrics`` (rows ``{key, group, label, unit, twin, drive, reason}``), ``config`` (the
-        drive's speed controller read back after the run), ``samples``, ``label``, ``drive_s`` and
-        ``twin_s`` (wall times).
+        drive's speed controller read back after the run), ``capture`` (how the run was captured:
+        :attr:`RunPlan.why <pmsm2dof.studies.drive.RunPlan>`), ``samples``, ``label``, ``drive_s`` and
+        ``twin_s`` (wall times). The speeds are readings: the drive's, and the twin's sensor's.
         """
         scenario = self.tuner.scenario(values)
         self.tuner.logged(scenario)  # the bound of the twin's work, before anything runs
@@ -80,7 +84,7 @@ class DriveMode:
         start = time.perf_counter()
         sim = Simulation(exact)
         sim.advance(sim.n_samples)
-        twin = sim.result(exact, time.perf_counter() - start)
+        twin = as_measured(sim.result(exact, time.perf_counter() - start))
         twin_s = time.perf_counter() - start
         t = np.asarray(twin.t_s)
         # the same schedules: the same events, so the same rows (a figure the drive's run lacks is None)
@@ -106,6 +110,7 @@ class DriveMode:
             "comparison": {k: comparison[k] for k in ("agreement", "speed", "currents", "agrees")},
             "metrics": metrics,
             "config": self.session.read_speed_config(),
+            "capture": self.session.last_plan.why,
             "drive_s": drive_s,
             "twin_s": twin_s,
         }
