@@ -6,7 +6,9 @@ the key's meaning, default and valid range: the one declaration that the schema
 (:mod:`pmsm2dof.sim.scenario_schema`), the validation, the TOML writer and ``pmsm2dof presets --keys``
 read. A key that a field of the C configuration holds under its name is described by that field's comment in
 the C header (:func:`~pmsm2dof.sim.scenario_keys.from_c`): the header is the one text of its meaning, unit
-and range. A table holds every key resolved (defaults filled; ``None`` for an optional key not given); a
+and range. A key that fields of the engine's C configuration hold declares no range: the schema takes it
+from their comments and C types (:func:`~pmsm2dof.sim.engine_keys.c_bounds`, the range their C inits check).
+A table holds every key resolved (defaults filled; ``None`` for an optional key not given); a
 :class:`~pmsm2dof.sim.scenario.Scenario` builds its tables once, after validation.
 """
 
