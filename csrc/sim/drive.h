@@ -295,9 +295,9 @@ typedef struct {
     p2d_filter_config_t speed_filter;  /* torque filters of the speed controller (filter.h); all zero: none */
     p2d_arithmetic_t arithmetic;       /* speed controller: FLOAT32 (0, speed.h), Q15 or Q31 (speed_fixed.h: surface
                                           PMSM, no torque filters, field weakening or gain scheduling) */
-    float speed_full_scale_radps;      /* Q15, Q31: speed of the integer 2^N [rad/s] (speed_fixed.h) */
-    float torque_full_scale_Nm;        /* Q15, Q31: torque of the integer 2^N [Nm] (speed_fixed.h) */
-    float current_full_scale_A;        /* Q15, Q31: current of the integer 2^N [A] (speed_fixed.h) */
+    float speed_full_scale_radps;      /* Q15, Q31: speed of the integer 2^N [rad/s], > 0 (speed_fixed.h) */
+    float torque_full_scale_Nm;        /* Q15, Q31: torque of the integer 2^N [Nm], > 0 (speed_fixed.h) */
+    float current_full_scale_A;        /* Q15, Q31: current of the integer 2^N [A], > 0 (speed_fixed.h) */
 } p2d_sim_config_t;
 
 /* The fixed-point speed controller of a drive (arithmetic Q15 or Q31) and its scalings. */

@@ -81,8 +81,8 @@ typedef struct {
     uint32_t counter_bits;     /* width of the hardware counter [bit], 2..32: it wraps at 2^counter_bits */
     float Ts_s;                /* speed period, time between two readings [s], > 0 */
     p2d_estimator_t estimator; /* difference or pll */
-    float bandwidth_radps;     /* PLL pole (double) w_pll [rad/s], 1e-3 <= bandwidth_radps Ts_s <= 2; pll only */
-    float lowpass_radps;       /* low-pass pole on the estimate [rad/s], 0 (none) or 1e-3 <= lowpass_radps Ts_s <= 2 */
+    float bandwidth_radps;     /* PLL pole (double) w_pll [rad/s], > 0, 1e-3 <= bandwidth_radps Ts_s <= 2; pll only */
+    float lowpass_radps;       /* low-pass pole on the estimate [rad/s], >= 0: 0 or 1e-3 <= lowpass_radps Ts_s <= 2 */
 } p2d_encoder_config_t;
 
 /* Precomputed coefficients: everything the step needs for one Ts. */

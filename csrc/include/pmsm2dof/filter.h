@@ -86,11 +86,11 @@ extern "C" {
 
 /* Design inputs of the filter chain (the sampling period is its user's). All 0: no filter. */
 typedef struct {
-    float notch_freq_Hz;   /* notch frequency f0 [Hz]: 0 for no notch, else > 0 and < 1/(2 Ts_s) */
-    float notch_width_Hz;  /* -3 dB bandwidth of the notch [Hz], > 0 and < 1/(2 Ts_s); ignored without notch */
-    float notch_depth;     /* gain at f0, |H(f0)| [-], 0 <= d < 1/sqrt(2) (0.1: -20 dB); ignored without notch */
-    float lowpass_freq_Hz; /* low-pass natural frequency f0 [Hz]: 0 for no low-pass, else > 0 and < 1/(2 Ts_s) */
-    float lowpass_zeta;    /* low-pass damping [-], > 0 (1/sqrt(2): -3 dB at f0, no peak); ignored without low-pass */
+    float notch_freq_Hz;   /* notch frequency f0 [Hz], >= 0: 0 for no notch, else < 1/(2 Ts_s) */
+    float notch_width_Hz;  /* -3 dB bandwidth of the notch [Hz], >= 0; with a notch > 0, < 1/(2 Ts_s) */
+    float notch_depth;     /* gain at f0, |H(f0)| [-], >= 0 and < 0.7071067811865476 = 1/sqrt(2) (0.1: -20 dB) */
+    float lowpass_freq_Hz; /* low-pass natural frequency f0 [Hz], >= 0: 0 for no low-pass, else < 1/(2 Ts_s) */
+    float lowpass_zeta;    /* low-pass damping [-], >= 0; with a low-pass > 0 (1/sqrt(2): -3 dB at f0, no peak) */
 } p2d_filter_config_t;
 
 /* Coefficients of one section (see the file comment). */

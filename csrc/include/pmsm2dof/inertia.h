@@ -113,17 +113,17 @@ extern "C" {
 
 /* Configuration of the estimator. */
 typedef struct {
-    float Ts_s;                /* speed-loop sampling period [s], > 0 */
-    float J0_kgm2;             /* initial J, and the prior standard deviation of J [kg m^2], > 0 */
-    float J_min_kgm2;          /* smallest plausible J: the estimate stays >= it [kg m^2], in (0, J0_kgm2] */
-    float J_max_kgm2;          /* largest plausible J: the estimate stays <= it [kg m^2], >= J0_kgm2 */
-    float B_max_Nms;           /* largest plausible viscous friction: B in [0, B_max_Nms], prior sd of B [Nm s/rad] */
-    float T_load_max_Nm;       /* largest plausible |T_load|, e.g. the peak torque; prior sd of T_load [Nm] */
-    float sigma_T_Nm;          /* standard deviation of the white noise of the torque input [Nm], > 0 */
-    float J_memory_s;          /* memory of J and B: forgetting factor 1 - Ts_s / J_memory_s [s] */
-    float load_memory_s;       /* time constant of the estimate of T_load after a load step [s] */
-    float w_f_radps;           /* bandwidth of the prefilter of speed and torque [rad/s], > 0 */
-    float J_rel_sd_max;        /* J_valid once sd(J) <= J_rel_sd_max J [-], in (0, 1) */
+    float Ts_s;          /* speed-loop sampling period [s], > 0 */
+    float J0_kgm2;       /* initial J, and the prior standard deviation of J [kg m^2], > 0 */
+    float J_min_kgm2;    /* smallest plausible J: the estimate stays >= it [kg m^2], in (0, J0_kgm2] */
+    float J_max_kgm2;    /* largest plausible J: the estimate stays <= it [kg m^2], > 0, >= J0_kgm2 */
+    float B_max_Nms;     /* largest plausible viscous friction, prior sd of B [Nm s/rad], > 0 */
+    float T_load_max_Nm; /* largest plausible |T_load| (e.g. the peak torque), prior sd of T_load [Nm], > 0 */
+    float sigma_T_Nm;    /* standard deviation of the white noise of the torque input [Nm], > 0 */
+    float J_memory_s;    /* memory of J and B [s], > 0, >= 2 Ts_s, <= 1e6 Ts_s (forgetting: 1 - Ts_s/J_memory_s) */
+    float load_memory_s; /* time constant of the T_load estimate after a step [s], > 0, >= 2 Ts_s, <= 1e6 Ts_s */
+    float w_f_radps;     /* bandwidth of the prefilter of speed and torque [rad/s], > 0 */
+    float J_rel_sd_max;  /* J_valid once sd(J) <= J_rel_sd_max J [-], in (0, 1) */
     bool speed_is_period_mean; /* the speed input is the mean over the period (counts differenced over Ts) */
 } p2d_inertia_config_t;
 

@@ -83,8 +83,8 @@ typedef struct {
     p2d_speed_config_t speed;     /* the design and the drive (speed.h), validated as by p2d_speed_init;
                                      surface PMSM: Ld_H == Lq_H */
     float speed_full_scale_radps; /* W_fs: the speed of the integer 2^N [rad/s], > 0 */
-    float torque_full_scale_Nm;   /* T_fs: the torque of the integer 2^N [Nm], >= T_max = 1.5 p psi_f i_max_A */
-    float current_full_scale_A;   /* I_fs: the current of the integer 2^N [A], >= i_max_A */
+    float torque_full_scale_Nm;   /* T_fs: the torque of the integer 2^N [Nm], > 0 and >= T_max = 1.5 p psi_f i_max_A */
+    float current_full_scale_A;   /* I_fs: the current of the integer 2^N [A], > 0 and >= i_max_A */
 } p2d_speed_fixed_config_t;
 
 /*

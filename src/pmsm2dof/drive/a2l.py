@@ -16,7 +16,7 @@ import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
-from ..core.cheaders import comment_unit
+from ..core.cheaders import comment_bounds, comment_unit
 from ..outputs import atomic_write
 from .elf import Scalar, Variable
 
@@ -108,17 +108,10 @@ A2ML = """/begin A2ML
 #: Units that the names of the trace's columns end with (the engine's log: ``w_m_radps``, ``id_A``).
 SUFFIX_UNITS = {"radps": "rad/s", "rpm": "rpm", "A": "A", "V": "V", "Nm": "Nm", "s": "s", "kgm2": "kg m^2"}
 
-#: A number in a range text.
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-
 
 def limits(comment: str, scalar: Scalar) -> tuple[float, float]:
-    """The range of a field: its type's, narrowed by a comment's ``>= a``, ``> a``, ``<= b``, ``a..b``.
-
-    A bound counts when it opens a clause of the comment (after ``]``, a comma, ``and`` or ``else``) and
-    is a number alone: ``>= 10 Ts_s``, ``w_e_spin_radps Ts_s <= 0.1`` and ``|m| <= 2^15 - 1`` bound
-    other quantities (the library's own check applies them).
-    """
+    """The range of a field: its type's, narrowed by its comment's bounds
+    (:func:`~pmsm2dof.core.cheaders.comment_bounds`, the range the scenario checks too)."""
     if scalar.encoding == "float":
         lo, hi = (-3.4e38, 3.4e38) if scalar.size == 4 else (-1.7e308, 1.7e308)
     elif scalar.encoding in ("unsigned", "bool", "enum"):
@@ -129,16 +122,13 @@ def limits(comment: str, scalar: Scalar) -> tuple[float, float]:
         return 0.0, 1.0
     if scalar.encoding == "enum" and scalar.enumerators:
         return float(min(v for v, _ in scalar.enumerators)), float(max(v for v, _ in scalar.enumerators))
-    m = re.search(rf"({_NUMBER})\s*\.\.\s*({_NUMBER})", comment)
-    if m:
-        return max(lo, float(m.group(1))), min(hi, float(m.group(2)))
-    # a bound of the field itself opens a clause and is a plain number: not ">= 10 Ts_s", "x Ts_s <= 0.1"
-    m = re.search(rf"(?:^|[],]|\band|\belse)\s*>=?\s*({_NUMBER})(?!\.?\d|\s*(?!and\b|or\b)[\w/^*])", comment)
-    if m:
-        lo = max(lo, float(m.group(1)))
-    m = re.search(rf"(?:^|[],]|\band|\belse)\s*<=?\s*({_NUMBER})(?!\.?\d|\s*(?!and\b|or\b)[\w/^*])", comment)
-    if m:
-        hi = min(hi, float(m.group(1)))
+    b = comment_bounds(comment)
+    for bound in (b.gt, b.ge):
+        if bound is not None:
+            lo = max(lo, bound)
+    for bound in (b.lt, b.le):
+        if bound is not None:
+            hi = min(hi, bound)
     return lo, hi
 
 

@@ -22,11 +22,9 @@ from ..core.fields import float32_note, set_fields
 from ..core.gains import default_Ka_error
 from ..core.motor import no_load_speed_radps
 from ..errors import ConfigError
-from .engine_keys import CONFIG_PARTS, KEYS
+from .engine_keys import CONFIG_PARTS, KEYS, RPM_PER_RADPS
 from .scenario import SCHEMA, SameAs, Scenario
 from .scenario_tables import FaultEntry
-
-RPM_PER_RADPS = 30.0 / math.pi
 
 
 def engine_config(scenario: Scenario, current_per_speed: int, substeps: int) -> tuple[Any, list[Any]]:

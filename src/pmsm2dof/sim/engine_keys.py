@@ -4,10 +4,18 @@ The fields are read from the C declaration (:data:`CONFIG_PARTS`); the field ``f
 ``<table>.f`` of the part's scenario table (:data:`TABLES`) unless :data:`FIELD_KEYS` names another
 key. :mod:`pmsm2dof.sim.engine_config` fills the configuration and names the key of an error of a C
 init with these maps; :mod:`pmsm2dof.sim.scenario_schema` takes the meaning, unit and range of a key
-that a controller's field holds from that field's comment in the C header (:func:`c_field`).
+that a controller's field holds from that field's comment in the C header (:func:`c_field`), and the
+valid range of every key that fields of the configuration hold from their comments and C types
+(:func:`c_bounds`): the range the C inits check, checked by the scenario before any engine exists.
 """
 
-from ..core.bindings import ffi
+import math
+
+from ..core.bindings import ffi, field_comment
+from ..core.cheaders import Bounds, comment_bounds, comment_unit
+
+#: rpm per rad/s: a scenario key in rpm fills a field in rad/s.
+RPM_PER_RADPS = 30.0 / math.pi
 
 #: The scenario table of each part of the engine's configuration (``p2d_sim_config_t``, csrc/sim/drive.h):
 #: the field ``f`` of a part is the key ``<table>.f`` unless :data:`FIELD_KEYS` names another.
@@ -107,3 +115,51 @@ def c_field(key: str) -> tuple[str, str] | None:
         if part_table == table and name in fields:
             return ctype, name
     return None
+
+
+#: Fields the engine's caller computes from their key rather than holding its value (the ratios of
+#: the periods): the key's range is not theirs.
+_COMPUTED = ("current_per_speed", "substeps")
+
+#: The range of the C integer types of the configuration: ``[0, 2^bits)``.
+_INTEGER_BITS = {"uint32_t": 32, "uint64_t": 64}
+
+
+def c_bounds(key: str) -> Bounds | None:
+    """The valid range of the numeric scenario key ``key`` that fields of the engine's configuration hold:
+    the tightest of the bounds their comments give (:func:`~pmsm2dof.core.cheaders.comment_bounds`) and of
+    their C integer types, in the key's unit (rpm for a field in rad/s). None when no numeric field holds it.
+    """
+    lower: list[tuple[float, bool]] = []  # (bound, strict)
+    upper: list[tuple[float, bool]] = []
+    held = False
+    for path, path_key in KEYS.items():
+        part, _, name = path.rpartition(".")
+        ctype, fields = CONFIG_PARTS[part]
+        kind = fields[name]
+        if path_key != key or name in _COMPUTED or kind not in ("float", "double", *_INTEGER_BITS):
+            continue
+        held = True
+        comment = field_comment(ctype, name)
+        scale = 1.0
+        if "_rpm" in key:
+            if comment_unit(comment) != "rad/s":
+                raise RuntimeError(f"{key} in rpm fills {ctype}.{name}, whose comment gives no unit rad/s")
+            scale = RPM_PER_RADPS
+        b = comment_bounds(comment)
+        lower += [(v * scale, strict) for v, strict in ((b.gt, True), (b.ge, False)) if v is not None]
+        upper += [(v * scale, strict) for v, strict in ((b.lt, True), (b.le, False)) if v is not None]
+        if kind in _INTEGER_BITS:
+            lower.append((0, False))
+            upper.append((2 ** _INTEGER_BITS[kind], True))
+    if not held:
+        return None
+    # the tightest bound; of two equal ones the strict
+    lo = max(lower, default=None)
+    hi = min(upper, key=lambda b: (b[0], not b[1]), default=None)
+    return Bounds(
+        gt=lo[0] if lo and lo[1] else None,
+        ge=lo[0] if lo and not lo[1] else None,
+        lt=hi[0] if hi and hi[1] else None,
+        le=hi[0] if hi and not hi[1] else None,
+    )

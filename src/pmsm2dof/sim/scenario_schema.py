@@ -1,6 +1,8 @@
 """The scenario schema: every key, its type, valid range, default and meaning, in file order.
 
-:data:`SCHEMA` is read from the declarations of the typed tables (:mod:`pmsm2dof.sim.scenario_tables`):
+:data:`SCHEMA` is read from the declarations of the typed tables (:mod:`pmsm2dof.sim.scenario_tables`)
+and, for a key that fields of the engine's C configuration hold, its range from those fields' comments
+and types (:func:`~pmsm2dof.sim.engine_keys.c_bounds`: the range their C inits check):
 the two top-level keys, then each table's keys, then those of the entries of each array of tables
 (written ``"reference[].t_s"``). It drives the validation (:mod:`pmsm2dof.sim.scenario_validate`),
 the defaults, :meth:`pmsm2dof.sim.scenario.Scenario.to_toml` and :func:`schema_reference`.
@@ -12,8 +14,9 @@ import types
 import typing
 
 from ..core.bindings import field_comment
+from ..core.cheaders import Bounds
 from ..core.motor import DATASHEET_KEYS
-from .engine_keys import c_field
+from .engine_keys import c_bounds, c_field
 from .scenario_keys import REQUIRED, Field, FromC, SameAs, Spec
 from .scenario_tables import ARRAYS, ENTRIES, TABLES
 
@@ -38,8 +41,23 @@ def _table_fields(parent: str, table: type) -> tuple[Field, ...]:
             raise TypeError(f"{parent}.{f.name}: annotated {f.type!r}, not float, int, bool or str")
         key = f"{parent}.{f.name}"
         doc = spec.doc if isinstance(spec.doc, str) else _c_doc(key, spec.doc)
-        fields.append(Field(key, kind, doc, spec.default, spec.gt, spec.ge, spec.lt, spec.le, spec.choices))
+        bounds = _c_range(key, kind, spec)
+        fields.append(Field(key, kind, doc, spec.default, bounds.gt, bounds.ge, bounds.lt, bounds.le, spec.choices))
     return tuple(fields)
+
+
+def _c_range(key: str, kind: type, spec: Spec) -> Bounds:
+    """The range of ``key``: the C configuration's (:func:`~pmsm2dof.sim.engine_keys.c_bounds`, the range its
+    C init checks) when fields of it hold the key, else the one its table declares."""
+    declared = Bounds(spec.gt, spec.ge, spec.lt, spec.le)
+    bounds = c_bounds(key)
+    if bounds is None:
+        return declared
+    if declared != Bounds():
+        raise TypeError(f"{key} declares a range; its C field's comment gives it (delete the one in the table)")
+    if kind is int:  # 1, not 1.0, in the messages of an integer key
+        return Bounds(*(None if v is None else int(v) for v in (bounds.gt, bounds.ge, bounds.lt, bounds.le)))
+    return bounds
 
 
 def _c_doc(key: str, doc: FromC) -> str:

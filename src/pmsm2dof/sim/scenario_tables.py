@@ -6,12 +6,13 @@ the key's meaning, default and valid range: the one declaration that the schema
 (:mod:`pmsm2dof.sim.scenario_schema`), the validation, the TOML writer and ``pmsm2dof presets --keys``
 read. A key that a field of the C configuration holds under its name is described by that field's comment in
 the C header (:func:`~pmsm2dof.sim.scenario_keys.from_c`): the header is the one text of its meaning, unit
-and range. A table holds every key resolved (defaults filled; ``None`` for an optional key not given); a
+and range. A key that fields of the engine's C configuration hold declares no range: the schema takes it
+from their comments and C types (:func:`~pmsm2dof.sim.engine_keys.c_bounds`, the range their C inits check).
+A table holds every key resolved (defaults filled; ``None`` for an optional key not given); a
 :class:`~pmsm2dof.sim.scenario.Scenario` builds its tables once, after validation.
 """
 
 import dataclasses
-import math
 
 from ..core import (
     ANTI_WINDUPS,
@@ -34,14 +35,14 @@ from .scenario_keys import T_END_MAX_S, SameAs, from_c, key
 class MotorTable:
     """``[motor]``."""
 
-    pole_pairs: int = key(from_c("the paper's p0 of eq 1, which it calls the number of poles"), ge=1, le=1000)
-    Rs_ohm: float = key(from_c("eq 1"), gt=0)
-    Ld_H: float = key(from_c("eq 1"), gt=0)
-    Lq_H: float = key(from_c("eq 1; Lq != Ld makes a salient motor (MTPA)"), gt=0)
-    psi_f_Wb: float = key(from_c("eq 1"), gt=0)
-    J_kgm2: float = key(from_c("the plant's (eq 1, 2)"), gt=0)
-    B_Nms: float = key(from_c(), default=0.0, ge=0)
-    T_coulomb_Nm: float = key(from_c(), default=0.0, ge=0)
+    pole_pairs: int = key(from_c("the paper's p0 of eq 1, which it calls the number of poles"))
+    Rs_ohm: float = key(from_c("eq 1"))
+    Ld_H: float = key(from_c("eq 1"))
+    Lq_H: float = key(from_c("eq 1; Lq != Ld makes a salient motor (MTPA)"))
+    psi_f_Wb: float = key(from_c("eq 1"))
+    J_kgm2: float = key(from_c("the plant's (eq 1, 2)"))
+    B_Nms: float = key(from_c(), default=0.0)
+    T_coulomb_Nm: float = key(from_c(), default=0.0)
     i_rated_A: float | None = key(
         "rated (continuous) current as a dq magnitude, the peak of the phase current [A]; "
         "only the plausibility checks read it",
@@ -64,8 +65,8 @@ class MotorTable:
 class LimitsTable:
     """``[limits]``."""
 
-    i_max_A: float = key("current-vector limit ||i_dq|| <= i_max_A [A] (Sat of Fig. 1 and 2)", gt=0)
-    u_dc_V: float = key("DC-link voltage [V]; the voltage vector is limited to u_dc/sqrt(3)", gt=0)
+    i_max_A: float = key("current-vector limit ||i_dq|| <= i_max_A [A] (Sat of Fig. 1 and 2)")
+    u_dc_V: float = key("DC-link voltage [V]; the voltage vector is limited to u_dc/sqrt(3)")
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -87,8 +88,8 @@ class CurrentLoopTable:
         "first_order: the closed current loop as eq 3",
         choices=CURRENT_LOOP_MODELS,
     )
-    tau_i_s: float = key(from_c("tau_i of the closed current loop (eq 3): first_order's, or the dq PIs' design"), gt=0)
-    Ts_s: float = key(from_c("of the current controller and the PWM"), gt=0)
+    tau_i_s: float = key(from_c("tau_i of the closed current loop (eq 3): first_order's, or the dq PIs' design"))
+    Ts_s: float = key(from_c("of the current controller and the PWM"))
     decouple: bool = key(from_c("dq_pi"), default=True)
     anti_windup: AntiWindup = key(
         "anti-windup of the current PIs (dq_pi)", default="back_calculation", choices=ANTI_WINDUPS
@@ -100,9 +101,9 @@ class CurrentLoopTable:
 class SpeedControllerTable:
     """``[speed_controller]``."""
 
-    alpha_radps: float = key(from_c(), gt=0)
-    zeta: float = key(from_c(), gt=0)
-    m: float = key(from_c(), default=1.0, gt=0)
+    alpha_radps: float = key(from_c())
+    zeta: float = key(from_c())
+    m: float = key(from_c(), default=1.0)
     feedforward: Feedforward = key(
         "2DOF feedforward Fr: none (1DOF PI), lowpass (eq 13, 15), no_tau (eq 11 with tau_i = 0), full (eq 11)",
         default="lowpass",
@@ -116,19 +117,16 @@ class SpeedControllerTable:
     Ka: float | None = key(
         from_c("absent means that default (section 3.3)"),
         default=None,
-        ge=0,
     )
     method: Method = key("discretization of the PI and Fr (Table 1, eq 14, 15)", default="tustin", choices=METHODS)
-    Ts_s: float = key(from_c("of the speed controller, an integer multiple of current_loop.Ts_s"), gt=0)
+    Ts_s: float = key(from_c("of the speed controller, an integer multiple of current_loop.Ts_s"))
     J_kgm2: float = key(
         from_c("the gains of eq 9 and the feedforward of eq 11 are designed for it"),
         default=SameAs("motor.J_kgm2"),
-        gt=0,
     )
     tau_i_s: float = key(
         from_c("the full feedforward of eq 11 is designed for it"),
         default=SameAs("current_loop.tau_i_s"),
-        ge=0,
     )
     arithmetic: str = key(
         "arithmetic of the speed controller: float32 (speed.h), or the fixed-point q15 or q31 (speed_fixed.h: an MCU "
@@ -140,20 +138,17 @@ class SpeedControllerTable:
         "q15, q31: the speed of the integer 2^N [rpm]; absent: twice the no-load speed u_dc_V / (sqrt(3) p psi_f), "
         "the engine's overspeed bound",
         default=None,
-        gt=0,
     )
     torque_full_scale_Nm: float | None = key(
         "q15, q31: the torque of the integer 2^N [Nm], >= the torque limit 1.5 p psi_f i_max_A; absent: 1.25 times "
         "the smallest that holds, within two full scales, the torque limit with the feedforward's state and "
         "transient at the references and the command at the largest reference step",
         default=None,
-        gt=0,
     )
     current_full_scale_A: float | None = key(
         "q15, q31: the current of the integer 2^N [A], >= limits.i_max_A; absent: the current of the torque full "
         "scale, torque_full_scale_Nm / (1.5 p psi_f)",
         default=None,
-        gt=0,
     )
 
 
@@ -167,13 +162,12 @@ class MechanicsTable:
         default="rigid",
         choices=MECHANICS_MODELS,
     )
-    J_load_kgm2: float | None = key(from_c("two_mass"), default=None, gt=0)
-    stiffness_Nm_per_rad: float | None = key(from_c("two_mass"), default=None, gt=0)
-    damping_Nms_per_rad: float = key(from_c("two_mass"), default=0.0, ge=0)
+    J_load_kgm2: float | None = key(from_c("two_mass"), default=None)
+    stiffness_Nm_per_rad: float | None = key(from_c("two_mass"), default=None)
+    damping_Nms_per_rad: float = key(from_c("two_mass"), default=0.0)
     backlash_rad: float = key(
         from_c("a dead zone of +-b/2 of the twist (two_mass)"),
         default=0.0,
-        ge=0,
     )
     feedback: str = key(
         "the side the speed sensor reads for the speed controller: motor or load (load side, two_mass)",
@@ -189,24 +183,19 @@ class SpeedFilterTable:
     notch_freq_Hz: float = key(
         from_c("on the torque command, inside the anti-windup loop; Ts_s is speed_controller.Ts_s"),
         default=0.0,
-        ge=0,
     )
-    notch_width_Hz: float = key(from_c(), default=0.0, ge=0)
+    notch_width_Hz: float = key(from_c(), default=0.0)
     notch_depth: float = key(
         from_c(),
         default=0.0,
-        ge=0,
-        lt=1 / math.sqrt(2),
     )
     lowpass_freq_Hz: float = key(
         from_c("second order, on the torque command"),
         default=0.0,
-        ge=0,
     )
     lowpass_zeta: float = key(
         from_c(),
         default=0.0,
-        ge=0,
     )
 
 
@@ -224,8 +213,6 @@ class SimulationTable:
     log_every: int = key(
         "log every n-th row of simulation.log_rate: speed-controller sample (speed) or current period (current) [-]",
         default=1,
-        ge=1,
-        le=10**9,
     )
     log_rate: str = key(
         "rate of the log's rows: speed (a row per speed_controller.Ts_s) or current (a row per current_loop.Ts_s, "
@@ -296,8 +283,8 @@ class SpeedSensorTable:
         default="ideal",
         choices=SPEED_SENSOR_MODELS,
     )
-    counts_per_rev: int = key(from_c("4 x lines"), default=4096, ge=1, le=2**24)
-    counter_bits: int = key(from_c(), default=32, ge=2, le=32)
+    counts_per_rev: int = key(from_c("4 x lines"), default=4096)
+    counter_bits: int = key(from_c(), default=32)
     estimator: str = key(
         "encoder speed estimator: difference (counts over one speed period) or pll (type-2 tracking loop)",
         default="difference",
@@ -306,24 +293,20 @@ class SpeedSensorTable:
     bandwidth_radps: float | None = key(
         from_c("Ts_s is speed_controller.Ts_s"),
         default=None,
-        gt=0,
     )
     lowpass_radps: float = key(
         from_c("first order; Ts_s is speed_controller.Ts_s"),
         default=0.0,
-        ge=0,
     )
     delay_s: float = key(
         from_c("Ts_current is current_loop.Ts_s"),
         default=0.0,
-        ge=0,
     )
     noise_rpm_rms: float = key(
         "white Gaussian noise added to the reading, after the estimator and the low-pass [rpm rms]",
         default=0.0,
-        ge=0,
     )
-    seed: int = key(from_c("the speed noise"), default=0, ge=0, lt=2**64)
+    seed: int = key(from_c("the speed noise"), default=0)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -333,13 +316,12 @@ class CurrentMeasurementTable:
     gain_error_a: float = key(
         from_c("measured = (1 + gain_error) i + offset + noise"),
         default=0.0,
-        gt=-1,
     )
-    gain_error_b: float = key(from_c(), default=0.0, gt=-1)
+    gain_error_b: float = key(from_c(), default=0.0)
     offset_a_A: float = key(from_c(), default=0.0)
     offset_b_A: float = key(from_c(), default=0.0)
-    noise_A_rms: float = key("white Gaussian noise of each phase current sensor [A rms]", default=0.0, ge=0)
-    seed: int = key(from_c("the current noise"), default=0, ge=0, lt=2**64)
+    noise_A_rms: float = key("white Gaussian noise of each phase current sensor [A rms]", default=0.0)
+    seed: int = key(from_c("the current noise"), default=0)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -350,21 +332,17 @@ class FieldWeakeningTable:
     Ki_A_per_Vs: float | None = key(
         from_c("of the PI on the voltage margin, crossover about Ki w_e Ld; required when enabled"),
         default=None,
-        gt=0,
     )
-    Kp_A_per_V: float = key(from_c(), default=0.0, ge=0)
+    Kp_A_per_V: float = key(from_c(), default=0.0)
     Ka_V_per_A: float | None = key(
         from_c("absent: 1 / (Ki speed_controller.Ts_s)"),
         default=None,
-        ge=0,
     )
     voltage_ratio: float = key(
         from_c(),
         default=0.95,
-        gt=0,
-        le=1,
     )
-    id_min_A: float | None = key(from_c("absent: -limits.i_max_A"), default=None, lt=0)
+    id_min_A: float | None = key(from_c("absent: -limits.i_max_A"), default=None)
 
 
 @dataclasses.dataclass(frozen=True, slots=True, kw_only=True)
@@ -382,52 +360,42 @@ class EstimatorTable:
     adapt_rel_change: float = key(
         from_c(),
         default=0.05,
-        ge=0,
     )
     adapt_error_rpm: float = key(
         "re-design only at a quiet sample: reference constant, output inside the current limit and "
         "|speed error| <= this [rpm] (a re-design in a transient disturbs the integrator)",
         default=5.0,
-        ge=0,
     )
     J0_kgm2: float = key(
         from_c(),
         default=SameAs("speed_controller.J_kgm2"),
-        gt=0,
     )
-    J_min_kgm2: float | None = key(from_c("absent: J0_kgm2 / 10"), default=None, gt=0)
-    J_max_kgm2: float | None = key(from_c("absent: 10 J0_kgm2"), default=None, gt=0)
+    J_min_kgm2: float | None = key(from_c("absent: J0_kgm2 / 10"), default=None)
+    J_max_kgm2: float | None = key(from_c("absent: 10 J0_kgm2"), default=None)
     B_max_Nms: float | None = key(
         from_c("absent: the peak torque 1.5 p psi_f i_max_A per 100 rad/s"),
         default=None,
-        gt=0,
     )
     T_load_max_Nm: float | None = key(
         from_c("absent: the peak torque 1.5 p psi_f i_max_A"),
         default=None,
-        gt=0,
     )
     sigma_T_Nm: float | None = key(
         from_c("absent: 1 % of the peak torque"),
         default=None,
-        gt=0,
     )
-    J_memory_s: float = key(from_c(), default=10.0, gt=0)
+    J_memory_s: float = key(from_c(), default=10.0)
     load_memory_s: float | None = key(
         from_c("absent: 1 / speed_controller.alpha_radps"),
         default=None,
-        gt=0,
     )
     w_f_radps: float | None = key(
         from_c("absent: 0.2 / speed_controller.Ts_s"),
         default=None,
-        gt=0,
     )
     J_rel_sd_max: float = key(
         from_c("J_valid: the estimate is used by adapt_gains"),
         default=0.05,
-        gt=0,
-        lt=1,
     )
     speed_is_period_mean: bool = key(
         from_c(),

@@ -105,8 +105,8 @@ from ..core import (
 from ..core.bindings import c_string, ffi, lib
 from ..errors import ConfigError, SimulationError, format_bytes
 from ..outputs import atomic_file
-from .engine_config import RPM_PER_RADPS as RPM_PER_RADPS  # the speed unit at the edge, for the callers
 from .engine_config import engine_config, full_scales, raise_config_error
+from .engine_keys import RPM_PER_RADPS as RPM_PER_RADPS  # the speed unit at the edge, for the callers
 from .plausibility import peak_torque_Nm
 from .scenario import Scenario
 

@@ -408,7 +408,8 @@ def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, forc
         identify_mechanics,
         torque_from_currents,
     )
-    from .identify import echo_mechanics, write_mechanics
+    from ...studies.identify_log import MechanicsReport, write_mechanics
+    from ..plots.identify import plot_fit
 
     check_out(out, "drive-identify", force)
     motor = load_motor(motor_file) if motor_file is not None else None
@@ -434,6 +435,7 @@ def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, forc
         mech = identify_mechanics(measured, torque_Nm=torque_from_currents(measured, p, psi, Ld, Lq))
         report = mech.to_json()
         text = identified_toml(mech, None, drive, f"the drive at {url} by pmsm2dof drive identify")
-        write_mechanics(tmp, mech, text, report)
-    echo_mechanics(mech, None, report)
+        write_mechanics(tmp, mech, text, report, plot_fit)
+    for line in MechanicsReport(mech, None, None, report, None).lines():
+        click.echo(line)
     click.echo(f"wrote capture.csv, plan.toml, fit.png, rows.csv, identified.toml and identify.json to {out}")

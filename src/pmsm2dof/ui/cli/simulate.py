@@ -1,10 +1,7 @@
 """``pmsm2dof simulate``, ``presets`` and ``compare``: one scenario run by the engine (pmsm2dof.sim)."""
 
-from typing import Any
-
 import click
 
-from ...errors import ConfigError
 from .options import out_option, parse_column, parse_override, set_option
 
 
@@ -86,55 +83,9 @@ def compare(log: str, scenario: str, column_maps: tuple[str, ...], out: str, for
     speed difference, and the figures of merit of each reference step of the log and of the
     simulation, pmsm2dof.sim.metrics) and DIR/simulation.csv, all or nothing.
     """
-    import json
-
-    import numpy as np
-
-    from ...outputs import atomic_write, staged_dir
-    from ...sim.logs import read_log
-    from ...sim.metrics import compute_metrics
-    from ...sim.plausibility import warn_implausible
-    from ...sim.scenario import load_scenario
-    from ...sim.simulate import simulate as run_simulation
+    from ...studies.compare import compare_log
     from ..plots.identify import plot_compare
 
     columns = dict(parse_column(text) for text in column_maps)
-    measured = read_log(log, columns)
-    chosen = load_scenario(scenario)
-    inside = (measured.t_s >= 0.0) & (measured.t_s <= chosen.simulation.t_end_s)
-    if np.count_nonzero(inside) < 2:
-        raise ConfigError("LOG", log, f"a log whose time overlaps the scenario's 0 to {chosen.simulation.t_end_s:g} s")
-    with staged_dir(out, "compare", force) as tmp:
-        result = run_simulation(chosen)
-        error = measured.speed_rpm[inside] - np.interp(measured.t_s[inside], result.t_s, result.speed_rpm)
-        i_max = chosen.limits.i_max_A
-        table: dict[str, Any] = {
-            "log": str(log),
-            "scenario": chosen.name,
-            "speed_error_rms_rpm": float(np.sqrt(np.mean(error**2))),
-            "speed_error_max_rpm": float(np.max(np.abs(error))),
-            "log_metrics": compute_metrics(measured, i_max_A=i_max) if measured.speed_ref_rpm is not None else None,
-            "simulation_metrics": compute_metrics(result),
-        }
-        plot_compare(measured, result, tmp / "compare.png")
-        atomic_write(tmp / "compare.json", json.dumps(table, indent=2, allow_nan=False) + "\n")
-        result.save(tmp / "simulation.csv")
-    warn_implausible(chosen)
-    click.echo(
-        f"{chosen.name} against {log}: speed difference {table['speed_error_rms_rpm']:.4g} rpm rms, "
-        f"{table['speed_error_max_rpm']:.4g} rpm at most"
-    )
-    for note in measured.notes:
-        click.echo(f"note: {note}")
-    if table["log_metrics"] is not None:
-        dt = measured.dt_s
-        for mine in table["log_metrics"]["reference_steps"]:
-            same = [s for s in table["simulation_metrics"]["reference_steps"] if abs(s["t_s"] - mine["t_s"]) <= dt]
-            missing = {"value": None}
-            sim = same[0] if same else dict.fromkeys(("overshoot_pct", "rise_time_s", "settling_time_s"), missing)
-            cells = []
-            for key in ("overshoot_pct", "rise_time_s", "settling_time_s"):
-                a, b = mine[key]["value"], sim[key]["value"]
-                cells.append(f"{key} {'n/a' if a is None else f'{a:.4g}'} / {'n/a' if b is None else f'{b:.4g}'}")
-            click.echo(f"  step at {mine['t_s']:g} s (log / simulation): " + ", ".join(cells))
-    click.echo(f"wrote compare.png, compare.json and simulation.csv to {out}")
+    for line in compare_log(log, columns, scenario, out, force, plot_compare).lines():
+        click.echo(line)
