@@ -71,7 +71,7 @@ from .autotune import (
     Spec,
     Violation,
     pareto_front,
-    step_figures,
+    run_figures,
 )
 from .engine import Outcome, Run, check_options, connect, run_many
 from .loopcheck import sampled_loop
@@ -371,10 +371,16 @@ class _Search:
             for i, (c, r) in enumerate(todo)
         ]
         outcomes: list[Outcome] = run_many(
-            self.bases, runs, workers=self.workers, client=self.client, progress=self.progress, description="autotune"
+            self.bases,
+            runs,
+            measure=run_figures,
+            workers=self.workers,
+            client=self.client,
+            progress=self.progress,
+            description="autotune",
         )
         for (c, r), outcome in zip(todo, outcomes):
-            figures = step_figures(outcome.metrics) if outcome.metrics is not None else {}
+            figures = outcome.metrics if outcome.metrics is not None else {}
             record = RunRecord(c, r, figures, outcome.error, outcome.wall_time_s)
             self.figures[(c, r)] = record
             self.simulated_at.setdefault(c, []).append(r)
