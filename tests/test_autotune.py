@@ -315,6 +315,19 @@ def test_cli_bad_input_is_one_line_exit_2_and_writes_nothing(servo_file, tmp_pat
     assert not list(tmp_path.glob(".out.*"))
 
 
+def test_cli_refuses_a_folder_it_did_not_write_before_the_search_and_keeps_its_files(servo_file, tmp_path, capsys):
+    """The output folder is checked first (then the header), before any simulation: one line, exit 2."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    code = main(["autotune", servo_file, "--out", str(out), "--emit-c-header", str(tmp_path / "missing" / "x.h")])
+    stdout, err = capsys.readouterr()
+    assert code == 2 and stdout == ""
+    assert err.startswith("pmsm2dof: error: --out = ") and "notes.txt" in err and len(err.splitlines()) == 1
+    assert [p.name for p in out.iterdir()] == ["notes.txt"] and (out / "notes.txt").read_text() == "mine"
+    assert not (tmp_path / "missing").exists()
+
+
 @pytest.mark.slow
 def test_cli_writes_the_tuned_scenario_tables_figure_and_header(servo_file, tmp_path, capsys):
     out = tmp_path / "out"
