@@ -163,8 +163,12 @@ def _too_short(tw: _Vector, t_samples: _Vector) -> str:
     (:func:`~pmsm2dof.sim.events.speed_sample_rows`): its samples are what a steady state of the speed loop is
     told from.
     """
-    inside = t_samples[(t_samples > tw[0]) & (t_samples <= tw[-1])]
-    n = int(np.count_nonzero(inside >= tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0])))
+    # the samples in (tw[0], tw[-1]] at or after the start of its last part (t_samples increase)
+    first = max(
+        int(np.searchsorted(t_samples, tw[0], side="right")),
+        int(np.searchsorted(t_samples, tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0]), side="left")),
+    )
+    n = max(0, int(np.searchsorted(t_samples, tw[-1], side="right")) - first)
     if n >= STEADY_SAMPLES_MIN:
         return ""
     return (

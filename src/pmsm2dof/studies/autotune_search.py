@@ -168,7 +168,13 @@ class _Search:
         self.anti_windups = spec.anti_windups or (sc.anti_windup,)
         self.J_ratios_checked = J_ratios(spec.J_range, N_J_CHECK)
         self.J_ratios_search = J_ratios(spec.J_range, 3)
-        self.bases = {"scenario": scenario}
+        # every run: the design inertia, every speed sample logged, no more (a chattering command shows from
+        # one sample to the next); set once here, so that a run changes the candidate's keys and the inertia
+        self.bases = {
+            "scenario": scenario.with_overrides(
+                {"speed_controller.J_kgm2": sc.J_kgm2, "simulation.log_every": 1, "simulation.log_rate": "speed"}
+            )
+        }
         self.margins: dict[tuple[float, float], dict[float, Margins | None]] = {}
         self.edges: dict[tuple[float, float], float | None] = {}
         self.known: dict[Candidate, tuple[int, Evaluation]] = {}
@@ -362,10 +368,7 @@ class _Search:
             Run(
                 key=i,
                 base="scenario",
-                overrides=c.overrides()
-                # every speed sample logged, no more: a chattering command shows from one sample to the next
-                | {"motor.J_kgm2": r * self.J_design_kgm2, "speed_controller.J_kgm2": self.J_design_kgm2}
-                | {"simulation.log_every": 1, "simulation.log_rate": "speed"},
+                overrides=c.overrides() | {"motor.J_kgm2": r * self.J_design_kgm2},
                 label=f"autotune candidate {c.speed_controller()} at J ratio {r:.4g}",
             )
             for i, (c, r) in enumerate(todo)
