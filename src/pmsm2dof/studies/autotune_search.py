@@ -44,11 +44,12 @@ constraint it misses most and by how much.
 The specification, the candidates and the result are those of :mod:`pmsm2dof.studies.autotune`.
 """
 
+import contextlib
 import itertools
 import math
 import time
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -73,8 +74,11 @@ from .autotune import (
     pareto_front,
     run_figures,
 )
-from .engine import Outcome, Run, check_options, connect, run_many
+from .engine import Outcome, Run, check_options, connect, local_threads, run_many
 from .loopcheck import sampled_loop
+
+if TYPE_CHECKING:
+    from concurrent.futures import ThreadPoolExecutor
 
 #: Inertia ratios at which the margins are checked, and the best design is simulated again.
 N_J_CHECK = 9
@@ -152,11 +156,20 @@ def runs_bound(scenario: Scenario, spec: Spec) -> int:
 class _Search:
     """The state of one autotuning: what is known of each candidate, and the runs made."""
 
-    def __init__(self, scenario: Scenario, spec: Spec, workers: int | None, client: Any, progress: bool) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        spec: Spec,
+        workers: int | None,
+        client: Any,
+        progress: bool,
+        pool: "ThreadPoolExecutor | None" = None,
+    ) -> None:
         self.scenario = scenario
         self.spec = spec
         self.workers = workers
         self.client = client
+        self.pool = pool
         self.progress = progress
         sc = scenario.speed_controller
         self.J_design_kgm2 = sc.J_kgm2
@@ -378,6 +391,7 @@ class _Search:
             runs,
             measure=run_figures,
             workers=self.workers,
+            pool=self.pool,
             client=self.client,
             progress=self.progress,
             description="autotune",
@@ -553,8 +567,11 @@ def autotune(
             scenario.name,
             "a scenario with a load step that changes the load torque (the objective is its speed dip per Nm)",
         )
-    with connect(scheduler) as client:
-        search = _Search(scenario, spec, workers, client, progress)
+    with contextlib.ExitStack() as stack:
+        client = stack.enter_context(connect(scheduler))
+        # the engine's threads for the whole search (not started again for each batch of simulations)
+        pool = None if client is not None else stack.enter_context(local_threads(workers))
+        search = _Search(scenario, spec, workers, client, progress, pool)
         search.evaluate(search.grid())
         center = search.best().candidate
         step = STEP_FIRST

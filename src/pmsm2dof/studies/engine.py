@@ -31,7 +31,7 @@ import re
 import warnings
 from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ConfigError, Pmsm2dofWarning, SimulationError, is_integer
 from ..inputs import read_bytes
@@ -39,6 +39,9 @@ from ..outputs import atomic_write
 from ..sim.scenario import Scenario
 from ..sim.simulate import Result, Simulation, simulate_many
 from . import loopcheck
+
+if TYPE_CHECKING:
+    from concurrent.futures import ThreadPoolExecutor
 
 #: What a study computes from each run that completed: :attr:`Outcome.metrics`.
 Measure = Callable[[Result], dict[str, Any]]
@@ -187,6 +190,18 @@ def check_options(workers: int | None = None, scheduler: str | None = None, batc
 
 
 @contextlib.contextmanager
+def local_threads(workers: int | None = None) -> Iterator["ThreadPoolExecutor"]:
+    """``workers`` local threads (default :func:`default_workers`) for :func:`run_many`, shut down on exit."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(max_workers=workers or default_workers(), thread_name_prefix="pmsm2dof-study")
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
 def connect(scheduler: str | None) -> Iterator[Any]:
     """A Dask distributed client of the scheduler at ``scheduler``, closed on exit; None for None.
 
@@ -217,6 +232,7 @@ def run_many(
     keep: Iterable[Hashable] = (),
     measure: Measure = loopcheck.measure,
     workers: int | None = None,
+    pool: "ThreadPoolExecutor | None" = None,
     client: Any = None,
     batch_size: int | None = None,
     progress: bool = False,
@@ -238,6 +254,9 @@ def run_many(
         :func:`~pmsm2dof.studies.loopcheck.measure`. A module-level function (a Dask worker runs it).
     workers : int, optional
         Local threads, >= 1 (default: :func:`default_workers`). Not used with ``client``.
+    pool : ThreadPoolExecutor, optional
+        The local threads of :func:`local_threads` (``workers`` of them), kept from one call to the
+        next by a study that calls this many times; default: new threads for this call.
     client : dask.distributed.Client, optional
         A client of a running Dask scheduler (:func:`connect`): the batches run on its workers,
         which need pmsm2dof installed.
@@ -282,7 +301,7 @@ def run_many(
         if client is None:
             n_workers = workers or default_workers()
             batches = _batches(runs, batch_size or _auto_batch_size(len(runs), n_workers))
-            _run_local(bases, batches, keep, measure, n_workers, finished)
+            _run_local(bases, batches, keep, measure, n_workers, pool, finished)
         else:
             threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
             batches = _batches(runs, batch_size or _auto_batch_size(len(runs), max(1, threads)))
@@ -304,27 +323,30 @@ def _run_local(
     keep: frozenset[Hashable],
     measure: Measure,
     workers: int,
+    pool: "ThreadPoolExecutor | None",
     finished: Callable[[list[Outcome]], None],
 ) -> None:
-    """Batches on a thread pool; on any exception or interrupt, pass on what finished and re-raise."""
-    from concurrent.futures import Future, ThreadPoolExecutor, as_completed
+    """Batches on a thread pool (``pool``, else new threads); on any exception or interrupt, pass on what
+    finished and re-raise."""
+    from concurrent.futures import Future, as_completed, wait
 
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pmsm2dof-study")
-    futures = [pool.submit(simulate_batch, bases, batch, keep, measure) for batch in batches]
-    passed: set[Future[list[Outcome]]] = set()
-    try:
-        for fut in as_completed(futures):
-            finished(fut.result())
-            passed.add(fut)
-    except BaseException:
-        for fut in futures:
-            fut.cancel()
-        pool.shutdown(wait=True)
-        for fut in futures:
-            if fut not in passed and fut.done() and not fut.cancelled() and fut.exception() is None:
+    with contextlib.ExitStack() as stack:
+        if pool is None:
+            pool = stack.enter_context(local_threads(workers))
+        futures = [pool.submit(simulate_batch, bases, batch, keep, measure) for batch in batches]
+        passed: set[Future[list[Outcome]]] = set()
+        try:
+            for fut in as_completed(futures):
                 finished(fut.result())
-        raise
-    pool.shutdown(wait=True)
+                passed.add(fut)
+        except BaseException:
+            for fut in futures:
+                fut.cancel()
+            wait(futures)
+            for fut in futures:
+                if fut not in passed and fut.done() and not fut.cancelled() and fut.exception() is None:
+                    finished(fut.result())
+            raise
 
 
 def _run_dask(
