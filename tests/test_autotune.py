@@ -19,7 +19,16 @@ import pytest
 from pmsm2dof import ConfigError, Scenario, SpeedController, autotune, compute_metrics, load_scenario, simulate
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.sampled_loop import margins_on_plant
-from pmsm2dof.studies.autotune import FIGURES, Candidate, Evaluation, RunRecord, Spec, pareto_front, step_figures
+from pmsm2dof.studies.autotune import (
+    FIGURES,
+    Candidate,
+    Evaluation,
+    RunRecord,
+    Spec,
+    pareto_front,
+    run_figures,
+    step_figures,
+)
 from pmsm2dof.studies.autotune_search import KA_KP_RANGE, ZETA_RANGE, _Search, bounds_reached
 from pmsm2dof.ui.cli import main
 
@@ -410,6 +419,21 @@ def test_the_forms_of_eq_11_and_clamping_stay_within_the_bound_of_the_work():
 # ---------------------------------------------------------------------------------------------
 # the objective, chattering candidates, the bounds of the search
 # ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "keys",
+    [
+        {"alpha_radps": 432.7, "zeta": 1.072},  # settles, overshoots a little
+        {"alpha_radps": 40.0, "zeta": 2.0},  # too slow to settle or recover in its windows
+        {"alpha_radps": 2500.0, "zeta": 0.3},  # beyond the stability bound: a limit cycle that chatters
+    ],
+)
+def test_the_search_measures_each_run_as_the_full_metrics_would(keys):
+    """run_figures computes only the figures step_figures reads: the same numbers, bit for bit."""
+    run = servo().with_overrides({f"speed_controller.{k}": v for k, v in keys.items()})
+    result = simulate(run)
+    assert run_figures(result) == step_figures(compute_metrics(result))
 
 
 @pytest.mark.parametrize("zeta", [1.4, 2.0])
