@@ -2,7 +2,7 @@
 
 Usage::
 
-    python3 benchmarks/bench_autotune.py [--repeats 3] [--workers 2] [--baseline SRC] [--no-write]
+    python3 benchmarks/bench_autotune.py [--repeats 3] [--workers 2] [--baseline SRC] [--instructions] [--no-write]
 
 For each drive, :func:`pmsm2dof.autotune` with an inertia known to 0.5x to 2x of the design
 value, on ``--workers`` local threads, ``--repeats`` times (medians); the search is
@@ -19,6 +19,12 @@ the repetitions alternate between the sides (and which one goes first). Per repe
 of the call, the CPU time of the process over it (all its threads, user and system), the simulations
 and the chosen design with its worst case, which must be the same on both sides.
 
+With ``--instructions``, each side's autotuning of each drive runs once more under callgrind
+(``valgrind --tool=callgrind``, which runs the threads one at a time): the instructions of the call (those
+of the process less those of a process that imports the same modules and loads the scenario, and stops
+there), and of them those of the engine's C run (``p2d_sim_run_many``, inclusive): counts that other load
+on the machine does not change.
+
 Writes the section "Autotune" of ``benchmarks/results.md`` (other sections are kept) and prints it.
 """
 
@@ -27,6 +33,7 @@ import math
 import os
 import pickle
 import platform
+import re
 import statistics
 import subprocess
 import sys
@@ -55,20 +62,49 @@ def case(label):
     return load_scenario(str(HERE / "small-servo.toml")), spec
 
 
-def worker(label, workers, path):
-    """One autotuning in this process: its times and the result (pickled to ``path``)."""
+def worker(label, workers, path, load_only=False):
+    """One autotuning in this process: its times and the result (pickled to ``path``); with ``load_only``, the
+    imports and the scenario alone."""
     import resource
     import time
 
+    import tqdm  # noqa: F401
+
+    import pmsm2dof.studies.autotune_search  # noqa: F401 (the modules an autotuning imports)
     from pmsm2dof import autotune
 
     scenario, spec = case(label)
+    if load_only:
+        return
     usage = resource.getrusage(resource.RUSAGE_SELF)
     start, start_cpu = time.perf_counter(), usage.ru_utime + usage.ru_stime
     result = autotune(scenario, spec, workers=workers)
     usage = resource.getrusage(resource.RUSAGE_SELF)
     times = {"wall": time.perf_counter() - start, "cpu": usage.ru_utime + usage.ru_stime - start_cpu}
     Path(path).write_bytes(pickle.dumps((times, result)))
+
+
+def instructions(src, label, workers):
+    """``(instructions of the autotuning, of them in p2d_sim_run_many)`` under callgrind, ``src`` first on the path."""
+    counts = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for tune in (True, False):
+            out = Path(tmp) / f"callgrind.{tune}.out"
+            args = [sys.executable, __file__, "--worker", label, str(workers), str(Path(tmp) / "result.pickle")]
+            subprocess.run(
+                ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", *args, *([] if tune else ["--load"])],
+                env={**os.environ, "PYTHONPATH": str(src)},
+                check=True,
+                cwd=HERE,
+                capture_output=True,
+            )
+            text = subprocess.run(
+                ["callgrind_annotate", "--inclusive=yes", str(out)], check=True, capture_output=True, text=True
+            ).stdout
+            total = int(re.search(r"^\s*([\d,]+) \(100\.0%\)\s+PROGRAM TOTALS", text, re.M).group(1).replace(",", ""))
+            engine = re.search(r"^\s*([\d,]+) \([\d.]+%\)\s+\S*drive\.c:p2d_sim_run_many ", text, re.M)
+            counts.append((total, int(engine.group(1).replace(",", "")) if engine else 0))
+    return counts[0][0] - counts[1][0], counts[0][1]
 
 
 def run_side(src, label, workers):
@@ -108,12 +144,14 @@ def _figure(value, unit):
     return "inf" if value is None or not math.isfinite(value) else f"{value:.4g} {unit}"
 
 
-def report(measured, repeats, workers, load, baseline):
+def report(measured, repeats, workers, load, baseline, counted):
     from pmsm2dof.studies.autotune import CONSTRAINTS
 
     command = f"python3 benchmarks/bench_autotune.py --repeats {repeats} --workers {workers}"
     if baseline is not None:
         command += " --baseline SRC"
+    if counted is not None:
+        command += " --instructions"
     head = (
         measured_by(command)
         + f"; Python {platform.python_version()}, pmsm2dof {version('pmsm2dof')}. Medians of {repeats} "
@@ -152,6 +190,21 @@ def report(measured, repeats, workers, load, baseline):
                 + f" | {statistics.median(cpus):.3g} | {counts['candidates']} | {counts['runs']} | "
                 f"{'yes' if same else 'NO'} |"
             )
+    if counted is not None:
+        lines += [
+            "",
+            "Instructions of one autotuning (callgrind; the engine: `p2d_sim_run_many` inclusive):",
+            "",
+            "| drive | side | instructions (G) | of them the engine's C run (G) | "
+            "the rest: Python, NumPy, analysis (G) |",
+            "|---|---|---:|---:|---:|",
+        ]
+        for label in DRIVES:
+            for name, drives in counted.items():
+                total, engine = drives[label]
+                lines.append(
+                    f"| {label} | {name} | {total / 1e9:.3g} | {engine / 1e9:.3g} | {(total - engine) / 1e9:.3g} |"
+                )
     results = [(label, drives[-1][1]) for label, drives in mine.items()]
     lines += ["", "Specifications:", ""]
     for label, r in results:
@@ -213,19 +266,26 @@ def main():
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--baseline", type=Path, default=None, help="the src folder of the other side")
+    parser.add_argument("--instructions", action="store_true", help="count instructions under callgrind too")
     parser.add_argument("--no-write", action="store_true", help="print the section, do not write results.md")
     parser.add_argument("--worker", nargs=3, help=argparse.SUPPRESS)
+    parser.add_argument("--load", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
         label, workers, path = args.worker
-        worker(label, int(workers), path)
+        worker(label, int(workers), path, args.load)
         return
     sides = {"this checkout": HERE.parent / "src"}
     if args.baseline is not None:
         sides = {"baseline": args.baseline.resolve(), **sides}
     load_before = os.getloadavg()[0]
     measured = measure(args.repeats, args.workers, sides)
-    text = report(measured, args.repeats, args.workers, (load_before, os.getloadavg()[0]), args.baseline)
+    counted = None
+    if args.instructions:
+        counted = {
+            name: {label: instructions(src, label, args.workers) for label in DRIVES} for name, src in sides.items()
+        }
+    text = report(measured, args.repeats, args.workers, (load_before, os.getloadavg()[0]), args.baseline, counted)
     print(text)
     if not args.no_write:
         write_section(SECTION, text)
