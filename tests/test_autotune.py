@@ -19,7 +19,16 @@ import pytest
 from pmsm2dof import ConfigError, Scenario, SpeedController, autotune, compute_metrics, load_scenario, simulate
 from pmsm2dof.analysis.design import design
 from pmsm2dof.analysis.sampled_loop import margins_on_plant
-from pmsm2dof.studies.autotune import FIGURES, Candidate, Evaluation, RunRecord, Spec, pareto_front, step_figures
+from pmsm2dof.studies.autotune import (
+    FIGURES,
+    Candidate,
+    Evaluation,
+    RunRecord,
+    Spec,
+    pareto_front,
+    run_figures,
+    step_figures,
+)
 from pmsm2dof.studies.autotune_search import KA_KP_RANGE, ZETA_RANGE, _Search, bounds_reached
 from pmsm2dof.ui.cli import main
 
@@ -315,6 +324,19 @@ def test_cli_bad_input_is_one_line_exit_2_and_writes_nothing(servo_file, tmp_pat
     assert not list(tmp_path.glob(".out.*"))
 
 
+def test_cli_refuses_a_folder_it_did_not_write_before_the_search_and_keeps_its_files(servo_file, tmp_path, capsys):
+    """The output folder is checked first (then the header), before any simulation: one line, exit 2."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    code = main(["autotune", servo_file, "--out", str(out), "--emit-c-header", str(tmp_path / "missing" / "x.h")])
+    stdout, err = capsys.readouterr()
+    assert code == 2 and stdout == ""
+    assert err.startswith("pmsm2dof: error: --out = ") and "notes.txt" in err and len(err.splitlines()) == 1
+    assert [p.name for p in out.iterdir()] == ["notes.txt"] and (out / "notes.txt").read_text() == "mine"
+    assert not (tmp_path / "missing").exists()
+
+
 @pytest.mark.slow
 def test_cli_writes_the_tuned_scenario_tables_figure_and_header(servo_file, tmp_path, capsys):
     out = tmp_path / "out"
@@ -397,6 +419,21 @@ def test_the_forms_of_eq_11_and_clamping_stay_within_the_bound_of_the_work():
 # ---------------------------------------------------------------------------------------------
 # the objective, chattering candidates, the bounds of the search
 # ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "keys",
+    [
+        {"alpha_radps": 432.7, "zeta": 1.072},  # settles, overshoots a little
+        {"alpha_radps": 40.0, "zeta": 2.0},  # too slow to settle or recover in its windows
+        {"alpha_radps": 2500.0, "zeta": 0.3},  # beyond the stability bound: a limit cycle that chatters
+    ],
+)
+def test_the_search_measures_each_run_as_the_full_metrics_would(keys):
+    """run_figures computes only the figures step_figures reads: the same numbers, bit for bit."""
+    run = servo().with_overrides({f"speed_controller.{k}": v for k, v in keys.items()})
+    result = simulate(run)
+    assert run_figures(result) == step_figures(compute_metrics(result))
 
 
 @pytest.mark.parametrize("zeta", [1.4, 2.0])

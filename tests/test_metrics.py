@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq
 
-from pmsm2dof.errors import SimulationError
+from pmsm2dof.errors import ConfigError, SimulationError
+from pmsm2dof.sim.event_figures import time_where
 from pmsm2dof.sim.metrics import compute_metrics, summary_lines
 from pmsm2dof.sim.scenario import load_scenario
 
@@ -258,3 +259,55 @@ def test_non_finite_trace_is_an_error():
     speed[10] = np.nan
     with pytest.raises(SimulationError, match="speed_rpm"):
         compute_metrics(fake_result(t, speed, np.zeros_like(t), [(0.0, 1.0)]))
+
+
+def test_time_where_is_the_overlap_of_each_sample_interval_with_the_window():
+    """Sample k holds over [t[k], t[k+1]): the time is the sum of each interval's overlap with [t0, t1]
+    times its mask (a flag or a share), summed here interval by interval; windows beyond the trace's
+    ends, on its samples, empty and reversed included."""
+    rng = np.random.default_rng(7)
+    for case in range(300):
+        n = int(rng.integers(2, 400))
+        t = np.cumsum(rng.uniform(1e-4, 2e-3, n)) - 0.1
+        mask = rng.random(n) < 0.5 if case % 2 else rng.random(n)
+        ends = [t[0] - 1.0, t[0], t[int(rng.integers(n))], float(rng.uniform(t[0], t[-1])), t[-1], t[-1] + 1.0]
+        t0, t1 = ends[int(rng.integers(6))], ends[int(rng.integers(6))]
+        overlap = [max(0.0, min(t[k + 1], t1) - max(t[k], t0)) * float(mask[k]) for k in range(n - 1)]
+        assert time_where(t, mask, t0, t1) == pytest.approx(math.fsum(overlap), rel=1e-12, abs=1e-15)
+
+
+def test_a_subset_of_the_figures_is_each_the_same_number_as_in_the_full_metrics():
+    """``figures`` computes the figures asked for alone, each equal to the full computation's (bit for bit)."""
+    t = np.arange(0.0, 9.0, DT)
+    steps = [(0.0, 500.0), (6.0, 200.0)]
+    speed = first_order(t, 0.0, 0.0, 500.0, 0.4) - 8.0 * np.clip(t - 3.0, 0, None) * np.exp(-np.clip(t - 3.0, 0, None))
+    speed = np.where(t >= 6.0, first_order(t, 6.0, speed[int(6.0 / DT) - 1], 200.0, 0.3), speed)
+    iq = np.where(t < 0.5, 1.0, 0.2) * 100.0
+    res = fake_result(t, speed, step_ref(t, steps), steps, load=[(3.0, 4.0)], iq_ref=iq)
+    full = compute_metrics(res)
+    subsets = [
+        {"reference_steps": ("settling_time_s", "iae_rpm_s"), "run": ("chatter_share",)},
+        {"load_steps": ("recovery_time_s", "current_limit_time_s"), "faults": ()},
+        {"reference_steps": ("rise_time_s", "steady_state_error_rpm", "overshoot_pct")},
+        {"run": ("voltage_limit_time_s", "iae_rpm_s")},
+        {},
+    ]
+    for asked in subsets:
+        part = compute_metrics(res, figures=asked)
+        for name in ("reference_steps", "load_steps"):
+            for got, want in zip(part[name], full[name], strict=True):
+                figures = set(asked.get(name, ()))
+                assert {k for k, v in got.items() if isinstance(v, dict)} == figures
+                assert got == {k: v for k, v in want.items() if not isinstance(v, dict) or k in figures}
+        assert set(part["run"]) == {"t_end_s", *asked.get("run", ())}
+        assert part["run"] == {k: v for k, v in full["run"].items() if k in part["run"]}
+
+
+@pytest.mark.parametrize(
+    "figures",
+    [{"steps": ("iae_rpm_s",)}, {"reference_steps": ("speed_dip_rpm",)}, {"run": "chatter_share"}, ["run"]],
+)
+def test_a_subset_of_figures_that_does_not_exist_is_refused_naming_it(figures):
+    t = np.arange(0.0, 1.0, DT)
+    with pytest.raises(ConfigError, match="figures"):
+        compute_metrics(fake_result(t, np.zeros_like(t), np.zeros_like(t), [(0.0, 1.0)]), figures=figures)

@@ -5,13 +5,15 @@ measure (compute_metrics and the sampled-loop check), outside the engine.
 """
 
 import pickle
+import threading
 
 import pytest
 
 from pmsm2dof.errors import ConfigError, SimulationError
+from pmsm2dof.sim.metrics import compute_metrics
 from pmsm2dof.sim.scenario import load_scenario
 from pmsm2dof.sim.simulate import simulate
-from pmsm2dof.studies.engine import Run, check_options, run_many
+from pmsm2dof.studies.engine import Run, check_options, local_threads, run_many
 from pmsm2dof.studies.loopcheck import measure
 
 SHORT = {"simulation.t_end_s": 12.0}
@@ -51,6 +53,29 @@ def test_outcomes_in_the_order_of_the_runs_equal_single_runs(bases, workers, bat
         assert outcome.error == "" and outcome.metrics == measure(simulate(scenario))
         assert (outcome.result is not None) == (run.key == "b")
     assert outcomes[1].result.scenario == bases["e1"].with_overrides(SHORT)
+
+
+def _iae(result):
+    """A study's own measure: the run's speed IAE alone (a module-level function, as Dask needs)."""
+    return {"iae_rpm_s": compute_metrics(result, figures={"run": ("iae_rpm_s",)})["run"]["iae_rpm_s"]["value"]}
+
+
+def test_a_pool_kept_over_many_calls_and_a_study_measure_give_what_single_runs_give(bases):
+    """run_many on the threads of one local_threads pool, three times, measuring with the study's function:
+    each outcome is that function of the run simulated alone; the pool's threads are the same every call."""
+    threads = []
+
+    def named(result):
+        threads.append(threading.current_thread())
+        return _iae(result)
+
+    runs = [r for r in RUNS if r.key != "stall"]
+    with local_threads(2) as pool:
+        for _ in range(3):
+            outcomes = run_many(bases, runs, measure=named, workers=2, pool=pool, batch_size=1)
+            for run, outcome in zip(runs, outcomes, strict=True):
+                assert outcome.metrics == _iae(simulate(bases[run.base].with_overrides(run.overrides)))
+    assert len(set(threads)) <= 2 and len(threads) == 3 * len(runs)
 
 
 def test_a_value_only_the_c_code_rejects_names_the_run(bases):

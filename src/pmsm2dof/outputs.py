@@ -28,7 +28,7 @@ import shutil
 import signal
 import tempfile
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -359,10 +359,34 @@ def atomic_file(path: Path | str, mode: str = "w") -> Iterator[IO[Any]]:
         raise
 
 
+def check_file(path: Path | str, param: str) -> None:
+    """Raise ConfigError naming ``param``, before any long work, if the file ``path`` cannot be written."""
+    folder = Path(path).resolve().parent
+    if Path(path).is_dir():
+        raise ConfigError(param, path, "a file path (it is an existing folder)")
+    if os.path.lexists(path) and not (Path(path).is_file() or Path(path).is_symlink()):
+        raise ConfigError(param, path, "a file path (it is a device, a FIFO or a socket)")
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise ConfigError(param, path, "a file in an existing, writable folder")
+
+
 def atomic_write(path: Path | str, data: bytes | str) -> None:
     """Write ``data`` (bytes or str) to ``path`` through a temporary file and a rename."""
     with atomic_file(path, "wb" if isinstance(data, bytes) else "w") as f:
         f.write(data)
+
+
+def csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
+    """``rows`` (dicts with the same keys) as CSV text; None is an empty cell."""
+    import csv
+    import io
+
+    buf = io.StringIO()
+    if rows:
+        writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows)
+    return buf.getvalue()
 
 
 def free_space(folder: Path | str) -> str:

@@ -48,6 +48,7 @@ A figure that cannot be computed is ``{"value": None, "reason": "..."}``, never 
 """
 
 import math
+from collections.abc import Collection
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -108,10 +109,17 @@ def time_where(t: _Vector, mask: npt.NDArray[np.bool_] | _Vector, t0: float, t1:
     """Time in [t0, t1] where ``mask`` holds; the value of sample k holds over [t[k], t[k+1]).
 
     ``mask`` may also be a share in [0, 1] of each sample's interval (``voltage_limited``).
+    The sum runs over every interval of the trace, those outside [t0, t1] zero (``clip(t[k+1]) -
+    clip(t[k])``), so that its rounding does not depend on where the window lies; only the
+    intervals that meet the window are computed.
     """
-    starts = np.clip(t[:-1], t0, t1)
-    ends = np.clip(t[1:], t0, t1)
-    return float(np.sum((ends - starts) * mask[:-1]))
+    # the intervals [t[k], t[k+1]) that meet [t0, t1]: t[k+1] > t0 and t[k] < t1
+    a = int(np.searchsorted(t[1:], t0, side="right"))
+    b = int(np.searchsorted(t[:-1], t1, side="left"))
+    inside = np.zeros(t.size - 1)
+    if a < b:
+        inside[a:b] = (np.clip(t[a + 1 : b + 1], t0, t1) - np.clip(t[a:b], t0, t1)) * mask[a:b]
+    return float(np.sum(inside))
 
 
 def _window(t: _Vector, t0: float, t1: float, *signals: _Vector) -> tuple[_Vector, list[_Vector]]:
@@ -155,8 +163,12 @@ def _too_short(tw: _Vector, t_samples: _Vector) -> str:
     (:func:`~pmsm2dof.sim.events.speed_sample_rows`): its samples are what a steady state of the speed loop is
     told from.
     """
-    inside = t_samples[(t_samples > tw[0]) & (t_samples <= tw[-1])]
-    n = int(np.count_nonzero(inside >= tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0])))
+    # the samples in (tw[0], tw[-1]] at or after the start of its last part (t_samples increase)
+    first = max(
+        int(np.searchsorted(t_samples, tw[0], side="right")),
+        int(np.searchsorted(t_samples, tw[-1] - STEADY_FRACTION * (tw[-1] - tw[0]), side="left")),
+    )
+    n = max(0, int(np.searchsorted(t_samples, tw[-1], side="right")) - first)
     if n >= STEADY_SAMPLES_MIN:
         return ""
     return (
@@ -186,56 +198,63 @@ def reference_step(
     span: EventWindow,
     before: float,
     after: float,
+    names: Collection[str] = REFERENCE_FIGURES,
 ) -> dict[str, Any]:
     """Figures of the reference step from ``before`` to ``after`` [rpm] in the window ``span`` (module docstring).
 
     ``t`` and the traces ``speed``, ``ref`` [rpm] and ``limited`` (at the current limit) are the run's rows;
-    ``t_samples`` the times of its speed-controller samples.
+    ``t_samples`` the times of its speed-controller samples. Only the figures ``names`` (of
+    :data:`REFERENCE_FIGURES`) are computed and returned, in the order of :data:`REFERENCE_FIGURES`.
     """
     t0 = span.t0
     out: dict[str, Any] = {"t_s": t0, "from_rpm": before, "to_rpm": after, "window_end_s": span.t_end or t0}
-    names = REFERENCE_FIGURES
+    names = [n for n in REFERENCE_FIGURES if n in names]
     if span.t_end is None:
         return out | {n: missing(span.empty_reason(t, "step")) for n in names}
     tw, (w, r) = span.samples(t, speed, ref)
     t1 = span.t_end
     step = after - w[0]
     result: dict[str, _Figure] = {}
-    short = _too_short(tw, t_samples)
     if after == before or abs(step) <= 1e-3 * abs(after - before):
         reason = (
             "the reference does not change"
             if after == before
             else f"the speed is already at the new reference ({w[0]:g} rpm)"
         )
-        result.update({n: missing(reason) for n in names[:4]})
+        result.update({n: missing(reason) for n in REFERENCE_FIGURES[:4]})
     else:
         z = (w - w[0]) / step
-        t10, t90 = _first_crossing(tw, z, 0.1), _first_crossing(tw, z, 0.9)
-        t_settle = None if short else _entry_into_band(tw, z - 1.0, BAND)
-        if np.max(z) >= 1.0 or t_settle is not None:
-            result["overshoot_pct"] = figure(100.0 * max(0.0, np.max(z) - 1.0))
-        else:
-            result["overshoot_pct"] = missing(f"the speed did not reach the reference before {t1:g} s")
-        result["rise_time_s"] = (
-            figure(t90 - t10)
-            if t90 is not None and t10 is not None
-            else missing(f"the speed did not reach 90 % of the step before {t1:g} s")
-        )
-        if short:
-            result["settling_time_s"] = missing(short)
-        elif t_settle is None:
-            result["settling_time_s"] = missing(
-                f"the speed did not settle within 2 % of the step (and stay there over the last "
-                f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
+        short = _too_short(tw, t_samples)
+        if "overshoot_pct" in names or "settling_time_s" in names:
+            t_settle = None if short else _entry_into_band(tw, z - 1.0, BAND)
+            if np.max(z) >= 1.0 or t_settle is not None:
+                result["overshoot_pct"] = figure(100.0 * max(0.0, np.max(z) - 1.0))
+            else:
+                result["overshoot_pct"] = missing(f"the speed did not reach the reference before {t1:g} s")
+            if short:
+                result["settling_time_s"] = missing(short)
+            elif t_settle is None:
+                result["settling_time_s"] = missing(
+                    f"the speed did not settle within 2 % of the step (and stay there over the last "
+                    f"{100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
+                )
+            else:
+                result["settling_time_s"] = figure(t_settle - t0)
+        if "rise_time_s" in names:
+            t10, t90 = _first_crossing(tw, z, 0.1), _first_crossing(tw, z, 0.9)
+            result["rise_time_s"] = (
+                figure(t90 - t10)
+                if t90 is not None and t10 is not None
+                else missing(f"the speed did not reach 90 % of the step before {t1:g} s")
             )
-        else:
-            result["settling_time_s"] = figure(t_settle - t0)
-        result["steady_state_error_rpm"] = (
-            missing(short) if short else _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
-        )
-    result["iae_rpm_s"] = figure(float(np.trapezoid(np.abs(r - w), tw)))
-    result["current_limit_time_s"] = figure(time_where(t, limited, t0, span.limit_end(t)))
+        if "steady_state_error_rpm" in names:
+            result["steady_state_error_rpm"] = (
+                missing(short) if short else _steady_state_error(tw, w, after, STEADY_SPREAD * abs(step))
+            )
+    if "iae_rpm_s" in names:
+        result["iae_rpm_s"] = figure(float(np.trapezoid(np.abs(r - w), tw)))
+    if "current_limit_time_s" in names:
+        result["current_limit_time_s"] = figure(time_where(t, limited, t0, span.limit_end(t)))
     return out | {"speed_at_step_rpm": float(w[0])} | {n: result[n] for n in names}
 
 
@@ -248,54 +267,60 @@ def load_step(
     span: EventWindow,
     before: float,
     after: float,
+    names: Collection[str] = LOAD_FIGURES,
 ) -> dict[str, Any]:
-    """Figures of the load step from ``before`` to ``after`` [Nm] in the window ``span``, as :func:`reference_step`."""
+    """Figures of the load step from ``before`` to ``after`` [Nm] in the window ``span``, as :func:`reference_step`
+    (``names`` of :data:`LOAD_FIGURES`)."""
     t0 = span.t0
     out: dict[str, Any] = {"t_s": t0, "from_Nm": before, "to_Nm": after, "window_end_s": span.t_end or t0}
-    names = LOAD_FIGURES
+    names = [n for n in LOAD_FIGURES if n in names]
     if span.t_end is None:
         return out | {n: missing(span.empty_reason(t, "step")) for n in names}
     tw, (w, r) = span.samples(t, speed, ref)
     t1 = span.t_end
     e = r - w
     result: dict[str, _Figure] = {}
-    short = _too_short(tw, t_samples)
     if after == before:
-        result.update({n: missing("the load torque does not change") for n in names[:4]})
+        result.update({n: missing("the load torque does not change") for n in LOAD_FIGURES[:4]})
     else:
         d = math.copysign(1.0, after - before) * e
         k = int(np.argmax(d))
         dip = float(d[k])
         deviation = max(dip, abs(float(e[0])))
         if deviation <= 0.0:
-            result.update({n: missing("the speed did not give way to the load") for n in names[:4]})
+            result.update({n: missing("the speed did not give way to the load") for n in LOAD_FIGURES[:4]})
         else:
             if dip > 0.0 and k == 0:
                 reason = (
                     f"the speed error in the direction of the load is largest at the step itself ({dip:.4g} rpm, the "
                     "response to what came before): the load adds no dip of its own"
                 )
-                result.update({n: missing(reason) for n in names[:2]})
+                result.update({n: missing(reason) for n in LOAD_FIGURES[:2]})
             elif dip > 0.0:
                 result["speed_dip_rpm"] = figure(dip)
                 result["dip_time_s"] = figure(tw[k] - t0)
             else:
-                result.update({n: missing("the speed did not give way to the load") for n in names[:2]})
-            t_rec = None if short else _entry_into_band(tw, e, BAND * deviation)
-            if short:
-                result["recovery_time_s"] = missing(short)
-            elif t_rec is None:
-                result["recovery_time_s"] = missing(
-                    f"the speed did not recover to within 2 % of the {'dip' if dip >= deviation else 'error'}"
-                    f" (and stay there over the last {100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
+                result.update({n: missing("the speed did not give way to the load") for n in LOAD_FIGURES[:2]})
+            short = _too_short(tw, t_samples)
+            if "recovery_time_s" in names:
+                t_rec = None if short else _entry_into_band(tw, e, BAND * deviation)
+                if short:
+                    result["recovery_time_s"] = missing(short)
+                elif t_rec is None:
+                    result["recovery_time_s"] = missing(
+                        f"the speed did not recover to within 2 % of the {'dip' if dip >= deviation else 'error'}"
+                        f" (and stay there over the last {100 * STEADY_FRACTION:g} % of the window) before {t1:g} s"
+                    )
+                else:
+                    result["recovery_time_s"] = figure(t_rec - t0)
+            if "steady_state_error_rpm" in names:
+                result["steady_state_error_rpm"] = (
+                    missing(short) if short else _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
                 )
-            else:
-                result["recovery_time_s"] = figure(t_rec - t0)
-            result["steady_state_error_rpm"] = (
-                missing(short) if short else _steady_state_error(tw, w, r[-1], STEADY_SPREAD * deviation)
-            )
-    result["iae_rpm_s"] = figure(float(np.trapezoid(np.abs(e), tw)))
-    result["current_limit_time_s"] = figure(time_where(t, limited, t0, span.limit_end(t)))
+    if "iae_rpm_s" in names:
+        result["iae_rpm_s"] = figure(float(np.trapezoid(np.abs(e), tw)))
+    if "current_limit_time_s" in names:
+        result["current_limit_time_s"] = figure(time_where(t, limited, t0, span.limit_end(t)))
     return out | {n: result[n] for n in names}
 
 
@@ -308,22 +333,26 @@ def fault_figures(
     fault: "FaultEntry",
     t_end_fault: float,
     after: EventWindow,
+    names: Collection[str] = FAULT_FIGURES,
 ) -> dict[str, Any]:
     """Figures of a fault from its start ``t_s`` to ``after.t_end``, the last sample before the event that
-    follows its end (``after`` is the window from the fault's end)."""
+    follows its end (``after`` is the window from the fault's end); ``names`` of :data:`FAULT_FIGURES`, as
+    :func:`reference_step`."""
     t0 = fault.t_s
     span = EventWindow(t0, after.t_next, after.t_end, after.tol)
     out: dict[str, Any] = {"kind": fault.kind, "t_s": t0, "end_s": t_end_fault, "window_end_s": span.t_end or t0}
-    names = FAULT_FIGURES
-    if span.t_end is None:
+    names = [n for n in FAULT_FIGURES if n in names]
+    if span.t_end is None or not names:
         return out | {n: missing(span.empty_reason(t, "fault")) for n in names}
     tw, (w, r) = span.samples(t, speed, ref)
     t1 = span.t_end
     e = np.abs(r - w)
     k = int(np.argmax(e))
-    result = {"current_limit_time_s": figure(time_where(t, limited, t0, span.limit_end(t)))}
+    result: dict[str, _Figure] = {}
+    if "current_limit_time_s" in names:
+        result["current_limit_time_s"] = figure(time_where(t, limited, t0, span.limit_end(t)))
     if e[k] <= 0.0:
-        result.update({n: missing("the speed did not deviate from its reference") for n in names[:3]})
+        result.update({n: missing("the speed did not deviate from its reference") for n in FAULT_FIGURES[:3]})
     elif t_end_fault >= t1:
         result.update(
             {

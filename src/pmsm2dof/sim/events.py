@@ -104,10 +104,10 @@ class EventWindow:
 
     @classmethod
     def of(cls, t: _Vector, t0: float, t_next: float | None, tol: float) -> "EventWindow":
-        inside = t > t0 + tol
-        if t_next is not None:
-            inside &= t < t_next - tol
-        return cls(t0, t_next, float(t[inside][-1]) if np.any(inside) else None, tol)
+        """The window of the event at ``t0`` in the increasing sample times ``t``."""
+        first = int(np.searchsorted(t, t0 + tol, side="right"))  # the first sample after t0
+        end = t.size if t_next is None else int(np.searchsorted(t, t_next - tol, side="left"))
+        return cls(t0, t_next, float(t[end - 1]) if end > first else None, tol)
 
     def limit_end(self, t: _Vector) -> float:
         """The end of the time counted at the current limit: the next event, or the end of the trace."""
@@ -122,7 +122,10 @@ class EventWindow:
         )
 
     def samples(self, t: _Vector, *signals: _Vector) -> tuple[_Vector, list[_Vector]]:
-        """The window's sample times after ``t0`` (``t0`` itself first, the signals interpolated there)."""
+        """The window's sample times after ``t0`` (``t0`` itself first, the signals interpolated there) and the
+        signals at them."""
         assert self.t_end is not None
-        tw = np.concatenate(([self.t0], t[(t > self.t0 + self.tol) & (t <= self.t_end)]))
-        return tw, [np.interp(tw, t, s) for s in signals]
+        first = int(np.searchsorted(t, self.t0 + self.tol, side="right"))
+        end = int(np.searchsorted(t, self.t_end, side="right"))
+        tw = np.concatenate(([self.t0], t[first:end]))
+        return tw, [np.concatenate(([np.interp(self.t0, t, s)], s[first:end])) for s in signals]

@@ -25,14 +25,24 @@ is ``{"value": x}``. Speeds are in rpm, as in the scenario and the trace.
 """
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Collection, Mapping, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
 from ..errors import ConfigError, SimulationError
-from .event_figures import fault_figures, figure, load_step, missing, reference_step, time_where
+from .event_figures import (
+    FAULT_FIGURES,
+    LOAD_FIGURES,
+    REFERENCE_FIGURES,
+    fault_figures,
+    figure,
+    load_step,
+    missing,
+    reference_step,
+    time_where,
+)
 from .events import (
     EventWindow,
     event_times,
@@ -211,7 +221,18 @@ def _chatter_warning(figure: _Figure) -> list[str]:
     ]
 
 
-def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dict[str, Any]:
+#: The figures of each part of :func:`compute_metrics`, in output order.
+PART_FIGURES = {
+    "reference_steps": REFERENCE_FIGURES,
+    "load_steps": LOAD_FIGURES,
+    "faults": FAULT_FIGURES,
+    "run": RUN_FIGURES,
+}
+
+
+def compute_metrics(
+    result: "Result | Log", i_max_A: float | None = None, figures: Mapping[str, Collection[str]] | None = None
+) -> dict[str, Any]:
     """Figures of merit of every reference step and load step of a simulated run or a measured log.
 
     Parameters
@@ -227,6 +248,11 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
         is within 1 % of ``i_max_A``, and is missing without it; no voltage figure.
     i_max_A : float, optional
         Log only: the drive's current limit [A].
+    figures : mapping, optional
+        The figures to compute, by part: ``{part: names}`` with the parts and names of
+        :data:`PART_FIGURES`; a part left out has none (its events keep their times and values).
+        Default: every figure. A study that reads a few figures of many runs computes only those;
+        each is the same number as in the full metrics.
 
     Returns
     -------
@@ -235,10 +261,16 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
         "run", "warnings"}``;
         each figure is ``{"value": x}`` or ``{"value": None, "reason": "..."}`` (see the module
         docstring for the definitions); ``warnings`` holds sentences on a run that the figures
-        do not describe (a chattering command), empty for a run they do.
+        do not describe (a chattering command, when ``chatter_share`` is computed), empty for a run they do.
+
+    Raises
+    ------
+    ConfigError
+        ``figures`` names a part or a figure that :data:`PART_FIGURES` does not hold.
     """
+    wanted = _wanted(figures)
     if isinstance(result, Log):
-        return _log_metrics(result, i_max_A)
+        return _log_metrics(result, i_max_A, wanted)
     t = np.asarray(result.t_s, dtype=float)
     if t.ndim != 1 or t.size < 2 or not np.all(np.isfinite(t)) or not np.all(np.diff(t) > 0):
         raise SimulationError("result.t_s must hold at least two finite, increasing times")
@@ -256,35 +288,54 @@ def compute_metrics(result: "Result | Log", i_max_A: float | None = None) -> dic
     def span(t0: float) -> EventWindow:
         return EventWindow.of(t, t0, next_event(times, t0, tol), tol)
 
-    chatter_share = _chatter_figure(
-        t_samples,
-        _trace(result, "iq_ref_A")[at_samples],
-        scenario,
-        [*times, *fault_ends(scenario)],
-        tol,
-    )
+    run_figures = wanted["run"]
+    run: dict[str, Any] = {"t_end_s": float(t[-1])}
+    if "iae_rpm_s" in run_figures:
+        run["iae_rpm_s"] = figure(float(np.trapezoid(np.abs(ref - speed), t)))
+    if "current_limit_time_s" in run_figures:
+        run["current_limit_time_s"] = figure(time_where(t, limited, t[0], t[-1]))
+    if "voltage_limit_time_s" in run_figures:
+        run["voltage_limit_time_s"] = _voltage_limit_time(result, t)
+    if "chatter_share" in run_figures:
+        run["chatter_share"] = _chatter_figure(
+            t_samples,
+            _trace(result, "iq_ref_A")[at_samples],
+            scenario,
+            [*times, *fault_ends(scenario)],
+            tol,
+        )
     return {
         "scenario": scenario.name,
         "reference_steps": [
-            reference_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events
+            reference_step(t, t_samples, speed, ref, limited, span(t0), b, a, wanted["reference_steps"])
+            for t0, b, a in ref_events
         ],
-        "load_steps": [load_step(t, t_samples, speed, ref, limited, span(t0), b, a) for t0, b, a in loads],
+        "load_steps": [
+            load_step(t, t_samples, speed, ref, limited, span(t0), b, a, wanted["load_steps"]) for t0, b, a in loads
+        ],
         "faults": [
-            fault_figures(t, t_samples, speed, ref, limited, f, end, span(end))
+            fault_figures(t, t_samples, speed, ref, limited, f, end, span(end), wanted["faults"])
             for f, end in zip(scenario.fault, fault_ends(scenario))
         ],
-        "run": {
-            "t_end_s": float(t[-1]),
-            "iae_rpm_s": figure(float(np.trapezoid(np.abs(ref - speed), t))),
-            "current_limit_time_s": figure(time_where(t, limited, t[0], t[-1])),
-            "voltage_limit_time_s": _voltage_limit_time(result, t),
-            "chatter_share": chatter_share,
-        },
-        "warnings": _chatter_warning(chatter_share),
+        "run": run,
+        "warnings": _chatter_warning(run["chatter_share"]) if "chatter_share" in run else [],
     }
 
 
-def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
+def _wanted(figures: Mapping[str, Collection[str]] | None) -> dict[str, Collection[str]]:
+    """The figures of each part that ``compute_metrics(figures=...)`` asks for (every one by default)."""
+    if figures is None:
+        return dict(PART_FIGURES)
+    valid = "; ".join(f"{part}: {', '.join(names)}" for part, names in PART_FIGURES.items())
+    if not isinstance(figures, Mapping) or any(
+        part not in PART_FIGURES or isinstance(names, str) or not set(names) <= set(PART_FIGURES[part])
+        for part, names in figures.items()
+    ):
+        raise ConfigError("figures", figures, f"a mapping of parts to some of their figures ({valid})")
+    return {part: figures.get(part, ()) for part in PART_FIGURES}
+
+
+def _log_metrics(log: Log, i_max_A: float | None, wanted: Mapping[str, Collection[str]]) -> dict[str, Any]:
     """:func:`compute_metrics` of a measured log: its steps from the logged reference."""
     if log.speed_ref_rpm is None:
         raise ConfigError("log", log.source, "a log with speed_ref_rpm to measure its reference steps")
@@ -310,19 +361,22 @@ def _log_metrics(log: Log, i_max_A: float | None) -> dict[str, Any]:
         return EventWindow.of(t, t0, next_event(times, t0, 0.0), 0.0)
 
     limit_time = figure(time_where(t, limited, t[0], t[-1])) if i_max_A is not None else missing("no i_max_A")
-    chatter_share = missing("a log's rows need not be the speed controller's samples")
+    run = {
+        "t_end_s": float(t[-1]),
+        "iae_rpm_s": figure(np.trapezoid(np.abs(ref - speed), t)),
+        "current_limit_time_s": limit_time,
+        "voltage_limit_time_s": missing("a log has no voltage_limited signal"),
+        "chatter_share": missing("a log's rows need not be the speed controller's samples"),
+    }
     return {
         "scenario": log.source,
-        "reference_steps": [reference_step(t, t, speed, ref, limited, span(t0), b, a) for t0, b, a in ref_events],
+        "reference_steps": [
+            reference_step(t, t, speed, ref, limited, span(t0), b, a, wanted["reference_steps"])
+            for t0, b, a in ref_events
+        ],
         "load_steps": [],
         "faults": [],
-        "run": {
-            "t_end_s": float(t[-1]),
-            "iae_rpm_s": figure(np.trapezoid(np.abs(ref - speed), t)),
-            "current_limit_time_s": limit_time,
-            "voltage_limit_time_s": missing("a log has no voltage_limited signal"),
-            "chatter_share": chatter_share,
-        },
+        "run": {name: value for name, value in run.items() if name == "t_end_s" or name in wanted["run"]},
         "warnings": [],
     }
 

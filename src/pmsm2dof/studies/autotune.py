@@ -6,19 +6,24 @@ search (:func:`pmsm2dof.studies.autotune_search.autotune`) tries :class:`Candida
 The figures of a simulation are :func:`step_figures` of :func:`pmsm2dof.sim.metrics.compute_metrics`
 (rpm), taken over the reference steps (overshoot, settling time, tracking IAE), the load steps (speed dip
 and IAE divided by the load change, recovery time) and both (longest time at the current limit in one step
-window), and the run (chatter); their worst cases over the inertias are those of :data:`FIGURES`.
+window), and the run (chatter); their worst cases over the inertias are those of :data:`FIGURES`. The
+search computes only the figures that :func:`step_figures` reads (:func:`run_figures`).
 """
 
 import dataclasses
 import itertools
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..core import ANTI_WINDUPS, FEEDFORWARDS
 from ..core.bindings import AntiWindup, Feedforward
 from ..errors import ConfigError
+from ..sim.metrics import compute_metrics
 from ..sim.scenario import Scenario
+
+if TYPE_CHECKING:
+    from ..sim.simulate import Result
 
 #: Widest inertia range, hi / lo.
 J_RANGE_SPAN_MAX = 100.0
@@ -454,6 +459,20 @@ def _number(x: float) -> float | None:
 def _finite(figures: Mapping[str, float]) -> dict[str, float | None]:
     """Figures as JSON numbers: infinite ones (a margin without crossing, a step never settled) are None."""
     return {name: _number(v) for name, v in figures.items()}
+
+
+#: The figures of :func:`pmsm2dof.sim.metrics.compute_metrics` that :func:`step_figures` reads, by part.
+STEP_METRICS = {
+    "reference_steps": ("overshoot_pct", "settling_time_s", "iae_rpm_s", "current_limit_time_s"),
+    "load_steps": ("speed_dip_rpm", "recovery_time_s", "iae_rpm_s", "current_limit_time_s"),
+    "run": ("chatter_share",),
+}
+
+
+def run_figures(result: "Result") -> dict[str, float]:
+    """:func:`step_figures` of a simulated run, from the figures it reads alone (:data:`STEP_METRICS`):
+    the measure of each simulation of the search (:func:`pmsm2dof.studies.engine.run_many`)."""
+    return step_figures(compute_metrics(result, figures=STEP_METRICS))
 
 
 def step_figures(metrics: Mapping[str, Any]) -> dict[str, float]:

@@ -44,11 +44,12 @@ constraint it misses most and by how much.
 The specification, the candidates and the result are those of :mod:`pmsm2dof.studies.autotune`.
 """
 
+import contextlib
 import itertools
 import math
 import time
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -71,10 +72,13 @@ from .autotune import (
     Spec,
     Violation,
     pareto_front,
-    step_figures,
+    run_figures,
 )
-from .engine import Outcome, Run, check_options, connect, run_many
+from .engine import Outcome, Run, check_options, connect, local_threads, run_many
 from .loopcheck import sampled_loop
+
+if TYPE_CHECKING:
+    from concurrent.futures import ThreadPoolExecutor
 
 #: Inertia ratios at which the margins are checked, and the best design is simulated again.
 N_J_CHECK = 9
@@ -152,11 +156,20 @@ def runs_bound(scenario: Scenario, spec: Spec) -> int:
 class _Search:
     """The state of one autotuning: what is known of each candidate, and the runs made."""
 
-    def __init__(self, scenario: Scenario, spec: Spec, workers: int | None, client: Any, progress: bool) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        spec: Spec,
+        workers: int | None,
+        client: Any,
+        progress: bool,
+        pool: "ThreadPoolExecutor | None" = None,
+    ) -> None:
         self.scenario = scenario
         self.spec = spec
         self.workers = workers
         self.client = client
+        self.pool = pool
         self.progress = progress
         sc = scenario.speed_controller
         self.J_design_kgm2 = sc.J_kgm2
@@ -168,7 +181,13 @@ class _Search:
         self.anti_windups = spec.anti_windups or (sc.anti_windup,)
         self.J_ratios_checked = J_ratios(spec.J_range, N_J_CHECK)
         self.J_ratios_search = J_ratios(spec.J_range, 3)
-        self.bases = {"scenario": scenario}
+        # every run: the design inertia, every speed sample logged, no more (a chattering command shows from
+        # one sample to the next); set once here, so that a run changes the candidate's keys and the inertia
+        self.bases = {
+            "scenario": scenario.with_overrides(
+                {"speed_controller.J_kgm2": sc.J_kgm2, "simulation.log_every": 1, "simulation.log_rate": "speed"}
+            )
+        }
         self.margins: dict[tuple[float, float], dict[float, Margins | None]] = {}
         self.edges: dict[tuple[float, float], float | None] = {}
         self.known: dict[Candidate, tuple[int, Evaluation]] = {}
@@ -362,19 +381,23 @@ class _Search:
             Run(
                 key=i,
                 base="scenario",
-                overrides=c.overrides()
-                # every speed sample logged, no more: a chattering command shows from one sample to the next
-                | {"motor.J_kgm2": r * self.J_design_kgm2, "speed_controller.J_kgm2": self.J_design_kgm2}
-                | {"simulation.log_every": 1, "simulation.log_rate": "speed"},
+                overrides=c.overrides() | {"motor.J_kgm2": r * self.J_design_kgm2},
                 label=f"autotune candidate {c.speed_controller()} at J ratio {r:.4g}",
             )
             for i, (c, r) in enumerate(todo)
         ]
         outcomes: list[Outcome] = run_many(
-            self.bases, runs, workers=self.workers, client=self.client, progress=self.progress, description="autotune"
+            self.bases,
+            runs,
+            measure=run_figures,
+            workers=self.workers,
+            pool=self.pool,
+            client=self.client,
+            progress=self.progress,
+            description="autotune",
         )
         for (c, r), outcome in zip(todo, outcomes):
-            figures = step_figures(outcome.metrics) if outcome.metrics is not None else {}
+            figures = outcome.metrics if outcome.metrics is not None else {}
             record = RunRecord(c, r, figures, outcome.error, outcome.wall_time_s)
             self.figures[(c, r)] = record
             self.simulated_at.setdefault(c, []).append(r)
@@ -544,8 +567,11 @@ def autotune(
             scenario.name,
             "a scenario with a load step that changes the load torque (the objective is its speed dip per Nm)",
         )
-    with connect(scheduler) as client:
-        search = _Search(scenario, spec, workers, client, progress)
+    with contextlib.ExitStack() as stack:
+        client = stack.enter_context(connect(scheduler))
+        # the engine's threads for the whole search (not started again for each batch of simulations)
+        pool = None if client is not None else stack.enter_context(local_threads(workers))
+        search = _Search(scenario, spec, workers, client, progress, pool)
         search.evaluate(search.grid())
         center = search.best().candidate
         step = STEP_FIRST

@@ -3,7 +3,8 @@
 A study is a list of :class:`Run`: a base scenario, named in a mapping of bases, changed by
 overrides. :func:`run_many` simulates them and measures each one
 (:func:`pmsm2dof.studies.loopcheck.measure`: the figures of
-:func:`pmsm2dof.sim.metrics.compute_metrics` and the sampled-loop stability check), in batches:
+:func:`pmsm2dof.sim.metrics.compute_metrics` and the sampled-loop stability check; or the
+study's own measure, which computes only the figures it reads), in batches:
 
 - on local threads (:func:`default_workers` by default): the compiled engine releases the GIL
   for the whole simulation, so the threads run on all cores;
@@ -30,14 +31,20 @@ import re
 import warnings
 from collections.abc import Callable, Hashable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ConfigError, Pmsm2dofWarning, SimulationError, is_integer
 from ..inputs import read_bytes
 from ..outputs import atomic_write
 from ..sim.scenario import Scenario
 from ..sim.simulate import Result, Simulation, simulate_many
-from .loopcheck import measure
+from . import loopcheck
+
+if TYPE_CHECKING:
+    from concurrent.futures import ThreadPoolExecutor
+
+#: What a study computes from each run that completed: :attr:`Outcome.metrics`.
+Measure = Callable[[Result], dict[str, Any]]
 
 #: Most runs per batch when the batch size is automatic.
 BATCH_SIZE_MAX = 50
@@ -79,7 +86,8 @@ class Outcome:
     key : hashable
         The :attr:`Run.key`.
     metrics : dict or None
-        :func:`~pmsm2dof.studies.loopcheck.measure` of the run; None when it stopped.
+        The measure of the run (:func:`~pmsm2dof.studies.loopcheck.measure` unless the study gave its own);
+        None when it stopped.
     error : str
         The message of the SimulationError that stopped the run; empty when it completed.
     wall_time_s : float or None
@@ -104,7 +112,10 @@ def default_workers() -> int:
 
 
 def simulate_batch(
-    bases: Mapping[str, Scenario], runs: Sequence[Run], keep: frozenset[Hashable] = frozenset()
+    bases: Mapping[str, Scenario],
+    runs: Sequence[Run],
+    keep: frozenset[Hashable] = frozenset(),
+    measure: Measure = loopcheck.measure,
 ) -> list[Outcome]:
     """Simulate and measure ``runs`` (in a worker thread or on a Dask worker), the engine's lockstep
     groups (:func:`~pmsm2dof.sim.simulate.simulate_many`) a few runs at a time.
@@ -116,6 +127,9 @@ def simulate_batch(
     runs : sequence of Run
     keep : frozenset
         Keys of the runs whose Result is kept in their Outcome.
+    measure : callable
+        ``measure(result)``: the :attr:`Outcome.metrics` of a run that completed (a module-level
+        function, pickled to a Dask worker by its name).
 
     Raises
     ------
@@ -176,6 +190,18 @@ def check_options(workers: int | None = None, scheduler: str | None = None, batc
 
 
 @contextlib.contextmanager
+def local_threads(workers: int | None = None) -> Iterator["ThreadPoolExecutor"]:
+    """``workers`` local threads (default :func:`default_workers`) for :func:`run_many`, shut down on exit."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pool = ThreadPoolExecutor(max_workers=workers or default_workers(), thread_name_prefix="pmsm2dof-study")
+    try:
+        yield pool
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
 def connect(scheduler: str | None) -> Iterator[Any]:
     """A Dask distributed client of the scheduler at ``scheduler``, closed on exit; None for None.
 
@@ -204,7 +230,9 @@ def run_many(
     runs: Sequence[Run],
     *,
     keep: Iterable[Hashable] = (),
+    measure: Measure = loopcheck.measure,
     workers: int | None = None,
+    pool: "ThreadPoolExecutor | None" = None,
     client: Any = None,
     batch_size: int | None = None,
     progress: bool = False,
@@ -221,8 +249,14 @@ def run_many(
         Their overrides are validated by the caller (a ConfigError raised here stops the study).
     keep : iterable
         Keys of the runs whose Result is kept (local threads: no copy is made).
+    measure : callable
+        ``measure(result)``, the :attr:`Outcome.metrics` of each run that completed; default
+        :func:`~pmsm2dof.studies.loopcheck.measure`. A module-level function (a Dask worker runs it).
     workers : int, optional
         Local threads, >= 1 (default: :func:`default_workers`). Not used with ``client``.
+    pool : ThreadPoolExecutor, optional
+        The local threads of :func:`local_threads` (``workers`` of them), kept from one call to the
+        next by a study that calls this many times; default: new threads for this call.
     client : dask.distributed.Client, optional
         A client of a running Dask scheduler (:func:`connect`): the batches run on its workers,
         which need pmsm2dof installed.
@@ -267,11 +301,11 @@ def run_many(
         if client is None:
             n_workers = workers or default_workers()
             batches = _batches(runs, batch_size or _auto_batch_size(len(runs), n_workers))
-            _run_local(bases, batches, keep, n_workers, finished)
+            _run_local(bases, batches, keep, measure, n_workers, pool, finished)
         else:
             threads = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
             batches = _batches(runs, batch_size or _auto_batch_size(len(runs), max(1, threads)))
-            _run_dask(client, bases, batches, keep, finished)
+            _run_dask(client, bases, batches, keep, measure, finished)
     return [done[run.key] for run in runs]
 
 
@@ -287,28 +321,32 @@ def _run_local(
     bases: Mapping[str, Scenario],
     batches: Sequence[list[Run]],
     keep: frozenset[Hashable],
+    measure: Measure,
     workers: int,
+    pool: "ThreadPoolExecutor | None",
     finished: Callable[[list[Outcome]], None],
 ) -> None:
-    """Batches on a thread pool; on any exception or interrupt, pass on what finished and re-raise."""
-    from concurrent.futures import Future, ThreadPoolExecutor, as_completed
+    """Batches on a thread pool (``pool``, else new threads); on any exception or interrupt, pass on what
+    finished and re-raise."""
+    from concurrent.futures import Future, as_completed, wait
 
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="pmsm2dof-study")
-    futures = [pool.submit(simulate_batch, bases, batch, keep) for batch in batches]
-    passed: set[Future[list[Outcome]]] = set()
-    try:
-        for fut in as_completed(futures):
-            finished(fut.result())
-            passed.add(fut)
-    except BaseException:
-        for fut in futures:
-            fut.cancel()
-        pool.shutdown(wait=True)
-        for fut in futures:
-            if fut not in passed and fut.done() and not fut.cancelled() and fut.exception() is None:
+    with contextlib.ExitStack() as stack:
+        if pool is None:
+            pool = stack.enter_context(local_threads(workers))
+        futures = [pool.submit(simulate_batch, bases, batch, keep, measure) for batch in batches]
+        passed: set[Future[list[Outcome]]] = set()
+        try:
+            for fut in as_completed(futures):
                 finished(fut.result())
-        raise
-    pool.shutdown(wait=True)
+                passed.add(fut)
+        except BaseException:
+            for fut in futures:
+                fut.cancel()
+            wait(futures)
+            for fut in futures:
+                if fut not in passed and fut.done() and not fut.cancelled() and fut.exception() is None:
+                    finished(fut.result())
+            raise
 
 
 def _run_dask(
@@ -316,12 +354,13 @@ def _run_dask(
     bases: Mapping[str, Scenario],
     batches: Sequence[list[Run]],
     keep: frozenset[Hashable],
+    measure: Measure,
     finished: Callable[[list[Outcome]], None],
 ) -> None:
     """Batches as tasks on a Dask distributed cluster; on any exception or interrupt, pass on what finished."""
     from dask.distributed import as_completed
 
-    futures = [client.submit(simulate_batch, bases, batch, keep, pure=False) for batch in batches]
+    futures = [client.submit(simulate_batch, bases, batch, keep, measure, pure=False) for batch in batches]
     passed: set[str] = set()
     try:
         for fut in as_completed(futures, loop=client.loop):

@@ -3,7 +3,7 @@
 import click
 
 from ...errors import ConfigError
-from .options import chosen_scenario, csv_text, out_option, require_writable_file, set_option, warnings_as_lines
+from .options import chosen_scenario, out_option, set_option, warnings_as_lines
 
 
 @click.command()
@@ -26,13 +26,13 @@ def header(scenario: str, overrides: tuple[str, ...], out: str, prefix: str, vir
     inertia estimator and the loop rates, as the engine runs them on the scenario (the same shape
     as design --emit-c-header, autotune --emit-c-header, commission --out and the tuner write).
     """
-    from ...outputs import atomic_write
+    from ...outputs import atomic_write, check_file
     from ...studies.configuration import configuration
     from ...studies.virtual_drive import virtual_drive_header
 
     options = {out: "--out"} if virtual_drive is None else {out: "--out", virtual_drive: "--virtual-drive"}
     for path, option in options.items():
-        require_writable_file(path, option)
+        check_file(path, option)
     chosen, named = chosen_scenario(scenario, overrides)
     with warnings_as_lines():
         config = configuration(chosen, source=f"pmsm2dof header {named}")
@@ -96,7 +96,7 @@ def _firmware_run(folder: str, out: str, force: bool, samples: int | None) -> No
     """``pmsm2dof firmware run DIR --out RUN``."""
     import json
 
-    from ...outputs import atomic_write, check_out, staged_dir
+    from ...outputs import atomic_write, check_out, csv_text, staged_dir
     from ...sim.metrics import compute_metrics
     from ...studies.firmware import run_firmware
     from ..plots.firmware import plot_firmware

@@ -264,33 +264,6 @@ def out_option(what: str, **kwargs: Any) -> Callable[[Callable[..., Any]], Calla
     return decorate
 
 
-def require_writable_file(path: str, option: str = "--emit-c-header") -> None:
-    """Raise ConfigError naming ``option``, before any long work, if ``path`` cannot be written."""
-    import os
-    from pathlib import Path
-
-    folder = Path(path).resolve().parent
-    if Path(path).is_dir():
-        raise ConfigError(option, path, "a file path (it is an existing folder)")
-    if os.path.lexists(path) and not (Path(path).is_file() or Path(path).is_symlink()):
-        raise ConfigError(option, path, "a file path (it is a device, a FIFO or a socket)")
-    if not folder.is_dir() or not os.access(folder, os.W_OK):
-        raise ConfigError(option, path, "a file in an existing, writable folder")
-
-
-def csv_text(rows: Sequence[Mapping[str, Any]]) -> str:
-    """``rows`` (dicts with the same keys) as CSV text; None is an empty cell."""
-    import csv
-    import io
-
-    buf = io.StringIO()
-    if rows:
-        writer = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
-        writer.writeheader()
-        writer.writerows(rows)
-    return buf.getvalue()
-
-
 @contextlib.contextmanager
 def held_warnings() -> Iterator[None]:
     """Hold the warnings raised inside the block; give them again only when it ends without an error."""

@@ -11,16 +11,13 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from ...core.bindings import AntiWindup, Feedforward
-    from ...studies.autotune import AutotuneResult
 
 from .options import (
     as_option,
-    csv_text,
     json_option,
     one_line,
     out_option,
     parse_override,
-    require_writable_file,
     scheduler_option,
     set_option,
     workers_option,
@@ -146,6 +143,7 @@ _AUTOTUNE_OPTIONS = {
     "anti_windups": "--anti-windup",
     "workers": "--workers",
     "scheduler": "--scheduler",
+    "header": "--emit-c-header",
     "path": "--emit-c-header",
 }
 
@@ -258,11 +256,11 @@ def autotune(
     """
     import json
 
-    from ...outputs import atomic_write, check_out, staged_dir
     from ...sim.plausibility import warn_implausible
     from ...sim.scenario import load_scenario
     from ...studies.autotune import Spec
-    from ...studies.autotune_search import autotune as run_autotune
+    from ...studies.autotune_outputs import run_autotune, summary
+    from ..plots.autotune import plot_pareto
 
     try:
         spec = Spec(
@@ -282,75 +280,19 @@ def autotune(
         if changes:
             chosen = chosen.with_overrides(changes)
         warn_implausible(chosen)
-        if out is not None:
-            check_out(out, "autotune", force)
-        if header is not None:
-            require_writable_file(header)
-        result = run_autotune(chosen, spec, workers=workers, scheduler=scheduler, progress=True)
-        if out is not None:
-            from ..plots.autotune import plot_pareto
-
-            with staged_dir(out, "autotune", force) as tmp:
-                atomic_write(tmp / "scenario.toml", result.tuned_scenario().to_toml())
-                atomic_write(tmp / "autotune.json", json.dumps(result.as_dict(), indent=2, allow_nan=False) + "\n")
-                atomic_write(tmp / "pareto.csv", csv_text(result.pareto_rows()))
-                atomic_write(tmp / "runs.csv", csv_text(result.runs_rows()))
-                atomic_write(tmp / "rejected.csv", csv_text(result.rejected_rows()))
-                plot_pareto(result, tmp / "pareto.png")
-                if header is not None:
-                    result.write_c_header(header)
-        elif header is not None:
-            result.write_c_header(header)
+        result = run_autotune(
+            chosen,
+            spec,
+            out=out,
+            force=force,
+            header=header,
+            figure=plot_pareto,
+            workers=workers,
+            scheduler=scheduler,
+            progress=True,
+        )
     except ConfigError as exc:
         raise as_option(exc, _AUTOTUNE_OPTIONS) from None
-    if as_json:
-        click.echo(json.dumps(result.as_dict(), allow_nan=False))
-    else:
-        click.echo(_autotune_summary(result, scenario))
-        written = [f"{out}/" if out is not None else "", header or ""]
-        if any(written):
-            click.echo("wrote " + " and ".join(w for w in written if w))
+    click.echo(json.dumps(result.as_dict(), allow_nan=False) if as_json else summary(result, scenario, out, header))
     if not result.feasible:
         raise click.exceptions.Exit(1)
-
-
-def _autotune_summary(result: "AutotuneResult", scenario: str) -> str:
-    """The summary of an autotuning: outcome, chosen keys, worst case, how to reproduce it."""
-    from ...studies.autotune import CONSTRAINTS
-
-    data = result.as_dict()
-    lo, hi = result.spec.J_range
-    counts = data["counts"]
-    lines = [
-        f"{result.scenario.name}: {counts['candidates']} designs ({counts['rejected_by_margins']} rejected by the "
-        f"margins alone), {counts['runs']} simulations over J ratio {lo:g} to {hi:g}, in {result.wall_time_s:.3g} s",
-    ]
-    if result.scenario_loop["warning"]:
-        lines.append(f"WARNING: the scenario as given: {result.scenario_loop['warning']}")
-    if result.feasible:
-        lines.append(f"the design below meets the specification ({counts['feasible']} designs did)")
-    else:
-        lines.append("NO design meets the specification; the one below misses it least:")
-        lines += [f"  misses {v.describe()}" for v in result.chosen.violations]
-        if result.chosen.error:
-            lines.append(f"  {result.chosen.error}")
-        if result.binding is not None:
-            lines.append(f"binding constraint: {result.binding.constraint}, missed by {result.binding.miss:.4g}")
-    for key, value in result.speed_controller.items():
-        lines.append(f"  speed_controller.{key} = {value}")
-    lines.append("worst case over the inertia range (J ratio where it occurs):")
-    units = {figure: unit for figure, _sense, unit in CONSTRAINTS.values()} | {
-        "tracking_iae_rpm_s": "rpm s",
-        "load_iae_rpm_s_per_Nm": "rpm s/Nm",
-        "chatter_share": "",
-    }
-    for name, value in data["worst_case"].items():
-        shown = "inf (never settles in its window)" if value is None and name == "settling_time_s" else value
-        if isinstance(shown, float):
-            shown = f"{shown:.4g} {units[name]}".rstrip()
-        shown = "inf" if shown is None else shown
-        lines.append(f"  {name:<22} {shown}  ({data['worst_J_ratio'][name]:.4g})")
-    lines += [f"NOTE: {sentence}" for sentence in result.on_bounds]
-    sets = " ".join(f"--set speed_controller.{k}={v}" for k, v in result.speed_controller.items())
-    lines.append(f"reproduce: pmsm2dof simulate {scenario} {sets} --out DIR")
-    return "\n".join(lines)
