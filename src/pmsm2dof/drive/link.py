@@ -29,8 +29,8 @@ from .elf import Scalar, Variable, read_variables
 from .transport import link_url, pyxcp_master, use_default_application
 
 #: The variables of the firmware example that the slave exposes (examples/firmware/link.h, capture.h,
-#: commission_task.h).
-MEASUREMENTS = ("foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now")
+#: commission_task.h, identify_task.h).
+MEASUREMENTS = ("foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now", "identify_now")
 CALIBRATIONS = (
     "link_speed_config",
     "link_current_config",
@@ -39,6 +39,8 @@ CALIBRATIONS = (
     "capture_config",
     "commission_config",
     "commission_command",
+    "identify_config",
+    "identify_command",
 )
 #: The virtual board's own (board_virtual.c).
 VIRTUAL_MEASUREMENTS = ("vd_trace",)
