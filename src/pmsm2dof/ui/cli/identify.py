@@ -9,6 +9,9 @@ import click
 from ...errors import ConfigError
 
 if TYPE_CHECKING:
+    from pathlib import Path
+
+    from ...studies.electrical import Electrical
     from ...studies.identify import CurrentLoop, Mechanics
 
 from .options import Group, as_option, json_option, motor_option, out_option, parse_column
@@ -281,11 +284,8 @@ def electrical(
     """
     import json
 
-    import numpy as np
-
-    from ...outputs import atomic_write, staged_dir
     from ...sim.logs import read_log
-    from ...studies.electrical import DEAD_TIME, PARAMETERS, identify_electrical
+    from ...studies.electrical import identify_electrical
 
     options: dict[str, Any] = {
         "--voltage-delay-samples": voltage_delay_samples or None,
@@ -316,6 +316,31 @@ def electrical(
         # the library names its arguments; the user typed options
         raise as_option(exc, {name[2:].replace("-", "_"): name for name in options}) from None
     report = fit.to_json()
+    if out is not None:
+        from ...outputs import staged_dir
+
+        with staged_dir(out, "identify-electrical", force) as tmp:
+            write_electrical(tmp, fit, pole_pairs, log)
+    if as_json:
+        click.echo(json.dumps(report, indent=2, allow_nan=False))
+        return
+    echo_electrical(fit)
+    if out is not None:
+        written = "fit.png, residuals.csv, " + ("ranges.csv, " if fit.ranges else "")
+        click.echo(f"wrote {written}motor.toml and identify.json to {out}")
+
+
+def write_electrical(folder: "Path", fit: "Electrical", pole_pairs: int, source: str) -> None:
+    """What identify electrical writes into ``folder``: fit.png (measured vs model voltages), residuals.csv,
+    motor.toml (for design --motor; ``source`` names the log), identify.json and, with current ranges, ranges.csv."""
+    import json
+
+    import numpy as np
+
+    from ...outputs import atomic_write
+    from ..plots.identify import plot_electrical_fit
+
+    report = fit.to_json()
     range_names = ["i_low_A", "i_high_A", "n_windows", "Ld_H", "Ld_H_low", "Ld_H_high", "Lq_H", "Lq_H_low", "Lq_H_high"]
 
     def range_row(r: dict[str, Any]) -> list[float]:
@@ -324,24 +349,24 @@ def electrical(
             row += [math.nan, math.nan, math.nan] if r[name] is None else [r[name], *r[f"{name}_ci"]]
         return row
 
-    if out is not None:
-        from ..plots.identify import plot_electrical_fit
+    rows = fit.rows
+    names = ["t_s", "ud_V", "ud_fit_V", "uq_V", "uq_fit_V"]
+    table = np.column_stack([rows[n] for n in names])
+    body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
+    ranges = "".join(",".join(f"{v:.9g}" for v in range_row(r)) + "\n" for r in report["ranges"])
+    plot_electrical_fit(fit, folder / "fit.png")
+    atomic_write(folder / "residuals.csv", ",".join(names) + "\n" + body + "\n")
+    if fit.ranges:
+        atomic_write(folder / "ranges.csv", ",".join(range_names) + "\n" + ranges)
+    atomic_write(folder / "motor.toml", fit.motor_toml(pole_pairs, source))
+    atomic_write(folder / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
 
-        rows = fit.rows
-        names = ["t_s", "ud_V", "ud_fit_V", "uq_V", "uq_fit_V"]
-        table = np.column_stack([rows[n] for n in names])
-        body = "\n".join(",".join(f"{v:.9g}" for v in row) for row in table)
-        ranges = "".join(",".join(f"{v:.9g}" for v in range_row(r)) + "\n" for r in report["ranges"])
-        with staged_dir(out, "identify-electrical", force) as tmp:
-            plot_electrical_fit(fit, tmp / "fit.png")
-            atomic_write(tmp / "residuals.csv", ",".join(names) + "\n" + body + "\n")
-            if fit.ranges:
-                atomic_write(tmp / "ranges.csv", ",".join(range_names) + "\n" + ranges)
-            atomic_write(tmp / "motor.toml", fit.motor_toml(pole_pairs, log))
-            atomic_write(tmp / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
-    if as_json:
-        click.echo(json.dumps(report, indent=2, allow_nan=False))
-        return
+
+def echo_electrical(fit: "Electrical") -> None:
+    """Print what identify electrical found: each value with its 95 % interval, the fit, its ranges, its notes."""
+    from ...studies.electrical import DEAD_TIME, PARAMETERS
+
+    report = fit.to_json()
     units = {"Rs_ohm": "ohm", "Ld_H": "H", "Lq_H": "H", "psi_f_Wb": "Wb", DEAD_TIME: "V per phase"}
     for name in (*PARAMETERS, DEAD_TIME):
         if name in fit.ci:
@@ -371,9 +396,6 @@ def electrical(
             click.echo(f"  {span:<15} {cell(r, 'Ld_H'):<24} {cell(r, 'Lq_H'):<24} {r['n_windows']}")
     for note in fit.notes:
         click.echo(f"note: {note}")
-    if out is not None:
-        written = "fit.png, residuals.csv, " + ("ranges.csv, " if fit.ranges else "")
-        click.echo(f"wrote {written}motor.toml and identify.json to {out}")
 
 
 @identify.command(short_help="The run to play on the drive and log: speed steps for a scenario's J guess.")
