@@ -14,17 +14,15 @@ instruction, the virtual board's overrun limit.
 Usage: ``python3 benchmarks/drive_electrical.py`` (some two minutes: a build and QEMU runs).
 """
 
-import contextlib
-import io
 import json
 import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
+from drive_bench import timed
 from results_md import measured_by, write_section
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -33,7 +31,6 @@ sys.path.insert(0, str(ROOT / "src"))
 from pmsm2dof.drive.serve import serve_host, serve_qemu  # noqa: E402
 from pmsm2dof.sim.scenario import load_scenario  # noqa: E402
 from pmsm2dof.studies.firmware import build_firmware  # noqa: E402
-from pmsm2dof.ui.cli import main  # noqa: E402
 
 SECTION = "## Electrical identification on the drive (PC's virtual drive, QEMU)"
 HIDDEN = {"motor.Rs_ohm": 0.45, "motor.Ld_H": 4.5e-4, "motor.Lq_H": 6.75e-4, "motor.psi_f_Wb": 0.011,
@@ -45,17 +42,6 @@ REPEATS = 3
 #: The virtual board's core: 170 MHz at 1.5 cycles per instruction (virtual_target_mps2.c).
 INSTRUCTIONS_PER_S = 170e6 / 1.5
 SPEED_SAMPLE_BIT = 0x80000000
-
-
-def timed(argv):
-    """Wall time of ``pmsm2dof ARGV`` in this process [s] (its output kept from the terminal)."""
-    start = time.perf_counter()
-    with contextlib.redirect_stdout(io.StringIO()):
-        code = main(argv)
-    wall = time.perf_counter() - start
-    if code != 0:
-        raise SystemExit(f"pmsm2dof {' '.join(argv)} exited with {code}")
-    return wall
 
 
 def on_drive(kind, folder, tmp, n):

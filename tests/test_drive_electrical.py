@@ -23,11 +23,12 @@ import time
 import numpy as np
 import pandas as pd
 import pytest
+from test_drive_bench import CUT_TIMEOUT_MS, CUT_WAIT_S, link_args, run, serve
 from test_drive_cli import Relay
+from test_identify_electrical import TARGETS
 
 from pmsm2dof.core.bindings import ffi, lib
 from pmsm2dof.drive.link import Link
-from pmsm2dof.drive.serve import serve_host, serve_qemu
 from pmsm2dof.drive.session import read_variable
 from pmsm2dof.sim.commission import commissioning_config
 from pmsm2dof.sim.logs import read_log
@@ -38,7 +39,6 @@ from pmsm2dof.studies.drive_commission import drive_scenario
 from pmsm2dof.studies.drive_electrical import STATES, plan_electrical
 from pmsm2dof.studies.electrical import PARAMETERS, identify_electrical
 from pmsm2dof.studies.firmware import build_firmware
-from pmsm2dof.ui.cli import main
 
 pytest.importorskip("pyxcp")
 _MISSING = [t for t in ("cmake", "cc", "arm-none-eabi-gcc", "qemu-system-arm") if shutil.which(t) is None]
@@ -55,15 +55,8 @@ HIDDEN = {"motor.Rs_ohm": 0.45, "motor.Ld_H": 4.5e-4, "motor.Lq_H": 6.75e-4, "mo
           "load": [{"t_s": 0.0, "torque_Nm": 0.05}]}  # fmt: skip
 #: What the drive's controllers are told of the motor before the identification (a wrong datasheet).
 DATASHEET = {"Rs_ohm": 0.7, "Ld_H": 6e-4, "Lq_H": 7e-4, "psi_f_Wb": 0.012}
-#: The targets of identify electrical (tests/test_identify_electrical.py).
-TARGETS = {"Rs_ohm": 0.05, "Ld_H": 0.10, "Lq_H": 0.05, "psi_f_Wb": 0.02}
 #: The drive's relative error may exceed the engine's by this much (its log is windows of separate plays).
 MARGIN = 2e-3
-#: The link watchdog of the drives [ms] (the tests share two cores), and of those whose master is cut.
-TIMEOUT_MS = 1000
-CUT_TIMEOUT_MS = 200
-#: Wall time left to a drive whose link was cut before its state is read [s].
-CUT_WAIT_S = 15.0
 
 
 @pytest.fixture(scope="module")
@@ -71,24 +64,6 @@ def hidden(tmp_path_factory):
     """The hidden motor's scenario and its firmware for the PC and QEMU."""
     scenario = load_scenario("examples/firmware/small-servo-20k.toml").with_overrides(HIDDEN)
     return scenario, build_firmware(scenario, tmp_path_factory.mktemp("hidden") / "fw").folder
-
-
-def serve(kind, folder, **arguments):
-    arguments.setdefault("timeout_ms", TIMEOUT_MS)
-    if kind == "host":
-        return serve_host(folder / "virtual_drive_host", realtime=False, **arguments)
-    return serve_qemu(folder / "virtual_drive.elf", serial="tcp", **arguments)
-
-
-def link_args(kind, folder, url):
-    a2l = folder / ("virtual_drive_host.a2l" if kind == "host" else "virtual_drive.a2l")
-    return ["--link", url.replace("socket://", "tcp://"), "--a2l", str(a2l)]
-
-
-def run(argv, capsys):
-    code = main(argv)
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def engine_fit(scenario, plan, path):

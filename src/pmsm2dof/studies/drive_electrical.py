@@ -201,15 +201,18 @@ def capture_electrical(
     Raises
     ------
     ConfigError
-        The drive has no identification routine, or the plan needs more than :data:`WINDOWS_MAX` windows.
+        The plan needs more than :data:`WINDOWS_MAX` windows.
     ToolError
-        The drive is busy, refused the plan, the link dropped (its watchdog then ends the routine: power
-        off), or a play did not end in time.
+        The drive has no identification routine or capture buffer, is busy, refused the plan, the link
+        dropped (its watchdog then ends the routine: power off), or a play did not end in time.
     SimulationError
         A play did not end done (a trip of the routine, its watchdog).
     """
-    if "identify_now" not in link.variables:
-        raise ConfigError("a2l", str(link.url), "a drive whose firmware has the identification (identify_now)")
+    if "identify_now" not in link.variables or "capture_buffer" not in link.variables:
+        raise ToolError(
+            f"the drive at {link.url} has no electrical identification or no capture buffer (its A2L file lacks "
+            "identify_now or capture_buffer): a firmware of examples/firmware of this version has both"
+        )
     W = window_samples(link)
     nominal = int(math.ceil(plan.nominal_s / plan.Ts_s / W))
     if nominal > WINDOWS_MAX:

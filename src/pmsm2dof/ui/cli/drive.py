@@ -60,7 +60,7 @@ def drive() -> None:
     """Talk to a drive (the firmware of examples/firmware, on an MCU, on QEMU or the PC's virtual drive) over
     XCP, by the names of its A2L file: read and write its variables, capture signals by DAQ, play a
     scenario on it beside the engine's simulation, serve the PC's virtual drive of a scenario, commission
-    its motor or identify its mechanics.
+    its motor or identify its mechanics or its motor's electrical values.
     """
 
 
