@@ -64,9 +64,9 @@ static bool plan_valid(const identify_config_t *c)
 int32_t identify_commit(uint16_t index, const void *page, bool busy)
 {
     if (index == 0u) {
-        /* the plan does not change while it runs */
-        if (identify_running() || !plan_valid((const identify_config_t *)page)) return IDENTIFY_REJECT;
-        return 0;
+        /* the plan does not change while it runs; it is written in parts (one DOWNLOAD each, 6 bytes on CAN) and
+           checked whole when the start comes */
+        return identify_running() ? IDENTIFY_REJECT : 0;
     }
     if (index == 1u) {
         uint32_t command = ((const identify_command_t *)page)->command;

@@ -5,7 +5,8 @@
  *
  * The master writes the plan (identify_config, a calibration variable: the
  * steps' dq current references, their longest times and speed bounds, the
- * trips), then identify_command.command = 1. At the next speed sample, with
+ * trips; in as many DOWNLOADs as it takes), then identify_command.command = 1,
+ * refused unless the plan is valid whole. At the next speed sample, with
  * no run nor commissioning under way, the routine starts at step 0 with the
  * power stage on: every control interrupt measures the phase currents at the
  * rotor's angle (the position sensor), runs a current controller of the
@@ -62,7 +63,7 @@ enum {
 /* Why a plan failed (identify_status_t.reason). */
 enum { IDENTIFY_REASON_NONE = 0, IDENTIFY_REASON_CURRENT = 1, IDENTIFY_REASON_SPEED = 2 };
 
-/* The plan (calibration): checked whole when committed, taken at the start. */
+/* The plan (calibration): written in parts between plays, checked whole by the start command, taken at the start. */
 typedef struct {
     uint32_t n;                            /* steps in use [-], 1..16 */
     float i_trip_A;                        /* |i_dq| that ends the routine [A], > 0 */
@@ -104,7 +105,8 @@ uint16_t identify_link_segments(p2d_xcp_segment_t *segments, uint16_t capacity);
 /*
  * Validate and take the master's page of the task's segment index (0 plan, 1 command), at a speed
  * sample; busy: a run or the commissioning is under way. Returns 0 when taken, else IDENTIFY_REJECT
- * (a plan out of range, a plan changed while it runs, an unknown command, a start while busy or running).
+ * (a plan changed while it runs, an unknown command, a start while busy or running or with a plan out
+ * of its ranges).
  */
 int32_t identify_commit(uint16_t index, const void *page, bool busy);
 
