@@ -15,6 +15,7 @@ accuracy the fit reaches with this plan. The drive must reach it (within a margi
 the plays' seams leave out GAP_SAMPLES periods each) and the targets of ``identify electrical``.
 """
 
+import dataclasses
 import json
 import shutil
 import socket
@@ -33,6 +34,7 @@ from pmsm2dof.drive.session import read_variable
 from pmsm2dof.sim.commission import commissioning_config
 from pmsm2dof.sim.logs import read_log
 from pmsm2dof.sim.scenario import load_scenario
+from pmsm2dof.studies import drive_electrical
 from pmsm2dof.studies.configuration import configuration
 from pmsm2dof.studies.drive_commission import STATES as COMMISSION_STATES
 from pmsm2dof.studies.drive_commission import drive_scenario
@@ -217,3 +219,26 @@ def test_only_the_master_of_a_routine_feeds_its_watchdog(hidden, routine):
     # the trip came the timeout after the first master's last read (and the drive's run-on until the cut reached
     # it: a few hundred periods), far from the routine's end (5 s; the commissioning's 3 s)
     assert CUT_TIMEOUT_MS * 1e-3 / Ts <= now["sample"] - last["sample"] <= CUT_TIMEOUT_MS * 1e-3 / Ts + 4000, now
+
+
+def test_a_trip_of_the_routine_is_reported_in_one_line_nothing_written(hidden, tmp_path, capsys, monkeypatch):
+    """A plan whose speed trip lies below its top speed: the routine ends failed at the trip, power off; the command
+    says so in one line naming the reason, exit status 2, no output folder."""
+    planned = drive_electrical.plan_electrical
+
+    def tripping(drive, speed_max_rpm=None):
+        plan = planned(drive, speed_max_rpm)
+        return dataclasses.replace(plan, w_trip_radps=0.5 * plan.w_high_radps)
+
+    monkeypatch.setattr(drive_electrical, "plan_electrical", tripping)
+    scenario, folder = hidden
+    with serve("host", folder) as url:
+        link = link_args("host", folder, url)
+        code, text, err = run(["drive", "identify", "--electrical", "--out", str(tmp_path / "e"), *link], capsys)
+        with Link(url, link[3]) as session:
+            now = read_variable(session, "identify_now")
+            status = session.status()
+    assert code == 2 and len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert "ended failed (the speed exceeded w_trip_radps)" in err and "power stage is off" in err, err
+    assert not (tmp_path / "e").exists()
+    assert STATES[now["state"]] == "failed" and now["reason"] == 2 and status["power_on"] == 0

@@ -402,6 +402,7 @@ class Link:
         trigger_signal: str | None = None,
         pre_samples: int = 0,
         armed: Callable[["Link"], None] | None = None,
+        during: Callable[["Link"], None] | None = None,
         timeout_s: float = 60.0,
     ) -> Capture:
         """Capture signals into the drive's buffer (examples/firmware/capture.h) and read them out by UPLOAD.
@@ -409,7 +410,8 @@ class Link:
         ``samples`` records at the event, ``pre_samples`` of them before the trigger's: ``immediate``,
         ``rising``/``falling`` (``trigger_signal``, a float32 of ``names``, crossing ``level``) or ``run``
         (a run's first control interrupt). ``armed(link)`` is called once the drive holds the
-        pre-trigger records (to start the run a ``run`` trigger waits for, say). The status is polled
+        pre-trigger records (to start the run a ``run`` trigger waits for, say); ``during(link)`` at every
+        poll after it (it may raise: a trigger that will not come, say). The status is polled
         until the capture is done (which keeps the watchdog fed). Timestamps: the drive's clock [ns].
         Raises ConfigError for a capture the buffer cannot hold, ToolError when it does not end in
         ``timeout_s``.
@@ -458,6 +460,8 @@ class Link:
                 assert armed is not None
                 armed(self)
                 told = True
+            elif told and during is not None:
+                during(self)
             if time.monotonic() > end:
                 state = ("idle", "armed: no trigger came", "triggered", "done")[min(st["state"], 3)]
                 raise ToolError(f"the drive's capture did not end within {timeout_s:g} s ({state})")

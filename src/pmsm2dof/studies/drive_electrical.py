@@ -232,16 +232,29 @@ def capture_electrical(
         for j in range(windows):
             before = read_variable(link, "identify_now")
 
+            play = int(before["starts"]) + 1
+
             def start(link: Link) -> None:
                 link.write({"identify_command.command": 1})
 
+            def before_the_window(link: Link, first: int = j * W + 1, play: int = play) -> None:
+                # a play that ended before the window's first sample: a trip (raised), or done (the plan was
+                # shorter than the last play's): its trigger will not come
+                now = read_variable(link, "identify_now")
+                if now["starts"] == play and STATES[now["state"]] != "running" and _ended(now)["sample"] < first:
+                    raise _EndedBeforeWindow
+
             # the window of samples j W + 1 .. (j + 1) W: the trigger is t_s crossing from j W to j W + 1
             level = (j * W + 0.5) * plan.Ts_s
-            cap = link.capture_buffered(
-                names, event="current", samples=W, trigger="rising", level=level,
-                trigger_signal="identify_now.t_s", armed=start, timeout_s=timeout,
-            )  # fmt: skip
-            end = _wait_end(link, int(before["starts"]) + 1, timeout)
+            try:
+                cap = link.capture_buffered(
+                    names, event="current", samples=W, trigger="rising", level=level,
+                    trigger_signal="identify_now.t_s", armed=start, during=before_the_window, timeout_s=timeout,
+                )  # fmt: skip
+            except _EndedBeforeWindow:
+                link.write({"capture_config.command": 2})
+                break
+            end = _wait_end(link, play, timeout)
             t = cap.signals["identify_now.t_s"].astype(np.float64)
             k = np.rint(t / plan.Ts_s)
             # the records of the plan (a plan shorter than the window ends inside it; the buffer holds idle periods)
@@ -266,6 +279,10 @@ def capture_electrical(
     return len(data)
 
 
+class _EndedBeforeWindow(Exception):
+    """A play of the plan ended done before the window's first sample (it was shorter than the last one)."""
+
+
 def _first_repeat(k: np.ndarray) -> int:
     """The index of the first record that does not follow its predecessor by one period (the plan ended)."""
     breaks = np.flatnonzero(np.diff(k) != 1)
@@ -282,6 +299,11 @@ def _wait_end(link: Link, start: int, timeout_s: float) -> dict[str, Any]:
         if time.monotonic() > end:
             raise ToolError(f"the identification's current steps did not end within {timeout_s:g} s of the wall clock")
         time.sleep(0.01)
+    return _ended(now)
+
+
+def _ended(now: dict[str, Any]) -> dict[str, Any]:
+    """identify_now of a play that ended; SimulationError unless it ended done."""
     state = STATES[now["state"]]
     if state != "done":
         why = {
