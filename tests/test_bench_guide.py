@@ -102,6 +102,10 @@ def test_the_chain_of_the_guide_runs_as_written(tmp_path):
     assert commissioned["phase"] == "done"
     for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb"):
         assert commissioned["estimates"][key] == pytest.approx(getattr(hidden, key), rel=0.02), key
+    # 1. the electrically identified motor: the hidden one's values too
+    electrical = json.loads((repo / "electrical" / "identify.json").read_text())
+    for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb"):
+        assert electrical[key] == pytest.approx(getattr(hidden, key), rel=0.02), key
     # 2. the identified J: the hidden one within 2 %, far from the datasheet's
     found = json.loads((repo / "identified" / "identify.json").read_text())
     assert found["J_kgm2"] == pytest.approx(hidden.J_kgm2, rel=0.02)
@@ -179,8 +183,9 @@ def test_the_chain_on_qemu(tmp_path, monkeypatch, capsys):
     from pmsm2dof.ui.cli import main
 
     commands = guide_commands(shell_blocks(GUIDE.read_text())[-1])
-    assert [c[:2] for c in commands] == [["drive", "commission"], ["drive", "identify"], ["autotune",
-            "identified/identified.toml"], ["drive", "set"], ["drive", "run"]]  # fmt: skip
+    assert [c[:3] for c in commands] == [["drive", "commission", "--out"], ["drive", "identify", "--electrical"],
+            ["drive", "identify", "--motor"], ["autotune", "identified/identified.toml", "--J-range"],
+            ["drive", "set", "--scenario"], ["drive", "run", "tuned/scenario.toml"]]  # fmt: skip
     hidden = load_scenario(str(ROOT / "examples" / "bench" / "drive.toml"))
     folder = build_firmware(hidden, tmp_path / "fw").folder
     monkeypatch.chdir(tmp_path)
@@ -198,6 +203,9 @@ def test_the_chain_on_qemu(tmp_path, monkeypatch, capsys):
     print("\n" + "\n".join(walls))
     found = json.loads((tmp_path / "identified" / "identify.json").read_text())
     assert found["J_kgm2"] == pytest.approx(hidden.motor.J_kgm2, rel=0.02)
+    electrical = json.loads((tmp_path / "electrical" / "identify.json").read_text())
+    for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb"):
+        assert electrical[key] == pytest.approx(getattr(hidden.motor, key), rel=0.02), key
     verdict = json.loads((tmp_path / "verified" / "metrics.json").read_text())["spec"]
     assert verdict["met"] is True, verdict
     print(f"  J {found['J_kgm2']:.6g}; the drive's figures {verdict['figures']}")

@@ -28,9 +28,9 @@ BUILDS = [
     ("virtual_drive_host", "virtual_drive_host.a2l", "nm", True, False),
 ]
 #: The firmware's variables of each kind (examples/firmware/link.h, capture.h, commission_task.h, board_virtual.c).
-MEASUREMENTS = ["foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now"]
+MEASUREMENTS = ["foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now", "identify_now"]
 CALIBRATIONS = ["link_speed_config", "link_current_config", "link_command", "link_reference", "capture_config",
-                "commission_config", "commission_command"]  # fmt: skip
+                "commission_config", "commission_command", "identify_config", "identify_command"]  # fmt: skip
 #: Struct type of the library's calibration variables.
 LIBRARY = {"link_speed_config": "p2d_speed_config_t", "link_current_config": "p2d_current_config_t"}
 

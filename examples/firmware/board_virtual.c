@@ -45,7 +45,8 @@
  * master plays the reference (link_reference) and the load (vd_load, the
  * board's calibration variable, initialised from the scenario) and captures
  * the trace row of each speed period (vd_trace, a measurement variable: the
- * row of period k is complete at speed sample k + 1). No trace file; the
+ * row of period k is complete at speed sample k + 1); between runs, while the
+ * master's routines turn the motor, the load is off. No trace file; the
  * costs only with cost=1. The virtual motor waits for the link: a period is
  * skipped while DAQ packets fill half the queue. Arguments: timeout_ms=N (the
  * link watchdog, default 200), ramp_radps_per_s=N and hold_ms=N (its guard).
@@ -148,11 +149,15 @@ static uint32_t reading_instructions;             /* instructions the measuremen
 static uint32_t costs[VB_COSTS_BUFFERED];         /* interrupt costs not written yet */
 static uint32_t n_costs;                          /* costs in costs[] [-] */
 
-/* The load schedule in force (its entries counted in vd_load). */
+/*
+ * The load schedule in force (its entries counted in vd_load) during a run of the link; none between runs: the
+ * routines the master starts there (commissioning, electrical identification) turn the motor uncoupled, as a
+ * drive's motor is commissioned.
+ */
 static schedule_t load_schedule(void)
 {
     schedule_t l = load;
-    l.n = vd_load.n;
+    l.n = link_status()->state == LINK_RUNNING ? vd_load.n : 0u;
     return l;
 }
 
@@ -555,6 +560,7 @@ bool board_link_commit(uint16_t index, const void *page, bool running)
 
 bool board_run_valid(void)
 {
-    const schedule_t l = load_schedule();
+    schedule_t l = load;
+    l.n = vd_load.n;
     return schedule_valid(&l);
 }

@@ -15,11 +15,13 @@
  *
  * Safety. The routine itself ends in FAILED with a zero voltage when the
  * current exceeds i_trip_A; DONE and FAILED switch the power stage off. The
- * link watchdog (link.h) applies as during a run: a master silent for longer
- * than the link timeout ends the routine at once, zero voltage and the power
- * stage off (TRIPPED: the rotor, at most at the flux test's speed, coasts).
+ * link watchdog (link.h) applies as during a run: the master that started the
+ * routine silent (or gone) for longer than the link timeout ends it at once,
+ * whoever else talks, zero voltage and the power stage off (TRIPPED: the
+ * rotor, at most at the flux test's speed, coasts).
  * commission_command.command = 2 aborts it the same way (ABORTED). A start is
- * refused while a run is under way, and a run while the routine runs.
+ * refused while a run or the electrical identification (identify_task.h) is
+ * under way, and they while the routine runs.
  */
 #ifndef COMMISSION_TASK_H
 #define COMMISSION_TASK_H

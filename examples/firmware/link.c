@@ -12,9 +12,10 @@
 #include "capture.h"
 #include "commission_task.h"
 #include "foc.h"
+#include "identify_task.h"
 #include "schedule.h"
 
-#define LINK_SEGMENTS_MAX 16u  /* the link's six, the capture's three, the commissioning's and the board's */
+#define LINK_SEGMENTS_MAX 18u  /* the link's six, the capture's three, the two routines' and the board's */
 #define LINK_MAX_CTO 255u      /* longest command or response [bytes] */
 #define LINK_MAX_DTO 255u      /* longest DAQ packet [bytes] */
 #define LINK_DAQ_BYTES 1536u   /* DAQ lists, ODTs and entries [bytes] */
@@ -35,7 +36,8 @@ enum {
     SEG_CAPTURE_STATUS,
     SEG_CAPTURE_BUFFER,
     SEG_COMMISSION,
-    SEG_BOARD = SEG_COMMISSION + COMMISSION_SEGMENTS
+    SEG_IDENTIFY = SEG_COMMISSION + COMMISSION_SEGMENTS,
+    SEG_BOARD = SEG_IDENTIFY + IDENTIFY_SEGMENTS
 };
 
 link_status_t link_status_now;            /* the link's report (measurement) */
@@ -59,7 +61,7 @@ static double Ts_speed_s;                                     /* speed period [s
 static uint32_t run_samples;                                  /* speed samples of the run [-] */
 static uint32_t start_request; /* samples of a run to start at the next speed sample, 0: none */
 static bool stop_request;      /* stop the run at the next speed sample */
-static uint32_t run_master;    /* the slave's CONNECT count of the master that started the run, 0: none */
+static uint32_t run_master;    /* the slave's CONNECT count of the master that started the run or routine, 0: none */
 static uint32_t master_heard;  /* link clock at that master's last command [ticks] */
 
 const link_status_t *link_status(void) { return &link_status_now; }
@@ -125,6 +127,13 @@ static bool capture_commit(const capture_config_t *c)
     return true;
 }
 
+/* A routine starts (commissioning, identification): the master that started it feeds its watchdog (master_silent). */
+static void routine_master(void)
+{
+    run_master = xcp.connected ? xcp.connects : 0u;
+    master_heard = xcp.last_command_ticks;
+}
+
 /* The commit callback: validate and apply the page of a calibration segment (0: applied). */
 static int32_t link_commit(void *user, uint16_t index, const void *page)
 {
@@ -141,7 +150,7 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
             code = LINK_REJECT_COMMAND;
         } else if (c->command == 1u && !reference_schedule(&link_reference, &s)) {
             code = LINK_REJECT_SCHEDULE;
-        } else if (c->command == 1u && (!board_run_valid() || commission_running())) {
+        } else if (c->command == 1u && (!board_run_valid() || commission_running() || identify_running())) {
             code = LINK_REJECT_BOARD;
         } else {
             start_request = c->command == 1u ? c->samples : 0u;
@@ -157,7 +166,19 @@ static int32_t link_commit(void *user, uint16_t index, const void *page)
         if (running || ((const link_reference_t *)page)->n > LINK_SCHEDULE_MAX) code = LINK_REJECT_SCHEDULE;
         break;
     case SEG_COMMISSION:
-    case SEG_COMMISSION + 1: code = commission_commit((uint16_t)(index - SEG_COMMISSION), page, running); break;
+    case SEG_COMMISSION + 1:
+        code = commission_commit((uint16_t)(index - SEG_COMMISSION), page, running || identify_running());
+        if (code == 0 && index == SEG_COMMISSION + 1 && ((const commission_command_t *)page)->command == 1u) {
+            routine_master();
+        }
+        break;
+    case SEG_IDENTIFY:
+    case SEG_IDENTIFY + 1:
+        code = identify_commit((uint16_t)(index - SEG_IDENTIFY), page, running || commission_running());
+        if (code == 0 && index == SEG_IDENTIFY + 1 && ((const identify_command_t *)page)->command == 1u) {
+            routine_master();
+        }
+        break;
     default: code = board_link_commit((uint16_t)(index - SEG_BOARD), page, running) ? 0 : LINK_REJECT_BOARD; break;
     }
     if (code == 0) {
@@ -235,6 +256,8 @@ link_init_status_t link_init(const link_config_t *cfg)
                                                        sizeof capture_buffer, P2D_XCP_MEASUREMENT};
     commission_init((float)cfg->Ts_current_s);
     n = (uint16_t)(n + commission_link_segments(&segments[SEG_COMMISSION], COMMISSION_SEGMENTS));
+    identify_init((float)cfg->Ts_current_s);
+    n = (uint16_t)(n + identify_link_segments(&segments[SEG_IDENTIFY], IDENTIFY_SEGMENTS));
     n = (uint16_t)(n + board_link_segments(&segments[SEG_BOARD], (uint16_t)(LINK_SEGMENTS_MAX - SEG_BOARD)));
 
     xcp_cycle(Ts_ns, &events[0].cycle, &unit);
@@ -311,9 +334,9 @@ static void start_run(uint32_t samples)
 }
 
 /*
- * The run's master is silent: the slave's watchdog, or the master that started the run gone (it disconnected, or
- * another CONNECT came: a new master, or the same after a cut) for longer than the link timeout since its last
- * command. Only that master feeds the guard; a run started at power-up (no master) is fed by any.
+ * The master of the run (or routine) is silent: the slave's watchdog, or the master that started it gone (it
+ * disconnected, or another CONNECT came: a new master, or the same after a cut) for longer than the link timeout
+ * since its last command. Only that master feeds the guard; a run started at power-up (no master) is fed by any.
  */
 static bool master_silent(void)
 {
@@ -378,8 +401,10 @@ void link_isr(void)
     if (s->state == LINK_RUNNING) {
         foc_isr();
     } else {
-        /* between runs: the commissioning routine when the master started it, the link watchdog over it */
-        power(commission_isr(commission_running() && p2d_xcp_link_check(&xcp)));
+        /* between runs: the routine the master started (one at a time), the watchdog of its master over it */
+        bool silent = (commission_running() || identify_running()) && master_silent();
+        bool on = commission_isr(silent && commission_running());
+        power(identify_isr(silent && identify_running()) || on);
     }
     tick = tick + 1u == current_per_speed ? 0u : tick + 1u;
     s->dtos_lost = xcp.dtos_lost;

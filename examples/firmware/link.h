@@ -21,6 +21,9 @@
  *   commissioning commission_config, commission_command (calibration) and
  *                commission_now (measurement): the commissioning routine run
  *                between runs (commission_task.h; code 1004: its page refused)
+ *   identification identify_config, identify_command (calibration) and
+ *                identify_now (measurement): the electrical identification's
+ *                current steps run between runs (identify_task.h; code 1006)
  * Events: 0 "current" (every control interrupt), 1 "speed" (every speed sample),
  * sampled at the end of the interrupt, after the control.
  *
@@ -74,7 +77,7 @@ enum { LINK_IDLE = 0, LINK_RUNNING = 1, LINK_DONE = 2, LINK_TRIPPED = 3, LINK_ST
 enum {
     LINK_REJECT_COMMAND = 1001,  /* link_command: an unknown command or samples 0 */
     LINK_REJECT_SCHEDULE = 1002, /* a schedule is invalid, or changed during a run */
-    LINK_REJECT_BOARD = 1003,    /* the board refused its page or the run's start, or the commissioning runs */
+    LINK_REJECT_BOARD = 1003,    /* the board refused its page or the run's start, or a routine runs */
     LINK_REJECT_CAPTURE = 1005   /* capture_config: invalid, or a signal outside the readable segments */
 };
 
@@ -95,7 +98,7 @@ typedef struct {
     uint32_t commit_sample;    /* the speed sample at which it took effect, before the control [-] */
     uint32_t commits_applied;  /* calibration pages taken into force [-] */
     uint32_t commits_rejected; /* calibration pages rejected [-] */
-    int32_t commit_status;     /* code of the last rejection: the controller's p2d_status_t, or 1001..1005 [-] */
+    int32_t commit_status;     /* code of the last rejection: the controller's p2d_status_t, or 1001..1006 [-] */
     uint32_t dtos_lost;        /* DAQ samples dropped for want of room in the DTO queue [-] */
 } link_status_t;
 

@@ -29,8 +29,8 @@ from .elf import Scalar, Variable, read_variables
 from .transport import link_url, pyxcp_master, use_default_application
 
 #: The variables of the firmware example that the slave exposes (examples/firmware/link.h, capture.h,
-#: commission_task.h).
-MEASUREMENTS = ("foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now")
+#: commission_task.h, identify_task.h).
+MEASUREMENTS = ("foc_now", "link_status_now", "capture_status_now", "capture_buffer", "commission_now", "identify_now")
 CALIBRATIONS = (
     "link_speed_config",
     "link_current_config",
@@ -39,6 +39,8 @@ CALIBRATIONS = (
     "capture_config",
     "commission_config",
     "commission_command",
+    "identify_config",
+    "identify_command",
 )
 #: The virtual board's own (board_virtual.c).
 VIRTUAL_MEASUREMENTS = ("vd_trace",)
@@ -400,8 +402,8 @@ class Link:
         trigger_signal: str | None = None,
         pre_samples: int = 0,
         armed: Callable[["Link"], None] | None = None,
-        timeout_s: float = 60.0,
         during: Callable[["Link"], None] | None = None,
+        timeout_s: float = 60.0,
     ) -> Capture:
         """Capture signals into the drive's buffer (examples/firmware/capture.h) and read them out by UPLOAD.
 
@@ -409,8 +411,8 @@ class Link:
         ``rising``/``falling`` (``trigger_signal``, a float32 of ``names``, crossing ``level``) or ``run``
         (a run's first control interrupt). ``armed(link)`` is called once the drive holds the
         pre-trigger records (to start the run a ``run`` trigger waits for, say); ``during(link)`` at every
-        poll after it. The status is polled until the capture is done (which keeps the watchdog fed).
-        Timestamps: the drive's clock [ns].
+        poll after it (it may raise: a trigger that will not come, say). The status is polled
+        until the capture is done (which keeps the watchdog fed). Timestamps: the drive's clock [ns].
         Raises ConfigError for a capture the buffer cannot hold, ToolError when it does not end in
         ``timeout_s``.
         """

@@ -252,18 +252,26 @@ def electrical_from_log(
         u_dc_V=u_dc_V,
         current_ranges=current_ranges,
     )
-    report = fit.to_json()
     if out is not None:
-        table = np.column_stack([fit.rows[n] for n in RESIDUAL_COLUMNS])
-        ranges = "".join(",".join(f"{v:.9g}" for v in _range_row(r)) + "\n" for r in report["ranges"])
         with staged_dir(out, "identify-electrical", force) as tmp:
-            figure(fit, tmp / "fit.png")
-            atomic_write(tmp / "residuals.csv", ",".join(RESIDUAL_COLUMNS) + "\n" + _csv_body(table) + "\n")
-            if fit.ranges:
-                atomic_write(tmp / "ranges.csv", ",".join(RANGE_COLUMNS) + "\n" + ranges)
-            atomic_write(tmp / "motor.toml", fit.motor_toml(pole_pairs, log))
-            atomic_write(tmp / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
-    return ElectricalReport(fit, report, out)
+            write_electrical(tmp, fit, pole_pairs, log, figure)
+    return ElectricalReport(fit, fit.to_json(), out)
+
+
+def write_electrical(
+    folder: Path, fit: Electrical, pole_pairs: int, source: str, figure: Callable[[Electrical, Path], object]
+) -> None:
+    """Write what identify electrical found into ``folder``: fit.png (drawn by ``figure``), residuals.csv,
+    ranges.csv (with current ranges), motor.toml (``source`` names where the data came from), identify.json."""
+    report = fit.to_json()
+    table = np.column_stack([fit.rows[n] for n in RESIDUAL_COLUMNS])
+    ranges = "".join(",".join(f"{v:.9g}" for v in _range_row(r)) + "\n" for r in report["ranges"])
+    figure(fit, folder / "fit.png")
+    atomic_write(folder / "residuals.csv", ",".join(RESIDUAL_COLUMNS) + "\n" + _csv_body(table) + "\n")
+    if fit.ranges:
+        atomic_write(folder / "ranges.csv", ",".join(RANGE_COLUMNS) + "\n" + ranges)
+    atomic_write(folder / "motor.toml", fit.motor_toml(pole_pairs, source))
+    atomic_write(folder / "identify.json", json.dumps(report, indent=2, allow_nan=False) + "\n")
 
 
 def _range_row(r: Mapping[str, Any]) -> list[float]:

@@ -4,6 +4,7 @@ Each command parses its options and calls one function of :mod:`pmsm2dof.drive.s
 :mod:`pmsm2dof.studies.drive`; the link is one option, ``--link URL`` (:func:`link_option`).
 """
 
+import math
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -59,7 +60,7 @@ def drive() -> None:
     """Talk to a drive (the firmware of examples/firmware, on an MCU, on QEMU or the PC's virtual drive) over
     XCP, by the names of its A2L file: read and write its variables, capture signals by DAQ, play a
     scenario on it beside the engine's simulation, serve the PC's virtual drive of a scenario, commission
-    its motor or identify its mechanics.
+    its motor or identify its mechanics or its motor's electrical values.
     """
 
 
@@ -378,26 +379,44 @@ def _commission_table(result: Any, configured: "MotorTable") -> str:
 
 
 @drive.command()
+@click.option("--electrical", is_flag=True,
+              help="identify Rs, Ld, Lq and psi_f from current steps captured at the current period, in place of "
+                   "the mechanics")  # fmt: skip
 @click.option("--speed-max-rpm", type=float, default=None,
               help="largest speed of the plan [rpm] (default: where the voltage at the current limit reaches "
-                   "0.9 u_dc / sqrt(3))")  # fmt: skip
+                   "0.9 u_dc / sqrt(3); --electrical: half the speed where it does at half the current "
+                   "limit)")  # fmt: skip
 @click.option("--motor", "motor_file", type=click.Path(dir_okay=False), default=None,
               help="the motor's data for the torque from the currents (the motor.toml of drive commission); "
-                   "default: the drive's configuration")  # fmt: skip
+                   "default: the drive's configuration (not with --electrical)")  # fmt: skip
 @out_option("the folder for capture.csv, plan.toml and what identify mechanics writes (fit.png, rows.csv, "
-            "identified.toml, identify.json)", type=click.Path(file_okay=False), required=True)  # fmt: skip
+            "identified.toml, identify.json); --electrical: capture.csv, plan.json and what identify electrical "
+            "writes (fit.png, residuals.csv, motor.toml, identify.json)",
+            type=click.Path(file_okay=False), required=True)  # fmt: skip
 @link_option
-def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, force: bool, url: str, a2l: str,
-             allow_remote: bool) -> None:  # fmt: skip
-    """Play the identification plan on the drive, capture it, and identify the inertia J and the friction.
+def identify(electrical: bool, speed_max_rpm: float | None, motor_file: str | None, out: str, force: bool, url: str,
+             a2l: str, allow_remote: bool) -> None:  # fmt: skip
+    """Play the identification plan on the drive, capture it, and identify the inertia J and the friction, or
+    with --electrical the motor's Rs, Ld, Lq and psi_f.
 
     The plan (pmsm2dof identify plan: speed steps at the current limit, both directions) is made for the
     drive's own configuration: its current limit, DC link and the inertia its speed controller is designed
     for. The speed reading and the dq currents are captured at every speed sample (OUT/capture.csv) and
     fitted as `pmsm2dof identify mechanics capture.csv --motor MOTOR` would; OUT/identified.toml is the
-    drive's configuration with the values found (its speed controller designed for the J found). A link
-    that drops leaves the drive's watchdog to stop it (exit status 2).
+    drive's configuration with the values found (its speed controller designed for the J found).
+
+    --electrical: the drive's identification routine plays dq current steps (d-axis steps at standstill,
+    q-axis steps between two speeds), made for its current limit and DC link; the dq currents, voltages
+    and the speed are captured at every current period in the drive's capture buffer, one window a play
+    (OUT/capture.csv), and fitted as `pmsm2dof identify electrical capture.csv --u-dc-V U_DC` would, with
+    its outputs (motor.toml: the motor found). A link that drops leaves the drive's watchdog to stop the
+    motor, power stage off (exit status 2).
     """
+    if electrical:
+        if motor_file is not None:
+            raise ConfigError("--motor", motor_file, "not given with --electrical (the fit needs no motor data)")
+        _identify_electrical(speed_max_rpm, out, force, url, a2l, allow_remote)
+        return
     from ...core.motor import load_motor
     from ...outputs import atomic_write, check_out, staged_dir
     from ...sim.logs import read_log
@@ -439,3 +458,40 @@ def identify(speed_max_rpm: float | None, motor_file: str | None, out: str, forc
     for line in MechanicsReport(mech, None, None, report, None).lines():
         click.echo(line)
     click.echo(f"wrote capture.csv, plan.toml, fit.png, rows.csv, identified.toml and identify.json to {out}")
+
+
+def _identify_electrical(speed_max_rpm: float | None, out: str, force: bool, url: str, a2l: str,
+                         allow_remote: bool) -> None:  # fmt: skip
+    """drive identify --electrical: the plan played and captured, the fit and the outputs of identify electrical."""
+    import json
+
+    from ...outputs import atomic_write, check_out, staged_dir
+    from ...studies.drive_electrical import identify_on_drive
+    from ...studies.identify_log import ElectricalReport, write_electrical
+    from ..plots.identify import plot_electrical_fit
+
+    check_out(out, "drive-identify-electrical", force)
+
+    def progress(window: int, t_s: float) -> None:
+        click.echo(f"  window {window:3d}: {t_s:8.4f} s of the plan captured")
+
+    with staged_dir(out, "drive-identify-electrical", force) as tmp:
+        with _open(url, a2l, allow_remote) as link:
+            click.echo(f"identifying the motor of the drive at {link.url}")
+            t_start = time.perf_counter()
+            try:
+                plan, fit, drive = identify_on_drive(link, tmp / "capture.csv", speed_max_rpm=speed_max_rpm,
+                                                     progress=progress)  # fmt: skip
+            except ConfigError as exc:
+                raise as_option(exc, {"speed_max_rpm": "--speed-max-rpm"}) from None
+            wall_s = time.perf_counter() - t_start
+        click.echo(f"plan: current steps of {plan.i_A:.4g} A, d axis at standstill, q axis up to "
+                   f"{plan.w_high_radps * 30 / math.pi:.5g} rpm; {fit.n_samples} current periods "
+                   f"captured in {wall_s:.3g} s")  # fmt: skip
+        atomic_write(tmp / "plan.json", json.dumps(plan.to_json(), indent=2) + "\n")
+        source = f"the capture of the drive at {url} (drive identify --electrical)"
+        write_electrical(tmp, fit, drive.motor.pole_pairs, source, plot_electrical_fit)
+    for line in ElectricalReport(fit, fit.to_json(), None).lines():
+        click.echo(line)
+    written = "capture.csv, plan.json, fit.png, residuals.csv, " + ("ranges.csv, " if fit.ranges else "")
+    click.echo(f"wrote {written}motor.toml and identify.json to {out}")
