@@ -113,7 +113,7 @@ def check_link(link: str, a2l: Path | str | None = None, allow_remote: bool = Fa
         return
     link_url(link, allow_remote)
     if a2l is None:
-        raise ConfigError("a2l", None, f"the A2L file of the drive at {link} (its firmware's build writes it)")
+        raise ConfigError("a2l", "<missing>", f"the A2L file of the drive at {link} (its firmware's build writes it)")
 
 
 def check_paper_drive(link: Link, base: Scenario) -> None:
