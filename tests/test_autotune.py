@@ -29,7 +29,8 @@ from pmsm2dof.studies.autotune import (
     run_figures,
     step_figures,
 )
-from pmsm2dof.studies.autotune_search import KA_KP_RANGE, ZETA_RANGE, _Search, bounds_reached
+from pmsm2dof.studies.autotune_search import _Search, bounds_reached
+from pmsm2dof.studies.autotune_space import KA_KP_RANGE, ZETA_RANGE
 from pmsm2dof.ui.cli import main
 
 #: A small servo: 0.6 Nm at the 10 A limit, J = 1e-4 kg m^2; 2000 rpm, 0.3 Nm load, 1000 rpm.
@@ -403,7 +404,7 @@ def test_on_a_dask_cluster_the_search_chooses_what_it_chooses_on_threads():
 
 @pytest.mark.slow
 def test_the_forms_of_eq_11_and_clamping_stay_within_the_bound_of_the_work():
-    from pmsm2dof.studies.autotune_search import runs_bound
+    from pmsm2dof.studies.autotune_space import runs_bound
 
     spec = Spec(max_overshoot_pct=5.0, J_range=(0.8, 1.25), feedforwards=("no_tau", "full"), anti_windups=("clamping",))
     result = autotune(servo(), spec, workers=2)

@@ -251,7 +251,7 @@ class Evaluation:
         (:func:`~pmsm2dof.studies.autotune_search.autotune`), so that the others were not needed.
     worst : dict
         Worst case of each figure of :data:`FIGURES` known at this stage, over the inertia ratios
-        checked (the margins at all :data:`~pmsm2dof.studies.autotune_search.N_J_CHECK`, the simulated ones at
+        checked (the margins at all :data:`~pmsm2dof.studies.autotune_space.N_J_CHECK`, the simulated ones at
         those simulated).
     worst_J_ratio : dict
         The inertia ratio of each worst case.

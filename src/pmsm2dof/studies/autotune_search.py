@@ -26,13 +26,13 @@ with a slow recovery (for a response that does not overshoot, the IAE is ``dT / 
    runs in the coordinates (zeta, alpha as a fraction of the edge, ``Ka Kp``, m): a coarse grid
    first, then a pattern search around the best point with shrinking steps, which follows the
    edge where it bends;
-4. the best design is simulated again at :data:`N_J_CHECK` inertia ratios spread over the range;
+4. the best design is simulated again at ``N_J_CHECK`` inertia ratios spread over the range;
    one that fails there is rejected and the next best checked.
 
 A candidate whose current command chatters in a simulation (``chatter_share`` above
 :data:`pmsm2dof.sim.metrics.CHATTER_SHARE_MAX`: a limit cycle, whatever its figures) is rejected.
-When the chosen design lies on a bound of the search (:data:`ZETA_RANGE`, :data:`KA_KP_RANGE`,
-:data:`M_RANGE`, or the stability and sampling bound of alpha), :attr:`AutotuneResult.on_bounds`
+When the chosen design lies on a bound of the search (``ZETA_RANGE``, ``KA_KP_RANGE``,
+``M_RANGE``, or the stability and sampling bound of alpha), :attr:`AutotuneResult.on_bounds`
 says so: the best design may lie beyond it. The scenario's own design is checked as
 ``pmsm2dof design`` checks it (:func:`pmsm2dof.studies.loopcheck.sampled_loop`), and a warning
 given when its sampled loop is unstable.
@@ -41,7 +41,8 @@ When no candidate meets the specification the result says so (``feasible`` False
 returned is the one that misses it least, and :attr:`AutotuneResult.binding` names the
 constraint it misses most and by how much.
 
-The specification, the candidates and the result are those of :mod:`pmsm2dof.studies.autotune`.
+The specification, the candidates and the result are those of :mod:`pmsm2dof.studies.autotune`; the grids
+and bounds of the search (``ZETA_RANGE``, ``N_J_CHECK``, ...) those of :mod:`pmsm2dof.studies.autotune_space`.
 """
 
 import contextlib
@@ -74,45 +75,31 @@ from .autotune import (
     pareto_front,
     run_figures,
 )
+from .autotune_space import (
+    ALPHA_DECADES,
+    ALPHA_FRACTIONS,
+    CHECK_MAX,
+    COMPLETE_BATCH,
+    EDGE_BACKOFF,
+    EDGE_STEPS,
+    KA_KP_GRID,
+    KA_KP_RANGE,
+    M_GRID,
+    M_RANGE,
+    N_ALPHA,
+    N_J_CHECK,
+    REFINE_ROUNDS,
+    REFINE_STEP_MIN,
+    STEP_FIRST,
+    ZETA_GRID,
+    ZETA_RANGE,
+    J_ratios,
+)
 from .engine import Outcome, Run, check_options, connect, local_threads, run_many
 from .loopcheck import sampled_loop
 
 if TYPE_CHECKING:
     from concurrent.futures import ThreadPoolExecutor
-
-#: Inertia ratios at which the margins are checked, and the best design is simulated again.
-N_J_CHECK = 9
-#: Relative damping of the coarse grid (eq 9).
-ZETA_GRID = (0.3, 0.45, 0.67, 1.0, 1.4, 2.0)
-#: Bandwidths of the coarse grid as fractions of the edge (the largest alpha the margins allow).
-ALPHA_FRACTIONS = (1.0, 0.7, 0.4, 0.15)
-#: Decades below the stability and sampling bound where the edge is sought (and the grid's
-#: bandwidths lie when no bandwidth meets the margins: then log-spaced, :data:`N_ALPHA`).
-ALPHA_DECADES = 2.5
-N_ALPHA = 7
-#: Bisection steps of the edge (a precision of ``ALPHA_DECADES / 2**EDGE_STEPS`` decades).
-EDGE_STEPS = 10
-#: Factor by which the edge steps down where it misses a margin between the ends of the range.
-EDGE_BACKOFF = 0.97
-#: First step of the pattern search (a factor on zeta, the fraction of the edge, Ka Kp and m).
-STEP_FIRST = 1.25
-#: Back-calculation gain of the coarse grid, ``Ka Kp`` (1 is the paper's Ka = 1/Kp, section 3.3).
-KA_KP_GRID = (0.5, 1.0, 2.0, 4.0)
-#: Tracking pole factors of the coarse grid for the feedforwards of eq 11 (``no_tau``, ``full``).
-M_GRID = (0.5, 1.0, 2.0)
-#: Bounds of the search: zeta, ``Ka Kp`` and m (alpha: :meth:`_Search.alpha_max_radps`).
-ZETA_RANGE = (0.3, 2.0)
-KA_KP_RANGE = (0.1, 10.0)
-M_RANGE = (0.25, 4.0)
-#: Most rounds of the pattern search around the best point, and its smallest step (a factor).
-REFINE_ROUNDS = 12
-REFINE_STEP_MIN = 1.01
-#: Most "partial" candidates :meth:`_Search.best` simulates at the other inertia ratios at a time, those of
-#: best bound first: enough for the engine's threads, few enough that the best of them raises the bar
-#: for the rest.
-COMPLETE_BATCH = 4
-#: Largest number of best designs simulated again over the inertia range.
-CHECK_MAX = 20
 
 
 def _sig(x: float) -> float:
@@ -124,33 +111,6 @@ def _sig_down(x: float) -> float:
     """``x > 0`` rounded down to 4 significant digits (a bandwidth at the edge stays inside it)."""
     unit = 10.0 ** (math.floor(math.log10(x)) - 3)
     return float(f"{math.floor(x / unit * (1.0 + 1e-12)) * unit:.4g}")
-
-
-def J_ratios(J_range: tuple[float, float], n: int) -> tuple[float, ...]:
-    """``n`` inertia ratios log-spaced over ``J_range``, both ends included (one for a point range)."""
-    lo, hi = J_range
-    if lo == hi:
-        return (lo,)
-    return tuple(float(r) for r in np.geomspace(lo, hi, n))
-
-
-def runs_bound(scenario: Scenario, spec: Spec) -> int:
-    """The most simulations :func:`autotune` can make for ``scenario`` and ``spec``: a bound on its work.
-
-    The coarse grid, :data:`REFINE_ROUNDS` rounds of at most 81 neighbours, each at the 3 inertia
-    ratios of the search, and at most :data:`CHECK_MAX` final checks at :data:`N_J_CHECK` ratios.
-    """
-    sc = scenario.speed_controller
-    forms = list(itertools.product(spec.feedforwards or (sc.feedforward,), spec.anti_windups or (sc.anti_windup,)))
-    grid = 0
-    neighbours = 0
-    for ff, aw in forms:
-        n_m = len(M_GRID) if ff in ("no_tau", "full") else 1
-        n_ka = len(KA_KP_GRID) if aw == "back_calculation" else 1
-        grid += len(ZETA_GRID) * max(len(ALPHA_FRACTIONS), N_ALPHA) * n_m * n_ka
-        neighbours = max(neighbours, 9 * (3 if n_m > 1 else 1) * (3 if n_ka > 1 else 1))
-    n_search = len(J_ratios(spec.J_range, 3))
-    return (grid + REFINE_ROUNDS * neighbours) * n_search + CHECK_MAX * len(J_ratios(spec.J_range, N_J_CHECK))
 
 
 class _Search:
@@ -247,7 +207,7 @@ class _Search:
         return Candidate(alpha_radps, zeta, m, Ka, ff, aw)
 
     def in_space(self, c: Candidate) -> bool:
-        """Whether ``c`` lies in the searched box (:data:`ZETA_RANGE`, :data:`KA_KP_RANGE`, :data:`M_RANGE`, alpha)."""
+        """Whether ``c`` lies in the searched box (``ZETA_RANGE``, ``KA_KP_RANGE``, ``M_RANGE``, alpha)."""
         Ka_Kp = c.Ka * self.J_design_kgm2 * c.alpha_radps
         return (
             c.alpha_radps <= self.alpha_max_radps(c.zeta, c.m) * (1.0 + 1e-9)
@@ -462,7 +422,7 @@ class _Search:
 
         The same as if every candidate had been simulated at every inertia ratio of the search: a
         ``"partial"`` candidate whose bound ranks it before the best complete one is simulated at
-        the other ratios (:data:`COMPLETE_BATCH` at a time, best bound first), until the best is complete.
+        the other ratios (``COMPLETE_BATCH`` at a time, best bound first), until the best is complete.
         """
         while True:
             pool = self.evaluations()
@@ -481,10 +441,10 @@ class _Search:
 def bounds_reached(search: "_Search", c: Candidate) -> tuple[str, ...]:
     """The bounds of the search that the candidate ``c`` lies on, one sentence each.
 
-    ``zeta`` at an end of :data:`ZETA_RANGE`; ``alpha`` at :meth:`_Search.alpha_max_radps`, the
+    ``zeta`` at an end of ``ZETA_RANGE``; ``alpha`` at :meth:`_Search.alpha_max_radps`, the
     stability and sampling bound (the margins' edge below it is a constraint, not a bound);
-    ``m`` at an end of :data:`M_RANGE` (feedforwards ``no_tau``, ``full``); ``Ka Kp`` at an end of
-    :data:`KA_KP_RANGE` (back calculation). Within the rounding of the keys to 4 digits.
+    ``m`` at an end of ``M_RANGE`` (feedforwards ``no_tau``, ``full``); ``Ka Kp`` at an end of
+    ``KA_KP_RANGE`` (back calculation). Within the rounding of the keys to 4 digits.
     """
 
     def at(value: float, lo: float, hi: float) -> str:

@@ -56,7 +56,7 @@ CHUNK_STEPS = 50_000
 #: Most shaded spans a limit gets on the page: beyond, the spans closest together merge.
 SPANS_MAX = 40
 #: Most plant integration steps one suggestion may take over all the simulations the autotuner
-#: can make (:func:`pmsm2dof.studies.autotune_search.runs_bound` times the steps of one run).
+#: can make (:func:`pmsm2dof.studies.autotune_space.runs_bound` times the steps of one run).
 SUGGEST_STEPS_MAX = 5 * 10**8
 #: The specification a suggestion takes (:class:`pmsm2dof.studies.autotune.Spec` fields; the forms
 #: searched are the experiment's feedforward and anti-windup).
@@ -379,7 +379,8 @@ class Tuner:
             could take more than :data:`SUGGEST_STEPS_MAX` integration steps.
         """
         from ...studies.autotune import Spec
-        from ...studies.autotune_search import autotune, runs_bound
+        from ...studies.autotune_search import autotune
+        from ...studies.autotune_space import runs_bound
 
         for key in body:
             if key not in ("values", "spec"):
