@@ -177,7 +177,10 @@ def guide_commands(block):
 )
 def test_the_chain_on_qemu(tmp_path, monkeypatch, capsys):
     """The guide's chain, its commands as written with QEMU's link for ``$LINK``, on the firmware of the bench
-    drive on QEMU's virtual board (a TCP serial link): the identified J within 2 %, the final run meeting the spec."""
+    drive on QEMU's virtual board (a TCP serial link): the identified J within 2 %, the final run meeting the spec.
+
+    ``drive identify --electrical`` is left out here: on QEMU it is tests/test_drive_electrical.py's (a hidden
+    salient motor, against the engine's accuracy), and it would double this test's time (40 of 107 s)."""
     from pmsm2dof.drive.serve import serve_qemu
     from pmsm2dof.studies.firmware import build_firmware
     from pmsm2dof.ui.cli import main
@@ -186,6 +189,7 @@ def test_the_chain_on_qemu(tmp_path, monkeypatch, capsys):
     assert [c[:3] for c in commands] == [["drive", "commission", "--out"], ["drive", "identify", "--electrical"],
             ["drive", "identify", "--motor"], ["autotune", "identified/identified.toml", "--J-range"],
             ["drive", "set", "--scenario"], ["drive", "run", "tuned/scenario.toml"]]  # fmt: skip
+    commands = [c for c in commands if c[:3] != ["drive", "identify", "--electrical"]]
     hidden = load_scenario(str(ROOT / "examples" / "bench" / "drive.toml"))
     folder = build_firmware(hidden, tmp_path / "fw").folder
     monkeypatch.chdir(tmp_path)
@@ -203,9 +207,6 @@ def test_the_chain_on_qemu(tmp_path, monkeypatch, capsys):
     print("\n" + "\n".join(walls))
     found = json.loads((tmp_path / "identified" / "identify.json").read_text())
     assert found["J_kgm2"] == pytest.approx(hidden.motor.J_kgm2, rel=0.02)
-    electrical = json.loads((tmp_path / "electrical" / "identify.json").read_text())
-    for key in ("Rs_ohm", "Ld_H", "Lq_H", "psi_f_Wb"):
-        assert electrical[key] == pytest.approx(getattr(hidden.motor, key), rel=0.02), key
     verdict = json.loads((tmp_path / "verified" / "metrics.json").read_text())["spec"]
     assert verdict["met"] is True, verdict
     print(f"  J {found['J_kgm2']:.6g}; the drive's figures {verdict['figures']}")
