@@ -56,7 +56,7 @@ FUZZ_RUNS = {
     "speed": 80_000,
     "speed_fixed": 20_000,
     "current": 110_000,
-    "commission": 18_000,
+    "commission": 6_000,
     "encoder": 100_000,
     "field_weakening": 48_000,
     "inertia": 60_000,
